@@ -1,0 +1,83 @@
+"""Checks of user-supplied parameters, each failing with one clear line.
+
+Every message names the parameter and the violated condition, so the CLI can
+print it as is. Checks run only on concrete values: inside ``jit``/``vmap`` the
+fields are tracers and the checks are skipped (they already ran when the
+concrete object was built).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def is_concrete(value: Any) -> bool:
+    """True when ``value`` can be converted to NumPy (it is not a JAX tracer)."""
+    try:
+        np.asarray(value)
+    except Exception:  # jax tracers raise TracerArrayConversionError (a TypeError subclass)
+        return False
+    return True
+
+
+def vector(name: str, value: Any, size: int = 3) -> np.ndarray:
+    """Broadcast a scalar or sequence to a float vector of ``size``, or fail naming ``name``."""
+    array = np.asarray(value, dtype=float)
+    if array.ndim == 0:
+        array = np.full(size, float(array))
+    if array.shape != (size,):
+        raise ValueError(f"{name} must be a scalar or have {size} entries; got shape {array.shape}")
+    return array
+
+
+def finite(name: str, value: Any) -> None:
+    """Fail unless every entry of ``value`` is finite."""
+    if is_concrete(value) and not np.all(np.isfinite(np.asarray(value, dtype=float))):
+        raise ValueError(f"{name} must be finite; got {np.asarray(value).tolist()}")
+
+
+def positive(name: str, value: Any, *, allow_zero: bool = False) -> None:
+    """Fail unless every entry of ``value`` is > 0 (or >= 0 with ``allow_zero``)."""
+    if not is_concrete(value):
+        return
+    finite(name, value)
+    array = np.asarray(value, dtype=float)
+    bad = array < 0 if allow_zero else array <= 0
+    if np.any(bad):
+        condition = "non-negative" if allow_zero else "positive"
+        raise ValueError(f"{name} must be {condition}; got {_fmt(array)}")
+
+
+def symmetric_positive_definite(name: str, matrix: Any) -> None:
+    """Fail unless ``matrix`` is a symmetric positive-definite 3x3 matrix."""
+    if not is_concrete(matrix):
+        return
+    finite(name, matrix)
+    array = np.asarray(matrix, dtype=float)
+    if array.shape != (3, 3):
+        raise ValueError(f"{name} must be a 3x3 matrix; got shape {array.shape}")
+    scale = max(np.abs(array).max(), np.finfo(float).tiny)
+    asymmetry = np.abs(array - array.T).max()
+    if asymmetry > 1e-9 * scale:
+        raise ValueError(f"{name} must be symmetric; max |{name} - {name}^T| is {asymmetry:.3g}")
+    smallest = np.linalg.eigvalsh(array).min()
+    if smallest <= 0:
+        raise ValueError(
+            f"{name} must be symmetric positive definite; its smallest eigenvalue is {smallest:.3g}"
+        )
+
+
+def square(name: str, matrix: Any, *, size: int = 3) -> None:
+    """Fail unless ``matrix`` is a finite ``size`` x ``size`` matrix."""
+    if not is_concrete(matrix):
+        return
+    finite(name, matrix)
+    shape = np.shape(matrix)
+    if shape != (size, size):
+        raise ValueError(f"{name} must be a {size}x{size} matrix; got shape {shape}")
+
+
+def _fmt(array: np.ndarray) -> str:
+    return np.array2string(np.atleast_1d(array), precision=4, separator=", ")

@@ -1,0 +1,81 @@
+"""Metrics on simulation results: estimation errors, RMS, settling time, decay rate."""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from lookout._math import ssa
+
+STATES = ("eta", "nu", "bias", "wave")
+ANGLE_STATES = ("eta", "wave")  # yaw component is an angle: differences through ssa
+
+
+def estimation_errors(ds: xr.Dataset) -> xr.Dataset:
+    """Truth minus estimate for eta, nu, bias, wave; yaw angles wrapped with ssa."""
+    errors = {}
+    for name in STATES:
+        error = ds[name] - ds[f"{name}_hat"]
+        if name in ANGLE_STATES:
+            yaw = xr.apply_ufunc(lambda a: np.asarray(ssa(a)), error.sel(dof="yaw"))
+            error = xr.concat([error.sel(dof=["surge", "sway"]), yaw.expand_dims(dof=["yaw"])], dim="dof")
+            error = error.transpose(*ds[name].dims)
+        errors[name] = error.assign_attrs(units=ds[name].attrs.get("units", ""))
+    return xr.Dataset(errors)
+
+
+def rms_over(errors: xr.Dataset, start: float) -> xr.Dataset:
+    """RMS of each error over time >= ``start`` (s)."""
+    window = errors.sel(time=errors.time >= start)
+    return np.sqrt((window**2).mean("time"))
+
+
+def settling_time(error: np.ndarray, time: np.ndarray, final_rms: float, *, window: float, tolerance: float = 0.10) -> float:
+    """First time after which the moving RMS of ``error`` stays within (1 + tolerance) x ``final_rms``.
+
+    The moving RMS uses a centred window of ``window`` seconds, so wave-frequency
+    oscillations of a converged error do not count as unsettled. Returns NaN if the
+    error never settles.
+    """
+    dt = float(time[1] - time[0])
+    width = max(1, int(round(window / dt)))
+    power = np.convolve(error**2, np.ones(width) / width, mode="same")
+    moving = np.sqrt(power)
+    outside = np.nonzero(moving > (1.0 + tolerance) * final_rms)[0]
+    if outside.size == 0:
+        return float(time[0])
+    last = outside[-1]
+    return float(time[last + 1]) if last + 1 < time.size else float("nan")
+
+
+def fit_decay_rate(time, magnitude, *, upper: float = 1e-1, lower: float = 1e-9) -> dict:
+    """Fit ``magnitude ~ c exp(-rate t)`` by least squares on log(magnitude).
+
+    Uses the samples between the first time the magnitude falls below ``upper``
+    times its initial value and the first time it falls below ``lower`` times it
+    (after the initial transient, before round-off).
+
+    Returns
+    -------
+    dict
+        ``rate`` (1/s), ``time_constant`` (s), ``r_squared``, ``t_start``, ``t_end``.
+    """
+    time = np.asarray(time, dtype=float)
+    magnitude = np.asarray(magnitude, dtype=float)
+    initial = magnitude[0]
+    if not initial > 0:
+        raise ValueError("magnitude must start positive to fit a decay rate")
+    relative = magnitude / initial
+    below_upper = np.nonzero(relative < upper)[0]
+    if below_upper.size == 0:
+        raise ValueError(f"magnitude never falls below {upper:g} of its initial value; cannot fit a decay")
+    first = below_upper[0]
+    below_lower = np.nonzero(relative < lower)[0]
+    last = below_lower[0] if below_lower.size else relative.size
+    t, y = time[first:last], np.log(relative[first:last])
+    if t.size < 3:
+        raise ValueError("too few samples between the fit bounds to fit a decay rate")
+    slope, intercept = np.polyfit(t, y, 1)
+    fitted = slope * t + intercept
+    r_squared = 1.0 - np.sum((y - fitted) ** 2) / np.sum((y - y.mean()) ** 2)
+    return {"rate": float(-slope), "time_constant": float(-1.0 / slope), "r_squared": float(r_squared), "t_start": float(t[0]), "t_end": float(t[-1])}

@@ -1,0 +1,321 @@
+"""Stability analysis of the passive observer: tuning rule, SPR, KYP, frequency response.
+
+Fossen & Strand (1999), Section 5. With diagonal gains the position/bias error
+dynamics decouple into three single-input single-output loops, one per DOF, from
+``eps_v_i`` (the i-th component of J(y) nu~) to ``z~_i = kappa_i y~_i - gamma b~_i``
+(eqs. 33–37). Per DOF, with state ``x = [xi1~, xi2~, eta~, b~]`` and
+``y~ = xi2~ + eta~``::
+
+    xi1~' = xi2~ - k1 y~
+    xi2~' = -w0^2 xi1~ - 2 zeta w0 xi2~ - k2 y~
+    eta~' = eps_v - k3 y~
+    b~'   = -b~ / T - (lambda / gamma) y~
+    z~    = kappa y~ - gamma b~
+
+Its transfer function is ``h(s) = hB(s) h0(s)`` with h0 of eq. (42) and
+``hB(s) = kappa + lambda / (s + 1/T)`` (eq. 43, exact form; gamma cancels).
+The observer is GES (Theorem 1) when each h is strictly positive real.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import scipy.linalg
+import xarray as xr
+
+from lookout.models.vessel import DOF
+from lookout.observers.passive import PassiveObserver
+
+
+def _gains(observer: PassiveObserver) -> dict[str, np.ndarray]:
+    k = np.asarray(observer.wave_injection_gain)
+    return {
+        "w0": np.asarray(observer.wave_frequency),
+        "zeta": np.asarray(observer.wave_damping),
+        "k1": k[:3],
+        "k2": k[3:],
+        "k3": np.asarray(observer.position_injection_gain),
+        "kappa": np.asarray(observer.velocity_injection_gain),
+        "lam": np.asarray(observer.bias_injection_gain),
+        "T": np.asarray(observer.bias_time_constant),
+        "gamma": float(observer.lyapunov_weight),
+    }
+
+
+def error_loop(observer: PassiveObserver, dof: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """State-space (A, B, C) of the position/bias error loop of one DOF (eq. 37).
+
+    Parameters
+    ----------
+    observer : PassiveObserver
+    dof : int
+        0 (surge), 1 (sway) or 2 (yaw).
+
+    Returns
+    -------
+    tuple of ndarray
+        A (4x4), B (4x1), C (1x4) for the state [xi1~, xi2~, eta~, b~].
+    """
+    g = _gains(observer)
+    w0, zeta, k1, k2, k3 = (g[n][dof] for n in ("w0", "zeta", "k1", "k2", "k3"))
+    kappa, lam, T, gamma = g["kappa"][dof], g["lam"][dof], g["T"][dof], g["gamma"]
+    A = np.array(
+        [
+            [0.0, 1.0 - k1, -k1, 0.0],
+            [-(w0**2), -2.0 * zeta * w0 - k2, -k2, 0.0],
+            [0.0, -k3, -k3, 0.0],
+            [0.0, -lam / gamma, -lam / gamma, -1.0 / T],
+        ]
+    )
+    B = np.array([[0.0], [0.0], [1.0], [0.0]])
+    C = np.array([[0.0, kappa, kappa, -gamma]])
+    return A, B, C
+
+
+def transfer_functions(observer: PassiveObserver, frequencies) -> dict[str, np.ndarray]:
+    """h0(jw), hB(jw) and h(jw) per DOF, each of shape (n_frequencies, 3)."""
+    w = np.asarray(frequencies, dtype=float)
+    g = _gains(observer)
+    s = 1j * w[:, None]
+    w0, zeta, k1, k2, k3 = g["w0"], g["zeta"], g["k1"], g["k2"], g["k3"]
+    # Fossen & Strand (1999), eq. (42)
+    numerator = s**2 + 2.0 * zeta * w0 * s + w0**2
+    denominator = s**3 + (k2 + k3 + 2.0 * zeta * w0) * s**2 + (w0**2 + 2.0 * zeta * w0 * k3 - k1 * w0**2) * s + w0**2 * k3
+    h0 = numerator / denominator
+    # eq. (43), exact form
+    hB = g["kappa"] + g["lam"] / (s + 1.0 / g["T"])
+    return {"h0": h0, "hB": hB, "h": h0 * hB}
+
+
+def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Dataset:
+    """Bode data of h0, hB and h (as in Fig. 6) as an xarray Dataset.
+
+    Parameters
+    ----------
+    observer : PassiveObserver
+    frequencies : array_like, optional
+        rad/s; default 400 log-spaced points from 1e-5 to 1e2.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``<name>_magnitude`` and ``<name>_phase_deg`` for name in h0, hB, h, with
+        dims (frequency, dof). Export with ``.to_netcdf`` or ``.to_dataframe().to_csv``.
+    """
+    if frequencies is None:
+        frequencies = np.logspace(-5, 2, 400)
+    frequencies = np.asarray(frequencies, dtype=float)
+    if frequencies.ndim != 1 or np.any(~np.isfinite(frequencies)) or np.any(frequencies <= 0):
+        raise ValueError("frequencies must be a 1-D array of positive finite values (rad/s)")
+    responses = transfer_functions(observer, frequencies)
+    data = {}
+    for name, value in responses.items():
+        data[f"{name}_magnitude"] = (("frequency", "dof"), np.abs(value), {"units": "1" if name == "h0" else "N/m"})
+        data[f"{name}_phase_deg"] = (("frequency", "dof"), np.degrees(np.angle(value)), {"units": "deg"})
+    coords = {"frequency": ("frequency", frequencies, {"units": "rad/s"}), "dof": list(DOF)}
+    return xr.Dataset(data, coords=coords)
+
+
+@dataclass
+class Inequality:
+    """One inequality of the tuning rule (48) for one DOF."""
+
+    dof: str
+    relation: str
+    lhs: float
+    rhs: float
+    holds: bool
+    margin: float
+    required_margin: float
+
+    def describe(self) -> str:
+        """One line: the inequality, its values and whether it holds."""
+        verdict = "holds" if self.holds else f"FAILS (ratio {self.margin:.3g}, needs > {self.required_margin:g})"
+        return f"{self.dof}: {self.relation}: {self.lhs:.4g} vs {self.rhs:.4g} -> {verdict}"
+
+
+@dataclass
+class TuningRuleReport:
+    """Result of checking 1/T << lambda/kappa < w_o < w_c (eq. 48) per DOF."""
+
+    inequalities: list[Inequality] = field(default_factory=list)
+    much_less_factor: float = 10.0
+
+    @property
+    def holds(self) -> bool:
+        """True when every inequality holds."""
+        return all(item.holds for item in self.inequalities)
+
+    @property
+    def failures(self) -> list[Inequality]:
+        """The inequalities that fail."""
+        return [item for item in self.inequalities if not item.holds]
+
+    def to_dict(self) -> dict:
+        """JSON-ready form."""
+        return {
+            "holds": self.holds,
+            "much_less_factor": self.much_less_factor,
+            "inequalities": [asdict(item) for item in self.inequalities],
+        }
+
+
+def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10.0) -> TuningRuleReport:
+    """Check the tuning rule of Fossen & Strand (1999), eq. (48), per DOF.
+
+    ``1/T_i << lambda_i/kappa_i < w_oi < w_ci``, with w_c the position gain k3
+    (eq. 47). "<<" is read as "smaller by at least ``much_less_factor``".
+
+    Returns
+    -------
+    TuningRuleReport
+        Every inequality with its two sides, the ratio rhs/lhs and the verdict.
+    """
+    if not much_less_factor >= 1:
+        raise ValueError(f"much_less_factor must be >= 1; got {much_less_factor}")
+    g = _gains(observer)
+    report = TuningRuleReport(much_less_factor=much_less_factor)
+    for i, dof in enumerate(DOF):
+        corner = g["lam"][i] / g["kappa"][i]
+        chain = [
+            ("1/T << lambda/kappa", 1.0 / g["T"][i], corner, much_less_factor),
+            ("lambda/kappa < w_o", corner, g["w0"][i], 1.0),
+            ("w_o < w_c", g["w0"][i], g["k3"][i], 1.0),
+        ]
+        for relation, lhs, rhs, needed in chain:
+            margin = rhs / lhs
+            holds = margin >= needed if needed > 1 else margin > 1.0
+            report.inequalities.append(Inequality(dof, relation, float(lhs), float(rhs), bool(holds), float(margin), needed))
+    return report
+
+
+@dataclass
+class SPRReport:
+    """SPR verdict for one DOF's loop h = hB h0, and its KYP certificate."""
+
+    dof: str
+    hurwitz: bool
+    min_real_part: float
+    min_real_part_frequency: float
+    min_phase_deg: float
+    high_frequency_limit: float
+    spr: bool
+    certificate: dict | None = None
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (the certificate's matrices as nested lists)."""
+        return asdict(self)
+
+
+def check_spr(observer: PassiveObserver, *, frequencies=None, certificate: bool = True) -> list[SPRReport]:
+    """Check that each decoupled loop h_i(s) = hB_i(s) h0_i(s) is strictly positive real.
+
+    Conditions (Khalil 1996, Lemma 6.1, for strictly proper h = C (sI - A)^-1 B):
+    A Hurwitz; Re h(jw) > 0 on a dense grid (default 20,000 log-spaced points
+    from 1e-7 to 1e4 rad/s plus the notch frequency); and
+    ``lim w^2 Re h(jw) = -C A B > 0``. Where the loop is SPR, a KYP certificate
+    (P = P^T > 0, Q = Q^T > 0 with PA + A^T P = -Q and B^T P = C, eqs. 38–39) is
+    computed by :func:`kyp_certificate` and verified.
+
+    Returns
+    -------
+    list of SPRReport
+        One per DOF.
+    """
+    g = _gains(observer)
+    if frequencies is None:
+        frequencies = np.logspace(-7, 4, 20000)
+    reports = []
+    for i, dof in enumerate(DOF):
+        w = np.sort(np.concatenate([np.asarray(frequencies, dtype=float), [g["w0"][i]]]))
+        A, B, C = error_loop(observer, i)
+        hurwitz = bool(np.linalg.eigvals(A).real.max() < 0)
+        h = transfer_functions(observer, w)["h"][:, i]
+        real = h.real
+        j = int(np.argmin(real))
+        limit = float(-(C @ A @ B).item())
+        spr = hurwitz and bool(real.min() > 0) and limit > 0
+        report = SPRReport(
+            dof=dof,
+            hurwitz=hurwitz,
+            min_real_part=float(real[j]),
+            min_real_part_frequency=float(w[j]),
+            min_phase_deg=float(np.degrees(np.angle(h)).min()),
+            high_frequency_limit=limit,
+            spr=spr,
+        )
+        if spr and certificate:
+            report.certificate = kyp_certificate(observer, i)
+        reports.append(report)
+    return reports
+
+
+def _normalized_min_eig(matrix: np.ndarray) -> float:
+    """Smallest eigenvalue of D X D with D = diag(X)^-1/2: scale-free test of X > 0."""
+    diagonal = np.diag(matrix)
+    if np.any(diagonal <= 0):
+        return float(diagonal.min())
+    scale = 1.0 / np.sqrt(diagonal)
+    return float(np.linalg.eigvalsh(scale[:, None] * matrix * scale[None, :])[0])
+
+
+def kyp_certificate(observer: PassiveObserver, dof: int) -> dict:
+    """Compute and verify P = P^T > 0 with PA + A^T P = -Q, Q > 0, B^T P = C (eqs. 38–39).
+
+    Method (constructive form of the strict KYP lemma, Khalil 1996, Lemma 6.3):
+    states are scaled (b' = gamma b~ / kappa, output divided by kappa) so entries
+    are of order one; the positive-real Riccati equation of the shifted loop
+    ``C (sI - A - mu I)^-1 B + d`` with a small feedthrough d is solved; as d -> 0
+    its solution meets B^T P = C up to O(sqrt(d)), and since B = e3 that row of P
+    is then set to C exactly. Shift ``mu`` and ``d`` are tried from a short list
+    until P > 0 and Q > 0 are verified in the original coordinates.
+
+    Returns
+    -------
+    dict
+        ``P``, ``Q`` (original coordinates, nested lists), ``min_eig_P`` and
+        ``min_eig_Q`` (of the diagonally normalized matrices, scale-free),
+        ``residual_output`` (max |B^T P - C| / max |C|) and ``verified``.
+    """
+    A, B, C = error_loop(observer, dof)
+    kappa = float(C[0, 1])
+    gamma = -float(C[0, 3])
+    S = np.diag([1.0, 1.0, 1.0, gamma / kappa])
+    S_inv = np.linalg.inv(S)
+    As, Cs = S @ A @ S_inv, (C @ S_inv) / kappa
+    margin = -np.linalg.eigvals(As).real.max()
+    best = None
+    for fraction in (0.5, 0.2):
+        for feedthrough in (1e-6, 1e-8, 1e-10, 1e-12):
+            shifted = As + fraction * margin * np.eye(4)
+            try:
+                X = scipy.linalg.solve_continuous_are(
+                    shifted, B, np.zeros((4, 4)), np.array([[-2.0 * feedthrough]]), s=-Cs.T
+                )
+            except (np.linalg.LinAlgError, ValueError):
+                continue
+            Ps = 0.5 * (X + X.T)
+            Ps[2, :] = Cs[0]
+            Ps[:, 2] = Cs[0]
+            P = kappa * S.T @ Ps @ S
+            Q = -(P @ A + A.T @ P)
+            Q = 0.5 * (Q + Q.T)
+            candidate = {
+                "P": P.tolist(),
+                "Q": Q.tolist(),
+                "min_eig_P": _normalized_min_eig(P),
+                "min_eig_Q": _normalized_min_eig(Q),
+                "residual_output": float(np.abs(B.T @ P - C).max() / np.abs(C).max()),
+            }
+            candidate["verified"] = bool(
+                candidate["min_eig_P"] > 0 and candidate["min_eig_Q"] > 0 and candidate["residual_output"] < 1e-8
+            )
+            if best is None or candidate["min_eig_Q"] > best["min_eig_Q"]:
+                best = candidate
+            if candidate["verified"]:
+                return candidate
+    if best is None:
+        return {"P": None, "Q": None, "min_eig_P": float("nan"), "min_eig_Q": float("nan"), "residual_output": float("nan"), "verified": False}
+    return best

@@ -1,0 +1,3 @@
+"""Controllers and open-loop input generators."""
+
+from .open_loop import SinusoidalThrust as SinusoidalThrust

@@ -1,0 +1,152 @@
+"""Three-degree-of-freedom DP vessel with bias and wave-induced motion.
+
+Low-frequency model, Fossen & Strand (1999), eqs. (1)–(3) with the mooring term of
+Calugi, Robertsson & Johansson (2003), eq. (2):
+
+    eta' = J(psi) nu
+    M nu' + D nu + K eta = tau + J(psi)^T b
+
+The bias b follows eq. (7) and the wave-induced motion eqs. (10)–(11); the
+measured output is ``y = eta + eta_w + d`` (eq. 12), see :mod:`lookout.sensors`.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from lookout import _validation as check
+from lookout._math import rotate, rotate_transpose, ssa
+from lookout.environment import GaussMarkovBias, LinearWaveModel
+
+DOF = ("surge", "sway", "yaw")
+
+#: Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57) and Section 6.
+NORTHERN_CLIPPER_MASS = 4.591e6  # kg
+NORTHERN_CLIPPER_LENGTH = 76.2  # m
+NORTHERN_CLIPPER_M = np.diag([5.3122e6, 8.2831e6, 3.7454e9])
+NORTHERN_CLIPPER_D = np.array(
+    [[5.0242e4, 0.0, 0.0], [0.0, 2.7229e5, -4.3933e6], [0.0, -4.3933e6, 4.1894e8]]
+)
+
+
+class VesselState(eqx.Module):
+    """State of the vessel-bias-wave system, or an observer's estimate of it.
+
+    Attributes
+    ----------
+    eta : Array, shape (3,)
+        Earth-fixed low-frequency position and heading [x, y, psi] (m, m, rad).
+    nu : Array, shape (3,)
+        Body-frame velocities [u, v, r] (m/s, m/s, rad/s).
+    bias : Array, shape (3,)
+        Earth-fixed bias forces and moment (N, N, N m).
+    wave_state : Array, shape (6,)
+        Wave model state [xi1, xi2]; the wave-induced motion is ``xi2``.
+    """
+
+    eta: Array
+    nu: Array
+    bias: Array
+    wave_state: Array
+
+    @property
+    def wave(self) -> Array:
+        """First-order wave-induced motion eta_w = Gamma xi = xi2 (m, m, rad)."""
+        return self.wave_state[..., 3:]
+
+    @classmethod
+    def zeros(cls) -> "VesselState":
+        """All-zero state."""
+        return cls(jnp.zeros(3), jnp.zeros(3), jnp.zeros(3), jnp.zeros(6))
+
+    @classmethod
+    def build(cls, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> "VesselState":
+        """State from scalars or sequences, validated and broadcast."""
+        return cls(
+            jnp.asarray(check.vector("eta", eta)),
+            jnp.asarray(check.vector("nu", nu)),
+            jnp.asarray(check.vector("bias", bias)),
+            jnp.asarray(check.vector("wave_state", wave_state, 6)),
+        )
+
+    def wrapped(self) -> "VesselState":
+        """The same state with heading wrapped to [-pi, pi)."""
+        return eqx.tree_at(lambda s: s.eta, self, self.eta.at[2].set(ssa(self.eta[2])))
+
+
+class DPVessel(eqx.Module):
+    """Linear low-frequency 3-DOF vessel model M nu' + D nu + K eta = tau + J^T b.
+
+    Fossen & Strand (1999), eq. (3); stiffness term from Calugi et al. (2003), eq. (2)
+    (heading enters through ssa so a mooring moment does not jump at +-pi).
+
+    Parameters
+    ----------
+    mass_matrix : array_like, shape (3, 3)
+        M including added mass; symmetric positive definite (assumption A1).
+    damping_matrix : array_like, shape (3, 3)
+        Linear damping D.
+    stiffness_matrix : array_like, shape (3, 3), optional
+        Mooring stiffness K (zero for a free-floating DP vessel).
+    """
+
+    mass_matrix: Array
+    damping_matrix: Array
+    stiffness_matrix: Array
+    mass_inverse: Array
+
+    def __init__(self, mass_matrix, damping_matrix, stiffness_matrix=None):
+        check.symmetric_positive_definite("mass_matrix", mass_matrix)
+        check.square("damping_matrix", damping_matrix)
+        if stiffness_matrix is None:
+            stiffness_matrix = jnp.zeros((3, 3))
+        check.square("stiffness_matrix", stiffness_matrix)
+        self.mass_matrix = jnp.asarray(mass_matrix, dtype=float)
+        self.damping_matrix = jnp.asarray(damping_matrix, dtype=float)
+        self.stiffness_matrix = jnp.asarray(stiffness_matrix, dtype=float)
+        self.mass_inverse = jnp.linalg.inv(self.mass_matrix)
+
+    def acceleration(self, eta: Array, nu: Array, tau: Array, bias: Array) -> Array:
+        """nu' = M^{-1} (tau + J^T(psi) b - D nu - K eta)."""
+        eta_wrapped = eta.at[2].set(ssa(eta[2]))
+        force = tau + rotate_transpose(eta[2], bias) - self.damping_matrix @ nu
+        force = force - self.stiffness_matrix @ eta_wrapped
+        return self.mass_inverse @ force
+
+
+def northern_clipper() -> DPVessel:
+    """The supply vessel Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57)."""
+    return DPVessel(NORTHERN_CLIPPER_M, NORTHERN_CLIPPER_D)
+
+
+class VesselPlant(eqx.Module):
+    """Vessel, bias and wave model integrated together as one continuous-time plant.
+
+    The input is ``(tau, noise)``: control forces (N, N, N m) and a 6-vector of unit
+    white noise ``[n, w]`` held over one integration step (the engine scales it by
+    ``1/sqrt(step)`` so the variance per unit time is right).
+
+    Parameters
+    ----------
+    vessel : DPVessel
+    bias : GaussMarkovBias
+    waves : LinearWaveModel
+    """
+
+    vessel: DPVessel
+    bias: GaussMarkovBias
+    waves: LinearWaveModel
+    noise_size: int = eqx.field(static=True, default=6)
+
+    def vector_field(self, t, state: VesselState, tau: Array, noise: Array) -> VesselState:
+        """Time derivative of the plant state (eqs. 1, 3, 7, 11)."""
+        del t
+        return VesselState(
+            eta=rotate(state.eta[2], state.nu),
+            nu=self.vessel.acceleration(state.eta, state.nu, tau, state.bias),
+            bias=self.bias.derivative(state.bias, noise[:3]),
+            wave_state=self.waves.derivative(state.wave_state, noise[3:]),
+        )

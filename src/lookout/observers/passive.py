@@ -1,0 +1,295 @@
+"""Passive nonlinear observer with wave filtering and bias estimation.
+
+Fossen, T. I. and Strand, J. P. (1999), "Passive nonlinear observer design for
+ships using Lyapunov methods", Automatica 35, 3–16. Equations (22)–(26):
+
+    xi_hat'  = Omega xi_hat + K1 y~                                   (22)
+    eta_hat' = J(y) nu_hat + K2 y~                                    (23)
+    b_hat'   = -T^{-1} b_hat + (1/gamma) Lambda y~                    (24)
+    M nu_hat' = -D nu_hat + J^T(y) b_hat + tau + (1/gamma) J^T(y) Kappa y~   (25)
+    y_hat    = eta_hat + Gamma xi_hat,   y~ = y - y_hat              (26)
+
+Choices made where the paper is silent or garbled (see docs/reproductions.md):
+
+* The heading component of ``y~`` is ``ssa(y_psi - y_hat_psi)``, so the observer is
+  continuous across the +-pi wrap of a gyro compass.
+* J(y) is built from the measured heading; if the heading sample is missing it is
+  built from the estimated heading ``y_hat_psi``.
+* A missing (NaN) channel contributes zero innovation: the observer predicts.
+* Gains are stated in SI. The paper's Kappa = diag(0.1, 0.1, 0.01) and
+  Lambda = 0.1 Kappa of eq. (60) are read as gains of the normalized ("bis")
+  model and converted by :func:`injection_gains_from_normalized`.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from lookout import _validation as check
+from lookout._math import rotate, rotate_transpose, ssa
+from lookout.models.vessel import DPVessel, VesselState
+from lookout.sim.integrators import rk4_step
+
+GRAVITY = 9.81
+
+
+def notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency):
+    """Wave-filter gains of Fossen & Strand (1999), eqs. (45)–(47).
+
+    With these gains the position-error transfer function h0_i(s) of eq. (42)
+    equals the notch shape (44)::
+
+        k1_i = -2 (zeta_n_i - zeta_i) w_c_i / w_o_i
+        k2_i =  2 (zeta_n_i - zeta_i) w_o_i
+        k3_i =  w_c_i
+
+    (eq. 45 is garbled in the extracted text; this form is the one that makes
+    (42) equal (44) and reproduces K1 of eq. 59.)
+
+    Parameters
+    ----------
+    wave_frequency : array_like, shape (3,)
+        Dominating wave frequency w_o per DOF (rad/s).
+    wave_damping : array_like, shape (3,)
+        Wave model relative damping zeta.
+    notch_damping : array_like, shape (3,)
+        Notch damping zeta_n > zeta.
+    cutoff_frequency : array_like, shape (3,)
+        Filter cut-off w_c > w_o (rad/s).
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(k1, k2, k3)``, each of shape (3,): K1 = [diag(k1); diag(k2)], K2 = diag(k3).
+    """
+    wave_frequency = check.vector("wave_frequency", wave_frequency)
+    wave_damping = check.vector("wave_damping", wave_damping)
+    notch_damping = check.vector("notch_damping", notch_damping)
+    cutoff_frequency = check.vector("cutoff_frequency", cutoff_frequency)
+    check.positive("wave_frequency", wave_frequency)
+    check.positive("wave_damping", wave_damping)
+    check.positive("cutoff_frequency", cutoff_frequency)
+    if np.any(notch_damping <= wave_damping):
+        raise ValueError(
+            f"notch_damping must exceed wave_damping (zeta_n > zeta); got {notch_damping.tolist()} "
+            f"<= {wave_damping.tolist()}"
+        )
+    if np.any(cutoff_frequency <= wave_frequency):
+        raise ValueError(
+            f"cutoff_frequency must exceed wave_frequency (w_c > w_o); got {cutoff_frequency.tolist()} "
+            f"<= {wave_frequency.tolist()} rad/s"
+        )
+    spread = notch_damping - wave_damping
+    k1 = -2.0 * spread * cutoff_frequency / wave_frequency  # eq. (45)
+    k2 = 2.0 * spread * wave_frequency  # eq. (46)
+    k3 = cutoff_frequency  # eq. (47)
+    return k1, k2, k3
+
+
+def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, gravity=GRAVITY):
+    """Convert Kappa and Lambda from the normalized ("bis") system to SI.
+
+    The bis system scales force by m g, moment by m g L, length by L and time by
+    sqrt(L/g). Kappa maps a position error (m, or rad) to a force (N, or N m) and
+    Lambda maps it to a force rate, so::
+
+        Kappa_SI  = Kappa_bis  * [m g / L, m g / L, m g L]
+        Lambda_SI = Lambda_bis * [m g / L, m g / L, m g L] / sqrt(L / g)
+
+    Parameters
+    ----------
+    velocity_gain, bias_gain : array_like, shape (3,)
+        Diagonals of Kappa and Lambda in bis units.
+    mass : float
+        Vessel mass m (kg).
+    length : float
+        Vessel length L (m).
+    gravity : float
+        g (m/s^2).
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(velocity_gain_si, bias_gain_si)``: N/m, N/m, N m/rad and the same per second.
+    """
+    check.positive("mass", mass)
+    check.positive("length", length)
+    check.positive("gravity", gravity)
+    force = mass * gravity
+    scale = np.array([force / length, force / length, force * length])
+    time_scale = np.sqrt(length / gravity)
+    velocity_gain = check.vector("velocity_injection_gain (normalized)", velocity_gain)
+    bias_gain = check.vector("bias_injection_gain (normalized)", bias_gain)
+    return velocity_gain * scale, bias_gain * scale / time_scale
+
+
+class PassiveObserver(eqx.Module):
+    """Fossen & Strand (1999) passive observer, eqs. (22)–(26), gains in SI.
+
+    Use :meth:`design` to synthesize the wave-filter gains from the wave and notch
+    parameters. The state is a :class:`~lookout.models.VesselState` of estimates.
+
+    Parameters
+    ----------
+    mass_matrix, damping_matrix : array_like, shape (3, 3)
+        The observer's model M (symmetric positive definite) and D.
+    wave_frequency, wave_damping : array_like, shape (3,)
+        Wave model Omega of the observer (rad/s, -).
+    wave_injection_gain : array_like, shape (6,)
+        Diagonals of K1: [k1_1, k1_2, k1_3, k2_1, k2_2, k2_3] (eq. 40).
+    position_injection_gain : array_like, shape (3,)
+        Diagonal of K2, 1/s.
+    velocity_injection_gain : array_like, shape (3,)
+        Diagonal of Kappa: N/m, N/m, N m/rad.
+    bias_injection_gain : array_like, shape (3,)
+        Diagonal of Lambda: N/(m s), N/(m s), N m/(rad s).
+    bias_time_constant : array_like, shape (3,)
+        Diagonal of T (s).
+    lyapunov_weight : float
+        gamma > 0, the weight of the kinetic-energy term of the Lyapunov function (49).
+    """
+
+    mass_matrix: Array
+    damping_matrix: Array
+    mass_inverse: Array
+    wave_frequency: Array
+    wave_damping: Array
+    wave_injection_gain: Array
+    position_injection_gain: Array
+    velocity_injection_gain: Array
+    bias_injection_gain: Array
+    bias_time_constant: Array
+    lyapunov_weight: Array
+
+    def __init__(
+        self,
+        mass_matrix,
+        damping_matrix,
+        wave_frequency,
+        wave_damping,
+        wave_injection_gain,
+        position_injection_gain,
+        velocity_injection_gain,
+        bias_injection_gain,
+        bias_time_constant,
+        lyapunov_weight=1.0,
+    ):
+        check.symmetric_positive_definite("mass_matrix", mass_matrix)
+        check.square("damping_matrix", damping_matrix)
+        self.mass_matrix = jnp.asarray(mass_matrix, dtype=float)
+        self.damping_matrix = jnp.asarray(damping_matrix, dtype=float)
+        self.mass_inverse = jnp.linalg.inv(self.mass_matrix)
+        self.wave_frequency = jnp.asarray(check.vector("wave_frequency", wave_frequency))
+        self.wave_damping = jnp.asarray(check.vector("wave_damping", wave_damping))
+        self.wave_injection_gain = jnp.asarray(check.vector("wave_injection_gain", wave_injection_gain, 6))
+        self.position_injection_gain = jnp.asarray(check.vector("position_injection_gain", position_injection_gain))
+        self.velocity_injection_gain = jnp.asarray(check.vector("velocity_injection_gain", velocity_injection_gain))
+        self.bias_injection_gain = jnp.asarray(check.vector("bias_injection_gain", bias_injection_gain))
+        self.bias_time_constant = jnp.asarray(check.vector("bias_time_constant", bias_time_constant))
+        self.lyapunov_weight = jnp.asarray(float(lyapunov_weight))
+
+    def __check_init__(self):
+        check.positive("wave_frequency", self.wave_frequency)
+        check.positive("wave_damping", self.wave_damping)
+        check.finite("wave_injection_gain", self.wave_injection_gain)
+        check.positive("position_injection_gain", self.position_injection_gain)
+        check.positive("velocity_injection_gain", self.velocity_injection_gain)
+        check.positive("bias_injection_gain", self.bias_injection_gain)
+        check.positive("bias_time_constant", self.bias_time_constant)
+        check.positive("lyapunov_weight", self.lyapunov_weight)
+
+    @classmethod
+    def design(
+        cls,
+        vessel: DPVessel,
+        *,
+        wave_frequency,
+        wave_damping,
+        notch_damping,
+        cutoff_frequency,
+        velocity_injection_gain,
+        bias_injection_gain,
+        bias_time_constant,
+        lyapunov_weight=1.0,
+    ) -> "PassiveObserver":
+        """Observer for ``vessel`` with K1, K2 from eqs. (45)–(47); other gains in SI."""
+        k1, k2, k3 = notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency)
+        return cls(
+            vessel.mass_matrix,
+            vessel.damping_matrix,
+            wave_frequency=wave_frequency,
+            wave_damping=wave_damping,
+            wave_injection_gain=np.concatenate([k1, k2]),
+            position_injection_gain=k3,
+            velocity_injection_gain=velocity_injection_gain,
+            bias_injection_gain=bias_injection_gain,
+            bias_time_constant=bias_time_constant,
+            lyapunov_weight=lyapunov_weight,
+        )
+
+    def wave_injection_matrix(self) -> np.ndarray:
+        """K1 as the 6x3 matrix of eq. (40)."""
+        gains = np.asarray(self.wave_injection_gain)
+        return np.vstack([np.diag(gains[:3]), np.diag(gains[3:])])
+
+    def position_injection_matrix(self) -> np.ndarray:
+        """K2 as the 3x3 matrix of eq. (41)."""
+        return np.diag(np.asarray(self.position_injection_gain))
+
+    def init(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+        """Initial estimate (zeros unless given)."""
+        return VesselState.build(eta, nu, bias, wave_state)
+
+    def innovation(self, estimate: VesselState, measurement: Array) -> Array:
+        """y~ = y - y_hat (eq. 26) with wrapped heading; zero on missing channels."""
+        predicted = estimate.eta + estimate.wave
+        error = measurement - predicted
+        error = error.at[2].set(ssa(error[2]))
+        return jnp.where(jnp.isfinite(measurement), error, 0.0)
+
+    def vector_field(self, t, estimate: VesselState, measurement: Array, tau: Array) -> VesselState:
+        """Right-hand side of eqs. (22)–(25) for a measurement held at ``measurement``."""
+        del t
+        y_tilde = self.innovation(estimate, measurement)
+        predicted_heading = estimate.eta[2] + estimate.wave[2]
+        heading = jnp.where(jnp.isfinite(measurement[2]), measurement[2], predicted_heading)
+        xi1, xi2 = estimate.wave_state[:3], estimate.wave_state[3:]
+        w0, zeta, k = self.wave_frequency, self.wave_damping, self.wave_injection_gain
+        # Fossen & Strand (1999), eq. (22), Omega of eq. (11), K1 of eq. (40)
+        wave_rate = jnp.concatenate([xi2 + k[:3] * y_tilde, -(w0**2) * xi1 - 2.0 * zeta * w0 * xi2 + k[3:] * y_tilde])
+        # eq. (23)
+        eta_rate = rotate(heading, estimate.nu) + self.position_injection_gain * y_tilde
+        inv_gamma = 1.0 / self.lyapunov_weight
+        # eq. (24)
+        bias_rate = -estimate.bias / self.bias_time_constant + inv_gamma * self.bias_injection_gain * y_tilde
+        # eq. (25)
+        force = (
+            -self.damping_matrix @ estimate.nu
+            + rotate_transpose(heading, estimate.bias + inv_gamma * self.velocity_injection_gain * y_tilde)
+            + tau
+        )
+        return VesselState(eta=eta_rate, nu=self.mass_inverse @ force, bias=bias_rate, wave_state=wave_rate)
+
+    def step(self, estimate: VesselState, t, measurement: Array, tau: Array, dt, substeps: int = 1):
+        """Advance the estimate over one sample period with measurement and tau held.
+
+        Integrates (22)–(25) by ``substeps`` RK4 steps of ``dt / substeps``.
+
+        Returns
+        -------
+        tuple
+            ``(new_estimate, innovation)``: the estimate at ``t + dt`` (heading
+            wrapped) and the innovation y~ used at ``t``.
+        """
+        h = dt / substeps
+
+        def field(time, x):
+            return self.vector_field(time, x, measurement, tau)
+
+        state = estimate
+        for i in range(substeps):
+            state = rk4_step(field, t + i * h, state, h)
+        return state.wrapped(), self.innovation(estimate, measurement)
