@@ -30,22 +30,23 @@ def rms_over(errors: xr.Dataset, start: float) -> xr.Dataset:
     return np.sqrt((window**2).mean("time"))
 
 
-def settling_time(error: np.ndarray, time: np.ndarray, final_rms: float, *, window: float, tolerance: float = 0.10) -> float:
-    """First time after which the moving RMS of ``error`` stays within (1 + tolerance) x ``final_rms``.
+def settling_time(error: np.ndarray, time: np.ndarray, final_rms: float, *, tolerance: float = 0.10) -> float:
+    """First time t from which the RMS of ``error`` over [t, end] is within (1 + tolerance) x ``final_rms``.
 
-    The moving RMS uses a centred window of ``window`` seconds, so wave-frequency
-    oscillations of a converged error do not count as unsettled. Returns NaN if the
-    error never settles.
+    A stochastic error never stays pointwise below its RMS, and a short moving RMS
+    of it fluctuates by tens of percent; the RMS of the whole remaining tail is the
+    steady measure of "from here on, the error is at its final level". The tail
+    RMS is computed for every start time with one reversed cumulative sum.
+
+    Returns
+    -------
+    float
+        Settling time in seconds (``time[0]`` if settled from the start).
     """
-    dt = float(time[1] - time[0])
-    width = max(1, int(round(window / dt)))
-    power = np.convolve(error**2, np.ones(width) / width, mode="same")
-    moving = np.sqrt(power)
-    outside = np.nonzero(moving > (1.0 + tolerance) * final_rms)[0]
-    if outside.size == 0:
-        return float(time[0])
-    last = outside[-1]
-    return float(time[last + 1]) if last + 1 < time.size else float("nan")
+    error = np.asarray(error, dtype=float)
+    tail_power = np.cumsum((error**2)[::-1])[::-1] / np.arange(error.size, 0, -1)
+    inside = np.sqrt(tail_power) <= (1.0 + tolerance) * final_rms
+    return float(time[np.argmax(inside)]) if inside.any() else float("nan")
 
 
 def fit_decay_rate(time, magnitude, *, upper: float = 1e-1, lower: float = 1e-9) -> dict:
