@@ -26,7 +26,7 @@ except ImportError:  # pragma: no cover - older typer depends on click
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Nonlinear observers for ships and manipulators.")
 design_app = typer.Typer(no_args_is_help=True, help="Design an observer and check its stability conditions.")
 app.add_typer(design_app, name="design")
-console = Console()
+console = Console(soft_wrap=True)
 
 
 class InputError(Exception):

@@ -1,0 +1,29 @@
+import lookout  # noqa: F401  (enables float64 before any test builds arrays)
+import numpy as np
+import pytest
+
+from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper
+from lookout.observers import PassiveObserver, injection_gains_from_normalized
+
+
+@pytest.fixture(scope="session")
+def paper_observer():
+    """The observer of Fossen & Strand (1999), eqs. (58)–(60), gains converted to SI."""
+    kappa, lam = injection_gains_from_normalized(
+        [0.1, 0.1, 0.01], [0.01, 0.01, 0.001], mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH
+    )
+    return PassiveObserver.design(
+        northern_clipper(),
+        wave_frequency=0.8976,
+        wave_damping=0.1,
+        notch_damping=1.0,
+        cutoff_frequency=1.1,
+        velocity_injection_gain=kappa,
+        bias_injection_gain=lam,
+        bias_time_constant=1000.0,
+    )
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(1234)
