@@ -16,11 +16,15 @@ import argparse
 import dataclasses
 import time
 
-import jax
-import numpy as np
+import lookout
+
+lookout.use_all_cpu_cores()  # before JAX computes anything
+
+import jax  # noqa: E402
+import numpy as np  # noqa: E402
 
 from lookout.papers import fossen_strand_1999 as fs
-from lookout.sim import simulate, simulate_batch
+from lookout.sim import simulate, simulate_batch  # noqa: E402
 
 
 def numpy_loop(scenario, duration: float, seed: int = 0) -> float:
@@ -103,7 +107,7 @@ def main() -> None:
     a = numpy_loop(single, args.numpy_duration)
     b = lookout_single(single, args.duration)
     c = lookout_batch(batched, args.duration, args.batch)
-    print(f"device: {jax.devices()[0].platform}, float64, plant step 0.1 s, observer 10 Hz, fixes 1 Hz")
+    print(f"devices: {len(jax.devices())} x {jax.devices()[0].platform}, float64, plant step 0.1 s, observer 10 Hz, fixes 1 Hz")
     print(f"(a) NumPy per-step loop      : {a:12.4g} simulated s / wall s")
     print(f"(b) lookout, one run         : {b:12.4g} simulated s / wall s   b/a = {b / a:.1f}")
     print(f"(c) lookout, batch of {args.batch:<6d} : {c:12.4g} simulated s / wall s   c/a = {c / a:.1f}")

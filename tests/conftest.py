@@ -1,4 +1,6 @@
-import lookout  # noqa: F401  (enables float64 before any test builds arrays)
+import lookout  # enables float64 before any test builds arrays
+
+lookout.use_all_cpu_cores(2)  # exercise the sharded batch path, as the CLI does
 import numpy as np
 import pytest
 

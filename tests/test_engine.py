@@ -58,15 +58,16 @@ def test_one_sample_of_a_linear_plant_equals_zero_order_hold_discretization():
 
 def test_vmapped_runs_equal_the_same_runs_one_by_one():
     scenario = fs.build(fs.Config(duration=60.0))
-    keys = jax.random.split(jax.random.key(7), 3)
+    assert len(jax.devices()) == 2, "conftest exposes two host devices, so the batch below is sharded"
+    keys = jax.random.split(jax.random.key(7), 4)
     batch = simulate_batch(scenario, keys)
-    for i in range(3):
+    for i in range(4):
         single = simulate(scenario, keys[i])
         for name in ("eta", "nu", "bias", "wave_state"):
             np.testing.assert_allclose(getattr(batch.estimate, name)[i], getattr(single.estimate, name), rtol=1e-11, atol=1e-9)
             np.testing.assert_allclose(getattr(batch.state, name)[i], getattr(single.state, name), rtol=1e-11, atol=1e-9)
     ds = batch.to_xarray()
-    assert ds.sizes["run"] == 3 and list(ds.status.values) == ["finite"] * 3
+    assert ds.sizes["run"] == 4 and list(ds.status.values) == ["finite"] * 4
 
 
 def test_batched_scenario_maps_over_initial_conditions():

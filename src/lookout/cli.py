@@ -195,7 +195,9 @@ def _one_line(message: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning every input error into one line and exit code 2."""
-    import lookout  # noqa: F401  (enables float64 before any computation)
+    import lookout  # enables float64 before any computation
+
+    lookout.use_all_cpu_cores()
 
     command = typer.main.get_command(app)
     try:

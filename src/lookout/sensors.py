@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax
+import jax.scipy.special
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -38,6 +39,7 @@ class PositionHeadingSensor(eqx.Module):
     noise_std: Array
     dropout_probability: Array
     sample_period: tuple[float, float, float] = eqx.field(static=True)
+    noise_size: int = eqx.field(static=True, default=6)
 
     def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0):
         self.noise_std = jnp.asarray(check.vector("sensor noise_std", noise_std))
@@ -57,10 +59,18 @@ class PositionHeadingSensor(eqx.Module):
         y = state.eta + state.wave
         return y.at[2].set(ssa(y[2]))
 
-    def measure(self, key: Array, state: VesselState) -> Array:
-        """One noisy sample of every channel; dropped channels are NaN."""
-        noise_key, dropout_key = jax.random.split(key)
-        y = state.eta + state.wave + self.noise_std * jax.random.normal(noise_key, (3,))
+    def measure(self, state: VesselState, noise: Array) -> Array:
+        """One noisy sample of every channel; dropped channels are NaN.
+
+        Parameters
+        ----------
+        state : VesselState
+            Plant state at the sample time.
+        noise : Array, shape (6,)
+            Independent standard normal numbers: three for the measurement noise,
+            three turned into uniforms (by the normal CDF) for the dropouts.
+        """
+        y = state.eta + state.wave + self.noise_std * noise[:3]
         y = y.at[2].set(ssa(y[2]))
-        dropped = jax.random.uniform(dropout_key, (3,)) < self.dropout_probability
+        dropped = jax.scipy.special.ndtr(noise[3:]) < self.dropout_probability
         return jnp.where(dropped, jnp.nan, y)

@@ -50,7 +50,8 @@ class Scenario(eqx.Module):
     plant : Module
         Has ``vector_field(t, state, tau, noise)`` and an int ``noise_size``.
     sensor : Module
-        Has ``measure(key, state)``, ``ideal(state)`` and a tuple ``sample_period``.
+        Has ``measure(state, normals)``, ``ideal(state)``, a tuple ``sample_period`` and
+        an int ``noise_size`` (standard normals it needs per sample).
     observer : Module
         Has ``step(estimate, t, y, tau, dt, substeps)`` and
         ``vector_field(t, estimate, y, tau)``.
@@ -116,20 +117,49 @@ class Scenario(eqx.Module):
         return tuple(_ratio("sensor", p, "sample_period", self.sample_period) for p in self.sensor.sample_period)
 
 
-def _sample(scenario: Scenario, key: Array, carry, k: Array):
+#: Samples whose noise is drawn in one vectorized call (a performance knob only:
+#: the noise of sample k depends on (key, k) alone, so results do not depend on it).
+NOISE_BLOCK_SAMPLES = 256
+
+
+#: Static loops up to this length are unrolled in Python instead of a lax.scan
+#: (a one-trip XLA while loop costs more than its body here).
+UNROLL_LIMIT = 4
+
+
+def _static_scan(body, carry, xs, length: int):
+    """``lax.scan`` for long loops, a Python loop (unrolled in the trace) for short ones."""
+    if length > UNROLL_LIMIT:
+        return jax.lax.scan(body, carry, xs)
+    outputs = []
+    for i in range(length):
+        carry, out = body(carry, jax.tree.map(lambda a: a[i], xs))
+        outputs.append(out)
+    return carry, jax.tree.map(lambda *o: jnp.stack(o), *outputs)
+
+
+def _noise_size(scenario: Scenario) -> int:
+    return scenario.substeps * scenario.plant.noise_size + scenario.sensor.noise_size
+
+
+def _sample_noise(scenario: Scenario, key: Array, k: Array) -> Array:
+    """Standard normal numbers for sample k: process noise of each substep, then sensor."""
+    return jax.random.normal(jax.random.fold_in(key, k), (_noise_size(scenario),))
+
+
+def _sample(scenario: Scenario, carry, k: Array, normals: Array):
     """Advance plant, sensor, controller and observer by one sample period."""
     plant, sensor, observer = scenario.plant, scenario.sensor, scenario.observer
     h = scenario.plant_step
     substeps = scenario.substeps
     state, estimate, held, control_state = carry
     t = (k * substeps) * h
-    sample_key = jax.random.fold_in(key, k)
-    measure_key, process_key = jax.random.split(sample_key)
-    noise = jax.random.normal(process_key, (substeps, plant.noise_size)) / math.sqrt(h)
+    split = substeps * plant.noise_size
+    noise = normals[:split].reshape(substeps, plant.noise_size) / math.sqrt(h)
 
     if scenario.observer_mode == "sampled":
         due = (k % jnp.asarray(scenario.sensor_steps)) == 0
-        measurement = jnp.where(due, sensor.measure(measure_key, state), held)
+        measurement = jnp.where(due, sensor.measure(state, normals[split:]), held)
     else:
         measurement = sensor.ideal(state)
     control_state, tau = scenario.control.step(control_state, t, estimate)
@@ -142,7 +172,7 @@ def _sample(scenario: Scenario, key: Array, carry, k: Array):
             field = lambda s, z: plant.vector_field(s, z, tau, noise[j])
             return rk4_step(field, (k * substeps + j) * h, x, h), None
 
-        state, _ = jax.lax.scan(substep, state, jnp.arange(substeps))
+        state, _ = _static_scan(substep, state, jnp.arange(substeps), substeps)
     else:
 
         def substep(pair, j):
@@ -155,7 +185,7 @@ def _sample(scenario: Scenario, key: Array, carry, k: Array):
 
             return rk4_step(field, (k * substeps + j) * h, pair, h), None
 
-        (state, estimate), _ = jax.lax.scan(substep, (state, estimate), jnp.arange(substeps))
+        (state, estimate), _ = _static_scan(substep, (state, estimate), jnp.arange(substeps), substeps)
         estimate = estimate.wrapped()
     return (state.wrapped(), estimate, measurement, control_state), record
 
@@ -169,19 +199,41 @@ def _initial_carry(scenario: Scenario):
     )
 
 
+def _block_records(n_records: int, every: int) -> int:
+    """Largest divisor of n_records with at most NOISE_BLOCK_SAMPLES samples per block."""
+    limit = max(1, NOISE_BLOCK_SAMPLES // every)
+    return max(d for d in range(1, min(limit, n_records) + 1) if n_records % d == 0)
+
+
 def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_records: int):
-    """Run ``n_records`` recorded groups of ``record_every`` samples from ``first_record``."""
+    """Run ``n_records`` recorded groups of ``record_every`` samples from ``first_record``.
+
+    Blocks of records share one vectorized noise draw; within a block a scan runs
+    over records and, inside, over the ``record_every`` samples of each record.
+    """
     every = scenario.record_every
+    block = _block_records(n_records, every)
 
-    def group(carry, r):
-        def one(c, i):
-            c, record = _sample(scenario, key, c, r * every + i)
-            return c, record
+    def run_block(carry, first):
+        samples = first * every + jnp.arange(block * every)
+        normals = jax.vmap(lambda k: _sample_noise(scenario, key, k))(samples)
+        normals = normals.reshape(block, every, -1)
+        samples = samples.reshape(block, every)
 
-        carry, records = jax.lax.scan(one, carry, jnp.arange(every))
-        return carry, jax.tree.map(lambda a: a[0], records)
+        def group(carry, inputs):
+            ks, block_normals = inputs
 
-    return jax.lax.scan(group, carry, first_record + jnp.arange(n_records))
+            def one(c, sample_inputs):
+                k, sample_normals = sample_inputs
+                return _sample(scenario, c, k, sample_normals)
+
+            carry, records = _static_scan(one, carry, (ks, block_normals), every)
+            return carry, jax.tree.map(lambda a: a[0], records)
+
+        return jax.lax.scan(group, carry, (samples, normals))
+
+    carry, records = jax.lax.scan(run_block, carry, first_record + block * jnp.arange(n_records // block))
+    return carry, jax.tree.map(lambda a: a.reshape((n_records,) + a.shape[2:]), records)
 
 
 _segment_jit = eqx.filter_jit(_segment)
@@ -255,6 +307,20 @@ def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20)
     return Trajectory(_time_grid(scenario), state, estimate, measurement, tau, attrs=_attrs(scenario))
 
 
+def _shard_runs(tree, n_runs: int):
+    """Place the run axis across all devices when it divides evenly (else leave as is).
+
+    Computation follows the data under ``jit``: each device (each CPU core with
+    :func:`lookout.use_all_cpu_cores`, or each GPU) simulates its share of the runs.
+    Results do not depend on the placement.
+    """
+    devices = jax.devices()
+    if len(devices) < 2 or n_runs % len(devices):
+        return tree
+    mesh = jax.make_mesh((len(devices),), ("run",), axis_types=(jax.sharding.AxisType.Auto,))
+    return jax.device_put(tree, jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("run")))
+
+
 def simulate_batch(
     scenario: Scenario, keys: Array, *, batched_scenario: bool = False, progress=None, chunks: int = 20
 ) -> Trajectory:
@@ -279,12 +345,17 @@ def simulate_batch(
         With a leading run axis on every recorded array.
     """
     n_runs = keys.shape[0]
-    carry = _initial_carry_batch(scenario, n_runs, batched_scenario)
+    keys = _shard_runs(keys, n_runs)
+    if batched_scenario:
+        scenario = eqx.combine(_shard_runs(eqx.filter(scenario, eqx.is_array), n_runs), eqx.filter(scenario, eqx.is_array, inverse=True))
+    carry = _shard_runs(_initial_carry_batch(scenario, n_runs, batched_scenario), n_runs)
 
     def step(carry, first, length):
         return _segment_batch(scenario, keys, carry, first, length, batched_scenario)
 
     records = _run(step, carry, scenario.n_records, progress, chunks, time_axis=1)
+    # gather the shards onto one device so results index like ordinary arrays
+    records = jax.device_put(records, jax.devices()[0])
     state, estimate, measurement, tau = records
     return Trajectory(_time_grid(scenario), state, estimate, measurement, tau, batched=True, attrs=_attrs(scenario))
 
