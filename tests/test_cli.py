@@ -66,3 +66,12 @@ def test_short_reproduce_writes_all_outputs(tmp_path, capsys):
         assert (out / name).stat().st_size > 0
     assert summary["config"]["seed"] == 3 and summary["config"]["duration"] == 100.0
     assert "RMS over the second half" in capsys.readouterr().out
+
+
+def test_reproduce_with_several_runs_reports_spread(tmp_path, capsys):
+    out = tmp_path / "mc"
+    assert main(["reproduce", "fossen-strand-1999", "--out", str(out), "--duration", "60", "--runs", "2"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs"] == 2 and summary["status"] == ["finite", "finite"]
+    assert set(summary["rms_second_half_std"]["eta"]) == {"surge", "sway", "yaw"}
+    assert "2/2 runs finite" in capsys.readouterr().out

@@ -61,6 +61,7 @@ def reproduce(
     out: Annotated[Path, typer.Option(help="Output folder.")] = Path("out"),
     seed: Annotated[Optional[int], typer.Option(help="PRNG seed.")] = None,
     duration: Annotated[Optional[float], typer.Option(help="Simulated time in seconds.")] = None,
+    runs: Annotated[Optional[int], typer.Option(help="Monte Carlo runs over seeds (batched); the summary gives mean and spread.")] = None,
 ) -> None:
     """Run a paper's simulation study; write NetCDF, figures and summary.json."""
     from lookout.papers import REPRODUCTIONS
@@ -68,7 +69,7 @@ def reproduce(
     if name not in REPRODUCTIONS:
         raise InputError(f"unknown reproduction {name!r}; available: {', '.join(REPRODUCTIONS)}")
     module = REPRODUCTIONS[name]
-    overrides = {key: value for key, value in {"seed": seed, "duration": duration}.items() if value is not None}
+    overrides = {key: value for key, value in {"seed": seed, "duration": duration, "runs": runs}.items() if value is not None}
     config = module.Config(**overrides)
     module.build(config)  # validate the scenario before spending time
     with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
@@ -79,16 +80,22 @@ def reproduce(
 
 def _print_summary(summary: dict, out: Path) -> None:
     dofs = ("surge", "sway", "yaw")
-    table = Table(title=f"Estimation error, {summary['reproduction']}: RMS over the second half / settling time (s)")
+    spread = summary["runs"] > 1
+    table = Table(title=f"Estimation error, {summary['reproduction']}, {summary['runs']} run(s): RMS over the second half{' (mean ± std over runs)' if spread else ''} / settling time (s{', median' if spread else ''})")
     table.add_column("state")
     for dof in dofs:
         table.add_column(dof, justify="right")
     table.add_column("units")
     for name, values in summary["rms_second_half"].items():
-        cells = [f"{values[dof]:.4g} / {summary['settling_time'][name][dof]:.0f}" for dof in dofs]
+        cells = [
+            (f"{values[dof]:.4g} ± {summary['rms_second_half_std'][name][dof]:.2g}" if spread else f"{values[dof]:.4g}")
+            + f" / {summary['settling_time'][name][dof]:.0f}"
+            for dof in dofs
+        ]
         table.add_row(name, *cells, summary["units"][name].replace("surge: ", "").replace("sway: ", "").replace("yaw: ", ""))
     console.print(table)
-    console.print(f"status: {', '.join(summary['status'])}; outputs in {out}/: {', '.join(summary['files'])}", highlight=False)
+    finite = summary["status"].count("finite")
+    console.print(f"status: {finite}/{len(summary['status'])} runs finite; outputs in {out}/: {', '.join(summary['files'])}", highlight=False)
 
 
 @design_app.command("passive-observer")
