@@ -84,7 +84,7 @@ def test_bias_estimate_beats_the_prior(run):
     assert np.all(ratio < 1.0), ratio
 
 
-@pytest.mark.xfail(strict=True, reason="known gap vs the paper: bias error about 0.7 of the bias std in surge and sway, from wave leakage through the 1 Hz hold (docs/reproductions.md)")
+@pytest.mark.xfail(strict=True, reason="known gap vs the paper: bias error about 0.7 of the bias std in surge and sway: wave leakage past the notch and the bias-loop bandwidth (docs/reproductions.md)")
 def test_bias_estimate_halves_the_prior_error(run):
     ratio = _bias_error_over_prior(run)
     assert np.all(ratio < 0.5), ratio
