@@ -14,7 +14,10 @@ Per sample k (time ``t_k = k * sample_period``):
 
 Time is computed from integer indices, never accumulated. Batches are
 ``jax.vmap`` of the same function over PRNG keys (and optionally over the
-leading axis of every array in the scenario).
+leading axis of every array in the scenario), with the run axis sharded across
+devices when there are several (GPUs, or CPU cores exposed by
+:func:`lookout.use_all_cpu_cores`). Process and measurement noise of sample k is
+drawn from ``fold_in(key, k)``, in vectorized blocks of samples.
 """
 
 from __future__ import annotations
