@@ -30,6 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
+from jax.flatten_util import ravel_pytree
 
 from lookout.results import Trajectory
 from lookout.sim.integrators import rk4_step
@@ -231,12 +232,15 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
                 return _sample(scenario, c, k, sample_normals)
 
             carry, records = _static_scan(one, carry, (ks, block_normals), every)
-            return carry, jax.tree.map(lambda a: a[0], records)
+            # one flat vector per record: a single write per sample instead of one per leaf
+            return carry, ravel_pytree(jax.tree.map(lambda a: a[0], records))[0]
 
         return jax.lax.scan(group, carry, (samples, normals))
 
-    carry, records = jax.lax.scan(run_block, carry, first_record + block * jnp.arange(n_records // block))
-    return carry, jax.tree.map(lambda a: a.reshape((n_records,) + a.shape[2:]), records)
+    template = jax.eval_shape(lambda c: _sample(scenario, c, jnp.asarray(0), jnp.zeros(_noise_size(scenario)))[1], carry)
+    unravel = ravel_pytree(jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), template))[1]
+    carry, flat = jax.lax.scan(run_block, carry, first_record + block * jnp.arange(n_records // block))
+    return carry, jax.vmap(unravel)(flat.reshape(n_records, -1))
 
 
 _segment_jit = eqx.filter_jit(_segment)
