@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import Callable
 
 import jax
-from jax.flatten_util import ravel_pytree
 
 
 def _axpy(a, x, y):
@@ -31,17 +30,13 @@ def rk4_step(field: Callable, t, state, step):
     PyTree
         State at ``t + step``.
     """
-    flat, unravel = ravel_pytree(state)
-
-    def f(time, x):
-        return ravel_pytree(field(time, unravel(x)))[0]
-
     half = 0.5 * step
-    k1 = f(t, flat)
-    k2 = f(t + half, flat + half * k1)
-    k3 = f(t + half, flat + half * k2)
-    k4 = f(t + step, flat + step * k3)
-    return unravel(flat + step * (k1 + 2.0 * (k2 + k3) + k4) / 6.0)
+    k1 = field(t, state)
+    k2 = field(t + half, _axpy(half, k1, state))
+    k3 = field(t + half, _axpy(half, k2, state))
+    k4 = field(t + step, _axpy(step, k3, state))
+    increment = jax.tree.map(lambda a, b, c, d: (a + 2.0 * (b + c) + d) / 6.0, k1, k2, k3, k4)
+    return _axpy(step, increment, state)
 
 
 def euler_step(field: Callable, t, state, step):
