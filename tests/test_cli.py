@@ -75,3 +75,16 @@ def test_reproduce_with_several_runs_reports_spread(tmp_path, capsys):
     assert summary["runs"] == 2 and summary["status"] == ["finite", "finite"]
     assert set(summary["rms_second_half_std"]["eta"]) == {"surge", "sway", "yaw"}
     assert "2/2 runs finite" in capsys.readouterr().out
+
+
+def test_design_normalized_gains_convert_like_the_default(capsys):
+    assert main(["design", "passive-observer", "--wave-frequency", "0.8976", "--json"]) == 0
+    default = json.loads(capsys.readouterr().out)
+    argv = ["design", "passive-observer", "--wave-frequency", "0.8976", "--normalized", "--velocity-gain", "0.1,0.1,0.01", "--bias-gain", "0.01,0.01,0.001", "--json"]
+    assert main(argv) == 0
+    normalized = json.loads(capsys.readouterr().out)
+    assert normalized["velocity_injection_gain"] == pytest.approx(default["velocity_injection_gain"], rel=1e-12)
+    assert normalized["bias_injection_gain"] == pytest.approx(default["bias_injection_gain"], rel=1e-12)
+    assert main(["design", "passive-observer", "--wave-frequency", "0.8976", "--velocity-gain", "5e4", "--bias-gain", "2e3", "--json"]) == 0
+    si = json.loads(capsys.readouterr().out)
+    assert si["velocity_injection_gain"] == [5e4, 5e4, 5e4] and si["bias_injection_gain"] == [2e3, 2e3, 2e3]
