@@ -28,6 +28,16 @@ def test_paper_gains_satisfy_tuning_rule_and_spr_with_verified_kyp(paper_observe
         assert np.linalg.eigvalsh(scale[:, None] * Q * scale[None, :]).min() > 0
 
 
+def test_in_band_phase_margin_is_reported_near_the_notch(paper_observer):
+    """The paper's gains leave h within a degree of -90 deg just below w_o."""
+    w = np.linspace(0.3, 0.9, 20001)
+    phase = np.degrees(np.angle(transfer_functions(paper_observer, w)["h"][:, 0]))
+    report = check_spr(paper_observer, certificate=False)[0]
+    assert report.min_phase_deg_in_band == pytest.approx(phase.min(), abs=0.05)
+    assert 0.6 < report.min_phase_frequency_in_band < 0.8976
+    assert -90.0 < report.min_phase_deg_in_band < -89.0
+
+
 def test_transfer_function_matches_state_space_error_loop(paper_observer):
     w = np.logspace(-4, 2, 50)
     h = transfer_functions(paper_observer, w)["h"]

@@ -187,7 +187,8 @@ def design_passive_observer(
     for report, loop in zip(spr, result["spr"]["loops"]):
         console.print(
             f"  {report.dof}: min Re h = {report.min_real_part:.4g} at {report.min_real_part_frequency:.4g} rad/s, "
-            f"min phase {report.min_phase_deg:.2f} deg, KYP certificate {'verified' if loop['kyp_verified'] else 'none'}",
+            f"min phase below 10 w_c {report.min_phase_deg_in_band:.2f} deg at {report.min_phase_frequency_in_band:.4g} rad/s, "
+            f"KYP certificate {'verified' if loop['kyp_verified'] else 'none'}",
             highlight=False,
         )
     for item in result["frequency_response"]:
