@@ -120,6 +120,7 @@ def design_passive_observer(
     from lookout.analysis import check_spr, check_tuning_rule, transfer_functions
     from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper
     from lookout.observers import PassiveObserver, injection_gains_from_normalized
+    from lookout.papers import fossen_strand_1999
 
     if (wave_frequency is None) == (wave_period is None):
         raise InputError("give exactly one of --wave-frequency and --wave-period")
@@ -127,13 +128,19 @@ def design_passive_observer(
         if not (math.isfinite(wave_period) and wave_period > 0):
             raise InputError(f"--wave-period must be positive; got {wave_period}")
         wave_frequency = 2.0 * math.pi / wave_period
-    if normalized or velocity_gain is None or bias_gain is None:
-        kappa_bis = _vector("--velocity-gain", velocity_gain) if (normalized and velocity_gain) else [0.1, 0.1, 0.01]
-        lambda_bis = _vector("--bias-gain", bias_gain) if (normalized and bias_gain) else [0.01, 0.01, 0.001]
-        kappa_si, lambda_si = injection_gains_from_normalized(kappa_bis, lambda_bis, mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH)
-    if not normalized:
-        kappa_si = _vector("--velocity-gain", velocity_gain) if velocity_gain is not None else kappa_si
-        lambda_si = _vector("--bias-gain", bias_gain) if bias_gain is not None else lambda_si
+    paper = fossen_strand_1999.Config()  # the paper's (60), in normalized units
+
+    def to_si(kappa, lam):
+        return injection_gains_from_normalized(kappa, lam, mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH)
+
+    paper_kappa_si, paper_lambda_si = to_si(paper.velocity_gain_normalized, paper.bias_gain_normalized)
+    kappa = _vector("--velocity-gain", velocity_gain) if velocity_gain is not None else None
+    lam = _vector("--bias-gain", bias_gain) if bias_gain is not None else None
+    if normalized:
+        kappa_si, lambda_si = to_si(kappa or paper.velocity_gain_normalized, lam or paper.bias_gain_normalized)
+    else:
+        kappa_si = kappa if kappa is not None else paper_kappa_si
+        lambda_si = lam if lam is not None else paper_lambda_si
     observer = PassiveObserver.design(
         northern_clipper(),
         wave_frequency=wave_frequency,
