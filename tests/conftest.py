@@ -3,6 +3,11 @@ import lookout  # enables float64 before any test builds arrays
 lookout.use_all_cpu_cores(2)  # exercise the sharded batch path, as the CLI does
 import numpy as np
 import pytest
+from hypothesis import settings
+
+# no wall-clock limits in tests: a first call compiles, and CI machines vary
+settings.register_profile("lookout", deadline=None)
+settings.load_profile("lookout")
 
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper
 from lookout.observers import PassiveObserver, injection_gains_from_normalized

@@ -28,3 +28,26 @@ def test_written_out_rotations_match_matrix(psi, vector):
     J = np.asarray(rotation(jnp.asarray(psi)))
     np.testing.assert_allclose(rotate(psi, v), J @ np.asarray(vector), atol=1e-9)
     np.testing.assert_allclose(rotate_transpose(psi, v), J.T @ np.asarray(vector), atol=1e-9)
+
+
+def test_sincos_matches_numpy_to_one_unit_in_the_last_place():
+    from lookout._math import sincos
+
+    rng = np.random.default_rng(0)
+    for scale in (np.pi, 1e3, 1.5e6):
+        x = rng.uniform(-scale, scale, 200_000)
+        s, c = sincos(jnp.asarray(x))
+        assert np.max(np.abs(np.asarray(s) - np.sin(x))) <= 2 * np.spacing(1.0)
+        assert np.max(np.abs(np.asarray(c) - np.cos(x))) <= 2 * np.spacing(1.0)
+    quadrants = np.array([0.0, -0.0, np.pi / 2, np.pi, -np.pi, 1.5 * np.pi, 2 * np.pi, 1e-300])
+    s, c = sincos(jnp.asarray(quadrants))
+    np.testing.assert_allclose(s, np.sin(quadrants), atol=1e-16)
+    np.testing.assert_allclose(c, np.cos(quadrants), atol=1e-16)
+
+
+def test_ssa_maps_pi_to_minus_pi_and_keeps_the_interval_half_open():
+    assert float(ssa(jnp.pi)) == -np.pi
+    assert float(ssa(-jnp.pi)) == -np.pi
+    assert float(ssa(3 * jnp.pi)) == -np.pi
+    wrapped = np.asarray(ssa(jnp.asarray(np.random.default_rng(1).uniform(-1e4, 1e4, 100_000))))
+    assert wrapped.min() >= -np.pi and wrapped.max() < np.pi
