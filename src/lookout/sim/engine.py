@@ -17,7 +17,8 @@ Time is computed from integer indices, never accumulated. Batches are
 leading axis of every array in the scenario), with the run axis sharded across
 devices when there are several (GPUs, or CPU cores exposed by
 :func:`lookout.use_all_cpu_cores`). Process and measurement noise of sample k is
-drawn from ``fold_in(key, k)``, in vectorized blocks of samples.
+a function of (key, k) alone (a counter-based Threefry hash), drawn in vectorized
+blocks of samples.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
+from lookout._random import standard_normal
 from lookout.results import Trajectory
 from lookout.sim.integrators import rk4_step
 
@@ -104,6 +106,10 @@ class Scenario(eqx.Module):
         for channel, period in enumerate(self.sensor.sample_period):
             _ratio(f"sensor sample_period[{channel}]", period, "sample_period", self.sample_period)
         _ratio("duration", self.duration, "sample_period * record_every", self.sample_period * self.record_every)
+        if self.duration / self.sample_period >= 2**32:
+            raise ValueError(
+                f"duration / sample_period must be below 2**32 samples (noise counters); got {self.duration / self.sample_period:.3g}"
+            )
 
     @property
     def substeps(self) -> int:
@@ -147,8 +153,11 @@ def _noise_size(scenario: Scenario) -> int:
 
 
 def _sample_noise(scenario: Scenario, key: Array, k: Array) -> Array:
-    """Standard normal numbers for sample k: process noise of each substep, then sensor."""
-    return jax.random.normal(jax.random.fold_in(key, k), (_noise_size(scenario),))
+    """Standard normal numbers for samples k: process noise of each substep, then sensor.
+
+    A function of (key, k) alone (counter-based, :func:`lookout._random.standard_normal`).
+    """
+    return standard_normal(key, k, _noise_size(scenario))
 
 
 def _sample(scenario: Scenario, carry, k: Array, normals: Array):
@@ -220,7 +229,7 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
 
     def run_block(carry, first):
         samples = first * every + jnp.arange(block * every)
-        normals = jax.vmap(lambda k: _sample_noise(scenario, key, k))(samples)
+        normals = _sample_noise(scenario, key, samples)
         normals = normals.reshape(block, every, -1)
         samples = samples.reshape(block, every)
 
