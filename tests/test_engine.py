@@ -164,12 +164,12 @@ def test_netcdf_round_trip(tmp_path):
 
 
 def test_repeated_runs_with_new_gains_do_not_recompile():
-    from lookout.sim.engine import _segment
+    from lookout.sim.engine import _initial_carry, _segment
 
     base = fs.build(fs.Config(duration=10.0))
     counted = eqx.debug.assert_max_traces(_segment, max_traces=1)
     run = eqx.filter_jit(counted)
-    carry = (base.initial_state, base.initial_estimate, jnp.full(3, jnp.nan), ())
+    carry = _initial_carry(base)
     for gain in (1.0, 2.0, 3.0):
         scenario = eqx.tree_at(lambda s: s.observer.position_injection_gain, base, jnp.full(3, gain))
         run(scenario, jax.random.key(0), carry, jnp.asarray(0), 100)

@@ -4,7 +4,8 @@ Per sample k (time ``t_k = k * sample_period``):
 
 1. each sensor channel whose period divides ``t_k`` takes a new sample of the plant
    state; the others hold their last sample (zero-order hold);
-2. the controller computes tau_k from the current estimate;
+2. the controller's tau_k, computed from the estimate at t_k (at the end of the
+   previous sample, or from the initial estimate), is held over the sample;
 3. the observer advances its estimate from t_k to t_{k+1} with the held measurement
    and tau_k (``observer.step``), or, in ``"continuous"`` mode, is integrated
    jointly with the plant on a noise-free continuous measurement;
@@ -165,7 +166,7 @@ def _sample(scenario: Scenario, carry, k: Array, normals: Array):
     plant, sensor, observer = scenario.plant, scenario.sensor, scenario.observer
     h = scenario.plant_step
     substeps = scenario.substeps
-    state, estimate, held, control_state = carry
+    state, estimate, held, control_state, tau = carry
     t = (k * substeps) * h
     split = substeps * plant.noise_size
     noise = normals[:split].reshape(substeps, plant.noise_size) / math.sqrt(h)
@@ -175,7 +176,6 @@ def _sample(scenario: Scenario, carry, k: Array, normals: Array):
         measurement = jnp.where(due, sensor.measure(state, normals[split:]), held)
     else:
         measurement = sensor.ideal(state)
-    control_state, tau = scenario.control.step(control_state, t, estimate)
     record = (state, estimate, measurement, tau)
 
     if scenario.observer_mode == "sampled":
@@ -200,15 +200,21 @@ def _sample(scenario: Scenario, carry, k: Array, normals: Array):
 
         (state, estimate), _ = _static_scan(substep, (state, estimate), jnp.arange(substeps), substeps)
         estimate = estimate.wrapped()
-    return (state.wrapped(), estimate, measurement, control_state), record
+    # tau_{k+1} from the estimate at t_{k+1}, computed here and carried into the next
+    # sample: a loop-carried value is computed once, whereas XLA:CPU recomputes a
+    # value made inside the loop body in every kernel that uses it (the thrust's sine
+    # was evaluated for each of the 8 integration stages and every run; 22 % faster)
+    control_state, tau = scenario.control.step(control_state, ((k + 1) * substeps) * h, estimate)
+    return (state.wrapped(), estimate, measurement, control_state, tau), record
 
 
 def _initial_carry(scenario: Scenario):
+    """Plant state, estimate, held sensor samples, controller state and tau_0."""
     return (
         scenario.initial_state,
         scenario.initial_estimate,
         jnp.full(len(scenario.sensor.sample_period), jnp.nan),
-        scenario.control.init(),
+        *scenario.control.step(scenario.control.init(), jnp.asarray(0.0), scenario.initial_estimate),
     )
 
 
@@ -254,6 +260,13 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
 
 _segment_jit = eqx.filter_jit(_segment)
 
+#: XLA options of the batch loop. XLA:CPU hands each batched 3x3 matrix product to its
+#: YNNPACK kernels by default; for a few hundred 3-vectors the call costs more than
+#: the arithmetic, so the batch loop keeps them in XLA's own code (batch of 1000:
+#: +10 %; a single run is not faster, docs/benchmarks.md). Other backends ignore the
+#: option, and it applies to this function only, not to the user's other JAX code.
+BATCH_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
+
 
 @eqx.filter_jit
 def _initial_carry_batch(scenario, n_runs: int, batched_scenario: bool):
@@ -261,7 +274,7 @@ def _initial_carry_batch(scenario, n_runs: int, batched_scenario: bool):
     return eqx.filter_vmap(_initial_carry, in_axes=(axes,), axis_size=n_runs)(scenario)
 
 
-@eqx.filter_jit
+@eqx.filter_jit(compiler_options=BATCH_COMPILER_OPTIONS)
 def _segment_batch(scenario, keys, carry, first_record, n_records: int, batched_scenario: bool):
     axes = eqx.if_array(0) if batched_scenario else None
     run = eqx.filter_vmap(_segment, in_axes=(axes, 0, 0, None, None))
