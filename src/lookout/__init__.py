@@ -19,15 +19,15 @@ import os as _os
 SMALL_LOOP_BYTES = 1_000_000
 
 
-def _compile_small_loops_whole() -> None:
+def _add_xla_flag(name: str, value: str) -> None:
+    """Append ``--name=value`` to ``XLA_FLAGS`` unless the user already set ``name``."""
     flags = _os.environ.get("XLA_FLAGS", "")
-    if "xla_backend_extra_options" in flags:
+    if name in flags:
         return
-    option = f"--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES}"
-    _os.environ["XLA_FLAGS"] = f"{flags} {option}".strip()
+    _os.environ["XLA_FLAGS"] = f"{flags} --{name}={value}".strip()
 
 
-_compile_small_loops_whole()
+_add_xla_flag("xla_backend_extra_options", f"xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES}")
 
 import jax as _jax  # noqa: E402
 
@@ -47,11 +47,7 @@ def use_all_cpu_cores(count: int | None = None) -> None:
     count : int, optional
         Number of host devices; default ``os.cpu_count()``.
     """
-    flags = _os.environ.get("XLA_FLAGS", "")
-    if "xla_force_host_platform_device_count" in flags:
-        return
-    count = count or _os.cpu_count() or 1
-    _os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={count}".strip()
+    _add_xla_flag("xla_force_host_platform_device_count", str(count or _os.cpu_count() or 1))
 
 from ._math import rotation as rotation  # noqa: E402
 from ._math import ssa as ssa  # noqa: E402

@@ -101,6 +101,8 @@ def sincos(angle: Array) -> tuple[Array, Array]:
     sin = jnp.where(odd, cos_r, sin_r)
     cos = jnp.where(odd, sin_r, cos_r)
     return jnp.where(q >= 2, -sin, sin), jnp.where((q == 1) | (q == 2), -cos, cos)
+
+
 def rotation(psi: Array) -> Array:
     """Rotation matrix J(psi) from body to Earth-fixed axes (Fossen & Strand 1999, eq. 2).
 

@@ -7,7 +7,7 @@ Shaw, "Parallel random numbers: as easy as 1, 2, 3", SC 2011), the hash behind
 ``jax.random``'s default keys. It is written out here as straight-line integer
 arithmetic because JAX lowers it on CPU as a rolled loop of 5 iterations, which XLA
 cannot fuse with the rest of the computation (13.5 ns per hash measured on the
-development machine, against about 1 ns here). The test suite checks it bit for bit
+development machine, against about 3 ns here). The test suite checks it bit for bit
 against ``jax.extend.random.threefry2x32_p``.
 
 Standard normals come from pairs of uniforms by the Box–Muller transform,

@@ -161,13 +161,18 @@ def _sample_noise(scenario: Scenario, key: Array, k: Array) -> Array:
     return standard_normal(key, k, _noise_size(scenario))
 
 
+def _sample_time(scenario: Scenario, k):
+    """t_k from the integer sample index (never accumulated)."""
+    return (k * scenario.substeps) * scenario.plant_step
+
+
 def _sample(scenario: Scenario, carry, k: Array, normals: Array):
     """Advance plant, sensor, controller and observer by one sample period."""
     plant, sensor, observer = scenario.plant, scenario.sensor, scenario.observer
     h = scenario.plant_step
     substeps = scenario.substeps
     state, estimate, held, control_state, tau = carry
-    t = (k * substeps) * h
+    t = _sample_time(scenario, k)
     split = substeps * plant.noise_size
     noise = normals[:split].reshape(substeps, plant.noise_size) / math.sqrt(h)
 
@@ -204,7 +209,7 @@ def _sample(scenario: Scenario, carry, k: Array, normals: Array):
     # sample: a loop-carried value is computed once, whereas XLA:CPU recomputes a
     # value made inside the loop body in every kernel that uses it (the thrust's sine
     # was evaluated for each of the 8 integration stages and every run; 22 % faster)
-    control_state, tau = scenario.control.step(control_state, ((k + 1) * substeps) * h, estimate)
+    control_state, tau = scenario.control.step(control_state, _sample_time(scenario, k + 1), estimate)
     return (state.wrapped(), estimate, measurement, control_state, tau), record
 
 
@@ -214,7 +219,7 @@ def _initial_carry(scenario: Scenario):
         scenario.initial_state,
         scenario.initial_estimate,
         jnp.full(len(scenario.sensor.sample_period), jnp.nan),
-        *scenario.control.step(scenario.control.init(), jnp.asarray(0.0), scenario.initial_estimate),
+        *scenario.control.step(scenario.control.init(), _sample_time(scenario, 0), scenario.initial_estimate),
     )
 
 
