@@ -173,3 +173,16 @@ def test_repeated_runs_with_new_gains_do_not_recompile():
     for gain in (1.0, 2.0, 3.0):
         scenario = eqx.tree_at(lambda s: s.observer.position_injection_gain, base, jnp.full(3, gain))
         run(scenario, jax.random.key(0), carry, jnp.asarray(0), 100)
+
+
+def test_dropout_decision_matches_the_normal_cdf():
+    """A channel drops when Phi(n) < p (SciPy's ndtr), computed as n < Phi^-1(p)."""
+    from scipy.special import ndtr
+
+    from lookout.models import VesselState
+
+    sensor = PositionHeadingSensor([0.5, 0.5, 0.002], 1.0, dropout_probability=0.3)
+    normals = np.random.default_rng(3).standard_normal((20_000, 6))
+    y = jax.vmap(lambda n: sensor.measure(VesselState.zeros(), n))(jnp.asarray(normals))
+    np.testing.assert_array_equal(np.isnan(np.asarray(y)), ndtr(normals[:, 3:]) < 0.3)
+    assert abs(np.isnan(np.asarray(y)).mean() - 0.3) < 0.01

@@ -51,3 +51,14 @@ def test_ssa_maps_pi_to_minus_pi_and_keeps_the_interval_half_open():
     assert float(ssa(3 * jnp.pi)) == -np.pi
     wrapped = np.asarray(ssa(jnp.asarray(np.random.default_rng(1).uniform(-1e4, 1e4, 100_000))))
     assert wrapped.min() >= -np.pi and wrapped.max() < np.pi
+
+
+def test_computed_once_returns_its_argument_bit_for_bit():
+    from lookout._math import computed_once
+
+    rng = np.random.default_rng(2)
+    x = np.concatenate([rng.normal(0, 1, 10_000) * 10.0 ** rng.integers(-300, 300, 10_000), [0.0, -0.0, 2.2250738585072014e-308, 1.7e308]])
+    out = np.asarray(computed_once(jnp.asarray(x)))
+    # signs of zero included; (subnormals are flushed to zero by XLA:CPU arithmetic in general)
+    assert np.array_equal(out.view(np.int64), x.view(np.int64))
+    assert np.isnan(np.asarray(computed_once(jnp.asarray([np.nan, np.inf, -np.inf])))).all()

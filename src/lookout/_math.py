@@ -103,6 +103,39 @@ def sincos(angle: Array) -> tuple[Array, Array]:
     return jnp.where(q >= 2, -sin, sin), jnp.where((q == 1) | (q == 2), -cos, cos)
 
 
+def computed_once(value: Array) -> Array:
+    """``value`` unchanged, marked so that XLA:CPU computes it once per element.
+
+    XLA:CPU fuses a chain of cheap elementwise operations into every kernel that
+    reads its result, and inside a kernel evaluates it once per *output* element:
+    the sine and cosine of a heading, read by the components of rotated vectors in
+    several kernels, were evaluated about 30 times per run and sample in a batch.
+    A division is "expensive" to XLA's fusion heuristics and is not duplicated;
+    dividing by a one that XLA cannot fold (``1 + 0 * value``: exactly 1 for
+    finite ``value``, NaN where ``value`` is already NaN or infinite) makes the
+    chain one kernel whose result its consumers read. Results are bit-identical;
+    the speed-up is recorded in docs/benchmarks.md.
+
+    Parameters
+    ----------
+    value : Array
+        Any float array.
+
+    Returns
+    -------
+    Array
+        ``value``, bit for bit (NaN where ``value`` is not finite; subnormals
+        become zero, as in any XLA:CPU arithmetic).
+    """
+    return value / (1.0 + 0.0 * value)
+
+
+def _heading_terms(psi: Array) -> tuple[Array, Array]:
+    """sin(psi), cos(psi), each computed once (see :func:`computed_once`)."""
+    s, c = sincos(psi)
+    return computed_once(s), computed_once(c)
+
+
 def rotation(psi: Array) -> Array:
     """Rotation matrix J(psi) from body to Earth-fixed axes (Fossen & Strand 1999, eq. 2).
 
@@ -116,7 +149,7 @@ def rotation(psi: Array) -> Array:
     Array
         The 3x3 matrix [[c, -s, 0], [s, c, 0], [0, 0, 1]].
     """
-    s, c = sincos(psi)
+    s, c = _heading_terms(psi)
     zero, one = jnp.zeros_like(c), jnp.ones_like(c)
     return jnp.stack(
         [jnp.stack([c, -s, zero]), jnp.stack([s, c, zero]), jnp.stack([zero, zero, one])]
@@ -138,7 +171,7 @@ def rotate(psi: Array, vector: Array) -> Array:
     Array, shape (3,)
         The Earth-fixed vector.
     """
-    s, c = sincos(psi)
+    s, c = _heading_terms(psi)
     return jnp.stack([c * vector[0] - s * vector[1], s * vector[0] + c * vector[1], vector[2]])
 
 
@@ -157,5 +190,5 @@ def rotate_transpose(psi: Array, vector: Array) -> Array:
     Array, shape (3,)
         The body-frame vector.
     """
-    s, c = sincos(psi)
+    s, c = _heading_terms(psi)
     return jnp.stack([c * vector[0] + s * vector[1], -s * vector[0] + c * vector[1], vector[2]])

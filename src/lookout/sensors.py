@@ -72,5 +72,7 @@ class PositionHeadingSensor(eqx.Module):
         """
         y = state.eta + state.wave + self.noise_std * noise[:3]
         y = y.at[2].set(ssa(y[2]))
-        dropped = jax.scipy.special.ndtr(noise[3:]) < self.dropout_probability
+        # Phi(n) < p, written as n < Phi^-1(p) (Phi increasing): one scalar inverse
+        # instead of an erfc per channel and sample
+        dropped = noise[3:] < jax.scipy.special.ndtri(self.dropout_probability)
         return jnp.where(dropped, jnp.nan, y)

@@ -246,14 +246,17 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
 
         def group(carry, inputs):
             ks, block_normals = inputs
+            carry, record = _sample(scenario, carry, ks[0], block_normals[0])
 
-            def one(c, sample_inputs):
+            def unrecorded(c, sample_inputs):
                 k, sample_normals = sample_inputs
-                return _sample(scenario, c, k, sample_normals)
+                return _sample(scenario, c, k, sample_normals)[0], None
 
-            carry, records = _static_scan(one, carry, (ks, block_normals), every)
-            # one flat vector per record: a single write per sample instead of one per leaf
-            return carry, ravel_pytree(jax.tree.map(lambda a: a[0], records))[0]
+            # the other samples of the group are not recorded (no per-sample writes)
+            if every > 1:
+                carry, _ = _static_scan(unrecorded, carry, (ks[1:], block_normals[1:]), every - 1)
+            # one flat vector per record: a single write per record instead of one per leaf
+            return carry, ravel_pytree(record)[0]
 
         return jax.lax.scan(group, carry, (samples, normals))
 
