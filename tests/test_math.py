@@ -62,3 +62,11 @@ def test_computed_once_returns_its_argument_bit_for_bit():
     # signs of zero included; (subnormals are flushed to zero by XLA:CPU arithmetic in general)
     assert np.array_equal(out.view(np.int64), x.view(np.int64))
     assert np.isnan(np.asarray(computed_once(jnp.asarray([np.nan, np.inf, -np.inf])))).all()
+
+
+@given(st.lists(st.floats(-1e6, 1e6), min_size=12, max_size=12))
+def test_written_out_matvec_matches_numpy(values):
+    from lookout._math import matvec
+
+    A, v = np.reshape(values[:9], (3, 3)), np.asarray(values[9:])
+    np.testing.assert_allclose(matvec(jnp.asarray(A), jnp.asarray(v)), A @ v, rtol=1e-12, atol=1e-12 * np.abs(A).sum() * np.abs(v).max())

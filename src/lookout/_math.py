@@ -130,6 +130,27 @@ def computed_once(value: Array) -> Array:
     return value / (1.0 + 0.0 * value)
 
 
+def matvec(matrix: Array, vector: Array) -> Array:
+    """``matrix @ vector`` for a 3x3 matrix, written out as multiply-adds.
+
+    Under ``vmap`` a batched 3x3 product is a separate library call per product
+    on XLA:CPU; written out, it fuses with its neighbours. The vector goes through
+    :func:`computed_once` so that the chain producing it is not re-evaluated for
+    each of the three output components.
+
+    Parameters
+    ----------
+    matrix : Array, shape (3, 3)
+    vector : Array, shape (3,)
+
+    Returns
+    -------
+    Array, shape (3,)
+    """
+    v = computed_once(vector)
+    return matrix[:, 0] * v[0] + matrix[:, 1] * v[1] + matrix[:, 2] * v[2]
+
+
 def _heading_terms(psi: Array) -> tuple[Array, Array]:
     """sin(psi), cos(psi), each computed once (see :func:`computed_once`)."""
     s, c = sincos(psi)

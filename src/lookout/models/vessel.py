@@ -18,7 +18,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout._math import rotate, rotate_transpose, ssa
+from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 
 DOF = ("surge", "sway", "yaw")
@@ -112,9 +112,9 @@ class DPVessel(eqx.Module):
     def acceleration(self, eta: Array, nu: Array, tau: Array, bias: Array) -> Array:
         """nu' = M^{-1} (tau + J^T(psi) b - D nu - K eta)."""
         eta_wrapped = eta.at[2].set(ssa(eta[2]))
-        force = tau + rotate_transpose(eta[2], bias) - self.damping_matrix @ nu
-        force = force - self.stiffness_matrix @ eta_wrapped
-        return self.mass_inverse @ force
+        force = tau + rotate_transpose(eta[2], bias) - matvec(self.damping_matrix, nu)
+        force = force - matvec(self.stiffness_matrix, eta_wrapped)
+        return matvec(self.mass_inverse, force)
 
 
 def northern_clipper() -> DPVessel:

@@ -29,7 +29,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout._math import rotate, rotate_transpose, ssa
+from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.models.vessel import DPVessel, VesselState
 from lookout.sim.integrators import rk4_step
 
@@ -267,11 +267,11 @@ class PassiveObserver(eqx.Module):
         bias_rate = -estimate.bias / self.bias_time_constant + inv_gamma * self.bias_injection_gain * y_tilde
         # eq. (25)
         force = (
-            -self.damping_matrix @ estimate.nu
+            -matvec(self.damping_matrix, estimate.nu)
             + rotate_transpose(heading, estimate.bias + inv_gamma * self.velocity_injection_gain * y_tilde)
             + tau
         )
-        return VesselState(eta=eta_rate, nu=self.mass_inverse @ force, bias=bias_rate, wave_state=wave_rate)
+        return VesselState(eta=eta_rate, nu=matvec(self.mass_inverse, force), bias=bias_rate, wave_state=wave_rate)
 
     def step(self, estimate: VesselState, t, measurement: Array, tau: Array, dt, substeps: int = 1):
         """Advance the estimate over one sample period with measurement and tau held.

@@ -18,8 +18,8 @@ Time is computed from integer indices, never accumulated. Batches are
 leading axis of every array in the scenario), with the run axis sharded across
 devices when there are several (GPUs, or CPU cores exposed by
 :func:`lookout.use_all_cpu_cores`). Process and measurement noise of sample k is
-a function of (key, k) alone (a counter-based Threefry hash), drawn in vectorized
-blocks of samples.
+a function of (key, k) alone (a counter-based Threefry hash), drawn inside the
+loop for each sample.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
+from lookout._math import computed_once
 from lookout._random import standard_normal
 from lookout.results import Trajectory
 from lookout.sim.integrators import rk4_step
@@ -128,11 +129,6 @@ class Scenario(eqx.Module):
         return tuple(_ratio("sensor", p, "sample_period", self.sample_period) for p in self.sensor.sample_period)
 
 
-#: Samples whose noise is drawn in one vectorized call (a performance knob only:
-#: the noise of sample k depends on (key, k) alone, so results do not depend on it).
-NOISE_BLOCK_SAMPLES = 256
-
-
 #: Static loops up to this length are unrolled in Python instead of a lax.scan
 #: (a one-trip XLA while loop costs more than its body here).
 UNROLL_LIMIT = 4
@@ -223,47 +219,31 @@ def _initial_carry(scenario: Scenario):
     )
 
 
-def _block_records(n_records: int, every: int) -> int:
-    """Largest divisor of n_records with at most NOISE_BLOCK_SAMPLES samples per block."""
-    limit = max(1, NOISE_BLOCK_SAMPLES // every)
-    return max(d for d in range(1, min(limit, n_records) + 1) if n_records % d == 0)
-
-
 def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_records: int):
     """Run ``n_records`` recorded groups of ``record_every`` samples from ``first_record``.
 
-    Blocks of records share one vectorized noise draw; within a block a scan runs
-    over records and, inside, over the ``record_every`` samples of each record.
+    A scan runs over records and, inside, over the ``record_every`` samples of each
+    record; only the first sample of each group is recorded.
     """
     every = scenario.record_every
-    block = _block_records(n_records, every)
 
-    def run_block(carry, first):
-        samples = first * every + jnp.arange(block * every)
-        normals = _sample_noise(scenario, key, samples)
-        normals = normals.reshape(block, every, -1)
-        samples = samples.reshape(block, every)
+    def one(c, k):
+        # the normals are read by several kernels (each integration stage): computed
+        # once rather than re-hashed in each (lookout._math.computed_once)
+        normals = computed_once(_sample_noise(scenario, key, k))
+        return _sample(scenario, c, k, normals)
 
-        def group(carry, inputs):
-            ks, block_normals = inputs
-            carry, record = _sample(scenario, carry, ks[0], block_normals[0])
-
-            def unrecorded(c, sample_inputs):
-                k, sample_normals = sample_inputs
-                return _sample(scenario, c, k, sample_normals)[0], None
-
-            # the other samples of the group are not recorded (no per-sample writes)
-            if every > 1:
-                carry, _ = _static_scan(unrecorded, carry, (ks[1:], block_normals[1:]), every - 1)
-            # one flat vector per record: a single write per record instead of one per leaf
-            return carry, ravel_pytree(record)[0]
-
-        return jax.lax.scan(group, carry, (samples, normals))
+    def group(carry, first):
+        carry, record = one(carry, first)
+        if every > 1:
+            carry, _ = _static_scan(lambda c, k: (one(c, k)[0], None), carry, first + 1 + jnp.arange(every - 1), every - 1)
+        # one flat vector per record: a single write per record instead of one per leaf
+        return carry, ravel_pytree(record)[0]
 
     template = jax.eval_shape(lambda c: _sample(scenario, c, jnp.asarray(0), jnp.zeros(_noise_size(scenario)))[1], carry)
     unravel = ravel_pytree(jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), template))[1]
-    carry, flat = jax.lax.scan(run_block, carry, first_record + block * jnp.arange(n_records // block))
-    return carry, jax.vmap(unravel)(flat.reshape(n_records, -1))
+    carry, flat = jax.lax.scan(group, carry, (first_record + jnp.arange(n_records)) * every)
+    return carry, jax.vmap(unravel)(flat)
 
 
 _segment_jit = eqx.filter_jit(_segment)
