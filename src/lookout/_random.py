@@ -73,8 +73,8 @@ def _unit_interval(hi: Array, lo: Array) -> Array:
     return (mantissa + 1.0) * 2.0**-52
 
 
-def standard_normal(key: Array, sample: Array, count: int) -> Array:
-    """``count`` independent standard normal numbers for each entry of ``sample``.
+def standard_normal(key: Array, sample: Array, count: int, first: int = 0) -> Array:
+    """Standard normal numbers ``first .. first + count - 1`` of each entry of ``sample``.
 
     Number ``j`` of sample ``k`` is the cosine (``j`` even) or sine (``j`` odd) branch of
     the Box–Muller transform of the uniforms hashed from the counters
@@ -90,6 +90,9 @@ def standard_normal(key: Array, sample: Array, count: int) -> Array:
         Sample indices, any shape, in [0, 2**32).
     count : int
         Numbers per sample (static).
+    first : int
+        Index ``j`` of the first number (static, >= 0): any slice of a sample's
+        numbers can be drawn on its own and equals the same slice of a longer draw.
 
     Returns
     -------
@@ -97,9 +100,9 @@ def standard_normal(key: Array, sample: Array, count: int) -> Array:
     """
     words = jax.random.key_data(key).astype(jnp.uint32)
     k = jnp.asarray(sample).astype(jnp.uint32)[..., None]
-    j = jnp.arange(count, dtype=jnp.uint32)
-    first = j & np.uint32(0xFFFFFFFE)
-    u1 = _unit_interval(*threefry2x32(words, k, first))
-    u2 = _unit_interval(*threefry2x32(words, k, first + np.uint32(1)))
+    j = jnp.arange(first, first + count, dtype=jnp.uint32)
+    pair = j & np.uint32(0xFFFFFFFE)
+    u1 = _unit_interval(*threefry2x32(words, k, pair))
+    u2 = _unit_interval(*threefry2x32(words, k, pair + np.uint32(1)))
     sin, cos = sincos((2.0 * np.pi) * u2)
     return jnp.sqrt(-2.0 * jnp.log(u1)) * jnp.where((j & np.uint32(1)) == 0, cos, sin)

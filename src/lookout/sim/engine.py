@@ -145,16 +145,33 @@ def _static_scan(body, carry, xs, length: int):
     return carry, jax.tree.map(lambda *o: jnp.stack(o), *outputs)
 
 
-def _noise_size(scenario: Scenario) -> int:
-    return scenario.substeps * scenario.plant.noise_size + scenario.sensor.noise_size
+def _process_noise(scenario: Scenario, key: Array, k: Array) -> Array:
+    """Unit white noise of each plant substep of sample k, shape (substeps, plant.noise_size).
 
-
-def _sample_noise(scenario: Scenario, key: Array, k: Array) -> Array:
-    """Standard normal numbers for samples k: process noise of each substep, then sensor.
-
-    A function of (key, k) alone (counter-based, :func:`lookout._random.standard_normal`).
+    Numbers ``0 .. substeps * plant.noise_size - 1`` of sample k: a function of (key, k)
+    alone (counter-based, :func:`lookout._random.standard_normal`), computed once and
+    read by every integration stage (:func:`lookout._math.computed_once`).
     """
-    return standard_normal(key, k, _noise_size(scenario))
+    substeps, size = scenario.substeps, scenario.plant.noise_size
+    normals = computed_once(standard_normal(key, k, substeps * size))
+    return normals.reshape(substeps, size) / math.sqrt(scenario.plant_step)
+
+
+def _sensor_noise(scenario: Scenario, key: Array, k: Array, due: Array) -> Array:
+    """The sensor's standard normals of sample k: the numbers after the process noise.
+
+    Drawn only when some channel takes a sample (``due``); otherwise zeros, which
+    the engine never reads (it holds the last sample). ``k`` is the same for every
+    run of a batch, so under ``vmap`` this stays a branch: with 1 Hz fixes and a
+    10 Hz observer the sensor's numbers are hashed on one sample in ten.
+    """
+    first = scenario.substeps * scenario.plant.noise_size
+    size = scenario.sensor.noise_size
+    return jax.lax.cond(
+        jnp.any(due),
+        lambda: standard_normal(key, k, size, first=first),
+        lambda: jnp.zeros(size),
+    )
 
 
 def _sample_time(scenario: Scenario, k):
@@ -162,19 +179,19 @@ def _sample_time(scenario: Scenario, k):
     return (k * scenario.substeps) * scenario.plant_step
 
 
-def _sample(scenario: Scenario, carry, k: Array, normals: Array):
+def _sample(scenario: Scenario, carry, k: Array, key: Array):
     """Advance plant, sensor, controller and observer by one sample period."""
     plant, sensor, observer = scenario.plant, scenario.sensor, scenario.observer
     h = scenario.plant_step
     substeps = scenario.substeps
     state, estimate, held, control_state, tau = carry
     t = _sample_time(scenario, k)
-    split = substeps * plant.noise_size
-    noise = normals[:split].reshape(substeps, plant.noise_size) / math.sqrt(h)
+    noise = _process_noise(scenario, key, k)
 
     if scenario.observer_mode == "sampled":
         due = (k % jnp.asarray(scenario.sensor_steps)) == 0
-        measurement = jnp.where(due, sensor.measure(state, normals[split:]), held)
+        measured = sensor.measure(state, _sensor_noise(scenario, key, k, due))
+        measurement = jnp.where(due, measured, held)
     else:
         measurement = sensor.ideal(state)
     record = (state, estimate, measurement, tau)
@@ -228,10 +245,7 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
     every = scenario.record_every
 
     def one(c, k):
-        # the normals are read by several kernels (each integration stage): computed
-        # once rather than re-hashed in each (lookout._math.computed_once)
-        normals = computed_once(_sample_noise(scenario, key, k))
-        return _sample(scenario, c, k, normals)
+        return _sample(scenario, c, k, key)
 
     def group(carry, first):
         carry, record = one(carry, first)
@@ -240,7 +254,7 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
         # one flat vector per record: a single write per record instead of one per leaf
         return carry, ravel_pytree(record)[0]
 
-    template = jax.eval_shape(lambda c: _sample(scenario, c, jnp.asarray(0), jnp.zeros(_noise_size(scenario)))[1], carry)
+    template = jax.eval_shape(lambda c: _sample(scenario, c, jnp.asarray(0), key)[1], carry)
     unravel = ravel_pytree(jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), template))[1]
     carry, flat = jax.lax.scan(group, carry, (first_record + jnp.arange(n_records)) * every)
     return carry, jax.vmap(unravel)(flat)
