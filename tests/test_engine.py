@@ -186,3 +186,19 @@ def test_dropout_decision_matches_the_normal_cdf():
     y = jax.vmap(lambda n: sensor.measure(VesselState.zeros(), n))(jnp.asarray(normals))
     np.testing.assert_array_equal(np.isnan(np.asarray(y)), ndtr(normals[:, 3:]) < 0.3)
     assert abs(np.isnan(np.asarray(y)).mean() - 0.3) < 0.01
+
+
+@pytest.mark.parametrize("every", [3, 10])
+def test_decimated_records_are_every_nth_sample_of_the_full_run(every):
+    """record_every only thins the records: the noise of sample k depends on (key, k) alone."""
+    import dataclasses
+
+    full = fs.build(fs.Config(duration=30.0))
+    thin = dataclasses.replace(full, record_every=every)
+    key = jax.random.key(5)
+    a, b = simulate(full, key), simulate(thin, key)
+    np.testing.assert_array_equal(b.time, a.time[::every])
+    for name in ("state", "estimate"):
+        for x, y in zip(jax.tree.leaves(getattr(a, name)), jax.tree.leaves(getattr(b, name))):
+            np.testing.assert_array_equal(np.asarray(y), np.asarray(x)[::every])
+    np.testing.assert_array_equal(np.asarray(b.measurement), np.asarray(a.measurement)[::every])
