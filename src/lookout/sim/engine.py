@@ -262,13 +262,6 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
 
 _segment_jit = eqx.filter_jit(_segment)
 
-#: XLA options of the batch loop. XLA:CPU hands each batched 3x3 matrix product to its
-#: YNNPACK kernels by default; for a few hundred 3-vectors the call costs more than
-#: the arithmetic, so the batch loop keeps them in XLA's own code (batch of 1000:
-#: +10 %; a single run is not faster, docs/benchmarks.md). Other backends ignore the
-#: option, and it applies to this function only, not to the user's other JAX code.
-BATCH_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
-
 
 @eqx.filter_jit
 def _initial_carry_batch(scenario, n_runs: int, batched_scenario: bool):
@@ -276,7 +269,7 @@ def _initial_carry_batch(scenario, n_runs: int, batched_scenario: bool):
     return eqx.filter_vmap(_initial_carry, in_axes=(axes,), axis_size=n_runs)(scenario)
 
 
-@eqx.filter_jit(compiler_options=BATCH_COMPILER_OPTIONS)
+@eqx.filter_jit
 def _segment_batch(scenario, keys, carry, first_record, n_records: int, batched_scenario: bool):
     axes = eqx.if_array(0) if batched_scenario else None
     run = eqx.filter_vmap(_segment, in_axes=(axes, 0, 0, None, None))
