@@ -190,7 +190,12 @@ def test_dropout_decision_matches_the_normal_cdf():
 
 @pytest.mark.parametrize("every", [3, 10])
 def test_decimated_records_are_every_nth_sample_of_the_full_run(every):
-    """record_every only thins the records: the noise of sample k depends on (key, k) alone."""
+    """record_every only thins the records: the noise of sample k depends on (key, k) alone.
+
+    The two programs are compiled apart, and XLA may fuse (and so round) them
+    differently: agreement is to a few ulp, where a shifted noise stream would differ
+    at the size of the signal.
+    """
     import dataclasses
 
     full = fs.build(fs.Config(duration=30.0))
@@ -200,5 +205,5 @@ def test_decimated_records_are_every_nth_sample_of_the_full_run(every):
     np.testing.assert_array_equal(b.time, a.time[::every])
     for name in ("state", "estimate"):
         for x, y in zip(jax.tree.leaves(getattr(a, name)), jax.tree.leaves(getattr(b, name))):
-            np.testing.assert_array_equal(np.asarray(y), np.asarray(x)[::every])
-    np.testing.assert_array_equal(np.asarray(b.measurement), np.asarray(a.measurement)[::every])
+            np.testing.assert_allclose(np.asarray(y), np.asarray(x)[::every], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(b.measurement), np.asarray(a.measurement)[::every], rtol=1e-12, atol=1e-15)

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from lookout._math import sincos
+from lookout._math import computed_once, sincos
 
 # Rotation distances of Threefry-2x32 (Salmon et al. 2011, Table 4), used in order,
 # four rounds between key injections, 20 rounds in all.
@@ -73,14 +73,19 @@ def _unit_interval(hi: Array, lo: Array) -> Array:
     return (mantissa + 1.0) * 2.0**-52
 
 
-def standard_normal(key: Array, sample: Array, count: int, first: int = 0) -> Array:
-    """Standard normal numbers ``first .. first + count - 1`` of each entry of ``sample``.
+def standard_normal(key: Array, sample: Array, count: int, stream: int = 0) -> Array:
+    """``count`` standard normal numbers of stream ``stream`` for each entry of ``sample``.
 
-    Number ``j`` of sample ``k`` is the cosine (``j`` even) or sine (``j`` odd) branch of
-    the Box–Muller transform of the uniforms hashed from the counters
-    ``(k, 2 (j // 2))`` and ``(k, 2 (j // 2) + 1)``: a function of ``(key, k, j)`` alone.
-    Each number is computed on its own (both hashes of its pair), which lets XLA
-    compute every output element in one vectorized loop.
+    The numbers come in Box–Muller pairs: pair ``p`` hashes the counters
+    ``(k, c + 2p)`` and ``(k, c + 2p + 1)``, with ``c = stream * 2**16``, into the
+    uniforms ``u1`` and ``u2`` and gives ``r cos(2 pi u2)`` and ``r sin(2 pi u2)``,
+    ``r = sqrt(-2 ln u1)``. With ``P = ceil(count / 2)`` pairs, numbers ``0 .. P-1``
+    are the cosine branches of pairs ``0 .. P-1`` and numbers ``P .. count-1`` their
+    sine branches: one hash per number, and no interleaving of the two branches
+    (which XLA:CPU would fuse back into a kernel that computes each pair twice).
+    The result is a function of ``(key, k, stream, count)`` alone, so a stream is
+    drawn with one fixed ``count``; the engine gives the plant's process noise and
+    the sensor's noise separate streams.
 
     Parameters
     ----------
@@ -89,20 +94,26 @@ def standard_normal(key: Array, sample: Array, count: int, first: int = 0) -> Ar
     sample : Array, integer
         Sample indices, any shape, in [0, 2**32).
     count : int
-        Numbers per sample (static).
-    first : int
-        Index ``j`` of the first number (static, >= 0): any slice of a sample's
-        numbers can be drawn on its own and equals the same slice of a longer draw.
+        Numbers per sample (static), 0 .. 2**16.
+    stream : int
+        Stream index (static), 0 .. 2**16 - 1.
 
     Returns
     -------
     Array, shape ``sample.shape + (count,)``, float64
     """
+    if not 0 <= count <= 2**16:
+        raise ValueError(f"count must be in 0 .. 65536, got {count}")
+    if not 0 <= stream < 2**16:
+        raise ValueError(f"stream must be in 0 .. 65535, got {stream}")
+    if count == 0:
+        return jnp.zeros(jnp.shape(sample) + (0,))
     words = jax.random.key_data(key).astype(jnp.uint32)
     k = jnp.asarray(sample).astype(jnp.uint32)[..., None]
-    j = jnp.arange(first, first + count, dtype=jnp.uint32)
-    pair = j & np.uint32(0xFFFFFFFE)
-    u1 = _unit_interval(*threefry2x32(words, k, pair))
-    u2 = _unit_interval(*threefry2x32(words, k, pair + np.uint32(1)))
-    sin, cos = sincos((2.0 * np.pi) * u2)
-    return jnp.sqrt(-2.0 * jnp.log(u1)) * jnp.where((j & np.uint32(1)) == 0, cos, sin)
+    pairs = (count + 1) // 2
+    counter = np.uint32(stream << 16) + 2 * jnp.arange(pairs, dtype=jnp.uint32)
+    u1 = _unit_interval(*threefry2x32(words, k, counter))
+    u2 = _unit_interval(*threefry2x32(words, k, counter + np.uint32(1)))
+    radius = computed_once(jnp.sqrt(-2.0 * jnp.log(u1)))
+    sin, cos = sincos((2.0 * np.pi) * computed_once(u2))
+    return jnp.concatenate([radius * cos, radius * sin], axis=-1)[..., :count]

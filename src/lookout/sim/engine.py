@@ -132,6 +132,10 @@ class Scenario(eqx.Module):
 #: Static loops up to this length are unrolled in Python instead of a lax.scan
 #: (a one-trip XLA while loop costs more than its body here).
 UNROLL_LIMIT = 4
+# Streams of lookout._random.standard_normal: the plant's process noise and the
+# sensor's measurement noise of a sample are drawn independently of each other.
+PROCESS_STREAM = 0
+SENSOR_STREAM = 1
 
 
 def _static_scan(body, carry, xs, length: int):
@@ -148,28 +152,27 @@ def _static_scan(body, carry, xs, length: int):
 def _process_noise(scenario: Scenario, key: Array, k: Array) -> Array:
     """Unit white noise of each plant substep of sample k, shape (substeps, plant.noise_size).
 
-    Numbers ``0 .. substeps * plant.noise_size - 1`` of sample k: a function of (key, k)
-    alone (counter-based, :func:`lookout._random.standard_normal`), computed once and
+    Stream ``PROCESS_STREAM`` of sample k: a function of (key, k) alone
+    (counter-based, :func:`lookout._random.standard_normal`), computed once and
     read by every integration stage (:func:`lookout._math.computed_once`).
     """
     substeps, size = scenario.substeps, scenario.plant.noise_size
-    normals = computed_once(standard_normal(key, k, substeps * size))
+    normals = computed_once(standard_normal(key, k, substeps * size, stream=PROCESS_STREAM))
     return normals.reshape(substeps, size) / math.sqrt(scenario.plant_step)
 
 
 def _sensor_noise(scenario: Scenario, key: Array, k: Array, due: Array) -> Array:
-    """The sensor's standard normals of sample k: the numbers after the process noise.
+    """The sensor's standard normals of sample k: stream ``SENSOR_STREAM``.
 
     Drawn only when some channel takes a sample (``due``); otherwise zeros, which
     the engine never reads (it holds the last sample). ``k`` is the same for every
     run of a batch, so under ``vmap`` this stays a branch: with 1 Hz fixes and a
     10 Hz observer the sensor's numbers are hashed on one sample in ten.
     """
-    first = scenario.substeps * scenario.plant.noise_size
     size = scenario.sensor.noise_size
     return jax.lax.cond(
         jnp.any(due),
-        lambda: standard_normal(key, k, size, first=first),
+        lambda: standard_normal(key, k, size, stream=SENSOR_STREAM),
         lambda: jnp.zeros(size),
     )
 
