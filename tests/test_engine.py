@@ -132,6 +132,30 @@ def test_all_channels_dropped_means_pure_prediction(paper_observer):
     assert all(np.all(np.isfinite(np.asarray(leaf))) for leaf in jax.tree.leaves(stepped))
 
 
+def test_missing_heading_holds_the_predicted_heading_over_the_sample(paper_observer):
+    """J(y) is held over the sample like y: with the heading missing, the predicted
+    heading at t stands in for it in every RK4 stage; with it present, the measured one."""
+    from lookout.sim.integrators import rk4_step
+
+    estimate = paper_observer.init(eta=[1.0, 2.0, 0.3], nu=[0.5, -0.2, 0.05], bias=[1e3, -2e3, 1e4])
+    tau = jnp.asarray([1e4, -5e3, 2e5])
+    for measurement, heading in (
+        (jnp.asarray([1.5, 2.5, jnp.nan]), 0.3),  # psi_hat + psi_hat_w at t
+        (jnp.asarray([1.5, 2.5, 0.35]), 0.35),
+    ):
+        stepped, _ = paper_observer.step(estimate, 0.0, measurement, tau, 0.1)
+        field = lambda t, x: paper_observer.vector_field(t, x, measurement, tau, jnp.asarray(heading))
+        expected = rk4_step(field, 0.0, estimate, 0.1).wrapped()
+        for a, b in zip(jax.tree.leaves(stepped), jax.tree.leaves(expected)):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-14, atol=1e-15)
+    # the default heading of the vector field is the per-stage prediction (continuous mode)
+    missing = jnp.asarray([1.5, 2.5, jnp.nan])
+    moved = paper_observer.init(eta=[1.0, 2.0, 0.9], nu=[0.5, -0.2, 0.05], bias=[1e3, -2e3, 1e4])
+    default = paper_observer.vector_field(0.0, moved, missing, tau)
+    explicit = paper_observer.vector_field(0.0, moved, missing, tau, jnp.asarray(0.9))
+    np.testing.assert_array_equal(np.asarray(default.nu), np.asarray(explicit.nu))
+
+
 @pytest.mark.parametrize(
     "kwargs, message",
     [

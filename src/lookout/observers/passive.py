@@ -250,12 +250,20 @@ class PassiveObserver(eqx.Module):
         error = error.at[2].set(ssa(error[2]))
         return jnp.where(jnp.isfinite(measurement), error, 0.0)
 
-    def vector_field(self, t, estimate: VesselState, measurement: Array, tau: Array) -> VesselState:
-        """Right-hand side of eqs. (22)–(25) for a measurement held at ``measurement``."""
+    def rotation_heading(self, estimate: VesselState, measurement: Array) -> Array:
+        """Heading of J(y) in eqs. (23), (25): the measured one, or the predicted
+        ``psi_hat + psi_hat_w`` when the heading sample is missing."""
+        return jnp.where(jnp.isfinite(measurement[2]), measurement[2], estimate.eta[2] + estimate.wave[2])
+
+    def vector_field(self, t, estimate: VesselState, measurement: Array, tau: Array, heading=None) -> VesselState:
+        """Right-hand side of eqs. (22)–(25) for a measurement held at ``measurement``.
+
+        ``heading`` is the heading of J(y); by default :meth:`rotation_heading` of
+        ``estimate`` (what the continuous-time observer uses).
+        """
         del t
         y_tilde = self.innovation(estimate, measurement)
-        predicted_heading = estimate.eta[2] + estimate.wave[2]
-        heading = jnp.where(jnp.isfinite(measurement[2]), measurement[2], predicted_heading)
+        heading = self.rotation_heading(estimate, measurement) if heading is None else heading
         xi1, xi2 = estimate.wave_state[:3], estimate.wave_state[3:]
         w0, zeta, k = self.wave_frequency, self.wave_damping, self.wave_injection_gain
         # Fossen & Strand (1999), eq. (22), Omega of eq. (11), K1 of eq. (40)
@@ -276,7 +284,9 @@ class PassiveObserver(eqx.Module):
     def step(self, estimate: VesselState, t, measurement: Array, tau: Array, dt, substeps: int = 1):
         """Advance the estimate over one sample period with measurement and tau held.
 
-        Integrates (22)–(25) by ``substeps`` RK4 steps of ``dt / substeps``.
+        Integrates (22)–(25) by ``substeps`` RK4 steps of ``dt / substeps``, with
+        ``measurement`` and the heading of J(y) (:meth:`rotation_heading` at ``t``)
+        held over the sample.
 
         Returns
         -------
@@ -285,9 +295,12 @@ class PassiveObserver(eqx.Module):
             wrapped) and the innovation y~ used at ``t``.
         """
         h = dt / substeps
+        # J(y) held over the sample like y itself: with the heading missing, the
+        # predicted heading at t (not at each RK4 stage) stands in for the sample
+        heading = self.rotation_heading(estimate, measurement)
 
         def field(time, x):
-            return self.vector_field(time, x, measurement, tau)
+            return self.vector_field(time, x, measurement, tau, heading)
 
         state = estimate
         for i in range(substeps):
