@@ -21,16 +21,12 @@ lookout.use_all_cpu_cores()
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from lookout.analysis import estimation_errors, rms_over  # noqa: E402
+from lookout.analysis import earth_frame_velocity, estimation_errors, rms_over  # noqa: E402
 from lookout.papers import fossen_strand_1999 as fs  # noqa: E402
 from lookout.sim import simulate_batch  # noqa: E402
 
 RUNS, DURATION = 20, 3000.0
 FIX_EVERY = 10  # 1 Hz fixes at the 10 Hz observer rate
-
-
-def _earth(psi, v):
-    return np.stack([np.cos(psi) * v[..., 0] - np.sin(psi) * v[..., 1], np.sin(psi) * v[..., 0] + np.cos(psi) * v[..., 1]], axis=-1)
 
 
 def main() -> None:
@@ -48,9 +44,9 @@ def main() -> None:
 
     psi = ds.eta.sel(dof="yaw").values
     nu, nu_hat = ds.nu.values, ds.nu_hat.values
-    observer = np.sqrt((_earth(psi, nu - nu_hat)[:, late] ** 2).mean(axis=1))
+    observer = np.sqrt((earth_frame_velocity(psi, nu - nu_hat)[:, late] ** 2).mean(axis=1))
     fixes = ds.measurement.values[:, ::FIX_EVERY, :2]
-    naive_error = np.diff(fixes, axis=1) / (FIX_EVERY * float(ds.time[1] - ds.time[0])) - _earth(psi, nu)[:, ::FIX_EVERY][:, :-1]
+    naive_error = np.diff(fixes, axis=1) / (FIX_EVERY * float(ds.time[1] - ds.time[0])) - earth_frame_velocity(psi, nu)[:, ::FIX_EVERY][:, :-1]
     naive = np.sqrt((naive_error[:, late[::FIX_EVERY][:-1]] ** 2).mean(axis=1))
     print(f"velocity, observer / differenced fixes, Earth frame (surge, sway): at most {np.max(observer / naive):.4f}")
     own_std = ds.nu.sel(time=late).std("time")

@@ -70,3 +70,13 @@ def test_written_out_matvec_matches_numpy(values):
 
     A, v = np.reshape(values[:9], (3, 3)), np.asarray(values[9:])
     np.testing.assert_allclose(matvec(jnp.asarray(A), jnp.asarray(v)), A @ v, rtol=1e-12, atol=1e-12 * np.abs(A).sum() * np.abs(v).max())
+
+
+@given(angles, st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3))
+def test_earth_frame_velocity_is_the_planar_part_of_the_rotation(psi, nu):
+    from lookout.analysis import earth_frame_velocity
+
+    expected = np.asarray(rotation(jnp.asarray(psi))) @ np.asarray(nu)
+    np.testing.assert_allclose(earth_frame_velocity(psi, nu), expected[:2], rtol=1e-12, atol=1e-9)
+    stacked = earth_frame_velocity(np.full(4, psi), np.tile(nu, (4, 1)))
+    np.testing.assert_allclose(stacked, np.tile(expected[:2], (4, 1)), rtol=1e-12, atol=1e-9)

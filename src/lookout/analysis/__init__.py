@@ -1,5 +1,6 @@
 """Analysis: stability conditions, frequency response, metrics."""
 
+from .metrics import earth_frame_velocity as earth_frame_velocity
 from .metrics import estimation_errors as estimation_errors
 from .metrics import fit_decay_rate as fit_decay_rate
 from .metrics import rms_over as rms_over

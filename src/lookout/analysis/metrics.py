@@ -24,6 +24,25 @@ def estimation_errors(ds: xr.Dataset) -> xr.Dataset:
     return xr.Dataset(errors)
 
 
+def earth_frame_velocity(heading, velocity) -> np.ndarray:
+    """North and east components of a body-frame velocity: the first two rows of J(psi) nu.
+
+    Parameters
+    ----------
+    heading : array_like
+        psi in radians, shape ``S``.
+    velocity : array_like, shape ``S + (k,)``, k >= 2
+        Body-frame [surge, sway, ...] components.
+
+    Returns
+    -------
+    numpy.ndarray, shape ``S + (2,)``
+    """
+    psi, v = np.asarray(heading), np.asarray(velocity)
+    c, s = np.cos(psi), np.sin(psi)
+    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
+
+
 def rms_over(errors: xr.Dataset, start: float) -> xr.Dataset:
     """RMS of each error over time >= ``start`` (s)."""
     window = errors.sel(time=errors.time >= start)
