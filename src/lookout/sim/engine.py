@@ -40,10 +40,18 @@ from lookout.results import Trajectory
 from lookout.sim.integrators import rk4_step
 
 
-def _ratio(name: str, period: float, base_name: str, base: float) -> int:
-    ratio = period / base
+def integer_ratio(value: float, base: float) -> int | None:
+    """``value / base`` when it is a positive whole number (to 1e-9 relative), else None."""
+    ratio = value / base
     steps = int(round(ratio))
     if steps < 1 or abs(ratio - steps) > 1e-9 * max(1.0, ratio):
+        return None
+    return steps
+
+
+def _ratio(name: str, period: float, base_name: str, base: float) -> int:
+    steps = integer_ratio(period, base)
+    if steps is None:
         raise ValueError(
             f"{name} ({period:g} s) must be an integer multiple of {base_name} ({base:g} s)"
         )
@@ -132,15 +140,19 @@ class Scenario(eqx.Module):
 #: Static loops up to this length are unrolled in Python instead of a lax.scan
 #: (a one-trip XLA while loop costs more than its body here).
 UNROLL_LIMIT = 4
+#: The same for the unrecorded samples of a record group: a whole sample is a large
+#: body, and XLA:CPU's compile time grows faster than the unrolled body (a 600 s run
+#: recorded every 5 samples compiled in 18 s unrolled, 6.7 s as a scan).
+RECORD_GROUP_UNROLL_LIMIT = 1
 # Streams of lookout._random.standard_normal: the plant's process noise and the
 # sensor's measurement noise of a sample are drawn independently of each other.
 PROCESS_STREAM = 0
 SENSOR_STREAM = 1
 
 
-def _static_scan(body, carry, xs, length: int):
+def _static_scan(body, carry, xs, length: int, unroll_limit: int = UNROLL_LIMIT):
     """``lax.scan`` for long loops, a Python loop (unrolled in the trace) for short ones."""
-    if length > UNROLL_LIMIT:
+    if length > unroll_limit:
         return jax.lax.scan(body, carry, xs)
     outputs = []
     for i in range(length):
@@ -230,13 +242,19 @@ def _sample(scenario: Scenario, carry, k: Array, key: Array):
 
 
 def _initial_carry(scenario: Scenario):
-    """Plant state, estimate, held sensor samples, controller state and tau_0."""
-    return (
+    """Plant state, estimate, held sensor samples, controller state and tau_0.
+
+    Every leaf is given its own (strong) dtype: a weakly typed leaf, such as a
+    component's output computed from Python floats, would come back strongly typed
+    from the first segment and make ``jit`` compile the segment a second time.
+    """
+    carry = (
         scenario.initial_state,
         scenario.initial_estimate,
         jnp.full(len(scenario.sensor.sample_period), jnp.nan),
         *scenario.control.step(scenario.control.init(), _sample_time(scenario, 0), scenario.initial_estimate),
     )
+    return jax.tree.map(lambda leaf: jnp.asarray(leaf, dtype=jnp.result_type(leaf)), carry)
 
 
 def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_records: int):
@@ -253,7 +271,9 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
     def group(carry, first):
         carry, record = one(carry, first)
         if every > 1:
-            carry, _ = _static_scan(lambda c, k: (one(c, k)[0], None), carry, first + 1 + jnp.arange(every - 1), every - 1)
+            carry, _ = _static_scan(
+                lambda c, k: (one(c, k)[0], None), carry, first + 1 + jnp.arange(every - 1), every - 1, RECORD_GROUP_UNROLL_LIMIT
+            )
         # one flat vector per record: a single write per record instead of one per leaf
         return carry, ravel_pytree(record)[0]
 
@@ -332,6 +352,43 @@ def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20)
     records = _run(step, _initial_carry(scenario), scenario.n_records, progress, chunks, time_axis=0)
     state, estimate, measurement, tau = records
     return Trajectory(_time_grid(scenario), state, estimate, measurement, tau, attrs=_attrs(scenario))
+
+
+#: Largest seed a JAX key accepts (it converts the seed to a signed 64-bit integer).
+MAX_SEED = 2**63 - 1
+
+
+def seed_keys(seed: int, runs: int) -> Array:
+    """PRNG keys of a Monte Carlo: run i uses ``jax.random.key(seed + i)``.
+
+    So run 0 of a batch is the single run with the same ``seed``, and a batch of
+    ``seed=S, runs=N`` extends the batch ``seed=S, runs=M < N`` (its first M runs
+    are the same realizations).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of run 0, from 0 to ``MAX_SEED - runs + 1``.
+    runs : int
+        Number of keys, at least 1.
+
+    Returns
+    -------
+    Array
+        ``runs`` keys, shape (runs,).
+    """
+    if not (isinstance(runs, int) and runs >= 1):
+        raise ValueError(f"runs must be a positive integer; got {runs!r}")
+    if not (isinstance(seed, int) and 0 <= seed <= MAX_SEED - runs + 1):
+        raise ValueError(f"seed must be an integer from 0 to {MAX_SEED - runs + 1} (seeds seed ... seed + runs - 1 must fit a signed 64-bit integer); got {seed!r}")
+    return jax.vmap(jax.random.key)(jnp.arange(runs, dtype=jnp.int64) + seed)
+
+
+def record_nbytes(scenario: Scenario) -> int:
+    """Bytes that one recorded sample of one run takes in the results (state,
+    estimate, measurement and input), from the shapes the engine records."""
+    record = jax.eval_shape(lambda key: _sample(scenario, _initial_carry(scenario), jnp.asarray(0), key)[1], jax.random.key(0))
+    return int(sum(leaf.size * leaf.dtype.itemsize for leaf in jax.tree.leaves(record)))
 
 
 def _shard_runs(tree, n_runs: int):
