@@ -18,6 +18,7 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/activate
 	touch $@ $(VENV)/.installed
 
 demo: $(VENV)/.installed
+	mkdir -p $(dir $(OUT))
 	$(BIN)/lookout reproduce fossen-strand-1999 --out $(OUT)
 
 test: $(VENV)/.installed-dev

@@ -11,12 +11,11 @@ import lookout
 
 lookout.use_all_cpu_cores()
 
-import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
 from lookout.analysis import estimation_errors, rms_over  # noqa: E402
 from lookout.papers import fossen_strand_1999 as fs  # noqa: E402
-from lookout.sim import simulate_batch  # noqa: E402
+from lookout.sim import seed_keys, simulate_batch  # noqa: E402
 
 RUNS, DURATION = 8, 3000.0
 VARIANTS = {
@@ -30,7 +29,7 @@ VARIANTS = {
 
 
 def main() -> None:
-    keys = jax.random.split(jax.random.key(0), RUNS)
+    keys = seed_keys(0, RUNS)  # the seeds of `lookout reproduce fossen-strand-1999 --runs 8`
     print(f"mean RMS error over [{DURATION / 2:g}, {DURATION:g}] s, {RUNS} seeds: surge, sway, yaw")
     for label, (overrides, mode) in VARIANTS.items():
         scenario = fs.build(fs.Config(duration=DURATION, **overrides))

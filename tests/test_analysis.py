@@ -2,7 +2,16 @@ import numpy as np
 import pytest
 
 from lookout import PassiveObserver, northern_clipper
-from lookout.analysis import check_spr, check_tuning_rule, error_loop, fit_decay_rate, frequency_response, kyp_certificate, settling_time, transfer_functions
+from lookout.analysis import (
+    check_spr,
+    check_tuning_rule,
+    error_loop,
+    fit_decay_rate,
+    frequency_response,
+    minimum_phase_in_band,
+    settling_time,
+    transfer_functions,
+)
 
 
 def _observer(kappa, lam, T=1000.0):
@@ -32,7 +41,7 @@ def test_in_band_phase_margin_is_reported_near_the_notch(paper_observer):
     """The paper's gains leave h within a degree of -90 deg just below w_o."""
     w = np.linspace(0.3, 0.9, 20001)
     phase = np.degrees(np.angle(transfer_functions(paper_observer, w)["h"][:, 0]))
-    report = check_spr(paper_observer, certificate=False)[0]
+    report = check_spr(paper_observer)[0]
     assert report.min_phase_deg_in_band == pytest.approx(phase.min(), abs=0.05)
     assert 0.6 < report.min_phase_frequency_in_band < 0.8976
     assert -90.0 < report.min_phase_deg_in_band < -89.0
@@ -70,6 +79,17 @@ def test_much_less_than_is_checked_with_its_factor():
 def test_frequency_response_dataset(paper_observer):
     ds = frequency_response(paper_observer, [0.1, 0.8976, 10.0])
     assert ds.h0_magnitude.dims == ("frequency", "dof")
+    # h0: velocity error (m/s) -> position error (m); hB: position error -> force; yaw in N m/rad
+    assert ds.h0_magnitude.attrs["units"] == "s"
+    assert ds.hB_magnitude.attrs["units"] == "surge: N/m, sway: N/m, yaw: N m/rad"
+    assert ds.h_magnitude.attrs["units"] == "surge: N s/m, sway: N s/m, yaw: N m s/rad"
+    np.testing.assert_allclose(ds.bias_filter_frequency, 1e-3)
+    np.testing.assert_allclose(ds.wave_frequency, 0.8976)
+    np.testing.assert_allclose(ds.cutoff_frequency, 1.1)
+    np.testing.assert_allclose(ds.bias_gain_ratio, np.asarray(paper_observer.bias_injection_gain) / np.asarray(paper_observer.velocity_injection_gain))
+    # the default grid spans two decades either side of the loop's time scales
+    default = frequency_response(paper_observer).frequency.values
+    assert default[0] == pytest.approx(1e-5) and 100 < default[-1] < 200
     assert ds.h_phase_deg.sel(frequency=10.0).values.min() > -90.0
     with pytest.raises(ValueError, match="frequencies must be a 1-D array of positive finite values"):
         frequency_response(paper_observer, [0.0, 1.0])
@@ -89,3 +109,25 @@ def test_settling_time_of_a_decaying_plus_stationary_error():
     final = np.sqrt(np.mean(noise[t >= 1000] ** 2))
     settle = settling_time(error, t, final)
     assert 150 < settle < 400  # transient 100 e^{-t/50} must be well below the unit noise
+
+
+def test_spr_is_not_claimed_without_a_verified_certificate():
+    """A stiff loop (w_c = 1e6 rad/s) passes the frequency test, but no certificate is
+    verified: the verdict is "unverified" with the reason, never "holds"."""
+    observer = PassiveObserver.design(
+        northern_clipper(), wave_frequency=0.8976, wave_damping=0.1, notch_damping=1.0, cutoff_frequency=1e6,
+        velocity_injection_gain=5.91e4, bias_injection_gain=2121.0, bias_time_constant=1000.0,
+    )
+    for report in check_spr(observer):
+        assert report.frequency_test and report.min_real_part > 0
+        assert report.verdict == "unverified" and not report.spr and not report.certificate["verified"]
+        assert "poles span 0.001 to 1e+06 rad/s" in report.reason
+        assert report.to_dict()["spr"] is False
+
+
+def test_in_band_minimum_ignores_the_high_frequency_asymptote():
+    w = np.array([0.1, 1.0, 5.0, 20.0, 100.0])
+    phase = np.array([-10.0, -60.0, -50.0, -89.0, -89.9])
+    assert minimum_phase_in_band(w, phase, cutoff_frequency=1.0) == (-60.0, 1.0)
+    assert minimum_phase_in_band(w, phase, cutoff_frequency=10.0) == (-89.9, 100.0)
+    assert minimum_phase_in_band(w, phase, cutoff_frequency=1e-3) == (-89.9, 100.0)  # nothing in band: whole grid

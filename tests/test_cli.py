@@ -1,10 +1,21 @@
 import json
+import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+import xarray as xr
 
-from lookout.cli import main
+import lookout.cli
+from lookout.cli import main, mean_and_spread
+
+REPRODUCE = ["reproduce", "fossen-strand-1999"]
+DESIGN = ["design", "passive-observer"]
+
+
+def _tree(folder):
+    return sorted(str(path.relative_to(folder)) for path in folder.rglob("*"))
 
 
 def test_list(capsys):
@@ -12,44 +23,198 @@ def test_list(capsys):
     assert "fossen-strand-1999" in capsys.readouterr().out
 
 
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"lookout {lookout.__version__}"
+
+
+@pytest.mark.parametrize("argv", [[], ["design"]])
+def test_no_arguments_print_help_without_an_error_line(argv, capsys):
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.out.startswith("Usage: lookout") and "Commands:" in captured.out
+    assert captured.err == ""
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["reproduce", "--help"], ["design", "passive-observer", "--help"]])
+def test_help_fits_80_columns_without_cut_names_or_bool_metavars(argv, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "<bool>" not in text and "…" not in text
+    assert max(len(line) for line in text.splitlines()) <= 80
+    if argv[0] == "reproduce":
+        for option in ("--seed INT", "--runs N", "--duration SECONDS", "--record-interval SECONDS", "--out FOLDER"):
+            assert option in text
+        assert text.count("[default:") >= 5
+    if argv[0] == "design":
+        assert "--normalized " in text and "--no-normalized" not in text
+        assert "Exit code 0" in text
+
+
 def test_design_json_reports_gains_verdicts_and_frequency_response(capsys, tmp_path):
     bode = tmp_path / "bode.png"
-    code = main(["design", "passive-observer", "--wave-period", "7.0", "--frequency", "0.8976", "--frequency", "0.1", "--bode", str(bode), "--json"])
+    code = main([*DESIGN, "--wave-period", "7.0", "--frequency", "0.8976", "--frequency", "0.1", "--bode", str(bode), "--json"])
     assert code == 0
     result = json.loads(capsys.readouterr().out)
-    assert {"K1", "K2", "tuning_rule", "spr", "frequency_response"} <= set(result)
+    assert {"K1", "K2", "tuning_rule", "spr", "frequency_response", "passed"} <= set(result)
     assert round(result["K1"][0][0], 4) == -2.2059 and round(result["K1"][3][0], 4) == 1.6157
-    assert result["tuning_rule"]["holds"] and result["spr"]["holds"]
+    assert result["tuning_rule"]["holds"] and result["spr"]["holds"] and result["passed"]
+    assert result["spr"]["verdict"] == "holds"
     first = result["frequency_response"][0]
     assert set(first) == {"frequency", "magnitude", "phase_deg"}
     assert bode.stat().st_size > 0
 
 
 def test_design_text_output(capsys):
-    assert main(["design", "passive-observer", "--wave-frequency", "0.8976", "--frequency", "0.5"]) == 0
+    assert main([*DESIGN, "--wave-frequency", "0.8976", "--frequency", "0.5"]) == 0
     out = capsys.readouterr().out
-    assert "tuning rule (48): holds" in out and "KYP certificate verified" in out and "|h0(j0.5)|" in out
+    assert "tuning rule (48), 1/T << lambda/kappa < w_o < w_c: holds" in out
+    assert "SPR of h = hB h0: holds" in out and "KYP certificate is verified" in out and "|h0(j0.5)|" in out
+    assert "K1 = [diag(-2.206, -2.206, -2.206); diag(1.616, 1.616, 1.616)]" in out
+    assert "cut-off w_c = 1.1 rad/s" in out  # the paper's ratio, followed by the default
+    assert "design passes (exit code 0)" in out
 
 
-@pytest.mark.parametrize(
-    "argv, fragment",
-    [
-        (["design", "passive-observer", "--wave-frequency", "abc"], "--wave-frequency"),
-        (["design", "passive-observer", "--wave-frequency", "1.2"], "cutoff_frequency must exceed wave_frequency"),
-        (["design", "passive-observer", "--wave-frequency", "0.9", "--bias-time-constant", "-3"], "bias_time_constant must be positive"),
-        (["design", "passive-observer"], "give exactly one of --wave-frequency and --wave-period"),
-        (["reproduce", "nope"], "unknown reproduction 'nope'"),
-        (["reproduce", "fossen-strand-1999", "--duration", "-5"], "duration: Input should be greater than 0"),
-        (["reproduce", "fossen-strand-1999", "--duration", "10.05"], "duration (10.05 s) must be an integer multiple"),
-        (["design", "passive-observer", "--wave-frequency", "0.9", "--bogus"], "No such option: --bogus"),
-    ],
-)
-def test_bad_input_is_one_line_with_exit_code_2(argv, fragment, capsys):
-    assert main(argv) == 2
+def test_design_default_cutoff_follows_the_wave_frequency(capsys):
+    assert main([*DESIGN, "--wave-period", "5", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["cutoff_frequency"] == pytest.approx(1.1 / 0.8976 * 2 * np.pi / 5, rel=1e-12)
+    assert result["passed"]
+    assert main([*DESIGN, "--wave-period", "5", "--cutoff-frequency", "2.5", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["cutoff_frequency"] == 2.5
+    # slower waves keep the paper's w_c = 1.1 rad/s (K2 independent of w_o, Remark 2), and pass
+    assert main([*DESIGN, "--wave-period", "10", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["cutoff_frequency"] == 1.1 and result["passed"]
+    # scaling w_c with w_o there would keep (48) but break SPR: the rule is not sufficient
+    assert main([*DESIGN, "--wave-period", "10", "--cutoff-frequency", str(1.1 / 0.8976 * 2 * np.pi / 10), "--json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    assert result["tuning_rule"]["holds"] and result["spr"]["verdict"] == "fails"
+
+
+def test_design_failing_verdict_exits_1_and_still_reports(capsys):
+    assert main([*DESIGN, "--wave-period", "200"]) == 1
+    out = capsys.readouterr().out
+    assert "tuning rule (48), 1/T << lambda/kappa < w_o < w_c: FAILS" in out and "SPR of h = hB h0: FAILS" in out
+    assert "design does not pass (exit code 1)" in out
+    assert main([*DESIGN, "--wave-period", "200", "--json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    assert not result["passed"] and result["spr"]["verdict"] == "fails"
+
+
+def test_spr_holds_never_appears_without_a_certificate(capsys):
+    """At w_c = 1e6 the loop passes the frequency test but no certificate is found:
+    the verdict says SPR is not established, why, and the design does not pass."""
+    assert main([*DESIGN, "--wave-frequency", "0.8976", "--cutoff-frequency", "1e6", "--json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    assert result["tuning_rule"]["holds"] and not result["spr"]["holds"] and result["spr"]["verdict"] == "unverified"
+    for loop in result["spr"]["loops"]:
+        assert loop["frequency_test"] and not loop["kyp_verified"] and not loop["spr"]
+        assert "no KYP certificate" in loop["reason"] and "poles span" in loop["reason"]
+    assert main([*DESIGN, "--wave-frequency", "0.8976", "--cutoff-frequency", "1e6"]) == 1
+    out = capsys.readouterr().out
+    assert "SPR of h = hB h0: NOT ESTABLISHED" in out and "SPR of h = hB h0: holds" not in out
+
+
+def test_design_prints_small_numbers_with_significant_digits(capsys):
+    assert main([*DESIGN, "--wave-frequency", "1e-9"]) == 1
+    out = capsys.readouterr().out
+    assert "w_o = 1e-09 rad/s" in out and "0.0000" not in out
+
+
+def test_design_normalized_gains_convert_like_the_default(capsys):
+    assert main([*DESIGN, "--wave-frequency", "0.8976", "--json"]) == 0
+    default = json.loads(capsys.readouterr().out)
+    argv = [*DESIGN, "--wave-frequency", "0.8976", "--normalized", "--velocity-gain", "0.1,0.1,0.01", "--bias-gain", "0.01,0.01,0.001", "--json"]
+    assert main(argv) == 0
+    normalized = json.loads(capsys.readouterr().out)
+    assert normalized["velocity_injection_gain"] == pytest.approx(default["velocity_injection_gain"], rel=1e-12)
+    assert normalized["bias_injection_gain"] == pytest.approx(default["bias_injection_gain"], rel=1e-12)
+    assert main([*DESIGN, "--wave-frequency", "0.8976", "--velocity-gain", "5e4", "--bias-gain", "2e3", "--json"]) == 0
+    si = json.loads(capsys.readouterr().out)
+    assert si["velocity_injection_gain"] == [5e4, 5e4, 5e4] and si["bias_injection_gain"] == [2e3, 2e3, 2e3]
+
+
+# Every bad input: exit code 2, one line on stderr naming the option, no traceback, nothing written.
+BAD_INPUTS = [
+    # (argv with {tmp} for the test's folder, the option named, a fragment of the message)
+    ([*REPRODUCE, "--out", "{tmp}/missing/out"], "--out", "does not exist"),
+    ([*REPRODUCE, "--out", "{tmp}/a-file"], "--out", "is an existing file"),
+    ([*REPRODUCE, "--out", ""], "--out", "empty path"),
+    ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}/missing/bode.png"], "--bode", "does not exist"),
+    ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}"], "--bode", "must name a file, not the folder"),
+    ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}/bode.xyz"], "--bode", "must end in a format matplotlib writes"),
+    ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}/bode"], "--bode", "must end in a format matplotlib writes"),
+    ([*REPRODUCE, "--seed", "99999999999999999999"], "--seed", "must be an integer from 0 to 9223372036854775807"),
+    ([*REPRODUCE, "--seed", "9223372036854775807", "--runs", "2"], "--seed", "from 0 to 9223372036854775806"),
+    ([*REPRODUCE, "--seed", "-1"], "--seed", "must be an integer from 0"),
+    ([*REPRODUCE, "--runs", "1000000", "--duration", "3000"], "--runs", "fewer --runs, a shorter --duration or a coarser --record-interval"),
+    ([*REPRODUCE, "--runs", "0"], "--runs", "must be a positive integer"),
+    ([*REPRODUCE, "--duration", "nan"], "--duration", "must be a finite positive number; got nan"),
+    ([*REPRODUCE, "--duration", "inf"], "--duration", "must be a finite positive number; got inf"),
+    ([*REPRODUCE, "--duration", "-5"], "--duration", "must be a finite positive number; got -5"),
+    ([*REPRODUCE, "--duration", "10.05"], "--duration", "whole multiple of the record interval (0.1 s)"),
+    ([*REPRODUCE, "--record-interval", "0.25"], "--record-interval", "whole multiple of the observer's sample period"),
+    ([*REPRODUCE, "--record-interval", "1", "--duration", "10.5"], "--duration", "record interval (1 s)"),
+    (["reproduce", "nope"], "nope", "unknown reproduction 'nope'; available: fossen-strand-1999"),
+    ([*DESIGN, "--wave-frequency", "abc"], "--wave-frequency", "Invalid value for '--wave-frequency'"),
+    ([*DESIGN, "--wave-frequency", "0"], "--wave-frequency", "must be a finite positive number; got 0"),
+    ([*DESIGN, "--wave-period", "nan"], "--wave-period", "must be a finite positive number; got nan"),
+    ([*DESIGN], "--wave-frequency", "give exactly one of --wave-frequency and --wave-period"),
+    ([*DESIGN, "--wave-frequency", "1", "--wave-period", "6"], "--wave-period", "give exactly one"),
+    ([*DESIGN, "--wave-period", "5", "--cutoff-frequency", "1.1"], "--cutoff-frequency", "must exceed the wave frequency w_o = 1.257 rad/s (from --wave-period 5); got 1.1: raise it, or leave it out for max(1.1, 1.2255 w_o)"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--velocity-gain", "-1"], "--velocity-gain", "got -1"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--velocity-gain", "1,2"], "--velocity-gain", "three separated by commas"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--bias-gain", "x"], "--bias-gain", "got x"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--bias-time-constant", "-3"], "--bias-time-constant", "got -3"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--wave-damping", "0"], "--wave-damping", "finite positive"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--notch-damping", "0.05"], "--notch-damping", "must exceed --wave-damping (0.1); got 0.05"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--lyapunov-weight", "-1"], "--lyapunov-weight", "finite positive"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--frequency", "-2"], "--frequency", "finite positive"),
+    ([*DESIGN, "--wave-frequency", "0.9", "--bogus"], "--bogus", "No such option: --bogus"),
+]
+
+
+@pytest.mark.parametrize("argv, option, fragment", BAD_INPUTS, ids=[" ".join(case[0][1:]) for case in BAD_INPUTS])
+def test_bad_input_is_one_line_naming_the_option_with_exit_code_2_and_nothing_written(argv, option, fragment, capsys, tmp_path, monkeypatch):
+    (tmp_path / "a-file").write_text("not a folder")
+    monkeypatch.chdir(tmp_path)
+    before = _tree(tmp_path)
+    assert main([arg.format(tmp=tmp_path) for arg in argv]) == 2
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0]
+    assert len(lines) == 1 and lines[0].startswith("error: "), captured.err
+    assert option in lines[0] and fragment in lines[0], lines[0]
     assert "Traceback" not in captured.err + captured.out
+    for python_name in ("velocity_injection_gain", "bias_injection_gain", "cutoff_frequency", "validation error", "pydantic", "Format '"):
+        assert python_name not in lines[0]
+    assert "[-1" not in lines[0]  # a scalar is echoed as typed, not tripled
+    assert _tree(tmp_path) == before
+
+
+def test_output_folder_that_is_not_writable(capsys, tmp_path, monkeypatch):
+    """os.access stands in for a read-only folder (the suite may run as root, who may write anywhere)."""
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(lookout.cli.os, "access", lambda path, mode: False if str(path) == str(locked) else real_access(path, mode))
+    assert main([*REPRODUCE, "--out", str(locked / "out"), "--duration", "10"]) == 2
+    assert main([*DESIGN, "--wave-period", "7", "--bode", str(locked / "b.png")]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert errors == [f"error: --out: the folder {locked} is not writable", f"error: --bode: the folder {locked} is not writable"]
+    assert list(locked.iterdir()) == []
+
+
+def test_memory_estimate_refuses_before_simulating(capsys, monkeypatch):
+    monkeypatch.setattr(lookout.cli, "available_memory", lambda: 8_000_000_000)
+    assert main([*REPRODUCE, "--duration", "1e7"]) == 2
+    line = capsys.readouterr().err.strip()
+    # 1e8 samples x 288 B of records, x4 while writing: 115 GB
+    assert line == (
+        "error: --runs 1 over --duration 1e+07 would need about 115 GB of memory (1 run(s) x 100000000 records x 288 B, "
+        "x4 while writing results), and 8 GB are available: use fewer --runs, a shorter --duration or a coarser --record-interval"
+    )
 
 
 def test_entry_point_exit_code_without_traceback():
@@ -60,31 +225,44 @@ def test_entry_point_exit_code_without_traceback():
 
 def test_short_reproduce_writes_all_outputs(tmp_path, capsys):
     out = tmp_path / "fs99"
-    assert main(["reproduce", "fossen-strand-1999", "--out", str(out), "--duration", "100", "--seed", "3"]) == 0
+    assert main([*REPRODUCE, "--out", str(out), "--duration", "100", "--seed", "3"]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    for name in ("fossen_strand_1999.nc", "summary.json", "fig06_bode.png", "fig09_surge.png", "fig10_sway.png", "fig11_yaw.png"):
+    for name in ("fossen_strand_1999.nc", "bode.nc", "summary.json", "fig06_bode.png", "fig09_surge.png", "fig10_sway.png", "fig11_yaw.png"):
         assert (out / name).stat().st_size > 0
-    assert summary["config"]["seed"] == 3 and summary["config"]["duration"] == 100.0
-    assert "RMS over the second half" in capsys.readouterr().out
+    assert summary["config"]["seed"] == 3 and summary["config"]["duration"] == 100.0 and summary["seeds"] == [3]
+    assert summary["spr"] == {"surge": "holds", "sway": "holds", "yaw": "holds"}
+    assert "RMS estimation error over the second half (seed 3)" in capsys.readouterr().out
 
 
-def test_reproduce_with_several_runs_reports_spread(tmp_path, capsys):
+def test_monte_carlo_run_0_is_the_single_run_to_the_last_bit(tmp_path, capsys):
+    """--seed 3 --runs 2 runs seeds 3 and 4; its run 0 is --seed 3 alone, bit for bit."""
+    assert main([*REPRODUCE, "--out", str(tmp_path / "one"), "--duration", "60", "--seed", "3"]) == 0
+    assert main([*REPRODUCE, "--out", str(tmp_path / "two"), "--duration", "60", "--seed", "3", "--runs", "2"]) == 0
+    one = xr.load_dataset(tmp_path / "one" / "fossen_strand_1999.nc")
+    two = xr.load_dataset(tmp_path / "two" / "fossen_strand_1999.nc")
+    assert one.seed.values.tolist() == [3] and two.seed.values.tolist() == [3, 4]
+    for name in ("eta", "eta_hat", "nu", "nu_hat", "bias", "bias_hat", "wave", "wave_hat", "measurement", "tau"):
+        assert np.array_equal(one[name].isel(run=0).values, two[name].isel(run=0).values, equal_nan=True), name
+    assert not np.array_equal(two.eta_hat.isel(run=0).values, two.eta_hat.isel(run=1).values)
+
+
+def test_reproduce_with_several_runs_reports_spread_within_80_columns(tmp_path, capsys):
     out = tmp_path / "mc"
-    assert main(["reproduce", "fossen-strand-1999", "--out", str(out), "--duration", "60", "--runs", "2"]) == 0
+    lookout.cli.console.width = 80
+    assert main([*REPRODUCE, "--out", str(out), "--duration", "60", "--runs", "2", "--record-interval", "0.5"]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["runs"] == 2 and summary["status"] == ["finite", "finite"]
+    assert summary["runs"] == 2 and summary["status"] == ["finite", "finite"] and summary["seeds"] == [0, 1]
     assert set(summary["rms_second_half_std"]["eta"]) == {"surge", "sway", "yaw"}
-    assert "2/2 runs finite" in capsys.readouterr().out
+    assert xr.load_dataset(out / "fossen_strand_1999.nc").sizes["time"] == 120  # 60 s recorded every 0.5 s
+    text = capsys.readouterr().out
+    table = text[: text.index("units:")]
+    assert "2/2 runs finite" in text and "±" in table and "e+" not in table
+    assert max(len(line) for line in table.splitlines()) <= 80
 
 
-def test_design_normalized_gains_convert_like_the_default(capsys):
-    assert main(["design", "passive-observer", "--wave-frequency", "0.8976", "--json"]) == 0
-    default = json.loads(capsys.readouterr().out)
-    argv = ["design", "passive-observer", "--wave-frequency", "0.8976", "--normalized", "--velocity-gain", "0.1,0.1,0.01", "--bias-gain", "0.01,0.01,0.001", "--json"]
-    assert main(argv) == 0
-    normalized = json.loads(capsys.readouterr().out)
-    assert normalized["velocity_injection_gain"] == pytest.approx(default["velocity_injection_gain"], rel=1e-12)
-    assert normalized["bias_injection_gain"] == pytest.approx(default["bias_injection_gain"], rel=1e-12)
-    assert main(["design", "passive-observer", "--wave-frequency", "0.8976", "--velocity-gain", "5e4", "--bias-gain", "2e3", "--json"]) == 0
-    si = json.loads(capsys.readouterr().out)
-    assert si["velocity_injection_gain"] == [5e4, 5e4, 5e4] and si["bias_injection_gain"] == [2e3, 2e3, 2e3]
+@pytest.mark.parametrize(
+    "mean, spread, text",
+    [(1453.0, 100.0, "1450 ± 100"), (1507.0, 39.0, "1507 ± 39"), (0.662, 0.013, "0.662 ± 0.013"), (1.19e-4, 6.6e-6, "(1.190 ± 0.066)e-4"), (25745.0, 2051.0, "25700 ± 2100")],
+)
+def test_mean_and_spread_share_one_decimal_place(mean, spread, text):
+    assert mean_and_spread(mean, spread) == text

@@ -13,6 +13,8 @@ It changes how loops are compiled, not what they compute.
 """
 
 import os as _os
+from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
+from importlib.metadata import version as _metadata_version
 
 #: Per-iteration byte threshold below which XLA:CPU compiles a while loop as one
 #: function (set at import, see the module docstring).
@@ -65,6 +67,10 @@ from .results import Trajectory as Trajectory  # noqa: E402
 from .sensors import PositionHeadingSensor as PositionHeadingSensor  # noqa: E402
 from .sim import Scenario as Scenario  # noqa: E402
 from .sim import simulate as simulate  # noqa: E402
+from .sim import seed_keys as seed_keys  # noqa: E402
 from .sim import simulate_batch as simulate_batch  # noqa: E402
 
-__version__ = "0.1.0"
+try:
+    __version__ = _metadata_version("lookout")
+except _PackageNotFoundError:  # pragma: no cover - running from a source tree that is not installed
+    __version__ = "0+unknown"

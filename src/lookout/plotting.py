@@ -1,6 +1,17 @@
-"""Figures drawn from xarray Datasets (matplotlib, no display needed)."""
+"""Figures drawn from xarray Datasets (matplotlib, no display needed).
+
+Two figures, after Fossen & Strand (1999), Figs. 6 and 9–11:
+
+* :func:`plot_estimates` -- true and estimated states of one degree of freedom
+  (position/heading, velocity, wave motion, bias), full run and a zoomed window;
+* :func:`plot_bode` -- the frequency response of the error loops h0, hB and h of
+  all three degrees of freedom, with the frequencies of the tuning rule (48).
+"""
 
 from __future__ import annotations
+
+import math
+import operator
 
 import matplotlib
 
@@ -8,75 +19,412 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 
-_PANELS = {
-    "surge": (("eta", "x (m)", 1.0), ("nu", "u (m/s)", 1.0), ("wave", "x_w (m)", 1.0), ("bias", "b_x (kN)", 1e-3)),
-    "sway": (("eta", "y (m)", 1.0), ("nu", "v (m/s)", 1.0), ("wave", "y_w (m)", 1.0), ("bias", "b_y (kN)", 1e-3)),
-    "yaw": (
-        ("eta", "psi (deg)", np.degrees(1.0)),
-        ("nu", "r (deg/s)", np.degrees(1.0)),
-        ("wave", "psi_w (deg)", np.degrees(1.0)),
-        ("bias", "b_psi (kN m)", 1e-3),
+from lookout._math import ssa  # noqa: E402
+
+DOFS = ("surge", "sway", "yaw")
+
+# --------------------------------------------------------------------------- estimates
+
+#: Per quantity: row label (frame and kind) and, per DOF, (axis label with units, scale
+#: from the stored SI value to the plotted unit).
+_ROWS = (
+    (
+        "eta",
+        "Earth-fixed position",
+        {
+            "surge": ("north $x$ (m)", 1.0),
+            "sway": ("east $y$ (m)", 1.0),
+            "yaw": (r"heading $\psi$ (deg)", math.degrees(1.0)),
+        },
     ),
-}
+    (
+        "nu",
+        "body-fixed velocity",
+        {
+            "surge": ("surge $u$ (m/s)", 1.0),
+            "sway": ("sway $v$ (m/s)", 1.0),
+            "yaw": ("yaw rate $r$ (deg/s)", math.degrees(1.0)),
+        },
+    ),
+    (
+        "wave",
+        "Earth-fixed wave motion",
+        {
+            "surge": ("north $x_w$ (m)", 1.0),
+            "sway": ("east $y_w$ (m)", 1.0),
+            "yaw": (r"heading $\psi_w$ (deg)", math.degrees(1.0)),
+        },
+    ),
+    (
+        "bias",
+        "Earth-fixed bias",
+        {
+            "surge": ("north $b_x$ (kN)", 1e-3),
+            "sway": ("east $b_y$ (kN)", 1e-3),
+            "yaw": (r"yaw $b_\psi$ (kN m)", 1e-3),
+        },
+    ),
+)
+
+_DOF_WORDS = {"surge": "surge / north", "sway": "sway / east", "yaw": "yaw / heading"}
+
+#: Line styles: the estimate is drawn first, wide and coloured; the truth thin, black,
+#: on top, so that it stays visible where the estimate lies on it.
+_ESTIMATE_STYLE = {"color": "C1", "lw": 1.4, "zorder": 2}
+_TRUTH_STYLE = {"color": "k", "lw": 0.7, "zorder": 3}
+_MEASURED_STYLE = {"color": "0.45", "ls": "none", "marker": ".", "ms": 2.5, "alpha": 0.5, "zorder": 1}
+_WINDOW_STYLE = {"color": "C0", "alpha": 0.12, "lw": 0, "zorder": 0}
 
 
-def plot_estimates(ds: xr.Dataset, dof: str, *, run: int = 0, title: str | None = None):
-    """True states (grey) and estimates (black) of one DOF: position, velocity, wave, bias.
+def _wrap_to_pi(angle: np.ndarray) -> np.ndarray:
+    return np.asarray(ssa(angle))
 
-    The layout of Fossen & Strand (1999), Figs. 9–11. Angles are shown in degrees.
+
+def _check_estimate_arguments(ds: xr.Dataset, dof, run, zoom) -> tuple[int, float]:
+    if not isinstance(dof, str) or dof not in DOFS:
+        raise ValueError(f"dof must be one of {list(DOFS)}; got {dof!r}")
+    runs = ds.sizes.get("run", 0)
+    try:
+        run = operator.index(run)
+    except TypeError:
+        raise ValueError(f"run must be an integer index with 0 <= run < {runs}; got {run!r}") from None
+    if not 0 <= run < runs:
+        raise ValueError(f"run must satisfy 0 <= run < {runs} (the dataset's number of runs); got {run}")
+    try:
+        zoom = float(zoom)
+    except (TypeError, ValueError):
+        raise ValueError(f"zoom must be a finite number of seconds > 0; got {zoom!r}") from None
+    if not math.isfinite(zoom) or zoom <= 0:
+        raise ValueError(f"zoom must be a finite number of seconds > 0; got {zoom!r}")
+    return run, zoom
+
+
+def zoom_window(time, zoom: float) -> tuple[float, float]:
+    """The window (start, end) in seconds shown in the zoom column of :func:`plot_estimates`.
+
+    The last ``zoom`` seconds of the run, or its last fifth when the run lasts less
+    than ``5 * zoom``.
+    """
+    time = np.asarray(time, dtype=float)
+    start, end = float(time[0]), float(time[-1])
+    duration = end - start
+    width = zoom if duration >= 5.0 * zoom else duration / 5.0
+    return end - width, end
+
+
+def _run_caption(ds: xr.Dataset, run: int) -> str | None:
+    """'run i of n (seed s)', when the dataset holds several runs or a seed coordinate."""
+    runs = ds.sizes["run"]
+    has_seed = "seed" in ds.coords or "seed" in ds.variables
+    if runs <= 1 and not has_seed:
+        return None
+    caption = f"run {run} of {runs}"
+    if has_seed:
+        seed = np.asarray(ds["seed"].isel(run=run).values).item()
+        caption += f" (seed {seed})"
+    if "status" in ds.variables and ds["status"].dims == ("run",):
+        status = str(np.asarray(ds["status"].isel(run=run).values).item())
+        if status != "finite":
+            caption += f", status: {status}"
+    return caption
+
+
+def plot_estimates(ds: xr.Dataset, dof: str, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+    """True and estimated states of one degree of freedom, full run and zoomed.
+
+    The comparison of Fossen & Strand (1999), Figs. 9–11: one row per quantity --
+    Earth-fixed low-frequency position/heading (eta), body-fixed velocity (nu),
+    Earth-fixed wave-induced motion and Earth-fixed bias -- with the whole run on
+    the left and, on the right, the last ``zoom`` seconds, where the wave-frequency
+    motion (period about 7 s) is resolved. The estimate is drawn in orange, the
+    truth as a thin black line on top of it; the measurement (the position or
+    heading held at each sensor sample) appears as dots in the zoomed position
+    panel. Angles are shown in degrees, the heading unwrapped.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        As from :meth:`lookout.Trajectory.to_xarray`: ``eta``, ``eta_hat``, ``nu``,
+        ``nu_hat``, ``wave``, ``wave_hat``, ``bias``, ``bias_hat`` (and optionally
+        ``measurement``) with dims (run, time, dof); time in seconds. A ``seed``
+        coordinate along ``run``, when present, is named in the subtitle.
+    dof : {"surge", "sway", "yaw"}
+        The degree of freedom to show.
+    run : int, default 0
+        Index of the run along ``run``, ``0 <= run < ds.sizes["run"]``.
+    zoom : float, default 200.0
+        Width in seconds of the zoomed window at the end of the run; when the run
+        lasts less than ``5 * zoom``, its last fifth is shown instead.
+    title : str, optional
+        Figure title; default "<dof> / <direction>: true and estimated".
 
     Returns
     -------
     matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        If ``dof`` is not one of the three names, ``run`` is out of range or
+        ``zoom`` is not a finite positive number.
     """
-    if dof not in _PANELS:
-        raise ValueError(f"dof must be one of {list(_PANELS)}; got {dof!r}")
-    fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
-    time = ds.time.values
-    for ax, (name, label, scale) in zip(axes.ravel(), _PANELS[dof]):
-        truth = ds[name].isel(run=run).sel(dof=dof).values
-        estimate = ds[f"{name}_hat"].isel(run=run).sel(dof=dof).values
+    run, zoom = _check_estimate_arguments(ds, dof, run, zoom)
+    time = np.asarray(ds["time"].values, dtype=float)
+    start, end = zoom_window(time, zoom)
+    # one sample of margin either side so the zoomed curves reach the frame
+    first = max(int(np.searchsorted(time, start, side="left")) - 1, 0)
+    window = slice(first, None)
+
+    fig, axes = plt.subplots(
+        len(_ROWS), 2, figsize=(11, 9), layout="constrained", sharex="col", gridspec_kw={"width_ratios": (1.6, 1.0)}
+    )
+    for row, (name, frame, labels) in enumerate(_ROWS):
+        label, scale = labels[dof]
+        truth = np.asarray(ds[name].isel(run=run).sel(dof=dof).values, dtype=float)
+        estimate = np.asarray(ds[f"{name}_hat"].isel(run=run).sel(dof=dof).values, dtype=float)
+        measured = None
+        if name == "eta" and "measurement" in ds.variables:
+            measured = np.asarray(ds["measurement"].isel(run=run).sel(dof=dof).values, dtype=float)
         if name == "eta" and dof == "yaw":
-            truth, estimate = np.unwrap(truth), np.unwrap(estimate)
-        ax.plot(time, truth * scale, color="0.65", lw=1.2, label="true")
-        ax.plot(time, estimate * scale, color="k", lw=0.8, label="estimate")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    for ax in axes[1]:
+            # unwrap the truth, then put the estimate and measurement on the same branch
+            truth = np.unwrap(truth)
+            estimate = truth + _wrap_to_pi(estimate - truth)
+            if measured is not None:
+                measured = truth + _wrap_to_pi(measured - truth)
+        truth, estimate = truth * scale, estimate * scale
+
+        full, zoomed = axes[row]
+        full.axvspan(start, end, **_WINDOW_STYLE, label="zoom window")
+        for ax, part in ((full, slice(None)), (zoomed, window)):
+            ax.plot(time[part], estimate[part], **_ESTIMATE_STYLE, label="estimate")
+            ax.plot(time[part], truth[part], **_TRUTH_STYLE, label="true")
+            ax.grid(alpha=0.3)
+        if measured is not None:
+            # one dot per sensor sample: the held value changes at a new sample
+            part = measured[window]
+            new = np.r_[True, part[1:] != part[:-1]] & np.isfinite(part)
+            zoomed.plot(time[window][new], part[new] * scale, **_MEASURED_STYLE, label="measured")
+        full.set_ylabel(f"{frame}\n{label}")
+        zoomed.set_ylabel(label)
+        full.set_xlim(time[0], time[-1])
+        zoomed.set_xlim(start, end)
+    for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    axes[0, 0].legend(loc="best", fontsize=8)
-    fig.suptitle(title or f"{dof}: true (grey) and estimated (black)")
-    fig.tight_layout()
+    axes[0, 0].set_title("full run", fontsize=10)
+    axes[0, 1].set_title(f"zoom: last {end - start:.3g} s (shaded on the left)", fontsize=10)
+
+    handles = [
+        Line2D([], [], **{k: v for k, v in _TRUTH_STYLE.items() if k != "zorder"}, label="true"),
+        Line2D([], [], **{k: v for k, v in _ESTIMATE_STYLE.items() if k != "zorder"}, label="estimate"),
+    ]
+    if "measurement" in ds.variables:
+        handles.append(
+            Line2D([], [], **{k: v for k, v in _MEASURED_STYLE.items() if k not in ("zorder", "alpha")}, label="measured (zoom)")
+        )
+    handles.append(Patch(facecolor="C0", alpha=0.12, label="zoom window"))
+    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=9, frameon=False)
+
+    heading = title if title is not None else f"{_DOF_WORDS[dof]}: true and estimated"
+    caption = _run_caption(ds, run)
+    fig.suptitle(heading if caption is None else f"{heading}\n{caption}")
     return fig
 
 
-def plot_bode(response: xr.Dataset, *, dof: str = "surge", title: str | None = None):
-    """Bode plot of h0, hB and h for one DOF (Fossen & Strand 1999, Fig. 6).
+# --------------------------------------------------------------------------- Bode
+
+#: The frequencies of the tuning rule (48): dataset variable, legend label, gid, style.
+_MARKERS = (
+    ("bias_filter_frequency", "1/T", "marker_1/T", {"color": "tab:purple", "ls": ":", "lw": 1.3}),
+    ("bias_gain_ratio", "λ/κ", "marker_lambda/kappa", {"color": "tab:olive", "ls": "-.", "lw": 1.2}),
+    ("wave_frequency", "ω_o", "marker_w_o", {"color": "tab:cyan", "ls": "--", "lw": 1.2}),
+    ("cutoff_frequency", "ω_c", "marker_w_c", {"color": "tab:brown", "ls": (0, (6, 2, 1, 2, 1, 2)), "lw": 1.2}),
+)
+_CURVES = {
+    "h0": {"color": "tab:blue", "lw": 1.3},
+    "hB": {"color": "tab:green", "lw": 1.3, "ls": "--"},
+    "h": {"color": "k", "lw": 1.1},
+}
+_SPR_STYLE = {"color": "tab:red", "ls": ":", "lw": 1.2}
+_REQUIRED = (
+    "h0_magnitude",
+    "hB_magnitude",
+    "h_magnitude",
+    "h0_phase_deg",
+    "hB_phase_deg",
+    "h_phase_deg",
+    "velocity_injection_gain",
+) + tuple(marker[0] for marker in _MARKERS)
+
+
+def _unit_of(attrs: dict, dof: str) -> str:
+    """The unit of ``dof`` from a ``units`` attribute like 'surge: N/m, sway: N/m, yaw: N m/rad'."""
+    units = str(attrs.get("units", ""))
+    for part in units.split(","):
+        key, _, value = part.partition(":")
+        if key.strip() == dof and value.strip():
+            return value.strip()
+    return units if units and ":" not in units else ""
+
+
+def minimum_phase_of_h(response: xr.Dataset, dof: str) -> tuple[float, float]:
+    """Minimum phase of h (deg) over frequencies up to 10 w_c, and where (rad/s)
+    (:func:`lookout.analysis.minimum_phase_in_band` on the dataset's grid)."""
+    from lookout.analysis import minimum_phase_in_band
+
+    return minimum_phase_in_band(
+        response["frequency"].values, response["h_phase_deg"].sel(dof=dof).values, float(response["cutoff_frequency"].sel(dof=dof))
+    )
+
+
+def _minus(text: str) -> str:
+    return text.replace("-", "\N{MINUS SIGN}")
+
+
+def plot_bode(response: xr.Dataset, *, title: str | None = None):
+    """Bode plot of the error loops h0, hB and h = hB h0 of all three DOFs.
+
+    Fossen & Strand (1999), Fig. 6 (and the tuning behind Figs. 9–11): one column
+    per degree of freedom (surge, sway, yaw). Because hB and h carry units that
+    differ by DOF, they are shown normalized by the velocity injection gain kappa:
+    hB/kappa is dimensionless and h/kappa, like h0, is in seconds. Rows:
+
+    1. magnitude of h0 and h/kappa in dB re 1 s;
+    2. magnitude of hB/kappa in dB (dimensionless);
+    3. phase of h0, hB and h in degrees, with the SPR bound at -90 deg and the
+       minimum phase of h below 10 w_c written on the panel;
+    4. the margin of the phase of h to -90 deg on a log axis, so that a margin of
+       a fraction of a degree is readable.
+
+    Every panel marks the frequencies of the tuning rule (48),
+    1/T << lambda/kappa < w_o < w_c, with vertical lines (gids ``marker_1/T``,
+    ``marker_lambda/kappa``, ``marker_w_o``, ``marker_w_c``).
 
     Parameters
     ----------
     response : xarray.Dataset
-        From :func:`lookout.analysis.frequency_response`.
+        From :func:`lookout.analysis.frequency_response`: ``h0_magnitude``,
+        ``hB_magnitude``, ``h_magnitude`` and the ``*_phase_deg`` variables with
+        dims (frequency, dof), and per DOF ``bias_filter_frequency``,
+        ``bias_gain_ratio``, ``wave_frequency``, ``cutoff_frequency`` (rad/s) and
+        ``velocity_injection_gain``.
+    title : str, optional
+        Figure title; default "Error-loop frequency response h0, hB, h
+        (Fossen & Strand 1999, Fig. 6)".
 
     Returns
     -------
     matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        If a required variable is missing from ``response``.
     """
-    fig, (mag, phase) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    w = response.frequency.values
-    styles = {"h0": ("h0", "-"), "hB": ("hB", "--"), "h": ("h = hB h0", "-")}
-    for name, (label, style) in styles.items():
-        colour = "k" if name == "h" else "0.5"
-        mag.semilogx(w, 20 * np.log10(response[f"{name}_magnitude"].sel(dof=dof).values), style, color=colour, label=label)
-        phase.semilogx(w, response[f"{name}_phase_deg"].sel(dof=dof).values, style, color=colour, label=label)
-    phase.axhline(-90, color="r", lw=0.8, ls=":", label="-90 deg (SPR bound)")
-    mag.set_ylabel("magnitude (dB)")
-    phase.set_ylabel("phase (deg)")
-    phase.set_xlabel("frequency (rad/s)")
-    for ax in (mag, phase):
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=8)
-    fig.suptitle(title or f"Error-loop frequency response, {dof}")
-    fig.tight_layout()
+    missing = [name for name in _REQUIRED if name not in response.variables]
+    if missing:
+        raise ValueError(f"response must be a frequency_response() Dataset; missing variables {missing}")
+    frequency = np.asarray(response["frequency"].values, dtype=float)
+
+    fig, axes = plt.subplots(
+        4,
+        len(DOFS),
+        figsize=(13, 10),
+        layout="constrained",
+        sharex=True,
+        sharey="row",
+        gridspec_kw={"height_ratios": (1.0, 0.8, 1.0, 0.8)},
+    )
+    magnitude, gain, phase, margin = axes
+    for column, dof in enumerate(DOFS):
+        kappa = float(response["velocity_injection_gain"].sel(dof=dof))
+        curve = {name: response[f"{name}_magnitude"].sel(dof=dof).values for name in ("h0", "hB", "h")}
+        angle = {name: response[f"{name}_phase_deg"].sel(dof=dof).values for name in ("h0", "hB", "h")}
+
+        ax = magnitude[column]
+        ax.semilogx(frequency, 20 * np.log10(curve["h0"]), **_CURVES["h0"], label="$h_0$")
+        ax.semilogx(frequency, 20 * np.log10(curve["h"] / kappa), **_CURVES["h"], label=r"$h/\kappa$")
+        unit = _unit_of(response["velocity_injection_gain"].attrs, dof)
+        ax.set_title(f"{dof}:  κ = {kappa:.3g} {unit}".rstrip(), fontsize=10)
+
+        ax = gain[column]
+        ax.semilogx(frequency, 20 * np.log10(curve["hB"] / kappa), **_CURVES["hB"], label=r"$h_B/\kappa$")
+
+        ax = phase[column]
+        for name, label in (("h0", "$h_0$"), ("hB", "$h_B$"), ("h", "$h$")):
+            ax.semilogx(frequency, angle[name], **_CURVES[name], label=label)
+        ax.axhline(-90.0, **_SPR_STYLE, label="−90° (SPR bound)")
+        lowest, where = minimum_phase_of_h(response, dof)
+        ax.plot([where], [lowest], "o", color="k", ms=4, zorder=4)
+        text = _minus(
+            f"min phase of h {lowest:.2f}° at {where:.3g} rad/s\n"
+            f"margin {lowest + 90.0:.2f}° to -90° (ω ≤ 10 ω_c)"
+        )
+        ax.text(
+            0.03,
+            0.04,
+            text,
+            transform=ax.transAxes,
+            fontsize=8.5,
+            va="bottom",
+            ha="left",
+            gid="min_phase_annotation",
+            bbox={"boxstyle": "round,pad=0.3", "facecolor": "white", "edgecolor": "0.7", "alpha": 0.9},
+        )
+
+        ax = margin[column]
+        distance = angle["h"] + 90.0
+        positive = np.where(distance > 0, distance, np.nan)
+        ax.semilogx(frequency, positive, **_CURVES["h"], label=r"$\angle h + 90°$")
+        if np.any(distance <= 0):
+            ax.semilogx(frequency, np.where(distance <= 0, 1e-3, np.nan), color="tab:red", lw=3, label="SPR violated")
+        ax.plot([where], [lowest + 90.0], "o", color="k", ms=4, zorder=4)
+        ax.axvspan(10.0 * float(response["cutoff_frequency"].sel(dof=dof)), frequency[-1], color="0.5", alpha=0.15, lw=0)
+        ax.set_yscale("log")
+
+        for ax in axes[:, column]:
+            for variable, label, gid, style in _MARKERS:
+                ax.axvline(float(response[variable].sel(dof=dof)), **style, label=label, gid=gid, zorder=1.5)
+            ax.grid(alpha=0.3, which="major")
+            ax.grid(alpha=0.12, which="minor")
+
+    magnitude[0].set_ylabel("magnitude (dB re 1 s)\n$h_0$ and $h/\\kappa$")
+    gain[0].set_ylabel("magnitude (dB)\n$h_B/\\kappa$ (dimensionless)")
+    phase[0].set_ylabel("phase (deg)")
+    margin[0].set_ylabel("margin to −90°\n$\\angle h + 90°$ (deg)")
+    for ax in margin:
+        ax.set_xlabel("frequency ω (rad/s)")
+    phase[0].set_ylim(-120.0, 60.0)
+    phase[0].set_yticks(np.arange(-120.0, 61.0, 30.0))
+    margins = np.asarray(response["h_phase_deg"].values, dtype=float) + 90.0
+    positive = margins[margins > 0]
+    low = min(0.1, 0.5 * positive.min()) if positive.size else 0.1
+    margin[0].set_ylim(low, 200.0)
+    magnitude[0].set_xlim(frequency[0], frequency[-1])
+
+    def curves(ax):
+        return [h for h in ax.get_legend_handles_labels()[0] if not (h.get_gid() or "").startswith("marker_")]
+
+    magnitude[-1].legend(handles=curves(magnitude[-1]), loc="upper right", fontsize=8.5, framealpha=0.9)
+    gain[-1].legend(handles=curves(gain[-1]), loc="upper right", fontsize=8.5, framealpha=0.9)
+    phase[-1].legend(handles=curves(phase[-1]), loc="upper left", ncols=2, fontsize=8.5, framealpha=0.9)
+    margin[-1].legend(
+        handles=curves(margin[-1]) + [Patch(facecolor="0.5", alpha=0.3, label="ω > 10 ω_c (not judged)")],
+        loc="lower left",
+        fontsize=8.5,
+        framealpha=0.9,
+    )
+    marker_handles = [Line2D([], [], **style, label=label) for _, label, _, style in _MARKERS]
+    fig.legend(
+        handles=marker_handles,
+        loc="outside lower center",
+        ncols=len(marker_handles),
+        fontsize=9,
+        frameon=False,
+        title="tuning rule (48): 1/T ≪ λ/κ < ω_o < ω_c",
+        title_fontsize=9,
+    )
+    fig.suptitle(title if title is not None else "Error-loop frequency response h0, hB, h (Fossen & Strand 1999, Fig. 6)")
     return fig

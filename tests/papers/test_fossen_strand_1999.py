@@ -3,14 +3,12 @@
 Each claim is checked over a batch of seeds, so none rests on one lucky realization.
 """
 
-import jax
 import numpy as np
 import pytest
 import xarray as xr
 
 from lookout.analysis import earth_frame_velocity, estimation_errors, rms_over
 from lookout.papers import fossen_strand_1999 as fs
-from lookout.sim import simulate_batch
 
 RUNS = 8
 SETTLED = 600.0  # s; errors are compared after this time
@@ -18,9 +16,8 @@ SETTLED = 600.0  # s; errors are compared after this time
 
 @pytest.fixture(scope="module")
 def run():
-    config = fs.Config(duration=1200.0, seed=11)
-    keys = jax.random.split(jax.random.key(config.seed), RUNS)
-    ds = simulate_batch(fs.build(config), keys).to_xarray()
+    config = fs.Config(duration=1200.0, seed=11, runs=RUNS)
+    ds = fs.simulate_runs(config)
     return config, ds
 
 

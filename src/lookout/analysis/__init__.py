@@ -5,9 +5,12 @@ from .metrics import estimation_errors as estimation_errors
 from .metrics import fit_decay_rate as fit_decay_rate
 from .metrics import rms_over as rms_over
 from .metrics import settling_time as settling_time
+from .passive import characteristic_frequencies as characteristic_frequencies
 from .passive import check_spr as check_spr
 from .passive import check_tuning_rule as check_tuning_rule
+from .passive import default_frequencies as default_frequencies
 from .passive import error_loop as error_loop
 from .passive import frequency_response as frequency_response
 from .passive import kyp_certificate as kyp_certificate
+from .passive import minimum_phase_in_band as minimum_phase_in_band
 from .passive import transfer_functions as transfer_functions

@@ -89,6 +89,46 @@ def transfer_functions(observer: PassiveObserver, frequencies) -> dict[str, np.n
     return {"h0": h0, "hB": hB, "h": h0 * hB}
 
 
+#: Units of h0, hB and h per DOF: h0 maps a velocity error to a position error (s);
+#: hB a position error to a force or moment; h = hB h0 a velocity error to a force.
+RESPONSE_UNITS = {
+    "h0": "s",
+    "hB": "surge: N/m, sway: N/m, yaw: N m/rad",
+    "h": "surge: N s/m, sway: N s/m, yaw: N m s/rad",
+}
+
+
+def characteristic_frequencies(observer: PassiveObserver) -> dict[str, np.ndarray]:
+    """The frequencies that the tuning rule (48) orders, per DOF (rad/s).
+
+    Returns
+    -------
+    dict
+        ``bias_filter_frequency`` (1/T), ``bias_gain_ratio`` (lambda/kappa),
+        ``wave_frequency`` (w_o) and ``cutoff_frequency`` (w_c = k3, eq. 47), each of
+        shape (3,). Eq. (48) asks 1/T << lambda/kappa < w_o < w_c.
+    """
+    g = _gains(observer)
+    return {
+        "bias_filter_frequency": 1.0 / g["T"],
+        "bias_gain_ratio": g["lam"] / g["kappa"],
+        "wave_frequency": np.broadcast_to(g["w0"], (3,)).astype(float),
+        "cutoff_frequency": np.asarray(g["k3"], dtype=float),
+    }
+
+
+def default_frequencies(observer: PassiveObserver, points: int = 400, decades: float = 2.0) -> np.ndarray:
+    """Log-spaced grid from ``decades`` below the slowest to above the fastest
+    time scale of the error loops (their poles and the frequencies of eq. 48)."""
+    scales = [value for value in characteristic_frequencies(observer).values()]
+    for dof in range(3):
+        scales.append(np.abs(np.linalg.eigvals(error_loop(observer, dof)[0])))
+    scales = np.concatenate([np.ravel(value) for value in scales])
+    scales = scales[np.isfinite(scales) & (scales > 0)]
+    low, high = np.log10(scales.min()) - decades, np.log10(scales.max()) + decades
+    return np.logspace(low, high, points)
+
+
 def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Dataset:
     """Bode data of h0, hB and h (as in Fig. 6) as an xarray Dataset.
 
@@ -96,24 +136,43 @@ def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Datase
     ----------
     observer : PassiveObserver
     frequencies : array_like, optional
-        rad/s; default 400 log-spaced points from 1e-5 to 1e2.
+        rad/s; default 2000 log-spaced points from two decades below the slowest
+        to two above the fastest time scale of the loops
+        (:func:`default_frequencies`; 1e-5 to 1.2e2 rad/s for the paper's gains).
 
     Returns
     -------
     xarray.Dataset
         ``<name>_magnitude`` and ``<name>_phase_deg`` for name in h0, hB, h, with
-        dims (frequency, dof). Export with ``.to_netcdf`` or ``.to_dataframe().to_csv``.
+        dims (frequency, dof), and per DOF the frequencies of the tuning rule (48)
+        (:func:`characteristic_frequencies`) and ``velocity_injection_gain``
+        (kappa, to normalize hB and h). Units are in each variable's attributes;
+        where they differ by DOF they are written ``surge: ..., sway: ..., yaw: ...``.
+        Export with ``.to_netcdf`` or ``.to_dataframe().to_csv``.
     """
     if frequencies is None:
-        frequencies = np.logspace(-5, 2, 400)
+        frequencies = default_frequencies(observer, points=2000)
     frequencies = np.asarray(frequencies, dtype=float)
     if frequencies.ndim != 1 or np.any(~np.isfinite(frequencies)) or np.any(frequencies <= 0):
         raise ValueError("frequencies must be a 1-D array of positive finite values (rad/s)")
     responses = transfer_functions(observer, frequencies)
     data = {}
     for name, value in responses.items():
-        data[f"{name}_magnitude"] = (("frequency", "dof"), np.abs(value), {"units": "1" if name == "h0" else "N/m"})
-        data[f"{name}_phase_deg"] = (("frequency", "dof"), np.degrees(np.angle(value)), {"units": "deg"})
+        data[f"{name}_magnitude"] = (("frequency", "dof"), np.abs(value), {"units": RESPONSE_UNITS[name], "long_name": f"|{name}(jw)|"})
+        data[f"{name}_phase_deg"] = (("frequency", "dof"), np.degrees(np.angle(value)), {"units": "deg", "long_name": f"phase of {name}(jw)"})
+    long_names = {
+        "bias_filter_frequency": "1/T, bias model corner",
+        "bias_gain_ratio": "lambda/kappa, zero of hB",
+        "wave_frequency": "w_o, dominating wave frequency (notch)",
+        "cutoff_frequency": "w_c, filter cut-off",
+    }
+    for name, value in characteristic_frequencies(observer).items():
+        data[name] = (("dof",), value, {"units": "rad/s", "long_name": long_names[name]})
+    data["velocity_injection_gain"] = (
+        ("dof",),
+        np.asarray(observer.velocity_injection_gain, dtype=float),
+        {"units": RESPONSE_UNITS["hB"], "long_name": "kappa, high-frequency gain of hB"},
+    )
     coords = {"frequency": ("frequency", frequencies, {"units": "rad/s"}), "dof": list(DOF)}
     return xr.Dataset(data, coords=coords)
 
@@ -193,7 +252,14 @@ def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10
 
 @dataclass
 class SPRReport:
-    """SPR verdict for one DOF's loop h = hB h0, and its KYP certificate."""
+    """SPR verdict for one DOF's loop h = hB h0, and its KYP certificate.
+
+    ``verdict`` is ``"holds"`` (the frequency-domain conditions hold and a KYP
+    certificate is verified), ``"fails"`` (a frequency-domain condition fails:
+    the loop is not SPR) or ``"unverified"`` (the frequency-domain conditions hold
+    on the grid but no certificate could be verified to tolerance, so SPR is not
+    established); ``reason`` says which condition decided it, with numbers.
+    """
 
     dof: str
     hurwitz: bool
@@ -203,25 +269,50 @@ class SPRReport:
     min_phase_deg_in_band: float
     min_phase_frequency_in_band: float
     high_frequency_limit: float
-    spr: bool
+    frequency_test: bool
+    verdict: str
+    reason: str
     certificate: dict | None = None
+
+    @property
+    def spr(self) -> bool:
+        """True when SPR is established: frequency conditions and a verified certificate."""
+        return self.verdict == "holds"
 
     def to_dict(self) -> dict:
         """JSON-ready form (the certificate's matrices as nested lists)."""
-        return asdict(self)
+        return asdict(self) | {"spr": self.spr}
 
 
-def check_spr(observer: PassiveObserver, *, frequencies=None, certificate: bool = True) -> list[SPRReport]:
+def minimum_phase_in_band(frequencies, phase_deg, cutoff_frequency: float) -> tuple[float, float]:
+    """Smallest phase of h (deg) at frequencies up to 10 w_c, and where (rad/s).
+
+    Above a decade past the cut-off, h tends to -90 deg from above (h0 ~ 1/s), and
+    that asymptote would hide the SPR margin near the notch, which is what this
+    reports. If no frequency lies below 10 w_c, the whole grid is used.
+    """
+    frequencies = np.asarray(frequencies, dtype=float)
+    phase_deg = np.asarray(phase_deg, dtype=float)
+    band = frequencies <= 10.0 * float(cutoff_frequency)
+    if not band.any():
+        band = np.ones_like(band)
+    index = np.flatnonzero(band)[np.argmin(phase_deg[band])]
+    return float(phase_deg[index]), float(frequencies[index])
+
+
+def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRReport]:
     """Check that each decoupled loop h_i(s) = hB_i(s) h0_i(s) is strictly positive real.
 
     Conditions (Khalil 1996, Lemma 6.1, for strictly proper h = C (sI - A)^-1 B):
-    A Hurwitz; Re h(jw) > 0 on a dense grid (default 20,000 log-spaced points
-    from 1e-7 to 1e4 rad/s plus the notch frequency); and
-    ``lim w^2 Re h(jw) = -C A B > 0``. Where the loop is SPR, a KYP certificate
+    A Hurwitz; Re h(jw) > 0 on a dense grid (default 20,000 log-spaced points from
+    three decades below the slowest to three above the fastest time scale of the
+    loop, :func:`default_frequencies`, plus the notch frequency); and
+    ``lim w^2 Re h(jw) = -C A B > 0``. Where these hold, a KYP certificate
     (P = P^T > 0, Q = Q^T > 0 with PA + A^T P = -Q and B^T P = C, eqs. 38–39) is
-    computed by :func:`kyp_certificate` and verified. The report also gives the
-    minimum phase below 10 w_c (``min_phase_deg_in_band``): the SPR margin near the
-    notch, which the overall minimum (the -90 deg asymptote) hides.
+    computed by :func:`kyp_certificate` and verified; SPR is reported as holding
+    only then (``verdict``). The report also gives the minimum phase below 10 w_c
+    (``min_phase_deg_in_band``): the SPR margin near the notch, which the overall
+    minimum (the -90 deg asymptote) hides.
 
     Returns
     -------
@@ -230,35 +321,54 @@ def check_spr(observer: PassiveObserver, *, frequencies=None, certificate: bool 
     """
     g = _gains(observer)
     if frequencies is None:
-        frequencies = np.logspace(-7, 4, 20000)
+        frequencies = default_frequencies(observer, points=20000, decades=3.0)
     reports = []
     for i, dof in enumerate(DOF):
         w = np.sort(np.concatenate([np.asarray(frequencies, dtype=float), [g["w0"][i]]]))
         A, B, C = error_loop(observer, i)
-        hurwitz = bool(np.linalg.eigvals(A).real.max() < 0)
+        poles = np.linalg.eigvals(A)
+        hurwitz = bool(poles.real.max() < 0)
         h = transfer_functions(observer, w)["h"][:, i]
         real = h.real
         j = int(np.argmin(real))
         phase = np.degrees(np.angle(h))
-        # below 10 w_c, away from the -90 deg high-frequency asymptote: the margin near the notch
-        band = w <= 10.0 * g["k3"][i]
-        b = int(np.argmin(np.where(band, phase, np.inf)))
+        in_band_phase, in_band_frequency = minimum_phase_in_band(w, phase, g["k3"][i])
         limit = float(-(C @ A @ B).item())
-        spr = hurwitz and bool(real.min() > 0) and limit > 0
-        report = SPRReport(
-            dof=dof,
-            hurwitz=hurwitz,
-            min_real_part=float(real[j]),
-            min_real_part_frequency=float(w[j]),
-            min_phase_deg=float(phase.min()),
-            min_phase_deg_in_band=float(phase[b]),
-            min_phase_frequency_in_band=float(w[b]),
-            high_frequency_limit=limit,
-            spr=spr,
+        frequency_test = hurwitz and bool(real.min() > 0) and limit > 0
+        certificate = kyp_certificate(observer, i) if frequency_test else None
+        if not hurwitz:
+            verdict, reason = "fails", f"A is not Hurwitz: its largest real part is {poles.real.max():.3g}"
+        elif not real.min() > 0:
+            verdict, reason = "fails", f"Re h(jw) = {real[j]:.3g} <= 0 at w = {w[j]:.4g} rad/s (phase {phase[j]:.2f} deg)"
+        elif not limit > 0:
+            verdict, reason = "fails", f"lim w^2 Re h(jw) = -CAB = {limit:.3g} <= 0"
+        elif certificate["verified"]:
+            verdict, reason = "holds", "frequency-domain conditions hold and the KYP certificate is verified"
+        else:
+            speeds = np.abs(poles)
+            verdict = "unverified"
+            reason = (
+                "Re h(jw) > 0 on the grid, but no KYP certificate could be verified to tolerance "
+                f"(best: smallest normalized eigenvalue of P {certificate['min_eig_P']:.2g}, of Q {certificate['min_eig_Q']:.2g}); "
+                f"the loop's poles span {speeds.min():.3g} to {speeds.max():.3g} rad/s (ratio {speeds.max() / speeds.min():.2g}), "
+                "too stiff for the certificate's construction in float64: SPR is not established"
+            )
+        reports.append(
+            SPRReport(
+                dof=dof,
+                hurwitz=hurwitz,
+                min_real_part=float(real[j]),
+                min_real_part_frequency=float(w[j]),
+                min_phase_deg=float(phase.min()),
+                min_phase_deg_in_band=in_band_phase,
+                min_phase_frequency_in_band=in_band_frequency,
+                high_frequency_limit=limit,
+                frequency_test=frequency_test,
+                verdict=verdict,
+                reason=reason,
+                certificate=certificate,
+            )
         )
-        if spr and certificate:
-            report.certificate = kyp_certificate(observer, i)
-        reports.append(report)
     return reports
 
 

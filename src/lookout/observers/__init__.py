@@ -1,5 +1,8 @@
-"""Observers: one module per family."""
+"""Observers: one module per observer family."""
 
+from .passive import CUTOFF_RATIO as CUTOFF_RATIO
+from .passive import PAPER_CUTOFF_FREQUENCY as PAPER_CUTOFF_FREQUENCY
 from .passive import PassiveObserver as PassiveObserver
+from .passive import default_cutoff_frequency as default_cutoff_frequency
 from .passive import injection_gains_from_normalized as injection_gains_from_normalized
 from .passive import notch_filter_gains as notch_filter_gains

@@ -89,6 +89,26 @@ def notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequ
     return k1, k2, k3
 
 
+#: The paper's cut-off w_c (rad/s) and its ratio to the wave frequency, eq. (59).
+PAPER_CUTOFF_FREQUENCY = 1.1
+CUTOFF_RATIO = 1.1 / 0.8976
+
+
+def default_cutoff_frequency(wave_frequency):
+    """A cut-off w_c for any wave frequency: ``max(1.1 rad/s, CUTOFF_RATIO * w_o)``.
+
+    Fossen & Strand (1999) use w_c = 1.1 rad/s for w_o = 0.8976 rad/s (eq. 59), and
+    keep K2 = diag(w_c) independent of w_o when K1 is gain-scheduled (Remark 2). This
+    rule keeps their w_c for slower waves and, for faster ones, their ratio
+    w_c / w_o = 1.1 / 0.8976 (about 1.2255), so that w_o < w_c of (48) holds for any
+    wave period. With the paper's Kappa, Lambda and T, SPR then holds for wave periods
+    from 3 s to 60 s; scaling w_c with w_o for slower waves too breaks SPR below
+    w_o = 0.79 rad/s (periods above 7.9 s) although (48) still holds
+    (docs/reproductions.md). An explicit w_c overrides it.
+    """
+    return np.maximum(PAPER_CUTOFF_FREQUENCY, CUTOFF_RATIO * np.asarray(wave_frequency, dtype=float))
+
+
 def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, gravity=GRAVITY):
     """Convert Kappa and Lambda from the normalized ("bis") system to SI.
 

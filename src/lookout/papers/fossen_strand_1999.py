@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Callable
+import math
+from typing import Callable, Optional
 
-import jax
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
 from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, rms_over, settling_time
 from lookout.controllers import SinusoidalThrust
@@ -31,7 +31,7 @@ from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
 from lookout.sensors import PositionHeadingSensor
-from lookout.sim import Scenario, simulate, simulate_batch
+from lookout.sim import MAX_SEED, Scenario, integer_ratio, seed_keys, simulate, simulate_batch
 
 NAME = "fossen-strand-1999"
 TITLE = "Fossen & Strand (1999): passive observer on Northern Clipper, simulation study (Section 6.1)"
@@ -39,28 +39,76 @@ STATES = ("eta", "nu", "bias", "wave")
 
 
 class Config(BaseModel):
-    """Settings of the reproduction; every field has the paper's value or a stated choice."""
+    """Settings of the reproduction; every field has the paper's value or a stated choice.
+
+    Validation messages name the field and read as "<field>: <condition>"; the CLI
+    shows them under the option's name (``--duration``).
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    seed: int = Field(0, ge=0, description="PRNG seed")
-    runs: int = Field(1, ge=1, description="Monte Carlo runs over seeds split from `seed` (vmapped)")
-    duration: float = Field(3000.0, gt=0, description="simulated time (s)")
-    plant_step: float = Field(0.1, gt=0, description="RK4 step of the plant (s)")
-    sample_period: float = Field(0.1, gt=0, description="observer period (s)")
-    measurement_period: float = Field(1.0, gt=0, description="position and heading sample period (s), paper: 1 Hz")
-    wave_frequency: float = Field(0.8976, gt=0, description="w_o (rad/s), eq. (59)")
-    wave_damping: float = Field(0.1, gt=0, description="zeta, eq. (59)")
-    notch_damping: float = Field(1.0, gt=0, description="zeta_n, eq. (59)")
-    cutoff_frequency: float = Field(1.1, gt=0, description="w_c (rad/s), eq. (59)")
-    bias_time_constant: float = Field(1000.0, gt=0, description="T (s), eq. (58)")
+    runs: int = Field(1, description="Monte Carlo runs (vmapped); run i uses seed + i")
+    seed: int = Field(0, description="PRNG seed of run 0 (run i uses seed + i)")
+    plant_step: float = Field(0.1, description="RK4 step of the plant (s)")
+    sample_period: float = Field(0.1, description="observer period (s)")
+    measurement_period: float = Field(1.0, description="position and heading sample period (s), paper: 1 Hz")
+    record_interval: Optional[float] = Field(None, description="time between recorded samples (s), a multiple of sample_period; default: every sample")
+    duration: float = Field(3000.0, description="simulated time (s), a multiple of the record interval")
+    wave_frequency: float = Field(0.8976, description="w_o (rad/s), eq. (59)")
+    wave_damping: float = Field(0.1, description="zeta, eq. (59)")
+    notch_damping: float = Field(1.0, description="zeta_n, eq. (59)")
+    cutoff_frequency: float = Field(1.1, description="w_c (rad/s), eq. (59)")
+    bias_time_constant: float = Field(1000.0, description="T (s), eq. (58)")
     velocity_gain_normalized: tuple[float, float, float] = (0.1, 0.1, 0.01)
     bias_gain_normalized: tuple[float, float, float] = (0.01, 0.01, 0.001)
     wave_amplitude: tuple[float, float, float] = (10.0, 10.0, float(np.radians(1.0)))
-    wave_amplitude_sigmas: float = Field(3.0, gt=0)
+    wave_amplitude_sigmas: float = 3.0
     bias_std: tuple[float, float, float] = (2e3, 2e3, 5e4)
     bias_initial: tuple[float, float, float] = (1e4, 5e3, 1e5)
     noise_std: tuple[float, float, float] = (0.5, 0.5, float(np.radians(0.1)))
+
+    @field_validator("runs")
+    @classmethod
+    def _positive_count(cls, value):
+        if value < 1:
+            raise ValueError(f"must be a positive integer; got {value}")
+        return value
+
+    @field_validator("seed")
+    @classmethod
+    def _seed_in_key_range(cls, value, info: ValidationInfo):
+        largest = MAX_SEED - info.data.get("runs", 1) + 1
+        if not 0 <= value <= largest:
+            raise ValueError(
+                f"must be an integer from 0 to {largest} (a JAX key takes a signed 64-bit seed, and the runs use seed ... seed + runs - 1); got {value}"
+            )
+        return value
+
+    @field_validator(
+        "plant_step", "sample_period", "measurement_period", "record_interval", "duration", "wave_frequency",
+        "wave_damping", "notch_damping", "cutoff_frequency", "bias_time_constant", "wave_amplitude_sigmas",
+    )
+    @classmethod
+    def _finite_positive(cls, value):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"must be a finite positive number; got {value:g}")
+        return value
+
+    @field_validator("record_interval")
+    @classmethod
+    def _whole_samples(cls, value, info: ValidationInfo):
+        period = info.data.get("sample_period")
+        if value is not None and period is not None and integer_ratio(value, period) is None:
+            raise ValueError(f"must be a whole multiple of the observer's sample period ({period:g} s); got {value:g} s")
+        return value
+
+    @field_validator("duration")
+    @classmethod
+    def _whole_records(cls, value, info: ValidationInfo):
+        interval = info.data.get("record_interval") or info.data.get("sample_period")
+        if interval is not None and integer_ratio(value, interval) is None:
+            raise ValueError(f"must be a whole multiple of the record interval ({interval:g} s); got {value:g} s")
+        return value
 
     @field_validator("wave_amplitude", "bias_std", "noise_std", "velocity_gain_normalized", "bias_gain_normalized")
     @classmethod
@@ -68,6 +116,16 @@ class Config(BaseModel):
         if any(not np.isfinite(v) or v < 0 for v in value):
             raise ValueError("entries must be finite and non-negative")
         return value
+
+    @property
+    def seeds(self) -> list[int]:
+        """The seed of each run: seed, seed + 1, ..., seed + runs - 1."""
+        return list(range(self.seed, self.seed + self.runs))
+
+    @property
+    def record_every(self) -> int:
+        """Record one sample in this many."""
+        return 1 if self.record_interval is None else integer_ratio(self.record_interval, self.sample_period)
 
 
 def build(config: Config) -> Scenario:
@@ -103,6 +161,7 @@ def build(config: Config) -> Scenario:
         plant_step=config.plant_step,
         sample_period=config.sample_period,
         duration=config.duration,
+        record_every=config.record_every,
     )
 
 
@@ -135,36 +194,53 @@ def summarize(ds, config: Config) -> dict:
     return summary
 
 
+def simulate_runs(config: Config, *, progress: Callable | None = None):
+    """Simulate the scenario for the seeds of ``config`` (one run, or a vmapped batch).
+
+    Returns
+    -------
+    xarray.Dataset
+        :meth:`lookout.Trajectory.to_xarray` with a ``seed`` coordinate along ``run``.
+    """
+    scenario = build(config)
+    if config.runs == 1:
+        trajectory = simulate(scenario, seed_keys(config.seed, 1)[0], progress=progress)
+    else:
+        trajectory = simulate_batch(scenario, seed_keys(config.seed, config.runs), progress=progress)
+    ds = trajectory.to_xarray().assign_coords(seed=("run", np.asarray(config.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
+    ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json()})
+    return ds
+
+
 def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
-    """Simulate, write NetCDF, figures and summary.json under ``out``; return the summary."""
+    """Simulate, write NetCDF, figures and summary.json under ``out``; return the summary.
+
+    ``out`` is created (with missing parents) if needed.
+    """
+    import matplotlib.pyplot as plt
+
     from lookout.plotting import plot_bode, plot_estimates
 
-    scenario = build(config)
-    key = jax.random.key(config.seed)
-    if config.runs == 1:
-        trajectory = simulate(scenario, key, progress=progress)
-    else:
-        trajectory = simulate_batch(scenario, jax.random.split(key, config.runs), progress=progress)
-    ds = trajectory.to_xarray()
-    ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json()})
+    ds = simulate_runs(config, progress=progress)
     out.mkdir(parents=True, exist_ok=True)
     ds.to_netcdf(out / "fossen_strand_1999.nc", engine="netcdf4")
 
-    observer = scenario.observer
+    observer = build(config).observer
     response = frequency_response(observer)
     response.to_netcdf(out / "bode.nc", engine="netcdf4")
-    figures = {"fig06_bode.png": plot_bode(response, title="Fig. 6: h0, hB and h (surge)")}
+    figures = {"fig06_bode.png": plot_bode(response, title="Fossen & Strand (1999), Fig. 6: error-loop frequency response h0, hB, h")}
     for number, dof in zip((9, 10, 11), ("surge", "sway", "yaw")):
-        figures[f"fig{number:02d}_{dof}.png"] = plot_estimates(ds, dof, title=f"Fig. {number}: {dof}, true (grey) and estimated (black)")
+        figures[f"fig{number:02d}_{dof}.png"] = plot_estimates(ds, dof, title=f"Fossen & Strand (1999), Fig. {number}: {dof}, true and estimated")
     for filename, figure in figures.items():
         figure.savefig(out / filename, dpi=110)
-        figure.clear()
+        plt.close(figure)
 
     summary = summarize(ds, config)
     summary.update(
         {
             "reproduction": NAME,
             "config": config.model_dump(),
+            "seeds": config.seeds,
             "status": ds.status.values.tolist(),
             "gains_si": {
                 "K1": observer.wave_injection_matrix().tolist(),
@@ -173,7 +249,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
                 "bias_injection_gain": np.asarray(observer.bias_injection_gain).tolist(),
             },
             "tuning_rule_holds": check_tuning_rule(observer).holds,
-            "spr": {report.dof: report.spr for report in check_spr(observer, certificate=False)},
+            "spr": {report.dof: report.verdict for report in check_spr(observer)},
             "files": sorted(["fossen_strand_1999.nc", "bode.nc", "summary.json", *figures]),
         }
     )
