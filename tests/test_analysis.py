@@ -101,6 +101,19 @@ def test_fit_decay_rate_recovers_an_exact_exponential():
     assert fit["rate"] == pytest.approx(0.25, rel=1e-9) and fit["r_squared"] > 0.999999
 
 
+def test_settling_time_of_many_errors_at_once_equals_one_at_a_time():
+    rng = np.random.default_rng(1)
+    t = np.arange(0, 500.0, 0.5)
+    errors = rng.normal(size=(4, 3, t.size)) + 20 * np.exp(-t / rng.uniform(10, 80, size=(4, 3, 1)))
+    final = np.sqrt(np.mean(errors[..., t >= 250] ** 2, axis=-1))
+    final[0, 0] = 1e-9  # never settles: NaN
+    together = settling_time(errors, t, final)
+    assert together.shape == (4, 3) and np.isnan(together[0, 0])
+    for i in range(4):
+        for j in range(3):
+            np.testing.assert_equal(together[i, j], settling_time(errors[i, j], t, final[i, j]))
+
+
 def test_settling_time_of_a_decaying_plus_stationary_error():
     t = np.arange(0, 2000.0, 0.1)
     rng = np.random.default_rng(0)

@@ -304,7 +304,7 @@ def test_bode_marks_the_tuning_rule_frequencies_in_every_panel(response):
             for gid, variable in MARKERS.items():
                 assert np.allclose(found[gid].get_xdata(), float(shifted[variable].sel(dof=dof)))
     labels = {text.get_text() for legend in fig.legends for text in legend.get_texts()}
-    assert {"1/T", "λ/κ", "ω_o", "ω_c"} <= labels
+    assert {"1/T", "λ/κ", r"$\omega_o$", r"$\omega_c$"} <= labels
 
 
 def test_bode_writes_the_minimum_phase_of_h_below_ten_cutoffs(response):
@@ -338,3 +338,36 @@ def test_bode_title_and_missing_variables(response):
     assert plot_bode(response, title="Fig. 6").get_suptitle() == "Fig. 6"
     with pytest.raises(ValueError, match="velocity_injection_gain"):
         plot_bode(response.drop_vars("velocity_injection_gain"))
+
+
+def test_bode_of_a_failing_design_shades_the_violation_and_keeps_the_note_clear():
+    """Waves of 100 s with the paper's gains: the phase of h dips below -90 deg. The
+    frequencies where it does are shaded in the phase and margin panels, the phase axis
+    reaches the minimum, and the minimum-phase note sits above every curve."""
+    from lookout import PassiveObserver, northern_clipper
+
+    wave_frequency = 2 * math.pi / 100
+    observer = PassiveObserver.design(
+        northern_clipper(), wave_frequency=wave_frequency, wave_damping=0.1, notch_damping=1.0, cutoff_frequency=1.1,
+        velocity_injection_gain=[5.91e4, 5.91e4, 3.43e7], bias_injection_gain=[2121.0, 2121.0, 1.23e6], bias_time_constant=1000.0,
+    )
+    failing = frequency_response(observer)
+    fig = plot_bode(failing)
+    rows = bode_axes(fig)
+    phase_row = next(row for row in rows if "phase" in row[0].get_ylabel())
+    below = failing.frequency.values[failing.h_phase_deg.sel(dof="surge").values <= -90.0]
+    assert below.size > 0
+    for panel in (phase_row[0], rows[-1][0]):
+        spans = [p for p in panel.patches if p.get_label().startswith("SPR violated")]
+        assert len(spans) == 1
+        left, right = spans[0].get_x(), spans[0].get_x() + spans[0].get_width()
+        assert left == pytest.approx(below.min()) and right == pytest.approx(below.max())
+    lowest, _, margin = annotation_numbers(phase_row[0])
+    assert margin < 0 and phase_row[0].get_ylim()[0] <= lowest
+    note = next(t for t in phase_row[0].texts if t.get_gid() == "min_phase_annotation")
+    fig.canvas.draw()
+    box = note.get_window_extent().transformed(phase_row[0].transData.inverted())
+    highest = max(float(np.nanmax(line.get_ydata())) for line in phase_row[0].get_lines() if line.get_gid() is None and len(line.get_ydata()) > 2)
+    assert box.y0 > highest
+    labels = {text.get_text() for legend in fig.legends for text in legend.get_texts()}
+    assert "SPR violated: phase of h ≤ −90°" in labels

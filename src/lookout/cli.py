@@ -11,6 +11,7 @@ import json
 import math
 import os
 import sys
+import tempfile
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -46,8 +47,14 @@ console = Console(soft_wrap=True)
 #: records, 1.23 GB of resident memory above the 0.57 GB of a single run).
 PEAK_MEMORY_PER_RECORD_BYTE = 4
 
+#: zeta_n of Fossen & Strand (1999), eq. (59), the default of --notch-damping.
+DEFAULT_NOTCH_DAMPING = 1.0
+#: Frequencies (rad/s) and the Lyapunov weight must lie in this range for the loop
+#: analysis to stay finite in float64 (h0's denominator grows as w^3).
+ANALYSIS_RANGE = (1e-12, 1e12)
+
 #: Reproduction options and the Config fields they set.
-REPRODUCE_OPTIONS = {"seed": "--seed", "runs": "--runs", "duration": "--duration", "record_interval": "--record-interval"}
+REPRODUCE_OPTIONS = {"seed": "--seed", "runs": "--runs", "duration": "--duration"}
 
 
 class InputError(Exception):
@@ -91,13 +98,22 @@ def _positive_numbers(option: str, text: str) -> list[float]:
 
 
 def _writable_folder(option: str, folder: Path, what: str) -> None:
-    """Fail unless ``folder`` is an existing folder this process may write into."""
+    """Fail unless ``folder`` is an existing folder this process can write into.
+
+    Permission bits do not answer that (root passes them, /proc and read-only file
+    systems refuse anyway), so a nameless temporary file is created and removed.
+    """
     if not folder.exists():
         raise InputError(f"{option}: the folder {folder} for {what} does not exist; create it first (mkdir -p {folder})")
     if not folder.is_dir():
         raise InputError(f"{option}: {folder} is a file, not a folder")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise InputError(f"{option}: the folder {folder} is not writable")
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as error:
+        raise InputError(f"{option}: cannot write into the folder {folder}: {error.strerror}") from None
 
 
 def _output_folder(option: str, text: str) -> Path:
@@ -130,6 +146,27 @@ def _image_file(option: str, text: str) -> Path:
         raise InputError(f"{option} must end in a format matplotlib writes ({', '.join('.' + name for name in listed)}); got {text}")
     _writable_folder(option, path.absolute().parent, text)
     return path
+
+
+def _analysable(option: str, symbol: str, value: float, unit: str) -> None:
+    """Fail unless ``value`` lies in ANALYSIS_RANGE, where the loop analysis stays finite."""
+    low, high = ANALYSIS_RANGE
+    if not low <= value <= high:
+        raise InputError(
+            f"{option}: {symbol} = {value:.3g} {unit} is outside {low:g} to {high:g}{' ' + unit if unit else ''}, "
+            "the range in which the loop analysis is finite in float64".replace("  ", " ")
+        )
+
+
+def _json_safe(value):
+    """``value`` with every non-finite float replaced by None, so the output is strict JSON."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _json_safe(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(item) for item in value]
+    return value
 
 
 def _config(module, options: dict):
@@ -177,7 +214,7 @@ def _check_memory(scenario, runs: int) -> None:
         raise InputError(
             f"--runs {runs} over --duration {scenario.duration:g} would need about {_bytes(need)} of memory "
             f"({runs} run(s) x {scenario.n_records} records x {per_record} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results), "
-            f"and {_bytes(available)} are available: use fewer --runs, a shorter --duration or a coarser --record-interval"
+            f"and {_bytes(available)} are available: use fewer --runs or a shorter --duration"
         )
 
 
@@ -203,10 +240,6 @@ def reproduce(
     duration: Annotated[
         Optional[float], typer.Option(metavar="SECONDS", help="Simulated time.", show_default="the paper's; 3000 for fossen-strand-1999")
     ] = None,
-    record_interval: Annotated[
-        Optional[float],
-        typer.Option(metavar="SECONDS", help="Time between recorded samples, a multiple of the sample period; coarser needs less memory.", show_default="every sample, 0.1 for fossen-strand-1999"),
-    ] = None,
 ) -> None:
     """Run a paper's simulation study.
 
@@ -218,7 +251,7 @@ def reproduce(
     if name not in REPRODUCTIONS:
         raise InputError(f"unknown reproduction {name!r}; available: {', '.join(REPRODUCTIONS)}")
     module = REPRODUCTIONS[name]
-    config = _config(module, {"seed": seed, "runs": runs, "duration": duration, "record_interval": record_interval})
+    config = _config(module, {"seed": seed, "runs": runs, "duration": duration})
     _check_memory(module.build(config), config.runs)
     folder = _output_folder("--out", out)
     try:
@@ -286,10 +319,15 @@ def _print_summary(summary: dict, out: Path) -> None:
         settling.add_row(name, *(f"{summary['settling_time'][name][dof]:.0f}" for dof in dofs))
     errors.caption = "units: " + "; ".join(units)
     errors.caption_justify = "left"
+    settling.caption = (
+        "the first time from which the RMS error over the rest of the run is within 10 % of its "
+        "second-half RMS; 0 means at that level from the start, not that the estimate tracks the truth"
+    )
+    settling.caption_justify = "left"
     console.print(errors)
     console.print(settling)
     finite = summary["status"].count("finite")
-    console.print(f"{finite}/{len(summary['status'])} runs finite; outputs in {out}/: {', '.join(summary['files'])}", highlight=False)
+    console.print(f"{finite}/{len(summary['status'])} runs finite; written to the folder {out}: {', '.join(summary['files'])}", highlight=False)
 
 
 def _diagonal(values) -> str:
@@ -301,7 +339,7 @@ def design_passive_observer(
     wave_frequency: Annotated[Optional[float], typer.Option(metavar="RAD_PER_S", help="Dominating wave frequency w_o.")] = None,
     wave_period: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Wave period, instead of --wave-frequency (w_o = 2 pi / period).")] = None,
     wave_damping: Annotated[float, typer.Option(metavar="ZETA", help="Wave model damping zeta.")] = 0.1,
-    notch_damping: Annotated[float, typer.Option(metavar="ZETA_N", help="Notch damping zeta_n > zeta.")] = 1.0,
+    notch_damping: Annotated[Optional[float], typer.Option(metavar="ZETA_N", help="Notch damping zeta_n > zeta.", show_default="1.0")] = None,
     cutoff_frequency: Annotated[
         Optional[float], typer.Option(metavar="RAD_PER_S", help="Filter cut-off w_c > w_o.", show_default="max(1.1, 1.2255 w_o), the paper's (59)")
     ] = None,
@@ -342,7 +380,11 @@ def design_passive_observer(
         _positive_number("--wave-frequency", wave_frequency)
         source = f"--wave-frequency {wave_frequency:g}"
     _positive_number("--wave-damping", wave_damping)
-    if not (math.isfinite(notch_damping) and notch_damping > wave_damping):
+    if notch_damping is None:
+        notch_damping = DEFAULT_NOTCH_DAMPING
+        if notch_damping <= wave_damping:
+            raise InputError(f"--wave-damping must be below --notch-damping ({notch_damping:g}, its default); got {wave_damping:g}: lower it or raise --notch-damping")
+    elif not (math.isfinite(notch_damping) and notch_damping > wave_damping):
         raise InputError(f"--notch-damping must exceed --wave-damping ({wave_damping:g}); got {notch_damping:g}")
     if cutoff_frequency is None:
         cutoff_frequency = float(default_cutoff_frequency(wave_frequency))
@@ -364,7 +406,8 @@ def design_passive_observer(
     paper = fossen_strand_1999.Config()  # the paper's (60), in normalized units
 
     def to_si(kappa, lam):
-        return injection_gains_from_normalized(kappa, lam, mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH)
+        with np.errstate(over="ignore"):  # an overflow gives inf, refused below with the option's name
+            return injection_gains_from_normalized(kappa, lam, mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH)
 
     if normalized:
         kappa_si, lambda_si = to_si(kappa or paper.velocity_gain_normalized, lam or paper.bias_gain_normalized)
@@ -372,6 +415,16 @@ def design_passive_observer(
         paper_kappa_si, paper_lambda_si = to_si(paper.velocity_gain_normalized, paper.bias_gain_normalized)
         kappa_si = kappa if kappa is not None else paper_kappa_si
         lambda_si = lam if lam is not None else paper_lambda_si
+    wave_option = "--wave-period" if wave_period is not None else "--wave-frequency"
+    _analysable(wave_option, "w_o", wave_frequency, "rad/s")
+    _analysable("--cutoff-frequency" if cutoff_rule == "--cutoff-frequency" else wave_option, "w_c", cutoff_frequency, "rad/s")
+    for T, kappa_i, lambda_i in zip(time_constants, kappa_si, lambda_si):
+        _analysable("--bias-time-constant", "1/T", 1.0 / T, "rad/s")
+        with np.errstate(all="ignore"):  # an overflowing conversion gives 0 or inf, refused here
+            _analysable("--bias-gain and --velocity-gain", "lambda/kappa", float(lambda_i / kappa_i), "rad/s")
+    for value in frequencies:
+        _analysable("--frequency", "w", value, "rad/s")
+    _analysable("--lyapunov-weight", "gamma", lyapunov_weight, "")
     observer = PassiveObserver.design(
         northern_clipper(),
         wave_frequency=wave_frequency,
@@ -422,7 +475,7 @@ def design_passive_observer(
         plt.close(figure)
         result["bode"] = str(bode_path)
     if as_json:
-        print(json.dumps(result))
+        print(json.dumps(_json_safe(result), allow_nan=False))
     else:
         _print_design(result, observer, tuning, spr)
     if not passed:
@@ -486,6 +539,9 @@ def main(argv: list[str] | None = None) -> int:
     except (InputError, ValueError) as error:
         print(f"error: {_one_line(error)}", file=sys.stderr)
         return 2
+    except OSError as error:  # a write that failed after the checks (disk full, a file system that changed)
+        print(f"error: {_one_line(error)}", file=sys.stderr)
+        return 1
     return code if isinstance(code, int) else 0
 
 

@@ -239,8 +239,8 @@ def plot_estimates(ds: xr.Dataset, dof: str, *, run: int = 0, zoom: float = 200.
 _MARKERS = (
     ("bias_filter_frequency", "1/T", "marker_1/T", {"color": "tab:purple", "ls": ":", "lw": 1.3}),
     ("bias_gain_ratio", "λ/κ", "marker_lambda/kappa", {"color": "tab:olive", "ls": "-.", "lw": 1.2}),
-    ("wave_frequency", "ω_o", "marker_w_o", {"color": "tab:cyan", "ls": "--", "lw": 1.2}),
-    ("cutoff_frequency", "ω_c", "marker_w_c", {"color": "tab:brown", "ls": (0, (6, 2, 1, 2, 1, 2)), "lw": 1.2}),
+    ("wave_frequency", r"$\omega_o$", "marker_w_o", {"color": "tab:cyan", "ls": "--", "lw": 1.2}),
+    ("cutoff_frequency", r"$\omega_c$", "marker_w_c", {"color": "tab:brown", "ls": (0, (6, 2, 1, 2, 1, 2)), "lw": 1.2}),
 )
 _CURVES = {
     "h0": {"color": "tab:blue", "lw": 1.3},
@@ -248,6 +248,13 @@ _CURVES = {
     "h": {"color": "k", "lw": 1.1},
 }
 _SPR_STYLE = {"color": "tab:red", "ls": ":", "lw": 1.2}
+_VIOLATION_STYLE = {"color": "tab:red", "alpha": 0.18, "lw": 0, "zorder": 0.5}
+
+
+def _runs(x: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
+    """The (first, last) x of each run of consecutive True values of ``mask``."""
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
+    return [(float(x[start]), float(x[stop - 1])) for start, stop in zip(edges[::2], edges[1::2])]
 _REQUIRED = (
     "h0_magnitude",
     "hB_magnitude",
@@ -360,16 +367,16 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
         ax.plot([where], [lowest], "o", color="k", ms=4, zorder=4)
         text = _minus(
             f"min phase of h {lowest:.2f}° at {where:.3g} rad/s\n"
-            f"margin {lowest + 90.0:.2f}° to -90° (ω ≤ 10 ω_c)"
+            f"margin {lowest + 90.0:.2f}° to -90° ($\\omega \\leq 10\\,\\omega_c$)"
         )
         ax.text(
-            0.03,
-            0.04,
+            0.98,
+            0.97,
             text,
             transform=ax.transAxes,
-            fontsize=8.5,
-            va="bottom",
-            ha="left",
+            fontsize=8,
+            va="top",
+            ha="right",
             gid="min_phase_annotation",
             bbox={"boxstyle": "round,pad=0.3", "facecolor": "white", "edgecolor": "0.7", "alpha": 0.9},
         )
@@ -378,9 +385,12 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
         distance = angle["h"] + 90.0
         positive = np.where(distance > 0, distance, np.nan)
         ax.semilogx(frequency, positive, **_CURVES["h"], label=r"$\angle h + 90°$")
-        if np.any(distance <= 0):
-            ax.semilogx(frequency, np.where(distance <= 0, 1e-3, np.nan), color="tab:red", lw=3, label="SPR violated")
-        ax.plot([where], [lowest + 90.0], "o", color="k", ms=4, zorder=4)
+        if lowest > -90.0:
+            ax.plot([where], [lowest + 90.0], "o", color="k", ms=4, zorder=4)
+        # where the phase of h is at or below -90 deg the margin has no log value: shade it
+        for start, stop in _runs(frequency, distance <= 0):
+            for panel in (phase[column], ax):
+                panel.axvspan(start, stop, **_VIOLATION_STYLE, label="SPR violated: phase of h ≤ −90°")
         ax.axvspan(10.0 * float(response["cutoff_frequency"].sel(dof=dof)), frequency[-1], color="0.5", alpha=0.15, lw=0)
         ax.set_yscale("log")
 
@@ -396,34 +406,41 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
     margin[0].set_ylabel("margin to −90°\n$\\angle h + 90°$ (deg)")
     for ax in margin:
         ax.set_xlabel("frequency ω (rad/s)")
-    phase[0].set_ylim(-120.0, 60.0)
-    phase[0].set_yticks(np.arange(-120.0, 61.0, 30.0))
+    # -120 to 90 deg holds a passing design's phases (h0's notch lead stays below +90 deg);
+    # a deeper minimum or a higher peak widens it; the band above the top tick holds the
+    # minimum-phase note, clear of every curve
+    phases = np.asarray(response[["h0_phase_deg", "hB_phase_deg", "h_phase_deg"]].to_array().values, dtype=float)
+    bottom = min(-120.0, 30.0 * np.floor(np.nanmin(phases) / 30.0))
+    top = max(90.0, 30.0 * np.ceil(np.nanmax(phases) / 30.0))
+    phase[0].set_ylim(bottom, top + 60.0)
+    phase[0].set_yticks(np.arange(bottom, top + 1.0, 30.0))
     margins = np.asarray(response["h_phase_deg"].values, dtype=float) + 90.0
     positive = margins[margins > 0]
     low = min(0.1, 0.5 * positive.min()) if positive.size else 0.1
     margin[0].set_ylim(low, 200.0)
     magnitude[0].set_xlim(frequency[0], frequency[-1])
 
-    def curves(ax):
-        return [h for h in ax.get_legend_handles_labels()[0] if not (h.get_gid() or "").startswith("marker_")]
+    # one legend for the whole figure, below the panels, so that none covers a curve
+    def style(name, **extra):
+        return {k: v for k, v in {**_CURVES[name], **extra}.items() if k != "zorder"}
 
-    magnitude[-1].legend(handles=curves(magnitude[-1]), loc="upper right", fontsize=8.5, framealpha=0.9)
-    gain[-1].legend(handles=curves(gain[-1]), loc="upper right", fontsize=8.5, framealpha=0.9)
-    phase[-1].legend(handles=curves(phase[-1]), loc="upper left", ncols=2, fontsize=8.5, framealpha=0.9)
-    margin[-1].legend(
-        handles=curves(margin[-1]) + [Patch(facecolor="0.5", alpha=0.3, label="ω > 10 ω_c (not judged)")],
-        loc="lower left",
-        fontsize=8.5,
-        framealpha=0.9,
-    )
-    marker_handles = [Line2D([], [], **style, label=label) for _, label, _, style in _MARKERS]
+    handles = [
+        Line2D([], [], **style("h0"), label="$h_0$"),
+        Line2D([], [], **style("hB"), label=r"$h_B$ (magnitude: $h_B/\kappa$)"),
+        Line2D([], [], **style("h"), label=r"$h$ (magnitude: $h/\kappa$; margin $\angle h + 90°$)"),
+        Line2D([], [], **_SPR_STYLE, label="−90° (SPR bound)"),
+        Patch(facecolor="0.5", alpha=0.3, label=r"$\omega > 10\,\omega_c$ (margin not judged)"),
+    ]
+    if np.any(margins <= 0):
+        handles.append(Patch(**{k: v for k, v in _VIOLATION_STYLE.items() if k != "zorder"}, label="SPR violated: phase of h ≤ −90°"))
+    handles += [Line2D([], [], **style, label=label) for _, label, _, style in _MARKERS]
     fig.legend(
-        handles=marker_handles,
+        handles=handles,
         loc="outside lower center",
-        ncols=len(marker_handles),
+        ncols=5,
         fontsize=9,
         frameon=False,
-        title="tuning rule (48): 1/T ≪ λ/κ < ω_o < ω_c",
+        title=r"markers: the tuning rule (48), $1/T \ll \lambda/\kappa < \omega_o < \omega_c$",
         title_fontsize=9,
     )
     fig.suptitle(title if title is not None else "Error-loop frequency response h0, hB, h (Fossen & Strand 1999, Fig. 6)")

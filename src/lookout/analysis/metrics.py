@@ -49,7 +49,7 @@ def rms_over(errors: xr.Dataset, start: float) -> xr.Dataset:
     return np.sqrt((window**2).mean("time"))
 
 
-def settling_time(error: np.ndarray, time: np.ndarray, final_rms: float, *, tolerance: float = 0.10) -> float:
+def settling_time(error, time, final_rms, *, tolerance: float = 0.10):
     """First time t from which the RMS of ``error`` over [t, end] is within (1 + tolerance) x ``final_rms``.
 
     A stochastic error never stays pointwise below its RMS, and a short moving RMS
@@ -57,15 +57,25 @@ def settling_time(error: np.ndarray, time: np.ndarray, final_rms: float, *, tole
     steady measure of "from here on, the error is at its final level". The tail
     RMS is computed for every start time with one reversed cumulative sum.
 
+    Parameters
+    ----------
+    error : array_like, shape ``S + (n_time,)``
+        Errors, time along the last axis (any leading axes: runs, DOFs).
+    time : array_like, shape (n_time,)
+    final_rms : array_like, shape ``S``
+
     Returns
     -------
-    float
-        Settling time in seconds (``time[0]`` if settled from the start).
+    float or ndarray of shape ``S``
+        Settling time in seconds (``time[0]`` if settled from the start; NaN if never).
     """
     error = np.asarray(error, dtype=float)
-    tail_power = np.cumsum((error**2)[::-1])[::-1] / np.arange(error.size, 0, -1)
-    inside = np.sqrt(tail_power) <= (1.0 + tolerance) * final_rms
-    return float(time[np.argmax(inside)]) if inside.any() else float("nan")
+    time = np.asarray(time, dtype=float)
+    count = np.arange(error.shape[-1], 0, -1)
+    tail_power = np.flip(np.cumsum(np.flip(error**2, axis=-1), axis=-1), axis=-1) / count
+    inside = np.sqrt(tail_power) <= (1.0 + tolerance) * np.asarray(final_rms, dtype=float)[..., None]
+    settled = np.where(inside.any(axis=-1), time[np.argmax(inside, axis=-1)], np.nan)
+    return float(settled) if settled.ndim == 0 else settled
 
 
 def fit_decay_rate(time, magnitude, *, upper: float = 1e-1, lower: float = 1e-9) -> dict:

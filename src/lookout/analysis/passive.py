@@ -120,7 +120,7 @@ def characteristic_frequencies(observer: PassiveObserver) -> dict[str, np.ndarra
 def default_frequencies(observer: PassiveObserver, points: int = 400, decades: float = 2.0) -> np.ndarray:
     """Log-spaced grid from ``decades`` below the slowest to above the fastest
     time scale of the error loops (their poles and the frequencies of eq. 48)."""
-    scales = [value for value in characteristic_frequencies(observer).values()]
+    scales = list(characteristic_frequencies(observer).values())
     for dof in range(3):
         scales.append(np.abs(np.linalg.eigvals(error_loop(observer, dof)[0])))
     scales = np.concatenate([np.ravel(value) for value in scales])
@@ -190,9 +190,17 @@ class Inequality:
     required_margin: float
 
     def describe(self) -> str:
-        """One line: the inequality, its values and whether it holds."""
+        """One line: the inequality, its values and whether it holds.
+
+        The two sides get 4 significant digits, or as many more as it takes to show
+        that they differ.
+        """
         verdict = "holds" if self.holds else f"FAILS (ratio {self.margin:.3g}, needs > {self.required_margin:g})"
-        return f"{self.dof}: {self.relation}: {self.lhs:.4g} vs {self.rhs:.4g} -> {verdict}"
+        for digits in range(4, 18):
+            lhs, rhs = f"{self.lhs:.{digits}g}", f"{self.rhs:.{digits}g}"
+            if lhs != rhs or self.lhs == self.rhs:
+                break
+        return f"{self.dof}: {self.relation}: {lhs} vs {rhs} -> {verdict}"
 
 
 @dataclass
@@ -346,12 +354,18 @@ def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRReport]
             verdict, reason = "holds", "frequency-domain conditions hold and the KYP certificate is verified"
         else:
             speeds = np.abs(poles)
+            if certificate["P"] is None or not np.isfinite([certificate["min_eig_P"], certificate["min_eig_Q"]]).all():
+                best = "the Riccati equation of the shifted loop has no finite solution for any shift tried"
+            else:
+                best = (
+                    f"the best candidate's smallest normalized eigenvalue is {certificate['min_eig_P'] + 0.0:.2g} for P "
+                    f"and {certificate['min_eig_Q'] + 0.0:.2g} for Q, both must be > 0"
+                )
             verdict = "unverified"
             reason = (
-                "Re h(jw) > 0 on the grid, but no KYP certificate could be verified to tolerance "
-                f"(best: smallest normalized eigenvalue of P {certificate['min_eig_P']:.2g}, of Q {certificate['min_eig_Q']:.2g}); "
-                f"the loop's poles span {speeds.min():.3g} to {speeds.max():.3g} rad/s (ratio {speeds.max() / speeds.min():.2g}), "
-                "too stiff for the certificate's construction in float64: SPR is not established"
+                f"Re h(jw) > 0 on the grid, but no KYP certificate was verified in float64 ({best}; "
+                f"the loop's poles span {speeds.min():.3g} to {speeds.max():.3g} rad/s, a ratio of {speeds.max() / speeds.min():.2g}): "
+                "SPR is not established"
             )
         reports.append(
             SPRReport(

@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 import math
-from typing import Callable, Optional
+from typing import Callable
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
@@ -36,6 +36,8 @@ from lookout.sim import MAX_SEED, Scenario, integer_ratio, seed_keys, simulate, 
 NAME = "fossen-strand-1999"
 TITLE = "Fossen & Strand (1999): passive observer on Northern Clipper, simulation study (Section 6.1)"
 STATES = ("eta", "nu", "bias", "wave")
+#: A run must span at least this many position fixes (see Config.duration).
+MINIMUM_FIXES = 10
 
 
 class Config(BaseModel):
@@ -52,8 +54,7 @@ class Config(BaseModel):
     plant_step: float = Field(0.1, description="RK4 step of the plant (s)")
     sample_period: float = Field(0.1, description="observer period (s)")
     measurement_period: float = Field(1.0, description="position and heading sample period (s), paper: 1 Hz")
-    record_interval: Optional[float] = Field(None, description="time between recorded samples (s), a multiple of sample_period; default: every sample")
-    duration: float = Field(3000.0, description="simulated time (s), a multiple of the record interval")
+    duration: float = Field(3000.0, description="simulated time (s), a multiple of sample_period, at least 10 measurement periods")
     wave_frequency: float = Field(0.8976, description="w_o (rad/s), eq. (59)")
     wave_damping: float = Field(0.1, description="zeta, eq. (59)")
     notch_damping: float = Field(1.0, description="zeta_n, eq. (59)")
@@ -85,29 +86,26 @@ class Config(BaseModel):
         return value
 
     @field_validator(
-        "plant_step", "sample_period", "measurement_period", "record_interval", "duration", "wave_frequency",
+        "plant_step", "sample_period", "measurement_period", "duration", "wave_frequency",
         "wave_damping", "notch_damping", "cutoff_frequency", "bias_time_constant", "wave_amplitude_sigmas",
     )
     @classmethod
     def _finite_positive(cls, value):
-        if value is not None and not (math.isfinite(value) and value > 0):
+        if not (math.isfinite(value) and value > 0):
             raise ValueError(f"must be a finite positive number; got {value:g}")
-        return value
-
-    @field_validator("record_interval")
-    @classmethod
-    def _whole_samples(cls, value, info: ValidationInfo):
-        period = info.data.get("sample_period")
-        if value is not None and period is not None and integer_ratio(value, period) is None:
-            raise ValueError(f"must be a whole multiple of the observer's sample period ({period:g} s); got {value:g} s")
         return value
 
     @field_validator("duration")
     @classmethod
-    def _whole_records(cls, value, info: ValidationInfo):
-        interval = info.data.get("record_interval") or info.data.get("sample_period")
-        if interval is not None and integer_ratio(value, interval) is None:
-            raise ValueError(f"must be a whole multiple of the record interval ({interval:g} s); got {value:g} s")
+    def _whole_samples_and_enough_fixes(cls, value, info: ValidationInfo):
+        period, fixes = info.data.get("sample_period"), info.data.get("measurement_period")
+        if period is not None and integer_ratio(value, period) is None:
+            raise ValueError(f"must be a whole multiple of the observer's sample period ({period:g} s); got {value:g} s")
+        if fixes is not None and value < MINIMUM_FIXES * fixes:
+            raise ValueError(
+                f"must be at least {MINIMUM_FIXES * fixes:g} s ({MINIMUM_FIXES} position fixes, so that the second half, "
+                f"over which the errors are summarized, holds {MINIMUM_FIXES // 2}); got {value:g} s"
+            )
         return value
 
     @field_validator("wave_amplitude", "bias_std", "noise_std", "velocity_gain_normalized", "bias_gain_normalized")
@@ -121,11 +119,6 @@ class Config(BaseModel):
     def seeds(self) -> list[int]:
         """The seed of each run: seed, seed + 1, ..., seed + runs - 1."""
         return list(range(self.seed, self.seed + self.runs))
-
-    @property
-    def record_every(self) -> int:
-        """Record one sample in this many."""
-        return 1 if self.record_interval is None else integer_ratio(self.record_interval, self.sample_period)
 
 
 def build(config: Config) -> Scenario:
@@ -161,7 +154,6 @@ def build(config: Config) -> Scenario:
         plant_step=config.plant_step,
         sample_period=config.sample_period,
         duration=config.duration,
-        record_every=config.record_every,
     )
 
 
@@ -183,26 +175,22 @@ def summarize(ds, config: Config) -> dict:
         summary["rms_second_half_std"][name] = dict(zip(dofs, rms[name].std("run").values.tolist()))
         truth = ds[name].sel(time=ds.time >= half)
         summary["true_std_second_half"][name] = dict(zip(dofs, truth.std("time").mean("run").values.tolist()))
-        summary["settling_time"][name] = {
-            dof: float(
-                np.median(
-                    [settling_time(errors[name].isel(run=r).sel(dof=dof).values, time, float(rms[name].isel(run=r).sel(dof=dof))) for r in range(ds.sizes["run"])]
-                )
-            )
-            for dof in dofs
-        }
+        settles = settling_time(errors[name].transpose("run", "dof", "time").values, time, rms[name].transpose("run", "dof").values)
+        summary["settling_time"][name] = dict(zip(dofs, np.median(settles, axis=0).tolist()))
     return summary
 
 
-def simulate_runs(config: Config, *, progress: Callable | None = None):
+def simulate_runs(config: Config, *, progress: Callable | None = None, scenario: Scenario | None = None):
     """Simulate the scenario for the seeds of ``config`` (one run, or a vmapped batch).
+
+    ``scenario`` is ``build(config)`` when the caller has already built it.
 
     Returns
     -------
     xarray.Dataset
         :meth:`lookout.Trajectory.to_xarray` with a ``seed`` coordinate along ``run``.
     """
-    scenario = build(config)
+    scenario = build(config) if scenario is None else scenario
     if config.runs == 1:
         trajectory = simulate(scenario, seed_keys(config.seed, 1)[0], progress=progress)
     else:
@@ -221,11 +209,12 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
 
     from lookout.plotting import plot_bode, plot_estimates
 
-    ds = simulate_runs(config, progress=progress)
+    scenario = build(config)
+    ds = simulate_runs(config, progress=progress, scenario=scenario)
     out.mkdir(parents=True, exist_ok=True)
     ds.to_netcdf(out / "fossen_strand_1999.nc", engine="netcdf4")
 
-    observer = build(config).observer
+    observer = scenario.observer
     response = frequency_response(observer)
     response.to_netcdf(out / "bode.nc", engine="netcdf4")
     figures = {"fig06_bode.png": plot_bode(response, title="Fossen & Strand (1999), Fig. 6: error-loop frequency response h0, hB, h")}
