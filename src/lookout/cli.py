@@ -151,10 +151,11 @@ def _image_file(option: str, text: str) -> Path:
 def _analysable(option: str, symbol: str, value: float, unit: str) -> None:
     """Fail unless ``value`` lies in ANALYSIS_RANGE, where the loop analysis stays finite."""
     low, high = ANALYSIS_RANGE
+    unit = f" {unit}" if unit else ""
     if not low <= value <= high:
         raise InputError(
-            f"{option}: {symbol} = {value:.3g} {unit} is outside {low:g} to {high:g}{' ' + unit if unit else ''}, "
-            "the range in which the loop analysis is finite in float64".replace("  ", " ")
+            f"{option}: {symbol} = {value:.3g}{unit} is outside {low:g} to {high:g}{unit}, "
+            "the range in which the loop analysis is finite in float64"
         )
 
 
