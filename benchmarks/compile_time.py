@@ -12,7 +12,7 @@ import time
 
 import lookout
 
-lookout.use_all_cpu_cores()
+lookout.configure_cpu()
 
 import jax  # noqa: E402
 

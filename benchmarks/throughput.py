@@ -18,7 +18,7 @@ import time
 
 import lookout
 
-lookout.use_all_cpu_cores()  # before JAX computes anything
+lookout.configure_cpu()  # before JAX computes anything
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402

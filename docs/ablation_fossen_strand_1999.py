@@ -9,7 +9,7 @@ import dataclasses
 
 import lookout
 
-lookout.use_all_cpu_cores()
+lookout.configure_cpu()
 
 import numpy as np  # noqa: E402
 
@@ -38,7 +38,7 @@ def main() -> None:
         rms = rms_over(estimation_errors(ds), DURATION / 2).mean("run")
         print(f"\n{label}")
         for name in ("eta", "nu", "bias", "wave"):
-            print(f"  {name:5s}", np.array2string(rms[name].values, precision=4, separator=", "))
+            print(f"  {name:5s}", np.array2string(fs.paper_vector(rms, name).values, precision=4, separator=", "))
 
 
 if __name__ == "__main__":

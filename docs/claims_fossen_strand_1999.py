@@ -16,7 +16,7 @@ Usage: python docs/claims_fossen_strand_1999.py
 
 import lookout
 
-lookout.use_all_cpu_cores()
+lookout.configure_cpu()
 
 import numpy as np  # noqa: E402
 
@@ -29,13 +29,15 @@ FIX_EVERY = 10  # 1 Hz fixes at the 10 Hz observer rate
 
 def main() -> None:
     config = fs.Config(duration=DURATION, runs=RUNS)
-    ds = fs.simulate_runs(config)
+    recorded = fs.simulate_runs(config)
+    ds = fs.paper_view(recorded)  # eta, nu, bias, wave, measurement over (surge, sway, yaw)
     settled = DURATION / 2
     late = ds.time.values >= settled
-    errors = rms_over(estimation_errors(ds), settled)
+    rms = rms_over(estimation_errors(recorded), settled)
+    errors = {name: fs.paper_vector(rms, name) for name in ("eta", "nu", "bias")}  # dims (run, dof)
 
     raw = np.sqrt(((ds.measurement - ds.eta).sel(time=late) ** 2).mean("time"))
-    wave_filtering = (errors.eta / raw).sel(dof=["surge", "sway"]).values
+    wave_filtering = (errors["eta"] / raw).sel(dof=["surge", "sway"]).values
     print(f"{RUNS} runs, seeds {config.seeds[0]}-{config.seeds[-1]}, {DURATION:g} s, errors over [{settled:g}, {DURATION:g}] s")
     print(f"wave filtering, LF position error / raw error (surge, sway): {wave_filtering.min():.3f} .. {wave_filtering.max():.3f}")
 
@@ -47,9 +49,9 @@ def main() -> None:
     naive = np.sqrt((naive_error[:, late[::FIX_EVERY][:-1]] ** 2).mean(axis=1))
     print(f"velocity, observer / differenced fixes, Earth frame (surge, sway): at most {np.max(observer / naive):.4f}")
     own_std = ds.nu.sel(time=late).std("time")
-    print("velocity, error RMS / velocity std (surge, sway, yaw), mean over runs:", np.array2string((errors.nu / own_std).mean("run").values, precision=3, separator=", "))
+    print("velocity, error RMS / velocity std (surge, sway, yaw), mean over runs:", np.array2string((errors["nu"] / own_std).mean("run").values, precision=3, separator=", "))
 
-    prior = errors.bias.mean("run").values / np.asarray(config.bias_std)
+    prior = errors["bias"].mean("run").values / np.asarray(config.bias_std)
     print("bias, mean error RMS / stationary std (surge, sway, yaw):", np.array2string(prior, precision=3, separator=", "))
 
 

@@ -1,6 +1,6 @@
 import lookout  # enables float64 before any test builds arrays
 
-lookout.use_all_cpu_cores(2)  # exercise the sharded batch path, as the CLI does
+lookout.configure_cpu(devices=2)  # the CLI's XLA:CPU options, and two devices: batches take the sharded path
 import numpy as np
 import pytest
 from hypothesis import settings

@@ -1,5 +1,6 @@
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -64,12 +65,21 @@ def test_computed_once_returns_its_argument_bit_for_bit():
     assert np.isnan(np.asarray(computed_once(jnp.asarray([np.nan, np.inf, -np.inf])))).all()
 
 
-@given(st.lists(st.floats(-1e6, 1e6), min_size=12, max_size=12))
-def test_written_out_matvec_matches_numpy(values):
+@given(st.integers(1, 6), st.integers(1, 6), st.lists(st.floats(-1e6, 1e6), min_size=42, max_size=42))
+def test_written_out_matvec_equals_matmul_for_every_size(rows, columns, values):
     from lookout._math import matvec
 
-    A, v = np.reshape(values[:9], (3, 3)), np.asarray(values[9:])
+    A, v = np.reshape(values[: rows * columns], (rows, columns)), np.asarray(values[36 : 36 + columns])
     np.testing.assert_allclose(matvec(jnp.asarray(A), jnp.asarray(v)), A @ v, rtol=1e-12, atol=1e-12 * np.abs(A).sum() * np.abs(v).max())
+
+
+def test_matvec_refuses_mismatched_shapes_and_uses_matmul_for_wide_matrices():
+    from lookout._math import matvec
+
+    with pytest.raises(ValueError, match=r"matvec needs an \(m, n\) matrix and an \(n,\) vector; got shapes \(2, 2\) and \(3,\)"):
+        matvec(jnp.ones((2, 2)), jnp.ones(3))
+    A, v = np.arange(90.0).reshape(9, 10), np.linspace(-1, 1, 10)
+    np.testing.assert_allclose(matvec(jnp.asarray(A), jnp.asarray(v)), A @ v, rtol=1e-13)
 
 
 @given(angles, st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3))

@@ -1,8 +1,11 @@
 """Figures of lookout.plotting: layout, styling contract and argument checks.
 
-The estimate figure is checked on a small synthetic Dataset shaped like
-``Trajectory.to_xarray()``; the Bode figure on the real frequency response of the
-observer of Fossen & Strand (1999) (the ``paper_observer`` fixture).
+The estimate figure is checked on small synthetic Datasets laid out like
+``Trajectory.to_xarray()`` (one variable per physical quantity, vectors over a
+labelled axis, attributes ``units``, ``frame``, ``long_name``, ``angle``): the ship
+of Fossen & Strand (1999) and a two-joint arm. The Bode figure is checked on the
+real frequency response of the observer of Fossen & Strand (1999) (the
+``paper_observer`` fixture).
 """
 
 import math
@@ -24,52 +27,121 @@ DOFS = ("surge", "sway", "yaw")
 DPI = 60  # small, so that saving is fast; the size check scales with it
 DURATION = 300.0
 STEP = 0.5
+EARTH = ("north", "east")
+BODY = ("surge", "sway")
 
-# per row: the frame word in the left y label and the unit per DOF
-ROWS = (
-    ("Earth-fixed", {"surge": "north", "sway": "east", "yaw": "heading"}, {"surge": "(m)", "sway": "(m)", "yaw": "(deg)"}),
-    ("body-fixed", {"surge": "surge", "sway": "sway", "yaw": "yaw rate"}, {"surge": "(m/s)", "sway": "(m/s)", "yaw": "(deg/s)"}),
-    ("Earth-fixed", {"surge": "north", "sway": "east", "yaw": "heading"}, {"surge": "(m)", "sway": "(m)", "yaw": "(deg)"}),
-    ("Earth-fixed", {"surge": "north", "sway": "east", "yaw": "yaw"}, {"surge": "(kN)", "sway": "(kN)", "yaw": "(kN m)"}),
-)
+# the ship's figure per DOF, as in Fossen & Strand (1999), Figs. 9-11: eta, nu, wave, bias rows
+SHIP_PANELS = {
+    "surge": [("position", "north"), ("velocity", "surge"), ("wave_position", "north"), ("bias_force", "north")],
+    "sway": [("position", "east"), ("velocity", "sway"), ("wave_position", "east"), ("bias_force", "east")],
+    "yaw": [("heading", None), ("yaw_rate", None), ("wave_heading", None), ("bias_moment", None)],
+}
+# the y labels those panels must get: (full-run column, zoom column) per row
+SHIP_LABELS = {
+    "surge": [
+        ("Earth-fixed\nposition north (m)", "position north (m)"),
+        ("body-fixed\nvelocity surge (m/s)", "velocity surge (m/s)"),
+        ("Earth-fixed\nwave position north (m)", "wave position north (m)"),
+        ("Earth-fixed\nbias force north (kN)", "bias force north (kN)"),
+    ],
+    "sway": [
+        ("Earth-fixed\nposition east (m)", "position east (m)"),
+        ("body-fixed\nvelocity sway (m/s)", "velocity sway (m/s)"),
+        ("Earth-fixed\nwave position east (m)", "wave position east (m)"),
+        ("Earth-fixed\nbias force east (kN)", "bias force east (kN)"),
+    ],
+    "yaw": [
+        ("Earth-fixed\nheading (deg)", "heading (deg)"),
+        ("body-fixed\nyaw rate (deg/s)", "yaw rate (deg/s)"),
+        ("Earth-fixed\nwave heading (deg)", "wave heading (deg)"),
+        ("Earth-fixed\nbias moment (kN m)", "bias moment (kN m)"),
+    ],
+}
 
 
-def synthetic_dataset(runs=1, seeds=None, duration=DURATION, step=STEP):
-    """A Dataset shaped like Trajectory.to_xarray(): dims (run, time, dof)."""
+def wrap(angle):
+    return (angle + np.pi) % (2 * np.pi) - np.pi
+
+
+def attributes(units, frame, long_name, angle=0):
+    return {"units": units, "frame": frame, "long_name": long_name, "angle": angle}
+
+
+def held(values):
+    """Sensor samples at half the recording rate, each held for two records."""
+    out = values.copy()
+    out[:, 1::2] = values[:, 0:-1:2]
+    return out
+
+
+def synthetic_dataset(runs=1, seeds=None, status=None, duration=DURATION, step=STEP):
+    """A ship Dataset laid out like Trajectory.to_xarray(): dims (run, time[, axis])."""
     rng = np.random.default_rng(7)
     time = np.arange(0.0, duration + step / 2, step)
-    shape = (runs, time.size, 3)
-    t = time[None, :, None]
-    offset = np.arange(runs)[:, None, None]  # each run differs
-    # heading grows past +pi so that the stored (wrapped) heading jumps by 2 pi
-    eta = np.concatenate([0.5 * t + offset, 0.2 * t - offset, np.broadcast_to(0.02 * t, (runs, time.size, 1))], axis=2)
-    eta[..., 2] = (eta[..., 2] + np.pi) % (2 * np.pi) - np.pi
-    nu = np.broadcast_to(0.1 + 0.01 * np.sin(0.01 * t) * np.array([1.0, 0.5, 0.01]), shape)
-    wave = np.broadcast_to(np.sin(2 * np.pi * t / 7.0) * np.array([2.0, 1.5, 0.01]), shape)
-    bias = np.broadcast_to(np.array([1e4, 5e3, 2e4]) * np.exp(-t / 500.0), shape)
-    noise = lambda scale: scale * rng.standard_normal(shape)  # noqa: E731
-    measurement = eta + wave + noise(0.1)
-    measurement[:, ::17, :] = np.nan  # dropouts
-    data = {
-        "eta": eta,
-        "eta_hat": eta + noise(0.05),
-        "nu": nu,
-        "nu_hat": nu + noise(0.005),
-        "wave": wave,
-        "wave_hat": wave + noise(0.1),
-        "bias": bias,
-        "bias_hat": bias + noise(500.0),
-        "measurement": measurement,
-        "tau": noise(1.0),
+    t = time[None, :]  # (1, time): broadcasts over runs
+    offset = np.arange(runs)[:, None]  # each run differs
+    ones = np.ones((runs, time.size))
+
+    def noise(scale, *axis):
+        return scale * rng.standard_normal((runs, time.size, *axis))
+
+    position = np.stack([0.5 * t + offset, 0.2 * t - offset], axis=-1)
+    # the heading grows past +pi, so that the stored (wrapped) heading jumps by 2 pi
+    heading = wrap(0.02 * t * ones)
+    velocity = np.stack([0.1 + 0.01 * np.sin(0.01 * t) * ones, 0.1 + 0.005 * np.sin(0.01 * t) * ones], axis=-1)
+    yaw_rate = 0.02 + 1e-4 * np.sin(0.01 * t) * ones
+    wave_position = np.stack([2.0 * np.sin(2 * np.pi * t / 7.0) * ones, 1.5 * np.sin(2 * np.pi * t / 7.0) * ones], axis=-1)
+    wave_heading = 0.01 * np.sin(2 * np.pi * t / 7.0) * ones
+    bias_force = np.stack([1e4 * np.exp(-t / 500.0) * ones, 5e3 * np.exp(-t / 500.0) * ones], axis=-1)
+    bias_moment = 2e4 * np.exp(-t / 500.0) * ones
+    measured_position = held(position + wave_position + noise(0.1, 2))
+    measured_heading = held(wrap(heading + wave_heading + noise(0.01)))
+    measured_position[:, ::17, :] = np.nan  # dropouts
+    measured_heading[:, ::17] = np.nan
+
+    earth, body, scalar = ("run", "time", "earth_axis"), ("run", "time", "body_axis"), ("run", "time")
+    variables = {
+        "position": (earth, position, position + noise(0.05, 2), attributes("m", "Earth-fixed", "low-frequency position")),
+        "heading": (scalar, heading, wrap(heading + noise(0.01)), attributes("rad", "Earth-fixed", "low-frequency heading", 1)),
+        "velocity": (body, velocity, velocity + noise(0.005, 2), attributes("m/s", "body-fixed", "linear velocity")),
+        "yaw_rate": (scalar, yaw_rate, yaw_rate + noise(1e-4), attributes("rad/s", "body-fixed", "yaw rate")),
+        "bias_force": (earth, bias_force, bias_force + noise(500.0, 2), attributes("N", "Earth-fixed", "bias force")),
+        "bias_moment": (scalar, bias_moment, bias_moment + noise(500.0), attributes("N m", "Earth-fixed", "bias moment")),
+        "wave_position": (earth, wave_position, wave_position + noise(0.1, 2), attributes("m", "Earth-fixed", "wave-induced position")),
+        "wave_heading": (scalar, wave_heading, wave_heading + noise(0.002), attributes("rad", "Earth-fixed", "wave-induced heading", 1)),
     }
-    ds = xr.Dataset(
-        {name: (("run", "time", "dof"), value) for name, value in data.items()},
-        coords={"run": np.arange(runs), "time": time, "dof": list(DOFS)},
-    )
-    ds["eta_hat"][..., 2] = (ds["eta_hat"][..., 2] + np.pi) % (2 * np.pi) - np.pi
+    data = {}
+    for name, (dims, truth, estimate, attrs) in variables.items():
+        data[name] = xr.Variable(dims, truth, attrs)
+        data[f"{name}_hat"] = xr.Variable(dims, estimate, attrs | {"long_name": "estimated " + attrs["long_name"]})
+    data["measured_position"] = xr.Variable(earth, measured_position, attributes("m", "Earth-fixed", "measured position"))
+    data["measured_heading"] = xr.Variable(scalar, measured_heading, attributes("rad", "Earth-fixed", "measured heading", 1))
+    # an input: a variable without an estimate
+    data["force_applied"] = xr.Variable(body, noise(1.0, 2), attributes("N", "body-fixed", "applied thrust force"))
+    data["status"] = xr.Variable(("run",), np.array(status if status is not None else ["finite"] * runs, dtype=object))
+    ds = xr.Dataset(data, coords={"run": np.arange(runs), "time": time, "earth_axis": list(EARTH), "body_axis": list(BODY)})
     if seeds is not None:
         ds = ds.assign_coords(seed=("run", list(seeds)))
     return ds
+
+
+def arm_dataset(duration=60.0, step=0.1):
+    """A two-joint arm: one vector variable over a joint axis, in joint space."""
+    rng = np.random.default_rng(11)
+    time = np.arange(0.0, duration + step / 2, step)
+    angle = np.stack([0.8 * np.sin(0.3 * time), -1.2 + 0.5 * np.cos(0.7 * time)], axis=-1)[None]
+    dims = ("run", "time", "revolute_joint")
+    attrs = attributes("rad", "joint space", "joint angle")
+    measured = angle + 0.01 * rng.standard_normal(angle.shape)
+    measured[:, ::13, :] = np.nan
+    return xr.Dataset(
+        {
+            "joint_angle": xr.Variable(dims, angle, attrs),
+            "joint_angle_hat": xr.Variable(dims, angle + 0.02 * rng.standard_normal(angle.shape), attrs),
+            "measured_joint_angle": xr.Variable(dims, measured, attrs),
+        },
+        coords={"run": [0], "time": time, "revolute_joint": ["shoulder", "elbow"]},
+    )
 
 
 @pytest.fixture(scope="module")
@@ -96,6 +168,16 @@ def lines_by_label(ax):
     return {line.get_label(): line for line in ax.get_lines()}
 
 
+def legend_labels(fig):
+    legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    return {text.get_text() for legend in legends for text in legend.get_texts()}
+
+
+def estimate_axes(fig, rows):
+    assert len(fig.axes) == 2 * rows
+    return np.asarray(fig.axes).reshape(rows, 2)
+
+
 def assert_png(fig, path, figsize):
     fig.savefig(path, dpi=DPI)
     image = matplotlib.image.imread(path)
@@ -104,68 +186,105 @@ def assert_png(fig, path, figsize):
     assert float(np.std(image[..., :3])) > 0.05, "the figure looks blank"
 
 
+def assert_truth_above_estimate(ax):
+    lines = lines_by_label(ax)
+    assert {"true", "estimate"} <= set(lines), ax.get_ylabel()
+    truth, estimate = lines["true"], lines["estimate"]
+    for line in (truth, estimate):
+        y = np.asarray(line.get_ydata(), dtype=float)
+        assert line.get_visible() and line.get_linewidth() > 0 and line.get_alpha() in (None, 1.0)
+        assert y.size > 1 and np.isfinite(y).any()
+    order = ax.get_children()
+    above = truth.get_zorder() > estimate.get_zorder() or (
+        truth.get_zorder() == estimate.get_zorder() and order.index(truth) > order.index(estimate)
+    )
+    assert above or estimate.get_linestyle() not in ("-", "solid"), f"truth hidden under the estimate: {ax.get_ylabel()!r}"
+    assert matplotlib.colors.to_rgb(truth.get_color()) != matplotlib.colors.to_rgb(estimate.get_color())
+
+
 # --------------------------------------------------------------------------- estimates
 
 
 @pytest.mark.parametrize("dof", DOFS)
 def test_estimates_png_has_the_figure_size_and_is_not_blank(ds, dof, tmp_path):
-    fig = plot_estimates(ds, dof)
+    fig = plot_estimates(ds, SHIP_PANELS[dof])
     assert_png(fig, tmp_path / f"{dof}.png", fig.get_size_inches())
     assert tuple(fig.get_size_inches()) == pytest.approx((11.0, 9.0))
 
 
 @pytest.mark.parametrize("dof", DOFS)
 def test_every_panel_draws_truth_above_estimate(ds, dof):
-    fig = plot_estimates(ds, dof)
-    axes = np.asarray(fig.axes).reshape(4, 2)
-    for ax in axes.ravel():
-        lines = lines_by_label(ax)
-        assert {"true", "estimate"} <= set(lines), ax.get_ylabel()
-        truth, estimate = lines["true"], lines["estimate"]
-        for line in (truth, estimate):
-            y = np.asarray(line.get_ydata(), dtype=float)
-            assert line.get_visible() and line.get_linewidth() > 0 and line.get_alpha() in (None, 1.0)
-            assert y.size > 1 and np.isfinite(y).any()
-        order = ax.get_children()
-        above = truth.get_zorder() > estimate.get_zorder() or (
-            truth.get_zorder() == estimate.get_zorder() and order.index(truth) > order.index(estimate)
-        )
-        assert above or estimate.get_linestyle() not in ("-", "solid"), "truth hidden under the estimate"
-        assert matplotlib.colors.to_rgb(truth.get_color()) != matplotlib.colors.to_rgb(estimate.get_color())
+    fig = plot_estimates(ds, SHIP_PANELS[dof])
+    for ax in estimate_axes(fig, 4).ravel():
+        assert_truth_above_estimate(ax)
 
 
-def test_panels_plot_the_selected_dof_in_plot_units(ds):
-    fig = plot_estimates(ds, "surge")
-    axes = np.asarray(fig.axes).reshape(4, 2)
-    np.testing.assert_allclose(lines_by_label(axes[0, 0])["true"].get_ydata(), ds.eta.isel(run=0).sel(dof="surge"))
-    # bias is shown in kN
-    np.testing.assert_allclose(lines_by_label(axes[3, 0])["true"].get_ydata(), ds.bias.isel(run=0).sel(dof="surge") / 1e3)
+def test_panels_plot_the_selected_components_in_order_and_in_plot_units(ds):
+    run0 = ds.isel(run=0)
+    fig = plot_estimates(ds, SHIP_PANELS["surge"])
+    axes = estimate_axes(fig, 4)
+    np.testing.assert_allclose(lines_by_label(axes[0, 0])["true"].get_ydata(), run0.position.sel(earth_axis="north"))
+    np.testing.assert_allclose(lines_by_label(axes[1, 0])["estimate"].get_ydata(), run0.velocity_hat.sel(body_axis="surge"))
+    # forces are shown in kN
+    np.testing.assert_allclose(lines_by_label(axes[3, 0])["true"].get_ydata(), run0.bias_force.sel(earth_axis="north") / 1e3)
+    np.testing.assert_allclose(lines_by_label(axes[3, 0])["estimate"].get_ydata(), run0.bias_force_hat.sel(earth_axis="north") / 1e3)
+    # any panels, in the order given: a moment in kN m, a rate in deg/s, another component
+    fig = plot_estimates(ds, [("bias_moment", None), ("yaw_rate", None), ("position", "east")])
+    axes = estimate_axes(fig, 3)
+    np.testing.assert_allclose(lines_by_label(axes[0, 0])["true"].get_ydata(), run0.bias_moment / 1e3)
+    np.testing.assert_allclose(lines_by_label(axes[1, 0])["true"].get_ydata(), np.degrees(run0.yaw_rate))
+    np.testing.assert_allclose(lines_by_label(axes[2, 0])["true"].get_ydata(), run0.position.sel(earth_axis="east"))
+    assert [ax.get_ylabel() for ax in axes[:, 1]] == ["bias moment (kN m)", "yaw rate (deg/s)", "position east (m)"]
+    assert tuple(fig.get_size_inches()) == pytest.approx((11.0, 3 * 2.25))
 
 
 def test_heading_is_unwrapped_and_in_degrees(ds):
-    fig = plot_estimates(ds, "yaw")
-    axes = np.asarray(fig.axes).reshape(4, 2)
-    lines = lines_by_label(axes[0, 0])
+    fig = plot_estimates(ds, SHIP_PANELS["yaw"])
+    full, zoomed = estimate_axes(fig, 4)[0]
+    assert np.ptp(ds.heading.values) > 6.0, "the synthetic heading must cross +-pi"
+    lines = lines_by_label(full)
     truth, estimate = (np.asarray(lines[name].get_ydata()) for name in ("true", "estimate"))
     for name, y in (("true", truth), ("estimate", estimate)):
         assert np.max(np.abs(np.diff(y))) < 60.0, f"{name} heading jumps by ~360 deg: not unwrapped"
     np.testing.assert_allclose(truth, np.degrees(0.02 * ds.time.values), atol=1e-9)
     assert np.max(np.abs(estimate - truth)) < 30.0  # on the same branch as the truth
+    # the zoom column too, past 180 deg, with the measurement on the same branch
+    lines = lines_by_label(zoomed)
+    x = np.asarray(lines["true"].get_xdata())
+    np.testing.assert_allclose(lines["true"].get_ydata(), np.degrees(0.02 * x), atol=1e-9)
+    assert np.min(lines["true"].get_ydata()) > 180.0
+    dots = lines["measured"]
+    y = np.asarray(dots.get_ydata(), dtype=float)
+    assert y.size > 0 and np.isfinite(y).all()
+    assert np.max(np.abs(y - np.degrees(0.02 * np.asarray(dots.get_xdata())))) < 30.0
 
 
-def test_legend_names_truth_and_estimate(ds):
-    fig = plot_estimates(ds, "sway")
-    legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
-    labels = {text.get_text() for legend in legends for text in legend.get_texts()}
-    assert {"true", "estimate"} <= labels
+def test_measurement_is_drawn_as_dots_in_the_zoom_column_only(ds):
+    fig = plot_estimates(ds, SHIP_PANELS["sway"])
+    axes = estimate_axes(fig, 4)
+    assert "measured" not in lines_by_label(axes[0, 0])
+    dots = lines_by_label(axes[0, 1])["measured"]
+    assert dots.get_linestyle() in ("None", "none", "") and dots.get_marker() not in (None, "None", "none", "")
+    x, y = np.asarray(dots.get_xdata(), dtype=float), np.asarray(dots.get_ydata(), dtype=float)
+    measured = ds.measured_position.isel(run=0).sel(earth_axis="east")
+    np.testing.assert_allclose(y, measured.sel(time=x))  # finite: dropouts are not drawn
+    in_window = measured.sel(time=slice(x.min(), None))
+    # one dot per new (held) sample, not one per record
+    assert 0 < x.size < int(np.isfinite(in_window).sum())
+    # rows without a measured_<variable> have no dots
+    assert all("measured" not in lines_by_label(ax) for ax in axes[1:].ravel())
+
+
+def test_legend_names_truth_estimate_measurement_and_window(ds):
+    labels = legend_labels(plot_estimates(ds, SHIP_PANELS["sway"]))
+    assert {"true", "estimate", "measured (zoom)", "zoom window"} <= labels
 
 
 @pytest.mark.parametrize(("zoom", "window"), [(50.0, 50.0), (200.0, DURATION / 5)])
 def test_zoom_column_shows_the_last_zoom_seconds(ds, zoom, window):
-    fig = plot_estimates(ds, "surge", zoom=zoom)
-    axes = np.asarray(fig.axes).reshape(4, 2)
+    fig = plot_estimates(ds, SHIP_PANELS["surge"], zoom=zoom)
     end = float(ds.time[-1])
-    for full, zoomed in axes:
+    for full, zoomed in estimate_axes(fig, 4):
         assert zoomed.get_xlim() == pytest.approx((end - window, end))
         assert full.get_xlim() == pytest.approx((0.0, end))
         # the window is marked on the full-run panel
@@ -178,50 +297,88 @@ def test_zoom_column_shows_the_last_zoom_seconds(ds, zoom, window):
 
 
 @pytest.mark.parametrize("dof", DOFS)
-def test_axis_labels_name_frame_and_units(ds, dof):
-    fig = plot_estimates(ds, dof)
-    axes = np.asarray(fig.axes).reshape(4, 2)
-    for (full, zoomed), (frame, direction, unit) in zip(axes, ROWS):
-        label = full.get_ylabel()
-        assert frame in label and direction[dof] in label and unit[dof] in label, label
-        assert unit[dof] in zoomed.get_ylabel()
+def test_axis_labels_name_frame_quantity_and_units(ds, dof):
+    fig = plot_estimates(ds, SHIP_PANELS[dof])
+    axes = estimate_axes(fig, 4)
+    assert [(full.get_ylabel(), zoomed.get_ylabel()) for full, zoomed in axes] == SHIP_LABELS[dof]
     assert all(ax.get_xlabel() == "time (s)" for ax in axes[-1])
 
 
 def test_figure_names_the_run_and_its_seed():
     two = synthetic_dataset(runs=2, seeds=[3, 4])
-    fig = plot_estimates(two, "surge", run=1)
+    fig = plot_estimates(two, SHIP_PANELS["surge"], run=1)
     text = figure_text(fig)
     assert "run 1 of 2" in text and "seed 4" in text and "seed 3" not in text
-    axes = np.asarray(fig.axes).reshape(4, 2)
-    np.testing.assert_allclose(lines_by_label(axes[0, 0])["true"].get_ydata(), two.eta.isel(run=1).sel(dof="surge"))
+    axes = estimate_axes(fig, 4)
+    np.testing.assert_allclose(lines_by_label(axes[0, 0])["true"].get_ydata(), two.position.isel(run=1).sel(earth_axis="north"))
     # a custom title keeps the run caption
-    assert "seed 3" in figure_text(plot_estimates(two, "yaw", run=0, title="Fig. 11"))
+    fig = plot_estimates(two, SHIP_PANELS["yaw"], run=0, title="Fig. 11")
+    assert fig.get_suptitle().startswith("Fig. 11") and "seed 3" in fig.get_suptitle()
 
 
-def test_run_caption_without_seed_and_for_a_single_run(ds):
-    text = figure_text(plot_estimates(synthetic_dataset(runs=2), "sway", run=0))
+def test_run_caption_without_seed_for_a_single_run_and_with_a_failed_status(ds):
+    text = figure_text(plot_estimates(synthetic_dataset(runs=2), SHIP_PANELS["sway"], run=0))
     assert "run 0 of 2" in text and "seed" not in text
-    text = figure_text(plot_estimates(ds, "sway"))
-    assert "run 0 of" not in text and "sway" in text
-    assert "seed 9" in figure_text(plot_estimates(ds.assign_coords(seed=("run", [9])), "sway"))
+    text = figure_text(plot_estimates(ds, SHIP_PANELS["sway"]))
+    assert "run 0 of" not in text and "east" in text
+    assert "seed 9" in figure_text(plot_estimates(ds.assign_coords(seed=("run", [9])), SHIP_PANELS["sway"]))
+    # a run that did not finish says so; a finite one does not
+    failed = synthetic_dataset(runs=2, seeds=[3, 4], status=["finite", "diverged"])
+    assert "status: diverged" in plot_estimates(failed, SHIP_PANELS["surge"], run=1).get_suptitle()
+    assert "status" not in plot_estimates(failed, SHIP_PANELS["surge"], run=0).get_suptitle()
 
 
 def test_title_is_used(ds):
-    fig = plot_estimates(ds, "surge", title="Fig. 9: surge")
+    fig = plot_estimates(ds, SHIP_PANELS["surge"], title="Fig. 9: surge")
     assert fig.get_suptitle().startswith("Fig. 9: surge")
 
 
 def test_works_without_measurement(ds):
-    fig = plot_estimates(ds.drop_vars("measurement"), "yaw")
-    assert len(fig.axes) == 8
+    fig = plot_estimates(ds.drop_vars(["measured_position", "measured_heading"]), SHIP_PANELS["yaw"])
+    axes = estimate_axes(fig, 4)
+    assert all("measured" not in lines_by_label(ax) for ax in axes.ravel())
+    assert "measured (zoom)" not in legend_labels(fig) and {"true", "estimate"} <= legend_labels(fig)
+
+
+def test_panels_work_for_another_plant_a_two_joint_arm(tmp_path):
+    arm = arm_dataset()
+    fig = plot_estimates(arm, [("joint_angle", "shoulder"), ("joint_angle", "elbow")])
+    axes = estimate_axes(fig, 2)
+    assert_png(fig, tmp_path / "arm.png", fig.get_size_inches())
+    assert tuple(fig.get_size_inches()) == pytest.approx((11.0, 2 * 2.25))
+    assert [(full.get_ylabel(), zoomed.get_ylabel()) for full, zoomed in axes] == [
+        ("joint space\njoint angle shoulder (deg)", "joint angle shoulder (deg)"),
+        ("joint space\njoint angle elbow (deg)", "joint angle elbow (deg)"),
+    ]
+    for row, joint in enumerate(("shoulder", "elbow")):
+        for ax in axes[row]:
+            assert_truth_above_estimate(ax)
+        lines = lines_by_label(axes[row, 0])
+        np.testing.assert_allclose(lines["true"].get_ydata(), np.degrees(arm.joint_angle.isel(run=0).sel(revolute_joint=joint)))
+        np.testing.assert_allclose(lines["estimate"].get_ydata(), np.degrees(arm.joint_angle_hat.isel(run=0).sel(revolute_joint=joint)))
+        dots = lines_by_label(axes[row, 1])["measured"]
+        measured = arm.measured_joint_angle.isel(run=0).sel(revolute_joint=joint)
+        np.testing.assert_allclose(dots.get_ydata(), np.degrees(measured.sel(time=np.asarray(dots.get_xdata()))))
+    assert all(ax.get_xlabel() == "time (s)" for ax in axes[-1])
+    assert {"true", "estimate", "measured (zoom)"} <= legend_labels(fig)
+    # the ship's axes are not assumed: the arm has no heading and no earth_axis
+    with pytest.raises(ValueError, match=r"^panels\b"):
+        plot_estimates(arm, [("joint_angle", "north")])
 
 
 @pytest.mark.parametrize(
     ("kwargs", "parameter"),
     [
-        ({"dof": "heave"}, "dof"),
-        ({"dof": 0}, "dof"),
+        ({"panels": [("heave", None)]}, "panels"),  # no such variable
+        ({"panels": [("force_applied", "surge")]}, "panels"),  # no estimate force_applied_hat
+        ({"panels": [("position", "up")]}, "panels"),  # no such component
+        ({"panels": [("position", None)]}, "panels"),  # a vector needs a component
+        ({"panels": [("heading", "north")]}, "panels"),  # a scalar has none
+        ({"panels": []}, "panels"),
+        ({"panels": "position"}, "panels"),  # not pairs
+        ({"panels": [("position",)]}, "panels"),
+        ({"panels": [("position", "north", "m")]}, "panels"),
+        ({"panels": None}, "panels"),
         ({"run": 1}, "run"),
         ({"run": -1}, "run"),
         ({"run": 0.5}, "run"),
@@ -233,10 +390,10 @@ def test_works_without_measurement(ds):
     ],
 )
 def test_bad_arguments_raise_value_error_naming_the_parameter(ds, kwargs, parameter):
-    arguments = {"dof": "surge"} | kwargs
-    dof = arguments.pop("dof")
-    with pytest.raises(ValueError, match=rf"^{parameter} "):
-        plot_estimates(ds, dof, **arguments)
+    arguments = {"panels": SHIP_PANELS["surge"]} | kwargs
+    panels = arguments.pop("panels")
+    with pytest.raises(ValueError, match=rf"^{parameter}\b"):
+        plot_estimates(ds, panels, **arguments)
 
 
 # --------------------------------------------------------------------------- Bode

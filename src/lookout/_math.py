@@ -130,25 +130,39 @@ def computed_once(value: Array) -> Array:
     return value / (1.0 + 0.0 * value)
 
 
-def matvec(matrix: Array, vector: Array) -> Array:
-    """``matrix @ vector`` for a 3x3 matrix, written out as multiply-adds.
+#: Products with at most this many columns are written out (see :func:`matvec`).
+MATVEC_UNROLL_COLUMNS = 8
 
-    Under ``vmap`` a batched 3x3 product is a separate library call per product
+
+def matvec(matrix: Array, vector: Array) -> Array:
+    """``matrix @ vector``, written out as multiply-adds over the columns.
+
+    Under ``vmap`` a batched small product is a separate library call per product
     on XLA:CPU; written out, it fuses with its neighbours. The vector goes through
     :func:`computed_once` so that the chain producing it is not re-evaluated for
-    each of the three output components.
+    each output component. Matrices with more than :data:`MATVEC_UNROLL_COLUMNS`
+    columns use ``@``.
 
     Parameters
     ----------
-    matrix : Array, shape (3, 3)
-    vector : Array, shape (3,)
+    matrix : Array, shape (m, n)
+    vector : Array, shape (n,)
 
     Returns
     -------
-    Array, shape (3,)
+    Array, shape (m,)
     """
+    matrix, vector = jnp.asarray(matrix), jnp.asarray(vector)
+    if matrix.ndim != 2 or vector.ndim != 1 or matrix.shape[1] != vector.shape[0]:
+        raise ValueError(f"matvec needs an (m, n) matrix and an (n,) vector; got shapes {matrix.shape} and {vector.shape}")
+    columns = matrix.shape[1]
+    if columns > MATVEC_UNROLL_COLUMNS:
+        return matrix @ vector
     v = computed_once(vector)
-    return matrix[:, 0] * v[0] + matrix[:, 1] * v[1] + matrix[:, 2] * v[2]
+    result = matrix[:, 0] * v[0]
+    for j in range(1, columns):
+        result = result + matrix[:, j] * v[j]
+    return result
 
 
 def _heading_terms(psi: Array) -> tuple[Array, Array]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import jax.numpy as jnp
 import numpy as np
 
 
@@ -22,8 +23,19 @@ def is_concrete(value: Any) -> bool:
     return True
 
 
-def vector(name: str, value: Any, size: int = 3) -> np.ndarray:
-    """Broadcast a scalar or sequence to a float vector of ``size``, or fail naming ``name``."""
+def vector(name: str, value: Any, size: int = 3):
+    """Broadcast a scalar or sequence to a float vector of ``size``, or fail naming ``name``.
+
+    Returns a NumPy array for concrete values, and a JAX array for tracers (a
+    component built inside ``jit`` or ``vmap``); the shape is checked either way.
+    """
+    if not is_concrete(value):
+        array = jnp.asarray(value, dtype=float)
+        if array.ndim == 0:
+            array = jnp.broadcast_to(array, (size,))
+        if array.shape != (size,):
+            raise ValueError(f"{name} must be a scalar or have {size} entries; got shape {array.shape}")
+        return array
     array = np.asarray(value, dtype=float)
     if array.ndim == 0:
         array = np.full(size, float(array))
@@ -50,14 +62,15 @@ def positive(name: str, value: Any, *, allow_zero: bool = False) -> None:
         raise ValueError(f"{name} must be {condition}; got {_fmt(array)}")
 
 
-def symmetric_positive_definite(name: str, matrix: Any) -> None:
-    """Fail unless ``matrix`` is a symmetric positive-definite 3x3 matrix."""
+def symmetric_positive_definite(name: str, matrix: Any, *, size: int | None = None) -> None:
+    """Fail unless ``matrix`` is a symmetric positive-definite (``size`` x ``size``) matrix."""
     if not is_concrete(matrix):
         return
     finite(name, matrix)
     array = np.asarray(matrix, dtype=float)
-    if array.shape != (3, 3):
-        raise ValueError(f"{name} must be a 3x3 matrix; got shape {array.shape}")
+    if array.ndim != 2 or array.shape[0] != array.shape[1] or (size is not None and array.shape != (size, size)):
+        expected = f"{size}x{size}" if size is not None else "square"
+        raise ValueError(f"{name} must be a {expected} matrix; got shape {array.shape}")
     scale = max(np.abs(array).max(), np.finfo(float).tiny)
     asymmetry = np.abs(array - array.T).max()
     if asymmetry > 1e-9 * scale:

@@ -520,7 +520,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning every input error into one line and exit code 2."""
     import lookout  # enables float64 before any computation
 
-    lookout.use_all_cpu_cores()
+    lookout.configure_cpu()
 
     command = typer.main.get_command(app)
     try:

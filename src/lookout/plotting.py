@@ -2,8 +2,8 @@
 
 Two figures, after Fossen & Strand (1999), Figs. 6 and 9–11:
 
-* :func:`plot_estimates` -- true and estimated states of one degree of freedom
-  (position/heading, velocity, wave motion, bias), full run and a zoomed window;
+* :func:`plot_estimates` -- true and estimated signals, one panel each (labels,
+  units and frames from the Dataset), full run and a zoomed window;
 * :func:`plot_bode` -- the frequency response of the error loops h0, hB and h of
   all three degrees of freedom, with the frequencies of the tuning rule (48).
 """
@@ -28,48 +28,8 @@ DOFS = ("surge", "sway", "yaw")
 
 # --------------------------------------------------------------------------- estimates
 
-#: Per quantity: row label (frame and kind) and, per DOF, (axis label with units, scale
-#: from the stored SI value to the plotted unit).
-_ROWS = (
-    (
-        "eta",
-        "Earth-fixed position",
-        {
-            "surge": ("north $x$ (m)", 1.0),
-            "sway": ("east $y$ (m)", 1.0),
-            "yaw": (r"heading $\psi$ (deg)", math.degrees(1.0)),
-        },
-    ),
-    (
-        "nu",
-        "body-fixed velocity",
-        {
-            "surge": ("surge $u$ (m/s)", 1.0),
-            "sway": ("sway $v$ (m/s)", 1.0),
-            "yaw": ("yaw rate $r$ (deg/s)", math.degrees(1.0)),
-        },
-    ),
-    (
-        "wave",
-        "Earth-fixed wave motion",
-        {
-            "surge": ("north $x_w$ (m)", 1.0),
-            "sway": ("east $y_w$ (m)", 1.0),
-            "yaw": (r"heading $\psi_w$ (deg)", math.degrees(1.0)),
-        },
-    ),
-    (
-        "bias",
-        "Earth-fixed bias",
-        {
-            "surge": ("north $b_x$ (kN)", 1e-3),
-            "sway": ("east $b_y$ (kN)", 1e-3),
-            "yaw": (r"yaw $b_\psi$ (kN m)", 1e-3),
-        },
-    ),
-)
-
-_DOF_WORDS = {"surge": "surge / north", "sway": "sway / east", "yaw": "yaw / heading"}
+#: Units shown in figures instead of the stored SI ones: (factor, shown unit).
+_DISPLAY_UNITS = {"rad": (math.degrees(1.0), "deg"), "rad/s": (math.degrees(1.0), "deg/s"), "N": (1e-3, "kN"), "N m": (1e-3, "kN m")}
 
 #: Line styles: the estimate is drawn first, wide and coloured; the truth thin, black,
 #: on top, so that it stays visible where the estimate lies on it.
@@ -83,9 +43,30 @@ def _wrap_to_pi(angle: np.ndarray) -> np.ndarray:
     return np.asarray(ssa(angle))
 
 
-def _check_estimate_arguments(ds: xr.Dataset, dof, run, zoom) -> tuple[int, float]:
-    if not isinstance(dof, str) or dof not in DOFS:
-        raise ValueError(f"dof must be one of {list(DOFS)}; got {dof!r}")
+def _component(array: xr.DataArray, label: str | None) -> xr.DataArray:
+    """The scalar series of ``array`` (dims run, time[, label dim]) for ``label``."""
+    extra = [dim for dim in array.dims if dim not in ("run", "time")]
+    if label is None:
+        if extra:
+            raise ValueError(f"panels: {array.name!r} is a vector over {extra[0]!r}; give one of {array[extra[0]].values.tolist()}")
+        return array
+    if not extra or label not in array[extra[0]].values.tolist():
+        choices = array[extra[0]].values.tolist() if extra else "none (a scalar)"
+        raise ValueError(f"panels: {array.name!r} has no component {label!r}; its components: {choices}")
+    return array.sel({extra[0]: label})
+
+
+def _check_estimate_arguments(ds: xr.Dataset, panels, run, zoom) -> tuple[list, int, float]:
+    try:
+        panels = [(variable, label) for variable, label in panels]
+    except (TypeError, ValueError):
+        raise ValueError(f"panels must be a sequence of (variable, component or None) pairs; got {panels!r}") from None
+    if not panels:
+        raise ValueError("panels must name at least one (variable, component) pair")
+    for variable, label in panels:
+        if variable not in ds or f"{variable}_hat" not in ds:
+            raise ValueError(f"panels: the dataset has no variable {variable!r} with an estimate {variable + '_hat'!r}")
+        _component(ds[variable], label)
     runs = ds.sizes.get("run", 0)
     try:
         run = operator.index(run)
@@ -99,7 +80,7 @@ def _check_estimate_arguments(ds: xr.Dataset, dof, run, zoom) -> tuple[int, floa
         raise ValueError(f"zoom must be a finite number of seconds > 0; got {zoom!r}") from None
     if not math.isfinite(zoom) or zoom <= 0:
         raise ValueError(f"zoom must be a finite number of seconds > 0; got {zoom!r}")
-    return run, zoom
+    return panels, run, zoom
 
 
 def zoom_window(time, zoom: float) -> tuple[float, float]:
@@ -132,34 +113,33 @@ def _run_caption(ds: xr.Dataset, run: int) -> str | None:
     return caption
 
 
-def plot_estimates(ds: xr.Dataset, dof: str, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
-    """True and estimated states of one degree of freedom, full run and zoomed.
+def plot_estimates(ds: xr.Dataset, panels, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+    """True and estimated signals, one row per panel: the full run and a zoomed window.
 
-    The comparison of Fossen & Strand (1999), Figs. 9–11: one row per quantity --
-    Earth-fixed low-frequency position/heading (eta), body-fixed velocity (nu),
-    Earth-fixed wave-induced motion and Earth-fixed bias -- with the whole run on
-    the left and, on the right, the last ``zoom`` seconds, where the wave-frequency
-    motion (period about 7 s) is resolved. The estimate is drawn in orange, the
-    truth as a thin black line on top of it; the measurement (the position or
-    heading held at each sensor sample) appears as dots in the zoomed position
-    panel. Angles are shown in degrees, the heading unwrapped.
+    The comparison of Fossen & Strand (1999), Figs. 9–11 and Calugi (2002),
+    Figs. 2.2–2.8, for any results of :meth:`lookout.Trajectory.to_xarray`: each
+    panel shows a variable ``v`` (one component of a vector, or a scalar) and its
+    estimate ``v_hat``, the whole run on the left and the last ``zoom`` seconds on
+    the right, where fast motion (wave periods of seconds) is resolved. The estimate
+    is drawn in orange, the truth as a thin black line on top of it; a measured
+    ``measured_v`` appears as dots (one per new sample) in the zoomed panel. Axis
+    labels give the frame, the quantity and its unit, from the variables' attributes;
+    angles are shown in degrees (unwrapped), forces in kN.
 
     Parameters
     ----------
     ds : xarray.Dataset
-        As from :meth:`lookout.Trajectory.to_xarray`: ``eta``, ``eta_hat``, ``nu``,
-        ``nu_hat``, ``wave``, ``wave_hat``, ``bias``, ``bias_hat`` (and optionally
-        ``measurement``) with dims (run, time, dof); time in seconds. A ``seed``
-        coordinate along ``run``, when present, is named in the subtitle.
-    dof : {"surge", "sway", "yaw"}
-        The degree of freedom to show.
+        Results with dims (run, time[, label dim]); a ``seed`` coordinate along
+        ``run``, when present, is named in the subtitle.
+    panels : sequence of (str, str or None)
+        ``(variable, component)``: e.g. ``("position", "north")``, ``("heading", None)``.
     run : int, default 0
         Index of the run along ``run``, ``0 <= run < ds.sizes["run"]``.
     zoom : float, default 200.0
         Width in seconds of the zoomed window at the end of the run; when the run
         lasts less than ``5 * zoom``, its last fifth is shown instead.
     title : str, optional
-        Figure title; default "<dof> / <direction>: true and estimated".
+        Figure title; default "true and estimated".
 
     Returns
     -------
@@ -168,10 +148,10 @@ def plot_estimates(ds: xr.Dataset, dof: str, *, run: int = 0, zoom: float = 200.
     Raises
     ------
     ValueError
-        If ``dof`` is not one of the three names, ``run`` is out of range or
-        ``zoom`` is not a finite positive number.
+        If a panel names a missing variable or component, ``run`` is out of range
+        or ``zoom`` is not a finite positive number.
     """
-    run, zoom = _check_estimate_arguments(ds, dof, run, zoom)
+    panels, run, zoom = _check_estimate_arguments(ds, panels, run, zoom)
     time = np.asarray(ds["time"].values, dtype=float)
     start, end = zoom_window(time, zoom)
     # one sample of margin either side so the zoomed curves reach the frame
@@ -179,21 +159,22 @@ def plot_estimates(ds: xr.Dataset, dof: str, *, run: int = 0, zoom: float = 200.
     window = slice(first, None)
 
     fig, axes = plt.subplots(
-        len(_ROWS), 2, figsize=(11, 9), layout="constrained", sharex="col", gridspec_kw={"width_ratios": (1.6, 1.0)}
+        len(panels), 2, figsize=(11, 2.25 * len(panels)), layout="constrained", sharex="col", squeeze=False, gridspec_kw={"width_ratios": (1.6, 1.0)}
     )
-    for row, (name, frame, labels) in enumerate(_ROWS):
-        label, scale = labels[dof]
-        truth = np.asarray(ds[name].isel(run=run).sel(dof=dof).values, dtype=float)
-        estimate = np.asarray(ds[f"{name}_hat"].isel(run=run).sel(dof=dof).values, dtype=float)
-        measured = None
-        if name == "eta" and "measurement" in ds.variables:
-            measured = np.asarray(ds["measurement"].isel(run=run).sel(dof=dof).values, dtype=float)
-        if name == "eta" and dof == "yaw":
+    any_measured = False
+    for row, (variable, label) in enumerate(panels):
+        attrs = ds[variable].attrs
+        truth = np.asarray(_component(ds[variable], label).isel(run=run).values, dtype=float)
+        estimate = np.asarray(_component(ds[f"{variable}_hat"], label).isel(run=run).values, dtype=float)
+        measured_name = f"measured_{variable}"
+        measured = np.asarray(_component(ds[measured_name], label).isel(run=run).values, dtype=float) if measured_name in ds else None
+        if attrs.get("angle"):
             # unwrap the truth, then put the estimate and measurement on the same branch
             truth = np.unwrap(truth)
             estimate = truth + _wrap_to_pi(estimate - truth)
             if measured is not None:
                 measured = truth + _wrap_to_pi(measured - truth)
+        scale, units = _DISPLAY_UNITS.get(attrs.get("units", ""), (1.0, attrs.get("units", "")))
         truth, estimate = truth * scale, estimate * scale
 
         full, zoomed = axes[row]
@@ -203,12 +184,15 @@ def plot_estimates(ds: xr.Dataset, dof: str, *, run: int = 0, zoom: float = 200.
             ax.plot(time[part], truth[part], **_TRUTH_STYLE, label="true")
             ax.grid(alpha=0.3)
         if measured is not None:
+            any_measured = True
             # one dot per sensor sample: the held value changes at a new sample
             part = measured[window]
             new = np.r_[True, part[1:] != part[:-1]] & np.isfinite(part)
             zoomed.plot(time[window][new], part[new] * scale, **_MEASURED_STYLE, label="measured")
-        full.set_ylabel(f"{frame}\n{label}")
-        zoomed.set_ylabel(label)
+        quantity = f"{variable.replace('_', ' ')}{' ' + label if label is not None else ''} ({units})"
+        frame = attrs.get("frame", "")
+        full.set_ylabel(f"{frame}\n{quantity}" if frame else quantity)
+        zoomed.set_ylabel(quantity)
         full.set_xlim(time[0], time[-1])
         zoomed.set_xlim(start, end)
     for ax in axes[-1]:
@@ -220,14 +204,14 @@ def plot_estimates(ds: xr.Dataset, dof: str, *, run: int = 0, zoom: float = 200.
         Line2D([], [], **{k: v for k, v in _TRUTH_STYLE.items() if k != "zorder"}, label="true"),
         Line2D([], [], **{k: v for k, v in _ESTIMATE_STYLE.items() if k != "zorder"}, label="estimate"),
     ]
-    if "measurement" in ds.variables:
+    if any_measured:
         handles.append(
             Line2D([], [], **{k: v for k, v in _MEASURED_STYLE.items() if k not in ("zorder", "alpha")}, label="measured (zoom)")
         )
     handles.append(Patch(facecolor="C0", alpha=0.12, label="zoom window"))
     fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=9, frameon=False)
 
-    heading = title if title is not None else f"{_DOF_WORDS[dof]}: true and estimated"
+    heading = title if title is not None else "true and estimated"
     caption = _run_caption(ds, run)
     fig.suptitle(heading if caption is None else f"{heading}\n{caption}")
     return fig

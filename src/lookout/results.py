@@ -1,7 +1,16 @@
-"""Simulation results: stacked arrays, converted to an xarray Dataset and NetCDF."""
+"""Simulation results: labelled records, an xarray Dataset, CF-style NetCDF.
+
+Names, units and frames come from the components' signals
+(:mod:`lookout.components`), never from here: a plant variable ``position`` is
+recorded as ``position`` and its estimate as ``position_hat``; a vector signal has a
+label dimension (``earth_axis`` with ``north, east``; ``joint`` with the joint
+names); every variable has one unit that UDUNITS parses.
+"""
 
 from __future__ import annotations
 
+import datetime
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -9,31 +18,72 @@ import equinox as eqx
 import numpy as np
 import xarray as xr
 
-DOF = ("surge", "sway", "yaw")
+from lookout.components import Layout, Signal
 
-#: name -> (long name, units per DOF)
-VARIABLES = {
-    "eta": ("low-frequency position and heading", "surge: m, sway: m, yaw: rad"),
-    "nu": ("body-frame velocity", "surge: m/s, sway: m/s, yaw: rad/s"),
-    "bias": ("Earth-fixed bias force and moment", "surge: N, sway: N, yaw: N m"),
-    "wave": ("first-order wave-induced motion", "surge: m, sway: m, yaw: rad"),
-}
+#: NetCDF conventions the files follow.
+CONVENTIONS = "CF-1.10"
+
+
+@dataclass(frozen=True)
+class RecordSignals:
+    """What a run records, and how it is labelled."""
+
+    truth: tuple[Signal, ...]
+    estimate: tuple[Signal, ...]
+    extra: tuple[Signal, ...]
+    measurement: Layout
+    reference: tuple[Signal, ...]
+    input: Layout
+
+    def variables(self) -> list[tuple[str, str, Signal]]:
+        """``(group, variable name, signal)`` for every recorded quantity, in order.
+
+        Groups: ``truth``, ``estimate``, ``measurement``, ``reference``,
+        ``command``, ``applied``. An estimate of a plant variable is named
+        ``<name>_hat``; the observer's extra outputs (innovations, parameter
+        estimates) keep their names; inputs are ``<name>_commanded`` and
+        ``<name>_applied``.
+        """
+        rows = [("truth", s.name, s) for s in self.truth]
+        rows += [("estimate", f"{s.name}_hat", s) for s in self.estimate]
+        rows += [("estimate", s.name, s) for s in self.extra]
+        rows += [("measurement", s.name, s) for s in self.measurement.signals]
+        rows += [("reference", s.name, s) for s in self.reference]
+        rows += [("command", f"{s.name}_commanded", s) for s in self.input.signals]
+        rows += [("applied", f"{s.name}_applied", s) for s in self.input.signals]
+        names = [name for _, name, _ in rows]
+        duplicated = sorted({name for name in names if names.count(name) > 1})
+        if duplicated:
+            raise ValueError(f"recorded variable names collide: {duplicated}")
+        return rows
+
+
+def _version() -> str:
+    from lookout import __version__
+
+    return __version__
 
 
 class Trajectory(eqx.Module):
-    """Recorded run(s): time, plant state, observer estimate, measurement, input.
+    """Recorded run(s): time, truths, estimates, measurements, references, inputs.
 
     Attributes
     ----------
     time : ndarray, shape (n_time,)
         Sample times (s).
-    state, estimate : VesselState
-        Stacked states and estimates, shape ``([run,] time, ...)``.
-    measurement : Array, shape ``([run,] time, 3)``
-        The measurement the observer used at each sample (the held sensor
-        samples; NaN where a channel's last sample was a dropout).
-    control : Array, shape ``([run,] time, 3)``
-        Input tau (N, N, N m).
+    truth : dict of Array
+        ``plant.variables`` of the state at each recorded sample, shape ``([run,] time, ...)``.
+    estimate : dict of Array
+        ``observer.output`` at each recorded sample.
+    measurement : Array, shape ``([run,] time, n_y)``
+        The measurement the observer used (held samples; NaN where a channel's last
+        sample was a dropout).
+    reference : dict of Array
+        The reference samples.
+    command, applied : Array, shape ``([run,] time, n_u)``
+        Commanded and applied input.
+    signals : RecordSignals
+        Names, units and frames.
     batched : bool
         Whether arrays carry a leading run axis.
     attrs : dict
@@ -41,53 +91,95 @@ class Trajectory(eqx.Module):
     """
 
     time: Any
-    state: Any
+    truth: Any
     estimate: Any
     measurement: Any
-    control: Any
+    reference: Any
+    command: Any
+    applied: Any
+    signals: RecordSignals = eqx.field(static=True)
     batched: bool = eqx.field(static=True, default=False)
     attrs: dict = eqx.field(static=True, default_factory=dict)
 
-    def to_xarray(self) -> xr.Dataset:
-        """Dataset with dims ``run``, ``time``, ``dof``, units in attrs and a per-run ``status``.
+    def _groups(self) -> dict[str, dict]:
+        return {
+            "truth": self.truth,
+            "estimate": self.estimate,
+            "measurement": self.signals.measurement.split(np.asarray(self.measurement)),
+            "reference": self.reference,
+            "command": self.signals.input.split(np.asarray(self.command)),
+            "applied": self.signals.input.split(np.asarray(self.applied)),
+        }
 
-        Variables: ``eta``, ``nu``, ``bias``, ``wave`` (true), the same with
-        suffix ``_hat`` (estimates), ``measurement`` and ``tau``. ``status`` is
-        ``"finite"`` or ``"diverged"`` (any non-finite state or estimate).
+    def to_xarray(self) -> xr.Dataset:
+        """Dataset with dims ``run``, ``time`` and one label dimension per kind of vector.
+
+        Every variable carries ``units``, ``long_name`` and ``frame`` attributes;
+        angles carry ``angle = 1`` (their differences wrap). ``status`` per run is
+        ``"finite"`` or ``"diverged"`` (a non-finite truth or estimate).
         """
 
         def runs(array) -> np.ndarray:
             array = np.asarray(array)
             return array if self.batched else array[None]
 
+        groups = self._groups()
         data: dict[str, Any] = {}
-        dims = ("run", "time", "dof")
-        for name, (long_name, units) in VARIABLES.items():
-            truth = runs(getattr(self.state, name))
-            guess = runs(getattr(self.estimate, name))
-            data[name] = (dims, truth, {"long_name": long_name, "units": units})
-            data[f"{name}_hat"] = (dims, guess, {"long_name": f"estimated {long_name}", "units": units})
-        data["measurement"] = (
-            dims,
-            runs(self.measurement),
-            {"long_name": "measured position and heading (held samples; NaN = dropout)", "units": VARIABLES["eta"][1]},
-        )
-        data["tau"] = (dims, runs(self.control), {"long_name": "control forces and moment", "units": VARIABLES["bias"][1]})
-        finite = np.ones(data["eta"][1].shape[0], dtype=bool)
-        for name in VARIABLES:
-            for key in (name, f"{name}_hat"):
-                finite &= np.isfinite(data[key][1]).all(axis=(1, 2))
+        label_coords: dict[str, tuple[str, ...]] = {}
+        finite = None
+        for group, name, signal in self.signals.variables():
+            values = runs(groups[group][signal.name])
+            dims = ("run", "time") + ((signal.dim,) if signal.labels else ())
+            if signal.labels:
+                known = label_coords.setdefault(signal.dim, signal.labels)
+                if known != signal.labels:
+                    raise ValueError(f"dimension {signal.dim!r} has labels {known} and {signal.labels} (signal {signal.name!r})")
+            long_name = f"estimated {signal.long_name}" if group == "estimate" and signal in self.signals.estimate else signal.long_name
+            if group == "command":
+                long_name = f"commanded {signal.long_name}"
+            elif group == "applied":
+                long_name = f"applied {signal.long_name}"
+            attrs = {"units": signal.units, "long_name": long_name, "frame": signal.frame, "angle": int(signal.angle)}
+            data[name] = (dims, values, attrs)
+            if group in ("truth", "estimate"):
+                ok = np.isfinite(values).reshape(values.shape[0], -1).all(axis=1)
+                finite = ok if finite is None else finite & ok
+        n_runs = next(iter(data.values()))[1].shape[0] if data else 1
+        if finite is None:
+            finite = np.ones(n_runs, dtype=bool)
         data["status"] = (("run",), np.where(finite, "finite", "diverged").astype(object), {"long_name": "run status"})
-        coords = {
-            "run": np.arange(finite.size),
-            "time": ("time", np.asarray(self.time), {"units": "s"}),
-            "dof": list(DOF),
+        coords: dict[str, Any] = {
+            "run": np.arange(n_runs),
+            "time": ("time", np.asarray(self.time), {"units": "s", "long_name": "time since the start of the run", "standard_name": "time"}),
         }
+        for dim, labels in label_coords.items():
+            coords[dim] = (dim, list(labels))
         attrs = {key: (str(value) if isinstance(value, (list, tuple)) else value) for key, value in self.attrs.items()}
+        attrs.update({"Conventions": CONVENTIONS, "source": f"lookout {_version()}", "lookout_version": _version()})
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
     def to_netcdf(self, path: str | Path) -> Path:
-        """Write :meth:`to_xarray` to a NetCDF-4 file and return its path."""
-        path = Path(path)
-        self.to_xarray().to_netcdf(path, engine="netcdf4")
-        return path
+        """Write :meth:`to_xarray` to a compressed NetCDF-4 file and return its path."""
+        return write_netcdf(self.to_xarray(), path)
+
+
+def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written") -> Path:
+    """Write ``ds`` as compressed NetCDF-4 with a CF ``history`` line; return the path.
+
+    Numeric variables are deflated (zlib, level 4, with byte shuffling); the
+    ``history`` attribute gains a line with the time, lookout's version and
+    ``history``.
+    """
+    path = Path(path)
+    ds = ds.copy()
+    stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    line = f"{stamp}: lookout {_version()}: {history}"
+    previous = ds.attrs.get("history")
+    ds.attrs["history"] = f"{previous}\n{line}" if previous else line
+    encoding = {
+        name: {"zlib": True, "complevel": 4, "shuffle": True}
+        for name, variable in ds.variables.items()
+        if np.issubdtype(variable.dtype, np.number) and variable.ndim > 0
+    }
+    ds.to_netcdf(path, engine="netcdf4", encoding=encoding)
+    return path

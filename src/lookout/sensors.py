@@ -14,12 +14,24 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from typing import final
+
 from lookout import _validation as check
 from lookout._math import ssa
-from lookout.models.vessel import VesselState
+from lookout.components import EARTH_FIXED, Layout, Sensor, Signal
+from lookout.models.vessel import EARTH_AXES, VesselState
+
+#: What a DGPS and a gyro compass report: y = eta + eta_w + d (eq. 12).
+POSITION_HEADING = Layout(
+    (
+        Signal("measured_position", "m", "measured position (held samples; NaN = dropout)", EARTH_FIXED, EARTH_AXES, "earth_axis"),
+        Signal("measured_heading", "rad", "measured heading (held samples; NaN = dropout)", EARTH_FIXED, angle=True),
+    )
+)
 
 
-class PositionHeadingSensor(eqx.Module):
+@final
+class PositionHeadingSensor(Sensor):
     """Position fixes (x, y) and heading, each channel with its own noise and rate.
 
     Between two samples of a channel the engine holds the last sample (zero-order
@@ -39,7 +51,8 @@ class PositionHeadingSensor(eqx.Module):
     noise_std: Array
     dropout_probability: Array
     sample_period: tuple[float, float, float] = eqx.field(static=True)
-    noise_size: int = eqx.field(static=True, default=6)
+    noise_size: int = eqx.field(static=True, default=6, kw_only=True)
+    measurement_layout: Layout = eqx.field(static=True, default=POSITION_HEADING, kw_only=True)
 
     def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0):
         self.noise_std = jnp.asarray(check.vector("sensor noise_std", noise_std))
@@ -75,4 +88,97 @@ class PositionHeadingSensor(eqx.Module):
         # Phi(n) < p, written as n < Phi^-1(p) (Phi increasing): one scalar inverse
         # instead of an erfc per channel and sample
         dropped = noise[3:] < jax.scipy.special.ndtri(self.dropout_probability)
+        return jnp.where(dropped, jnp.nan, y)
+
+
+# Joint encoders of a manipulator (appended; the vessel sensor above is unchanged).
+from lookout.models.manipulators import JOINT_MEASUREMENT, JointState, ManipulatorModel, ManipulatorPlant, joint_layout  # noqa: E402
+
+
+@final
+class JointEncoder(Sensor):
+    """Joint position encoders: q with Gaussian noise, quantization, per-joint rates and dropouts.
+
+    Calugi (2002), chapter 2: only the joint positions q are measured. One channel
+    per joint, in joint order; a sample is ``step * round((q + sigma n) / step)``
+    (rounded to the nearest multiple of the joint's quantization step; no rounding
+    where the step is 0), or NaN when dropped. Between two samples of a channel the
+    engine holds the last sample. Angles are not wrapped (an incremental encoder
+    counts turns).
+
+    Parameters
+    ----------
+    model : ManipulatorModel or ManipulatorPlant
+        The manipulator whose joints are measured (names and kinds of the channels).
+    sample_period : float or sequence of n floats
+        Seconds between samples of each joint (static: fixes the loop structure).
+    noise_std : float or array_like, shape (n,)
+        Standard deviation of the measurement noise per joint (rad or m), >= 0.
+    quantization : float or array_like, shape (n,)
+        Resolution per joint (rad or m), >= 0; 0 means none.
+    dropout_probability : float
+        Probability that a sample of a channel is missing (0 <= p < 1).
+
+    Attributes
+    ----------
+    measurement_layout : Layout
+        ``measured_joint_angle`` (rad, over ``revolute_joint``) and ``measured_joint_position``
+        (m, over ``prismatic_joint``), labelled by joint name as the plant's signals.
+    noise_size : int
+        2n: n normals for the noise and n turned into the dropout draws.
+    """
+
+    noise_std: Array
+    quantization: Array
+    dropout_probability: Array
+    sample_period: tuple[float, ...] = eqx.field(static=True)
+    noise_size: int = eqx.field(static=True)
+    measurement_layout: Layout = eqx.field(static=True)
+
+    def __init__(self, model, *, sample_period, noise_std=0.0, quantization=0.0, dropout_probability=0.0):
+        if isinstance(model, ManipulatorPlant):
+            model = model.model
+        if not isinstance(model, ManipulatorModel):
+            raise ValueError(f"JointEncoder needs a ManipulatorModel or ManipulatorPlant; got {type(model).__name__}")
+        n = model.size
+        self.noise_std = jnp.asarray(check.vector("encoder noise_std", noise_std, n))
+        self.quantization = jnp.asarray(check.vector("encoder quantization", quantization, n))
+        self.dropout_probability = jnp.asarray(dropout_probability, dtype=float)
+        self.sample_period = tuple(float(p) for p in check.vector("encoder sample_period", sample_period, n))
+        self.noise_size = 2 * n
+        self.measurement_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_MEASUREMENT)
+
+    def __check_init__(self):
+        check.positive("encoder noise_std", self.noise_std, allow_zero=True)
+        check.positive("encoder quantization", self.quantization, allow_zero=True)
+        check.positive("encoder sample_period", np.asarray(self.sample_period))
+        if check.is_concrete(self.dropout_probability):
+            if np.ndim(self.dropout_probability) != 0:
+                raise ValueError(f"encoder dropout_probability must be a scalar; got shape {np.shape(self.dropout_probability)}")
+            p = float(self.dropout_probability)
+            if not 0.0 <= p < 1.0:
+                raise ValueError(f"encoder dropout_probability must be in [0, 1); got {p}")
+
+    def ideal(self, state: JointState) -> Array:
+        """The joint coordinates q, noise-free, unquantized and never dropped."""
+        return state.q
+
+    def measure(self, state: JointState, noise: Array) -> Array:
+        """One sample of every joint; dropped channels are NaN.
+
+        Parameters
+        ----------
+        state : JointState
+            Plant state at the sample time.
+        noise : Array, shape (2n,)
+            Independent standard normals: n for the measurement noise, n turned
+            into the dropout draws.
+        """
+        n = state.q.shape[0]
+        y = state.q + self.noise_std * noise[:n]
+        quantized = self.quantization > 0.0
+        step = jnp.where(quantized, self.quantization, 1.0)
+        y = jnp.where(quantized, step * jnp.round(y / step), y)
+        # Phi(n) < p, written as n < Phi^-1(p), as PositionHeadingSensor does
+        dropped = noise[n:] < jax.scipy.special.ndtri(self.dropout_probability)
         return jnp.where(dropped, jnp.nan, y)

@@ -9,6 +9,7 @@ import xarray as xr
 
 from lookout.analysis import earth_frame_velocity, estimation_errors, rms_over
 from lookout.papers import fossen_strand_1999 as fs
+from lookout.results import write_netcdf
 
 RUNS = 8
 SETTLED = 600.0  # s; errors are compared after this time
@@ -16,18 +17,31 @@ SETTLED = 600.0  # s; errors are compared after this time
 
 @pytest.fixture(scope="module")
 def run():
+    """Config, the recorded Dataset, and the same in the paper's notation (eta, nu, ... over dof)."""
     config = fs.Config(duration=1200.0, seed=11, runs=RUNS)
     ds = fs.simulate_runs(config)
-    return config, ds
+    return config, fs.paper_view(ds), ds
 
 
-def test_netcdf_variables_and_dims(run, tmp_path):
-    _, ds = run
-    for name in ("eta", "eta_hat", "nu", "nu_hat", "bias", "bias_hat", "wave", "wave_hat", "measurement", "tau"):
-        assert ds[name].dims == ("run", "time", "dof") and "units" in ds[name].attrs
-    path = tmp_path / "run.nc"
-    ds.to_netcdf(path, engine="netcdf4")
-    assert xr.load_dataset(path).status.values.tolist() == ["finite"] * RUNS
+def _rms_errors(ds, name: str):
+    """RMS over the settled part of the error of the paper's vector ``name``, dims (run, dof)."""
+    return fs.paper_vector(rms_over(estimation_errors(ds), SETTLED), name)
+
+
+def test_netcdf_variables_dims_and_units(run, tmp_path):
+    _, view, ds = run
+    units = {"position": "m", "heading": "rad", "velocity": "m/s", "yaw_rate": "rad/s", "bias_force": "N", "bias_moment": "N m", "wave_position": "m", "wave_heading": "rad"}
+    for name, unit in units.items():  # one unit per variable, as UDUNITS writes it
+        assert ds[name].dims[:2] == ("run", "time") and ds[f"{name}_hat"].dims == ds[name].dims
+        assert ds[name].attrs["units"] == ds[f"{name}_hat"].attrs["units"] == unit
+    assert view.eta.dims == ("run", "time", "dof") and view.eta.attrs["units"] == "surge: m, sway: m, yaw: rad"
+    path = write_netcdf(ds, tmp_path / "run.nc")
+    loaded = xr.load_dataset(path)
+    assert loaded.status.values.tolist() == ["finite"] * RUNS and loaded.seed.values.tolist() == config_seeds(run)
+
+
+def config_seeds(run):
+    return run[0].seeds
 
 
 def test_wave_filtering_low_frequency_position_is_much_closer_than_the_measurement(run):
@@ -36,11 +50,10 @@ def test_wave_filtering_low_frequency_position_is_much_closer_than_the_measureme
     In every run, the LF position error RMS is below 30 % of the RMS of what the raw
     measurement would give (y - eta, dominated by the 3.3 m std wave motion).
     """
-    _, ds = run
-    late = ds.time >= SETTLED
-    errors = rms_over(estimation_errors(ds), SETTLED)
-    raw = np.sqrt(((ds.measurement - ds.eta).sel(time=late) ** 2).mean("time"))
-    ratio = errors.eta.sel(dof=["surge", "sway"]).values / raw.sel(dof=["surge", "sway"]).values
+    _, view, ds = run
+    late = view.time >= SETTLED
+    raw = np.sqrt(((view.measurement - view.eta).sel(time=late) ** 2).mean("time"))
+    ratio = _rms_errors(ds, "eta").sel(dof=["surge", "sway"]).values / raw.sel(dof=["surge", "sway"]).values
     assert np.all(ratio < 0.3), ratio
 
 
@@ -50,12 +63,12 @@ def test_velocity_estimate_beats_differencing_the_fixes_tenfold(run):
     consecutive 1 Hz fixes (the naive alternative). Against the velocity's own
     spread the estimate is not "excellent": see docs/reproductions.md.
     """
-    _, ds = run
+    _, view, _ = run
     fixes = slice(0, None, 10)  # 1 Hz fixes at a 10 Hz observer rate
-    late = ds.time.values >= SETTLED
-    late_fixes = ds.time.values[fixes][:-1] >= SETTLED
+    late = view.time.values >= SETTLED
+    late_fixes = view.time.values[fixes][:-1] >= SETTLED
     for r in range(RUNS):
-        one = ds.isel(run=r)
+        one = view.isel(run=r)
         psi = one.eta.sel(dof="yaw").values
         observer_error = earth_frame_velocity(psi, one.nu.values - one.nu_hat.values)
         naive_error = np.diff(one.measurement.values[fixes, :2], axis=0) / 1.0 - earth_frame_velocity(psi, one.nu.values)[fixes][:-1]
@@ -65,8 +78,8 @@ def test_velocity_estimate_beats_differencing_the_fixes_tenfold(run):
 
 
 def _bias_error_over_prior(run):
-    config, ds = run
-    error = rms_over(estimation_errors(ds), SETTLED).bias.mean("run").values
+    config, _, ds = run
+    error = _rms_errors(ds, "bias").mean("run").values
     return error / np.asarray(config.bias_std)
 
 

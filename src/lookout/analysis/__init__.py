@@ -14,3 +14,5 @@ from .passive import frequency_response as frequency_response
 from .passive import kyp_certificate as kyp_certificate
 from .passive import minimum_phase_in_band as minimum_phase_in_band
 from .passive import transfer_functions as transfer_functions
+from .velocity import configuration_bounds as configuration_bounds
+from .velocity import velocity_observer_condition as velocity_observer_condition

@@ -7,20 +7,22 @@ import xarray as xr
 
 from lookout._math import ssa
 
-STATES = ("eta", "nu", "bias", "wave")
-ANGLE_STATES = ("eta", "wave")  # yaw component is an angle: differences through ssa
-
-
 def estimation_errors(ds: xr.Dataset) -> xr.Dataset:
-    """Truth minus estimate for eta, nu, bias, wave; yaw angles wrapped with ssa."""
+    """Truth minus estimate for every variable ``v`` that has an estimate ``v_hat``.
+
+    Angles (variables with the attribute ``angle = 1``) are differenced through
+    ``ssa``. Each error keeps the variable's name, units and frame.
+    """
     errors = {}
-    for name in STATES:
-        error = ds[name] - ds[f"{name}_hat"]
-        if name in ANGLE_STATES:
-            yaw = xr.apply_ufunc(lambda a: np.asarray(ssa(a)), error.sel(dof="yaw"))
-            error = xr.concat([error.sel(dof=["surge", "sway"]), yaw.expand_dims(dof=["yaw"])], dim="dof")
-            error = error.transpose(*ds[name].dims)
-        errors[name] = error.assign_attrs(units=ds[name].attrs.get("units", ""))
+    for name in ds.data_vars:
+        estimate = f"{name}_hat"
+        if estimate not in ds:
+            continue
+        error = ds[name] - ds[estimate]
+        if ds[name].attrs.get("angle"):
+            error = xr.apply_ufunc(lambda a: np.asarray(ssa(a)), error)
+        attrs = {key: ds[name].attrs[key] for key in ("units", "frame", "angle") if key in ds[name].attrs}
+        errors[name] = error.assign_attrs(attrs, long_name=f"estimation error of {ds[name].attrs.get('long_name', name)}")
     return xr.Dataset(errors)
 
 

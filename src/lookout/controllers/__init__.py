@@ -1,3 +1,4 @@
 """Controllers and open-loop input generators."""
 
-from .open_loop import SinusoidalThrust as SinusoidalThrust
+from .open_loop import NoControl as NoControl
+from .open_loop import SinusoidalInput as SinusoidalInput

@@ -1,54 +1,96 @@
-"""Open-loop inputs: forces that do not depend on the estimate."""
+"""Open-loop inputs: controllers that do not look at the measurement or the estimate."""
 
 from __future__ import annotations
+
+from typing import final
 
 import equinox as eqx
 import jax.numpy as jnp
 from jax import Array
 
 from lookout import _validation as check
+from lookout.components import Controller
 
 
-class SinusoidalThrust(eqx.Module):
-    """tau_i(t) = amplitude_i sin(frequency_i t + phase_i), held over each sample period.
+@final
+class SinusoidalInput(Controller):
+    """u_i(t) = offset_i + amplitude_i sin(frequency_i t + phase_i), held over each sample.
 
     Fossen & Strand (1999), eq. (61) uses amplitude 1000 (N, N, N m) and
-    frequencies 0.05, 0.1, 0.07 rad/s; :meth:`fossen_strand_1999` builds it.
+    frequencies 0.05, 0.1, 0.07 rad/s (:meth:`fossen_strand_1999`); a constant input
+    is ``SinusoidalInput(0.0, 0.0, offset=u)`` (:meth:`constant`).
 
     Parameters
     ----------
-    amplitude : array_like, shape (3,)
-        N, N, N m.
-    frequency : array_like, shape (3,)
-        rad/s, >= 0.
-    phase : array_like, shape (3,)
-        rad.
+    amplitude : array_like, shape (n,) or scalar
+        In the units of the plant's input.
+    frequency : array_like
+        rad/s, >= 0; broadcast to n.
+    phase : array_like
+        rad; broadcast to n.
+    offset : array_like
+        Constant part; broadcast to n.
+    size : int, optional
+        n, when every argument is a scalar (default: the longest argument's length).
     """
 
     amplitude: Array
     frequency: Array
     phase: Array
+    offset: Array
 
-    def __init__(self, amplitude, frequency, phase=0.0):
-        self.amplitude = jnp.asarray(check.vector("thrust amplitude", amplitude))
-        self.frequency = jnp.asarray(check.vector("thrust frequency", frequency))
-        self.phase = jnp.asarray(check.vector("thrust phase", phase))
+    def __init__(self, amplitude, frequency, phase=0.0, offset=0.0, *, size: int | None = None):
+        if size is None:
+            size = max(int(jnp.size(jnp.asarray(value))) for value in (amplitude, frequency, phase, offset))
+        self.amplitude = jnp.asarray(check.vector("input amplitude", amplitude, size))
+        self.frequency = jnp.asarray(check.vector("input frequency", frequency, size))
+        self.phase = jnp.asarray(check.vector("input phase", phase, size))
+        self.offset = jnp.asarray(check.vector("input offset", offset, size))
 
     def __check_init__(self):
-        check.finite("thrust amplitude", self.amplitude)
-        check.positive("thrust frequency", self.frequency, allow_zero=True)
-        check.finite("thrust phase", self.phase)
+        check.finite("input amplitude", self.amplitude)
+        check.positive("input frequency", self.frequency, allow_zero=True)
+        check.finite("input phase", self.phase)
+        check.finite("input offset", self.offset)
 
     @classmethod
-    def fossen_strand_1999(cls) -> "SinusoidalThrust":
+    def fossen_strand_1999(cls) -> "SinusoidalInput":
         """tau of Fossen & Strand (1999), eq. (61)."""
         return cls(1000.0, [0.05, 0.1, 0.07])
+
+    @classmethod
+    def constant(cls, value) -> "SinusoidalInput":
+        """The constant input ``value``."""
+        value = jnp.atleast_1d(jnp.asarray(value, dtype=float))
+        return cls(0.0, 0.0, offset=value, size=value.shape[0])
 
     def init(self):
         """No internal state."""
         return ()
 
-    def step(self, control_state, t, estimate):
-        """Return ``(control_state, tau)`` at time ``t``; the estimate is not used."""
-        del estimate
-        return control_state, self.amplitude * jnp.sin(self.frequency * t + self.phase)
+    def step(self, control_state, t, y, estimate, reference, dt):
+        """``(control_state, u(t))``; measurement, estimate and reference unused."""
+        del y, estimate, reference, dt
+        return control_state, self.offset + self.amplitude * jnp.sin(self.frequency * t + self.phase)
+
+
+@final
+class NoControl(Controller):
+    """A zero input of ``size`` entries: the plant runs unforced.
+
+    Parameters
+    ----------
+    size : int
+        Length of the plant's input vector.
+    """
+
+    size: int = eqx.field(static=True)
+
+    def init(self):
+        """No internal state."""
+        return ()
+
+    def step(self, control_state, t, y, estimate, reference, dt):
+        """``(control_state, zeros)``."""
+        del t, y, estimate, reference, dt
+        return control_state, jnp.zeros(self.size)

@@ -5,3 +5,10 @@ from .vessel import DPVessel as DPVessel
 from .vessel import VesselPlant as VesselPlant
 from .vessel import VesselState as VesselState
 from .vessel import northern_clipper as northern_clipper
+from .manipulators import CartPendulum as CartPendulum
+from .manipulators import FreePendulum as FreePendulum
+from .manipulators import FurutaPendulum as FurutaPendulum
+from .manipulators import JointState as JointState
+from .manipulators import ManipulatorModel as ManipulatorModel
+from .manipulators import ManipulatorPlant as ManipulatorPlant
+from .manipulators import TwoLinkArm as TwoLinkArm

@@ -17,11 +17,41 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from typing import final
+
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
+from lookout.components import BODY_FIXED, EARTH_FIXED, Layout, Plant, Signal
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 
 DOF = ("surge", "sway", "yaw")
+#: Labels of the horizontal axes: Earth-fixed (position, bias, waves) and body-fixed (velocity, thrust).
+EARTH_AXES = ("north", "east")
+BODY_AXES = ("surge", "sway")
+
+
+def _earth(name: str, units: str, long_name: str) -> Signal:
+    return Signal(name, units, long_name, EARTH_FIXED, EARTH_AXES, "earth_axis")
+
+
+def _body(name: str, units: str, long_name: str) -> Signal:
+    return Signal(name, units, long_name, BODY_FIXED, BODY_AXES, "body_axis")
+
+
+#: The recorded quantities of a vessel state (and of an observer's estimate of it):
+#: eta, nu, b and eta_w of Fossen & Strand (1999), split so that each has one unit.
+VESSEL_SIGNALS = (
+    _earth("position", "m", "low-frequency position"),
+    Signal("heading", "rad", "low-frequency heading", EARTH_FIXED, angle=True),
+    _body("velocity", "m/s", "linear velocity"),
+    Signal("yaw_rate", "rad/s", "yaw rate", BODY_FIXED),
+    _earth("bias_force", "N", "bias force"),
+    Signal("bias_moment", "N m", "bias moment about the vertical axis", EARTH_FIXED),
+    _earth("wave_position", "m", "first-order wave-induced position"),
+    Signal("wave_heading", "rad", "first-order wave-induced heading", EARTH_FIXED, angle=True),
+)
+#: Control forces and moment tau (body-fixed).
+VESSEL_INPUT = Layout((_body("force", "N", "thrust force"), Signal("moment", "N m", "thrust moment about the vertical axis", BODY_FIXED)))
 
 #: Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57) and Section 6.
 NORTHERN_CLIPPER_MASS = 4.591e6  # kg
@@ -76,6 +106,20 @@ class VesselState(eqx.Module):
         """The same state with heading wrapped to [-pi, pi)."""
         return eqx.tree_at(lambda s: s.eta, self, self.eta.at[2].set(ssa(self.eta[2])))
 
+    def signals(self) -> dict[str, Array]:
+        """The state as the named quantities of :data:`VESSEL_SIGNALS`."""
+        wave = self.wave
+        return {
+            "position": self.eta[..., :2],
+            "heading": self.eta[..., 2],
+            "velocity": self.nu[..., :2],
+            "yaw_rate": self.nu[..., 2],
+            "bias_force": self.bias[..., :2],
+            "bias_moment": self.bias[..., 2],
+            "wave_position": wave[..., :2],
+            "wave_heading": wave[..., 2],
+        }
+
 
 class DPVessel(eqx.Module):
     """Linear low-frequency 3-DOF vessel model M nu' + D nu + K eta = tau + J^T b.
@@ -99,7 +143,7 @@ class DPVessel(eqx.Module):
     mass_inverse: Array
 
     def __init__(self, mass_matrix, damping_matrix, stiffness_matrix=None):
-        check.symmetric_positive_definite("mass_matrix", mass_matrix)
+        check.symmetric_positive_definite("mass_matrix", mass_matrix, size=3)
         check.square("damping_matrix", damping_matrix)
         if stiffness_matrix is None:
             stiffness_matrix = jnp.zeros((3, 3))
@@ -122,12 +166,13 @@ def northern_clipper() -> DPVessel:
     return DPVessel(NORTHERN_CLIPPER_M, NORTHERN_CLIPPER_D)
 
 
-class VesselPlant(eqx.Module):
+@final
+class VesselPlant(Plant):
     """Vessel, bias and wave model integrated together as one continuous-time plant.
 
-    The input is ``(tau, noise)``: control forces (N, N, N m) and a 6-vector of unit
-    white noise ``[n, w]`` held over one integration step (the engine scales it by
-    ``1/sqrt(step)`` so the variance per unit time is right).
+    The input is tau (N, N, N m, body-fixed); the noise is a 6-vector of unit white
+    noise ``[n, w]`` driving the bias (7) and the waves (11), held over one
+    integration step (the engine scales it by ``1/sqrt(step)``).
 
     Parameters
     ----------
@@ -139,7 +184,9 @@ class VesselPlant(eqx.Module):
     vessel: DPVessel
     bias: GaussMarkovBias
     waves: LinearWaveModel
-    noise_size: int = eqx.field(static=True, default=6)
+    noise_size: int = eqx.field(static=True, default=6, kw_only=True)
+    input_layout: Layout = eqx.field(static=True, default=VESSEL_INPUT, kw_only=True)
+    variable_signals: tuple[Signal, ...] = eqx.field(static=True, default=VESSEL_SIGNALS, kw_only=True)
 
     def vector_field(self, t, state: VesselState, tau: Array, noise: Array) -> VesselState:
         """Time derivative of the plant state (eqs. 1, 3, 7, 11)."""
@@ -150,3 +197,16 @@ class VesselPlant(eqx.Module):
             bias=self.bias.derivative(state.bias, noise[:3]),
             wave_state=self.waves.derivative(state.wave_state, noise[3:]),
         )
+
+    def normalize(self, state: VesselState) -> VesselState:
+        """Heading wrapped to [-pi, pi), as a gyro compass reports it."""
+        return state.wrapped()
+
+    def variables(self, state: VesselState) -> dict[str, Array]:
+        """Position, heading, velocities, bias and wave motion (:data:`VESSEL_SIGNALS`)."""
+        return state.signals()
+
+    def realize(self, key: Array) -> "VesselPlant":
+        """No per-run randomness beyond the white noise: the plant itself."""
+        del key
+        return self

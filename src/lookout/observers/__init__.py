@@ -6,3 +6,4 @@ from .passive import PassiveObserver as PassiveObserver
 from .passive import default_cutoff_frequency as default_cutoff_frequency
 from .passive import injection_gains_from_normalized as injection_gains_from_normalized
 from .passive import notch_filter_gains as notch_filter_gains
+from .velocity import VelocityObserver as VelocityObserver

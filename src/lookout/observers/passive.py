@@ -28,10 +28,20 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from typing import final
+
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
-from lookout.models.vessel import DPVessel, VesselState
+from lookout.components import ContinuousObserver, Signal
+from lookout.models.vessel import VESSEL_SIGNALS, DPVessel, VesselState
+from lookout.sensors import POSITION_HEADING
 from lookout.sim.integrators import rk4_step
+
+#: The innovation y~ = y - y_hat (eq. 26), an extra output of the observer.
+INNOVATION_SIGNALS = tuple(
+    signal.renamed(signal.name.replace("measured_", "innovation_"), "innovation y - y_hat (eq. 26), " + signal.name.split("_", 1)[1])
+    for signal in POSITION_HEADING.signals
+)
 
 GRAVITY = 9.81
 
@@ -146,11 +156,14 @@ def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, g
     return velocity_gain * scale, bias_gain * scale / time_scale
 
 
-class PassiveObserver(eqx.Module):
+@final
+class PassiveObserver(ContinuousObserver):
     """Fossen & Strand (1999) passive observer, eqs. (22)–(26), gains in SI.
 
     Use :meth:`design` to synthesize the wave-filter gains from the wave and notch
     parameters. The state is a :class:`~lookout.models.VesselState` of estimates.
+    A continuous-time observer: :meth:`update` changes nothing, :meth:`predict`
+    integrates (22)–(25) over the sample with the measurement held.
 
     Parameters
     ----------
@@ -170,6 +183,8 @@ class PassiveObserver(eqx.Module):
         Diagonal of T (s).
     lyapunov_weight : float
         gamma > 0, the weight of the kinetic-energy term of the Lyapunov function (49).
+    steps_per_sample : int
+        RK4 steps of :meth:`predict` per sample period.
     """
 
     mass_matrix: Array
@@ -183,6 +198,9 @@ class PassiveObserver(eqx.Module):
     bias_injection_gain: Array
     bias_time_constant: Array
     lyapunov_weight: Array
+    steps_per_sample: int = eqx.field(static=True)
+    estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
+    extra_signals: tuple[Signal, ...] = eqx.field(static=True)
 
     def __init__(
         self,
@@ -196,8 +214,9 @@ class PassiveObserver(eqx.Module):
         bias_injection_gain,
         bias_time_constant,
         lyapunov_weight=1.0,
+        steps_per_sample=1,
     ):
-        check.symmetric_positive_definite("mass_matrix", mass_matrix)
+        check.symmetric_positive_definite("mass_matrix", mass_matrix, size=3)
         check.square("damping_matrix", damping_matrix)
         self.mass_matrix = jnp.asarray(mass_matrix, dtype=float)
         self.damping_matrix = jnp.asarray(damping_matrix, dtype=float)
@@ -209,7 +228,12 @@ class PassiveObserver(eqx.Module):
         self.velocity_injection_gain = jnp.asarray(check.vector("velocity_injection_gain", velocity_injection_gain))
         self.bias_injection_gain = jnp.asarray(check.vector("bias_injection_gain", bias_injection_gain))
         self.bias_time_constant = jnp.asarray(check.vector("bias_time_constant", bias_time_constant))
-        self.lyapunov_weight = jnp.asarray(float(lyapunov_weight))
+        self.lyapunov_weight = jnp.asarray(lyapunov_weight, dtype=float)
+        if not (isinstance(steps_per_sample, int) and steps_per_sample >= 1):
+            raise ValueError(f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
+        self.steps_per_sample = steps_per_sample
+        self.estimate_signals = VESSEL_SIGNALS
+        self.extra_signals = INNOVATION_SIGNALS
 
     def __check_init__(self):
         check.positive("wave_frequency", self.wave_frequency)
@@ -234,6 +258,7 @@ class PassiveObserver(eqx.Module):
         bias_injection_gain,
         bias_time_constant,
         lyapunov_weight=1.0,
+        steps_per_sample=1,
     ) -> "PassiveObserver":
         """Observer for ``vessel`` with K1, K2 from eqs. (45)–(47); other gains in SI."""
         k1, k2, k3 = notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency)
@@ -248,6 +273,7 @@ class PassiveObserver(eqx.Module):
             bias_injection_gain=bias_injection_gain,
             bias_time_constant=bias_time_constant,
             lyapunov_weight=lyapunov_weight,
+            steps_per_sample=steps_per_sample,
         )
 
     def wave_injection_matrix(self) -> np.ndarray:
@@ -259,9 +285,24 @@ class PassiveObserver(eqx.Module):
         """K2 as the 3x3 matrix of eq. (41)."""
         return np.diag(np.asarray(self.position_injection_gain))
 
-    def init(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
-        """Initial estimate (zeros unless given)."""
+    def guess(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+        """An initial estimate (zeros unless given), to pass to :meth:`init`."""
         return VesselState.build(eta, nu, bias, wave_state)
+
+    def init(self, y0: Array, guess: VesselState) -> VesselState:
+        """The estimate at t_0 is the guess (the paper starts the observer at zero)."""
+        del y0
+        return guess
+
+    def update(self, estimate: VesselState, t, measurement: Array) -> VesselState:
+        """No discrete correction: the measurement enters through (22)–(25)."""
+        del t, measurement
+        return estimate
+
+    def output(self, estimate: VesselState, measurement: Array) -> dict[str, Array]:
+        """The estimate as named quantities, and the innovation y~ at the sample."""
+        innovation = self.innovation(estimate, measurement)
+        return {**estimate.signals(), "innovation_position": innovation[:2], "innovation_heading": innovation[2]}
 
     def innovation(self, estimate: VesselState, measurement: Array) -> Array:
         """y~ = y - y_hat (eq. 26) with wrapped heading; zero on missing channels."""
@@ -269,6 +310,10 @@ class PassiveObserver(eqx.Module):
         error = measurement - predicted
         error = error.at[2].set(ssa(error[2]))
         return jnp.where(jnp.isfinite(measurement), error, 0.0)
+
+    def normalize(self, estimate: VesselState) -> VesselState:
+        """Heading wrapped to [-pi, pi) (after a joint integration with the plant)."""
+        return estimate.wrapped()
 
     def rotation_heading(self, estimate: VesselState, measurement: Array) -> Array:
         """Heading of J(y) in eqs. (23), (25): the measured one, or the predicted
@@ -301,20 +346,16 @@ class PassiveObserver(eqx.Module):
         )
         return VesselState(eta=eta_rate, nu=matvec(self.mass_inverse, force), bias=bias_rate, wave_state=wave_rate)
 
-    def step(self, estimate: VesselState, t, measurement: Array, tau: Array, dt, substeps: int = 1):
+    def predict(self, estimate: VesselState, t, measurement: Array, tau: Array, dt) -> VesselState:
         """Advance the estimate over one sample period with measurement and tau held.
 
-        Integrates (22)–(25) by ``substeps`` RK4 steps of ``dt / substeps``, with
-        ``measurement`` and the heading of J(y) (:meth:`rotation_heading` at ``t``)
-        held over the sample.
-
-        Returns
-        -------
-        tuple
-            ``(new_estimate, innovation)``: the estimate at ``t + dt`` (heading
-            wrapped) and the innovation y~ used at ``t``.
+        Integrates (22)–(25) by ``steps_per_sample`` RK4 steps of ``dt /
+        steps_per_sample``, with ``measurement`` and the heading of J(y)
+        (:meth:`rotation_heading` at ``t``) held over the sample; the heading of
+        the result is wrapped.
         """
-        h = dt / substeps
+        steps = self.steps_per_sample
+        h = dt / steps
         # J(y) held over the sample like y itself: with the heading missing, the
         # predicted heading at t (not at each RK4 stage) stands in for the sample
         heading = self.rotation_heading(estimate, measurement)
@@ -323,6 +364,6 @@ class PassiveObserver(eqx.Module):
             return self.vector_field(time, x, measurement, tau, heading)
 
         state = estimate
-        for i in range(substeps):
+        for i in range(steps):
             state = rk4_step(field, t + i * h, state, h)
-        return state.wrapped(), self.innovation(estimate, measurement)
+        return state.wrapped()

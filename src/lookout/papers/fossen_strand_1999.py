@@ -18,18 +18,20 @@ starts at rest at the origin and the observer at zero.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 import math
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
+import xarray as xr
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
-from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, rms_over, settling_time
-from lookout.controllers import SinusoidalThrust
+from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, settling_time
+from lookout.controllers import SinusoidalInput
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
+from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
 from lookout.sim import MAX_SEED, Scenario, integer_ratio, seed_keys, simulate, simulate_batch
 
@@ -148,13 +150,58 @@ def build(config: Config) -> Scenario:
         plant=plant,
         sensor=PositionHeadingSensor(config.noise_std, config.measurement_period),
         observer=observer,
-        control=SinusoidalThrust.fossen_strand_1999(),
+        controller=SinusoidalInput.fossen_strand_1999(),
         initial_state=VesselState.build(bias=config.bias_initial),
-        initial_estimate=observer.init(),
+        initial_estimate=observer.guess(),
         plant_step=config.plant_step,
         sample_period=config.sample_period,
         duration=config.duration,
     )
+
+
+#: The paper's vectors over (surge, sway, yaw) from the recorded quantities, as
+#: (variable, component) per DOF: eta, nu, b, eta_w of eqs. (1)–(12), y and tau.
+PAPER_VECTORS = {
+    "eta": (("position", "north"), ("position", "east"), ("heading", None)),
+    "nu": (("velocity", "surge"), ("velocity", "sway"), ("yaw_rate", None)),
+    "bias": (("bias_force", "north"), ("bias_force", "east"), ("bias_moment", None)),
+    "wave": (("wave_position", "north"), ("wave_position", "east"), ("wave_heading", None)),
+    "measurement": (("measured_position", "north"), ("measured_position", "east"), ("measured_heading", None)),
+    "tau": (("force_applied", "surge"), ("force_applied", "sway"), ("moment_applied", None)),
+}
+DOF = ("surge", "sway", "yaw")
+
+
+def paper_vector(data: xr.Dataset, name: str, suffix: str = "") -> xr.DataArray:
+    """The paper's vector ``name`` (eta, nu, bias, wave, measurement, tau) over dim ``dof``.
+
+    ``suffix`` picks estimates (``"_hat"``). Works on a simulation Dataset and on
+    :func:`lookout.analysis.estimation_errors` of one. The units attribute lists the
+    unit per DOF (``surge: m, sway: m, yaw: rad``): for reading, not for NetCDF.
+    """
+    parts, units = [], []
+    for (variable, label), dof in zip(PAPER_VECTORS[name], DOF):
+        array = data[variable + suffix]
+        for dim in ("earth_axis", "body_axis"):
+            if label is not None and dim in array.dims:
+                array = array.sel({dim: label}, drop=True)
+        parts.append(array)
+        units.append(f"{dof}: {data[variable + suffix].attrs.get('units', '')}")
+    return xr.concat(parts, dim=xr.DataArray(list(DOF), dims="dof", name="dof")).transpose(..., "dof").assign_attrs(units=", ".join(units))
+
+
+def paper_view(ds: xr.Dataset) -> xr.Dataset:
+    """The results in the paper's notation: eta, nu, bias, wave (and ``_hat``), the
+    measurement y and tau, each over ``dof`` = (surge, sway, yaw), with ``status``."""
+    data = {}
+    for name in PAPER_VECTORS:
+        data[name] = paper_vector(ds, name)
+        if name in STATES:
+            data[f"{name}_hat"] = paper_vector(ds, name, "_hat")
+    view = xr.Dataset(data)
+    if "status" in ds:
+        view["status"] = ds.status
+    return view
 
 
 def summarize(ds, config: Config) -> dict:
@@ -163,20 +210,21 @@ def summarize(ds, config: Config) -> dict:
     With several runs, ``rms_second_half`` is the mean over runs, ``rms_second_half_std``
     its standard deviation across runs, and settling times are medians over runs.
     """
+    del config
     errors = estimation_errors(ds)
     half = float(ds.time[-1]) / 2.0
-    rms = rms_over(errors, half)  # dims (run, dof)
     time = ds.time.values
-    dofs = ds.dof.values.tolist()
     summary: dict = {"runs": int(ds.sizes["run"]), "rms_second_half": {}, "rms_second_half_std": {}, "settling_time": {}, "true_std_second_half": {}, "units": {}}
     for name in STATES:
-        summary["units"][name] = ds[name].attrs["units"]
-        summary["rms_second_half"][name] = dict(zip(dofs, rms[name].mean("run").values.tolist()))
-        summary["rms_second_half_std"][name] = dict(zip(dofs, rms[name].std("run").values.tolist()))
-        truth = ds[name].sel(time=ds.time >= half)
-        summary["true_std_second_half"][name] = dict(zip(dofs, truth.std("time").mean("run").values.tolist()))
-        settles = settling_time(errors[name].transpose("run", "dof", "time").values, time, rms[name].transpose("run", "dof").values)
-        summary["settling_time"][name] = dict(zip(dofs, np.median(settles, axis=0).tolist()))
+        error = paper_vector(errors, name)
+        truth = paper_vector(ds, name)
+        rms = np.sqrt((error.sel(time=ds.time >= half) ** 2).mean("time"))  # dims (run, dof)
+        summary["units"][name] = truth.attrs["units"]
+        summary["rms_second_half"][name] = dict(zip(DOF, rms.mean("run").values.tolist()))
+        summary["rms_second_half_std"][name] = dict(zip(DOF, rms.std("run").values.tolist()))
+        summary["true_std_second_half"][name] = dict(zip(DOF, truth.sel(time=ds.time >= half).std("time").mean("run").values.tolist()))
+        settles = settling_time(error.transpose("run", "dof", "time").values, time, rms.transpose("run", "dof").values)
+        summary["settling_time"][name] = dict(zip(DOF, np.median(settles, axis=0).tolist()))
     return summary
 
 
@@ -212,14 +260,15 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     scenario = build(config)
     ds = simulate_runs(config, progress=progress, scenario=scenario)
     out.mkdir(parents=True, exist_ok=True)
-    ds.to_netcdf(out / "fossen_strand_1999.nc", engine="netcdf4")
+    write_netcdf(ds, out / "fossen_strand_1999.nc", history=f"lookout reproduce {NAME} (seeds {config.seeds[0]}..{config.seeds[-1]})")
 
     observer = scenario.observer
     response = frequency_response(observer)
-    response.to_netcdf(out / "bode.nc", engine="netcdf4")
+    write_netcdf(response, out / "bode.nc", history=f"frequency response of the observer of {NAME}")
     figures = {"fig06_bode.png": plot_bode(response, title="Fossen & Strand (1999), Fig. 6: error-loop frequency response h0, hB, h")}
-    for number, dof in zip((9, 10, 11), ("surge", "sway", "yaw")):
-        figures[f"fig{number:02d}_{dof}.png"] = plot_estimates(ds, dof, title=f"Fossen & Strand (1999), Fig. {number}: {dof}, true and estimated")
+    for number, dof in zip((9, 10, 11), DOF):
+        panels = [PAPER_VECTORS[name][DOF.index(dof)] for name in ("eta", "nu", "wave", "bias")]
+        figures[f"fig{number:02d}_{dof}.png"] = plot_estimates(ds, panels, title=f"Fossen & Strand (1999), Fig. {number}: {dof}, true and estimated")
     for filename, figure in figures.items():
         figure.savefig(out / filename, dpi=110)
         plt.close(figure)

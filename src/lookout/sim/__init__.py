@@ -1,11 +1,27 @@
-"""Sampled-data simulation: integrators and the engine."""
+"""Sampled-data simulation: the engine, integrators, and observers on logs.
 
-from .engine import Scenario as Scenario
-from .engine import simulate as simulate
-from .engine import simulate_batch as simulate_batch
-from .integrators import euler_step as euler_step
-from .integrators import rk4_step as rk4_step
+The contract (see :mod:`lookout.components` and docs/architecture.md): a
+:class:`Scenario` holds a plant, a sensor, an observer, a reference, a controller and
+an actuator; :func:`simulate` runs sample k in the order
+
+    measure -> observer.update -> observer.output -> reference -> controller
+    -> actuator -> record -> plant integrated over [t_k, t_k+1] (RK4 or Euler)
+    and observer.predict over the same interval,
+
+as one jitted nested ``lax.scan`` (:func:`simulate_batch`: ``vmap`` over keys and,
+optionally, over the scenario's arrays). :func:`filter` runs an observer over a
+recorded log in the same order, :class:`Stepper` one sample at a time.
+"""
+
 from .engine import MAX_SEED as MAX_SEED
+from .engine import Scenario as Scenario
+from .engine import check_fit as check_fit
+from .engine import integer_ratio as integer_ratio
 from .engine import record_nbytes as record_nbytes
 from .engine import seed_keys as seed_keys
-from .engine import integer_ratio as integer_ratio
+from .engine import simulate as simulate
+from .engine import simulate_batch as simulate_batch
+from .filtering import Stepper as Stepper
+from .filtering import filter as filter  # noqa: A004
+from .integrators import euler_step as euler_step
+from .integrators import rk4_step as rk4_step

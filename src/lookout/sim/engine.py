@@ -1,30 +1,44 @@
 """The sampled-data simulation engine: one jitted nested ``lax.scan`` per run.
 
-Per sample k (time ``t_k = k * sample_period``):
+A :class:`Scenario` holds the components of :mod:`lookout.components` (plant,
+sensor, observer, reference, controller, actuator), the initial plant state, the
+observer's initial guess and the time grid. Sample k (``t_k = k * sample_period``)
+runs in this order::
 
-1. each sensor channel whose period divides ``t_k`` takes a new sample of the plant
-   state; the others hold their last sample (zero-order hold);
-2. the controller's tau_k, computed from the estimate at t_k (at the end of the
-   previous sample, or from the initial estimate), is held over the sample;
-3. the observer advances its estimate from t_k to t_{k+1} with the held measurement
-   and tau_k (``observer.step``), or, in ``"continuous"`` mode, is integrated
-   jointly with the plant on a noise-free continuous measurement;
-4. the plant is integrated from t_k to t_{k+1} by RK4 substeps with tau_k held
-   (zero-order hold) and process noise held over each substep with variance
-   ``1 / plant_step`` (a discretization of unit white noise).
+    1. sensor: each channel due at t_k takes a sample of x(t_k); the others hold
+    2. observer.update(S, t_k, y_k)                   correction
+    3. e_k = observer.output(S, y_k)                  labelled estimate at t_k
+    4. r_k = reference.step(R, t_k, dt, normals)
+    5. u_k = controller.step(C, t_k, y_k, e_k, r_k, dt)
+    6. v_k = actuator.apply(u_k)
+    7. record (plant.variables(x(t_k)), e_k, y_k, r_k, u_k, v_k)
+    8. plant integrated over [t_k, t_k+1] with v_k held (RK4 or Euler substeps of
+       ``plant_step``, process noise held over each substep with variance
+       1/plant_step), then ``plant.normalize``;
+       observer.predict(S, t_k, y_k, v_k, sample_period)
 
-Time is computed from integer indices, never accumulated. Batches are
-``jax.vmap`` of the same function over PRNG keys (and optionally over the
-leading axis of every array in the scenario), with the run axis sharded across
-devices when there are several (GPUs, or CPU cores exposed by
-:func:`lookout.use_all_cpu_cores`). Process and measurement noise of sample k is
-a function of (key, k) alone (a counter-based Threefry hash), drawn inside the
-loop for each sample.
+so no component acts on a value one sample stale. At t_0 the observer's state is
+``observer.init(y_0, initial_estimate)``. With ``observer_mode="continuous"`` a
+:class:`~lookout.components.ContinuousObserver` is instead integrated jointly with
+the plant on the noise-free measurement ``sensor.ideal(x)`` (the setting of
+continuous-time Lyapunov analyses).
+
+Randomness. Every random number of a run is a function of the run's key and of
+integer counters: process noise and sensor noise of sample k come from separate
+streams of :func:`lookout._random.standard_normal` (``PROCESS_STREAM``,
+``SENSOR_STREAM``, ``REFERENCE_STREAM``), and ``plant.realize`` draws the plant's
+per-run randomness (wave phases, parameter errors) from a key folded from the run's
+key. So batching, chunking and decimation never change a run.
+
+Time is computed from integer indices, never accumulated. Batches are ``jax.vmap``
+of the same function over keys (and optionally over the leading axis of every array
+in the scenario), with the run axis sharded across devices when there are several.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, Callable, Literal
 
 import equinox as eqx
@@ -36,8 +50,13 @@ from jax.flatten_util import ravel_pytree
 
 from lookout._math import computed_once
 from lookout._random import standard_normal
-from lookout.results import Trajectory
-from lookout.sim.integrators import rk4_step
+from lookout.actuators import IdealActuator
+from lookout.components import Actuator, ContinuousObserver, Controller, Layout, Observer, Plant, Reference, Sensor, Signal
+from lookout.reference import NoReference
+from lookout.results import RecordSignals, Trajectory
+from lookout.sim.integrators import euler_step, rk4_step
+
+INTEGRATORS = {"rk4": rk4_step, "euler": euler_step}
 
 
 def integer_ratio(value: float, base: float) -> int | None:
@@ -58,50 +77,77 @@ def _ratio(name: str, period: float, base_name: str, base: float) -> int:
     return steps
 
 
+def _first_line(error: Exception) -> str:
+    text = str(error).strip().splitlines()
+    return text[0] if text else type(error).__name__
+
+
+def _shape_of(value) -> tuple[int, ...]:
+    return tuple(getattr(value, "shape", np.shape(value)))
+
+
 class Scenario(eqx.Module):
     """Everything one run needs: components, initial conditions and time grid.
 
     Parameters
     ----------
-    plant : Module
-        Has ``vector_field(t, state, tau, noise)`` and an int ``noise_size``.
-    sensor : Module
-        Has ``measure(state, normals)``, ``ideal(state)``, a tuple ``sample_period`` and
-        an int ``noise_size`` (standard normals it needs per sample).
-    observer : Module
-        Has ``step(estimate, t, y, tau, dt, substeps)`` and
-        ``vector_field(t, estimate, y, tau)``.
-    control : Module
-        Has ``init()`` and ``step(control_state, t, estimate) -> (control_state, tau)``.
-    initial_state, initial_estimate : PyTree
-        Plant state and observer estimate at t = 0.
+    plant : Plant
+    sensor : Sensor
+    observer : Observer
+    controller : Controller
+        Computes the plant's input at each sample (an open-loop input or
+        :class:`~lookout.controllers.NoControl` for none).
+    initial_state : PyTree
+        Plant state at t = 0.
+    initial_estimate : PyTree
+        The observer's initial guess, turned into its state by ``observer.init``.
     plant_step : float
-        RK4 step of the plant (s).
+        Integration step of the plant (s).
     sample_period : float
-        Observer and controller period (s), an integer multiple of ``plant_step``.
+        Observer, reference and controller period (s), a multiple of ``plant_step``.
     duration : float
-        Simulated time (s), an integer multiple of ``sample_period * record_every``.
+        Simulated time (s), a multiple of ``sample_period * record_every``.
+    reference : Reference
+        Default :class:`~lookout.reference.NoReference`.
+    actuator : Actuator
+        Default :class:`~lookout.actuators.IdealActuator`.
     record_every : int
-        Record one sample in this many (decimation for large batches).
+        Record one sample in this many.
+    integrator : {"rk4", "euler"}
+        The plant's integrator.
     observer_mode : {"sampled", "continuous"}
-        ``"sampled"`` runs ``observer.step`` once per sample on the held sensor
-        samples; ``"continuous"`` integrates the observer with the plant on the
-        noise-free measurement (the setting of the paper's Lyapunov analysis).
+        ``"continuous"`` integrates a ContinuousObserver jointly with the plant on
+        the noise-free measurement.
+
+    Raises
+    ------
+    ValueError
+        When the time grid is inconsistent, or two components do not fit (the
+        message names both), checked with ``jax.eval_shape`` on one sample.
     """
 
-    plant: Any
-    sensor: Any
-    observer: Any
-    control: Any
+    plant: Plant
+    sensor: Sensor
+    observer: Observer
+    controller: Controller
     initial_state: Any
     initial_estimate: Any
     plant_step: float = eqx.field(static=True)
     sample_period: float = eqx.field(static=True)
     duration: float = eqx.field(static=True)
+    reference: Reference = NoReference()
+    actuator: Actuator = IdealActuator()
     record_every: int = eqx.field(static=True, default=1)
+    integrator: Literal["rk4", "euler"] = eqx.field(static=True, default="rk4")
     observer_mode: Literal["sampled", "continuous"] = eqx.field(static=True, default="sampled")
 
     def __check_init__(self):
+        for name, kind in (
+            ("plant", Plant), ("sensor", Sensor), ("observer", Observer), ("controller", Controller), ("reference", Reference), ("actuator", Actuator)
+        ):
+            value = getattr(self, name)
+            if not isinstance(value, kind):
+                raise ValueError(f"{name} must be a lookout {kind.__name__}; got {type(value).__name__}")
         if not (math.isfinite(self.plant_step) and self.plant_step > 0):
             raise ValueError(f"plant_step must be positive; got {self.plant_step}")
         if not (math.isfinite(self.sample_period) and self.sample_period > 0):
@@ -110,9 +156,17 @@ class Scenario(eqx.Module):
             raise ValueError(f"duration must be positive; got {self.duration}")
         if not (isinstance(self.record_every, int) and self.record_every >= 1):
             raise ValueError(f"record_every must be a positive integer; got {self.record_every}")
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {sorted(INTEGRATORS)}; got {self.integrator!r}")
         if self.observer_mode not in ("sampled", "continuous"):
             raise ValueError(f"observer_mode must be 'sampled' or 'continuous'; got {self.observer_mode!r}")
+        if self.observer_mode == "continuous" and not isinstance(self.observer, ContinuousObserver):
+            raise ValueError(f"observer_mode 'continuous' needs a ContinuousObserver; {type(self.observer).__name__} is not one")
         _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
+        if len(self.sensor.sample_period) != self.sensor.measurement_layout.size:
+            raise ValueError(
+                f"sensor has {len(self.sensor.sample_period)} sample periods for {self.sensor.measurement_layout.size} channels"
+            )
         for channel, period in enumerate(self.sensor.sample_period):
             _ratio(f"sensor sample_period[{channel}]", period, "sample_period", self.sample_period)
         _ratio("duration", self.duration, "sample_period * record_every", self.sample_period * self.record_every)
@@ -120,10 +174,11 @@ class Scenario(eqx.Module):
             raise ValueError(
                 f"duration / sample_period must be below 2**32 samples (noise counters); got {self.duration / self.sample_period:.3g}"
             )
+        check_fit(self)
 
     @property
     def substeps(self) -> int:
-        """Plant RK4 steps per sample period."""
+        """Plant integration steps per sample period."""
         return _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
 
     @property
@@ -136,18 +191,114 @@ class Scenario(eqx.Module):
         """Sample periods of the sensor channels, in observer samples."""
         return tuple(_ratio("sensor", p, "sample_period", self.sample_period) for p in self.sensor.sample_period)
 
+    @property
+    def record_signals(self) -> RecordSignals:
+        """Names, units and frames of everything a run records."""
+        return RecordSignals(
+            truth=tuple(self.plant.variable_signals),
+            estimate=tuple(self.observer.estimate_signals),
+            extra=tuple(self.observer.extra_signals),
+            measurement=self.sensor.measurement_layout,
+            reference=tuple(self.reference.reference_signals),
+            input=self.plant.input_layout,
+        )
+
+
+def _compare(part: str, other: str, what: str, got: dict, signals: tuple[Signal, ...]) -> None:
+    """Fail unless ``got`` (name -> shape) has exactly the names and shapes of ``signals``."""
+    expected = {s.name: s.shape for s in signals}
+    if set(got) != set(expected):
+        raise ValueError(f"{part} and {other} disagree: {what} gives {sorted(got)}, its signals declare {sorted(expected)}")
+    for name, shape in expected.items():
+        if tuple(got[name]) != shape:
+            raise ValueError(f"{part} and {other} disagree: {what} {name!r} has shape {tuple(got[name])}, its signal says {shape}")
+
+
+def _evaluate(parts: str, function: Callable, *args):
+    """``jax.eval_shape(function, *args)``; any failure deep in the trace becomes one
+    line that names the two parts."""
+    try:
+        return jax.eval_shape(function, *args)
+    except Exception as error:
+        raise ValueError(f"{parts} do not fit: {_first_line(error)}") from None
+
+
+def check_fit(scenario: Scenario) -> None:
+    """Check with ``jax.eval_shape`` that the scenario's components fit one another.
+
+    Each failure is one ``ValueError`` line that names the two parts that disagree:
+    the plant and its initial state, the sensor and the plant, the observer and the
+    sensor or the plant, the reference, the controller and the plant's input, the
+    actuator.
+    """
+    plant, sensor, observer = scenario.plant, scenario.sensor, scenario.observer
+    x0 = scenario.initial_state
+    layout = plant.input_layout
+    u0 = jnp.zeros(layout.size)
+    w0 = jnp.zeros(plant.noise_size)
+
+    truth = _evaluate("plant and initial_state", plant.variables, x0)
+    _compare("plant", "initial_state", "plant.variables(initial_state)", {k: _shape_of(v) for k, v in truth.items()}, plant.variable_signals)
+    derivative = _evaluate("plant and initial_state", lambda x: plant.vector_field(0.0, x, u0, w0), x0)
+    if jax.tree.structure(derivative) != jax.tree.structure(x0) or [_shape_of(a) for a in jax.tree.leaves(derivative)] != [_shape_of(a) for a in jax.tree.leaves(x0)]:
+        raise ValueError("plant and initial_state disagree: plant.vector_field returns a state shaped unlike initial_state")
+
+    y = _evaluate("sensor and plant", lambda x: sensor.measure(x, jnp.zeros(sensor.noise_size)), x0)
+    if _shape_of(y) != (sensor.measurement_layout.size,):
+        raise ValueError(
+            f"sensor and plant disagree: the measurement has shape {_shape_of(y)}, the sensor's layout says ({sensor.measurement_layout.size},)"
+        )
+    y = jnp.zeros(sensor.measurement_layout.size)
+
+    state = _evaluate("observer and initial_estimate", observer.init, y, scenario.initial_estimate)
+    estimate = _evaluate("observer and sensor", lambda s: observer.output(observer.update(s, 0.0, y), y), state)
+    outputs = tuple(observer.estimate_signals) + tuple(observer.extra_signals)
+    _compare("observer", "its signals", "observer.output", {k: _shape_of(v) for k, v in estimate.items()}, outputs)
+    plant_signals = {s.name: s for s in plant.variable_signals}
+    for signal in observer.estimate_signals:
+        truth_signal = plant_signals.get(signal.name)
+        if truth_signal is None:
+            raise ValueError(f"observer and plant disagree: the observer estimates {signal.name!r}, which the plant does not have (its variables: {sorted(plant_signals)})")
+        if (truth_signal.shape, truth_signal.units, truth_signal.labels) != (signal.shape, signal.units, signal.labels):
+            raise ValueError(
+                f"observer and plant disagree: the estimate {signal.name!r} is {signal.shape} in {signal.units} over {signal.labels}, "
+                f"the plant's is {truth_signal.shape} in {truth_signal.units} over {truth_signal.labels}"
+            )
+    predicted = _evaluate("observer and plant", lambda s: observer.predict(s, 0.0, y, u0, scenario.sample_period), state)
+    if jax.tree.structure(predicted) != jax.tree.structure(state):
+        raise ValueError("observer and plant disagree: observer.predict returns a state shaped unlike observer.init's")
+
+    reference = scenario.reference
+    _, sample = _evaluate("reference and scenario", lambda: reference.step(reference.init(), 0.0, scenario.sample_period, jnp.zeros(reference.noise_size)))
+    _compare("reference", "its signals", "reference.step", {k: _shape_of(v) for k, v in sample.items()}, reference.reference_signals)
+    sample = {s.name: jnp.zeros(s.shape) for s in reference.reference_signals}
+
+    controller = scenario.controller
+    outputs = {k: jnp.zeros(_shape_of(v)) for k, v in estimate.items()}
+    _, u = _evaluate(
+        "controller and plant", lambda: controller.step(controller.init(), 0.0, y, outputs, sample, scenario.sample_period)
+    )
+    if _shape_of(u) != (layout.size,):
+        raise ValueError(f"controller and plant disagree: the controller's input has shape {_shape_of(u)}, the plant takes ({layout.size},)")
+    applied = _evaluate("actuator and plant", scenario.actuator.apply, u0)
+    if _shape_of(applied) != (layout.size,):
+        raise ValueError(f"actuator and plant disagree: the applied input has shape {_shape_of(applied)}, the plant takes ({layout.size},)")
+
 
 #: Static loops up to this length are unrolled in Python instead of a lax.scan
 #: (a one-trip XLA while loop costs more than its body here).
 UNROLL_LIMIT = 4
 #: The same for the unrecorded samples of a record group: a whole sample is a large
 #: body, and XLA:CPU's compile time grows faster than the unrolled body (a 600 s run
-#: recorded every 5 samples compiled in 18 s unrolled, 6.7 s as a scan).
+#: recorded every 5 samples compiled in 18 s unrolled, 6.3 s as a scan).
 RECORD_GROUP_UNROLL_LIMIT = 1
-# Streams of lookout._random.standard_normal: the plant's process noise and the
-# sensor's measurement noise of a sample are drawn independently of each other.
+# Streams of lookout._random.standard_normal: the plant's process noise, the
+# sensor's noise and the reference's noise of a sample are drawn independently.
 PROCESS_STREAM = 0
 SENSOR_STREAM = 1
+REFERENCE_STREAM = 2
+#: Folded into a run's key for ``plant.realize``.
+REALIZATION_KEY = 0x5EA
 
 
 def _static_scan(body, carry, xs, length: int, unroll_limit: int = UNROLL_LIMIT):
@@ -194,29 +345,42 @@ def _sample_time(scenario: Scenario, k):
     return (k * scenario.substeps) * scenario.plant_step
 
 
-def _sample(scenario: Scenario, carry, k: Array, key: Array):
-    """Advance plant, sensor, controller and observer by one sample period."""
-    plant, sensor, observer = scenario.plant, scenario.sensor, scenario.observer
-    h = scenario.plant_step
-    substeps = scenario.substeps
-    state, estimate, held, control_state, tau = carry
+def _realized_plant(scenario: Scenario, key: Array) -> Plant:
+    return scenario.plant.realize(jax.random.fold_in(key, REALIZATION_KEY))
+
+
+def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
+    """One sample period in the order of the module docstring; returns (carry, record)."""
+    sensor, observer, reference, controller = scenario.sensor, scenario.observer, scenario.reference, scenario.controller
+    h, substeps, dt = scenario.plant_step, scenario.substeps, scenario.sample_period
+    integrate = INTEGRATORS[scenario.integrator]
+    state, estimate_state, held, reference_state, control_state = carry
     t = _sample_time(scenario, k)
     noise = _process_noise(scenario, key, k)
 
     if scenario.observer_mode == "sampled":
         due = (k % jnp.asarray(scenario.sensor_steps)) == 0
         measured = sensor.measure(state, _sensor_noise(scenario, key, k, due))
-        measurement = jnp.where(due, measured, held)
+        y = jnp.where(due, measured, held)
     else:
-        measurement = sensor.ideal(state)
-    record = (state, estimate, measurement, tau)
+        y = sensor.ideal(state)
+    estimate_state = observer.update(estimate_state, t, y)
+    estimate = observer.output(estimate_state, y)
+    reference_noise = standard_normal(key, k, reference.noise_size, stream=REFERENCE_STREAM)
+    reference_state, reference_sample = reference.step(reference_state, t, dt, reference_noise)
+    control_state, command = controller.step(control_state, t, y, estimate, reference_sample, dt)
+    # the applied input is read by every integration stage of plant and observer:
+    # computed once (a value made in the loop body is otherwise recomputed by XLA:CPU
+    # in every kernel that reads it)
+    applied = computed_once(scenario.actuator.apply(command))
+    record = (plant.variables(state), estimate, y, reference_sample, command, applied)
 
     if scenario.observer_mode == "sampled":
-        estimate, _ = observer.step(estimate, t, measurement, tau, scenario.sample_period, substeps)
+        estimate_state = observer.predict(estimate_state, t, y, applied, dt)
 
         def substep(x, j):
-            field = lambda s, z: plant.vector_field(s, z, tau, noise[j])
-            return rk4_step(field, (k * substeps + j) * h, x, h), None
+            field = lambda s, z: plant.vector_field(s, z, applied, noise[j])
+            return integrate(field, (k * substeps + j) * h, x, h), None
 
         state, _ = _static_scan(substep, state, jnp.arange(substeps), substeps)
     else:
@@ -224,36 +388,30 @@ def _sample(scenario: Scenario, carry, k: Array, key: Array):
         def substep(pair, j):
             def field(s, z):
                 x, xhat = z
-                return (
-                    plant.vector_field(s, x, tau, noise[j]),
-                    observer.vector_field(s, xhat, sensor.ideal(x), tau),
-                )
+                return plant.vector_field(s, x, applied, noise[j]), observer.vector_field(s, xhat, sensor.ideal(x), applied)
 
-            return rk4_step(field, (k * substeps + j) * h, pair, h), None
+            return integrate(field, (k * substeps + j) * h, pair, h), None
 
-        (state, estimate), _ = _static_scan(substep, (state, estimate), jnp.arange(substeps), substeps)
-        estimate = estimate.wrapped()
-    # tau_{k+1} from the estimate at t_{k+1}, computed here and carried into the next
-    # sample: a loop-carried value is computed once, whereas XLA:CPU recomputes a
-    # value made inside the loop body in every kernel that uses it (the thrust's sine
-    # was evaluated for each of the 8 integration stages and every run; 22 % faster)
-    control_state, tau = scenario.control.step(control_state, _sample_time(scenario, k + 1), estimate)
-    return (state.wrapped(), estimate, measurement, control_state, tau), record
+        (state, estimate_state), _ = _static_scan(substep, (state, estimate_state), jnp.arange(substeps), substeps)
+        estimate_state = observer.normalize(estimate_state)
+    return (plant.normalize(state), estimate_state, y, reference_state, control_state), record
 
 
-def _initial_carry(scenario: Scenario):
-    """Plant state, estimate, held sensor samples, controller state and tau_0.
+def _initial_carry(scenario: Scenario, key: Array):
+    """Plant state, observer state, held sensor samples, reference and controller state.
 
-    Every leaf is given its own (strong) dtype: a weakly typed leaf, such as a
-    component's output computed from Python floats, would come back strongly typed
-    from the first segment and make ``jit`` compile the segment a second time.
+    The observer starts from ``observer.init(y_0, initial_estimate)`` with y_0 the
+    sample that sample 0 takes (the same numbers: the noise is a function of the
+    key and the sample index). Every leaf gets its own (strong) dtype: a weakly
+    typed leaf would come back strongly typed from the first segment and make
+    ``jit`` compile the segment a second time.
     """
-    carry = (
-        scenario.initial_state,
-        scenario.initial_estimate,
-        jnp.full(len(scenario.sensor.sample_period), jnp.nan),
-        *scenario.control.step(scenario.control.init(), _sample_time(scenario, 0), scenario.initial_estimate),
-    )
+    x0 = scenario.initial_state
+    if scenario.observer_mode == "sampled":
+        y0 = scenario.sensor.measure(x0, _sensor_noise(scenario, key, jnp.asarray(0), jnp.asarray(True)))
+    else:
+        y0 = scenario.sensor.ideal(x0)
+    carry = (x0, scenario.observer.init(y0, scenario.initial_estimate), y0, scenario.reference.init(), scenario.controller.init())
     return jax.tree.map(lambda leaf: jnp.asarray(leaf, dtype=jnp.result_type(leaf)), carry)
 
 
@@ -264,9 +422,10 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
     record; only the first sample of each group is recorded.
     """
     every = scenario.record_every
+    plant = _realized_plant(scenario, key)
 
     def one(c, k):
-        return _sample(scenario, c, k, key)
+        return _sample(scenario, plant, c, k, key)
 
     def group(carry, first):
         carry, record = one(carry, first)
@@ -277,19 +436,20 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
         # one flat vector per record: a single write per record instead of one per leaf
         return carry, ravel_pytree(record)[0]
 
-    template = jax.eval_shape(lambda c: _sample(scenario, c, jnp.asarray(0), key)[1], carry)
+    template = jax.eval_shape(lambda c: one(c, jnp.asarray(0))[1], carry)
     unravel = ravel_pytree(jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), template))[1]
     carry, flat = jax.lax.scan(group, carry, (first_record + jnp.arange(n_records)) * every)
     return carry, jax.vmap(unravel)(flat)
 
 
 _segment_jit = eqx.filter_jit(_segment)
+_initial_carry_jit = eqx.filter_jit(_initial_carry)
 
 
 @eqx.filter_jit
-def _initial_carry_batch(scenario, n_runs: int, batched_scenario: bool):
+def _initial_carry_batch(scenario, keys, batched_scenario: bool):
     axes = eqx.if_array(0) if batched_scenario else None
-    return eqx.filter_vmap(_initial_carry, in_axes=(axes,), axis_size=n_runs)(scenario)
+    return eqx.filter_vmap(_initial_carry, in_axes=(axes, 0))(scenario, keys)
 
 
 @eqx.filter_jit
@@ -329,6 +489,14 @@ def _time_grid(scenario: Scenario) -> np.ndarray:
     return np.arange(scenario.n_records) * scenario.record_every * scenario.sample_period
 
 
+def _trajectory(scenario: Scenario, records, batched: bool) -> Trajectory:
+    truth, estimate, measurement, reference, command, applied = records
+    return Trajectory(
+        _time_grid(scenario), truth, estimate, measurement, reference, command, applied,
+        signals=scenario.record_signals, batched=batched, attrs=_attrs(scenario),
+    )
+
+
 def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20) -> Trajectory:
     """Simulate one run.
 
@@ -336,7 +504,7 @@ def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20)
     ----------
     scenario : Scenario
     key : jax.random key
-        Seeds process noise, measurement noise and dropouts.
+        Seeds process noise, measurement noise, dropouts and the plant's realization.
     progress : callable, optional
         ``progress(done, total)`` called after each of about ``chunks`` segments;
         without it the run is a single jitted scan.
@@ -346,12 +514,11 @@ def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20)
     Returns
     -------
     Trajectory
-        Recorded states, estimates, measurements and inputs, with time.
+        Recorded truths, estimates, measurements, references and inputs, with time.
     """
     step = lambda carry, first, length: _segment_jit(scenario, key, carry, first, length)
-    records = _run(step, _initial_carry(scenario), scenario.n_records, progress, chunks, time_axis=0)
-    state, estimate, measurement, tau = records
-    return Trajectory(_time_grid(scenario), state, estimate, measurement, tau, attrs=_attrs(scenario))
+    records = _run(step, _initial_carry_jit(scenario, key), scenario.n_records, progress, chunks, time_axis=0)
+    return _trajectory(scenario, records, batched=False)
 
 
 #: Largest seed a JAX key accepts (it converts the seed to a signed 64-bit integer).
@@ -385,9 +552,14 @@ def seed_keys(seed: int, runs: int) -> Array:
 
 
 def record_nbytes(scenario: Scenario) -> int:
-    """Bytes that one recorded sample of one run takes in the results (state,
-    estimate, measurement and input), from the shapes the engine records."""
-    record = jax.eval_shape(lambda key: _sample(scenario, _initial_carry(scenario), jnp.asarray(0), key)[1], jax.random.key(0))
+    """Bytes that one recorded sample of one run takes in the results (truths,
+    estimate, measurement, reference and inputs), from the shapes the engine records."""
+
+    def one(key):
+        carry = _initial_carry(scenario, key)
+        return _sample(scenario, _realized_plant(scenario, key), carry, jnp.asarray(0), key)[1]
+
+    record = jax.eval_shape(one, jax.random.key(0))
     return int(sum(leaf.size * leaf.dtype.itemsize for leaf in jax.tree.leaves(record)))
 
 
@@ -395,7 +567,7 @@ def _shard_runs(tree, n_runs: int):
     """Place the run axis across all devices when it divides evenly (else leave as is).
 
     Computation follows the data under ``jit``: each device (each CPU core with
-    :func:`lookout.use_all_cpu_cores`, or each GPU) simulates its share of the runs.
+    :func:`lookout.configure_cpu`, or each GPU) simulates its share of the runs.
     Results do not depend on the placement.
     """
     devices = jax.devices()
@@ -417,7 +589,7 @@ def simulate_batch(
         has a leading axis of length ``len(keys)`` (parameters, initial
         conditions) built e.g. with ``jax.vmap`` or ``jax.tree.map(jnp.stack, ...)``.
     keys : Array
-        Batch of PRNG keys, e.g. ``jax.random.split(key, n_runs)``.
+        Batch of PRNG keys, e.g. :func:`seed_keys`.
     batched_scenario : bool
         Map over the leading axis of the scenario's arrays too.
     progress, chunks
@@ -432,7 +604,7 @@ def simulate_batch(
     keys = _shard_runs(keys, n_runs)
     if batched_scenario:
         scenario = eqx.combine(_shard_runs(eqx.filter(scenario, eqx.is_array), n_runs), eqx.filter(scenario, eqx.is_array, inverse=True))
-    carry = _shard_runs(_initial_carry_batch(scenario, n_runs, batched_scenario), n_runs)
+    carry = _shard_runs(_initial_carry_batch(scenario, keys, batched_scenario), n_runs)
 
     def step(carry, first, length):
         return _segment_batch(scenario, keys, carry, first, length, batched_scenario)
@@ -440,8 +612,7 @@ def simulate_batch(
     records = _run(step, carry, scenario.n_records, progress, chunks, time_axis=1)
     # gather the shards onto one device so results index like ordinary arrays
     records = jax.device_put(records, jax.devices()[0])
-    state, estimate, measurement, tau = records
-    return Trajectory(_time_grid(scenario), state, estimate, measurement, tau, batched=True, attrs=_attrs(scenario))
+    return _trajectory(scenario, records, batched=True)
 
 
 def _attrs(scenario: Scenario) -> dict:
@@ -450,5 +621,12 @@ def _attrs(scenario: Scenario) -> dict:
         "sample_period_s": scenario.sample_period,
         "sensor_sample_period_s": list(scenario.sensor.sample_period),
         "record_every": scenario.record_every,
+        "integrator": scenario.integrator,
         "observer_mode": scenario.observer_mode,
+        "plant": type(scenario.plant).__name__,
+        "sensor": type(scenario.sensor).__name__,
+        "observer": type(scenario.observer).__name__,
+        "controller": type(scenario.controller).__name__,
+        "reference": type(scenario.reference).__name__,
+        "actuator": type(scenario.actuator).__name__,
     }

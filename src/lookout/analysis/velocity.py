@@ -1,0 +1,349 @@
+"""Theorem 2.1 of Calugi (2002) on concrete numbers: the velocity observer's gain condition.
+
+Calugi (2002), master thesis, Lund, Section 2.2. With V = 1/2 x1~^T x1~ and the error
+dynamics (2.9), Properties 2.1 and 2.3 and the speed bound (2.2) give (2.11)::
+
+    V' <= (C_M / M_m (2 w_max + |x1~|) - sigma) |x1~|^2,      sigma = lambda_min(K)
+
+so V decreases while |x1~| < M_m sigma / C_M - 2 w_max (region 2.13, Remark 2.1),
+and from x1_hat(0) = 0 (|x1~(0)| = |q'(0)| <= w_max) the error converges
+exponentially if sigma > 3 C_M w_max / M_m (Theorem 2.1). The constants:
+
+* M_m = min over q of lambda_min(M(q)) and M_M = max over q of lambda_max(M(q))
+  (Property 2.1; ``||M^-1|| <= 1/M_m`` is what (2.11) uses);
+* C_M = max over q and unit v of ||C(q, v)||_2 (Property 2.3), for the
+  Christoffel-symbol C of :meth:`~lookout.models.manipulators.ManipulatorModel.coriolis_matrix`,
+  the factorization for which Property 2.2, used to derive (2.9), holds.
+
+Norms are Euclidean in joint space (for the cart-pendulum they mix m/s and rad/s,
+as the thesis does). The constants are found numerically over the configuration
+space (:func:`configuration_bounds`): M(q), and with it C, depends only on the
+revolute angles that it is found to vary with (checked at random configurations);
+those angles are gridded over [-pi, pi) and the best grid point is refined by
+Nelder–Mead. A prismatic coordinate must not enter M (the
+cart position does not); if it does, there is no bounded configuration space to
+search and a ValueError says so.
+
+Friction. The thesis puts friction inside C, but then neither Property 2.2 nor
+Property 2.3 (||C(q, v)|| <= C_M ||v|| for all v) can hold, since F v does not
+vanish with the velocity. With friction apart (plant and observer both carry
+F q'), (2.9) gains ``-M^-1 F x1~`` and (2.11) gains ``-x1~^T M^-1 F x1~
+<= -phi |x1~|^2`` with::
+
+    phi = min over q of lambda_min(1/2 (M^-1(q) F + F M^-1(q)))
+
+When phi >= 0 friction only adds dissipation and the thesis's condition, with
+friction left out, stays sufficient; M^-1 F is not symmetric, though, and phi can
+be negative when the joints' frictions differ (the printed two-link arm, c1 = 0.5
+and c2 = 0.1: phi = -0.21 1/s), and then the bound needs it.
+So the condition reported here uses ``sigma_eff = sigma + min(phi, 0)``: it is the
+thesis's condition whenever friction cannot hurt, and a sufficient one always.
+(For the free pendulum C = 0 and the error obeys x1~' = -(K + c/(m l^2)) x1~
+exactly: the thesis's gain K = 2 - c/(m l^2) puts the decay rate at 2, which
+is sigma + phi, not sigma_eff.) ``friction_bound`` reports phi.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.optimize
+
+from lookout import _validation as check
+from lookout.models.manipulators import PRISMATIC, REVOLUTE, ManipulatorModel
+
+#: Random configurations at which the dependence of M on each coordinate is probed.
+PROBE_CONFIGURATIONS = 16
+
+
+def configuration_angles(model: ManipulatorModel) -> tuple[int, ...]:
+    """Indices of the revolute joints whose angle M(q) depends on.
+
+    Probed at :data:`PROBE_CONFIGURATIONS` fixed pseudo-random configurations (angles
+    in [-pi, pi), prismatic coordinates in [-10, 10]).
+
+    Raises
+    ------
+    ValueError
+        When M(q) depends on a prismatic coordinate (its range is unbounded, so the
+        bounds of Properties 2.1 and 2.3 are not defined over it).
+    """
+    rng = np.random.default_rng(20020)
+    n = model.size
+    scale = np.where(np.array(model.revolute), np.pi, 10.0)
+    q = rng.uniform(-1.0, 1.0, size=(PROBE_CONFIGURATIONS, n)) * scale
+    probe = jax.jit(jax.vmap(lambda c: (model.mass_matrix(c), jax.jacfwd(model.mass_matrix)(c))))
+    inertia, derivative = (np.asarray(a) for a in probe(jnp.asarray(q)))  # derivative[probe, k, j, i]
+    sensitivity = np.abs(derivative).max(axis=(0, 1, 2))
+    scale_of_m = max(float(np.abs(inertia).max()), np.finfo(float).tiny)
+    depends = sensitivity > 1e-12 * scale_of_m
+    for i, kind in enumerate(model.joint_kinds):
+        if kind == PRISMATIC and depends[i]:
+            raise ValueError(
+                f"M(q) depends on the prismatic coordinate of joint {model.joint_names[i]!r}: "
+                "the bounds M_m, C_M over an unbounded coordinate are not defined"
+            )
+    return tuple(i for i, kind in enumerate(model.joint_kinds) if kind == REVOLUTE and depends[i])
+
+
+def _grid(model: ManipulatorModel, angles: tuple[int, ...], grid_points: int) -> np.ndarray:
+    """Configurations: the given angles on a grid over [-pi, pi), the others 0."""
+    if not (isinstance(grid_points, int) and grid_points >= 2):
+        raise ValueError(f"grid_points must be an integer >= 2; got {grid_points!r}")
+    if grid_points ** len(angles) > 2_000_000:
+        raise ValueError(f"a grid of {grid_points}^{len(angles)} configurations is too large; lower grid_points")
+    axis = -np.pi + 2.0 * np.pi * np.arange(grid_points) / grid_points
+    mesh = np.meshgrid(*([axis] * len(angles)), indexing="ij")
+    q = np.zeros((grid_points ** len(angles), model.size))
+    for column, index in enumerate(angles):
+        q[:, index] = mesh[column].ravel()
+    return q
+
+
+def _directions(n: int, direction_points: int) -> np.ndarray:
+    """Unit vectors covering the sphere up to sign (||C(q, v)|| is even in v)."""
+    if n == 1:
+        return np.ones((1, 1))
+    if n == 2:
+        phi = np.pi * np.arange(direction_points) / direction_points
+        return np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    rng = np.random.default_rng(20021)
+    v = np.vstack([np.eye(n), rng.standard_normal((direction_points * n, n))])
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _maximize(objective, grid: np.ndarray, values: np.ndarray, refine: bool) -> float:
+    """max of the scalar ``objective`` given its ``values`` on the rows of ``grid``: the
+    best row refined by Nelder–Mead (the larger of the two)."""
+    best = int(np.argmax(values))
+    value = float(values[best])
+    if not refine or grid.shape[1] == 0:
+        return value
+    result = scipy.optimize.minimize(
+        lambda p: -objective(p), grid[best], method="Nelder-Mead",
+        options={"xatol": 1e-10, "fatol": 1e-15, "maxiter": 4000},
+    )
+    return max(value, -float(result.fun))
+
+
+def _configuration_functions(model: ManipulatorModel, angles: tuple[int, ...]):
+    """The searched quantities as functions of the relevant angles ``p`` (and of a
+    velocity direction for the Coriolis norm), jitted once per call."""
+    k = len(angles)
+    index = jnp.asarray(angles, dtype=int)
+
+    def q_of(p):
+        return jnp.zeros(model.size).at[index].set(p[:k]) if k else jnp.zeros(model.size)
+
+    @jax.jit
+    def inertia_and_friction(p):
+        """(-lambda_min(M), lambda_max(M), -lambda_min(sym(M^-1 F))): all maximized."""
+        M = model.mass_matrix(q_of(p))
+        eigenvalues = jnp.linalg.eigvalsh(M)
+        product = jnp.linalg.solve(M, jnp.diag(model.friction))
+        friction = jnp.linalg.eigvalsh(0.5 * (product + product.T))[0]
+        return jnp.stack([-eigenvalues[0], eigenvalues[-1], -friction])
+
+    @jax.jit
+    def coriolis_norm(p):
+        """||C(q, v / |v|)||_2 with p = (angles, v)."""
+        v = p[k:]
+        return jnp.linalg.norm(model.coriolis_matrix(q_of(p), v / jnp.linalg.norm(v)), 2)
+
+    return inertia_and_friction, coriolis_norm
+
+
+@dataclass(frozen=True)
+class ConfigurationBounds:
+    """The model constants of Theorem 2.1, found over the configuration space.
+
+    Attributes
+    ----------
+    min_inertia, max_inertia : float
+        M_m and M_M of Property 2.1.
+    coriolis_bound : float
+        C_M of Property 2.3 (Christoffel C).
+    friction_bound : float
+        phi = min_q lambda_min(sym(M^-1 F)).
+    angles : tuple of str
+        Names of the joints whose angle M depends on (the searched coordinates).
+    """
+
+    min_inertia: float
+    max_inertia: float
+    coriolis_bound: float
+    friction_bound: float
+    angles: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        """Plain Python values."""
+        return asdict(self) | {"angles": list(self.angles)}
+
+
+def configuration_bounds(
+    model: ManipulatorModel, *, grid_points: int = 64, direction_points: int = 64, refine: bool = True
+) -> ConfigurationBounds:
+    """M_m, M_M (Property 2.1), C_M (Property 2.3) and phi of ``model``, to reuse across
+    gains and speed bounds.
+
+    C_M = max over q and unit v of ||C(q, v)||_2 for the Christoffel C; C is linear in
+    v, so ``||C(q, v)|| <= C_M ||v||`` for every v. Each quantity is maximized over a
+    grid of the angles M depends on (:func:`configuration_angles`; ``grid_points``
+    per angle over [-pi, pi)) and, for C_M, of velocity directions
+    (``direction_points`` on a half circle for n = 2), then refined by Nelder–Mead
+    from the best grid point.
+    """
+    angles = configuration_angles(model)
+    q_grid = _grid(model, angles, grid_points)[:, list(angles)]
+    inertia_and_friction, coriolis_norm = _configuration_functions(model, angles)
+    table = np.asarray(jax.jit(jax.vmap(inertia_and_friction))(jnp.asarray(q_grid)))
+    extremes = [
+        _maximize(lambda p, i=i: float(np.asarray(inertia_and_friction(jnp.asarray(p)))[i]), q_grid, table[:, i], refine)
+        for i in range(3)
+    ]
+    directions = _directions(model.size, direction_points)
+    pairs = np.concatenate([np.repeat(q_grid, len(directions), axis=0), np.tile(directions, (len(q_grid), 1))], axis=1)
+    norms = np.asarray(jax.jit(jax.vmap(coriolis_norm))(jnp.asarray(pairs)))
+    c_max = _maximize(lambda p: float(coriolis_norm(jnp.asarray(p))), pairs, norms, refine and norms.max() > 0.0)
+    return ConfigurationBounds(
+        min_inertia=-extremes[0],
+        max_inertia=extremes[1],
+        coriolis_bound=c_max,
+        friction_bound=-extremes[2],
+        angles=tuple(model.joint_names[i] for i in angles),
+    )
+
+
+@dataclass(frozen=True)
+class VelocityObserverCondition:
+    """Theorem 2.1 of Calugi (2002) evaluated for one model, gain and speed bound.
+
+    Attributes
+    ----------
+    gain_bound : float
+        sigma = lambda_min(K) (1/s).
+    friction_bound : float
+        phi = min_q lambda_min(sym(M^-1 F)) (1/s); see the module docstring.
+    effective_gain : float
+        sigma + min(phi, 0): the gain the condition uses.
+    min_inertia, max_inertia : float
+        M_m and M_M of Property 2.1 (in the units of M).
+    coriolis_bound : float
+        C_M of Property 2.3, Christoffel C.
+    max_speed : float
+        w_max of (2.2) (joint-space 2-norm of q').
+    threshold : float
+        3 C_M w_max / M_m (1/s).
+    margin : float
+        effective_gain - threshold.
+    satisfied : bool
+        margin > 0: Theorem 2.1's sufficient condition holds.
+    radius : float
+        Region (2.13): M_m effective_gain / C_M - 2 w_max (``inf`` when C_M = 0);
+        exponential convergence for every initial error of smaller norm.
+    initial_error : float or None
+        ||x1~(0)|| if given.
+    inside_region : bool or None
+        initial_error < radius, if given.
+    """
+
+    gain_bound: float
+    friction_bound: float
+    effective_gain: float
+    min_inertia: float
+    max_inertia: float
+    coriolis_bound: float
+    max_speed: float
+    threshold: float
+    margin: float
+    satisfied: bool
+    radius: float
+    initial_error: float | None = None
+    inside_region: bool | None = None
+
+    def to_dict(self) -> dict:
+        """Plain Python values (``radius`` may be ``inf``)."""
+        return asdict(self)
+
+    def __str__(self) -> str:
+        verdict = "holds" if self.satisfied else "fails"
+        text = (
+            f"Theorem 2.1 {verdict}: sigma_eff = {self.effective_gain:.4g} vs 3 C_M w_max / M_m = {self.threshold:.4g} "
+            f"(C_M = {self.coriolis_bound:.4g}, M_m = {self.min_inertia:.4g}, w_max = {self.max_speed:.4g}); "
+            f"region (2.13) radius {self.radius:.4g}"
+        )
+        if self.initial_error is not None:
+            text += f", initial error {self.initial_error:.4g} {'inside' if self.inside_region else 'outside'}"
+        return text
+
+
+def velocity_observer_condition(
+    model: ManipulatorModel,
+    gain,
+    max_speed: float,
+    *,
+    initial_error: float | None = None,
+    bounds: ConfigurationBounds | None = None,
+    grid_points: int = 64,
+    direction_points: int = 64,
+    refine: bool = True,
+) -> VelocityObserverCondition:
+    """Theorem 2.1 and region (2.13) of Calugi (2002) for ``model``, gain K and speed bound.
+
+    Parameters
+    ----------
+    model : ManipulatorModel
+        The model (the observer's and the plant's are taken to be the same).
+    gain : float or array_like, shape (n,)
+        Diagonal of K, > 0.
+    max_speed : float
+        w_max >= 0, a bound on ||q'(t)|| (eq. 2.2).
+    initial_error : float, optional
+        ||x1~(0)||, to check against the region (2.13).
+    bounds : ConfigurationBounds, optional
+        The model's constants from :func:`configuration_bounds` (computed if absent).
+    grid_points : int
+        Grid points per relevant angle over [-pi, pi).
+    direction_points : int
+        Velocity directions of the C_M search (n = 2: points on a half circle).
+    refine : bool
+        Refine the grid's best points by Nelder–Mead.
+
+    Returns
+    -------
+    VelocityObserverCondition
+    """
+    gain = check.vector("velocity observer gain", gain, model.size)
+    check.positive("velocity observer gain", gain)
+    check.positive("max_speed", max_speed, allow_zero=True)
+    if initial_error is not None:
+        check.positive("initial_error", initial_error, allow_zero=True)
+    sigma = float(np.min(gain))
+    if bounds is None:
+        bounds = configuration_bounds(model, grid_points=grid_points, direction_points=direction_points, refine=refine)
+    low, high = bounds.min_inertia, bounds.max_inertia
+    c_max, phi = bounds.coriolis_bound, bounds.friction_bound
+    effective = sigma + min(phi, 0.0)
+    w_max = float(max_speed)
+    threshold = 3.0 * c_max * w_max / low
+    radius = math.inf if c_max == 0.0 else low * effective / c_max - 2.0 * w_max
+    inside = None if initial_error is None else bool(float(initial_error) < radius)
+    return VelocityObserverCondition(
+        gain_bound=sigma,
+        friction_bound=phi,
+        effective_gain=effective,
+        min_inertia=low,
+        max_inertia=high,
+        coriolis_bound=c_max,
+        max_speed=w_max,
+        threshold=threshold,
+        margin=effective - threshold,
+        satisfied=bool(effective > threshold),
+        radius=radius,
+        initial_error=None if initial_error is None else float(initial_error),
+        inside_region=inside,
+    )

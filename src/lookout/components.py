@@ -1,0 +1,273 @@
+"""The component contract: what every plant, sensor, observer, reference, controller
+and actuator provides, and the labelled signals they exchange (DESIGN.md, Interfaces).
+
+Every component is an ``equinox.Module``: a frozen dataclass and a JAX PyTree whose
+arrays (parameters, gains) can be vmapped and differentiated, and whose static
+fields (sizes, labels, periods) fix the structure of the compiled loop. The classes
+here are abstract; every implementation is final (it is not subclassed again, and
+overrides nothing concrete).
+
+Signals
+-------
+A :class:`Signal` names one physical quantity with one unit (so that a NetCDF
+variable has one unit that CF tools parse): a scalar (``heading``, rad) or a vector
+whose components share the unit (``position`` over ``north, east``, m). A
+:class:`Layout` lays several signals end to end in one flat vector, as a sensor's
+measurement or a plant's input is passed around; ``split`` gives them back by name.
+
+The sample loop (see :mod:`lookout.sim`)
+----------------------------------------
+At sample k, time t_k::
+
+    y_k   = sensor.measure(x(t_k), normals)         channels not due hold their last sample
+    S     = observer.update(S, t_k, y_k)            correction (discrete observers)
+    e_k   = observer.output(S, y_k)                 labelled estimate at t_k
+    R, r_k = reference.step(R, t_k, dt, normals)
+    C, u_k = controller.step(C, t_k, y_k, e_k, r_k, dt)
+    v_k   = actuator.apply(u_k)
+    record (truth, e_k, y_k, r_k, u_k, v_k)
+    x(t_k+1) = integrate plant.vector_field(t, x, v_k, w) over [t_k, t_k+1]
+    S     = observer.predict(S, t_k, y_k, v_k, dt)
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+from jax import Array
+
+#: Frames a signal can be expressed in (free text is allowed; these are the common ones).
+EARTH_FIXED = "Earth-fixed"
+BODY_FIXED = "body-fixed"
+JOINT_SPACE = "joint space"
+
+
+@dataclass(frozen=True)
+class Signal:
+    """One physical quantity with one unit: a scalar or a vector of labelled components.
+
+    Parameters
+    ----------
+    name : str
+        Variable name in the results (``position``); an observer's estimate of a
+        plant variable has the same name, and the results add ``_hat``.
+    units : str
+        One unit that UDUNITS parses (``m``, ``rad/s``, ``N m``, ``1``).
+    long_name : str
+        Human-readable description.
+    frame : str
+        ``"Earth-fixed"``, ``"body-fixed"``, ``"joint space"`` or ``""``.
+    labels : tuple of str
+        Component labels (``("north", "east")``); empty for a scalar.
+    dim : str, optional
+        Name of the label dimension in the results; signals that share a ``dim``
+        must share its labels. Required for a vector, absent for a scalar.
+    angle : bool
+        An angle: differences go through ``ssa`` (estimation errors).
+    """
+
+    name: str
+    units: str
+    long_name: str
+    frame: str = ""
+    labels: tuple[str, ...] = ()
+    dim: str | None = None
+    angle: bool = False
+
+    def __post_init__(self):
+        if not self.name.isidentifier():
+            raise ValueError(f"Signal name must be an identifier; got {self.name!r}")
+        if not self.units:
+            raise ValueError(f"Signal {self.name!r} needs a unit ('1' if dimensionless)")
+        if bool(self.labels) != (self.dim is not None):
+            raise ValueError(f"Signal {self.name!r}: give labels and dim together (a vector), or neither (a scalar)")
+        if len(set(self.labels)) != len(self.labels):
+            raise ValueError(f"Signal {self.name!r}: labels must be distinct; got {self.labels}")
+
+    @property
+    def size(self) -> int:
+        """Number of components (1 for a scalar)."""
+        return max(1, len(self.labels))
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Shape of one sample: () for a scalar, (n,) for a vector."""
+        return (len(self.labels),) if self.labels else ()
+
+    def renamed(self, name: str, long_name: str | None = None) -> "Signal":
+        """The same quantity under another name (an innovation, a reference, a measurement)."""
+        return Signal(name, self.units, long_name or self.long_name, self.frame, self.labels, self.dim, self.angle)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Signals laid end to end in one flat vector (a measurement, an input).
+
+    Parameters
+    ----------
+    signals : tuple of Signal
+        In order; scalars take one entry, vectors ``len(labels)``.
+    """
+
+    signals: tuple[Signal, ...] = field(default_factory=tuple)
+
+    def __post_init__(self):
+        names = [s.name for s in self.signals]
+        if len(set(names)) != len(names):
+            raise ValueError(f"Layout signal names must be distinct; got {names}")
+
+    @property
+    def size(self) -> int:
+        """Length of the flat vector."""
+        return sum(s.size for s in self.signals)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.signals)
+
+    def split(self, vector: Array) -> dict[str, Array]:
+        """The flat vector (last axis) as ``{name: part}``; scalars lose the axis."""
+        parts, start = {}, 0
+        for s in self.signals:
+            part = vector[..., start : start + s.size]
+            parts[s.name] = part[..., 0] if not s.labels else part
+            start += s.size
+        return parts
+
+    def join(self, parts: dict[str, Any]) -> Array:
+        """Inverse of :meth:`split`."""
+        pieces = [jnp.asarray(parts[s.name]) if s.labels else jnp.asarray(parts[s.name])[..., None] for s in self.signals]
+        return jnp.concatenate(pieces, axis=-1)
+
+    def renamed(self, prefix: str = "", suffix: str = "", long_prefix: str = "") -> "Layout":
+        """The same layout with every name given a prefix and suffix."""
+        return Layout(tuple(s.renamed(f"{prefix}{s.name}{suffix}", f"{long_prefix}{s.long_name}") for s in self.signals))
+
+
+class Plant(eqx.Module):
+    """A continuous-time plant ``dx/dt = f(t, x, u, w)``.
+
+    ``x`` is any PyTree, ``u`` a flat input vector laid out as :attr:`input_layout`,
+    ``w`` unit white noise of size :attr:`noise_size` (held over an integration step;
+    the engine scales it by ``1/sqrt(step)``).
+    """
+
+    input_layout: eqx.AbstractVar[Layout]
+    noise_size: eqx.AbstractVar[int]
+    variable_signals: eqx.AbstractVar[tuple[Signal, ...]]
+
+    @abc.abstractmethod
+    def vector_field(self, t, x, u: Array, w: Array):
+        """dx/dt, a PyTree shaped like ``x``."""
+
+    @abc.abstractmethod
+    def normalize(self, x):
+        """``x`` with angles wrapped where the model wants them wrapped (after each sample)."""
+
+    @abc.abstractmethod
+    def variables(self, x) -> dict[str, Array]:
+        """The recorded quantities of state ``x``, named and shaped as :attr:`variable_signals`."""
+
+    @abc.abstractmethod
+    def realize(self, key: Array) -> "Plant":
+        """This plant with its per-run random parts drawn from ``key`` (or itself)."""
+
+
+class Sensor(eqx.Module):
+    """A sampled measurement ``y = h(x) + noise``; NaN marks a dropped channel.
+
+    Each entry of ``y`` is a channel with its own sample period; between samples
+    the engine holds a channel's last value.
+    """
+
+    measurement_layout: eqx.AbstractVar[Layout]
+    sample_period: eqx.AbstractVar[tuple[float, ...]]
+    noise_size: eqx.AbstractVar[int]
+
+    @abc.abstractmethod
+    def measure(self, x, normals: Array) -> Array:
+        """One sample of every channel, from ``noise_size`` standard normals."""
+
+    @abc.abstractmethod
+    def ideal(self, x) -> Array:
+        """The noise-free, never-dropped measurement (continuous-time analysis)."""
+
+
+class Observer(eqx.Module):
+    """A state observer: internal state ``S``, corrected by samples, propagated between them.
+
+    ``estimate_signals`` are estimates of plant variables, named, shaped and united
+    as the plant's (the results pair ``v`` with ``v_hat``); ``extra_signals`` are the
+    observer's other outputs (innovations, parameter estimates, sliding surfaces).
+    """
+
+    estimate_signals: eqx.AbstractVar[tuple[Signal, ...]]
+    extra_signals: eqx.AbstractVar[tuple[Signal, ...]]
+
+    @abc.abstractmethod
+    def init(self, y0: Array, guess):
+        """Internal state at t_0 from the first sample and the initial guess."""
+
+    @abc.abstractmethod
+    def update(self, state, t, y: Array):
+        """Correction when sample ``y`` arrives at ``t`` (identity for continuous observers)."""
+
+    @abc.abstractmethod
+    def output(self, state, y: Array) -> dict[str, Array]:
+        """The estimate at the sample: :attr:`estimate_signals` and :attr:`extra_signals` by name."""
+
+    @abc.abstractmethod
+    def predict(self, state, t, y: Array, u: Array, dt):
+        """From t to t + dt with ``y`` and ``u`` held."""
+
+
+class ContinuousObserver(Observer):
+    """An observer given as a vector field, which the engine can also integrate jointly
+    with the plant on the noise-free measurement (``observer_mode="continuous"``)."""
+
+    @abc.abstractmethod
+    def vector_field(self, t, state, y: Array, u: Array):
+        """dS/dt with the measurement ``y`` and input ``u``."""
+
+    @abc.abstractmethod
+    def normalize(self, state):
+        """``state`` with its angles wrapped (after a joint integration with the plant)."""
+
+
+class Reference(eqx.Module):
+    """A reference generator: desired trajectory samples for the controller."""
+
+    reference_signals: eqx.AbstractVar[tuple[Signal, ...]]
+    noise_size: eqx.AbstractVar[int]
+
+    @abc.abstractmethod
+    def init(self):
+        """Internal state at t_0."""
+
+    @abc.abstractmethod
+    def step(self, state, t, dt, normals: Array):
+        """``(state, sample)``: the reference at ``t`` as ``{name: value}`` and the state at t + dt."""
+
+
+class Controller(eqx.Module):
+    """A control law; open-loop inputs and "no control" are controllers too."""
+
+    @abc.abstractmethod
+    def init(self):
+        """Internal state at t_0."""
+
+    @abc.abstractmethod
+    def step(self, state, t, y: Array, estimate: dict, reference: dict, dt):
+        """``(state, u)``: the commanded input at ``t``, laid out as the plant's input."""
+
+
+class Actuator(eqx.Module):
+    """What the plant receives for a commanded input (limits, saturation)."""
+
+    @abc.abstractmethod
+    def apply(self, u: Array) -> Array:
+        """The applied input."""

@@ -1,0 +1,202 @@
+"""Conformance suite: what every observer (and its scenario) must do in the engine.
+
+A new observer joins by adding a :class:`Case` to ``CASES``, not by writing tests:
+
+- vmapped runs equal the same runs one by one;
+- a change of gains only does not trace the engine again;
+- noise-free, from a perfect start, the estimation error stays at zero (in the
+  case's ``exact_mode``: "continuous" for continuous-time observers, whose sampled
+  implementation holds the measurement over the sample and is exact only to the
+  discretization);
+- NaN dropouts keep the estimate finite;
+- a run in chunks (progress) equals the whole run;
+- decimated records are every n-th sample of the full run;
+- a scenario built inside ``jax.vmap`` over a gain simulates like the ones built
+  one by one, and ``jax.grad`` of an RMS error through ``simulate`` matches central
+  differences.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from lookout.analysis import estimation_errors
+from lookout.sim import Scenario, simulate, simulate_batch
+from lookout.sim import engine
+
+
+@dataclass(frozen=True)
+class Case:
+    """How to build a scenario of one observer for the suite.
+
+    ``build(gain, *, noise, perfect, dropout, duration)`` returns a Scenario; ``gain``
+    scales the observer's gains and may be a JAX tracer (it is vmapped and
+    differentiated); ``perfect`` starts the observer at the true state; ``noise``
+    switches all process and measurement noise. ``error_variable`` is the recorded
+    variable whose RMS error the gradient check differentiates.
+    """
+
+    name: str
+    build: Callable[..., Scenario]
+    exact_mode: str
+    error_variable: str
+
+
+def _passive(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0) -> Scenario:
+    from lookout import PositionHeadingSensor
+    from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper
+    from lookout.observers import PassiveObserver, injection_gains_from_normalized
+    from lookout.papers import fossen_strand_1999 as fs
+
+    quiet = {} if noise else {"noise_std": (0, 0, 0), "bias_std": (0, 0, 0), "wave_amplitude": (0, 0, 0)}
+    config = fs.Config(duration=duration, measurement_period=0.1 if perfect else 1.0, **quiet)
+    base = fs.build(config)
+    kappa, lam = injection_gains_from_normalized(config.velocity_gain_normalized, config.bias_gain_normalized, mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH)
+    observer = PassiveObserver.design(
+        northern_clipper(), wave_frequency=config.wave_frequency, wave_damping=config.wave_damping, notch_damping=config.notch_damping,
+        cutoff_frequency=config.cutoff_frequency, velocity_injection_gain=gain * jnp.asarray(kappa), bias_injection_gain=gain * jnp.asarray(lam),
+        bias_time_constant=config.bias_time_constant,
+    )
+    sensor = PositionHeadingSensor(config.noise_std, config.measurement_period, dropout_probability=dropout)
+    guess = base.initial_state if perfect else observer.guess()
+    return Scenario(
+        base.plant, sensor, observer, base.controller, base.initial_state, guess,
+        plant_step=config.plant_step, sample_period=config.sample_period, duration=config.duration,
+    )
+
+
+def _velocity(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0) -> Scenario:
+    """The two-link arm of Calugi (2002), Section 2.3, with the reduced-order velocity observer."""
+    from lookout.controllers import SinusoidalInput
+    from lookout.models.manipulators import ManipulatorPlant, TwoLinkArm
+    from lookout.observers import VelocityObserver
+    from lookout.sensors import JointEncoder
+
+    arm = TwoLinkArm()
+    plant = ManipulatorPlant(arm, force_noise=0.05 if noise else 0.0)
+    sensor = JointEncoder(arm, sample_period=0.01, noise_std=1e-4 if noise else 0.0, dropout_probability=dropout)
+    observer = VelocityObserver(arm, gain * jnp.full(2, 5.0))
+    start = plant.state(q=[-np.pi / 4, -np.pi / 4], qdot=[0.0, 0.0])
+    guess = start.qdot if perfect else jnp.asarray([-4.0, -4.0])
+    return Scenario(
+        plant, sensor, observer, SinusoidalInput.constant([2.0, 1.0]), start, guess,
+        plant_step=0.005, sample_period=0.01, duration=duration,
+    )
+
+
+CASES = [
+    Case("passive observer (Fossen & Strand 1999)", _passive, exact_mode="continuous", error_variable="velocity"),
+    Case("velocity observer (Calugi 2002, ch. 2)", _velocity, exact_mode="continuous", error_variable="joint_rate"),
+]
+
+
+def _max_difference(a: dict, b: dict) -> float:
+    return max(float(np.nanmax(np.abs(np.asarray(a[k]) - np.asarray(b[k])) / (1.0 + np.abs(np.asarray(b[k]))))) for k in a)
+
+
+@pytest.fixture(params=CASES, ids=lambda case: case.name)
+def case(request) -> Case:
+    return request.param
+
+
+def test_vmapped_runs_equal_the_same_runs_one_by_one(case):
+    scenario = case.build()
+    if jax.default_backend() == "cpu":
+        assert len(jax.devices()) == 2, "conftest exposes two host devices, so the batch below is sharded"
+    keys = jax.random.split(jax.random.key(7), 4)
+    batch = simulate_batch(scenario, keys)
+    for i in range(4):
+        single = simulate(scenario, keys[i])
+        assert _max_difference(jax.tree.map(lambda a: a[i], batch.estimate), single.estimate) < 1e-11
+        assert _max_difference(jax.tree.map(lambda a: a[i], batch.truth), single.truth) < 1e-11
+    assert list(batch.to_xarray().status.values) == ["finite"] * 4
+
+
+def test_a_change_of_gains_only_does_not_trace_again(case):
+    counted = eqx.debug.assert_max_traces(engine._segment, max_traces=1)
+    run = eqx.filter_jit(counted)
+    key = jax.random.key(0)
+    for gain in (1.0, 2.0, 0.5):
+        scenario = case.build(gain)
+        run(scenario, key, engine._initial_carry(scenario, key), jnp.asarray(0), 10)
+
+
+def test_noise_free_perfect_start_stays_exact(case):
+    scenario = dataclasses.replace(case.build(noise=False, perfect=True, duration=60.0), observer_mode=case.exact_mode)
+    ds = simulate(scenario, jax.random.key(0)).to_xarray()
+    errors = estimation_errors(ds)
+    assert errors.data_vars, "the observer estimates no plant variable"
+    for name, error in errors.items():
+        scale = 1.0 + float(np.abs(ds[name]).max())
+        assert float(np.abs(error).max()) <= 1e-12 * scale, (name, float(np.abs(error).max()))
+
+
+def test_nan_dropouts_keep_the_estimate_finite(case):
+    ds = simulate(case.build(dropout=0.5, duration=60.0), jax.random.key(2)).to_xarray()
+    measured = [name for name in ds.data_vars if name.startswith("measured_")]
+    assert any(np.isnan(ds[name].values).any() for name in measured)
+    for name in ds.data_vars:
+        if name.endswith("_hat"):
+            assert np.all(np.isfinite(ds[name].values)), name
+    assert ds.status.values.tolist() == ["finite"]
+
+
+def test_a_run_in_chunks_equals_the_whole_run(case):
+    scenario = case.build(duration=50.0)
+    calls = []
+    chunked = simulate(scenario, jax.random.key(1), progress=lambda done, total: calls.append((done, total)), chunks=3)
+    whole = simulate(scenario, jax.random.key(1))
+    assert _max_difference(chunked.estimate, whole.estimate) < 1e-12 and _max_difference(chunked.truth, whole.truth) < 1e-12
+    assert calls[-1] == (scenario.n_records, scenario.n_records) and len(calls) >= 3
+
+
+@pytest.mark.parametrize("every", [3, 10])
+def test_decimated_records_are_every_nth_sample_of_the_full_run(case, every):
+    """record_every only thins the records: the noise of sample k depends on (key, k) alone.
+
+    The two programs are compiled apart, and XLA may fuse (and so round) them
+    differently: agreement is to a few ulp, where a shifted noise stream would differ
+    at the size of the signal.
+    """
+    full = case.build(duration=30.0)
+    thin = dataclasses.replace(full, record_every=every)
+    key = jax.random.key(5)
+    a, b = simulate(full, key), simulate(thin, key)
+    np.testing.assert_array_equal(b.time, a.time[::every])
+    for group in ("truth", "estimate"):
+        for name in getattr(a, group):
+            np.testing.assert_allclose(np.asarray(getattr(b, group)[name]), np.asarray(getattr(a, group)[name])[::every], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(b.measurement), np.asarray(a.measurement)[::every], rtol=1e-12, atol=1e-15)
+
+
+def test_a_scenario_built_inside_vmap_simulates_like_one_built_alone(case):
+    gains = jnp.asarray([0.5, 1.0, 2.0])
+    scenarios = eqx.filter_vmap(lambda g: case.build(g, duration=20.0))(gains)
+    keys = jax.random.split(jax.random.key(9), 3)
+    batch = simulate_batch(scenarios, keys, batched_scenario=True)
+    for i, gain in enumerate(gains.tolist()):
+        single = simulate(case.build(gain, duration=20.0), keys[i])
+        assert _max_difference(jax.tree.map(lambda a: a[i], batch.estimate), single.estimate) < 1e-10
+
+
+def test_gradient_of_an_rms_error_through_simulate_matches_central_differences(case):
+    key = jax.random.key(3)
+
+    def rms_error(gain):
+        trajectory = simulate(case.build(gain, duration=10.0), key)
+        error = trajectory.truth[case.error_variable] - trajectory.estimate[case.error_variable]
+        return jnp.sqrt(jnp.mean(error**2))
+
+    gradient = float(jax.grad(rms_error)(1.0))
+    step = 1e-4
+    central = (float(rms_error(1.0 + step)) - float(rms_error(1.0 - step))) / (2 * step)
+    assert gradient != 0.0
+    assert gradient == pytest.approx(central, rel=1e-5)
