@@ -80,17 +80,17 @@ def numpy_loop(scenario, duration: float, seed: int = 0) -> float:
 
 
 def lookout_single(scenario, duration: float) -> float:
-    jax.block_until_ready(simulate(scenario, jax.random.key(0)).state)  # compile
+    jax.block_until_ready(simulate(scenario, jax.random.key(0)).truth)  # compile
     start = time.perf_counter()
-    jax.block_until_ready(simulate(scenario, jax.random.key(1)).state)
+    jax.block_until_ready(simulate(scenario, jax.random.key(1)).truth)
     return duration / (time.perf_counter() - start)
 
 
 def lookout_batch(scenario, duration: float, batch: int) -> float:
     keys = jax.random.split(jax.random.key(2), batch)
-    jax.block_until_ready(simulate_batch(scenario, keys).state)  # compile
+    jax.block_until_ready(simulate_batch(scenario, keys).truth)  # compile
     start = time.perf_counter()
-    jax.block_until_ready(simulate_batch(scenario, jax.random.split(jax.random.key(3), batch)).state)
+    jax.block_until_ready(simulate_batch(scenario, jax.random.split(jax.random.key(3), batch)).truth)
     return batch * duration / (time.perf_counter() - start)
 
 

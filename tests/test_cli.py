@@ -8,7 +8,8 @@ import pytest
 import xarray as xr
 
 import lookout.cli
-from lookout.cli import main, mean_and_spread
+from lookout.cli import main
+from lookout.papers._report import json_safe, mean_and_spread
 
 REPRODUCE = ["reproduce", "fossen-strand-1999"]
 DESIGN = ["design", "passive-observer"]
@@ -222,7 +223,7 @@ def test_output_folder_on_a_file_system_that_refuses_writes(capsys, tmp_path, mo
 
 def test_design_json_is_strict_json():
     """Non-finite numbers print as null, never as NaN or Infinity, which JSON parsers reject."""
-    assert lookout.cli._json_safe({"a": [1.0, float("nan")], "b": (float("inf"), "x"), "c": {"d": -float("inf"), "e": 2}}) == {
+    assert json_safe({"a": [1.0, float("nan")], "b": (float("inf"), "x"), "c": {"d": -float("inf"), "e": 2}}) == {
         "a": [1.0, None],
         "b": [None, "x"],
         "c": {"d": None, "e": 2},
@@ -272,8 +273,8 @@ def test_short_reproduce_writes_all_outputs(tmp_path, capsys):
 
 def test_monte_carlo_run_0_is_the_single_run_to_the_last_bit(tmp_path, capsys):
     """--seed 3 --runs 2 runs seeds 3 and 4; its run 0 is --seed 3 alone, bit for bit."""
-    assert main([*REPRODUCE, "--out", str(tmp_path / "one"), "--duration", "60", "--seed", "3"]) == 0
-    assert main([*REPRODUCE, "--out", str(tmp_path / "two"), "--duration", "60", "--seed", "3", "--runs", "2"]) == 0
+    assert main([*REPRODUCE, "--out", str(tmp_path / "one"), "--duration", "20", "--seed", "3"]) == 0
+    assert main([*REPRODUCE, "--out", str(tmp_path / "two"), "--duration", "20", "--seed", "3", "--runs", "2"]) == 0
     one = xr.load_dataset(tmp_path / "one" / "fossen_strand_1999.nc")
     two = xr.load_dataset(tmp_path / "two" / "fossen_strand_1999.nc")
     assert one.seed.values.tolist() == [3] and two.seed.values.tolist() == [3, 4]
@@ -303,3 +304,27 @@ def test_reproduce_with_several_runs_reports_spread_within_80_columns(tmp_path, 
 )
 def test_mean_and_spread_share_one_decimal_place(mean, spread, text):
     assert mean_and_spread(mean, spread) == text
+
+
+def test_reproduce_calugi_2002_writes_every_system_and_reports_theorem_2_1(tmp_path, capsys):
+    out = tmp_path / "calugi"
+    assert main(["reproduce", "calugi-2002-velocity-observer", "--out", str(out), "--duration", "2"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert list(summary["systems"]) == ["pendulum", "two_link", "cart", "furuta"]
+    for name, system in summary["systems"].items():
+        assert (out / f"calugi_2002_{name}.nc").stat().st_size > 0
+        assert system["error_norm"]["final_error"] < 0.05 * system["error_norm"]["initial_error"]  # pendulum: e^-4 after 2 s
+        assert set(system["theorem_2_1"]) >= {"effective_gain", "threshold", "satisfied", "radius"}
+    assert summary["systems"]["pendulum"]["theorem_2_1"]["satisfied"] and summary["systems"]["pendulum"]["theorem_2_1"]["radius"] is None
+    for figure in ("fig2_2_pendulum_velocities.png", "fig2_3_two_link_positions.png", "fig2_8_furuta_velocities.png"):
+        assert (out / figure).stat().st_size > 0
+    text = capsys.readouterr().out
+    assert "Theorem 2.1" in text and "two_link shoulder" in text
+    ds = xr.load_dataset(out / "calugi_2002_cart.nc")
+    assert ds.joint_position.attrs["units"] == "m" and ds.joint_rate.attrs["units"] == "rad/s"
+    assert ds.prismatic_joint.values.tolist() == ["cart"] and ds.revolute_joint.values.tolist() == ["pendulum"]
+
+
+def test_reproduce_calugi_2002_has_one_run(capsys):
+    assert main(["reproduce", "calugi-2002-velocity-observer", "--runs", "2"]) == 2
+    assert "--runs must be 1: this reproduction is noise-free" in capsys.readouterr().err

@@ -108,7 +108,7 @@ def case(request) -> Case:
 
 
 def test_vmapped_runs_equal_the_same_runs_one_by_one(case):
-    scenario = case.build()
+    scenario = case.build(duration=10.0)
     if jax.default_backend() == "cpu":
         assert len(jax.devices()) == 2, "conftest exposes two host devices, so the batch below is sharded"
     keys = jax.random.split(jax.random.key(7), 4)
@@ -150,7 +150,7 @@ def test_nan_dropouts_keep_the_estimate_finite(case):
 
 
 def test_a_run_in_chunks_equals_the_whole_run(case):
-    scenario = case.build(duration=50.0)
+    scenario = case.build(duration=20.0)
     calls = []
     chunked = simulate(scenario, jax.random.key(1), progress=lambda done, total: calls.append((done, total)), chunks=3)
     whole = simulate(scenario, jax.random.key(1))
@@ -166,7 +166,7 @@ def test_decimated_records_are_every_nth_sample_of_the_full_run(case, every):
     differently: agreement is to a few ulp, where a shifted noise stream would differ
     at the size of the signal.
     """
-    full = case.build(duration=30.0)
+    full = case.build(duration=15.0)
     thin = dataclasses.replace(full, record_every=every)
     key = jax.random.key(5)
     a, b = simulate(full, key), simulate(thin, key)
@@ -179,11 +179,11 @@ def test_decimated_records_are_every_nth_sample_of_the_full_run(case, every):
 
 def test_a_scenario_built_inside_vmap_simulates_like_one_built_alone(case):
     gains = jnp.asarray([0.5, 1.0, 2.0])
-    scenarios = eqx.filter_vmap(lambda g: case.build(g, duration=20.0))(gains)
+    scenarios = eqx.filter_vmap(lambda g: case.build(g, duration=10.0))(gains)
     keys = jax.random.split(jax.random.key(9), 3)
     batch = simulate_batch(scenarios, keys, batched_scenario=True)
     for i, gain in enumerate(gains.tolist()):
-        single = simulate(case.build(gain, duration=20.0), keys[i])
+        single = simulate(case.build(gain, duration=10.0), keys[i])
         assert _max_difference(jax.tree.map(lambda a: a[i], batch.estimate), single.estimate) < 1e-10
 
 

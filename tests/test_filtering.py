@@ -1,7 +1,6 @@
 """Observers over a recorded log (lookout.filter) and live (lookout.Stepper)."""
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 

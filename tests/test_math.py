@@ -90,3 +90,12 @@ def test_earth_frame_velocity_is_the_planar_part_of_the_rotation(psi, nu):
     np.testing.assert_allclose(earth_frame_velocity(psi, nu), expected[:2], rtol=1e-12, atol=1e-9)
     stacked = earth_frame_velocity(np.full(4, psi), np.tile(nu, (4, 1)))
     np.testing.assert_allclose(stacked, np.tile(expected[:2], (4, 1)), rtol=1e-12, atol=1e-9)
+
+
+@given(st.integers(1, 4), st.lists(st.floats(-1.0, 1.0), min_size=20, max_size=20))
+def test_small_solve_equals_lapack(n, values):
+    from lookout._math import solve
+
+    A = np.reshape(values[: n * n], (n, n)) + 3.0 * np.eye(n)  # diagonally dominant: well conditioned, like an inertia matrix
+    b = np.asarray(values[16 : 16 + n])
+    np.testing.assert_allclose(solve(jnp.asarray(A), jnp.asarray(b)), np.linalg.solve(A, b), rtol=1e-12, atol=1e-13)

@@ -1,4 +1,3 @@
-import equinox as eqx
 import jax
 import numpy as np
 import pytest

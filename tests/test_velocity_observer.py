@@ -16,20 +16,19 @@ import pytest
 
 from lookout.analysis import fit_decay_rate
 from lookout.analysis.velocity import configuration_bounds, velocity_observer_condition
-from lookout.controllers import SinusoidalInput
-from lookout.models.manipulators import CartPendulum, FreePendulum, FurutaPendulum, ManipulatorModel, ManipulatorPlant, TwoLinkArm
+from lookout.models.manipulators import CartPendulum, FurutaPendulum, ManipulatorModel, ManipulatorPlant, TwoLinkArm
 from lookout.observers.velocity import VelocityObserver, VelocityObserverState
+from lookout.papers import calugi_2002_velocity_observer as calugi
 from lookout.sensors import JointEncoder
 from lookout.sim import Scenario, simulate
 
 PLANT_STEP = 1e-3
 SAMPLE_PERIOD = 1e-2
-# Section 2.3: model, K, q(0), q'(0), x1_hat(0), input (cart and Furuta: chosen, see above)
+# Section 2.3: model, K, q(0), q'(0), x1_hat(0), input (cart and Furuta: chosen, see above),
+# from the reproduction's table of systems
 SYSTEMS = {
-    "pendulum": (FreePendulum(), 2.0 - 0.1 / (0.5 * 0.5**2), [2.0], [0.0], [2.2], SinusoidalInput.constant([0.0])),
-    "two_link": (TwoLinkArm(), 5.0, [-math.pi / 4, -math.pi / 4], [0.0, 0.0], [-4.0, -4.0], SinusoidalInput.constant([2.0, 1.0])),
-    "cart": (CartPendulum(), 5.0, [-1.0, 1.0], [0.0, 0.0], [-5.0, 5.0], SinusoidalInput([2.0, 0.0], [2.0, 0.0])),
-    "furuta": (FurutaPendulum(), 5.0, [1.0, -1.0], [0.0, 0.0], [-5.0, -5.0], SinusoidalInput([0.5, 0.0], [1.0, 0.0])),
+    name: (system.model, system.gain, list(system.initial_position), list(system.initial_velocity), list(system.initial_estimate), system.controller)
+    for name, system in calugi.SYSTEMS.items()
 }
 DURATION = {"pendulum": 12.0, "two_link": 6.0, "cart": 6.0, "furuta": 6.0}
 

@@ -22,6 +22,8 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from lookout.papers._report import json_safe
+
 try:  # typer >= 0.29 vendors click
     from typer._click import exceptions as click_exceptions
 except ImportError:  # pragma: no cover - older typer depends on click
@@ -159,17 +161,6 @@ def _analysable(option: str, symbol: str, value: float, unit: str) -> None:
         )
 
 
-def _json_safe(value):
-    """``value`` with every non-finite float replaced by None, so the output is strict JSON."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {key: _json_safe(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(item) for item in value]
-    return value
-
-
 def _config(module, options: dict):
     """A reproduction's Config from the CLI options, pydantic's error turned into one line."""
     try:
@@ -204,10 +195,14 @@ def available_memory() -> int | None:
         return None
 
 
-def _check_memory(scenario, runs: int) -> None:
-    """Refuse a run whose records would not fit in memory, before simulating."""
+def _check_memory(scenarios, runs: int) -> None:
+    """Refuse a study whose records would not fit in memory, before simulating.
+
+    The scenarios run one after another, so the largest one sets the peak.
+    """
     from lookout.sim import record_nbytes
 
+    scenario = max(scenarios, key=lambda s: s.n_records * record_nbytes(s))
     per_record = record_nbytes(scenario)
     need = PEAK_MEMORY_PER_RECORD_BYTE * runs * scenario.n_records * per_record
     available = available_memory()
@@ -221,6 +216,13 @@ def _check_memory(scenario, runs: int) -> None:
 
 # ----------------------------------------------------------------------------------
 # Commands
+
+
+def _default_durations() -> str:
+    """``the paper's: 3000 for fossen-strand-1999, ...`` from the reproductions' configs."""
+    from lookout.papers import REPRODUCTIONS
+
+    return "the paper's: " + ", ".join(f"{module.Config().duration:g} for {name}" for name, module in REPRODUCTIONS.items())
 
 
 @app.command("list")
@@ -239,7 +241,7 @@ def reproduce(
     seed: Annotated[int, typer.Option(metavar="INT", help="Seed of run 0; run i uses seed + i.")] = 0,
     runs: Annotated[int, typer.Option(metavar="N", help="Monte Carlo runs over seeds (vmapped); the summary gives mean ± std.")] = 1,
     duration: Annotated[
-        Optional[float], typer.Option(metavar="SECONDS", help="Simulated time.", show_default="the paper's; 3000 for fossen-strand-1999")
+        Optional[float], typer.Option(metavar="SECONDS", help="Simulated time.", show_default=_default_durations())
     ] = None,
 ) -> None:
     """Run a paper's simulation study.
@@ -253,7 +255,7 @@ def reproduce(
         raise InputError(f"unknown reproduction {name!r}; available: {', '.join(REPRODUCTIONS)}")
     module = REPRODUCTIONS[name]
     config = _config(module, {"seed": seed, "runs": runs, "duration": duration})
-    _check_memory(module.build(config), config.runs)
+    _check_memory(module.scenarios(config), config.runs)
     folder = _output_folder("--out", out)
     try:
         folder.mkdir(exist_ok=True)
@@ -262,71 +264,17 @@ def reproduce(
     with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task("run", total=1.0)
         summary = module.run(config, folder, progress=lambda done, total: bar.update(task, completed=done / total))
-    _print_summary(summary, folder)
+    _print_summary(summary, module.tables(summary), folder)
 
 
-def _decade(value: float) -> int:
-    return math.floor(math.log10(abs(value))) if value and math.isfinite(value) else 0
-
-
-def significant(value: float, digits: int = 3) -> str:
-    """``value`` to ``digits`` significant digits, without exponent between 0.01 and 1e5."""
-    exponent = _decade(value)
-    if not math.isfinite(value) or not -2 <= exponent < 5:
-        return f"{value:.{digits - 1}e}"
-    return f"{round(value, digits - 1 - exponent):.{max(0, digits - 1 - exponent)}f}"
-
-
-def mean_and_spread(mean: float, spread: float) -> str:
-    """``mean ± spread``, both rounded to the same decimal place.
-
-    That place keeps three significant digits of the mean, or two of the spread
-    where the spread is smaller (at most four of the mean); outside 0.01 to 1e5 both share the mean's power
-    of ten: ``(1.35 ± 0.07)e-4``.
-    """
-    exponent = _decade(mean if mean else spread)
-    place = exponent - 2
-    if spread and math.isfinite(spread):
-        place = min(place, _decade(spread) - 1)
-    place = max(place, exponent - 3)
-    if -2 <= exponent < 5:
-        decimals = max(0, -place)
-        return f"{round(mean, -place):.{decimals}f} ± {round(spread, -place):.{decimals}f}"
-    scale = 10.0**exponent
-    decimals = exponent - place
-    return f"({mean / scale:.{decimals}f} ± {spread / scale:.{decimals}f})e{exponent}"
-
-
-def _print_summary(summary: dict, out: Path) -> None:
-    dofs = ("surge", "sway", "yaw")
-    runs = summary["runs"]
-    spread = runs > 1
-    seeds = summary["seeds"]
-    which = f"seed {seeds[0]}" if runs == 1 else f"{runs} runs, seeds {seeds[0]}-{seeds[-1]}, mean ± std"
-    errors = Table(title=f"RMS estimation error over the second half ({which})", title_justify="left", box=box.SIMPLE_HEAD)
-    settling = Table(title=f"Settling time (s{', median over runs' if spread else ''})", title_justify="left", box=box.SIMPLE_HEAD)
-    for table in (errors, settling):
-        table.add_column("state")
-        for dof in dofs:
-            table.add_column(dof, justify="right")
-    units = []
-    for name, values in summary["rms_second_half"].items():
-        units.append(f"{name} " + summary["units"][name].replace("surge: ", "").replace("sway: ", "").replace("yaw: ", ""))
-        if spread:
-            cells = [mean_and_spread(values[dof], summary["rms_second_half_std"][name][dof]) for dof in dofs]
-        else:
-            cells = [significant(values[dof]) for dof in dofs]
-        errors.add_row(name, *cells)
-        settling.add_row(name, *(f"{summary['settling_time'][name][dof]:.0f}" for dof in dofs))
-    errors.caption = "units: " + "; ".join(units)
-    errors.caption_justify = "left"
-    settling.caption = (
-        "the first time from which the RMS error over the rest of the run is within 10 % of its "
-        "second-half RMS; 0 means at that level from the start, not that the estimate tracks the truth"
-    )
-    settling.caption_justify = "left"
-    console.print(errors)
-    console.print(settling)
+def _print_summary(summary: dict, tables, out: Path) -> None:
+    for spec in tables:
+        table = Table(title=spec.title, title_justify="left", box=box.SIMPLE_HEAD, caption=spec.caption or None, caption_justify="left")
+        for i, column in enumerate(spec.columns):
+            table.add_column(column, justify="left" if i == 0 else "right")
+        for row in spec.rows:
+            table.add_row(*row)
+        console.print(table)
     finite = summary["status"].count("finite")
     console.print(f"{finite}/{len(summary['status'])} runs finite; written to the folder {out}: {', '.join(summary['files'])}", highlight=False)
 
@@ -476,7 +424,7 @@ def design_passive_observer(
         plt.close(figure)
         result["bode"] = str(bode_path)
     if as_json:
-        print(json.dumps(_json_safe(result), allow_nan=False))
+        print(json.dumps(json_safe(result), allow_nan=False))
     else:
         _print_design(result, observer, tuning, spr)
     if not passed:

@@ -57,6 +57,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
+from lookout._math import matvec, solve
 from lookout.components import JOINT_SPACE, Layout, Plant, Signal
 
 #: Standard gravity (m/s^2), the thesis's ``n``.
@@ -206,11 +207,11 @@ class ManipulatorModel(eqx.Module):
         """
         dM = jax.jacfwd(self.mass_matrix)(q)  # dM[k, j, i] = dM_kj / dq_i
         christoffel = 0.5 * (dM + jnp.swapaxes(dM, 1, 2) - jnp.transpose(dM, (2, 1, 0)))
-        return jnp.einsum("kji,i->kj", christoffel, v)
+        return jnp.sum(christoffel * v, axis=-1)  # sum over i; elementwise, so it fuses
 
     def coriolis_force(self, q: Array, v: Array) -> Array:
         """C(q, v) v, the same for every factorization of C."""
-        return self.coriolis_matrix(q, v) @ v
+        return matvec(self.coriolis_matrix(q, v), v)
 
     def friction_force(self, v: Array) -> Array:
         """F v, the viscous friction forces."""
@@ -219,7 +220,7 @@ class ManipulatorModel(eqx.Module):
     def acceleration(self, q: Array, v: Array, tau: Array) -> Array:
         """q'' = M(q)^-1 [tau - C(q, v) v - F v - G(q)] (eq. 2.1, or 2.4)."""
         force = tau - self.coriolis_force(q, v) - self.friction_force(v) - self.gravity(q)
-        return jnp.linalg.solve(self.mass_matrix(q), force)
+        return solve(self.mass_matrix(q), force)
 
     def kinetic_energy(self, q: Array, v: Array) -> Array:
         """T = 1/2 v^T M(q) v (J)."""

@@ -31,6 +31,7 @@ from lookout.controllers import SinusoidalInput
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
+from lookout.papers._report import Table, json_safe, mean_and_spread, significant
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
 from lookout.sim import MAX_SEED, Scenario, integer_ratio, seed_keys, simulate, simulate_batch
@@ -291,5 +292,37 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
             "files": sorted(["fossen_strand_1999.nc", "bode.nc", "summary.json", *figures]),
         }
     )
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    (out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False))
     return summary
+
+
+def scenarios(config: Config) -> list[Scenario]:
+    """The scenarios :func:`run` simulates (one), for estimates made before running."""
+    return [build(config)]
+
+
+def tables(summary: dict) -> list[Table]:
+    """The summary as tables for the terminal: RMS errors (mean ± std over runs) and settling times."""
+    runs = summary["runs"]
+    spread = runs > 1
+    seeds = summary["seeds"]
+    which = f"seed {seeds[0]}" if runs == 1 else f"{runs} runs, seeds {seeds[0]}-{seeds[-1]}, mean ± std"
+    error_rows, settling_rows, units = [], [], []
+    for name, values in summary["rms_second_half"].items():
+        units.append(f"{name} " + summary["units"][name].replace("surge: ", "").replace("sway: ", "").replace("yaw: ", ""))
+        if spread:
+            cells = [mean_and_spread(values[dof], summary["rms_second_half_std"][name][dof]) for dof in DOF]
+        else:
+            cells = [significant(values[dof]) for dof in DOF]
+        error_rows.append((name, *cells))
+        settling_rows.append((name, *(f"{summary['settling_time'][name][dof]:.0f}" for dof in DOF)))
+    return [
+        Table(f"RMS estimation error over the second half ({which})", ("state", *DOF), tuple(error_rows), "units: " + "; ".join(units)),
+        Table(
+            f"Settling time (s{', median over runs' if spread else ''})",
+            ("state", *DOF),
+            tuple(settling_rows),
+            "the first time from which the RMS error over the rest of the run is within 10 % of its "
+            "second-half RMS; 0 means at that level from the start, not that the estimate tracks the truth",
+        ),
+    ]

@@ -38,7 +38,6 @@ in the scenario), with the run axis sharded across devices when there are severa
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any, Callable, Literal
 
 import equinox as eqx
@@ -51,7 +50,7 @@ from jax.flatten_util import ravel_pytree
 from lookout._math import computed_once
 from lookout._random import standard_normal
 from lookout.actuators import IdealActuator
-from lookout.components import Actuator, ContinuousObserver, Controller, Layout, Observer, Plant, Reference, Sensor, Signal
+from lookout.components import Actuator, ContinuousObserver, Controller, Observer, Plant, Reference, Sensor, Signal
 from lookout.reference import NoReference
 from lookout.results import RecordSignals, Trajectory
 from lookout.sim.integrators import euler_step, rk4_step

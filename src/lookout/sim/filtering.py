@@ -159,8 +159,9 @@ class Stepper:
         flat_state, unravel_state = ravel_pytree(observer.init(y0, guess))
         template = jax.eval_shape(lambda s: observer.output(s, y0), unravel_state(flat_state))
         leaves, self._estimate_tree = jax.tree.flatten(template)
-        self._estimate_shapes = [leaf.shape for leaf in leaves]
-        self._estimate_offsets = np.cumsum([int(np.prod(shape)) for shape in self._estimate_shapes])[:-1]
+        ends = np.cumsum([int(np.prod(leaf.shape)) for leaf in leaves])
+        # (start, end, shape) of each output in the flat estimate (np.split costs 70 us here)
+        self._pieces = [(int(end) - int(np.prod(leaf.shape)), int(end), leaf.shape) for end, leaf in zip(ends, leaves)]
         n_y = self._measurement_size
 
         def advance(flat, packed):
@@ -194,5 +195,5 @@ class Stepper:
         if packed.shape[0] != 2 + self._measurement_size + self._input_size:
             raise ValueError(f"y and u must have {self._measurement_size} and {self._input_size} entries; got {packed.shape[0] - 2} in all")
         self._flat_state, flat_estimate = self._advance(self._flat_state, packed)
-        parts = np.split(np.asarray(flat_estimate), self._estimate_offsets)
-        return jax.tree.unflatten(self._estimate_tree, [part.reshape(shape) for part, shape in zip(parts, self._estimate_shapes)])
+        flat = np.asarray(flat_estimate)
+        return jax.tree.unflatten(self._estimate_tree, [flat[start:end].reshape(shape) for start, end, shape in self._pieces])

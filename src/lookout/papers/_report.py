@@ -1,0 +1,60 @@
+"""What a reproduction reports at the command line: tables of plain strings, and number formats."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table for the terminal: a title, column names, rows of strings, a caption."""
+
+    title: str
+    columns: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...] = field(default_factory=tuple)
+    caption: str = ""
+
+
+def _decade(value: float) -> int:
+    return math.floor(math.log10(abs(value))) if value and math.isfinite(value) else 0
+
+
+def significant(value: float, digits: int = 3) -> str:
+    """``value`` to ``digits`` significant digits, without exponent between 0.01 and 1e5."""
+    exponent = _decade(value)
+    if not math.isfinite(value) or not -2 <= exponent < 5:
+        return f"{value:.{digits - 1}e}"
+    return f"{round(value, digits - 1 - exponent):.{max(0, digits - 1 - exponent)}f}"
+
+
+def mean_and_spread(mean: float, spread: float) -> str:
+    """``mean ± spread``, both rounded to the same decimal place.
+
+    That place keeps three significant digits of the mean, or two of the spread
+    where the spread is smaller (at most four of the mean); outside 0.01 to 1e5 both share the mean's power
+    of ten: ``(1.35 ± 0.07)e-4``.
+    """
+    exponent = _decade(mean if mean else spread)
+    place = exponent - 2
+    if spread and math.isfinite(spread):
+        place = min(place, _decade(spread) - 1)
+    place = max(place, exponent - 3)
+    if -2 <= exponent < 5:
+        decimals = max(0, -place)
+        return f"{round(mean, -place):.{decimals}f} ± {round(spread, -place):.{decimals}f}"
+    scale = 10.0**exponent
+    decimals = exponent - place
+    return f"({mean / scale:.{decimals}f} ± {spread / scale:.{decimals}f})e{exponent}"
+
+
+def json_safe(value):
+    """``value`` with every non-finite float replaced by None, so that it is strict JSON
+    (NaN and Infinity are not JSON; None reads as "none", e.g. an unbounded region)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: json_safe(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(item) for item in value]
+    return value
