@@ -255,3 +255,26 @@ def test_dropout_decision_matches_the_normal_cdf():
     y = jax.vmap(lambda n: sensor.measure(VesselState.zeros(), n))(jnp.asarray(normals))
     np.testing.assert_array_equal(np.isnan(np.asarray(y)), ndtr(normals[:, 3:]) < 0.3)
     assert abs(np.isnan(np.asarray(y)).mean() - 0.3) < 0.01
+
+
+def test_a_manipulator_scenario_refuses_an_observer_or_sensor_of_another_arm():
+    """A 1-DOF observer on a 2-DOF plant, and a 1-channel encoder on it: one line each."""
+    from lookout.controllers import SinusoidalInput
+    from lookout.models.manipulators import FreePendulum, ManipulatorPlant, TwoLinkArm
+    from lookout.observers import VelocityObserver
+    from lookout.sensors import JointEncoder
+
+    arm, pendulum = TwoLinkArm(), FreePendulum()
+    plant = ManipulatorPlant(arm)
+    parts = dict(
+        plant=plant, sensor=JointEncoder(arm, sample_period=0.01), observer=VelocityObserver(arm, 5.0),
+        controller=SinusoidalInput.constant([2.0, 1.0]), initial_state=plant.state([0.1, 0.2]), initial_estimate=jnp.zeros(2),
+        plant_step=0.01, sample_period=0.01, duration=1.0,
+    )
+    Scenario(**parts)  # the arm's own parts fit
+    with pytest.raises(ValueError, match=r"^observer and plant disagree: the estimate 'joint_rate' is \(1,\) in rad/s over \('pendulum',\), the plant's is \(2,\)") as raised:
+        Scenario(**parts | {"observer": VelocityObserver(pendulum, 1.2), "initial_estimate": jnp.zeros(1)})
+    assert "\n" not in str(raised.value)
+    with pytest.raises(ValueError, match=r"^sensor and plant do not fit: ") as raised:
+        Scenario(**parts | {"sensor": JointEncoder(pendulum, sample_period=0.01)})
+    assert "\n" not in str(raised.value)

@@ -528,3 +528,10 @@ def test_bode_of_a_failing_design_shades_the_violation_and_keeps_the_note_clear(
     assert box.y0 > highest
     labels = {text.get_text() for legend in fig.legends for text in legend.get_texts()}
     assert "SPR violated: phase of h ≤ −90°" in labels
+
+
+def test_bode_draws_one_column_per_loop_for_any_number_of_loops(response):
+    fig = plot_bode(response.isel(dof=[2]))
+    assert len(fig.axes) == 4 and fig.axes[0].get_title().startswith("yaw")
+    fig = plot_bode(response.isel(dof=[0, 1]))
+    assert len(fig.axes) == 8

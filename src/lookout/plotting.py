@@ -25,8 +25,6 @@ from matplotlib.ticker import NullLocator  # noqa: E402
 
 from lookout._math import ssa  # noqa: E402
 
-DOFS = ("surge", "sway", "yaw")
-
 # --------------------------------------------------------------------------- estimates
 
 #: Units shown in figures instead of the stored SI ones: (factor, shown unit).
@@ -375,18 +373,20 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
     if missing:
         raise ValueError(f"response must be a frequency_response() Dataset; missing variables {missing}")
     frequency = np.asarray(response["frequency"].values, dtype=float)
+    dofs = response["dof"].values.tolist()  # one column per loop, however many
 
     fig, axes = plt.subplots(
         4,
-        len(DOFS),
-        figsize=(13, 10),
+        len(dofs),
+        figsize=(13 * len(dofs) / 3, 10),
         layout="constrained",
         sharex=True,
         sharey="row",
+        squeeze=False,
         gridspec_kw={"height_ratios": (1.0, 0.8, 1.0, 0.8)},
     )
     magnitude, gain, phase, margin = axes
-    for column, dof in enumerate(DOFS):
+    for column, dof in enumerate(dofs):
         kappa = float(response["velocity_injection_gain"].sel(dof=dof))
         curve = {name: response[f"{name}_magnitude"].sel(dof=dof).values for name in ("h0", "hB", "h")}
         angle = {name: response[f"{name}_phase_deg"].sel(dof=dof).values for name in ("h0", "hB", "h")}
