@@ -35,10 +35,11 @@ from lookout.components import Controller
 from lookout.controllers import SinusoidalInput
 from lookout.models.manipulators import CartPendulum, FreePendulum, FurutaPendulum, ManipulatorModel, ManipulatorPlant, TwoLinkArm
 from lookout.observers import VelocityObserver
+from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
 from lookout.papers._report import Table, json_safe, significant
 from lookout.results import write_netcdf
 from lookout.sensors import JointEncoder
-from lookout.sim import MAX_SEED, Scenario, integer_ratio, seed_keys, simulate
+from lookout.sim import Scenario, seed_keys, simulate
 
 NAME = "calugi-2002-velocity-observer"
 TITLE = "Calugi (2002), ch. 2: reduced-order velocity observer on four manipulators (Section 2.3)"
@@ -102,23 +103,18 @@ class Config(BaseModel):
     @field_validator("seed")
     @classmethod
     def _seed_in_key_range(cls, value):
-        if not 0 <= value <= MAX_SEED:
-            raise ValueError(f"must be an integer from 0 to {MAX_SEED}; got {value}")
-        return value
+        return seed_for_runs(value, 1)
 
     @field_validator("plant_step", "sample_period", "duration")
     @classmethod
     def _finite_positive(cls, value):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"must be a finite positive number; got {value:g}")
-        return value
+        return finite_positive(value)
 
     @field_validator("duration")
     @classmethod
     def _whole_samples(cls, value, info: ValidationInfo):
         period = info.data.get("sample_period")
-        if period is not None and integer_ratio(value, period) is None:
-            raise ValueError(f"must be a whole multiple of the sample period ({period:g} s); got {value:g} s")
+        whole_samples(value, period, "the sample period")
         if period is not None and value < 100 * period:
             raise ValueError(f"must be at least {100 * period:g} s (100 samples, for the decay fit); got {value:g} s")
         return value

@@ -18,7 +18,6 @@ starts at rest at the origin and the observer at zero.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Callable
 
@@ -31,10 +30,11 @@ from lookout.controllers import SinusoidalInput
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
+from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
 from lookout.papers._report import Table, json_safe, mean_and_spread, significant
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
-from lookout.sim import MAX_SEED, Scenario, integer_ratio, seed_keys, simulate, simulate_batch
+from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
 
 NAME = "fossen-strand-1999"
 TITLE = "Fossen & Strand (1999): passive observer on Northern Clipper, simulation study (Section 6.1)"
@@ -81,12 +81,7 @@ class Config(BaseModel):
     @field_validator("seed")
     @classmethod
     def _seed_in_key_range(cls, value, info: ValidationInfo):
-        largest = MAX_SEED - info.data.get("runs", 1) + 1
-        if not 0 <= value <= largest:
-            raise ValueError(
-                f"must be an integer from 0 to {largest} (a JAX key takes a signed 64-bit seed, and the runs use seed ... seed + runs - 1); got {value}"
-            )
-        return value
+        return seed_for_runs(value, info.data.get("runs", 1))
 
     @field_validator(
         "plant_step", "sample_period", "measurement_period", "duration", "wave_frequency",
@@ -94,16 +89,13 @@ class Config(BaseModel):
     )
     @classmethod
     def _finite_positive(cls, value):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"must be a finite positive number; got {value:g}")
-        return value
+        return finite_positive(value)
 
     @field_validator("duration")
     @classmethod
     def _whole_samples_and_enough_fixes(cls, value, info: ValidationInfo):
-        period, fixes = info.data.get("sample_period"), info.data.get("measurement_period")
-        if period is not None and integer_ratio(value, period) is None:
-            raise ValueError(f"must be a whole multiple of the observer's sample period ({period:g} s); got {value:g} s")
+        fixes = info.data.get("measurement_period")
+        whole_samples(value, info.data.get("sample_period"))
         if fixes is not None and value < MINIMUM_FIXES * fixes:
             raise ValueError(
                 f"must be at least {MINIMUM_FIXES * fixes:g} s ({MINIMUM_FIXES} position fixes, so that the second half, "
@@ -205,13 +197,12 @@ def paper_view(ds: xr.Dataset) -> xr.Dataset:
     return view
 
 
-def summarize(ds, config: Config) -> dict:
+def summarize(ds: xr.Dataset) -> dict:
     """RMS error per state and DOF over the second half, and settling times.
 
     With several runs, ``rms_second_half`` is the mean over runs, ``rms_second_half_std``
     its standard deviation across runs, and settling times are medians over runs.
     """
-    del config
     errors = estimation_errors(ds)
     half = float(ds.time[-1]) / 2.0
     time = ds.time.values
@@ -274,7 +265,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         figure.savefig(out / filename, dpi=110)
         plt.close(figure)
 
-    summary = summarize(ds, config)
+    summary = summarize(ds)
     summary.update(
         {
             "reproduction": NAME,
