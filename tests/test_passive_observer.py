@@ -56,6 +56,8 @@ def test_observer_rejects_non_positive_definite_mass_and_negative_time_constant(
         type(paper_observer)(bad_mass, np.eye(3), 0.9, 0.1, np.ones(6), 1.0, 1.0, 1.0, 1000.0)
     with pytest.raises(ValueError, match="bias_time_constant must be positive"):
         type(paper_observer)(np.eye(3), np.eye(3), 0.9, 0.1, np.ones(6), 1.0, 1.0, 1.0, [1000.0, -5.0, 1000.0])
+    with pytest.raises(ValueError, match="hold must be one of 'measurement', 'innovation'; got 'output'"):
+        type(paper_observer)(np.eye(3), np.eye(3), 0.9, 0.1, np.ones(6), 1.0, 1.0, 1.0, 1000.0, hold="output")
     with pytest.raises(ValueError, match="mass_matrix must be symmetric"):
         northern_clipper().__class__(np.array([[1.0, 2.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]), np.eye(3))
 
