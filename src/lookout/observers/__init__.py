@@ -7,3 +7,5 @@ from .passive import default_cutoff_frequency as default_cutoff_frequency
 from .passive import injection_gains_from_normalized as injection_gains_from_normalized
 from .passive import notch_filter_gains as notch_filter_gains
 from .velocity import VelocityObserver as VelocityObserver
+from .sliding_mode import SlidingModeObserver as SlidingModeObserver
+from .sliding_mode import saturation as saturation

@@ -1,0 +1,231 @@
+"""Sliding-mode robust observer for dynamic positioning.
+
+Kim, M.-H. (2002), "Design and analysis of dynamic positioning system using a
+nonlinear robust observer", eqs. (6)–(7), corrected as derived in
+``derivations-kim-calugi-2003.md`` (K1, K2)::
+
+    xi_hat'   = A_w xi_hat + H1 y~
+    eta_hat'  = J(y) nu_hat + H2 y~ + Kbar sat(s / eps)
+    b_hat'    = -T^{-1} b_hat + H3 y~
+    M nu_hat' = -D nu_hat + tau + J^T(y) b_hat + J^T(y) H4 y~
+    y_hat     = eta_hat + C_w xi_hat,   y~ = y - y_hat
+
+The printed text injects "y_hat" everywhere; an observer is driven by the output
+error, so every injection is y~ (NOTES.md). Without the switching term this is the
+passive observer of Fossen & Strand (1999), eqs. (22)–(25), with gamma = 1,
+K1 = H1, K2 = H2, Lambda = H3 and Kappa = H4: this class is that observer plus the
+switching term, and with Kbar = 0 it gives the passive observer's estimates.
+
+The switching signal (choice)
+-----------------------------
+The text says sat(z) with z "defined later"; the only later definition is the
+garbled C of (10). The Lyapunov derivative (17) needs z~ = C x~ = H4 y~ - b~ (the
+passive output of the linear error system), which contains the unmeasured bias
+error. Its measured part is H4 y~; with diagonal H4 and a componentwise sat this is
+``s_i = y~_i`` with a boundary layer ``eps_i`` per axis in m, m, rad, which is what
+is implemented::
+
+    sat(y~_i / eps_i) = clip(y~_i / eps_i, -1, 1)
+
+The vector sat of (7) (z / |z|) is not used: the three axes have different units,
+so the norm of y~ mixes metres and radians. Inside the layer the term adds
+Kbar_i / eps_i to H2_i; outside it is a bounded velocity injection of size Kbar_i.
+With this signal, (17) keeps the dissipative -y~^T H4 Kbar sat(y~/eps) but gains a
+term bounded by 2 sum_i Kbar_i |b~_i|: the result is ultimate boundedness, not the
+asymptotic stability claimed (docs/reproductions.md).
+"""
+
+from __future__ import annotations
+
+from typing import final
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from lookout import _validation as check
+from lookout.components import EARTH_FIXED, ContinuousObserver, Signal
+from lookout.models.vessel import EARTH_AXES, VESSEL_SIGNALS, DPVessel, VesselState
+from lookout.observers.passive import WAVE_FILTER_EXTRAS, PassiveObserver, predict_sample
+
+#: The switching term Kbar sat(y~ / eps) of eq. (6), an extra output.
+SWITCHING_SIGNALS = (
+    Signal("switching_position", "m/s", "switching term Kbar sat(y~/eps) of eq. (6), position", EARTH_FIXED, EARTH_AXES, "earth_axis"),
+    Signal("switching_heading", "rad/s", "switching term Kbar sat(y~/eps) of eq. (6), heading", EARTH_FIXED),
+)
+
+#: Kim (2002), Appendix (A.4): the observer's bias and velocity injection gains
+#: (printed under "controller gains"; the labels are swapped, NOTES.md) and Kbar.
+KIM_2002_BIAS_GAIN = (1e5, 1e5, 1e8)  # H3 = 1e6 diag(0.1, 0.1, 100)
+KIM_2002_VELOCITY_GAIN = (1e4, 1e4, 1e7)  # H4 = 1e5 diag(0.1, 0.1, 100)
+KIM_2002_SWITCHING_GAIN = (10.0, 10.0, 0.01)  # Kbar (m/s, m/s, rad/s)
+#: Kim (2002), (A.2) and (A.3).
+KIM_2002_BIAS_TIME_CONSTANT = (1000.0, 1000.0, 10000.0)
+KIM_2002_WAVE = {"wave_frequency": 0.8976, "wave_damping": 0.1, "notch_damping": 1.0, "cutoff_frequency": 1.1}
+
+
+def saturation(x, width=1.0):
+    """sat(x / width) of Kim (2002), eq. (7), componentwise: x / width clipped to [-1, 1].
+
+    Continuous, odd, |sat| <= 1, and equal to sign(x) for |x| >= width.
+    """
+    return jnp.clip(jnp.asarray(x) / width, -1.0, 1.0)
+
+
+@final
+class SlidingModeObserver(ContinuousObserver):
+    """Kim (2002) sliding-mode observer, eqs. (6)–(7): a passive observer plus Kbar sat(y~/eps).
+
+    Use :meth:`design` (H1, H2 from the wave model by Fossen & Strand (45)–(47), as
+    Kim's (A.3) does) or :meth:`kim_2002` for the printed gains. The state is a
+    :class:`~lookout.models.VesselState` of estimates.
+
+    Parameters
+    ----------
+    passive : PassiveObserver
+        The observer without the switching term (gamma = 1, Kappa = H4, Lambda = H3).
+    switching_gain : array_like, shape (3,)
+        Kbar = diag(rho_i) >= 0 (m/s, m/s, rad/s); zero gives the passive observer.
+    boundary_layer : array_like, shape (3,)
+        eps_i > 0 (m, m, rad), the width of the saturation's linear zone.
+    """
+
+    passive: PassiveObserver
+    switching_gain: Array
+    boundary_layer: Array
+    estimate_signals: tuple[Signal, ...] = eqx.field(static=True, default=VESSEL_SIGNALS, kw_only=True)
+    extra_signals: tuple[Signal, ...] = eqx.field(static=True, default=WAVE_FILTER_EXTRAS + SWITCHING_SIGNALS, kw_only=True)
+
+    def __init__(self, passive: PassiveObserver, switching_gain, boundary_layer):
+        if not isinstance(passive, PassiveObserver):
+            raise ValueError(f"passive must be a PassiveObserver; got {type(passive).__name__}")
+        self.passive = passive
+        self.switching_gain = jnp.asarray(check.vector("switching_gain", switching_gain))
+        self.boundary_layer = jnp.asarray(check.vector("boundary_layer", boundary_layer))
+
+    def __check_init__(self):
+        check.positive("switching_gain", self.switching_gain, allow_zero=True)
+        check.positive("boundary_layer", self.boundary_layer)
+
+    @classmethod
+    def design(
+        cls,
+        vessel: DPVessel,
+        *,
+        wave_frequency,
+        wave_damping,
+        notch_damping,
+        cutoff_frequency,
+        velocity_injection_gain,
+        bias_injection_gain,
+        bias_time_constant,
+        switching_gain,
+        boundary_layer,
+        steps_per_sample=1,
+        hold="measurement",
+    ) -> "SlidingModeObserver":
+        """Observer for ``vessel``: H1, H2 from (45)–(47), H4 = ``velocity_injection_gain``,
+        H3 = ``bias_injection_gain`` (SI), and the switching term."""
+        passive = PassiveObserver.design(
+            vessel,
+            wave_frequency=wave_frequency,
+            wave_damping=wave_damping,
+            notch_damping=notch_damping,
+            cutoff_frequency=cutoff_frequency,
+            velocity_injection_gain=velocity_injection_gain,
+            bias_injection_gain=bias_injection_gain,
+            bias_time_constant=bias_time_constant,
+            lyapunov_weight=1.0,
+            steps_per_sample=steps_per_sample,
+            hold=hold,
+        )
+        return cls(passive, switching_gain, boundary_layer)
+
+    @classmethod
+    def kim_2002(cls, vessel: DPVessel, *, boundary_layer, **overrides) -> "SlidingModeObserver":
+        """The printed gains of Kim (2002), (A.2)–(A.4); ``overrides`` replace any of them.
+
+        The boundary layer eps is not given in the paper: it must be chosen.
+        """
+        settings = {
+            **KIM_2002_WAVE,
+            "velocity_injection_gain": KIM_2002_VELOCITY_GAIN,
+            "bias_injection_gain": KIM_2002_BIAS_GAIN,
+            "bias_time_constant": KIM_2002_BIAS_TIME_CONSTANT,
+            "switching_gain": KIM_2002_SWITCHING_GAIN,
+            "boundary_layer": boundary_layer,
+            **overrides,
+        }
+        return cls.design(vessel, **settings)
+
+    # The gains under Kim's names ------------------------------------------------
+    def gains(self) -> dict[str, np.ndarray]:
+        """H1 (6x3), H2, H3, H4 (3x3) and Kbar (3x3) as matrices, SI."""
+        p = self.passive
+        return {
+            "H1": p.wave_injection_matrix(),
+            "H2": p.position_injection_matrix(),
+            "H3": np.diag(np.asarray(p.bias_injection_gain)),
+            "H4": np.diag(np.asarray(p.velocity_injection_gain)),
+            "Kbar": np.diag(np.asarray(self.switching_gain)),
+        }
+
+    @property
+    def steps_per_sample(self) -> int:
+        return self.passive.steps_per_sample
+
+    @property
+    def hold(self) -> str:
+        return self.passive.hold
+
+    def guess(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+        """An initial estimate (zeros unless given), to pass to :meth:`init`."""
+        return self.passive.guess(eta, nu, bias, wave_state)
+
+    def init(self, y0: Array, guess: VesselState) -> VesselState:
+        """The estimate at t_0 is the guess."""
+        return self.passive.init(y0, guess)
+
+    def update(self, estimate: VesselState, t, measurement: Array) -> VesselState:
+        """No discrete correction: the measurement enters through (6)."""
+        del t, measurement
+        return estimate
+
+    def innovation(self, estimate: VesselState, measurement: Array) -> Array:
+        """y~ = y - y_hat with wrapped heading; zero on missing channels."""
+        return self.passive.innovation(estimate, measurement)
+
+    def rotation_heading(self, estimate: VesselState, measurement: Array) -> Array:
+        """Heading of J(y): measured, or predicted when the heading sample is missing."""
+        return self.passive.rotation_heading(estimate, measurement)
+
+    def switching_term(self, y_tilde: Array) -> Array:
+        """Kbar sat(y~ / eps) (m/s, m/s, rad/s), Earth-fixed."""
+        return self.switching_gain * saturation(y_tilde, self.boundary_layer)
+
+    def rates(self, estimate: VesselState, y_tilde: Array, heading: Array, tau: Array) -> VesselState:
+        """Eq. (6): the passive observer's rates with Kbar sat(y~/eps) added to eta_hat'."""
+        rates = self.passive.rates(estimate, y_tilde, heading, tau)
+        return eqx.tree_at(lambda s: s.eta, rates, rates.eta + self.switching_term(y_tilde))
+
+    def vector_field(self, t, estimate: VesselState, measurement: Array, tau: Array, heading=None) -> VesselState:
+        """Right-hand side of eq. (6) for the measurement ``measurement``."""
+        del t
+        y_tilde = self.innovation(estimate, measurement)
+        heading = self.rotation_heading(estimate, measurement) if heading is None else heading
+        return self.rates(estimate, y_tilde, heading, tau)
+
+    def predict(self, estimate: VesselState, t, measurement: Array, tau: Array, dt) -> VesselState:
+        """One sample of (6), held as the passive observer's ``hold`` says."""
+        return predict_sample(self, self.rates, estimate, t, measurement, tau, dt)
+
+    def normalize(self, estimate: VesselState) -> VesselState:
+        """Heading wrapped to [-pi, pi)."""
+        return estimate.wrapped()
+
+    def output(self, estimate: VesselState, measurement: Array) -> dict[str, Array]:
+        """The passive observer's outputs and the switching term at the sample."""
+        out = self.passive.output(estimate, measurement)
+        switching = self.switching_term(self.innovation(estimate, measurement))
+        return {**out, "switching_position": switching[:2], "switching_heading": switching[2]}
