@@ -328,3 +328,34 @@ def test_reproduce_calugi_2002_writes_every_system_and_reports_theorem_2_1(tmp_p
 def test_reproduce_calugi_2002_has_one_run(capsys):
     assert main(["reproduce", "calugi-2002-velocity-observer", "--runs", "2"]) == 2
     assert "--runs must be 1: this reproduction is noise-free" in capsys.readouterr().err
+
+
+def test_design_sliding_mode_observer_printed_gains_fail_14_and_exit_1(capsys):
+    assert main(["design", "sliding-mode-observer"]) == 1
+    text = capsys.readouterr().out
+    assert "KYP (14) for Sigma_2: fails" in text and "min phase -172.59 deg" in text
+    assert "surge +0.0156 +- 0.1235j" in text and "verdict: FAILS (exit code 1)" in text
+
+
+def test_design_sliding_mode_observer_kyp_gains_pass_and_json_is_strict(capsys):
+    assert main(["design", "sliding-mode-observer", "--gains", "kyp", "--disturbance", "1e5,1e5,1e6", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["passed"] is True and result["verdicts"]["kyp_14"] == "holds"
+    assert result["verdicts"]["switching_gain_17"] == "holds"
+    assert result["switching_gain_17"]["required_gain"][0] == pytest.approx(2.05, rel=1e-2)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--gains", "mine"], "--gains must be one of printed, kyp; got 'mine'"),
+        (["--switching-gain", "-1"], "--switching-gain must be one finite number >= 0"),
+        (["--boundary-layer", "0,1,1"], "--boundary-layer must be one finite positive number"),
+        (["--velocity-gain", "1e20"], "--velocity-gain must lie within 1e-12..1e12"),
+        (["--disturbance", "nan"], "--disturbance must be one finite number >= 0"),
+    ],
+)
+def test_design_sliding_mode_observer_bad_input_exits_2_with_one_line(argv, message, capsys):
+    assert main(["design", "sliding-mode-observer", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1

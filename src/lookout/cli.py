@@ -56,7 +56,18 @@ DEFAULT_NOTCH_DAMPING = 1.0
 ANALYSIS_RANGE = (1e-12, 1e12)
 
 #: Reproduction options and the Config fields they set.
-REPRODUCE_OPTIONS = {"seed": "--seed", "runs": "--runs", "duration": "--duration"}
+REPRODUCE_OPTIONS = {
+    "seed": "--seed",
+    "runs": "--runs",
+    "duration": "--duration",
+    "model_error": "--model-error",
+    "model_error.mass": "--model-error mass",
+    "model_error.damping": "--model-error damping",
+    "model_error.force": "--model-error force",
+    "model_error.force_period": "--model-error force_period",
+    "gains": "--gains",
+    "sweep": "--sweep/--no-sweep",
+}
 
 
 class InputError(Exception):
@@ -173,6 +184,27 @@ def _config(module, options: dict):
         raise InputError(f"{option} {message}" if message.startswith("must") else f"{option}: {message}") from None
 
 
+def _model_error(text: str) -> dict:
+    """'mass=0.2,force=4000' -> {'mass': 0.2, 'damping': 0.0, 'force': 4000.0}: the option
+    states the whole error, so keys not given are 0 ('none': no error at all)."""
+    result = {"mass": 0.0, "damping": 0.0, "force": 0.0}
+    if text.strip() == "none":
+        return result
+    for part in text.split(","):
+        key, sep, value = part.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise InputError(f"--model-error must be KEY=VALUE pairs separated by commas (mass, damping, force, force_period); got {text}")
+        try:
+            result[key] = float(value)
+        except ValueError:
+            raise InputError(f"--model-error {key} must be a number; got {value.strip()!r}") from None
+    unknown = sorted(set(result) - {"mass", "damping", "force", "force_period"})
+    if unknown:
+        raise InputError(f"--model-error: unknown key {unknown[0]!r}; the keys are mass, damping, force, force_period")
+    return result
+
+
 def _bytes(count: float) -> str:
     for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if count >= size:
@@ -195,14 +227,15 @@ def available_memory() -> int | None:
         return None
 
 
-def _check_memory(scenarios, runs: int) -> None:
+def _check_memory(batches) -> None:
     """Refuse a study whose records would not fit in memory, before simulating.
 
-    The scenarios run one after another, so the largest one sets the peak.
+    ``batches`` are (scenario, runs) simulated one after another, so the largest
+    one sets the peak.
     """
     from lookout.sim import record_nbytes
 
-    scenario = max(scenarios, key=lambda s: s.n_records * record_nbytes(s))
+    scenario, runs = max(batches, key=lambda pair: pair[1] * pair[0].n_records * record_nbytes(pair[0]))
     per_record = record_nbytes(scenario)
     need = PEAK_MEMORY_PER_RECORD_BYTE * runs * scenario.n_records * per_record
     available = available_memory()
@@ -222,7 +255,7 @@ def _default_durations() -> str:
     """``the paper's: 3000 for fossen-strand-1999, ...`` from the reproductions' configs."""
     from lookout.papers import REPRODUCTIONS
 
-    return "the paper's: " + ", ".join(f"{module.Config().duration:g} for {name}" for name, module in REPRODUCTIONS.items())
+    return "per reproduction: " + ", ".join(f"{module.Config().duration:g} for {name}" for name, module in REPRODUCTIONS.items())
 
 
 @app.command("list")
@@ -243,6 +276,19 @@ def reproduce(
     duration: Annotated[
         Optional[float], typer.Option(metavar="SECONDS", help="Simulated time.", show_default=_default_durations())
     ] = None,
+    model_error: Annotated[
+        Optional[str],
+        typer.Option(
+            metavar="KEY=VALUE,...",
+            help="kim-2002: how the vessel differs from the model: mass and damping (relative, M_true = (1 + mass) M), "
+            "force (N, unmodelled body-fixed), force_period (s); keys not given are 0, 'none' for no error.",
+            show_default="mass=0.2,damping=0.5,force=4000,force_period=100",
+        ),
+    ] = None,
+    gains: Annotated[
+        Optional[str], typer.Option(metavar="SET", help="kim-2002: observer H3, H4: printed (A.4) or kyp (satisfy (14)).", show_default="printed")
+    ] = None,
+    sweep: Annotated[Optional[bool], typer.Option("--sweep/--no-sweep", help="kim-2002: run the model-error sweep.", show_default="--sweep")] = None,
 ) -> None:
     """Run a paper's simulation study.
 
@@ -254,8 +300,12 @@ def reproduce(
     if name not in REPRODUCTIONS:
         raise InputError(f"unknown reproduction {name!r}; available: {', '.join(REPRODUCTIONS)}")
     module = REPRODUCTIONS[name]
-    config = _config(module, {"seed": seed, "runs": runs, "duration": duration})
-    _check_memory(module.scenarios(config), config.runs)
+    extra = {"model_error": None if model_error is None else _model_error(model_error), "gains": gains, "sweep": sweep}
+    for field, value in extra.items():
+        if value is not None and field not in module.Config.model_fields:
+            raise InputError(f"{REPRODUCE_OPTIONS[field]}: {name} has no such setting (it belongs to kim-2002)")
+    config = _config(module, {"seed": seed, "runs": runs, "duration": duration, **extra})
+    _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)])
     folder = _output_folder("--out", out)
     try:
         folder.mkdir(exist_ok=True)
@@ -427,6 +477,71 @@ def design_passive_observer(
         print(json.dumps(json_safe(result), allow_nan=False))
     else:
         _print_design(result, observer, tuning, spr)
+    if not passed:
+        raise typer.Exit(code=1)
+
+
+def _non_negative_numbers(option: str, text: str) -> list[float]:
+    """'a' or 'a,b,c' -> three finite floats >= 0."""
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 3) or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise InputError(f"{option} must be one finite number >= 0, or three separated by commas (surge,sway,yaw); got {text}")
+    return values * 3 if len(values) == 1 else values
+
+
+@design_app.command("sliding-mode-observer")
+def design_sliding_mode_observer(
+    gains: Annotated[str, typer.Option(metavar="SET", help="H3, H4: printed (Kim's A.4) or kyp (Fossen & Strand (60) in SI, satisfy (14)).")] = "printed",
+    velocity_gain: Annotated[Optional[str], typer.Option(metavar="H4[,H4,H4]", help="H4 diagonal, SI (N/m, N/m, N m/rad); overrides --gains.")] = None,
+    bias_gain: Annotated[Optional[str], typer.Option(metavar="H3[,H3,H3]", help="H3 diagonal, SI (H4's units per second); overrides --gains.")] = None,
+    switching_gain: Annotated[str, typer.Option(metavar="K[,K,K]", help="Kbar diagonal (m/s, m/s, rad/s); 0 for the passive observer.")] = "10,10,0.01",
+    boundary_layer: Annotated[str, typer.Option(metavar="EPS[,EPS,EPS]", help="Boundary layer eps of sat(y~/eps) (m, m, rad).")] = "5,5,0.01745",
+    disturbance: Annotated[
+        Optional[str], typer.Option(metavar="F[,F,F]", help="Bound on the unmodelled body-fixed force (N, N, N m): checks the switching gain (17).")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
+) -> None:
+    """Kim (2002) sliding-mode observer on Northern Clipper: gains and conditions.
+
+    Fossen & Strand's tuning rule (48), KYP (14) with P and Q verified, the
+    eigenvalues of the error system without the switching term and inside its
+    boundary layer, and, with --disturbance, the switching gain (17) needs.
+
+    Exit code 0 when (48), (14) and every checked condition hold, 1 when one fails
+    or (14) cannot be established (the report or JSON is still printed), 2 for bad input.
+    """
+    from lookout.analysis.sliding_mode import check_kim_2002
+    from lookout.models.vessel import northern_clipper
+    from lookout.observers import SlidingModeObserver
+    from lookout.papers import kim_2002
+
+    sets = kim_2002.gain_sets()
+    if gains not in sets:
+        raise InputError(f"--gains must be one of {', '.join(sets)}; got {gains!r}")
+    chosen = dict(sets[gains])
+    if velocity_gain is not None:
+        chosen["velocity_injection_gain"] = _positive_numbers("--velocity-gain", velocity_gain)
+    if bias_gain is not None:
+        chosen["bias_injection_gain"] = _positive_numbers("--bias-gain", bias_gain)
+    kbar = _non_negative_numbers("--switching-gain", switching_gain)
+    eps = _positive_numbers("--boundary-layer", boundary_layer)
+    bound = _non_negative_numbers("--disturbance", disturbance) if disturbance is not None else None
+    for option, values in (("--velocity-gain", chosen["velocity_injection_gain"]), ("--bias-gain", chosen["bias_injection_gain"]), ("--switching-gain", kbar), ("--boundary-layer", eps)):
+        if max(values) > 1e12 or (min(values) < 1e-12 and min(values) != 0):
+            raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
+    model = northern_clipper()
+    observer = SlidingModeObserver.kim_2002(model, boundary_layer=eps, switching_gain=kbar, **chosen)
+    report = check_kim_2002(observer, model, disturbance_bound=bound)
+    verdicts = report.verdicts
+    passed = verdicts["tuning_rule_48"] == "holds" and verdicts["kyp_14"] == "holds" and "fails" not in verdicts.values()
+    if as_json:
+        print(json.dumps(json_safe({"gain_set": gains, "passed": passed, **report.to_dict()}), allow_nan=False))
+    else:
+        console.print(report.text(), highlight=False, markup=False)
+        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
     if not passed:
         raise typer.Exit(code=1)
 

@@ -2,3 +2,4 @@
 
 from .open_loop import NoControl as NoControl
 from .open_loop import SinusoidalInput as SinusoidalInput
+from .backstepping import ObserverBackstepping as ObserverBackstepping

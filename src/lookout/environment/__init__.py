@@ -1,4 +1,6 @@
-"""Environmental disturbances: bias (Gauss–Markov) and first-order wave motion."""
+"""Environmental disturbances: bias (Gauss–Markov), first-order wave motion, and
+unmodelled body-fixed forces (model error)."""
 
 from .bias import GaussMarkovBias as GaussMarkovBias
 from .waves import LinearWaveModel as LinearWaveModel
+from .disturbance import BodyDisturbance as BodyDisturbance

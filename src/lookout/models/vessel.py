@@ -22,7 +22,7 @@ from typing import final
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.components import BODY_FIXED, EARTH_FIXED, Layout, Plant, Signal
-from lookout.environment import GaussMarkovBias, LinearWaveModel
+from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveModel
 
 DOF = ("surge", "sway", "yaw")
 #: Labels of the horizontal axes: Earth-fixed (position, bias, waves) and body-fixed (velocity, thrust).
@@ -153,6 +153,20 @@ class DPVessel(eqx.Module):
         self.stiffness_matrix = jnp.asarray(stiffness_matrix, dtype=float)
         self.mass_inverse = jnp.linalg.inv(self.mass_matrix)
 
+    def scaled(self, mass_scale=1.0, damping_scale=1.0) -> "DPVessel":
+        """This vessel with M and D multiplied entry by entry (a model error).
+
+        ``mass_scale`` and ``damping_scale`` are scalars or 3x3 arrays of factors
+        (1.2 is a 20 % heavier vessel than the model); the scaled M must stay
+        symmetric positive definite.
+        """
+        mass_scale = np.broadcast_to(np.asarray(mass_scale, dtype=float), (3, 3))
+        damping_scale = np.broadcast_to(np.asarray(damping_scale, dtype=float), (3, 3))
+        for name, scale in (("mass_scale", mass_scale), ("damping_scale", damping_scale)):
+            if not np.all(np.isfinite(scale)) or np.any(scale < 0):
+                raise ValueError(f"{name} must be finite and non-negative; got {scale.tolist()}")
+        return DPVessel(np.asarray(self.mass_matrix) * mass_scale, np.asarray(self.damping_matrix) * damping_scale, self.stiffness_matrix)
+
     def acceleration(self, eta: Array, nu: Array, tau: Array, bias: Array) -> Array:
         """nu' = M^{-1} (tau + J^T(psi) b - D nu - K eta)."""
         eta_wrapped = eta.at[2].set(ssa(eta[2]))
@@ -177,25 +191,39 @@ class VesselPlant(Plant):
     Parameters
     ----------
     vessel : DPVessel
+        The true vessel (it may differ from the observer's and controller's model:
+        that difference is the model error).
     bias : GaussMarkovBias
     waves : LinearWaveModel
+    disturbance : BodyDisturbance, optional
+        An unmodelled body-fixed force (Kim's E_nu w_nu); its white part adds three
+        noise channels after the six of bias and waves.
     """
 
     vessel: DPVessel
     bias: GaussMarkovBias
     waves: LinearWaveModel
-    noise_size: int = eqx.field(static=True, default=6, kw_only=True)
+    disturbance: BodyDisturbance | None
+    noise_size: int = eqx.field(static=True)
     input_layout: Layout = eqx.field(static=True, default=VESSEL_INPUT, kw_only=True)
     variable_signals: tuple[Signal, ...] = eqx.field(static=True, default=VESSEL_SIGNALS, kw_only=True)
 
+    def __init__(self, vessel: DPVessel, bias: GaussMarkovBias, waves: LinearWaveModel, disturbance: BodyDisturbance | None = None):
+        self.vessel = vessel
+        self.bias = bias
+        self.waves = waves
+        self.disturbance = disturbance
+        self.noise_size = 6 + (disturbance.noise_size if disturbance is not None else 0)
+
     def vector_field(self, t, state: VesselState, tau: Array, noise: Array) -> VesselState:
-        """Time derivative of the plant state (eqs. 1, 3, 7, 11)."""
-        del t
+        """Time derivative of the plant state (eqs. 1, 3, 7, 11), with the unmodelled
+        body-fixed force E_nu w_nu of Kim (2002), eq. (1), added to tau when given."""
+        force = tau if self.disturbance is None else tau + self.disturbance.force(t, noise[6:])
         return VesselState(
             eta=rotate(state.eta[2], state.nu),
-            nu=self.vessel.acceleration(state.eta, state.nu, tau, state.bias),
+            nu=self.vessel.acceleration(state.eta, state.nu, force, state.bias),
             bias=self.bias.derivative(state.bias, noise[:3]),
-            wave_state=self.waves.derivative(state.wave_state, noise[3:]),
+            wave_state=self.waves.derivative(state.wave_state, noise[3:6]),
         )
 
     def normalize(self, state: VesselState) -> VesselState:

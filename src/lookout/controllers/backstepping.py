@@ -1,0 +1,269 @@
+"""Observer backstepping with integral action for dynamic positioning.
+
+Kim (2002), Section 4.1, eqs. (18)–(26), after Aarset, Strand & Fossen (1998), with
+the corrections derived in ``derivations-kim-calugi-2003.md`` (K3), each checked by
+differentiating the error variables (below). Notation: e = eta_hat - eta_d (heading
+through ``ssa``), integral state e_I with e_I' = e, J = J(y) built from the measured
+heading::
+
+    z1 = e + K_I e_I                                                       (18)
+    alpha1 = -(C1 + D1) z1 + eta_d' - K_I e          (printed "-D1 z1'": a typo)
+    z2 = J nu_hat - alpha1 = J nu_hat + (C1 + D1) z1 - eta_d' + K_I e
+    z1' = -(C1 + D1) z1 + z2 + H2 y~ + Kbar sat                            (20)
+
+Differentiating z2 along the observer (6) and J' = J S(mu), mu = [0, 0, r + psi_w']
+(eq. 22; the printed "r + psi_w" adds rad/s to rad, and the printed "+" of the
+estimation-error part has the wrong sign since S(a) b = -S(b) a)::
+
+    z2' = J S(mu_hat) nu_hat + J M^-1 (-D nu_hat + tau + J^T b_hat)
+          + (C1 + D1)(-(C1 + D1) z1 + z2) - eta_d'' + K_I (J nu_hat - eta_d')
+          + Omega1 y~ + Omega2 nu~ + Omega3 xi~ + Omega4 sat                (24)
+
+with Omega1 = J M^-1 J^T H4 + (C1 + D1 + K_I) H2, Omega2 = J q e3^T,
+Omega3 = J q e3^T C_w A_w, Omega4 = (C1 + D1 + K_I) Kbar, q = [-v_hat, u_hat, 0].
+The control law (25), tau = -(J M^-1)^-1 [Lambda + (C2 + D2) z2 + z1], with Lambda of
+(23) read term by term (the printed "-J M^-1 nu_hat" is -J M^-1 D nu_hat and
+"K_II nu_hat" is K_I J nu_hat), is then::
+
+    tau = -M S(mu_hat) nu_hat + D nu_hat - J^T b_hat
+          - M J^T [ z1 - (C1 + D1)^2 z1 + (C1 + D1 + C2 + D2) z2
+                    + K_I (J nu_hat - eta_d') - eta_d'' ]
+
+so that z2' = -(C2 + D2) z2 - z1 + (the Omega terms). The y~ and sat terms are not
+cancelled (y~ is noisy); they are damped by the nonlinear damping
+D1 = diag(d_i (|row_i H2|^2 + |row_i Kbar|^2)), i = 1..3, and
+D2 = diag(d_{i+3} sum_k |row_i Omega_k|^2), evaluated at each sample. ("H1^T" in the
+text under (20) is read as H2: the disturbances of (20) are H2 y~ and Kbar sat.)
+
+With V_con = 1/2 |z|^2 + e_I^T K_I C1 e_I (29) and no estimation error,
+V_con' = -e'^T C1 e' - e_I^T K_I C1 K_I e_I - z1^T D1 z1 - z2^T (C2 + D2) z2 <= 0
+(the printed "+2 e_I^T K_I C1 e_I" of (30) is + 2 e_I^T K_I C1 e_I').
+
+The coupling term (choice)
+--------------------------
+The z1 in (25) and -z1 in (26) come from V_con = 1/2 |z1|^2 + 1/2 |z2|^2, which adds
+metres to metres per second: it hides a unit weight of 1 s^-2, and with the printed
+C1 = C2 = 0.1 s^-1 the noise-free z-dynamics z1' = -C1 z1 + z2, z2' = -C2 z2 - z1 have
+poles s^2 + (C1 + C2) s + C1 C2 + 1 = 0, a natural frequency of at least 1 rad/s
+(damping 0.1 here), inside the wave band a DP controller must stay out of. This class
+makes the weight explicit: ``coupling_gain`` P1 (diagonal, s^-2) with
+V_con = 1/2 z1^T P1 z1 + 1/2 |z2|^2 + e_I^T K_I C1 P1 e_I, so that P1 z1 replaces z1
+in (25) and -P1 z1 replaces -z1 in (26); the poles are then at
+s^2 + (C1 + C2) s + C1 C2 + P1 = 0. P1 = 1 is Kim's law as printed (the default).
+
+The controller works with any observer whose estimate gives ``position``,
+``heading``, ``velocity``, ``yaw_rate``, ``bias_force``, ``bias_moment`` and
+``wave_heading_rate`` (the passive and the sliding-mode observers do), and a
+reference giving ``position_desired``, ``heading_desired`` and their ``_rate`` and
+``_acceleration`` (:class:`~lookout.reference.ReferenceFilter`). The integral state
+is advanced by forward Euler over the sample, e_I(k+1) = e_I(k) + dt e(k).
+"""
+
+from __future__ import annotations
+
+from typing import final
+
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from lookout import _validation as check
+from lookout._math import rotate, rotate_transpose, ssa
+from lookout.components import Controller
+
+
+def _vector(estimate: dict, name: str) -> Array:
+    """``position``/``heading``-style pairs joined into a 3-vector."""
+    first, second = name
+    return jnp.concatenate([jnp.asarray(estimate[first]), jnp.asarray(estimate[second])[None]])
+
+
+def _rotation(heading) -> Array:
+    """J(psi) as a 3x3 matrix."""
+    c, s = jnp.cos(heading), jnp.sin(heading)
+    return jnp.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@final
+class ObserverBackstepping(Controller):
+    """Kim (2002) observer backstepping with integral action, eqs. (18)–(26).
+
+    Build it with :meth:`for_observer`, which takes the model and the injection gains
+    that enter the nonlinear damping from the observer.
+
+    Parameters
+    ----------
+    mass_matrix, damping_matrix : array_like, shape (3, 3)
+        The controller's (and observer's) model M and D.
+    integral_gain : array_like, shape (3,)
+        K_I (1/s).
+    position_gain, velocity_gain : array_like, shape (3,)
+        C1 and C2 (1/s).
+    coupling_gain : array_like, shape (3,)
+        P1 (1/s^2), the weight of z1 in V_con; 1 is Kim's law as printed.
+    damping_weights : array_like, shape (6,)
+        d1..d6 of the nonlinear damping D1 (d1..d3) and D2 (d4..d6).
+    position_injection_gain, velocity_injection_gain, switching_gain : array_like, shape (3,)
+        H2, H4 and Kbar of the observer (diagonals); Kbar = 0 for the passive observer.
+    wave_frequency, wave_damping : array_like, shape (3,)
+        The observer's wave model (for Omega3).
+    """
+
+    mass_matrix: Array
+    damping_matrix: Array
+    mass_inverse: Array
+    integral_gain: Array
+    position_gain: Array
+    velocity_gain: Array
+    coupling_gain: Array
+    damping_weights: Array
+    position_injection_gain: Array
+    velocity_injection_gain: Array
+    switching_gain: Array
+    wave_frequency: Array
+    wave_damping: Array
+
+    def __init__(
+        self,
+        mass_matrix,
+        damping_matrix,
+        *,
+        integral_gain,
+        position_gain,
+        velocity_gain,
+        damping_weights,
+        position_injection_gain,
+        velocity_injection_gain,
+        switching_gain,
+        wave_frequency,
+        wave_damping,
+        coupling_gain=1.0,
+    ):
+        check.symmetric_positive_definite("mass_matrix", mass_matrix, size=3)
+        check.square("damping_matrix", damping_matrix)
+        self.mass_matrix = jnp.asarray(mass_matrix, dtype=float)
+        self.damping_matrix = jnp.asarray(damping_matrix, dtype=float)
+        self.mass_inverse = jnp.linalg.inv(self.mass_matrix)
+        self.integral_gain = jnp.asarray(check.vector("integral_gain", integral_gain))
+        self.position_gain = jnp.asarray(check.vector("position_gain (C1)", position_gain))
+        self.velocity_gain = jnp.asarray(check.vector("velocity_gain (C2)", velocity_gain))
+        self.coupling_gain = jnp.asarray(check.vector("coupling_gain (P1)", coupling_gain))
+        self.damping_weights = jnp.asarray(check.vector("damping_weights (d1..d6)", damping_weights, 6))
+        self.position_injection_gain = jnp.asarray(check.vector("position_injection_gain (H2)", position_injection_gain))
+        self.velocity_injection_gain = jnp.asarray(check.vector("velocity_injection_gain (H4)", velocity_injection_gain))
+        self.switching_gain = jnp.asarray(check.vector("switching_gain (Kbar)", switching_gain))
+        self.wave_frequency = jnp.asarray(check.vector("wave_frequency", wave_frequency))
+        self.wave_damping = jnp.asarray(check.vector("wave_damping", wave_damping))
+
+    def __check_init__(self):
+        check.positive("integral_gain", self.integral_gain, allow_zero=True)
+        check.positive("position_gain (C1)", self.position_gain)
+        check.positive("velocity_gain (C2)", self.velocity_gain)
+        check.positive("coupling_gain (P1)", self.coupling_gain)
+        check.positive("damping_weights (d1..d6)", self.damping_weights, allow_zero=True)
+        check.finite("position_injection_gain (H2)", self.position_injection_gain)
+        check.finite("velocity_injection_gain (H4)", self.velocity_injection_gain)
+        check.positive("switching_gain (Kbar)", self.switching_gain, allow_zero=True)
+
+    @classmethod
+    def for_observer(
+        cls, observer, *, integral_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0
+    ) -> "ObserverBackstepping":
+        """The controller for a passive or sliding-mode observer: M, D, H2, H4, Kbar and
+        the wave model are taken from ``observer``."""
+        from lookout.observers import PassiveObserver, SlidingModeObserver
+
+        if isinstance(observer, SlidingModeObserver):
+            passive, switching = observer.passive, observer.switching_gain
+        elif isinstance(observer, PassiveObserver):
+            passive, switching = observer, jnp.zeros(3)
+        else:
+            raise ValueError(f"observer must be a PassiveObserver or SlidingModeObserver; got {type(observer).__name__}")
+        inv_gamma = 1.0 / passive.lyapunov_weight
+        return cls(
+            passive.mass_matrix,
+            passive.damping_matrix,
+            integral_gain=integral_gain,
+            position_gain=position_gain,
+            velocity_gain=velocity_gain,
+            coupling_gain=coupling_gain,
+            damping_weights=damping_weights,
+            position_injection_gain=passive.position_injection_gain,
+            velocity_injection_gain=inv_gamma * passive.velocity_injection_gain,
+            switching_gain=switching,
+            wave_frequency=passive.wave_frequency,
+            wave_damping=passive.wave_damping,
+        )
+
+    def init(self):
+        """The integral state e_I = 0 (m, m, rad s)."""
+        return jnp.zeros(3)
+
+    def errors(self, integral: Array, y: Array, estimate: dict, reference: dict) -> dict[str, Array]:
+        """e, z1, z2, alpha1 and the nonlinear damping D1, D2 at one sample (eqs. 18–20, 26)."""
+        eta_hat = _vector(estimate, ("position", "heading"))
+        nu_hat = _vector(estimate, ("velocity", "yaw_rate"))
+        eta_d = _vector(reference, ("position_desired", "heading_desired"))
+        eta_d_rate = _vector(reference, ("position_desired_rate", "heading_desired_rate"))
+        heading_y = jnp.where(jnp.isfinite(y[2]), y[2], eta_hat[2] + estimate["wave_heading"])
+        e = (eta_hat - eta_d).at[2].set(ssa(eta_hat[2] - eta_d[2]))
+        k_i, h2, h4, kbar = self.integral_gain, self.position_injection_gain, self.velocity_injection_gain, self.switching_gain
+        d = self.damping_weights
+        d1 = d[:3] * (h2**2 + kbar**2)
+        c1d1 = self.position_gain + d1
+        z1 = e + k_i * integral
+        z2 = rotate(heading_y, nu_hat) + c1d1 * z1 - eta_d_rate + k_i * e
+        # nonlinear damping D2 from the rows of Omega1..Omega4 (eq. 26)
+        j = _rotation(heading_y)
+        omega1 = j @ self.mass_inverse @ j.T * h4[None, :] + jnp.diag((c1d1 + k_i) * h2)
+        q = jnp.stack([-nu_hat[1], nu_hat[0], 0.0])
+        jq = rotate(heading_y, q)
+        w3, zeta3 = self.wave_frequency[2], self.wave_damping[2]
+        wave_row = w3**4 + (2.0 * zeta3 * w3) ** 2  # |e3^T C_w A_w|^2
+        rows = jnp.sum(omega1**2, axis=1) + jq**2 * (1.0 + wave_row) + ((c1d1 + k_i) * kbar) ** 2
+        d2 = d[3:] * rows
+        return {"e": e, "z1": z1, "z2": z2, "d1": d1, "d2": d2, "heading_y": heading_y, "nu_hat": nu_hat}
+
+    def lyapunov(self, integral: Array, y: Array, estimate: dict, reference: dict) -> Array:
+        """V_con = 1/2 (z1^T P1 z1 + |z2|^2) + e_I^T K_I C1 P1 e_I of eq. (29) (P1 = 1 as printed)."""
+        err = self.errors(integral, y, estimate, reference)
+        p1 = self.coupling_gain
+        return 0.5 * (jnp.sum(p1 * err["z1"] ** 2) + jnp.sum(err["z2"] ** 2)) + jnp.sum(integral * self.integral_gain * self.position_gain * p1 * integral)
+
+    def step(self, integral, t, y, estimate, reference, dt):
+        """``(e_I(k+1), tau_k)``: the control law (25) at t_k."""
+        del t
+        err = self.errors(integral, y, estimate, reference)
+        z1, z2, e, heading_y, nu_hat = err["z1"], err["z2"], err["e"], err["heading_y"], err["nu_hat"]
+        c1d1 = self.position_gain + err["d1"]
+        k_i = self.integral_gain
+        b_hat = _vector(estimate, ("bias_force", "bias_moment"))
+        eta_d_rate = _vector(reference, ("position_desired_rate", "heading_desired_rate"))
+        eta_d_accel = _vector(reference, ("position_desired_acceleration", "heading_desired_acceleration"))
+        # S(mu_hat) nu_hat with mu_hat_3 = r_hat + psi_w_hat' (eq. 22, corrected)
+        mu3 = nu_hat[2] + estimate["wave_heading_rate"]
+        s_mu_nu = mu3 * jnp.stack([-nu_hat[1], nu_hat[0], 0.0])
+        bracket = (
+            self.coupling_gain * z1
+            - c1d1**2 * z1
+            + (c1d1 + self.velocity_gain + err["d2"]) * z2
+            + k_i * (rotate(heading_y, nu_hat) - eta_d_rate)
+            - eta_d_accel
+        )
+        tau = (
+            -self.mass_matrix @ s_mu_nu
+            + self.damping_matrix @ nu_hat
+            - rotate_transpose(heading_y, b_hat)
+            - self.mass_matrix @ rotate_transpose(heading_y, bracket)
+        )
+        return integral + dt * e, tau
+
+    def gains_table(self) -> dict[str, np.ndarray]:
+        """K_I, C1, C2, P1 and d1..d6 as arrays (for reports)."""
+        return {
+            "K_I": np.asarray(self.integral_gain),
+            "C1": np.asarray(self.position_gain),
+            "C2": np.asarray(self.velocity_gain),
+            "P1": np.asarray(self.coupling_gain),
+            "d": np.asarray(self.damping_weights),
+        }
