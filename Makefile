@@ -22,7 +22,7 @@ demo: $(VENV)/.installed
 	$(BIN)/lookout reproduce fossen-strand-1999 --out $(OUT)
 
 test: $(VENV)/.installed-dev
-	$(BIN)/python -m pytest -q -n auto
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py

@@ -32,6 +32,23 @@ from lookout.papers import kim_2002
 from lookout.sim import simulate, simulate_batch  # noqa: E402
 
 
+def J(psi):
+    """The rotation J(psi) as a NumPy matrix."""
+    c, s = np.cos(psi), np.sin(psi)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def wrap(angle):
+    """An angle wrapped to [-pi, pi)."""
+    return (angle + np.pi) % (2 * np.pi) - np.pi
+
+
+def rk4(f, x, h, *args):
+    """One classical Runge-Kutta step of dx/dt = f(x, *args)."""
+    k1 = f(x, *args); k2 = f(x + 0.5 * h * k1, *args); k3 = f(x + 0.5 * h * k2, *args); k4 = f(x + h * k3, *args)
+    return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
 def numpy_loop(scenario, duration: float, seed: int = 0) -> float:
     """Plain NumPy: the same equations, one Python iteration per 0.1 s step."""
     plant, obs, sensor = scenario.plant, scenario.observer, scenario.sensor
@@ -47,9 +64,6 @@ def numpy_loop(scenario, duration: float, seed: int = 0) -> float:
     rng = np.random.default_rng(seed)
     h = scenario.plant_step
 
-    def J(psi):
-        c, s = np.cos(psi), np.sin(psi)
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
     def plant_f(x, tau, noise):
         eta, nu, b, xi = x[:3], x[3:6], x[6:9], x[9:]
@@ -59,13 +73,10 @@ def numpy_loop(scenario, duration: float, seed: int = 0) -> float:
     def obs_f(z, y, tau):
         eta, nu, b, xi = z[:3], z[3:6], z[6:9], z[9:]
         e = y - (eta + xi[3:])
-        e[2] = (e[2] + np.pi) % (2 * np.pi) - np.pi
+        e[2] = wrap(e[2])
         R = J(y[2])
         return np.concatenate([R @ nu + k3 * e, oM_inv @ (-oD @ nu + R.T @ (b + kap * e) + tau), -b / oT + lam * e, xi[3:] + k[:3] * e, -(ow0**2) * xi[:3] - 2 * ozeta * ow0 * xi[3:] + k[3:] * e])
 
-    def rk4(f, x, *args):
-        k1 = f(x, *args); k2 = f(x + 0.5 * h * k1, *args); k3_ = f(x + 0.5 * h * k2, *args); k4 = f(x + h * k3_, *args)
-        return x + h / 6 * (k1 + 2 * k2 + 2 * k3_ + k4)
 
     x = np.zeros(15); x[6:9] = [1e4, 5e3, 1e5]
     z = np.zeros(15)
@@ -76,10 +87,10 @@ def numpy_loop(scenario, duration: float, seed: int = 0) -> float:
         t = i * h
         if i % 10 == 0:
             y = x[:3] + x[12:15] + noise_std * rng.standard_normal(3)
-            y[2] = (y[2] + np.pi) % (2 * np.pi) - np.pi
+            y[2] = wrap(y[2])
         tau = 1000.0 * np.sin(np.array([0.05, 0.1, 0.07]) * t)
-        z_next = rk4(obs_f, z, y, tau)
-        x = rk4(plant_f, x, tau, rng.standard_normal(6) / np.sqrt(h))
+        z_next = rk4(obs_f, z, h, y, tau)
+        x = rk4(plant_f, x, h, tau, rng.standard_normal(6) / np.sqrt(h))
         z = z_next
     return duration / (time.perf_counter() - start)
 
@@ -105,12 +116,7 @@ def numpy_closed_loop(scenario, duration: float, seed: int = 0) -> float:
     rng = np.random.default_rng(seed)
     h = scenario.plant_step
 
-    def J(psi):
-        c, s = np.cos(psi), np.sin(psi)
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
-    def wrap(a):
-        return (a + np.pi) % (2 * np.pi) - np.pi
 
     def plant_f(x, tau, noise, t):
         eta, nu, b, xi = x[:3], x[3:6], x[6:9], x[9:]
@@ -126,9 +132,6 @@ def numpy_closed_loop(scenario, duration: float, seed: int = 0) -> float:
         switching = kbar * np.clip(e / eps, -1.0, 1.0)
         return np.concatenate([R @ nu + k3 * e + switching, oM_inv @ (-oD @ nu + R.T @ (b + kap * e) + tau), -b / oT + lam * e, xi[3:] + k[:3] * e, -(ow0**2) * xi[:3] - 2 * ozeta * ow0 * xi[3:] + k[3:] * e])
 
-    def rk4(f, x, *args):
-        k1 = f(x, *args); k2 = f(x + 0.5 * h * k1, *args); k3_ = f(x + 0.5 * h * k2, *args); k4 = f(x + h * k3_, *args)
-        return x + h / 6 * (k1 + 2 * k2 + 2 * k3_ + k4)
 
     # reference filter: exact discretization of the third-order critically damped model
     A = np.zeros((3, 3, 3))
@@ -175,8 +178,8 @@ def numpy_closed_loop(scenario, duration: float, seed: int = 0) -> float:
         tau = -oM @ (mu3 * np.array([-nu_hat[1], nu_hat[0], 0.0])) + oD @ nu_hat - R.T @ b_hat - oM @ (R.T @ bracket)
         integral = integral + scenario.sample_period * e
         applied = np.clip(tau, -limit, limit)
-        z_next = rk4(obs_f, z, y, applied)
-        x = rk4(plant_f, x, applied, rng.standard_normal(6) / np.sqrt(h), t)
+        z_next = rk4(obs_f, z, h, y, applied)
+        x = rk4(plant_f, x, h, applied, rng.standard_normal(6) / np.sqrt(h), t)
         z = z_next
         z[2] = wrap(z[2])
         x[2] = wrap(x[2])

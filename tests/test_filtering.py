@@ -11,6 +11,10 @@ from lookout.models.vessel import VESSEL_INPUT
 from lookout.sim import simulate
 
 
+#: one worker computes the module's fixture once (make test runs pytest --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("filtering")
+
+
 @pytest.fixture(scope="module")
 def recorded():
     scenario = fs.build(fs.Config(duration=120.0))

@@ -15,6 +15,10 @@ RUNS = 8
 SETTLED = 600.0  # s; errors are compared after this time
 
 
+#: one worker computes the module's fixture once (make test runs pytest --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("fossen_strand_1999")
+
+
 @pytest.fixture(scope="module")
 def run():
     """Config, the recorded Dataset, and the same in the paper's notation (eta, nu, ... over dof)."""

@@ -50,7 +50,7 @@ import scipy.integrate
 import scipy.linalg
 import scipy.optimize
 
-from lookout.analysis.passive import SPRReport, TuningRuleReport, check_spr, check_tuning_rule
+from lookout.analysis.passive import SPRReport, TuningRuleReport, _normalized_min_eig, check_spr, check_tuning_rule
 from lookout.models.vessel import DOF, DPVessel
 from lookout.observers.passive import PassiveObserver
 from lookout.observers.sliding_mode import SlidingModeObserver
@@ -342,14 +342,6 @@ def _spr_summary(report: SPRReport) -> dict:
         "min_real_part": report.min_real_part,
         "min_real_part_frequency": report.min_real_part_frequency,
     }
-
-
-def _normalized_min_eig(matrix: np.ndarray) -> float:
-    diagonal = np.diag(matrix)
-    if np.any(diagonal <= 0):
-        return float(diagonal.min())
-    scale = 1.0 / np.sqrt(diagonal)
-    return float(np.linalg.eigvalsh(scale[:, None] * matrix * scale[None, :])[0])
 
 
 def kyp_14(observer, *, frequencies=None) -> KYPReport:

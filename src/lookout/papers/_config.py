@@ -11,6 +11,13 @@ import math
 from lookout.sim import MAX_SEED, integer_ratio
 
 
+def positive_count(value: int) -> int:
+    """``value`` if it is a positive integer (a number of runs or seeds)."""
+    if value < 1:
+        raise ValueError(f"must be a positive integer; got {value}")
+    return value
+
+
 def finite_positive(value: float) -> float:
     """``value`` if it is a finite positive number."""
     if not (math.isfinite(value) and value > 0):

@@ -30,7 +30,7 @@ from lookout.controllers import SinusoidalInput
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
-from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
+from lookout.papers._config import finite_positive, positive_count, seed_for_runs, whole_samples
 from lookout.papers._report import Table, json_safe, mean_and_spread, significant
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
@@ -74,9 +74,7 @@ class Config(BaseModel):
     @field_validator("runs")
     @classmethod
     def _positive_count(cls, value):
-        if value < 1:
-            raise ValueError(f"must be a positive integer; got {value}")
-        return value
+        return positive_count(value)
 
     @field_validator("seed")
     @classmethod

@@ -55,7 +55,7 @@ from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveMode
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.observers.sliding_mode import KIM_2002_BIAS_GAIN, KIM_2002_BIAS_TIME_CONSTANT, KIM_2002_SWITCHING_GAIN, KIM_2002_VELOCITY_GAIN, KIM_2002_WAVE
-from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
+from lookout.papers._config import finite_positive, positive_count, seed_for_runs, whole_samples
 from lookout.papers._report import Table, json_safe, mean_and_spread, significant
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
@@ -156,9 +156,7 @@ class Config(BaseModel):
     @field_validator("runs", "sweep_seeds")
     @classmethod
     def _positive_count(cls, value):
-        if value < 1:
-            raise ValueError(f"must be a positive integer; got {value}")
-        return value
+        return positive_count(value)
 
     @field_validator("seed")
     @classmethod
