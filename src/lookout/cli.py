@@ -67,6 +67,7 @@ REPRODUCE_OPTIONS = {
     "model_error.force_period": "--model-error force_period",
     "gains": "--gains",
     "sweep": "--sweep/--no-sweep",
+    "sample_interval": "--sample-interval",
 }
 
 
@@ -288,7 +289,12 @@ def reproduce(
     gains: Annotated[
         Optional[str], typer.Option(metavar="SET", help="kim-2002: observer H3, H4: printed (A.4) or kyp (satisfy (14)).", show_default="printed")
     ] = None,
-    sweep: Annotated[Optional[bool], typer.Option("--sweep/--no-sweep", help="kim-2002: run the model-error sweep.", show_default="--sweep")] = None,
+    sweep: Annotated[
+        Optional[bool], typer.Option("--sweep/--no-sweep", help="kim-2002, calugi-2003: run the sweeps.", show_default="--sweep")
+    ] = None,
+    sample_interval: Annotated[
+        Optional[float], typer.Option(metavar="SECONDS", help="calugi-2003: observer and controller sample interval Delta.", show_default="0.1")
+    ] = None,
 ) -> None:
     """Run a paper's simulation study.
 
@@ -300,10 +306,11 @@ def reproduce(
     if name not in REPRODUCTIONS:
         raise InputError(f"unknown reproduction {name!r}; available: {', '.join(REPRODUCTIONS)}")
     module = REPRODUCTIONS[name]
-    extra = {"model_error": None if model_error is None else _model_error(model_error), "gains": gains, "sweep": sweep}
+    extra = {"model_error": None if model_error is None else _model_error(model_error), "gains": gains, "sweep": sweep, "sample_interval": sample_interval}
+    owners = {"model_error": "kim-2002", "gains": "kim-2002", "sweep": "kim-2002 and calugi-2003", "sample_interval": "calugi-2003"}
     for field, value in extra.items():
         if value is not None and field not in module.Config.model_fields:
-            raise InputError(f"{REPRODUCE_OPTIONS[field]}: {name} has no such setting (it belongs to kim-2002)")
+            raise InputError(f"{REPRODUCE_OPTIONS[field]}: {name} has no such setting (it belongs to {owners[field]})")
     config = _config(module, {"seed": seed, "runs": runs, "duration": duration, **extra})
     _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)])
     folder = _output_folder("--out", out)
@@ -539,6 +546,55 @@ def design_sliding_mode_observer(
     passed = verdicts["tuning_rule_48"] == "holds" and verdicts["kyp_14"] == "holds" and "fails" not in verdicts.values()
     if as_json:
         print(json.dumps(json_safe({"gain_set": gains, "passed": passed, **report.to_dict()}), allow_nan=False))
+    else:
+        console.print(report.text(), highlight=False, markup=False)
+        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
+    if not passed:
+        raise typer.Exit(code=1)
+
+
+@design_app.command("adaptive-observer")
+def design_adaptive_observer(
+    observer_gains: Annotated[str, typer.Option("--k1", metavar="K1[,K1,K1]", help="K1 diagonal (1/s).")] = "1e-3",
+    velocity_gains: Annotated[str, typer.Option("--k2", metavar="K2[,K2,K2]", help="K2 diagonal (1/s).")] = "1e-3",
+    damping_weights: Annotated[str, typer.Option("--d", metavar="D1,...,D6", help="Damping weights d1..d6 (s): one value or six.")] = "0.1",
+    theta_bounds: Annotated[str, typer.Option(metavar="LOW,HIGH", help="Bounds of the unknown m11, as ratios to its value.")] = "0.5,2",
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
+) -> None:
+    """Calugi, Robertsson & Johansson (2003) on the supply vessel (59): conditions.
+
+    The observer condition (22) and the closed-loop conditions (57)-(58), each
+    inequality with both sides, for theta = m11 unknown within --theta-bounds.
+
+    Exit code 0 when all three hold, 1 when one fails (the report or JSON is still
+    printed), 2 for bad input.
+    """
+    from lookout.analysis.adaptive_dp import calugi_2003_vessel, check_calugi_2003
+
+    k1 = _positive_numbers("--k1", observer_gains)
+    k2 = _positive_numbers("--k2", velocity_gains)
+    try:
+        d = [float(part) for part in damping_weights.split(",")]
+    except ValueError:
+        d = []
+    if len(d) not in (1, 6) or not all(math.isfinite(v) and v > 0 for v in d):
+        raise InputError(f"--d must be one finite positive number, or six separated by commas (d1..d6); got {damping_weights}")
+    d = d * 6 if len(d) == 1 else d
+    try:
+        low, high = (float(part) for part in theta_bounds.split(","))
+    except ValueError:
+        raise InputError(f"--theta-bounds must be two numbers LOW,HIGH; got {theta_bounds}") from None
+    if not (0 < low <= 1 <= high and math.isfinite(high)):
+        raise InputError(f"--theta-bounds must satisfy 0 < LOW <= 1 <= HIGH (ratios to m11); got {theta_bounds}")
+    for option, values in (("--k1", k1), ("--k2", k2), ("--d", d)):
+        if max(values) > 1e12 or min(values) < 1e-12:
+            raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
+    vessel = calugi_2003_vessel()
+    m11 = float(vessel.mass_matrix[0, 0])
+    report = check_calugi_2003(vessel, K1=k1, K2=k2, d=d, theta_bounds=[low * m11, high * m11])
+    passed = all(verdict == "holds" for verdict in report.verdicts.values())
+    if as_json:
+        print(json.dumps(json_safe({"passed": passed, **report.to_dict()}), allow_nan=False))
     else:
         console.print(report.text(), highlight=False, markup=False)
         console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)

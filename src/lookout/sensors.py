@@ -182,3 +182,87 @@ class JointEncoder(Sensor):
         # Phi(n) < p, written as n < Phi^-1(p), as PositionHeadingSensor does
         dropped = noise[n:] < jax.scipy.special.ndtri(self.dropout_probability)
         return jnp.where(dropped, jnp.nan, y)
+
+
+# Position, heading AND velocity: an oracle for analysis in simulation only (appended;
+# the sensors above are unchanged).
+from lookout.models.vessel import BODY_AXES  # noqa: E402
+from lookout.components import BODY_FIXED  # noqa: E402
+
+#: POSITION_HEADING followed by the body-fixed velocity nu = [u, v, r] (oracle channels).
+POSITION_HEADING_VELOCITY = Layout(
+    POSITION_HEADING.signals
+    + (
+        Signal("measured_velocity", "m/s", "ORACLE measured linear velocity (simulation only; NaN = dropout)", BODY_FIXED, BODY_AXES, "body_axis"),
+        Signal("measured_yaw_rate", "rad/s", "ORACLE measured yaw rate (simulation only; NaN = dropout)", BODY_FIXED),
+    )
+)
+
+
+@final
+class PositionHeadingVelocitySensor(Sensor):
+    """ORACLE SENSOR, FOR ANALYSIS IN SIMULATION ONLY: measures eta AND the velocity nu.
+
+    No DP vessel measures its body-fixed velocity nu = [u, v, r] like this; the
+    sensor exists so that observers whose continuous-time form needs nu (the
+    adaptive observer of Calugi, Robertsson & Johansson (2003), eqs. (13)–(15),
+    Remark 2: "not directly implementable because of the presence of the unknown
+    signal nu") can be simulated and compared with their implementable discrete
+    forms. Do not use it to judge what an observer achieves on a real vessel.
+
+    Layout: ``measured_position`` (m, Earth-fixed north, east),
+    ``measured_heading`` (rad, wrapped to [-pi, pi)), ``measured_velocity``
+    (m/s, body-fixed surge, sway), ``measured_yaw_rate`` (rad/s): six channels.
+    Position and heading are ``eta + eta_w`` as :class:`PositionHeadingSensor`
+    reports them (eq. 12 of Fossen & Strand 1999); the velocity channels are the
+    low-frequency nu of the plant state (no wave-induced velocity). Each channel has
+    its own noise, rate and NaN dropouts, as in :class:`PositionHeadingSensor`.
+
+    Parameters
+    ----------
+    noise_std : array_like, shape (6,)
+        Standard deviation per channel (m, m, rad, m/s, m/s, rad/s), >= 0.
+    sample_period : float or sequence of 6 floats
+        Seconds between samples of each channel (static).
+    dropout_probability : float
+        Probability that a sample of a channel is missing (0 <= p < 1).
+    """
+
+    noise_std: Array
+    dropout_probability: Array
+    sample_period: tuple[float, ...] = eqx.field(static=True)
+    noise_size: int = eqx.field(static=True, default=12, kw_only=True)
+    measurement_layout: Layout = eqx.field(static=True, default=POSITION_HEADING_VELOCITY, kw_only=True)
+
+    def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0):
+        self.noise_std = jnp.asarray(check.vector("oracle sensor noise_std", noise_std, 6))
+        self.dropout_probability = jnp.asarray(float(dropout_probability))
+        self.sample_period = tuple(float(p) for p in check.vector("oracle sensor sample_period", sample_period, 6))
+
+    def __check_init__(self):
+        check.positive("oracle sensor noise_std", self.noise_std, allow_zero=True)
+        check.positive("oracle sensor sample_period", np.asarray(self.sample_period))
+        if check.is_concrete(self.dropout_probability):
+            p = float(self.dropout_probability)
+            if not 0.0 <= p < 1.0:
+                raise ValueError(f"oracle sensor dropout_probability must be in [0, 1); got {p}")
+
+    def ideal(self, state: VesselState) -> Array:
+        """Noise-free [eta + eta_w (heading wrapped), nu]."""
+        y = state.eta + state.wave
+        return jnp.concatenate([y.at[2].set(ssa(y[2])), state.nu])
+
+    def measure(self, state: VesselState, noise: Array) -> Array:
+        """One noisy sample of every channel; dropped channels are NaN.
+
+        Parameters
+        ----------
+        state : VesselState
+            Plant state at the sample time.
+        noise : Array, shape (12,)
+            Standard normals: six for the noise, six turned into the dropout draws.
+        """
+        y = jnp.concatenate([state.eta + state.wave, state.nu]) + self.noise_std * noise[:6]
+        y = y.at[2].set(ssa(y[2]))
+        dropped = noise[6:] < jax.scipy.special.ndtri(self.dropout_probability)
+        return jnp.where(dropped, jnp.nan, y)

@@ -1,4 +1,6 @@
-"""Observer backstepping with integral action for dynamic positioning.
+"""Observer backstepping for dynamic positioning: Kim (2002) with integral action
+(:class:`ObserverBackstepping`) and the vectorial, adaptive form of Calugi, Robertsson
+& Johansson (2003) (:class:`VectorialBackstepping`).
 
 Kim (2002), Section 4.1, eqs. (18)–(26), after Aarset, Strand & Fossen (1998), with
 the corrections derived in ``derivations-kim-calugi-2003.md`` (K3), each checked by
@@ -63,6 +65,7 @@ from __future__ import annotations
 
 from typing import final
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -267,3 +270,137 @@ class ObserverBackstepping(Controller):
             "P1": np.asarray(self.coupling_gain),
             "d": np.asarray(self.damping_weights),
         }
+
+
+@final
+class VectorialBackstepping(Controller):
+    """Calugi, Robertsson & Johansson (2003) vectorial observer backstepping, eqs. (24)–(40),
+    with M_hat, D_hat, K_hat from the current parameter estimate theta_hat (Remark 3).
+
+    With z1 = eta_hat - eta_d (heading through ``ssa``), alpha1 = -(C1 + D1) z1 + eta_d'
+    (27) and z2 = J(psi) nu_hat - alpha1 (25), the observer (13)–(14) gives
+    z1' = -(C1 + D1) z1 + z2 + K1 eta~ (29) and, with J' = J S(rho) and
+    S(rho~) nu_hat = T(nu_hat) nu~ (32)–(34)::
+
+        z2' = J S(rho_hat) nu_hat + J T(nu_hat) nu~ + J M_hat^-1 (tau - D_hat nu_hat - K_hat eta_hat)
+              + J K2 nu~ + (C1 + D1)(-(C1 + D1) z1 + z2 + K1 eta~) - eta_d''
+
+    The control law (36), read as derived (derivations-kim-calugi-2003.md, C4: the
+    reference term is -eta_d'', not -eta_d' (NOTES.md); the stiffness term is
+    K_hat eta_hat, the only one that cancels -J M_hat^-1 K_hat eta_hat; T(nu_hat) has
+    hats), is::
+
+        tau = D_hat nu_hat + K_hat eta_hat - M_hat S(rho_hat) nu_hat
+              - M_hat J^T [ P1 z1 - (C1 + D1)^2 z1 + (C1 + D1 + C2 + D2) z2 - eta_d'' ]
+
+    so that z2' = -(C2 + D2) z2 - P1 z1 + Omega1 eta~ + Omega2 nu~ (37) with
+    Omega1 = (C1 + D1) K1 (38) and Omega2 = J (T(nu_hat) + K2) (39);
+    D1 = diag(d_i |k_i|^2) (28), k_i the rows of K1, and D2 = diag(d_{i+3}
+    (|row_i Omega1|^2 + |row_i Omega2|^2)) (40), evaluated at each sample. P1 is the
+    coupling weight of :class:`ObserverBackstepping` (1 s^-2 in the paper, where the
+    z-loop then has poles at s^2 + (C1 + C2) s + C1 C2 + 1 = 0). J is built from the
+    measured heading (eq. 24 uses J(eta)); when it is missing, from the estimate.
+
+    Parameters
+    ----------
+    parametrization
+        The observer's :class:`~lookout.observers.adaptive_dp.InertiaParametrization`
+        (``matrices(theta)`` and ``names``); theta_hat is read from the estimate as
+        ``theta_<name>``.
+    observer_position_gain, observer_velocity_gain : array_like, shape (3,)
+        K1 and K2 of the observer (diagonals, 1/s), for D1 and D2.
+    position_gain, velocity_gain : array_like, shape (3,)
+        C1 and C2 (1/s).
+    damping_weights : array_like, shape (6,)
+        d1..d6 (s).
+    coupling_gain : array_like, shape (3,)
+        P1 (1/s^2), 1 as printed.
+    """
+
+    parametrization: eqx.Module
+    observer_position_gain: Array
+    observer_velocity_gain: Array
+    position_gain: Array
+    velocity_gain: Array
+    damping_weights: Array
+    coupling_gain: Array
+
+    def __init__(self, parametrization, *, observer_position_gain, observer_velocity_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0):
+        self.parametrization = parametrization
+        self.observer_position_gain = jnp.asarray(check.vector("observer_position_gain (K1)", observer_position_gain))
+        self.observer_velocity_gain = jnp.asarray(check.vector("observer_velocity_gain (K2)", observer_velocity_gain))
+        self.position_gain = jnp.asarray(check.vector("position_gain (C1)", position_gain))
+        self.velocity_gain = jnp.asarray(check.vector("velocity_gain (C2)", velocity_gain))
+        self.damping_weights = jnp.asarray(check.vector("damping_weights (d1..d6)", damping_weights, 6))
+        self.coupling_gain = jnp.asarray(check.vector("coupling_gain (P1)", coupling_gain))
+
+    def __check_init__(self):
+        check.positive("observer_position_gain (K1)", self.observer_position_gain)
+        check.positive("observer_velocity_gain (K2)", self.observer_velocity_gain)
+        check.positive("position_gain (C1)", self.position_gain)
+        check.positive("velocity_gain (C2)", self.velocity_gain)
+        check.positive("damping_weights (d1..d6)", self.damping_weights)
+        check.positive("coupling_gain (P1)", self.coupling_gain)
+
+    @classmethod
+    def for_observer(cls, observer, *, position_gain, velocity_gain, damping_weights, coupling_gain=1.0) -> "VectorialBackstepping":
+        """The controller for an :class:`~lookout.observers.AdaptiveObserver`: its
+        parametrization and K1, K2 are taken from ``observer``."""
+        from lookout.observers import AdaptiveObserver
+
+        if not isinstance(observer, AdaptiveObserver):
+            raise ValueError(f"observer must be an AdaptiveObserver; got {type(observer).__name__}")
+        return cls(
+            observer.parametrization,
+            observer_position_gain=observer.position_gain,
+            observer_velocity_gain=observer.velocity_gain,
+            position_gain=position_gain,
+            velocity_gain=velocity_gain,
+            damping_weights=damping_weights,
+            coupling_gain=coupling_gain,
+        )
+
+    def init(self):
+        """No internal state."""
+        return ()
+
+    def theta(self, estimate: dict) -> Array:
+        """theta_hat from the estimate's ``theta_<name>`` entries."""
+        return jnp.stack([jnp.asarray(estimate[f"theta_{name}"]) for name in self.parametrization.names])
+
+    def errors(self, y: Array, estimate: dict, reference: dict) -> dict[str, Array]:
+        """z1, z2 (eqs. 24–27), D1 (28) and D2 (40) at one sample."""
+        eta_hat = _vector(estimate, ("position", "heading"))
+        nu_hat = _vector(estimate, ("velocity", "yaw_rate"))
+        eta_d = _vector(reference, ("position_desired", "heading_desired"))
+        eta_d_rate = _vector(reference, ("position_desired_rate", "heading_desired_rate"))
+        heading = jnp.where(jnp.isfinite(y[2]), y[2], eta_hat[2])
+        k1, k2 = self.observer_position_gain, self.observer_velocity_gain
+        d = self.damping_weights
+        d1 = d[:3] * k1**2
+        c1d1 = self.position_gain + d1
+        z1 = (eta_hat - eta_d).at[2].set(ssa(eta_hat[2] - eta_d[2]))
+        z2 = rotate(heading, nu_hat) + c1d1 * z1 - eta_d_rate
+        t_matrix = jnp.array([[0.0, 0.0, -nu_hat[1]], [0.0, 0.0, nu_hat[0]], [0.0, 0.0, 0.0]])
+        omega2 = _rotation(heading) @ (t_matrix + jnp.diag(k2))
+        d2 = d[3:] * ((c1d1 * k1) ** 2 + jnp.sum(omega2**2, axis=1))
+        return {"z1": z1, "z2": z2, "d1": d1, "d2": d2, "heading": heading, "nu_hat": nu_hat, "eta_hat": eta_hat}
+
+    def lyapunov(self, y: Array, estimate: dict, reference: dict) -> Array:
+        """The controller's part 1/2 (z1^T P1 z1 + |z2|^2) of V in eq. (47)."""
+        err = self.errors(y, estimate, reference)
+        return 0.5 * (jnp.sum(self.coupling_gain * err["z1"] ** 2) + jnp.sum(err["z2"] ** 2))
+
+    def step(self, state, t, y, estimate, reference, dt):
+        """``((), tau_k)``: the control law (36) at t_k with M_hat, D_hat, K_hat of theta_hat(k)."""
+        del t, dt
+        err = self.errors(y, estimate, reference)
+        z1, z2, heading, nu_hat, eta_hat = err["z1"], err["z2"], err["heading"], err["nu_hat"], err["eta_hat"]
+        c1d1 = self.position_gain + err["d1"]
+        eta_d_accel = _vector(reference, ("position_desired_acceleration", "heading_desired_acceleration"))
+        mass, damping, stiffness = self.parametrization.matrices(self.theta(estimate))
+        s_rho_nu = nu_hat[2] * jnp.stack([-nu_hat[1], nu_hat[0], 0.0])  # S(rho_hat) nu_hat, (31)
+        bracket = self.coupling_gain * z1 - c1d1**2 * z1 + (c1d1 + self.velocity_gain + err["d2"]) * z2 - eta_d_accel
+        eta_wrapped = eta_hat.at[2].set(ssa(eta_hat[2]))
+        tau = damping @ nu_hat + stiffness @ eta_wrapped - mass @ s_rho_nu - mass @ rotate_transpose(heading, bracket)
+        return state, tau

@@ -9,3 +9,5 @@ from .passive import notch_filter_gains as notch_filter_gains
 from .velocity import VelocityObserver as VelocityObserver
 from .sliding_mode import SlidingModeObserver as SlidingModeObserver
 from .sliding_mode import saturation as saturation
+from .adaptive_dp import AdaptiveObserver as AdaptiveObserver
+from .adaptive_dp import InertiaParametrization as InertiaParametrization

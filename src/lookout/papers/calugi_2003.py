@@ -1,0 +1,546 @@
+"""Reproduction of Calugi, Robertsson & Johansson (2003), Section V: adaptive observer
+(unknown m11) with vectorial observer backstepping on a supply vessel, and the
+questions the paper leaves open, answered with numbers.
+
+From the paper: the supply vessel (59) with K = 0, theta = m11 unknown, K1 = K2 =
+1e-3 I, Gamma = 1e3, C1 = C2 = 0.1 I, d_i = 0.1, the reference filter
+F(s) = 0.1^3 / (s + 0.1)^3 (60), Delta = 0.1 s, white measurement noise (DGPS "1-3 m",
+gyro "less than 0.1 deg", Section I).
+
+Chosen here (docs/reproductions.md): noise std 1 m, 1 m, 0.1 deg; theta_hat(0) =
+0.8 m11 in the bounds [0.5, 2] m11 (projection); the setpoint schedule
+:data:`WAYPOINTS` (north moves of 20 m for surge excitation, peak reference speed
+about 0.55 m/s); the plant integrated by
+RK4 at 0.01 s whatever Delta (so that only the observer and controller are sampled);
+no bias or waves (the model (1)-(2) has none); the controller's coupling weight
+P1 = 1 (the paper's law). Two gain sets: the printed one, and
+:func:`lookout.analysis.adaptive_dp.satisfying_gains` (which satisfies (57)-(58)).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+
+from lookout.analysis import estimation_errors
+from lookout.analysis.adaptive_dp import PRINTED_GAINS, calugi_2003_vessel, check_calugi_2003, satisfying_gains
+from lookout.controllers import VectorialBackstepping
+from lookout.environment import GaussMarkovBias, LinearWaveModel
+from lookout.models.vessel import VesselPlant, VesselState
+from lookout.observers import AdaptiveObserver, InertiaParametrization
+from lookout.papers._config import finite_positive, positive_count, seed_for_runs, whole_samples
+from lookout.papers._report import Table, json_safe, significant
+from lookout.reference import ReferenceFilter
+from lookout.results import write_netcdf
+from lookout.sensors import PositionHeadingSensor
+from lookout.sim import Scenario, integer_ratio, seed_keys, simulate_batch
+
+NAME = "calugi-2003"
+TITLE = "Calugi, Robertsson & Johansson (2003): adaptive observer (unknown m11) and vectorial backstepping (Section V)"
+GAIN_SETS = ("printed", "satisfying")
+#: Setpoint schedule (time s, [north m, east m, heading rad]) through F(s) of (60).
+WAYPOINTS = (
+    (0.0, (0.0, 0.0, 0.0)),
+    (20.0, (10.0, 5.0, 0.1)),
+    (320.0, (-10.0, 5.0, 0.1)),
+    (620.0, (10.0, -5.0, 0.0)),
+    (920.0, (0.0, 0.0, 0.0)),
+)
+#: The speed (m/s) the condition-satisfying gains are made usable at (satisfying_gains).
+DESIGN_SPEED = 1.0
+#: Plant RK4 step (s), the same for every Delta.
+PLANT_STEP = 0.01
+#: Sample intervals of the Delta sweep (s).
+INTERVALS = (0.01, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+#: A run has diverged when the vessel is ever this far from the reference (m), or non-finite.
+DIVERGED_DISTANCE = 100.0
+
+
+def m11() -> float:
+    return float(np.asarray(calugi_2003_vessel().mass_matrix)[0, 0])
+
+
+class Config(BaseModel):
+    """Settings of the reproduction; every field has the paper's value or a stated choice."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    runs: int = Field(1, description="Monte Carlo runs per gain set (vmapped); run i uses seed + i")
+    seed: int = Field(0, description="PRNG seed of run 0")
+    sample_interval: float = Field(0.1, description="Delta (s), observer and controller sample interval, (65)-(67)")
+    duration: float = Field(1200.0, description="simulated time (s)")
+    noise_std: tuple[float, float, float] = (1.0, 1.0, float(np.radians(0.1)))
+    initial_theta: float = Field(0.8, description="theta_hat(0) / m11")
+    theta_bounds: tuple[float, float] = (0.5, 2.0)
+    adaptation_gain: float = Field(1e3, description="Gamma (printed 1e3)")
+    sweep: bool = Field(True, description="run the Delta sweep and the parameter-convergence study")
+    sweep_seeds: int = Field(2, description="seeds per point of the sweeps")
+    sweep_duration: float = Field(600.0, description="simulated time of each sweep run (s)")
+
+    @field_validator("runs", "sweep_seeds")
+    @classmethod
+    def _positive_count(cls, value):
+        return positive_count(value)
+
+    @field_validator("seed")
+    @classmethod
+    def _seed_in_key_range(cls, value, info: ValidationInfo):
+        return seed_for_runs(value, max(info.data.get("runs", 1), info.data.get("sweep_seeds", 1), 1))
+
+    @field_validator("sample_interval")
+    @classmethod
+    def _interval(cls, value):
+        finite_positive(value)
+        if integer_ratio(value, PLANT_STEP) is None or value > 10.0:
+            raise ValueError(f"must be a whole multiple of the plant step {PLANT_STEP:g} s, at most 10 s; got {value:g} s")
+        return value
+
+    @field_validator("duration", "sweep_duration")
+    @classmethod
+    def _whole(cls, value, info: ValidationInfo):
+        finite_positive(value)
+        whole_samples(value, info.data.get("sample_interval"), "the sample interval")
+        if value < 60.0:
+            raise ValueError(f"must be at least 60 s; got {value:g} s")
+        return value
+
+    @field_validator("initial_theta", "adaptation_gain")
+    @classmethod
+    def _positive(cls, value):
+        return finite_positive(value)
+
+    @field_validator("noise_std")
+    @classmethod
+    def _noise(cls, value):
+        for item in value:
+            if not (math.isfinite(item) and item >= 0):
+                raise ValueError(f"must be finite and >= 0; got {item:g}")
+        return value
+
+    @field_validator("theta_bounds")
+    @classmethod
+    def _bounds(cls, value, info: ValidationInfo):
+        low, high = value
+        if not (0 < low < 1 < high and math.isfinite(high)):
+            raise ValueError(f"must satisfy 0 < lower < 1 < upper (ratios to m11); got {value}")
+        start = info.data.get("initial_theta")
+        if start is not None and not low <= start <= high:
+            raise ValueError(f"must contain initial_theta ({start:g}); got {value}")
+        return value
+
+    @property
+    def seeds(self) -> list[int]:
+        return [self.seed + i for i in range(self.runs)]
+
+
+def gains(name: str) -> dict:
+    """K1, K2 (diagonals), d (6), C1, C2 of a gain set: the printed one, or the one of
+    :func:`satisfying_gains` that satisfies (57)-(58)."""
+    printed = {
+        "K1": np.diag(np.asarray(PRINTED_GAINS["K1"], dtype=float) * np.eye(3)),
+        "K2": np.diag(np.asarray(PRINTED_GAINS["K2"], dtype=float) * np.eye(3)),
+        "d": np.asarray(PRINTED_GAINS["d"], dtype=float) * np.ones(6),
+        "C1": 0.1,
+        "C2": 0.1,
+    }
+    if name == "printed":
+        return printed
+    if name == "satisfying":
+        # designed for 1 m/s, about twice the reference's peak speed (0.027 x 20 m/s)
+        proposal = satisfying_gains(calugi_2003_vessel(), theta_bounds=[0.5 * m11(), 2.0 * m11()], speed=DESIGN_SPEED)
+        return {**printed, "K1": np.diag(proposal.K1), "K2": np.diag(proposal.K2), "d": np.asarray(proposal.d), "reason": proposal.reason}
+    raise ValueError(f"gain set must be one of {', '.join(GAIN_SETS)}; got {name!r}")
+
+
+def build(
+    config: Config,
+    gain_set: str = "printed",
+    *,
+    sample_interval: float | None = None,
+    duration: float | None = None,
+    initial_theta: float | None = None,
+    adaptation_gain: float | None = None,
+    waypoints=WAYPOINTS,
+    form: str = "discrete",
+) -> Scenario:
+    """The closed loop of Section V with a gain set (``printed`` or ``satisfying``)."""
+    vessel = calugi_2003_vessel()
+    true_m11 = m11()
+    chosen = gains(gain_set)
+    interval = config.sample_interval if sample_interval is None else sample_interval
+    low, high = config.theta_bounds
+    parametrization = InertiaParametrization(vessel, ("m11",), [low * true_m11], [high * true_m11])
+    observer = AdaptiveObserver(
+        parametrization, chosen["K1"], chosen["K2"], config.adaptation_gain if adaptation_gain is None else adaptation_gain,
+        form=form, initial_theta=(config.initial_theta if initial_theta is None else initial_theta) * true_m11,
+    )
+    controller = VectorialBackstepping.for_observer(observer, position_gain=chosen["C1"], velocity_gain=chosen["C2"], damping_weights=chosen["d"])
+    plant = VesselPlant(vessel, GaussMarkovBias(1000.0), LinearWaveModel(0.8976, 0.1, 0.0))
+    if form == "discrete":
+        sensor = PositionHeadingSensor(config.noise_std, interval)
+    else:
+        from lookout.sensors import PositionHeadingVelocitySensor
+
+        sensor = PositionHeadingVelocitySensor([*config.noise_std, 0.0, 0.0, 0.0], interval)
+    times = [t for t, _ in waypoints]
+    setpoints = [list(p) for _, p in waypoints]
+    return Scenario(
+        plant, sensor, observer, controller, VesselState.build(), observer.guess(),
+        plant_step=PLANT_STEP, sample_period=interval, duration=config.duration if duration is None else duration,
+        reference=ReferenceFilter.vessel(0.1, times, setpoints),
+    )
+
+
+def stack(scenarios: list[Scenario]) -> Scenario:
+    """Scenarios that differ only in their arrays, as one with a leading run axis."""
+    return jax.tree.map(lambda *leaves: jnp.stack([jnp.asarray(leaf) for leaf in leaves]), *scenarios)
+
+
+def keys_for(seeds: list[int]):
+    return jnp.stack([seed_keys(seed, 1)[0] for seed in seeds])
+
+
+def scenarios(config: Config) -> list[Scenario]:
+    """The scenarios :func:`run` simulates (one per batch), for estimates before running."""
+    return [scenario for scenario, _ in batches(config)]
+
+
+def batches(config: Config) -> list[tuple[Scenario, int]]:
+    """(scenario, runs) of each vmapped batch :func:`run` simulates, for the memory estimate."""
+    result = [(build(config), len(GAIN_SETS) * config.runs)]
+    if config.sweep:
+        result.append((dataclasses.replace(build(config, sample_interval=0.01, duration=config.sweep_duration), record_every=sweep_record_every(0.01)), 2 * config.sweep_seeds))
+    return result
+
+
+def sweep_record_every(interval: float) -> int:
+    """Record about once a second in the sweeps (their metrics use the true motion only)."""
+    return max(1, int(round(1.0 / interval))) if interval < 1.0 else 1
+
+
+# ---------------------------------------------------------------------------------
+# metrics
+
+
+def loop_metrics(ds: xr.Dataset) -> dict[str, np.ndarray]:
+    """Per run: RMS tracking error (horizontal m, heading rad), RMS velocity estimation error,
+    final theta_hat / m11 and its relative error, and whether the run diverged."""
+    distance = np.sqrt(((ds.position - ds.position_desired) ** 2).sum("earth_axis"))
+    heading = np.arctan2(np.sin(ds.heading - ds.heading_desired), np.cos(ds.heading - ds.heading_desired))
+    errors = estimation_errors(ds)
+    theta = ds.theta_m11.isel(time=-1).values / m11()
+    worst = np.where(np.isfinite(distance.values), distance.values, np.inf).max(axis=-1)
+    return {
+        "tracking_rms_m": np.sqrt((distance**2).mean("time")).values,
+        "heading_tracking_rms_rad": np.sqrt((heading**2).mean("time")).values,
+        "velocity_error_rms_m_s": np.sqrt((errors.velocity**2).sum("body_axis").mean("time")).values,
+        "final_theta_ratio": theta,
+        "theta_relative_error": theta - 1.0,
+        "thrust_peak_n": np.abs(ds.force_applied).max("time").values.max(axis=-1),
+        "diverged": ~np.isfinite(distance.values).all(axis=-1) | (worst > DIVERGED_DISTANCE),
+    }
+
+
+# ---------------------------------------------------------------------------------
+# sweeps
+
+
+def interval_sweep(config: Config, intervals=INTERVALS, progress: Callable | None = None) -> xr.Dataset:
+    """The open question of Section VI: the closed loop for each Delta, both gain sets and
+    ``sweep_seeds`` seeds, one vmapped batch per Delta."""
+    seeds = [config.seed + i for i in range(config.sweep_seeds)]
+    rows = []
+    for index, interval in enumerate(intervals):
+        if integer_ratio(config.sweep_duration, interval) is None:
+            raise ValueError(f"sweep_duration ({config.sweep_duration:g} s) must be a whole multiple of every interval; {interval:g} s is not")
+        cases = [(name, seed) for name in GAIN_SETS for seed in seeds]
+        scenario = stack([
+            dataclasses.replace(build(config, name, sample_interval=interval, duration=config.sweep_duration), record_every=sweep_record_every(interval))
+            for name, _ in cases
+        ])
+        ds = simulate_batch(scenario, keys_for([seed for _, seed in cases]), batched_scenario=True).to_xarray()
+        metrics = loop_metrics(ds)
+        rows.append({name: np.asarray(values).reshape(len(GAIN_SETS), len(seeds)) for name, values in metrics.items()})
+        if progress is not None:
+            progress(index + 1, len(intervals))
+    data = {name: (("sample_interval", "gains", "seed"), np.stack([row[name] for row in rows])) for name in rows[0]}
+    return xr.Dataset(data, coords={"sample_interval": list(intervals), "gains": list(GAIN_SETS), "seed": seeds},
+                      attrs={"title": f"{NAME}: closed loop against the sample interval Delta", "duration_s": config.sweep_duration})
+
+
+def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gammas=(1e3, 1e8)) -> xr.Dataset:
+    """theta_hat(T) / m11 from several initial theta_hat, for the printed Gamma and a fast
+    one, with the exciting schedule and with a constant setpoint (no excitation)."""
+    results = {}
+    for label, waypoints in (("exciting", WAYPOINTS), ("constant", ((0.0, (10.0, 5.0, 0.0)),))):
+        cases = [(gamma, ratio) for gamma in gammas for ratio in ratios]
+        scenario = stack([
+            dataclasses.replace(
+                build(config, "printed", duration=config.sweep_duration, initial_theta=ratio, adaptation_gain=gamma, waypoints=waypoints),
+                record_every=sweep_record_every(config.sample_interval),
+            )
+            for gamma, ratio in cases
+        ])
+        ds = simulate_batch(scenario, keys_for([config.seed] * len(cases)), batched_scenario=True).to_xarray()
+        results[label] = (ds.theta_m11.values / m11()).reshape(len(gammas), len(ratios), -1)
+        time = ds.time.values
+    data = {
+        "theta_ratio": (("reference", "gamma", "initial", "time"), np.stack([results["exciting"], results["constant"]])),
+    }
+    return xr.Dataset(data, coords={"reference": ["exciting", "constant"], "gamma": list(gammas), "initial": list(ratios), "time": time},
+                      attrs={"title": f"{NAME}: theta_hat / m11 from several starts", "units": "1"})
+
+
+# ---------------------------------------------------------------------------------
+# figures
+
+
+def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset | None, out: Path) -> list[str]:
+    import matplotlib.pyplot as plt
+
+    figures = {}
+    run = ds.isel(run=0)
+    t = run.time.values
+    # Fig. 1: reference, true and filtered positions; measured and filtered
+    figure, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for axis_label, color in (("north", "tab:blue"), ("east", "tab:green")):
+        axes[0].plot(t, run.position_desired.sel(earth_axis=axis_label), color="0.6", lw=3)
+        axes[0].plot(t, run.position.sel(earth_axis=axis_label), color="k", lw=0.8)
+        axes[0].plot(t, run.position_hat.sel(earth_axis=axis_label), color=color, lw=1.0, ls="--", label=f"{axis_label}: estimate")
+        axes[1].plot(t, run.measured_position.sel(earth_axis=axis_label), ".", ms=1, color="0.6")
+        axes[1].plot(t, run.position_hat.sel(earth_axis=axis_label), color=color, lw=1.0, label=f"{axis_label}: filtered")
+    axes[0].plot([], [], color="0.6", lw=3, label="reference")
+    axes[0].plot([], [], color="k", lw=0.8, label="true")
+    axes[0].set_title("tracking of the reference", fontsize=9)
+    axes[1].set_title("measured (grey) and filtered positions", fontsize=9)
+    for axis in axes:
+        axis.set_xlabel("time (s)")
+        axis.set_ylabel("Earth-fixed position (m)")
+        axis.legend(fontsize=7)
+    figure.suptitle("Calugi et al. (2003), Fig. 1 (printed gains, seed 0)", fontsize=10)
+    figure.tight_layout()
+    figures["fig1_tracking_and_filtering.png"] = figure
+    # Fig. 2: tracking errors; true and estimated velocities
+    figure, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for axis_label, color in (("north", "tab:blue"), ("east", "tab:green")):
+        axes[0].plot(t, (run.position - run.position_desired).sel(earth_axis=axis_label), color=color, lw=0.8, label=axis_label)
+    axes[0].set_ylabel("tracking error eta - eta_d (m)")
+    for axis_label, color in (("surge", "tab:blue"), ("sway", "tab:green")):
+        axes[1].plot(t, run.velocity.sel(body_axis=axis_label), color="k", lw=0.8)
+        axes[1].plot(t, run.velocity_hat.sel(body_axis=axis_label), color=color, lw=1.0, ls="--", label=f"{axis_label}: estimate")
+    axes[1].plot([], [], color="k", lw=0.8, label="true")
+    axes[1].set_ylabel("body-fixed velocity (m/s)")
+    for axis in axes:
+        axis.set_xlabel("time (s)")
+        axis.legend(fontsize=7)
+    figure.suptitle("Calugi et al. (2003), Fig. 2: tracking errors; true and estimated velocities", fontsize=10)
+    figure.tight_layout()
+    figures["fig2_errors_and_velocities.png"] = figure
+    # Fig. 3: velocity estimation errors
+    figure, axis = plt.subplots(figsize=(8, 3.5))
+    errors = estimation_errors(run)
+    for axis_label, color in (("surge", "tab:blue"), ("sway", "tab:green")):
+        axis.plot(t, errors.velocity.sel(body_axis=axis_label), color=color, lw=0.8, label=axis_label)
+    axis.set_xlabel("time (s)")
+    axis.set_ylabel("velocity estimation error (m/s)")
+    axis.legend(fontsize=7)
+    axis.set_title("Calugi et al. (2003), Fig. 3: velocity estimation errors", fontsize=10)
+    figure.tight_layout()
+    figures["fig3_velocity_errors.png"] = figure
+    # Fig. 4: control forces and theta_hat
+    figure, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for axis_label, color in (("surge", "tab:blue"), ("sway", "tab:green")):
+        axes[0].plot(t, run.force_applied.sel(body_axis=axis_label) / 1e3, color=color, lw=0.8, label=axis_label)
+    axes[0].set_ylabel("thrust force (kN)")
+    for index, name in enumerate(ds.gains.values.tolist() if "gains" in ds.coords else ["printed"]):
+        member = ds.isel(run=index * (ds.sizes["run"] // len(GAIN_SETS)))
+        axes[1].plot(t, member.theta_m11 / 1e6, lw=1.0, label=f"theta_hat ({name} gains)")
+    axes[1].axhline(m11() / 1e6, color="k", lw=1.0, ls=":", label="true m11")
+    axes[1].set_ylabel("m11 (1e6 kg)")
+    for axis in axes:
+        axis.set_xlabel("time (s)")
+        axis.legend(fontsize=7)
+    figure.suptitle("Calugi et al. (2003), Fig. 4: control forces and the inertia estimate", fontsize=10)
+    figure.tight_layout()
+    figures["fig4_forces_and_theta.png"] = figure
+    if sweep is not None:
+        figure, axes = plt.subplots(1, 2, figsize=(11, 4))
+        for name, color in (("printed", "tab:red"), ("satisfying", "tab:blue")):
+            values = sweep.tracking_rms_m.sel(gains=name)
+            diverged = sweep.diverged.sel(gains=name)
+            shown = values.where(~diverged, 1e3)
+            for s in range(sweep.sizes["seed"]):
+                axes[0].loglog(sweep.sample_interval, shown.isel(seed=s), "o-" if s == 0 else "x--", color=color, label=name if s == 0 else None, ms=4)
+                axes[1].semilogx(sweep.sample_interval, np.abs(sweep.theta_relative_error.sel(gains=name).isel(seed=s)), "o-" if s == 0 else "x--", color=color, ms=4)
+        axes[0].axhline(DIVERGED_DISTANCE, color="0.5", ls=":")
+        axes[0].set_ylabel("RMS tracking error (m); diverged drawn at 1000")
+        axes[1].set_ylabel("|theta_hat(T) / m11 - 1|")
+        for axis in axes:
+            axis.set_xlabel("sample interval Delta (s)")
+            axis.grid(True, which="both", alpha=0.3)
+        axes[0].legend(fontsize=8)
+        figure.suptitle(f"Calugi et al. (2003): the discrete loop against Delta ({sweep.attrs['duration_s']:g} s runs)", fontsize=10)
+        figure.tight_layout()
+        figures["sweep_sample_interval.png"] = figure
+    if convergence is not None:
+        figure, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+        for axis, reference in zip(axes, ("exciting", "constant")):
+            for gamma, style in zip(convergence.gamma.values, ("-", "--")):
+                for initial in convergence.initial.values:
+                    axis.plot(convergence.time, convergence.theta_ratio.sel(reference=reference, gamma=gamma, initial=initial), style, lw=1.0,
+                              label=f"Gamma = {gamma:g}" if initial == convergence.initial.values[0] else None)
+            axis.axhline(1.0, color="k", lw=0.8, ls=":")
+            axis.set_title(f"{reference} setpoint", fontsize=9)
+            axis.set_xlabel("time (s)")
+            axis.legend(fontsize=7)
+        axes[0].set_ylabel("theta_hat / m11")
+        figure.suptitle("Calugi et al. (2003): parameter convergence from several starts", fontsize=10)
+        figure.tight_layout()
+        figures["theta_convergence.png"] = figure
+    for filename, figure in figures.items():
+        figure.savefig(out / filename, dpi=110)
+        plt.close(figure)
+    return list(figures)
+
+
+# ---------------------------------------------------------------------------------
+# run
+
+
+def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
+    """Simulate both gain sets in closed loop (and the sweeps); write NetCDF, figures and summary.json."""
+    out.mkdir(parents=True, exist_ok=True)
+    labels = [name for name in GAIN_SETS for _ in range(config.runs)]
+    seeds = [seed for _ in GAIN_SETS for seed in config.seeds]
+    parts = 3 if config.sweep else 1
+    step = None if progress is None else (lambda done, total: progress(done / total, parts))
+    ds = simulate_batch(stack([build(config, name) for name in labels]), keys_for(seeds), batched_scenario=True, progress=step).to_xarray()
+    ds = ds.assign_coords(gains=("run", np.asarray(labels, dtype=object)))
+    ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "true_m11": m11()})
+    write_netcdf(ds, out / "calugi_2003.nc", history=f"lookout reproduce {NAME} (seeds {seeds[0]}..{seeds[-1]}, both gain sets)")
+    files = ["calugi_2003.nc"]
+    metrics = loop_metrics(ds)
+    per_set = {}
+    vessel = calugi_2003_vessel()
+    bounds = [config.theta_bounds[0] * m11(), config.theta_bounds[1] * m11()]
+    for name in GAIN_SETS:
+        chosen = np.asarray(labels) == name
+        summary = {key: [float(v) for v in np.asarray(values)[chosen]] for key, values in metrics.items() if key != "diverged"}
+        summary["diverged"] = int(np.asarray(metrics["diverged"])[chosen].sum())
+        gain = gains(name)
+        report = check_calugi_2003(vessel, K1=gain["K1"], K2=gain["K2"], d=gain["d"], theta_bounds=bounds)
+        summary["gains"] = {"K1": gain["K1"].tolist(), "K2": gain["K2"].tolist(), "d": gain["d"].tolist(), "C1": gain["C1"], "C2": gain["C2"]}
+        if "reason" in gain:
+            summary["gains"]["reason"] = gain["reason"]
+        summary["conditions"] = report.to_dict()
+        per_set[name] = summary
+    sweep = convergence = None
+    if config.sweep:
+        sweep = interval_sweep(config, progress=None if progress is None else (lambda done, total: progress(1.0 + done / total, parts)))
+        sweep.to_netcdf(out / "calugi_2003_interval_sweep.nc")
+        convergence = convergence_study(config)
+        if progress is not None:
+            progress(3.0, parts)
+        convergence.to_netcdf(out / "calugi_2003_theta_convergence.nc")
+        files += ["calugi_2003_interval_sweep.nc", "calugi_2003_theta_convergence.nc"]
+    files += _figures(ds, sweep, convergence, out)
+    summary = {
+        "reproduction": NAME,
+        "config": config.model_dump(),
+        "runs": config.runs,
+        "seeds": config.seeds,
+        "status": ds.status.values.tolist(),
+        "true_m11": m11(),
+        "gain_sets": per_set,
+        "interval_sweep": None if sweep is None else _sweep_summary(sweep),
+        "theta_convergence": None if convergence is None else _convergence_summary(convergence),
+        "files": sorted([*files, "summary.json"]),
+    }
+    summary = json_safe(summary)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
+    return summary
+
+
+def _sweep_summary(sweep: xr.Dataset) -> dict:
+    result = {}
+    for name in sweep.gains.values.tolist():
+        rows = {}
+        for interval in sweep.sample_interval.values.tolist():
+            cell = sweep.sel(gains=name, sample_interval=interval)
+            diverged = cell.diverged.values.astype(bool)
+            kept = ~diverged
+            rows[f"{interval:g}"] = {
+                "tracking_rms_m": float(cell.tracking_rms_m.values[kept].mean()) if kept.any() else None,
+                "theta_relative_error": float(np.abs(cell.theta_relative_error.values[kept]).mean()) if kept.any() else None,
+                "diverged": int(diverged.sum()),
+                "seeds": int(diverged.size),
+            }
+        result[name] = rows
+    return result
+
+
+def _convergence_summary(convergence: xr.Dataset) -> dict:
+    final = convergence.theta_ratio.isel(time=-1)
+    return {
+        reference: {f"{gamma:g}": {f"{initial:g}": float(final.sel(reference=reference, gamma=gamma, initial=initial)) for initial in convergence.initial.values}
+                    for gamma in convergence.gamma.values}
+        for reference in convergence.reference.values.tolist()
+    }
+
+
+def tables(summary: dict) -> list[Table]:
+    """Closed-loop metrics and condition verdicts per gain set; the Delta sweep; theta convergence."""
+    rows = []
+    for name, values in summary["gain_sets"].items():
+        verdicts = values["conditions"]["verdicts"]
+        rows.append(
+            (
+                name,
+                "-" if None in values["tracking_rms_m"] else significant(float(np.mean(values["tracking_rms_m"]))),
+                "-" if None in values["velocity_error_rms_m_s"] else significant(float(np.mean(values["velocity_error_rms_m_s"]))),
+                "-" if None in values["final_theta_ratio"] else f"{np.mean(values['final_theta_ratio']):.4f}",
+                "/".join("ok" if verdicts[key] == "holds" else "FAIL" for key in ("observer_22", "closed_loop_57", "closed_loop_58")),
+                f"{values['diverged']}/{summary['runs']}",
+            )
+        )
+    result = [
+        Table(
+            f"Closed loop, Delta = {summary['config']['sample_interval']:g} s, {summary['config']['duration']:g} s",
+            ("gains", "track", "vel err", "theta/m11", "(22)/(57)/(58)", "diverged"),
+            tuple(rows),
+            "RMS over the run. track: |eta - eta_d| horizontal (m); vel err: |nu - nu_hat| (m/s);\n"
+            "theta/m11: final estimate; conditions: ok = holds",
+        )
+    ]
+    if summary.get("interval_sweep"):
+        sweep = summary["interval_sweep"]
+        intervals = list(next(iter(sweep.values())))
+        sweep_rows = []
+        for interval in intervals:
+            row = [interval]
+            for name in sweep:
+                entry = sweep[name][interval]
+                text = "-" if entry["tracking_rms_m"] is None else significant(entry["tracking_rms_m"])
+                if entry["diverged"]:
+                    text += f" ({entry['diverged']}/{entry['seeds']} div.)"
+                row.append(text)
+            sweep_rows.append(tuple(row))
+        result.append(Table("Delta sweep: RMS tracking error (m)", ("Delta (s)", *sweep), tuple(sweep_rows), "mean over the seeds that did not diverge"))
+    if summary.get("theta_convergence"):
+        conv = summary["theta_convergence"]
+        conv_rows = []
+        for reference, by_gamma in conv.items():
+            for gamma, by_initial in by_gamma.items():
+                conv_rows.append((reference, gamma, " ".join(f"{v:.3f}" for v in by_initial.values())))
+        starts = " ".join(next(iter(next(iter(conv.values())).values())).keys())
+        result.append(Table("theta_hat(T) / m11 from several starts", ("setpoint", "Gamma", f"from {starts}"), tuple(conv_rows), ""))
+    return result
