@@ -278,3 +278,17 @@ def test_a_manipulator_scenario_refuses_an_observer_or_sensor_of_another_arm():
     with pytest.raises(ValueError, match=r"^sensor and plant do not fit: ") as raised:
         Scenario(**parts | {"sensor": JointEncoder(pendulum, sample_period=0.01)})
     assert "\n" not in str(raised.value)
+
+
+def test_keys_of_seeds_and_stacked_scenarios_give_the_single_runs():
+    from lookout.papers import fossen_strand_1999 as fs
+    from lookout.sim import keys_of_seeds, seed_keys, simulate, simulate_batch, stack_scenarios
+
+    keys = keys_of_seeds([3, 5])
+    assert jax.random.key_data(keys[1]).tolist() == jax.random.key_data(seed_keys(5, 1)[0]).tolist()
+    base = fs.build(fs.Config(duration=20.0))
+    other = dataclasses.replace(base, initial_state=fs.VesselState.build(eta=[5.0, 0.0, 0.0]))
+    batch = simulate_batch(stack_scenarios([base, other]), keys, batched_scenario=True)
+    for i, scenario in enumerate((base, other)):
+        single = simulate(scenario, keys[i])
+        np.testing.assert_allclose(np.asarray(batch.truth["position"])[i], np.asarray(single.truth["position"]), rtol=1e-12, atol=1e-12)

@@ -76,6 +76,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.optimize
 
+from lookout.analysis._json import json_safe as _json_safe
 from lookout.models.vessel import DPVessel
 
 #: Calugi et al. (2003), eq. (59): the off-shore supply vessel of Fossen & Strand
@@ -1115,27 +1116,6 @@ def _fmt(value: float, digits: int = 3) -> str:
 
 def _fmt_vec(values) -> str:
     return " ".join(f"{_fmt(float(v)):>8}" for v in np.ravel(values))
-
-
-def _finite(value):
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
-def _json_safe(value):
-    if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _json_safe(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return _finite(value)
-    return value
 
 
 __all__ = [

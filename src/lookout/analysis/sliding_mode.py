@@ -50,6 +50,8 @@ import scipy.integrate
 import scipy.linalg
 import scipy.optimize
 
+from lookout.analysis._json import finite_or_none as _finite
+from lookout.analysis._json import json_safe as _json_safe
 from lookout.analysis.passive import SPRReport, TuningRuleReport, _normalized_min_eig, check_spr, check_tuning_rule
 from lookout.models.vessel import DOF, DPVessel
 from lookout.observers.passive import PassiveObserver
@@ -496,11 +498,6 @@ def peak_to_peak_gains(
     return out
 
 
-def _finite(value):
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
 @dataclass
 class SwitchingGainReport:
     """Condition (17) made concrete for a bound on the unmodelled force.
@@ -723,24 +720,6 @@ def _fmt(value: float, digits: int = 3) -> str:
 
 def _fmt_vec(values) -> str:
     return "  ".join(f"{_fmt(float(v)):>9}" for v in np.ravel(values))
-
-
-def _json_safe(value):
-    if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _json_safe(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return _finite(value)
-    if isinstance(value, complex):
-        return {"real": _finite(value.real), "imag": _finite(value.imag)}
-    return value
 
 
 def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, heading: float = 0.0) -> Kim2002Report:

@@ -25,8 +25,6 @@ import math
 from pathlib import Path
 from typing import Callable
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
@@ -42,7 +40,7 @@ from lookout.papers._report import Table, json_safe, significant
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
-from lookout.sim import Scenario, integer_ratio, seed_keys, simulate_batch
+from lookout.sim import Scenario, integer_ratio, keys_of_seeds, simulate_batch, stack_scenarios
 
 NAME = "calugi-2003"
 TITLE = "Calugi, Robertsson & Johansson (2003): adaptive observer (unknown m11) and vectorial backstepping (Section V)"
@@ -200,13 +198,7 @@ def build(
     )
 
 
-def stack(scenarios: list[Scenario]) -> Scenario:
-    """Scenarios that differ only in their arrays, as one with a leading run axis."""
-    return jax.tree.map(lambda *leaves: jnp.stack([jnp.asarray(leaf) for leaf in leaves]), *scenarios)
 
-
-def keys_for(seeds: list[int]):
-    return jnp.stack([seed_keys(seed, 1)[0] for seed in seeds])
 
 
 def scenarios(config: Config) -> list[Scenario]:
@@ -263,11 +255,11 @@ def interval_sweep(config: Config, intervals=INTERVALS, progress: Callable | Non
         if integer_ratio(config.sweep_duration, interval) is None:
             raise ValueError(f"sweep_duration ({config.sweep_duration:g} s) must be a whole multiple of every interval; {interval:g} s is not")
         cases = [(name, seed) for name in GAIN_SETS for seed in seeds]
-        scenario = stack([
+        scenario = stack_scenarios([
             dataclasses.replace(build(config, name, sample_interval=interval, duration=config.sweep_duration), record_every=sweep_record_every(interval))
             for name, _ in cases
         ])
-        ds = simulate_batch(scenario, keys_for([seed for _, seed in cases]), batched_scenario=True).to_xarray()
+        ds = simulate_batch(scenario, keys_of_seeds([seed for _, seed in cases]), batched_scenario=True).to_xarray()
         metrics = loop_metrics(ds)
         rows.append({name: np.asarray(values).reshape(len(GAIN_SETS), len(seeds)) for name, values in metrics.items()})
         if progress is not None:
@@ -283,14 +275,14 @@ def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gamma
     results = {}
     for label, waypoints in (("exciting", WAYPOINTS), ("constant", ((0.0, (10.0, 5.0, 0.0)),))):
         cases = [(gamma, ratio) for gamma in gammas for ratio in ratios]
-        scenario = stack([
+        scenario = stack_scenarios([
             dataclasses.replace(
                 build(config, "printed", duration=config.sweep_duration, initial_theta=ratio, adaptation_gain=gamma, waypoints=waypoints),
                 record_every=sweep_record_every(config.sample_interval),
             )
             for gamma, ratio in cases
         ])
-        ds = simulate_batch(scenario, keys_for([config.seed] * len(cases)), batched_scenario=True).to_xarray()
+        ds = simulate_batch(scenario, keys_of_seeds([config.seed] * len(cases)), batched_scenario=True).to_xarray()
         results[label] = (ds.theta_m11.values / m11()).reshape(len(gammas), len(ratios), -1)
         time = ds.time.values
     data = {
@@ -423,7 +415,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     seeds = [seed for _ in GAIN_SETS for seed in config.seeds]
     parts = 3 if config.sweep else 1
     step = None if progress is None else (lambda done, total: progress(done / total, parts))
-    ds = simulate_batch(stack([build(config, name) for name in labels]), keys_for(seeds), batched_scenario=True, progress=step).to_xarray()
+    ds = simulate_batch(stack_scenarios([build(config, name) for name in labels]), keys_of_seeds(seeds), batched_scenario=True, progress=step).to_xarray()
     ds = ds.assign_coords(gains=("run", np.asarray(labels, dtype=object)))
     ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "true_m11": m11()})
     write_netcdf(ds, out / "calugi_2003.nc", history=f"lookout reproduce {NAME} (seeds {seeds[0]}..{seeds[-1]}, both gain sets)")

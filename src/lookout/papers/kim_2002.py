@@ -41,8 +41,6 @@ import math
 from pathlib import Path
 from typing import Callable
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
@@ -60,7 +58,7 @@ from lookout.papers._report import Table, json_safe, mean_and_spread, significan
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
-from lookout.sim import Scenario, seed_keys, simulate_batch
+from lookout.sim import Scenario, keys_of_seeds, simulate_batch, stack_scenarios
 
 NAME = "kim-2002"
 TITLE = "Kim (2002): sliding-mode observer and observer backstepping on Northern Clipper (Section 5, Figs. 4-8)"
@@ -247,10 +245,6 @@ def build(config: Config, observer: str = "sliding-mode", *, model_error: ModelE
     )
 
 
-def stack(scenarios: list[Scenario]) -> Scenario:
-    """Scenarios that differ only in their arrays, as one with a leading run axis."""
-    return jax.tree.map(lambda *leaves: jnp.stack([jnp.asarray(leaf) for leaf in leaves]), *scenarios)
-
 
 #: The sweep records one sample in this many (1 s): its table uses the tracking error
 #: of the true low-frequency position only, which decimation does not bias.
@@ -355,7 +349,7 @@ def run_sweep(config: Config, progress: Callable | None = None, points: list[tup
                     scenario = build(config, observer, model_error=error, gains=gains, duration=config.sweep_duration)
                     scenarios_.append(dataclasses.replace(scenario, record_every=SWEEP_RECORD_EVERY))
                     keys.append(seed)
-    batch = simulate_batch(stack(scenarios_), seed_keys_for(keys), batched_scenario=True, progress=progress).to_xarray()
+    batch = simulate_batch(stack_scenarios(scenarios_), keys_of_seeds(keys), batched_scenario=True, progress=progress).to_xarray()
     metrics = closed_loop_metrics(batch)
     shape = (2, len(OBSERVERS), len(points), len(seeds))
     data = {name: (("gains", "observer", "model_error", "seed"), np.asarray(values).reshape(shape)) for name, values in metrics.items()}
@@ -366,9 +360,6 @@ def run_sweep(config: Config, progress: Callable | None = None, points: list[tup
     )
 
 
-def seed_keys_for(seeds: list[int]):
-    """PRNG keys for a list of seeds (run i of a batch uses seeds[i])."""
-    return jnp.stack([seed_keys(seed, 1)[0] for seed in seeds])
 
 
 # ---------------------------------------------------------------------------------
@@ -471,7 +462,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     seeds = [seed for _ in OBSERVERS for seed in config.seeds]
     parts = 2 if config.sweep else 1
     step = None if progress is None else (lambda done, total: progress(done / total, parts))
-    ds = simulate_batch(stack([build(config, observer) for observer in labels]), seed_keys_for(seeds), batched_scenario=True, progress=step).to_xarray()
+    ds = simulate_batch(stack_scenarios([build(config, observer) for observer in labels]), keys_of_seeds(seeds), batched_scenario=True, progress=step).to_xarray()
     ds = ds.assign_coords(observer=("run", np.asarray(labels, dtype=object)))
     ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "gains": config.gains, "model_error": config.model_error.model_dump_json()})
     write_netcdf(ds, out / "kim_2002.nc", history=f"lookout reproduce {NAME} (seeds {seeds[0]}..{seeds[-1]}, both observers)")

@@ -18,7 +18,9 @@ from .engine import Scenario as Scenario
 from .engine import check_fit as check_fit
 from .engine import integer_ratio as integer_ratio
 from .engine import record_nbytes as record_nbytes
+from .engine import keys_of_seeds as keys_of_seeds
 from .engine import seed_keys as seed_keys
+from .engine import stack_scenarios as stack_scenarios
 from .engine import simulate as simulate
 from .engine import simulate_batch as simulate_batch
 from .filtering import Stepper as Stepper

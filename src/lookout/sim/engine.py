@@ -524,6 +524,22 @@ def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20)
 MAX_SEED = 2**63 - 1
 
 
+def stack_scenarios(scenarios: list[Scenario]) -> Scenario:
+    """Scenarios that differ only in their arrays (gains, masses, model errors) as one
+    scenario with a leading run axis, for ``simulate_batch(..., batched_scenario=True)``.
+
+    Their static structure (periods, durations, component types, sizes) must be equal;
+    jax.tree.map says which leaf differs otherwise.
+    """
+    return jax.tree.map(lambda *leaves: jnp.stack([jnp.asarray(leaf) for leaf in leaves]), *scenarios)
+
+
+def keys_of_seeds(seeds) -> Array:
+    """PRNG keys of a batch whose run i uses ``jax.random.key(seeds[i])`` (as :func:`seed_keys`
+    with seed = seeds[i], runs = 1), for batches that mix scenarios and seeds."""
+    return jnp.stack([seed_keys(int(seed), 1)[0] for seed in seeds])
+
+
 def seed_keys(seed: int, runs: int) -> Array:
     """PRNG keys of a Monte Carlo: run i uses ``jax.random.key(seed + i)``.
 
