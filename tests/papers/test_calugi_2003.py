@@ -50,7 +50,7 @@ def test_v_of_47_does_not_increase_along_the_continuous_closed_loop_and_theta_co
 
 def test_reproduce_calugi_2003_writes_its_outputs(tmp_path, capsys):
     out = tmp_path / "c03"
-    assert main(["reproduce", "calugi-2003", "--out", str(out), "--duration", "120", "--no-sweep"]) == 0
+    assert main(["reproduce", "calugi-2003", "--out", str(out), "--duration", "120", "--no-sweep", "--runs", "2"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["gain_sets"]) == {"printed", "satisfying"}
     printed = summary["gain_sets"]["printed"]
