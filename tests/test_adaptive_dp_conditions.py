@@ -293,3 +293,19 @@ def test_stiffness_enters_through_its_norm():
     a, _ = observer_condition_22(vessel, K1=1e-3, K2=1e-3).inequalities
     assert a.right == pytest.approx((1 + 3e6) ** 2 / (4 * (1e-3 * M11 + 5.024e4)))
     assert a.verdict == "fails"
+
+
+def test_noise_drift_rate_of_the_printed_gains_and_its_scaling():
+    from lookout.analysis.adaptive_dp import noise_drift_rate
+
+    printed = dict(K1=PRINTED_GAINS["K1"], K2=PRINTED_GAINS["K2"], d=PRINTED_GAINS["d"])
+    # g = C1 + D1 + C2 + D2 = 0.1 + 1e-7 + 0.1 + 0.1 (1e-8 + 1e-6) at rest: -1e8 g 1e-3 (1 + 1e-4) / 0.1
+    g = 0.2 + 1e-7 + 0.1 * (1e-8 + 1e-6)
+    assert noise_drift_rate(**printed, gamma=1e8, noise_std=1.0, interval=0.1) == pytest.approx(-1e6 * g * (1 + 1e-4), rel=1e-12)
+    base = noise_drift_rate(**printed, gamma=1e3, noise_std=1.0, interval=0.1)
+    assert noise_drift_rate(**printed, gamma=2e3, noise_std=3.0, interval=0.1) == pytest.approx(18 * base, rel=1e-12)
+    assert noise_drift_rate(**printed, gamma=1e3, noise_std=0.0, interval=0.1) == 0.0
+    with pytest.raises(ValueError, match=r"^interval must be finite and > 0 \(s\); got 0"):
+        noise_drift_rate(**printed, gamma=1e3, noise_std=1.0, interval=0)
+    with pytest.raises(ValueError, match=r"^noise_std must be finite and >= 0; got -1"):
+        noise_drift_rate(**printed, gamma=1e3, noise_std=-1.0, interval=0.1)

@@ -596,6 +596,44 @@ def z_weight_bound(sigma1: float, sigma2: float, damping_min: float, stiffness_m
     return float(min([root] + caps))
 
 
+def noise_drift_rate(*, K1, K2, d, gamma: float, noise_std: float, interval: float, C1=0.1, C2=0.1) -> float:
+    """Expected rate of theta_hat (kg/s) that white position noise alone causes in the
+    discrete update (67) for theta = m11, with the controller (36) and the vessel at
+    rest at heading 0 (derived here; not in the paper).
+
+    The same noisy sample enters the regressor and the prediction error of (67).
+    With eta(i) = eta_true(i) + n(i), n white with std ``noise_std`` per axis:
+
+    * (66) puts K2 J^T delta_eta(i-1), hence k2 n_u(i-1), into nu_hat(i-1);
+    * (36) has d tau_u / d u_hat = d11 - m11_hat g with g = (C1 + D1 + C2 + D2)_u
+      (z2 = J nu_hat + ..., D1 of (28), D2 of (40) at rest), so
+      phi(i-1) = xi_u(i-1) = (tau_u - d11 u_hat) / m11_hat carries -g k2 n_u(i-1);
+    * the bracket Delta nu_hat(i-1) - J^T delta_eta(i) carries (1 + Delta k2) n_u(i-1).
+
+    So each sample adds E[d theta_hat] = -Gamma g k2 (1 + Delta k2) sigma^2 (kg) and
+    the rate is that over Delta: negative (the mass is driven toward its lower bound),
+    proportional to Gamma like the restoring term of a parameter error, so the
+    equilibrium bias does not depend on Gamma, and growing as 1/Delta for a fixed
+    per-sample std. Valid while the loop's own response to the noise is negligible (the
+    printed gains: g = 0.2 1/s); a loop that moves the ship with the noise (large K1)
+    adds correlations this leaves out. Measured against simulation in
+    :func:`lookout.papers.calugi_2003.noise_drift`.
+    """
+    K1, K2, d = _k1(K1), _gain_matrix("K2", K2), _weights(d)
+    C1, C2 = _positive3("C1", C1), _positive3("C2", C2)
+    for name, value in (("gamma", gamma), ("noise_std", noise_std)):
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be finite and >= 0; got {value!r}")
+    if not (math.isfinite(interval) and interval > 0):
+        raise ValueError(f"interval must be finite and > 0 (s); got {interval!r}")
+    D1 = d[:3] * np.sum(K1**2, axis=1)
+    omega1_u = np.sum(((C1 + D1)[0] * K1[0]) ** 2)
+    D2_u = d[3] * (omega1_u + np.sum(K2[0] ** 2))  # row 1 of Omega2 = J (T(0) + K2) at psi = 0, rest
+    g = C1[0] + D1[0] + C2[0] + D2_u
+    k2 = K2[0, 0]
+    return float(-gamma * g * k2 * (1.0 + interval * k2) * noise_std**2 / interval)
+
+
 # -- the report ------------------------------------------------------------------------
 
 
@@ -1133,6 +1171,7 @@ __all__ = [
     "closed_loop_conditions_57_58",
     "loop_rates",
     "model_bounds",
+    "noise_drift_rate",
     "observer_condition_22",
     "satisfying_gains",
     "z_weight_bound",

@@ -31,7 +31,7 @@ import xarray as xr
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
 from lookout.analysis import estimation_errors
-from lookout.analysis.adaptive_dp import PRINTED_GAINS, calugi_2003_vessel, check_calugi_2003, satisfying_gains
+from lookout.analysis.adaptive_dp import PRINTED_GAINS, calugi_2003_vessel, check_calugi_2003, noise_drift_rate, satisfying_gains
 from lookout.controllers import VectorialBackstepping
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState
@@ -59,9 +59,11 @@ DESIGN_SPEED = 1.0
 #: Plant RK4 step (s), the same for every Delta.
 PLANT_STEP = 0.01
 #: Sample intervals of the Delta sweep (s).
-INTERVALS = (0.01, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+INTERVALS = (0.01, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 2.0, 5.0)
 #: A run has diverged when the vessel is ever this far from the reference (m), or non-finite.
 DIVERGED_DISTANCE = 100.0
+#: position noise std (m) of the noise-drift study (heading: the same times 0.1 deg)
+NOISE_LEVELS = (0.1, 1.0)
 
 
 def m11() -> float:
@@ -81,7 +83,7 @@ class Config(BaseModel):
     initial_theta: float = Field(0.8, description="theta_hat(0) / m11")
     theta_bounds: tuple[float, float] = (0.5, 2.0)
     adaptation_gain: float = Field(1e3, description="Gamma (printed 1e3)")
-    sweep: bool = Field(True, description="run the Delta sweep and the parameter-convergence study")
+    sweep: bool = Field(True, description="run the Delta sweep, the parameter-convergence study and the noise-drift study")
     sweep_seeds: int = Field(2, description="seeds per point of the sweeps")
     sweep_duration: float = Field(600.0, description="simulated time of each sweep run (s)")
 
@@ -218,13 +220,17 @@ def batches(config: Config) -> list[tuple[Scenario, int]]:
     """(scenario, runs) of each vmapped batch :func:`run` simulates, for the memory estimate."""
     result = [(build(config), len(GAIN_SETS) * config.runs)]
     if config.sweep:
-        result.append((dataclasses.replace(build(config, sample_interval=0.01, duration=config.sweep_duration), record_every=sweep_record_every(0.01)), 2 * config.sweep_seeds))
+        result.append((dataclasses.replace(build(config, sample_interval=0.01, duration=config.sweep_duration), record_every=sweep_record_every(0.01, config.sweep_duration)), 2 * config.sweep_seeds))
     return result
 
 
-def sweep_record_every(interval: float) -> int:
-    """Record about once a second in the sweeps (their metrics use the true motion only)."""
-    return max(1, int(round(1.0 / interval))) if interval < 1.0 else 1
+def sweep_record_every(interval: float, duration: float) -> int:
+    """Record about once a second in the sweeps (their metrics use the true motion only):
+    the largest number of samples k with k Delta <= 1 s that divides the run."""
+    samples = integer_ratio(duration, interval)
+    if samples is None:
+        raise ValueError(f"duration ({duration:g} s) must be a whole multiple of the sample interval ({interval:g} s)")
+    return max(k for k in range(1, max(1, int(1.0 / interval + 1e-9)) + 1) if samples % k == 0)
 
 
 # ---------------------------------------------------------------------------------
@@ -264,7 +270,7 @@ def interval_sweep(config: Config, intervals=INTERVALS, progress: Callable | Non
             raise ValueError(f"sweep_duration ({config.sweep_duration:g} s) must be a whole multiple of every interval; {interval:g} s is not")
         cases = [(name, seed) for name in GAIN_SETS for seed in seeds]
         scenario = stack_scenarios([
-            dataclasses.replace(build(config, name, sample_interval=interval, duration=config.sweep_duration), record_every=sweep_record_every(interval))
+            dataclasses.replace(build(config, name, sample_interval=interval, duration=config.sweep_duration), record_every=sweep_record_every(interval, config.sweep_duration))
             for name, _ in cases
         ])
         ds = simulate_batch(scenario, keys_of_seeds([seed for _, seed in cases]), batched_scenario=True).to_xarray()
@@ -277,27 +283,113 @@ def interval_sweep(config: Config, intervals=INTERVALS, progress: Callable | Non
                       attrs={"title": f"{NAME}: closed loop against the sample interval Delta", "duration_s": config.sweep_duration})
 
 
-def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gammas=(1e3, 1e8)) -> xr.Dataset:
-    """theta_hat(T) / m11 from several initial theta_hat, for the printed Gamma and a fast
-    one, with the exciting schedule and with a constant setpoint (no excitation)."""
+def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gammas=(1e3, 1e8, 1e9)) -> xr.Dataset:
+    """theta_hat / m11 from several initial theta_hat with the printed gains (discrete law,
+    Delta of ``config``), for the printed Gamma and faster ones, with the exciting schedule
+    and with a constant setpoint (no excitation), with the paper's measurement noise
+    (``config.noise_std``) and without. One vmapped batch per (noise, setpoint)."""
+    noises = {"paper": tuple(config.noise_std), "none": (0.0, 0.0, 0.0)}
+    setpoints = {"exciting": WAYPOINTS, "constant": ((0.0, (10.0, 5.0, 0.0)),)}
+    cases = [(gamma, ratio) for gamma in gammas for ratio in ratios]
     results = {}
-    for label, waypoints in (("exciting", WAYPOINTS), ("constant", ((0.0, (10.0, 5.0, 0.0)),))):
-        cases = [(gamma, ratio) for gamma in gammas for ratio in ratios]
-        scenario = stack_scenarios([
-            dataclasses.replace(
-                build(config, "printed", duration=config.sweep_duration, initial_theta=ratio, adaptation_gain=gamma, waypoints=waypoints),
-                record_every=sweep_record_every(config.sample_interval),
-            )
-            for gamma, ratio in cases
+    for noise, std in noises.items():
+        noisy = config.model_copy(update={"noise_std": std})
+        for label, waypoints in setpoints.items():
+            scenario = stack_scenarios([
+                dataclasses.replace(
+                    build(noisy, "printed", duration=config.sweep_duration, initial_theta=ratio, adaptation_gain=gamma, waypoints=waypoints),
+                    record_every=sweep_record_every(config.sample_interval, config.sweep_duration),
+                )
+                for gamma, ratio in cases
+            ])
+            ds = simulate_batch(scenario, keys_of_seeds([config.seed] * len(cases)), batched_scenario=True).to_xarray()
+            results[noise, label] = (ds.theta_m11.values / m11()).reshape(len(gammas), len(ratios), -1)
+            time = ds.time.values
+    data = np.stack([np.stack([results[noise, label] for label in setpoints]) for noise in noises])
+    return xr.Dataset(
+        {"theta_ratio": (("noise", "reference", "gamma", "initial", "time"), data)},
+        coords={"noise": list(noises), "reference": list(setpoints), "gamma": list(gammas), "initial": list(ratios), "time": time},
+        attrs={"title": f"{NAME}: theta_hat / m11 from several starts (printed gains, discrete law)", "units": "1",
+               "paper_noise_std": list(config.noise_std), "sample_interval_s": config.sample_interval},
+    )
+
+
+def discretization_order(config: Config, intervals=(0.04, 0.02, 0.01), gamma: float = 1e8, duration: float = 200.0, plant_step: float = 0.005) -> xr.Dataset:
+    """The discrete loop (65)-(67) against the continuous form (13)-(15) at the same Delta:
+    noise-free, both gain sets, theta_hat(0) = 0.8 m11 and ``gamma``. The continuous
+    observer (oracle velocity) is integrated with the plant, the controller is sampled at
+    Delta in both, so the difference is the observer's discretization. Largest differences
+    of the true position, the velocity estimate and theta_hat / m11 over the run; the fitted
+    order is the slope of their logarithms against log Delta."""
+    quiet = config.model_copy(update={"noise_std": (0.0, 0.0, 0.0)})
+    rows = []
+    for interval in intervals:
+        runs = {}
+        for form in ("discrete", "continuous"):
+            scenario = stack_scenarios([
+                dataclasses.replace(
+                    build(quiet, name, sample_interval=interval, duration=duration, adaptation_gain=gamma, form=form),
+                    plant_step=plant_step, observer_mode="continuous" if form == "continuous" else "sampled",
+                    record_every=integer_ratio(intervals[0], interval),
+                )
+                for name in GAIN_SETS
+            ])
+            runs[form] = simulate_batch(scenario, keys_of_seeds([config.seed] * len(GAIN_SETS)), batched_scenario=True).to_xarray()
+        a, b = runs["discrete"], runs["continuous"]
+        rows.append([
+            np.abs(a.position - b.position).max(("time", "earth_axis")).values,
+            np.abs(a.velocity_hat - b.velocity_hat).max(("time", "body_axis")).values,
+            (np.abs(a.theta_m11 - b.theta_m11).max("time") / m11()).values,
         ])
-        ds = simulate_batch(scenario, keys_of_seeds([config.seed] * len(cases)), batched_scenario=True).to_xarray()
-        results[label] = (ds.theta_m11.values / m11()).reshape(len(gammas), len(ratios), -1)
+    data = np.asarray(rows)  # (interval, quantity, gains)
+    names = ("position_difference", "velocity_hat_difference", "theta_ratio_difference")
+    units = ("m", "m s-1", "1")
+    log_delta = np.log(np.asarray(intervals))
+    variables = {}
+    for k, (name, unit) in enumerate(zip(names, units)):
+        variables[name] = (("sample_interval", "gains"), data[:, k, :], {"units": unit})
+        order = [float(np.polyfit(log_delta, np.log(data[:, k, g]), 1)[0]) if np.all(data[:, k, g] > 0) else float("nan") for g in range(len(GAIN_SETS))]
+        variables[name.replace("_difference", "_order")] = (("gains",), order, {"units": "1"})
+    return xr.Dataset(variables, coords={"sample_interval": list(intervals), "gains": list(GAIN_SETS)},
+                      attrs={"title": f"{NAME}: discrete against continuous observer in closed loop", "gamma": gamma, "duration_s": duration, "plant_step_s": plant_step})
+
+
+def noise_drift(
+    config: Config, levels=NOISE_LEVELS, intervals=(0.05, 0.1, 0.2), gamma: float = 1e8, seeds: int = 32, window: float = 5.0, gain_sets=GAIN_SETS
+) -> xr.Dataset:
+    """The drift of theta_hat that measurement noise causes in the discrete law (67):
+    measured over the first ``window`` seconds from theta_hat(0) = m11 (no excitation
+    yet: the reference starts at rest), mean slope over ``seeds`` seeds, against
+    :func:`lookout.analysis.adaptive_dp.noise_drift_rate`. Position noise std
+    ``level`` m in north and east, heading ``level`` x 0.1 deg; one vmapped batch per Delta."""
+    rows = []
+    for interval in intervals:
+        cases = [(name, level, seed) for name in gain_sets for level in levels for seed in range(config.seed, config.seed + seeds)]
+        scenario = stack_scenarios([
+            build(config.model_copy(update={"noise_std": (level, level, level * float(np.radians(0.1)))}), name,
+                  sample_interval=interval, duration=window, initial_theta=1.0, adaptation_gain=gamma)
+            for name, level, _ in cases
+        ])
+        ds = simulate_batch(scenario, keys_of_seeds([seed for *_, seed in cases]), batched_scenario=True).to_xarray()
         time = ds.time.values
-    data = {
-        "theta_ratio": (("reference", "gamma", "initial", "time"), np.stack([results["exciting"], results["constant"]])),
-    }
-    return xr.Dataset(data, coords={"reference": ["exciting", "constant"], "gamma": list(gammas), "initial": list(ratios), "time": time},
-                      attrs={"title": f"{NAME}: theta_hat / m11 from several starts", "units": "1"})
+        fitted = time >= 2 * interval
+        theta = ds.theta_m11.values[:, fitted]
+        slopes = np.polyfit(time[fitted], theta.T, 1)[0].reshape(len(gain_sets), len(levels), seeds)
+        predicted = np.array([[
+            noise_drift_rate(K1=gains(name)["K1"], K2=gains(name)["K2"], d=gains(name)["d"], C1=gains(name)["C1"], C2=gains(name)["C2"],
+                             gamma=gamma, noise_std=level, interval=interval)
+            for level in levels] for name in gain_sets])
+        rows.append((slopes.mean(axis=-1), slopes.std(axis=-1, ddof=1) / np.sqrt(seeds), predicted))
+    dims = ("sample_interval", "gains", "noise_std")
+    return xr.Dataset(
+        {
+            "measured_rate": (dims, np.stack([r[0] for r in rows]), {"units": "kg s-1", "long_name": "mean d theta_hat/dt over the window"}),
+            "measured_rate_error": (dims, np.stack([r[1] for r in rows]), {"units": "kg s-1", "long_name": "standard error of the mean"}),
+            "predicted_rate": (dims, np.stack([r[2] for r in rows]), {"units": "kg s-1", "long_name": "noise_drift_rate"}),
+        },
+        coords={"sample_interval": list(intervals), "gains": list(gain_sets), "noise_std": list(levels)},
+        attrs={"title": f"{NAME}: drift of theta_hat caused by measurement noise", "gamma": gamma, "window_s": window, "seeds": seeds},
+    )
 
 
 # ---------------------------------------------------------------------------------
@@ -392,18 +484,23 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset |
         figure.tight_layout()
         figures["sweep_sample_interval.png"] = figure
     if convergence is not None:
-        figure, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
-        for axis, reference in zip(axes, ("exciting", "constant")):
-            for gamma, style in zip(convergence.gamma.values, ("-", "--")):
-                for initial in convergence.initial.values:
-                    axis.plot(convergence.time, convergence.theta_ratio.sel(reference=reference, gamma=gamma, initial=initial), style, lw=1.0,
-                              label=f"Gamma = {gamma:g}" if initial == convergence.initial.values[0] else None)
-            axis.axhline(1.0, color="k", lw=0.8, ls=":")
-            axis.set_title(f"{reference} setpoint", fontsize=9)
+        figure, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True, sharey=True)
+        colors = ("tab:gray", "tab:blue", "tab:red", "tab:green", "tab:purple")
+        for row, noise in enumerate(convergence.noise.values.tolist()):
+            for column, reference in enumerate(("exciting", "constant")):
+                axis = axes[row, column]
+                for gamma, color in zip(convergence.gamma.values, colors):
+                    for initial in convergence.initial.values:
+                        axis.plot(convergence.time, convergence.theta_ratio.sel(noise=noise, reference=reference, gamma=gamma, initial=initial), color=color, lw=1.0,
+                                  label=f"Gamma = {gamma:g}" if initial == convergence.initial.values[0] else None)
+                axis.axhline(1.0, color="k", lw=0.8, ls=":")
+                axis.set_title(f"{reference} setpoint, {'noise as in the paper' if noise == 'paper' else 'no noise'}", fontsize=9)
+                axis.grid(True, alpha=0.3)
+            axes[row, 0].set_ylabel("theta_hat / m11")
+        for axis in axes[1]:
             axis.set_xlabel("time (s)")
-            axis.legend(fontsize=7)
-        axes[0].set_ylabel("theta_hat / m11")
-        figure.suptitle("Calugi et al. (2003): parameter convergence from several starts", fontsize=10)
+        axes[0, 0].legend(fontsize=7)
+        figure.suptitle("Calugi et al. (2003): theta_hat from several starts, printed gains, discrete law (67)", fontsize=10)
         figure.tight_layout()
         figures["theta_convergence.png"] = figure
     for filename, figure in figures.items():
@@ -421,7 +518,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     labels = [name for name in GAIN_SETS for _ in range(config.runs)]
     seeds = [seed for _ in GAIN_SETS for seed in config.seeds]
-    parts = 3 if config.sweep else 1
+    parts = 5 if config.sweep else 1
     step = None if progress is None else (lambda done, total: progress(done / total, parts))
     ds = simulate_batch(stack_scenarios([build(config, name) for name in labels]), keys_of_seeds(seeds), batched_scenario=True, progress=step).to_xarray()
     ds = ds.assign_coords(gains=("run", np.asarray(labels, dtype=object)))
@@ -443,7 +540,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
             summary["gains"]["reason"] = gain["reason"]
         summary["conditions"] = report.to_dict()
         per_set[name] = summary
-    sweep = convergence = None
+    sweep = convergence = drift = order = None
     if config.sweep:
         sweep = interval_sweep(config, progress=None if progress is None else (lambda done, total: progress(1.0 + done / total, parts)))
         sweep.to_netcdf(out / "calugi_2003_interval_sweep.nc")
@@ -451,7 +548,15 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         if progress is not None:
             progress(3.0, parts)
         convergence.to_netcdf(out / "calugi_2003_theta_convergence.nc")
-        files += ["calugi_2003_interval_sweep.nc", "calugi_2003_theta_convergence.nc"]
+        drift = noise_drift(config)
+        if progress is not None:
+            progress(4.0, parts)
+        drift.to_netcdf(out / "calugi_2003_noise_drift.nc")
+        order = discretization_order(config)
+        if progress is not None:
+            progress(5.0, parts)
+        order.to_netcdf(out / "calugi_2003_discretization_order.nc")
+        files += ["calugi_2003_interval_sweep.nc", "calugi_2003_theta_convergence.nc", "calugi_2003_noise_drift.nc", "calugi_2003_discretization_order.nc"]
     files += _figures(ds, sweep, convergence, out)
     summary = {
         "reproduction": NAME,
@@ -463,6 +568,8 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         "gain_sets": per_set,
         "interval_sweep": None if sweep is None else _sweep_summary(sweep),
         "theta_convergence": None if convergence is None else _convergence_summary(convergence),
+        "noise_drift": None if drift is None else _drift_summary(drift),
+        "discretization_order": None if order is None else _order_summary(order),
         "files": sorted([*files, "summary.json"]),
     }
     summary = json_safe(summary)
@@ -491,10 +598,37 @@ def _sweep_summary(sweep: xr.Dataset) -> dict:
 def _convergence_summary(convergence: xr.Dataset) -> dict:
     final = convergence.theta_ratio.isel(time=-1)
     return {
-        reference: {f"{gamma:g}": {f"{initial:g}": float(final.sel(reference=reference, gamma=gamma, initial=initial)) for initial in convergence.initial.values}
-                    for gamma in convergence.gamma.values}
-        for reference in convergence.reference.values.tolist()
+        noise: {
+            reference: {f"{gamma:g}": {f"{initial:g}": float(final.sel(noise=noise, reference=reference, gamma=gamma, initial=initial)) for initial in convergence.initial.values}
+                        for gamma in convergence.gamma.values}
+            for reference in convergence.reference.values.tolist()
+        }
+        for noise in convergence.noise.values.tolist()
     }
+
+
+def _order_summary(order: xr.Dataset) -> dict:
+    return {
+        name: {
+            key: {"difference": {f"{interval:g}": float(order[f"{key}_difference"].sel(gains=name, sample_interval=interval)) for interval in order.sample_interval.values},
+                  "order": float(order[f"{key}_order"].sel(gains=name))}
+            for key in ("position", "velocity_hat", "theta_ratio")
+        }
+        for name in order.gains.values.tolist()
+    } | {"gamma": order.attrs["gamma"], "duration_s": order.attrs["duration_s"]}
+
+
+def _drift_summary(drift: xr.Dataset) -> dict:
+    return {
+        name: {
+            f"{interval:g}": {
+                f"{level:g}": {key: float(drift[key].sel(gains=name, sample_interval=interval, noise_std=level)) for key in ("measured_rate", "measured_rate_error", "predicted_rate")}
+                for level in drift.noise_std.values
+            }
+            for interval in drift.sample_interval.values
+        }
+        for name in drift.gains.values.tolist()
+    } | {"gamma": drift.attrs["gamma"], "window_s": drift.attrs["window_s"], "seeds": drift.attrs["seeds"]}
 
 
 def tables(summary: dict) -> list[Table]:
@@ -538,9 +672,37 @@ def tables(summary: dict) -> list[Table]:
     if summary.get("theta_convergence"):
         conv = summary["theta_convergence"]
         conv_rows = []
-        for reference, by_gamma in conv.items():
-            for gamma, by_initial in by_gamma.items():
-                conv_rows.append((reference, gamma, " ".join(f"{v:.3f}" for v in by_initial.values())))
-        starts = " ".join(next(iter(next(iter(conv.values())).values())).keys())
-        result.append(Table("theta_hat(T) / m11 from several starts", ("setpoint", "Gamma", f"from {starts}"), tuple(conv_rows), ""))
+        for noise, by_reference in conv.items():
+            for reference, by_gamma in by_reference.items():
+                for gamma, by_initial in by_gamma.items():
+                    conv_rows.append((noise, reference, gamma, " ".join(f"{v:.3f}" for v in by_initial.values())))
+        starts = " ".join(next(iter(next(iter(next(iter(conv.values())).values())).values())).keys())
+        result.append(Table("theta_hat(T) / m11 from several starts (printed gains)", ("noise", "setpoint", "Gamma", f"from {starts}"), tuple(conv_rows), ""))
+    if summary.get("discretization_order"):
+        order = summary["discretization_order"]
+        order_rows = []
+        for name in (key for key in order if key in GAIN_SETS):
+            for key, label in (("position", "eta (m)"), ("velocity_hat", "nu_hat (m/s)"), ("theta_ratio", "theta/m11")):
+                entry = order[name][key]
+                order_rows.append((name, label, *(f"{v:.3g}" for v in entry["difference"].values()), f"{entry['order']:.3f}"))
+        intervals = list(next(iter(order[GAIN_SETS[0]].values()))["difference"])
+        result.append(Table(
+            f"Discrete (65)-(67) against continuous (13)-(15) in closed loop, no noise, Gamma = {order['gamma']:g}",
+            ("gains", "largest difference", *(f"Delta {d} s" for d in intervals), "order"), tuple(order_rows),
+            f"over {order['duration_s']:g} s; order: slope of log difference against log Delta",
+        ))
+    if summary.get("noise_drift"):
+        drift = summary["noise_drift"]
+        drift_rows = []
+        for name in (key for key in drift if key in GAIN_SETS):
+            for interval, by_level in drift[name].items():
+                for level, entry in by_level.items():
+                    drift_rows.append((name, interval, level, f"{entry['measured_rate']:.3g}", f"{entry['measured_rate_error']:.2g}", f"{entry['predicted_rate']:.3g}",
+                                       f"{entry['measured_rate'] / entry['predicted_rate']:.2f}"))
+        result.append(Table(
+            f"Drift of theta_hat caused by noise, Gamma = {drift['gamma']:g} (kg/s)",
+            ("gains", "Delta (s)", "noise (m)", "measured", "std err", "predicted", "ratio"), tuple(drift_rows),
+            f"measured: mean slope over the first {drift['window_s']:g} s from theta_hat = m11, {drift['seeds']} seeds, and its standard error;\n"
+            "predicted: -Gamma g k2 (1 + Delta k2) sigma^2 / Delta (analysis.adaptive_dp.noise_drift_rate)",
+        ))
     return result
