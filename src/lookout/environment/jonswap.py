@@ -1,0 +1,488 @@
+"""Long-crested irregular waves from a JONSWAP spectrum, and the first-order motion they give a small hull.
+
+Spectrum
+--------
+The ITTC form of the JONSWAP spectrum as written in Fossen, *Handbook of Marine
+Craft Hydrodynamics and Motion Control* (2011), eqs. (8.56)–(8.58)::
+
+    S(w) = 155 Hs^2 / T1^4  w^-5  exp(-944 / (T1^4 w^4))  gamma^Y        (m^2 s)
+    Y    = exp(-((0.191 w T1 - 1) / (sqrt(2) sigma))^2)
+    sigma = 0.07 for w <= 5.24 / T1, 0.09 otherwise
+
+with Hs the significant wave height, T1 = 2 pi m0 / m1 the mean period and gamma
+the peak enhancement factor. Choices and checks:
+
+- **Period convention.** ``mean_period`` is T1. Wondergem et al. (2009) give a
+  "time mean period of 0.75 seconds"; lookout reads it as T1, so that
+  Tp = T1 / 0.834 = 0.899 s and wp = 2 pi / Tp = 5.240 / T1 = 6.99 rad/s. The
+  alternatives: read as the zero-crossing period Tz (T1 = 1.073 Tz, Tp = 0.964 s),
+  or as Tp itself (wp = 8.38 rad/s). Pass ``mean_period = 1.073 Tz`` or
+  ``0.834 Tp`` for those readings.
+- **Normalization.** The constants 155 and 944 make the form integrate to about
+  Hs^2/16 only for gamma = 3.3: the Pierson–Moskowitz part alone has
+  m0 = 155 / (4 * 944) Hs^2 = 0.657 Hs^2/16, and gamma^Y adds the rest. For other
+  gamma, m0 of :func:`jonswap_spectrum` is not Hs^2/16 (gamma = 1 gives 0.66
+  Hs^2/16); a realization (:class:`JonswapWaves`) is rescaled to 4 sqrt(m0) = Hs
+  regardless. By quadrature, gamma = 3.3 gives m0 = 1.0011 Hs^2/16 and
+  T1 = 2 pi m0/m1 = 1.0003 ``mean_period`` (measured in the tests).
+- **Cross-check.** DNV-RP-C205 (2010), sec. 3.5.5, writes the same spectrum as
+  ``(1 - 0.287 ln gamma) (5/16) Hs^2 wp^4 w^-5 exp(-1.25 (wp/w)^4)
+  gamma^exp(-(w - wp)^2 / (2 sigma^2 wp^2))``. With wp = 5.24 / T1 the two agree:
+  5/16 wp^4 (1 - 0.287 ln 3.3) = 154.9 / T1^4, 1.25 wp^4 = 942.4 / T1^4, and the
+  peak shapes differ only in 1/0.191 = 5.236 against 5.240; the tests find the
+  two within 0.6 % of the peak value everywhere.
+- S is one-sided: 0 for w <= 0. The factor w^-5 exp(-944 / (T1^4 w^4)) is
+  evaluated as ``exp(-5 ln w - 944 / (T1^4 w^4))``, and S is set to 0 for
+  w T1 <= 0.5, where the formula is below exp(-15000) and rounds to 0 anyway:
+  w -> 0 gives 0 and a zero gradient, not 0 * inf = NaN.
+
+Realization
+-----------
+N components on the frequency band [w_lo, w_hi], split into N equal bins of width
+dw::
+
+    zeta(t, x, y) = sum_k A_k cos(w_k t - k_k (x cos chi + y sin chi) + phi_k)
+
+with deep-water wavenumbers k_k = w_k^2 / g, waves travelling in direction chi
+(Earth frame, x north, y east). ``realize(key)`` draws each w_k uniformly within
+its bin (a uniform grid is periodic: with dw = 0.2 rad/s it repeats every
+2 pi / dw = 31 s) and phi_k uniformly in [0, 2 pi). Amplitudes are
+A_k = sqrt(2 S(w_k) dw), then rescaled so that sum A_k^2 / 2 = Hs^2 / 16 exactly:
+the realization's 4 sqrt(m0) is Hs whatever the band and N (the rescaling puts the
+1 % of m0 outside the default band back inside it).
+
+Default band: (0.5 wp, 3 wp). Below 0.5 wp the spectrum is under 1e-7 of its
+peak and holds 1e-9 of m0; above 3 wp lies 1.0 % of m0, and there the
+hull-averaging gain below is under 0.04 (k L / 2 > 28 for the Cybership II at
+Tp = 0.9 s), so those components barely move the ship. N = 64 components give
+dw = 0.27 rad/s at T1 = 0.75 s.
+
+Motion of the hull
+------------------
+Wondergem et al. (2009) give no response amplitude operator. lookout's crude,
+documented choice, applied to the measurement as y = eta + eta_w:
+
+- Surge/sway: the horizontal orbital displacement of the surface particles. Deep
+  water, linear theory: for ``zeta = A cos(theta)``, theta = w t - k s + phi, the
+  particle velocity along chi is ``u = w A cos(theta)`` (= w zeta: forward under a
+  crest, which moves along +chi) and its displacement is ``A sin(theta)``, so
+  ``x_w, y_w = sum_k G_k A_k sin(theta_k) (cos chi, sin chi)``.
+- G_k = |sinc(k_k L / 2)| = |sin(k_k L / 2) / (k_k L / 2)|, the magnitude of the
+  average of a component over a hull of length L lying along the wave direction.
+  The exact average has the sign of sinc(k L/2), which flips the phase of some
+  components shorter than the hull (L/2 < wavelength < L, ...); the magnitude is taken (as an RAO's amplitude is), which
+  changes phases but no statistics. At the peak of the paper's sea the wavelength
+  (1.26 m) is about the hull length (1.255 m), so G is small there (0.006) and the
+  motion comes mostly from the longer waves on the low side of the peak.
+- Yaw: ``psi_w = yaw_gain * sum_k G_k A_k k_k sin(theta_k)``, yaw_gain times the
+  hull-averaged surface slope d zeta / ds along chi (rad per unit slope). A
+  long-crested sea exerts no yaw moment on a hull that is aligned with it, so any
+  such term is a stand-in; the default 0.1 gives a yaw motion of about 0.013 deg
+  std for the paper's sea (and surge 0.4 mm std for waves along x, against an
+  elevation std of Hs/4 = 2.5 mm: the hull gain removes most of the peak).
+
+``rate(t, position, velocity)`` is the exact time derivative of
+``motion(t, position(t))`` for a ship moving with Earth-frame velocity
+``velocity``: each phase changes at the encounter frequency w_k - k_k (v . e_chi)
+(the Doppler shift of the ship's own motion).
+
+Phases are evaluated with :func:`lookout._math.sincos`, accurate for
+|w_k t| < 1.6e6 rad, i.e. t < 7.6e4 s for the default band at T1 = 0.75 s.
+lookout enables float64; everything here assumes it.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+from typing import final
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from lookout import _validation as check
+from lookout._math import sincos
+
+#: T1 / Tp of the JONSWAP spectrum with gamma = 3.3 (Fossen 2011, eq. 8.58).
+MEAN_TO_PEAK_PERIOD = 0.834
+#: The default frequency band, in multiples of the peak frequency.
+DEFAULT_BAND = (0.5, 3.0)
+#: Length of Cybership II (m), the default hull length.
+CYBERSHIP_II_LENGTH = 1.255
+
+
+def _namespace(*values):
+    """jax.numpy when any value is a JAX array or tracer, numpy otherwise."""
+    return jnp if any(isinstance(v, jax.Array) for v in values) else np
+
+
+def peak_frequency(mean_period):
+    """Peak frequency wp = 2 pi / Tp = 2 pi 0.834 / T1 (rad/s) for mean period T1 (s)."""
+    return 2.0 * math.pi * MEAN_TO_PEAK_PERIOD / mean_period
+
+
+def jonswap_spectrum(omega, significant_height, mean_period, peak_enhancement=3.3):
+    """ITTC JONSWAP wave spectrum S(w) in m^2 s (Fossen 2011, eqs. 8.56–8.58).
+
+    Parameters
+    ----------
+    omega : array_like
+        Wave frequencies (rad/s), any shape; S = 0 for omega <= 0.5 / T1 (the
+        formula is below exp(-15000) there).
+    significant_height : float
+        Hs (m).
+    mean_period : float
+        T1 = 2 pi m0 / m1 (s); Tp = T1 / 0.834.
+    peak_enhancement : float
+        gamma (3.3 is the form's calibration point; see the module docstring).
+
+    Returns
+    -------
+    array
+        S(omega), a NumPy array for NumPy inputs and a JAX array otherwise.
+    """
+    xp = _namespace(omega, significant_height, mean_period, peak_enhancement)
+    if xp is np:
+        # w^4 underflows to 0 for w < 1e-77: exp(-inf) = 0 is the intended limit
+        with np.errstate(divide="ignore", over="ignore"):
+            return _jonswap(np, omega, significant_height, mean_period, peak_enhancement)
+    return _jonswap(jnp, omega, significant_height, mean_period, peak_enhancement)
+
+
+def _jonswap(xp, omega, significant_height, mean_period, peak_enhancement):
+    w = xp.asarray(omega, dtype=float)
+    t1 = mean_period
+    # below w T1 = 0.5 the formula is under exp(-15000): exactly 0 in float64 (see module docstring)
+    positive = w * t1 > 0.5
+    w_safe = xp.where(positive, w, 1.0 / t1)
+    t1_4 = t1**4
+    sigma = xp.where(w_safe <= 5.24 / t1, 0.07, 0.09)
+    y = xp.exp(-(((0.191 * w_safe * t1 - 1.0) / (math.sqrt(2.0) * sigma)) ** 2))
+    shape = xp.exp(-5.0 * xp.log(w_safe) - 944.0 / (t1_4 * w_safe**4) + y * xp.log(peak_enhancement))
+    return xp.where(positive, 155.0 * significant_height**2 / t1_4 * shape, 0.0)
+
+
+def spectral_moment(n, significant_height, mean_period, peak_enhancement=3.3):
+    """m_n = integral over w > 0 of w^n S(w) dw, by adaptive quadrature (scipy ``quad``).
+
+    Parameters
+    ----------
+    n : float
+        Order, < 4 (the w^-5 tail makes m_n diverge for n >= 4).
+    significant_height, mean_period, peak_enhancement : float
+        As for :func:`jonswap_spectrum`.
+
+    Returns
+    -------
+    float
+        m_n in m^2 (rad/s)^n.
+    """
+    from scipy.integrate import quad
+
+    if not n < 4:
+        raise ValueError(f"spectral_moment n must be < 4 (m_n diverges for n >= 4); got {n}")
+    hs, t1, gamma = float(significant_height), float(mean_period), float(peak_enhancement)
+    wp = peak_frequency(t1)
+
+    def integrand(w):
+        return w**n * float(jonswap_spectrum(np.float64(w), hs, t1, gamma))
+
+    # split at the peak so that quad resolves the narrow gamma^Y bump
+    edges = (0.0, 0.8 * wp, wp, 1.25 * wp, 3.0 * wp)
+    total = sum(quad(integrand, a, b, limit=200, epsabs=0.0, epsrel=1e-12)[0] for a, b in zip(edges[:-1], edges[1:]))
+    return total + quad(integrand, edges[-1], np.inf, limit=200, epsabs=0.0, epsrel=1e-12)[0]
+
+
+def _scalar(name: str, value) -> Array:
+    """A float scalar, or a one-line ValueError naming ``name``."""
+    if check.is_concrete(value):
+        array = np.asarray(value, dtype=float)
+        if array.ndim != 0:
+            raise ValueError(f"{name} must be a scalar; got shape {array.shape}")
+        check.finite(name, array)
+    else:
+        array = jnp.asarray(value, dtype=float)
+        if array.ndim != 0:
+            raise ValueError(f"{name} must be a scalar; got shape {array.shape}")
+    return array
+
+
+def _components(value) -> int:
+    if isinstance(value, bool):
+        raise ValueError(f"jonswap components must be an integer >= 1; got {value!r}")
+    try:
+        count = operator.index(value)
+    except TypeError:
+        raise ValueError(f"jonswap components must be an integer >= 1; got {value!r}") from None
+    if count < 1:
+        raise ValueError(f"jonswap components must be an integer >= 1; got {count}")
+    return count
+
+
+def _bin_frequencies(xp, band, count: int, position_in_bin):
+    """w_k = w_lo + (k + u_k) dw, dw = (w_hi - w_lo) / count, for u_k in [0, 1) (0.5: bin centres)."""
+    width = (band[1] - band[0]) / count
+    return band[0] + (xp.arange(count) + position_in_bin) * width
+
+
+def _components_at(xp, frequencies, band, count: int, significant_height, mean_period, peak_enhancement, gravity, hull_length):
+    """(w_k, A_k, k_k, G_k): amplitudes sqrt(2 S(w_k) dw) rescaled to sum A^2/2 = Hs^2/16."""
+    width = (band[1] - band[0]) / count
+    # 2 S dw for Hs = 1, as shares of their sum: A_k = Hs/4 sqrt(2 share_k) gives sum A^2/2 = Hs^2/16
+    # for any Hs, and zeros (not 0/0) for Hs = 0
+    energy = 2.0 * jonswap_spectrum(frequencies, 1.0, mean_period, peak_enhancement) * width
+    share = energy / xp.sum(energy)
+    amplitudes = 0.25 * significant_height * xp.sqrt(2.0 * share)
+    wavenumbers = frequencies**2 / gravity
+    # sinc(x) is sin(pi x) / (pi x) in both NumPy and JAX, 1 at x = 0
+    hull_gains = xp.abs(xp.sinc(wavenumbers * hull_length / (2.0 * math.pi)))
+    return frequencies, amplitudes, wavenumbers, hull_gains
+
+
+@final
+class JonswapWaves(eqx.Module):
+    """Long-crested JONSWAP waves: surface elevation and first-order motion of a small hull.
+
+    Built unrealized (bin-centre frequencies, zero phases); :meth:`realize` draws a
+    realization from a JAX key. See the module docstring for the formulas and the
+    choices.
+
+    Parameters
+    ----------
+    significant_height : float
+        Hs (m), >= 0 (0: no waves).
+    mean_period : float
+        T1 (s), > 0; the peak period is T1 / 0.834.
+    peak_enhancement : float
+        gamma, >= 1.
+    direction : float
+        chi (rad): the waves travel along (cos chi, sin chi) in the Earth frame
+        (x north, y east).
+    components : int
+        Number of frequency components N (static), >= 1.
+    band : pair of floats, optional
+        (w_lo, w_hi) in rad/s, 0 < w_lo < w_hi; default (0.5 wp, 3 wp).
+    hull_length : float
+        L (m), >= 0, for the averaging gain |sinc(k L / 2)| (0: no averaging).
+    yaw_gain : float
+        Yaw motion per unit hull-averaged wave slope (rad), >= 0.
+    gravity : float
+        g (m/s^2), > 0.
+
+    Attributes
+    ----------
+    frequencies, amplitudes, phases, wavenumbers, hull_gains : Array, shape (N,)
+        w_k (rad/s), A_k (m), phi_k (rad), k_k = w_k^2 / g (rad/m) and G_k.
+    """
+
+    significant_height: Array
+    mean_period: Array
+    peak_enhancement: Array
+    direction: Array
+    band: Array
+    hull_length: Array
+    yaw_gain: Array
+    gravity: Array
+    frequencies: Array
+    amplitudes: Array
+    phases: Array
+    wavenumbers: Array
+    hull_gains: Array
+    components: int = eqx.field(static=True)
+
+    def __init__(
+        self,
+        significant_height,
+        mean_period,
+        peak_enhancement=3.3,
+        direction=0.0,
+        components=64,
+        band=None,
+        hull_length=CYBERSHIP_II_LENGTH,
+        yaw_gain=0.1,
+        gravity=9.81,
+    ):
+        hs = _scalar("jonswap significant_height", significant_height)
+        t1 = _scalar("jonswap mean_period", mean_period)
+        gamma = _scalar("jonswap peak_enhancement", peak_enhancement)
+        chi = _scalar("jonswap direction", direction)
+        length = _scalar("jonswap hull_length", hull_length)
+        gain = _scalar("jonswap yaw_gain", yaw_gain)
+        g = _scalar("jonswap gravity", gravity)
+        check.positive("jonswap significant_height", hs, allow_zero=True)
+        check.positive("jonswap mean_period", t1)
+        if check.is_concrete(gamma) and not float(gamma) >= 1.0:
+            raise ValueError(f"jonswap peak_enhancement must be >= 1; got {float(gamma)}")
+        check.positive("jonswap hull_length", length, allow_zero=True)
+        check.positive("jonswap yaw_gain", gain, allow_zero=True)
+        check.positive("jonswap gravity", g)
+        self.components = _components(components)
+
+        if band is None:
+            band = [DEFAULT_BAND[0] * peak_frequency(t1), DEFAULT_BAND[1] * peak_frequency(t1)]
+        if check.is_concrete(band):
+            band = np.asarray(band, dtype=float)
+            if band.shape != (2,):
+                raise ValueError(f"jonswap band must be a pair (low, high) in rad/s; got shape {band.shape}")
+            check.finite("jonswap band", band)
+            if not 0.0 < band[0] < band[1]:
+                raise ValueError(f"jonswap band must satisfy 0 < low < high; got {band.tolist()}")
+        else:
+            band = jnp.asarray(band, dtype=float)  # a traced band, or a default built from a traced T1
+            if band.shape != (2,):
+                raise ValueError(f"jonswap band must be a pair (low, high) in rad/s; got shape {band.shape}")
+
+        # concrete parameters (the usual case): the unrealized components in NumPy, which
+        # costs no XLA compilation; traced ones (built inside jit or vmap): in jax.numpy
+        concrete = all(check.is_concrete(v) for v in (hs, t1, gamma, band, length, g))
+        xp = np if concrete else jnp
+        centres = _bin_frequencies(xp, band, self.components, 0.5)
+        if concrete and not np.sum(jonswap_spectrum(centres, 1.0, t1, gamma)) > 0:
+            raise ValueError(f"jonswap band holds no wave energy (S underflows on it); got {band.tolist()}")
+        fields = _components_at(xp, centres, band, self.components, hs, t1, gamma, g, length)
+        self.frequencies, self.amplitudes, self.wavenumbers, self.hull_gains = (jnp.asarray(f, dtype=float) for f in fields)
+        self.phases = jnp.zeros(self.components)
+        self.band = jnp.asarray(band, dtype=float)
+        self.significant_height = jnp.asarray(hs)
+        self.mean_period = jnp.asarray(t1)
+        self.peak_enhancement = jnp.asarray(gamma)
+        self.direction = jnp.asarray(chi)
+        self.hull_length = jnp.asarray(length)
+        self.yaw_gain = jnp.asarray(gain)
+        self.gravity = jnp.asarray(g)
+
+    def realize(self, key: Array) -> "JonswapWaves":
+        """A realization drawn from ``key``: frequencies jittered within their bins, random phases.
+
+        Same key, same realization bit for bit; works under ``jit`` and ``vmap``.
+
+        Parameters
+        ----------
+        key : Array
+            A JAX PRNG key (typed or raw uint32).
+
+        Returns
+        -------
+        JonswapWaves
+            A copy with new frequencies, amplitudes, phases, wavenumbers and hull gains.
+        """
+        jitter_key, phase_key = jax.random.split(key)
+        jitter = jax.random.uniform(jitter_key, (self.components,), dtype=float)
+        phases = jax.random.uniform(phase_key, (self.components,), dtype=float, minval=0.0, maxval=2.0 * jnp.pi)
+        frequencies = _bin_frequencies(jnp, self.band, self.components, jitter)
+        fields = _components_at(
+            jnp, frequencies, self.band, self.components, self.significant_height, self.mean_period,
+            self.peak_enhancement, self.gravity, self.hull_length,
+        )
+        return eqx.tree_at(
+            lambda w: (w.frequencies, w.amplitudes, w.wavenumbers, w.hull_gains, w.phases), self, (*fields, phases)
+        )
+
+    # -- derived quantities -----------------------------------------------------------
+
+    @property
+    def zeroth_moment(self) -> Array:
+        """m0 of the realization, sum A_k^2 / 2 (m^2); equals Hs^2 / 16."""
+        return 0.5 * jnp.sum(self.amplitudes**2, axis=-1)
+
+    @property
+    def peak_frequency(self) -> Array:
+        """wp = 2 pi 0.834 / T1 (rad/s)."""
+        return peak_frequency(self.mean_period)
+
+    # -- fields -----------------------------------------------------------------------------
+
+    def _phases(self, t, position) -> tuple[Array, Array]:
+        """theta_k(t, position), shape (..., N), and the unit wave direction e_chi."""
+        t = jnp.asarray(t, dtype=float)
+        position = jnp.asarray(position, dtype=float)
+        e = jnp.stack([jnp.cos(self.direction), jnp.sin(self.direction)])
+        along = position @ e
+        theta = (
+            self.frequencies * t[..., None] - self.wavenumbers * jnp.asarray(along)[..., None] + self.phases
+        )
+        return theta, e
+
+    def elevation(self, t, position) -> Array:
+        """Surface elevation zeta (m) at Earth position (x, y) and time t.
+
+        Parameters
+        ----------
+        t : array_like
+            Time (s), scalar or any shape broadcasting with ``position[..., 0]``.
+        position : array_like, shape (..., 2)
+            Earth-fixed (x north, y east) position (m).
+        """
+        theta, _ = self._phases(t, position)
+        _, cos = sincos(theta)
+        return jnp.sum(self.amplitudes * cos, axis=-1)
+
+    def motion(self, t, position) -> Array:
+        """First-order wave motion eta_w = [x_w, y_w, psi_w] (m, m, rad) of a hull at ``position``.
+
+        Parameters
+        ----------
+        t : array_like
+            Time (s).
+        position : array_like, shape (..., 2)
+            Earth-fixed position of the hull (m).
+
+        Returns
+        -------
+        Array, shape (..., 3)
+        """
+        theta, e = self._phases(t, position)
+        sin, _ = sincos(theta)
+        averaged = self.hull_gains * self.amplitudes
+        displacement = jnp.sum(averaged * sin, axis=-1)
+        slope = jnp.sum(averaged * self.wavenumbers * sin, axis=-1)
+        return jnp.stack([displacement * e[0], displacement * e[1], self.yaw_gain * slope], axis=-1)
+
+    def rate(self, t, position, velocity) -> Array:
+        """d eta_w / dt along a ship at ``position`` moving with Earth-frame ``velocity``.
+
+        The exact derivative of ``motion(t, position(t))``: each component at its
+        encounter frequency w_k - k_k (velocity . e_chi).
+
+        Parameters
+        ----------
+        t : array_like
+            Time (s).
+        position : array_like, shape (..., 2)
+            Earth-fixed position (m).
+        velocity : array_like, shape (..., 2)
+            Earth-fixed planar velocity (m/s), e.g. the first two entries of J(psi) nu.
+
+        Returns
+        -------
+        Array, shape (..., 3)
+        """
+        theta, e = self._phases(t, position)
+        _, cos = sincos(theta)
+        velocity = jnp.asarray(velocity, dtype=float)
+        encounter = self.frequencies - self.wavenumbers * jnp.asarray(velocity @ e)[..., None]
+        averaged = self.hull_gains * self.amplitudes * encounter * cos
+        displacement_rate = jnp.sum(averaged, axis=-1)
+        slope_rate = jnp.sum(averaged * self.wavenumbers, axis=-1)
+        return jnp.stack([displacement_rate * e[0], displacement_rate * e[1], self.yaw_gain * slope_rate], axis=-1)
+
+    def describe(self) -> dict:
+        """The waves as plain numbers (for results' attributes and summaries)."""
+        return {
+            "spectrum": "JONSWAP (ITTC, Fossen 2011 eqs. 8.56-8.58)",
+            "significant_height": float(self.significant_height),
+            "mean_period": float(self.mean_period),
+            "peak_period": float(self.mean_period) / MEAN_TO_PEAK_PERIOD,
+            "peak_frequency": float(self.peak_frequency),
+            "peak_enhancement": float(self.peak_enhancement),
+            "direction": float(self.direction),
+            "components": self.components,
+            "band": [float(v) for v in self.band],
+            "hull_length": float(self.hull_length),
+            "yaw_gain": float(self.yaw_gain),
+            "gravity": float(self.gravity),
+            "zeroth_moment": float(self.zeroth_moment),
+        }
