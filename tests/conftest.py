@@ -1,4 +1,13 @@
-import lookout  # enables float64 before any test builds arrays
+import os
+
+# Tests compile far more than they run: LLVM at -O0 compiles XLA:CPU programs faster,
+# and the whole suite went from 9 min 34 s to 7 min 15 s on 2 cores (every test passes
+# either way; arithmetic stays IEEE, no fast-math). The CLI and benchmarks keep the
+# default optimization. A value already in XLA_FLAGS wins.
+if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
+
+import lookout  # noqa: E402  (enables float64 before any test builds arrays)
 
 lookout.configure_cpu(devices=2)  # the CLI's XLA:CPU options, and two devices: batches take the sharded path
 import numpy as np

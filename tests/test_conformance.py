@@ -11,8 +11,8 @@ A new observer joins by adding a :class:`Case` to ``CASES``, not by writing test
   ``hold="innovation"``; holding the measurement instead is exact only to the
   discretization, 7.9 mm over 200 s at 10 Hz);
 - NaN dropouts keep the estimate finite;
-- a run in chunks (progress) equals the whole run;
-- decimated records are every n-th sample of the full run;
+- a run in chunks (progress) equals the whole run, and decimated records are every
+  n-th sample of the full run (engine properties: checked on one or two cases);
 - a scenario built inside ``jax.vmap`` over a gain simulates like the ones built
   one by one, and ``jax.grad`` of an RMS error through ``simulate`` matches central
   differences.
@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from lookout._math import rotate
 from lookout.analysis import estimation_errors
 from lookout.sim import Scenario, simulate, simulate_batch
 from lookout.sim import engine
@@ -44,7 +45,8 @@ class Case:
     vmapped and differentiated); ``perfect`` starts the observer at the true state;
     ``noise`` switches all process and measurement noise. ``exact`` lists the
     ``(observer_mode, options)`` in which a noise-free run from a perfect start stays
-    exact. ``error_variable`` is the recorded variable whose RMS error the gradient
+    exact, to ``exact_tolerance`` relative to the variable's size (rounding, unless the
+    case says why not). ``error_variable`` is the recorded variable whose RMS error the gradient
     check differentiates, by ``jax.grad`` (``gradient="reverse"``) or, for the closed
     loops, ``jax.jacfwd`` (``"forward"``): the same derivative of one scalar gain,
     which compiles 2.7x faster through a closed loop (19 s against 52 s for Kim's);
@@ -56,6 +58,7 @@ class Case:
     exact: tuple[tuple[str, dict], ...]
     error_variable: str
     gradient: str = "reverse"
+    exact_tolerance: float = 1e-12
 
 
 def _passive(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0, hold="measurement") -> Scenario:
@@ -163,6 +166,31 @@ def _adaptive_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration
     )
 
 
+def _tracking_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0, plant_step=0.05) -> Scenario:
+    """Wondergem et al. (2009): the Earth-fixed observer (6) and the tracking scheme (23) on
+    Cybership II around an ellipse, thrust limits on, JONSWAP waves and measurement noise
+    when ``noise``; ``gain`` scales L1, L2 and Omega."""
+    from lookout.actuators import SaturatingActuator
+    from lookout.controllers import TrackingController
+    from lookout.environment import JonswapWaves
+    from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT, CybershipPlant, CybershipState, cybership2
+    from lookout.observers import EarthFixedObserver
+    from lookout.reference import EllipseReference
+    from lookout.sensors import PositionHeadingSensor
+
+    ship = cybership2()
+    observer = EarthFixedObserver(ship, gain * 15.0, gain * 50.0)
+    controller = TrackingController(ship, natural_frequency=gain * jnp.asarray([0.72, 0.42, 0.64]))
+    plant = CybershipPlant(ship, JonswapWaves(0.01, 0.75) if noise else None)
+    sensor = PositionHeadingSensor([0.002, 0.002, 0.002] if noise else 0.0, 0.05, dropout_probability=dropout)
+    start = CybershipState.build(eta=[3.8, -1.2, 0.5 * np.pi], nu=[0.05, 0.0, 0.01])
+    guess = observer.guess(start.eta, rotate(start.eta[2], start.nu)) if perfect else observer.guess([4.0, -1.0, 2.94], [0.5, 0.5, -0.5])
+    return Scenario(
+        plant, sensor, observer, controller, start, guess, plant_step=plant_step, sample_period=0.05, duration=duration,
+        reference=EllipseReference((3.5, 1.823), (0.2,)), actuator=SaturatingActuator(CYBERSHIP_THRUST_LIMIT),
+    )
+
+
 CASES = [
     Case(
         "passive observer (Fossen & Strand 1999)", _passive,
@@ -176,6 +204,14 @@ CASES = [
     Case(
         "adaptive observer and vectorial backstepping (Calugi et al. 2003)", _adaptive_loop,
         exact=(("continuous", {"form": "continuous"}),), error_variable="velocity", gradient="forward",
+    ),
+    Case(
+        "Earth-fixed observer and tracking scheme (Wondergem et al. 2009)", _tracking_loop,
+        exact=(("continuous", {"plant_step": 0.01}),), error_variable="velocity", gradient="forward",
+        # the plant integrates (16) in the body frame, the observer (6) in the Earth frame:
+        # RK4 of the two coordinate forms of one ODE agree to O(h^4), not to rounding
+        # (velocity 4.5e-7 m/s over 60 s at h = 0.05 s; a wrong observer errs by mm/s)
+        exact_tolerance=1e-8,
     ),
 ]
 
@@ -219,7 +255,7 @@ def test_noise_free_perfect_start_stays_exact(case):
         assert errors.data_vars, "the observer estimates no plant variable"
         for name, error in errors.items():
             scale = 1.0 + float(np.abs(ds[name]).max())
-            assert float(np.abs(error).max()) <= 1e-12 * scale, (mode, options, name, float(np.abs(error).max()))
+            assert float(np.abs(error).max()) <= case.exact_tolerance * scale, (mode, options, name, float(np.abs(error).max()))
 
 
 def test_holding_the_measurement_is_not_exact_which_shows_the_check_can_fail():
@@ -239,7 +275,10 @@ def test_nan_dropouts_keep_the_estimate_finite(case):
     assert ds.status.values.tolist() == ["finite"]
 
 
-def test_a_run_in_chunks_equals_the_whole_run(case):
+def test_a_run_in_chunks_equals_the_whole_run():
+    """Chunking is the engine's (the carry between chunks is the whole loop state, whatever
+    the components), so one case checks it: each case costs a compile of two programs."""
+    case = CASES[0]
     scenario = case.build(duration=20.0)
     calls = []
     chunked = simulate(scenario, jax.random.key(1), progress=lambda done, total: calls.append((done, total)), chunks=3)
@@ -248,14 +287,18 @@ def test_a_run_in_chunks_equals_the_whole_run(case):
     assert calls[-1] == (scenario.n_records, scenario.n_records) and len(calls) >= 3
 
 
-@pytest.mark.parametrize("every", [5])
-def test_decimated_records_are_every_nth_sample_of_the_full_run(case, every):
+@pytest.mark.parametrize("case", [CASES[0], CASES[2]], ids=lambda case: case.name)
+def test_decimated_records_are_every_nth_sample_of_the_full_run(case):
     """record_every only thins the records: the noise of sample k depends on (key, k) alone.
+
+    Decimation is the engine's: checked on one open loop and one closed loop, not on every
+    case (each costs a compile of two programs).
 
     The two programs are compiled apart, and XLA may fuse (and so round) them
     differently: agreement is to a few ulp, where a shifted noise stream would differ
     at the size of the signal.
     """
+    every = 5
     full = case.build(duration=15.0)
     thin = dataclasses.replace(full, record_every=every)
     key = jax.random.key(5)

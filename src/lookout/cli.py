@@ -68,6 +68,7 @@ REPRODUCE_OPTIONS = {
     "gains": "--gains",
     "sweep": "--sweep/--no-sweep",
     "sample_interval": "--sample-interval",
+    "conditions": "--condition",
 }
 
 
@@ -290,10 +291,14 @@ def reproduce(
         Optional[str], typer.Option(metavar="SET", help="kim-2002: observer H3, H4: printed (A.4) or kyp (satisfy (14)).", show_default="printed")
     ] = None,
     sweep: Annotated[
-        Optional[bool], typer.Option("--sweep/--no-sweep", help="kim-2002, calugi-2003: run the sweeps.", show_default="--sweep")
+        Optional[bool], typer.Option("--sweep/--no-sweep", help="kim-2002, calugi-2003, wondergem-2009: run the sweeps.", show_default="--sweep")
     ] = None,
     sample_interval: Annotated[
         Optional[float], typer.Option(metavar="SECONDS", help="calugi-2003: observer and controller sample interval Delta.", show_default="0.1")
+    ] = None,
+    condition: Annotated[
+        Optional[str],
+        typer.Option(metavar="NAME[,NAME]", help="wondergem-2009: simulation, basin-calm, basin-waves (comma-separated).", show_default="all three"),
     ] = None,
 ) -> None:
     """Run a paper's simulation study.
@@ -306,8 +311,14 @@ def reproduce(
     if name not in REPRODUCTIONS:
         raise InputError(f"unknown reproduction {name!r}; available: {', '.join(REPRODUCTIONS)}")
     module = REPRODUCTIONS[name]
-    extra = {"model_error": None if model_error is None else _model_error(model_error), "gains": gains, "sweep": sweep, "sample_interval": sample_interval}
-    owners = {"model_error": "kim-2002", "gains": "kim-2002", "sweep": "kim-2002 and calugi-2003", "sample_interval": "calugi-2003"}
+    extra = {
+        "model_error": None if model_error is None else _model_error(model_error), "gains": gains, "sweep": sweep, "sample_interval": sample_interval,
+        "conditions": None if condition is None else tuple(part.strip() for part in condition.split(",")),
+    }
+    owners = {
+        "model_error": "kim-2002", "gains": "kim-2002", "sweep": "kim-2002, calugi-2003 and wondergem-2009", "sample_interval": "calugi-2003",
+        "conditions": "wondergem-2009",
+    }
     for field, value in extra.items():
         if value is not None and field not in module.Config.model_fields:
             raise InputError(f"{REPRODUCE_OPTIONS[field]}: {name} has no such setting (it belongs to {owners[field]})")

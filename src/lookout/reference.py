@@ -276,3 +276,134 @@ class ReferenceFilter(Reference):
             for name, value in layout.split(state[:, column]).items():
                 sample[f"{name}{suffix}"] = value
         return new_state, sample
+
+
+@final
+class EllipseReference(Reference):
+    """An ellipse traced at a constant speed per lap, paced by arc length: the reference of
+    Wondergem et al. (2009), Section 5 (four laps at 0.05, 0.1, 0.15 and 0.2 m/s).
+
+    The path is x = x_c + a cos(theta), y = y_c + s b sin(theta) (x north, y east;
+    s = +1 traces it with the yaw rate positive, s = -1 the other way), with the path
+    parameter theta(t) from theta' = U_k / rho(theta), rho = sqrt(a^2 sin^2 theta +
+    b^2 cos^2 theta), so the speed along the path is U_k on lap k = floor((theta -
+    theta_0) / 2 pi) (the last speed after the last lap). The heading is along the path,
+    psi_ref = atan2(y', x'), and its rate r_ref = s U kappa with the curvature
+    kappa = a b / rho^3 (derivations-wondergem-2009.md, section 5). The speed steps at
+    each lap ("stepwise", the paper's Figure 5), so nu_ref jumps there; the theory
+    excludes that, and its effect on the error index is small.
+
+    Outputs the signals of :meth:`ReferenceFilter.vessel` (``position_desired``,
+    ``heading_desired`` and their ``_rate`` and ``_acceleration``), exact at the sample
+    for the theta there; theta is advanced by ``substeps`` RK4 steps per sample.
+
+    Parameters
+    ----------
+    semi_axes : (a, b)
+        Semi-axes (m) along north and east, a, b > 0.
+    lap_speeds : sequence of float
+        U_k (m/s) per lap, > 0.
+    centre : (x_c, y_c)
+        Centre (m).
+    start_angle : float
+        theta_0 (rad): theta_0 = 0 starts at (x_c + a, y_c) heading along +y for s = +1.
+    direction : {1, -1}
+        s above.
+    substeps : int
+        RK4 steps for theta per sample.
+    """
+
+    semi_axes: Array
+    centre: Array
+    lap_speeds: Array
+    start_angle: Array
+    direction: Array
+    substeps: int = eqx.field(static=True)
+    reference_signals: tuple[Signal, ...] = eqx.field(static=True, kw_only=True)
+    noise_size: int = eqx.field(static=True, default=0, kw_only=True)
+
+    def __init__(self, semi_axes, lap_speeds, centre=(0.0, 0.0), start_angle=0.0, direction=1, substeps=1):
+        from lookout.models.vessel import VESSEL_SIGNALS
+
+        self.semi_axes = jnp.asarray(check.vector("semi_axes", semi_axes, 2))
+        speeds = np.asarray(lap_speeds, dtype=float) if check.is_concrete(lap_speeds) else lap_speeds
+        if check.is_concrete(lap_speeds) and speeds.ndim != 1:
+            raise ValueError(f"lap_speeds must be a sequence of speeds (m/s); got shape {speeds.shape}")
+        self.lap_speeds = jnp.asarray(speeds, dtype=float)
+        self.centre = jnp.asarray(check.vector("centre", centre, 2))
+        check.finite("start_angle", start_angle)
+        self.start_angle = jnp.asarray(start_angle, dtype=float)
+        if check.is_concrete(direction) and float(np.asarray(direction)) not in (1.0, -1.0):
+            raise ValueError(f"direction must be 1 or -1; got {direction!r}")
+        self.direction = jnp.asarray(direction, dtype=float)
+        if not (isinstance(substeps, int) and not isinstance(substeps, bool) and substeps >= 1):
+            raise ValueError(f"substeps must be a positive integer; got {substeps!r}")
+        self.substeps = substeps
+        by_name = {s.name: s for s in VESSEL_SIGNALS}
+        self.reference_signals = reference_filter_signals((by_name["position"], by_name["heading"]))
+
+    def __check_init__(self):
+        check.positive("semi_axes", self.semi_axes)
+        check.positive("lap_speeds", self.lap_speeds)
+
+    def speed(self, theta) -> Array:
+        """U_k of the lap that theta is on."""
+        lap = jnp.floor((theta - self.start_angle) / (2.0 * jnp.pi)).astype(int)
+        return self.lap_speeds[jnp.clip(lap, 0, self.lap_speeds.shape[0] - 1)]
+
+    def _rho(self, theta):
+        a, b = self.semi_axes[0], self.semi_axes[1]
+        return jnp.sqrt((a * jnp.sin(theta)) ** 2 + (b * jnp.cos(theta)) ** 2)
+
+    def perimeter(self) -> float:
+        """The ellipse's perimeter (m), by quadrature of rho over a lap."""
+        theta = np.linspace(0.0, 2.0 * np.pi, 20001)
+        rho = np.asarray(self._rho(jnp.asarray(theta)))
+        return float(np.sum(0.5 * (rho[1:] + rho[:-1]) * np.diff(theta)))
+
+    def sample(self, theta) -> dict[str, Array]:
+        """The reference at path parameter theta."""
+        a, b = self.semi_axes[0], self.semi_axes[1]
+        s = self.direction
+        U = self.speed(theta)
+        c, n = jnp.cos(theta), jnp.sin(theta)
+        rho = self._rho(theta)
+        theta_rate = U / rho
+        rho_prime = (a * a - b * b) * n * c / rho
+        theta_accel = -U * rho_prime / rho**2 * theta_rate
+        kappa = a * b / rho**3
+        kappa_prime = -3.0 * a * b * rho_prime / rho**4
+        position = self.centre + jnp.stack([a * c, s * b * n])
+        rate = jnp.stack([-a * n * theta_rate, s * b * c * theta_rate])
+        acceleration = jnp.stack([-a * c * theta_rate**2 - a * n * theta_accel, s * (-b * n * theta_rate**2 + b * c * theta_accel)])
+        return {
+            "position_desired": position,
+            "heading_desired": ssa(jnp.arctan2(rate[1], rate[0])),
+            "position_desired_rate": rate,
+            "heading_desired_rate": s * U * kappa,
+            "position_desired_acceleration": acceleration,
+            "heading_desired_acceleration": s * U * kappa_prime * theta_rate,
+        }
+
+    def init(self) -> Array:
+        """theta(t_0) = theta_0."""
+        return self.start_angle
+
+    def step(self, state, t, dt, normals):
+        """``(theta(t + dt), reference at theta(t))``."""
+        del normals
+        h = dt / self.substeps
+
+        def field(time, theta):
+            del time
+            return self.speed(theta) / self._rho(theta)
+
+        theta = state
+        for i in range(self.substeps):  # classical RK4 on the scalar theta
+            time = t + i * h
+            k1 = field(time, theta)
+            k2 = field(time + 0.5 * h, theta + 0.5 * h * k1)
+            k3 = field(time + 0.5 * h, theta + 0.5 * h * k2)
+            k4 = field(time + h, theta + h * k3)
+            theta = theta + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        return theta, self.sample(state)

@@ -89,16 +89,15 @@ def test_noise_drives_theta_hat_down_at_the_derived_rate():
     """The discrete law (67) with white position noise: d theta_hat/dt = -Gamma g k2 (1 + Delta k2)
     sigma^2 / Delta (analysis.adaptive_dp.noise_drift_rate). g is checked against the control
     law itself (d tau_u / d u_hat = d11 - m11_hat g at rest), the rate against simulation
-    (printed gains, 1 m noise, Gamma = 1e8, 32 seeds: measured 0.998 of the prediction)."""
+    (printed gains, 1 m noise, Gamma = 1e8, 16 seeds: measured 0.96 of the prediction, standard error 5 %)."""
     from lookout.analysis.adaptive_dp import noise_drift_rate
 
     config = calugi_2003.Config()
     printed = calugi_2003.gains("printed")
     scenario = calugi_2003.build(config, "printed", duration=1.0, initial_theta=1.0)
-    trajectory = simulate(scenario, jax.random.key(0))
-    estimate = jax.tree.map(lambda x: jnp.asarray(x)[0], trajectory.estimate)
-    reference = jax.tree.map(lambda x: jnp.asarray(x)[0], trajectory.reference)
-    y = jnp.asarray(trajectory.measurement)[0].at[2].set(0.0)
+    y = jnp.zeros(3)
+    estimate = scenario.observer.output(scenario.observer.init(y, scenario.initial_estimate), y)
+    _, reference = scenario.reference.step(scenario.reference.init(), 0.0, 0.1, jnp.zeros(0))
 
     def surge_force(u_hat):
         velocity = estimate["velocity"].at[0].set(u_hat)
@@ -108,10 +107,10 @@ def test_noise_drives_theta_hat_down_at_the_derived_rate():
     g = (calugi_2003_d11() - slope) / calugi_2003.m11()
     rate = noise_drift_rate(K1=printed["K1"], K2=printed["K2"], d=printed["d"], gamma=1e8, noise_std=1.0, interval=0.1)
     assert rate == pytest.approx(-1e8 * g * 1e-3 * (1 + 1e-4) / 0.1, rel=1e-6)
-    drift = calugi_2003.noise_drift(config, levels=(1.0,), intervals=(0.1,), gain_sets=("printed",))
+    drift = calugi_2003.noise_drift(config, levels=(1.0,), intervals=(0.1,), gain_sets=("printed",), seeds=16)
     ratio = float(drift.measured_rate.squeeze() / drift.predicted_rate.squeeze())
     assert 0.85 < ratio < 1.15, ratio
-    assert float(drift.measured_rate_error.squeeze()) < 0.1 * abs(rate)
+    assert float(drift.measured_rate_error.squeeze()) < 0.07 * abs(rate)
 
 
 def calugi_2003_d11():

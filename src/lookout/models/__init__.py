@@ -12,3 +12,7 @@ from .manipulators import JointState as JointState
 from .manipulators import ManipulatorModel as ManipulatorModel
 from .manipulators import ManipulatorPlant as ManipulatorPlant
 from .manipulators import TwoLinkArm as TwoLinkArm
+from .cybership import Cybership as Cybership
+from .cybership import CybershipPlant as CybershipPlant
+from .cybership import CybershipState as CybershipState
+from .cybership import cybership2 as cybership2

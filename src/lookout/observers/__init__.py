@@ -11,3 +11,4 @@ from .sliding_mode import SlidingModeObserver as SlidingModeObserver
 from .sliding_mode import saturation as saturation
 from .adaptive_dp import AdaptiveObserver as AdaptiveObserver
 from .adaptive_dp import InertiaParametrization as InertiaParametrization
+from .earth_fixed import EarthFixedObserver as EarthFixedObserver

@@ -58,3 +58,14 @@ def json_safe(value):
     if isinstance(value, (list, tuple)):
         return [json_safe(item) for item in value]
     return value
+
+
+def save_figures(figures: dict, out) -> list[str]:
+    """Write each matplotlib figure of ``{filename: figure}`` to ``out`` at 110 dpi, close
+    it, and return the file names."""
+    import matplotlib.pyplot as plt
+
+    for filename, figure in figures.items():
+        figure.savefig(out / filename, dpi=110)
+        plt.close(figure)
+    return list(figures)

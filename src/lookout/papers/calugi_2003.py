@@ -37,7 +37,7 @@ from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState
 from lookout.observers import AdaptiveObserver, InertiaParametrization
 from lookout.papers._config import finite_positive, positive_count, seed_for_runs, whole_samples
-from lookout.papers._report import Table, json_safe, significant
+from lookout.papers._report import Table, json_safe, save_figures, significant
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
@@ -503,10 +503,7 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset |
         figure.suptitle("Calugi et al. (2003): theta_hat from several starts, printed gains, discrete law (67)", fontsize=10)
         figure.tight_layout()
         figures["theta_convergence.png"] = figure
-    for filename, figure in figures.items():
-        figure.savefig(out / filename, dpi=110)
-        plt.close(figure)
-    return list(figures)
+    return save_figures(figures, out)
 
 
 # ---------------------------------------------------------------------------------
