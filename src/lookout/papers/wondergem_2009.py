@@ -255,6 +255,31 @@ def loop_metrics(ds: xr.Dataset, config: Config) -> dict:
     }
 
 
+def gain_conditions(config: Config, velocity_bound: float = 0.3):
+    """Conditions (25) and Prop. 3.1 (:func:`lookout.analysis.tracking.check_wondergem_2009`)
+    for the printed gains at the configured start: eta_ref0, nu_ref0 from the reference at
+    t_0, r_ref_max the largest |r_ref| over the four laps."""
+    import jax.numpy as jnp
+
+    from lookout.analysis.tracking import check_wondergem_2009
+    from lookout.controllers.tracking import reference_velocity
+
+    reference = EllipseReference(config.semi_axes, LAP_SPEEDS, start_angle=config.start_angle, direction=config.direction)
+    eta_ref0, nu_ref0, _ = reference_velocity(reference.sample(jnp.asarray(config.start_angle)))
+    theta = config.start_angle + np.linspace(0.0, 2.0 * np.pi * len(LAP_SPEEDS), 40001)[:-1]
+    yaw_rate = np.abs(np.asarray([reference.sample(jnp.asarray(t))["heading_desired_rate"] for t in theta[::40]]))
+    velocity = {"estimate": INITIAL_VELOCITY_HAT, "state": None}[config.initial_velocity]
+    if velocity is None:  # zeta(0) given: v_hat(0) = zeta(0) + L1 (eta_0 - eta_hat_0)
+        error = np.asarray(INITIAL_ETA) - np.asarray(INITIAL_ETA_HAT)
+        error[2] = (error[2] + np.pi) % (2 * np.pi) - np.pi
+        velocity = np.asarray(INITIAL_VELOCITY_HAT) + 15.0 * error
+    return check_wondergem_2009(
+        cybership2(), eta0=INITIAL_ETA, nu0=(0.0, 0.0, 0.0), eta_hat0=INITIAL_ETA_HAT, velocity_hat0=velocity,
+        reference_position0=np.asarray(eta_ref0), reference_velocity0=np.asarray(nu_ref0), yaw_rate_max=float(yaw_rate.max()),
+        velocity_bound=velocity_bound,
+    )
+
+
 # ---------------------------------------------------------------------------------
 # the choices the paper leaves open
 
@@ -412,6 +437,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         "status": [status for condition in config.conditions for status in per_condition[condition]["status"]],
         "conditions": per_condition,
         "choice_sweep": None if sweep is None else _sweep_summary(sweep),
+        "gain_conditions": gain_conditions(config).to_dict(),
         "files": sorted([*files, "summary.json"]),
     }
     summary = json_safe(summary)
@@ -454,6 +480,14 @@ def tables(summary: dict) -> list[Table]:
         tuple(rows),
         "EI: mean over the runs; Table 1 over its own t2. RMS per lap: body-frame x-y error.",
     )]
+    conditions = summary.get("gain_conditions")
+    if conditions:
+        rows = tuple((item["name"], item["relation"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"]) for item in conditions["inequalities"])
+        result.append(Table(
+            "Gain conditions for the printed gains: (25) and Proposition 3.1 (V_M = 0.3 m/s)",
+            ("", "condition", "left", "right", "verdict"), rows,
+            "sufficient conditions; the combined procedure (27)-(34) is not evaluated (derivations section 4)",
+        ))
     if summary.get("choice_sweep"):
         sweep = summary["choice_sweep"]
         rows = [(saturation, significant(values["min"]), significant(values["max"])) for saturation, values in sweep["by_saturation"].items()]

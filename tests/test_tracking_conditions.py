@@ -1,0 +1,66 @@
+"""Gain conditions of Wondergem et al. (2009): (25) and Proposition 3.1 on the printed design."""
+
+import numpy as np
+import pytest
+
+from lookout.analysis.tracking import check_wondergem_2009, christoffel_bound, controller_p_matrix
+from lookout.models.cybership import CYBERSHIP_M, cybership2
+
+A, B = 3.5, 1.823  # the reproduction's ellipse: curvature a / b^2 at the start and at its largest
+PRINTED = dict(
+    eta0=(3.8, -1.2, np.pi / 2), nu0=(0.0, 0.0, 0.0), eta_hat0=(4.0, -1.0, 2.94), velocity_hat0=(0.5, 0.5, -0.5),
+    reference_position0=(A, 0.0, np.pi / 2), reference_velocity0=(0.05, 0.0, 0.05 * A / B**2), yaw_rate_max=0.2 * A / B**2,
+)
+
+
+def test_p_solves_the_lyapunov_equation_with_the_plus_sign():
+    for w, lam in ((0.72, 1.0), (0.42, 1.0), (0.64, 0.7)):
+        A_c = np.array([[0.0, 1.0], [-w * w, -2.0 * lam * w]])
+        P = controller_p_matrix(w, lam)[np.ix_([0, 3], [0, 3])]
+        np.testing.assert_allclose(A_c.T @ P + P @ A_c, -2.0 * w * w * np.eye(2), atol=1e-14)
+        assert np.linalg.eigvalsh(P).min() > 0
+
+
+def test_christoffel_bound_against_a_random_search():
+    bound = christoffel_bound(CYBERSHIP_M)
+    assert bound == pytest.approx(4.857, abs=1e-3)  # derivations-wondergem-2009.md, section 1
+    ship = cybership2()
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(2000, 3))
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    norms = [np.linalg.norm(np.asarray(ship.christoffel_coriolis(rng.uniform(-3, 3), v)), 2) for v in x[:200]]
+    assert max(norms) <= bound * (1 + 1e-9) and max(norms) > 0.9 * bound
+
+
+def test_the_printed_design_meets_10_and_11_and_fails_13_14_and_25():
+    report = check_wondergem_2009(cybership2(), **PRINTED)
+    verdicts = {item.name: item.verdict for item in report.inequalities}
+    assert verdicts == {"(25)": "fails", "(10a)": "holds", "(10b)": "holds", "(11)": "holds", "(13)": "fails", "(14)": "fails"}
+    sides = {item.name: (item.left, item.right) for item in report.inequalities}
+    q = report.quantities
+    # derived by hand (derivations section 4): M_M = 0.3667, d_M1 = 0.891 + 73.26 V_M, k_n = 36.63
+    assert q["M_M"] == pytest.approx(1 / 2.727, rel=1e-3) and q["k_n"] == pytest.approx(36.63, abs=0.01)
+    assert q["d_M1"] == pytest.approx(0.891 + 2 * 36.628 * 0.3, abs=2e-3)
+    assert q["lambda_P"] == pytest.approx([0.2316, 2.624], abs=1e-3) and q["x_e0_norm"] == pytest.approx(1.239, abs=1e-3)
+    assert sides["(25)"][1] - sides["(25)"][0] == pytest.approx(4.03, abs=0.01)  # alpha_bar = -4.03
+    assert sides["(11)"][1] == pytest.approx(2.36, abs=0.01)
+    assert sides["(13)"][1] == pytest.approx(4150, rel=1e-3)
+    assert not report.holds and "(13)" in report.text()
+
+
+def test_with_a_perfect_initial_estimate_13_needs_alpha11_plus_sqrt_gamma1():
+    """eta_hat0 = eta0 removes gamma2 and (14); (13) becomes lmin(L1) > alpha11 + sqrt(gamma1)."""
+    report = check_wondergem_2009(cybership2(), **{**PRINTED, "eta_hat0": PRINTED["eta0"], "velocity_hat0": (0.0, 0.0, 0.0)})
+    names = [item.name for item in report.inequalities]
+    assert "(14)" not in names
+    q = report.quantities
+    (bound,) = [item.right for item in report.inequalities if item.name == "(13)"]
+    assert bound == pytest.approx(q["alpha11"] + np.sqrt(q["gamma1"]), rel=1e-12)
+    assert q["gamma1"] == 0.0 and bound == pytest.approx(q["alpha11"])  # nu0 = 0 and v_hat0 = 0 too: 14.68
+
+
+def test_bad_input_fails_with_one_line():
+    with pytest.raises(ValueError, match=r"^observer_gains must be finite and positive"):
+        check_wondergem_2009(cybership2(), **PRINTED, observer_gains=(0.0, 50.0))
+    with pytest.raises(ValueError, match=r"^velocity_bound must be finite and >= 0"):
+        check_wondergem_2009(cybership2(), **PRINTED, velocity_bound=-1.0)
