@@ -90,7 +90,7 @@ def test_noise_drives_theta_hat_down_at_the_derived_rate():
     sigma^2 / Delta (analysis.adaptive_dp.noise_drift_rate). g is checked against the control
     law itself (d tau_u / d u_hat = d11 - m11_hat g at rest), the rate against simulation
     (printed gains, 1 m noise, Gamma = 1e8, 16 seeds: measured 0.96 of the prediction, standard error 5 %)."""
-    from lookout.analysis.adaptive_dp import noise_drift_rate
+    from lookout.analysis.adaptive_dp import CALUGI_2003_D, noise_drift_rate
 
     config = calugi_2003.Config()
     printed = calugi_2003.gains("printed")
@@ -104,16 +104,10 @@ def test_noise_drives_theta_hat_down_at_the_derived_rate():
         return scenario.controller.step((), 0.0, y, {**estimate, "velocity": velocity}, reference, 0.1)[1][0]
 
     slope = float(jax.grad(surge_force)(0.0))
-    g = (calugi_2003_d11() - slope) / calugi_2003.m11()
+    g = (float(CALUGI_2003_D[0, 0]) - slope) / calugi_2003.m11()
     rate = noise_drift_rate(K1=printed["K1"], K2=printed["K2"], d=printed["d"], gamma=1e8, noise_std=1.0, interval=0.1)
     assert rate == pytest.approx(-1e8 * g * 1e-3 * (1 + 1e-4) / 0.1, rel=1e-6)
     drift = calugi_2003.noise_drift(config, levels=(1.0,), intervals=(0.1,), gain_sets=("printed",), seeds=16)
     ratio = float(drift.measured_rate.squeeze() / drift.predicted_rate.squeeze())
     assert 0.85 < ratio < 1.15, ratio
     assert float(drift.measured_rate_error.squeeze()) < 0.07 * abs(rate)
-
-
-def calugi_2003_d11():
-    from lookout.analysis.adaptive_dp import CALUGI_2003_D
-
-    return float(CALUGI_2003_D[0, 0])

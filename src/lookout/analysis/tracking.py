@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lookout._math import rotate, rotate_transpose, ssa
 from lookout.analysis.adaptive_dp import Inequality, _inequality
 from lookout.analysis._json import json_safe
 
@@ -146,10 +147,8 @@ def check_wondergem_2009(
     eta0, nu0 = np.asarray(eta0, dtype=float), np.asarray(nu0, dtype=float)
     eta_ref0 = np.asarray(reference_position0, dtype=float)
     e_eta0 = eta0 - eta_ref0
-    e_eta0[2] = (e_eta0[2] + np.pi) % (2 * np.pi) - np.pi
-    c, s = np.cos(e_eta0[2]), np.sin(e_eta0[2])
-    nu_ref0 = np.asarray(reference_velocity0, dtype=float)
-    rotated = np.array([c * nu_ref0[0] + s * nu_ref0[1], -s * nu_ref0[0] + c * nu_ref0[1], nu_ref0[2]])
+    e_eta0[2] = float(ssa(e_eta0[2]))
+    rotated = np.asarray(rotate_transpose(e_eta0[2], np.asarray(reference_velocity0, dtype=float)))
     x_e0 = float(np.linalg.norm(np.concatenate([e_eta0, nu0 - rotated])))
     p11 = np.diag(P)[:3]
     dp = abs(p11[0] - p11[1])
@@ -162,10 +161,8 @@ def check_wondergem_2009(
 
     # observer, Prop. 3.1
     eta_tilde0 = eta0 - np.asarray(eta_hat0, dtype=float)
-    eta_tilde0[2] = (eta_tilde0[2] + np.pi) % (2 * np.pi) - np.pi
-    c0, s0 = np.cos(eta0[2]), np.sin(eta0[2])
-    eta_rate0 = np.array([c0 * nu0[0] - s0 * nu0[1], s0 * nu0[0] + c0 * nu0[1], nu0[2]])
-    eta_tilde_rate0 = eta_rate0 - np.asarray(velocity_hat0, dtype=float)
+    eta_tilde0[2] = float(ssa(eta_tilde0[2]))
+    eta_tilde_rate0 = np.asarray(rotate(eta0[2], nu0)) - np.asarray(velocity_hat0, dtype=float)
     alpha11 = 0.5 + 3.0 * M_M * C_M * velocity_bound + 1.5 * M_M * d_M1
     gamma = 3.0 * M_M * (C_M + d_M2)
     gamma1 = gamma**2 * (L2.max() * eta_tilde0 @ eta_tilde0 + eta_tilde_rate0 @ eta_tilde_rate0)

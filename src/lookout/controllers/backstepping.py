@@ -71,7 +71,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout._math import rotate, rotate_transpose, ssa
+from lookout._math import rotate, rotate_transpose, rotation, ssa
 from lookout.components import Controller
 
 
@@ -79,12 +79,6 @@ def _vector(estimate: dict, name: str) -> Array:
     """``position``/``heading``-style pairs joined into a 3-vector."""
     first, second = name
     return jnp.concatenate([jnp.asarray(estimate[first]), jnp.asarray(estimate[second])[None]])
-
-
-def _rotation(heading) -> Array:
-    """J(psi) as a 3x3 matrix."""
-    c, s = jnp.cos(heading), jnp.sin(heading)
-    return jnp.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 @final
@@ -217,7 +211,7 @@ class ObserverBackstepping(Controller):
         z1 = e + k_i * integral
         z2 = rotate(heading_y, nu_hat) + c1d1 * z1 - eta_d_rate + k_i * e
         # nonlinear damping D2 from the rows of Omega1..Omega4 (eq. 26)
-        j = _rotation(heading_y)
+        j = rotation(heading_y)
         omega1 = j @ self.mass_inverse @ j.T * h4[None, :] + jnp.diag((c1d1 + k_i) * h2)
         q = jnp.stack([-nu_hat[1], nu_hat[0], 0.0])
         jq = rotate(heading_y, q)
@@ -382,7 +376,7 @@ class VectorialBackstepping(Controller):
         z1 = (eta_hat - eta_d).at[2].set(ssa(eta_hat[2] - eta_d[2]))
         z2 = rotate(heading, nu_hat) + c1d1 * z1 - eta_d_rate
         t_matrix = jnp.array([[0.0, 0.0, -nu_hat[1]], [0.0, 0.0, nu_hat[0]], [0.0, 0.0, 0.0]])
-        omega2 = _rotation(heading) @ (t_matrix + jnp.diag(k2))
+        omega2 = rotation(heading) @ (t_matrix + jnp.diag(k2))
         d2 = d[3:] * ((c1d1 * k1) ** 2 + jnp.sum(omega2**2, axis=1))
         return {"z1": z1, "z2": z2, "d1": d1, "d2": d2, "heading": heading, "nu_hat": nu_hat, "eta_hat": eta_hat}
 

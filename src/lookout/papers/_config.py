@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+
 from lookout.sim import MAX_SEED, integer_ratio
 
 
@@ -40,3 +42,29 @@ def whole_samples(duration: float, period: float | None, what: str = "the observ
     if period is not None and integer_ratio(duration, period) is None:
         raise ValueError(f"must be a whole multiple of {what} ({period:g} s); got {duration:g} s")
     return duration
+
+
+class RunsConfig(BaseModel):
+    """The part every reproduction's Config shares: frozen, no unknown fields, ``runs``
+    vmapped runs over seeds ``seed .. seed + runs - 1``, each a valid JAX key. Subclasses
+    may redeclare ``runs`` or ``seed`` for their own description; the checks stay."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    runs: int = Field(1, description="Monte Carlo runs (vmapped); run i uses seed + i")
+    seed: int = Field(0, description="PRNG seed of run 0")
+
+    @field_validator("runs")
+    @classmethod
+    def _positive_runs(cls, value):
+        return positive_count(value)
+
+    @field_validator("seed")
+    @classmethod
+    def _seed_in_key_range(cls, value, info: ValidationInfo):
+        return seed_for_runs(value, info.data.get("runs", 1))
+
+    @property
+    def seeds(self) -> list[int]:
+        """The seed of each run: seed, seed + 1, ..., seed + runs - 1."""
+        return list(range(self.seed, self.seed + self.runs))

@@ -69,3 +69,13 @@ def save_figures(figures: dict, out) -> list[str]:
         figure.savefig(out / filename, dpi=110)
         plt.close(figure)
     return list(figures)
+
+
+def write_summary(summary: dict, out) -> dict:
+    """Write ``summary`` as strict JSON (NaN and inf as null, see :func:`json_safe`) to
+    ``out / "summary.json"`` and return the JSON-safe copy."""
+    import json
+
+    safe = json_safe(summary)
+    (out / "summary.json").write_text(json.dumps(safe, indent=2, allow_nan=False))
+    return safe

@@ -18,7 +18,6 @@ and the largest speed of the run as omega_max.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +35,7 @@ from lookout.controllers import SinusoidalInput
 from lookout.models.manipulators import CartPendulum, FreePendulum, FurutaPendulum, ManipulatorModel, ManipulatorPlant, TwoLinkArm
 from lookout.observers import VelocityObserver
 from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
-from lookout.papers._report import Table, json_safe, significant
+from lookout.papers._report import Table, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import JointEncoder
 from lookout.sim import Scenario, seed_keys, simulate
@@ -238,9 +237,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         "systems": systems,
         "files": sorted([*files, "summary.json"]),
     }
-    summary = json_safe(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
-    return summary
+    return write_summary(summary, out)
 
 
 def tables(summary: dict) -> list[Table]:

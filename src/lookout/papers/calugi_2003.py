@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import math
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import estimation_errors
 from lookout.analysis.adaptive_dp import PRINTED_GAINS, calugi_2003_vessel, check_calugi_2003, noise_drift_rate, satisfying_gains
@@ -36,8 +35,8 @@ from lookout.controllers import VectorialBackstepping
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState
 from lookout.observers import AdaptiveObserver, InertiaParametrization
-from lookout.papers._config import finite_positive, positive_count, seed_for_runs, whole_samples
-from lookout.papers._report import Table, json_safe, save_figures, significant
+from lookout.papers._config import RunsConfig, finite_positive, positive_count, whole_samples
+from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
@@ -70,10 +69,8 @@ def m11() -> float:
     return float(np.asarray(calugi_2003_vessel().mass_matrix)[0, 0])
 
 
-class Config(BaseModel):
+class Config(RunsConfig):
     """Settings of the reproduction; every field has the paper's value or a stated choice."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     runs: int = Field(1, description="Monte Carlo runs per gain set (vmapped); run i uses seed + i")
     seed: int = Field(0, description="PRNG seed of run 0")
@@ -87,15 +84,10 @@ class Config(BaseModel):
     sweep_seeds: int = Field(2, description="seeds per point of the sweeps")
     sweep_duration: float = Field(600.0, description="simulated time of each sweep run (s)")
 
-    @field_validator("runs", "sweep_seeds")
+    @field_validator("sweep_seeds")
     @classmethod
     def _positive_count(cls, value):
         return positive_count(value)
-
-    @field_validator("seed")
-    @classmethod
-    def _seed_in_key_range(cls, value, info: ValidationInfo):
-        return seed_for_runs(value, max(info.data.get("runs", 1), info.data.get("sweep_seeds", 1), 1))
 
     @field_validator("sample_interval")
     @classmethod
@@ -138,9 +130,6 @@ class Config(BaseModel):
             raise ValueError(f"must contain initial_theta ({start:g}); got {value}")
         return value
 
-    @property
-    def seeds(self) -> list[int]:
-        return [self.seed + i for i in range(self.runs)]
 
 
 @functools.cache
@@ -375,10 +364,10 @@ def noise_drift(
         fitted = time >= 2 * interval
         theta = ds.theta_m11.values[:, fitted]
         slopes = np.polyfit(time[fitted], theta.T, 1)[0].reshape(len(gain_sets), len(levels), seeds)
-        predicted = np.array([[
-            noise_drift_rate(K1=gains(name)["K1"], K2=gains(name)["K2"], d=gains(name)["d"], C1=gains(name)["C1"], C2=gains(name)["C2"],
-                             gamma=gamma, noise_std=level, interval=interval)
-            for level in levels] for name in gain_sets])
+        loop_gains = {name: {key: gains(name)[key] for key in ("K1", "K2", "d", "C1", "C2")} for name in gain_sets}
+        predicted = np.array([
+            [noise_drift_rate(**loop_gains[name], gamma=gamma, noise_std=level, interval=interval) for level in levels] for name in gain_sets
+        ])
         rows.append((slopes.mean(axis=-1), slopes.std(axis=-1, ddof=1) / np.sqrt(seeds), predicted))
     dims = ("sample_interval", "gains", "noise_std")
     return xr.Dataset(
@@ -569,9 +558,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         "discretization_order": None if order is None else _order_summary(order),
         "files": sorted([*files, "summary.json"]),
     }
-    summary = json_safe(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
-    return summary
+    return write_summary(summary, out)
 
 
 def _sweep_summary(sweep: xr.Dataset) -> dict:

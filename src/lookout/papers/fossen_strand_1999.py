@@ -17,21 +17,20 @@ starts at rest at the origin and the observer at zero.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, settling_time
 from lookout.controllers import SinusoidalInput
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
-from lookout.papers._config import finite_positive, positive_count, seed_for_runs, whole_samples
-from lookout.papers._report import Table, json_safe, mean_and_spread, significant
+from lookout.papers._config import RunsConfig, finite_positive, whole_samples
+from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
@@ -43,16 +42,13 @@ STATES = ("eta", "nu", "bias", "wave")
 MINIMUM_FIXES = 10
 
 
-class Config(BaseModel):
+class Config(RunsConfig):
     """Settings of the reproduction; every field has the paper's value or a stated choice.
 
     Validation messages name the field and read as "<field>: <condition>"; the CLI
     shows them under the option's name (``--duration``).
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    runs: int = Field(1, description="Monte Carlo runs (vmapped); run i uses seed + i")
     seed: int = Field(0, description="PRNG seed of run 0 (run i uses seed + i)")
     plant_step: float = Field(0.1, description="RK4 step of the plant (s)")
     sample_period: float = Field(0.1, description="observer period (s)")
@@ -70,16 +66,6 @@ class Config(BaseModel):
     bias_std: tuple[float, float, float] = (2e3, 2e3, 5e4)
     bias_initial: tuple[float, float, float] = (1e4, 5e3, 1e5)
     noise_std: tuple[float, float, float] = (0.5, 0.5, float(np.radians(0.1)))
-
-    @field_validator("runs")
-    @classmethod
-    def _positive_count(cls, value):
-        return positive_count(value)
-
-    @field_validator("seed")
-    @classmethod
-    def _seed_in_key_range(cls, value, info: ValidationInfo):
-        return seed_for_runs(value, info.data.get("runs", 1))
 
     @field_validator(
         "plant_step", "sample_period", "measurement_period", "duration", "wave_frequency",
@@ -108,10 +94,6 @@ class Config(BaseModel):
             raise ValueError("entries must be finite and non-negative")
         return value
 
-    @property
-    def seeds(self) -> list[int]:
-        """The seed of each run: seed, seed + 1, ..., seed + runs - 1."""
-        return list(range(self.seed, self.seed + self.runs))
 
 
 def build(config: Config) -> Scenario:
@@ -281,7 +263,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
             "files": sorted(["fossen_strand_1999.nc", "bode.nc", "summary.json", *figures]),
         }
     )
-    (out / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False))
+    write_summary(summary, out)
     return summary
 
 

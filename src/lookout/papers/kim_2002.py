@@ -36,7 +36,6 @@ Not given, or not usable as printed, and chosen here (docs/reproductions.md):
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from pathlib import Path
 from typing import Callable
@@ -53,8 +52,8 @@ from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveMode
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.observers.sliding_mode import KIM_2002_BIAS_GAIN, KIM_2002_BIAS_TIME_CONSTANT, KIM_2002_SWITCHING_GAIN, KIM_2002_VELOCITY_GAIN, KIM_2002_WAVE
-from lookout.papers._config import finite_positive, positive_count, seed_for_runs, whole_samples
-from lookout.papers._report import Table, json_safe, mean_and_spread, significant
+from lookout.papers._config import RunsConfig, finite_positive, positive_count, whole_samples
+from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
@@ -123,10 +122,8 @@ class ModelError(BaseModel):
         return BodyDisturbance(constant=half, amplitude=half, period=self.force_period)
 
 
-class Config(BaseModel):
+class Config(RunsConfig):
     """Settings of the reproduction; every field has the paper's value or a stated choice."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     runs: int = Field(1, description="Monte Carlo runs per observer (vmapped); run i uses seed + i")
     seed: int = Field(0, description="PRNG seed of run 0")
@@ -151,15 +148,10 @@ class Config(BaseModel):
     sweep_seeds: int = Field(2, description="seeds per point of the sweep")
     sweep_duration: float = Field(1400.0, description="simulated time of each sweep run (s)")
 
-    @field_validator("runs", "sweep_seeds")
+    @field_validator("sweep_seeds")
     @classmethod
     def _positive_count(cls, value):
         return positive_count(value)
-
-    @field_validator("seed")
-    @classmethod
-    def _seed_in_key_range(cls, value, info: ValidationInfo):
-        return seed_for_runs(value, max(info.data.get("runs", 1), info.data.get("sweep_seeds", 1), 1))
 
     @field_validator("plant_step", "sample_period", "measurement_period", "duration", "sweep_duration", "reference_bandwidth", "position_gain", "velocity_gain", "coupling_gain")
     @classmethod
@@ -198,9 +190,6 @@ class Config(BaseModel):
             raise ValueError(f"must be at least 100 s; got {value:g} s")
         return value
 
-    @property
-    def seeds(self) -> list[int]:
-        return [self.seed + i for i in range(self.runs)]
 
 
 def build(config: Config, observer: str = "sliding-mode", *, model_error: ModelError | None = None, gains: str | None = None, duration: float | None = None) -> Scenario:
@@ -495,9 +484,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         "sweep": None if sweep is None else _sweep_summary(sweep),
         "files": sorted([*files, "summary.json"]),
     }
-    summary = json_safe(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
-    return summary
+    return write_summary(summary, out)
 
 
 def _sweep_summary(sweep: xr.Dataset) -> dict:

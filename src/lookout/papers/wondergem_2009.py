@@ -24,21 +24,20 @@ eta_hat'(0); measurement noise 2 mm and 0.1 deg; waves travelling along +x.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.actuators import SaturatingActuator
 from lookout.controllers.tracking import TrackingController
 from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT, CybershipPlant, CybershipState, cybership2
 from lookout.observers.earth_fixed import EarthFixedObserver
-from lookout.papers._config import positive_count, seed_for_runs
-from lookout.papers._report import Table, json_safe, save_figures, significant
+from lookout.papers._config import RunsConfig
+from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.reference import EllipseReference
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
@@ -59,10 +58,8 @@ BASIN_PERIOD = 0.05
 BASIN_MEASUREMENT_PERIOD = 0.1
 
 
-class Config(BaseModel):
+class Config(RunsConfig):
     """Settings of the reproduction; every field has the paper's value or a stated choice."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     conditions: tuple[str, ...] = Field(CONDITIONS, description="which of simulation, basin-calm, basin-waves to run")
     runs: int = Field(1, description="runs per condition (vmapped); run i uses seed + i")
@@ -83,16 +80,6 @@ class Config(BaseModel):
         if not value or any(c not in CONDITIONS for c in value) or len(set(value)) != len(value):
             raise ValueError(f"must be distinct names from {', '.join(CONDITIONS)}; got {', '.join(value) or 'none'}")
         return tuple(value)
-
-    @field_validator("runs")
-    @classmethod
-    def _runs(cls, value):
-        return positive_count(value)
-
-    @field_validator("seed")
-    @classmethod
-    def _seed(cls, value, info: ValidationInfo):
-        return seed_for_runs(value, info.data.get("runs", 1))
 
     @field_validator("duration")
     @classmethod
@@ -138,9 +125,6 @@ class Config(BaseModel):
             raise ValueError(f"must be finite{' and positive' if info.field_name == 'wave_period' else ''}{' and >= 0' if info.field_name == 'wave_height' else ''}; got {value:g}")
         return value
 
-    @property
-    def seeds(self) -> list[int]:
-        return [self.seed + i for i in range(self.runs)]
 
 
 def build(config: Config, condition: str = "simulation", *, start_angle=None, direction=None, initial_velocity=None, saturate=None) -> Scenario:
@@ -257,24 +241,27 @@ def loop_metrics(ds: xr.Dataset, config: Config) -> dict:
 
 def gain_conditions(config: Config, velocity_bound: float = 0.3):
     """Conditions (25) and Prop. 3.1 (:func:`lookout.analysis.tracking.check_wondergem_2009`)
-    for the printed gains at the configured start: eta_ref0, nu_ref0 from the reference at
-    t_0, r_ref_max the largest |r_ref| over the four laps."""
+    for the simulation condition's gains at the configured start: eta_ref0, nu_ref0 from the
+    reference at t_0, r_ref_max the largest |r_ref| over the four laps (1000 points), and
+    v_hat(0) as the observer's ``init`` makes it from the guess."""
+    import jax
     import jax.numpy as jnp
 
     from lookout.analysis.tracking import check_wondergem_2009
     from lookout.controllers.tracking import reference_velocity
 
-    reference = EllipseReference(config.semi_axes, LAP_SPEEDS, start_angle=config.start_angle, direction=config.direction)
-    eta_ref0, nu_ref0, _ = reference_velocity(reference.sample(jnp.asarray(config.start_angle)))
-    theta = config.start_angle + np.linspace(0.0, 2.0 * np.pi * len(LAP_SPEEDS), 40001)[:-1]
-    yaw_rate = np.abs(np.asarray([reference.sample(jnp.asarray(t))["heading_desired_rate"] for t in theta[::40]]))
-    velocity = {"estimate": INITIAL_VELOCITY_HAT, "state": None}[config.initial_velocity]
-    if velocity is None:  # zeta(0) given: v_hat(0) = zeta(0) + L1 (eta_0 - eta_hat_0)
-        error = np.asarray(INITIAL_ETA) - np.asarray(INITIAL_ETA_HAT)
-        error[2] = (error[2] + np.pi) % (2 * np.pi) - np.pi
-        velocity = np.asarray(INITIAL_VELOCITY_HAT) + 15.0 * error
+    scenario = build(config, "simulation")
+    observer, controller, reference = scenario.observer, scenario.controller, scenario.reference
+    eta_ref0, nu_ref0, _ = reference_velocity(reference.sample(reference.init()))
+    theta = config.start_angle + jnp.linspace(0.0, 2.0 * np.pi * len(LAP_SPEEDS), 1001)[:-1]
+    yaw_rate = np.abs(np.asarray(jax.vmap(reference.sample)(theta)["heading_desired_rate"]))
+    y0 = jnp.asarray(INITIAL_ETA)
+    start = observer.output(observer.init(y0, scenario.initial_estimate), y0)
     return check_wondergem_2009(
-        cybership2(), eta0=INITIAL_ETA, nu0=(0.0, 0.0, 0.0), eta_hat0=INITIAL_ETA_HAT, velocity_hat0=velocity,
+        scenario.plant.ship, observer_gains=(np.asarray(observer.position_gain), np.asarray(observer.velocity_gain)),
+        natural_frequency=np.asarray(controller.natural_frequency), damping_ratio=np.asarray(controller.damping_ratio),
+        eta0=INITIAL_ETA, nu0=(0.0, 0.0, 0.0), eta_hat0=INITIAL_ETA_HAT,
+        velocity_hat0=np.append(np.asarray(start["position_rate"]), float(start["heading_rate"])),
         reference_position0=np.asarray(eta_ref0), reference_velocity0=np.asarray(nu_ref0), yaw_rate_max=float(yaw_rate.max()),
         velocity_bound=velocity_bound,
     )
@@ -440,9 +427,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         "gain_conditions": gain_conditions(config).to_dict(),
         "files": sorted([*files, "summary.json"]),
     }
-    summary = json_safe(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
-    return summary
+    return write_summary(summary, out)
 
 
 def _sweep_summary(sweep: xr.Dataset) -> dict:
