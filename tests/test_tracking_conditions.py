@@ -64,3 +64,78 @@ def test_bad_input_fails_with_one_line():
         check_wondergem_2009(cybership2(), **PRINTED, observer_gains=(0.0, 50.0))
     with pytest.raises(ValueError, match=r"^velocity_bound must be finite and >= 0"):
         check_wondergem_2009(cybership2(), **PRINTED, velocity_bound=-1.0)
+
+
+# Proposition 3.3: the combined scheme --------------------------------------------------
+
+BOUNDS = dict(reference_speed_max=0.2 * np.hypot(1.0, A / B**2), reference_acceleration_max=0.03)
+MEASURED = {**PRINTED, "eta_hat0": PRINTED["eta0"], "velocity_hat0": (0.0, 0.0, 0.0)}
+
+
+def _side(report, name):
+    (item,) = [item for item in report.inequalities if item.name == name]
+    return item
+
+
+def test_27_is_zero_at_the_largest_eps3_and_the_eps3_bounds_fall_with_eps3():
+    gains = dict(observer_gains=(3e5, 7e6), natural_frequency=1.6)
+    best = check_wondergem_2009(cybership2(), **MEASURED, **BOUNDS, **gains)
+    eps_max = best.quantities["combined"]["epsilon3_max"]
+    assert eps_max > 0 and _side(best, "(27)").verdict == "holds"
+    at_max = check_wondergem_2009(cybership2(), **MEASURED, **BOUNDS, **gains, epsilon3=eps_max)
+    item = _side(at_max, "(27)")
+    assert item.left == pytest.approx(item.right, rel=1e-12)  # alpha_bar_1 = 0 at eps3_max
+    smaller = check_wondergem_2009(cybership2(), **MEASURED, **BOUNDS, **gains, epsilon3=0.5 * eps_max)
+    assert _side(smaller, "(27)").verdict == "holds"
+    for name in ("(30)", "(32)"):  # (30) and (34) carry eps3^-2: a smaller eps3 asks for more
+        assert _side(smaller, name).right > _side(at_max, name).right
+    # V0 (28) with eta_hat0 = eta0, v_hat0 = 0, nu0 = 0: lmax(P) ||x_e0||^2 alone
+    q = best.quantities
+    assert q["combined"]["V0"] == pytest.approx(q["lambda_P"][1] * q["x_e0_norm"] ** 2, rel=1e-12)
+
+
+def test_the_printed_gains_leave_no_eps3_for_27():
+    report = check_wondergem_2009(cybership2(), **PRINTED, **BOUNDS)
+    item = _side(report, "(27)")
+    assert item.verdict == "fails" and item.right == pytest.approx(24.07, abs=0.01)  # derivations section 4: 23.9 + r_max
+    assert report.quantities["combined"]["epsilon3_max"] == 0.0
+    assert not {"(30)", "(32)", "(33)"} & {item.name for item in report.inequalities}
+    assert "none exists" in report.text()
+    measured = check_wondergem_2009(cybership2(), **MEASURED, **BOUNDS)
+    assert _side(measured, "(27)").right == pytest.approx(4.382, abs=1e-3)  # V0 = lmax(P) ||x_e0||^2: 4.17 + r_max
+
+
+def test_the_search_proposes_gains_that_meet_every_condition_and_no_less():
+    from lookout.analysis.tracking import propose_wondergem_2009
+
+    proposal = propose_wondergem_2009(cybership2(), **{k: v for k, v in MEASURED.items()}, **BOUNDS)
+    assert proposal.found and proposal.report.holds
+    names = {item.name for item in proposal.report.inequalities}
+    assert {"(25)", "(10a)", "(10b)", "(11)", "(13)", "(27)", "(30)", "(32)"} <= names
+    L1, L2 = proposal.observer_gains
+    # the margin is 1.1 on the binding bound: 20 % less L1 fails (32)
+    tighter = check_wondergem_2009(
+        cybership2(), **MEASURED, **BOUNDS, observer_gains=(0.8 * L1, L2), natural_frequency=proposal.natural_frequency,
+        epsilon3=proposal.epsilon3,
+    )
+    assert _side(tighter, "(32)").verdict == "fails"
+    assert proposal.euler_step_max == pytest.approx(2.0 / max(abs(p) for p in np.roots([1.0, L1, L2])), rel=1e-12)
+    assert proposal.to_dict()["found"] is True
+
+
+def test_the_search_finds_nothing_from_the_printed_initial_estimate():
+    from lookout.analysis.tracking import propose_wondergem_2009
+
+    proposal = propose_wondergem_2009(cybership2(), **PRINTED, **BOUNDS)
+    assert not proposal.found and proposal.report is None and "keep growing" in proposal.reason
+
+
+def test_prop_3_3_bad_input():
+    with pytest.raises(ValueError, match=r"^reference_speed_max and reference_acceleration_max must be given together"):
+        check_wondergem_2009(cybership2(), **PRINTED, reference_speed_max=0.3)
+    with pytest.raises(ValueError, match=r"^epsilon3 must be finite and positive"):
+        check_wondergem_2009(cybership2(), **PRINTED, **BOUNDS, epsilon3=0.0)
+    from lookout.analysis.tracking import propose_wondergem_2009
+
+    with pytest.raises(ValueError, match=r"^margin must be finite and > 1"):
+        propose_wondergem_2009(cybership2(), **MEASURED, **BOUNDS, margin=1.0)

@@ -613,6 +613,74 @@ def design_adaptive_observer(
         raise typer.Exit(code=1)
 
 
+@design_app.command("tracking-gains")
+def design_tracking_gains(
+    position_gain: Annotated[str, typer.Option("--l1", metavar="L1[,L1,L1]", help="Observer gain L1 diagonal (1/s).")] = "15",
+    velocity_gain: Annotated[str, typer.Option("--l2", metavar="L2[,L2,L2]", help="Observer gain L2 diagonal (1/s2).")] = "50",
+    omega: Annotated[str, typer.Option("--omega", metavar="W[,W,W]", help="Omega diagonal (rad/s), natural frequencies of the error dynamics (20).")] = "0.72,0.42,0.64",
+    damping_ratio: Annotated[str, typer.Option("--lambda", metavar="Z[,Z,Z]", help="Lambda diagonal, relative damping of the error dynamics (20).")] = "1",
+    start: Annotated[str, typer.Option(metavar="ESTIMATE", help="Initial estimate: printed (Section 5's eta_hat0 and velocity estimate) or measured (eta_hat0 = eta0, v_hat0 = 0).")] = "printed",
+    velocity_bound: Annotated[float, typer.Option(metavar="V_M", help="Bound on the ship's speed ||eta'|| (m/s) for Proposition 3.1.")] = 0.3,
+    epsilon3: Annotated[Optional[float], typer.Option(metavar="EPS", help="eps3 of Proposition 3.3; default the largest that (27) admits.")] = None,
+    start_angle: Annotated[float, typer.Option(metavar="RAD", help="Start of the reference on the ellipse, theta_0 (rad).")] = 0.0,
+    direction: Annotated[int, typer.Option(metavar="1|-1", help="1: yaw rate positive, -1: negative.")] = 1,
+    propose: Annotated[bool, typer.Option("--propose", help="Search for gains that satisfy every condition (uses --lambda, --start, --velocity-bound; ignores --l1, --l2, --omega).")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
+) -> None:
+    """Wondergem et al. (2009) on Cybership II around the reproduction's ellipse: conditions.
+
+    (25) for the controller, Proposition 3.1 ((10), (11), (13), (14)) for the observer
+    and Proposition 3.3 ((27), (29)-(33)) for the combined scheme, each inequality with
+    both sides, at Section 5's initial conditions. With --propose, the gains a search
+    finds that satisfy all of them, and their check.
+
+    Exit code 0 when every condition holds (with --propose: gains were found), 1 when
+    one fails (the report or JSON is still printed), 2 for bad input.
+    """
+    from lookout.papers import wondergem_2009
+
+    if start not in ("printed", "measured"):
+        raise InputError(f"--start must be printed or measured; got {start!r}")
+    if direction not in (1, -1):
+        raise InputError(f"--direction must be 1 or -1; got {direction}")
+    if not math.isfinite(start_angle):
+        raise InputError(f"--start-angle must be finite; got {start_angle}")
+    if not (math.isfinite(velocity_bound) and 0 <= velocity_bound <= 100):
+        raise InputError(f"--velocity-bound must lie within 0..100 m/s; got {velocity_bound:g}")
+    if epsilon3 is not None:
+        _positive_number("--epsilon3", epsilon3)
+    gains = {
+        "L1": _positive_numbers("--l1", position_gain), "L2": _positive_numbers("--l2", velocity_gain),
+        "natural_frequency": _positive_numbers("--omega", omega), "damping_ratio": _positive_numbers("--lambda", damping_ratio),
+    }
+    for option, key in (("--l1", "L1"), ("--l2", "L2"), ("--omega", "natural_frequency"), ("--lambda", "damping_ratio")):
+        if max(gains[key]) > 1e12 or min(gains[key]) < 1e-12:
+            raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in gains[key])}")
+    config = wondergem_2009.Config(start_angle=start_angle, direction=direction)
+    if propose:
+        if len(set(gains["damping_ratio"])) != 1:
+            raise InputError(f"--lambda must be one number with --propose (Lambda = lambda I); got {damping_ratio}")
+        proposal = wondergem_2009.proposed_gains(config, velocity_bound, estimate=start, damping_ratio=gains["damping_ratio"][0])
+        passed = proposal.found and proposal.report is not None and proposal.report.holds
+        if as_json:
+            print(json.dumps(json_safe({"passed": passed, "start": start, **proposal.to_dict()}), allow_nan=False))
+        else:
+            console.print(proposal.text(), highlight=False, markup=False)
+            if not proposal.found and start == "printed":
+                console.print("hint: --start measured (eta_hat0 = eta0, v_hat0 = 0) removes V0's dependence on L1, L2", highlight=False, markup=False)
+    else:
+        report = wondergem_2009.gain_conditions(config, velocity_bound, estimate=start, gains=gains, epsilon3=epsilon3)
+        passed = report.holds
+        if as_json:
+            print(json.dumps(json_safe({"passed": passed, "start": start, "gains": gains, **report.to_dict()}), allow_nan=False))
+        else:
+            console.print(report.text(), highlight=False, markup=False)
+    if not as_json:
+        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
+    if not passed:
+        raise typer.Exit(code=1)
+
+
 def _print_design(result: dict, observer, tuning, spr) -> None:
     import numpy as np
 

@@ -40,6 +40,8 @@ def test_reproduce_wondergem_2009_writes_its_outputs_and_never_exceeds_the_thrus
     assert np.all(np.abs(applied) <= np.asarray(CYBERSHIP_THRUST_LIMIT))
     assert np.any(np.abs(commanded) > np.asarray(CYBERSHIP_THRUST_LIMIT))  # the transient saturates
     assert float(np.abs(ds.wave_position).max()) > 0  # the waves reach the measurement
+    assert summary["gain_proposal"]["found"] is True and summary["reference_thrust"]["feasible"] is True
+    assert {item["name"] for item in summary["gain_conditions"]["inequalities"]} >= {"(25)", "(13)", "(27)"}
     assert "Table 1" in capsys.readouterr().out
 
 
@@ -55,3 +57,57 @@ def test_bad_wondergem_options_exit_2_with_one_line(argv, message, capsys):
     assert main(["reproduce", "wondergem-2009", *argv]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_reference_thrust_on_a_circle_by_hand():
+    """On a circle of radius R the reference is nu_ref = [U, 0, U/R], nu_ref' = 0, so
+    tau_ref = C(nu_ref) nu_ref + D(nu_ref) nu_ref, written out from (39); the lap steps
+    are Kd [dU, 0, dU/R]."""
+    R = 2.0
+    thrust = w.reference_thrust(w.Config(semi_axes=(R, R)))
+    U, r = 0.2, 0.2 / R  # the fourth lap is the largest
+    surge = 0.72 * U + 1.33 * U * U - 1.0115 * r * r  # -(m22 v + m23 r) r with v = 0
+    sway = 25.8 * U * r - 0.11 * r
+    yaw = 1.0115 * r * U + 0.5 * r
+    np.testing.assert_allclose(thrust["steady_peak"], [abs(surge), abs(sway), abs(yaw)], rtol=1e-9)
+    controller = w.build(w.Config(semi_axes=(R, R))).controller
+    step = np.abs(np.asarray(controller.damping_gain) @ np.array([0.05, 0.0, 0.05 / R]))
+    np.testing.assert_allclose(thrust["lap_step_peak"], step, rtol=1e-9)
+    assert thrust["feasible"] is True
+
+
+def test_design_tracking_gains_checks_and_proposes(capsys):
+    assert main(["design", "tracking-gains", "--json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    verdicts = {item["name"]: item["verdict"] for item in result["inequalities"]}
+    assert result["passed"] is False and verdicts["(25)"] == "fails" and verdicts["(27)"] == "fails" and verdicts["(11)"] == "holds"
+    assert main(["design", "tracking-gains", "--propose", "--start", "measured"]) == 0
+    text = capsys.readouterr().out
+    assert "proposed: Omega = " in text and "(32)" in text and "verdict: passes (exit code 0)" in text
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--start", "exact"], "--start must be printed or measured; got 'exact'"),
+        (["--l2", "-5"], "--l2 must be one finite positive number"),
+        (["--omega", "1e13"], "--omega must lie within 1e-12..1e12"),
+        (["--epsilon3", "nan"], "--epsilon3 must be a finite positive number"),
+        (["--propose", "--lambda", "1,2,3"], "--lambda must be one number with --propose"),
+    ],
+)
+def test_design_tracking_gains_bad_input_exits_2_with_one_line(argv, message, capsys):
+    assert main(["design", "tracking-gains", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_10_hz_hold_makes_the_20_hz_command_alternate():
+    """basin-calm without noise: with the 10 Hz measurement held over two 20 Hz steps the
+    commanded surge force jumps every step (v_hat alternates); with 20 Hz measurements it
+    is smooth."""
+    rows = {row["case"]: row for row in w.hold_study(w.Config(duration=40.0))}
+    assert set(rows) == {case[0] for case in w.HOLD_CASES}
+    assert rows["10 Hz held"]["lap4_surge_error_m"] is None  # 40 s does not reach lap 4
+    assert rows["10 Hz held, no limits"]["surge_command_step_N"] > 1.0
+    assert rows["20 Hz"]["surge_command_step_N"] < 0.05

@@ -36,8 +36,32 @@ gamma2 = gamma^2 ||eta~0||^2::
     (13) lambda_min(L1) > [(2 alpha11 + gamma2) + sqrt((2 alpha11 + gamma2)^2 - 4 (alpha11^2 - gamma1))] / 2
     (14) lambda_max(L1) <= [(lambda_min(L1) - alpha11)^2 - gamma1] / gamma2   (when gamma2 > 0)
 
-The combined procedure of Prop. 3.3 ((27)–(34)) is not evaluated yet: its printed text
-is cut, and as printed it is circular (V0 depends on L1, L2, chosen afterwards).
+Combined scheme, Prop. 3.3 ((27)–(37), from (93)–(95)), given sup ||nu_ref|| = N_r,
+sup ||nu_ref'|| = A_r (the smooth part: the lap steps of the ellipse are outside the
+proposition's bounded-derivative assumption) and eps3 of the completion of squares::
+
+    V0 (28) = lmax(P) ||x_e0||^2 + (lmax(L1) + lmax(L2)) ||eta~0||^2 + ||eta~'0||^2,  s = sqrt(V0 / lmin(P))
+    (27) alpha_bar_1 = lmin(Q) - r_max - eps3^2 lmax(P) B - (1 + eps3^2 lmax(P) C) s > 0
+         B = M_M ||Kp|| + M_M ||Kd|| + 2 M_M ||D + Kd|| N_r + N_r + 2 C_M N_r + d_M3
+         C = 2 C_M + 2 M_M ||Kp|| + 2 N_r + 2 A_r
+    (29) = (10);  (31) lmax(L2) >= lmin(L2) (always true)
+    (30) lmin(L2) > M_M C_M N_r / 2 + M_M d_M1 / 4 + 2 eps3^-2 lmax(P) M_M (||Kp|| + ||Kd|| + 2 ||D + Kd|| N_r)
+                    + (M_M C_M / 2 + 2 eps3^-2 lmax(P) (2 M_M ||Kp|| + 2 N_r + 2 A_r)) s
+    (32), (33) = (13), (14) with
+         alpha11 (34) = 1/2 + 3 M_M C_M N_r + 3/2 M_M d_M1 + eps3^-2 lmax(P) (N_r + 2 C_M N_r + d_M3)
+         gamma (35) = (2 C_M + 2 lmax(P) C_M + 2 lmax(P) d_M4) / sqrt(lmin(P)) + 3 M_M (C_M + d_M2)
+         gamma1 (36) = gamma^2 (lmax(P) ||x_e0||^2 + lmax(L2) ||eta~0||^2 + ||eta~'0||^2),  gamma2 (37) = gamma^2 ||eta~0||^2
+
+Read here (the paper defines neither d_M3, d_M4 nor Assumption 2): d_M1 = ||D|| + 2 k_n N_r
+(Assumption 1 at the reference's speed), d_M3 = 2 k_n N_r, d_M4 = d_M2 = k_n; "lmax(K)" of
+the non-symmetric Kp = M Omega^2, Kd is read as the spectral norm ||K||_2. (35) is grouped
+as (94) prints it; (92) carries an extra M_M. (30) and (34) fall with eps3 and (27) rises,
+so (27) is reported as the existence of an eps3 (its eps3 -> 0 limit, (97)) and (30),
+(32), (33) at the largest admissible eps3, eps3_max^2 = (lmin(Q) - r_max - s) /
+(lmax(P) (B + C s)), unless eps3 is given: when they fail there they fail for every eps3.
+
+As printed the procedure is circular: V0 depends on L1 and L2, chosen after eps3.
+:func:`propose_wondergem_2009` resolves it by a fixed-point iteration on (V0, L1, L2).
 """
 
 from __future__ import annotations
@@ -82,25 +106,139 @@ def controller_p_matrix(natural_frequency, damping_ratio) -> np.ndarray:
     return np.block([[np.diag(p11), np.eye(3)], [np.eye(3), np.diag(p22)]])
 
 
+def _constants(ship) -> dict:
+    """M_M, C_M (Christoffel), k_n and ||D|| of a Cybership (Assumption 1, (4))."""
+    M = np.asarray(ship.mass_matrix, dtype=float)
+    q = np.asarray(ship.quadratic_damping, dtype=float)
+    return {
+        "M": M, "D": np.asarray(ship.damping_matrix, dtype=float),
+        "M_M": float(1.0 / np.linalg.eigvalsh(M).min()), "C_M": christoffel_bound(M),
+        "k_n": float(np.hypot(q[1], q[2])), "norm_D": float(np.linalg.norm(np.asarray(ship.damping_matrix, dtype=float), 2)),
+    }
+
+
+def _controller(constants: dict, natural_frequency, damping_ratio) -> dict:
+    """P, lmin(Q) and the gain norms of (24): Kp = M Omega^2, Kd = 2 M Lambda Omega - D."""
+    w = np.asarray(natural_frequency, dtype=float) * np.ones(3)
+    lam = np.asarray(damping_ratio, dtype=float) * np.ones(3)
+    if not (np.all(np.isfinite(w)) and np.all(w > 0) and np.all(np.isfinite(lam)) and np.all(lam > 0)):
+        raise ValueError(f"natural_frequency and damping_ratio must be finite and positive; got {w.tolist()}, {lam.tolist()}")
+    P = controller_p_matrix(w, lam)
+    eigenvalues = np.linalg.eigvalsh(P)
+    M, D = constants["M"], constants["D"]
+    Kp = M @ np.diag(w**2)
+    DKd = 2.0 * M @ np.diag(lam * w)
+    return {
+        "P_min": float(eigenvalues.min()), "P_max": float(eigenvalues.max()), "Q_min": float(2.0 * np.min(w**2)),
+        "p11": np.diag(P)[:3], "Kp": float(np.linalg.norm(Kp, 2)), "Kd": float(np.linalg.norm(DKd - D, 2)), "DKd": float(np.linalg.norm(DKd, 2)),
+    }
+
+
+def _start(eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_velocity0) -> dict:
+    """||x_e0||, ||eta~0||^2 and ||eta~'0||^2 at t_0 (25), (38)."""
+    eta0, nu0 = np.asarray(eta0, dtype=float), np.asarray(nu0, dtype=float)
+    e_eta0 = eta0 - np.asarray(reference_position0, dtype=float)
+    e_eta0[2] = float(ssa(e_eta0[2]))
+    rotated = np.asarray(rotate_transpose(e_eta0[2], np.asarray(reference_velocity0, dtype=float)))
+    eta_tilde0 = eta0 - np.asarray(eta_hat0, dtype=float)
+    eta_tilde0[2] = float(ssa(eta_tilde0[2]))
+    eta_tilde_rate0 = np.asarray(rotate(eta0[2], nu0)) - np.asarray(velocity_hat0, dtype=float)
+    return {
+        "x_e0": float(np.linalg.norm(np.concatenate([e_eta0, nu0 - rotated]))),
+        "eta_tilde0_sq": float(eta_tilde0 @ eta_tilde0), "eta_tilde_rate0_sq": float(eta_tilde_rate0 @ eta_tilde_rate0),
+    }
+
+
+def _l1_bound(alpha11: float, gamma1: float, gamma2: float) -> float:
+    """The right side of (13)/(32)."""
+    b = 2.0 * alpha11 + gamma2
+    return (b + math.sqrt(max(b * b - 4.0 * (alpha11**2 - gamma1), 0.0))) / 2.0
+
+
+def _combined(constants: dict, controller: dict, start: dict, L1_min, L1_max, L2_min, L2_max, yaw_rate_max,
+              speed_max, acceleration_max, epsilon3=None) -> dict:
+    """The numbers of Prop. 3.3 (module docstring) at eps3 (default: the largest admissible)."""
+    M_M, C_M, k_n = constants["M_M"], constants["C_M"], constants["k_n"]
+    P_min, P_max = controller["P_min"], controller["P_max"]
+    d_M1 = constants["norm_D"] + 2.0 * k_n * speed_max
+    d_M3 = 2.0 * k_n * speed_max
+    V0 = P_max * start["x_e0"] ** 2 + (L1_max + L2_max) * start["eta_tilde0_sq"] + start["eta_tilde_rate0_sq"]
+    s = math.sqrt(V0 / P_min)
+    B = M_M * controller["Kp"] + M_M * controller["Kd"] + 2.0 * M_M * controller["DKd"] * speed_max + speed_max + 2.0 * C_M * speed_max + d_M3
+    C = 2.0 * C_M + 2.0 * M_M * controller["Kp"] + 2.0 * speed_max + 2.0 * acceleration_max
+    free = controller["Q_min"] - yaw_rate_max - s
+    eps_sq_max = free / (P_max * (B + C * s)) if free > 0 else 0.0
+    eps_sq = eps_sq_max if epsilon3 is None else float(epsilon3) ** 2
+    out = {"V0": V0, "s": s, "B": B, "C": C, "free": free, "epsilon3_max": math.sqrt(eps_sq_max), "d_M1": d_M1, "d_M3": d_M3}
+    if eps_sq <= 0:
+        return out
+    inv = 1.0 / eps_sq
+    out["epsilon3"] = math.sqrt(eps_sq)
+    out["alpha_bar_1_loss"] = yaw_rate_max + eps_sq * P_max * B + (1.0 + eps_sq * P_max * C) * s
+    out["L2_bound"] = (0.5 * M_M * C_M * speed_max + 0.25 * M_M * d_M1
+                       + 2.0 * inv * P_max * M_M * (controller["Kp"] + controller["Kd"] + 2.0 * controller["DKd"] * speed_max)
+                       + (0.5 * M_M * C_M + 2.0 * inv * P_max * (2.0 * M_M * controller["Kp"] + 2.0 * speed_max + 2.0 * acceleration_max)) * s)
+    alpha11 = 0.5 + 3.0 * M_M * C_M * speed_max + 1.5 * M_M * d_M1 + inv * P_max * (speed_max + 2.0 * C_M * speed_max + d_M3)
+    gamma = (2.0 * C_M + 2.0 * P_max * C_M + 2.0 * P_max * k_n) / math.sqrt(P_min) + 3.0 * M_M * (C_M + k_n)
+    gamma1 = gamma**2 * (P_max * start["x_e0"] ** 2 + L2_max * start["eta_tilde0_sq"] + start["eta_tilde_rate0_sq"])
+    gamma2 = gamma**2 * start["eta_tilde0_sq"]
+    out.update(alpha11=alpha11, gamma=gamma, gamma1=gamma1, gamma2=gamma2, L1_bound=_l1_bound(alpha11, gamma1, gamma2))
+    if gamma2 > 0:
+        out["L1_max_bound"] = ((L1_min - alpha11) ** 2 - gamma1) / gamma2 if L1_min > alpha11 else -math.inf
+    return out
+
+
+def _observer(constants: dict, start: dict, L2_max, velocity_bound) -> dict:
+    """alpha11, gamma, gamma1, gamma2 of Prop. 3.1 (15) and the bound of (11)."""
+    M_M, C_M, k_n = constants["M_M"], constants["C_M"], constants["k_n"]
+    d_M1 = constants["norm_D"] + 2.0 * k_n * velocity_bound
+    alpha11 = 0.5 + 3.0 * M_M * C_M * velocity_bound + 1.5 * M_M * d_M1
+    gamma = 3.0 * M_M * (C_M + k_n)
+    gamma1 = gamma**2 * (L2_max * start["eta_tilde0_sq"] + start["eta_tilde_rate0_sq"])
+    gamma2 = gamma**2 * start["eta_tilde0_sq"]
+    return {"d_M1": d_M1, "alpha11": alpha11, "gamma": gamma, "gamma1": gamma1, "gamma2": gamma2,
+            "L2_bound": 0.5 * M_M * C_M * velocity_bound + 0.25 * M_M * d_M1, "L1_bound": _l1_bound(alpha11, gamma1, gamma2)}
+
+
 @dataclass
 class TrackingGainReport:
-    """Conditions (21)/(25) and (10), (11), (13), (14) for one gain set."""
+    """Conditions (25), Prop. 3.1 ((10), (11), (13), (14)) and, when the reference's
+    bounds are given, Prop. 3.3 ((27), (29)–(33)) for one gain set."""
 
     inequalities: list[Inequality]
     quantities: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def holds(self) -> bool:
         return all(item.verdict == "holds" for item in self.inequalities)
 
+    def verdict(self, *names: str) -> str:
+        """'holds' when every named inequality holds, else 'fails' ('missing' if none is there)."""
+        chosen = [item for item in self.inequalities if item.name in names]
+        if not chosen:
+            return "missing"
+        return "holds" if all(item.verdict == "holds" for item in chosen) else "fails"
+
     def to_dict(self) -> dict:
-        return json_safe({"holds": self.holds, "inequalities": [item.to_dict() for item in self.inequalities], "quantities": self.quantities})
+        return json_safe({
+            "holds": self.holds, "inequalities": [item.to_dict() for item in self.inequalities],
+            "quantities": self.quantities, "notes": self.notes,
+        })
 
     def text(self) -> str:
         lines = ["Wondergem et al. (2009): gain conditions"]
         for item in self.inequalities:
             lines += item.describe()
+        lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
+
+
+def _diagonal(name: str, value) -> np.ndarray:
+    array = np.asarray(value, dtype=float) * np.ones(3)
+    if array.shape != (3,) or not np.all(np.isfinite(array)) or np.any(array <= 0):
+        raise ValueError(f"{name} must be finite and positive, one value or three; got {np.asarray(value).tolist()}")
+    return array
 
 
 def check_wondergem_2009(
@@ -118,72 +256,216 @@ def check_wondergem_2009(
     yaw_rate_max: float,
     velocity_bound: float = 0.3,
     corrected: bool = False,
+    reference_speed_max: float | None = None,
+    reference_acceleration_max: float | None = None,
+    epsilon3: float | None = None,
 ) -> TrackingGainReport:
     """The conditions for a :class:`~lookout.models.cybership.Cybership` (its M, D and
     quadratic damping), observer gains (L1, L2) (scalars or diagonals), Omega, Lambda, the
     initial state and estimates (v_hat(0) = ``velocity_hat0``, Earth frame), the reference
-    at t_0 (eta_ref0, nu_ref0 body) and its largest yaw rate, and the velocity bound V_M."""
-    for name, value in (("yaw_rate_max", yaw_rate_max), ("velocity_bound", velocity_bound)):
-        if not (math.isfinite(value) and value >= 0):
+    at t_0 (eta_ref0, nu_ref0 body) and its largest yaw rate, and the velocity bound V_M
+    of Prop. 3.1. With ``reference_speed_max`` (sup ||nu_ref||) and
+    ``reference_acceleration_max`` (sup ||nu_ref'||) also Prop. 3.3 (27)–(33), at
+    ``epsilon3`` or, by default, the largest eps3 that (27) admits."""
+    for name, value in (("yaw_rate_max", yaw_rate_max), ("velocity_bound", velocity_bound),
+                        ("reference_speed_max", reference_speed_max), ("reference_acceleration_max", reference_acceleration_max)):
+        if value is not None and not (math.isfinite(value) and value >= 0):
             raise ValueError(f"{name} must be finite and >= 0; got {value!r}")
+    if (reference_speed_max is None) != (reference_acceleration_max is None):
+        raise ValueError("reference_speed_max and reference_acceleration_max must be given together (Prop. 3.3 needs both)")
+    if epsilon3 is not None and not (math.isfinite(epsilon3) and epsilon3 > 0):
+        raise ValueError(f"epsilon3 must be finite and positive; got {epsilon3!r}")
     L1 = np.asarray(observer_gains[0], dtype=float) * np.ones(3)
     L2 = np.asarray(observer_gains[1], dtype=float) * np.ones(3)
     if np.any(L1 <= 0) or np.any(L2 <= 0) or not np.all(np.isfinite(np.concatenate([L1, L2]))):
         raise ValueError(f"observer_gains must be finite and positive; got L1 = {L1.tolist()}, L2 = {L2.tolist()}")
-    M = np.asarray(ship.mass_matrix, dtype=float)
-    D = np.asarray(ship.damping_matrix, dtype=float)
-    q = np.asarray(ship.quadratic_damping, dtype=float)
-    M_M = 1.0 / np.linalg.eigvalsh(M).min()
-    C_M = christoffel_bound(M)
-    k_n = float(np.hypot(q[1], q[2]))
-    d_M1 = float(np.linalg.norm(D, 2) + 2.0 * k_n * velocity_bound)
-    d_M2 = k_n
+    constants = _constants(ship)
+    controller = _controller(constants, natural_frequency, damping_ratio)
+    start = _start(eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_velocity0)
 
     # controller (21)/(25)
-    P = controller_p_matrix(natural_frequency, damping_ratio)
-    eigenvalues = np.linalg.eigvalsh(P)
-    w = np.asarray(natural_frequency, dtype=float) * np.ones(3)
-    q_min = float(2.0 * np.min(w**2))
-    eta0, nu0 = np.asarray(eta0, dtype=float), np.asarray(nu0, dtype=float)
-    eta_ref0 = np.asarray(reference_position0, dtype=float)
-    e_eta0 = eta0 - eta_ref0
-    e_eta0[2] = float(ssa(e_eta0[2]))
-    rotated = np.asarray(rotate_transpose(e_eta0[2], np.asarray(reference_velocity0, dtype=float)))
-    x_e0 = float(np.linalg.norm(np.concatenate([e_eta0, nu0 - rotated])))
-    p11 = np.diag(P)[:3]
-    dp = abs(p11[0] - p11[1])
+    dp = abs(controller["p11"][0] - controller["p11"][1])
     kappa_r = (dp + math.sqrt(dp * dp + 4.0)) / 2.0 if corrected else 1.0
-    ratio = math.sqrt(eigenvalues.max() / eigenvalues.min())
+    ratio = math.sqrt(controller["P_max"] / controller["P_min"])
     inequalities = [
         _inequality("(25)", "lmin(Q) > r_max" + (" kappa_r" if corrected else "") + " + sqrt(lmax(P)/lmin(P)) |x_e0|",
-                    q_min, kappa_r * yaw_rate_max + ratio * x_e0, "1/s"),
+                    controller["Q_min"], kappa_r * yaw_rate_max + ratio * start["x_e0"], "1/s"),
     ]
 
     # observer, Prop. 3.1
-    eta_tilde0 = eta0 - np.asarray(eta_hat0, dtype=float)
-    eta_tilde0[2] = float(ssa(eta_tilde0[2]))
-    eta_tilde_rate0 = np.asarray(rotate(eta0[2], nu0)) - np.asarray(velocity_hat0, dtype=float)
-    alpha11 = 0.5 + 3.0 * M_M * C_M * velocity_bound + 1.5 * M_M * d_M1
-    gamma = 3.0 * M_M * (C_M + d_M2)
-    gamma1 = gamma**2 * (L2.max() * eta_tilde0 @ eta_tilde0 + eta_tilde_rate0 @ eta_tilde_rate0)
-    gamma2 = gamma**2 * (eta_tilde0 @ eta_tilde0)
-    b = 2.0 * alpha11 + gamma2
-    bound13 = (b + math.sqrt(max(b * b - 4.0 * (alpha11**2 - gamma1), 0.0))) / 2.0
+    observer = _observer(constants, start, L2.max(), velocity_bound)
     inequalities += [
         _inequality("(10a)", "lmin(L1) > 1", L1.min(), 1.0, "1/s"),
         _inequality("(10b)", "lmin(L2) >= 1", L2.min() + 1e-300, 1.0, "1/s2"),
-        _inequality("(11)", "lmin(L2) > M_M C_M V_M / 2 + M_M d_M1 / 4", L2.min(), 0.5 * M_M * C_M * velocity_bound + 0.25 * M_M * d_M1, "1/s2"),
-        _inequality("(13)", "lmin(L1) > [(2 a11 + g2) + sqrt((2 a11 + g2)^2 - 4 (a11^2 - g1))] / 2", L1.min(), bound13, "1/s"),
+        _inequality("(11)", "lmin(L2) > M_M C_M V_M / 2 + M_M d_M1 / 4", L2.min(), observer["L2_bound"], "1/s2"),
+        _inequality("(13)", "lmin(L1) > [(2 a11 + g2) + sqrt((2 a11 + g2)^2 - 4 (a11^2 - g1))] / 2", L1.min(), observer["L1_bound"], "1/s"),
     ]
-    if gamma2 > 0:
-        inequalities.append(_inequality("(14)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)", ((L1.min() - alpha11) ** 2 - gamma1) / gamma2, L1.max(), "1/s"))
+    if observer["gamma2"] > 0:
+        inequalities.append(_inequality("(14)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)",
+                                        ((L1.min() - observer["alpha11"]) ** 2 - observer["gamma1"]) / observer["gamma2"], L1.max(), "1/s"))
     quantities = {
-        "M_M": M_M, "C_M_christoffel": C_M, "C_M_body": float(max(M[0, 0], math.hypot(M[1, 1], M[1, 2]))),
-        "k_n": k_n, "d_M1": d_M1, "d_M2": d_M2, "velocity_bound": velocity_bound,
-        "lambda_P": [float(eigenvalues.min()), float(eigenvalues.max())], "lambda_min_Q": q_min, "x_e0_norm": x_e0,
-        "kappa_r": kappa_r, "alpha11": alpha11, "gamma": gamma, "gamma1": float(gamma1), "gamma2": float(gamma2),
+        "M_M": constants["M_M"], "C_M_christoffel": constants["C_M"],
+        "C_M_body": float(max(constants["M"][0, 0], math.hypot(constants["M"][1, 1], constants["M"][1, 2]))),
+        "k_n": constants["k_n"], "d_M1": observer["d_M1"], "d_M2": constants["k_n"], "velocity_bound": velocity_bound,
+        "lambda_P": [controller["P_min"], controller["P_max"]], "lambda_min_Q": controller["Q_min"], "x_e0_norm": start["x_e0"],
+        "kappa_r": kappa_r, "alpha11": observer["alpha11"], "gamma": observer["gamma"],
+        "gamma1": float(observer["gamma1"]), "gamma2": float(observer["gamma2"]),
     }
-    return TrackingGainReport(inequalities, quantities)
+    notes: list[str] = []
+
+    # combined scheme, Prop. 3.3
+    if reference_speed_max is not None:
+        combined = _combined(constants, controller, start, L1.min(), L1.max(), L2.min(), L2.max(), yaw_rate_max,
+                             reference_speed_max, reference_acceleration_max, epsilon3)
+        if epsilon3 is None:
+            inequalities.append(_inequality("(27)", "eps3 exists: lmin(Q) > r_max + sqrt(V0/lmin(P))",
+                                            controller["Q_min"], yaw_rate_max + combined["s"], "1/s"))
+        else:
+            inequalities.append(_inequality("(27)", "lmin(Q) > r_max + eps3^2 lmax(P) (B + C s) + s, s = sqrt(V0/lmin(P))",
+                                            controller["Q_min"], combined["alpha_bar_1_loss"], "1/s"))
+        if "epsilon3" in combined:
+            inequalities += [
+                _inequality("(30)", "lmin(L2) > ... + 2 eps3^-2 lmax(P) (...) sqrt(V0/lmin(P))", L2.min(), combined["L2_bound"], "1/s2"),
+                _inequality("(32)", "lmin(L1) > [(2 a11 + g2) + sqrt(...)] / 2 with (34)-(37)", L1.min(), combined["L1_bound"], "1/s"),
+            ]
+            if combined["gamma2"] > 0:
+                inequalities.append(_inequality("(33)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)", combined["L1_max_bound"], L1.max(), "1/s"))
+        else:
+            notes.append("(30), (32), (33) need an eps3 that satisfies (27); none exists")
+        quantities["combined"] = {
+            key: combined[key] for key in ("V0", "epsilon3_max", "epsilon3", "d_M1", "d_M3", "alpha11", "gamma", "gamma1", "gamma2") if key in combined
+        }
+        quantities["combined"].update(reference_speed_max=reference_speed_max, reference_acceleration_max=reference_acceleration_max,
+                                      Kp_norm=controller["Kp"], Kd_norm=controller["Kd"], D_plus_Kd_norm=controller["DKd"])
+    return TrackingGainReport(inequalities, quantities, notes)
 
 
-__all__ = ["TrackingGainReport", "check_wondergem_2009", "christoffel_bound", "controller_p_matrix"]
+@dataclass
+class GainProposal:
+    """Gains from :func:`propose_wondergem_2009`: uniform Omega = omega I, isotropic L1, L2."""
+
+    found: bool
+    natural_frequency: float
+    damping_ratio: float
+    observer_gains: tuple[float, float]
+    epsilon3: float
+    iterations: int
+    report: TrackingGainReport | None
+    reason: str = ""
+
+    @property
+    def observer_poles(self) -> list[float]:
+        """Roots of s^2 + L1 s + L2, the observer's linear part per DOF (1/s)."""
+        return sorted(np.roots([1.0, self.observer_gains[0], self.observer_gains[1]]).real.tolist())
+
+    @property
+    def euler_step_max(self) -> float:
+        """The largest forward-Euler step that keeps the linear part stable, 2 / |fastest pole| (s)."""
+        return 2.0 / max(abs(p) for p in self.observer_poles)
+
+    def to_dict(self) -> dict:
+        return json_safe({
+            "observer_poles": self.observer_poles if self.found else None,
+            "euler_step_max_s": self.euler_step_max if self.found else None,
+            "found": self.found, "natural_frequency": self.natural_frequency, "damping_ratio": self.damping_ratio,
+            "observer_gains": {"L1": self.observer_gains[0], "L2": self.observer_gains[1]}, "epsilon3": self.epsilon3,
+            "iterations": self.iterations, "reason": self.reason,
+            "report": self.report.to_dict() if self.report is not None else None,
+        })
+
+    def text(self) -> str:
+        if not self.found:
+            return f"no gains found after {self.iterations} iterations: {self.reason}"
+        L1, L2 = self.observer_gains
+        lines = [
+            f"proposed: Omega = {self.natural_frequency:.4g} I rad/s, Lambda = {self.damping_ratio:g} I, "
+            f"L1 = {L1:.4g} I 1/s, L2 = {L2:.4g} I 1/s2, eps3 = {self.epsilon3:.3g} ({self.iterations} iterations)",
+            f"observer poles {', '.join(f'{p:.4g}' for p in self.observer_poles)} 1/s: forward Euler needs a step below "
+            f"{self.euler_step_max:.3g} s",
+        ]
+        return "\n".join(lines + ([self.report.text()] if self.report is not None else []))
+
+
+def propose_wondergem_2009(
+    ship,
+    *,
+    damping_ratio: float = 1.0,
+    eta0,
+    nu0,
+    eta_hat0,
+    velocity_hat0,
+    reference_position0,
+    reference_velocity0,
+    yaw_rate_max: float,
+    reference_speed_max: float,
+    reference_acceleration_max: float,
+    velocity_bound: float = 0.3,
+    margin: float = 1.1,
+    max_iterations: int = 200,
+) -> GainProposal:
+    """Gains that satisfy (25), Prop. 3.1 and Prop. 3.3 at the given start: the paper's
+    procedure (steps 1–7 after Prop. 3.3) made explicit, with a search where it leaves a
+    free choice:
+
+    1. Lambda = ``damping_ratio`` I and Omega = omega I, uniform so that kappa_r = 1 and
+       the gap in (81) does not arise;
+    2.–3. omega on a 1 % grid over 0.05–100 rad/s where an eps3 satisfies (27) (this
+       implies (25)), and eps3^2 = f eps3_max^2 with f in 0.1, 0.2, ..., 0.9 (alpha_bar_1
+       keeps at least 10 % of its eps3 -> 0 value): the pair that needs the smallest L1;
+    4.–7. L2 = ``margin`` x max(1, (11), (30)) and L1 = ``margin`` x max(1, (13), (32)),
+       isotropic (lmax = lmin, so (31) holds and (33) reduces to (32)).
+
+    V0 (28) depends on L1 and L2 when eta_hat0 != eta0, which makes the printed procedure
+    circular; steps 2–4 are repeated with the new V0 until the gains stop growing (found)
+    or grow past 1e12 / ``max_iterations`` (not found). With eta_hat0 = eta0 (eta is
+    measured) the second pass confirms the first."""
+    if not (math.isfinite(margin) and margin > 1.0):
+        raise ValueError(f"margin must be finite and > 1; got {margin!r}")
+    for name, value in (("yaw_rate_max", yaw_rate_max), ("reference_speed_max", reference_speed_max),
+                        ("reference_acceleration_max", reference_acceleration_max), ("velocity_bound", velocity_bound)):
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be finite and >= 0; got {value!r}")
+    if not (math.isfinite(damping_ratio) and damping_ratio > 0):
+        raise ValueError(f"damping_ratio must be finite and positive; got {damping_ratio!r}")
+    constants = _constants(ship)
+    start = _start(eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_velocity0)
+    grid = np.geomspace(0.05, 100.0, 765)  # 1 % steps
+    controllers = [_controller(constants, w, damping_ratio) for w in grid]
+    fractions = np.arange(1, 10) / 10.0
+    bounds = (yaw_rate_max, reference_speed_max, reference_acceleration_max)
+    L1 = L2 = 1.0
+    omega = eps3 = math.nan
+    for iteration in range(1, max_iterations + 1):
+        observer = _observer(constants, start, L2, velocity_bound)
+        best = None
+        for w, controller in zip(grid, controllers):
+            eps_max = _combined(constants, controller, start, L1, L1, L2, L2, *bounds)["epsilon3_max"]
+            if eps_max <= 0:
+                continue
+            for fraction in fractions:
+                eps = eps_max * math.sqrt(fraction)
+                combined = _combined(constants, controller, start, L1, L1, L2, L2, *bounds, eps)
+                need = (max(1.0, combined["L1_bound"], observer["L1_bound"]), max(1.0, combined["L2_bound"], observer["L2_bound"]))
+                if best is None or need < best[0]:
+                    best = (need, w, eps)
+        if best is None:
+            return GainProposal(False, math.nan, damping_ratio, (L1, L2), math.nan, iteration, None,
+                                f"no omega up to {grid[-1]:g} rad/s leaves (27) an eps3 with L1 = {L1:.3g}, L2 = {L2:.3g}")
+        (need1, need2), omega, eps3 = best
+        if need1 < L1 and need2 < L2:
+            report = check_wondergem_2009(
+                ship, observer_gains=(L1, L2), natural_frequency=omega, damping_ratio=damping_ratio, eta0=eta0, nu0=nu0,
+                eta_hat0=eta_hat0, velocity_hat0=velocity_hat0, reference_position0=reference_position0,
+                reference_velocity0=reference_velocity0, yaw_rate_max=yaw_rate_max, velocity_bound=velocity_bound,
+                reference_speed_max=reference_speed_max, reference_acceleration_max=reference_acceleration_max, epsilon3=eps3,
+            )
+            return GainProposal(True, float(omega), damping_ratio, (float(L1), float(L2)), float(eps3), iteration, report)
+        L1, L2 = max(L1, margin * need1), max(L2, margin * need2)
+        if max(L1, L2) > 1e12:
+            break
+    return GainProposal(False, float(omega), damping_ratio, (float(L1), float(L2)), float(eps3), iteration, None,
+                        f"L1, L2 keep growing with V0 (L1 = {L1:.3g}, L2 = {L2:.3g}): the initial estimate error ||eta~0|| = "
+                        f"{math.sqrt(start['eta_tilde0_sq']):.3g} makes the procedure's fixed point run away; start the estimate at the measurement")
+
+
+__all__ = ["GainProposal", "TrackingGainReport", "check_wondergem_2009", "christoffel_bound", "controller_p_matrix", "propose_wondergem_2009"]

@@ -72,7 +72,7 @@ class Config(RunsConfig):
     noise_std: tuple[float, float, float] = Field((0.002, 0.002, float(np.radians(0.1))), description="basin measurement noise (m, m, rad)")
     wave_height: float = Field(0.01, description="significant wave height Hs (m), basin-waves")
     wave_period: float = Field(0.75, description="JONSWAP mean period T1 (s), basin-waves")
-    sweep: bool = Field(True, description="sweep the choices the paper leaves open (start, direction, initial velocity, saturation)")
+    sweep: bool = Field(True, description="sweep the choices the paper leaves open (start, direction, initial velocity, saturation) and run the measurement-hold study")
 
     @field_validator("conditions")
     @classmethod
@@ -164,7 +164,7 @@ def build(config: Config, condition: str = "simulation", *, start_angle=None, di
         CybershipState.build(eta=INITIAL_ETA), observer.guess(eta=INITIAL_ETA_HAT, velocity=INITIAL_VELOCITY_HAT),
         plant_step=PLANT_STEP, sample_period=period, duration=config.duration, reference=reference, actuator=actuator,
         observer_mode="sampled" if basin else "continuous",
-        record_every=int(round(BASIN_MEASUREMENT_PERIOD / period)) if basin else 10,
+        record_every=1 if basin else 10,  # every 0.05 s step: the 10 Hz hold makes thrust alternate at 10 Hz
     )
 
 
@@ -239,31 +239,126 @@ def loop_metrics(ds: xr.Dataset, config: Config) -> dict:
     }
 
 
-def gain_conditions(config: Config, velocity_bound: float = 0.3):
-    """Conditions (25) and Prop. 3.1 (:func:`lookout.analysis.tracking.check_wondergem_2009`)
-    for the simulation condition's gains at the configured start: eta_ref0, nu_ref0 from the
-    reference at t_0, r_ref_max the largest |r_ref| over the four laps (1000 points), and
-    v_hat(0) as the observer's ``init`` makes it from the guess."""
+REFERENCE_POINTS = 4000
+
+
+def _reference_samples(config: Config):
+    """eta_ref, nu_ref, nu_ref' on REFERENCE_POINTS phases over the four laps (lap k's speed
+    on [theta_0 + 2 pi k, theta_0 + 2 pi (k + 1)))."""
     import jax
     import jax.numpy as jnp
 
-    from lookout.analysis.tracking import check_wondergem_2009
     from lookout.controllers.tracking import reference_velocity
 
-    scenario = build(config, "simulation")
-    observer, controller, reference = scenario.observer, scenario.controller, scenario.reference
+    reference = build(config, "simulation").reference
+    laps = len(LAP_SPEEDS)
+    theta = reference.init() + jnp.linspace(0.0, 2.0 * np.pi * laps, REFERENCE_POINTS, endpoint=False)
+    eta_ref, nu_ref, nu_ref_rate = jax.vmap(lambda t: reference_velocity(reference.sample(t)))(theta)
+    return np.asarray(eta_ref), np.asarray(nu_ref), np.asarray(nu_ref_rate)
+
+
+def reference_bounds(config: Config) -> dict:
+    """The reference's data for Prop. 3.3: r_ref_max, sup ||nu_ref||, sup ||nu_ref'|| over the
+    four laps (the smooth part: the speed steps between laps are impulses in nu_ref',
+    outside the proposition's bounded-acceleration assumption), and eta_ref, nu_ref at t_0."""
+    from lookout.controllers.tracking import reference_velocity
+
+    _, nu_ref, nu_ref_rate = _reference_samples(config)
+    reference = build(config, "simulation").reference
     eta_ref0, nu_ref0, _ = reference_velocity(reference.sample(reference.init()))
-    theta = config.start_angle + jnp.linspace(0.0, 2.0 * np.pi * len(LAP_SPEEDS), 1001)[:-1]
-    yaw_rate = np.abs(np.asarray(jax.vmap(reference.sample)(theta)["heading_desired_rate"]))
+    return {
+        "yaw_rate_max": float(np.abs(nu_ref[:, 2]).max()),
+        "speed_max": float(np.linalg.norm(nu_ref, axis=1).max()),
+        "acceleration_max": float(np.linalg.norm(nu_ref_rate, axis=1).max()),
+        "position0": np.asarray(eta_ref0), "velocity0": np.asarray(nu_ref0),
+    }
+
+
+def reference_thrust(config: Config) -> dict:
+    """Is the chosen ellipse feasible under the thrust limits? The thrust that holds the true
+    ship (39) exactly on the reference, tau_ref = M nu_ref' + C(nu_ref) nu_ref + D(nu_ref) nu_ref,
+    per DOF over the four laps, and the jump of the printed controller's damping term
+    Kd (nu_ref^+ - nu_ref^-) when the speed steps between laps; each as a fraction of the
+    limit (feasible below 1)."""
+    import jax
+
+    ship = cybership2()
+    _, nu_ref, nu_ref_rate = _reference_samples(config)
+    M = np.asarray(ship.mass_matrix)
+    coriolis = np.asarray(jax.vmap(lambda nu: ship.coriolis(nu) @ nu)(nu_ref))
+    damping = np.asarray(jax.vmap(ship.damping_force)(nu_ref))
+    tau = nu_ref_rate @ M.T + coriolis + damping
+    limit = np.asarray(CYBERSHIP_THRUST_LIMIT)
+    controller = build(config, "simulation").controller
+    Kd = np.asarray(controller.damping_gain)
+    per_lap = len(nu_ref) // len(LAP_SPEEDS)
+    steps = [np.abs(Kd @ (nu_ref[k * per_lap] - nu_ref[k * per_lap - 1])) for k in range(1, len(LAP_SPEEDS))]
+    step_peak = np.max(steps, axis=0)
+    return {
+        "steady_peak": np.abs(tau).max(axis=0).tolist(),
+        "steady_fraction_of_limit": (np.abs(tau).max(axis=0) / limit).tolist(),
+        "lap_step_peak": step_peak.tolist(),
+        "lap_step_fraction_of_limit": (step_peak / limit).tolist(),
+        "limit": limit.tolist(),
+        "feasible": bool(np.all(np.abs(tau).max(axis=0) < limit) and np.all(step_peak < limit)),
+    }
+
+
+def _start(config: Config, estimate: str) -> dict:
+    """Initial state and estimates for the gain conditions: 'printed' is Section 5's eta_hat(0)
+    and the velocity estimate as the observer's ``init`` makes it; 'measured' starts the
+    estimate at the measurement and at rest (eta_hat(0) = eta(0), v_hat(0) = 0)."""
+    import jax.numpy as jnp
+
+    if estimate not in ("printed", "measured"):
+        raise ValueError(f"estimate must be 'printed' or 'measured'; got {estimate!r}")
+    if estimate == "measured":
+        return {"eta0": INITIAL_ETA, "nu0": (0.0, 0.0, 0.0), "eta_hat0": INITIAL_ETA, "velocity_hat0": (0.0, 0.0, 0.0)}
+    scenario = build(config, "simulation")
     y0 = jnp.asarray(INITIAL_ETA)
-    start = observer.output(observer.init(y0, scenario.initial_estimate), y0)
+    start = scenario.observer.output(scenario.observer.init(y0, scenario.initial_estimate), y0)
+    return {"eta0": INITIAL_ETA, "nu0": (0.0, 0.0, 0.0), "eta_hat0": INITIAL_ETA_HAT,
+            "velocity_hat0": np.append(np.asarray(start["position_rate"]), float(start["heading_rate"]))}
+
+
+def gain_conditions(config: Config, velocity_bound: float = 0.3, *, estimate: str = "printed", gains: dict | None = None, epsilon3=None):
+    """Conditions (25), Prop. 3.1 and Prop. 3.3
+    (:func:`lookout.analysis.tracking.check_wondergem_2009`) at the configured start, for
+    the printed gains or ``gains`` (keys L1, L2, natural_frequency, damping_ratio)."""
+    from lookout.analysis.tracking import check_wondergem_2009
+
+    bounds = reference_bounds(config)
+    chosen = {"L1": 15.0, "L2": 50.0, "natural_frequency": (0.72, 0.42, 0.64), "damping_ratio": 1.0, **(gains or {})}
     return check_wondergem_2009(
-        scenario.plant.ship, observer_gains=(np.asarray(observer.position_gain), np.asarray(observer.velocity_gain)),
-        natural_frequency=np.asarray(controller.natural_frequency), damping_ratio=np.asarray(controller.damping_ratio),
-        eta0=INITIAL_ETA, nu0=(0.0, 0.0, 0.0), eta_hat0=INITIAL_ETA_HAT,
-        velocity_hat0=np.append(np.asarray(start["position_rate"]), float(start["heading_rate"])),
-        reference_position0=np.asarray(eta_ref0), reference_velocity0=np.asarray(nu_ref0), yaw_rate_max=float(yaw_rate.max()),
-        velocity_bound=velocity_bound,
+        cybership2(), observer_gains=(chosen["L1"], chosen["L2"]),
+        natural_frequency=chosen["natural_frequency"], damping_ratio=chosen["damping_ratio"], **_start(config, estimate),
+        reference_position0=bounds["position0"], reference_velocity0=bounds["velocity0"], yaw_rate_max=bounds["yaw_rate_max"],
+        velocity_bound=velocity_bound, reference_speed_max=bounds["speed_max"], reference_acceleration_max=bounds["acceleration_max"],
+        epsilon3=epsilon3,
+    )
+
+
+def gain_study(config: Config) -> dict:
+    """summary.json's gain part: the printed gains at the printed start and with the
+    estimate started at the measurement, the search's proposal, and the ellipse's thrust."""
+    proposal = proposed_gains(config)
+    return {
+        "gain_conditions": gain_conditions(config).to_dict(),
+        "gain_conditions_measured_start": gain_conditions(config, estimate="measured").to_dict(),
+        "gain_proposal": proposal.to_dict(),
+        "reference_thrust": reference_thrust(config),
+    }
+
+
+def proposed_gains(config: Config, velocity_bound: float = 0.3, *, estimate: str = "measured", damping_ratio: float = 1.0):
+    """:func:`lookout.analysis.tracking.propose_wondergem_2009` at the configured start."""
+    from lookout.analysis.tracking import propose_wondergem_2009
+
+    bounds = reference_bounds(config)
+    return propose_wondergem_2009(
+        cybership2(), damping_ratio=damping_ratio, **_start(config, estimate),
+        reference_position0=bounds["position0"], reference_velocity0=bounds["velocity0"], yaw_rate_max=bounds["yaw_rate_max"],
+        reference_speed_max=bounds["speed_max"], reference_acceleration_max=bounds["acceleration_max"], velocity_bound=velocity_bound,
     )
 
 
@@ -300,6 +395,51 @@ def choice_sweep(config: Config, condition: str = "simulation") -> xr.Dataset:
         coords={"start_angle": list(SWEEP_STARTS), "direction": [1, -1], "initial_velocity": ["estimate", "state"], "saturation": ["off", "on"]},
         attrs={"title": f"{NAME}: error index (43) over the choices the paper leaves open ({condition})", "condition": condition, "duration_s": config.duration},
     )
+
+
+#: The hold study: (label, measurement period (s), noise on, thrust limits on).
+HOLD_CASES = (
+    ("10 Hz held", BASIN_MEASUREMENT_PERIOD, False, True),
+    ("10 Hz held, noise", BASIN_MEASUREMENT_PERIOD, True, True),
+    ("10 Hz held, no limits", BASIN_MEASUREMENT_PERIOD, False, False),
+    ("20 Hz", BASIN_PERIOD, False, True),
+    ("20 Hz, noise", BASIN_PERIOD, True, True),
+)
+
+
+def hold_study(config: Config) -> list[dict]:
+    """basin-calm with the 10 Hz measurement held over the scheme's two 20 Hz steps, against
+    20 Hz measurements, with and without noise and thrust limits (seed ``config.seed``): the
+    lap-4 mean body-frame errors (after its first 20 s; None when the run ends before), EI,
+    time beyond a limit, and the mean step-to-step change of the commanded surge force after
+    t = 20 s (large when it alternates at 10 Hz). One batch per
+    measurement rate (the rate fixes the loop structure)."""
+    import dataclasses
+
+    quiet = (0.0, 0.0, 0.0)
+    rows = []
+    for period in (BASIN_MEASUREMENT_PERIOD, BASIN_PERIOD):
+        cases = [case for case in HOLD_CASES if case[1] == period]
+        scenarios_ = []
+        for _, _, noisy, limited in cases:
+            scenario = build(config.model_copy(update={"noise_std": config.noise_std if noisy else quiet}), "basin-calm", saturate=limited)
+            scenarios_.append(dataclasses.replace(scenario, sensor=PositionHeadingSensor(config.noise_std if noisy else quiet, period)))
+        ds = simulate_batch(stack_scenarios(scenarios_), keys_of_seeds([config.seed] * len(cases)), batched_scenario=True).to_xarray()
+        errors = tracking_errors(ds)
+        metrics = loop_metrics(ds, config)
+        time = ds.time.values
+        laps = lap_times(config)
+        lap4 = (time > laps[-2] + 20.0) & (time < laps[-1])
+        for i, (label, _, noisy, limited) in enumerate(cases):
+            surge_force = ds.force_commanded.values[i, time > 20.0, 0]
+            rows.append({
+                "case": label, "measurement_period_s": period, "noise": noisy, "thrust_limits": limited,
+                "lap4_surge_error_m": float(errors.surge_error.values[i, lap4].mean()) if lap4.any() else None,
+                "lap4_sway_error_m": float(errors.sway_error.values[i, lap4].mean()) if lap4.any() else None,
+                "surge_command_step_N": float(np.abs(np.diff(surge_force)).mean()),
+                "error_index": float(metrics["error_index"][i]), "time_beyond_limit_s": float(metrics["time_saturated_s"][i]),
+            })
+    return rows
 
 
 # ---------------------------------------------------------------------------------
@@ -359,9 +499,12 @@ def _figures(results: dict[str, xr.Dataset], config: Config, out: Path) -> list[
     figure, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
     for condition, ds in results.items():
         run = ds.isel(run=0)
+        samples = max(1, int(round(1.0 / float(run.time[1] - run.time[0]))))  # 1 s
         for k, (axis, label) in enumerate(zip(axes, ("surge force (N)", "sway force (N)", "yaw moment (N m)"))):
             applied = run.force_applied.isel(body_axis=k) if k < 2 else run.moment_applied
-            axis.plot(run.time, applied, color=colors[condition], lw=0.7, label=f"{condition} applied")
+            axis.plot(run.time, applied, color=colors[condition], lw=0.4, alpha=0.25)
+            mean = applied.rolling(time=samples, center=True).mean()
+            axis.plot(run.time, mean, color=colors[condition], lw=1.0, label=f"{condition}: 1 s mean (light: every sample)")
             axis.set_ylabel(label)
     for axis, limit in zip(axes, CYBERSHIP_THRUST_LIMIT):
         axis.axhline(limit, color="k", lw=0.6, ls=":")
@@ -414,6 +557,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         files.append("wondergem_2009_choice_sweep.nc")
         if progress is not None:
             progress(parts, parts)
+    hold = hold_study(config) if config.sweep else None
     files += _figures(results, config, out)
     summary = {
         "reproduction": NAME,
@@ -424,7 +568,8 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         "status": [status for condition in config.conditions for status in per_condition[condition]["status"]],
         "conditions": per_condition,
         "choice_sweep": None if sweep is None else _sweep_summary(sweep),
-        "gain_conditions": gain_conditions(config).to_dict(),
+        "hold_study": hold,
+        **gain_study(config),
         "files": sorted([*files, "summary.json"]),
     }
     return write_summary(summary, out)
@@ -451,27 +596,64 @@ def _sweep_summary(sweep: xr.Dataset) -> dict:
 
 def tables(summary: dict) -> list[Table]:
     """Error index per condition against Table 1; the choice sweep's range."""
-    rows = []
+    rows, spreads = [], []
     for condition, values in summary["conditions"].items():
         index = np.asarray(values["error_index"], dtype=float)
         laps = np.asarray(values["lap_position_rms_m"], dtype=float).mean(axis=0)
+        spreads.append(f"{condition} {index.min():.3g}-{index.max():.3g}")
         rows.append((
-            condition, significant(float(index.mean())), f"{values['table_1']:.5g}", f"{values['table_1_horizon_s']:g}",
-            " ".join(significant(float(v)) if np.isfinite(v) else "-" for v in laps), f"{np.mean(values['time_saturated_s']):.1f}",
+            condition, significant(float(index.mean())), f"{values['table_1']:.5g}",
+            "/".join(f"{100 * v:.2g}" if np.isfinite(v) else "-" for v in laps), f"{np.mean(values['time_saturated_s']):.1f}",
         ))
+    horizons = ", ".join(f"{values['table_1_horizon_s']:g}" for values in summary["conditions"].values())
+    runs = len(summary["seeds"])
     result = [Table(
         f"Error index (43) over [0, {summary['config']['duration']:g}] s",
-        ("condition", "EI", "Table 1", "paper t2 (s)", "RMS position error per lap (m)", "saturated (s)"),
+        ("condition", "EI", "Table 1", "RMS error, laps 1/2/3/4 (cm)", "beyond a limit (s)"),
         tuple(rows),
-        "EI: mean over the runs; Table 1 over its own t2. RMS per lap: body-frame x-y error.",
+        f"EI: mean over the runs{' (range: ' + '; '.join(spreads) + ')' if runs > 1 else ''}; Table 1 over its own t2 "
+        f"({horizons} s). RMS: body-frame x-y position error.",
     )]
-    conditions = summary.get("gain_conditions")
-    if conditions:
-        rows = tuple((item["name"], item["relation"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"]) for item in conditions["inequalities"])
+    conditions, measured = summary.get("gain_conditions"), summary.get("gain_conditions_measured_start")
+    if conditions and measured:
+        sides = {item["name"]: item for item in measured["inequalities"]}
+        rows = tuple(
+            (item["name"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"],
+             *((f"{sides[item['name']]['right']:.4g}", sides[item["name"]]["verdict"]) if item["name"] in sides else ("-", "-")))
+            for item in conditions["inequalities"]
+        )
         result.append(Table(
-            "Gain conditions for the printed gains: (25) and Proposition 3.1 (V_M = 0.3 m/s)",
-            ("", "condition", "left", "right", "verdict"), rows,
-            "sufficient conditions; the combined procedure (27)-(34) is not evaluated (derivations section 4)",
+            "Gain conditions for the printed gains: (25), Proposition 3.1 (V_M = 0.3 m/s), Proposition 3.3",
+            ("", "left", "right", "verdict", "right, eta_hat0 = eta0", "verdict"), rows,
+            "sufficient conditions, at the printed start and with the estimate started at the measurement (v_hat0 = 0)",
+        ))
+    proposal = summary.get("gain_proposal")
+    if proposal and proposal["found"]:
+        result.append(Table(
+            "Gains the search proposes (eta_hat0 = eta0, v_hat0 = 0): every condition holds",
+            ("Omega (rad/s)", "L1 (1/s)", "L2 (1/s2)", "eps3", "Euler step needed (s)"),
+            ((f"{proposal['natural_frequency']:.4g} I", f"{proposal['observer_gains']['L1']:.4g}", f"{proposal['observer_gains']['L2']:.4g}",
+              f"{proposal['epsilon3']:.3g}", f"{proposal['euler_step_max_s']:.3g}"),),
+            "lookout design tracking-gains --propose; the basin runs the scheme at 0.05 s",
+        ))
+    thrust = summary.get("reference_thrust")
+    if thrust:
+        result.append(Table(
+            "Thrust of the reference, as a fraction of the limits (surge 2 N, sway 1.5 N, yaw 1.5 N m)",
+            ("", "surge", "sway", "yaw"),
+            (("on the ellipse: M nu_ref' + C nu_ref + D(nu_ref) nu_ref", *(f"{v:.3f}" for v in thrust["steady_fraction_of_limit"])),
+             ("speed step between laps: Kd (nu_ref+ - nu_ref-)", *(f"{v:.3f}" for v in thrust["lap_step_fraction_of_limit"]))),
+            "feasible below 1 (the initial transient is not included)",
+        ))
+    if summary.get("hold_study"):
+        result.append(Table(
+            "basin-calm: the 10 Hz measurement held over two 20 Hz steps, against 20 Hz measurements",
+            ("case", "lap 4 e_x, e_y (m)", "EI", "> limit (s)", "|dF| (N)"),
+            tuple((row["case"], f"{row['lap4_surge_error_m']:+.3f}, {row['lap4_sway_error_m']:+.3f}", f"{row['error_index']:.3g}",
+                   f"{row['time_beyond_limit_s']:.1f}", f"{row['surge_command_step_N']:.2f}")
+                  for row in summary["hold_study"] if row["lap4_surge_error_m"] is not None),
+            "mean body-frame errors in lap 4 after its first 20 s; > limit: time some axis is commanded beyond its limit; "
+            "|dF|: mean step-to-step change of the commanded surge force after 20 s",
         ))
     if summary.get("choice_sweep"):
         sweep = summary["choice_sweep"]
@@ -484,4 +666,7 @@ def tables(summary: dict) -> list[Table]:
     return result
 
 
-__all__ = ["CONDITIONS", "Config", "TABLE_1", "build", "choice_sweep", "error_index", "run", "tables", "tracking_errors"]
+__all__ = [
+    "CONDITIONS", "Config", "TABLE_1", "build", "choice_sweep", "error_index", "gain_conditions", "gain_study", "hold_study", "proposed_gains",
+    "reference_bounds", "reference_thrust", "run", "tables", "tracking_errors",
+]
