@@ -234,13 +234,6 @@ class TrackingGainReport:
         return "\n".join(lines)
 
 
-def _diagonal(name: str, value) -> np.ndarray:
-    array = np.asarray(value, dtype=float) * np.ones(3)
-    if array.shape != (3,) or not np.all(np.isfinite(array)) or np.any(array <= 0):
-        raise ValueError(f"{name} must be finite and positive, one value or three; got {np.asarray(value).tolist()}")
-    return array
-
-
 def check_wondergem_2009(
     ship,
     *,
