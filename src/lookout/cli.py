@@ -291,7 +291,7 @@ def reproduce(
         Optional[str], typer.Option(metavar="SET", help="kim-2002: observer H3, H4: printed (A.4) or kyp (satisfy (14)).", show_default="printed")
     ] = None,
     sweep: Annotated[
-        Optional[bool], typer.Option("--sweep/--no-sweep", help="kim-2002, calugi-2003, wondergem-2009: run the sweeps.", show_default="--sweep")
+        Optional[bool], typer.Option("--sweep/--no-sweep", help="Run the sweeps and studies of the reproductions that have them (see lookout list).", show_default="--sweep")
     ] = None,
     sample_interval: Annotated[
         Optional[float], typer.Option(metavar="SECONDS", help="calugi-2003: observer and controller sample interval Delta.", show_default="0.1")
@@ -315,13 +315,10 @@ def reproduce(
         "model_error": None if model_error is None else _model_error(model_error), "gains": gains, "sweep": sweep, "sample_interval": sample_interval,
         "conditions": None if condition is None else tuple(part.strip() for part in condition.split(",")),
     }
-    owners = {
-        "model_error": "kim-2002", "gains": "kim-2002", "sweep": "kim-2002, calugi-2003 and wondergem-2009", "sample_interval": "calugi-2003",
-        "conditions": "wondergem-2009",
-    }
     for field, value in extra.items():
         if value is not None and field not in module.Config.model_fields:
-            raise InputError(f"{REPRODUCE_OPTIONS[field]}: {name} has no such setting (it belongs to {owners[field]})")
+            owners = [other for other, candidate in REPRODUCTIONS.items() if field in candidate.Config.model_fields]
+            raise InputError(f"{REPRODUCE_OPTIONS[field]}: {name} has no such setting (it belongs to {', '.join(owners)})")
     config = _config(module, {"seed": seed, "runs": runs, "duration": duration, **extra})
     _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)])
     folder = _output_folder("--out", out)

@@ -16,3 +16,6 @@ from .cybership import Cybership as Cybership
 from .cybership import CybershipPlant as CybershipPlant
 from .cybership import CybershipState as CybershipState
 from .cybership import cybership2 as cybership2
+from .parameters import AffineParameters as AffineParameters
+from .parameters import ModelParameters as ModelParameters
+from .parameters import PendulumInertia as PendulumInertia

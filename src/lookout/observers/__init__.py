@@ -12,3 +12,4 @@ from .sliding_mode import saturation as saturation
 from .adaptive_dp import AdaptiveObserver as AdaptiveObserver
 from .adaptive_dp import InertiaParametrization as InertiaParametrization
 from .earth_fixed import EarthFixedObserver as EarthFixedObserver
+from .adaptive_manipulator import AdaptiveManipulatorObserver as AdaptiveManipulatorObserver

@@ -1,0 +1,109 @@
+"""Theorem 4.1 of Calugi (2002) on concrete numbers: the adaptive observer's conditions.
+
+Calugi (2002), master thesis, Lund, Section 4.4, read as derived in
+derivations-thesis-ch3-6.md (ch. 4). With V = 1/2 (x1~^T M x1~ + theta~^T Gamma^-1 theta~)
+and the error system (4.21), the skew symmetry of M' - 2C (Property 4.1, Christoffel C)
+gives::
+
+    V' <= -(sigma - C_M w_max - C_M |x1~|) |x1~|^2,      sigma = inf_q lambda_min(K M(q) + M(q) K) / 2
+
+(the constant is C_M w_max, not the 2 C_M w_max of (2.11), because the skew symmetry is
+used). With p_l = min(M_m, 1/gamma_max) and p_u = max(M_M, 1/gamma_min) bounding
+diag(M(q), Gamma^-1), and a margin beta > 0::
+
+    (4.a)  sigma > C_M w_max + beta
+    (4.b)  ||e(0)|| < sqrt(p_l / p_u) ((sigma - beta) / C_M - w_max),      e = (x1~, theta~)
+
+then x1~ -> 0 exponentially and theta~ stays bounded (it need not go to zero: that
+needs persistent excitation). With C_M = 0 (a pendulum) the region is all of R^n x R^p.
+The model is the true one, M = M(q; theta); sigma and the constants are found over the
+configuration space as for Theorem 2.1 (:mod:`lookout.analysis.velocity`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from lookout import _validation as check
+from lookout.analysis._json import json_safe
+from lookout.analysis.adaptive_dp import Inequality, _inequality
+from lookout.analysis.velocity import _grid, configuration_angles, configuration_bounds
+from lookout.models.parameters import AffineParameters
+
+
+@dataclass
+class AdaptiveObserverReport:
+    """(4.a) and, with an initial error, (4.b), each with both sides; the constants."""
+
+    inequalities: list[Inequality]
+    quantities: dict = field(default_factory=dict)
+
+    @property
+    def holds(self) -> bool:
+        return all(item.verdict == "holds" for item in self.inequalities)
+
+    def to_dict(self) -> dict:
+        return json_safe({"holds": self.holds, "inequalities": [item.to_dict() for item in self.inequalities], "quantities": self.quantities})
+
+    def text(self) -> str:
+        lines = ["Calugi (2002), Theorem 4.1: adaptive observer conditions"]
+        for item in self.inequalities:
+            lines += item.describe()
+        return "\n".join(lines)
+
+
+def injection_bound(parameters: AffineParameters, gain, *, grid_points: int = 64) -> float:
+    """sigma = min over q of lambda_min(K M(q) + M(q) K) / 2 for the true model, on a grid of
+    the angles M depends on (M is smooth in q; the grid has 64 points per angle)."""
+    model = parameters.model(parameters.reference)
+    K = jnp.diag(jnp.asarray(check.vector("observer gain K", gain, model.size), dtype=float))
+    q_grid = jnp.asarray(_grid(model, configuration_angles(model), grid_points))
+
+    def smallest(q):
+        M = model.mass_matrix(q)
+        return jnp.linalg.eigvalsh(K @ M + M @ K)[0] / 2.0
+
+    return float(jnp.min(jax.jit(jax.vmap(smallest))(q_grid)))
+
+
+def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_speed: float, *, margin: float = 0.0,
+                      initial_error=None) -> AdaptiveObserverReport:
+    """Theorem 4.1 for the arm and unknowns ``parameters`` (true values at its reference),
+    K, Gamma (diagonals), w_max >= ||q'||, beta = ``margin`` >= 0 and, optionally, the
+    initial errors (x1~(0), theta~(0)) to place in the region (4.b)."""
+    model = parameters.model(parameters.reference)
+    K = np.asarray(check.vector("observer gain K", gain, model.size), dtype=float)
+    Gamma = np.asarray(check.vector("adaptation gain Gamma", adaptation_gain, parameters.size), dtype=float)
+    check.positive("observer gain K", K)
+    check.positive("adaptation gain Gamma", Gamma)
+    check.positive("max_speed", max_speed, allow_zero=True)
+    check.positive("margin beta", margin, allow_zero=True)
+    bounds = configuration_bounds(model)
+    sigma = injection_bound(parameters, K)
+    c_m = bounds.coriolis_bound
+    p_l = min(bounds.min_inertia, 1.0 / Gamma.max())
+    p_u = max(bounds.max_inertia, 1.0 / Gamma.min())
+    inequalities = [_inequality("(4.a)", "sigma > C_M w_max + beta", sigma, c_m * max_speed + margin, "1/s kg m2")]
+    radius = math.inf if c_m == 0 else math.sqrt(p_l / p_u) * ((sigma - margin) / c_m - max_speed)
+    quantities = {
+        "sigma": sigma, "C_M": c_m, "M_m": bounds.min_inertia, "M_M": bounds.max_inertia, "p_l": p_l, "p_u": p_u,
+        "max_speed": max_speed, "beta": margin, "radius": radius,
+    }
+    if initial_error is not None and c_m == 0:
+        quantities["region"] = "global: C_M = 0, (4.b) holds for every initial error"
+    if initial_error is not None and c_m > 0:
+        x_error, theta_error = initial_error
+        norm = float(np.linalg.norm(np.concatenate([np.atleast_1d(np.asarray(x_error, dtype=float)), np.atleast_1d(np.asarray(theta_error, dtype=float))])))
+        if not math.isfinite(norm):
+            raise ValueError(f"initial_error must be finite; got {initial_error!r}")
+        inequalities.append(_inequality("(4.b)", "sqrt(p_l/p_u) ((sigma - beta)/C_M - w_max) > ||e(0)||", radius, norm, "mixed"))
+        quantities["initial_error_norm"] = norm
+    return AdaptiveObserverReport(inequalities, quantities)
+
+
+__all__ = ["AdaptiveObserverReport", "check_theorem_4_1", "injection_bound"]

@@ -1,0 +1,277 @@
+"""Reduced-order adaptive observer for manipulators with unknown parameters, with resetting.
+
+Calugi (2002), master thesis, Lund, chapter 4. The arm M(q) q'' + C(q, q') q' + G(q) = tau
+with unknown parameters theta entering affinely (Property 4.2,
+:mod:`lookout.models.parameters`); only q is measured. The continuous observer
+(4.5)–(4.7), dots restored::
+
+    x1_hat' = psi + K x1~,      psi = M_hat^-1 [tau - C_hat(q, x1_hat) x1_hat - F_hat x1_hat - G_hat]   (4.5)
+    theta_hat' = -Gamma phi^T(q, x1_hat, psi) x1~,                x1~ = q' - x1_hat                  (4.7)
+
+with M_hat = M(q; theta_hat) (likewise C_hat, F_hat, G_hat; F is the model's viscous
+friction, which lookout keeps apart from C) and K, Gamma positive diagonal. It needs
+q' through x1~, so it is a reference for analysis (:meth:`continuous_rate`), not an
+implementable observer. The implementable form is the discrete one (4.34)–(4.35),
+forward Euler of (4.5)/(4.7) with q' Delta replaced by the measured increment::
+
+    x1_hat(i) = (I - Delta K) x1_hat(i-1) + Delta psi(i-1) + K [q(i) - q(i-1)]                    (4.34)
+    theta_hat(i) = theta_hat(i-1) + Gamma phi^T(i-1) [Delta x1_hat(i-1) - q(i) + q(i-1)]             (4.35)
+
+psi(i-1) and phi(i-1) from q(i-1), x1_hat(i-1), theta_hat(i-1) and tau(i-1) (the input
+held over the sample). The sign of (4.35) is the sign of (4.7): Delta x1_hat - Delta q
+= -x1~ Delta. It needs |1 - Delta K_i| < 1 and has an O(Delta) error (x1_hat ~ q'(t +
+Delta/2)); derivations-thesis-ch3-6.md, ch. 4.
+
+Parameter resetting (4.45), after every update, per component::
+
+    theta_hat_i <- l_i   if theta_hat_i <= l_i - mu_i;     theta_hat_i <- h_i   if theta_hat_i >= h_i + mu_i
+
+with the bounds [l, h] containing theta and mu such that M(q; theta_hat) is positive
+definite for every q and every theta_hat in [l - mu, h + mu] (checked at construction
+on concrete values: M is affine in theta, so its smallest eigenvalue over the box is
+reached at a vertex; the vertices are checked on a grid of the angles M depends on).
+A reset never increases V = 1/2 (x1~^T M x1~ + theta~^T Gamma^-1 theta~): at the lower
+bound it changes V by -(2 (theta_i - l_i) + mu_i) mu_i / gamma_i <= 0 (the thesis's
+(4.48) prints -mu where the algebra gives +mu). The observer counts the resets.
+
+Engine time indices (:mod:`lookout.sim.engine`): ``predict(S, t_{i-1}, q(i-1), tau(i-1),
+Delta)`` evaluates psi(i-1), phi(i-1) and stores the parts of (4.34)–(4.35) that do not
+need q(i); ``update(S, t_i, q(i))`` adds the measured increment and resets. At t_0 the
+stored increment is zero, so the estimate at t_0 is the guess (reset if outside).
+
+A missing sample (NaN channel) is replaced by the prediction q(i-1) + Delta x1_hat(i-1):
+its increment then equals Delta x1_hat(i-1), so (4.34) reduces to the model prediction
+x1_hat + Delta psi and (4.35) leaves theta_hat unchanged on that channel's terms. The
+observer rides through dropouts on its model and stays finite.
+"""
+
+from __future__ import annotations
+
+from typing import final
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from lookout import _validation as check
+from lookout._math import matvec, solve
+from lookout.components import Layout, Observer, Signal
+from lookout.models.manipulators import JOINT_VELOCITY, joint_layout
+from lookout.models.parameters import AffineParameters
+
+
+class AdaptiveManipulatorState(eqx.Module):
+    """Internal state of :class:`AdaptiveManipulatorObserver`.
+
+    Between ``predict`` and ``update`` the estimates hold the parts of (4.34)–(4.35) that
+    do not need q(i); ``update`` completes them.
+
+    Attributes
+    ----------
+    velocity : Array, shape (n,)
+        x1_hat (rad/s).
+    theta : Array, shape (p,)
+        theta_hat.
+    position : Array, shape (n,)
+        q(i-1), the last measurement used (its prediction on a missing channel).
+    predicted : Array, shape (n,)
+        q(i-1) + Delta x1_hat(i-1), standing in for a missing q(i).
+    regressor : Array, shape (n, p)
+        phi(i-1).
+    resets : Array, shape (p,)
+        Resets fired so far, per parameter.
+    """
+
+    velocity: Array
+    theta: Array
+    position: Array
+    predicted: Array
+    regressor: Array
+    resets: Array
+
+
+class AdaptiveGuess(eqx.Module):
+    """Initial estimates: x1_hat(0) (rad/s) and theta_hat(0)."""
+
+    velocity: Array
+    theta: Array
+
+
+def _box_vertices(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    p = len(lower)
+    corners = np.array(np.meshgrid(*[[0, 1]] * p, indexing="ij")).reshape(p, -1).T
+    return np.where(corners == 1, upper, lower)
+
+
+def mass_matrix_margin(parameters: AffineParameters, lower, upper, *, grid_points: int = 64) -> float:
+    """min over q and theta in the box [lower, upper] of lambda_min(M(q; theta)): positive
+    when M_hat stays positive definite. M is affine in theta, so the minimum over the box
+    is at a vertex (lambda_min is concave); q runs over a grid of the angles M depends on."""
+    from lookout.analysis.velocity import _grid, configuration_angles
+
+    model = parameters.model(parameters.reference)
+    angles = configuration_angles(model)
+    q_grid = jnp.asarray(_grid(model, angles, grid_points))
+    vertices = jnp.asarray(_box_vertices(np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)))
+
+    def smallest(theta, q):
+        return jnp.linalg.eigvalsh(parameters.model(theta).mass_matrix(q))[0]
+
+    table = jax.jit(jax.vmap(lambda theta: jax.vmap(lambda q: smallest(theta, q))(q_grid)))(vertices)
+    return float(jnp.min(table))
+
+
+@final
+class AdaptiveManipulatorObserver(Observer):
+    """Calugi (2002) ch. 4: the discrete adaptive observer (4.34)–(4.35) with resetting (4.45).
+
+    Estimates the joint velocities (named as the plant's, so the results pair them with
+    the truth) and the unknown parameters (extra signals ``theta_hat_<name>``, plus
+    ``resets`` fired so far). Conditions: Theorem 4.1,
+    :func:`lookout.analysis.adaptive_manipulator.check_theorem_4_1`.
+
+    Parameters
+    ----------
+    parameters : AffineParameters
+        The model and which of its parameters are unknown; the observer's model is
+        ``parameters.model(theta_hat)``.
+    gain : float or array_like, shape (n,)
+        Diagonal of K (1/s), > 0.
+    adaptation_gain : float or array_like, shape (p,)
+        Diagonal of Gamma, > 0.
+    lower, upper : array_like, shape (p,)
+        Bounds l < h of the resetting (4.45); default none (-inf, inf).
+    margin : float or array_like, shape (p,)
+        mu >= 0 of (4.45).
+    sample_period : float
+        Delta (s): the engine's sample period, fixed here because (4.34) is written for it.
+    """
+
+    parameters: AffineParameters
+    gain: Array
+    adaptation_gain: Array
+    lower: Array
+    upper: Array
+    margin: Array
+    sample_period: float = eqx.field(static=True)
+    estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
+    extra_signals: tuple[Signal, ...] = eqx.field(static=True)
+
+    def __init__(self, parameters: AffineParameters, gain, adaptation_gain, *, sample_period: float,
+                 lower=None, upper=None, margin=0.0):
+        if not isinstance(parameters, AffineParameters):
+            raise ValueError(f"parameters must be an AffineParameters; got {type(parameters).__name__}")
+        model = parameters.model(parameters.reference)
+        p = parameters.size
+        self.parameters = parameters
+        self.gain = jnp.asarray(check.vector("observer gain K", gain, model.size))
+        self.adaptation_gain = jnp.asarray(check.vector("adaptation gain Gamma", adaptation_gain, p))
+        self.lower = jnp.asarray(check.vector("lower", -np.inf if lower is None else lower, p))
+        self.upper = jnp.asarray(check.vector("upper", np.inf if upper is None else upper, p))
+        self.margin = jnp.asarray(check.vector("margin mu", margin, p))
+        if not (isinstance(sample_period, (int, float)) and np.isfinite(sample_period) and sample_period > 0):
+            raise ValueError(f"sample_period must be finite and positive (s); got {sample_period!r}")
+        self.sample_period = float(sample_period)
+        self.estimate_signals = joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals
+        self.extra_signals = tuple(
+            Signal(f"theta_hat_{name.replace('[', '_').replace(']', '')}", unit or "1", f"estimate of the unknown parameter {name}")
+            for name, unit in zip(parameters.names, parameters.units)
+        ) + (Signal("resets", "1", "parameter resets (4.45) fired so far, all parameters"),)
+
+    def __check_init__(self):
+        check.positive("observer gain K", self.gain)
+        check.positive("adaptation gain Gamma", self.adaptation_gain)
+        check.positive("margin mu", self.margin, allow_zero=True)
+        if check.is_concrete(self.gain):
+            step = np.abs(1.0 - self.sample_period * np.asarray(self.gain))
+            if np.any(step >= 1.0):
+                raise ValueError(f"observer gain K must satisfy |1 - Delta K| < 1 for (4.34); got Delta K = {self.sample_period * np.asarray(self.gain)}")
+        if check.is_concrete(self.lower) and check.is_concrete(self.upper):
+            lower, upper = np.asarray(self.lower), np.asarray(self.upper)
+            if np.any(np.isnan(lower)) or np.any(np.isnan(upper)) or np.any(lower >= upper):
+                raise ValueError(f"lower must be below upper for every parameter; got {lower.tolist()}, {upper.tolist()}")
+            if np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)):
+                low, high = lower - np.asarray(self.margin), upper + np.asarray(self.margin)
+                smallest = mass_matrix_margin(self.parameters, low, high)
+                if not smallest > 0:
+                    raise ValueError(
+                        f"margin mu and the bounds must keep M(q; theta_hat) positive definite on [lower - mu, upper + mu] "
+                        f"= [{low.tolist()}, {high.tolist()}]; its smallest eigenvalue there is {smallest:.3g}"
+                    )
+
+    def guess(self, velocity=0.0, theta=None) -> AdaptiveGuess:
+        """Initial estimates; theta_hat(0) defaults to the parameters' reference (the truth)."""
+        n = self.parameters.model(self.parameters.reference).size
+        theta = self.parameters.reference if theta is None else theta
+        return AdaptiveGuess(jnp.broadcast_to(jnp.asarray(velocity, dtype=float), (n,)),
+                             jnp.asarray(check.vector("theta_hat(0)", theta, self.parameters.size)))
+
+    # -- the equations ------------------------------------------------------------
+
+    def model_acceleration(self, theta: Array, q: Array, velocity: Array, tau: Array) -> Array:
+        """psi = M_hat^-1 [tau - C_hat(q, x1_hat) x1_hat - F_hat x1_hat - G_hat(q)] (4.5)."""
+        model = self.parameters.model(theta)
+        force = tau - model.coriolis_force(q, velocity) - model.friction_force(velocity) - model.gravity(q)
+        return solve(model.mass_matrix(q), force)
+
+    def continuous_rate(self, velocity: Array, theta: Array, q: Array, qdot: Array, tau: Array) -> tuple[Array, Array]:
+        """(x1_hat', theta_hat') of the continuous observer (4.5)–(4.7), given the true q'
+        (analysis only: the implementable form is the discrete one)."""
+        psi = self.model_acceleration(theta, q, velocity, tau)
+        error = qdot - velocity
+        return psi + self.gain * error, -self.adaptation_gain * matvec(self.parameters.regressor(q, velocity, psi).T, error)
+
+    def reset(self, theta: Array) -> tuple[Array, Array]:
+        """(4.45): ``(theta_hat after the resets, which components were reset)``."""
+        low = theta <= self.lower - self.margin
+        high = theta >= self.upper + self.margin
+        return jnp.where(low, self.lower, jnp.where(high, self.upper, theta)), low | high
+
+    # -- the contract -------------------------------------------------------------
+
+    def init(self, y0: Array, guess: AdaptiveGuess) -> AdaptiveManipulatorState:
+        """The state at t_0: the guess, with a zero increment pending (see the module docstring)."""
+        position = jnp.where(jnp.isfinite(y0), y0, 0.0)
+        p, n = self.parameters.size, position.shape[0]
+        velocity = jnp.broadcast_to(jnp.asarray(guess.velocity, dtype=float), (n,))
+        return AdaptiveManipulatorState(velocity, jnp.asarray(guess.theta, dtype=float), position, position,
+                                        jnp.zeros((n, p)), jnp.zeros(p))
+
+    def update(self, state: AdaptiveManipulatorState, t, y: Array) -> AdaptiveManipulatorState:
+        """Complete (4.34)–(4.35) with q(i) (its prediction where y is NaN), then reset (4.45)."""
+        del t
+        q = jnp.where(jnp.isfinite(y), y, state.predicted)
+        increment = q - state.position
+        velocity = state.velocity + self.gain * increment
+        theta, fired = self.reset(state.theta - self.adaptation_gain * matvec(state.regressor.T, increment))
+        return AdaptiveManipulatorState(velocity, theta, q, q, jnp.zeros_like(state.regressor), state.resets + fired)
+
+    def output(self, state: AdaptiveManipulatorState, y: Array) -> dict[str, Array]:
+        """x1_hat as the plant's joint velocity; theta_hat and the resets."""
+        del y
+        out = Layout(self.estimate_signals).split(state.velocity)
+        for k, signal in enumerate(self.extra_signals[:-1]):
+            out[signal.name] = state.theta[k]
+        out["resets"] = jnp.sum(state.resets)
+        return out
+
+    def predict(self, state: AdaptiveManipulatorState, t, y: Array, u: Array, dt) -> AdaptiveManipulatorState:
+        """The parts of (4.34)–(4.35) known at t_{i-1}: (I - Delta K) x1_hat + Delta psi(i-1)
+        and theta_hat + Gamma phi^T(i-1) Delta x1_hat(i-1); phi(i-1) is kept for ``update``."""
+        del t, y  # q(i-1) is the state's position
+        h = self.sample_period
+        if isinstance(dt, (int, float)) and abs(dt - h) > 1e-12 * h:
+            raise ValueError(f"the engine's sample period {dt!r} s must equal the observer's sample_period {h!r} s (4.34)")
+        q, velocity, theta = state.position, state.velocity, state.theta
+        psi = self.model_acceleration(theta, q, velocity, u)
+        regressor = self.parameters.regressor(q, velocity, psi)
+        return AdaptiveManipulatorState(
+            velocity=(1.0 - h * self.gain) * velocity + h * psi,
+            theta=theta + self.adaptation_gain * matvec(regressor.T, h * velocity),
+            position=q, predicted=q + h * velocity, regressor=regressor, resets=state.resets,
+        )
+
+
+__all__ = ["AdaptiveGuess", "AdaptiveManipulatorObserver", "AdaptiveManipulatorState", "mass_matrix_margin"]
