@@ -51,7 +51,7 @@ class AdaptiveObserverReport:
         return json_safe({"holds": self.holds, "inequalities": [item.to_dict() for item in self.inequalities], "quantities": self.quantities})
 
     def text(self) -> str:
-        lines = ["Calugi (2002), Theorem 4.1: adaptive observer conditions"]
+        lines = ["Calugi (2002): adaptive observer conditions"]
         for item in self.inequalities:
             lines += item.describe()
         return "\n".join(lines)
@@ -106,4 +106,28 @@ def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_s
     return AdaptiveObserverReport(inequalities, quantities)
 
 
-__all__ = ["AdaptiveObserverReport", "check_theorem_4_1", "injection_bound"]
+def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: float, initial_error=0.0) -> AdaptiveObserverReport:
+    """(5.28) of Calugi (2002), ch. 5, for the closed loop of (5.9) with the adaptive observer:
+    from (5.27), V' <= -z^T C_z z - (sigma - C_M w_max - C_M |x1~| - p/4) |x1~|^2 with
+    sigma = inf_q lambda_min(K M + M K)/2 and p = sum_{i=1}^{2n} 1/d_i (the thesis's "6"
+    and omega_{i+3} are carried over from the ship case; derivations-thesis-ch3-6.md).
+    Two inequalities: at rest (w_max = 0, x1~ = 0; a necessary part) and with the given
+    w_max and |x1~| (the initial velocity error)."""
+    model = parameters.model(parameters.reference)
+    d = np.asarray(check.vector("damping_weights d", damping_weights, 2 * model.size), dtype=float)
+    check.positive("damping_weights d", d)
+    check.positive("max_speed", max_speed, allow_zero=True)
+    error = float(np.linalg.norm(np.atleast_1d(np.asarray(initial_error, dtype=float))))
+    if not math.isfinite(error):
+        raise ValueError(f"initial_error must be finite; got {initial_error!r}")
+    sigma = injection_bound(parameters, gain)
+    c_m = configuration_bounds(model).coriolis_bound
+    p = float(np.sum(1.0 / d))
+    inequalities = [
+        _inequality("(5.28) at rest", "sigma > p/4", sigma, p / 4.0, "1/s kg m2"),
+        _inequality("(5.28)", "sigma > C_M w_max + C_M |x1~| + p/4", sigma, c_m * max_speed + c_m * error + p / 4.0, "1/s kg m2"),
+    ]
+    return AdaptiveObserverReport(inequalities, {"sigma": sigma, "C_M": c_m, "p": p, "max_speed": max_speed, "velocity_error": error})
+
+
+__all__ = ["AdaptiveObserverReport", "check_5_28", "check_theorem_4_1", "injection_bound"]

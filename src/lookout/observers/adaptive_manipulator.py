@@ -58,8 +58,13 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import Layout, Observer, Signal
-from lookout.models.manipulators import JOINT_VELOCITY, joint_layout
+from lookout.models.manipulators import JOINT_POSITION, JOINT_VELOCITY, joint_layout
 from lookout.models.parameters import AffineParameters
+
+
+def theta_signal_name(name: str) -> str:
+    """The estimate's name for unknown parameter ``name``: ``theta_hat_mass``, ``theta_hat_masses_1``."""
+    return "theta_hat_" + name.replace("[", "_").replace("]", "")
 
 
 class AdaptiveManipulatorState(eqx.Module):
@@ -128,7 +133,8 @@ class AdaptiveManipulatorObserver(Observer):
     """Calugi (2002) ch. 4: the discrete adaptive observer (4.34)–(4.35) with resetting (4.45).
 
     Estimates the joint velocities (named as the plant's, so the results pair them with
-    the truth) and the unknown parameters (extra signals ``theta_hat_<name>``, plus
+    the truth; the joint positions too, which are the measurement where there is one)
+    and the unknown parameters (extra signals ``theta_hat_<name>``, plus
     ``resets`` fired so far). Conditions: Theorem 4.1,
     :func:`lookout.analysis.adaptive_manipulator.check_theorem_4_1`.
 
@@ -147,9 +153,13 @@ class AdaptiveManipulatorObserver(Observer):
         mu >= 0 of (4.45).
     sample_period : float
         Delta (s): the engine's sample period, fixed here because (4.34) is written for it.
+    regressor : AffineParameters, optional
+        Whose regressor phi (4.7) uses; default ``parameters``. Only to reproduce a printed
+        model whose M_hat and phi disagree (Calugi 2002, (5.37) against (5.41)).
     """
 
     parameters: AffineParameters
+    regressor_source: AffineParameters
     gain: Array
     adaptation_gain: Array
     lower: Array
@@ -160,12 +170,15 @@ class AdaptiveManipulatorObserver(Observer):
     extra_signals: tuple[Signal, ...] = eqx.field(static=True)
 
     def __init__(self, parameters: AffineParameters, gain, adaptation_gain, *, sample_period: float,
-                 lower=None, upper=None, margin=0.0):
+                 lower=None, upper=None, margin=0.0, regressor: AffineParameters | None = None):
         if not isinstance(parameters, AffineParameters):
             raise ValueError(f"parameters must be an AffineParameters; got {type(parameters).__name__}")
+        if regressor is not None and not (isinstance(regressor, AffineParameters) and regressor.names == parameters.names):
+            raise ValueError("regressor must be an AffineParameters with the same unknowns as parameters")
         model = parameters.model(parameters.reference)
         p = parameters.size
         self.parameters = parameters
+        self.regressor_source = parameters if regressor is None else regressor
         self.gain = jnp.asarray(check.vector("observer gain K", gain, model.size))
         self.adaptation_gain = jnp.asarray(check.vector("adaptation gain Gamma", adaptation_gain, p))
         self.lower = jnp.asarray(check.vector("lower", -np.inf if lower is None else lower, p))
@@ -174,9 +187,10 @@ class AdaptiveManipulatorObserver(Observer):
         if not (isinstance(sample_period, (int, float)) and np.isfinite(sample_period) and sample_period > 0):
             raise ValueError(f"sample_period must be finite and positive (s); got {sample_period!r}")
         self.sample_period = float(sample_period)
-        self.estimate_signals = joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals
+        self.estimate_signals = (joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION).signals
+                                 + joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals)
         self.extra_signals = tuple(
-            Signal(f"theta_hat_{name.replace('[', '_').replace(']', '')}", unit or "1", f"estimate of the unknown parameter {name}")
+            Signal(theta_signal_name(name), unit or "1", f"estimate of the unknown parameter {name}")
             for name, unit in zip(parameters.names, parameters.units)
         ) + (Signal("resets", "1", "parameter resets (4.45) fired so far, all parameters"),)
 
@@ -221,7 +235,7 @@ class AdaptiveManipulatorObserver(Observer):
         (analysis only: the implementable form is the discrete one)."""
         psi = self.model_acceleration(theta, q, velocity, tau)
         error = qdot - velocity
-        return psi + self.gain * error, -self.adaptation_gain * matvec(self.parameters.regressor(q, velocity, psi).T, error)
+        return psi + self.gain * error, -self.adaptation_gain * matvec(self.regressor_source.regressor(q, velocity, psi).T, error)
 
     def reset(self, theta: Array) -> tuple[Array, Array]:
         """(4.45): ``(theta_hat after the resets, which components were reset)``."""
@@ -249,9 +263,10 @@ class AdaptiveManipulatorObserver(Observer):
         return AdaptiveManipulatorState(velocity, theta, q, q, jnp.zeros_like(state.regressor), state.resets + fired)
 
     def output(self, state: AdaptiveManipulatorState, y: Array) -> dict[str, Array]:
-        """x1_hat as the plant's joint velocity; theta_hat and the resets."""
+        """q (the measurement, or its prediction on a missing channel) and x1_hat as the plant's
+        joint position and velocity; theta_hat and the resets."""
         del y
-        out = Layout(self.estimate_signals).split(state.velocity)
+        out = Layout(self.estimate_signals).split(jnp.concatenate([state.position, state.velocity]))
         for k, signal in enumerate(self.extra_signals[:-1]):
             out[signal.name] = state.theta[k]
         out["resets"] = jnp.sum(state.resets)
@@ -266,7 +281,7 @@ class AdaptiveManipulatorObserver(Observer):
             raise ValueError(f"the engine's sample period {dt!r} s must equal the observer's sample_period {h!r} s (4.34)")
         q, velocity, theta = state.position, state.velocity, state.theta
         psi = self.model_acceleration(theta, q, velocity, u)
-        regressor = self.parameters.regressor(q, velocity, psi)
+        regressor = self.regressor_source.regressor(q, velocity, psi)
         return AdaptiveManipulatorState(
             velocity=(1.0 - h * self.gain) * velocity + h * psi,
             theta=theta + self.adaptation_gain * matvec(regressor.T, h * velocity),
@@ -274,4 +289,4 @@ class AdaptiveManipulatorObserver(Observer):
         )
 
 
-__all__ = ["AdaptiveGuess", "AdaptiveManipulatorObserver", "AdaptiveManipulatorState", "mass_matrix_margin"]
+__all__ = ["AdaptiveGuess", "AdaptiveManipulatorObserver", "AdaptiveManipulatorState", "mass_matrix_margin", "theta_signal_name"]

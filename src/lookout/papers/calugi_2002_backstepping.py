@@ -1,0 +1,308 @@
+"""Calugi (2002), Section 5.3: adaptive observer backstepping on a two-link arm (Figs 5.1, 5.2).
+
+The two-link arm of chapter 2 (angles from the horizontal, point masses, no friction) with
+m1 = 1 kg, m2 = 1.5 kg unknown (theta = m2), l1 = l2 = 1 m; the discrete adaptive observer
+(4.34)–(4.35) and the control law (5.9)
+(:class:`~lookout.controllers.adaptive_backstepping.AdaptiveObserverBackstepping`) at the
+printed settings: K = 5 I, Delta = 0.01 s, Gamma = 0.1, C1 = C2 = 2 I, d_i = 1 (so
+p = 4, Omega = 8 I, D2 = 64 I), reference filter F = 8/(s + 2)^3, q(0) = q'(0) = 0,
+x1_hat(0) = (1, 1), theta_hat(0) = 0.7.
+
+Two runs:
+
+* ``corrected``: M_hat = M(q; theta_hat), so M_hat_22 = theta_hat l2^2 (what (4.20) needs,
+  and what row 2 of (5.41) implies);
+* ``printed``: (5.37) as printed, M_hat_22 = m2 l2^2 with the unknown m2, in psi and tau;
+  the regressor stays (5.41)'s, which has l2^2 psi_2 in row 2 — expected to diverge (derivations-thesis-ch3-6.md): theta_hat overshoots past 1.72, where M_hat(q2 = 0)
+  = [[4 theta_hat + 1, 2 theta_hat], [2 theta_hat, 1.5]] is indefinite.
+
+Chosen where the thesis is silent: the filter input is a +-1 rad square wave on each joint,
++1 first, period 20 s, over 40 s; no resetting (the thesis uses none in ch. 5); the plant
+by RK4 at 1 ms with tau held over each 10 ms sample.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Callable, ClassVar, final
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+from jax import Array
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from lookout import _validation as check
+from lookout.analysis.adaptive_manipulator import check_5_28
+from lookout.controllers.adaptive_backstepping import AdaptiveObserverBackstepping
+from lookout.models.manipulators import JOINT_POSITION, REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, ManipulatorPlant, TwoLinkArm, joint_layout
+from lookout.models.parameters import ModelParameters
+from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
+from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
+from lookout.papers._report import Table, save_figures, write_summary
+from lookout.reference import ReferenceFilter
+from lookout.results import write_netcdf
+from lookout.sensors import JointEncoder
+from lookout.sim import Scenario, simulate
+
+NAME = "calugi-2002-backstepping"
+TITLE = "Calugi (2002), ch. 5: adaptive observer backstepping on a two-link arm, m2 unknown (Section 5.3, Figs. 5.1–5.2)"
+MASSES, LENGTHS = (1.0, 1.5), (1.0, 1.0)
+SAMPLE_PERIOD = 0.01
+PLANT_STEP = 0.001
+VARIANTS = ("corrected", "printed")
+
+
+@final
+class PrintedInertiaArm(ManipulatorModel):
+    """The two-link arm with (5.37)'s M_22 as printed: m2_true l2^2, whatever the mass
+    parameter; M_11, M_12, G and the Christoffel C (M_22 is constant either way) as in
+    :class:`~lookout.models.manipulators.TwoLinkArm`. Only for showing the erratum."""
+
+    masses: Array
+    lengths: Array
+    friction: Array
+    gravity_acceleration: Array
+    printed_mass: Array
+    joint_names: ClassVar[tuple[str, ...]] = TwoLinkArm.joint_names
+    joint_kinds: ClassVar[tuple[str, ...]] = (REVOLUTE, REVOLUTE)
+
+    def __init__(self, masses=MASSES, lengths=LENGTHS, friction=(0.0, 0.0), gravity_acceleration=STANDARD_GRAVITY, printed_mass=MASSES[1]):
+        self.masses = jnp.asarray(check.vector("two-link masses", masses, 2))
+        self.lengths = jnp.asarray(check.vector("two-link lengths", lengths, 2))
+        self.friction = jnp.asarray(check.vector("two-link friction", friction, 2))
+        self.gravity_acceleration = jnp.asarray(float(gravity_acceleration))
+        self.printed_mass = jnp.asarray(float(printed_mass))
+
+    def _arm(self) -> TwoLinkArm:
+        return TwoLinkArm(self.masses, self.lengths, self.friction, self.gravity_acceleration)
+
+    def mass_matrix(self, q: Array) -> Array:
+        """TwoLinkArm's M(q) with M_22 = m2 l2^2 at the true m2 (the printed (5.37))."""
+        return self._arm().mass_matrix(q).at[1, 1].set(self.printed_mass * self.lengths[1] ** 2)
+
+    def gravity(self, q: Array) -> Array:
+        return self._arm().gravity(q)
+
+    def potential_energy(self, q: Array) -> Array:
+        return self._arm().potential_energy(q)
+
+
+class Config(BaseModel):
+    """Settings of the reproduction; every field has the thesis's value or a stated choice."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    runs: int = Field(1, description="1: the runs are noise-free, every run would be the same")
+    seed: int = Field(0, description="recorded with the results; the runs draw no random numbers")
+    duration: float = Field(40.0, description="simulated time (s); two periods of the square wave (chosen)")
+    amplitude: float = Field(1.0, description="square wave amplitude (rad), chosen")
+    period: float = Field(20.0, description="square wave period (s), chosen")
+    initial_theta: float = Field(0.7, description="theta_hat(0) (kg), printed")
+
+    @field_validator("runs")
+    @classmethod
+    def _one_run(cls, value):
+        if value != 1:
+            raise ValueError(f"must be 1: this reproduction is noise-free, so every run would be the same; got {value}")
+        return value
+
+    @field_validator("seed")
+    @classmethod
+    def _seed(cls, value):
+        return seed_for_runs(value, 1)
+
+    @field_validator("duration")
+    @classmethod
+    def _duration(cls, value):
+        finite_positive(value)
+        whole_samples(value, SAMPLE_PERIOD, "the 0.01 s sample period")
+        if value < 11.0:
+            raise ValueError(f"must be at least 11 s (the summary reports theta_hat at 10 s); got {value:g} s")
+        return value
+
+    @field_validator("amplitude", "period", "initial_theta")
+    @classmethod
+    def _positive(cls, value):
+        return finite_positive(value)
+
+
+def parameters(variant: str = "corrected") -> ModelParameters:
+    """theta = m2 of the arm (the observer's and the controller's model)."""
+    if variant not in VARIANTS:
+        raise ValueError(f"variant must be one of {', '.join(VARIANTS)}; got {variant!r}")
+    base = TwoLinkArm(MASSES, LENGTHS, (0.0, 0.0)) if variant == "corrected" else PrintedInertiaArm()
+    return ModelParameters(base, ("masses[1]",), units=("kg",))
+
+
+def reference(config: Config) -> ReferenceFilter:
+    """F = 8/(s + 2)^3 on a +-amplitude square wave per joint, +1 first, from rest at q = 0."""
+    arm = TwoLinkArm(MASSES, LENGTHS, (0.0, 0.0))
+    half = config.period / 2.0
+    switches = int(math.ceil(config.duration / half))
+    setpoints = [[config.amplitude * (1 if k % 2 == 0 else -1)] * 2 for k in range(switches)]
+    return ReferenceFilter(joint_layout(arm.joint_names, arm.joint_kinds, JOINT_POSITION).signals, 2.0,
+                           [k * half for k in range(switches)], setpoints, initial=[0.0, 0.0])
+
+
+def build(config: Config, variant: str = "corrected") -> Scenario:
+    """The closed loop of Section 5.3, ``variant`` "corrected" or "printed" (5.37)."""
+    truth = TwoLinkArm(MASSES, LENGTHS, (0.0, 0.0))
+    plant = ManipulatorPlant(truth)
+    unknowns = parameters(variant)
+    # the printed run keeps (5.41)'s regressor (it has l2^2 psi2 in row 2): only M_hat is printed wrong
+    observer = AdaptiveManipulatorObserver(unknowns, 5.0, 0.1, sample_period=SAMPLE_PERIOD, regressor=parameters("corrected"))
+    controller = AdaptiveObserverBackstepping(unknowns, 5.0, 2.0, 2.0, 1.0)
+    return Scenario(
+        plant, JointEncoder(truth, sample_period=SAMPLE_PERIOD), observer, controller,
+        plant.state([0.0, 0.0], [0.0, 0.0]), observer.guess([1.0, 1.0], config.initial_theta),
+        plant_step=PLANT_STEP, sample_period=SAMPLE_PERIOD, duration=config.duration, reference=reference(config),
+        record_every=1,
+    )
+
+
+def scenarios(config: Config) -> list[Scenario]:
+    """The scenarios :func:`run` simulates (one per variant)."""
+    return [build(config, variant) for variant in VARIANTS]
+
+
+def summarize(ds: xr.Dataset) -> dict:
+    """tau(0), theta_hat's extremes and values at 5 and 10 s, the tracking error after 10 s,
+    max |tau| after 1 s, and where the run stopped being finite."""
+    time = ds.time.values
+    theta = ds.theta_hat_masses_1.values
+    tau = ds.joint_torque_applied.values
+    angle = ds.joint_angle.values
+    desired = ds.joint_angle_desired.values
+    finite = np.all(np.isfinite(angle), axis=1) & np.isfinite(theta) & np.all(np.isfinite(tau), axis=1)
+    last = int(np.argmin(finite)) if not finite.all() else len(time)
+    ok = slice(0, last)
+    late = (time >= 10.0) & finite
+    ok_theta = theta[ok]
+    result = {
+        "status": str(ds.status.values),
+        "finite_until_s": float(time[last - 1]) if last > 0 else 0.0,
+        "tau_0": tau[0].tolist(),
+        "theta_hat_min": float(ok_theta.min()), "theta_hat_min_time_s": float(time[ok][np.argmin(ok_theta)]),
+        "theta_hat_max": float(ok_theta.max()), "theta_hat_max_time_s": float(time[ok][np.argmax(ok_theta)]),
+        "theta_hat_at_5s": float(theta[np.argmin(abs(time - 5.0))]) if last > np.argmin(abs(time - 5.0)) else None,
+        "theta_hat_at_10s": float(theta[np.argmin(abs(time - 10.0))]) if last > np.argmin(abs(time - 10.0)) else None,
+        "theta_hat_final": float(theta[last - 1]) if last > 0 else None,
+        "tracking_error_max_after_10s": float(np.abs(angle[late] - desired[late]).max()) if late.any() else None,
+        "tracking_error_final": np.abs(angle[last - 1] - desired[last - 1]).tolist() if last > 0 else None,
+        "tau_max_after_1s": float(np.abs(tau[(time >= 1.0) & finite]).max()) if ((time >= 1.0) & finite).any() else None,
+    }
+    # where M_hat(q) first loses positive definiteness (the printed run)
+    model_of = parameters("printed" if "printed" in ds.attrs.get("variant", "") else "corrected")
+    eig = np.asarray(jax.jit(jax.vmap(lambda q, th: jnp.linalg.eigvalsh(model_of.model(jnp.atleast_1d(th)).mass_matrix(q))[0]))(
+        jnp.asarray(np.nan_to_num(angle[ok])), jnp.asarray(ok_theta)))
+    indefinite = np.flatnonzero(eig <= 0)
+    result["m_hat_indefinite_from_s"] = float(time[indefinite[0]]) if indefinite.size else None
+    result["m_hat_indefinite_total_s"] = float(indefinite.size * (time[1] - time[0]))
+    return result
+
+
+def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
+    """Simulate both variants; write NetCDF, figures and summary.json."""
+    out.mkdir(parents=True, exist_ok=True)
+    results, per_variant, files = {}, {}, []
+    for index, variant in enumerate(VARIANTS):
+        ds = simulate(build(config, variant), jax.random.PRNGKey(config.seed)).to_xarray()
+        ds.attrs.update({"reproduction": NAME, "title": TITLE, "variant": variant, "config": config.model_dump_json()})
+        filename = f"calugi_2002_backstepping_{variant}.nc"
+        write_netcdf(ds, out / filename, history=f"lookout reproduce {NAME} ({variant} (5.37))")
+        files.append(filename)
+        results[variant] = ds.isel(run=0)
+        results[variant].attrs["variant"] = variant
+        per_variant[variant] = summarize(results[variant])
+        if progress is not None:
+            progress(index + 1, len(VARIANTS))
+    corrected = results["corrected"]
+    condition = check_5_28(parameters(), 5.0, 1.0, max_speed=float(np.linalg.norm(corrected.joint_rate.values, axis=1).max()),
+                           initial_error=np.array([1.0, 1.0]))
+    files += _figures(results, out)
+    summary = {
+        "reproduction": NAME,
+        "config": config.model_dump(),
+        "seeds": [config.seed],
+        "status": [values["status"] for values in per_variant.values()],
+        "variants": per_variant,
+        "condition_5_28": condition.to_dict(),
+        "files": sorted([*files, "summary.json"]),
+    }
+    return write_summary(summary, out)
+
+
+def _figures(results: dict, out: Path) -> list[str]:
+    import matplotlib.pyplot as plt
+
+    figures = {}
+    ds = results["corrected"]
+    for k, joint in enumerate(ds.revolute_joint.values):
+        figure, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+        axes[0].plot(ds.time, ds.joint_angle_desired.values[:, k], color="k", lw=1.2, label="q_d")
+        axes[0].plot(ds.time, ds.joint_angle.values[:, k], color="C0", lw=0.9, label="q")
+        axes[0].set_ylabel("angle (rad)")
+        axes[1].plot(ds.time, ds.joint_rate.values[:, k], color="k", lw=1.2, label="q' (true)")
+        axes[1].plot(ds.time, ds.joint_rate_hat.values[:, k], color="C1", lw=0.9, ls="--", label="x1_hat")
+        axes[1].set_ylabel("velocity (rad/s)")
+        axes[2].plot(ds.time, ds.joint_torque_applied.values[:, k], color="C2", lw=0.9, label="tau")
+        axes[2].set_ylabel("torque (N m)")
+        axes[2].set_xlabel("time (s)")
+        for axis in axes:
+            axis.legend(fontsize=8)
+        figure.suptitle(f"Fig. 5.{k + 1}: link {k + 1} ({joint}), corrected (5.37)", fontsize=10)
+        figure.tight_layout()
+        figures[f"fig_5_{k + 1}.png"] = figure
+    figure, axis = plt.subplots(figsize=(9, 3.5))
+    for variant, color in (("corrected", "C0"), ("printed", "C3")):
+        run_ = results[variant]
+        axis.plot(run_.time, run_.theta_hat_masses_1, color=color, lw=0.9, label=f"theta_hat, (5.37) {variant}")
+    axis.axhline(MASSES[1], color="k", lw=1.2, label="m2 (true)")
+    axis.axhline(1.72, color="C3", lw=0.6, ls=":", label="M_hat(q2 = 0) indefinite above (printed)")
+    axis.set_ylim(0.0, 3.0)
+    axis.set_xlabel("time (s)")
+    axis.set_ylabel("mass (kg)")
+    axis.legend(fontsize=8)
+    figure.suptitle("The estimate of m2 (the thesis cites a Fig. 5.3 it does not contain)", fontsize=10)
+    figure.tight_layout()
+    figures["theta_hat.png"] = figure
+    return save_figures(figures, out)
+
+
+def _value(value, digits: int = 4) -> str:
+    return "-" if value is None else f"{value:.{digits}g}"
+
+
+def tables(summary: dict) -> list[Table]:
+    """Both variants side by side; (5.28)."""
+    rows = []
+    keys = (("status", "status"), ("finite until (s)", "finite_until_s"), ("theta_hat at 5 s", "theta_hat_at_5s"),
+            ("theta_hat at 10 s", "theta_hat_at_10s"), ("theta_hat final", "theta_hat_final"), ("theta_hat min (at s)", "min"), ("theta_hat max (at s)", None), ("max |q - q_d| after 10 s (rad)", "tracking_error_max_after_10s"),
+            ("max |tau| after 1 s (N m)", "tau_max_after_1s"), ("M_hat indefinite from (s)", "m_hat_indefinite_from_s"),
+            ("M_hat indefinite, total (s)", "m_hat_indefinite_total_s"))
+    variants = summary["variants"]
+    for label, key in keys:
+        if key is None:
+            rows.append((label, *(f"{v['theta_hat_max']:.4g} ({v['theta_hat_max_time_s']:.2f})" for v in variants.values())))
+        elif key == "min":
+            rows.append((label, *(f"{v['theta_hat_min']:.4g} ({v['theta_hat_min_time_s']:.2f})" for v in variants.values())))
+        elif key == "status":
+            rows.append((label, *(v["status"] for v in variants.values())))
+        else:
+            rows.append((label, *(_value(v[key]) for v in variants.values())))
+    result = [Table("Section 5.3: m2 = 1.5 kg, theta_hat(0) = 0.7 kg", ("", *(f"(5.37) {v}" for v in variants)), tuple(rows),
+                    "tau(0) = " + str([round(x, 3) for x in variants["corrected"]["tau_0"]]) + " N m (corrected)")]
+    condition = summary["condition_5_28"]
+    result.append(Table(
+        "(5.28) for the printed gains (K = 5, d_i = 1)",
+        ("", "condition", "left", "right", "verdict"),
+        tuple((item["name"], item["relation"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"]) for item in condition["inequalities"]),
+        f"sigma = inf lambda_min(KM + MK)/2; C_M = {condition['quantities']['C_M']:.3g} (Christoffel); w_max from the corrected run",
+    ))
+    return result
+
+
+__all__ = ["Config", "NAME", "PrintedInertiaArm", "TITLE", "VARIANTS", "build", "parameters", "reference", "run", "scenarios", "summarize", "tables"]
