@@ -1,6 +1,5 @@
 """Calugi (2002) ch. 4: the adaptive observer (4.34)–(4.35), resetting (4.45), Theorem 4.1."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -9,7 +8,7 @@ from hypothesis import strategies as st
 
 from lookout.analysis.adaptive_manipulator import check_theorem_4_1, injection_bound
 from lookout.analysis.velocity import configuration_bounds
-from lookout.models.manipulators import FreePendulum, TwoLinkArm
+from lookout.models.manipulators import TwoLinkArm
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver, mass_matrix_margin
 from lookout.papers import calugi_2002_adaptive_observer as ch4

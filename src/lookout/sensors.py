@@ -266,3 +266,96 @@ class PositionHeadingVelocitySensor(Sensor):
         y = y.at[2].set(ssa(y[2]))
         dropped = noise[6:] < jax.scipy.special.ndtri(self.dropout_probability)
         return jnp.where(dropped, jnp.nan, y)
+
+# ---------------------------------------------------------------------------------
+# joint positions and rates: what the on-line parameter estimator of Calugi (2002), ch. 3, reads
+
+from lookout.models.manipulators import PRISMATIC, REVOLUTE  # noqa: E402
+
+#: (name, units, long name) of a measured joint rate, per joint kind.
+JOINT_RATE_MEASUREMENT = {
+    REVOLUTE: ("measured_joint_rate", "rad/s", "measured joint angular rate (held samples; NaN = dropout)"),
+    PRISMATIC: ("measured_joint_speed", "m/s", "measured joint speed (held samples; NaN = dropout)"),
+}
+
+
+def joint_state_layout(model: ManipulatorModel) -> Layout:
+    """``measured_joint_angle`` / ``measured_joint_position`` then ``measured_joint_rate`` /
+    ``measured_joint_speed``, labelled by joint name: the flat vector is ``[q, q']`` in joint order."""
+    names, kinds = model.joint_names, model.joint_kinds
+    positions = joint_layout(names, kinds, JOINT_MEASUREMENT)
+    rates = joint_layout(names, kinds, JOINT_RATE_MEASUREMENT)
+    return Layout(positions.signals + rates.signals)
+
+
+@final
+class JointStateSensor(Sensor):
+    """Joint positions and rates ``y = [q, q'] + noise``; NaN marks a dropped channel.
+
+    Parameters
+    ----------
+    model : ManipulatorModel or a plant with a ``model`` attribute
+        The manipulator whose joints are measured (names and kinds of the channels).
+    sample_period : float or sequence of 2n floats
+        Seconds between samples of each channel (q channels first, then q').
+    noise_std : float or array_like, shape (2n,)
+        Standard deviation of the measurement noise per channel (rad or m, then
+        rad/s or m/s), >= 0.
+    dropout_probability : float
+        Probability that a sample of a channel is missing (0 <= p < 1).
+
+    Attributes
+    ----------
+    measurement_layout : Layout
+        See :func:`joint_state_layout`.
+    noise_size : int
+        4n: 2n normals for the noise and 2n turned into the dropout draws.
+    """
+
+    noise_std: Array
+    dropout_probability: Array
+    sample_period: tuple[float, ...] = eqx.field(static=True)
+    noise_size: int = eqx.field(static=True)
+    measurement_layout: Layout = eqx.field(static=True)
+
+    def __init__(self, model, *, sample_period, noise_std=0.0, dropout_probability=0.0):
+        model = getattr(model, "model", model)
+        if not isinstance(model, ManipulatorModel):
+            raise ValueError(f"JointStateSensor needs a ManipulatorModel or a manipulator plant; got {type(model).__name__}")
+        channels = 2 * model.size
+        self.noise_std = jnp.asarray(check.vector("joint state sensor noise_std", noise_std, channels))
+        self.dropout_probability = jnp.asarray(dropout_probability, dtype=float)
+        self.sample_period = tuple(float(p) for p in check.vector("joint state sensor sample_period", sample_period, channels))
+        self.noise_size = 2 * channels
+        self.measurement_layout = joint_state_layout(model)
+
+    def __check_init__(self):
+        check.positive("joint state sensor noise_std", self.noise_std, allow_zero=True)
+        check.positive("joint state sensor sample_period", np.asarray(self.sample_period))
+        if check.is_concrete(self.dropout_probability):
+            if np.ndim(self.dropout_probability) != 0:
+                raise ValueError(f"joint state sensor dropout_probability must be a scalar; got shape {np.shape(self.dropout_probability)}")
+            p = float(self.dropout_probability)
+            if not 0.0 <= p < 1.0:
+                raise ValueError(f"joint state sensor dropout_probability must be in [0, 1); got {p}")
+
+    def ideal(self, state: JointState) -> Array:
+        """``[q, q']``, noise-free and never dropped."""
+        return jnp.concatenate([state.q, state.qdot])
+
+    def measure(self, state: JointState, noise: Array) -> Array:
+        """One sample of every channel; dropped channels are NaN.
+
+        Parameters
+        ----------
+        state : JointState
+            Plant state at the sample time.
+        noise : Array, shape (4n,)
+            Independent standard normals: 2n for the measurement noise, 2n turned
+            into the dropout draws.
+        """
+        channels = 2 * state.q.shape[0]
+        y = self.ideal(state) + self.noise_std * noise[:channels]
+        # Phi(n) < p written as n < Phi^-1(p), as the other sensors do
+        dropped = noise[channels:] < jax.scipy.special.ndtri(self.dropout_probability)
+        return jnp.where(dropped, jnp.nan, y)

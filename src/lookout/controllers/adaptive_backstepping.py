@@ -44,7 +44,7 @@ class AdaptiveObserverBackstepping(Controller):
 
     Reads q as the observer's joint position (the measurement, or the observer's
     prediction of a missing sample), x1_hat as the plant's joint velocity signal and theta_hat as
-    ``theta_hat_<name>`` from the estimate, and q_d, q_d', q_d'' as
+    ``<name>_hat`` from the estimate, and q_d, q_d', q_d'' as
     ``joint_angle_desired`` (``_rate``, ``_acceleration``) from the reference (a
     :class:`~lookout.reference.ReferenceFilter` over the joint-angle signal).
 

@@ -43,6 +43,7 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout._math import matvec
+from lookout.components import Signal
 from lookout.models.manipulators import FreePendulum, ManipulatorModel
 
 #: Relative residual above which a parameter set is not affine (random points, float64).
@@ -107,6 +108,30 @@ class AffineParameters(eqx.Module):
                     f"parameters {', '.join(self.names)} must enter the dynamics affinely (Property 4.2); "
                     f"the split misses the dynamics by {residual:.2g} (relative) at random points"
                 )
+
+
+def parameter_signal_name(name: str) -> str:
+    """A parameter's name as an identifier: ``masses[1]`` -> ``masses_1``."""
+    return name.replace("[", "_").replace("]", "")
+
+
+def parameter_signals(parameters: AffineParameters, suffix: str = "", long_prefix: str = "") -> tuple[Signal, ...]:
+    """One scalar signal per parameter, named ``<name><suffix>`` in the parameter's unit.
+
+    Raises
+    ------
+    ValueError
+        When a parameter has no unit (``ModelParameters(..., units=...)`` gives them).
+    """
+    signals = []
+    for name, unit in zip(parameters.names, parameters.units):
+        if not unit:
+            raise ValueError(
+                f"parameters.units must give every parameter's unit (UDUNITS, e.g. 'kg'); {name!r} has none: "
+                "build the parameters with units=(...)"
+            )
+        signals.append(Signal(f"{parameter_signal_name(name)}{suffix}", unit, f"{long_prefix}parameter {name}"))
+    return tuple(signals)
 
 
 _FIELD = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
@@ -196,4 +221,4 @@ class PendulumInertia(AffineParameters):
         return FreePendulum(moment**2 / inertia, inertia / moment, self.base.friction, self.base.gravity_acceleration)
 
 
-__all__ = ["AFFINE_TOLERANCE", "AffineParameters", "ModelParameters", "PendulumInertia"]
+__all__ = ["AFFINE_TOLERANCE", "AffineParameters", "ModelParameters", "PendulumInertia", "parameter_signal_name", "parameter_signals"]

@@ -59,12 +59,13 @@ from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import Layout, Observer, Signal
 from lookout.models.manipulators import JOINT_POSITION, JOINT_VELOCITY, joint_layout
-from lookout.models.parameters import AffineParameters
+from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
 
 
 def theta_signal_name(name: str) -> str:
-    """The estimate's name for unknown parameter ``name``: ``theta_hat_mass``, ``theta_hat_masses_1``."""
-    return "theta_hat_" + name.replace("[", "_").replace("]", "")
+    """The estimate's name for unknown parameter ``name``: ``mass_hat``, ``masses_1_hat``
+    (as :class:`~lookout.observers.parameter_estimator.ParameterEstimator` names it)."""
+    return f"{parameter_signal_name(name)}_hat"
 
 
 class AdaptiveManipulatorState(eqx.Module):
@@ -134,7 +135,7 @@ class AdaptiveManipulatorObserver(Observer):
 
     Estimates the joint velocities (named as the plant's, so the results pair them with
     the truth; the joint positions too, which are the measurement where there is one)
-    and the unknown parameters (extra signals ``theta_hat_<name>``, plus
+    and the unknown parameters (extra signals ``<name>_hat``, plus
     ``resets`` fired so far). Conditions: Theorem 4.1,
     :func:`lookout.analysis.adaptive_manipulator.check_theorem_4_1`.
 
@@ -189,10 +190,9 @@ class AdaptiveManipulatorObserver(Observer):
         self.sample_period = float(sample_period)
         self.estimate_signals = (joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION).signals
                                  + joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals)
-        self.extra_signals = tuple(
-            Signal(theta_signal_name(name), unit or "1", f"estimate of the unknown parameter {name}")
-            for name, unit in zip(parameters.names, parameters.units)
-        ) + (Signal("resets", "1", "parameter resets (4.45) fired so far, all parameters"),)
+        self.extra_signals = parameter_signals(parameters, "_hat", "estimated ") + (
+            Signal("resets", "1", "parameter resets (4.45) fired so far, all parameters"),
+        )
 
     def __check_init__(self):
         check.positive("observer gain K", self.gain)

@@ -9,7 +9,16 @@ terminal). Importing this package enables float64 (via :mod:`lookout`).
 
 import lookout as _lookout  # noqa: F401  (enables jax_enable_x64)
 
-from . import calugi_2002_adaptive_observer, calugi_2002_backstepping, calugi_2002_velocity_observer, calugi_2003, fossen_strand_1999, kim_2002, wondergem_2009
+from . import (
+    calugi_2002_adaptive_observer,
+    calugi_2002_backstepping,
+    calugi_2002_parameter_estimation,
+    calugi_2002_velocity_observer,
+    calugi_2003,
+    fossen_strand_1999,
+    kim_2002,
+    wondergem_2009,
+)
 
 #: name -> module, in the order `lookout list` shows them
-REPRODUCTIONS = {module.NAME: module for module in (fossen_strand_1999, calugi_2002_velocity_observer, calugi_2002_adaptive_observer, calugi_2002_backstepping, kim_2002, calugi_2003, wondergem_2009)}
+REPRODUCTIONS = {module.NAME: module for module in (fossen_strand_1999, calugi_2002_velocity_observer, calugi_2002_parameter_estimation, calugi_2002_adaptive_observer, calugi_2002_backstepping, kim_2002, calugi_2003, wondergem_2009)}

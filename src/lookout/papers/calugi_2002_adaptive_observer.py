@@ -190,24 +190,24 @@ def order_study(config: Config, duration: float = 20.0) -> dict:
         scenario = dataclasses.replace(scenario, record_every=1)
         ds = simulate(scenario, jax.random.PRNGKey(config.seed)).to_xarray().isel(run=0)
         index = np.rint(times / period).astype(int)
-        errors["theta"].append(float(np.max(np.abs(ds.theta_hat_mass.values[index] - reference["theta"][pick]))))
+        errors["theta"].append(float(np.max(np.abs(ds.mass_hat.values[index] - reference["theta"][pick]))))
         errors["velocity"].append(float(np.max(np.abs(ds.joint_rate_hat.values[index, 0] - reference["velocity"][pick]))))
     orders = {key: [math.log2(a / b) for a, b in zip(values[:-1], values[1:])] for key, values in errors.items()}
     return {"sample_periods": list(ORDER_PERIODS), "max_error": errors, "order": orders, "duration_s": duration}
 
 
 def _at(ds: xr.Dataset, times) -> list[float]:
-    return [float(ds.theta_hat_mass.sel(time=t, method="nearest")) for t in times]
+    return [float(ds.mass_hat.sel(time=t, method="nearest")) for t in times]
 
 
 def summarize(ds: xr.Dataset, config: Config) -> dict:
     """theta_hat at :data:`REPORT_TIMES`, its band after 100 s, the RMS of x1~ and the resets."""
     error = ds.joint_rate.values[:, 0] - ds.joint_rate_hat.values[:, 0]
     late = ds.time.values >= min(100.0, 0.5 * float(ds.time.values[-1]))
-    band = ds.theta_hat_mass.values[late]
+    band = ds.mass_hat.values[late]
     return {
         "theta_hat_at": dict(zip([f"{t:g} s" for t in REPORT_TIMES], _at(ds, [t for t in REPORT_TIMES]))),
-        "theta_hat_final": float(ds.theta_hat_mass.values[-1]),
+        "theta_hat_final": float(ds.mass_hat.values[-1]),
         "theta_hat_band_late": [float(band.min()), float(band.max())],
         "band_from_s": float(ds.time.values[late][0]),
         "velocity_error_rms": float(np.sqrt(np.mean(error**2))),
@@ -240,7 +240,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         stress = simulate(build(config, SAMPLE_PERIODS[0], stress=True, duration=min(config.duration, 50.0)),
                           jax.random.PRNGKey(config.seed)).to_xarray().isel(run=0)
         study["stress"] = {**STRESS, **summarize(stress, config),
-                           "theta_hat_range": [float(stress.theta_hat_mass.min()), float(stress.theta_hat_mass.max())]}
+                           "theta_hat_range": [float(stress.mass_hat.min()), float(stress.mass_hat.max())]}
         if progress is not None:
             progress(parts, parts)
     theorem = check_theorem_4_1(parameters(), config.gain, config.adaptation_gain, max_speed=_max_speed(results),
@@ -275,7 +275,7 @@ def _figures(results: dict, config: Config, out: Path) -> list[str]:
     for period, ds in results.items():
         w = ds.time.values <= 20.0
         axes[0].plot(ds.time[w], ds.joint_rate_hat.values[w, 0], color=colors[period], lw=0.9, ls="--", label=f"x1_hat, Delta = {period * 1000:g} ms")
-        axes[1].plot(ds.time[w], ds.theta_hat_mass.values[w], color=colors[period], lw=0.9, label=f"theta_hat, Delta = {period * 1000:g} ms")
+        axes[1].plot(ds.time[w], ds.mass_hat.values[w], color=colors[period], lw=0.9, label=f"theta_hat, Delta = {period * 1000:g} ms")
     axes[1].axhline(MASS, color="k", lw=1.2, label="m (true)")
     axes[0].set_ylabel("velocity (rad/s)")
     axes[1].set_ylabel("mass (kg)")
@@ -288,7 +288,7 @@ def _figures(results: dict, config: Config, out: Path) -> list[str]:
 
     figure, axis = plt.subplots(figsize=(9, 3.5))
     for period, ds in results.items():
-        axis.plot(ds.time, ds.theta_hat_mass, color=colors[period], lw=0.9, label=f"theta_hat, Delta = {period * 1000:g} ms")
+        axis.plot(ds.time, ds.mass_hat, color=colors[period], lw=0.9, label=f"theta_hat, Delta = {period * 1000:g} ms")
     axis.axhline(MASS, color="k", lw=1.2, label="m (true)")
     axis.set_xlabel("time (s)")
     axis.set_ylabel("mass (kg)")

@@ -172,7 +172,7 @@ def summarize(ds: xr.Dataset) -> dict:
     """tau(0), theta_hat's extremes and values at 5 and 10 s, the tracking error after 10 s,
     max |tau| after 1 s, and where the run stopped being finite."""
     time = ds.time.values
-    theta = ds.theta_hat_masses_1.values
+    theta = ds.masses_1_hat.values
     tau = ds.joint_torque_applied.values
     angle = ds.joint_angle.values
     desired = ds.joint_angle_desired.values
@@ -259,7 +259,7 @@ def _figures(results: dict, out: Path) -> list[str]:
     figure, axis = plt.subplots(figsize=(9, 3.5))
     for variant, color in (("corrected", "C0"), ("printed", "C3")):
         run_ = results[variant]
-        axis.plot(run_.time, run_.theta_hat_masses_1, color=color, lw=0.9, label=f"theta_hat, (5.37) {variant}")
+        axis.plot(run_.time, run_.masses_1_hat, color=color, lw=0.9, label=f"theta_hat, (5.37) {variant}")
     axis.axhline(MASSES[1], color="k", lw=1.2, label="m2 (true)")
     axis.axhline(1.72, color="C3", lw=0.6, ls=":", label="M_hat(q2 = 0) indefinite above (printed)")
     axis.set_ylim(0.0, 3.0)
