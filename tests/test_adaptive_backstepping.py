@@ -55,3 +55,28 @@ def test_reproduce_calugi_2002_backstepping_corrected_tracks_and_printed_is_repo
     assert printed["m_hat_indefinite_from_s"] is not None
     assert sorted(p.name for p in out.iterdir()) == summary["files"]
     assert "(5.28)" in capsys.readouterr().out
+
+
+def test_design_adaptive_arm_checks_theorem_4_1_and_5_28(capsys):
+    assert main(["design", "adaptive-arm", "--arm", "pendulum"]) == 0  # C_M = 0: global
+    assert "verdict: passes (exit code 0)" in capsys.readouterr().out
+    assert main(["design", "adaptive-arm", "--json"]) == 1  # the two-link arm's printed gains
+    result = json.loads(capsys.readouterr().out)
+    assert result["passed"] is False
+    (at_rest,) = [item for item in result["condition_5_28"]["inequalities"] if item["name"] == "(5.28) at rest"]
+    assert at_rest["verdict"] == "fails" and at_rest["right"] == 1.0
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--arm", "robot"], "--arm must be pendulum or two-link; got 'robot'"),
+        (["--k", "0"], "--k must be one finite positive number or 2 separated by commas"),
+        (["--d", "1,2,3"], "--d must be one finite positive number or 4 separated by commas"),
+        (["--max-speed", "nan"], "--max-speed must be finite and >= 0"),
+    ],
+)
+def test_design_adaptive_arm_bad_input_exits_2_with_one_line(argv, message, capsys):
+    assert main(["design", "adaptive-arm", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1

@@ -610,6 +610,91 @@ def design_adaptive_observer(
         raise typer.Exit(code=1)
 
 
+@design_app.command("adaptive-arm")
+def design_adaptive_arm(
+    arm: Annotated[str, typer.Option(metavar="ARM", help="pendulum (Section 4.8: m = 1 kg, l = 1.5 m, theta = m) or two-link (Section 5.3: m1 = 1, m2 = 1.5 kg, l = 1 m, theta = m2).")] = "two-link",
+    gain: Annotated[Optional[str], typer.Option("--k", metavar="K[,K]", help="Observer gain K diagonal (1/s); default the thesis's (20 pendulum, 5 two-link).")] = None,
+    adaptation_gain: Annotated[Optional[float], typer.Option("--gamma", metavar="G", help="Adaptation gain Gamma; default the thesis's (10 pendulum, 0.1 two-link).")] = None,
+    max_speed: Annotated[float, typer.Option(metavar="W", help="Bound w_max on ||q'|| (rad/s).")] = 1.0,
+    margin: Annotated[float, typer.Option(metavar="BETA", help="Margin beta >= 0 of Theorem 4.1.")] = 0.0,
+    velocity_error: Annotated[Optional[str], typer.Option(metavar="E[,E]", help="Initial velocity error x1~(0) (rad/s); default q'(0) - x1_hat(0) of the thesis's example.")] = None,
+    theta_error: Annotated[Optional[float], typer.Option(metavar="E", help="Initial parameter error theta~(0) (kg); default the thesis's example.")] = None,
+    damping_weights: Annotated[Optional[str], typer.Option("--d", metavar="D[,...]", help="Backstepping weights d_1..d_2n (s): also checks (5.28); default 1 for two-link.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
+) -> None:
+    """Calugi (2002), Theorem 4.1 (adaptive observer) and (5.28) (observer backstepping).
+
+    Theorem 4.1: sigma = inf lambda_min(KM + MK)/2 > C_M w_max + beta, and the initial
+    error inside its region; (5.28): sigma > C_M w_max + C_M |x1~(0)| + p/4, p = sum 1/d_i.
+    Each inequality with both sides, for the thesis's pendulum or two-link arm.
+
+    Exit code 0 when every checked condition holds, 1 when one fails (the report or JSON
+    is still printed), 2 for bad input.
+    """
+    from lookout.analysis.adaptive_manipulator import check_5_28, check_theorem_4_1
+
+    if arm not in ("pendulum", "two-link"):
+        raise InputError(f"--arm must be pendulum or two-link; got {arm!r}")
+    if arm == "pendulum":
+        from lookout.papers import calugi_2002_adaptive_observer as example
+
+        parameters, n = example.parameters(), 1
+        defaults = {"K": [20.0], "G": 10.0, "x": [-1.0], "theta": 1.0 - 0.1, "d": None}
+    else:
+        from lookout.papers import calugi_2002_backstepping as example
+
+        parameters, n = example.parameters(), 2
+        defaults = {"K": [5.0, 5.0], "G": 0.1, "x": [-1.0, -1.0], "theta": 1.5 - 0.7, "d": [1.0] * 4}
+
+    def numbers(option: str, text: str, count: int, allow_zero: bool = False) -> list[float]:
+        try:
+            values = [float(part) for part in text.split(",")]
+        except ValueError:
+            values = []
+        ok = len(values) in (1, count) and all(math.isfinite(v) and (v >= 0 if allow_zero else v > 0) for v in values)
+        if not ok:
+            condition = ">= 0" if allow_zero else "positive"
+            raise InputError(f"{option} must be one finite {condition} number or {count} separated by commas; got {text}")
+        return values * count if len(values) == 1 else values
+
+    K = numbers("--k", gain, n) if gain is not None else defaults["K"]
+    G = _positive_number("--gamma", adaptation_gain) if adaptation_gain is not None else defaults["G"]
+    if not (math.isfinite(max_speed) and max_speed >= 0):
+        raise InputError(f"--max-speed must be finite and >= 0; got {max_speed:g}")
+    if not (math.isfinite(margin) and margin >= 0):
+        raise InputError(f"--margin must be finite and >= 0; got {margin:g}")
+    if velocity_error is not None:
+        try:
+            x = [float(part) for part in velocity_error.split(",")]
+        except ValueError:
+            x = []
+        if len(x) not in (1, n) or not all(math.isfinite(v) for v in x):
+            raise InputError(f"--velocity-error must be {n} finite number(s) separated by commas; got {velocity_error}")
+        x = x * n if len(x) == 1 else x
+    else:
+        x = defaults["x"]
+    theta = defaults["theta"] if theta_error is None else theta_error
+    if not math.isfinite(theta):
+        raise InputError(f"--theta-error must be finite; got {theta:g}")
+    d = numbers("--d", damping_weights, 2 * n) if damping_weights is not None else defaults["d"]
+    for option, values in (("--k", K), ("--gamma", [G]), ("--d", d or [1.0])):
+        if max(values) > 1e12 or min(values) < 1e-12:
+            raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
+    theorem = check_theorem_4_1(parameters, K, G, max_speed, margin=margin, initial_error=(x, [theta]))
+    reports = {"theorem_4_1": theorem}
+    if d is not None:
+        reports["condition_5_28"] = check_5_28(parameters, K, d, max_speed, initial_error=x)
+    passed = all(report.holds for report in reports.values())
+    if as_json:
+        print(json.dumps(json_safe({"arm": arm, "passed": passed, **{k: r.to_dict() for k, r in reports.items()}}), allow_nan=False))
+    else:
+        for report in reports.values():
+            console.print(report.text(), highlight=False, markup=False)
+        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
+    if not passed:
+        raise typer.Exit(code=1)
+
+
 @design_app.command("tracking-gains")
 def design_tracking_gains(
     position_gain: Annotated[str, typer.Option("--l1", metavar="L1[,L1,L1]", help="Observer gain L1 diagonal (1/s).")] = "15",

@@ -9,6 +9,9 @@ import xarray as xr
 from lookout.cli import main
 from lookout.papers import calugi_2002_parameter_estimation as ch3
 
+#: one worker computes the module's fixture once (make test runs pytest --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("calugi_2002_parameter_estimation")
+
 
 @pytest.fixture(scope="module")
 def reproduction(tmp_path_factory):

@@ -392,8 +392,9 @@ class Inequality:
             ratio = f"factor {self.factor:.3g}"
         else:
             ratio = "right side 0" if self.right == 0 else "no factor"
+        name = f"{self.name:<6}" if len(self.name) < 6 else f"{self.name} "
         return [
-            f"  {self.name:<6}{self.relation}"[:80],
+            f"  {name}{self.relation}"[:80],
             f"        {_fmt(self.left, 4)} vs {_fmt(self.right, 4)}: {self.verdict}, {ratio}"[:80],
         ]
 

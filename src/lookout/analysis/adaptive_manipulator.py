@@ -50,8 +50,10 @@ class AdaptiveObserverReport:
     def to_dict(self) -> dict:
         return json_safe({"holds": self.holds, "inequalities": [item.to_dict() for item in self.inequalities], "quantities": self.quantities})
 
+    title: str = "Calugi (2002): adaptive observer conditions"
+
     def text(self) -> str:
-        lines = ["Calugi (2002): adaptive observer conditions"]
+        lines = [self.title]
         for item in self.inequalities:
             lines += item.describe()
         return "\n".join(lines)
@@ -103,7 +105,7 @@ def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_s
             raise ValueError(f"initial_error must be finite; got {initial_error!r}")
         inequalities.append(_inequality("(4.b)", "sqrt(p_l/p_u) ((sigma - beta)/C_M - w_max) > ||e(0)||", radius, norm, "mixed"))
         quantities["initial_error_norm"] = norm
-    return AdaptiveObserverReport(inequalities, quantities)
+    return AdaptiveObserverReport(inequalities, quantities, "Calugi (2002), Theorem 4.1: adaptive observer")
 
 
 def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: float, initial_error=0.0) -> AdaptiveObserverReport:
@@ -127,7 +129,8 @@ def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: f
         _inequality("(5.28) at rest", "sigma > p/4", sigma, p / 4.0, "1/s kg m2"),
         _inequality("(5.28)", "sigma > C_M w_max + C_M |x1~| + p/4", sigma, c_m * max_speed + c_m * error + p / 4.0, "1/s kg m2"),
     ]
-    return AdaptiveObserverReport(inequalities, {"sigma": sigma, "C_M": c_m, "p": p, "max_speed": max_speed, "velocity_error": error})
+    return AdaptiveObserverReport(inequalities, {"sigma": sigma, "C_M": c_m, "p": p, "max_speed": max_speed, "velocity_error": error},
+                                  "Calugi (2002), (5.28): adaptive observer backstepping")
 
 
 __all__ = ["AdaptiveObserverReport", "check_5_28", "check_theorem_4_1", "injection_bound"]

@@ -214,8 +214,12 @@ class ManipulatorModel(eqx.Module):
         return matvec(self.coriolis_matrix(q, v), v)
 
     def friction_force(self, v: Array) -> Array:
-        """F v, the viscous friction forces."""
-        return self.friction * v
+        """F v, the viscous friction forces, plus F_c sign(v) for a model with Coulomb
+        friction (an array field ``coulomb_friction``, shape (n,); Calugi 2002 ch. 6's
+        Furuta arm). A plant that must stick at v = 0 handles that itself: sign(0) = 0
+        here, which is what an observer's model wants (the thesis's sgn x1_hat)."""
+        coulomb = getattr(self, "coulomb_friction", None)
+        return self.friction * v if coulomb is None else self.friction * v + coulomb * jnp.sign(v)
 
     def acceleration(self, q: Array, v: Array, tau: Array) -> Array:
         """q'' = M(q)^-1 [tau - C(q, v) v - F v - G(q)] (eq. 2.1, or 2.4)."""

@@ -147,7 +147,8 @@ class AdaptiveManipulatorObserver(Observer):
     gain : float or array_like, shape (n,)
         Diagonal of K (1/s), > 0.
     adaptation_gain : float or array_like, shape (p,)
-        Diagonal of Gamma, > 0.
+        Diagonal of Gamma, >= 0; 0 freezes that parameter (with all of Gamma 0 this is the
+        chapter-2 velocity observer in the discrete form (4.34), as Calugi's Exp. I runs it).
     lower, upper : array_like, shape (p,)
         Bounds l < h of the resetting (4.45); default none (-inf, inf).
     margin : float or array_like, shape (p,)
@@ -196,7 +197,7 @@ class AdaptiveManipulatorObserver(Observer):
 
     def __check_init__(self):
         check.positive("observer gain K", self.gain)
-        check.positive("adaptation gain Gamma", self.adaptation_gain)
+        check.positive("adaptation gain Gamma", self.adaptation_gain, allow_zero=True)
         check.positive("margin mu", self.margin, allow_zero=True)
         if check.is_concrete(self.gain):
             step = np.abs(1.0 - self.sample_period * np.asarray(self.gain))
