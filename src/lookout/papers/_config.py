@@ -68,3 +68,18 @@ class RunsConfig(BaseModel):
     def seeds(self) -> list[int]:
         """The seed of each run: seed, seed + 1, ..., seed + runs - 1."""
         return list(range(self.seed, self.seed + self.runs))
+
+
+class NoiseFreeConfig(RunsConfig):
+    """A :class:`RunsConfig` for a noise-free reproduction: ``runs`` must be 1, since every
+    run would be the same; the seed is recorded with the results and draws nothing."""
+
+    runs: int = Field(1, description="1: the runs are noise-free, every run would be the same")
+    seed: int = Field(0, description="recorded with the results; the runs draw no random numbers")
+
+    @field_validator("runs")
+    @classmethod
+    def _one_run(cls, value):
+        if value != 1:
+            raise ValueError(f"must be 1: this reproduction is noise-free, so every run would be the same; got {value}")
+        return value

@@ -31,14 +31,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from lookout.analysis.adaptive_manipulator import check_theorem_4_1
 from lookout.controllers import SinusoidalInput
 from lookout.models.manipulators import FreePendulum, ManipulatorPlant
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
-from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
+from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import JointEncoder
@@ -54,13 +54,9 @@ STRESS = {"adaptation_gain": 1000.0, "bounds": (0.5, 1.5), "margin": 0.01}
 REPORT_TIMES = (1.0, 10.0, 20.0, 50.0)
 
 
-class Config(BaseModel):
+class Config(NoiseFreeConfig):
     """Settings of the reproduction; every field has the thesis's value or a stated choice."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    runs: int = Field(1, description="1: the runs are noise-free, every run would be the same")
-    seed: int = Field(0, description="recorded with the results; the runs draw no random numbers")
     duration: float = Field(300.0, description="simulated time (s); Fig. 4.3's long run")
     gain: float = Field(20.0, description="K (1/s)")
     adaptation_gain: float = Field(10.0, description="Gamma")
@@ -70,18 +66,6 @@ class Config(BaseModel):
     bounds: tuple[float, float] = Field((0.05, 5.0), description="resetting bounds [l, h] of m (kg), chosen")
     margin: float = Field(0.01, description="resetting margin mu (kg), chosen")
     sweep: bool = Field(True, description="the studies: the order against the continuous observer, and the run in which the resets fire")
-
-    @field_validator("runs")
-    @classmethod
-    def _one_run(cls, value):
-        if value != 1:
-            raise ValueError(f"must be 1: this reproduction is noise-free, so every run would be the same; got {value}")
-        return value
-
-    @field_validator("seed")
-    @classmethod
-    def _seed(cls, value):
-        return seed_for_runs(value, 1)
 
     @field_validator("duration")
     @classmethod

@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 from jax import Array
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from lookout import _validation as check
 from lookout.analysis.adaptive_manipulator import check_5_28
@@ -40,7 +40,7 @@ from lookout.controllers.adaptive_backstepping import AdaptiveObserverBacksteppi
 from lookout.models.manipulators import JOINT_POSITION, REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, ManipulatorPlant, TwoLinkArm, joint_layout
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
-from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
+from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
@@ -90,29 +90,13 @@ class PrintedInertiaArm(ManipulatorModel):
         return self._arm().potential_energy(q)
 
 
-class Config(BaseModel):
+class Config(NoiseFreeConfig):
     """Settings of the reproduction; every field has the thesis's value or a stated choice."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    runs: int = Field(1, description="1: the runs are noise-free, every run would be the same")
-    seed: int = Field(0, description="recorded with the results; the runs draw no random numbers")
     duration: float = Field(40.0, description="simulated time (s); two periods of the square wave (chosen)")
     amplitude: float = Field(1.0, description="square wave amplitude (rad), chosen")
     period: float = Field(20.0, description="square wave period (s), chosen")
     initial_theta: float = Field(0.7, description="theta_hat(0) (kg), printed")
-
-    @field_validator("runs")
-    @classmethod
-    def _one_run(cls, value):
-        if value != 1:
-            raise ValueError(f"must be 1: this reproduction is noise-free, so every run would be the same; got {value}")
-        return value
-
-    @field_validator("seed")
-    @classmethod
-    def _seed(cls, value):
-        return seed_for_runs(value, 1)
 
     @field_validator("duration")
     @classmethod

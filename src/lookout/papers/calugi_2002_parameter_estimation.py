@@ -44,7 +44,7 @@ from lookout.models.manipulators import FreePendulum
 from lookout.models.parameters import AffineParameters, ModelParameters, PendulumInertia
 from lookout.models.scheduled_parameters import ScheduledParameterPlant
 from lookout.observers.parameter_estimator import ParameterEstimator, windowed_excitation
-from lookout.papers._config import RunsConfig, finite_positive, whole_samples
+from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import JointStateSensor
@@ -108,14 +108,12 @@ def _simulations() -> dict[str, Simulation]:
     }
 
 
-class Config(RunsConfig):
+class Config(NoiseFreeConfig):
     """Settings of the reproduction; the runs themselves are :func:`simulations`."""
 
     # defaults are validated too: a changed plant_step must still divide the default sample_period
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
 
-    runs: int = Field(1, description="1: the runs are noise-free, every run would be the same")
-    seed: int = Field(0, description="recorded with the results; the runs draw no random numbers")
     plant_step: float = Field(2e-4, description="RK4 step of plant and estimator (s); Sim 2 is stiff")
     sample_period: float = Field(1e-2, description="input hold and record period (s)")
     input_amplitude: float = Field(5.0, description="tau = amplitude sin(frequency t) (N m), chosen")
@@ -123,13 +121,6 @@ class Config(RunsConfig):
     filter_pole: float = Field(1.0, description="a of the filter 1/(s + a) (rad/s); the thesis's 1")
     pe_window: float = Field(5.0, description="T of the persistence-of-excitation check (s)")
     duration: float = Field(60.0, description="simulated time per run (s)")
-
-    @field_validator("runs")
-    @classmethod
-    def _one_run(cls, value):
-        if value != 1:
-            raise ValueError(f"must be 1: this reproduction is noise-free, so every run would be the same; got {value}")
-        return value
 
     @field_validator("plant_step", "sample_period", "duration", "input_frequency", "filter_pole", "pe_window")
     @classmethod

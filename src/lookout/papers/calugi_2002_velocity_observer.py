@@ -26,7 +26,7 @@ from typing import Callable
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import fit_decay_rate
 from lookout.analysis.velocity import configuration_bounds, velocity_observer_condition
@@ -34,7 +34,7 @@ from lookout.components import Controller
 from lookout.controllers import SinusoidalInput
 from lookout.models.manipulators import CartPendulum, FreePendulum, FurutaPendulum, ManipulatorModel, ManipulatorPlant, TwoLinkArm
 from lookout.observers import VelocityObserver
-from lookout.papers._config import finite_positive, seed_for_runs, whole_samples
+from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers._report import Table, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import JointEncoder
@@ -81,28 +81,12 @@ SYSTEMS = {
 }
 
 
-class Config(BaseModel):
+class Config(NoiseFreeConfig):
     """Settings of the reproduction; the systems themselves are :data:`SYSTEMS`."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    runs: int = Field(1, description="1: the runs are noise-free, every run would be the same")
-    seed: int = Field(0, description="recorded with the results; the runs draw no random numbers")
     plant_step: float = Field(1e-3, description="RK4 step of plant and observer (s)")
     sample_period: float = Field(1e-2, description="record and input period (s)")
     duration: float = Field(10.0, description="simulated time per system (s)")
-
-    @field_validator("runs")
-    @classmethod
-    def _one_run(cls, value):
-        if value != 1:
-            raise ValueError(f"must be 1: this reproduction is noise-free, so every run would be the same; got {value}")
-        return value
-
-    @field_validator("seed")
-    @classmethod
-    def _seed_in_key_range(cls, value):
-        return seed_for_runs(value, 1)
 
     @field_validator("plant_step", "sample_period", "duration")
     @classmethod
