@@ -9,11 +9,11 @@ import xarray as xr
 from lookout.cli import main
 from lookout.papers import calugi_2002_parameter_estimation as ch3
 
-#: one worker computes the module's fixture once (make test runs pytest --dist loadgroup)
+#: one worker runs these tests (make test: --dist loadgroup), and the session fixture computes the reproduction once there
 pytestmark = pytest.mark.xdist_group("calugi_2002_parameter_estimation")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def reproduction(tmp_path_factory):
     """``lookout reproduce calugi-2002-parameter-estimation`` with its defaults (60 s): one
     run of the command serves the claims and the check of what it writes (22 s here,
@@ -23,7 +23,7 @@ def reproduction(tmp_path_factory):
     return out, json.loads((out / "summary.json").read_text())
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def summary(reproduction):
     return reproduction[1]
 

@@ -121,12 +121,18 @@ def mass_matrix_margin(parameters: AffineParameters, lower, upper, *, grid_point
     angles = configuration_angles(model)
     q_grid = jnp.asarray(_grid(model, angles, grid_points))
     vertices = jnp.asarray(_box_vertices(np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)))
+    return float(_smallest_inertia(parameters, vertices, q_grid))
+
+
+@eqx.filter_jit
+def _smallest_inertia(parameters: AffineParameters, vertices: Array, q_grid: Array) -> Array:
+    """min over the vertices and the grid of lambda_min(M(q; theta)); compiled once per kind
+    of parameter set and reused by every observer built on it."""
 
     def smallest(theta, q):
         return jnp.linalg.eigvalsh(parameters.model(theta).mass_matrix(q))[0]
 
-    table = jax.jit(jax.vmap(lambda theta: jax.vmap(lambda q: smallest(theta, q))(q_grid)))(vertices)
-    return float(jnp.min(table))
+    return jnp.min(jax.vmap(lambda theta: jax.vmap(lambda q: smallest(theta, q))(q_grid))(vertices))
 
 
 @final

@@ -12,6 +12,7 @@ import lookout as _lookout  # noqa: F401  (enables jax_enable_x64)
 from . import (
     calugi_2002_adaptive_observer,
     calugi_2002_backstepping,
+    calugi_2002_furuta,
     calugi_2002_parameter_estimation,
     calugi_2002_velocity_observer,
     calugi_2003,
@@ -21,4 +22,4 @@ from . import (
 )
 
 #: name -> module, in the order `lookout list` shows them
-REPRODUCTIONS = {module.NAME: module for module in (fossen_strand_1999, calugi_2002_velocity_observer, calugi_2002_parameter_estimation, calugi_2002_adaptive_observer, calugi_2002_backstepping, kim_2002, calugi_2003, wondergem_2009)}
+REPRODUCTIONS = {module.NAME: module for module in (fossen_strand_1999, calugi_2002_velocity_observer, calugi_2002_parameter_estimation, calugi_2002_adaptive_observer, calugi_2002_backstepping, calugi_2002_furuta, kim_2002, calugi_2003, wondergem_2009)}
