@@ -7,6 +7,15 @@ import os
 if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
 
+# One persistent XLA compilation cache per pytest run, shared by its xdist workers (a worker's
+# parent is the controller): a program one worker compiled, the other loads. Fresh per run,
+# so timings do not depend on earlier runs. A JAX_COMPILATION_CACHE_DIR already set wins.
+import tempfile  # noqa: E402
+
+_run = os.getppid() if "PYTEST_XDIST_WORKER" in os.environ else os.getpid()
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.path.join(tempfile.gettempdir(), f"lookout-test-jax-cache-{_run}"))
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
+
 import lookout  # noqa: E402  (enables float64 before any test builds arrays)
 
 lookout.configure_cpu(devices=2)  # the CLI's XLA:CPU options, and two devices: batches take the sharded path

@@ -33,9 +33,9 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec
 from lookout.components import Controller, Layout
-from lookout.models.manipulators import JOINT_POSITION, JOINT_VELOCITY, joint_layout
+from lookout.models.manipulators import JOINT_POSITION, joint_layout
 from lookout.models.parameters import AffineParameters
-from lookout.observers.adaptive_manipulator import theta_signal_name
+from lookout.observers.adaptive_manipulator import read_estimate
 
 
 @final
@@ -66,7 +66,6 @@ class AdaptiveObserverBackstepping(Controller):
     velocity_gain: Array
     damping_weights: Array
     position_layout: Layout = eqx.field(static=True)
-    velocity_layout: Layout = eqx.field(static=True)
 
     def __init__(self, parameters: AffineParameters, observer_gain, position_gain, velocity_gain, damping_weights):
         if not isinstance(parameters, AffineParameters):
@@ -79,7 +78,6 @@ class AdaptiveObserverBackstepping(Controller):
         self.velocity_gain = jnp.asarray(check.vector("velocity_gain C2", velocity_gain, n))
         self.damping_weights = jnp.asarray(check.vector("damping_weights d", damping_weights, 2 * n))
         self.position_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION)
-        self.velocity_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY)
 
     def __check_init__(self):
         for name, value in (("observer gain K", self.observer_gain), ("position_gain C1", self.position_gain),
@@ -124,9 +122,7 @@ class AdaptiveObserverBackstepping(Controller):
     def step(self, state, t, y, estimate, reference, dt):
         """``((), tau_k)`` from q_k, x1_hat_k and theta_hat_k of the estimate."""
         del t, y, dt
-        q = self.position_layout.join({s.name: estimate[s.name] for s in self.position_layout.signals})
-        velocity = self.velocity_layout.join({s.name: estimate[s.name] for s in self.velocity_layout.signals})
-        theta = jnp.stack([jnp.asarray(estimate[theta_signal_name(name)]) for name in self.parameters.names])
+        q, velocity, theta = read_estimate(estimate, self.parameters)
         return state, self.law(q, velocity, theta, reference)
 
 

@@ -33,16 +33,14 @@ from __future__ import annotations
 
 from typing import final
 
-import equinox as eqx
 import jax.numpy as jnp
 from jax import Array
 
 from lookout import _validation as check
 from lookout._math import matvec
-from lookout.components import Controller, Layout
-from lookout.models.manipulators import JOINT_POSITION, JOINT_VELOCITY, joint_layout
+from lookout.components import Controller
 from lookout.models.parameters import AffineParameters
-from lookout.observers.adaptive_manipulator import theta_signal_name
+from lookout.observers.adaptive_manipulator import read_estimate
 
 #: The reference signal the controller reads: ``<name>_desired`` (rad), ``_rate``, ``_acceleration``.
 PENDULUM_REFERENCE = "pendulum_angle"
@@ -81,8 +79,6 @@ class FurutaPendulumBackstepping(Controller):
     position_damping: Array
     velocity_gain: Array
     velocity_damping: Array
-    position_layout: Layout = eqx.field(static=True)
-    velocity_layout: Layout = eqx.field(static=True)
 
     def __init__(self, parameters: AffineParameters, position_gain, position_damping, velocity_gain, velocity_damping):
         if not isinstance(parameters, AffineParameters):
@@ -95,8 +91,6 @@ class FurutaPendulumBackstepping(Controller):
         self.position_damping = _gain("position_damping d1", position_damping)
         self.velocity_gain = _gain("velocity_gain c2", velocity_gain)
         self.velocity_damping = _gain("velocity_damping d2", velocity_damping)
-        self.position_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION)
-        self.velocity_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY)
 
     def __check_init__(self):
         for name, value in (("position_gain c1", self.position_gain), ("position_damping d1", self.position_damping),
@@ -134,9 +128,7 @@ class FurutaPendulumBackstepping(Controller):
     def step(self, state, t, y, estimate, reference, dt):
         """``((), (tau_u, 0))`` from the estimate's q, x1_hat and theta_hat."""
         del t, y, dt
-        q = self.position_layout.join({s.name: estimate[s.name] for s in self.position_layout.signals})
-        velocity = self.velocity_layout.join({s.name: estimate[s.name] for s in self.velocity_layout.signals})
-        theta = jnp.stack([jnp.asarray(estimate[theta_signal_name(name)]) for name in self.parameters.names])
+        q, velocity, theta = read_estimate(estimate, self.parameters)
         tau = self.law(q, velocity, theta, reference)
         return state, jnp.stack([tau, jnp.zeros_like(tau)])
 

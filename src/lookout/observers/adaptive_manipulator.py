@@ -68,6 +68,18 @@ def theta_signal_name(name: str) -> str:
     return f"{parameter_signal_name(name)}_hat"
 
 
+def read_estimate(estimate: dict, parameters: AffineParameters) -> tuple[Array, Array, Array]:
+    """``(q, x1_hat, theta_hat)`` from the output of an :class:`AdaptiveManipulatorObserver`
+    on ``parameters``: what the chapter 5 and 6 controllers close the loop on."""
+    model = parameters.model(parameters.reference)
+    positions = joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION)
+    velocities = joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY)
+    q = positions.join({s.name: estimate[s.name] for s in positions.signals})
+    velocity = velocities.join({s.name: estimate[s.name] for s in velocities.signals})
+    theta = jnp.stack([jnp.asarray(estimate[theta_signal_name(name)]) for name in parameters.names])
+    return q, velocity, theta
+
+
 class AdaptiveManipulatorState(eqx.Module):
     """Internal state of :class:`AdaptiveManipulatorObserver`.
 
@@ -296,4 +308,4 @@ class AdaptiveManipulatorObserver(Observer):
         )
 
 
-__all__ = ["AdaptiveGuess", "AdaptiveManipulatorObserver", "AdaptiveManipulatorState", "mass_matrix_margin", "theta_signal_name"]
+__all__ = ["AdaptiveGuess", "AdaptiveManipulatorObserver", "AdaptiveManipulatorState", "mass_matrix_margin", "read_estimate", "theta_signal_name"]
