@@ -174,6 +174,28 @@ def _analysable(option: str, symbol: str, value: float, unit: str) -> None:
         )
 
 
+def _within_range(option: str, values, *, allow_zero: bool = False) -> None:
+    """Fail unless every value lies in ANALYSIS_RANGE (or is 0, where ``allow_zero``)."""
+    low, high = ANALYSIS_RANGE
+    values = list(values)
+    smallest = min((v for v in values if not (allow_zero and v == 0)), default=low)
+    if max(values) > high or smallest < low:
+        raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
+
+
+def _finish_design(passed: bool, payload: dict, texts, as_json: bool) -> None:
+    """The end of a ``design`` command: the JSON object, or the report(s) and the verdict
+    line; exit code 1 when a condition fails."""
+    if as_json:
+        print(json.dumps(json_safe({"passed": passed, **payload}), allow_nan=False))
+    else:
+        for text in texts:
+            console.print(text, highlight=False, markup=False)
+        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
+    if not passed:
+        raise typer.Exit(code=1)
+
+
 def _config(module, options: dict):
     """A reproduction's Config from the CLI options, pydantic's error turned into one line."""
     try:
@@ -545,20 +567,13 @@ def design_sliding_mode_observer(
     eps = _positive_numbers("--boundary-layer", boundary_layer)
     bound = _non_negative_numbers("--disturbance", disturbance) if disturbance is not None else None
     for option, values in (("--velocity-gain", chosen["velocity_injection_gain"]), ("--bias-gain", chosen["bias_injection_gain"]), ("--switching-gain", kbar), ("--boundary-layer", eps)):
-        if max(values) > 1e12 or (min(values) < 1e-12 and min(values) != 0):
-            raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
+        _within_range(option, values, allow_zero=True)
     model = northern_clipper()
     observer = SlidingModeObserver.kim_2002(model, boundary_layer=eps, switching_gain=kbar, **chosen)
     report = check_kim_2002(observer, model, disturbance_bound=bound)
     verdicts = report.verdicts
     passed = verdicts["tuning_rule_48"] == "holds" and verdicts["kyp_14"] == "holds" and "fails" not in verdicts.values()
-    if as_json:
-        print(json.dumps(json_safe({"gain_set": gains, "passed": passed, **report.to_dict()}), allow_nan=False))
-    else:
-        console.print(report.text(), highlight=False, markup=False)
-        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
-    if not passed:
-        raise typer.Exit(code=1)
+    _finish_design(passed, {"gain_set": gains, **report.to_dict()}, [report.text()], as_json)
 
 
 @design_app.command("adaptive-observer")
@@ -595,19 +610,12 @@ def design_adaptive_observer(
     if not (0 < low <= 1 <= high and math.isfinite(high)):
         raise InputError(f"--theta-bounds must satisfy 0 < LOW <= 1 <= HIGH (ratios to m11); got {theta_bounds}")
     for option, values in (("--k1", k1), ("--k2", k2), ("--d", d)):
-        if max(values) > 1e12 or min(values) < 1e-12:
-            raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
+        _within_range(option, values)
     vessel = calugi_2003_vessel()
     m11 = float(vessel.mass_matrix[0, 0])
     report = check_calugi_2003(vessel, K1=k1, K2=k2, d=d, theta_bounds=[low * m11, high * m11])
     passed = all(verdict == "holds" for verdict in report.verdicts.values())
-    if as_json:
-        print(json.dumps(json_safe({"passed": passed, **report.to_dict()}), allow_nan=False))
-    else:
-        console.print(report.text(), highlight=False, markup=False)
-        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
-    if not passed:
-        raise typer.Exit(code=1)
+    _finish_design(passed, report.to_dict(), [report.text()], as_json)
 
 
 @design_app.command("adaptive-arm")
@@ -678,21 +686,13 @@ def design_adaptive_arm(
         raise InputError(f"--theta-error must be finite; got {theta:g}")
     d = numbers("--d", damping_weights, 2 * n) if damping_weights is not None else defaults["d"]
     for option, values in (("--k", K), ("--gamma", [G]), ("--d", d or [1.0])):
-        if max(values) > 1e12 or min(values) < 1e-12:
-            raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
+        _within_range(option, values)
     theorem = check_theorem_4_1(parameters, K, G, max_speed, margin=margin, initial_error=(x, [theta]))
     reports = {"theorem_4_1": theorem}
     if d is not None:
         reports["condition_5_28"] = check_5_28(parameters, K, d, max_speed, initial_error=x)
     passed = all(report.holds for report in reports.values())
-    if as_json:
-        print(json.dumps(json_safe({"arm": arm, "passed": passed, **{k: r.to_dict() for k, r in reports.items()}}), allow_nan=False))
-    else:
-        for report in reports.values():
-            console.print(report.text(), highlight=False, markup=False)
-        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
-    if not passed:
-        raise typer.Exit(code=1)
+    _finish_design(passed, {"arm": arm, **{k: r.to_dict() for k, r in reports.items()}}, [r.text() for r in reports.values()], as_json)
 
 
 @design_app.command("tracking-gains")
@@ -736,31 +736,20 @@ def design_tracking_gains(
         "natural_frequency": _positive_numbers("--omega", omega), "damping_ratio": _positive_numbers("--lambda", damping_ratio),
     }
     for option, key in (("--l1", "L1"), ("--l2", "L2"), ("--omega", "natural_frequency"), ("--lambda", "damping_ratio")):
-        if max(gains[key]) > 1e12 or min(gains[key]) < 1e-12:
-            raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in gains[key])}")
+        _within_range(option, gains[key])
     config = wondergem_2009.Config(start_angle=start_angle, direction=direction)
     if propose:
         if len(set(gains["damping_ratio"])) != 1:
             raise InputError(f"--lambda must be one number with --propose (Lambda = lambda I); got {damping_ratio}")
         proposal = wondergem_2009.proposed_gains(config, velocity_bound, estimate=start, damping_ratio=gains["damping_ratio"][0])
         passed = proposal.found and proposal.report is not None and proposal.report.holds
-        if as_json:
-            print(json.dumps(json_safe({"passed": passed, "start": start, **proposal.to_dict()}), allow_nan=False))
-        else:
-            console.print(proposal.text(), highlight=False, markup=False)
-            if not proposal.found and start == "printed":
-                console.print("hint: --start measured (eta_hat0 = eta0, v_hat0 = 0) removes V0's dependence on L1, L2", highlight=False, markup=False)
+        texts = [proposal.text()]
+        if not proposal.found and start == "printed":
+            texts.append("hint: --start measured (eta_hat0 = eta0, v_hat0 = 0) removes V0's dependence on L1, L2")
+        _finish_design(passed, {"start": start, **proposal.to_dict()}, texts, as_json)
     else:
         report = wondergem_2009.gain_conditions(config, velocity_bound, estimate=start, gains=gains, epsilon3=epsilon3)
-        passed = report.holds
-        if as_json:
-            print(json.dumps(json_safe({"passed": passed, "start": start, "gains": gains, **report.to_dict()}), allow_nan=False))
-        else:
-            console.print(report.text(), highlight=False, markup=False)
-    if not as_json:
-        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
-    if not passed:
-        raise typer.Exit(code=1)
+        _finish_design(report.holds, {"start": start, "gains": gains, **report.to_dict()}, [report.text()], as_json)
 
 
 def _print_design(result: dict, observer, tuning, spr) -> None:

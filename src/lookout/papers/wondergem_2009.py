@@ -321,44 +321,52 @@ def _start(config: Config, estimate: str) -> dict:
             "velocity_hat0": np.append(np.asarray(start["position_rate"]), float(start["heading_rate"]))}
 
 
-def gain_conditions(config: Config, velocity_bound: float = 0.3, *, estimate: str = "printed", gains: dict | None = None, epsilon3=None):
+def _reference_arguments(config: Config, bounds: dict | None) -> dict:
+    """The reference's data as the keyword arguments of the gain conditions and the search
+    (``bounds`` from :func:`reference_bounds`, computed here when not given)."""
+    bounds = reference_bounds(config) if bounds is None else bounds
+    return {
+        "reference_position0": bounds["position0"], "reference_velocity0": bounds["velocity0"], "yaw_rate_max": bounds["yaw_rate_max"],
+        "reference_speed_max": bounds["speed_max"], "reference_acceleration_max": bounds["acceleration_max"],
+    }
+
+
+def gain_conditions(config: Config, velocity_bound: float = 0.3, *, estimate: str = "printed", gains: dict | None = None, epsilon3=None,
+                    bounds: dict | None = None):
     """Conditions (25), Prop. 3.1 and Prop. 3.3
     (:func:`lookout.analysis.tracking.check_wondergem_2009`) at the configured start, for
     the printed gains or ``gains`` (keys L1, L2, natural_frequency, damping_ratio)."""
     from lookout.analysis.tracking import check_wondergem_2009
 
-    bounds = reference_bounds(config)
     chosen = {"L1": 15.0, "L2": 50.0, "natural_frequency": (0.72, 0.42, 0.64), "damping_ratio": 1.0, **(gains or {})}
     return check_wondergem_2009(
         cybership2(), observer_gains=(chosen["L1"], chosen["L2"]),
         natural_frequency=chosen["natural_frequency"], damping_ratio=chosen["damping_ratio"], **_start(config, estimate),
-        reference_position0=bounds["position0"], reference_velocity0=bounds["velocity0"], yaw_rate_max=bounds["yaw_rate_max"],
-        velocity_bound=velocity_bound, reference_speed_max=bounds["speed_max"], reference_acceleration_max=bounds["acceleration_max"],
-        epsilon3=epsilon3,
+        **_reference_arguments(config, bounds), velocity_bound=velocity_bound, epsilon3=epsilon3,
     )
 
 
 def gain_study(config: Config) -> dict:
     """summary.json's gain part: the printed gains at the printed start and with the
     estimate started at the measurement, the search's proposal, and the ellipse's thrust."""
-    proposal = proposed_gains(config)
+    bounds = reference_bounds(config)
+    proposal = proposed_gains(config, bounds=bounds)
     return {
-        "gain_conditions": gain_conditions(config).to_dict(),
-        "gain_conditions_measured_start": gain_conditions(config, estimate="measured").to_dict(),
+        "gain_conditions": gain_conditions(config, bounds=bounds).to_dict(),
+        "gain_conditions_measured_start": gain_conditions(config, estimate="measured", bounds=bounds).to_dict(),
         "gain_proposal": proposal.to_dict(),
         "reference_thrust": reference_thrust(config),
     }
 
 
-def proposed_gains(config: Config, velocity_bound: float = 0.3, *, estimate: str = "measured", damping_ratio: float = 1.0):
+def proposed_gains(config: Config, velocity_bound: float = 0.3, *, estimate: str = "measured", damping_ratio: float = 1.0,
+                   bounds: dict | None = None):
     """:func:`lookout.analysis.tracking.propose_wondergem_2009` at the configured start."""
     from lookout.analysis.tracking import propose_wondergem_2009
 
-    bounds = reference_bounds(config)
     return propose_wondergem_2009(
-        cybership2(), damping_ratio=damping_ratio, **_start(config, estimate),
-        reference_position0=bounds["position0"], reference_velocity0=bounds["velocity0"], yaw_rate_max=bounds["yaw_rate_max"],
-        reference_speed_max=bounds["speed_max"], reference_acceleration_max=bounds["acceleration_max"], velocity_bound=velocity_bound,
+        cybership2(), damping_ratio=damping_ratio, **_start(config, estimate), **_reference_arguments(config, bounds),
+        velocity_bound=velocity_bound,
     )
 
 
