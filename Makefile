@@ -3,7 +3,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out/fossen-strand-1999
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench study clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,15 @@ demo: $(VENV)/.installed
 
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -n auto --dist loadgroup
+
+# The README's example study: two campaigns, their reports, and the figures in docs/study/.
+STUDIES ?= out/studies
+study: $(VENV)/.installed
+	mkdir -p $(STUDIES) docs/study
+	$(BIN)/lookout campaign run examples/dp-study.toml --out $(STUDIES)/dp-study.zarr
+	$(BIN)/lookout campaign report $(STUDIES)/dp-study.zarr --figures docs/study/dp-study
+	$(BIN)/lookout campaign run examples/kim-model-error.toml --out $(STUDIES)/kim-model-error.zarr
+	$(BIN)/lookout campaign report $(STUDIES)/kim-model-error.zarr --figures docs/study/kim-model-error
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py

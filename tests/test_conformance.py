@@ -424,7 +424,18 @@ def test_decimated_records_are_every_nth_sample_of_the_full_run(case):
     np.testing.assert_allclose(np.asarray(b.measurement), np.asarray(a.measurement)[::every], rtol=1e-12, atol=1e-15)
 
 
+GRADIENT_CASES = [c for c in CASES if c.gradient is not None and c.name.split(" (")[0] in (
+    "passive observer", "parameter estimator", "sliding-mode observer and backstepping",
+    "adaptive observer with resetting and observer backstepping",
+)]
+
+
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xdist_group(f"conformance {CASES.index(c)}")) for c in GRADIENT_CASES],
+                         ids=lambda case: case.name)
 def test_a_scenario_built_inside_vmap_simulates_like_one_built_alone(case):
+    """On the four cases of the gradient check (each compiles a program over a batched
+    scenario): observers, controllers, plants and references whose constructors run
+    under ``vmap`` (two open loops, two closed loops with thrust limits and resetting)."""
     gains = jnp.asarray([0.5, 1.0, 2.0])
     scenarios = eqx.filter_vmap(lambda g: case.build(g, duration=10.0))(gains)
     keys = jax.random.split(jax.random.key(9), 3)
@@ -432,12 +443,6 @@ def test_a_scenario_built_inside_vmap_simulates_like_one_built_alone(case):
     for i, gain in enumerate(gains.tolist()):
         single = simulate(case.build(gain, duration=10.0), keys[i])
         assert _max_difference(jax.tree.map(lambda a: a[i], batch.estimate), single.estimate) < 1e-10
-
-
-GRADIENT_CASES = [c for c in CASES if c.gradient is not None and c.name.split(" (")[0] in (
-    "passive observer", "parameter estimator", "sliding-mode observer and backstepping",
-    "adaptive observer with resetting and observer backstepping",
-)]
 
 
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xdist_group(f"conformance {CASES.index(c)}")) for c in GRADIENT_CASES],

@@ -94,3 +94,9 @@ def square(name: str, matrix: Any, *, size: int = 3) -> None:
 
 def _fmt(array: np.ndarray) -> str:
     return np.array2string(np.atleast_1d(array), precision=4, separator=", ")
+
+
+class InputError(Exception):
+    """Bad user input at the command line, reported as one line with exit code 2
+    (defined here, not in :mod:`lookout.cli`, so that ``python -m lookout.cli`` and the
+    command modules it loads share one class)."""

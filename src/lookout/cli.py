@@ -22,6 +22,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from lookout._validation import InputError
 from lookout.papers._report import json_safe
 
 try:  # typer >= 0.29 vendors click
@@ -70,10 +71,6 @@ REPRODUCE_OPTIONS = {
     "sample_interval": "--sample-interval",
     "conditions": "--condition",
 }
-
-
-class InputError(Exception):
-    """Bad user input, reported as one line with exit code 2."""
 
 
 def _version(value: bool) -> None:
@@ -322,11 +319,16 @@ def reproduce(
         Optional[str],
         typer.Option(metavar="NAME[,NAME]", help="wondergem-2009: simulation, basin-calm, basin-waves (comma-separated).", show_default="all three"),
     ] = None,
+    write_scenario: Annotated[
+        Optional[str],
+        typer.Option(metavar="FILE", help="Write the reproduction's scenario (its first case, with these settings) as a scenario file for `lookout run`, and stop."),
+    ] = None,
 ) -> None:
     """Run a paper's simulation study.
 
     Writes a NetCDF of the runs, the paper's figures and summary.json to --out,
-    and prints the RMS estimation errors.
+    and prints the RMS estimation errors. With --write-scenario, writes the
+    scenario file instead and simulates nothing.
     """
     from lookout.papers import REPRODUCTIONS
 
@@ -342,6 +344,9 @@ def reproduce(
             owners = [other for other, candidate in REPRODUCTIONS.items() if field in candidate.Config.model_fields]
             raise InputError(f"{REPRODUCE_OPTIONS[field]}: {name} has no such setting (it belongs to {', '.join(owners)})")
     config = _config(module, {"seed": seed, "runs": runs, "duration": duration, **extra})
+    if write_scenario is not None:
+        _write_scenario(name, config, write_scenario)
+        return
     _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)])
     folder = _output_folder("--out", out)
     try:
@@ -352,6 +357,22 @@ def reproduce(
         task = bar.add_task("run", total=1.0)
         summary = module.run(config, folder, progress=lambda done, total: bar.update(task, completed=done / total))
     _print_summary(summary, module.tables(summary), folder)
+
+
+def _write_scenario(name: str, config, text: str) -> None:
+    from lookout.studies.scenario_file import ScenarioSpec, save, templates
+
+    if not text.strip():
+        raise InputError("--write-scenario must name a file; got an empty path")
+    path = Path(text)
+    if path.is_dir():
+        raise InputError(f"--write-scenario must name a file, not the folder {path}; e.g. {path / (name + '.toml')}")
+    if path.suffix != ".toml":
+        raise InputError(f"--write-scenario must end in .toml; got {text}")
+    _writable_folder("--write-scenario", path.absolute().parent, text)
+    template = templates()[name]
+    save(ScenarioSpec(template, template.cases[0], config), path)
+    console.print(f"scenario written to {path} (case {template.cases[0]!r}; cases: {', '.join(template.cases)}); run it with: lookout run {path} --out FOLDER", highlight=False)
 
 
 def _print_summary(summary: dict, tables, out: Path) -> None:
@@ -779,6 +800,11 @@ def _print_design(result: dict, observer, tuning, spr) -> None:
     if "bode" in result:
         say(f"Bode plot written to {result['bode']}")
     say("design passes (exit code 0)" if result["passed"] else "design does not pass (exit code 1)")
+
+
+from lookout.studies.cli import register as _register_studies  # noqa: E402  (needs the helpers above)
+
+_register_studies(app)
 
 
 def _one_line(message: str) -> str:

@@ -122,6 +122,16 @@ def build(config: Config, sample_period: float, *, stress: bool = False, duratio
     )
 
 
+#: The scenarios a scenario file can name as its ``case`` (one per sample interval Delta (s)); the first is the
+#: default. See :mod:`lookout.studies.scenario_file`.
+CASES: tuple[str, ...] = tuple(f"delta-{period:g}" for period in SAMPLE_PERIODS)
+
+
+def case_scenario(config: Config, case: str) -> Scenario:
+    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
+    return build(config, SAMPLE_PERIODS[CASES.index(case)])
+
+
 def scenarios(config: Config) -> list[Scenario]:
     """The scenarios :func:`run` simulates first (one per Delta)."""
     return [build(config, period) for period in SAMPLE_PERIODS]

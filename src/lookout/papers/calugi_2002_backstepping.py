@@ -147,6 +147,16 @@ def build(config: Config, variant: str = "corrected") -> Scenario:
     )
 
 
+#: The scenarios a scenario file can name as its ``case`` (one per variant of (5.37)); the first is the
+#: default. See :mod:`lookout.studies.scenario_file`.
+CASES: tuple[str, ...] = VARIANTS
+
+
+def case_scenario(config: Config, case: str) -> Scenario:
+    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
+    return build(config, case)
+
+
 def scenarios(config: Config) -> list[Scenario]:
     """The scenarios :func:`run` simulates (one per variant)."""
     return [build(config, variant) for variant in VARIANTS]

@@ -176,6 +176,16 @@ def build(config: Config, name: str) -> Scenario:
     )
 
 
+#: The scenarios a scenario file can name as its ``case`` (one per simulation); the first is the
+#: default. See :mod:`lookout.studies.scenario_file`.
+CASES: tuple[str, ...] = ("sim1", "sim2", "sim1_free_swing", "sim2_rest")  # the keys of simulations()
+
+
+def case_scenario(config: Config, case: str) -> Scenario:
+    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
+    return build(config, case)
+
+
 def scenarios(config: Config) -> list[Scenario]:
     """The scenarios :func:`run` simulates, one per run of :func:`simulations`."""
     return [build(config, name) for name in simulations()]

@@ -121,6 +121,16 @@ def build(config: Config, name: str) -> Scenario:
     )
 
 
+#: The scenarios a scenario file can name as its ``case`` (one per system); the first is the
+#: default. See :mod:`lookout.studies.scenario_file`.
+CASES: tuple[str, ...] = tuple(SYSTEMS)
+
+
+def case_scenario(config: Config, case: str) -> Scenario:
+    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
+    return build(config, case)
+
+
 def scenarios(config: Config) -> list[Scenario]:
     """The scenarios :func:`run` simulates, one per system."""
     return [build(config, name) for name in SYSTEMS]

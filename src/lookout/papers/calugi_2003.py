@@ -200,6 +200,19 @@ def build(
 
 
 
+#: The scenarios a scenario file can name as its ``case`` (one per gain set, in closed loop); the first is the
+#: default. See :mod:`lookout.studies.scenario_file`.
+CASES: tuple[str, ...] = GAIN_SETS
+
+#: :func:`run` vmaps its runs over scenarios stacked per run (see :mod:`lookout.studies.scenario_file`).
+STACKED_BATCHES = True
+
+
+def case_scenario(config: Config, case: str) -> Scenario:
+    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
+    return build(config, case)
+
+
 def scenarios(config: Config) -> list[Scenario]:
     """The scenarios :func:`run` simulates (one per batch), for estimates before running."""
     return [scenario for scenario, _ in batches(config)]

@@ -27,9 +27,9 @@ from pydantic import Field, ValidationInfo, field_validator
 from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, settling_time
 from lookout.controllers import SinusoidalInput
 from lookout.environment import GaussMarkovBias, LinearWaveModel
-from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
+from lookout.models.vessel import VesselPlant, VesselState
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
-from lookout.papers._config import RunsConfig, finite_positive, whole_samples
+from lookout.papers._config import RunsConfig, VesselSettings, finite_positive, whole_samples
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
@@ -66,6 +66,15 @@ class Config(RunsConfig):
     bias_std: tuple[float, float, float] = (2e3, 2e3, 5e4)
     bias_initial: tuple[float, float, float] = (1e4, 5e3, 1e5)
     noise_std: tuple[float, float, float] = (0.5, 0.5, float(np.radians(0.1)))
+    dropout_probability: float = Field(0.0, description="probability that a position and heading fix is lost (the observer holds the last one)")
+    vessel: VesselSettings = Field(VesselSettings(), description="the vessel: Northern Clipper (the paper's) or your own M and D")
+
+    @field_validator("dropout_probability")
+    @classmethod
+    def _probability(cls, value):
+        if not (0.0 <= value < 1.0):
+            raise ValueError(f"must be in [0, 1); got {value:g}")
+        return value
 
     @field_validator(
         "plant_step", "sample_period", "measurement_period", "duration", "wave_frequency",
@@ -98,9 +107,9 @@ class Config(RunsConfig):
 
 def build(config: Config) -> Scenario:
     """The simulation scenario of Section 6.1 for ``config``."""
-    vessel = northern_clipper()
+    vessel = config.vessel.dp_vessel()
     velocity_gain, bias_gain = injection_gains_from_normalized(
-        config.velocity_gain_normalized, config.bias_gain_normalized, mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH
+        config.velocity_gain_normalized, config.bias_gain_normalized, mass=config.vessel.mass, length=config.vessel.length
     )
     observer = PassiveObserver.design(
         vessel,
@@ -121,7 +130,7 @@ def build(config: Config) -> Scenario:
     )
     return Scenario(
         plant=plant,
-        sensor=PositionHeadingSensor(config.noise_std, config.measurement_period),
+        sensor=PositionHeadingSensor(config.noise_std, config.measurement_period, config.dropout_probability),
         observer=observer,
         controller=SinusoidalInput.fossen_strand_1999(),
         initial_state=VesselState.build(bias=config.bias_initial),
@@ -265,6 +274,16 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     )
     write_summary(summary, out)
     return summary
+
+
+#: The scenarios a scenario file can name as its ``case`` (the Section 6.1 study); the first is the
+#: default. See :mod:`lookout.studies.scenario_file`.
+CASES: tuple[str, ...] = ("paper",)
+
+
+def case_scenario(config: Config, case: str) -> Scenario:
+    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
+    return build(config)
 
 
 def scenarios(config: Config) -> list[Scenario]:

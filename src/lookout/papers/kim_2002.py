@@ -240,6 +240,19 @@ def build(config: Config, observer: str = "sliding-mode", *, model_error: ModelE
 SWEEP_RECORD_EVERY = 10
 
 
+#: The scenarios a scenario file can name as its ``case`` (one per observer, in closed loop); the first is the
+#: default. See :mod:`lookout.studies.scenario_file`.
+CASES: tuple[str, ...] = OBSERVERS
+
+#: :func:`run` vmaps its runs over scenarios stacked per run (see :mod:`lookout.studies.scenario_file`).
+STACKED_BATCHES = True
+
+
+def case_scenario(config: Config, case: str) -> Scenario:
+    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
+    return build(config, case)
+
+
 def scenarios(config: Config) -> list[Scenario]:
     """The scenarios :func:`run` simulates (one per batch), for estimates made before running."""
     return [scenario for scenario, _ in batches(config)]

@@ -168,6 +168,19 @@ def build(config: Config, condition: str = "simulation", *, start_angle=None, di
     )
 
 
+#: The scenarios a scenario file can name as its ``case`` (one per condition); the first is the
+#: default. See :mod:`lookout.studies.scenario_file`.
+CASES: tuple[str, ...] = CONDITIONS
+
+#: :func:`run` vmaps its runs over scenarios stacked per run (see :mod:`lookout.studies.scenario_file`).
+STACKED_BATCHES = True
+
+
+def case_scenario(config: Config, case: str) -> Scenario:
+    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
+    return build(config, case)
+
+
 def scenarios(config: Config) -> list[Scenario]:
     """The scenarios :func:`run` simulates (one per condition), for estimates before running."""
     return [build(config, condition) for condition in config.conditions]

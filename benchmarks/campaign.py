@@ -1,0 +1,93 @@
+"""Campaign overhead and throughput on this machine.
+
+(a) bare: ``simulate_batch`` of the campaign's chunks, one after another, in this
+    process (the same batches, compiled beforehand), nothing else;
+(b) campaign, in this process (``--workers 0``): the same chunks through
+    ``run_campaign``: metrics reduced per chunk, each chunk written to the Zarr store
+    with its completion record (compiled beforehand, so (b) - (a) is the overhead);
+(c) campaign on a local dask cluster of 1 worker and (d) of 2 workers, from a cold
+    start: cluster start-up, each worker's compilation and the chunks.
+
+Prints wall seconds, runs per second and simulated seconds per wall second, and the
+overhead (b)/(a) - 1 (target <= 10 %).
+Usage: python benchmarks/campaign.py [--points 8] [--seeds 64] [--chunk-runs 32] [--duration 1500]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import lookout
+
+lookout.configure_cpu()  # before JAX computes anything
+
+
+def main() -> None:
+    import jax
+
+    from lookout.sim import keys_of_seeds, simulate_batch
+    from lookout.studies.campaign import _point_scenario, campaign_from_document, compute_chunk
+    from lookout.studies.execute import run_campaign
+
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--points", type=int, default=8)
+    parser.add_argument("--seeds", type=int, default=64)
+    parser.add_argument("--chunk-runs", type=int, default=32)
+    parser.add_argument("--duration", type=float, default=1500.0)
+    parser.add_argument("--skip-dask", action="store_true")
+    args = parser.parse_args()
+
+    values = [0.4 + 0.6 * i / max(1, args.points - 1) for i in range(args.points)]
+    document = {
+        "scenario": {"template": "fossen-strand-1999", "case": "paper", "settings": {"duration": args.duration}},
+        "seeds_per_point": args.seeds, "chunk_runs": args.chunk_runs,
+        "metrics": ["rms_error:position", "rms_error:velocity", "max_excursion:position", "settling_time:bias_force", "rms_input:force"],
+        "sweep": {"kind": "grid", "axes": [{"field": "wave_frequency", "values": values}]},
+    }
+    campaign = campaign_from_document(document, "<benchmark>")
+    chunks = campaign.chunks()
+    runs = len(chunks) * campaign.chunk_runs
+    simulated = runs * args.duration
+    canonical = campaign.canonical()
+    print(f"{len(chunks)} chunks of {campaign.chunk_runs} runs, {runs} runs of {args.duration:g} s; devices: {jax.devices()}")
+
+    # compile both paths once
+    compute_chunk(canonical, 0, chunks[0].seeds)
+    folder = Path(tempfile.mkdtemp(prefix="lookout-bench-"))
+
+    def bare() -> float:
+        start = time.perf_counter()
+        for chunk in chunks:
+            trajectory = simulate_batch(_point_scenario(canonical, chunk.point), keys_of_seeds(list(chunk.seeds)))
+            jax.block_until_ready(trajectory.truth)
+        return time.perf_counter() - start
+
+    def in_process(name: str) -> float:
+        start = time.perf_counter()
+        run_campaign(campaign, folder / name, workers=0, say=lambda text: None)
+        return time.perf_counter() - start
+
+    rows = []
+    for repeat in range(3):
+        rows.append((bare(), in_process(f"in-process-{repeat}.zarr")))
+    for a, b in rows:
+        print(f"(a) bare {a:7.2f} s   (b) campaign in process {b:7.2f} s   overhead {b / a - 1:+.1%}")
+    best_a, best_b = min(r[0] for r in rows), min(r[1] for r in rows)
+    print(f"best: (a) {best_a:.2f} s, {runs / best_a:.0f} runs/s, {simulated / best_a:.3g} simulated s / s; (b) {best_b:.2f} s, overhead {best_b / best_a - 1:+.1%}")
+    if not args.skip_dask:
+        for workers in (1, 2):
+            start = time.perf_counter()
+            messages = []
+            run_campaign(campaign, folder / f"dask-{workers}.zarr", workers=workers, say=messages.append)
+            wall = time.perf_counter() - start
+            calibration = next((m for m in messages if m.startswith("calibration")), "")
+            print(f"({'c' if workers == 1 else 'd'}) {workers} dask worker(s), cold: {wall:7.2f} s, {runs / wall:.0f} runs/s, {simulated / wall:.3g} simulated s / s  [{calibration}]")
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

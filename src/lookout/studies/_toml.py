@@ -1,0 +1,129 @@
+"""Reading and writing the TOML files of scenarios and campaigns.
+
+Python reads TOML (``tomllib``) but does not write it; the files lookout writes hold
+only tables, strings, booleans, integers, floats and (nested) lists of them, so the
+writer below covers exactly that. Floats are written with ``repr``, which TOML
+reads back to the same double: a written file gives the same numbers.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from pathlib import Path
+from typing import Any
+
+
+class FileError(ValueError):
+    """A scenario or campaign file that cannot be used; the message is one line that
+    names the file, the key (and its line where it can be found) and the condition."""
+
+
+def _scalar(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        escaped = value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+        return f'"{escaped}"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_scalar(item) for item in value) + "]"
+    if isinstance(value, dict):  # a table inside an array: an inline table
+        return "{ " + ", ".join(f"{key} = {_scalar(item)}" for key, item in value.items() if item is not None) + " }"
+    raise TypeError(f"cannot write {type(value).__name__} to TOML")
+
+
+def _comment(text: str | None) -> list[str]:
+    return [f"# {line}".rstrip() for line in text.splitlines()] if text else []
+
+
+def dumps(document: dict, comments: dict[str, str] | None = None, header: str | None = None) -> str:
+    """``document`` as TOML text.
+
+    ``comments`` maps a dotted key (``settings.duration``) to a comment written above
+    it; ``header`` is written as comment lines at the top. ``None`` values are left
+    out (TOML has no null: the reader's default applies).
+    """
+    comments = comments or {}
+    lines = _comment(header)
+    if lines:
+        lines.append("")
+
+    def table(prefix: str, values: dict) -> None:
+        scalars = {k: v for k, v in values.items() if v is not None and not isinstance(v, dict)}
+        tables = {k: v for k, v in values.items() if isinstance(v, dict)}
+        for key, value in scalars.items():
+            lines.extend(_comment(comments.get(f"{prefix}{key}")))
+            lines.append(f"{key} = {_scalar(value)}")
+        for key, value in tables.items():
+            lines.append("")
+            lines.extend(_comment(comments.get(f"{prefix}{key}")))
+            lines.append(f"[{prefix}{key}]")
+            table(f"{prefix}{key}.", value)
+
+    table("", document)
+    return "\n".join(lines) + "\n"
+
+
+def write(path: str | Path, document: dict, comments: dict[str, str] | None = None, header: str | None = None) -> Path:
+    """Write ``document`` to ``path`` as TOML (see :func:`dumps`)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(dumps(document, comments, header))
+    return path
+
+
+def read(path: str | Path) -> tuple[dict, str]:
+    """The parsed document and the text of ``path``; a missing file or a TOML syntax
+    error is a :class:`FileError` naming the file (and the parser's line)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise FileError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise FileError(f"{path}: cannot be read ({error})") from None
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as error:
+        raise FileError(f"{path}: not valid TOML: {error}") from None
+
+
+def key_line(text: str, location: tuple) -> int | None:
+    """The line (1-based) where the key at ``location`` (a path like
+    ``("settings", "noise_std", 0)``) is set in ``text``, if it can be found.
+
+    The table headers (``[settings.vessel]``) narrow the search to the right table;
+    dotted keys and inline tables are not followed (then None, and the message
+    names the key alone).
+    """
+    names = [part for part in location if isinstance(part, str)]
+    while names:  # the key itself, else the nearest enclosing key that is set on a line
+        line = _key_line(text, names)
+        if line is not None:
+            return line
+        names = names[:-1]
+    return None
+
+
+def _key_line(text: str, names: list[str]) -> int | None:
+    *tables, key = names
+    current: list[str] = []
+    pattern = re.compile(rf"^\s*(\"?){re.escape(key)}\1\s*=")
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        header = re.match(r"^\[\s*([^\[\]]+?)\s*\]$", stripped)
+        if header:
+            current = [part.strip().strip('"') for part in header.group(1).split(".")]
+            continue
+        if current == tables and pattern.match(line):
+            return number
+    return None

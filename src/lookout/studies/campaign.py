@@ -1,0 +1,447 @@
+"""Campaign specs: a base scenario, sweep axes, seeds per point, metrics; and their chunks.
+
+A campaign spec is a TOML file::
+
+    scenario = "dp-observer.toml"     # a scenario file, relative to this file
+    seeds_per_point = 32              # runs at every sweep point: seeds seed .. seed + 31
+    seed = 0                          # the same seeds at every point (common random numbers)
+    chunk_runs = 16                   # runs per chunk: one vmapped batch, one dask task
+    metrics = ["rms_error:position", "max_excursion:position", "rms_input:force"]
+    after = 1500.0                    # metrics over t >= after (default: half the run)
+
+    [divergence]                      # optional: a run whose error of `signal` exceeds
+    signal = "position"               # `limit` at any time counts as diverged
+    limit = 50.0
+
+    [sweep]
+    kind = "grid"                     # or "latin-hypercube" (then `points` and `seed`)
+
+    [[sweep.axes]]
+    field = "wave_frequency"          # a settings path of the scenario
+    values = [0.6, 0.9, 1.2]
+
+    [[sweep.axes]]
+    field = ["bias_std[0]", "bias_std[1]", "bias_std[2]"]
+    values = [0.5, 1.0, 2.0]
+    scale = true                      # multiply the base values instead of replacing them
+
+    [trajectories]                    # optional: keep these recorded signals, decimated
+    signals = ["position", "position_hat"]
+    every = 10
+
+A grid axis gives ``values``, or ``range = [low, high]`` with ``steps``; a
+Latin-hypercube axis gives ``range``. The points of a grid are the Cartesian product
+of the axes (the last axis varies fastest); a Latin hypercube draws ``points`` points
+with one point in each of ``points`` equal strata of every axis.
+
+The work is split into chunks: one sweep point times one block of ``chunk_runs``
+seeds. :func:`compute_chunk` simulates a chunk as one vmapped batch and returns only
+its metrics (and decimated trajectories if asked): that is all that leaves a worker.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from lookout.studies._toml import FileError, key_line, read
+from lookout.studies.scenario_file import ScenarioSpec, describe, from_document, get_path
+
+#: The largest batch a chunk defaults to.
+DEFAULT_CHUNK_RUNS = 64
+
+
+class Axis(BaseModel):
+    """One sweep axis: the settings it sets, and its values or range."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    field: str | tuple[str, ...] = Field(description="settings path(s) of the scenario, set to the same value")
+    values: tuple[Any, ...] | None = Field(None, description="the values (grid)")
+    range: tuple[float, float] | None = Field(None, description="[low, high]: steps values (grid) or strata (latin-hypercube)")
+    steps: int | None = Field(None, description="number of evenly spaced values over range (grid)")
+    scale: bool = Field(False, description="multiply each field's base value by the axis value instead of setting it")
+    name: str | None = Field(None, description="the axis's name in the store and report (default: from field)")
+
+    @field_validator("values")
+    @classmethod
+    def _some_values(cls, value):
+        if value is not None and len(value) == 0:
+            raise ValueError("must hold at least one value")
+        return value
+
+    @field_validator("range")
+    @classmethod
+    def _ordered(cls, value):
+        if value is not None and not (math.isfinite(value[0]) and math.isfinite(value[1]) and value[0] < value[1]):
+            raise ValueError(f"must be [low, high] with finite low < high; got {list(value)}")
+        return value
+
+    @field_validator("steps")
+    @classmethod
+    def _two_or_more(cls, value):
+        if value is not None and value < 2:
+            raise ValueError(f"must be at least 2; got {value}")
+        return value
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        return (self.field,) if isinstance(self.field, str) else tuple(self.field)
+
+    @property
+    def label(self) -> str:
+        if self.name:
+            return self.name
+        first = self.fields[0]
+        return first if len(self.fields) == 1 else first.split("[")[0] + ("_scale" if self.scale else "")
+
+
+class Sweep(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    kind: Literal["grid", "latin-hypercube"] = "grid"
+    points: int | None = Field(None, description="latin-hypercube: number of points")
+    seed: int = Field(0, description="latin-hypercube: seed of the draw")
+    axes: tuple[Axis, ...] = ()
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        for index, axis in enumerate(self.axes):
+            if self.kind == "grid" and (axis.values is None) == (axis.range is None or axis.steps is None):
+                raise ValueError(f"axes[{index}] of a grid needs values, or range and steps")
+            if self.kind == "latin-hypercube" and (axis.range is None or axis.values is not None):
+                raise ValueError(f"axes[{index}] of a latin-hypercube needs range (and no values)")
+        if self.kind == "latin-hypercube" and (self.points is None or self.points < 1):
+            raise ValueError("a latin-hypercube needs points >= 1")
+        labels = [axis.label for axis in self.axes]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"axis names repeat: {labels}; give each axis a distinct name")
+        return self
+
+
+class Divergence(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    signal: str
+    limit: float
+
+    @field_validator("limit")
+    @classmethod
+    def _positive(cls, value):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"must be a finite positive number; got {value:g}")
+        return value
+
+
+class Trajectories(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    signals: tuple[str, ...]
+    every: int = Field(10, description="keep one record in this many")
+
+    @field_validator("every")
+    @classmethod
+    def _positive(cls, value):
+        if value < 1:
+            raise ValueError(f"must be a positive integer; got {value}")
+        return value
+
+
+class CampaignSettings(BaseModel):
+    """The validated top level of a campaign spec (the scenario is resolved apart)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    scenario: str | dict
+    seeds_per_point: int = 8
+    seed: int = 0
+    chunk_runs: int | None = None
+    metrics: tuple[str, ...] = ()
+    after: float | None = None
+    divergence: Divergence | None = None
+    sweep: Sweep = Sweep()
+    trajectories: Trajectories | None = None
+
+    @field_validator("seeds_per_point")
+    @classmethod
+    def _positive_count(cls, value):
+        if value < 1:
+            raise ValueError(f"must be a positive integer; got {value}")
+        return value
+
+    @field_validator("seed")
+    @classmethod
+    def _seed(cls, value, info):
+        from lookout.papers._config import seed_for_runs
+
+        return seed_for_runs(value, info.data.get("seeds_per_point", 1))
+
+    @field_validator("chunk_runs")
+    @classmethod
+    def _divides(cls, value, info):
+        seeds = info.data.get("seeds_per_point")
+        if value is not None and (value < 1 or (seeds and seeds % value)):
+            raise ValueError(f"must be a positive divisor of seeds_per_point ({seeds}) so every chunk is the same batch; got {value}")
+        return value
+
+    @field_validator("after")
+    @classmethod
+    def _after(cls, value):
+        if value is not None and not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"must be a finite number of seconds >= 0; got {value:g}")
+        return value
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """One sweep point times one block of seeds: one vmapped batch, one task."""
+
+    index: int
+    point: int
+    block: int
+    seeds: tuple[int, ...]
+
+    @property
+    def key(self) -> str:
+        return f"chunk-{self.index:06d}"
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A validated campaign: its settings, base scenario, sweep points and metrics."""
+
+    settings: CampaignSettings
+    base: ScenarioSpec
+    points: tuple[dict[str, Any], ...]  # axis label -> value, per point
+    metric_names: tuple[str, ...]
+    source: str
+
+    @property
+    def axes(self) -> tuple[Axis, ...]:
+        return self.settings.sweep.axes
+
+    @property
+    def chunk_runs(self) -> int:
+        if self.settings.chunk_runs is not None:
+            return self.settings.chunk_runs
+        seeds = self.settings.seeds_per_point
+        return max(d for d in range(1, min(seeds, DEFAULT_CHUNK_RUNS) + 1) if seeds % d == 0)
+
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        return tuple(range(self.settings.seed, self.settings.seed + self.settings.seeds_per_point))
+
+    @property
+    def blocks(self) -> int:
+        return self.settings.seeds_per_point // self.chunk_runs
+
+    def chunks(self) -> list[Chunk]:
+        size = self.chunk_runs
+        return [
+            Chunk(point * self.blocks + block, point, block, self.seeds[block * size: (block + 1) * size])
+            for point in range(len(self.points)) for block in range(self.blocks)
+        ]
+
+    def document(self) -> dict:
+        """The campaign as one self-contained document: the scenario inlined."""
+        settings = self.settings.model_dump(mode="json", exclude_none=True)
+        settings["scenario"] = self.base.document()
+        settings["metrics"] = list(self.metric_names)
+        return settings
+
+    def canonical(self) -> str:
+        return json.dumps(self.document(), sort_keys=True, separators=(",", ":"))
+
+    def fingerprint(self) -> str:
+        return hashlib.sha256(self.canonical().encode()).hexdigest()[:16]
+
+    def point_spec(self, point: int) -> ScenarioSpec:
+        """The scenario of sweep point ``point``."""
+        return _point_spec(self.canonical(), point)
+
+    def changes(self, point: int) -> dict[str, Any]:
+        """Settings path -> value at ``point``."""
+        base = self.base.settings.model_dump(mode="python")
+        result = {}
+        for axis in self.axes:
+            value = self.points[point][axis.label]
+            for path in axis.fields:
+                result[path] = get_path(base, path) * value if axis.scale else value
+        return result
+
+
+@functools.lru_cache(maxsize=8)
+def _campaign(canonical: str) -> Campaign:
+    return campaign_from_document(json.loads(canonical), "<campaign>")
+
+
+@functools.lru_cache(maxsize=256)
+def _point_spec(canonical: str, point: int) -> ScenarioSpec:
+    campaign = _campaign(canonical)
+    return campaign.base.with_settings(campaign.changes(point), source=f"{campaign.source} (point {point})")
+
+
+@functools.lru_cache(maxsize=64)
+def _point_scenario(canonical: str, point: int):
+    """The built scenario of a point, once per process (building checks the components'
+    fit with ``jax.eval_shape``, which costs more than simulating a short chunk)."""
+    return _point_spec(canonical, point).build()
+
+
+def _grid_values(axis: Axis) -> list:
+    if axis.values is not None:
+        return list(axis.values)
+    return np.linspace(axis.range[0], axis.range[1], axis.steps).tolist()
+
+
+def _latin_hypercube(axes: tuple[Axis, ...], points: int, seed: int) -> list[dict]:
+    """One point in each of ``points`` equal strata of every axis, strata paired at random."""
+    rng = np.random.default_rng(seed)
+    columns = []
+    for axis in axes:
+        unit = (rng.permutation(points) + rng.random(points)) / points
+        columns.append(axis.range[0] + unit * (axis.range[1] - axis.range[0]))
+    return [{axis.label: float(column[i]) for axis, column in zip(axes, columns)} for i in range(points)]
+
+
+def _error(source: str, text: str | None, location: tuple, message: str) -> FileError:
+    line = key_line(text, location) if text else None
+    where = f" (line {line})" if line else ""
+    name = ".".join(str(p) if isinstance(p, str) else f"[{p}]" for p in location).replace(".[", "[")
+    return FileError(f"{source}: {name}{where}: {message}")
+
+
+def campaign_from_document(document: dict, source: str, text: str | None = None, folder: Path | None = None) -> Campaign:
+    """Validate a parsed campaign spec: its keys, its scenario, that every swept field
+    exists and takes the axis's values, and that every metric applies."""
+    from lookout.studies import metrics as metric_module
+
+    try:
+        settings = CampaignSettings.model_validate(document)
+    except ValidationError as error:
+        raise FileError(describe(error, source, text)) from None
+    scenario = settings.scenario
+    if isinstance(scenario, str):
+        path = Path(scenario)
+        if not path.is_absolute() and folder is not None:
+            path = folder / path
+        from lookout.studies.scenario_file import load
+
+        base = load(path)
+    else:
+        base = from_document(scenario, f"{source} [scenario]", None)
+    axes = settings.sweep.axes
+    if settings.sweep.kind == "grid":
+        grids = [_grid_values(axis) for axis in axes]
+        points = tuple({axis.label: value for axis, value in zip(axes, combo)} for combo in itertools.product(*grids)) if axes else ({},)
+    else:
+        points = tuple(_latin_hypercube(axes, settings.sweep.points, settings.sweep.seed))
+    base_values = base.settings.model_dump(mode="python")
+    for index, axis in enumerate(axes):
+        location = ("sweep", "axes", index, "field")
+        for path in axis.fields:
+            try:
+                current = get_path(base_values, path) if _exists(base_values, path) else None
+                if not _exists(base_values, path):
+                    raise FileError(f"the scenario has no setting {path!r}")
+                if axis.scale and not isinstance(current, (int, float)):
+                    raise FileError(f"scale = true needs a number at {path!r}; it holds {current!r}")
+            except FileError as error:
+                raise _error(source, text, location, str(error)) from None
+        # every value of the axis must make a valid scenario (checked on the base)
+        for value in (_grid_values(axis) if settings.sweep.kind == "grid" else list(axis.range)):
+            changes = {path: (get_path(base_values, path) * value if axis.scale else value) for path in axis.fields}
+            where = ("sweep", "axes", index, "values" if axis.values is not None else "range")
+            try:
+                changed = base.with_settings(changes, source=source)
+            except FileError as error:
+                detail = str(error).split(": ", 1)[-1]
+                raise _error(source, text, where, f"value {value!r}: {detail}") from None
+            try:
+                changed.build()
+            except ValueError as error:
+                raise _error(source, text, where, f"value {value!r} makes no scenario: {error}") from None
+    names = settings.metrics or ()
+    if not names:
+        raise _error(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.studies.metrics)")
+    scenario_object = base.build()
+    try:
+        metric_module.resolve(list(names), scenario_object)
+        if settings.divergence is not None:
+            signal = settings.divergence.signal
+            if signal not in {s.name for s in scenario_object.record_signals.truth}:
+                raise ValueError(f"the plant has no variable {signal!r}")
+    except ValueError as error:
+        raise _error(source, text, ("metrics",) if settings.divergence is None or "variable" not in str(error) else ("divergence", "signal"), str(error)) from None
+    if settings.trajectories is not None:
+        recorded = {name for _, name, _ in scenario_object.record_signals.variables()}
+        for signal in settings.trajectories.signals:
+            if signal not in recorded:
+                raise _error(source, text, ("trajectories", "signals"), f"no recorded signal {signal!r} (recorded: {', '.join(sorted(recorded))})")
+    return Campaign(settings, base, points, tuple(names), source)
+
+
+def _exists(values: dict, path: str) -> bool:
+    try:
+        get_path(values, path)
+        return True
+    except (KeyError, IndexError, TypeError, FileError):
+        return False
+
+
+def load_campaign(path: str | Path) -> Campaign:
+    """Read and validate the campaign spec at ``path``."""
+    document, text = read(path)
+    return campaign_from_document(document, str(path), text, Path(path).parent)
+
+
+# ----------------------------------------------------------------------------------
+# computing one chunk (runs on a worker)
+
+
+def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...], calibrate: bool = False) -> dict[str, np.ndarray]:
+    """Simulate one chunk as a vmapped batch and reduce it to its metrics.
+
+    Returns metric variable -> ``(runs,)`` array, ``diverged``, and ``trajectory__NAME``
+    -> ``(runs, kept records, ...)`` for the kept signals; plus ``seconds`` (wall time).
+    Built scenarios are cached per process, so a worker compiles once per shape.
+    With ``calibrate``, the batch is simulated a second time, compiled, and
+    ``warm_seconds`` is the time of that second simulation (the time of every later chunk).
+    """
+    import time
+
+    import jax
+
+    from lookout.sim import keys_of_seeds, simulate_batch
+    from lookout.studies import metrics as metric_module
+
+    start = time.perf_counter()
+    campaign = _campaign(canonical)
+    scenario = _point_scenario(canonical, point)
+    trajectory = simulate_batch(scenario, keys_of_seeds(list(seeds)))
+    warm = None
+    if calibrate:
+        again = time.perf_counter()
+        jax.block_until_ready(simulate_batch(scenario, keys_of_seeds(list(seeds))))
+        warm = time.perf_counter() - again
+    metrics = metric_module.resolve(list(campaign.metric_names), scenario)
+    divergence = campaign.settings.divergence
+    out = metric_module.reduce(trajectory, metrics, after=campaign.settings.after, divergence=None if divergence is None else (divergence.signal, divergence.limit))
+    kept = campaign.settings.trajectories
+    if kept is not None:
+        ds = trajectory.to_xarray()
+        for name in kept.signals:
+            out[f"trajectory__{name}"] = np.asarray(ds[name].values[:, :: kept.every])
+    out["seconds"] = np.asarray(time.perf_counter() - start - (warm or 0.0))
+    if warm is not None:
+        out["warm_seconds"] = np.asarray(warm)
+    return out

@@ -1,0 +1,253 @@
+"""The ``lookout run`` and ``lookout campaign`` commands (registered by :mod:`lookout.cli`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich import box
+from rich.console import Console
+from rich.table import Table
+
+from lookout._validation import InputError
+from lookout.papers._report import json_safe
+from lookout.studies._toml import FileError
+
+def _cli():
+    """:mod:`lookout.cli`, imported when a command runs (it imports this module)."""
+    from lookout import cli
+
+    return cli
+
+
+def console_print(text: str) -> None:
+    _cli().console.print(text, highlight=False, markup=False)
+
+
+campaign_app = typer.Typer(
+    no_args_is_help=True,
+    rich_markup_mode=None,
+    help="Campaigns: a scenario swept over axes and seeds, run in chunks on dask, stored in Zarr, resumable, reported in HTML.",
+)
+
+
+def _scenario(path: str, runs: int | None, seed: int | None):
+    from lookout.papers._config import positive_count, seed_for_runs
+    from lookout.studies.scenario_file import load
+
+    try:
+        if runs is not None:
+            positive_count(runs)
+    except ValueError as error:
+        raise InputError(f"--runs {error}") from None
+    try:
+        if seed is not None:
+            seed_for_runs(seed, runs or 1)
+    except ValueError as error:
+        raise InputError(f"--seed {error}") from None
+
+    try:
+        spec = load(path, runs=runs, seed=seed)
+    except FileError as error:
+        raise InputError(str(error)) from None
+    try:
+        scenario = spec.build()
+    except ValueError as error:
+        raise InputError(f"{path}: the settings do not make a scenario: {error}") from None
+    return spec, scenario
+
+
+def _default_metrics(scenario) -> list[str]:
+    """RMS estimation error of every estimated plant variable, RMS tracking error of
+    every tracked one, over the second half of the run."""
+    record = scenario.record_signals
+    names = [f"rms_error:{s.name}" for s in record.estimate]
+    names += [f"rms_tracking:{s.name[: -len('_desired')]}" for s in record.reference if s.name.endswith("_desired")]
+    return names
+
+
+def _batched(trajectory):
+    """The trajectory with a leading run axis (a single run gets one)."""
+    import jax
+
+    from lookout.results import Trajectory
+
+    if trajectory.batched:
+        return trajectory
+    add = lambda tree: jax.tree.map(lambda a: a[None], tree)  # noqa: E731
+    return Trajectory(trajectory.time, add(trajectory.truth), add(trajectory.estimate), add(trajectory.measurement), add(trajectory.reference),
+                      add(trajectory.command), add(trajectory.applied), trajectory.signals, True, trajectory.attrs)
+
+
+def run(
+    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file (see examples/ and `lookout reproduce NAME --write-scenario FILE`).")],
+    out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder; created if missing (its parent must exist).")] = "out/run",
+    runs: Annotated[Optional[int], typer.Option(metavar="N", help="Runs over seeds (vmapped), instead of the file's settings.runs.")] = None,
+    seed: Annotated[Optional[int], typer.Option(metavar="INT", help="Seed of run 0, instead of the file's settings.seed.")] = None,
+) -> None:
+    """Simulate a scenario file.
+
+    Writes run.nc (every recorded signal of every run), scenario.toml (the scenario
+    with every setting spelled out) and summary.json (RMS estimation and tracking
+    errors per run over the second half, and which runs diverged) to --out.
+    """
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from lookout.results import write_netcdf
+    from lookout.studies import metrics as metric_module
+    from lookout.studies.scenario_file import save, simulate_trajectory, to_dataset
+
+    spec, scenario = _scenario(scenario_file, runs, seed)
+    _cli()._check_memory([(scenario, len(spec.seeds))])
+    folder = _cli()._output_folder("--out", out)
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as error:
+        raise InputError(f"--out: cannot create {folder}: {error.strerror}") from None
+    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task("run", total=1.0)
+        trajectory = simulate_trajectory(spec, scenario=scenario, progress=lambda done, total: bar.update(task, completed=done / total))
+    ds = to_dataset(spec, trajectory)
+    write_netcdf(ds, folder / "run.nc", history=f"lookout run {scenario_file} (seeds {spec.seeds[0]}..{spec.seeds[-1]})")
+    save(spec, folder / "scenario.toml", header=f"lookout scenario, as run into this folder from {scenario_file}.\nRun it again with: lookout run scenario.toml --out DIR")
+
+    metrics = metric_module.resolve(_default_metrics(scenario), scenario)
+    values = metric_module.reduce(_batched(trajectory), metrics)
+    summary = {
+        "template": spec.template.name,
+        "case": spec.case,
+        "seeds": spec.seeds,
+        "status": ds.status.values.tolist(),
+        "metrics": {m.name: {"units": m.units, "description": m.description + " (t >= half the run)", "per_run": values[m.variable].tolist()} for m in metrics},
+        "files": ["run.nc", "scenario.toml", "summary.json"],
+    }
+    (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False) + "\n")
+
+    table = Table(title=f"{spec.template.name}, case {spec.case}: {len(spec.seeds)} run(s)", title_justify="left", box=box.SIMPLE_HEAD)
+    table.add_column("metric", justify="left")
+    table.add_column("units", justify="left")
+    table.add_column("mean over runs", justify="right")
+    for metric in metrics:
+        table.add_row(metric.name, metric.units, f"{float(values[metric.variable].mean()):.4g}")
+    _cli().console.print(table)
+    finite = summary["status"].count("finite")
+    console_print(f"{finite}/{len(summary['status'])} runs finite; written to the folder {folder}: {', '.join(summary['files'])}")
+
+
+def _campaign(spec_path: str):
+    from lookout.studies.campaign import load_campaign
+
+    try:
+        return load_campaign(spec_path)
+    except FileError as error:
+        raise InputError(str(error)) from None
+    except ValueError as error:  # the base scenario's components do not fit
+        raise InputError(f"{spec_path}: {error}") from None
+
+
+def _store_path(option: str, text: str, *, must_exist: bool) -> Path:
+    if not text.strip():
+        raise InputError(f"{option} must name a folder; got an empty path")
+    path = Path(text)
+    if must_exist:
+        if not (path / "_lookout" / "campaign.json").exists():
+            raise InputError(f"{option}: {path} is not a campaign store (no {path / '_lookout' / 'campaign.json'}); make one with lookout campaign run SPEC --out {path}")
+    elif path.exists() and not path.is_dir():
+        raise InputError(f"{option} must be a folder; {path} is an existing file")
+    elif not path.exists():
+        _cli()._writable_folder(option, path.absolute().parent, f"{option} {text}")
+    return path
+
+
+@campaign_app.command("run")
+def campaign_run(
+    spec: Annotated[str, typer.Argument(metavar="SPEC.toml", help="A campaign spec (see examples/).")],
+    out: Annotated[str, typer.Option(metavar="STORE", help="The Zarr store; an existing store of the same spec is resumed.")] = "out/campaign.zarr",
+    workers: Annotated[
+        Optional[int], typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
+    ] = None,
+    scheduler: Annotated[Optional[str], typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")] = None,
+) -> None:
+    """Run (or resume) a campaign: each chunk of the sweep is one vmapped batch and one
+    dask task; the metrics go to the store as chunks finish."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from lookout.studies.execute import run_campaign
+
+    if workers is not None and workers < 0:
+        raise InputError(f"--workers must be 0 (this process) or a positive number of workers; got {workers}")
+    if workers is not None and scheduler is not None:
+        raise InputError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
+    if scheduler is not None and not scheduler.strip():
+        raise InputError("--scheduler must be an address such as tcp://10.0.0.5:8786; got an empty string")
+    campaign = _campaign(spec)
+    store = _store_path("--out", out, must_exist=False)
+    say = console_print
+    with Progress(TextColumn("chunks"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task("chunks", total=len(campaign.chunks()), completed=0)
+        try:
+            result = run_campaign(
+                campaign, store, workers=workers, scheduler=scheduler, say=say,
+                progress=lambda done, total: bar.update(task, completed=done),
+            )
+        except ValueError as error:
+            raise InputError(f"{spec}: {error}") from None
+        except OSError as error:
+            if scheduler is not None:
+                raise InputError(f"--scheduler {scheduler}: cannot reach the scheduler ({error})") from None
+            raise
+    say(f"{result['done']}/{result['chunks']} chunks done ({result['computed']} computed now in {result['seconds']:.1f} s); store: {store}")
+    say(f"next: lookout campaign report {store}")
+
+
+@campaign_app.command("status")
+def campaign_status(
+    store: Annotated[str, typer.Argument(metavar="STORE", help="A campaign store.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Say what is done: chunks and runs, time spent, diverged runs, per sweep point."""
+    from lookout.studies.store import status
+
+    path = _store_path("STORE", store, must_exist=True)
+    info = status(path)
+    if as_json:
+        print(json.dumps(json_safe(info), allow_nan=False))
+        return
+    say = console_print
+    say(f"{path}: {info['title']}")
+    say(f"chunks: {info['chunks_done']} of {info['chunks']} done ({info['runs_done']} of {info['runs']} runs); {'complete' if info['complete'] else 'incomplete: run lookout campaign run SPEC --out ' + str(path) + ' to resume'}")
+    say(f"points: {info['points']} ({info['sweep_kind']} over {', '.join(info['axes']) or 'no axes'}), seeds per point: {info['seeds_per_point']}, chunk runs: {info['chunk_runs']}")
+    say(f"compute time in finished chunks: {info['chunk_seconds']:.1f} s; diverged runs so far: {info['diverged']}")
+    say(f"lookout {info['lookout_version']}, created {info['created']}, fingerprint {info['fingerprint']}")
+
+
+@campaign_app.command("report")
+def campaign_report(
+    store: Annotated[str, typer.Argument(metavar="STORE", help="A campaign store.")],
+    out: Annotated[Optional[str], typer.Option(metavar="FILE", help="The HTML file.", show_default="STORE's name + -report.html, beside it")] = None,
+    figures: Annotated[Optional[str], typer.Option(metavar="FOLDER", help="Also save each figure as a PNG in this folder.")] = None,
+) -> None:
+    """Write a static HTML report of a campaign store (opens in a browser without network)."""
+    from lookout.studies.report import write_report
+
+    path = _store_path("STORE", store, must_exist=True)
+    target = None
+    if out is not None:
+        if not out.strip() or not out.endswith((".html", ".htm")):
+            raise InputError(f"--out must name an .html file; got {out!r}")
+        _cli()._writable_folder("--out", Path(out).absolute().parent, out)
+        target = Path(out)
+    folder = None
+    if figures is not None:
+        folder = _cli()._output_folder("--figures", figures)
+        folder.mkdir(exist_ok=True)
+    written = write_report(path, target, figures_dir=folder)
+    console_print(f"report written to {written}" + (f"; figures in {folder}" if folder else ""))
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``run`` and ``campaign`` to the ``lookout`` command."""
+    app.command("run")(run)
+    app.add_typer(campaign_app, name="campaign")

@@ -1,0 +1,644 @@
+"""The static HTML report of a campaign store: one self-contained page.
+
+:func:`write_report` reads a store written by :class:`~lookout.studies.store.CampaignStore`
+and writes one HTML file that needs no server and loads nothing from the network: the
+figures are PNG images embedded as ``data:`` URIs, the style sheet is inline, and the
+only script is a few lines that count the images the browser managed to decode (shown
+in the page's footnote, ``images loaded: N of M``; a browser test reads it).
+
+The page holds, in order:
+
+- **provenance**: the title, the completion status (chunks and runs done; a store
+  whose campaign is still running says it is partial), lookout version, creation time,
+  campaign fingerprint, sweep kind and sizes, compute time and workers;
+- a **summary** table per metric (median and 10th/90th percentiles over every computed run);
+- per metric and per sweep axis, the **metric against the axis value** (see
+  :func:`report_figures`);
+- for a grid of two or more axes, a **heat map** per metric over the first two axes;
+- the **fraction of runs diverged** against each axis, and a table of the diverged runs;
+- the **campaign spec** (the scenario inlined), as JSON.
+
+Runs not computed yet are NaN in the store and are left out of every statistic; a
+statistic with no run behind it is not drawn (and a heat-map cell is grey).
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime
+import html
+import io
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["report_figures", "write_report", "default_report_path"]
+
+#: Figure resolution (dots per inch) of the PNGs.
+DPI = 100
+#: The diverged-runs table shows at most this many rows.
+MAX_DIVERGED_ROWS = 200
+#: Percentiles of the spread bands and error bars.
+LOW, HIGH = 10, 90
+
+_RC = {
+    "font.size": 10,
+    "axes.titlesize": 11,
+    "axes.labelsize": 10,
+    "legend.fontsize": 9,
+    "xtick.labelsize": 9,
+    "ytick.labelsize": 9,
+}
+
+
+# ----------------------------------------------------------------------------------
+# the data behind the figures
+
+
+@dataclass(frozen=True)
+class _Axis:
+    """A sweep axis: its store coordinate, label for plots, per-point values and levels."""
+
+    name: str  # coordinate name in the store
+    label: str  # axis label, units included
+    values: np.ndarray  # (points,)
+    levels: np.ndarray  # distinct values, sorted when numeric
+    numeric: bool
+
+    def positions(self) -> np.ndarray:
+        """Where the levels sit on a plot's axis: the values, or 0, 1, ... when categorical."""
+        return self.levels.astype(float) if self.numeric else np.arange(len(self.levels), dtype=float)
+
+    def point_positions(self) -> np.ndarray:
+        """Where each point sits on a plot's axis."""
+        if self.numeric:
+            return self.values.astype(float)
+        index = {value: i for i, value in enumerate(self.levels.tolist())}
+        return np.asarray([index[value] for value in self.values.tolist()], dtype=float)
+
+
+@dataclass(frozen=True)
+class _Metric:
+    """A metric variable: name in the store, its ``KIND:SIGNAL``, units, description, data."""
+
+    variable: str
+    name: str
+    units: str
+    description: str
+    data: np.ndarray  # (points, seeds), NaN where not computed or diverged
+
+    @property
+    def label(self) -> str:
+        return f"{self.name} ({self.units})" if self.units else self.name
+
+
+@dataclass
+class _Figure:
+    key: str  # file name of the PNG
+    figure: Any  # matplotlib.figure.Figure
+    caption: str
+    section: str  # "metric", "heatmap" or "diverged"
+    metric: str | None = None
+
+
+def _fmt(value) -> str:
+    """A number for a tick label or table cell: 4 significant digits, no trailing noise."""
+    if isinstance(value, (bool, np.bool_)):
+        return str(bool(value)).lower()
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        if not np.isfinite(value):
+            return str(float(value))
+        return f"{float(value):.4g}"
+    return str(value)
+
+
+def _stats(values: np.ndarray) -> tuple[float, float, float, int]:
+    """(median, 10th percentile, 90th percentile, count) of the finite ``values``; NaNs if none."""
+    finite = np.asarray(values, dtype=float).ravel()
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return np.nan, np.nan, np.nan, 0
+    low, high = np.percentile(finite, [LOW, HIGH])
+    return float(np.median(finite)), float(low), float(high), int(finite.size)
+
+
+def _fraction(values: np.ndarray) -> tuple[float, int]:
+    """(mean, count) of the non-NaN ``values`` (a fraction for 0/1 values); NaN if none."""
+    known = np.asarray(values, dtype=float).ravel()
+    known = known[~np.isnan(known)]
+    return (float(known.mean()), int(known.size)) if known.size else (np.nan, 0)
+
+
+def _spans_decades(values: np.ndarray, decades: float = 2.0) -> bool:
+    """Whether the finite ``values`` are all positive and span more than ``decades``."""
+    finite = np.asarray(values, dtype=float).ravel()
+    finite = finite[np.isfinite(finite)]
+    return finite.size > 1 and finite.min() > 0 and finite.max() / finite.min() > 10.0**decades
+
+
+_UNIT = re.compile(r"\(([A-Za-z%][A-Za-z0-9/^*.·%-]{0,11})\)")
+
+
+def _setting_units(document: dict | None, fields: list[str]) -> str | None:
+    """The units of a scenario setting, read from its template's field description
+    (``"w_o (rad/s), eq. (59)"`` -> ``rad/s``); None when the description gives none."""
+    if not document or not fields:
+        return None
+    try:
+        from pydantic import BaseModel
+
+        from lookout.studies.scenario_file import templates
+
+        model = templates()[document["scenario"]["template"]].settings
+        parts = [re.sub(r"\[.*?\]", "", part) for part in fields[0].split(".")]
+        for i, part in enumerate(parts):
+            info = model.model_fields[part]
+            if i == len(parts) - 1:
+                match = _UNIT.search(info.description or "")
+                return match.group(1) if match else None
+            import typing
+
+            candidates = [info.annotation, *typing.get_args(info.annotation)]
+            model = next(c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel))
+    except Exception:  # best effort: a label without units is still a label
+        return None
+    return None
+
+
+def _axes(ds, document: dict | None) -> list[_Axis]:
+    names = json.loads(ds.attrs.get("axes", "[]"))
+    axes = []
+    for name in names:
+        coordinate = ds[name]
+        values = np.asarray(coordinate.values)
+        attrs = coordinate.attrs
+        label = str(attrs.get("long_name", name))
+        fields = [f.strip() for f in str(attrs.get("fields", "")).split(",") if f.strip()]
+        if int(attrs.get("scale", 0)):
+            label += " (× base value)"
+        else:
+            units = attrs.get("units") or _setting_units(document, fields)
+            if units:
+                label += f" ({units})"
+        numeric = np.issubdtype(values.dtype, np.number) and not np.issubdtype(values.dtype, np.bool_)
+        if numeric:
+            levels = np.unique(values)
+        else:
+            seen = []
+            for value in values.tolist():
+                if value not in seen:
+                    seen.append(value)
+            levels = np.asarray(seen, dtype=object)
+        axes.append(_Axis(name, label, values, levels, bool(numeric)))
+    return axes
+
+
+def _metrics(ds, document: dict | None) -> list[_Metric]:
+    candidates = [
+        name for name, variable in ds.data_vars.items()
+        if name != "diverged" and variable.dims == ("point", "seed") and "metric" in variable.attrs
+    ]
+    order = [m.replace(":", "__") for m in (document or {}).get("metrics", [])]
+    candidates.sort(key=lambda name: order.index(name) if name in order else len(order))
+    result = []
+    for name in candidates:
+        variable = ds[name]
+        attrs = variable.attrs
+        result.append(_Metric(name, str(attrs.get("metric", name)), str(attrs.get("units", "")), str(attrs.get("long_name", name)),
+                              np.asarray(variable.values, dtype=float)))
+    return result
+
+
+def _diverged(ds) -> np.ndarray:
+    if "diverged" in ds:
+        return np.asarray(ds["diverged"].values, dtype=float)
+    return np.full((ds.sizes["point"], ds.sizes["seed"]), np.nan)
+
+
+# ----------------------------------------------------------------------------------
+# figures
+
+
+def _new_figure(size=(7.0, 4.2)):
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=size, dpi=DPI, layout="constrained")
+
+
+def _no_data(ax, message: str = "no runs computed yet") -> None:
+    ax.text(0.5, 0.5, message, transform=ax.transAxes, ha="center", va="center", color="0.4")
+
+
+def _x_axis(ax, axis: _Axis, kind: str) -> None:
+    """Label the x axis; tick at every level of a short grid; log scale for a grid whose
+    positive values span more than two decades (a Latin hypercube's strata are linear)."""
+    ax.set_xlabel(axis.label)
+    if not axis.numeric:
+        ax.set_xticks(axis.positions(), [_fmt(v) for v in axis.levels])
+    elif kind == "grid" and _spans_decades(axis.levels):
+        ax.set_xscale("log")
+    elif kind == "grid" and len(axis.levels) <= 12:
+        ax.set_xticks(axis.positions(), [_fmt(v) for v in axis.levels])
+
+
+def _metric_figure(metric: _Metric, axis: _Axis, axes: list[_Axis], kind: str) -> _Figure:
+    """The metric against one axis's value.
+
+    Grid: the median over seeds (and over the other axes' points at the same axis
+    value) as a line with markers, and the 10th-90th percentile band over the same
+    runs, shaded. Latin hypercube: each point's median over its seeds against the
+    point's axis value, with a 10th-90th percentile error bar.
+    """
+    figure = _new_figure()
+    ax = figure.add_subplot()
+    others = [a.name for a in axes if a.name != axis.name]
+    if kind == "grid":
+        stats = np.asarray([_stats(metric.data[axis.values == level]) for level in axis.levels.tolist()])
+        median, low, high, count = stats.T if len(stats) else np.zeros((4, 0))
+        x = axis.positions()
+        ax.fill_between(x, low, high, alpha=0.25, color="C0", linewidth=0, label=f"{LOW}th–{HIGH}th percentile")
+        ax.plot(x, median, "o-", color="C0", label="median")
+        over = "seeds" + (f" and the other axes' points ({', '.join(others)}) at the same {axis.name}" if others else "")
+        caption = (f"{metric.description} against {axis.name}: the median over {over} (line), "
+                   f"and the {LOW}th–{HIGH}th percentile of the same runs (band).")
+    else:
+        stats = np.asarray([_stats(row) for row in metric.data])
+        median, low, high, count = stats.T if len(stats) else np.zeros((4, 0))
+        x = axis.point_positions()
+        ax.errorbar(x, median, yerr=[median - low, high - median], fmt="o", color="C0", ecolor="C0", elinewidth=1, capsize=2,
+                    markersize=4, label=f"point median over seeds; bar: {LOW}th–{HIGH}th percentile")
+        caption = (f"{metric.description} against {axis.name}: one marker per Latin-hypercube point, the median over its seeds, "
+                   f"with a bar from the {LOW}th to the {HIGH}th percentile over its seeds"
+                   + (f" (the other axes, {', '.join(others)}, vary between points)." if others else "."))
+    computed = int(np.isfinite(metric.data).sum())
+    if computed < metric.data.size:
+        caption += f" Based on {computed} of {metric.data.size} runs (the rest not computed yet or diverged)."
+    if not np.isfinite(median).any():
+        _no_data(ax)
+    elif _spans_decades(metric.data):
+        ax.set_yscale("log")
+    _x_axis(ax, axis, kind)
+    ax.set_ylabel(metric.label)
+    ax.set_title(f"{metric.description}\nagainst {axis.name}")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best")
+    return _Figure(f"{metric.variable}-vs-{axis.name}.png", figure, caption, "metric", metric.variable)
+
+
+def _heatmap_figure(metric: _Metric, axes: list[_Axis]) -> _Figure:
+    """The median over seeds of a metric on the grid of the first two axes (the first
+    across, the second up); over more axes, the median over seeds and every other axis."""
+    import matplotlib
+    from matplotlib.colors import LogNorm, Normalize
+
+    first, second = axes[0], axes[1]
+    grid = np.full((len(second.levels), len(first.levels)), np.nan)
+    for i, a in enumerate(first.levels.tolist()):
+        for j, b in enumerate(second.levels.tolist()):
+            grid[j, i] = _stats(metric.data[(first.values == a) & (second.values == b)])[0]
+    figure = _new_figure((7.0, 5.0))
+    ax = figure.add_subplot()
+    finite = grid[np.isfinite(grid)]
+    if finite.size == 0:
+        norm = Normalize(0.0, 1.0)
+    elif _spans_decades(finite):
+        norm = LogNorm(finite.min(), finite.max())
+    else:
+        low, high = float(finite.min()), float(finite.max())
+        norm = Normalize(low, high if high > low else low + (abs(low) or 1.0) * 1e-9)
+    cmap = matplotlib.colormaps["viridis"].with_extremes(bad="#d9d9d9")
+    image = ax.imshow(np.ma.masked_invalid(grid), origin="lower", aspect="auto", cmap=cmap, norm=norm, interpolation="nearest")
+    colorbar = figure.colorbar(image, ax=ax)
+    colorbar.set_label(f"median {metric.label}")
+    for axis, set_ticks in ((first, ax.set_xticks), (second, ax.set_yticks)):
+        step = max(1, int(np.ceil(len(axis.levels) / 12)))
+        ticks = np.arange(len(axis.levels))[::step]
+        set_ticks(ticks, [_fmt(axis.levels[t]) for t in ticks])
+    ax.set_xlabel(first.label)
+    ax.set_ylabel(second.label)
+    if grid.size <= 64:
+        for (j, i), value in np.ndenumerate(grid):
+            if np.isfinite(value):
+                shade = norm(value)
+                ax.text(i, j, f"{value:.3g}", ha="center", va="center", fontsize=8, color="white" if shade < 0.6 else "black")
+    if finite.size == 0:
+        _no_data(ax)
+    rest = [a.name for a in axes[2:]]
+    ax.set_title(f"median {metric.description}")
+    caption = (f"Median of {metric.description} over seeds"
+               + (f" and over the other axes ({', '.join(rest)})" if rest else "")
+               + f" at each ({first.name}, {second.name}) of the grid.")
+    if np.isnan(grid).any():
+        caption += " Grey cells: no run computed yet (or every run there diverged)."
+    return _Figure(f"heatmap-{metric.variable}.png", figure, caption, "heatmap", metric.variable)
+
+
+def _diverged_figure(diverged: np.ndarray, axis: _Axis, axes: list[_Axis], kind: str) -> _Figure:
+    """The fraction of runs that diverged against one axis's value: over seeds and the
+    other axes' points at each value (grid, a line), or over each point's seeds (Latin
+    hypercube, one marker per point)."""
+    figure = _new_figure()
+    ax = figure.add_subplot()
+    others = [a.name for a in axes if a.name != axis.name]
+    if kind == "grid":
+        fractions = np.asarray([_fraction(diverged[axis.values == level])[0] for level in axis.levels.tolist()])
+        ax.plot(axis.positions(), fractions, "o-", color="C3", label="fraction diverged")
+        over = "seeds" + (f" and the other axes' points ({', '.join(others)})" if others else "")
+        caption = f"Fraction of the computed runs that diverged at each {axis.name}, over {over}."
+    else:
+        fractions = np.asarray([_fraction(row)[0] for row in diverged])
+        ax.plot(axis.point_positions(), fractions, "o", color="C3", markersize=4, label="fraction of a point's seeds diverged")
+        caption = f"Fraction of each Latin-hypercube point's computed runs that diverged, against {axis.name}."
+    known = int((~np.isnan(diverged)).sum())
+    if known < diverged.size:
+        caption += f" Based on {known} of {diverged.size} runs (the rest not computed yet)."
+    if not np.isfinite(fractions).any():
+        _no_data(ax)
+    ax.set_ylim(-0.04, 1.04)
+    _x_axis(ax, axis, kind)
+    ax.set_ylabel("fraction of runs diverged (1)")
+    ax.set_title(f"runs diverged against {axis.name}")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best")
+    return _Figure(f"diverged-vs-{axis.name}.png", figure, caption, "diverged")
+
+
+def _build(ds, document: dict | None) -> list[_Figure]:
+    import matplotlib
+
+    kind = str(ds.attrs.get("sweep_kind", "grid"))
+    axes = _axes(ds, document)
+    metrics = _metrics(ds, document)
+    diverged = _diverged(ds)
+    figures = []
+    with matplotlib.rc_context(_RC):
+        for metric in metrics:
+            for axis in axes:
+                figures.append(_metric_figure(metric, axis, axes, kind))
+        if kind == "grid" and len(axes) >= 2:
+            for metric in metrics:
+                figures.append(_heatmap_figure(metric, axes))
+        for axis in axes:
+            figures.append(_diverged_figure(diverged, axis, axes, kind))
+    return figures
+
+
+def report_figures(ds, campaign_document: dict | None) -> dict:
+    """The report's figures, by PNG file name, as :class:`matplotlib.figure.Figure`\\ s.
+
+    ``ds`` is the store's Dataset (:meth:`CampaignStore.open`), ``campaign_document`` its
+    :meth:`CampaignStore.campaign_document` (for the order of the metrics and the units
+    of the swept settings; None will do). The figures:
+
+    - ``METRIC-vs-AXIS.png`` (each metric, each axis): on a grid, the median over seeds
+      and over the other axes' points at each axis value (line with markers) and the
+      10th-90th percentile band of those runs; on a Latin hypercube, each point's median
+      over its seeds with a 10th-90th percentile error bar. Log y scale when the metric
+      is positive and spans more than two decades.
+    - ``heatmap-METRIC.png`` (grids of two or more axes): the median over seeds (and over
+      every axis after the second) on the grid of the first two axes, with a colorbar.
+    - ``diverged-vs-AXIS.png`` (each axis): the fraction of runs diverged.
+
+    The figures are made without pyplot (nothing to close; save with ``savefig``).
+    """
+    return {figure.key: figure.figure for figure in _build(ds, campaign_document)}
+
+
+# ----------------------------------------------------------------------------------
+# the page
+
+
+def default_report_path(store_path: str | Path) -> Path:
+    """``DIR/NAME-report.html`` beside the store ``DIR/NAME.zarr`` (or ``DIR/NAME``)."""
+    path = Path(str(store_path).rstrip("/"))
+    name = path.name[: -len(".zarr")] if path.name.endswith(".zarr") else path.name
+    return path.with_name(f"{name}-report.html")
+
+
+def _pretty_json(value, indent: str = "") -> str:
+    """JSON with one key per line, but a list of numbers or strings on one line."""
+    inner = indent + "  "
+    if isinstance(value, dict) and value:
+        items = [f"{inner}{json.dumps(str(k))}: {_pretty_json(v, inner)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + indent + "}"
+    if isinstance(value, list) and value and any(isinstance(v, (dict, list)) for v in value):
+        return "[\n" + ",\n".join(inner + _pretty_json(v, inner) for v in value) + "\n" + indent + "]"
+    return json.dumps(value)
+
+
+def _png(figure) -> bytes:
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=DPI)
+    return buffer.getvalue()
+
+
+def _table(header: list[str], rows: list[list[str]], attrs: str = "") -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "\n".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in rows)
+    return f"<table{attrs}>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
+
+
+def _definition_table(items: list[tuple[str, str]]) -> str:
+    rows = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in items)
+    return f'<table class="provenance">\n{rows}\n</table>'
+
+
+_STYLE = """
+body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, "Helvetica Neue", Arial, sans-serif;
+       margin: 0 auto; padding: 1.5rem 2rem 3rem; max-width: 1500px; color: #1d1d1f; background: #fff; line-height: 1.45; }
+h1 { font-size: 1.6rem; margin: 0 0 .4rem; }
+h2 { font-size: 1.25rem; margin: 2rem 0 .6rem; border-bottom: 1px solid #ddd; padding-bottom: .2rem; }
+h3 { font-size: 1.05rem; margin: 1.2rem 0 .4rem; }
+.status { display: inline-block; padding: .2rem .6rem; border-radius: .3rem; font-weight: 600; }
+.status.complete { background: #e3f4e6; color: #17612a; }
+.status.partial { background: #fff1d6; color: #8a5300; }
+table { border-collapse: collapse; font-size: .9rem; margin: .4rem 0 1rem; }
+th, td { border: 1px solid #ddd; padding: .25rem .6rem; text-align: left; vertical-align: top; }
+thead th { background: #f4f4f6; }
+table.provenance th { background: #f8f8fa; font-weight: 600; white-space: nowrap; }
+td.number, table.numbers td { font-variant-numeric: tabular-nums; }
+.figures { display: flex; flex-wrap: wrap; gap: 1rem 1.5rem; }
+figure { margin: 0; max-width: 700px; flex: 0 1 700px; }
+figure img { width: 100%; height: auto; border: 1px solid #eee; }
+figcaption { font-size: .85rem; color: #444; margin-top: .3rem; }
+pre { background: #f6f8fa; border: 1px solid #e1e4e8; padding: .8rem; font-size: .8rem; overflow-x: auto; max-height: 40rem; }
+nav a { margin-right: 1rem; }
+#image-check { font-size: .75rem; color: #888; margin-top: 2rem; }
+"""
+
+_SCRIPT = """
+window.addEventListener("load", function () {
+  var images = document.images, loaded = 0;
+  for (var i = 0; i < images.length; i++) {
+    if (images[i].complete && images[i].naturalWidth > 0) { loaded++; }
+  }
+  document.getElementById("image-check").textContent = "images loaded: " + loaded + " of " + images.length;
+});
+"""
+
+
+def _figure_html(figure: _Figure, png: bytes) -> str:
+    data = base64.b64encode(png).decode("ascii")
+    alt = html.escape(figure.caption, quote=True)
+    return (f'<figure id="{html.escape(figure.key, quote=True)}">'
+            f'<img src="data:image/png;base64,{data}" alt="{alt}">'
+            f"<figcaption>{html.escape(figure.caption)}</figcaption></figure>")
+
+
+def write_report(store_path: str | Path, out: str | Path | None = None, *, figures_dir: Path | None = None) -> Path:
+    """Write the store's report as one self-contained HTML page; return its path.
+
+    ``out`` defaults to :func:`default_report_path` (``NAME-report.html`` beside the
+    store). With ``figures_dir``, every figure is also saved there as a PNG under its
+    :func:`report_figures` name. A store whose campaign is not finished gets a report
+    of what is done, marked partial.
+    """
+    from lookout.studies.store import CampaignStore
+
+    store = CampaignStore(store_path)
+    if not store.path.exists():
+        raise FileNotFoundError(f"no campaign store at {store.path}")
+    document = store.campaign_document()
+    full = store.open()
+    keep = [name for name, variable in full.data_vars.items() if not name.startswith("trajectory__")]
+    ds = full[keep].load()
+    attrs = ds.attrs
+    done = store.done()
+    axes = _axes(ds, document)
+    metrics = _metrics(ds, document)
+    diverged = _diverged(ds)
+
+    n_points, n_seeds = ds.sizes["point"], ds.sizes["seed"]
+    chunk_runs = int(attrs.get("chunk_runs", n_seeds) or n_seeds)
+    seeds_per_point = int((document or {}).get("seeds_per_point", n_seeds))
+    total_chunks = n_points * max(1, seeds_per_point // chunk_runs)
+    total_runs = n_points * seeds_per_point
+    runs_done = sum(int(r["seeds"][1]) - int(r["seeds"][0]) + 1 for r in done.values())
+    complete = len(done) >= total_chunks
+    status = (f"{'complete' if complete else 'partial'}: {len(done)} of {total_chunks} chunks done "
+              f"({runs_done} of {total_runs} runs)")
+    seconds = sum(float(r.get("seconds", 0.0) or 0.0) for r in done.values() if np.isfinite(float(r.get("seconds", np.nan))))
+    workers = sorted({str(r.get("worker", "")) for r in done.values()})
+    finished = sorted(str(r.get("finished", "")) for r in done.values())
+    kind = str(attrs.get("sweep_kind", "grid"))
+
+    figures = _build(ds, document)
+    images = {figure.key: _png(figure.figure) for figure in figures}
+    if figures_dir is not None:
+        figures_dir = Path(figures_dir)
+        figures_dir.mkdir(parents=True, exist_ok=True)
+        for key, png in images.items():
+            (figures_dir / key).write_bytes(png)
+
+    title = str(attrs.get("title", f"lookout campaign {store.path.name}"))
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{html.escape(title)}</title>",
+        f"<style>{_STYLE}</style>",
+        "</head>",
+        "<body>",
+        "<header>",
+        f"<h1>{html.escape(title)}</h1>",
+        f'<p><span class="status {"complete" if complete else "partial"}" id="status">{html.escape(status)}</span></p>',
+    ]
+    if not complete:
+        parts.append("<p>The campaign is not finished: runs not computed yet are left out of every figure and table; "
+                     "resume the campaign and write the report again for the full results.</p>")
+    parts.append("</header>")
+    parts.append('<nav><a href="#provenance">provenance</a><a href="#summary">summary</a>'
+                 + "".join(f'<a href="#metric-{html.escape(m.variable, quote=True)}">{html.escape(m.name)}</a>' for m in metrics)
+                 + ('<a href="#heatmaps">heat maps</a>' if any(f.section == "heatmap" for f in figures) else "")
+                 + '<a href="#divergence">divergence</a><a href="#spec">spec</a></nav>')
+
+    # provenance
+    provenance = [
+        ("store", str(store.path.resolve())),
+        ("status", status),
+        ("lookout version (store)", str(attrs.get("lookout_version", "?"))),
+        ("created", str(attrs.get("created", "?"))),
+        ("campaign fingerprint", str(attrs.get("campaign_fingerprint", "?"))),
+        ("sweep", f"{kind}; {n_points} point{'s' * (n_points != 1)} over "
+                  + (", ".join(a.name for a in axes) or "no axes")),
+        ("seeds per point", f"{seeds_per_point} (seeds {_fmt(ds['seed'].values[0])} to {_fmt(ds['seed'].values[-1])}), "
+                            f"{chunk_runs} per chunk"),
+        ("compute time", f"{seconds:.1f} s over {len(done)} chunk{'s' * (len(done) != 1)}"
+                         + (f" on {', '.join(workers)}" if workers else "")),
+    ]
+    if finished:
+        provenance.append(("chunks finished", f"{finished[0]} to {finished[-1]}"))
+    from lookout.studies.store import _version
+
+    provenance.append(("report written", f"{datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')} "
+                                         f"by lookout {_version()}"))
+    parts += ['<section id="provenance">', "<h2>Provenance</h2>", _definition_table(provenance), "</section>"]
+
+    # summary
+    rows = []
+    for metric in metrics:
+        median, low, high, count = _stats(metric.data)
+        rows.append([metric.name, metric.description, metric.units or "1", f"{count} of {metric.data.size}",
+                     _fmt(median), _fmt(low), _fmt(high)])
+    known, n_diverged = int((~np.isnan(diverged)).sum()), int((diverged == 1).sum())
+    parts += ['<section id="summary">', "<h2>Summary</h2>",
+              "<p>Each metric over every computed run of every sweep point (runs: those with a value; "
+              "a diverged run has none).</p>",
+              _table(["metric", "description", "units", "runs", "median", f"{LOW}th percentile", f"{HIGH}th percentile"], rows,
+                     ' class="numbers"'),
+              f"<p>Diverged: {n_diverged} of {known} computed run{'s' * (known != 1)}"
+              + (f" ({100 * n_diverged / known:.3g} %)" if n_diverged else "") + '; see <a href="#divergence">divergence</a>.</p>',
+              "</section>"]
+
+    # figures per metric
+    for metric in metrics:
+        mine = [f for f in figures if f.section == "metric" and f.metric == metric.variable]
+        parts += [f'<section id="metric-{html.escape(metric.variable, quote=True)}">',
+                  f"<h2>{html.escape(metric.name)}: {html.escape(metric.description)}"
+                  + (f" ({html.escape(metric.units)})" if metric.units else "") + "</h2>"]
+        if mine:
+            parts.append('<div class="figures">' + "\n".join(_figure_html(f, images[f.key]) for f in mine) + "</div>")
+        else:
+            parts.append("<p>The campaign sweeps no axis: see the summary.</p>")
+        parts.append("</section>")
+    heatmaps = [f for f in figures if f.section == "heatmap"]
+    if heatmaps:
+        parts += ['<section id="heatmaps">', "<h2>Heat maps</h2>",
+                  '<div class="figures">' + "\n".join(_figure_html(f, images[f.key]) for f in heatmaps) + "</div>", "</section>"]
+
+    # divergence
+    parts += ['<section id="divergence">', "<h2>Divergence</h2>"]
+    mine = [f for f in figures if f.section == "diverged"]
+    if mine:
+        parts.append('<div class="figures">' + "\n".join(_figure_html(f, images[f.key]) for f in mine) + "</div>")
+    runs = np.argwhere(diverged == 1)
+    count = f"{n_diverged} of {known} computed run{'s' * (known != 1)} diverged"
+    if n_diverged > MAX_DIVERGED_ROWS:
+        count += f"; the first {MAX_DIVERGED_ROWS} are listed"
+    parts.append(f'<p id="diverged-count">{html.escape(count)}.</p>')
+    if n_diverged:
+        seeds = ds["seed"].values
+        rows = [[str(int(point))] + [_fmt(axis.values[point]) for axis in axes] + [_fmt(seeds[seed])]
+                for point, seed in runs[:MAX_DIVERGED_ROWS]]
+        parts.append(_table(["point"] + [a.name for a in axes] + ["seed"], rows, ' id="diverged-runs" class="numbers"'))
+    parts.append("</section>")
+
+    # spec
+    spec = _pretty_json(document) if document is not None else "(the store holds no campaign spec)"
+    parts += ['<section id="spec">', "<h2>Campaign spec</h2>",
+              "<p>The campaign as the store holds it, its scenario inlined (what a resume compares).</p>",
+              f"<pre>{html.escape(spec)}</pre>", "</section>"]
+
+    parts += ['<p id="image-check">images loaded: not checked (scripts off)</p>', f"<script>{_SCRIPT}</script>", "</body>", "</html>"]
+    out = default_report_path(store.path) if out is None else Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(parts) + "\n", encoding="utf-8")
+    return out

@@ -1,0 +1,274 @@
+"""Scenario files: everything one simulation needs, in a TOML file a user can edit.
+
+A scenario file names a **template** (a family of scenarios lookout can build: each
+reproduction is one), a **case** of it (which of the template's scenarios) and its
+**settings**: every value the template's builder takes (plant, vessel matrices,
+environment, sensors and dropouts, observer gains, controller, reference, actuator
+limits, horizon and steps, runs and seed), validated by the template's pydantic model::
+
+    template = "fossen-strand-1999"
+    case = "paper"
+
+    [settings]
+    duration = 3000.0
+    noise_std = [0.5, 0.5, 0.0017453292519943296]
+
+    [settings.vessel]
+    model = "custom"
+    mass_matrix = [[5.3e6, 0, 0], [0, 8.3e6, 0], [0, 0, 3.7e9]]
+    damping_matrix = [[5.0e4, 0, 0], [0, 2.7e5, -4.4e6], [0, -4.4e6, 4.2e8]]
+
+A key left out takes the template's default. ``lookout reproduce NAME
+--write-scenario FILE`` writes a reproduction's scenario with every setting spelled out,
+and :func:`simulate_file` on that file simulates the same runs with the same keys, so
+it gives the reproduction's numbers.
+
+Errors are one line: the file, the key (``settings.vessel.mass_matrix``), its line in
+the file when it can be found, and the condition.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from pydantic import BaseModel, ValidationError
+
+from lookout.studies._toml import FileError, key_line, read, write
+
+#: Top-level keys of a scenario file.
+TOP_KEYS = ("template", "case", "settings")
+
+
+@dataclass(frozen=True)
+class Template:
+    """A family of scenarios: a settings model and a builder per case."""
+
+    name: str
+    title: str
+    settings: type[BaseModel]
+    cases: tuple[str, ...]
+    build: Callable[[BaseModel, str], Any]
+    #: Whether the reproduction vmaps its runs over a scenario stacked per run
+    #: (``batched_scenario=True``) rather than one shared scenario; the two agree to
+    #: rounding, and a scenario file batches as its reproduction does, to give the
+    #: same numbers to the last bit.
+    stacked: bool = False
+
+
+def templates() -> dict[str, Template]:
+    """The templates by name: one per reproduction (its Config and :data:`CASES`)."""
+    from lookout.papers import REPRODUCTIONS
+
+    return {
+        name: Template(name, module.TITLE, module.Config, module.CASES, module.case_scenario, getattr(module, "STACKED_BATCHES", False))
+        for name, module in REPRODUCTIONS.items()
+    }
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """A validated scenario file: the template, the case and the settings."""
+
+    template: Template
+    case: str
+    settings: BaseModel
+    source: str = field(default="<scenario>")
+
+    def build(self):
+        """The :class:`~lookout.sim.Scenario`."""
+        return self.template.build(self.settings, self.case)
+
+    @property
+    def seeds(self) -> list[int]:
+        return list(self.settings.seeds)
+
+    def document(self) -> dict:
+        """The file's content as a dict: every setting spelled out."""
+        return {"template": self.template.name, "case": self.case, "settings": self.settings.model_dump(mode="json")}
+
+    def with_settings(self, changes: dict[str, Any], source: str | None = None) -> "ScenarioSpec":
+        """This scenario with ``changes`` (dotted paths such as ``noise_std[0]`` or
+        ``vessel.mass``, relative to ``settings``) applied and validated again."""
+        values = self.settings.model_dump(mode="python")
+        for path, value in changes.items():
+            set_path(values, path, value, self.settings)
+        return ScenarioSpec(self.template, self.case, _validate(self.template.settings, values, source or self.source, None, ("settings",)), source or self.source)
+
+
+def _location_text(location: tuple) -> str:
+    text = ""
+    for part in location:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+def _validate(model: type[BaseModel], values: dict, source: str, text: str | None, prefix: tuple) -> BaseModel:
+    try:
+        return model.model_validate(values)
+    except ValidationError as error:
+        raise FileError(describe(error, source, text, prefix)) from None
+
+
+def describe(error: ValidationError, source: str, text: str | None, prefix: tuple = ()) -> str:
+    """One line for the first error of a pydantic validation: file, key, line, condition."""
+    first = error.errors()[0]
+    location = prefix + tuple(part for part in first["loc"] if not (isinstance(part, str) and part.startswith("function-")))
+    message = first["msg"]
+    if message.startswith("Value error, "):
+        message = message[len("Value error, "):]
+    if first["type"] == "extra_forbidden":
+        message = "unknown key"
+    elif first["type"] == "missing" and isinstance(location[-1], int):
+        location, message = location[:-1], f"too few entries (no entry [{location[-1]}])"
+    elif first["type"] == "missing":
+        message = "missing key"
+    elif "input" in first and first["type"] not in ("value_error", "assertion_error"):
+        message = f"{message}; got {first['input']!r}"
+    line = key_line(text, location) if text is not None else None
+    where = f" (line {line})" if line else ""
+    return f"{source}: {_location_text(location)}{where}: {message}"
+
+
+def _path_parts(path: str) -> list:
+    """``"vessel.mass_matrix[0][1]"`` -> ``["vessel", "mass_matrix", 0, 1]``."""
+    import re
+
+    parts: list = []
+    for name in path.split("."):
+        match = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)", name)
+        if not match:
+            raise FileError(f"{path!r} is not a settings path (names joined by '.', indices as [i])")
+        parts.append(match.group(1))
+        parts += [int(i) for i in re.findall(r"\[(\d+)\]", match.group(2))]
+    return parts
+
+
+def set_path(values: dict, path: str, value: Any, settings: BaseModel | None = None) -> None:
+    """Set ``values`` at the settings path ``path`` (the path must exist)."""
+    parts = _path_parts(path)
+    target: Any = values
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        here = _location_text(tuple(parts[: depth + 1]))
+        if isinstance(part, int):
+            if not isinstance(target, (list, tuple)) or part >= len(target):
+                size = len(target) if isinstance(target, (list, tuple)) else "no"
+                raise FileError(f"settings.{path}: {here} does not exist ({_location_text(tuple(parts[:depth]))} has {size} entries)")
+        elif not isinstance(target, dict) or part not in target:
+            known = ", ".join(sorted(target)) if isinstance(target, dict) else "none"
+            raise FileError(f"settings.{path}: no setting {here!r} (known here: {known})")
+        if last:
+            if isinstance(target, tuple):
+                raise FileError(f"settings.{path}: internal: a tuple was not converted")
+            target[part] = value
+        else:
+            child = target[part]
+            if isinstance(child, tuple):
+                child = list(child)
+                target[part] = child
+            target = child
+
+
+def get_path(values: dict, path: str) -> Any:
+    """The value of ``values`` at the settings path ``path``."""
+    target: Any = values
+    for part in _path_parts(path):
+        target = target[part]
+    return target
+
+
+def from_document(document: dict, source: str = "<scenario>", text: str | None = None) -> ScenarioSpec:
+    """Validate a parsed scenario file (see the module docstring)."""
+    unknown = [key for key in document if key not in TOP_KEYS]
+    if unknown:
+        line = key_line(text, (unknown[0],)) if text else None
+        where = f" (line {line})" if line else ""
+        raise FileError(f"{source}: {unknown[0]}{where}: unknown key (a scenario file has {', '.join(TOP_KEYS)})")
+    known = templates()
+    name = document.get("template")
+    if name is None:
+        raise FileError(f"{source}: template: missing key (one of {', '.join(known)})")
+    if name not in known:
+        line = key_line(text, ("template",)) if text else None
+        where = f" (line {line})" if line else ""
+        raise FileError(f"{source}: template{where}: unknown template {name!r} (one of {', '.join(known)})")
+    template = known[name]
+    case = document.get("case", template.cases[0])
+    if case not in template.cases:
+        line = key_line(text, ("case",)) if text else None
+        where = f" (line {line})" if line else ""
+        raise FileError(f"{source}: case{where}: {template.name} has no case {case!r} (one of {', '.join(template.cases)})")
+    settings = document.get("settings", {})
+    if not isinstance(settings, dict):
+        raise FileError(f"{source}: settings: must be a table; got {type(settings).__name__}")
+    return ScenarioSpec(template, case, _validate(template.settings, settings, source, text, ("settings",)), source)
+
+
+def load(path: str | Path, *, runs: int | None = None, seed: int | None = None) -> ScenarioSpec:
+    """Read and validate the scenario file at ``path``; ``runs`` and ``seed`` override its own."""
+    document, text = read(path)
+    settings = dict(document.get("settings", {})) if isinstance(document.get("settings", {}), dict) else document.get("settings")
+    if isinstance(settings, dict):
+        if runs is not None:
+            settings["runs"] = runs
+        if seed is not None:
+            settings["seed"] = seed
+        document = {**document, "settings": settings}
+    return from_document(document, str(path), text)
+
+
+def _comments(model: type[BaseModel], prefix: str = "settings.") -> dict[str, str]:
+    comments = {}
+    for name, info in model.model_fields.items():
+        if info.description:
+            comments[f"{prefix}{name}"] = info.description
+        annotation = info.annotation
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            comments.update(_comments(annotation, f"{prefix}{name}."))
+    return comments
+
+
+def save(spec: ScenarioSpec, path: str | Path, *, header: str | None = None) -> Path:
+    """Write ``spec`` as a scenario file with every setting and its description."""
+    header = header or (
+        f"lookout scenario: {spec.template.title}, case {spec.case!r}.\n"
+        f"Run it with: lookout run {Path(path).name} --out DIR"
+    )
+    comments = {"settings": "Every setting of the template; a key left out takes its default.", **_comments(spec.template.settings)}
+    comments["case"] = f"one of {', '.join(spec.template.cases)}"
+    return write(path, spec.document(), comments, header)
+
+
+def simulate_trajectory(spec: ScenarioSpec, *, progress=None, scenario=None):
+    """Simulate the scenario for its seeds: a :class:`~lookout.Trajectory` (batched
+    when there are several runs).
+
+    One run is :func:`~lookout.sim.simulate`, several a vmapped
+    :func:`~lookout.sim.simulate_batch`, batched as the template's reproduction
+    batches them (:attr:`Template.stacked`): run i uses ``jax.random.key(seed + i)``.
+    """
+    from lookout.sim import keys_of_seeds, simulate, simulate_batch, stack_scenarios
+
+    scenario = spec.build() if scenario is None else scenario
+    seeds = spec.seeds
+    if len(seeds) == 1:
+        return simulate(scenario, keys_of_seeds(seeds)[0], progress=progress)
+    if spec.template.stacked:
+        return simulate_batch(stack_scenarios([scenario] * len(seeds)), keys_of_seeds(seeds), batched_scenario=True, progress=progress)
+    return simulate_batch(scenario, keys_of_seeds(seeds), progress=progress)
+
+
+def to_dataset(spec: ScenarioSpec, trajectory):
+    """The trajectory as an :class:`xarray.Dataset` with ``seed`` along ``run`` and the
+    scenario (template, case, settings) in its attributes."""
+    ds = trajectory.to_xarray().assign_coords(seed=("run", np.asarray(spec.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
+    ds.attrs.update({"template": spec.template.name, "case": spec.case, "settings": spec.settings.model_dump_json()})
+    return ds
+
+
+def simulate_spec(spec: ScenarioSpec, *, progress=None, scenario=None):
+    """:func:`simulate_trajectory` as :func:`to_dataset`."""
+    return to_dataset(spec, simulate_trajectory(spec, progress=progress, scenario=scenario))

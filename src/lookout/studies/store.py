@@ -1,0 +1,225 @@
+"""The campaign store: a Zarr store, one region per chunk, and a completion record per chunk.
+
+Layout (``xarray.open_zarr(STORE)`` reads it as a Dataset)::
+
+    STORE/
+      zarr.json, <variable>/...     metrics over (point, seed); NaN where not yet computed
+      _lookout/zarr.json            a Zarr group whose attributes hold the campaign and version
+      _lookout/campaign.json        the campaign, scenario inlined (what resume compares)
+      _lookout/chunks/chunk-000042.json   written after chunk 42's region: its record
+
+Every metric is a float64 variable over ``(point, seed)``, Zarr-chunked as
+``(1, chunk_runs)`` so that a chunk of the campaign is exactly one Zarr chunk per
+variable and no two chunks ever share a file. ``diverged`` is 1.0 or 0.0. Each sweep
+axis is a coordinate over ``point``. Kept trajectories are ``trajectory__NAME`` over
+``(point, seed, kept_time, ...)``.
+
+A chunk counts as done when its record exists. The record is written after the
+chunk's data and renamed into place, so a store killed at any moment holds only
+complete chunks with records; a chunk without one is computed again on resume and its
+region overwritten with the same values (a run's numbers depend only on its seed and
+sweep point). A chunk with a record is never written again.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from lookout.studies.campaign import Campaign, Chunk
+
+META = "_lookout"
+
+
+def variable_name(label: str) -> str:
+    """A store variable name for an axis label (``bias_std[0]`` -> ``bias_std_0``)."""
+    return re.sub(r"_+$", "", re.sub(r"[^A-Za-z0-9_]+", "_", label))
+
+
+def _version() -> str:
+    from lookout import __version__
+
+    return __version__
+
+
+class CampaignStore:
+    """Open with :meth:`open_or_create`; write with :meth:`write_chunk`."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+
+    @property
+    def records(self) -> Path:
+        return self.path / META / "chunks"
+
+    # ------------------------------------------------------------------ creation
+    @classmethod
+    def open_or_create(cls, path: str | Path, campaign: Campaign) -> "CampaignStore":
+        """The store at ``path`` for ``campaign``: created if missing; refused (ValueError)
+        if it holds another campaign or is not a campaign store."""
+        store = cls(path)
+        if store.path.exists():
+            held = store.campaign_document()
+            if held is None:
+                if any(store.path.iterdir()):
+                    raise ValueError(f"{store.path} exists and is not a lookout campaign store; give another --out")
+            elif json.dumps(held, sort_keys=True, separators=(",", ":")) != campaign.canonical():
+                raise ValueError(
+                    f"{store.path} holds another campaign (fingerprint {store.fingerprint()}, this spec's is {campaign.fingerprint()}); "
+                    "resume it with its own spec, or give another --out"
+                )
+            else:
+                return store
+        store._create(campaign)
+        return store
+
+    def _create(self, campaign: Campaign) -> None:
+        import dask.array as da
+        import xarray as xr
+
+        from lookout.studies import metrics as metric_module
+
+        scenario = campaign.base.build()
+        metrics = metric_module.resolve(list(campaign.metric_names), scenario)
+        n_points, n_seeds, size = len(campaign.points), len(campaign.seeds), campaign.chunk_runs
+        data, coords = {}, {"point": np.arange(n_points), "seed": ("seed", np.asarray(campaign.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"})}
+
+        def empty(shape, chunks):
+            return da.full(shape, np.nan, dtype=np.float64, chunks=chunks)
+
+        for metric in metrics:
+            data[metric.variable] = (("point", "seed"), empty((n_points, n_seeds), (1, size)), {"units": metric.units, "long_name": metric.description, "metric": metric.name})
+        data["diverged"] = (("point", "seed"), empty((n_points, n_seeds), (1, size)), {"long_name": "1 if the run diverged, 0 if not", "metric": "diverged"})
+        for axis in campaign.axes:
+            coords[variable_name(axis.label)] = ("point", np.asarray([point[axis.label] for point in campaign.points]), {
+                "long_name": axis.label, "fields": ", ".join(axis.fields), "scale": int(axis.scale)})
+        kept = campaign.settings.trajectories
+        if kept is not None:
+            signals = {name: signal for _, name, signal in scenario.record_signals.variables()}
+            time = np.arange(scenario.n_records) * scenario.sample_period * scenario.record_every
+            coords["kept_time"] = ("kept_time", time[:: kept.every], {"units": "s", "long_name": "time of the kept records"})
+            for name in kept.signals:
+                signal = signals[name]
+                dims = ("point", "seed", "kept_time") + ((signal.dim,) if signal.labels else ())
+                shape = (n_points, n_seeds, len(coords["kept_time"][1])) + ((len(signal.labels),) if signal.labels else ())
+                if signal.labels:
+                    coords[signal.dim] = (signal.dim, list(signal.labels))
+                data[f"trajectory__{name}"] = (dims, empty(shape, (1, size) + shape[2:]), {"units": signal.units, "long_name": signal.long_name})
+        ds = xr.Dataset(data, coords=coords, attrs={
+            "title": f"lookout campaign over {campaign.base.template.name} ({campaign.base.case})",
+            "lookout_version": _version(),
+            "campaign_fingerprint": campaign.fingerprint(),
+            "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "chunk_runs": size,
+            "sweep_kind": campaign.settings.sweep.kind,
+            "axes": json.dumps([variable_name(axis.label) for axis in campaign.axes]),
+        })
+        encoding = {name: {"chunks": tuple(array[1].chunksize)} for name, array in data.items()}
+        ds.to_zarr(self.path, mode="w-", compute=False, encoding=encoding, consolidated=False)
+        import zarr
+
+        # the metadata group: the campaign (spec with the scenario inlined) and version as
+        # attributes, the per-chunk records as files beside; xarray skips a subgroup
+        zarr.open_group(str(self.path / META), mode="w", attributes={"campaign": campaign.canonical(), "lookout_version": _version()})
+        (self.path / META / "chunks").mkdir(parents=True, exist_ok=True)
+        self._atomic_write(self.path / META / "campaign.json", json.dumps(campaign.document(), indent=1, sort_keys=True))
+
+    # ------------------------------------------------------------------ reading
+    def campaign_document(self) -> dict | None:
+        path = self.path / META / "campaign.json"
+        return json.loads(path.read_text()) if path.exists() else None
+
+    def fingerprint(self) -> str | None:
+        import hashlib
+
+        document = self.campaign_document()
+        if document is None:
+            return None
+        return hashlib.sha256(json.dumps(document, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
+
+    def done(self) -> dict[int, dict]:
+        """Chunk index -> its completion record, for every finished chunk."""
+        if not self.records.exists():
+            return {}
+        result = {}
+        for path in self.records.glob("chunk-*.json"):
+            record = json.loads(path.read_text())
+            result[int(record["chunk"])] = record
+        return result
+
+    def open(self):
+        """The store as an :class:`xarray.Dataset`."""
+        import xarray as xr
+
+        return xr.open_zarr(self.path, consolidated=False)
+
+    # ------------------------------------------------------------------ writing
+    @staticmethod
+    def _atomic_write(path: Path, text: str) -> None:
+        temporary = path.with_name(path.name + f".{os.getpid()}.tmp")
+        temporary.write_text(text)
+        os.replace(temporary, path)
+
+    def write_chunk(self, campaign: Campaign, chunk: Chunk, result: dict, *, worker: str = "local") -> None:
+        """Write ``result`` of :func:`~lookout.studies.campaign.compute_chunk` into the
+        chunk's region, then its record. A chunk already recorded is refused."""
+        import zarr
+
+        record_path = self.records / f"{chunk.key}.json"
+        if record_path.exists():
+            raise ValueError(f"{chunk.key} of {self.path} is already written")
+        group = zarr.open_group(str(self.path), mode="r+")
+        start = chunk.block * campaign.chunk_runs
+        region = slice(start, start + len(chunk.seeds))
+        for name, values in result.items():
+            if name in ("seconds", "warm_seconds"):
+                continue
+            array = group[name]
+            values = np.asarray(values, dtype=np.float64)
+            array[chunk.point, region, ...] = values
+        record = {
+            "chunk": chunk.index,
+            "point": chunk.point,
+            "seeds": [chunk.seeds[0], chunk.seeds[-1]],
+            "seconds": float(result.get("seconds", np.nan)),
+            "worker": worker,
+            "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        }
+        self._atomic_write(record_path, json.dumps(record))
+
+
+def status(path: str | Path) -> dict:
+    """What a store holds: chunks and runs done, time spent, diverged runs, provenance."""
+    store = CampaignStore(path)
+    document = store.campaign_document()
+    ds = store.open()
+    done = store.done()
+    chunk_runs = int(ds.attrs["chunk_runs"])
+    points, seeds = ds.sizes["point"], ds.sizes["seed"]
+    chunks = points * (seeds // chunk_runs)
+    diverged = ds["diverged"].values
+    return {
+        "title": ds.attrs.get("title", ""),
+        "chunks": chunks,
+        "chunks_done": len(done),
+        "runs": points * seeds,
+        "runs_done": len(done) * chunk_runs,
+        "complete": len(done) == chunks,
+        "points": points,
+        "seeds_per_point": seeds,
+        "chunk_runs": chunk_runs,
+        "sweep_kind": ds.attrs.get("sweep_kind"),
+        "axes": json.loads(ds.attrs.get("axes", "[]")),
+        "metrics": [str(ds[name].attrs.get("metric", name)) for name in ds.data_vars if name != "diverged" and not name.startswith("trajectory__")],
+        "chunk_seconds": float(sum(record.get("seconds", 0.0) for record in done.values())),
+        "diverged": int(np.nansum(diverged)),
+        "lookout_version": ds.attrs.get("lookout_version"),
+        "created": ds.attrs.get("created"),
+        "fingerprint": ds.attrs.get("campaign_fingerprint"),
+        "template": document["scenario"]["template"],
+    }

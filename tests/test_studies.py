@@ -1,0 +1,355 @@
+"""Scenario files and campaigns: round trips, one-line errors, resume, dask execution."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from lookout.cli import main
+from lookout.papers import REPRODUCTIONS, fossen_strand_1999
+from lookout.studies import _toml
+from lookout.studies.campaign import campaign_from_document, load_campaign
+from lookout.studies.execute import run_campaign
+from lookout.studies.scenario_file import ScenarioSpec, load, save, templates
+from lookout.studies.store import CampaignStore
+
+pytestmark = pytest.mark.xdist_group("studies")
+
+
+def _run_cli(args, capsys):
+    code = main(args)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+# ----------------------------------------------------------------------------------
+# scenario files
+
+
+def test_toml_writer_round_trips_every_value_to_the_bit(tmp_path):
+    document = {"a": 0.1 + 0.2, "b": [1e-300, -2.5e17, float("inf")], "c": {"d": [[1.0, 2.0], [3.0, 4.0]], "e": "x\"y", "f": True, "g": 3}}
+    path = _toml.write(tmp_path / "x.toml", document, comments={"c.d": "a matrix"}, header="head")
+    parsed, text = _toml.read(path)
+    assert parsed == document
+    assert "# a matrix" in text and text.startswith("# head")
+
+
+def test_a_scenario_file_written_by_the_reproduction_gives_its_numbers_exactly(tmp_path, capsys):
+    scenario = tmp_path / "fs.toml"
+    code, out, err = _run_cli(["reproduce", "fossen-strand-1999", "--duration", "20", "--runs", "2", "--seed", "3", "--write-scenario", str(scenario)], capsys)
+    assert code == 0, err
+    assert f"scenario written to {scenario}" in out
+    assert not (tmp_path / "out").exists()
+    code, out, err = _run_cli(["run", str(scenario), "--out", str(tmp_path / "run")], capsys)
+    assert code == 0, err
+    ran = xr.open_dataset(tmp_path / "run" / "run.nc")
+    # the reproduction's own NetCDF, from its run() path
+    reproduced = fossen_strand_1999.simulate_runs(fossen_strand_1999.Config(duration=20.0, runs=2, seed=3))
+    compared = 0
+    for name, variable in reproduced.data_vars.items():
+        if variable.dtype.kind == "f":
+            np.testing.assert_array_equal(ran[name].values, variable.values, err_msg=name)
+            compared += 1
+    assert compared > 20
+    assert list(ran.seed.values) == [3, 4]
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    rms = np.sqrt((ran.position - ran.position_hat).sel(time=ran.time >= 10.0).pipe(lambda e: (e**2).sum("earth_axis").mean("time")))
+    np.testing.assert_allclose(summary["metrics"]["rms_error:position"]["per_run"], rms.values, rtol=1e-12)
+    # the copy in the folder runs again and says so
+    assert load(tmp_path / "run" / "scenario.toml").settings == load(scenario).settings
+
+
+@pytest.mark.parametrize("name", list(REPRODUCTIONS))
+def test_every_reproduction_writes_a_scenario_file_that_loads_and_builds(name, tmp_path):
+    template = templates()[name]
+    config = template.settings()
+    path = save(ScenarioSpec(template, template.cases[-1], config), tmp_path / f"{name}.toml")
+    spec = load(path)
+    assert spec.settings == config and spec.case == template.cases[-1]
+    scenario = spec.build()
+    assert scenario.n_records > 0
+
+
+def _scenario_text(tmp_path, capsys) -> str:
+    scenario = tmp_path / "base.toml"
+    code, _, err = _run_cli(["reproduce", "fossen-strand-1999", "--duration", "30", "--write-scenario", str(scenario)], capsys)
+    assert code == 0, err
+    return scenario.read_text()
+
+
+def _line_of(text: str, key: str | None) -> int | None:
+    """The line where ``key = ...`` is first set in ``text``."""
+    return next((n for n, content in enumerate(text.splitlines(), 1) if key and content.startswith(f"{key} =")), None)
+
+
+@pytest.mark.parametrize(
+    "old, new, expected",
+    [
+        ("duration = 30.0", "durration = 30.0", "settings.durration (line {line}): unknown key"),
+        ("duration = 30.0", 'duration = "long"', "settings.duration (line {line}): Input should be a valid number"),
+        ('model = "northern-clipper"', 'model = "custom"\nmass_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, -2.0]]\ndamping_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]',
+         "settings.vessel.mass_matrix (line {line}): must be symmetric positive definite; its smallest eigenvalue is -2"),
+        ('model = "northern-clipper"', 'model = "custom"', "settings.vessel: model 'custom' needs mass_matrix and damping_matrix"),
+        ('template = "fossen-strand-1999"', 'template = "nope"', "template (line {line}): unknown template 'nope'"),
+        ('case = "paper"', 'case = "other"', "case (line {line}): fossen-strand-1999 has no case 'other' (one of paper)"),
+        ("dropout_probability = 0.0", "dropout_probability = 1.5", "settings.dropout_probability (line {line}): must be in [0, 1); got 1.5"),
+        ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, 0.5]", "settings.noise_std (line {line}): too few entries"),
+        ("[settings]", "[settings", "not valid TOML"),
+    ],
+)
+def test_a_bad_scenario_file_is_one_line_naming_file_key_and_line(old, new, expected, tmp_path, capsys):
+    text = _scenario_text(tmp_path, capsys)
+    assert old in text
+    bad = text.replace(old, new, 1)
+    path = tmp_path / "bad.toml"
+    path.write_text(bad)
+    key = expected.split(" (line")[0].split(".")[-1] if "(line" in expected else None
+    code, out, err = _run_cli(["run", str(path), "--out", str(tmp_path / "x")], capsys)
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"error: {path}: ")
+    assert expected.format(line=_line_of(bad, key)) in err, err
+    assert not (tmp_path / "x").exists()
+
+
+def test_run_options_are_checked_before_the_file(tmp_path, capsys):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(_scenario_text(tmp_path, capsys))
+    for args, message in (
+        (["--runs", "0"], "error: --runs must be a positive integer; got 0"),
+        (["--seed", "-1"], "error: --seed must be an integer from 0 to"),
+    ):
+        code, _, err = _run_cli(["run", str(scenario), "--out", str(tmp_path / "x"), *args], capsys)
+        assert code == 2 and err.startswith(message), err
+    code, _, err = _run_cli(["run", str(tmp_path / "missing.toml")], capsys)
+    assert code == 2 and err == f"error: {tmp_path / 'missing.toml'}: no such file\n"
+    code, _, err = _run_cli(["reproduce", "fossen-strand-1999", "--write-scenario", str(tmp_path / "s.txt")], capsys)
+    assert code == 2 and err == f"error: --write-scenario must end in .toml; got {tmp_path / 's.txt'}\n"
+
+
+def test_a_custom_vessel_is_simulated_with_its_own_matrices(tmp_path):
+    from lookout.models.vessel import NORTHERN_CLIPPER_D, NORTHERN_CLIPPER_M
+
+    template = templates()["fossen-strand-1999"]
+    heavier = (NORTHERN_CLIPPER_M * 2.0).tolist()
+    config = template.settings(duration=30.0, vessel={"model": "custom", "mass_matrix": heavier, "damping_matrix": NORTHERN_CLIPPER_D.tolist()})
+    path = save(ScenarioSpec(template, "paper", config), tmp_path / "custom.toml")
+    scenario = load(path).build()
+    np.testing.assert_array_equal(np.asarray(scenario.plant.vessel.mass_matrix), np.asarray(heavier))
+    np.testing.assert_array_equal(np.asarray(scenario.observer.mass_matrix), np.asarray(heavier))
+
+
+# ----------------------------------------------------------------------------------
+# campaign specs
+
+CAMPAIGN = {
+    "seeds_per_point": 4,
+    "chunk_runs": 2,
+    "metrics": ["rms_error:position", "max_excursion:position", "rms_input:force", "settling_time:bias_force"],
+    "divergence": {"signal": "position", "limit": 1000.0},
+    "sweep": {"kind": "grid", "axes": [
+        {"field": "wave_frequency", "values": [0.7, 1.0]},
+        {"field": ["bias_std[0]", "bias_std[1]", "bias_std[2]"], "values": [0.5, 2.0], "scale": True, "name": "bias_scale"},
+        {"field": "dropout_probability", "values": [0.0, 0.3]},
+    ]},
+}
+
+
+def _write_campaign(folder: Path, scenario_text: str, **changes) -> Path:
+    (folder / "base.toml").write_text(scenario_text)
+    document = {"scenario": "base.toml", **CAMPAIGN, **changes}
+    return _toml.write(folder / "campaign.toml", document)
+
+
+def test_campaign_points_are_the_grid_and_scale_multiplies_the_base(tmp_path, capsys):
+    spec = _write_campaign(tmp_path, _scenario_text(tmp_path, capsys))
+    campaign = load_campaign(spec)
+    assert len(campaign.points) == 8 and len(campaign.chunks()) == 16
+    assert campaign.points[5] == {"wave_frequency": 1.0, "bias_scale": 0.5, "dropout_probability": 0.3}
+    changes = campaign.changes(5)
+    assert changes["bias_std[2]"] == 0.5 * 5e4 and changes["wave_frequency"] == 1.0
+    settings = campaign.point_spec(5).settings
+    assert settings.bias_std == (1e3, 1e3, 2.5e4) and settings.dropout_probability == 0.3
+    # a Latin hypercube: one point per stratum of each axis
+    lhs = campaign_from_document({"scenario": campaign.base.document(), "seeds_per_point": 2, "metrics": ["rms_error:position"], "sweep": {
+        "kind": "latin-hypercube", "points": 10, "seed": 3, "axes": [{"field": "wave_frequency", "range": [0.5, 1.0]}, {"field": "dropout_probability", "range": [0.0, 0.5]}]}}, "<lhs>")
+    for label, (low, high) in (("wave_frequency", (0.5, 1.0)), ("dropout_probability", (0.0, 0.5))):
+        strata = np.floor((np.array([p[label] for p in lhs.points]) - low) / (high - low) * 10).astype(int)
+        assert sorted(strata) == list(range(10))
+
+
+@pytest.mark.parametrize(
+    "changes, expected",
+    [
+        ({"sweep": {"axes": [{"field": "wave_freqency", "values": [1.0]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'wave_freqency'"),
+        ({"sweep": {"axes": [{"field": "noise_std[3]", "values": [1.0]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'noise_std[3]'"),
+        ({"sweep": {"axes": [{"field": "dropout_probability", "values": [0.1, 1.5]}]}}, "sweep.axes[0].values (line {line}): value 1.5: settings.dropout_probability: must be in [0, 1); got 1.5"),
+        ({"metrics": ["rms_tracking:position"]}, "metrics (line {line}): 'rms_tracking:position': the reference gives no desired 'position'"),
+        ({"seeds_per_point": 4, "chunk_runs": 3}, "chunk_runs (line {line}): must be a positive divisor of seeds_per_point (4)"),
+        ({"seed_per_point": 4}, "seed_per_point (line {line}): unknown key"),
+        ({"sweep": {"kind": "latin-hypercube", "axes": [{"field": "wave_frequency", "range": [0.5, 1.0]}]}}, "sweep: a latin-hypercube needs points >= 1"),
+        ({"sweep": {"axes": [{"field": "wave_frequency", "values": [0.5, 1.1]}]}}, "sweep.axes[0].values (line {line}): value 1.1 makes no scenario: cutoff_frequency must exceed wave_frequency"),
+    ],
+)
+def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp_path, capsys):
+    spec = _write_campaign(tmp_path, _scenario_text(tmp_path, capsys), **changes)
+    key = expected.split(" (line")[0] if "(line" in expected else None
+    key = "axes" if key and key.startswith("sweep.axes") else key
+    line = _line_of(spec.read_text(), key)
+    code, _, err = _run_cli(["campaign", "run", str(spec), "--out", str(tmp_path / "store"), "--workers", "0"], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"error: {spec}: ") and expected.format(line=line) in err, err
+    assert not (tmp_path / "store").exists()
+
+
+# ----------------------------------------------------------------------------------
+# running, resuming, dask
+
+
+@pytest.fixture(scope="module")
+def campaign_files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("campaign")
+    template = templates()["fossen-strand-1999"]
+    save(ScenarioSpec(template, "paper", template.settings(duration=30.0)), folder / "base.toml")
+    spec = _toml.write(folder / "campaign.toml", {"scenario": "base.toml", **CAMPAIGN})
+    return folder, spec
+
+
+@pytest.fixture(scope="module")
+def reference_store(campaign_files):
+    """The campaign computed in this process, uninterrupted."""
+    folder, spec = campaign_files
+    store = folder / "reference.zarr"
+    run_campaign(load_campaign(spec), store, workers=0, say=lambda text: None)
+    return store
+
+
+def _assert_same_store(a: Path, b: Path) -> None:
+    first, second = CampaignStore(a).open().load(), CampaignStore(b).open().load()
+    assert set(first.data_vars) == set(second.data_vars)
+    for name in first.data_vars:
+        np.testing.assert_array_equal(first[name].values, second[name].values, err_msg=name)
+    for name in first.coords:
+        np.testing.assert_array_equal(first[name].values, second[name].values, err_msg=name)
+    assert len(CampaignStore(a).done()) == len(CampaignStore(b).done())
+
+
+def test_the_store_holds_every_metric_of_every_run(reference_store, campaign_files):
+    ds = CampaignStore(reference_store).open().load()
+    assert ds.sizes == {"point": 8, "seed": 4}
+    assert np.isfinite(ds.rms_error__position).all() and (ds.diverged == 0).all()
+    assert ds.rms_error__position.attrs["units"] == "m" and ds.settling_time__bias_force.attrs["units"] == "s"
+    # point 5, seeds 0..3, recomputed directly: same metric
+    campaign = load_campaign(campaign_files[1])
+    scenario = campaign.point_spec(5).build()
+    from lookout.sim import keys_of_seeds, simulate_batch
+
+    trajectory = simulate_batch(scenario, keys_of_seeds([2, 3]))
+    error = np.asarray(trajectory.truth["position"]) - np.asarray(trajectory.estimate["position"])
+    rms = np.sqrt((error[:, 150:] ** 2).sum(-1).mean(-1))
+    np.testing.assert_allclose(ds.rms_error__position.values[5, 2:], rms, rtol=1e-12)
+    # dropouts raise the error: the 0.3 points against the 0.0 ones, seeds alike
+    noisy = ds.rms_error__position.where(ds.dropout_probability == 0.3, drop=True).values
+    clean = ds.rms_error__position.where(ds.dropout_probability == 0.0, drop=True).values
+    assert np.median(noisy) > np.median(clean)
+    code = main(["campaign", "status", str(reference_store)])
+    assert code == 0
+
+
+def test_a_campaign_killed_mid_way_resumes_to_the_uninterrupted_store(reference_store, campaign_files, tmp_path):
+    folder, spec = campaign_files
+    store = tmp_path / "killed.zarr"
+    process = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from lookout.cli import main; sys.exit(main(sys.argv[1:]))", "campaign", "run", str(spec), "--out", str(store), "--workers", "0"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env={**os.environ},
+    )
+    records = store / "_lookout" / "chunks"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and process.poll() is None:
+        if records.exists() and len(list(records.glob("chunk-*.json"))) >= 3:
+            break
+        time.sleep(0.05)
+    assert process.poll() is None, process.stderr.read().decode()
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    process.stderr.close()
+    before = {path.name: path.read_text() for path in records.glob("chunk-*.json")}
+    assert 3 <= len(before) < 16
+    messages = []
+    result = run_campaign(load_campaign(spec), store, workers=0, say=messages.append)
+    assert result["computed"] == 16 - len(before)
+    assert any(f"resuming: {len(before)} of 16 chunks done" in m for m in messages)
+    # a recorded chunk is never written again: its record is untouched
+    for name, text in before.items():
+        assert (records / name).read_text() == text
+    _assert_same_store(store, reference_store)
+    # resuming a complete store computes nothing; another spec is refused
+    assert run_campaign(load_campaign(spec), store, workers=0, say=lambda text: None)["computed"] == 0
+    other = campaign_from_document({**json.loads(json.dumps(load_campaign(spec).document())), "seeds_per_point": 2, "chunk_runs": 2}, "<other>")
+    with pytest.raises(ValueError, match="holds another campaign"):
+        run_campaign(other, store, workers=0, say=lambda text: None)
+
+
+def test_two_local_workers_give_the_one_process_store_even_when_a_worker_is_killed_mid_chunk(reference_store, campaign_files, tmp_path):
+    """The default: lookout starts a 2-worker LocalCluster. A watcher connects to its
+    scheduler, waits until a worker is running a chunk (after the calibration chunk
+    is stored) and SIGKILLs that worker's process; the campaign still completes, and
+    its store equals the one computed in a single process."""
+    from dask.distributed import Client
+
+    folder, spec = campaign_files
+    store = tmp_path / "dask.zarr"
+    messages, killed, outcome = [], {}, {}
+    started, done = threading.Event(), threading.Event()
+
+    def say(text):
+        messages.append(text)
+        if text.startswith("dask scheduler: "):
+            outcome["address"] = text.split()[2].rstrip(";")
+            started.set()
+
+    def drive():
+        try:
+            outcome["result"] = run_campaign(load_campaign(spec), store, workers=2, say=say)
+        except BaseException as error:  # noqa: BLE001  (re-raised below)
+            outcome["error"] = error
+        finally:
+            started.set()
+            done.set()
+
+    thread = threading.Thread(target=drive, daemon=True)
+    thread.start()
+    assert started.wait(120)
+    records = store / "_lookout" / "chunks"
+    if "address" in outcome:
+        with Client(outcome["address"], timeout="30s") as watcher:
+            deadline = time.monotonic() + 300
+            while not done.is_set() and time.monotonic() < deadline and not killed:
+                processing = {address: tasks for address, tasks in watcher.processing().items() if tasks}
+                recorded = len(list(records.glob("chunk-*.json"))) if records.exists() else 0
+                if recorded >= 1 and processing:
+                    address = next(iter(processing))
+                    pid = watcher.run(os.getpid, workers=[address])[address]
+                    os.kill(pid, signal.SIGKILL)
+                    killed.update(address=address, tasks=processing[address], recorded=recorded)
+                time.sleep(0.01)
+    assert done.wait(300), "the campaign did not finish within 300 s of the kill"
+    thread.join()
+    if "error" in outcome:
+        raise outcome["error"]
+    assert killed, "no worker was caught mid-chunk"
+    assert killed["recorded"] < 16
+    assert outcome["result"]["done"] == 16
+    assert any(m.startswith("calibration chunk:") for m in messages)
+    assert any("dashboard: http://127.0.0.1:" in m for m in messages)
+    _assert_same_store(store, reference_store)
