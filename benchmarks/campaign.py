@@ -10,7 +10,7 @@
 
 Prints wall seconds, runs per second and simulated seconds per wall second, and the
 overhead (b)/(a) - 1 (target <= 10 %).
-Usage: python benchmarks/campaign.py [--points 8] [--seeds 64] [--chunk-runs 32] [--duration 1500]
+Usage: python benchmarks/campaign.py [--points 32] [--seeds 64] [--chunk-runs 32] [--duration 1500]
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def main() -> None:
     from lookout.studies.execute import run_campaign
 
     parser = argparse.ArgumentParser()
-    parser.add_argument("--points", type=int, default=8)
+    parser.add_argument("--points", type=int, default=32)
     parser.add_argument("--seeds", type=int, default=64)
     parser.add_argument("--chunk-runs", type=int, default=32)
     parser.add_argument("--duration", type=float, default=1500.0)

@@ -152,9 +152,12 @@ def test_a_custom_vessel_is_simulated_with_its_own_matrices(tmp_path):
 # ----------------------------------------------------------------------------------
 # campaign specs
 
+# Chunks of 3 runs: not a multiple of the 2 devices conftest exposes, so this process
+# runs them unsharded, as a 1-device dask worker does, and the workers load the program
+# this process compiled from the persistent compilation cache.
 CAMPAIGN = {
-    "seeds_per_point": 4,
-    "chunk_runs": 2,
+    "seeds_per_point": 6,
+    "chunk_runs": 3,
     "metrics": ["rms_error:position", "max_excursion:position", "rms_input:force", "settling_time:bias_force"],
     "divergence": {"signal": "position", "limit": 1000.0},
     "sweep": {"kind": "grid", "axes": [
@@ -216,7 +219,9 @@ def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp
 # running, resuming, dask
 
 
-@pytest.fixture(scope="module")
+# session scope: xdist may interleave this module's tests with others on one worker,
+# and a module fixture would then be built again
+@pytest.fixture(scope="session")
 def campaign_files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("campaign")
     template = templates()["fossen-strand-1999"]
@@ -225,7 +230,7 @@ def campaign_files(tmp_path_factory):
     return folder, spec
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def reference_store(campaign_files):
     """The campaign computed in this process, uninterrupted."""
     folder, spec = campaign_files
@@ -246,18 +251,18 @@ def _assert_same_store(a: Path, b: Path) -> None:
 
 def test_the_store_holds_every_metric_of_every_run(reference_store, campaign_files):
     ds = CampaignStore(reference_store).open().load()
-    assert ds.sizes == {"point": 8, "seed": 4}
+    assert ds.sizes == {"point": 8, "seed": 6}
     assert np.isfinite(ds.rms_error__position).all() and (ds.diverged == 0).all()
     assert ds.rms_error__position.attrs["units"] == "m" and ds.settling_time__bias_force.attrs["units"] == "s"
-    # point 5, seeds 0..3, recomputed directly: same metric
+    # point 5, seeds 3..5, recomputed directly: same metric
     campaign = load_campaign(campaign_files[1])
     scenario = campaign.point_spec(5).build()
     from lookout.sim import keys_of_seeds, simulate_batch
 
-    trajectory = simulate_batch(scenario, keys_of_seeds([2, 3]))
+    trajectory = simulate_batch(scenario, keys_of_seeds([3, 4, 5]))
     error = np.asarray(trajectory.truth["position"]) - np.asarray(trajectory.estimate["position"])
     rms = np.sqrt((error[:, 150:] ** 2).sum(-1).mean(-1))
-    np.testing.assert_allclose(ds.rms_error__position.values[5, 2:], rms, rtol=1e-12)
+    np.testing.assert_allclose(ds.rms_error__position.values[5, 3:], rms, rtol=1e-12)
     # dropouts raise the error: the 0.3 points against the 0.0 ones, seeds alike
     noisy = ds.rms_error__position.where(ds.dropout_probability == 0.3, drop=True).values
     clean = ds.rms_error__position.where(ds.dropout_probability == 0.0, drop=True).values
@@ -295,7 +300,7 @@ def test_a_campaign_killed_mid_way_resumes_to_the_uninterrupted_store(reference_
     _assert_same_store(store, reference_store)
     # resuming a complete store computes nothing; another spec is refused
     assert run_campaign(load_campaign(spec), store, workers=0, say=lambda text: None)["computed"] == 0
-    other = campaign_from_document({**json.loads(json.dumps(load_campaign(spec).document())), "seeds_per_point": 2, "chunk_runs": 2}, "<other>")
+    other = campaign_from_document({**json.loads(json.dumps(load_campaign(spec).document())), "seeds_per_point": 3, "chunk_runs": 3}, "<other>")
     with pytest.raises(ValueError, match="holds another campaign"):
         run_campaign(other, store, workers=0, say=lambda text: None)
 
@@ -353,3 +358,38 @@ def test_two_local_workers_give_the_one_process_store_even_when_a_worker_is_kill
     assert any(m.startswith("calibration chunk:") for m in messages)
     assert any("dashboard: http://127.0.0.1:" in m for m in messages)
     _assert_same_store(store, reference_store)
+
+
+def test_a_chunk_that_does_not_fit_a_worker_is_refused_with_the_numbers(campaign_files, tmp_path):
+    folder, spec = campaign_files
+    campaign = load_campaign(spec)
+    with pytest.raises(ValueError, match=r"chunk_runs 3 needs about .* per chunk \(3 runs x 300 records x 296 B x 4, \+ 600 MB runtime\), and a worker has 100 MB"):
+        run_campaign(campaign, tmp_path / "small.zarr", workers=0, say=lambda text: None, available_memory=lambda: 100e6)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--workers", "-1"], "error: --workers must be 0 (this process) or a positive number of workers; got -1"),
+        (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "error: give --workers or --scheduler, not both"),
+    ],
+)
+def test_campaign_options_are_checked_first(args, message, campaign_files, tmp_path, capsys):
+    folder, spec = campaign_files
+    code, _, err = _run_cli(["campaign", "run", str(spec), "--out", str(tmp_path / "s.zarr"), *args], capsys)
+    assert code == 2 and err.startswith(message), err
+    assert not (tmp_path / "s.zarr").exists()
+
+
+def test_status_and_report_name_a_folder_that_is_no_store(tmp_path, capsys):
+    for command in (["campaign", "status", str(tmp_path)], ["campaign", "report", str(tmp_path)]):
+        code, _, err = _run_cli(command, capsys)
+        assert code == 2 and "is not a campaign store" in err and err.count("\n") == 1, err
+
+
+def test_status_says_what_is_done(reference_store, capsys):
+    code, out, err = _run_cli(["campaign", "status", str(reference_store), "--json"], capsys)
+    assert code == 0, err
+    info = json.loads(out)
+    assert info["chunks"] == info["chunks_done"] == 16 and info["runs_done"] == 48 and info["complete"]
+    assert info["axes"] == ["wave_frequency", "bias_scale", "dropout_probability"] and info["diverged"] == 0

@@ -7,6 +7,7 @@ option and the violated condition, exit code 2, before anything is written.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -140,6 +141,24 @@ def _output_folder(option: str, text: str) -> Path:
     else:
         _writable_folder(option, folder.absolute().parent, f"--out {text}")
     return folder
+
+
+def _created_folder(option: str, text: str) -> Path:
+    """:func:`_output_folder`, created (its parent exists: checked)."""
+    folder = _output_folder(option, text)
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as error:
+        raise InputError(f"{option}: cannot create {folder}: {error.strerror}") from None
+    return folder
+
+
+@contextlib.contextmanager
+def _simulating():
+    """A progress bar on stderr while simulating; yields the engine's ``progress(done, total)``."""
+    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task("run", total=1.0)
+        yield lambda done, total: bar.update(task, completed=done / total)
 
 
 def _image_file(option: str, text: str) -> Path:
@@ -348,14 +367,9 @@ def reproduce(
         _write_scenario(name, config, write_scenario)
         return
     _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)])
-    folder = _output_folder("--out", out)
-    try:
-        folder.mkdir(exist_ok=True)
-    except OSError as error:
-        raise InputError(f"--out: cannot create {folder}: {error.strerror}") from None
-    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
-        task = bar.add_task("run", total=1.0)
-        summary = module.run(config, folder, progress=lambda done, total: bar.update(task, completed=done / total))
+    folder = _created_folder("--out", out)
+    with _simulating() as progress:
+        summary = module.run(config, folder, progress=progress)
     _print_summary(summary, module.tables(summary), folder)
 
 

@@ -537,7 +537,12 @@ def stack_scenarios(scenarios: list[Scenario]) -> Scenario:
 def keys_of_seeds(seeds) -> Array:
     """PRNG keys of a batch whose run i uses ``jax.random.key(seeds[i])`` (as :func:`seed_keys`
     with seed = seeds[i], runs = 1), for batches that mix scenarios and seeds."""
-    return jnp.stack([seed_keys(int(seed), 1)[0] for seed in seeds])
+    seeds = [int(seed) for seed in seeds]
+    for seed in seeds:
+        if not 0 <= seed <= MAX_SEED:
+            raise ValueError(f"seeds must be integers from 0 to {MAX_SEED} (a JAX key takes a signed 64-bit seed); got {seed!r}")
+    # the keys seed_keys(seed, 1)[0] would give, made in one vmapped call, not one per seed
+    return jax.vmap(jax.random.key)(jnp.asarray(seeds, dtype=jnp.int64))
 
 
 def seed_keys(seed: int, runs: int) -> Array:

@@ -53,6 +53,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from lookout.papers._config import positive_count
 from lookout.studies._toml import FileError, key_line, read
 from lookout.studies.scenario_file import ScenarioSpec, describe, from_document, get_path
 
@@ -151,9 +152,7 @@ class Trajectories(BaseModel):
     @field_validator("every")
     @classmethod
     def _positive(cls, value):
-        if value < 1:
-            raise ValueError(f"must be a positive integer; got {value}")
-        return value
+        return positive_count(value)
 
 
 class CampaignSettings(BaseModel):
@@ -174,9 +173,7 @@ class CampaignSettings(BaseModel):
     @field_validator("seeds_per_point")
     @classmethod
     def _positive_count(cls, value):
-        if value < 1:
-            raise ValueError(f"must be a positive integer; got {value}")
-        return value
+        return positive_count(value)
 
     @field_validator("seed")
     @classmethod
@@ -408,40 +405,43 @@ def load_campaign(path: str | Path) -> Campaign:
 # computing one chunk (runs on a worker)
 
 
-def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...], calibrate: bool = False) -> dict[str, np.ndarray]:
+#: (campaign, batch size) of the chunks this process has computed: a later one runs compiled.
+_COMPUTED: set[tuple[str, int]] = set()
+
+
+def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[str, np.ndarray]:
     """Simulate one chunk as a vmapped batch and reduce it to its metrics.
 
     Returns metric variable -> ``(runs,)`` array, ``diverged``, and ``trajectory__NAME``
-    -> ``(runs, kept records, ...)`` for the kept signals; plus ``seconds`` (wall time).
+    -> ``(runs, kept records, ...)`` for the kept signals; plus ``seconds`` (wall time)
+    and ``compiled`` (1.0 when this process had computed a chunk of the campaign before,
+    so the time is a compiled chunk's, 0.0 when it includes compilation).
     Built scenarios are cached per process, so a worker compiles once per shape.
-    With ``calibrate``, the batch is simulated a second time, compiled, and
-    ``warm_seconds`` is the time of that second simulation (the time of every later chunk).
     """
     import time
-
-    import jax
 
     from lookout.sim import keys_of_seeds, simulate_batch
     from lookout.studies import metrics as metric_module
 
     start = time.perf_counter()
+    compiled = (canonical, len(seeds)) in _COMPUTED
     campaign = _campaign(canonical)
     scenario = _point_scenario(canonical, point)
     trajectory = simulate_batch(scenario, keys_of_seeds(list(seeds)))
-    warm = None
-    if calibrate:
-        again = time.perf_counter()
-        jax.block_until_ready(simulate_batch(scenario, keys_of_seeds(list(seeds))))
-        warm = time.perf_counter() - again
     metrics = metric_module.resolve(list(campaign.metric_names), scenario)
     divergence = campaign.settings.divergence
     out = metric_module.reduce(trajectory, metrics, after=campaign.settings.after, divergence=None if divergence is None else (divergence.signal, divergence.limit))
     kept = campaign.settings.trajectories
     if kept is not None:
-        ds = trajectory.to_xarray()
+        recorded = {**trajectory.truth, **{f"{k}_hat": v for k, v in trajectory.estimate.items()}}
+        ds = None
         for name in kept.signals:
-            out[f"trajectory__{name}"] = np.asarray(ds[name].values[:, :: kept.every])
-    out["seconds"] = np.asarray(time.perf_counter() - start - (warm or 0.0))
-    if warm is not None:
-        out["warm_seconds"] = np.asarray(warm)
+            if name in recorded:
+                out[f"trajectory__{name}"] = np.asarray(recorded[name])[:, :: kept.every]
+            else:  # measurements, references, inputs: through the labelled view
+                ds = trajectory.to_xarray() if ds is None else ds
+                out[f"trajectory__{name}"] = np.asarray(ds[name].values[:, :: kept.every])
+    _COMPUTED.add((canonical, len(seeds)))
+    out["seconds"] = np.asarray(time.perf_counter() - start)
+    out["compiled"] = np.asarray(float(compiled))
     return out

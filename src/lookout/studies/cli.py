@@ -93,22 +93,15 @@ def run(
     with every setting spelled out) and summary.json (RMS estimation and tracking
     errors per run over the second half, and which runs diverged) to --out.
     """
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
     from lookout.results import write_netcdf
     from lookout.studies import metrics as metric_module
     from lookout.studies.scenario_file import save, simulate_trajectory, to_dataset
 
     spec, scenario = _scenario(scenario_file, runs, seed)
     _cli()._check_memory([(scenario, len(spec.seeds))])
-    folder = _cli()._output_folder("--out", out)
-    try:
-        folder.mkdir(exist_ok=True)
-    except OSError as error:
-        raise InputError(f"--out: cannot create {folder}: {error.strerror}") from None
-    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
-        task = bar.add_task("run", total=1.0)
-        trajectory = simulate_trajectory(spec, scenario=scenario, progress=lambda done, total: bar.update(task, completed=done / total))
+    folder = _cli()._created_folder("--out", out)
+    with _cli()._simulating() as progress:
+        trajectory = simulate_trajectory(spec, scenario=scenario, progress=progress)
     ds = to_dataset(spec, trajectory)
     write_netcdf(ds, folder / "run.nc", history=f"lookout run {scenario_file} (seeds {spec.seeds[0]}..{spec.seeds[-1]})")
     save(spec, folder / "scenario.toml", header=f"lookout scenario, as run into this folder from {scenario_file}.\nRun it again with: lookout run scenario.toml --out DIR")
@@ -241,8 +234,7 @@ def campaign_report(
         target = Path(out)
     folder = None
     if figures is not None:
-        folder = _cli()._output_folder("--figures", figures)
-        folder.mkdir(exist_ok=True)
+        folder = _cli()._created_folder("--figures", figures)
     written = write_report(path, target, figures_dir=folder)
     console_print(f"report written to {written}" + (f"; figures in {folder}" if folder else ""))
 

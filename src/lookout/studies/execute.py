@@ -1,5 +1,6 @@
 """Running a campaign's chunks: in this process, on a local dask cluster, or on any
-dask.distributed cluster, with an estimate up front and resume from the store.
+dask.distributed cluster, with estimates (memory up front, time from the first
+chunks) and resume from the store.
 
 - ``workers=0``: every chunk in this process, one after another.
 - ``workers=N`` (default: one per core): a ``LocalCluster`` of N single-threaded
@@ -40,7 +41,8 @@ POLL_SECONDS = 0.05
 
 @dataclass
 class Estimate:
-    """Memory per chunk and, after the calibration chunk, time."""
+    """Memory per chunk (up front) and time (from the first chunks: one that compiles,
+    then one that runs compiled)."""
 
     chunk_bytes: float
     available_bytes: float | None
@@ -50,14 +52,6 @@ class Estimate:
     chunk_seconds: float | None = None
     compile_seconds: float | None = None
 
-    @property
-    def total_seconds(self) -> float | None:
-        """Time for the chunks after the calibration chunk: each worker compiles once,
-        then runs its share of chunks at the warm chunk time."""
-        if self.chunk_seconds is None:
-            return None
-        return self.compile_seconds + self.chunk_seconds * math.ceil((self.pending - 1) / max(1, self.workers))
-
 
 def _bytes(count: float) -> str:
     for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
@@ -66,25 +60,35 @@ def _bytes(count: float) -> str:
     return f"{count:.0f} B"
 
 
+def record_bytes(scenario) -> int:
+    """Bytes of one recorded sample of one run, from the signals' sizes (what
+    :func:`lookout.sim.record_nbytes` finds by tracing a sample, without the trace)."""
+    import jax.numpy as jnp
+
+    signals = scenario.record_signals
+    size = sum(s.size for s in (*signals.truth, *signals.estimate, *signals.extra, *signals.reference))
+    return int((size + signals.measurement.size + 2 * signals.input.size) * jnp.zeros(()).dtype.itemsize)
+
+
 def chunk_memory(campaign: Campaign) -> float:
     """Bytes one chunk needs on its worker: the records of its runs while they are
     reduced, and the runtime."""
-    from lookout.sim import record_nbytes
+    from lookout.studies.campaign import _point_scenario
 
-    scenario = campaign.base.build()
-    return PEAK_MEMORY_PER_RECORD_BYTE * campaign.chunk_runs * scenario.n_records * record_nbytes(scenario) + WORKER_BASE_BYTES
+    scenario = _point_scenario(campaign.canonical(), 0)
+    return PEAK_MEMORY_PER_RECORD_BYTE * campaign.chunk_runs * scenario.n_records * record_bytes(scenario) + WORKER_BASE_BYTES
 
 
 def check_memory(campaign: Campaign, available: float | None, workers: int) -> float:
     """Refuse (ValueError, with the numbers) a chunk that will not fit a worker."""
     need = chunk_memory(campaign)
     if available is not None and need > available:
-        from lookout.sim import record_nbytes
+        from lookout.studies.campaign import _point_scenario
 
-        scenario = campaign.base.build()
+        scenario = _point_scenario(campaign.canonical(), 0)
         raise ValueError(
             f"chunk_runs {campaign.chunk_runs} needs about {_bytes(need)} per chunk ({campaign.chunk_runs} runs x {scenario.n_records} records x "
-            f"{record_nbytes(scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE}, + {_bytes(WORKER_BASE_BYTES)} runtime), and a worker has "
+            f"{record_bytes(scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE}, + {_bytes(WORKER_BASE_BYTES)} runtime), and a worker has "
             f"{_bytes(available)} ({workers} worker(s)): set a smaller chunk_runs (a divisor of seeds_per_point) or fewer workers"
         )
     return need
@@ -129,11 +133,13 @@ def run_campaign(
         say(f"{path}: resuming: {len(done)} of {len(chunks)} chunks done, {len(pending)} to compute")
     start = time.perf_counter()
     canonical = campaign.canonical()
-    count = {"done": len(done)}
+    count = {"done": len(done), "computed": 0}
 
     def finished(chunk, result, worker):
         store.write_chunk(campaign, chunk, result, worker=worker)
         count["done"] += 1
+        count["computed"] += 1
+        calibrate(estimate, result)
         if progress is not None:
             progress(count["done"], len(chunks))
 
@@ -143,24 +149,29 @@ def run_campaign(
             memory += f" of {_bytes(estimate.available_bytes)} a worker has"
         say(f"{estimate.chunks} chunks of {campaign.chunk_runs} runs ({len(campaign.points)} points x {campaign.settings.seeds_per_point} seeds), {estimate.pending} to compute; {memory}")
 
-    def calibrated(estimate: Estimate, result: dict) -> None:
-        estimate.chunk_seconds = float(result["warm_seconds"])
-        estimate.compile_seconds = max(0.0, float(result["seconds"]) - estimate.chunk_seconds)
-        say(
-            f"calibration chunk: {float(result['seconds']):.1f} s with compilation, {estimate.chunk_seconds:.2f} s compiled; "
-            f"the other {estimate.pending - 1} chunks on {estimate.workers} worker(s): about {estimate.total_seconds:.0f} s"
-        )
+    def calibrate(estimate: Estimate, result: dict) -> None:
+        """The first chunk gives the compile time, the first compiled chunk the rest."""
+        seconds = float(result["seconds"])
+        if estimate.compile_seconds is None and not result["compiled"]:
+            estimate.compile_seconds = seconds
+            say(f"first chunk: {seconds:.1f} s with compilation")
+        elif estimate.chunk_seconds is None and result["compiled"]:
+            estimate.chunk_seconds = seconds
+            remaining = max(0, estimate.pending - count["computed"])
+            estimate.compile_seconds = max(0.0, (estimate.compile_seconds or seconds) - seconds)
+            total = estimate.chunk_seconds * math.ceil(remaining / max(1, estimate.workers))
+            say(
+                f"calibration chunk: {seconds:.2f} s compiled ({estimate.compile_seconds:.1f} s to compile); "
+                f"the other {remaining} chunks on {estimate.workers} worker(s): about {total:.0f} s"
+            )
 
     memory = available_memory or _available_memory
     if scheduler is None and workers == 0:
         available = memory()
         estimate = Estimate(check_memory(campaign, available, 1), available, len(chunks), len(pending), 1)
         announce(estimate)
-        for position, chunk in enumerate(pending):
-            result = compute_chunk(canonical, chunk.point, chunk.seeds, position == 0)
-            if position == 0:
-                calibrated(estimate, result)
-            finished(chunk, result, "local")
+        for chunk in pending:
+            finished(chunk, compute_chunk(canonical, chunk.point, chunk.seeds), "local")
     else:
         from dask.distributed import Client, LocalCluster
 
@@ -187,30 +198,25 @@ def run_campaign(
             announce(estimate)
             fingerprint = campaign.fingerprint()
 
-            def submit(chunk, calibrate=False, attempt=0):
+            def submit(chunk, attempt=0):
                 key = f"{chunk.key}-{fingerprint}" + (f"-retry{attempt}" if attempt else "")
-                return client.submit(compute_chunk, canonical, chunk.point, chunk.seeds, calibrate, key=key, pure=False)
+                return client.submit(compute_chunk, canonical, chunk.point, chunk.seeds, key=key, pure=False)
 
-            first = submit(pending[0], calibrate=True)
-            result = first.result()
-            calibrated(estimate, result)
-            finished(pending[0], result, _worker(client, first))
-            first.release()  # a stored chunk's result is not needed again, even if its worker dies
             # A killed worker's tasks go to the others. Dask has known cases where such a
             # task stays "processing" on no live worker (dask/distributed#3196, #6263), and
             # as_completed can wait forever after a worker restarts (dask/dask#8882, seen
             # here: a test hung with it). So the driver polls, and if no chunk finishes for
-            # `stall` seconds, the unfinished ones are submitted again under new keys.
-            # Runs are deterministic, so a repeat changes nothing.
-            stall = max(STALL_SECONDS, STALL_CALIBRATIONS * float(result["seconds"] + result["warm_seconds"]))
-            futures = {submit(chunk): chunk for chunk in pending[1:]}
+            # `stall` seconds (after the first, which compiles), the unfinished ones are
+            # submitted again under new keys. Runs are deterministic: a repeat changes nothing.
+            stall = None
+            futures = {submit(chunk): chunk for chunk in pending}
             attempt = 0
             last = time.monotonic()
             while futures:
                 # poll (Future.done is cheap and needs no event loop of this thread's own)
                 ready = [future for future in futures if future.done()]
                 if not ready:
-                    if time.monotonic() - last > stall:
+                    if stall is not None and time.monotonic() - last > stall:
                         attempt += 1
                         say(f"no chunk finished in {stall:.0f} s: submitting the {len(futures)} unfinished chunks again (attempt {attempt + 1})")
                         stale = list(futures)
@@ -221,8 +227,11 @@ def run_campaign(
                     continue
                 last = time.monotonic()
                 for future in ready:
-                    finished(futures.pop(future), future.result(), _worker(client, future))
-                    future.release()
+                    result = future.result()
+                    finished(futures.pop(future), result, _worker(client, future))
+                    future.release()  # a stored chunk's result is not needed again, even if its worker dies
+                    if stall is None:
+                        stall = max(STALL_SECONDS, STALL_CALIBRATIONS * float(result["seconds"]))
         finally:
             client.close()
             if cluster is not None:

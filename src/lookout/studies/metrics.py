@@ -22,15 +22,19 @@ kind               per run
 ``final``          |x| (or |x_hat|, for an observer's own output) at the last record
 =================  ==============================================================
 
-Every campaign also keeps ``diverged``: a non-finite truth or estimate anywhere in
-the run, or, with a divergence limit, the estimation or tracking error of the
-limit's signal beyond it at any time. A diverged run's metrics are NaN.
+Every campaign also keeps ``diverged``: a non-finite truth or estimate at the end of
+the run (a non-finite state stays non-finite), or, with a divergence limit, the
+estimation or tracking error of the limit's signal beyond it at any time. A diverged
+run's metrics are NaN.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from lookout._math import ssa
@@ -116,23 +120,94 @@ def resolve(names: list[str], scenario) -> list[Metric]:
     return metrics
 
 
-def _norm(values: np.ndarray, vector: bool) -> np.ndarray:
+def _norm(values, vector: bool):
     """|values| per (run, time): the norm over the last axis of a vector signal."""
-    return np.sqrt((values**2).sum(axis=-1)) if vector else np.abs(values)
+    return jnp.sqrt(jnp.sum(values**2, axis=-1)) if vector else jnp.abs(values)
 
 
-def _difference(a, b, signal) -> np.ndarray:
-    difference = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
-    return np.asarray(ssa(difference)) if signal.angle else difference
+def _difference(a, b, angle: bool):
+    difference = a - b
+    return ssa(difference) if angle else difference
 
 
-def _rms(values: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.mean(values**2, axis=-1))
+def _rms(values):
+    return jnp.sqrt(jnp.mean(values**2, axis=-1))
+
+
+def _settling_time(norm, time, final_rms, tolerance: float = 0.10):
+    """:func:`lookout.analysis.settling_time` in JAX (the same tail-RMS rule)."""
+    count = jnp.arange(norm.shape[-1], 0, -1)
+    tail_power = jnp.flip(jnp.cumsum(jnp.flip(norm**2, axis=-1), axis=-1), axis=-1) / count
+    inside = jnp.sqrt(tail_power) <= (1.0 + tolerance) * final_rms[..., None]
+    return jnp.where(inside.any(axis=-1), time[jnp.argmax(inside, axis=-1)], jnp.nan)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What :func:`_reduce` computes: static, so one compiled program per campaign."""
+
+    metrics: tuple[tuple[str, str, str, bool, bool], ...]  # (variable, kind, signal, vector, angle)
+    divergence: tuple[str, float, bool, bool] | None       # (signal, limit, vector, angle)
+
+
+@functools.partial(jax.jit, static_argnames=("plan", "layout"))
+def _reduce(plan: _Plan, layout, time, window, truth, estimate, reference, inputs):
+    applied = layout.split(inputs)
+    # A non-finite value in the state stays non-finite (NaN and inf propagate through
+    # every later step), so the last record tells whether a run diverged; reading it,
+    # not every record, keeps the reduction's memory traffic to the metrics' signals.
+    leaves = [array[:, -1] for array in jax.tree.leaves((truth, estimate))]
+    n_runs = leaves[0].shape[0]
+    finite = jnp.ones(n_runs, dtype=bool)
+    for array in leaves:
+        finite &= jnp.isfinite(array).reshape(n_runs, -1).all(axis=1)
+
+    def error(name, vector, angle):
+        return _norm(_difference(truth[name], estimate[name], angle), vector)
+
+    def tracking(name, vector, angle):
+        return _norm(_difference(truth[name], reference[f"{name}_desired"], angle), vector)
+
+    diverged = ~finite
+    if plan.divergence is not None:
+        name, limit, vector, angle = plan.divergence
+        norms = ([error(name, vector, angle)] if name in estimate else []) + ([tracking(name, vector, angle)] if f"{name}_desired" in reference else [])
+        for norm in norms:
+            diverged |= jnp.where(jnp.isfinite(norm), norm, jnp.inf).max(axis=-1) > limit
+
+    weight = window.astype(float)
+    count = weight.sum()
+    out = {}
+    for variable, kind, name, vector, angle in plan.metrics:
+        if kind in ("rms_error", "max_error", "settling_time"):
+            norm = error(name, vector, angle)
+        elif kind in ("rms_tracking", "max_tracking"):
+            norm = tracking(name, vector, angle)
+        elif kind == "max_excursion":
+            base = reference[f"{name}_desired"] if f"{name}_desired" in reference else truth[name][:, :1]
+            norm = _norm(_difference(truth[name], base, angle), vector)
+        elif kind in ("rms_input", "max_input"):
+            norm = _norm(applied[name], vector)
+        else:  # final
+            array = (truth[name] if name in truth else estimate[name])[:, -1]
+            out[variable] = jnp.sqrt(jnp.sum(array.reshape(n_runs, -1) ** 2, axis=1))
+            continue
+        if kind.startswith("rms") or kind == "settling_time":
+            rms = jnp.sqrt(jnp.sum(norm**2 * weight, axis=-1) / count)
+            out[variable] = rms if kind != "settling_time" else _settling_time(norm, time, rms)
+        elif kind == "max_excursion":
+            out[variable] = norm.max(axis=-1)
+        else:
+            out[variable] = jnp.where(window, norm, -jnp.inf).max(axis=-1)
+    out = {variable: jnp.where(diverged, jnp.nan, value) for variable, value in out.items()}
+    out["diverged"] = diverged
+    return out
 
 
 def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None) -> dict[str, np.ndarray]:
     """Each metric per run (shape ``(runs,)``) and ``diverged`` (bool), from a batched
-    :class:`~lookout.Trajectory`.
+    :class:`~lookout.Trajectory`, computed in one jitted program on the device that
+    holds the runs (only these numbers are copied back).
 
     ``divergence = (signal, limit)`` also marks a run diverged when the estimation
     error or the tracking error of ``signal`` exceeds ``limit`` at any time.
@@ -143,68 +218,11 @@ def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, div
     if not window.any():
         raise ValueError(f"after ({after:g} s) is past the end of the run ({time[-1]:g} s)")
     record = trajectory.signals
-    truth_signals = {s.name: s for s in record.truth}
-    input_signals = {s.name: s for s in record.input.signals}
-    applied = record.input.split(np.asarray(trajectory.applied))
-    truth = {k: np.asarray(v) for k, v in trajectory.truth.items()}
-    estimate = {k: np.asarray(v) for k, v in trajectory.estimate.items()}
-    n_runs = next(iter(truth.values())).shape[0]
-
-    finite = np.ones(n_runs, dtype=bool)
-    for group in (truth, estimate):
-        for array in group.values():
-            finite &= np.isfinite(array).reshape(array.shape[0], -1).all(axis=1)
-
-    def error_norm(signal_name: str) -> np.ndarray:
-        signal = truth_signals[signal_name]
-        return _norm(_difference(truth[signal_name], estimate[signal_name], signal), bool(signal.labels))
-
-    def tracking_norm(signal_name: str) -> np.ndarray:
-        signal = truth_signals[signal_name]
-        return _norm(_difference(truth[signal_name], np.asarray(trajectory.reference[f"{signal_name}_desired"]), signal), bool(signal.labels))
-
-    diverged = ~finite
+    shapes = {s.name: s for s in record.truth} | {s.name: s for s in record.input.signals} | {s.name: s for s in record.extra}
+    rows = tuple((m.variable, m.kind, m.signal, bool(shapes[m.signal].labels), bool(shapes[m.signal].angle)) for m in metrics)
+    limit = None
     if divergence is not None:
-        signal_name, limit = divergence
-        for norm in ([error_norm(signal_name)] if signal_name in estimate else []) + (
-            [tracking_norm(signal_name)] if f"{signal_name}_desired" in trajectory.reference else []
-        ):
-            worst = np.where(np.isfinite(norm), norm, np.inf).max(axis=-1)
-            diverged |= worst > limit
-
-    out: dict[str, np.ndarray] = {}
-    with np.errstate(invalid="ignore", over="ignore"):
-        for metric in metrics:
-            kind, name = metric.kind, metric.signal
-            if kind in ("rms_error", "max_error", "settling_time"):
-                norm = error_norm(name)
-            elif kind in ("rms_tracking", "max_tracking"):
-                norm = tracking_norm(name)
-            elif kind == "max_excursion":
-                signal = truth_signals[name]
-                base = trajectory.reference.get(f"{name}_desired")
-                base = np.asarray(base) if base is not None else truth[name][:, :1]
-                norm = _norm(_difference(truth[name], base, signal), bool(signal.labels))
-            elif kind in ("rms_input", "max_input"):
-                norm = _norm(applied[name], bool(input_signals[name].labels))
-            else:  # final
-                array = truth[name] if name in truth else estimate[name]
-                array = np.asarray(array)[:, -1]
-                out[metric.variable] = np.sqrt((array.reshape(n_runs, -1) ** 2).sum(axis=1))
-                continue
-            part = norm[:, window]
-            if kind.startswith("rms"):
-                result = _rms(part)
-            elif kind == "settling_time":
-                from lookout.analysis import settling_time
-
-                result = np.asarray(settling_time(norm, time, _rms(part)), dtype=float).reshape(n_runs)
-            elif kind == "max_excursion":
-                result = norm.max(axis=-1)
-            else:
-                result = part.max(axis=-1)
-            out[metric.variable] = np.asarray(result, dtype=float)
-    for variable in out:
-        out[variable] = np.where(diverged, np.nan, out[variable])
-    out["diverged"] = diverged
-    return out
+        signal = shapes[divergence[0]]
+        limit = (divergence[0], float(divergence[1]), bool(signal.labels), bool(signal.angle))
+    result = _reduce(_Plan(rows, limit), record.input, jnp.asarray(time), jnp.asarray(window), trajectory.truth, trajectory.estimate, trajectory.reference, trajectory.applied)
+    return {name: np.asarray(value) for name, value in result.items()}

@@ -173,11 +173,13 @@ class CampaignStore:
         record_path = self.records / f"{chunk.key}.json"
         if record_path.exists():
             raise ValueError(f"{chunk.key} of {self.path} is already written")
-        group = zarr.open_group(str(self.path), mode="r+")
+        if getattr(self, "_group", None) is None:
+            self._group = zarr.open_group(str(self.path), mode="r+")
+        group = self._group
         start = chunk.block * campaign.chunk_runs
         region = slice(start, start + len(chunk.seeds))
         for name, values in result.items():
-            if name in ("seconds", "warm_seconds"):
+            if name in ("seconds", "compiled"):
                 continue
             array = group[name]
             values = np.asarray(values, dtype=np.float64)
@@ -187,6 +189,7 @@ class CampaignStore:
             "point": chunk.point,
             "seeds": [chunk.seeds[0], chunk.seeds[-1]],
             "seconds": float(result.get("seconds", np.nan)),
+            "compiled": bool(result.get("compiled", True)),
             "worker": worker,
             "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         }
