@@ -23,7 +23,7 @@ from lookout.studies.execute import run_campaign
 from lookout.studies.scenario_file import ScenarioSpec, load, save, templates
 from lookout.studies.store import CampaignStore
 
-pytestmark = pytest.mark.xdist_group("studies")
+# no xdist group: the tests spread over the workers (each builds the session fixtures it needs)
 
 
 def _run_cli(args, capsys):
@@ -160,6 +160,7 @@ CAMPAIGN = {
     "chunk_runs": 3,
     "metrics": ["rms_error:position", "max_excursion:position", "rms_input:force", "settling_time:bias_force"],
     "divergence": {"signal": "position", "limit": 1000.0},
+    "trajectories": {"signals": ["position", "position_hat", "measured_heading"], "every": 10},
     "sweep": {"kind": "grid", "axes": [
         {"field": "wave_frequency", "values": [0.7, 1.0]},
         {"field": ["bias_std[0]", "bias_std[1]", "bias_std[2]"], "values": [0.5, 2.0], "scale": True, "name": "bias_scale"},
@@ -251,7 +252,7 @@ def _assert_same_store(a: Path, b: Path) -> None:
 
 def test_the_store_holds_every_metric_of_every_run(reference_store, campaign_files):
     ds = CampaignStore(reference_store).open().load()
-    assert ds.sizes == {"point": 8, "seed": 6}
+    assert dict(ds.sizes) == {"point": 8, "seed": 6, "kept_time": 30, "earth_axis": 2}
     assert np.isfinite(ds.rms_error__position).all() and (ds.diverged == 0).all()
     assert ds.rms_error__position.attrs["units"] == "m" and ds.settling_time__bias_force.attrs["units"] == "s"
     # point 5, seeds 3..5, recomputed directly: same metric
@@ -263,6 +264,11 @@ def test_the_store_holds_every_metric_of_every_run(reference_store, campaign_fil
     error = np.asarray(trajectory.truth["position"]) - np.asarray(trajectory.estimate["position"])
     rms = np.sqrt((error[:, 150:] ** 2).sum(-1).mean(-1))
     np.testing.assert_allclose(ds.rms_error__position.values[5, 3:], rms, rtol=1e-12)
+    # kept trajectories: every 10th record of the same runs, truths, estimates and measurements
+    np.testing.assert_array_equal(ds.trajectory__position.values[5, 3:], np.asarray(trajectory.truth["position"])[:, ::10])
+    np.testing.assert_array_equal(ds.trajectory__position_hat.values[5, 3:], np.asarray(trajectory.estimate["position"])[:, ::10])
+    np.testing.assert_array_equal(ds.trajectory__measured_heading.values[5, 3:], trajectory.to_xarray().measured_heading.values[:, ::10])
+    assert ds.kept_time.values.tolist() == np.asarray(trajectory.time)[::10].tolist() and ds.trajectory__position.attrs["units"] == "m"
     # dropouts raise the error: the 0.3 points against the 0.0 ones, seeds alike
     noisy = ds.rms_error__position.where(ds.dropout_probability == 0.3, drop=True).values
     clean = ds.rms_error__position.where(ds.dropout_probability == 0.0, drop=True).values

@@ -108,7 +108,7 @@ class CampaignStore:
                 dims = ("point", "seed", "kept_time") + ((signal.dim,) if signal.labels else ())
                 shape = (n_points, n_seeds, len(coords["kept_time"][1])) + ((len(signal.labels),) if signal.labels else ())
                 if signal.labels:
-                    coords[signal.dim] = (signal.dim, list(signal.labels))
+                    coords[signal.dim] = (signal.dim, np.asarray(signal.labels, dtype=object))  # variable-length strings: Zarr v3 has a spec for them
                 data[f"trajectory__{name}"] = (dims, empty(shape, (1, size) + shape[2:]), {"units": signal.units, "long_name": signal.long_name})
         ds = xr.Dataset(data, coords=coords, attrs={
             "title": f"lookout campaign over {campaign.base.template.name} ({campaign.base.case})",
