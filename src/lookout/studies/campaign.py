@@ -54,8 +54,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from lookout.papers._config import positive_count
-from lookout.studies._toml import FileError, key_line, read
-from lookout.studies.scenario_file import ScenarioSpec, describe, from_document, get_path
+from lookout.studies._toml import FileError, read
+from lookout.studies.scenario_file import ScenarioSpec, describe, from_document, get_path, located
 
 #: The largest batch a chunk defaults to.
 DEFAULT_CHUNK_RUNS = 64
@@ -256,10 +256,10 @@ class Campaign:
         return settings
 
     def canonical(self) -> str:
-        return json.dumps(self.document(), sort_keys=True, separators=(",", ":"))
+        return canonical_json(self.document())
 
     def fingerprint(self) -> str:
-        return hashlib.sha256(self.canonical().encode()).hexdigest()[:16]
+        return fingerprint_of(self.document())
 
     def point_spec(self, point: int) -> ScenarioSpec:
         """The scenario of sweep point ``point``."""
@@ -274,6 +274,16 @@ class Campaign:
             for path in axis.fields:
                 result[path] = get_path(base, path) * value if axis.scale else value
         return result
+
+
+def canonical_json(document: dict) -> str:
+    """The campaign document as the one JSON text that resume compares and workers receive."""
+    return json.dumps(document, sort_keys=True, separators=(",", ":"))
+
+
+def fingerprint_of(document: dict) -> str:
+    """A short hash of :func:`canonical_json`, shown by the store and its report."""
+    return hashlib.sha256(canonical_json(document).encode()).hexdigest()[:16]
 
 
 @functools.lru_cache(maxsize=8)
@@ -308,13 +318,6 @@ def _latin_hypercube(axes: tuple[Axis, ...], points: int, seed: int) -> list[dic
         unit = (rng.permutation(points) + rng.random(points)) / points
         columns.append(axis.range[0] + unit * (axis.range[1] - axis.range[0]))
     return [{axis.label: float(column[i]) for axis, column in zip(axes, columns)} for i in range(points)]
-
-
-def _error(source: str, text: str | None, location: tuple, message: str) -> FileError:
-    line = key_line(text, location) if text else None
-    where = f" (line {line})" if line else ""
-    name = ".".join(str(p) if isinstance(p, str) else f"[{p}]" for p in location).replace(".[", "[")
-    return FileError(f"{source}: {name}{where}: {message}")
 
 
 def campaign_from_document(document: dict, source: str, text: str | None = None, folder: Path | None = None) -> Campaign:
@@ -353,7 +356,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
                 if axis.scale and not isinstance(current, (int, float)):
                     raise FileError(f"scale = true needs a number at {path!r}; it holds {current!r}")
             except FileError as error:
-                raise _error(source, text, location, str(error)) from None
+                raise located(source, text, location, str(error)) from None
         # every value of the axis must make a valid scenario (checked on the base)
         for value in (_grid_values(axis) if settings.sweep.kind == "grid" else list(axis.range)):
             changes = {path: (get_path(base_values, path) * value if axis.scale else value) for path in axis.fields}
@@ -362,14 +365,14 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
                 changed = base.with_settings(changes, source=source)
             except FileError as error:
                 detail = str(error).split(": ", 1)[-1]
-                raise _error(source, text, where, f"value {value!r}: {detail}") from None
+                raise located(source, text, where, f"value {value!r}: {detail}") from None
             try:
                 changed.build()
             except ValueError as error:
-                raise _error(source, text, where, f"value {value!r} makes no scenario: {error}") from None
+                raise located(source, text, where, f"value {value!r} makes no scenario: {error}") from None
     names = settings.metrics or ()
     if not names:
-        raise _error(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.studies.metrics)")
+        raise located(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.studies.metrics)")
     scenario_object = base.build()
     try:
         metric_module.resolve(list(names), scenario_object)
@@ -378,12 +381,12 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
             if signal not in {s.name for s in scenario_object.record_signals.truth}:
                 raise ValueError(f"the plant has no variable {signal!r}")
     except ValueError as error:
-        raise _error(source, text, ("metrics",) if settings.divergence is None or "variable" not in str(error) else ("divergence", "signal"), str(error)) from None
+        raise located(source, text, ("metrics",) if settings.divergence is None or "variable" not in str(error) else ("divergence", "signal"), str(error)) from None
     if settings.trajectories is not None:
         recorded = {name for _, name, _ in scenario_object.record_signals.variables()}
         for signal in settings.trajectories.signals:
             if signal not in recorded:
-                raise _error(source, text, ("trajectories", "signals"), f"no recorded signal {signal!r} (recorded: {', '.join(sorted(recorded))})")
+                raise located(source, text, ("trajectories", "signals"), f"no recorded signal {signal!r} (recorded: {', '.join(sorted(recorded))})")
     return Campaign(settings, base, points, tuple(names), source)
 
 

@@ -105,6 +105,14 @@ def _location_text(location: tuple) -> str:
     return text
 
 
+def located(source: str, text: str | None, location: tuple, message: str) -> FileError:
+    """The one-line error for the key at ``location``: file, key, its line in ``text``
+    when it can be found, and ``message``."""
+    line = key_line(text, location) if text else None
+    where = f" (line {line})" if line else ""
+    return FileError(f"{source}: {_location_text(location)}{where}: {message}")
+
+
 def _validate(model: type[BaseModel], values: dict, source: str, text: str | None, prefix: tuple) -> BaseModel:
     try:
         return model.model_validate(values)
@@ -127,9 +135,7 @@ def describe(error: ValidationError, source: str, text: str | None, prefix: tupl
         message = "missing key"
     elif "input" in first and first["type"] not in ("value_error", "assertion_error"):
         message = f"{message}; got {first['input']!r}"
-    line = key_line(text, location) if text is not None else None
-    where = f" (line {line})" if line else ""
-    return f"{source}: {_location_text(location)}{where}: {message}"
+    return str(located(source, text, location, message))
 
 
 def _path_parts(path: str) -> list:
@@ -184,23 +190,17 @@ def from_document(document: dict, source: str = "<scenario>", text: str | None =
     """Validate a parsed scenario file (see the module docstring)."""
     unknown = [key for key in document if key not in TOP_KEYS]
     if unknown:
-        line = key_line(text, (unknown[0],)) if text else None
-        where = f" (line {line})" if line else ""
-        raise FileError(f"{source}: {unknown[0]}{where}: unknown key (a scenario file has {', '.join(TOP_KEYS)})")
+        raise located(source, text, (unknown[0],), f"unknown key (a scenario file has {', '.join(TOP_KEYS)})")
     known = templates()
     name = document.get("template")
     if name is None:
         raise FileError(f"{source}: template: missing key (one of {', '.join(known)})")
     if name not in known:
-        line = key_line(text, ("template",)) if text else None
-        where = f" (line {line})" if line else ""
-        raise FileError(f"{source}: template{where}: unknown template {name!r} (one of {', '.join(known)})")
+        raise located(source, text, ("template",), f"unknown template {name!r} (one of {', '.join(known)})")
     template = known[name]
     case = document.get("case", template.cases[0])
     if case not in template.cases:
-        line = key_line(text, ("case",)) if text else None
-        where = f" (line {line})" if line else ""
-        raise FileError(f"{source}: case{where}: {template.name} has no case {case!r} (one of {', '.join(template.cases)})")
+        raise located(source, text, ("case",), f"{template.name} has no case {case!r} (one of {', '.join(template.cases)})")
     settings = document.get("settings", {})
     if not isinstance(settings, dict):
         raise FileError(f"{source}: settings: must be a table; got {type(settings).__name__}")

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lookout.studies.campaign import Campaign, Chunk
+from lookout.studies.campaign import Campaign, Chunk, canonical_json, fingerprint_of
 
 META = "_lookout"
 
@@ -68,7 +68,7 @@ class CampaignStore:
             if held is None:
                 if any(store.path.iterdir()):
                     raise ValueError(f"{store.path} exists and is not a lookout campaign store; give another --out")
-            elif json.dumps(held, sort_keys=True, separators=(",", ":")) != campaign.canonical():
+            elif canonical_json(held) != campaign.canonical():
                 raise ValueError(
                     f"{store.path} holds another campaign (fingerprint {store.fingerprint()}, this spec's is {campaign.fingerprint()}); "
                     "resume it with its own spec, or give another --out"
@@ -135,12 +135,8 @@ class CampaignStore:
         return json.loads(path.read_text()) if path.exists() else None
 
     def fingerprint(self) -> str | None:
-        import hashlib
-
         document = self.campaign_document()
-        if document is None:
-            return None
-        return hashlib.sha256(json.dumps(document, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
+        return None if document is None else fingerprint_of(document)
 
     def done(self) -> dict[int, dict]:
         """Chunk index -> its completion record, for every finished chunk."""
