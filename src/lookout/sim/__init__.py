@@ -23,6 +23,8 @@ from .engine import seed_keys as seed_keys
 from .engine import stack_scenarios as stack_scenarios
 from .engine import simulate as simulate
 from .engine import simulate_batch as simulate_batch
+from .engine import Summary as Summary
+from .engine import summarize_batch as summarize_batch
 from .filtering import Stepper as Stepper
 from .filtering import filter as filter  # noqa: A004
 from .integrators import euler_step as euler_step

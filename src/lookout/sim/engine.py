@@ -191,6 +191,11 @@ class Scenario(eqx.Module):
         return tuple(_ratio("sensor", p, "sample_period", self.sample_period) for p in self.sensor.sample_period)
 
     @property
+    def record_times(self) -> np.ndarray:
+        """Times of the recorded samples (s), from their integer indices."""
+        return np.arange(self.n_records) * self.record_every * self.sample_period
+
+    @property
     def record_signals(self) -> RecordSignals:
         """Names, units and frames of everything a run records."""
         return RecordSignals(
@@ -222,14 +227,42 @@ def _evaluate(parts: str, function: Callable, *args):
         raise ValueError(f"{parts} do not fit: {_first_line(error)}") from None
 
 
+#: Scenarios that fit, by :func:`_fit_key`: the points of a sweep (the same
+#: components with other numbers) are traced once, not once each.
+_FITTING: set = set()
+
+
+def _fit_key(scenario: Scenario):
+    """What :func:`check_fit` depends on: the tree's structure (component types and
+    static fields) and each leaf's type, shape and dtype, since it traces shapes
+    only. None when a static field cannot be hashed (then nothing is remembered)."""
+    leaves, treedef = jax.tree.flatten(scenario)
+    key = (treedef, tuple((type(leaf), np.shape(leaf), jnp.result_type(leaf)) for leaf in leaves))
+    try:
+        hash(key)
+    except TypeError:
+        return None
+    return key
+
+
 def check_fit(scenario: Scenario) -> None:
     """Check with ``jax.eval_shape`` that the scenario's components fit one another.
 
     Each failure is one ``ValueError`` line that names the two parts that disagree:
     the plant and its initial state, the sensor and the plant, the observer and the
     sensor or the plant, the reference, the controller and the plant's input, the
-    actuator.
+    actuator. A scenario that differs from one found fitting only in its numbers is
+    not traced again.
     """
+    key = _fit_key(scenario)
+    if key is not None and key in _FITTING:
+        return
+    _check_fit(scenario)
+    if key is not None:
+        _FITTING.add(key)
+
+
+def _check_fit(scenario: Scenario) -> None:
     plant, sensor, observer = scenario.plant, scenario.sensor, scenario.observer
     x0 = scenario.initial_state
     layout = plant.input_layout
@@ -414,11 +447,34 @@ def _initial_carry(scenario: Scenario, key: Array):
     return jax.tree.map(lambda leaf: jnp.asarray(leaf, dtype=jnp.result_type(leaf)), carry)
 
 
-def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_records: int):
+class Summary(eqx.Module):
+    """What a run keeps instead of its records (:func:`summarize_batch`).
+
+    The engine calls :meth:`init` once with the shapes of a record, then, at every
+    recorded sample i (in order), ``accumulated = update(accumulated, i, record)``
+    and keeps ``series(i, record)``; ``record`` is ``(truth, estimate, measurement,
+    reference, command, applied)`` of one run, as :class:`~lookout.Trajectory`
+    holds them without the run and time axes. Subclasses hold only static
+    configuration (one compiled program per configuration).
+    """
+
+    def init(self, record) -> Any:
+        raise NotImplementedError
+
+    def update(self, accumulated, index: Array, record) -> Any:
+        raise NotImplementedError
+
+    def series(self, index: Array, record) -> Any:
+        return None
+
+
+def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_records: int, summary: Summary | None = None):
     """Run ``n_records`` recorded groups of ``record_every`` samples from ``first_record``.
 
     A scan runs over records and, inside, over the ``record_every`` samples of each
-    record; only the first sample of each group is recorded.
+    record; only the first sample of each group is recorded. With a ``summary`` (a
+    whole run in one segment) the scan keeps ``summary``'s accumulation and series
+    instead of the records: returns ``(carry, (accumulated, series))``.
     """
     every = scenario.record_every
     plant = _realized_plant(scenario, key)
@@ -426,18 +482,27 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
     def one(c, k):
         return _sample(scenario, plant, c, k, key)
 
-    def group(carry, first):
+    def group(carry, index):
+        if summary is not None:
+            carry, accumulated = carry
+        first = index * every
         carry, record = one(carry, first)
         if every > 1:
             carry, _ = _static_scan(
                 lambda c, k: (one(c, k)[0], None), carry, first + 1 + jnp.arange(every - 1), every - 1, RECORD_GROUP_UNROLL_LIMIT
             )
+        if summary is not None:
+            return (carry, summary.update(accumulated, index, record)), summary.series(index, record)
         # one flat vector per record: a single write per record instead of one per leaf
         return carry, ravel_pytree(record)[0]
 
     template = jax.eval_shape(lambda c: one(c, jnp.asarray(0))[1], carry)
+    indices = first_record + jnp.arange(n_records)
+    if summary is not None:
+        (carry, accumulated), series = jax.lax.scan(group, (carry, summary.init(template)), indices)
+        return carry, (accumulated, series)
     unravel = ravel_pytree(jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), template))[1]
-    carry, flat = jax.lax.scan(group, carry, (first_record + jnp.arange(n_records)) * every)
+    carry, flat = jax.lax.scan(group, carry, indices)
     return carry, jax.vmap(unravel)(flat)
 
 
@@ -452,10 +517,10 @@ def _initial_carry_batch(scenario, keys, batched_scenario: bool):
 
 
 @eqx.filter_jit
-def _segment_batch(scenario, keys, carry, first_record, n_records: int, batched_scenario: bool):
+def _segment_batch(scenario, keys, carry, first_record, n_records: int, batched_scenario: bool, summary: Summary | None = None):
     axes = eqx.if_array(0) if batched_scenario else None
-    run = eqx.filter_vmap(_segment, in_axes=(axes, 0, 0, None, None))
-    return run(scenario, keys, carry, first_record, n_records)
+    run = eqx.filter_vmap(lambda s, k, c, f: _segment(s, k, c, f, n_records, summary), in_axes=(axes, 0, 0, None))
+    return run(scenario, keys, carry, first_record)
 
 
 def _segments(n_records: int, chunks: int) -> list[int]:
@@ -484,14 +549,10 @@ def _run(step: Callable, carry, n_records: int, progress, chunks: int, time_axis
     return jax.tree.map(lambda *parts: jnp.concatenate(parts, axis=time_axis), *outputs)
 
 
-def _time_grid(scenario: Scenario) -> np.ndarray:
-    return np.arange(scenario.n_records) * scenario.record_every * scenario.sample_period
-
-
 def _trajectory(scenario: Scenario, records, batched: bool) -> Trajectory:
     truth, estimate, measurement, reference, command, applied = records
     return Trajectory(
-        _time_grid(scenario), truth, estimate, measurement, reference, command, applied,
+        scenario.record_times, truth, estimate, measurement, reference, command, applied,
         signals=scenario.record_signals, batched=batched, attrs=_attrs(scenario),
     )
 
@@ -597,6 +658,33 @@ def _shard_runs(tree, n_runs: int):
     return jax.device_put(tree, jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("run")))
 
 
+def _sharded_batch(scenario: Scenario, keys: Array, batched_scenario: bool):
+    """The batch's scenario, keys and initial carry, with the run axis across devices."""
+    n_runs = keys.shape[0]
+    keys = _shard_runs(keys, n_runs)
+    if batched_scenario:
+        scenario = eqx.combine(_shard_runs(eqx.filter(scenario, eqx.is_array), n_runs), eqx.filter(scenario, eqx.is_array, inverse=True))
+    return scenario, keys, _shard_runs(_initial_carry_batch(scenario, keys, batched_scenario), n_runs)
+
+
+def summarize_batch(scenario: Scenario, keys: Array, summary: Summary, *, batched_scenario: bool = False):
+    """Simulate a batch as :func:`simulate_batch` does, keeping ``summary``'s
+    accumulation and series of each run instead of its records.
+
+    The runs are the same (same keys, same samples); only what is written per record
+    changes, so a study that needs a few numbers per run never holds the records.
+
+    Returns
+    -------
+    (accumulated, series)
+        ``summary``'s pytrees with a leading run axis (``series`` also has a time axis
+        of ``scenario.n_records``), left where they were computed (sharded across
+        devices when there are several).
+    """
+    scenario, keys, carry = _sharded_batch(scenario, keys, batched_scenario)
+    return _segment_batch(scenario, keys, carry, jnp.asarray(0), scenario.n_records, batched_scenario, summary)[1]
+
+
 def simulate_batch(
     scenario: Scenario, keys: Array, *, batched_scenario: bool = False, progress=None, chunks: int = 20
 ) -> Trajectory:
@@ -620,11 +708,7 @@ def simulate_batch(
     Trajectory
         With a leading run axis on every recorded array.
     """
-    n_runs = keys.shape[0]
-    keys = _shard_runs(keys, n_runs)
-    if batched_scenario:
-        scenario = eqx.combine(_shard_runs(eqx.filter(scenario, eqx.is_array), n_runs), eqx.filter(scenario, eqx.is_array, inverse=True))
-    carry = _shard_runs(_initial_carry_batch(scenario, keys, batched_scenario), n_runs)
+    scenario, keys, carry = _sharded_batch(scenario, keys, batched_scenario)
 
     def step(carry, first, length):
         return _segment_batch(scenario, keys, carry, first, length, batched_scenario)

@@ -413,7 +413,9 @@ _COMPUTED: set[tuple[str, int]] = set()
 
 
 def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[str, np.ndarray]:
-    """Simulate one chunk as a vmapped batch and reduce it to its metrics.
+    """Simulate one chunk as a vmapped batch and reduce it to its metrics: in the
+    engine's scan (:func:`lookout.studies.metrics.summarize`), or from the recorded
+    batch when trajectories are kept.
 
     Returns metric variable -> ``(runs,)`` array, ``diverged``, and ``trajectory__NAME``
     -> ``(runs, kept records, ...)`` for the kept signals; plus ``seconds`` (wall time)
@@ -430,12 +432,16 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
     compiled = (canonical, len(seeds)) in _COMPUTED
     campaign = _campaign(canonical)
     scenario = _point_scenario(canonical, point)
-    trajectory = simulate_batch(scenario, keys_of_seeds(list(seeds)))
+    keys = keys_of_seeds(list(seeds))
     metrics = metric_module.resolve(list(campaign.metric_names), scenario)
     divergence = campaign.settings.divergence
-    out = metric_module.reduce(trajectory, metrics, after=campaign.settings.after, divergence=None if divergence is None else (divergence.signal, divergence.limit))
+    options = {"after": campaign.settings.after, "divergence": None if divergence is None else (divergence.signal, divergence.limit)}
     kept = campaign.settings.trajectories
-    if kept is not None:
+    if kept is None:  # the metrics accumulate as the runs go; no records are held
+        out = metric_module.summarize(scenario, keys, metrics, **options)
+    else:
+        trajectory = simulate_batch(scenario, keys)
+        out = metric_module.reduce(trajectory, metrics, **options)
         recorded = {**trajectory.truth, **{f"{k}_hat": v for k, v in trajectory.estimate.items()}}
         ds = None
         for name in kept.signals:

@@ -60,23 +60,28 @@ def _bytes(count: float) -> str:
     return f"{count:.0f} B"
 
 
-def record_bytes(scenario) -> int:
-    """Bytes of one recorded sample of one run, from the signals' sizes (what
-    :func:`lookout.sim.record_nbytes` finds by tracing a sample, without the trace)."""
+def record_bytes(campaign: Campaign, scenario) -> int:
+    """Bytes one run of a chunk holds per recorded sample: every recorded signal when
+    trajectories are kept (the chunk is simulated with its records), else the series
+    its metrics keep (one number per settling time; the metrics accumulate in the
+    engine's scan). From the signals' sizes, without tracing a sample."""
     import jax.numpy as jnp
 
+    itemsize = jnp.zeros(()).dtype.itemsize
+    if campaign.settings.trajectories is None:
+        return sum(1 for name in campaign.metric_names if name.startswith("settling_time:")) * itemsize
     signals = scenario.record_signals
     size = sum(s.size for s in (*signals.truth, *signals.estimate, *signals.extra, *signals.reference))
-    return int((size + signals.measurement.size + 2 * signals.input.size) * jnp.zeros(()).dtype.itemsize)
+    return int((size + signals.measurement.size + 2 * signals.input.size) * itemsize)
 
 
 def chunk_memory(campaign: Campaign) -> float:
-    """Bytes one chunk needs on its worker: the records of its runs while they are
-    reduced, and the runtime."""
+    """Bytes one chunk needs on its worker: what its runs hold per record while they
+    are reduced, and the runtime."""
     from lookout.studies.campaign import _point_scenario
 
     scenario = _point_scenario(campaign.canonical(), 0)
-    return PEAK_MEMORY_PER_RECORD_BYTE * campaign.chunk_runs * scenario.n_records * record_bytes(scenario) + WORKER_BASE_BYTES
+    return PEAK_MEMORY_PER_RECORD_BYTE * campaign.chunk_runs * scenario.n_records * record_bytes(campaign, scenario) + WORKER_BASE_BYTES
 
 
 def check_memory(campaign: Campaign, available: float | None, workers: int) -> float:
@@ -88,7 +93,7 @@ def check_memory(campaign: Campaign, available: float | None, workers: int) -> f
         scenario = _point_scenario(campaign.canonical(), 0)
         raise ValueError(
             f"chunk_runs {campaign.chunk_runs} needs about {_bytes(need)} per chunk ({campaign.chunk_runs} runs x {scenario.n_records} records x "
-            f"{record_bytes(scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE}, + {_bytes(WORKER_BASE_BYTES)} runtime), and a worker has "
+            f"{record_bytes(campaign, scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE}, + {_bytes(WORKER_BASE_BYTES)} runtime), and a worker has "
             f"{_bytes(available)} ({workers} worker(s)): set a smaller chunk_runs (a divisor of seeds_per_point) or fewer workers"
         )
     return need
@@ -170,8 +175,19 @@ def run_campaign(
         available = memory()
         estimate = Estimate(check_memory(campaign, available, 1), available, len(chunks), len(pending), 1)
         announce(estimate)
-        for chunk in pending:
-            finished(chunk, compute_chunk(canonical, chunk.point, chunk.seeds), "local")
+        # a chunk is written by one writer thread while the next one computes (XLA
+        # releases the GIL); at most one write is pending, and an error in it stops the run
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="lookout-store") as writer:
+            writing = None
+            for chunk in pending:
+                result = compute_chunk(canonical, chunk.point, chunk.seeds)
+                if writing is not None:
+                    writing.result()
+                writing = writer.submit(finished, chunk, result, "local")
+            if writing is not None:
+                writing.result()
     else:
         from dask.distributed import Client, LocalCluster
 

@@ -22,22 +22,28 @@ kind               per run
 ``final``          |x| (or |x_hat|, for an observer's own output) at the last record
 =================  ==============================================================
 
-Every campaign also keeps ``diverged``: a non-finite truth or estimate at the end of
-the run (a non-finite state stays non-finite), or, with a divergence limit, the
-estimation or tracking error of the limit's signal beyond it at any time. A diverged
-run's metrics are NaN.
+Every campaign also keeps ``diverged``: a non-finite truth or estimate at any record,
+or, with a divergence limit, the estimation or tracking error of the limit's signal
+beyond it at any record. A diverged run's metrics are NaN.
+
+:func:`summarize` accumulates the metrics inside the engine's scan
+(:class:`MetricSummary`, :func:`lookout.sim.summarize_batch`), so the records are
+never held; :func:`reduce` computes the same per-record terms from a recorded batch.
 """
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
+from typing import Any
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from lookout._math import ssa
+from lookout.results import RecordSignals
+from lookout.sim import Summary, summarize_batch
 
 #: kind -> (what it needs, description)
 KINDS = {
@@ -121,17 +127,13 @@ def resolve(names: list[str], scenario) -> list[Metric]:
 
 
 def _norm(values, vector: bool):
-    """|values| per (run, time): the norm over the last axis of a vector signal."""
+    """|values|: the norm over the last axis of a vector signal."""
     return jnp.sqrt(jnp.sum(values**2, axis=-1)) if vector else jnp.abs(values)
 
 
 def _difference(a, b, angle: bool):
     difference = a - b
     return ssa(difference) if angle else difference
-
-
-def _rms(values):
-    return jnp.sqrt(jnp.mean(values**2, axis=-1))
 
 
 def _settling_time(norm, time, final_rms, tolerance: float = 0.10):
@@ -144,85 +146,186 @@ def _settling_time(norm, time, final_rms, tolerance: float = 0.10):
 
 @dataclass(frozen=True)
 class _Plan:
-    """What :func:`_reduce` computes: static, so one compiled program per campaign."""
+    """What a :class:`MetricSummary` computes: static, so one compiled program per campaign."""
 
     metrics: tuple[tuple[str, str, str, bool, bool], ...]  # (variable, kind, signal, vector, angle)
     divergence: tuple[str, float, bool, bool] | None       # (signal, limit, vector, angle)
 
 
-@functools.partial(jax.jit, static_argnames=("plan", "layout"))
-def _reduce(plan: _Plan, layout, time, window, truth, estimate, reference, inputs):
-    applied = layout.split(inputs)
-    # A non-finite value in the state stays non-finite (NaN and inf propagate through
-    # every later step), so the last record tells whether a run diverged; reading it,
-    # not every record, keeps the reduction's memory traffic to the metrics' signals.
-    leaves = [array[:, -1] for array in jax.tree.leaves((truth, estimate))]
-    n_runs = leaves[0].shape[0]
-    finite = jnp.ones(n_runs, dtype=bool)
-    for array in leaves:
-        finite &= jnp.isfinite(array).reshape(n_runs, -1).all(axis=1)
+class MetricSummary(Summary):
+    """The metrics of a run, accumulated record by record (:class:`lookout.sim.Summary`).
 
-    def error(name, vector, angle):
-        return _norm(_difference(truth[name], estimate[name], angle), vector)
-
-    def tracking(name, vector, angle):
-        return _norm(_difference(truth[name], reference[f"{name}_desired"], angle), vector)
-
-    diverged = ~finite
-    if plan.divergence is not None:
-        name, limit, vector, angle = plan.divergence
-        norms = ([error(name, vector, angle)] if name in estimate else []) + ([tracking(name, vector, angle)] if f"{name}_desired" in reference else [])
-        for norm in norms:
-            diverged |= jnp.where(jnp.isfinite(norm), norm, jnp.inf).max(axis=-1) > limit
-
-    weight = window.astype(float)
-    count = weight.sum()
-    out = {}
-    for variable, kind, name, vector, angle in plan.metrics:
-        if kind in ("rms_error", "max_error", "settling_time"):
-            norm = error(name, vector, angle)
-        elif kind in ("rms_tracking", "max_tracking"):
-            norm = tracking(name, vector, angle)
-        elif kind == "max_excursion":
-            base = reference[f"{name}_desired"] if f"{name}_desired" in reference else truth[name][:, :1]
-            norm = _norm(_difference(truth[name], base, angle), vector)
-        elif kind in ("rms_input", "max_input"):
-            norm = _norm(applied[name], vector)
-        else:  # final
-            array = (truth[name] if name in truth else estimate[name])[:, -1]
-            out[variable] = jnp.sqrt(jnp.sum(array.reshape(n_runs, -1) ** 2, axis=1))
-            continue
-        if kind.startswith("rms") or kind == "settling_time":
-            rms = jnp.sqrt(jnp.sum(norm**2 * weight, axis=-1) / count)
-            out[variable] = rms if kind != "settling_time" else _settling_time(norm, time, rms)
-        elif kind == "max_excursion":
-            out[variable] = norm.max(axis=-1)
-        else:
-            out[variable] = jnp.where(window, norm, -jnp.inf).max(axis=-1)
-    out = {variable: jnp.where(diverged, jnp.nan, value) for variable, value in out.items()}
-    out["diverged"] = diverged
-    return out
-
-
-def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None) -> dict[str, np.ndarray]:
-    """Each metric per run (shape ``(runs,)``) and ``diverged`` (bool), from a batched
-    :class:`~lookout.Trajectory`, computed in one jitted program on the device that
-    holds the runs (only these numbers are copied back).
-
-    ``divergence = (signal, limit)`` also marks a run diverged when the estimation
-    error or the tracking error of ``signal`` exceeds ``limit`` at any time.
+    Each record contributes :meth:`terms`: the squared norms (for RMS values and
+    settling times) and norms (for maxima) of the window's records, the final values,
+    and whether it is finite and within the divergence limit. In the engine's scan
+    (:func:`lookout.sim.summarize_batch`) they are summed, maximized and kept as the
+    run goes, so a campaign never holds the records; on a recorded
+    :class:`~lookout.Trajectory` (:func:`reduce`) the same terms are reduced over the
+    time axis. Settling times need the whole error history: its norm is the one
+    series kept per record. :meth:`finish` turns the accumulation into the metrics.
     """
-    time = np.asarray(trajectory.time)
+
+    plan: _Plan = eqx.field(static=True)
+    layout: Any = eqx.field(static=True)   # the input layout (to split the applied input)
+    first: int = eqx.field(static=True)    # first record of the window t >= after
+    n_records: int = eqx.field(static=True)
+
+    def _origins(self) -> tuple[str, ...]:
+        """Signals whose excursion is measured from their first record (no reference)."""
+        return tuple(name for _, kind, name, _, _ in self.plan.metrics if kind == "max_excursion")
+
+    def terms(self, index, record, origin):
+        """One record's contribution (one run): see the class docstring."""
+        truth, estimate, _, reference, _, applied = record
+        inputs = self.layout.split(applied)
+        window = index >= self.first
+
+        def error(name, vector, angle):
+            return _norm(_difference(truth[name], estimate[name], angle), vector)
+
+        def tracking(name, vector, angle):
+            return _norm(_difference(truth[name], reference[f"{name}_desired"], angle), vector)
+
+        power, peak, final, series = {}, {}, {}, {}
+        for variable, kind, name, vector, angle in self.plan.metrics:
+            if kind == "final":
+                value = truth[name] if name in truth else estimate[name]
+                final[variable] = jnp.sqrt(jnp.sum(jnp.asarray(value) ** 2))
+                continue
+            if kind in ("rms_error", "max_error", "settling_time"):
+                norm = error(name, vector, angle)
+            elif kind in ("rms_tracking", "max_tracking"):
+                norm = tracking(name, vector, angle)
+            elif kind == "max_excursion":
+                base = reference[f"{name}_desired"] if f"{name}_desired" in reference else origin[name]
+                norm = _norm(_difference(truth[name], base, angle), vector)
+            else:  # rms_input, max_input
+                norm = _norm(inputs[name], vector)
+            if kind.startswith("rms") or kind == "settling_time":
+                power[variable] = jnp.where(window, norm**2, 0.0)
+                if kind == "settling_time":
+                    series[variable] = norm
+            elif kind == "max_excursion":
+                peak[variable] = norm
+            else:
+                peak[variable] = jnp.where(window, norm, -jnp.inf)
+        finite = jnp.all(jnp.asarray([jnp.isfinite(leaf).all() for leaf in jax.tree.leaves((truth, estimate))]))
+        beyond = jnp.asarray(False)
+        if self.plan.divergence is not None:
+            name, limit, vector, angle = self.plan.divergence
+            norms = ([error(name, vector, angle)] if name in estimate else []) + ([tracking(name, vector, angle)] if f"{name}_desired" in reference else [])
+            for norm in norms:
+                beyond |= jnp.where(jnp.isfinite(norm), norm, jnp.inf) > limit
+        return {"power": power, "peak": peak, "final": final, "finite": finite, "beyond": beyond}, series
+
+    # the engine's Summary interface
+    def init(self, record):
+        truth = record[0]
+        zeros = lambda shape: jnp.zeros(shape.shape, shape.dtype)
+        (terms, _) = jax.eval_shape(lambda r: self.terms(jnp.asarray(0), r, {n: r[0][n] for n in self._origins()}), record)
+        return {
+            "power": {v: jnp.zeros(()) for v in terms["power"]},
+            "peak": {v: jnp.asarray(-jnp.inf) for v in terms["peak"]},
+            "final": {v: jnp.zeros(()) for v in terms["final"]},
+            "finite": jnp.asarray(True),
+            "beyond": jnp.asarray(False),
+            "origin": {n: zeros(truth[n]) for n in self._origins()},
+        }
+
+    def update(self, accumulated, index, record):
+        origin = {n: jnp.where(index == 0, record[0][n], accumulated["origin"][n]) for n in self._origins()}
+        terms, _ = self.terms(index, record, origin)
+        return {
+            "power": {v: accumulated["power"][v] + terms["power"][v] for v in terms["power"]},
+            "peak": {v: jnp.maximum(accumulated["peak"][v], terms["peak"][v]) for v in terms["peak"]},
+            "final": terms["final"],
+            "finite": accumulated["finite"] & terms["finite"],
+            "beyond": accumulated["beyond"] | terms["beyond"],
+            "origin": origin,
+        }
+
+    def series(self, index, record):
+        origin = {n: record[0][n] for n in self._origins()}  # not read by the series
+        return self.terms(index, record, origin)[1]
+
+    def finish(self, accumulated, series, time) -> dict:
+        """Each metric per run and ``diverged``, from a batch's accumulation and series
+        (leading run axis); a diverged run's metrics are NaN."""
+        count = self.n_records - self.first
+        out = {}
+        for variable, kind, _, _, _ in self.plan.metrics:
+            if kind == "final":
+                out[variable] = accumulated["final"][variable]
+            elif kind.startswith("rms") or kind == "settling_time":
+                rms = jnp.sqrt(accumulated["power"][variable] / count)
+                out[variable] = rms if kind != "settling_time" else _settling_time(series[variable], time, rms)
+            else:
+                out[variable] = accumulated["peak"][variable]
+        diverged = ~accumulated["finite"] | accumulated["beyond"]
+        out = {variable: jnp.where(diverged, jnp.nan, value) for variable, value in out.items()}
+        out["diverged"] = diverged
+        return out
+
+
+def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None) -> MetricSummary:
+    """The :class:`MetricSummary` of ``metrics`` for runs recording ``record`` at
+    ``time``: the window t >= ``after`` (default half the run), and ``divergence =
+    (signal, limit)``, which also marks a run diverged when the estimation error or
+    the tracking error of ``signal`` exceeds ``limit`` at any record."""
     after = time[-1] / 2.0 if after is None else after
     window = time >= after - 1e-9 * max(1.0, abs(after))
     if not window.any():
         raise ValueError(f"after ({after:g} s) is past the end of the run ({time[-1]:g} s)")
-    record = trajectory.signals
     shapes = {s.name: s for s in record.truth} | {s.name: s for s in record.input.signals} | {s.name: s for s in record.extra}
     rows = tuple((m.variable, m.kind, m.signal, bool(shapes[m.signal].labels), bool(shapes[m.signal].angle)) for m in metrics)
     limit = None
     if divergence is not None:
         signal = shapes[divergence[0]]
         limit = (divergence[0], float(divergence[1]), bool(signal.labels), bool(signal.angle))
-    result = _reduce(_Plan(rows, limit), record.input, jnp.asarray(time), jnp.asarray(window), trajectory.truth, trajectory.estimate, trajectory.reference, trajectory.applied)
+    return MetricSummary(_Plan(rows, limit), record.input, int(np.argmax(window)), len(time))
+
+
+@eqx.filter_jit
+def _finish(summary: MetricSummary, accumulated, series, time):
+    return summary.finish(accumulated, series, time)
+
+
+@eqx.filter_jit
+def _reduce_records(summary: MetricSummary, records, time):
+    """The terms of every record of a batch ``(run, time, ...)``, reduced over time."""
+    n_time = time.shape[0]
+    origin = {n: records[0][n][:, 0] for n in summary._origins()}
+    per_record = jax.vmap(summary.terms, in_axes=(0, 0, None))  # over time
+    terms, series = jax.vmap(per_record, in_axes=(None, 0, 0))(jnp.arange(n_time), records, origin)  # over runs
+    accumulated = {
+        "power": {v: a.sum(axis=1) for v, a in terms["power"].items()},
+        "peak": {v: a.max(axis=1) for v, a in terms["peak"].items()},
+        "final": {v: a[:, -1] for v, a in terms["final"].items()},
+        "finite": terms["finite"].all(axis=1),
+        "beyond": terms["beyond"].any(axis=1),
+    }
+    return summary.finish(accumulated, series, time)
+
+
+def summarize(scenario, keys, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None) -> dict[str, np.ndarray]:
+    """Simulate the runs of ``keys`` and return each metric per run (shape ``(runs,)``)
+    and ``diverged``, without holding their records: the metrics accumulate in the
+    engine's scan (:func:`lookout.sim.summarize_batch`). Equals :func:`reduce` of
+    ``simulate_batch(scenario, keys)`` to rounding (sums taken in another order)."""
+    time = scenario.record_times
+    plan = summary(scenario.record_signals, time, metrics, after=after, divergence=divergence)
+    accumulated, series = summarize_batch(scenario, keys, plan)
+    result = _finish(plan, accumulated, series, jnp.asarray(time))
+    return {name: np.asarray(value) for name, value in result.items()}
+
+
+def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None) -> dict[str, np.ndarray]:
+    """Each metric per run (shape ``(runs,)``) and ``diverged`` (bool), from a batched
+    :class:`~lookout.Trajectory`, in one jitted program on the device that holds the
+    runs (only these numbers are copied back). The same terms as :func:`summarize`.
+    """
+    time = np.asarray(trajectory.time)
+    plan = summary(trajectory.signals, time, metrics, after=after, divergence=divergence)
+    records = (trajectory.truth, trajectory.estimate, trajectory.measurement, trajectory.reference, trajectory.command, trajectory.applied)
+    result = _reduce_records(plan, records, jnp.asarray(time))
     return {name: np.asarray(value) for name, value in result.items()}
