@@ -137,16 +137,22 @@ def test_run_options_are_checked_before_the_file(tmp_path, capsys):
     assert code == 2 and err == f"error: --write-scenario must end in .toml; got {tmp_path / 's.txt'}\n"
 
 
-def test_a_custom_vessel_is_simulated_with_its_own_matrices(tmp_path):
+@pytest.mark.parametrize("name, case", [("fossen-strand-1999", "paper"), ("kim-2002", "sliding-mode")])
+def test_a_custom_vessel_is_simulated_with_its_own_matrices(name, case, tmp_path):
     from lookout.models.vessel import NORTHERN_CLIPPER_D, NORTHERN_CLIPPER_M
 
-    template = templates()["fossen-strand-1999"]
+    template = templates()[name]
     heavier = (NORTHERN_CLIPPER_M * 2.0).tolist()
-    config = template.settings(duration=30.0, vessel={"model": "custom", "mass_matrix": heavier, "damping_matrix": NORTHERN_CLIPPER_D.tolist()})
-    path = save(ScenarioSpec(template, "paper", config), tmp_path / "custom.toml")
+    extra = {"model_error": {"mass": 0.1, "damping": 0.0}} if name == "kim-2002" else {}
+    config = template.settings(duration=100.0, vessel={"model": "custom", "mass_matrix": heavier, "damping_matrix": NORTHERN_CLIPPER_D.tolist()}, **extra)
+    path = save(ScenarioSpec(template, case, config), tmp_path / "custom.toml")
     scenario = load(path).build()
-    np.testing.assert_array_equal(np.asarray(scenario.plant.vessel.mass_matrix), np.asarray(heavier))
-    np.testing.assert_array_equal(np.asarray(scenario.observer.mass_matrix), np.asarray(heavier))
+    # the plant is the user's vessel (with Kim's model error on top); every model-based part uses its M
+    truth = np.asarray(heavier) * (1.1 if name == "kim-2002" else 1.0)
+    np.testing.assert_allclose(np.asarray(scenario.plant.vessel.mass_matrix), truth, rtol=1e-15)
+    models = [scenario.observer] if name == "fossen-strand-1999" else [scenario.observer.passive, scenario.controller]
+    for part in models:
+        np.testing.assert_array_equal(np.asarray(part.mass_matrix), np.asarray(heavier), err_msg=type(part).__name__)
 
 
 # ----------------------------------------------------------------------------------
@@ -192,6 +198,22 @@ def test_campaign_points_are_the_grid_and_scale_multiplies_the_base(tmp_path, ca
         assert sorted(strata) == list(range(10))
 
 
+def test_an_axis_over_the_case_sweeps_the_templates_cases():
+    document = {
+        "scenario": {"template": "kim-2002", "case": "sliding-mode", "settings": {"duration": 100.0}},
+        "seeds_per_point": 2, "chunk_runs": 2, "metrics": ["rms_tracking:position"],
+        "sweep": {"axes": [{"field": "case", "values": ["sliding-mode", "conventional"], "name": "observer"}, {"field": "model_error.mass", "values": [0.0, 0.2]}]},
+    }
+    campaign = campaign_from_document(document, "<kim>")
+    specs = [campaign.point_spec(point) for point in range(len(campaign.points))]
+    assert [(spec.case, spec.settings.model_error.mass) for spec in specs] == [
+        ("sliding-mode", 0.0), ("sliding-mode", 0.2), ("conventional", 0.0), ("conventional", 0.2)
+    ]
+    # the conventional observer is the sliding-mode one without its switching term
+    switching = [np.asarray(spec.build().observer.switching_gain) for spec in specs]
+    assert np.all(switching[0] > 0) and np.all(switching[2] == 0)
+
+
 @pytest.mark.parametrize(
     "changes, expected",
     [
@@ -203,6 +225,8 @@ def test_campaign_points_are_the_grid_and_scale_multiplies_the_base(tmp_path, ca
         ({"seed_per_point": 4}, "seed_per_point (line {line}): unknown key"),
         ({"sweep": {"kind": "latin-hypercube", "axes": [{"field": "wave_frequency", "range": [0.5, 1.0]}]}}, "sweep: a latin-hypercube needs points >= 1"),
         ({"sweep": {"axes": [{"field": "wave_frequency", "values": [0.5, 1.1]}]}}, "sweep.axes[0].values (line {line}): value 1.1 makes no scenario: cutoff_frequency must exceed wave_frequency"),
+        ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].values (line {line}): 'papers' is no case of fossen-strand-1999 (its cases: paper)"),
+        ({"sweep": {"axes": [{"field": "case", "range": [0.0, 1.0], "steps": 2}]}}, "sweep.axes[0].field (line {line}): an axis over the case takes values (case names), alone, without scale"),
     ],
 )
 def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp_path, capsys):
@@ -275,6 +299,20 @@ def test_the_store_holds_every_metric_of_every_run(reference_store, campaign_fil
     assert np.median(noisy) > np.median(clean)
     code = main(["campaign", "status", str(reference_store)])
     assert code == 0
+
+
+def test_without_trajectories_the_metrics_accumulate_in_the_scan_and_equal_the_reduced_ones(reference_store, campaign_files, tmp_path):
+    """No kept trajectories: each chunk runs summarize_batch (no records held); its
+    metrics equal those reduced from the records of the reference store's runs."""
+    folder, spec = campaign_files
+    document = json.loads(json.dumps(load_campaign(spec).document()))
+    del document["trajectories"]
+    campaign = campaign_from_document(document, "<no trajectories>")
+    run_campaign(campaign, tmp_path / "summarized.zarr", workers=0, say=lambda text: None)
+    got, reference = CampaignStore(tmp_path / "summarized.zarr").open().load(), CampaignStore(reference_store).open().load()
+    assert not any(name.startswith("trajectory__") for name in got.data_vars)
+    for name in got.data_vars:
+        np.testing.assert_allclose(got[name].values, reference[name].values, rtol=1e-12, atol=0, err_msg=name)
 
 
 def test_a_campaign_killed_mid_way_resumes_to_the_uninterrupted_store(reference_store, campaign_files, tmp_path):

@@ -49,10 +49,10 @@ from lookout.analysis import estimation_errors
 from lookout.analysis.sliding_mode import check_kim_2002
 from lookout.controllers import ObserverBackstepping
 from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveModel
-from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState, northern_clipper
+from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.observers.sliding_mode import KIM_2002_BIAS_GAIN, KIM_2002_BIAS_TIME_CONSTANT, KIM_2002_SWITCHING_GAIN, KIM_2002_VELOCITY_GAIN, KIM_2002_WAVE
-from lookout.papers._config import RunsConfig, finite_positive, positive_count, whole_samples
+from lookout.papers._config import RunsConfig, VesselSettings, finite_positive, positive_count, whole_samples
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
@@ -79,9 +79,11 @@ FORCE_LEVER_ARM = 5.0
 DIVERGED_DISTANCE = 100.0
 
 
-def gain_sets() -> dict[str, dict]:
-    """Observer bias and velocity injection gains H3, H4 (SI): printed, and satisfying (14)."""
-    kappa, lam = injection_gains_from_normalized((0.1, 0.1, 0.01), (0.01, 0.01, 0.001), mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH)
+def gain_sets(mass: float = NORTHERN_CLIPPER_MASS, length: float = NORTHERN_CLIPPER_LENGTH) -> dict[str, dict]:
+    """Observer bias and velocity injection gains H3, H4 (SI): printed (the paper's
+    numbers, for its vessel), and satisfying (14) (Fossen & Strand's normalized gains
+    (60) scaled to SI with the vessel's ``mass`` and ``length``)."""
+    kappa, lam = injection_gains_from_normalized((0.1, 0.1, 0.01), (0.01, 0.01, 0.001), mass=mass, length=length)
     return {
         "printed": {"bias_injection_gain": KIM_2002_BIAS_GAIN, "velocity_injection_gain": KIM_2002_VELOCITY_GAIN},
         "kyp": {"bias_injection_gain": tuple(float(v) for v in lam), "velocity_injection_gain": tuple(float(v) for v in kappa)},
@@ -132,6 +134,10 @@ class Config(RunsConfig):
     measurement_period: float = Field(1.0, description="position and heading fixes (s), as the Fossen & Strand reproduction")
     duration: float = Field(2600.0, description="simulated time (s)")
     gains: str = Field("printed", description="observer H3, H4: 'printed' (A.4) or 'kyp' (Fossen & Strand (60) in SI, satisfies (14))")
+    vessel: VesselSettings = Field(
+        VesselSettings(),
+        description="the vessel: the paper's supply ship (Northern Clipper) or your own M and D (thrust limits stay the Northern Clipper's)",
+    )
     boundary_layer: tuple[float, float, float] = (5.0, 5.0, float(np.radians(1.0)))
     integral_gain: float = Field(0.01, description="K_I (1/s); printed 100")
     position_gain: float = Field(0.1, description="C1 (1/s), (A.5)")
@@ -198,10 +204,10 @@ def build(config: Config, observer: str = "sliding-mode", *, model_error: ModelE
         raise ValueError(f"observer must be one of {', '.join(OBSERVERS)}; got {observer!r}")
     model_error = config.model_error if model_error is None else model_error
     gains = config.gains if gains is None else gains
-    model = northern_clipper()
+    model = config.vessel.dp_vessel()
     switching = np.asarray(KIM_2002_SWITCHING_GAIN) * (1.0 if observer == "sliding-mode" else 0.0)
     estimator = SlidingModeObserver.kim_2002(
-        model, boundary_layer=config.boundary_layer, switching_gain=switching, **gain_sets()[gains]
+        model, boundary_layer=config.boundary_layer, switching_gain=switching, **gain_sets(config.vessel.mass, config.vessel.length)[gains]
     )
     controller = ObserverBackstepping.for_observer(
         estimator,
@@ -481,10 +487,10 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         files.append("kim_2002_sweep.nc")
     files += _figures(ds, sweep, out)
 
-    model = northern_clipper()
+    model = config.vessel.dp_vessel()
     reports = {}
     for gains in ("printed", "kyp"):
-        observer = SlidingModeObserver.kim_2002(model, boundary_layer=config.boundary_layer, **gain_sets()[gains])
+        observer = SlidingModeObserver.kim_2002(model, boundary_layer=config.boundary_layer, **gain_sets(config.vessel.mass, config.vessel.length)[gains])
         reports[gains] = check_kim_2002(observer, model).to_dict()
     summary = {
         "reproduction": NAME,

@@ -30,7 +30,9 @@ A campaign spec is a TOML file::
     every = 10
 
 A grid axis gives ``values``, or ``range = [low, high]`` with ``steps``; a
-Latin-hypercube axis gives ``range``. The points of a grid are the Cartesian product
+Latin-hypercube axis gives ``range``. ``field = "case"`` with case names as values
+sweeps the template's cases (``["sliding-mode", "conventional"]``: both of Kim's
+observers in one campaign). The points of a grid are the Cartesian product
 of the axes (the last axis varies fastest); a Latin hypercube draws ``points`` points
 with one point in each of ``points`` equal strata of every axis.
 
@@ -41,6 +43,7 @@ its metrics (and decimated trajectories if asked): that is all that leaves a wor
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import itertools
@@ -266,7 +269,8 @@ class Campaign:
         return _point_spec(self.canonical(), point)
 
     def changes(self, point: int) -> dict[str, Any]:
-        """Settings path -> value at ``point``."""
+        """Settings path -> value at ``point`` (and ``case`` -> the case, when an axis
+        sweeps the template's cases)."""
         base = self.base.settings.model_dump(mode="python")
         result = {}
         for axis in self.axes:
@@ -291,10 +295,22 @@ def _campaign(canonical: str) -> Campaign:
     return campaign_from_document(json.loads(canonical), "<campaign>")
 
 
+#: The axis field that sweeps the template's cases (e.g. both of Kim's observers).
+CASE = "case"
+
+
+def _with_changes(base: ScenarioSpec, changes: dict[str, Any], source: str) -> ScenarioSpec:
+    """``base`` with settings paths (and :data:`CASE`) set."""
+    changes = dict(changes)
+    case = changes.pop(CASE, base.case)
+    spec = base.with_settings(changes, source=source)
+    return dataclasses.replace(spec, case=case) if case != spec.case else spec
+
+
 @functools.lru_cache(maxsize=256)
 def _point_spec(canonical: str, point: int) -> ScenarioSpec:
     campaign = _campaign(canonical)
-    return campaign.base.with_settings(campaign.changes(point), source=f"{campaign.source} (point {point})")
+    return _with_changes(campaign.base, campaign.changes(point), f"{campaign.source} (point {point})")
 
 
 @functools.lru_cache(maxsize=64)
@@ -349,6 +365,13 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
     for index, axis in enumerate(axes):
         location = ("sweep", "axes", index, "field")
         for path in axis.fields:
+            if path == CASE:
+                if axis.scale or axis.values is None or len(axis.fields) > 1:
+                    raise located(source, text, location, "an axis over the case takes values (case names), alone, without scale")
+                unknown = [value for value in axis.values if value not in base.template.cases]
+                if unknown:
+                    raise located(source, text, ("sweep", "axes", index, "values"), f"{unknown[0]!r} is no case of {base.template.name} (its cases: {', '.join(base.template.cases)})")
+                continue
             try:
                 current = get_path(base_values, path) if _exists(base_values, path) else None
                 if not _exists(base_values, path):
@@ -362,7 +385,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
             changes = {path: (get_path(base_values, path) * value if axis.scale else value) for path in axis.fields}
             where = ("sweep", "axes", index, "values" if axis.values is not None else "range")
             try:
-                changed = base.with_settings(changes, source=source)
+                changed = _with_changes(base, changes, source)
             except FileError as error:
                 detail = str(error).split(": ", 1)[-1]
                 raise located(source, text, where, f"value {value!r}: {detail}") from None
@@ -374,8 +397,10 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
     if not names:
         raise located(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.studies.metrics)")
     scenario_object = base.build()
+    cases = {base.case} | {value for axis in axes if CASE in axis.fields for value in axis.values}
     try:
-        metric_module.resolve(list(names), scenario_object)
+        for case in sorted(cases):  # every metric applies to every swept case
+            metric_module.resolve(list(names), scenario_object if case == base.case else dataclasses.replace(base, case=case).build())
         if settings.divergence is not None:
             signal = settings.divergence.signal
             if signal not in {s.name for s in scenario_object.record_signals.truth}:
@@ -408,7 +433,7 @@ def load_campaign(path: str | Path) -> Campaign:
 # computing one chunk (runs on a worker)
 
 
-#: (campaign, batch size) of the chunks this process has computed: a later one runs compiled.
+#: (campaign, case, batch size) of the chunks this process has computed: a later one runs compiled.
 _COMPUTED: set[tuple[str, int]] = set()
 
 
@@ -429,8 +454,9 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
     from lookout.studies import metrics as metric_module
 
     start = time.perf_counter()
-    compiled = (canonical, len(seeds)) in _COMPUTED
     campaign = _campaign(canonical)
+    shape = (canonical, _point_spec(canonical, point).case, len(seeds))  # one program per case and batch size
+    compiled = shape in _COMPUTED
     scenario = _point_scenario(canonical, point)
     keys = keys_of_seeds(list(seeds))
     metrics = metric_module.resolve(list(campaign.metric_names), scenario)
@@ -450,7 +476,7 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
             else:  # measurements, references, inputs: through the labelled view
                 ds = trajectory.to_xarray() if ds is None else ds
                 out[f"trajectory__{name}"] = np.asarray(ds[name].values[:, :: kept.every])
-    _COMPUTED.add((canonical, len(seeds)))
+    _COMPUTED.add(shape)
     out["seconds"] = np.asarray(time.perf_counter() - start)
     out["compiled"] = np.asarray(float(compiled))
     return out

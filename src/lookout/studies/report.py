@@ -180,13 +180,13 @@ def _axes(ds, document: dict | None) -> list[_Axis]:
         attrs = coordinate.attrs
         label = str(attrs.get("long_name", name))
         fields = [f.strip() for f in str(attrs.get("fields", "")).split(",") if f.strip()]
+        numeric = np.issubdtype(values.dtype, np.number) and not np.issubdtype(values.dtype, np.bool_)
         if int(attrs.get("scale", 0)):
             label += " (× base value)"
-        else:
+        elif numeric:  # a choice ("printed", "kyp") has no units
             units = attrs.get("units") or _setting_units(document, fields)
             if units:
                 label += f" ({units})"
-        numeric = np.issubdtype(values.dtype, np.number) and not np.issubdtype(values.dtype, np.bool_)
         if numeric:
             levels = np.unique(values)
         else:
@@ -262,11 +262,18 @@ def _metric_figure(metric: _Metric, axis: _Axis, axes: list[_Axis], kind: str) -
         stats = np.asarray([_stats(metric.data[axis.values == level]) for level in axis.levels.tolist()])
         median, low, high, count = stats.T if len(stats) else np.zeros((4, 0))
         x = axis.positions()
-        ax.fill_between(x, low, high, alpha=0.25, color="C0", linewidth=0, label=f"{LOW}th–{HIGH}th percentile")
-        ax.plot(x, median, "o-", color="C0", label="median")
         over = "seeds" + (f" and the other axes' points ({', '.join(others)}) at the same {axis.name}" if others else "")
-        caption = (f"{metric.description} against {axis.name}: the median over {over} (line), "
-                   f"and the {LOW}th–{HIGH}th percentile of the same runs (band).")
+        if axis.numeric:
+            ax.fill_between(x, low, high, alpha=0.25, color="C0", linewidth=0, label=f"{LOW}th–{HIGH}th percentile")
+            ax.plot(x, median, "o-", color="C0", label="median")
+            caption = (f"{metric.description} against {axis.name}: the median over {over} (line), "
+                       f"and the {LOW}th–{HIGH}th percentile of the same runs (band).")
+        else:  # choices: nothing lies between them, so no line
+            ax.errorbar(x, median, yerr=[median - low, high - median], fmt="o", color="C0", ecolor="C0", elinewidth=1.5, capsize=4,
+                        label=f"median; bar: {LOW}th–{HIGH}th percentile")
+            ax.set_xlim(x.min() - 0.5, x.max() + 0.5)
+            caption = (f"{metric.description} for each {axis.name}: the median over {over} (marker), "
+                       f"and the {LOW}th–{HIGH}th percentile of the same runs (bar).")
     else:
         stats = np.asarray([_stats(row) for row in metric.data])
         median, low, high, count = stats.T if len(stats) else np.zeros((4, 0))
