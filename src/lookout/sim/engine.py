@@ -227,15 +227,16 @@ def _evaluate(parts: str, function: Callable, *args):
         raise ValueError(f"{parts} do not fit: {_first_line(error)}") from None
 
 
-#: Scenarios that fit, by :func:`_fit_key`: the points of a sweep (the same
+#: Scenarios that fit, by :func:`structure_key`: the points of a sweep (the same
 #: components with other numbers) are traced once, not once each.
 _FITTING: set = set()
 
 
-def _fit_key(scenario: Scenario):
-    """What :func:`check_fit` depends on: the tree's structure (component types and
-    static fields) and each leaf's type, shape and dtype, since it traces shapes
-    only. None when a static field cannot be hashed (then nothing is remembered)."""
+def structure_key(scenario: Scenario):
+    """What a scenario is apart from its numbers: the tree's structure (component
+    types and static fields) and each leaf's type, shape and dtype. It decides
+    :func:`check_fit` (which traces shapes only) and, for array leaves, which
+    compiled program a batch runs. None when a static field cannot be hashed."""
     leaves, treedef = jax.tree.flatten(scenario)
     key = (treedef, tuple((type(leaf), np.shape(leaf), jnp.result_type(leaf)) for leaf in leaves))
     try:
@@ -254,7 +255,7 @@ def check_fit(scenario: Scenario) -> None:
     actuator. A scenario that differs from one found fitting only in its numbers is
     not traced again.
     """
-    key = _fit_key(scenario)
+    key = structure_key(scenario)
     if key is not None and key in _FITTING:
         return
     _check_fit(scenario)
@@ -451,21 +452,19 @@ class Summary(eqx.Module):
     """What a run keeps instead of its records (:func:`summarize_batch`).
 
     The engine calls :meth:`init` once with the shapes of a record, then, at every
-    recorded sample i (in order), ``accumulated = update(accumulated, i, record)``
-    and keeps ``series(i, record)``; ``record`` is ``(truth, estimate, measurement,
-    reference, command, applied)`` of one run, as :class:`~lookout.Trajectory`
-    holds them without the run and time axes. Subclasses hold only static
-    configuration (one compiled program per configuration).
+    recorded sample i (in order), ``accumulated, series_i = update(accumulated, i,
+    record)``, and keeps every ``series_i`` (None keeps nothing); ``record`` is
+    ``(truth, estimate, measurement, reference, command, applied)`` of one run, as
+    :class:`~lookout.Trajectory` holds them without the run and time axes.
+    Subclasses hold only static configuration (one compiled program per
+    configuration).
     """
 
     def init(self, record) -> Any:
         raise NotImplementedError
 
-    def update(self, accumulated, index: Array, record) -> Any:
+    def update(self, accumulated, index: Array, record) -> tuple[Any, Any]:
         raise NotImplementedError
-
-    def series(self, index: Array, record) -> Any:
-        return None
 
 
 def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_records: int, summary: Summary | None = None):
@@ -492,7 +491,8 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
                 lambda c, k: (one(c, k)[0], None), carry, first + 1 + jnp.arange(every - 1), every - 1, RECORD_GROUP_UNROLL_LIMIT
             )
         if summary is not None:
-            return (carry, summary.update(accumulated, index, record)), summary.series(index, record)
+            accumulated, series = summary.update(accumulated, index, record)
+            return (carry, accumulated), series
         # one flat vector per record: a single write per record instead of one per leaf
         return carry, ravel_pytree(record)[0]
 

@@ -303,8 +303,7 @@ def _with_changes(base: ScenarioSpec, changes: dict[str, Any], source: str) -> S
     """``base`` with settings paths (and :data:`CASE`) set."""
     changes = dict(changes)
     case = changes.pop(CASE, base.case)
-    spec = base.with_settings(changes, source=source)
-    return dataclasses.replace(spec, case=case) if case != spec.case else spec
+    return dataclasses.replace(base.with_settings(changes, source=source), case=case)
 
 
 @functools.lru_cache(maxsize=256)
@@ -362,6 +361,8 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
     else:
         points = tuple(_latin_hypercube(axes, settings.sweep.points, settings.sweep.seed))
     base_values = base.settings.model_dump(mode="python")
+    scenario_object = base.build()
+    cases = {base.case: scenario_object}  # the built scenario of every swept case
     for index, axis in enumerate(axes):
         location = ("sweep", "axes", index, "field")
         for path in axis.fields:
@@ -390,17 +391,17 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
                 detail = str(error).split(": ", 1)[-1]
                 raise located(source, text, where, f"value {value!r}: {detail}") from None
             try:
-                changed.build()
+                built = changed.build()
             except ValueError as error:
                 raise located(source, text, where, f"value {value!r} makes no scenario: {error}") from None
+            if CASE in axis.fields:
+                cases[value] = built
     names = settings.metrics or ()
     if not names:
         raise located(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.studies.metrics)")
-    scenario_object = base.build()
-    cases = {base.case} | {value for axis in axes if CASE in axis.fields for value in axis.values}
     try:
-        for case in sorted(cases):  # every metric applies to every swept case
-            metric_module.resolve(list(names), scenario_object if case == base.case else dataclasses.replace(base, case=case).build())
+        for built in cases.values():  # every metric applies to every swept case
+            metric_module.resolve(list(names), built)
         if settings.divergence is not None:
             signal = settings.divergence.signal
             if signal not in {s.name for s in scenario_object.record_signals.truth}:
@@ -433,8 +434,10 @@ def load_campaign(path: str | Path) -> Campaign:
 # computing one chunk (runs on a worker)
 
 
-#: (campaign, case, batch size) of the chunks this process has computed: a later one runs compiled.
-_COMPUTED: set[tuple[str, int]] = set()
+#: (campaign, scenario structure, batch size) of the chunks this process has computed:
+#: a later one with the same key runs compiled (points that differ in numbers only,
+#: or cases that differ in numbers only, share one program).
+_COMPUTED: set[tuple] = set()
 
 
 def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[str, np.ndarray]:
@@ -451,13 +454,14 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
     import time
 
     from lookout.sim import keys_of_seeds, simulate_batch
+    from lookout.sim.engine import structure_key
     from lookout.studies import metrics as metric_module
 
     start = time.perf_counter()
     campaign = _campaign(canonical)
-    shape = (canonical, _point_spec(canonical, point).case, len(seeds))  # one program per case and batch size
-    compiled = shape in _COMPUTED
     scenario = _point_scenario(canonical, point)
+    shape = (canonical, structure_key(scenario), len(seeds))
+    compiled = shape in _COMPUTED
     keys = keys_of_seeds(list(seeds))
     metrics = metric_module.resolve(list(campaign.metric_names), scenario)
     divergence = campaign.settings.divergence

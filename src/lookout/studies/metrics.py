@@ -234,7 +234,7 @@ class MetricSummary(Summary):
 
     def update(self, accumulated, index, record):
         origin = {n: jnp.where(index == 0, record[0][n], accumulated["origin"][n]) for n in self._origins()}
-        terms, _ = self.terms(index, record, origin)
+        terms, series = self.terms(index, record, origin)
         return {
             "power": {v: accumulated["power"][v] + terms["power"][v] for v in terms["power"]},
             "peak": {v: jnp.maximum(accumulated["peak"][v], terms["peak"][v]) for v in terms["peak"]},
@@ -242,11 +242,7 @@ class MetricSummary(Summary):
             "finite": accumulated["finite"] & terms["finite"],
             "beyond": accumulated["beyond"] | terms["beyond"],
             "origin": origin,
-        }
-
-    def series(self, index, record):
-        origin = {n: record[0][n] for n in self._origins()}  # not read by the series
-        return self.terms(index, record, origin)[1]
+        }, series
 
     def finish(self, accumulated, series, time) -> dict:
         """Each metric per run and ``diverged``, from a batch's accumulation and series
