@@ -2,35 +2,59 @@
 
 Spectrum
 --------
-The ITTC form of the JONSWAP spectrum as written in Fossen, *Handbook of Marine
-Craft Hydrodynamics and Motion Control* (2011), eqs. (8.56)–(8.58)::
+The JONSWAP shape of the ITTC form in Fossen, *Handbook of Marine Craft
+Hydrodynamics and Motion Control* (2011), eqs. (8.56)–(8.58), normalized so that
+m0 = Hs^2/16 for every gamma::
 
-    S(w) = 155 Hs^2 / T1^4  w^-5  exp(-944 / (T1^4 w^4))  gamma^Y        (m^2 s)
-    Y    = exp(-((0.191 w T1 - 1) / (sqrt(2) sigma))^2)
-    sigma = 0.07 for w <= 5.24 / T1, 0.09 otherwise
+    S(w)  = Hs^2 / (16 J(gamma)) * T1 s(w T1)                          (m^2 s)
+    s(x)  = x^-5 exp(-944 / x^4) gamma^Y(x)
+    Y(x)  = exp(-((0.191 x - 1) / (sqrt(2) sigma))^2)
+    sigma = 0.07 for x <= 5.24, 0.09 otherwise
+    J     = integral over x > 0 of s(x) dx
+          = 1 / (4 * 944) + integral of x^-5 exp(-944 / x^4) (gamma^Y(x) - 1) dx
 
-with Hs the significant wave height, T1 = 2 pi m0 / m1 the mean period and gamma
-the peak enhancement factor. Choices and checks:
+with Hs the significant wave height, T1 the period parameter (``mean_period``) and
+gamma the peak enhancement factor. Substituting x = w T1 shows that m0 = Hs^2/16
+exactly and that the shape depends on T1 only through w T1. Choices and checks:
 
-- **Period convention.** ``mean_period`` is T1. Wondergem et al. (2009) give a
-  "time mean period of 0.75 seconds"; lookout reads it as T1, so that
-  Tp = T1 / 0.834 = 0.899 s and wp = 2 pi / Tp = 5.240 / T1 = 6.99 rad/s. The
+- **Normalization.** The ITTC form writes the constant 155 in place of 1 / (16 J),
+  a value calibrated at gamma = 3.3 only: its m0 is 0.657, 1.001, 1.220 and 1.460
+  Hs^2/16 at gamma = 1, 3.3, 5 and 7. DNV-RP-C205 (2010), sec. 3.5.5, normalizes
+  its form (below) by the factor A_gamma = 1 - 0.287 ln gamma, a fit: by quadrature
+  (tests) its m0 is 1.0000, 1.0024, 1.0000 and 0.9825 Hs^2/16 at gamma = 1, 3.3, 5
+  and 7, and 0.93 Hs^2/16 at 10. lookout computes J instead: the Pierson–Moskowitz
+  part 1 / (4 * 944) exactly, and the gamma^Y - 1 bump, which is below 1e-25 of J
+  outside 2 <= x <= 11, by Gauss–Legendre quadrature (24 nodes on each of [2, 4.2],
+  [4.2, 5.24], [5.24, 6.6], [6.6, 11], split where sigma changes). It is plain
+  array arithmetic on fixed nodes, so gamma may be traced (``jit``, ``vmap``,
+  gradients), and it agrees with scipy ``quad`` to 2e-15 of J for 1 <= gamma <= 100.
+  Chosen over A_gamma so that Hs is 4 sqrt(m0) for every gamma to rounding rather
+  than to 2 %, for 96 exponentials per call. The tests integrate
+  :func:`jonswap_spectrum` by scipy ``quad``: m0 = Hs^2/16 to 1e-12 at gamma = 1,
+  3.3, 5 and 7 (measured: within 7e-16). At gamma = 3.3 the spectrum is
+  0.11 % below the ITTC form's. Realizations (:class:`JonswapWaves`) take only the
+  shape's relative values and rescale to 4 sqrt(m0) = Hs (below), so the
+  normalization does not touch them.
+- **Period convention.** ``mean_period`` T1 fixes the peak: S peaks at
+  w T1 = 5.24 for every gamma (measured: within 0.08 %), so Tp = T1 / 0.834 and
+  wp = 2 pi / Tp = 5.240 / T1. It is the spectrum's mean period 2 pi m0 / m1 only
+  near gamma = 3.3, where the ITTC form was calibrated: by quadrature (tests),
+  2 pi m0 / m1 = 0.9250 T1 at gamma = 1 (Pierson–Moskowitz: 2 pi / (944^(1/4)
+  Gamma(3/4)), exactly), 1.0003 T1 at 3.3, 1.0292 T1 at 5 and 1.0522 T1 at 7. For a
+  sea given by its mean period at another gamma, pass that period divided by the
+  ratio at its gamma as ``mean_period``. Wondergem et
+  al. (2009) give a "time mean period of 0.75 seconds" with gamma = 3.3; lookout
+  reads it as T1, so that Tp = T1 / 0.834 = 0.899 s and wp = 6.99 rad/s. The
   alternatives: read as the zero-crossing period Tz (T1 = 1.073 Tz, Tp = 0.964 s),
   or as Tp itself (wp = 8.38 rad/s). Pass ``mean_period = 1.073 Tz`` or
   ``0.834 Tp`` for those readings.
-- **Normalization.** The constants 155 and 944 make the form integrate to about
-  Hs^2/16 only for gamma = 3.3: the Pierson–Moskowitz part alone has
-  m0 = 155 / (4 * 944) Hs^2 = 0.657 Hs^2/16, and gamma^Y adds the rest. For other
-  gamma, m0 of :func:`jonswap_spectrum` is not Hs^2/16 (gamma = 1 gives 0.66
-  Hs^2/16); a realization (:class:`JonswapWaves`) is rescaled to 4 sqrt(m0) = Hs
-  regardless. By quadrature, gamma = 3.3 gives m0 = 1.0011 Hs^2/16 and
-  T1 = 2 pi m0/m1 = 1.0003 ``mean_period`` (measured in the tests).
-- **Cross-check.** DNV-RP-C205 (2010), sec. 3.5.5, writes the same spectrum as
-  ``(1 - 0.287 ln gamma) (5/16) Hs^2 wp^4 w^-5 exp(-1.25 (wp/w)^4)
-  gamma^exp(-(w - wp)^2 / (2 sigma^2 wp^2))``. With wp = 5.24 / T1 the two agree:
-  5/16 wp^4 (1 - 0.287 ln 3.3) = 154.9 / T1^4, 1.25 wp^4 = 942.4 / T1^4, and the
-  peak shapes differ only in 1/0.191 = 5.236 against 5.240; the tests find the
-  two within 0.6 % of the peak value everywhere.
+- **Cross-check.** DNV-RP-C205 writes the spectrum as
+  ``A_gamma (5/16) Hs^2 wp^4 w^-5 exp(-1.25 (wp/w)^4)
+  gamma^exp(-(w - wp)^2 / (2 sigma^2 wp^2))``. With wp = 5.24 / T1 the shapes
+  agree: A_gamma (5/16) wp^4 = 154.87 / T1^4 against 1 / (16 J) = 154.82 / T1^4 at
+  gamma = 3.3, 1.25 wp^4 = 942.4 / T1^4 against 944 / T1^4, and the peak shapes
+  differ only in 1/0.191 = 5.236 against 5.240; the tests find the two within 0.6 %
+  of the peak value everywhere at gamma = 3.3.
 - S is one-sided: 0 for w <= 0. The factor w^-5 exp(-944 / (T1^4 w^4)) is
   evaluated as ``exp(-5 ln w - 944 / (T1^4 w^4))``, and S is set to 0 for
   w T1 <= 0.5, where the formula is below exp(-15000) and rounds to 0 anyway:
@@ -52,7 +76,7 @@ the realization's 4 sqrt(m0) is Hs whatever the band and N (the rescaling puts t
 1 % of m0 outside the default band back inside it).
 
 Default band: (0.5 wp, 3 wp). Below 0.5 wp the spectrum is under 1e-7 of its
-peak and holds 1e-9 of m0; above 3 wp lies 1.0 % of m0, and there the
+peak and holds 1e-9 of m0; above 3 wp lies 1.0 % of m0 (gamma = 3.3), and there the
 hull-averaging gain below is under 0.04 (k L / 2 > 28 for the Cybership II at
 Tp = 0.9 s), so those components barely move the ship. N = 64 components give
 dw = 0.27 rad/s at T1 = 0.75 s.
@@ -106,7 +130,8 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import sincos
 
-#: T1 / Tp of the JONSWAP spectrum with gamma = 3.3 (Fossen 2011, eq. 8.58).
+#: T1 / Tp (Fossen 2011, eq. 8.58): T1 is the mean period of the gamma = 3.3 spectrum; the
+#: period parameter puts the peak at wp = 2 pi 0.834 / T1 for every gamma.
 MEAN_TO_PEAK_PERIOD = 0.834
 #: The default frequency band, in multiples of the peak frequency.
 DEFAULT_BAND = (0.5, 3.0)
@@ -125,7 +150,8 @@ def peak_frequency(mean_period):
 
 
 def jonswap_spectrum(omega, significant_height, mean_period, peak_enhancement=3.3):
-    """ITTC JONSWAP wave spectrum S(w) in m^2 s (Fossen 2011, eqs. 8.56–8.58).
+    """JONSWAP wave spectrum S(w) in m^2 s, the ITTC shape (Fossen 2011, eqs. 8.56–8.58)
+    normalized to m0 = Hs^2/16 for every gamma (module docstring).
 
     Parameters
     ----------
@@ -133,11 +159,13 @@ def jonswap_spectrum(omega, significant_height, mean_period, peak_enhancement=3.
         Wave frequencies (rad/s), any shape; S = 0 for omega <= 0.5 / T1 (the
         formula is below exp(-15000) there).
     significant_height : float
-        Hs (m).
+        Hs (m): m0 = Hs^2/16 for every gamma.
     mean_period : float
-        T1 = 2 pi m0 / m1 (s); Tp = T1 / 0.834.
+        T1 (s), the ITTC form's period: the peak is at wp = 5.24 / T1 (Tp = T1 / 0.834)
+        for every gamma; 2 pi m0 / m1 equals T1 only near gamma = 3.3 (0.925 T1 at
+        gamma = 1, 1.052 T1 at gamma = 7; module docstring).
     peak_enhancement : float
-        gamma (3.3 is the form's calibration point; see the module docstring).
+        gamma (1: Pierson–Moskowitz); may be a traced array.
 
     Returns
     -------
@@ -152,7 +180,8 @@ def jonswap_spectrum(omega, significant_height, mean_period, peak_enhancement=3.
     return _jonswap(jnp, omega, significant_height, mean_period, peak_enhancement)
 
 
-def _jonswap(xp, omega, significant_height, mean_period, peak_enhancement):
+def _jonswap_shape(xp, omega, mean_period, peak_enhancement):
+    """T1^-4 w^-5 exp(-944 / (T1^4 w^4)) gamma^Y = T1 s(w T1), and 0 for w T1 <= 0.5."""
     w = xp.asarray(omega, dtype=float)
     t1 = mean_period
     # below w T1 = 0.5 the formula is under exp(-15000): exactly 0 in float64 (see module docstring)
@@ -162,7 +191,34 @@ def _jonswap(xp, omega, significant_height, mean_period, peak_enhancement):
     sigma = xp.where(w_safe <= 5.24 / t1, 0.07, 0.09)
     y = xp.exp(-(((0.191 * w_safe * t1 - 1.0) / (math.sqrt(2.0) * sigma)) ** 2))
     shape = xp.exp(-5.0 * xp.log(w_safe) - 944.0 / (t1_4 * w_safe**4) + y * xp.log(peak_enhancement))
-    return xp.where(positive, 155.0 * significant_height**2 / t1_4 * shape, 0.0)
+    return xp.where(positive, shape / t1_4, 0.0)
+
+
+def _bump_nodes():
+    """Gauss–Legendre weights times x^-5 exp(-944 / x^4), and Y(x), at the nodes of the pieces
+    of 2 <= x <= 11 where gamma^Y - 1 lives (module docstring)."""
+    unit_nodes, unit_weights = np.polynomial.legendre.leggauss(24)
+    edges = (2.0, 4.2, 5.24, 6.6, 11.0)  # 5.24: where sigma changes
+    x = np.concatenate([0.5 * (b - a) * unit_nodes + 0.5 * (b + a) for a, b in zip(edges[:-1], edges[1:])])
+    weights = np.concatenate([0.5 * (b - a) * unit_weights for a, b in zip(edges[:-1], edges[1:])])
+    sigma = np.where(x <= 5.24, 0.07, 0.09)
+    y = np.exp(-(((0.191 * x - 1.0) / (math.sqrt(2.0) * sigma)) ** 2))
+    return weights * x**-5.0 * np.exp(-944.0 / x**4), y
+
+
+_BUMP_WEIGHTS, _BUMP_Y = _bump_nodes()
+
+
+def _shape_integral(xp, peak_enhancement):
+    """J(gamma) = integral of s(x) dx: Pierson–Moskowitz 1 / (4 * 944) exactly, plus the
+    gamma^Y - 1 bump by Gauss–Legendre (module docstring; any gamma > 0, traced or not)."""
+    bump = xp.expm1(_BUMP_Y * xp.log(peak_enhancement))
+    return 1.0 / (4.0 * 944.0) + xp.sum(_BUMP_WEIGHTS * bump)
+
+
+def _jonswap(xp, omega, significant_height, mean_period, peak_enhancement):
+    normalization = significant_height**2 / (16.0 * _shape_integral(xp, peak_enhancement))
+    return normalization * _jonswap_shape(xp, omega, mean_period, peak_enhancement)
 
 
 def spectral_moment(n, significant_height, mean_period, peak_enhancement=3.3):
@@ -190,8 +246,9 @@ def spectral_moment(n, significant_height, mean_period, peak_enhancement=3.3):
     def integrand(w):
         return w**n * float(jonswap_spectrum(np.float64(w), hs, t1, gamma))
 
-    # split at the peak so that quad resolves the narrow gamma^Y bump
-    edges = (0.0, 0.8 * wp, wp, 1.25 * wp, 3.0 * wp)
+    # split around the narrow gamma^Y bump and where sigma (and so S) jumps, at w T1 = 5.24
+    # (within 0.004 % of wp; an unsplit jump costs quad 1e-8 of m0)
+    edges = (0.0, 0.8 * wp, 5.24 / t1, 1.25 * wp, 3.0 * wp)
     total = sum(quad(integrand, a, b, limit=200, epsabs=0.0, epsrel=1e-12)[0] for a, b in zip(edges[:-1], edges[1:]))
     return total + quad(integrand, edges[-1], np.inf, limit=200, epsabs=0.0, epsrel=1e-12)[0]
 
@@ -228,12 +285,12 @@ def _bin_frequencies(xp, band, count: int, position_in_bin):
     return band[0] + (xp.arange(count) + position_in_bin) * width
 
 
-def _components_at(xp, frequencies, band, count: int, significant_height, mean_period, peak_enhancement, gravity, hull_length):
+def _components_at(xp, frequencies, significant_height, mean_period, peak_enhancement, gravity, hull_length):
     """(w_k, A_k, k_k, G_k): amplitudes sqrt(2 S(w_k) dw) rescaled to sum A^2/2 = Hs^2/16."""
-    width = (band[1] - band[0]) / count
-    # 2 S dw for Hs = 1, as shares of their sum: A_k = Hs/4 sqrt(2 share_k) gives sum A^2/2 = Hs^2/16
-    # for any Hs, and zeros (not 0/0) for Hs = 0
-    energy = 2.0 * jonswap_spectrum(frequencies, 1.0, mean_period, peak_enhancement) * width
+    # 2 S(w_k) dw as shares of their sum (S's normalization and 2 dw cancel, so the shape is
+    # enough): A_k = Hs/4 sqrt(2 share_k) gives sum A^2/2 = Hs^2/16 for any Hs, and zeros
+    # (not 0/0) for Hs = 0
+    energy = _jonswap_shape(xp, frequencies, mean_period, peak_enhancement)
     share = energy / xp.sum(energy)
     amplitudes = 0.25 * significant_height * xp.sqrt(2.0 * share)
     wavenumbers = frequencies**2 / gravity
@@ -255,7 +312,9 @@ class JonswapWaves(eqx.Module):
     significant_height : float
         Hs (m), >= 0 (0: no waves).
     mean_period : float
-        T1 (s), > 0; the peak period is T1 / 0.834.
+        T1 (s), > 0, the spectrum's period parameter: the peak period is T1 / 0.834 for
+        every gamma; T1 is the mean period 2 pi m0 / m1 near gamma = 3.3 only (module
+        docstring).
     peak_enhancement : float
         gamma, >= 1.
     direction : float
@@ -342,7 +401,7 @@ class JonswapWaves(eqx.Module):
         centres = _bin_frequencies(xp, band, self.components, 0.5)
         if concrete and not np.sum(jonswap_spectrum(centres, 1.0, t1, gamma)) > 0:
             raise ValueError(f"jonswap band holds no wave energy (S underflows on it); got {band.tolist()}")
-        fields = _components_at(xp, centres, band, self.components, hs, t1, gamma, g, length)
+        fields = _components_at(xp, centres, hs, t1, gamma, g, length)
         self.frequencies, self.amplitudes, self.wavenumbers, self.hull_gains = (jnp.asarray(f, dtype=float) for f in fields)
         self.phases = jnp.zeros(self.components)
         self.band = jnp.asarray(band, dtype=float)
@@ -374,7 +433,7 @@ class JonswapWaves(eqx.Module):
         phases = jax.random.uniform(phase_key, (self.components,), dtype=float, minval=0.0, maxval=2.0 * jnp.pi)
         frequencies = _bin_frequencies(jnp, self.band, self.components, jitter)
         fields = _components_at(
-            jnp, frequencies, self.band, self.components, self.significant_height, self.mean_period,
+            jnp, frequencies, self.significant_height, self.mean_period,
             self.peak_enhancement, self.gravity, self.hull_length,
         )
         return eqx.tree_at(
@@ -472,7 +531,7 @@ class JonswapWaves(eqx.Module):
     def describe(self) -> dict:
         """The waves as plain numbers (for results' attributes and summaries)."""
         return {
-            "spectrum": "JONSWAP (ITTC, Fossen 2011 eqs. 8.56-8.58)",
+            "spectrum": "JONSWAP (ITTC shape, Fossen 2011 eqs. 8.56-8.58, normalized to m0 = Hs^2/16)",
             "significant_height": float(self.significant_height),
             "mean_period": float(self.mean_period),
             "peak_period": float(self.mean_period) / MEAN_TO_PEAK_PERIOD,
