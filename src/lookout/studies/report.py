@@ -11,15 +11,21 @@ The page holds, in order:
 - **provenance**: the title, the completion status (chunks and runs done; a store
   whose campaign is still running says it is partial), lookout version, creation time,
   campaign fingerprint, sweep kind and sizes, compute time and workers;
+- the **campaign spec** as tables: the base scenario (template, case, the settings that
+  differ from the template's defaults, and every setting, nested keys dotted, collapsed),
+  the seeds, chunks, metrics, metric window, divergence rule and kept trajectories, and
+  the sweep axes (fields, values or range, units, scale); the spec as JSON, collapsed;
 - a **summary** table per metric (median and 10th/90th percentiles over every computed run);
 - per metric and per sweep axis, the **metric against the axis value** (see
-  :func:`report_figures`);
+  :func:`report_figures`), two figures a row on a wide page, one on a narrow one;
 - for a grid of two or more axes, a **heat map** per metric over the first two axes;
-- the **fraction of runs diverged** against each axis, and a table of the diverged runs;
-- the **campaign spec** (the scenario inlined), as JSON.
+- **divergence**: when a run diverged, the fraction of runs diverged against each axis
+  and a table of the diverged runs; otherwise one sentence, "No run diverged (n of N
+  runs finished)".
 
 Runs not computed yet are NaN in the store and are left out of every statistic; a
-statistic with no run behind it is not drawn (and a heat-map cell is grey).
+statistic with no run behind it is not drawn (and a heat-map cell is grey). A store
+with no finished chunk gets a page that says so, with its spec and no figures.
 """
 
 from __future__ import annotations
@@ -38,8 +44,11 @@ import numpy as np
 
 __all__ = ["report_figures", "write_report", "default_report_path"]
 
-#: Figure resolution (dots per inch) of the PNGs.
+#: Figure resolution (dots per inch) of the figures' layout: a 7 in figure is 700 px.
 DPI = 100
+#: Resolution of the PNGs: 1.5x the layout's, so a figure stays sharp in a column of a
+#: wide page (up to about 1000 px) and on high-density screens.
+PNG_DPI = 150
 #: The diverged-runs table shows at most this many rows.
 MAX_DIVERGED_ROWS = 200
 #: Percentiles of the spread bands and error bars.
@@ -377,13 +386,17 @@ def _diverged_figure(diverged: np.ndarray, axis: _Axis, axes: list[_Axis], kind:
 
 
 def _build(ds, document: dict | None) -> list[_Figure]:
+    """The figures worth drawing: none before any run has finished; a metric's only
+    when some run has a value of it; the divergence figures only when a run diverged."""
     import matplotlib
 
     kind = str(ds.attrs.get("sweep_kind", "grid"))
     axes = _axes(ds, document)
-    metrics = _metrics(ds, document)
+    metrics = [metric for metric in _metrics(ds, document) if np.isfinite(metric.data).any()]
     diverged = _diverged(ds)
     figures = []
+    if np.isnan(diverged).all():  # nothing finished: a plot would be an empty frame
+        return figures
     with matplotlib.rc_context(_RC):
         for metric in metrics:
             for axis in axes:
@@ -391,8 +404,9 @@ def _build(ds, document: dict | None) -> list[_Figure]:
         if kind == "grid" and len(axes) >= 2:
             for metric in metrics:
                 figures.append(_heatmap_figure(metric, axes))
-        for axis in axes:
-            figures.append(_diverged_figure(diverged, axis, axes, kind))
+        if (diverged == 1).any():
+            for axis in axes:
+                figures.append(_diverged_figure(diverged, axis, axes, kind))
     return figures
 
 
@@ -412,7 +426,11 @@ def report_figures(ds, campaign_document: dict | None) -> dict:
       every axis after the second) on the grid of the first two axes, with a colorbar.
     - ``diverged-vs-AXIS.png`` (each axis): the fraction of runs diverged.
 
-    The figures are made without pyplot (nothing to close; save with ``savefig``).
+    Only figures with something to show are made: none while no run has finished
+    (``diverged`` is NaN everywhere), none for a metric without a finite value (every
+    finished run diverged), and the divergence figures only when at least one run
+    diverged. The figures are made without pyplot (nothing to close; save with
+    ``savefig``).
     """
     return {figure.key: figure.figure for figure in _build(ds, campaign_document)}
 
@@ -441,7 +459,7 @@ def _pretty_json(value, indent: str = "") -> str:
 
 def _png(figure) -> bytes:
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=DPI)
+    figure.savefig(buffer, format="png", dpi=PNG_DPI)
     return buffer.getvalue()
 
 
@@ -451,31 +469,207 @@ def _table(header: list[str], rows: list[list[str]], attrs: str = "") -> str:
     return f"<table{attrs}>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
 
 
-def _definition_table(items: list[tuple[str, str]]) -> str:
-    rows = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in items)
-    return f'<table class="provenance">\n{rows}\n</table>'
+def _definition_table(items: list[tuple[str, str | list[str]]], attrs: str = ' class="provenance"') -> str:
+    """A two-column table of names and values; a list value is one line per entry."""
+    def cell(value):
+        return "<br>".join(html.escape(line) for line in value) if isinstance(value, list) else html.escape(value)
+
+    rows = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{cell(v)}</td></tr>" for k, v in items)
+    return f"<table{attrs}>\n{rows}\n</table>"
+
+
+# ----------------------------------------------------------------------------------
+# the spec as tables
+
+
+def _spec_value(value) -> str:
+    """A setting's value for a table cell: numbers to 6 significant digits, lists inline."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_spec_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_spec_value(v)}" for k, v in value.items()) + "}"
+    return str(value)
+
+
+def _flatten(settings: dict, prefix: str = "") -> dict[str, Any]:
+    """Nested settings tables as dotted keys (``vessel.mass``); a list stays one value."""
+    flat: dict[str, Any] = {}
+    for key, value in settings.items():
+        if isinstance(value, dict) and value:
+            flat.update(_flatten(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat
+
+
+def _template_info(name: str) -> tuple[str | None, dict[str, Any] | None, dict[str, str]]:
+    """(title, default settings by dotted key, descriptions by dotted key) of a template;
+    (None, None, {}) for a template this lookout does not know."""
+    try:
+        from lookout.studies.scenario_file import _comments, templates
+
+        template = templates()[name]
+    except Exception:  # a store written by another version: the table still shows the values
+        return None, None, {}
+    try:
+        defaults = _flatten(template.settings().model_dump(mode="json"))
+    except Exception:  # a template whose settings have no defaults
+        defaults = None
+    descriptions = {key[len("settings."):]: text for key, text in _comments(template.settings).items()}
+    return template.title, defaults, descriptions
+
+
+def _axis_rows(document: dict, kind: str) -> list[list[str]]:
+    """One row per sweep axis: its name, field(s), values (with units) and how it applies."""
+    from lookout.studies.campaign import CASE, Axis
+    from lookout.studies.store import variable_name
+
+    rows = []
+    for raw in document.get("sweep", {}).get("axes", []):
+        try:
+            axis = Axis.model_validate(raw)
+        except Exception:  # a store written by another version: show what it holds
+            rows.append(["?", _spec_value(raw.get("field")), _spec_value(raw), ""])
+            continue
+        units = None if axis.scale or CASE in axis.fields else _setting_units(document, list(axis.fields))
+        suffix = f" ({units})" if units else ""
+        if axis.values is not None:
+            values = ", ".join(_spec_value(v) for v in axis.values) + suffix
+        elif kind == "grid":
+            grid = np.linspace(axis.range[0], axis.range[1], axis.steps).tolist()
+            values = (f"{axis.steps} steps over [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}: "
+                      + ", ".join(_spec_value(v) for v in grid))
+        else:
+            values = f"range [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}"
+        applied = "case of the template" if CASE in axis.fields else ("× base value" if axis.scale else "sets the value")
+        rows.append([variable_name(axis.label), ", ".join(axis.fields), values, applied])
+    return rows
+
+
+def _spec_html(document: dict | None, metrics: list[_Metric], n_points: int, chunk_runs: int, total_chunks: int) -> str:
+    """The campaign spec as tables: the base scenario, the campaign's settings, the sweep;
+    then the spec as JSON, collapsed (what a resume compares, for provenance)."""
+    if document is None:
+        return "<p>The store holds no campaign spec.</p>"
+    parts = []
+    scenario = document.get("scenario") or {}
+    template = str(scenario.get("template", "?"))
+    title, defaults, descriptions = _template_info(template)
+    settings = _flatten(scenario.get("settings") or {})
+    parts += ["<h3>Base scenario</h3>",
+              _definition_table([("template", template + (f": {title}" if title else "")), ("case", str(scenario.get("case", "?")))],
+                                ' class="provenance" id="spec-scenario"')]
+    all_rows = [[key, _spec_value(value), descriptions.get(key, "")] for key, value in settings.items()]
+    if defaults is not None:
+        changed = [[key, _spec_value(value), _spec_value(defaults[key]) if key in defaults else "(not a setting here)", descriptions.get(key, "")]
+                   for key, value in settings.items()
+                   if key not in defaults or json.dumps(value, sort_keys=True) != json.dumps(defaults[key], sort_keys=True)]
+        if changed:
+            parts += [f"<p>The settings that differ from the template's defaults ({len(changed)} of {len(settings)}):</p>",
+                      _table(["setting", "value", "template default", "description"], changed, ' id="spec-changed" class="numbers"')]
+        else:
+            parts.append(f"<p>Every setting ({len(settings)}) takes the template's default.</p>")
+        parts.append(f"<details><summary>all {len(settings)} settings of the base scenario</summary>\n"
+                     + _table(["setting", "value", "description"], all_rows, ' id="spec-settings" class="numbers"') + "\n</details>")
+    else:
+        parts += [f"<p>Every setting of the base scenario ({len(settings)}; the template is not known to this lookout, "
+                  "so its defaults are not shown):</p>",
+                  _table(["setting", "value", "description"], all_rows, ' id="spec-settings" class="numbers"')]
+
+    # the campaign around it
+    seeds = int(document.get("seeds_per_point", 1))
+    first = int(document.get("seed", 0))
+    blocks = max(1, seeds // max(1, chunk_runs))
+    descriptions_of = {m.name: m for m in metrics}
+    metric_lines = []
+    for name in document.get("metrics", []):
+        metric = descriptions_of.get(name)
+        metric_lines.append(f"{name}: {metric.description}" + (f" ({metric.units})" if metric.units else "") if metric else name)
+    after = document.get("after")
+    duration = settings.get("duration")
+    if after is not None:
+        window = f"t ≥ {_spec_value(float(after))} s (after = {_spec_value(float(after))})"
+    elif isinstance(duration, (int, float)):
+        window = f"t ≥ {_spec_value(duration / 2)} s: the second half of the run (the default)"
+    else:
+        window = "the second half of the run (the default)"
+    divergence = document.get("divergence")
+    if divergence:
+        signal, limit = str(divergence.get("signal")), float(divergence.get("limit"))
+        units = next((m.units for m in metrics if m.name.split(":", 1)[-1] == signal and m.name.split(":", 1)[0] in
+                      ("rms_error", "max_error", "rms_tracking", "max_tracking", "max_excursion") and m.units), "")
+        rule = (f"the {signal} error beyond {_spec_value(limit)}{' ' + units if units else ''} at any record, "
+                "or a truth or estimate that is not finite")
+    else:
+        rule = "a truth or estimate that is not finite at any record (no divergence limit)"
+    kept = document.get("trajectories")
+    items: list[tuple[str, str | list[str]]] = [
+        ("seeds", f"{seeds} per point: seeds {first} to {first + seeds - 1}, the same at every point"),
+        ("chunks", f"{chunk_runs} runs per chunk: {total_chunks} chunks ({n_points} point{'s' * (n_points != 1)} × "
+                   f"{blocks} block{'s' * (blocks != 1)} of seeds)"),
+        ("metrics", metric_lines or ["none"]),
+        ("metric window", window),
+        ("diverged", rule),
+        ("trajectories kept", f"{', '.join(kept.get('signals', []))}, one record in {kept.get('every', 10)}" if kept else "none"),
+    ]
+    parts += ["<h3>Campaign</h3>", _definition_table(items, ' class="provenance" id="spec-campaign"')]
+
+    sweep = document.get("sweep") or {}
+    kind = str(sweep.get("kind", "grid"))
+    rows = _axis_rows(document, kind)
+    if not rows:
+        how = "no axes: one point"
+    elif kind == "grid":
+        how = f"grid: {n_points} point{'s' * (n_points != 1)}, every combination of the axes' values (the last axis varies fastest)"
+    else:
+        how = (f"Latin hypercube: {n_points} points drawn with seed {sweep.get('seed', 0)}, "
+               f"one in each of {n_points} equal strata of every axis")
+    parts += ["<h3>Sweep</h3>", f"<p>{html.escape(how)}.</p>"]
+    if rows:
+        parts.append(_table(["axis", "field", "values", "applied"], rows, ' id="spec-axes" class="numbers"'))
+    parts.append("<details><summary>the spec as JSON, scenario inlined (what a resume compares)</summary>\n"
+                 f"<pre>{html.escape(_pretty_json(document))}</pre>\n</details>")
+    return "\n".join(parts)
+
+
+# ----------------------------------------------------------------------------------
+# the page
 
 
 _STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, "Helvetica Neue", Arial, sans-serif;
-       margin: 0 auto; padding: 1.5rem 2rem 3rem; max-width: 1500px; color: #1d1d1f; background: #fff; line-height: 1.45; }
+       margin: 0 auto; padding: 1.5rem 2rem 3rem; max-width: 1800px; color: #1d1d1f; background: #fff; line-height: 1.45; }
 h1 { font-size: 1.6rem; margin: 0 0 .4rem; }
 h2 { font-size: 1.25rem; margin: 2rem 0 .6rem; border-bottom: 1px solid #ddd; padding-bottom: .2rem; }
 h3 { font-size: 1.05rem; margin: 1.2rem 0 .4rem; }
 .status { display: inline-block; padding: .2rem .6rem; border-radius: .3rem; font-weight: 600; }
 .status.complete { background: #e3f4e6; color: #17612a; }
 .status.partial { background: #fff1d6; color: #8a5300; }
+.status.empty { background: #e8eef8; color: #23466e; }
+.notice { background: #f4f7fb; border-left: 4px solid #5b7fb0; padding: .6rem 1rem; margin: .8rem 0; }
 table { border-collapse: collapse; font-size: .9rem; margin: .4rem 0 1rem; }
 th, td { border: 1px solid #ddd; padding: .25rem .6rem; text-align: left; vertical-align: top; }
 thead th { background: #f4f4f6; }
 table.provenance th { background: #f8f8fa; font-weight: 600; white-space: nowrap; }
 td.number, table.numbers td { font-variant-numeric: tabular-nums; }
-.figures { display: flex; flex-wrap: wrap; gap: 1rem 1.5rem; }
-figure { margin: 0; max-width: 700px; flex: 0 1 700px; }
-figure img { width: 100%; height: auto; border: 1px solid #eee; }
+.figures { display: grid; grid-template-columns: repeat(2, minmax(0, 1fr)); gap: 1.2rem 1.5rem; align-items: start; }
+@media (max-width: 1100px) { .figures { grid-template-columns: minmax(0, 1fr); } }
+figure { margin: 0; min-width: 0; }
+figure img { display: block; width: 100%; height: auto; border: 1px solid #eee; }
 figcaption { font-size: .85rem; color: #444; margin-top: .3rem; }
+details { margin: .4rem 0 1rem; }
+summary { cursor: pointer; color: #2a5db0; }
+code { background: #f3f3f5; padding: 0 .25rem; border-radius: .2rem; font-size: .9em; }
 pre { background: #f6f8fa; border: 1px solid #e1e4e8; padding: .8rem; font-size: .8rem; overflow-x: auto; max-height: 40rem; }
-nav a { margin-right: 1rem; }
+nav { display: flex; flex-wrap: wrap; gap: .2rem 1rem; }
 #image-check { font-size: .75rem; color: #888; margin-top: 2rem; }
 """
 
@@ -498,13 +692,18 @@ def _figure_html(figure: _Figure, png: bytes) -> str:
             f"<figcaption>{html.escape(figure.caption)}</figcaption></figure>")
 
 
+def _figures_html(figures: list[_Figure], images: dict[str, bytes]) -> str:
+    return '<div class="figures">' + "\n".join(_figure_html(f, images[f.key]) for f in figures) + "</div>"
+
+
 def write_report(store_path: str | Path, out: str | Path | None = None, *, figures_dir: Path | None = None) -> Path:
     """Write the store's report as one self-contained HTML page; return its path.
 
     ``out`` defaults to :func:`default_report_path` (``NAME-report.html`` beside the
     store). With ``figures_dir``, every figure is also saved there as a PNG under its
     :func:`report_figures` name. A store whose campaign is not finished gets a report
-    of what is done, marked partial.
+    of what is done, marked partial; a store with no finished chunk gets a page that
+    says so, with the spec and no figures (and ``figures_dir`` gets none).
     """
     from lookout.studies.store import CampaignStore
 
@@ -527,15 +726,17 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
     total_chunks = n_points * max(1, seeds_per_point // chunk_runs)
     total_runs = n_points * seeds_per_point
     runs_done = sum(int(r["seeds"][1]) - int(r["seeds"][0]) + 1 for r in done.values())
+    started = bool(done)
     complete = len(done) >= total_chunks
-    status = (f"{'complete' if complete else 'partial'}: {len(done)} of {total_chunks} chunks done "
+    state = "complete" if complete else ("partial" if started else "empty")
+    status = (f"{'complete' if complete else 'partial' if started else 'not started'}: {len(done)} of {total_chunks} chunks done "
               f"({runs_done} of {total_runs} runs)")
     seconds = sum(float(r.get("seconds", 0.0) or 0.0) for r in done.values() if np.isfinite(float(r.get("seconds", np.nan))))
     workers = sorted({str(r.get("worker", "")) for r in done.values()})
     finished = sorted(str(r.get("finished", "")) for r in done.values())
     kind = str(attrs.get("sweep_kind", "grid"))
 
-    figures = _build(ds, document)
+    figures = _build(ds, document) if started else []
     images = {figure.key: _png(figure.figure) for figure in figures}
     if figures_dir is not None:
         figures_dir = Path(figures_dir)
@@ -556,16 +757,25 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
         "<body>",
         "<header>",
         f"<h1>{html.escape(title)}</h1>",
-        f'<p><span class="status {"complete" if complete else "partial"}" id="status">{html.escape(status)}</span></p>',
+        f'<p><span class="status {state}" id="status">{html.escape(status)}</span></p>',
     ]
-    if not complete:
-        parts.append("<p>The campaign is not finished: runs not computed yet are left out of every figure and table; "
+    if not started:
+        parts.append(f'<p class="notice" id="not-started">No chunk has finished yet: 0 of {total_chunks} chunks '
+                     f"({total_runs} runs). Run <code>lookout campaign run SPEC --out {html.escape(str(store.path))}</code> "
+                     "with the campaign's spec to compute it, then write the report again; the spec the store holds is below.</p>")
+    elif not complete:
+        parts.append(f'<p class="notice">The campaign is not finished: {len(done)} of {total_chunks} chunks done '
+                     f"({runs_done} of {total_runs} runs). Runs not computed yet are left out of every figure and table; "
                      "resume the campaign and write the report again for the full results.</p>")
     parts.append("</header>")
-    parts.append('<nav><a href="#provenance">provenance</a><a href="#summary">summary</a>'
-                 + "".join(f'<a href="#metric-{html.escape(m.variable, quote=True)}">{html.escape(m.name)}</a>' for m in metrics)
-                 + ('<a href="#heatmaps">heat maps</a>' if any(f.section == "heatmap" for f in figures) else "")
-                 + '<a href="#divergence">divergence</a><a href="#spec">spec</a></nav>')
+    nav = ['<a href="#provenance">provenance</a>', '<a href="#spec">spec</a>']
+    if started:
+        nav.append('<a href="#summary">summary</a>')
+        nav += [f'<a href="#metric-{html.escape(m.variable, quote=True)}">{html.escape(m.name)}</a>' for m in metrics]
+        if any(f.section == "heatmap" for f in figures):
+            nav.append('<a href="#heatmaps">heat maps</a>')
+        nav.append('<a href="#divergence">divergence</a>')
+    parts.append("<nav>" + "".join(nav) + "</nav>")
 
     # provenance
     provenance = [
@@ -589,7 +799,24 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
                                          f"by lookout {_version()}"))
     parts += ['<section id="provenance">', "<h2>Provenance</h2>", _definition_table(provenance), "</section>"]
 
-    # summary
+    # spec: what was run, before what came out
+    parts += ['<section id="spec">', "<h2>Campaign spec</h2>",
+              _spec_html(document, metrics, n_points, chunk_runs, total_chunks), "</section>"]
+
+    if started:
+        parts += _results_html(ds, axes, metrics, diverged, figures, images)
+
+    parts += ['<p id="image-check">images loaded: not checked (scripts off)</p>', f"<script>{_SCRIPT}</script>", "</body>", "</html>"]
+    out = default_report_path(store.path) if out is None else Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(parts) + "\n", encoding="utf-8")
+    return out
+
+
+def _results_html(ds, axes: list[_Axis], metrics: list[_Metric], diverged: np.ndarray, figures: list[_Figure],
+                  images: dict[str, bytes]) -> list[str]:
+    """The summary, the figures per metric, the heat maps and the divergence section."""
+    parts = []
     rows = []
     for metric in metrics:
         median, low, high, count = _stats(metric.data)
@@ -612,40 +839,32 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
                   f"<h2>{html.escape(metric.name)}: {html.escape(metric.description)}"
                   + (f" ({html.escape(metric.units)})" if metric.units else "") + "</h2>"]
         if mine:
-            parts.append('<div class="figures">' + "\n".join(_figure_html(f, images[f.key]) for f in mine) + "</div>")
+            parts.append(_figures_html(mine, images))
+        elif not np.isfinite(metric.data).any():
+            parts.append(f"<p>No finished run has a value of {html.escape(metric.name)}: {n_diverged} of the {known} "
+                         "finished runs diverged, and a diverged run's metrics are NaN. Nothing to plot.</p>")
         else:
             parts.append("<p>The campaign sweeps no axis: see the summary.</p>")
         parts.append("</section>")
     heatmaps = [f for f in figures if f.section == "heatmap"]
     if heatmaps:
-        parts += ['<section id="heatmaps">', "<h2>Heat maps</h2>",
-                  '<div class="figures">' + "\n".join(_figure_html(f, images[f.key]) for f in heatmaps) + "</div>", "</section>"]
+        parts += ['<section id="heatmaps">', "<h2>Heat maps</h2>", _figures_html(heatmaps, images), "</section>"]
 
-    # divergence
+    # divergence: figures and the list only when a run diverged
     parts += ['<section id="divergence">', "<h2>Divergence</h2>"]
-    mine = [f for f in figures if f.section == "diverged"]
-    if mine:
-        parts.append('<div class="figures">' + "\n".join(_figure_html(f, images[f.key]) for f in mine) + "</div>")
-    runs = np.argwhere(diverged == 1)
-    count = f"{n_diverged} of {known} computed run{'s' * (known != 1)} diverged"
-    if n_diverged > MAX_DIVERGED_ROWS:
-        count += f"; the first {MAX_DIVERGED_ROWS} are listed"
-    parts.append(f'<p id="diverged-count">{html.escape(count)}.</p>')
-    if n_diverged:
+    if not n_diverged:
+        parts.append(f'<p id="diverged-count">No run diverged ({known} of {diverged.size} runs finished).</p>')
+    else:
+        mine = [f for f in figures if f.section == "diverged"]
+        if mine:
+            parts.append(_figures_html(mine, images))
+        count = f"{n_diverged} of {known} computed run{'s' * (known != 1)} diverged"
+        if n_diverged > MAX_DIVERGED_ROWS:
+            count += f"; the first {MAX_DIVERGED_ROWS} are listed"
+        parts.append(f'<p id="diverged-count">{html.escape(count)}.</p>')
         seeds = ds["seed"].values
         rows = [[str(int(point))] + [_fmt(axis.values[point]) for axis in axes] + [_fmt(seeds[seed])]
-                for point, seed in runs[:MAX_DIVERGED_ROWS]]
+                for point, seed in np.argwhere(diverged == 1)[:MAX_DIVERGED_ROWS]]
         parts.append(_table(["point"] + [a.name for a in axes] + ["seed"], rows, ' id="diverged-runs" class="numbers"'))
     parts.append("</section>")
-
-    # spec
-    spec = _pretty_json(document) if document is not None else "(the store holds no campaign spec)"
-    parts += ['<section id="spec">', "<h2>Campaign spec</h2>",
-              "<p>The campaign as the store holds it, its scenario inlined (what a resume compares).</p>",
-              f"<pre>{html.escape(spec)}</pre>", "</section>"]
-
-    parts += ['<p id="image-check">images loaded: not checked (scripts off)</p>', f"<script>{_SCRIPT}</script>", "</body>", "</html>"]
-    out = default_report_path(store.path) if out is None else Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text("\n".join(parts) + "\n", encoding="utf-8")
-    return out
+    return parts
