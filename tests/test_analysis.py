@@ -81,8 +81,8 @@ def test_frequency_response_dataset(paper_observer):
     assert ds.h0_magnitude.dims == ("frequency", "dof")
     # h0: velocity error (m/s) -> position error (m); hB: position error -> force; yaw in N m/rad
     assert ds.h0_magnitude.attrs["units"] == "s"
-    assert ds.hB_magnitude.attrs["units"] == "surge: N/m, sway: N/m, yaw: N m/rad"
-    assert ds.h_magnitude.attrs["units"] == "surge: N s/m, sway: N s/m, yaw: N m s/rad"
+    assert ds.hB_magnitude_translation.attrs["units"] == "N/m" and ds.hB_magnitude_yaw.attrs["units"] == "N m/rad"
+    assert ds.h_magnitude_translation.attrs["units"] == "N s/m" and ds.h_magnitude_yaw.attrs["units"] == "N m s/rad"
     np.testing.assert_allclose(ds.bias_filter_frequency, 1e-3)
     np.testing.assert_allclose(ds.wave_frequency, 0.8976)
     np.testing.assert_allclose(ds.cutoff_frequency, 1.1)

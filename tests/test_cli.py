@@ -141,10 +141,10 @@ def test_design_normalized_gains_convert_like_the_default(capsys):
 # Every bad input: exit code 2, one line on stderr naming the option, no traceback, nothing written.
 BAD_INPUTS = [
     # (argv with {tmp} for the test's folder, the option named, a fragment of the message)
-    ([*REPRODUCE, "--out", "{tmp}/missing/out"], "--out", "does not exist"),
+    ([*REPRODUCE, "--out", "{tmp}/a-file/out"], "--out", "a-file is a file, not a folder (on the way to --out"),
     ([*REPRODUCE, "--out", "{tmp}/a-file"], "--out", "is an existing file"),
     ([*REPRODUCE, "--out", ""], "--out", "empty path"),
-    ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}/missing/bode.png"], "--bode", "does not exist"),
+    ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}/a-file/bode.png"], "--bode", "a-file is a file, not a folder"),
     ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}"], "--bode", "must name a file, not the folder"),
     ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}/bode.xyz"], "--bode", "must end in a format matplotlib writes"),
     ([*DESIGN, "--wave-period", "7", "--bode", "{tmp}/bode"], "--bode", "must end in a format matplotlib writes"),
@@ -261,8 +261,22 @@ def test_entry_point_exit_code_without_traceback():
     assert result.stderr.strip().count("\n") == 0 and "Traceback" not in result.stderr
 
 
+def test_tables_printed_to_a_pipe_keep_their_width(capsys, monkeypatch, tmp_path):
+    from lookout.papers._report import Table
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    assert main(["--version"]) == 0  # main sizes the console: the captured output is no terminal
+    capsys.readouterr()
+    cells = ["a fairly long first column entry", "12345.678 ± 9.87", "0.000123 ± 0.0000456", "diverged in 2 of 2 seeds"]
+    summary = {"status": ["finite"], "files": []}
+    lookout.cli._print_summary(summary, [Table("wide", ("name", "one", "two", "three"), [cells])], tmp_path)
+    text = capsys.readouterr().out
+    row = next(line for line in text.splitlines() if cells[0] in line)
+    assert all(cell in row for cell in cells) and len(row) > 80, text
+
+
 def test_short_reproduce_writes_all_outputs(tmp_path, capsys):
-    out = tmp_path / "fs99"
+    out = tmp_path / "new" / "folders" / "fs99"  # missing parents are created
     assert main([*REPRODUCE, "--out", str(out), "--duration", "100", "--seed", "3"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     for name in ("fossen_strand_1999.nc", "bode.nc", "summary.json", "fig06_bode.png", "fig09_surge.png", "fig10_sway.png", "fig11_yaw.png"):
@@ -272,13 +286,13 @@ def test_short_reproduce_writes_all_outputs(tmp_path, capsys):
     assert "RMS estimation error over the second half (seed 3)" in capsys.readouterr().out
 
 
-def test_monte_carlo_run_0_is_the_single_run_to_the_last_bit_and_reports_spread(tmp_path, capsys):
+def test_monte_carlo_run_0_is_the_single_run_to_the_last_bit_and_reports_spread(tmp_path, capsys, monkeypatch):
     """--seed 3 --runs 2 runs seeds 3 and 4; its run 0 is --seed 3 alone, bit for bit; the
     summary gives mean ± std within 80 columns."""
     # the single run through the reproduction's own simulation path (figures and files of a
     # whole reproduction are checked by test_short_reproduce_writes_all_outputs)
     one = fossen_strand_1999.simulate_runs(fossen_strand_1999.Config(duration=20.0, seed=3))
-    lookout.cli.console.width = 80
+    monkeypatch.setenv("COLUMNS", "80")
     assert main([*REPRODUCE, "--out", str(tmp_path / "two"), "--duration", "20", "--seed", "3", "--runs", "2"]) == 0
     two = xr.load_dataset(tmp_path / "two" / "fossen_strand_1999.nc")
     assert one.seed.values.tolist() == [3] and two.seed.values.tolist() == [3, 4]

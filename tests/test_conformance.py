@@ -321,6 +321,23 @@ def case(request) -> Case:
     return request.param
 
 
+def test_the_observer_declares_what_its_scenario_feeds_it(case):
+    """The measurement and input an observer declares are its scenario's sensor's and
+    plant's (lookout.filter and lookout.Stepper check logs and live samples against
+    them), its guess() is shaped as the scenario's initial estimate, and a declared
+    sample period is the scenario's."""
+    scenario = case.build(duration=10.0)
+    observer = scenario.observer
+    assert observer.measurement_layout == scenario.sensor.measurement_layout
+    assert observer.input_layout == scenario.plant.input_layout
+    assert jax.tree.structure(observer.guess()) == jax.tree.structure(scenario.initial_estimate)
+    assert observer.sample_period in (None, scenario.sample_period)
+    # a scenario rebuilt by tree_map (as stacking does) flattens as the original: equinox
+    # flattens a field left at its class default differently once it has been rebuilt
+    rebuilt = jax.tree.map(lambda leaf: leaf, scenario)
+    assert jax.tree.structure(jax.tree.map(lambda leaf: leaf, rebuilt)) == jax.tree.structure(scenario)
+
+
 def test_vmapped_runs_equal_the_same_runs_one_by_one(case):
     scenario = case.build(duration=10.0)
     if jax.default_backend() == "cpu":

@@ -204,11 +204,19 @@ def test_scenario_names_the_two_parts_that_do_not_fit():
 
 
 def test_continuous_mode_needs_a_continuous_observer():
-    from lookout.components import Observer
+    from lookout.components import Layout, Observer
+    from lookout.models.vessel import VESSEL_INPUT
+    from lookout.sensors import POSITION_HEADING
 
     class Frozen(Observer):
         estimate_signals: tuple = eqx.field(static=True, default=(), kw_only=True)
         extra_signals: tuple = eqx.field(static=True, default=(), kw_only=True)
+        measurement_layout: Layout = eqx.field(static=True, default=POSITION_HEADING, kw_only=True)
+        input_layout: Layout = eqx.field(static=True, default=VESSEL_INPUT, kw_only=True)
+        sample_period: None = eqx.field(static=True, default=None, kw_only=True)
+
+        def guess(self):
+            return None
 
         def init(self, y0, guess):
             return ()
@@ -292,3 +300,25 @@ def test_keys_of_seeds_and_stacked_scenarios_give_the_single_runs():
     for i, scenario in enumerate((base, other)):
         single = simulate(scenario, keys[i])
         np.testing.assert_allclose(np.asarray(batch.truth["position"])[i], np.asarray(single.truth["position"]), rtol=1e-12, atol=1e-12)
+
+
+def test_sizes_from_the_caller_are_checked_against_memory_before_anything_is_allocated(monkeypatch):
+    from lookout import _resources
+    from lookout.sim import check_batch_memory, keys_of_seeds, seed_keys, simulate_batch, stack_scenarios
+
+    with pytest.raises(ValueError, match=r"^runs: 1000000000000 keys x 16 B would need about 16 TB of memory, and .* are available: make fewer keys at a time$"):
+        seed_keys(0, 10**12)
+    with pytest.raises(ValueError, match=r"^seeds: 1000000000000 keys x 52 B would need about 52 TB of memory"):
+        keys_of_seeds(range(10**12))
+    scenario = fs.build(fs.Config(duration=100.0))
+    # 1000 runs x 1000 records x 296 B, twice: 592 MB
+    with pytest.raises(ValueError, match=r"^keys: 1000 run\(s\) x 1000 records x 296 B \(x2 at the peak\) would need about 592 MB of memory, and 100 MB are available"):
+        check_batch_memory(scenario, 1000, available=100e6)
+    monkeypatch.setattr(_resources, "available_memory", lambda: 1_000_000)
+    with pytest.raises(ValueError, match=r"^keys: 4 run\(s\) x 1000 records x 296 B \(x2 at the peak\) would need about 2.37 MB of memory, and 1 MB are available"):
+        simulate_batch(scenario, jax.random.split(jax.random.key(0), 4))
+    monkeypatch.setattr(_resources, "available_memory", lambda: 500_000)
+    with pytest.raises(ValueError, match=r"^scenario: 1 run\(s\) x 1000 records x 296 B \(x2 at the peak\) would need about 592 kB of memory, and 500 kB are available"):
+        simulate(scenario, jax.random.key(0))
+    with pytest.raises(ValueError, match=r"^scenarios: 10000 stacked x \d+ B of arrays would need about"):
+        stack_scenarios([scenario] * 10000)

@@ -24,3 +24,35 @@ def test_configure_cpu_sets_the_loop_threshold_and_device_count_and_keeps_the_us
     )
     flags, devices = result.stdout.strip().splitlines()
     assert "xla_cpu_small_while_loop_byte_threshold=1000000" in flags and devices == "3", result.stderr
+
+
+def test_importing_lookout_and_its_command_loads_no_model_and_starts_no_backend():
+    """The XLA options of configure_cpu take effect only if nothing has started JAX's
+    backend before: importing lookout, and the command's module, must not (a module that
+    built an array at import once made the command run every batch on one core). The
+    public names are imported when first used, so `lookout --version` stays quick."""
+    result = _run(
+        "import sys, lookout, lookout.cli; from jax._src import xla_bridge; "
+        "assert not xla_bridge.backends_are_initialized(); "
+        "assert 'lookout.observers' not in sys.modules and 'lookout.papers.kim_2002' not in sys.modules, sorted(m for m in sys.modules if m.startswith('lookout')); "
+        "lookout.configure_cpu(devices=2); import jax; assert len(jax.devices()) == 2; "
+        "assert lookout.PassiveObserver.__name__ == 'PassiveObserver' and 'filter' in dir(lookout); print('ok')"
+    )
+    assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr
+
+
+def test_configure_cpu_after_the_backend_started_says_it_is_too_late():
+    result = _run(
+        "import warnings, jax.numpy as jnp, lookout; jnp.zeros(1); "
+        "warnings.simplefilter('error'); lookout.configure_cpu()"
+    )
+    assert result.returncode != 0 and "RuntimeWarning: lookout.configure_cpu: JAX's backend has already started" in result.stderr, result.stderr
+
+
+def test_every_reproduction_is_named_in_the_catalog_without_importing_it():
+    result = _run(
+        "import sys; from lookout.papers import CATALOG, REPRODUCTIONS; "
+        "assert not any(m.startswith('lookout.papers.') and m != 'lookout.papers' for m in sys.modules); "
+        "assert all(REPRODUCTIONS[name].NAME == name and REPRODUCTIONS[name].TITLE == entry.title for name, entry in CATALOG.items()); print(len(CATALOG))"
+    )
+    assert result.returncode == 0 and result.stdout.strip() == "9", result.stderr

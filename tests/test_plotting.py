@@ -21,7 +21,7 @@ from matplotlib.patches import Rectangle
 from matplotlib.text import Text
 
 from lookout.analysis import frequency_response
-from lookout.plotting import plot_bode, plot_estimates
+from lookout.plotting import is_dense, plot_bode, plot_estimates
 
 DOFS = ("surge", "sway", "yaw")
 DPI = 60  # small, so that saving is fast; the size check scales with it
@@ -396,6 +396,125 @@ def test_bad_arguments_raise_value_error_naming_the_parameter(ds, kwargs, parame
         plot_estimates(ds, panels, **arguments)
 
 
+# --------------------------------------------------------------------------- comparisons
+
+
+def long_dataset(duration=3000.0):
+    """The ship over 3000 s: the 7 s waves make 430 cycles, a solid band if drawn sample by sample."""
+    return synthetic_dataset(duration=duration)
+
+
+def test_is_dense_tells_wave_motion_over_hours_from_slow_signals():
+    time = np.arange(0.0, 3000.0, 0.5)
+    rng = np.random.default_rng(3)
+    assert is_dense(time, np.sin(2 * np.pi * time / 7.0))
+    assert is_dense(time, 5.0 + 0.01 * time + np.sin(2 * np.pi * time / 7.0))  # a trend does not hide it
+    assert not is_dense(time, np.sin(2 * np.pi * time / 600.0))
+    assert not is_dense(time, 1e4 * np.exp(-time / 500.0) + 50.0 * np.cumsum(rng.standard_normal(time.size)) * np.sqrt(0.5))  # a random walk
+    assert not is_dense(time[:300], np.sin(2 * np.pi * time[:300] / 7.0))  # 21 cycles: resolved
+    assert not is_dense(time, np.zeros_like(time)) and not is_dense(time, np.full_like(time, np.nan))
+    gappy = np.sin(2 * np.pi * time / 7.0)
+    gappy[::17] = np.nan
+    assert is_dense(time, gappy)
+
+
+def test_a_dense_signal_is_drawn_as_ranges_that_do_not_hide_each_other():
+    """Fossen & Strand Figs. 9-11 over a long run: the wave panel's full run shows the true
+    range shaded and outlined in black and the estimate's range outlined in orange, both
+    visible; the zoom keeps every sample; slow panels keep every sample in both columns."""
+    ds = long_dataset()
+    fig = plot_estimates(ds, SHIP_PANELS["surge"])
+    axes = estimate_axes(fig, 4)
+    wave_full, wave_zoom = axes[2]
+    lines = lines_by_label(wave_full)
+    truth, estimate = lines["true"], lines["estimate"]
+    for line in (truth, estimate):
+        y = np.asarray(line.get_ydata(), dtype=float)
+        # an upper and a lower edge per bin, broken by one NaN: far fewer points than samples
+        assert np.isnan(y).sum() == 1 and y.size < 0.2 * ds.sizes["time"]
+    assert_truth_above_estimate(wave_full)
+    bands = [c for c in wave_full.collections if c.get_label() == "true (range)"]
+    assert len(bands) == 1
+    # the true range spans the true wave motion
+    upper = np.asarray(truth.get_ydata(), dtype=float)
+    assert np.nanmax(upper) == pytest.approx(float(ds.wave_position.isel(run=0).sel(earth_axis="north").max()))
+    # every sample in the zoom
+    x = np.asarray(lines_by_label(wave_zoom)["true"].get_xdata())
+    assert np.all(np.diff(x) > 0) and x.size > 200
+    # slow rows unchanged: every sample in the full run
+    np.testing.assert_allclose(lines_by_label(axes[0, 0])["true"].get_ydata(), ds.position.isel(run=0).sel(earth_axis="north"))
+    assert not [c for c in axes[0, 0].collections if c.get_label() == "true (range)"]
+    assert "range per" in axes[0, 0].get_title()
+    assert "true (range per bin)" in legend_labels(fig)
+    # the 300 s run resolves its 43 wave cycles: no ranges
+    short = plot_estimates(synthetic_dataset(), SHIP_PANELS["surge"])
+    assert "range" not in estimate_axes(short, 4)[0, 0].get_title()
+
+
+def test_a_target_is_drawn_between_estimate_and_truth_in_its_own_colour(ds):
+    """Kim's Fig. 7: the bias estimate converges to the bias plus the model-error force."""
+    lumped = (ds.bias_force + 3e3).assign_attrs(ds.bias_force.attrs | {"long_name": "bias + model-error force"})
+    fig = plot_estimates(ds.assign(bias_lumped=lumped), [("bias_force", "north"), ("position", "north")], targets={"bias_force": "bias_lumped"})
+    axes = estimate_axes(fig, 2)
+    for ax in axes[0]:
+        lines = lines_by_label(ax)
+        assert {"true", "estimate", "target"} <= set(lines)
+        colours = {name: matplotlib.colors.to_rgb(lines[name].get_color()) for name in ("true", "estimate", "target")}
+        assert len(set(colours.values())) == 3
+        assert lines["estimate"].get_zorder() < lines["target"].get_zorder() < lines["true"].get_zorder()
+        assert_truth_above_estimate(ax)
+    np.testing.assert_allclose(lines_by_label(axes[0, 0])["target"].get_ydata(), lumped.isel(run=0).sel(earth_axis="north") / 1e3)
+    assert all("target" not in lines_by_label(ax) for ax in axes[1])  # only the panels of its variable
+    assert "bias + model-error force" in legend_labels(fig)
+    with pytest.raises(ValueError, match="^targets"):
+        plot_estimates(ds, [("bias_force", "north")], targets={"bias_force": "missing"})
+    with pytest.raises(ValueError, match="^targets"):
+        plot_estimates(ds, [("bias_force", "north")], targets={"position": "position_hat"})
+
+
+def test_several_zoom_windows_get_a_column_each_and_are_shaded_on_the_full_run(ds):
+    windows = [(0.0, 20.0), (150.0, 170.0)]
+    fig = plot_estimates(ds, SHIP_PANELS["sway"], window=windows)
+    axes = np.asarray(fig.axes).reshape(4, 3)
+    for row in axes:
+        full, *zooms = row
+        for zoomed, (start, end) in zip(zooms, windows):
+            assert zoomed.get_xlim() == pytest.approx((start, end))
+            assert_truth_above_estimate(zoomed)
+            spans = [p for p in full.patches if isinstance(p, Rectangle)]
+            assert any(p.get_x() == pytest.approx(start) and p.get_width() == pytest.approx(end - start) for p in spans)
+    assert "measured" in lines_by_label(axes[0, 1]) and "measured" in lines_by_label(axes[0, 2])
+    assert fig.get_size_inches()[0] > 11.0
+    with pytest.raises(ValueError, match="^window"):
+        plot_estimates(ds, SHIP_PANELS["sway"], window=[(0.0, 20.0), (170.0, 150.0)])
+    with pytest.raises(ValueError, match="^window"):
+        plot_estimates(ds, SHIP_PANELS["sway"], window="start")
+
+
+def test_a_start_transient_is_left_out_of_the_full_run_scale_and_shown_in_the_zoom():
+    """Wondergem's velocities: the initial estimate is far off; it must not set the scale."""
+    spiked = synthetic_dataset()
+    velocity = spiked.velocity_hat.copy()
+    velocity[:, :10, 0] = 5.0  # 50 x the velocity for the first 5 s
+    spiked = spiked.assign(velocity_hat=velocity)
+    fig = plot_estimates(spiked, [("velocity", "surge"), ("position", "north")], window=(0.0, 20.0), transient=10.0)
+    (full, zoomed), (position_full, _) = estimate_axes(fig, 2)
+    low, high = full.get_ylim()
+    later = spiked.velocity.isel(run=0).sel(body_axis="surge").values
+    assert high < 1.0 and low <= later.min() and high >= later.max()
+    assert any(t.get_gid() == "transient_note" for t in full.texts)
+    assert zoomed.get_ylim()[1] >= 5.0  # the spike is whole in the zoom
+    assert not any(t.get_gid() == "transient_note" for t in position_full.texts)  # nothing clipped there
+    with pytest.raises(ValueError, match="^transient"):
+        plot_estimates(spiked, [("velocity", "surge")], transient=-1.0)
+
+
+def test_a_long_title_gets_room_of_its_own(ds):
+    short = plot_estimates(ds, [("position", "north")], title="one line")
+    long = plot_estimates(ds, [("position", "north")], title="line 1\nline 2\nline 3\nline 4")
+    assert long.get_size_inches()[1] == pytest.approx(short.get_size_inches()[1] + 2 * 0.25)  # two lines beyond the usual two
+
+
 # --------------------------------------------------------------------------- Bode
 
 MARKERS = {
@@ -431,17 +550,27 @@ def test_bode_png_has_the_figure_size_and_is_not_blank(response, tmp_path):
     assert "Fig. 6" in fig.get_suptitle()
 
 
+def split_by_dof(response, name, dof):
+    """``name`` (hB_magnitude, h_magnitude, velocity_injection_gain) for ``dof`` from the
+    split layout: ``<name>_translation`` over ``translation``, ``<name>_yaw``."""
+    if dof == "yaw":
+        return response[f"{name}_yaw"]
+    return response[f"{name}_translation"].sel(translation=dof)
+
+
 def test_bode_has_one_column_per_dof_with_normalized_magnitudes(response):
     fig = plot_bode(response)
     axes = bode_axes(fig)
+    units = {"surge": "N/m", "sway": "N/m", "yaw": "N m/rad"}
     for column, dof in enumerate(DOFS):
-        assert axes[0, column].get_title().startswith(dof)
-        kappa = float(response.velocity_injection_gain.sel(dof=dof))
+        kappa = float(split_by_dof(response, "velocity_injection_gain", dof))
+        # the column names its DOF and kappa with its own unit
+        assert axes[0, column].get_title().startswith(dof) and axes[0, column].get_title().endswith(units[dof])
         lines = lines_by_label(axes[0, column])
-        np.testing.assert_allclose(lines["$h/\\kappa$"].get_ydata(), 20 * np.log10(response.h_magnitude.sel(dof=dof) / kappa))
+        np.testing.assert_allclose(lines["$h/\\kappa$"].get_ydata(), 20 * np.log10(split_by_dof(response, "h_magnitude", dof) / kappa))
         np.testing.assert_allclose(lines["$h_0$"].get_ydata(), 20 * np.log10(response.h0_magnitude.sel(dof=dof)))
         lines = lines_by_label(axes[1, column])
-        np.testing.assert_allclose(lines["$h_B/\\kappa$"].get_ydata(), 20 * np.log10(response.hB_magnitude.sel(dof=dof) / kappa))
+        np.testing.assert_allclose(lines["$h_B/\\kappa$"].get_ydata(), 20 * np.log10(split_by_dof(response, "hB_magnitude", dof) / kappa))
     assert "dB re 1 s" in axes[0, 0].get_ylabel() and "dimensionless" in axes[1, 0].get_ylabel()
     # the SPR bound in every phase panel
     phase_rows = [row for row in axes if "phase" in row[0].get_ylabel()]
@@ -493,8 +622,42 @@ def test_bode_margin_is_readable_on_its_axis(response):
 
 def test_bode_title_and_missing_variables(response):
     assert plot_bode(response, title="Fig. 6").get_suptitle() == "Fig. 6"
-    with pytest.raises(ValueError, match="velocity_injection_gain"):
-        plot_bode(response.drop_vars("velocity_injection_gain"))
+    for name in ("velocity_injection_gain_yaw", "hB_magnitude_translation", "h_magnitude_yaw"):
+        with pytest.raises(ValueError, match=name.rsplit("_", 1)[0]):
+            plot_bode(response.drop_vars(name))
+    with pytest.raises(ValueError, match="h0_magnitude"):
+        plot_bode(response.drop_vars("h0_magnitude"))
+
+
+#: one UDUNITS unit: no list of per-DOF units ("surge: N/m, yaw: N m/rad")
+ONE_UNIT = re.compile(r"^[A-Za-z0-9 /.\-^()]+$")
+
+
+def test_bode_dataset_has_one_unit_per_variable_and_cf_attributes(response, paper_observer, tmp_path):
+    """bode.nc as fossen-strand-1999 writes it: every variable and coordinate with a unit
+    has one unit (no ':' or ','), and the file says its conventions and lookout version."""
+    from lookout import __version__
+    from lookout.results import CONVENTIONS, write_netcdf
+
+    path = write_netcdf(response, tmp_path / "bode.nc", history="test")
+    with xr.open_dataset(path) as loaded:
+        assert loaded.attrs["Conventions"] == CONVENTIONS and loaded.attrs["lookout_version"] == __version__
+        assert "history" in loaded.attrs
+        for name, variable in loaded.variables.items():
+            if name in ("dof", "translation"):  # labels, no unit
+                continue
+            unit = variable.attrs.get("units")
+            assert unit, f"{name} has no units"
+            assert ":" not in unit and "," not in unit and ONE_UNIT.match(unit), f"{name}: {unit!r} is not one unit"
+        assert loaded.hB_magnitude_translation.attrs["units"] == "N/m" and loaded.hB_magnitude_yaw.attrs["units"] == "N m/rad"
+        assert loaded.h_magnitude_translation.attrs["units"] == "N s/m" and loaded.h_magnitude_yaw.attrs["units"] == "N m s/rad"
+        assert loaded.h0_magnitude.attrs["units"] == "s" and loaded.frequency.attrs["units"] == "rad/s"
+        assert loaded.translation.values.tolist() == ["surge", "sway"]
+        # the split keeps the numbers: kappa per DOF as the observer has it
+        kappa = np.r_[loaded.velocity_injection_gain_translation.values, loaded.velocity_injection_gain_yaw.values]
+        np.testing.assert_allclose(kappa, np.asarray(paper_observer.velocity_injection_gain))
+        # and plot_bode draws the file as it reads it
+        assert len(plot_bode(loaded).axes) == 12
 
 
 def test_bode_of_a_failing_design_shades_the_violation_and_keeps_the_note_clear():

@@ -96,7 +96,21 @@ def _line_of(text: str, key: str | None) -> int | None:
     "old, new, expected",
     [
         ("duration = 30.0", "durration = 30.0", "settings.durration (line {line}): unknown key"),
-        ("duration = 30.0", 'duration = "long"', "settings.duration (line {line}): Input should be a valid number"),
+        ("duration = 30.0", 'duration = "long"', 'settings.duration (line {line}): must be a number; got "long" (a string)'),
+        # strictly typed: a boolean or a string is not a number, a float is not a count
+        ("duration = 30.0", "duration = true", "settings.duration (line {line}): must be a number; got true (a boolean)"),
+        ("duration = 30.0", 'duration = "100"', 'settings.duration (line {line}): must be a number; got "100" (a string)'),
+        ("runs = 1", "runs = 2.0", "settings.runs (line {line}): must be an integer (no decimal point); got 2.0 (a number with a decimal point)"),
+        ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, false, 0.1]", "settings.noise_std[1] (line {line}): must be a number; got false (a boolean)"),
+        ("dropout_probability = 0.0", "dropout_probability = 1979-05-27", "settings.dropout_probability (line {line}): must be a number; got a TOML date: 1979-05-27"),
+        # damping that feeds energy in is no vessel
+        ('model = "northern-clipper"', 'model = "custom"\nmass_matrix = [[5.3e6, 0, 0], [0, 8.3e6, 0], [0, 0, 3.7e9]]\ndamping_matrix = [[5.0e4, 0, 0], [0, 2.7e5, -4.4e7], [0, -4.4e7, 4.2e8]]',
+         "settings.vessel.damping_matrix (line {line}): must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); the smallest eigenvalue of (D + D^T)/2 is -4.29e+06"),
+        # the engine's rules under the file's names
+        ("measurement_period = 1.0", "measurement_period = 0.15", "settings.measurement_period (line {line}): must be a whole multiple of sample_period (0.1 s); got 0.15 s"),
+        ("duration = 30.0", "duration = 1e12", "settings.duration (line {line}): must be below 4.295e+09 samples of sample_period (0.1 s)"),
+        # a value only the components can refuse: the key that causes it, found by putting the defaults back one at a time
+        ("cutoff_frequency = 1.1", "cutoff_frequency = 0.5", "settings.cutoff_frequency (line {line}): 0.5 makes no scenario with the other settings: cutoff_frequency must exceed wave_frequency"),
         ('model = "northern-clipper"', 'model = "custom"\nmass_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, -2.0]]\ndamping_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]',
          "settings.vessel.mass_matrix (line {line}): must be symmetric positive definite; its smallest eigenvalue is -2"),
         ('model = "northern-clipper"', 'model = "custom"', "settings.vessel: model 'custom' needs mass_matrix and damping_matrix"),
@@ -113,7 +127,7 @@ def test_a_bad_scenario_file_is_one_line_naming_file_key_and_line(old, new, expe
     bad = text.replace(old, new, 1)
     path = tmp_path / "bad.toml"
     path.write_text(bad)
-    key = expected.split(" (line")[0].split(".")[-1] if "(line" in expected else None
+    key = expected.split(" (line")[0].split(".")[-1].split("[")[0] if "(line" in expected else None
     code, out, err = _run_cli(["run", str(path), "--out", str(tmp_path / "x")], capsys)
     assert code == 2
     assert err.count("\n") == 1 and "Traceback" not in err
@@ -227,6 +241,14 @@ def test_an_axis_over_the_case_sweeps_the_templates_cases():
         ({"sweep": {"axes": [{"field": "wave_frequency", "values": [0.5, 1.1]}]}}, "sweep.axes[0].values (line {line}): value 1.1 makes no scenario: cutoff_frequency must exceed wave_frequency"),
         ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].values (line {line}): 'papers' is no case of fossen-strand-1999 (its cases: paper)"),
         ({"sweep": {"axes": [{"field": "case", "range": [0.0, 1.0], "steps": 2}]}}, "sweep.axes[0].field (line {line}): an axis over the case takes values (case names), alone, without scale"),
+        ({"seeds_per_point": "8"}, 'seeds_per_point (line {line}): must be an integer (no decimal point); got "8" (a string)'),
+        ({"after": 100.0}, "after (line {line}): 100 s is past the end of the run (29.9 s): the metrics would have no record"),
+        ({"sweep": {"axes": [{"field": "duration", "values": [200.0, 20.0]}]}, "after": 25.0},
+         "sweep.axes[0].values (line {line}): value 20.0: after (25 s) is past the end of that run (19.9 s)"),
+        # sizes before allocation: neither the seeds nor the points are made
+        ({"seeds_per_point": 10**12, "chunk_runs": 4}, "seeds_per_point (line {line}): 8 point(s) x 1000000000000 seeds in 2000000000000 chunks would need about"),
+        ({"sweep": {"kind": "latin-hypercube", "points": 10**12, "axes": [{"field": "wave_frequency", "range": [0.5, 1.0]}]}},
+         "sweep: 1000000000000 point(s) x 6 seeds in 2000000000000 chunks would need about"),
     ],
 )
 def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp_path, capsys):
@@ -399,7 +421,7 @@ def test_two_local_workers_give_the_one_process_store_even_when_a_worker_is_kill
     assert killed, "no worker was caught mid-chunk"
     assert killed["recorded"] < 16
     assert outcome["result"]["done"] == 16
-    assert any(m.startswith("calibration chunk:") for m in messages)
+    assert any(m.startswith("calibration: ") for m in messages)
     assert any("dashboard: http://127.0.0.1:" in m for m in messages)
     _assert_same_store(store, reference_store)
 
@@ -437,3 +459,82 @@ def test_status_says_what_is_done(reference_store, capsys):
     info = json.loads(out)
     assert info["chunks"] == info["chunks_done"] == 16 and info["runs_done"] == 48 and info["complete"]
     assert info["axes"] == ["wave_frequency", "bias_scale", "dropout_probability"] and info["diverged"] == 0
+
+
+# ----------------------------------------------------------------------------------
+# sizes before allocation, and a refused or failed start leaves nothing behind
+
+
+def test_lookout_run_refuses_a_billion_runs_before_making_anything(tmp_path, capsys):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(_scenario_text(tmp_path, capsys))
+    code, _, err = _run_cli(["run", str(scenario), "--out", str(tmp_path / "x"), "--runs", "1000000000"], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("error: --runs 1000000000 over settings.duration 30 would need about ") and "use fewer --runs" in err, err
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_scheduler_address_without_a_port_blames_the_option(campaign_files, tmp_path, capsys):
+    folder, spec = campaign_files
+    code, _, err = _run_cli(["campaign", "run", str(spec), "--out", str(tmp_path / "s.zarr"), "--scheduler", "localhost"], capsys)
+    assert code == 2 and err == "error: --scheduler must be an address with a port, such as tcp://10.0.0.5:8786; got 'localhost'\n", err
+    assert not (tmp_path / "s.zarr").exists()
+
+
+def test_an_unreachable_scheduler_blames_the_option_and_leaves_no_store(campaign_files, tmp_path, capsys, monkeypatch):
+    from lookout.studies import execute
+
+    monkeypatch.setattr(execute, "SCHEDULER_TIMEOUT", "1s")
+    folder, spec = campaign_files
+    code, _, err = _run_cli(["campaign", "run", str(spec), "--out", str(tmp_path / "s.zarr"), "--scheduler", "tcp://127.0.0.1:1"], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("error: --scheduler tcp://127.0.0.1:1: cannot reach the scheduler ("), err
+    assert not (tmp_path / "s.zarr").exists()
+
+
+def test_a_store_that_does_not_fit_the_disk_is_refused_before_it_exists(campaign_files, tmp_path):
+    folder, spec = campaign_files
+    with pytest.raises(ValueError, match=r"the store .*s.zarr \(16 chunks x 3 runs\) would need about .* of disk space, and 1 kB are available: free some space"):
+        run_campaign(load_campaign(spec), tmp_path / "s.zarr", workers=0, say=lambda text: None, free_disk=lambda path: 1000)
+    assert not (tmp_path / "s.zarr").exists()
+
+
+def test_a_write_error_names_the_store_and_leaves_no_empty_store(campaign_files, tmp_path, capsys, monkeypatch):
+    import errno
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(CampaignStore, "_write_record", full)
+    folder, spec = campaign_files
+    store = tmp_path / "s.zarr"
+    code, _, err = _run_cli(["campaign", "run", str(spec), "--out", str(store), "--workers", "0"], capsys)
+    assert code == 1 and err.count("\n") == 1, err
+    assert err == f"error: cannot write chunk-000000 into the campaign store {store}: No space left on device\n", err
+    assert not store.exists()  # nothing of value was in it: it would block the corrected run
+
+
+def test_a_changed_spec_is_refused_naming_the_keys_that_differ(campaign_files, tmp_path):
+    folder, spec = campaign_files
+    campaign = load_campaign(spec)
+    store = tmp_path / "s.zarr"
+    CampaignStore.open_or_create(store, campaign)
+    document = json.loads(campaign.canonical())
+    document["seeds_per_point"], document["chunk_runs"] = 9, 3
+    document["scenario"]["settings"]["duration"] = 20.0
+    changed = campaign_from_document(document, "<changed>")
+    with pytest.raises(ValueError, match=r"holds another campaign \(fingerprint \w+, this spec's is \w+\): "
+                       r"scenario.settings.duration: 30.0 -> 20.0; seeds_per_point: 6 -> 9; resume it with its own spec"):
+        CampaignStore.open_or_create(store, changed)
+
+
+def test_a_store_opens_with_xarray_without_a_warning(campaign_files, tmp_path):
+    import warnings
+
+    folder, spec = campaign_files
+    store = tmp_path / "s.zarr"
+    CampaignStore.open_or_create(store, load_campaign(spec))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ds = xr.open_zarr(store)
+    assert "rms_error__position" in ds

@@ -33,12 +33,14 @@ _jax.config.update("jax_enable_x64", True)
 SMALL_LOOP_BYTES = 1_000_000
 
 
-def _add_xla_flag(name: str, value: str) -> None:
-    """Append ``--name=value`` to ``XLA_FLAGS`` unless the user already set ``name``."""
+def _add_xla_flag(name: str, value: str) -> bool:
+    """Append ``--name=value`` to ``XLA_FLAGS`` unless the user already set ``name``;
+    True when it was added."""
     flags = _os.environ.get("XLA_FLAGS", "")
     if name in flags:
-        return
+        return False
     _os.environ["XLA_FLAGS"] = f"{flags} --{name}={value}".strip()
+    return True
 
 
 def configure_cpu(devices: int | None = None) -> None:
@@ -53,50 +55,91 @@ def configure_cpu(devices: int | None = None) -> None:
     devices : int, optional
         Number of host devices; default ``os.cpu_count()``.
     """
-    _add_xla_flag("xla_backend_extra_options", f"xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES}")
-    _add_xla_flag("xla_force_host_platform_device_count", str(devices or _os.cpu_count() or 1))
+    added = _add_xla_flag("xla_backend_extra_options", f"xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES}")
+    added = _add_xla_flag("xla_force_host_platform_device_count", str(devices or _os.cpu_count() or 1)) or added
+    if added and _backend_started():
+        import warnings
+
+        warnings.warn(
+            "lookout.configure_cpu: JAX's backend has already started, so XLA will not read these options in this process; "
+            "call configure_cpu before anything computes with JAX (or set XLA_FLAGS before starting Python)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
 
 
-from ._math import rotation as rotation  # noqa: E402
-from ._math import ssa as ssa  # noqa: E402
-from .actuators import IdealActuator as IdealActuator  # noqa: E402
-from .components import Actuator as Actuator  # noqa: E402
-from .components import ContinuousObserver as ContinuousObserver  # noqa: E402
-from .components import Controller as Controller  # noqa: E402
-from .components import Layout as Layout  # noqa: E402
-from .components import Observer as Observer  # noqa: E402
-from .components import Plant as Plant  # noqa: E402
-from .components import Reference as Reference  # noqa: E402
-from .components import Sensor as Sensor  # noqa: E402
-from .components import Signal as Signal  # noqa: E402
-from .controllers import NoControl as NoControl  # noqa: E402
-from .controllers import SinusoidalInput as SinusoidalInput  # noqa: E402
-from .environment import GaussMarkovBias as GaussMarkovBias  # noqa: E402
-from .environment import LinearWaveModel as LinearWaveModel  # noqa: E402
-from .models import CartPendulum as CartPendulum  # noqa: E402
-from .models import DPVessel as DPVessel  # noqa: E402
-from .models import FreePendulum as FreePendulum  # noqa: E402
-from .models import FurutaPendulum as FurutaPendulum  # noqa: E402
-from .models import ManipulatorPlant as ManipulatorPlant  # noqa: E402
-from .models import TwoLinkArm as TwoLinkArm  # noqa: E402
-from .models import VesselPlant as VesselPlant  # noqa: E402
-from .models import VesselState as VesselState  # noqa: E402
-from .models import northern_clipper as northern_clipper  # noqa: E402
-from .observers import PassiveObserver as PassiveObserver  # noqa: E402
-from .observers import VelocityObserver as VelocityObserver  # noqa: E402
-from .observers import injection_gains_from_normalized as injection_gains_from_normalized  # noqa: E402
-from .observers import notch_filter_gains as notch_filter_gains  # noqa: E402
-from .reference import NoReference as NoReference  # noqa: E402
-from .results import Trajectory as Trajectory  # noqa: E402
-from .results import write_netcdf as write_netcdf  # noqa: E402
-from .sensors import JointEncoder as JointEncoder  # noqa: E402
-from .sensors import PositionHeadingSensor as PositionHeadingSensor  # noqa: E402
-from .sim import Scenario as Scenario  # noqa: E402
-from .sim import Stepper as Stepper  # noqa: E402
-from .sim import filter as filter  # noqa: E402, A004
-from .sim import seed_keys as seed_keys  # noqa: E402
-from .sim import simulate as simulate  # noqa: E402
-from .sim import simulate_batch as simulate_batch  # noqa: E402
+def _backend_started() -> bool:
+    """Whether JAX has started a backend (then XLA_FLAGS is read already). JAX has no
+    public call for this; when its private one is missing, say no."""
+    try:
+        from jax._src import xla_bridge
+
+        return bool(xla_bridge.backends_are_initialized())
+    except Exception:  # pragma: no cover - a JAX without the private call
+        return False
+
+
+#: The public API, name -> the module that defines it. A name is imported when it is
+#: first used (PEP 562), so ``import lookout`` costs JAX's import and little more, and
+#: ``lookout --version`` does not load the models, observers and xarray.
+_PUBLIC = {
+    "rotation": "._math",
+    "ssa": "._math",
+    "IdealActuator": ".actuators",
+    "Actuator": ".components",
+    "ContinuousObserver": ".components",
+    "Controller": ".components",
+    "Layout": ".components",
+    "Observer": ".components",
+    "Plant": ".components",
+    "Reference": ".components",
+    "Sensor": ".components",
+    "Signal": ".components",
+    "NoControl": ".controllers",
+    "SinusoidalInput": ".controllers",
+    "GaussMarkovBias": ".environment",
+    "LinearWaveModel": ".environment",
+    "CartPendulum": ".models",
+    "DPVessel": ".models",
+    "FreePendulum": ".models",
+    "FurutaPendulum": ".models",
+    "ManipulatorPlant": ".models",
+    "TwoLinkArm": ".models",
+    "VesselPlant": ".models",
+    "VesselState": ".models",
+    "northern_clipper": ".models",
+    "PassiveObserver": ".observers",
+    "VelocityObserver": ".observers",
+    "injection_gains_from_normalized": ".observers",
+    "notch_filter_gains": ".observers",
+    "NoReference": ".reference",
+    "Trajectory": ".results",
+    "write_netcdf": ".results",
+    "JointEncoder": ".sensors",
+    "PositionHeadingSensor": ".sensors",
+    "Scenario": ".sim",
+    "Stepper": ".sim",
+    "filter": ".sim",
+    "seed_keys": ".sim",
+    "simulate": ".sim",
+    "simulate_batch": ".sim",
+}
+__all__ = ["SMALL_LOOP_BYTES", "configure_cpu", "__version__", *_PUBLIC]
+
+
+def __getattr__(name: str):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'lookout' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(_PUBLIC[name], __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))
+
 
 try:
     __version__ = _metadata_version("lookout")

@@ -82,6 +82,20 @@ def symmetric_positive_definite(name: str, matrix: Any, *, size: int | None = No
         )
 
 
+def dissipative(name: str, matrix: Any) -> None:
+    """Fail unless the symmetric part of the square ``matrix`` is positive semi-definite
+    (a damping matrix D that dissipates energy: nu^T D nu >= 0 for every nu)."""
+    if not is_concrete(matrix):
+        return
+    array = np.asarray(matrix, dtype=float)
+    smallest = float(np.linalg.eigvalsh(0.5 * (array + array.T)).min())
+    if smallest < -1e-12 * max(np.abs(array).max(), np.finfo(float).tiny):
+        raise ValueError(
+            f"{name} must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); "
+            f"the smallest eigenvalue of (D + D^T)/2 is {smallest:.3g}"
+        )
+
+
 def square(name: str, matrix: Any, *, size: int = 3) -> None:
     """Fail unless ``matrix`` is a finite ``size`` x ``size`` matrix."""
     if not is_concrete(matrix):

@@ -23,8 +23,9 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from lookout._resources import available_memory, format_bytes
 from lookout._validation import InputError
-from lookout.papers._report import json_safe
+from lookout._json import json_safe
 
 try:  # typer >= 0.29 vendors click
     from typer._click import exceptions as click_exceptions
@@ -44,6 +45,8 @@ design_app = typer.Typer(
 )
 app.add_typer(design_app, name="design")
 console = Console(soft_wrap=True)
+#: The width tables may take when the output is not a terminal (see main).
+PIPE_WIDTH = 1000
 
 #: The peak memory of a reproduction is about this many times its records: the
 #: simulated segments and their concatenation, the xarray copy, NetCDF and metric
@@ -111,15 +114,19 @@ def _positive_numbers(option: str, text: str) -> list[float]:
 
 
 def _writable_folder(option: str, folder: Path, what: str) -> None:
-    """Fail unless ``folder`` is an existing folder this process can write into.
+    """Fail unless ``folder`` can be written into: it exists and is writable, or its
+    nearest existing ancestor is a writable folder (every output's missing parent
+    folders are created when it is written: one rule for every ``--out``).
 
     Permission bits do not answer that (root passes them, /proc and read-only file
     systems refuse anyway), so a nameless temporary file is created and removed.
     """
-    if not folder.exists():
-        raise InputError(f"{option}: the folder {folder} for {what} does not exist; create it first (mkdir -p {folder})")
-    if not folder.is_dir():
-        raise InputError(f"{option}: {folder} is a file, not a folder")
+    existing = folder.absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InputError(f"{option}: {existing} is a file, not a folder (on the way to {what})")
+    folder = existing if existing != folder.absolute() else folder
     if not os.access(folder, os.W_OK | os.X_OK):
         raise InputError(f"{option}: the folder {folder} is not writable")
     try:
@@ -130,7 +137,8 @@ def _writable_folder(option: str, folder: Path, what: str) -> None:
 
 
 def _output_folder(option: str, text: str) -> Path:
-    """Check an output folder before any work: not empty, not a file, parent present and writable."""
+    """Check an output folder before any work: not empty, not a file, and it or its
+    nearest existing ancestor writable."""
     if not text.strip():
         raise InputError(f"{option} must name a folder; got an empty path")
     folder = Path(text)
@@ -144,10 +152,10 @@ def _output_folder(option: str, text: str) -> Path:
 
 
 def _created_folder(option: str, text: str) -> Path:
-    """:func:`_output_folder`, created (its parent exists: checked)."""
+    """:func:`_output_folder`, created with its missing parents."""
     folder = _output_folder(option, text)
     try:
-        folder.mkdir(exist_ok=True)
+        folder.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise InputError(f"{option}: cannot create {folder}: {error.strerror}") from None
     return folder
@@ -156,7 +164,8 @@ def _created_folder(option: str, text: str) -> Path:
 @contextlib.contextmanager
 def _simulating():
     """A progress bar on stderr while simulating; yields the engine's ``progress(done, total)``."""
-    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
+    _stderr = Console(stderr=True)  # a progress bar only where someone watches: a log gets none
+    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=_stderr, transient=True, disable=not _stderr.is_terminal) as bar:
         task = bar.add_task("run", total=1.0)
         yield lambda done, total: bar.update(task, completed=done / total)
 
@@ -245,33 +254,11 @@ def _model_error(text: str) -> dict:
     return result
 
 
-def _bytes(count: float) -> str:
-    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
-        if count >= size:
-            return f"{count / size:.3g} {unit}"
-    return f"{count:.0f} B"
-
-
-def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation (Linux MemAvailable), or None if unknown."""
-    try:
-        with open("/proc/meminfo") as meminfo:
-            for line in meminfo:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
-def _check_memory(batches) -> None:
+def _check_memory(batches, runs_option: str = "--runs", duration_option: str = "--duration") -> None:
     """Refuse a study whose records would not fit in memory, before simulating.
 
     ``batches`` are (scenario, runs) simulated one after another, so the largest
-    one sets the peak.
+    one sets the peak. Nothing that grows with the runs exists yet when this runs.
     """
     from lookout.sim import record_nbytes
 
@@ -281,9 +268,9 @@ def _check_memory(batches) -> None:
     available = available_memory()
     if available is not None and need > available:
         raise InputError(
-            f"--runs {runs} over --duration {scenario.duration:g} would need about {_bytes(need)} of memory "
+            f"{runs_option} {runs} over {duration_option} {scenario.duration:g} would need about {format_bytes(need)} of memory "
             f"({runs} run(s) x {scenario.n_records} records x {per_record} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results), "
-            f"and {_bytes(available)} are available: use fewer --runs or a shorter --duration"
+            f"and {format_bytes(available)} are available: use fewer {runs_option} or a shorter {duration_option}"
         )
 
 
@@ -291,30 +278,24 @@ def _check_memory(batches) -> None:
 # Commands
 
 
-def _default_durations() -> str:
-    """``the paper's: 3000 for fossen-strand-1999, ...`` from the reproductions' configs."""
-    from lookout.papers import REPRODUCTIONS
-
-    return "per reproduction: " + ", ".join(f"{module.Config().duration:g} for {name}" for name, module in REPRODUCTIONS.items())
-
-
 @app.command("list")
 def list_reproductions() -> None:
-    """List the available reproductions."""
-    from lookout.papers import REPRODUCTIONS
+    """List the available reproductions (name and title; `lookout reproduce NAME --help`
+    for the options, `--write-scenario FILE` for every setting and its default)."""
+    from lookout.papers import CATALOG
 
-    for name, module in REPRODUCTIONS.items():
-        console.print(f"{name}\t{module.TITLE}", highlight=False)
+    for name, entry in CATALOG.items():
+        console.print(f"{name}\t{entry.title}", highlight=False)
 
 
 @app.command()
 def reproduce(
     name: Annotated[str, typer.Argument(metavar="NAME", help="Reproduction, e.g. fossen-strand-1999 (see `lookout list`).")],
-    out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder; created if missing (its parent must exist).")] = "out",
+    out: Annotated[Optional[str], typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.", show_default="out/NAME")] = None,
     seed: Annotated[int, typer.Option(metavar="INT", help="Seed of run 0; run i uses seed + i.")] = 0,
     runs: Annotated[int, typer.Option(metavar="N", help="Monte Carlo runs over seeds (vmapped); the summary gives mean ± std.")] = 1,
     duration: Annotated[
-        Optional[float], typer.Option(metavar="SECONDS", help="Simulated time.", show_default=_default_durations())
+        Optional[float], typer.Option(metavar="SECONDS", help="Simulated time.", show_default="the reproduction's own (its --write-scenario file shows it)")
     ] = None,
     model_error: Annotated[
         Optional[str],
@@ -367,7 +348,7 @@ def reproduce(
         _write_scenario(name, config, write_scenario)
         return
     _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)])
-    folder = _created_folder("--out", out)
+    folder = _created_folder("--out", f"out/{name}" if out is None else out)
     with _simulating() as progress:
         summary = module.run(config, folder, progress=progress)
     _print_summary(summary, module.tables(summary), folder)
@@ -542,6 +523,7 @@ def design_passive_observer(
         from lookout.plotting import plot_bode
 
         figure = plot_bode(frequency_response(observer))
+        bode_path.parent.mkdir(parents=True, exist_ok=True)
         figure.savefig(bode_path, dpi=110)
         plt.close(figure)
         result["bode"] = str(bode_path)
@@ -829,7 +811,12 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning every input error into one line and exit code 2."""
     import lookout  # enables float64 before any computation
 
+    # first of all: XLA reads these options when its backend starts, and nothing this
+    # module imported has started it (tests/test_cli.py checks)
     lookout.configure_cpu()
+    # a pipe or a file has no width: tables keep their own instead of rich's 80 columns
+    # (COLUMNS, or a terminal, sets it as usual)
+    console.width = PIPE_WIDTH if not console.is_terminal and "COLUMNS" not in os.environ else None
 
     command = typer.main.get_command(app)
     try:
@@ -850,7 +837,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {_one_line(error)}", file=sys.stderr)
         return 2
     except OSError as error:  # a write that failed after the checks (disk full, a file system that changed)
-        print(f"error: {_one_line(error)}", file=sys.stderr)
+        text = error.strerror or str(error)
+        if error.filename and str(error.filename) not in text:
+            text += f": {error.filename}"
+        print(f"error: {_one_line(text)}", file=sys.stderr)
         return 1
     return code if isinstance(code, int) else 0
 

@@ -203,10 +203,25 @@ class Observer(eqx.Module):
     ``estimate_signals`` are estimates of plant variables, named, shaped and united
     as the plant's (the results pair ``v`` with ``v_hat``); ``extra_signals`` are the
     observer's other outputs (innovations, parameter estimates, sliding surfaces).
+
+    What it consumes is declared too: ``measurement_layout`` (the measurement ``y``
+    it reads, NaN marking a missing channel) and ``input_layout`` (the applied input
+    ``u`` of :meth:`predict`), so that a log or a live stream can be checked against
+    it; ``sample_period`` is the one step (s) the observer is written for (a
+    discrete-time observer), or None when :meth:`predict` takes any step ``dt``.
     """
 
     estimate_signals: eqx.AbstractVar[tuple[Signal, ...]]
     extra_signals: eqx.AbstractVar[tuple[Signal, ...]]
+    measurement_layout: eqx.AbstractVar[Layout]
+    input_layout: eqx.AbstractVar[Layout]
+    sample_period: eqx.AbstractVar[float | None]
+
+    @abc.abstractmethod
+    def guess(self):
+        """A default initial guess, shaped as :meth:`init` takes it (zeros, or the
+        observer's own starting values); the keyword arguments of each observer's
+        ``guess`` set its parts."""
 
     @abc.abstractmethod
     def init(self, y0: Array, guess):

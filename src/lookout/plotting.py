@@ -112,18 +112,121 @@ def _run_caption(ds: xr.Dataset, run: int) -> str | None:
     return caption
 
 
-def plot_estimates(ds: xr.Dataset, panels, *, run: int = 0, zoom: float = 200.0, window: tuple[float, float] | None = None, title: str | None = None):
-    """True and estimated signals, one row per panel: the full run and a zoomed window.
+#: Dense signals (wave motion over hours) are drawn in the full-run column as their
+#: range per bin: a line per sample would fill a band in which the curve drawn last
+#: hides the others. A signal is dense when most of its variance lies at more than
+#: this many cycles per run (a few pixels per cycle at the written size).
+DENSE_CYCLES = 150.0
+#: Bins of the range drawn for a dense signal across the full run.
+ENVELOPE_BINS = 300
+_TARGET_STYLE = {"color": "C0", "lw": 0.9, "zorder": 2.5}
+_TRUTH_BAND_STYLE = {"color": "0.6", "alpha": 0.35, "lw": 0, "zorder": 1.5}
+
+
+def is_dense(time, values, cycles: float = DENSE_CYCLES) -> bool:
+    """Whether most of the variance of ``values`` lies above ``cycles`` cycles per run.
+
+    Such a signal, drawn sample by sample across the whole run, is a solid band at the
+    size a figure is written: :func:`plot_estimates` then draws its range per bin.
+    """
+    time = np.asarray(time, dtype=float)
+    values = np.asarray(values, dtype=float)
+    finite = np.isfinite(values)
+    if time.size < 8 or finite.sum() < 8:
+        return False
+    duration = float(time[-1] - time[0])
+    if not duration > 0:
+        return False
+    # fill gaps and remove the trend, so that a drift or a dropout is not read as fast motion
+    values = np.interp(time, time[finite], values[finite])
+    values = values - np.polyval(np.polyfit(time - time[0], values, 1), time - time[0])
+    power = np.abs(np.fft.rfft(values)) ** 2
+    power[0] = 0.0
+    total = power.sum()
+    if not total > 0:
+        return False
+    cycles_per_run = np.arange(power.size)  # rfft bin k holds k cycles over the record
+    return bool(power[cycles_per_run > cycles].sum() > 0.5 * total)
+
+
+def _envelope(time: np.ndarray, values: np.ndarray, bins: int = ENVELOPE_BINS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(bin centres, minimum, maximum) of ``values`` in ``bins`` equal slices of the run."""
+    edges = np.linspace(time[0], time[-1], bins + 1)
+    index = np.clip(np.searchsorted(edges, time, side="right") - 1, 0, bins - 1)
+    low = np.full(bins, np.inf)
+    high = np.full(bins, -np.inf)
+    finite = np.isfinite(values)
+    np.minimum.at(low, index[finite], values[finite])
+    np.maximum.at(high, index[finite], values[finite])
+    empty = ~np.isfinite(low)
+    low[empty] = high[empty] = np.nan
+    return 0.5 * (edges[:-1] + edges[1:]), low, high
+
+
+def _outline(centres: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The upper and lower edge of a range as one line (x, y), broken by a NaN."""
+    return np.r_[centres, np.nan, centres], np.r_[high, np.nan, low]
+
+
+def _windows(window, time: np.ndarray, zoom: float) -> list[tuple[float, float, str]]:
+    """The zoom windows (start, end, column title) of :func:`plot_estimates`."""
+    if window is None:
+        start, end = zoom_window(time, zoom)
+        return [(start, end, f"zoom: last {end - start:.3g} s (shaded on the left)")]
+    try:
+        pairs = [tuple(float(value) for value in window)] if np.ndim(window) == 1 else [tuple(float(v) for v in pair) for pair in window]
+    except (TypeError, ValueError):
+        raise ValueError(f"window must be (start, end) in seconds, or a sequence of such pairs; got {window!r}") from None
+    result = []
+    for pair in pairs:
+        if len(pair) != 2 or not (time[0] <= pair[0] < pair[1] <= time[-1]):
+            raise ValueError(f"window must satisfy {time[0]:g} <= start < end <= {time[-1]:g} (the run); got {window!r}")
+        result.append((pair[0], pair[1], f"zoom: {pair[0]:.4g} to {pair[1]:.4g} s" + (" (shaded on the left)" if len(pairs) == 1 else " (shaded)")))
+    if not result:
+        raise ValueError(f"window must name at least one (start, end) pair; got {window!r}")
+    return result
+
+
+def _check_targets(ds: xr.Dataset, panels, targets) -> dict[str, str]:
+    if targets is None:
+        return {}
+    try:
+        targets = {str(variable): str(target) for variable, target in dict(targets).items()}
+    except (TypeError, ValueError):
+        raise ValueError(f"targets must map a panel's variable to a dataset variable; got {targets!r}") from None
+    for variable, target in targets.items():
+        if variable not in {name for name, _ in panels}:
+            raise ValueError(f"targets: {variable!r} is not the variable of any panel")
+        if target not in ds or ds[target].dims != ds[variable].dims:
+            raise ValueError(f"targets: the dataset has no variable {target!r} with the dims of {variable!r} {ds[variable].dims}")
+    return targets
+
+
+def plot_estimates(
+    ds: xr.Dataset,
+    panels,
+    *,
+    run: int = 0,
+    zoom: float = 200.0,
+    window=None,
+    title: str | None = None,
+    targets=None,
+    transient: float | None = None,
+):
+    """True and estimated signals, one row per panel: the full run and zoomed windows.
 
     The comparison of Fossen & Strand (1999), Figs. 9–11 and Calugi (2002),
     Figs. 2.2–2.8, for any results of :meth:`lookout.Trajectory.to_xarray`: each
     panel shows a variable ``v`` (one component of a vector, or a scalar) and its
-    estimate ``v_hat``, the whole run on the left and the last ``zoom`` seconds on
-    the right, where fast motion (wave periods of seconds) is resolved. The estimate
-    is drawn in orange, the truth as a thin black line on top of it; a measured
-    ``measured_v`` appears as dots (one per new sample) in the zoomed panel. Axis
-    labels give the frame, the quantity and its unit, from the variables' attributes;
-    angles are shown in degrees (unwrapped), forces in kN.
+    estimate ``v_hat``, the whole run on the left and the last ``zoom`` seconds (or
+    the ``window``\\ s) on the right, where fast motion (wave periods of seconds) is
+    resolved. The estimate is drawn in orange, the truth as a thin black line on top
+    of it; a measured ``measured_v`` appears as dots (one per new sample) in the
+    zoomed panels. A dense signal (:func:`is_dense`: wave motion over hours) is drawn
+    in the full-run column as its range per bin, the truth's shaded and outlined in
+    black, the estimate's outlined in orange, so that neither band hides the other.
+    Axis labels give the frame, the quantity and its unit, from the variables'
+    attributes; angles are shown in degrees (unwrapped), forces in kN.
 
     Parameters
     ----------
@@ -137,11 +240,21 @@ def plot_estimates(ds: xr.Dataset, panels, *, run: int = 0, zoom: float = 200.0,
     zoom : float, default 200.0
         Width in seconds of the zoomed window at the end of the run; when the run
         lasts less than ``5 * zoom``, its last fifth is shown instead.
-    window : (float, float), optional
+    window : (float, float) or sequence of them, optional
         The zoomed window ``(start, end)`` in seconds instead (e.g. the first
-        seconds, where an observer converges); within the run, start < end.
+        seconds, where an observer converges), or several, one column each; within
+        the run, start < end.
     title : str, optional
         Figure title; default "true and estimated".
+    targets : mapping of str to str, optional
+        ``{variable: other}``: draw the dataset variable ``other`` (same dims as
+        ``variable``, labelled by its ``long_name``) in blue in the panels of
+        ``variable``, for an estimate that converges to something other than the
+        truth (a bias estimate that also absorbs a model error).
+    transient : float, optional
+        Seconds at the start of the run left out of the full-run column's vertical
+        scale: a start transient (an initial estimate far off) is clipped there,
+        with a note, and is shown whole in a zoom window that covers it.
 
     Returns
     -------
@@ -150,32 +263,46 @@ def plot_estimates(ds: xr.Dataset, panels, *, run: int = 0, zoom: float = 200.0,
     Raises
     ------
     ValueError
-        If a panel names a missing variable or component, ``run`` is out of range
-        or ``zoom`` is not a finite positive number.
+        If a panel names a missing variable or component, ``run`` is out of range,
+        ``zoom`` is not a finite positive number, a window lies outside the run or
+        a target is missing.
     """
     panels, run, zoom = _check_estimate_arguments(ds, panels, run, zoom)
+    targets = _check_targets(ds, panels, targets)
     time = np.asarray(ds["time"].values, dtype=float)
-    if window is None:
-        start, end = zoom_window(time, zoom)
-        zoom_title = f"zoom: last {end - start:.3g} s (shaded on the left)"
-    else:
-        start, end = (float(value) for value in window)
-        if not (time[0] <= start < end <= time[-1]):
-            raise ValueError(f"window must satisfy {time[0]:g} <= start < end <= {time[-1]:g} (the run); got {window!r}")
-        zoom_title = f"zoom: {start:g} to {end:g} s (shaded on the left)"
-    # one sample of margin either side so the zoomed curves reach the frame
-    first = max(int(np.searchsorted(time, start, side="left")) - 1, 0)
-    last = min(int(np.searchsorted(time, end, side="right")) + 1, time.size)
-    window = slice(first, last)
+    windows = _windows(window, time, zoom)
+    if transient is not None and not (math.isfinite(float(transient)) and 0 <= float(transient) < time[-1] - time[0]):
+        raise ValueError(f"transient must be a number of seconds with 0 <= transient < {time[-1] - time[0]:g} (the run); got {transient!r}")
 
+    def part_of(start, end):
+        # one sample of margin either side so the zoomed curves reach the frame
+        first = max(int(np.searchsorted(time, start, side="left")) - 1, 0)
+        last = min(int(np.searchsorted(time, end, side="right")) + 1, time.size)
+        return slice(first, last)
+
+    parts = [part_of(start, end) for start, end, _ in windows]
+    columns = 1 + len(windows)
+    heading = title if title is not None else "true and estimated"
+    caption = _run_caption(ds, run)
+    heading = heading if caption is None else f"{heading}\n{caption}"
+    # a title of more than two lines gets its own room, so that the panels keep theirs
+    title_room = 0.25 * max(0, heading.count("\n") - 1)
     fig, axes = plt.subplots(
-        len(panels), 2, figsize=(11, 2.25 * len(panels) + (1.2 if len(panels) < 4 else 0.0)), layout="constrained", sharex="col", squeeze=False, gridspec_kw={"width_ratios": (1.6, 1.0)}
+        len(panels),
+        columns,
+        figsize=(11 + 3.6 * (len(windows) - 1), 2.25 * len(panels) + (1.2 if len(panels) < 4 else 0.0) + title_room),
+        layout="constrained",
+        sharex="col",
+        squeeze=False,
+        gridspec_kw={"width_ratios": (1.6,) + (1.0,) * len(windows)},
     )
-    any_measured = False
+    any_measured = any_dense = any_target = False
+    target_labels = []
     for row, (variable, label) in enumerate(panels):
         attrs = ds[variable].attrs
         truth = np.asarray(_component(ds[variable], label).isel(run=run).values, dtype=float)
         estimate = np.asarray(_component(ds[f"{variable}_hat"], label).isel(run=run).values, dtype=float)
+        target = np.asarray(_component(ds[targets[variable]], label).isel(run=run).values, dtype=float) if variable in targets else None
         measured_name = f"measured_{variable}"
         measured = np.asarray(_component(ds[measured_name], label).isel(run=run).values, dtype=float) if measured_name in ds else None
         if attrs.get("angle"):
@@ -184,46 +311,94 @@ def plot_estimates(ds: xr.Dataset, panels, *, run: int = 0, zoom: float = 200.0,
             estimate = truth + _wrap_to_pi(estimate - truth)
             if measured is not None:
                 measured = truth + _wrap_to_pi(measured - truth)
+            if target is not None:
+                target = truth + _wrap_to_pi(target - truth)
         scale, units = _DISPLAY_UNITS.get(attrs.get("units", ""), (1.0, attrs.get("units", "")))
         truth, estimate = truth * scale, estimate * scale
+        if target is not None:
+            target = target * scale
+            any_target = True
+            name = ds[targets[variable]].attrs.get("long_name", targets[variable])
+            if name not in target_labels:
+                target_labels.append(name)
 
-        full, zoomed = axes[row]
-        full.axvspan(start, end, **_WINDOW_STYLE, label="zoom window")
-        for ax, part in ((full, slice(None)), (zoomed, window)):
+        full, zoomed = axes[row, 0], axes[row, 1:]
+        for start, end, _ in windows:
+            full.axvspan(start, end, **_WINDOW_STYLE, label="zoom window")
+        dense = is_dense(time, truth)
+        any_dense |= dense
+        if dense:
+            centres, low, high = _envelope(time, truth)
+            full.fill_between(centres, low, high, **_TRUTH_BAND_STYLE, label="true (range)")
+            full.plot(*_outline(*_envelope(time, estimate)), **_ESTIMATE_STYLE, label="estimate")
+            if target is not None:
+                full.plot(*_outline(*_envelope(time, target)), **_TARGET_STYLE, label="target")
+            full.plot(*_outline(centres, low, high), **_TRUTH_STYLE, label="true")
+        else:
+            full.plot(time, estimate, **_ESTIMATE_STYLE, label="estimate")
+            if target is not None:
+                full.plot(time, target, **_TARGET_STYLE, label="target")
+            full.plot(time, truth, **_TRUTH_STYLE, label="true")
+        for ax, part in zip(zoomed, parts):
             ax.plot(time[part], estimate[part], **_ESTIMATE_STYLE, label="estimate")
+            if target is not None:
+                ax.plot(time[part], target[part], **_TARGET_STYLE, label="target")
             ax.plot(time[part], truth[part], **_TRUTH_STYLE, label="true")
+        for ax in axes[row]:
             ax.grid(alpha=0.3)
         if measured is not None:
             any_measured = True
-            # one dot per sensor sample: the held value changes at a new sample
-            part = measured[window]
-            new = np.r_[True, part[1:] != part[:-1]] & np.isfinite(part)
-            zoomed.plot(time[window][new], part[new] * scale, **_MEASURED_STYLE, label="measured")
+            for ax, part in zip(zoomed, parts):
+                # one dot per sensor sample: the held value changes at a new sample
+                values = measured[part]
+                new = np.r_[True, values[1:] != values[:-1]] & np.isfinite(values)
+                ax.plot(time[part][new], values[new] * scale, **_MEASURED_STYLE, label="measured")
+        if transient is not None:
+            kept = time >= time[0] + float(transient)
+            shown = [truth[kept], estimate[kept]] + ([target[kept]] if target is not None else [])
+            values = np.concatenate(shown)
+            values = values[np.isfinite(values)]
+            if values.size:
+                low, high = float(values.min()), float(values.max())
+                pad = 0.08 * (high - low) if high > low else max(abs(high), 1.0) * 0.05
+                everything = np.concatenate([truth, estimate])
+                everything = everything[np.isfinite(everything)]
+                if everything.size and (everything.min() < low - pad or everything.max() > high + pad):
+                    full.text(0.01, 0.03, f"clipped: the first {float(transient):g} s leave this scale (see the zoom)", transform=full.transAxes,
+                              fontsize=7.5, va="bottom", ha="left", gid="transient_note",
+                              bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.8})
+                full.set_ylim(low - pad, high + pad)
         quantity = f"{variable.replace('_', ' ')}{' ' + label if label is not None else ''} ({units})"
         frame = attrs.get("frame", "")
         full.set_ylabel(f"{frame}\n{quantity}" if frame else quantity)
-        zoomed.set_ylabel(quantity)
+        for ax in zoomed:
+            ax.set_ylabel(quantity)
         full.set_xlim(time[0], time[-1])
-        zoomed.set_xlim(start, end)
+        for ax, (start, end, _) in zip(zoomed, windows):
+            ax.set_xlim(start, end)
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    axes[0, 0].set_title("full run", fontsize=10)
-    axes[0, 1].set_title(zoom_title, fontsize=10)
+    bin_width = (time[-1] - time[0]) / ENVELOPE_BINS
+    axes[0, 0].set_title("full run" + (f" (dense signals: range per {bin_width:.3g} s)" if any_dense else ""), fontsize=10)
+    for ax, (_, _, column_title) in zip(axes[0, 1:], windows):
+        ax.set_title(column_title, fontsize=10)
 
-    handles = [
-        Line2D([], [], **{k: v for k, v in _TRUTH_STYLE.items() if k != "zorder"}, label="true"),
-        Line2D([], [], **{k: v for k, v in _ESTIMATE_STYLE.items() if k != "zorder"}, label="estimate"),
-    ]
+    def style(values):
+        return {k: v for k, v in values.items() if k != "zorder"}
+
+    handles = [Line2D([], [], **style(_TRUTH_STYLE), label="true"), Line2D([], [], **style(_ESTIMATE_STYLE), label="estimate")]
+    if any_target:
+        handles.append(Line2D([], [], **style(_TARGET_STYLE), label="; ".join(target_labels)))
+    if any_dense:
+        handles.append(Patch(**style(_TRUTH_BAND_STYLE), label="true (range per bin)"))
     if any_measured:
         handles.append(
             Line2D([], [], **{k: v for k, v in _MEASURED_STYLE.items() if k not in ("zorder", "alpha")}, label="measured (zoom)")
         )
     handles.append(Patch(facecolor="C0", alpha=0.12, label="zoom window"))
-    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=9, frameon=False)
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 6), fontsize=9, frameon=False)
 
-    heading = title if title is not None else "true and estimated"
-    caption = _run_caption(ds, run)
-    fig.suptitle(heading if caption is None else f"{heading}\n{caption}")
+    fig.suptitle(heading)
     return fig
 
 
@@ -294,25 +469,34 @@ def _runs(x: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
     """The (first, last) x of each run of consecutive True values of ``mask``."""
     edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
     return [(float(x[start]), float(x[stop - 1])) for start, stop in zip(edges[::2], edges[1::2])]
+
+
 _REQUIRED = (
     "h0_magnitude",
-    "hB_magnitude",
-    "h_magnitude",
     "h0_phase_deg",
     "hB_phase_deg",
     "h_phase_deg",
-    "velocity_injection_gain",
 ) + tuple(marker[0] for marker in _MARKERS)
 
 
-def _unit_of(attrs: dict, dof: str) -> str:
-    """The unit of ``dof`` from a ``units`` attribute like 'surge: N/m, sway: N/m, yaw: N m/rad'."""
-    units = str(attrs.get("units", ""))
-    for part in units.split(","):
-        key, _, value = part.partition(":")
-        if key.strip() == dof and value.strip():
-            return value.strip()
-    return units if units and ":" not in units else ""
+def _per_dof(response: xr.Dataset, name: str, dof: str) -> tuple[np.ndarray, str]:
+    """The values of ``name`` (``hB_magnitude``, ``h_magnitude``, ``velocity_injection_gain``)
+    for ``dof`` and their unit.
+
+    :func:`lookout.analysis.frequency_response` splits these by kind of DOF, since a
+    force per metre and a moment per radian share no unit: ``<name>_translation`` over
+    ``translation`` (surge, sway) and ``<name>_yaw``. A variable ``name`` over ``dof``
+    with one unit is read too.
+    """
+    if name in response.variables and "dof" in response[name].dims:
+        variable = response[name].sel(dof=dof)
+    elif f"{name}_translation" in response.variables and "translation" in response.coords and dof in response["translation"].values.tolist():
+        variable = response[f"{name}_translation"].sel(translation=dof)
+    elif f"{name}_{dof}" in response.variables:
+        variable = response[f"{name}_{dof}"]
+    else:
+        raise ValueError(f"response must be a frequency_response() Dataset; it has no {name!r} for the DOF {dof!r} ({name}_translation or {name}_{dof})")
+    return np.asarray(variable.values, dtype=float), str(variable.attrs.get("units", ""))
 
 
 def minimum_phase_of_h(response: xr.Dataset, dof: str) -> tuple[float, float]:
@@ -351,11 +535,13 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
     Parameters
     ----------
     response : xarray.Dataset
-        From :func:`lookout.analysis.frequency_response`: ``h0_magnitude``,
-        ``hB_magnitude``, ``h_magnitude`` and the ``*_phase_deg`` variables with
-        dims (frequency, dof), and per DOF ``bias_filter_frequency``,
-        ``bias_gain_ratio``, ``wave_frequency``, ``cutoff_frequency`` (rad/s) and
-        ``velocity_injection_gain``.
+        From :func:`lookout.analysis.frequency_response`: ``h0_magnitude`` and the
+        ``*_phase_deg`` variables with dims (frequency, dof); per DOF
+        ``bias_filter_frequency``, ``bias_gain_ratio``, ``wave_frequency`` and
+        ``cutoff_frequency`` (rad/s); and hB, h and kappa, which have one unit per
+        kind of DOF, as ``hB_magnitude_translation``, ``h_magnitude_translation``,
+        ``velocity_injection_gain_translation`` over ``translation`` (surge, sway)
+        and ``hB_magnitude_yaw``, ``h_magnitude_yaw``, ``velocity_injection_gain_yaw``.
     title : str, optional
         Figure title; default "Error-loop frequency response h0, hB, h
         (Fossen & Strand 1999, Fig. 6)".
@@ -367,7 +553,8 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
     Raises
     ------
     ValueError
-        If a required variable is missing from ``response``.
+        If a required variable, or hB, h or kappa of one of its DOFs, is missing
+        from ``response``.
     """
     missing = [name for name in _REQUIRED if name not in response.variables]
     if missing:
@@ -386,15 +573,17 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
         gridspec_kw={"height_ratios": (1.0, 0.8, 1.0, 0.8)},
     )
     magnitude, gain, phase, margin = axes
+    # every DOF's hB, h and kappa are there before anything is drawn
+    split = {dof: {name: _per_dof(response, name, dof) for name in ("hB_magnitude", "h_magnitude", "velocity_injection_gain")} for dof in dofs}
     for column, dof in enumerate(dofs):
-        kappa = float(response["velocity_injection_gain"].sel(dof=dof))
-        curve = {name: response[f"{name}_magnitude"].sel(dof=dof).values for name in ("h0", "hB", "h")}
+        kappa, unit = split[dof]["velocity_injection_gain"]
+        kappa = float(kappa)
+        curve = {"h0": response["h0_magnitude"].sel(dof=dof).values, "hB": split[dof]["hB_magnitude"][0], "h": split[dof]["h_magnitude"][0]}
         angle = {name: response[f"{name}_phase_deg"].sel(dof=dof).values for name in ("h0", "hB", "h")}
 
         ax = magnitude[column]
         ax.semilogx(frequency, 20 * np.log10(curve["h0"]), **_CURVES["h0"], label="$h_0$")
         ax.semilogx(frequency, 20 * np.log10(curve["h"] / kappa), **_CURVES["h"], label=r"$h/\kappa$")
-        unit = _unit_of(response["velocity_injection_gain"].attrs, dof)
         ax.set_title(f"{dof}:  κ = {kappa:.3g} {unit}".rstrip(), fontsize=10)
 
         ax = gain[column]

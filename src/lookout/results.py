@@ -10,6 +10,7 @@ names); every variable has one unit that UDUNITS parses.
 from __future__ import annotations
 
 import datetime
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -176,10 +177,19 @@ def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written") 
     line = f"{stamp}: lookout {_version()}: {history}"
     previous = ds.attrs.get("history")
     ds.attrs["history"] = f"{previous}\n{line}" if previous else line
+    # every file lookout writes says what it follows and who wrote it
+    ds.attrs.setdefault("Conventions", CONVENTIONS)
+    ds.attrs.setdefault("lookout_version", _version())
     encoding = {
         name: {"zlib": True, "complevel": 4, "shuffle": True}
         for name, variable in ds.variables.items()
         if np.issubdtype(variable.dtype, np.number) and variable.ndim > 0
     }
-    ds.to_netcdf(path, engine="netcdf4", encoding=encoding)
+    # written beside and renamed into place: a write that fails leaves no half file
+    partial = path.with_name(path.name + ".partial")
+    try:
+        ds.to_netcdf(partial, engine="netcdf4", encoding=encoding)
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
     return path

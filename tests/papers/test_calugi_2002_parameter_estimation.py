@@ -102,7 +102,7 @@ def test_bad_options_exit_2_with_one_line(argv, message, capsys):
 
 def test_bad_settings_of_the_config_name_the_field():
     for fields, message in (
-        ({"plant_step": 3e-3}, "must be a whole multiple of the plant step"),
+        ({"plant_step": 3e-3}, r"sample_period\n.*must be a whole multiple of plant_step \(0.003 s\); got 0.01 s"),
         ({"pe_window": 0.0}, "must be a finite positive number"),
         ({"filter_pole": -1.0}, "must be a finite positive number"),
         ({"input_amplitude": 0.0}, "must be a finite nonzero number"),

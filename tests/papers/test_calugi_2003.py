@@ -63,6 +63,40 @@ def test_reproduce_calugi_2003_writes_its_outputs(tmp_path, capsys):
     assert "(22)/(57)/(58)" in capsys.readouterr().out
 
 
+def test_fig4_draws_each_thrust_component_in_its_own_panel_and_says_why_theta_hat_is_flat():
+    """On a synthetic record: surge and sway thrust do not share a panel (one hid the
+    other); the two gain sets' theta_hat, which start at the same value, are both visible;
+    the figure says that Gamma = 1e3 with theta in kg is why theta_hat hardly moves."""
+    import matplotlib.pyplot as plt
+    import xarray as xr
+
+    config = calugi_2003.Config(duration=120.0, sweep=False)
+    time = np.arange(0.0, 120.0 + 0.05, 0.1)
+    rng = np.random.default_rng(0)
+    m11 = calugi_2003.m11()
+    force = rng.standard_normal((2, time.size, 2)) * 1e4
+    theta = 0.8 * m11 + np.stack([-2.0 * time, -20.0 * time])
+    ds = xr.Dataset(
+        {"force_applied": (("run", "time", "body_axis"), force), "theta_m11": (("run", "time"), theta)},
+        coords={"run": [0, 1], "time": time, "body_axis": ["surge", "sway"], "gains": ("run", ["printed", "satisfying"])},
+    )
+    figure = calugi_2003._forces_and_theta_figure(ds, config)
+    (surge, theta_axis), (sway, moved) = np.asarray(figure.axes).reshape(2, 2)
+    for axis, component in ((surge, "surge"), (sway, "sway")):
+        assert len(axis.get_lines()) == 1 and component in axis.get_ylabel() and "kN" in axis.get_ylabel()
+        np.testing.assert_allclose(axis.get_lines()[0].get_ydata(), ds.force_applied.isel(run=0).sel(body_axis=component) / 1e3)
+    assert "printed gains, seed 0" in surge.get_title()
+    lines = {line.get_label(): line for line in theta_axis.get_lines()}
+    printed, satisfying = lines["theta_hat (printed gains)"], lines["theta_hat (satisfying gains)"]
+    # the one drawn on top is dashed and thinner, so the other shows under it
+    assert satisfying.get_zorder() > printed.get_zorder() and satisfying.get_linestyle() == "--" and satisfying.get_linewidth() < printed.get_linewidth()
+    np.testing.assert_allclose(moved.get_lines()[0].get_ydata(), theta[0] - theta[0, 0])
+    notes = [text.get_text() for text in theta_axis.texts if text.get_gid() == "theta_note"]
+    assert len(notes) == 1 and "Gamma = 1000" in notes[0] and "in kg" in notes[0] and "kg/s predicted" in notes[0]
+    assert "-240 kg (printed" in notes[0]  # what theta_hat moved in the run, in kg
+    plt.close(figure)
+
+
 def test_the_interval_sweep_is_one_batch_per_delta():
     config = calugi_2003.Config(duration=60.0, sweep_duration=60.0, sweep_seeds=1)
     sweep = calugi_2003.interval_sweep(config, intervals=(0.5,))

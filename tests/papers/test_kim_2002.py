@@ -8,7 +8,9 @@ unmodelled force), for the printed observer gains and for gains that satisfy (14
 
 import json
 
+import numpy as np
 import pytest
+import xarray as xr
 
 from lookout.cli import main
 from lookout.papers import kim_2002
@@ -60,8 +62,15 @@ def test_the_printed_gains_track_worse_than_gains_that_satisfy_14(fig8):
 
 def test_reproduce_kim_2002_writes_its_outputs(tmp_path, capsys):
     out = tmp_path / "kim"
-    assert main(["reproduce", "kim-2002", "--out", str(out), "--duration", "300", "--no-sweep", "--model-error", "damping=0.5,force=2000"]) == 0
+    # 600 s: the conventional observer (printed gains) diverges within it (its error grows at +0.0156 1/s)
+    assert main(["reproduce", "kim-2002", "--out", str(out), "--duration", "600", "--no-sweep", "--model-error", "damping=0.5,force=2000"]) == 0
     summary = json.loads((out / "summary.json").read_text())
+    # the status per run counts divergence as the table does: the conventional run stays
+    # finite under the thrust limits but its estimate is far off, so it is "diverged"
+    assert summary["status"] == ["finite", "diverged"]
+    assert [summary["observers"][observer]["diverged"] for observer in ("sliding-mode", "conventional")] == [0, 1]
+    with xr.open_dataset(out / "kim_2002.nc") as written:
+        assert written.status.values.tolist() == summary["status"] and written.seed.values.tolist() == [0, 0]
     assert summary["config"]["model_error"] == {"mass": 0.0, "damping": 0.5, "force": 2000.0, "force_period": 100.0}
     assert set(summary["observers"]) == {"sliding-mode", "conventional"}
     for name in ("tracking_rms_m", "position_error_rms_m", "thrust_peak_n", "thrust_rms_n", "time_saturated"):
@@ -73,7 +82,107 @@ def test_reproduce_kim_2002_writes_its_outputs(tmp_path, capsys):
     assert {"fig04_x_position.png", "fig05_wave_filtering.png", "fig06_surge_velocity.png", "fig07_surge_bias.png", "fig08_xy_track.png"} <= set(files)
     text = capsys.readouterr().out
     assert "sliding-mode" in text and "conventional" in text
-    assert max(len(line) for line in text.splitlines() if not line.startswith("2/2")) <= 80
+    assert "1/2 runs finite" in text  # the CLI's count agrees with the table's "1/1" diverged
+    assert max(len(line) for line in text.splitlines() if "runs finite" not in line) <= 80
+
+
+def _track_dataset(time, sliding_offset=0.0, drift=0.0):
+    """Two runs (sliding-mode, conventional) on a 30 m square; the conventional one's position
+    drifts north at ``drift`` m/s, and its estimate stays with the reference."""
+    north = np.interp(time, [0, 100, 200, 300, 400], [0, 30, 30, 0, 0])
+    east = np.interp(time, [0, 100, 200, 300, 400], [0, 0, 30, 30, 0])
+    desired = np.stack([north, east], axis=-1)
+    position = np.stack([desired + sliding_offset, desired + np.stack([drift * time, 0 * time], axis=-1)])
+    estimate = np.stack([desired, desired])
+    dims = ("run", "time", "earth_axis")
+    return xr.Dataset(
+        {
+            "position": (dims, position, {"units": "m"}),
+            "position_hat": (dims, estimate, {"units": "m"}),
+            "position_desired": (dims, np.stack([desired, desired]), {"units": "m"}),
+        },
+        coords={"run": [0, 1], "time": time, "earth_axis": ["north", "east"], "observer": ("run", ["sliding-mode", "conventional"]), "seed": ("run", [0, 0])},
+    )
+
+
+def test_fig8_cuts_a_track_where_it_leaves_the_plot_and_says_it_diverged():
+    import matplotlib.pyplot as plt
+
+    time = np.arange(0.0, 400.0, 1.0)
+    ds = _track_dataset(time, drift=1.0)  # 1 m/s north: 100 m off the reference at about 100 s
+    config = kim_2002.Config(sweep=False)
+    when = kim_2002.diverged_at(ds)
+    assert np.isnan(when[0]) and 90.0 < when[1] < 110.0
+    figure = kim_2002._track_figure(ds, config, {"sliding-mode": 0, "conventional": 1})
+    axis = figure.axes[0]
+    low, high = axis.get_ylim()
+    lines = {line.get_label(): line for line in axis.get_lines()}
+    conventional = next(line for label, line in lines.items() if label.startswith("conventional"))
+    assert "diverged at t = " in conventional.get_label()
+    assert not any("diverged" in label for label in lines if label.startswith("sliding-mode"))
+    # drawn only up to where it leaves the axes, and that point is marked and explained
+    assert np.asarray(conventional.get_ydata()).max() <= high
+    marks = [line for line in axis.get_lines() if line.get_gid() == "leaves_conventional"]
+    assert len(marks) == 1 and low <= float(marks[0].get_ydata()[0]) <= high
+    notes = [text for text in axis.texts if text.get_gid() == "leaves_note"]
+    assert len(notes) == 1 and "leaves the plot" in notes[0].get_text()
+    labels = {text.get_text() for legend in figure.legends for text in legend.get_texts()}
+    assert any("leaves the plot" in label for label in labels)
+    assert "seed 0" in axis.get_title() and "printed gains" in axis.get_title()
+    plt.close(figure)
+    # a track that stays: no mark, no note
+    figure = kim_2002._track_figure(_track_dataset(time), config, {"sliding-mode": 0, "conventional": 1})
+    assert not [text for text in figure.axes[0].texts if text.get_gid() == "leaves_note"]
+    plt.close(figure)
+
+
+def test_the_bias_reference_is_the_bias_plus_the_model_error_force():
+    """At rest (nu = 0) with the thrust cancelling the bias and the unmodelled force, the
+    observer's model holds with b + J(psi) F whatever the mass error; a surge speed adds
+    (D - D_true) nu. Heading 90 deg: a body-fixed surge force points east."""
+    config = kim_2002.Config(sweep=False, model_error=kim_2002.ModelError(mass=0.3, damping=0.5, force=4000.0, force_period=1e6))
+    time = np.arange(0.0, 50.0, 0.1)
+    n = time.size
+    heading = np.full((1, n), np.pi / 2)
+    bias = np.array([1e4, -5e3, 2e5])
+    force = config.model_error.disturbance()
+    force = np.asarray(force.constant) + np.asarray(force.amplitude) * np.sin(2 * np.pi * time[:, None] / config.model_error.force_period)
+    # J^T(psi) b at psi = 90 deg: (b_east, -b_north, b_yaw)
+    body_bias = np.array([bias[1], -bias[0], bias[2]])
+    tau = -(force + body_bias)[None]
+    ds = xr.Dataset(
+        {
+            "heading": (("run", "time"), heading),
+            "velocity": (("run", "time", "body_axis"), np.zeros((1, n, 2))),
+            "yaw_rate": (("run", "time"), np.zeros((1, n))),
+            "force_applied": (("run", "time", "body_axis"), tau[..., :2]),
+            "moment_applied": (("run", "time"), tau[..., 2]),
+            "bias_force": (("run", "time", "earth_axis"), np.broadcast_to(bias[:2], (1, n, 2)).copy(), {"units": "N", "frame": "Earth-fixed"}),
+            "bias_moment": (("run", "time"), np.full((1, n), bias[2])),
+        },
+        coords={"run": [0], "time": time, "earth_axis": ["north", "east"], "body_axis": ["surge", "sway"]},
+    )
+    lumped = kim_2002.bias_with_model_error(ds, config)
+    # J(90 deg) F = (-F_sway, F_surge, N); the low-pass (at lambda/kappa = 10 1/s) lags the
+    # slow sinusoid of F by far less than 1 N
+    expected = bias + np.stack([-force[:, 1], force[:, 0], force[:, 2]], axis=-1)
+    np.testing.assert_allclose(lumped.bias_force_with_model_error.isel(run=0).values, expected[:, :2], atol=1.0)
+    np.testing.assert_allclose(lumped.bias_moment_with_model_error.isel(run=0).values, expected[:, 2], atol=5.0)
+    assert lumped.bias_force_with_model_error.attrs["units"] == "N" and "model-error" in lumped.bias_force_with_model_error.attrs["long_name"]
+    # steady surge at 0.5 m/s (the thrust also overcomes the true damping): + J (D - D_true) nu
+    model = config.vessel.dp_vessel()
+    damping = np.asarray(model.damping_matrix)
+    nu = np.array([0.5, 0.0, 0.0])
+    moving = ds.assign(
+        velocity=(("run", "time", "body_axis"), np.broadcast_to(nu[:2], (1, n, 2)).copy()),
+        force_applied=(("run", "time", "body_axis"), (tau + 1.5 * damping @ nu)[..., :2]),
+        moment_applied=(("run", "time"), (tau + 1.5 * damping @ nu)[..., 2]),
+    )
+    body = -0.5 * damping @ nu  # (D - D_true) nu with D_true = 1.5 D
+    expected_moving = expected + np.array([-body[1], body[0], body[2]])
+    lumped = kim_2002.bias_with_model_error(moving, config)
+    np.testing.assert_allclose(lumped.bias_force_with_model_error.isel(run=0).values, expected_moving[:, :2], atol=1.0)
+    np.testing.assert_allclose(lumped.bias_moment_with_model_error.isel(run=0).values, expected_moving[:, 2], atol=5.0)
 
 
 def test_the_sweep_points_cover_mass_damping_and_force_one_axis_at_a_time():

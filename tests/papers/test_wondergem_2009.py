@@ -31,7 +31,8 @@ def test_reproduce_wondergem_2009_writes_its_outputs_and_never_exceeds_the_thrus
     assert values["table_1"] == 0.12686 and np.isfinite(values["error_index"][0])
     files = sorted(path.name for path in out.iterdir())
     assert files == summary["files"]
-    assert {"track.png", "errors.png", "velocities.png", "thrust.png", "wondergem_2009_basin_waves.nc"} <= set(files)
+    # velocities: one figure per condition (overlaid, the conditions hid each other)
+    assert {"track.png", "errors.png", "velocities_basin_waves.png", "thrust.png", "wondergem_2009_basin_waves.nc"} <= set(files)
     import xarray as xr
 
     ds = xr.open_dataset(out / "wondergem_2009_basin_waves.nc")

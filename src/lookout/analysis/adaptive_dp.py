@@ -76,7 +76,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.optimize
 
-from lookout.analysis._json import json_safe as _json_safe
+from lookout._json import json_safe as _json_safe
 from lookout.models.vessel import DPVessel
 
 #: Calugi et al. (2003), eq. (59): the off-shore supply vessel of Fossen & Strand

@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from lookout import _validation as check
-from lookout.analysis._json import json_safe
+from lookout._json import json_safe
 from lookout.analysis.adaptive_dp import Inequality, _inequality
 from lookout.analysis.velocity import _grid, configuration_angles, configuration_bounds
 from lookout.models.parameters import AffineParameters

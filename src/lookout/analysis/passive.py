@@ -89,12 +89,15 @@ def transfer_functions(observer: PassiveObserver, frequencies) -> dict[str, np.n
     return {"h0": h0, "hB": hB, "h": h0 * hB}
 
 
-#: Units of h0, hB and h per DOF: h0 maps a velocity error to a position error (s);
-#: hB a position error to a force or moment; h = hB h0 a velocity error to a force.
+#: The degrees of freedom that rotate (a moment per radian); the others translate.
+ROTATION_DOF = ("yaw",)
+#: Units of h0, hB and h, for a translation (surge, sway) and for yaw: h0 maps a
+#: velocity error to a position error (s) in every DOF; hB a position error to a force
+#: (N/m) or a moment (N m/rad); h = hB h0 a velocity error to a force or moment.
 RESPONSE_UNITS = {
-    "h0": "s",
-    "hB": "surge: N/m, sway: N/m, yaw: N m/rad",
-    "h": "surge: N s/m, sway: N s/m, yaw: N m s/rad",
+    "h0": {"translation": "s", "yaw": "s"},
+    "hB": {"translation": "N/m", "yaw": "N m/rad"},
+    "h": {"translation": "N s/m", "yaw": "N m s/rad"},
 }
 
 
@@ -130,7 +133,7 @@ def default_frequencies(observer: PassiveObserver, points: int = 400, decades: f
 
 
 def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Dataset:
-    """Bode data of h0, hB and h (as in Fig. 6) as an xarray Dataset.
+    """Bode data of h0, hB and h (as in Fig. 6) as a CF-style xarray Dataset.
 
     Parameters
     ----------
@@ -143,23 +146,42 @@ def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Datase
     Returns
     -------
     xarray.Dataset
-        ``<name>_magnitude`` and ``<name>_phase_deg`` for name in h0, hB, h, with
-        dims (frequency, dof), and per DOF the frequencies of the tuning rule (48)
-        (:func:`characteristic_frequencies`) and ``velocity_injection_gain``
-        (kappa, to normalize hB and h). Units are in each variable's attributes;
-        where they differ by DOF they are written ``surge: ..., sway: ..., yaw: ...``.
-        Export with ``.to_netcdf`` or ``.to_dataframe().to_csv``.
+        Every variable has one unit that UDUNITS parses (``units``), as the
+        simulation records do, and the Dataset carries ``Conventions`` and the
+        lookout version. With dims (frequency, dof): ``h0_magnitude`` (s) and
+        ``<name>_phase_deg`` (degree) for name in h0, hB, h, and per DOF the
+        frequencies of the tuning rule (48) (:func:`characteristic_frequencies`,
+        rad/s). hB, h and kappa have a unit per kind of DOF, so they are split: over
+        ``translation`` (surge, sway) ``hB_magnitude_translation`` (N/m),
+        ``h_magnitude_translation`` (N s/m) and ``velocity_injection_gain_translation``
+        (N/m); for yaw ``hB_magnitude_yaw`` (N m/rad), ``h_magnitude_yaw``
+        (N m s/rad) and ``velocity_injection_gain_yaw`` (N m/rad). Export with
+        :func:`lookout.results.write_netcdf` or ``.to_dataframe().to_csv``.
     """
+    from lookout import __version__
+    from lookout.results import CONVENTIONS
+
     if frequencies is None:
         frequencies = default_frequencies(observer, points=2000)
     frequencies = np.asarray(frequencies, dtype=float)
     if frequencies.ndim != 1 or np.any(~np.isfinite(frequencies)) or np.any(frequencies <= 0):
         raise ValueError("frequencies must be a 1-D array of positive finite values (rad/s)")
     responses = transfer_functions(observer, frequencies)
+    translation = [index for index, dof in enumerate(DOF) if dof not in ROTATION_DOF]
+    (yaw,) = [index for index, dof in enumerate(DOF) if dof in ROTATION_DOF]
+    kappa = np.asarray(observer.velocity_injection_gain, dtype=float)
     data = {}
     for name, value in responses.items():
-        data[f"{name}_magnitude"] = (("frequency", "dof"), np.abs(value), {"units": RESPONSE_UNITS[name], "long_name": f"|{name}(jw)|"})
-        data[f"{name}_phase_deg"] = (("frequency", "dof"), np.degrees(np.angle(value)), {"units": "deg", "long_name": f"phase of {name}(jw)"})
+        magnitude = np.abs(value)
+        long_name = f"|{name}(jw)|"
+        if name == "h0":
+            data["h0_magnitude"] = (("frequency", "dof"), magnitude, {"units": RESPONSE_UNITS["h0"]["translation"], "long_name": long_name})
+        else:
+            data[f"{name}_magnitude_translation"] = (
+                ("frequency", "translation"), magnitude[:, translation], {"units": RESPONSE_UNITS[name]["translation"], "long_name": f"{long_name}, surge and sway"}
+            )
+            data[f"{name}_magnitude_yaw"] = (("frequency",), magnitude[:, yaw], {"units": RESPONSE_UNITS[name]["yaw"], "long_name": f"{long_name}, yaw"})
+        data[f"{name}_phase_deg"] = (("frequency", "dof"), np.degrees(np.angle(value)), {"units": "degree", "long_name": f"phase of {name}(jw)"})
     long_names = {
         "bias_filter_frequency": "1/T, bias model corner",
         "bias_gain_ratio": "lambda/kappa, zero of hB",
@@ -168,13 +190,22 @@ def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Datase
     }
     for name, value in characteristic_frequencies(observer).items():
         data[name] = (("dof",), value, {"units": "rad/s", "long_name": long_names[name]})
-    data["velocity_injection_gain"] = (
-        ("dof",),
-        np.asarray(observer.velocity_injection_gain, dtype=float),
-        {"units": RESPONSE_UNITS["hB"], "long_name": "kappa, high-frequency gain of hB"},
+    data["velocity_injection_gain_translation"] = (
+        ("translation",), kappa[translation], {"units": RESPONSE_UNITS["hB"]["translation"], "long_name": "kappa, high-frequency gain of hB, surge and sway"}
     )
-    coords = {"frequency": ("frequency", frequencies, {"units": "rad/s"}), "dof": list(DOF)}
-    return xr.Dataset(data, coords=coords)
+    data["velocity_injection_gain_yaw"] = ((), kappa[yaw], {"units": RESPONSE_UNITS["hB"]["yaw"], "long_name": "kappa, high-frequency gain of hB, yaw"})
+    coords = {
+        "frequency": ("frequency", frequencies, {"units": "rad/s", "long_name": "angular frequency"}),
+        "dof": ("dof", list(DOF), {"long_name": "degree of freedom (error loop)"}),
+        "translation": ("translation", [DOF[index] for index in translation], {"long_name": "translational degree of freedom"}),
+    }
+    attrs = {
+        "Conventions": CONVENTIONS,
+        "title": "frequency response of the passive observer's error loops h0, hB, h (Fossen & Strand 1999, Fig. 6)",
+        "source": f"lookout {__version__}",
+        "lookout_version": __version__,
+    }
+    return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
 @dataclass

@@ -50,8 +50,8 @@ import scipy.integrate
 import scipy.linalg
 import scipy.optimize
 
-from lookout.analysis._json import finite_or_none as _finite
-from lookout.analysis._json import json_safe as _json_safe
+from lookout._json import finite_or_none as _finite
+from lookout._json import json_safe as _json_safe
 from lookout.analysis.passive import SPRReport, TuningRuleReport, _normalized_min_eig, check_spr, check_tuning_rule
 from lookout.models.vessel import DOF, DPVessel
 from lookout.observers.passive import PassiveObserver

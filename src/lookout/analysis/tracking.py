@@ -73,7 +73,7 @@ import numpy as np
 
 from lookout._math import rotate, rotate_transpose, ssa
 from lookout.analysis.adaptive_dp import Inequality, _inequality
-from lookout.analysis._json import json_safe
+from lookout._json import json_safe
 
 
 def _unit_sphere(count: int = 181) -> np.ndarray:

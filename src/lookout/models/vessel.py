@@ -145,6 +145,7 @@ class DPVessel(eqx.Module):
     def __init__(self, mass_matrix, damping_matrix, stiffness_matrix=None):
         check.symmetric_positive_definite("mass_matrix", mass_matrix, size=3)
         check.square("damping_matrix", damping_matrix)
+        check.dissipative("damping_matrix", damping_matrix)
         if stiffness_matrix is None:
             stiffness_matrix = jnp.zeros((3, 3))
         check.square("stiffness_matrix", stiffness_matrix)

@@ -110,9 +110,9 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, solve, ssa
-from lookout.components import ContinuousObserver, Signal
-from lookout.models.vessel import VESSEL_SIGNALS, DPVessel
-from lookout.sensors import POSITION_HEADING
+from lookout.components import ContinuousObserver, Layout, Signal
+from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
+from lookout.sensors import POSITION_HEADING, POSITION_HEADING_VELOCITY
 from lookout.sim.integrators import rk4_step
 
 #: Kinds of unknown model entries and the letter of their names (m11, d23, k33).
@@ -394,6 +394,11 @@ class AdaptiveObserver(ContinuousObserver):
     steps_per_sample: int = eqx.field(static=True)
     estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
     extra_signals: tuple[Signal, ...] = eqx.field(static=True)
+    #: position and heading (discrete form), and nu as well (continuous form)
+    measurement_layout: Layout = eqx.field(static=True)
+    input_layout: Layout = eqx.field(static=True)
+    #: (65)-(67) are written for any sample interval Delta: the step the engine gives
+    sample_period: None = eqx.field(static=True)
 
     def __init__(
         self,
@@ -431,6 +436,8 @@ class AdaptiveObserver(ContinuousObserver):
         self.steps_per_sample = steps_per_sample
         self.estimate_signals = ESTIMATE_SIGNALS
         self.extra_signals = parametrization.signals + INNOVATION_SIGNALS
+        self.measurement_layout = POSITION_HEADING if form == "discrete" else POSITION_HEADING_VELOCITY
+        self.input_layout, self.sample_period = VESSEL_INPUT, None
 
     def __check_init__(self):
         check.positive("position_gain (K1)", self.position_gain)

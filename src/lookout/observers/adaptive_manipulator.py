@@ -58,7 +58,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import Layout, Observer, Signal
-from lookout.models.manipulators import JOINT_POSITION, JOINT_VELOCITY, joint_layout
+from lookout.models.manipulators import JOINT_INPUT, JOINT_MEASUREMENT, JOINT_POSITION, JOINT_VELOCITY, joint_layout
 from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
 
 
@@ -188,6 +188,9 @@ class AdaptiveManipulatorObserver(Observer):
     sample_period: float = eqx.field(static=True)
     estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
     extra_signals: tuple[Signal, ...] = eqx.field(static=True)
+    #: the joint positions it reads and the joint torques/forces applied
+    measurement_layout: Layout = eqx.field(static=True)
+    input_layout: Layout = eqx.field(static=True)
 
     def __init__(self, parameters: AffineParameters, gain, adaptation_gain, *, sample_period: float,
                  lower=None, upper=None, margin=0.0, regressor: AffineParameters | None = None):
@@ -207,6 +210,8 @@ class AdaptiveManipulatorObserver(Observer):
         if not (isinstance(sample_period, (int, float)) and np.isfinite(sample_period) and sample_period > 0):
             raise ValueError(f"sample_period must be finite and positive (s); got {sample_period!r}")
         self.sample_period = float(sample_period)
+        self.measurement_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_MEASUREMENT)
+        self.input_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_INPUT)
         self.estimate_signals = (joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION).signals
                                  + joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals)
         self.extra_signals = parameter_signals(parameters, "_hat", "estimated ") + (

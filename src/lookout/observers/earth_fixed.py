@@ -55,8 +55,9 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout._math import rotate_transpose, ssa
-from lookout.components import EARTH_FIXED, ContinuousObserver, Signal
+from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
 from lookout.models.cybership import CYBERSHIP_SIGNALS, Cybership
+from lookout.models.vessel import VESSEL_INPUT
 from lookout.sensors import POSITION_HEADING
 from lookout.sim.integrators import rk4_step
 
@@ -126,8 +127,12 @@ class EarthFixedObserver(ContinuousObserver):
     velocity_is_state: Array
     steps_per_sample: int = eqx.field(static=True)
     method: str = eqx.field(static=True)
-    estimate_signals: tuple[Signal, ...] = eqx.field(static=True, default=ESTIMATE_SIGNALS, kw_only=True)
-    extra_signals: tuple[Signal, ...] = eqx.field(static=True, default=EXTRA_SIGNALS, kw_only=True)
+    estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
+    extra_signals: tuple[Signal, ...] = eqx.field(static=True)
+    #: what it reads (position and heading) and the applied thrust; any step dt
+    measurement_layout: Layout = eqx.field(static=True)
+    input_layout: Layout = eqx.field(static=True)
+    sample_period: None = eqx.field(static=True)
 
     def __init__(self, ship: Cybership, position_gain=15.0, velocity_gain=50.0, *, steps_per_sample=1, method="rk4", initial_velocity="estimate"):
         if not isinstance(ship, Cybership):
@@ -144,6 +149,9 @@ class EarthFixedObserver(ContinuousObserver):
         self.steps_per_sample = steps_per_sample
         self.method = method
         self.velocity_is_state = jnp.asarray(initial_velocity == "state")
+        # every field set here (see SlidingModeObserver.__init__)
+        self.estimate_signals, self.extra_signals = ESTIMATE_SIGNALS, EXTRA_SIGNALS
+        self.measurement_layout, self.input_layout, self.sample_period = POSITION_HEADING, VESSEL_INPUT, None
 
     def __check_init__(self):
         check.positive("position_gain (L1)", self.position_gain)

@@ -73,9 +73,10 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
-from lookout.models.manipulators import PRISMATIC, REVOLUTE, joint_layout
+from lookout.models.manipulators import JOINT_INPUT, PRISMATIC, REVOLUTE, joint_layout
 from lookout.models.parameters import AffineParameters
 from lookout.models.parameters import parameter_signal_name, parameter_signals
+from lookout.sensors import joint_state_layout
 from lookout.sim.integrators import rk4_step
 
 #: Units of the generalized force per joint kind (the prediction error, tau_f).
@@ -151,6 +152,10 @@ class ParameterEstimator(ContinuousObserver):
     parameter_layout: Layout = eqx.field(static=True)
     error_layout: Layout = eqx.field(static=True)
     regressor_layouts: tuple[Layout, ...] = eqx.field(static=True)
+    #: [q, q'] it reads and the joint torques/forces applied; any step dt
+    measurement_layout: Layout = eqx.field(static=True)
+    input_layout: Layout = eqx.field(static=True)
+    sample_period: None = eqx.field(static=True)
 
     def __init__(self, parameters: AffineParameters, gain, filter_pole=1.0, steps_per_sample: int = 1):
         if not isinstance(parameters, AffineParameters):
@@ -188,6 +193,9 @@ class ParameterEstimator(ContinuousObserver):
                 )
             )
         self.regressor_layouts = tuple(layouts)
+        self.measurement_layout = joint_state_layout(model)
+        self.input_layout = joint_layout(names, kinds, JOINT_INPUT)
+        self.sample_period = None
         self.estimate_signals = ()
         self.extra_signals = self.parameter_layout.signals + self.error_layout.signals + tuple(s for layout in layouts for s in layout.signals)
 
@@ -241,6 +249,12 @@ class ParameterEstimator(ContinuousObserver):
         return state.torque - phi0_f - phi_f @ state.theta
 
     # --- the observer contract -------------------------------------------------------
+
+    def guess(self, theta=None) -> Array:
+        """An initial parameter estimate theta_hat(0): ``theta``, by default the
+        parameters' reference values (as :class:`AdaptiveManipulatorObserver` starts)."""
+        theta = self.parameters.reference if theta is None else theta
+        return jnp.asarray(check.vector("theta_hat(0)", theta, self.parameters.size))
 
     def init(self, y0: Array, guess) -> ParameterEstimatorState:
         """Filters at zero, E(0) = A(q(0)) q'(0), theta_hat(0) = ``guess``.

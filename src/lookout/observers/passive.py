@@ -41,8 +41,8 @@ from typing import final
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
-from lookout.components import EARTH_FIXED, ContinuousObserver, Signal
-from lookout.models.vessel import VESSEL_SIGNALS, DPVessel, VesselState
+from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
+from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
 from lookout.sensors import POSITION_HEADING
 from lookout.sim.integrators import rk4_step
 
@@ -223,6 +223,10 @@ class PassiveObserver(ContinuousObserver):
     hold: str = eqx.field(static=True)
     estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
     extra_signals: tuple[Signal, ...] = eqx.field(static=True)
+    #: what it reads (position and heading) and the applied thrust; any step dt
+    measurement_layout: Layout = eqx.field(static=True)
+    input_layout: Layout = eqx.field(static=True)
+    sample_period: None = eqx.field(static=True)
 
     def __init__(
         self,
@@ -260,6 +264,7 @@ class PassiveObserver(ContinuousObserver):
         self.hold = hold
         self.estimate_signals = VESSEL_SIGNALS
         self.extra_signals = WAVE_FILTER_EXTRAS
+        self.measurement_layout, self.input_layout, self.sample_period = POSITION_HEADING, VESSEL_INPUT, None
 
     def __check_init__(self):
         check.positive("wave_frequency", self.wave_frequency)

@@ -45,9 +45,10 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout.components import EARTH_FIXED, ContinuousObserver, Signal
-from lookout.models.vessel import EARTH_AXES, VESSEL_SIGNALS, DPVessel, VesselState
+from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
+from lookout.models.vessel import EARTH_AXES, VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
 from lookout.observers.passive import WAVE_FILTER_EXTRAS, PassiveObserver, predict_sample
+from lookout.sensors import POSITION_HEADING
 
 #: The switching term Kbar sat(y~ / eps) of eq. (6), an extra output.
 SWITCHING_SIGNALS = (
@@ -94,8 +95,12 @@ class SlidingModeObserver(ContinuousObserver):
     passive: PassiveObserver
     switching_gain: Array
     boundary_layer: Array
-    estimate_signals: tuple[Signal, ...] = eqx.field(static=True, default=VESSEL_SIGNALS, kw_only=True)
-    extra_signals: tuple[Signal, ...] = eqx.field(static=True, default=WAVE_FILTER_EXTRAS + SWITCHING_SIGNALS, kw_only=True)
+    estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
+    extra_signals: tuple[Signal, ...] = eqx.field(static=True)
+    #: what it reads (position and heading) and the applied thrust; any step dt
+    measurement_layout: Layout = eqx.field(static=True)
+    input_layout: Layout = eqx.field(static=True)
+    sample_period: None = eqx.field(static=True)
 
     def __init__(self, passive: PassiveObserver, switching_gain, boundary_layer):
         if not isinstance(passive, PassiveObserver):
@@ -103,6 +108,10 @@ class SlidingModeObserver(ContinuousObserver):
         self.passive = passive
         self.switching_gain = jnp.asarray(check.vector("switching_gain", switching_gain))
         self.boundary_layer = jnp.asarray(check.vector("boundary_layer", boundary_layer))
+        # every field set here: a field left at its class default changes how equinox
+        # flattens an instance once it has been through tree_map (a stacked batch)
+        self.estimate_signals, self.extra_signals = VESSEL_SIGNALS, WAVE_FILTER_EXTRAS + SWITCHING_SIGNALS
+        self.measurement_layout, self.input_layout, self.sample_period = POSITION_HEADING, VESSEL_INPUT, None
 
     def __check_init__(self):
         check.positive("switching_gain", self.switching_gain, allow_zero=True)

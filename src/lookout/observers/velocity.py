@@ -43,7 +43,7 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
-from lookout.models.manipulators import JOINT_VELOCITY, ManipulatorModel, joint_layout
+from lookout.models.manipulators import JOINT_INPUT, JOINT_MEASUREMENT, JOINT_VELOCITY, ManipulatorModel, joint_layout
 from lookout.sim.integrators import rk4_step
 
 
@@ -90,6 +90,10 @@ class VelocityObserver(ContinuousObserver):
     steps_per_sample: int = eqx.field(static=True)
     estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
     extra_signals: tuple[Signal, ...] = eqx.field(static=True)
+    #: the joint positions it reads and the joint torques/forces applied; any step dt
+    measurement_layout: Layout = eqx.field(static=True)
+    input_layout: Layout = eqx.field(static=True)
+    sample_period: None = eqx.field(static=True)
 
     def __init__(self, model: ManipulatorModel, gain, steps_per_sample: int = 1):
         if not isinstance(model, ManipulatorModel):
@@ -101,6 +105,9 @@ class VelocityObserver(ContinuousObserver):
         self.steps_per_sample = steps_per_sample
         self.estimate_signals = joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals
         self.extra_signals = ()  # the reduced-order observer outputs only its velocity estimate
+        self.measurement_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_MEASUREMENT)
+        self.input_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_INPUT)
+        self.sample_period = None
 
     def __check_init__(self):
         check.positive("velocity observer gain", self.gain)
@@ -112,6 +119,10 @@ class VelocityObserver(ContinuousObserver):
     def velocity(self, state: VelocityObserverState, y: Array) -> Array:
         """x1_hat = z + K q (eq. 2.7), q_hat standing in for missing channels."""
         return state.z + self.gain * self._positions(state, y)
+
+    def guess(self, velocity=0.0) -> Array:
+        """An initial velocity estimate x1_hat(0) (rad/s, m/s): ``velocity`` per joint (zero by default)."""
+        return jnp.asarray(check.vector("velocity", velocity, self.model.size))
 
     def init(self, y0: Array, guess) -> VelocityObserverState:
         """z_0 = x1_hat(0) - K y_0, so that the estimate at t_0 is ``guess``.

@@ -14,6 +14,10 @@ from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
 from lookout.sim import MAX_SEED, integer_ratio
 
 
+#: Samples a run may have (the noise counters are 32-bit; lookout.sim.Scenario).
+MAX_SAMPLES = 2**32
+
+
 def positive_count(value: int) -> int:
     """``value`` if it is a positive integer (a number of runs or seeds)."""
     if value < 1:
@@ -64,6 +68,27 @@ class RunsConfig(BaseModel):
     @classmethod
     def _seed_in_key_range(cls, value, info: ValidationInfo):
         return seed_for_runs(value, info.data.get("runs", 1))
+
+    # The sample-loop rules the engine enforces (lookout.sim.Scenario), checked here under
+    # the settings' own names for every template whose settings have these fields, so a
+    # file's error names its key, not the engine's parameter.
+    @field_validator("sample_period", check_fields=False)
+    @classmethod
+    def _whole_plant_steps(cls, value, info: ValidationInfo):
+        return whole_samples(value, info.data.get("plant_step"), "plant_step") if "plant_step" in cls.model_fields else value
+
+    @field_validator("measurement_period", check_fields=False)
+    @classmethod
+    def _whole_samples_per_fix(cls, value, info: ValidationInfo):
+        return whole_samples(value, info.data.get("sample_period"), "sample_period") if "sample_period" in cls.model_fields else value
+
+    @field_validator("duration", check_fields=False)
+    @classmethod
+    def _counted_samples(cls, value, info: ValidationInfo):
+        period = info.data.get("sample_period")
+        if period is not None and math.isfinite(value) and value / period >= MAX_SAMPLES:
+            raise ValueError(f"must be below {MAX_SAMPLES:.4g} samples of sample_period ({period:g} s), the noise counters' range; got {value / period:.3g} samples")
+        return value
 
     @property
     def seeds(self) -> list[int]:
@@ -132,8 +157,15 @@ class VesselSettings(BaseModel):
     @field_validator("damping_matrix")
     @classmethod
     def _finite(cls, value):
+        from lookout._validation import dissipative
+
         if value is not None and not all(math.isfinite(v) for row in value for v in row):
             raise ValueError("entries must be finite")
+        if value is not None:
+            try:
+                dissipative("D", value)
+            except ValueError as error:
+                raise ValueError(str(error).replace("D must", "must", 1)) from None
         return value
 
     @field_validator("mass", "length")

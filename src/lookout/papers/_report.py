@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from lookout._json import json_safe
+
 
 @dataclass(frozen=True)
 class Table:
@@ -46,18 +48,6 @@ def mean_and_spread(mean: float, spread: float) -> str:
     scale = 10.0**exponent
     decimals = exponent - place
     return f"({mean / scale:.{decimals}f} ± {spread / scale:.{decimals}f})e{exponent}"
-
-
-def json_safe(value):
-    """``value`` with every non-finite float replaced by None, so that it is strict JSON
-    (NaN and Infinity are not JSON; None reads as "none", e.g. an unbounded region)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {key: json_safe(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(item) for item in value]
-    return value
 
 
 def save_figures(figures: dict, out) -> list[str]:

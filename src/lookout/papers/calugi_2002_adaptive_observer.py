@@ -39,13 +39,14 @@ from lookout.models.manipulators import FreePendulum, ManipulatorPlant
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
 from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import JointEncoder
 from lookout.sim import Scenario, simulate
 
 NAME = "calugi-2002-adaptive-observer"
-TITLE = "Calugi (2002), ch. 4: adaptive observer with resetting on a pendulum of unknown mass (Section 4.8, Figs. 4.2–4.3)"
+TITLE = CATALOG[NAME].title
 MASS, LENGTH = 1.0, 1.5
 SAMPLE_PERIODS = (0.01, 0.001)
 ORDER_PERIODS = (0.02, 0.01, 0.005, 0.0025)

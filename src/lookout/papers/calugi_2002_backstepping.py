@@ -41,6 +41,7 @@ from lookout.models.manipulators import JOINT_POSITION, REVOLUTE, STANDARD_GRAVI
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
 from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
@@ -48,7 +49,7 @@ from lookout.sensors import JointEncoder
 from lookout.sim import Scenario, simulate
 
 NAME = "calugi-2002-backstepping"
-TITLE = "Calugi (2002), ch. 5: adaptive observer backstepping on a two-link arm, m2 unknown (Section 5.3, Figs. 5.1–5.2)"
+TITLE = CATALOG[NAME].title
 MASSES, LENGTHS = (1.0, 1.5), (1.0, 1.0)
 SAMPLE_PERIOD = 0.01
 PLANT_STEP = 0.001

@@ -63,6 +63,7 @@ from lookout.models.furuta import PRINTED_CONSTANTS, PRINTED_COULOMB_FRICTION, F
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver, theta_signal_name
 from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
@@ -70,7 +71,7 @@ from lookout.sensors import JointEncoder
 from lookout.sim import Scenario, integer_ratio, simulate
 
 NAME = "calugi-2002-furuta"
-TITLE = "Calugi (2002), ch. 6: the Furuta pendulum experiments I–IV in simulation (Figs. 6.2–6.18)"
+TITLE = CATALOG[NAME].title
 SAMPLE_PERIOD = 0.0075
 PLANT_STEP = 0.00025
 #: Encoder resolution (rad): arm phi, pendulum theta (printed).

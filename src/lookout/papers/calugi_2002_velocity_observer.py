@@ -35,13 +35,14 @@ from lookout.controllers import SinusoidalInput
 from lookout.models.manipulators import CartPendulum, FreePendulum, FurutaPendulum, ManipulatorModel, ManipulatorPlant, TwoLinkArm
 from lookout.observers import VelocityObserver
 from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.papers import CATALOG
 from lookout.papers._report import Table, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import JointEncoder
 from lookout.sim import Scenario, seed_keys, simulate
 
 NAME = "calugi-2002-velocity-observer"
-TITLE = "Calugi (2002), ch. 2: reduced-order velocity observer on four manipulators (Section 2.3)"
+TITLE = CATALOG[NAME].title
 
 
 @dataclass(frozen=True)

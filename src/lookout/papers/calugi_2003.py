@@ -36,6 +36,7 @@ from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState
 from lookout.observers import AdaptiveObserver, InertiaParametrization
 from lookout.papers._config import RunsConfig, finite_positive, positive_count, whole_samples
+from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
@@ -43,7 +44,7 @@ from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, integer_ratio, keys_of_seeds, simulate_batch, stack_scenarios
 
 NAME = "calugi-2003"
-TITLE = "Calugi, Robertsson & Johansson (2003): adaptive observer (unknown m11) and vectorial backstepping (Section V)"
+TITLE = CATALOG[NAME].title
 GAIN_SETS = ("printed", "satisfying")
 #: Setpoint schedule (time s, [north m, east m, heading rad]) through F(s) of (60).
 WAYPOINTS = (
@@ -398,7 +399,65 @@ def noise_drift(
 # figures
 
 
-def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset | None, out: Path) -> list[str]:
+def _forces_and_theta_figure(ds: xr.Dataset, config: Config | None = None):
+    """Fig. 4: the applied surge and sway force of the printed gains' first run, each in
+    its own panel; theta_hat / m11 of both gain sets with the truth, the start and the
+    projection's lower bound; and theta_hat - theta_hat(0) in kg, which shows how little
+    it moves and says why (Gamma with theta = m11 in kg; docs/reproductions.md)."""
+    import matplotlib.pyplot as plt
+
+    config = Config.model_validate_json(ds.attrs["config"]) if config is None else config
+    true_m11 = m11()
+    first = ds.isel(run=0)
+    t = first.time.values
+    seed = int(first.seed) if "seed" in first.coords else config.seed
+    figure, axes = plt.subplots(2, 2, figsize=(12, 6.4), layout="constrained", sharex=True)
+    for axis, (component, color) in zip(axes[:, 0], (("surge", "tab:blue"), ("sway", "tab:green"))):
+        axis.plot(t, first.force_applied.sel(body_axis=component) / 1e3, color=color, lw=0.7)
+        axis.set_ylabel(f"body-fixed\n{component} force applied (kN)")
+        axis.grid(alpha=0.3)
+    axes[0, 0].set_title(f"applied thrust: {first.gains.item()} gains, seed {seed}", fontsize=9)
+    # both start at the same value and hardly move: the printed wide, the satisfying dashed on top
+    styles = {"printed": {"color": "tab:blue", "lw": 2.2, "zorder": 2}, "satisfying": {"color": "tab:red", "lw": 1.1, "ls": "--", "zorder": 3}}
+    moves = []
+    for name in GAIN_SETS:  # run 0 of each gain set (the runs are grouped by gain set)
+        member = ds.isel(run=int(np.flatnonzero(ds.gains.values == name)[0]))
+        theta = member.theta_m11.values
+        axes[0, 1].plot(t, theta / true_m11, **styles[name], label=f"theta_hat ({name} gains)")
+        axes[1, 1].plot(t, theta - theta[0], **styles[name], label=f"{name} gains")
+        moves.append(f"{theta[-1] - theta[0]:+,.0f} kg ({name}, {(theta[-1] - theta[0]) / true_m11:+.1e} m11)")
+    low, high = config.theta_bounds
+    axes[0, 1].axhline(1.0, color="k", lw=1.0, ls=":", label="true m11")
+    axes[0, 1].axhline(config.initial_theta, color="0.5", lw=0.8, ls="--", label=f"theta_hat(0) = {config.initial_theta:g} m11")
+    axes[0, 1].axhline(low, color="tab:purple", lw=0.8, ls="-.", label=f"projection bounds [{low:g}, {high:g}] m11 (upper off scale)")
+    axes[0, 1].set_ylim(low - 0.05, 1.2)
+    axes[0, 1].set_ylabel("theta_hat / m11")
+    axes[0, 1].legend(fontsize=7, loc="upper center", ncols=2)
+    axes[0, 1].set_title(f"inertia estimate theta_hat (m11 = {true_m11 / 1e6:.3g}e6 kg)", fontsize=9)
+    axes[1, 1].axhline(0.0, color="k", lw=0.6)
+    axes[1, 1].set_ylabel("theta_hat - theta_hat(0) (kg)")
+    axes[1, 1].legend(fontsize=7, loc="lower left")
+    printed = {key: gains("printed")[key] for key in ("K1", "K2", "d", "C1", "C2")}
+    drift = noise_drift_rate(**printed, gamma=config.adaptation_gain, noise_std=config.noise_std[0], interval=config.sample_interval)
+    why = (
+        f"Why flat: Gamma = {config.adaptation_gain:g} (the printed value) with theta = m11 in kg.\n"
+        f"In {t[-1] - t[0]:.0f} s theta_hat moves by {moves[0]}\nand {moves[1]} (below).\n"
+        f"Printed gains: that is the measurement-noise drift of the discrete\nlaw (67), {drift:.2g} kg/s predicted. "
+        "theta_hat moves visibly only\nfor Gamma >= 1e8 (theta_convergence.png, docs/reproductions.md)."
+    )
+    # in the empty band between the lower bound and the start
+    axes[0, 1].text(0.5, 0.26, why, transform=axes[0, 1].transAxes, fontsize=7.5, va="center", ha="center", gid="theta_note",
+                    bbox={"boxstyle": "round,pad=0.3", "facecolor": "white", "edgecolor": "0.7", "alpha": 0.9})
+    for axis in axes[1]:
+        axis.set_xlabel("time (s)")
+    for axis in axes[:, 1]:
+        axis.grid(alpha=0.3)
+    axes[0, 0].set_xlim(t[0], t[-1])
+    figure.suptitle(f"Calugi et al. (2003), Fig. 4: control forces and the inertia estimate (Delta = {config.sample_interval:g} s)", fontsize=10)
+    return figure
+
+
+def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset | None, out: Path, config: Config | None = None) -> list[str]:
     import matplotlib.pyplot as plt
 
     figures = {}
@@ -450,22 +509,9 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset |
     axis.set_title("Calugi et al. (2003), Fig. 3: velocity estimation errors", fontsize=10)
     figure.tight_layout()
     figures["fig3_velocity_errors.png"] = figure
-    # Fig. 4: control forces and theta_hat
-    figure, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for axis_label, color in (("surge", "tab:blue"), ("sway", "tab:green")):
-        axes[0].plot(t, run.force_applied.sel(body_axis=axis_label) / 1e3, color=color, lw=0.8, label=axis_label)
-    axes[0].set_ylabel("thrust force (kN)")
-    for name in GAIN_SETS:  # run 0 of each gain set (the runs are grouped by gain set)
-        member = ds.isel(run=int(np.flatnonzero(ds.gains.values == name)[0]))
-        axes[1].plot(t, member.theta_m11 / 1e6, lw=1.0, label=f"theta_hat ({name} gains)")
-    axes[1].axhline(m11() / 1e6, color="k", lw=1.0, ls=":", label="true m11")
-    axes[1].set_ylabel("m11 (1e6 kg)")
-    for axis in axes:
-        axis.set_xlabel("time (s)")
-        axis.legend(fontsize=7)
-    figure.suptitle("Calugi et al. (2003), Fig. 4: control forces and the inertia estimate", fontsize=10)
-    figure.tight_layout()
-    figures["fig4_forces_and_theta.png"] = figure
+    # Fig. 4: control forces (one panel per component, so that neither hides the other)
+    # and theta_hat, with why it hardly moves
+    figures["fig4_forces_and_theta.png"] = _forces_and_theta_figure(ds, config)
     if sweep is not None:
         figure, axes = plt.subplots(1, 2, figsize=(11, 4))
         for name, color in (("printed", "tab:red"), ("satisfying", "tab:blue")):
@@ -556,7 +602,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
             progress(5.0, parts)
         order.to_netcdf(out / "calugi_2003_discretization_order.nc")
         files += ["calugi_2003_interval_sweep.nc", "calugi_2003_theta_convergence.nc", "calugi_2003_noise_drift.nc", "calugi_2003_discretization_order.nc"]
-    files += _figures(ds, sweep, convergence, out)
+    files += _figures(ds, sweep, convergence, out, config)
     summary = {
         "reproduction": NAME,
         "config": config.model_dump(),

@@ -30,13 +30,14 @@ from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
 from lookout.papers._config import RunsConfig, VesselSettings, finite_positive, whole_samples
+from lookout.papers import CATALOG
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
 
 NAME = "fossen-strand-1999"
-TITLE = "Fossen & Strand (1999): passive observer on Northern Clipper, simulation study (Section 6.1)"
+TITLE = CATALOG[NAME].title
 STATES = ("eta", "nu", "bias", "wave")
 #: A run must span at least this many position fixes (see Config.duration).
 MINIMUM_FIXES = 10

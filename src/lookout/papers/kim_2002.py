@@ -53,6 +53,7 @@ from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.observers.sliding_mode import KIM_2002_BIAS_GAIN, KIM_2002_BIAS_TIME_CONSTANT, KIM_2002_SWITCHING_GAIN, KIM_2002_VELOCITY_GAIN, KIM_2002_WAVE
 from lookout.papers._config import RunsConfig, VesselSettings, finite_positive, positive_count, whole_samples
+from lookout.papers import CATALOG
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
@@ -60,7 +61,7 @@ from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, keys_of_seeds, simulate_batch, stack_scenarios
 
 NAME = "kim-2002"
-TITLE = "Kim (2002): sliding-mode observer and observer backstepping on Northern Clipper (Section 5, Figs. 4-8)"
+TITLE = CATALOG[NAME].title
 
 #: The two observers of Fig. 8: with and without the switching term, same controller.
 OBSERVERS = ("sliding-mode", "conventional")
@@ -371,27 +372,182 @@ def run_sweep(config: Config, progress: Callable | None = None, points: list[tup
 
 
 # ---------------------------------------------------------------------------------
+# what the bias estimate stands for
+
+
+def bias_with_model_error(ds: xr.Dataset, config: Config) -> xr.Dataset:
+    """The force the observer's bias state stands for: the bias plus the model error.
+
+    The observer's model is M nu' = -D nu + tau + J^T(psi) b (eq. 6 with its own M, D);
+    the plant is M_true nu' = -D_true nu + tau + J^T(psi) b + F. Along the true motion the
+    observer's model holds exactly with b replaced by
+
+        b + J(psi) [F + (M - M_true) nu' + (D - D_true) nu],   nu' from the plant,
+
+    computed here from the recorded true state and applied thrust and the plant's true
+    M, D and F (:class:`ModelError`). The bias state can follow it only below the corner
+    of its loop, lambda/kappa = H3/H4 per axis (the zero of hB, :func:`gain_sets`), so
+    the result is passed through a first-order low-pass at that corner. Returns
+    ``bias_force_with_model_error`` (run, time, earth_axis; N) and
+    ``bias_moment_with_model_error`` (run, time; N m).
+    """
+    from scipy.signal import lfilter
+
+    plant = build(config).plant
+    model = config.vessel.dp_vessel()
+    mass, damping = np.asarray(model.mass_matrix), np.asarray(model.damping_matrix)
+    true_mass, true_damping = np.asarray(plant.vessel.mass_matrix), np.asarray(plant.vessel.damping_matrix)
+    time = ds.time.values
+    heading = ds.heading.values
+    nu = np.concatenate([ds.velocity.transpose("run", "time", "body_axis").values, ds.yaw_rate.values[..., None]], axis=-1)
+    tau = np.concatenate([ds.force_applied.transpose("run", "time", "body_axis").values, ds.moment_applied.values[..., None]], axis=-1)
+    bias = np.concatenate([ds.bias_force.transpose("run", "time", "earth_axis").values, ds.bias_moment.values[..., None]], axis=-1)
+    error = config.model_error
+    force = error.disturbance()
+    force = np.asarray(force.constant)[None, :] + np.asarray(force.amplitude)[None, :] * np.sin(2.0 * math.pi * time[:, None] / error.force_period)
+    cos, sin = np.cos(heading), np.sin(heading)
+    body_bias = np.stack([cos * bias[..., 0] + sin * bias[..., 1], -sin * bias[..., 0] + cos * bias[..., 1], bias[..., 2]], axis=-1)
+    acceleration = np.einsum("ij,...j->...i", np.linalg.inv(true_mass), tau + force + body_bias - np.einsum("ij,...j->...i", true_damping, nu))
+    body = force + np.einsum("ij,...j->...i", mass - true_mass, acceleration) + np.einsum("ij,...j->...i", damping - true_damping, nu)
+    lumped = bias + np.stack([cos * body[..., 0] - sin * body[..., 1], sin * body[..., 0] + cos * body[..., 1], body[..., 2]], axis=-1)
+    gains = gain_sets(config.vessel.mass, config.vessel.length)[config.gains]
+    corner = np.asarray(gains["bias_injection_gain"], dtype=float) / np.asarray(gains["velocity_injection_gain"], dtype=float)
+    step = float(time[1] - time[0])
+    filtered = np.empty_like(lumped)
+    for axis in range(3):
+        weight = 1.0 - math.exp(-corner[axis] * step)
+        start = lumped[:, :1, axis]
+        filtered[..., axis] = lfilter([weight], [1.0, weight - 1.0], lumped[..., axis], axis=-1, zi=(1.0 - weight) * start)[0]
+    long_name = f"bias + model-error force (low-passed at lambda/kappa = {significant(corner[0])} 1/s)"
+    attrs = {"frame": ds.bias_force.attrs.get("frame", "Earth-fixed"), "long_name": long_name, "angle": 0}
+    return xr.Dataset(
+        {
+            "bias_force_with_model_error": (("run", "time", "earth_axis"), filtered[..., :2], {**attrs, "units": "N"}),
+            "bias_moment_with_model_error": (("run", "time"), filtered[..., 2], {**attrs, "units": "N m"}),
+        },
+        coords={"run": ds.run.values, "time": time, "earth_axis": ds.earth_axis.values},
+    )
+
+
+# ---------------------------------------------------------------------------------
 # figures
 
 
-def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, out: Path) -> list[str]:
+def _model_error_text(config: Config) -> str:
+    error = config.model_error
+    return f"{config.gains} gains; model error M x {1 + error.mass:g}, D x {1 + error.damping:g}, F {error.force / 1e3:g} kN"
+
+
+def diverged_at(ds: xr.Dataset) -> np.ndarray:
+    """Per run, the first time (s) at which it counts as diverged (:func:`closed_loop_metrics`),
+    NaN for a run that did not diverge."""
+    distance = np.sqrt(((ds.position - ds.position_desired) ** 2).sum("earth_axis")).values
+    estimate = np.sqrt(((ds.position_hat - ds.position) ** 2).sum("earth_axis")).values
+    bad = ~np.isfinite(distance) | ~np.isfinite(estimate) | (distance > DIVERGED_DISTANCE) | (estimate > DIVERGED_DISTANCE)
+    time = ds.time.values
+    return np.where(bad.any(axis=-1), time[np.argmax(bad, axis=-1)], np.nan)
+
+
+def _track_figure(ds: xr.Dataset, config: Config, runs: dict[str, int]):
+    """Fig. 8: the X-Y track of the first run of each observer; a track that leaves the
+    axes is cut there with a mark, and a diverged run says so in the legend."""
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6.5, 7.0), layout="constrained")
+    first = ds.isel(run=runs["sliding-mode"])
+    desired_north = first.position_desired.sel(earth_axis="north").values
+    desired_east = first.position_desired.sel(earth_axis="east").values
+    low = min(desired_north.min(), desired_east.min()) - 40.0
+    high = max(desired_north.max(), desired_east.max()) + 40.0
+    axis.plot(desired_east, desired_north, color="0.6", lw=3, label="reference", zorder=1)
+    when = diverged_at(ds)
+    styles = {"sliding-mode": {"color": "tab:blue", "lw": 1.2}, "conventional": {"color": "tab:red", "lw": 1.0, "ls": ":"}}
+    names = {"sliding-mode": "sliding-mode observer", "conventional": "conventional observer (Kbar = 0)"}
+    notes = []
+    for observer, run in runs.items():
+        member = ds.isel(run=run)
+        north = member.position.sel(earth_axis="north").values
+        east = member.position.sel(earth_axis="east").values
+        inside = np.isfinite(north) & np.isfinite(east) & (north >= low) & (north <= high) & (east >= low) & (east <= high)
+        # the track up to where it first leaves the axes: a diverged track that comes back
+        # across the plot later would only hide the shown one
+        stop = int(np.argmin(inside)) if not inside.all() else north.size
+        label = names[observer]
+        if np.isfinite(when[run]):
+            label += f": diverged at t = {when[run]:.0f} s"
+        axis.plot(east[:stop], north[:stop], **styles[observer], label=label, zorder=2)
+        if stop < north.size and stop > 0:
+            axis.plot(east[stop - 1], north[stop - 1], marker="X", ms=9, color=styles[observer]["color"], mec="k", mew=0.6, ls="none", zorder=4, gid=f"leaves_{observer}")
+            notes.append((observer, stop, east[stop - 1], north[stop - 1]))
+    middle = 0.5 * (low + high)
+    for observer, stop, x, y in notes:
+        # the note sits next to the mark, on the side of the plot's middle
+        right, up = x <= middle, y <= middle
+        axis.annotate(
+            f"{observer}: leaves the plot\nat t = {float(ds.time.values[stop]):.0f} s",
+            (x, y),
+            xytext=(8 if right else -8, 10 if up else -10),
+            textcoords="offset points",
+            ha="left" if right else "right",
+            va="bottom" if up else "top",
+            fontsize=8,
+            color=styles[observer]["color"],
+            gid="leaves_note",
+            bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.85},
+            zorder=5,
+        )
+    axis.plot([], [], marker="X", ms=8, color="0.4", mec="k", mew=0.6, ls="none", label="where a track leaves the plot (cut there)")
+    axis.set_xlabel("Earth-fixed east Y (m)")
+    axis.set_ylabel("Earth-fixed north X (m)")
+    axis.set_xlim(low, high)
+    axis.set_ylim(low, high)
+    axis.set_aspect("equal", adjustable="box")
+    axis.grid(alpha=0.3)
+    figure.legend(fontsize=8, loc="outside lower center", frameon=False, ncols=1)
+    seed = int(first.seed) if "seed" in first.coords else config.seed
+    axis.set_title(f"Kim (2002), Fig. 8: X-Y track, seed {seed}\n{_model_error_text(config)}", fontsize=9)
+    return figure
+
+
+def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, out: Path, config: Config) -> list[str]:
     import matplotlib.pyplot as plt
 
     from lookout.plotting import plot_estimates
 
     files = []
-    sliding = ds.isel(run=int(np.flatnonzero(ds.observer.values == "sliding-mode")[0]))
-    conventional = ds.isel(run=int(np.flatnonzero(ds.observer.values == "conventional")[0]))
-    one = ds.isel(run=[int(np.flatnonzero(ds.observer.values == "sliding-mode")[0])])
+    observers = ds.observer.values
+    runs = {observer: int(np.flatnonzero(observers == observer)[0]) for observer in OBSERVERS}
+    sliding_runs = ds.isel(run=np.flatnonzero(observers == "sliding-mode"))
+    sliding = ds.isel(run=runs["sliding-mode"])
+    setting = _model_error_text(config)
+    # what the bias estimate stands for, computed from the plant's true M, D and F
+    lumped = bias_with_model_error(sliding_runs, config)
+    with_target = sliding_runs.assign(lumped)
+    estimate = sliding.bias_force_hat.sel(earth_axis="north").values
+    target = lumped.bias_force_with_model_error.isel(run=0).sel(earth_axis="north").values
+    truth = sliding.bias_force.sel(earth_axis="north").values
+    rms = lambda values: float(np.sqrt(np.nanmean(values**2))) / 1e3  # noqa: E731
     figures = {
-        "fig04_x_position.png": plot_estimates(one, [("position", "north")], title="Kim (2002), Fig. 4: X (north) position, true and estimated (sliding-mode observer)"),
-        "fig06_surge_velocity.png": plot_estimates(one, [("velocity", "surge")], title="Kim (2002), Fig. 6: surge velocity, true and estimated (sliding-mode observer)"),
-        "fig07_surge_bias.png": plot_estimates(one, [("bias_force", "north")], title="Kim (2002), Fig. 7: bias in X (north), true and estimated (sliding-mode observer)"),
+        "fig04_x_position.png": plot_estimates(sliding_runs, [("position", "north")], title=f"Kim (2002), Fig. 4: X (north) position, true and estimated (sliding-mode observer)\n{setting}"),
+        "fig06_surge_velocity.png": plot_estimates(sliding_runs, [("velocity", "surge")], title=f"Kim (2002), Fig. 6: surge velocity, true and estimated (sliding-mode observer)\n{setting}"),
+        "fig07_surge_bias.png": plot_estimates(
+            with_target,
+            [("bias_force", "north")],
+            targets={"bias_force": "bias_force_with_model_error"},
+            title=(
+                f"Kim (2002), Fig. 7: bias in X (north), sliding-mode observer; {setting}\n"
+                r"blue: what $\hat b$ stands for, the bias plus the model-error force $J(\psi)\,[F + (M - M_{true})\dot\nu + (D - D_{true})\nu]$"
+                f"\nRMS over the run: estimate {rms(estimate):.3g} kN, blue {rms(target):.3g} kN, true bias {rms(truth):.3g} kN, "
+                f"estimate - blue {rms(estimate - target):.3g} kN"
+            ),
+        ),
     }
     # Fig. 5: measured, true total and low-frequency X, and the estimate, over 100 s
     t = sliding.time.values
     window = (t >= 900.0) & (t <= 1000.0)
-    figure, axis = plt.subplots(figsize=(8, 4))
+    if not window.any():
+        window = t >= t[-1] - 100.0
+    figure, axis = plt.subplots(figsize=(8, 4.4), layout="constrained")
     measured = sliding.measured_position.sel(earth_axis="north").values
     change = np.r_[True, np.diff(measured) != 0]
     total = (sliding.position + sliding.wave_position).sel(earth_axis="north").values
@@ -401,29 +557,11 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, out: Path) -> list[str]:
     axis.plot(t[window], sliding.position_hat.sel(earth_axis="north").values[window], color="tab:orange", lw=1.5, ls="--", label="estimate")
     axis.set_xlabel("time (s)")
     axis.set_ylabel("Earth-fixed X (north) position (m)")
-    axis.set_title("Kim (2002), Fig. 5: wave filtering, sliding-mode observer")
+    seed = int(sliding.seed) if "seed" in sliding.coords else config.seed
+    axis.set_title(f"Kim (2002), Fig. 5: wave filtering, sliding-mode observer, seed {seed}\n{setting}", fontsize=9)
     axis.legend(fontsize=8)
-    figure.tight_layout()
     figures["fig05_wave_filtering.png"] = figure
-    # Fig. 8: X-Y track, both observers
-    figure, axis = plt.subplots(figsize=(6.5, 6.5))
-    axis.plot(sliding.position_desired.sel(earth_axis="east"), sliding.position_desired.sel(earth_axis="north"), color="0.6", lw=3, label="reference")
-    axis.plot(sliding.position.sel(earth_axis="east"), sliding.position.sel(earth_axis="north"), color="tab:blue", lw=1.2, label="sliding-mode observer")
-    conv_north = conventional.position.sel(earth_axis="north").values
-    conv_east = conventional.position.sel(earth_axis="east").values
-    shown = np.isfinite(conv_north) & (np.hypot(conv_north, conv_east) < 200.0)
-    axis.plot(conv_east[shown], conv_north[shown], color="tab:red", lw=1.0, ls=":", label="conventional observer (Kbar = 0)")
-    if not shown.all():
-        axis.annotate("conventional: leaves the plot", (conv_east[shown][-1], conv_north[shown][-1]), fontsize=8, color="tab:red")
-    axis.set_xlabel("east Y (m)")
-    axis.set_ylabel("north X (m)")
-    axis.set_xlim(-40, 70)
-    axis.set_ylim(-40, 70)
-    axis.set_aspect("equal", adjustable="box")
-    axis.legend(fontsize=8, loc="upper left")
-    axis.set_title(f"Kim (2002), Fig. 8: X-Y track ({ds.attrs.get('gains', '')} gains, model error as configured)", fontsize=9)
-    figure.tight_layout()
-    figures["fig08_xy_track.png"] = figure
+    figures["fig08_xy_track.png"] = _track_figure(ds, config, runs)
     if sweep is not None:
         figures["sweep_tracking_vs_model_error.png"] = _sweep_figure(sweep)
     for filename, figure in figures.items():
@@ -471,11 +609,16 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     parts = 2 if config.sweep else 1
     step = None if progress is None else (lambda done, total: progress(done / total, parts))
     ds = simulate_batch(stack_scenarios([build(config, observer) for observer in labels]), keys_of_seeds(seeds), batched_scenario=True, progress=step).to_xarray()
-    ds = ds.assign_coords(observer=("run", np.asarray(labels, dtype=object)))
+    ds = ds.assign_coords(observer=("run", np.asarray(labels, dtype=object)), seed=("run", np.asarray(seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
     ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "gains": config.gains, "model_error": config.model_error.model_dump_json()})
+    metrics = closed_loop_metrics(ds)
+    # a run counts as diverged as the table counts it: non-finite, or the vessel or its
+    # estimate more than DIVERGED_DISTANCE off (thrust limits keep a diverged loop finite)
+    ds["status"] = ds.status.copy(data=np.where(metrics["diverged"], "diverged", ds.status.values).astype(object)).assign_attrs(
+        long_name="run status", comment=f"diverged: non-finite, or the vessel or its estimate more than {DIVERGED_DISTANCE:g} m off at any time"
+    )
     write_netcdf(ds, out / "kim_2002.nc", history=f"lookout reproduce {NAME} (seeds {seeds[0]}..{seeds[-1]}, both observers)")
     files = ["kim_2002.nc"]
-    metrics = closed_loop_metrics(ds)
     labels_array = np.asarray(labels)
     per_observer = {observer: _aggregate(metrics, labels_array == observer) for observer in OBSERVERS}
 
@@ -485,7 +628,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         sweep = run_sweep(config, progress=later)
         sweep.to_netcdf(out / "kim_2002_sweep.nc")
         files.append("kim_2002_sweep.nc")
-    files += _figures(ds, sweep, out)
+    files += _figures(ds, sweep, out, config)
 
     model = config.vessel.dp_vessel()
     reports = {}

@@ -37,6 +37,7 @@ from lookout.controllers.tracking import TrackingController
 from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT, CybershipPlant, CybershipState, cybership2
 from lookout.observers.earth_fixed import EarthFixedObserver
 from lookout.papers._config import RunsConfig
+from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.reference import EllipseReference
 from lookout.results import write_netcdf
@@ -44,7 +45,7 @@ from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, keys_of_seeds, simulate_batch, stack_scenarios
 
 NAME = "wondergem-2009"
-TITLE = "Wondergem, Lefeber, Pettersen & Nijmeijer (2009): output-feedback tracking of Cybership II (Section 5, Table 1)"
+TITLE = CATALOG[NAME].title
 CONDITIONS = ("simulation", "basin-calm", "basin-waves")
 #: Table 1: error index (43) and its horizon t2 (s), t1 = 0.
 TABLE_1 = {"simulation": (9.3056e-2, 714.2), "basin-calm": (0.11145, 715.1), "basin-waves": (0.12686, 730.6)}
@@ -467,8 +468,15 @@ def hold_study(config: Config) -> list[dict]:
 # figures
 
 
+#: The first seconds of a run, where the initial estimate converges: zoomed in the
+#: velocity figures and left out of their full-run scale.
+START_WINDOW = 30.0
+
+
 def _figures(results: dict[str, xr.Dataset], config: Config, out: Path) -> list[str]:
     import matplotlib.pyplot as plt
+
+    from lookout.plotting import plot_estimates
 
     colors = {"simulation": "tab:blue", "basin-calm": "tab:orange", "basin-waves": "tab:green"}
     figures = {}
@@ -502,20 +510,26 @@ def _figures(results: dict[str, xr.Dataset], config: Config, out: Path) -> list[
     figure.tight_layout()
     figures["errors.png"] = figure
 
-    figure, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
+    # true and estimated velocities, one figure per condition (overlaid, the conditions hid
+    # each other): the start, where the initial estimate is far off, in a zoom of its own
+    # and left out of the full run's scale; a second zoom around the last speed step
+    last_step = float(lap_times(config)[-2])
     for condition, ds in results.items():
-        run = ds.isel(run=0)
-        for k, (axis, label) in enumerate(zip(axes, ("u (m/s)", "v (m/s)", "r (rad/s)"))):
-            true = run.velocity.isel(body_axis=k) if k < 2 else run.yaw_rate
-            estimate = run.velocity_hat.isel(body_axis=k) if k < 2 else run.yaw_rate_hat
-            axis.plot(run.time, true, color=colors[condition], lw=0.9, label=f"{condition} true")
-            axis.plot(run.time, estimate, color=colors[condition], lw=0.7, ls="--", label=f"{condition} estimate")
-            axis.set_ylabel(label)
-    axes[0].legend(fontsize=7, ncol=3)
-    axes[-1].set_xlabel("time (s)")
-    figure.suptitle("True and estimated body-frame velocities", fontsize=10)
-    figure.tight_layout()
-    figures["velocities.png"] = figure
+        seeded = ds.assign_coords(seed=("run", np.asarray(config.seeds[: ds.sizes["run"]], dtype=np.int64)))
+        end = float(ds.time[-1])
+        windows = [(0.0, min(START_WINDOW, end))]
+        if last_step + 10.0 <= end and last_step - 10.0 > START_WINDOW:
+            windows.append((last_step - 10.0, last_step + 10.0))
+        figures[f"velocities_{condition.replace('-', '_')}.png"] = plot_estimates(
+            seeded,
+            [("velocity", "surge"), ("velocity", "sway"), ("yaw_rate", None)],
+            window=windows,
+            transient=min(START_WINDOW, 0.5 * end),
+            title=(
+                f"Wondergem et al. (2009): true and estimated body-fixed velocities, {condition}\n"
+                f"initial estimate v_hat(0) = {list(INITIAL_VELOCITY_HAT)}; zooms: the start and the last speed step (t = {last_step:.1f} s)"
+            ),
+        )
 
     figure, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
     for condition, ds in results.items():

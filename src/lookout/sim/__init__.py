@@ -15,6 +15,7 @@ recorded log in the same order, :class:`Stepper` one sample at a time.
 
 from .engine import MAX_SEED as MAX_SEED
 from .engine import Scenario as Scenario
+from .engine import check_batch_memory as check_batch_memory
 from .engine import check_fit as check_fit
 from .engine import integer_ratio as integer_ratio
 from .engine import record_nbytes as record_nbytes

@@ -49,6 +49,7 @@ from jax.flatten_util import ravel_pytree
 
 from lookout._math import computed_once
 from lookout._random import standard_normal
+from lookout._resources import refuse_unless_it_fits
 from lookout.actuators import IdealActuator
 from lookout.components import Actuator, ContinuousObserver, Controller, Observer, Plant, Reference, Sensor, Signal
 from lookout.reference import NoReference
@@ -576,6 +577,7 @@ def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20)
     Trajectory
         Recorded truths, estimates, measurements, references and inputs, with time.
     """
+    check_batch_memory(scenario, 1, "scenario")
     step = lambda carry, first, length: _segment_jit(scenario, key, carry, first, length)
     records = _run(step, _initial_carry_jit(scenario, key), scenario.n_records, progress, chunks, time_axis=0)
     return _trajectory(scenario, records, batched=False)
@@ -592,12 +594,18 @@ def stack_scenarios(scenarios: list[Scenario]) -> Scenario:
     Their static structure (periods, durations, component types, sizes) must be equal;
     jax.tree.map says which leaf differs otherwise.
     """
+    if scenarios:
+        leaves = [leaf for leaf in jax.tree.leaves(scenarios[0]) if eqx.is_array_like(leaf)]
+        per_run = sum(np.asarray(leaf).nbytes for leaf in leaves)
+        refuse_unless_it_fits(len(scenarios) * per_run, f"scenarios: {len(scenarios)} stacked x {per_run} B of arrays", "stack fewer scenarios at a time")
     return jax.tree.map(lambda *leaves: jnp.stack([jnp.asarray(leaf) for leaf in leaves]), *scenarios)
 
 
 def keys_of_seeds(seeds) -> Array:
     """PRNG keys of a batch whose run i uses ``jax.random.key(seeds[i])`` (as :func:`seed_keys`
     with seed = seeds[i], runs = 1), for batches that mix scenarios and seeds."""
+    # each seed is a Python int while it is checked (36 B), then a key
+    refuse_unless_it_fits((KEY_BYTES + 36) * len(seeds), f"seeds: {len(seeds)} keys x {KEY_BYTES + 36} B", "make fewer keys at a time")
     seeds = [int(seed) for seed in seeds]
     for seed in seeds:
         if not 0 <= seed <= MAX_SEED:
@@ -629,19 +637,37 @@ def seed_keys(seed: int, runs: int) -> Array:
         raise ValueError(f"runs must be a positive integer; got {runs!r}")
     if not (isinstance(seed, int) and 0 <= seed <= MAX_SEED - runs + 1):
         raise ValueError(f"seed must be an integer from 0 to {MAX_SEED - runs + 1} (seeds seed ... seed + runs - 1 must fit a signed 64-bit integer); got {seed!r}")
+    refuse_unless_it_fits(KEY_BYTES * runs, f"runs: {runs} keys x {KEY_BYTES} B", "make fewer keys at a time")
     return jax.vmap(jax.random.key)(jnp.arange(runs, dtype=jnp.int64) + seed)
 
 
 def record_nbytes(scenario: Scenario) -> int:
     """Bytes that one recorded sample of one run takes in the results (truths,
-    estimate, measurement, reference and inputs), from the shapes the engine records."""
+    estimate, measurement, reference and inputs), from the signals the components
+    declare (the fit check made sure the records have those shapes), without a trace."""
+    signals = scenario.record_signals
+    size = sum(s.size for s in (*signals.truth, *signals.estimate, *signals.extra, *signals.reference))
+    return int((size + signals.measurement.size + 2 * signals.input.size) * jnp.zeros(()).dtype.itemsize)
 
-    def one(key):
-        carry = _initial_carry(scenario, key)
-        return _sample(scenario, _realized_plant(scenario, key), carry, jnp.asarray(0), key)[1]
 
-    record = jax.eval_shape(one, jax.random.key(0))
-    return int(sum(leaf.size * leaf.dtype.itemsize for leaf in jax.tree.leaves(record)))
+#: A batch holds its records at least twice at its peak (the scan's output and the
+#: joined or gathered copy); below that, a batch is refused before it starts.
+RECORD_COPIES = 2
+#: Bytes a key and its seed take while :func:`seed_keys` makes them.
+KEY_BYTES = 16
+
+
+def check_batch_memory(scenario: Scenario, runs: int, argument: str = "keys", available: float | None = None) -> None:
+    """Refuse (ValueError naming ``argument``) a batch of ``runs`` whose records cannot
+    fit in the memory available now, before anything is allocated."""
+    per_record = record_nbytes(scenario)
+    need = RECORD_COPIES * runs * scenario.n_records * per_record
+    refuse_unless_it_fits(
+        need,
+        f"{argument}: {runs} run(s) x {scenario.n_records} records x {per_record} B (x{RECORD_COPIES} at the peak)",
+        "simulate fewer runs at a time, a shorter duration, or fewer records (record_every); a campaign (lookout.studies) runs them in chunks",
+        available=available,
+    )
 
 
 def _shard_runs(tree, n_runs: int):
@@ -708,6 +734,7 @@ def simulate_batch(
     Trajectory
         With a leading run axis on every recorded array.
     """
+    check_batch_memory(scenario, int(np.shape(keys)[0]))
     scenario, keys, carry = _sharded_batch(scenario, keys, batched_scenario)
 
     def step(carry, first, length):

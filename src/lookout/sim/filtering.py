@@ -21,13 +21,108 @@ import numpy as np
 from jax import Array
 from jax.flatten_util import ravel_pytree
 
-from lookout.components import Layout, Observer, Signal
+from lookout.components import Layout, Observer
 from lookout.results import RecordSignals, Trajectory
 
 
-def _generic_layout(prefix: str, size: int) -> Layout:
-    labels = tuple(f"{prefix}{i}" for i in range(size))
-    return Layout((Signal(prefix, "1", f"logged {prefix}", labels=labels, dim=f"{prefix}_channel"),)) if size else Layout()
+#: A prediction step whose linearization multiplies a small state error by more than
+#: this (spectral radius) makes the estimates diverge at that step: the step is
+#: refused. A stable observer at a usable step gives at most about 1; explicit
+#: integration over a step far beyond the observer's time constants gives orders of
+#: magnitude more (a 10 Hz log read as milliseconds: 5e6 for the passive observer).
+MAX_STEP_AMPLIFICATION = 2.0
+
+
+def _describe(tree) -> str:
+    """``VesselState with eta (3,), nu (3,), ...``: a PyTree's type and leaf shapes."""
+    leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+    parts = [f"{jax.tree_util.keystr(path).lstrip('.') or 'value'} {tuple(np.shape(leaf))}" for path, leaf in leaves]
+    return f"{type(tree).__name__} with {', '.join(parts)}" if parts else type(tree).__name__
+
+
+def checked_guess(observer: Observer, guess):
+    """``guess``, or the observer's own ``guess()`` when it is None; refused (ValueError
+    naming ``guess``) unless it has the structure of ``observer.guess()`` with leaves
+    that broadcast to its shapes and finite entries."""
+    expected = observer.guess()
+    if guess is None:
+        return expected
+    given_leaves, given_tree = jax.tree.flatten(guess)
+    expected_leaves, expected_tree = jax.tree.flatten(expected)
+    if given_tree != expected_tree:
+        raise ValueError(f"guess must be shaped like observer.guess() ({_describe(expected)}); got {_describe(guess)}")
+    for (path, given), wanted in zip(jax.tree_util.tree_flatten_with_path(guess)[0], expected_leaves):
+        name = "guess" + jax.tree_util.keystr(path)
+        try:
+            shape = np.broadcast_shapes(np.shape(given), np.shape(wanted))
+        except ValueError:
+            shape = None
+        if shape != np.shape(wanted):
+            raise ValueError(f"{name} must have shape {np.shape(wanted)} (as in observer.guess()); got shape {np.shape(given)}")
+        if not np.all(np.isfinite(np.asarray(given, dtype=float))):
+            raise ValueError(f"{name} must be finite; got {np.asarray(given).tolist()}")
+    return guess
+
+
+def _columns(name: str, array: np.ndarray, rows: int, layout: Layout, owner: str) -> None:
+    if array.ndim != 2 or array.shape != (rows, layout.size):
+        names = ", ".join(layout.names) or "none"
+        raise ValueError(f"{name} must have shape ({rows}, {layout.size}): {rows} rows and the {layout.size} columns {owner} reads ({names}); got shape {array.shape}")
+
+
+def step_amplification(observer: Observer, guess, y, u, dt) -> float:
+    """The spectral radius of the Jacobian of one prediction step of ``dt`` (s), at the
+    state after the first sample: how much one step multiplies a small state error.
+
+    A screening check of the step length, not a stability proof: the observer is
+    nonlinear and this is its linearization at one state. Above
+    :data:`MAX_STEP_AMPLIFICATION` the step is too long for the observer (its
+    integration leaves the stable region, or a discrete form is unstable there).
+    """
+    y = jnp.asarray(y, dtype=float)
+    u = jnp.asarray(u, dtype=float)
+    state = observer.update(observer.init(y, guess), 0.0, y)
+    return _radius(observer, state, y, u, dt)
+
+
+def _radius(observer: Observer, state, y, u, dt) -> float:
+    flat, unravel = ravel_pytree(state)
+    jacobian = _prediction_jacobian(observer, unravel, flat, y, u, jnp.asarray(dt, dtype=float))
+    return float(np.max(np.abs(np.linalg.eigvals(np.asarray(jacobian))))) if flat.size else 0.0
+
+
+@eqx.filter_jit
+def _prediction_jacobian(observer, unravel, flat, y, u, dt):
+    return jax.jacfwd(lambda vector: ravel_pytree(observer.predict(unravel(vector), 0.0, y, u, dt))[0])(flat)
+
+
+def _too_long(radius: float, dt: float, where: str) -> str:
+    return (
+        f"{where} {dt:g} s is too long for this observer: one prediction step multiplies a state error by {radius:.3g} "
+        f"(above {MAX_STEP_AMPLIFICATION:g} the estimates diverge); are the times in seconds? (a log in milliseconds has steps 1000 times too long)"
+    )
+
+
+def _check_steps(observer: Observer, guess, times: np.ndarray, measurements: np.ndarray, inputs: np.ndarray) -> None:
+    """Refuse row steps the observer cannot take: not its declared sample period (a
+    discrete-time observer), or so long that one prediction step amplifies errors."""
+    steps = np.diff(times)
+    if steps.size == 0:
+        return
+    period = observer.sample_period
+    if period is not None:
+        off = np.abs(steps - period) > 1e-9 * period
+        if np.any(off):
+            row = int(np.argmax(off))
+            raise ValueError(
+                f"times must step by the observer's sample_period {period:g} s (a discrete-time observer); the step from row {row} to {row + 1} "
+                f"is {steps[row]:g} s; are the times in seconds?"
+            )
+        return
+    row = int(np.argmax(steps))
+    radius = step_amplification(observer, guess, measurements[0], inputs[0], steps[row])
+    if not radius <= MAX_STEP_AMPLIFICATION:
+        raise ValueError("times: " + _too_long(radius, float(steps[row]), f"the longest row step (row {row} to {row + 1}),"))
 
 
 def _check_log_fits(observer: Observer, guess, n_y: int, n_u: int) -> None:
@@ -36,7 +131,7 @@ def _check_log_fits(observer: Observer, guess, n_y: int, n_u: int) -> None:
 
     def one_row():
         state = observer.update(observer.init(y, guess), 0.0, y)
-        return observer.output(state, y), observer.predict(state, 0.0, y, u, 1.0)
+        return observer.output(state, y), observer.predict(state, 0.0, y, u, observer.sample_period or 1.0)
 
     try:
         jax.eval_shape(one_row)
@@ -64,7 +159,7 @@ def filter(  # noqa: A001 - lookout.filter, as the issue and the docs name it
     measurements,
     inputs=None,
     *,
-    guess,
+    guess=None,
     measurement_layout: Layout | None = None,
     input_layout: Layout | None = None,
 ):
@@ -74,16 +169,21 @@ def filter(  # noqa: A001 - lookout.filter, as the issue and the docs name it
     ----------
     observer : Observer
     times : array_like, shape (n,)
-        Row times in seconds, strictly increasing (regular or irregular).
+        Row times in seconds, strictly increasing (regular or irregular). A
+        discrete-time observer (one with a ``sample_period``) needs rows exactly one
+        period apart; for the others the longest step must not make one prediction
+        step amplify errors more than :data:`MAX_STEP_AMPLIFICATION` times.
     measurements : array_like, shape (n, n_y)
-        Measurements; NaN marks a missing channel of a row.
+        Measurements laid out as ``observer.measurement_layout``; NaN marks a missing
+        channel of a row (at least one entry of the log must be finite).
     inputs : array_like, shape (n, n_u), optional
-        Input applied from each row's time to the next (default: none, zero columns).
-    guess : PyTree
-        The observer's initial guess (as for a simulation's ``initial_estimate``).
+        Input applied from each row's time to the next, laid out as
+        ``observer.input_layout`` (default: zero).
+    guess : PyTree, optional
+        The observer's initial guess (as for a simulation's ``initial_estimate``),
+        shaped as ``observer.guess()``; default ``observer.guess()``.
     measurement_layout, input_layout : Layout, optional
-        Names and units of the columns (a sensor's ``measurement_layout``, a plant's
-        ``input_layout``); default: unnamed dimensionless columns.
+        Names and units of the columns; default the observer's own.
 
     Returns
     -------
@@ -94,28 +194,40 @@ def filter(  # noqa: A001 - lookout.filter, as the issue and the docs name it
     Raises
     ------
     ValueError
-        On inconsistent shapes, times that do not increase, or non-finite times or inputs.
+        Naming the argument: shapes that do not fit the observer, times that do not
+        increase or whose steps the observer cannot take, a log without one finite
+        measurement, infinite measurements, non-finite inputs, or a guess that is not
+        shaped as ``observer.guess()``.
     """
     times = np.asarray(times, dtype=float)
     measurements = np.asarray(measurements, dtype=float)
     if times.ndim != 1 or times.size < 1:
         raise ValueError(f"times must be a 1-D array with at least one row; got shape {times.shape}")
-    if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
-        raise ValueError("times must be finite and strictly increasing")
-    if measurements.ndim != 2 or measurements.shape[0] != times.size:
-        raise ValueError(f"measurements must have shape ({times.size}, n_y); got {measurements.shape}")
-    inputs = np.zeros((times.size, 0)) if inputs is None else np.asarray(inputs, dtype=float)
-    if inputs.ndim != 2 or inputs.shape[0] != times.size:
-        raise ValueError(f"inputs must have shape ({times.size}, n_u); got {inputs.shape}")
+    if not np.all(np.isfinite(times)):
+        row = int(np.argmin(np.isfinite(times)))
+        raise ValueError(f"times must be finite; row {row} is {times[row]}")
+    if np.any(np.diff(times) <= 0):
+        row = int(np.argmax(np.diff(times) <= 0))
+        raise ValueError(f"times must be strictly increasing; row {row + 1} ({times[row + 1]:g} s) does not come after row {row} ({times[row]:g} s)")
+    measurement_layout = measurement_layout or observer.measurement_layout
+    input_layout = input_layout or observer.input_layout
+    for name, layout, wanted in (("measurement_layout", measurement_layout, observer.measurement_layout), ("input_layout", input_layout, observer.input_layout)):
+        if layout.size != wanted.size:
+            raise ValueError(f"{name} must have {wanted.size} entries (the observer reads {', '.join(wanted.names) or 'none'}); got {layout.size}")
+    _columns("measurements", measurements, times.size, observer.measurement_layout, "the observer")
+    inputs = np.zeros((times.size, observer.input_layout.size)) if inputs is None else np.asarray(inputs, dtype=float)
+    _columns("inputs", inputs, times.size, observer.input_layout, "the observer's prediction")
+    if np.any(np.isinf(measurements)):
+        row, column = np.argwhere(np.isinf(measurements))[0]
+        raise ValueError(f"measurements must be finite or NaN (a missing channel); row {row}, column {column} is {measurements[row, column]}")
+    if not np.any(np.isfinite(measurements)):
+        raise ValueError(f"measurements hold no finite value ({measurements.shape[0]} rows, all NaN): the observer would have nothing to correct it")
     if not np.all(np.isfinite(inputs)):
-        raise ValueError("inputs must be finite (a missing input has no meaning for the prediction)")
-    measurement_layout = measurement_layout or _generic_layout("y", measurements.shape[1])
-    input_layout = input_layout or _generic_layout("u", inputs.shape[1])
-    if measurement_layout.size != measurements.shape[1]:
-        raise ValueError(f"measurement_layout has {measurement_layout.size} channels, the measurements {measurements.shape[1]}")
-    if input_layout.size != inputs.shape[1]:
-        raise ValueError(f"input_layout has {input_layout.size} entries, the inputs {inputs.shape[1]}")
+        row, column = np.argwhere(~np.isfinite(inputs))[0]
+        raise ValueError(f"inputs must be finite (a missing input has no meaning for the prediction); row {row}, column {column} is {inputs[row, column]}")
+    guess = checked_guess(observer, guess)
     _check_log_fits(observer, guess, measurements.shape[1], inputs.shape[1])
+    _check_steps(observer, guess, times, measurements, inputs)
     estimates = _filter_scan(observer, guess, jnp.asarray(times), jnp.asarray(measurements), jnp.asarray(inputs))
     signals = RecordSignals(
         truth=(), estimate=tuple(observer.estimate_signals), extra=tuple(observer.extra_signals),
@@ -136,15 +248,24 @@ class Stepper:
     so a call is one dispatch of a compiled function with two arguments (about
     10 us on the development machine, docs/benchmarks.md), not a trace.
 
+    A bad call never changes the state: non-finite ``t``, ``dt`` or ``u``, infinite
+    ``y``, ``dt <= 0``, ``t`` not after the previous call's, a ``dt`` other than a
+    discrete-time observer's ``sample_period`` or one so long that a prediction step
+    amplifies errors (checked the first time a longer ``dt`` comes), and a step whose
+    result is not finite each raise ``ValueError`` and leave the state as it was.
+    NaN in ``y`` is a missing channel: the observer predicts through it.
+
     Parameters
     ----------
     observer : Observer
-    guess : PyTree
-        Initial guess.
+    guess : PyTree, optional
+        Initial guess, shaped as ``observer.guess()`` (the default).
     y0 : array_like
-        The first measurement (NaN for a missing channel).
-    input_size : int
-        Length of the input vector ``u`` passed to each call.
+        The first measurement, laid out as ``observer.measurement_layout`` (NaN for a
+        missing channel).
+    input_size : int, optional
+        Length of the input vector ``u`` passed to each call; it must be the
+        observer's (``observer.input_layout.size``, the default).
 
     Examples
     --------
@@ -152,30 +273,54 @@ class Stepper:
     >>> estimate = stepper(t, y, u, dt)   # estimate at t; the state moves to t + dt
     """
 
-    def __init__(self, observer: Observer, guess, y0, input_size: int):
-        y0 = jnp.asarray(y0, dtype=float)
+    def __init__(self, observer: Observer, guess=None, y0=None, input_size: int | None = None):
+        if not isinstance(observer, Observer):
+            raise ValueError(f"observer must be a lookout Observer; got {type(observer).__name__}")
+        n_y, n_u = observer.measurement_layout.size, observer.input_layout.size
+        if y0 is None:
+            raise ValueError(f"y0 must be the first measurement ({n_y} entries: {', '.join(observer.measurement_layout.names)}); got None")
+        y0 = self._measurement("y0", y0, n_y, observer)
+        if input_size is None:
+            input_size = n_u
+        if isinstance(input_size, bool) or not isinstance(input_size, (int, np.integer)) or input_size != n_u:
+            raise ValueError(f"input_size must be {n_u}, the length of the observer's input ({', '.join(observer.input_layout.names) or 'none'}); got {input_size!r}")
+        guess = checked_guess(observer, guess)
         self.observer = observer
-        self._measurement_size = int(y0.shape[0])
-        flat_state, unravel_state = ravel_pytree(observer.init(y0, guess))
-        template = jax.eval_shape(lambda s: observer.output(s, y0), unravel_state(flat_state))
+        self._guess = guess
+        self._measurement_size = n_y
+        self._input_size = n_u
+        flat_state, unravel_state = ravel_pytree(observer.init(jnp.asarray(y0), guess))
+        template = jax.eval_shape(lambda s: observer.output(s, jnp.asarray(y0)), unravel_state(flat_state))
         leaves, self._estimate_tree = jax.tree.flatten(template)
         ends = np.cumsum([int(np.prod(leaf.shape)) for leaf in leaves])
         # (start, end, shape) of each output in the flat estimate (np.split costs 70 us here)
         self._pieces = [(int(end) - int(np.prod(leaf.shape)), int(end), leaf.shape) for end, leaf in zip(ends, leaves)]
-        n_y = self._measurement_size
 
         def advance(flat, packed):
             state = unravel_state(flat)
             t, dt, y, u = packed[0], packed[1], packed[2 : 2 + n_y], packed[2 + n_y :]
             state = observer.update(state, t, y)
             estimate = observer.output(state, y)
-            state = observer.predict(state, t, y, u, dt)
-            return ravel_pytree(state)[0], jnp.concatenate([jnp.ravel(leaf) for leaf in jax.tree.leaves(estimate)])
+            state = ravel_pytree(observer.predict(state, t, y, u, dt))[0]
+            flat_estimate = jnp.concatenate([jnp.ravel(leaf) for leaf in jax.tree.leaves(estimate)])
+            # one flag rides with the estimate: was the step finite?
+            healthy = jnp.all(jnp.isfinite(state)) & jnp.all(jnp.isfinite(flat_estimate))
+            return state, jnp.concatenate([flat_estimate, healthy[None].astype(flat_estimate.dtype)])
 
         self._advance = jax.jit(advance)
-        self._input_size = int(input_size)
         self._unravel_state = unravel_state
         self._flat_state = flat_state
+        self._last_time: float | None = None
+        self._checked_step = 0.0  # the longest dt whose amplification was checked
+
+    @staticmethod
+    def _measurement(name: str, y, size: int, observer: Observer) -> np.ndarray:
+        y = np.asarray(y, dtype=float).ravel()
+        if y.shape != (size,):
+            raise ValueError(f"{name} must have {size} entries ({', '.join(observer.measurement_layout.names)}); got {y.shape[0]}")
+        if np.any(np.isinf(y)):
+            raise ValueError(f"{name} must be finite or NaN (a missing channel); got {y.tolist()}")
+        return y
 
     @property
     def state(self):
@@ -190,10 +335,50 @@ class Stepper:
         -------
         dict of numpy.ndarray
             The observer's outputs by name.
+
+        Raises
+        ------
+        ValueError
+            On a bad argument (see the class docstring); the state is left as it was.
         """
-        packed = np.concatenate(([t, dt], np.asarray(y, dtype=float).ravel(), np.asarray(u, dtype=float).ravel()))
-        if packed.shape[0] != 2 + self._measurement_size + self._input_size:
-            raise ValueError(f"y and u must have {self._measurement_size} and {self._input_size} entries; got {packed.shape[0] - 2} in all")
-        self._flat_state, flat_estimate = self._advance(self._flat_state, packed)
+        t, dt = self._number("t", t), self._number("dt", dt)
+        if not dt > 0:
+            raise ValueError(f"dt must be positive (s, the time to the next sample); got {dt:g}")
+        if self._last_time is not None and not t > self._last_time:
+            raise ValueError(f"t must come after the previous call's t = {self._last_time:g} s; got {t:g} s (time must not go backwards)")
+        y = self._measurement("y", y, self._measurement_size, self.observer)
+        u = np.asarray(u, dtype=float).ravel()
+        if u.shape != (self._input_size,):
+            raise ValueError(f"u must have {self._input_size} entries ({', '.join(self.observer.input_layout.names) or 'none'}); got {u.shape[0]}")
+        if not np.all(np.isfinite(u)):
+            raise ValueError(f"u must be finite (the input applied until t + dt); got {u.tolist()}")
+        self._check_step(dt, y, u)
+        flat_state, flat_estimate = self._advance(self._flat_state, np.concatenate(([t, dt], y, u)))
         flat = np.asarray(flat_estimate)
+        if flat[-1] != 1.0:
+            raise ValueError(f"the step at t = {t:g} s over dt = {dt:g} s gives a non-finite state or estimate; refused, the state is kept as it was")
+        self._flat_state = flat_state
+        self._last_time = t
         return jax.tree.unflatten(self._estimate_tree, [flat[start:end].reshape(shape) for start, end, shape in self._pieces])
+
+    @staticmethod
+    def _number(name: str, value) -> float:
+        array = np.asarray(value, dtype=float)
+        if array.shape != ():
+            raise ValueError(f"{name} must be a number (s); got shape {array.shape}")
+        if not np.isfinite(array):
+            raise ValueError(f"{name} must be finite (s); got {float(array)}")
+        return float(array)
+
+    def _check_step(self, dt: float, y: np.ndarray, u: np.ndarray) -> None:
+        period = self.observer.sample_period
+        if period is not None:
+            if abs(dt - period) > 1e-9 * period:
+                raise ValueError(f"dt must be the observer's sample_period {period:g} s (a discrete-time observer); got {dt:g} s")
+            return
+        if dt <= self._checked_step:
+            return
+        radius = _radius(self.observer, self.observer.update(self.state, 0.0, jnp.asarray(y)), jnp.asarray(y), jnp.asarray(u), dt)
+        if not radius <= MAX_STEP_AMPLIFICATION:
+            raise ValueError("dt: " + _too_long(radius, dt, "a step of"))
+        self._checked_step = dt

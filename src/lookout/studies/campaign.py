@@ -58,7 +58,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from lookout.papers._config import positive_count
 from lookout.studies._toml import FileError, read
-from lookout.studies.scenario_file import ScenarioSpec, describe, from_document, get_path, located
+from lookout.studies.scenario_file import ScenarioSpec, build_located, describe, from_document, get_path, located, read_spec, validate_strictly
 
 #: The largest batch a chunk defaults to.
 DEFAULT_CHUNK_RUNS = 64
@@ -231,10 +231,7 @@ class Campaign:
 
     @property
     def chunk_runs(self) -> int:
-        if self.settings.chunk_runs is not None:
-            return self.settings.chunk_runs
-        seeds = self.settings.seeds_per_point
-        return max(d for d in range(1, min(seeds, DEFAULT_CHUNK_RUNS) + 1) if seeds % d == 0)
+        return chunk_runs_of(self.settings)
 
     @property
     def seeds(self) -> tuple[int, ...]:
@@ -341,7 +338,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
     from lookout.studies import metrics as metric_module
 
     try:
-        settings = CampaignSettings.model_validate(document)
+        settings = validate_strictly(CampaignSettings, document)
     except ValidationError as error:
         raise FileError(describe(error, source, text)) from None
     scenario = settings.scenario
@@ -349,19 +346,24 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
         path = Path(scenario)
         if not path.is_absolute() and folder is not None:
             path = folder / path
-        from lookout.studies.scenario_file import load
-
-        base = load(path)
+        base, base_text = read_spec(path)
     else:
-        base = from_document(scenario, f"{source} [scenario]", None)
+        base, base_text = from_document(scenario, f"{source} [scenario]", None), None
     axes = settings.sweep.axes
+    scenario_object = build_located(base, base_text)
+    # sizes first: nothing that grows with the points or seeds exists before this check
+    try:
+        check_driver_memory(settings, scenario_object)
+    except ValueError as error:
+        key = ("sweep",) if point_count(settings) > settings.seeds_per_point else ("seeds_per_point",)
+        raise located(source, text, key, str(error)) from None
+    _check_window(settings, scenario_object, source, text, ("after",), None)
     if settings.sweep.kind == "grid":
         grids = [_grid_values(axis) for axis in axes]
         points = tuple({axis.label: value for axis, value in zip(axes, combo)} for combo in itertools.product(*grids)) if axes else ({},)
     else:
         points = tuple(_latin_hypercube(axes, settings.sweep.points, settings.sweep.seed))
     base_values = base.settings.model_dump(mode="python")
-    scenario_object = base.build()
     cases = {base.case: scenario_object}  # the built scenario of every swept case
     for index, axis in enumerate(axes):
         location = ("sweep", "axes", index, "field")
@@ -396,6 +398,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
                 raise located(source, text, where, f"value {value!r} makes no scenario: {error}") from None
             if CASE in axis.fields:
                 cases[value] = built
+            _check_window(settings, built, source, text, where, value)
     names = settings.metrics or ()
     if not names:
         raise located(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.studies.metrics)")
@@ -414,6 +417,80 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
             if signal not in recorded:
                 raise located(source, text, ("trajectories", "signals"), f"no recorded signal {signal!r} (recorded: {', '.join(sorted(recorded))})")
     return Campaign(settings, base, points, tuple(names), source)
+
+
+def _check_window(settings: CampaignSettings, scenario, source: str, text: str | None, where: tuple, value) -> None:
+    """Refuse ``after`` past the last record of ``scenario`` (a point's horizon)."""
+    after = settings.after
+    if after is None:
+        return
+    last = (scenario.n_records - 1) * scenario.sample_period * scenario.record_every
+    if after > last + 1e-9 * max(1.0, abs(after)):
+        if value is None:
+            raise located(source, text, ("after",), f"{after:g} s is past the end of the run ({last:g} s): the metrics would have no record")
+        raise located(source, text, where, f"value {value!r}: after ({after:g} s) is past the end of that run ({last:g} s): the metrics would have no record")
+
+
+#: What the driver holds per run (the seed as a Python int in the seed tuples, its
+#: slot in the chunks' tuples and the store's seed coordinate, and one float per
+#: metric, divergence flag and kept value when the store is read back), per chunk (the
+#: chunk, its key, its task and its completion record) and per sweep point.
+DRIVER_BYTES_PER_RUN = 56
+DRIVER_BYTES_PER_CHUNK = 2000
+DRIVER_BYTES_PER_POINT = 500
+
+
+def point_count(settings: CampaignSettings) -> int:
+    """The number of sweep points, from the axes alone (without making them)."""
+    if settings.sweep.kind == "latin-hypercube":
+        return int(settings.sweep.points)
+    return math.prod(len(axis.values) if axis.values is not None else int(axis.steps) for axis in settings.sweep.axes)
+
+
+def kept_values(settings: CampaignSettings, scenario) -> int:
+    """Numbers a run keeps in the store: one per metric and the divergence flag, and
+    its kept trajectories."""
+    values = len(settings.metrics) + 1
+    kept = settings.trajectories
+    if kept is not None:
+        sizes = {name: signal.size for _, name, signal in scenario.record_signals.variables()}
+        values += -(-scenario.n_records // kept.every) * sum(sizes.get(name, 1) for name in kept.signals)
+    return values
+
+
+def chunk_runs_of(settings: CampaignSettings) -> int:
+    """Runs per chunk: ``chunk_runs``, or the largest divisor of ``seeds_per_point`` up
+    to :data:`DEFAULT_CHUNK_RUNS`."""
+    if settings.chunk_runs is not None:
+        return settings.chunk_runs
+    seeds = settings.seeds_per_point
+    if seeds <= DEFAULT_CHUNK_RUNS:
+        return seeds
+    return max(d for d in range(1, DEFAULT_CHUNK_RUNS + 1) if seeds % d == 0)
+
+
+def driver_memory(settings: CampaignSettings, scenario) -> tuple[float, int, int]:
+    """(bytes, points, chunks) the driver holds for the campaign: see
+    :data:`DRIVER_BYTES_PER_RUN` and the two after it."""
+    points = point_count(settings)
+    runs = points * settings.seeds_per_point
+    chunks = points * (settings.seeds_per_point // chunk_runs_of(settings))
+    need = runs * (DRIVER_BYTES_PER_RUN + 8 * kept_values(settings, scenario)) + chunks * DRIVER_BYTES_PER_CHUNK + points * DRIVER_BYTES_PER_POINT
+    return need, points, chunks
+
+
+def check_driver_memory(settings: CampaignSettings, scenario, available: float | None = None) -> None:
+    """Refuse (ValueError) a campaign whose points, seeds and chunks would not fit in
+    this process's memory, before any of them is made."""
+    from lookout._resources import refuse_unless_it_fits
+
+    need, points, chunks = driver_memory(settings, scenario)
+    refuse_unless_it_fits(
+        need,
+        f"{points} point(s) x {settings.seeds_per_point} seeds in {chunks} chunks",
+        "use fewer seeds_per_point or fewer sweep points (or split the study into several campaigns)",
+        available=available,
+    )
 
 
 def _exists(values: dict, path: str) -> bool:

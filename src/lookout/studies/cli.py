@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -12,7 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from lookout._validation import InputError
-from lookout.papers._report import json_safe
+from lookout._json import json_safe
 from lookout.studies._toml import FileError
 
 def _cli():
@@ -26,6 +27,10 @@ def console_print(text: str) -> None:
     _cli().console.print(text, highlight=False, markup=False)
 
 
+#: A dask scheduler address: an optional protocol, a host (a name, an IPv4 address or
+#: a bracketed IPv6 address) and a port.
+SCHEDULER_ADDRESS = re.compile(r"(?:[a-z][a-z0-9+.-]*://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):[0-9]{1,5}")
+
 campaign_app = typer.Typer(
     no_args_is_help=True,
     rich_markup_mode=None,
@@ -35,7 +40,7 @@ campaign_app = typer.Typer(
 
 def _scenario(path: str, runs: int | None, seed: int | None):
     from lookout.papers._config import positive_count, seed_for_runs
-    from lookout.studies.scenario_file import load
+    from lookout.studies.scenario_file import build_located, read_spec
 
     try:
         if runs is not None:
@@ -49,13 +54,10 @@ def _scenario(path: str, runs: int | None, seed: int | None):
         raise InputError(f"--seed {error}") from None
 
     try:
-        spec = load(path, runs=runs, seed=seed)
+        spec, text = read_spec(path, runs=runs, seed=seed)
+        scenario = build_located(spec, text)
     except FileError as error:
         raise InputError(str(error)) from None
-    try:
-        scenario = spec.build()
-    except ValueError as error:
-        raise InputError(f"{path}: the settings do not make a scenario: {error}") from None
     return spec, scenario
 
 
@@ -83,7 +85,7 @@ def _batched(trajectory):
 
 def run(
     scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file (see examples/ and `lookout reproduce NAME --write-scenario FILE`).")],
-    out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder; created if missing (its parent must exist).")] = "out/run",
+    out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.")] = "out/run",
     runs: Annotated[Optional[int], typer.Option(metavar="N", help="Runs over seeds (vmapped), instead of the file's settings.runs.")] = None,
     seed: Annotated[Optional[int], typer.Option(metavar="INT", help="Seed of run 0, instead of the file's settings.seed.")] = None,
 ) -> None:
@@ -98,7 +100,8 @@ def run(
     from lookout.studies.scenario_file import save, simulate_trajectory, to_dataset
 
     spec, scenario = _scenario(scenario_file, runs, seed)
-    _cli()._check_memory([(scenario, len(spec.seeds))])
+    # the count, not the seeds: nothing that grows with the runs is made before the check
+    _cli()._check_memory([(scenario, spec.settings.runs)], "--runs" if runs is not None else "settings.runs", "settings.duration")
     folder = _cli()._created_folder("--out", out)
     with _cli()._simulating() as progress:
         trajectory = simulate_trajectory(spec, scenario=scenario, progress=progress)
@@ -167,30 +170,29 @@ def campaign_run(
     dask task; the metrics go to the store as chunks finish."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from lookout.studies.execute import run_campaign
+    from lookout.studies.execute import SchedulerError, run_campaign
 
     if workers is not None and workers < 0:
         raise InputError(f"--workers must be 0 (this process) or a positive number of workers; got {workers}")
     if workers is not None and scheduler is not None:
         raise InputError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
-    if scheduler is not None and not scheduler.strip():
-        raise InputError("--scheduler must be an address such as tcp://10.0.0.5:8786; got an empty string")
+    if scheduler is not None and not SCHEDULER_ADDRESS.fullmatch(scheduler.strip()):
+        raise InputError(f"--scheduler must be an address with a port, such as tcp://10.0.0.5:8786; got {scheduler!r}")
     campaign = _campaign(spec)
     store = _store_path("--out", out, must_exist=False)
     say = console_print
-    with Progress(TextColumn("chunks"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
+    _stderr = Console(stderr=True)  # a progress bar only where someone watches: a log gets none
+    with Progress(TextColumn("chunks"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=_stderr, transient=True, disable=not _stderr.is_terminal) as bar:
         task = bar.add_task("chunks", total=len(campaign.chunks()), completed=0)
         try:
             result = run_campaign(
                 campaign, store, workers=workers, scheduler=scheduler, say=say,
                 progress=lambda done, total: bar.update(task, completed=done),
             )
+        except SchedulerError as error:
+            raise InputError(f"--scheduler {scheduler}: {error}") from None
         except ValueError as error:
             raise InputError(f"{spec}: {error}") from None
-        except OSError as error:
-            if scheduler is not None:
-                raise InputError(f"--scheduler {scheduler}: cannot reach the scheduler ({error})") from None
-            raise
     say(f"{result['done']}/{result['chunks']} chunks done ({result['computed']} computed now in {result['seconds']:.1f} s); store: {store}")
     say(f"next: lookout campaign report {store}")
 

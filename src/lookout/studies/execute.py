@@ -20,10 +20,14 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
+from lookout import _resources
+from lookout._resources import format_bytes
 from lookout.studies.campaign import Campaign, compute_chunk
 from lookout.studies.store import CampaignStore
 
@@ -35,6 +39,11 @@ WORKER_BASE_BYTES = 600e6
 #: the calibration chunk's time) submits its unfinished chunks again.
 STALL_SECONDS = 60.0
 STALL_CALIBRATIONS = 5.0
+#: Compiled chunks per worker over which the driver times the campaign before it
+#: says how long the rest will take.
+CALIBRATION_CHUNKS_PER_WORKER = 2
+#: How long the driver waits for a scheduler to answer.
+SCHEDULER_TIMEOUT = "20s"
 #: How often the driver looks for finished chunks.
 POLL_SECONDS = 0.05
 
@@ -51,13 +60,9 @@ class Estimate:
     workers: int
     chunk_seconds: float | None = None
     compile_seconds: float | None = None
-
-
-def _bytes(count: float) -> str:
-    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
-        if count >= size:
-            return f"{count / size:.3g} {unit}"
-    return f"{count:.0f} B"
+    #: the driver's clock when the first compiled chunk came, and how many came since
+    first_compiled: float | None = None
+    compiled_since: int = 0
 
 
 def record_bytes(campaign: Campaign, scenario) -> int:
@@ -67,12 +72,11 @@ def record_bytes(campaign: Campaign, scenario) -> int:
     engine's scan). From the signals' sizes, without tracing a sample."""
     import jax.numpy as jnp
 
-    itemsize = jnp.zeros(()).dtype.itemsize
+    from lookout.sim import record_nbytes
+
     if campaign.settings.trajectories is None:
-        return sum(1 for name in campaign.metric_names if name.startswith("settling_time:")) * itemsize
-    signals = scenario.record_signals
-    size = sum(s.size for s in (*signals.truth, *signals.estimate, *signals.extra, *signals.reference))
-    return int((size + signals.measurement.size + 2 * signals.input.size) * itemsize)
+        return sum(1 for name in campaign.metric_names if name.startswith("settling_time:")) * jnp.zeros(()).dtype.itemsize
+    return record_nbytes(scenario)
 
 
 def chunk_memory(campaign: Campaign) -> float:
@@ -92,9 +96,9 @@ def check_memory(campaign: Campaign, available: float | None, workers: int) -> f
 
         scenario = _point_scenario(campaign.canonical(), 0)
         raise ValueError(
-            f"chunk_runs {campaign.chunk_runs} needs about {_bytes(need)} per chunk ({campaign.chunk_runs} runs x {scenario.n_records} records x "
-            f"{record_bytes(campaign, scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE}, + {_bytes(WORKER_BASE_BYTES)} runtime), and a worker has "
-            f"{_bytes(available)} ({workers} worker(s)): set a smaller chunk_runs (a divisor of seeds_per_point) or fewer workers"
+            f"chunk_runs {campaign.chunk_runs} needs about {format_bytes(need)} per chunk ({campaign.chunk_runs} runs x {scenario.n_records} records x "
+            f"{record_bytes(campaign, scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE}, + {format_bytes(WORKER_BASE_BYTES)} runtime), and a worker has "
+            f"{format_bytes(available)} ({workers} worker(s)): set a smaller chunk_runs (a divisor of seeds_per_point) or fewer workers"
         )
     return need
 
@@ -113,6 +117,39 @@ def _local_env() -> dict:
     return {"XLA_FLAGS": " ".join((flags + " --xla_force_host_platform_device_count=1").split())}
 
 
+class SchedulerError(ConnectionError):
+    """The dask scheduler given cannot be reached (the message names the address)."""
+
+
+#: A file of the store takes at least one file-system block.
+FILE_BLOCK_BYTES = 4096
+#: The store's metadata (Zarr JSON, the campaign document) besides the chunks.
+STORE_METADATA_BYTES = 1e6
+
+
+def store_bytes(campaign: Campaign, chunks: int) -> float:
+    """Disk that ``chunks`` chunks of ``campaign`` take in its store, at most: every kept
+    number uncompressed, and a file-system block per variable's chunk and per record."""
+    from lookout.studies.campaign import _point_scenario, kept_values
+
+    scenario = _point_scenario(campaign.canonical(), 0)
+    variables = len(campaign.metric_names) + 1 + len(campaign.settings.trajectories.signals if campaign.settings.trajectories else ())
+    per_chunk = campaign.chunk_runs * 8 * kept_values(campaign.settings, scenario) + (variables + 1) * FILE_BLOCK_BYTES
+    return chunks * per_chunk + STORE_METADATA_BYTES
+
+
+def check_disk(campaign: Campaign, path, pending: int, free: float | None = None) -> float:
+    """Refuse (ValueError naming the store's file system) a campaign whose store will
+    not fit on the disk, before the store exists."""
+    need = store_bytes(campaign, pending)
+    free = _resources.free_disk(path) if free is None else free
+    _resources.refuse_unless_it_fits(
+        need, f"the store {path} ({pending} chunks x {campaign.chunk_runs} runs)",
+        "free some space, give --out on another disk, or use fewer seeds or points", available=free, resource="disk space",
+    )
+    return need
+
+
 def run_campaign(
     campaign: Campaign,
     path,
@@ -122,20 +159,85 @@ def run_campaign(
     say: Callable[[str], None] = print,
     progress: Callable[[int, int], None] | None = None,
     available_memory: Callable[[], int | None] | None = None,
+    free_disk: Callable[[Path], int | None] | None = None,
 ) -> dict:
     """Compute the chunks of ``campaign`` missing from the store at ``path``.
 
+    Everything is checked before the store exists: a store at ``path`` holds this
+    campaign or nothing, a chunk fits a worker's memory, the store fits the disk, and
+    the scheduler answers. A store this call created is removed again if the call
+    fails before a chunk is written, so a refused or failed start leaves nothing
+    behind (and a corrected spec is not blocked by an empty store).
+
     Returns ``{"chunks": total, "computed": this call, "done": done now, "seconds": wall}``.
     """
-    store = CampaignStore.open_or_create(path, campaign)
+    store = CampaignStore(path)
+    resumed = store.holds(campaign)
     chunks = campaign.chunks()
-    done = store.done()
+    done = store.done() if resumed else {}
     pending = [chunk for chunk in chunks if chunk.index not in done]
     if not pending:
         say(f"{path}: all {len(chunks)} chunks are done; nothing to compute")
+        store.consolidate()
         return {"chunks": len(chunks), "computed": 0, "done": len(chunks), "seconds": 0.0}
-    if done:
-        say(f"{path}: resuming: {len(done)} of {len(chunks)} chunks done, {len(pending)} to compute")
+    memory = available_memory or _resources.available_memory
+    local = scheduler is None and workers == 0
+    if scheduler is None:
+        workers = 1 if local else workers or os.cpu_count() or 1
+        available = memory()
+        per_worker = None if available is None else available / workers
+        estimate = Estimate(check_memory(campaign, per_worker, workers), per_worker, len(chunks), len(pending), workers)
+    disk = check_disk(campaign, path, len(pending), None if free_disk is None else free_disk(Path(path)))
+    client = cluster = None
+    if not local:
+        from dask.distributed import Client, LocalCluster
+
+        if scheduler is None:
+            cluster = LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                env=_local_env(), memory_limit=0,
+            )
+            client = Client(cluster)
+        else:
+            try:
+                client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
+                info = client.scheduler_info()["workers"]
+            except Exception as error:  # an address dask cannot parse, or a scheduler that does not answer
+                if client is not None:
+                    client.close()
+                raise SchedulerError(f"cannot reach the scheduler ({_one_line(error)})") from None
+            limits = [w.get("memory_limit") or None for w in info.values()]
+            per_worker = min(limits) if limits and all(limits) else None
+            workers = max(1, len(info))
+            try:
+                estimate = Estimate(check_memory(campaign, per_worker, workers), per_worker, len(chunks), len(pending), workers)
+            except ValueError:
+                client.close()
+                raise
+    created = not resumed
+    try:
+        if created:
+            store._create(campaign)
+        else:
+            say(f"{path}: resuming: {len(done)} of {len(chunks)} chunks done, {len(pending)} to compute")
+        return _compute(campaign, store, chunks, pending, done, estimate, disk, client, say, progress)
+    except BaseException:
+        if created and not store.done():
+            shutil.rmtree(store.path, ignore_errors=True)  # nothing of value: leave no store behind
+        raise
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split()) or type(error).__name__
+
+
+def _compute(campaign, store, chunks, pending, done, estimate: Estimate, disk: float, client, say, progress) -> dict:
+    """The chunk loop of :func:`run_campaign`: in this process (``client`` None) or on dask."""
     start = time.perf_counter()
     canonical = campaign.canonical()
     count = {"done": len(done), "computed": 0}
@@ -149,31 +251,39 @@ def run_campaign(
             progress(count["done"], len(chunks))
 
     def announce(estimate: Estimate) -> None:
-        memory = f"about {_bytes(estimate.chunk_bytes)} per chunk"
+        memory = f"about {format_bytes(estimate.chunk_bytes)} per chunk"
         if estimate.available_bytes is not None:
-            memory += f" of {_bytes(estimate.available_bytes)} a worker has"
-        say(f"{estimate.chunks} chunks of {campaign.chunk_runs} runs ({len(campaign.points)} points x {campaign.settings.seeds_per_point} seeds), {estimate.pending} to compute; {memory}")
+            memory += f" of {format_bytes(estimate.available_bytes)} a worker has"
+        say(f"{estimate.chunks} chunks of {campaign.chunk_runs} runs ({len(campaign.points)} points x {campaign.settings.seeds_per_point} seeds), "
+            f"{estimate.pending} to compute; {memory}; at most {format_bytes(disk)} on disk")
 
     def calibrate(estimate: Estimate, result: dict) -> None:
-        """The first chunk gives the compile time, the first compiled chunk the rest."""
+        """The first chunk gives the compile time; the estimate of the rest comes from the
+        driver's clock over the first compiled chunks (one, then
+        CALIBRATION_CHUNKS_PER_WORKER per worker): what the store receives per second, with the workers sharing
+        the machine, the scheduling and the writes included, not one chunk's own time."""
         seconds = float(result["seconds"])
         if estimate.compile_seconds is None and not result["compiled"]:
             estimate.compile_seconds = seconds
             say(f"first chunk: {seconds:.1f} s with compilation")
-        elif estimate.chunk_seconds is None and result["compiled"]:
-            estimate.chunk_seconds = seconds
-            remaining = max(0, estimate.pending - count["computed"])
-            estimate.compile_seconds = max(0.0, (estimate.compile_seconds or seconds) - seconds)
-            total = estimate.chunk_seconds * math.ceil(remaining / max(1, estimate.workers))
-            say(
-                f"calibration chunk: {seconds:.2f} s compiled ({estimate.compile_seconds:.1f} s to compile); "
-                f"the other {remaining} chunks on {estimate.workers} worker(s): about {total:.0f} s"
-            )
+            return
+        if not result["compiled"] or estimate.chunk_seconds is not None:
+            return
+        now = time.monotonic()
+        if estimate.first_compiled is None:
+            estimate.first_compiled = now
+            return
+        estimate.compiled_since += 1
+        if estimate.compiled_since < CALIBRATION_CHUNKS_PER_WORKER * max(1, estimate.workers):
+            return
+        remaining = max(0, estimate.pending - count["computed"])
+        estimate.chunk_seconds = (now - estimate.first_compiled) / estimate.compiled_since  # wall time per chunk, all workers together
+        say(
+            f"calibration: {estimate.compiled_since + 1} compiled chunks, one every {estimate.chunk_seconds:.2f} s on {estimate.workers} worker(s); "
+            f"the other {remaining} chunks: about {estimate.chunk_seconds * remaining:.0f} s"
+        )
 
-    memory = available_memory or _available_memory
-    if scheduler is None and workers == 0:
-        available = memory()
-        estimate = Estimate(check_memory(campaign, available, 1), available, len(chunks), len(pending), 1)
+    if client is None:
         announce(estimate)
         # a chunk is written by one writer thread while the next one computes (XLA
         # releases the GIL); at most one write is pending, and an error in it stops the run
@@ -189,69 +299,45 @@ def run_campaign(
             if writing is not None:
                 writing.result()
     else:
-        from dask.distributed import Client, LocalCluster
+        say(f"dask scheduler: {client.scheduler.address}; dashboard: {client.dashboard_link or 'not available (install bokeh)'}")
+        announce(estimate)
+        fingerprint = campaign.fingerprint()
 
-        cluster = None
-        if scheduler is None:
-            workers = workers or os.cpu_count() or 1
-            available = memory()
-            per_worker = None if available is None else available / workers
-            estimate = Estimate(check_memory(campaign, per_worker, workers), per_worker, len(chunks), len(pending), workers)
-            cluster = LocalCluster(
-                n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
-                env=_local_env(), memory_limit=0,
-            )
-            client = Client(cluster)
-        else:
-            client = Client(scheduler, timeout="20s")
-            info = client.scheduler_info()["workers"]
-            limits = [w.get("memory_limit") or None for w in info.values()]
-            per_worker = min(limits) if limits and all(limits) else None
-            workers = max(1, len(info))
-            estimate = Estimate(check_memory(campaign, per_worker, workers), per_worker, len(chunks), len(pending), workers)
-        try:
-            say(f"dask scheduler: {client.scheduler.address}; dashboard: {client.dashboard_link or 'not available (install bokeh)'}")
-            announce(estimate)
-            fingerprint = campaign.fingerprint()
+        def submit(chunk, attempt=0):
+            key = f"{chunk.key}-{fingerprint}" + (f"-retry{attempt}" if attempt else "")
+            return client.submit(compute_chunk, canonical, chunk.point, chunk.seeds, key=key, pure=False)
 
-            def submit(chunk, attempt=0):
-                key = f"{chunk.key}-{fingerprint}" + (f"-retry{attempt}" if attempt else "")
-                return client.submit(compute_chunk, canonical, chunk.point, chunk.seeds, key=key, pure=False)
-
-            # A killed worker's tasks go to the others. Dask has known cases where such a
-            # task stays "processing" on no live worker (dask/distributed#3196, #6263), and
-            # as_completed can wait forever after a worker restarts (dask/dask#8882, seen
-            # here: a test hung with it). So the driver polls, and if no chunk finishes for
-            # `stall` seconds (after the first, which compiles), the unfinished ones are
-            # submitted again under new keys. Runs are deterministic: a repeat changes nothing.
-            stall = None
-            futures = {submit(chunk): chunk for chunk in pending}
-            attempt = 0
+        # A killed worker's tasks go to the others. Dask has known cases where such a
+        # task stays "processing" on no live worker (dask/distributed#3196, #6263), and
+        # as_completed can wait forever after a worker restarts (dask/dask#8882, seen
+        # here: a test hung with it). So the driver polls, and if no chunk finishes for
+        # `stall` seconds (after the first, which compiles), the unfinished ones are
+        # submitted again under new keys. Runs are deterministic: a repeat changes nothing.
+        stall = None
+        futures = {submit(chunk): chunk for chunk in pending}
+        attempt = 0
+        last = time.monotonic()
+        while futures:
+            # poll (Future.done is cheap and needs no event loop of this thread's own)
+            ready = [future for future in futures if future.done()]
+            if not ready:
+                if stall is not None and time.monotonic() - last > stall:
+                    attempt += 1
+                    say(f"no chunk finished in {stall:.0f} s: submitting the {len(futures)} unfinished chunks again (attempt {attempt + 1})")
+                    stale = list(futures)
+                    futures = {submit(chunk, attempt=attempt): chunk for chunk in futures.values()}
+                    client.cancel(stale)
+                    last = time.monotonic()
+                time.sleep(POLL_SECONDS)
+                continue
             last = time.monotonic()
-            while futures:
-                # poll (Future.done is cheap and needs no event loop of this thread's own)
-                ready = [future for future in futures if future.done()]
-                if not ready:
-                    if stall is not None and time.monotonic() - last > stall:
-                        attempt += 1
-                        say(f"no chunk finished in {stall:.0f} s: submitting the {len(futures)} unfinished chunks again (attempt {attempt + 1})")
-                        stale = list(futures)
-                        futures = {submit(chunk, attempt=attempt): chunk for chunk in futures.values()}
-                        client.cancel(stale)
-                        last = time.monotonic()
-                    time.sleep(POLL_SECONDS)
-                    continue
-                last = time.monotonic()
-                for future in ready:
-                    result = future.result()
-                    finished(futures.pop(future), result, _worker(client, future))
-                    future.release()  # a stored chunk's result is not needed again, even if its worker dies
-                    if stall is None:
-                        stall = max(STALL_SECONDS, STALL_CALIBRATIONS * float(result["seconds"]))
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+            for future in ready:
+                result = future.result()
+                finished(futures.pop(future), result, _worker(client, future))
+                future.release()  # a stored chunk's result is not needed again, even if its worker dies
+                if stall is None:
+                    stall = max(STALL_SECONDS, STALL_CALIBRATIONS * float(result["seconds"]))
+    store.consolidate()
     seconds = time.perf_counter() - start
     return {"chunks": len(chunks), "computed": len(pending), "done": count["done"], "seconds": seconds}
 
@@ -265,7 +351,3 @@ def _worker(client, future) -> str:
         return "dask"
 
 
-def _available_memory() -> int | None:
-    from lookout.cli import available_memory
-
-    return available_memory()

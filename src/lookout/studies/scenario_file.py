@@ -29,6 +29,7 @@ the file when it can be found, and the condition.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -98,6 +99,61 @@ class ScenarioSpec:
         return ScenarioSpec(self.template, self.case, _validate(self.template.settings, values, source or self.source, None, ("settings",)), source or self.source)
 
 
+def _changed_paths(values: dict, defaults: dict, prefix: tuple = ()) -> list[tuple]:
+    """Paths (tuples of keys) where ``values`` differs from ``defaults``: nested tables
+    are followed, a vector counts as one value."""
+    paths = []
+    for key, value in values.items():
+        default = defaults.get(key) if isinstance(defaults, dict) else None
+        if isinstance(value, dict) and isinstance(default, dict):
+            paths += _changed_paths(value, default, prefix + (key,))
+        elif value != default:
+            paths.append(prefix + (key,))
+    return paths
+
+
+def blame(spec: "ScenarioSpec") -> tuple | None:
+    """The settings key whose value keeps ``spec`` from making a scenario: the first
+    key set away from the template's default whose default, put back alone, lets the
+    scenario be built (None when no single key does)."""
+    values = spec.settings.model_dump(mode="json")
+    defaults = spec.template.settings().model_dump(mode="json")
+    for path in _changed_paths(values, defaults)[:MAX_BLAMED_KEYS]:
+        trial = json.loads(json.dumps(values))
+        target, source = trial, defaults
+        for key in path[:-1]:
+            target, source = target[key], source[key]
+        target[path[-1]] = source[path[-1]]
+        try:
+            spec.template.build(validate_strictly(spec.template.settings, trial), spec.case)
+        except (ValueError, ValidationError):
+            continue
+        return path
+    return None
+
+
+#: At most this many changed keys are tried back at their defaults to find the one a
+#: failed build comes from (each try builds the scenario).
+MAX_BLAMED_KEYS = 24
+
+
+def build_located(spec: "ScenarioSpec", text: str | None = None):
+    """``spec.build()``; a ``ValueError`` from the components becomes a
+    :class:`FileError` naming the file's key that causes it (:func:`blame`), its line
+    and value, with the component's reason after it."""
+    try:
+        return spec.build()
+    except ValueError as error:
+        reason = " ".join(str(error).split())
+        path = blame(spec)
+        if path is None:
+            raise FileError(f"{spec.source}: settings: they make no scenario together ({spec.template.name}, case {spec.case}): {reason}") from None
+        value = spec.settings.model_dump(mode="json")
+        for key in path:
+            value = value[key]
+        raise located(spec.source, text, ("settings", *path), f"{json.dumps(value)} makes no scenario with the other settings: {reason}") from None
+
+
 def _location_text(location: tuple) -> str:
     text = ""
     for part in location:
@@ -113,11 +169,51 @@ def located(source: str, text: str | None, location: tuple, message: str) -> Fil
     return FileError(f"{source}: {_location_text(location)}{where}: {message}")
 
 
+def validate_strictly(model: type[BaseModel], values: dict) -> BaseModel:
+    """``model`` validated from a file's ``values`` in pydantic's strict mode: a number
+    must be a number (an integer is one), a boolean a boolean and a string a string
+    (``duration = true`` and ``duration = "100"`` are refused, not read as 1 s and
+    100 s). The values go through JSON, whose strict mode takes arrays for tuples; a
+    TOML date or time becomes a string, which no number or boolean accepts."""
+    text = json.dumps(values, allow_nan=True, default=lambda value: f"<a TOML {type(value).__name__}: {value}>")
+    return model.model_validate_json(text, strict=True)
+
+
 def _validate(model: type[BaseModel], values: dict, source: str, text: str | None, prefix: tuple) -> BaseModel:
     try:
-        return model.model_validate(values)
+        return validate_strictly(model, values)
     except ValidationError as error:
         raise FileError(describe(error, source, text, prefix)) from None
+
+
+#: pydantic's strict type errors, as the file's reader would say them.
+STRICT_TYPES = {
+    "float_type": "must be a number",
+    "int_type": "must be an integer (no decimal point)",
+    "bool_type": "must be true or false",
+    "string_type": "must be a string (in quotes)",
+    "tuple_type": "must be an array",
+    "list_type": "must be an array",
+    "dict_type": "must be a table",
+    "model_type": "must be a table",
+}
+
+
+def _as_toml(value) -> str:
+    """A value as it reads in a TOML file: ``true``, ``"100"``, ``2.0``, ``[1, 2]``."""
+    if isinstance(value, bool):
+        return f"{str(value).lower()} (a boolean)"
+    if isinstance(value, str) and value.startswith("<a TOML ") and value.endswith(">"):
+        return value[1:-1]
+    if isinstance(value, str):
+        return f"{json.dumps(value)} (a string)"
+    if isinstance(value, float):
+        return f"{value!r} (a number with a decimal point)"
+    if isinstance(value, (list, tuple)):
+        return f"an array of {len(value)}"
+    if isinstance(value, dict):
+        return "a table"
+    return repr(value)
 
 
 def describe(error: ValidationError, source: str, text: str | None, prefix: tuple = ()) -> str:
@@ -133,6 +229,8 @@ def describe(error: ValidationError, source: str, text: str | None, prefix: tupl
         location, message = location[:-1], f"too few entries (no entry [{location[-1]}])"
     elif first["type"] == "missing":
         message = "missing key"
+    elif first["type"] in STRICT_TYPES:
+        message = f"{STRICT_TYPES[first['type']]}; got {_as_toml(first.get('input'))}"
     elif "input" in first and first["type"] not in ("value_error", "assertion_error"):
         message = f"{message}; got {first['input']!r}"
     return str(located(source, text, location, message))
@@ -207,9 +305,18 @@ def from_document(document: dict, source: str = "<scenario>", text: str | None =
     return ScenarioSpec(template, case, _validate(template.settings, settings, source, text, ("settings",)), source)
 
 
+def read_spec(path: str | Path, *, runs: int | None = None, seed: int | None = None) -> tuple[ScenarioSpec, str]:
+    """:func:`load`, and the file's text (for :func:`build_located`)."""
+    document, text = read(path)
+    return _load_document(document, text, path, runs, seed), text
+
+
 def load(path: str | Path, *, runs: int | None = None, seed: int | None = None) -> ScenarioSpec:
     """Read and validate the scenario file at ``path``; ``runs`` and ``seed`` override its own."""
-    document, text = read(path)
+    return read_spec(path, runs=runs, seed=seed)[0]
+
+
+def _load_document(document: dict, text: str, path, runs: int | None, seed: int | None) -> ScenarioSpec:
     settings = dict(document.get("settings", {})) if isinstance(document.get("settings", {}), dict) else document.get("settings")
     if isinstance(settings, dict):
         if runs is not None:

@@ -47,6 +47,32 @@ def _version() -> str:
     return __version__
 
 
+def _short(value) -> str:
+    text = json.dumps(value, sort_keys=True)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def differences(held, given, prefix: str = "") -> list[str]:
+    """``key: held -> given`` for every dotted key where two campaign documents differ
+    (``scenario.settings.duration: 1500.0 -> 1000.0``), in key order."""
+    if isinstance(held, dict) and isinstance(given, dict):
+        result = []
+        for key in sorted(set(held) | set(given)):
+            name = f"{prefix}.{key}" if prefix else str(key)
+            if key not in held:
+                result.append(f"{name}: (absent) -> {_short(given[key])}")
+            elif key not in given:
+                result.append(f"{name}: {_short(held[key])} -> (absent)")
+            else:
+                result += differences(held[key], given[key], name)
+        return result
+    if isinstance(held, list) and isinstance(given, list) and len(held) == len(given):
+        return [line for i, (a, b) in enumerate(zip(held, given)) for line in differences(a, b, f"{prefix}[{i}]")]
+    if canonical_json({"v": held}) != canonical_json({"v": given}):
+        return [f"{prefix or 'the document'}: {_short(held)} -> {_short(given)}"]
+    return []
+
+
 class CampaignStore:
     """Open with :meth:`open_or_create`; write with :meth:`write_chunk`."""
 
@@ -58,24 +84,36 @@ class CampaignStore:
         return self.path / META / "chunks"
 
     # ------------------------------------------------------------------ creation
+    def holds(self, campaign: Campaign) -> bool:
+        """True when the store exists and holds ``campaign`` (a resume), False when there
+        is nothing at the path yet (or an empty folder); refused (ValueError) when it
+        holds another campaign (saying which keys differ) or is not a campaign store.
+        Writes nothing."""
+        if not self.path.exists():
+            return False
+        if not self.path.is_dir():
+            raise ValueError(f"{self.path} is a file, not a campaign store; give another --out")
+        held = self.campaign_document()
+        if held is None:
+            if any(self.path.iterdir()):
+                raise ValueError(f"{self.path} exists and is not a lookout campaign store; give another --out")
+            return False
+        if canonical_json(held) != campaign.canonical():
+            changed = differences(held, campaign.document())
+            shown = "; ".join(changed[:5]) + (f"; and {len(changed) - 5} more" if len(changed) > 5 else "")
+            raise ValueError(
+                f"{self.path} holds another campaign (fingerprint {self.fingerprint()}, this spec's is {campaign.fingerprint()}): "
+                f"{shown}; resume it with its own spec, or give another --out"
+            )
+        return True
+
     @classmethod
     def open_or_create(cls, path: str | Path, campaign: Campaign) -> "CampaignStore":
         """The store at ``path`` for ``campaign``: created if missing; refused (ValueError)
         if it holds another campaign or is not a campaign store."""
         store = cls(path)
-        if store.path.exists():
-            held = store.campaign_document()
-            if held is None:
-                if any(store.path.iterdir()):
-                    raise ValueError(f"{store.path} exists and is not a lookout campaign store; give another --out")
-            elif canonical_json(held) != campaign.canonical():
-                raise ValueError(
-                    f"{store.path} holds another campaign (fingerprint {store.fingerprint()}, this spec's is {campaign.fingerprint()}); "
-                    "resume it with its own spec, or give another --out"
-                )
-            else:
-                return store
-        store._create(campaign)
+        if not store.holds(campaign):
+            store._create(campaign)
         return store
 
     def _create(self, campaign: Campaign) -> None:
@@ -126,8 +164,22 @@ class CampaignStore:
         # the metadata group: the campaign (spec with the scenario inlined) and version as
         # attributes, the per-chunk records as files beside; xarray skips a subgroup
         zarr.open_group(str(self.path / META), mode="w", attributes={"campaign": campaign.canonical(), "lookout_version": _version()})
+        self.consolidate()
         (self.path / META / "chunks").mkdir(parents=True, exist_ok=True)
         self._atomic_write(self.path / META / "campaign.json", json.dumps(campaign.document(), indent=1, sort_keys=True))
+
+    def consolidate(self) -> None:
+        """Consolidate the Zarr metadata (it does not change after creation), so that
+        ``xarray.open_zarr(STORE)`` opens the store without a warning."""
+        import warnings
+
+        import zarr
+
+        with warnings.catch_warnings():
+            # Zarr v3 has no consolidated metadata in its specification yet, and the
+            # _lookout group's JSON files are not Zarr nodes: both are said at each call
+            warnings.simplefilter("ignore", UserWarning)
+            zarr.consolidate_metadata(str(self.path))
 
     # ------------------------------------------------------------------ reading
     def campaign_document(self) -> dict | None:
@@ -169,17 +221,23 @@ class CampaignStore:
         record_path = self.records / f"{chunk.key}.json"
         if record_path.exists():
             raise ValueError(f"{chunk.key} of {self.path} is already written")
-        if getattr(self, "_group", None) is None:
-            self._group = zarr.open_group(str(self.path), mode="r+")
-        group = self._group
-        start = chunk.block * campaign.chunk_runs
-        region = slice(start, start + len(chunk.seeds))
-        for name, values in result.items():
-            if name in ("seconds", "compiled"):
-                continue
-            array = group[name]
-            values = np.asarray(values, dtype=np.float64)
-            array[chunk.point, region, ...] = values
+        try:
+            if getattr(self, "_group", None) is None:
+                self._group = zarr.open_group(str(self.path), mode="r+")
+            group = self._group
+            start = chunk.block * campaign.chunk_runs
+            region = slice(start, start + len(chunk.seeds))
+            for name, values in result.items():
+                if name in ("seconds", "compiled"):
+                    continue
+                array = group[name]
+                values = np.asarray(values, dtype=np.float64)
+                array[chunk.point, region, ...] = values
+            self._write_record(chunk, result, worker, record_path)
+        except OSError as error:
+            raise OSError(error.errno, f"cannot write {chunk.key} into the campaign store {self.path}: {error.strerror or error}") from None
+
+    def _write_record(self, chunk: Chunk, result: dict, worker: str, record_path: Path) -> None:
         record = {
             "chunk": chunk.index,
             "point": chunk.point,
