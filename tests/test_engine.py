@@ -15,6 +15,8 @@ import scipy.linalg
 import scipy.signal
 import xarray as xr
 
+import lookout
+
 from lookout import DPVessel, GaussMarkovBias, LinearWaveModel, PositionHeadingSensor, SinusoidalInput, VesselPlant, VesselState
 from lookout.components import Controller
 from lookout.papers import fossen_strand_1999 as fs
@@ -311,14 +313,39 @@ def test_sizes_from_the_caller_are_checked_against_memory_before_anything_is_all
     with pytest.raises(ValueError, match=r"^seeds: 1000000000000 keys x 52 B would need about 52 TB of memory"):
         keys_of_seeds(range(10**12))
     scenario = fs.build(fs.Config(duration=100.0))
-    # 1000 runs x 1000 records x 296 B, twice: 592 MB
-    with pytest.raises(ValueError, match=r"^keys: 1000 run\(s\) x 1000 records x 296 B \(x2 at the peak\) would need about 592 MB of memory, and 100 MB are available"):
+    # 1000 records x (1000 runs x 296 B, twice, + 32 B): 592 MB
+    with pytest.raises(ValueError, match=r"^keys: 1000 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 592 MB of memory, and 100 MB are available"):
         check_batch_memory(scenario, 1000, available=100e6)
     monkeypatch.setattr(_resources, "available_memory", lambda: 1_000_000)
-    with pytest.raises(ValueError, match=r"^keys: 4 run\(s\) x 1000 records x 296 B \(x2 at the peak\) would need about 2.37 MB of memory, and 1 MB are available"):
+    with pytest.raises(ValueError, match=r"^keys: 4 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 2.4 MB of memory, and 1 MB are available"):
         simulate_batch(scenario, jax.random.split(jax.random.key(0), 4))
     monkeypatch.setattr(_resources, "available_memory", lambda: 500_000)
-    with pytest.raises(ValueError, match=r"^scenario: 1 run\(s\) x 1000 records x 296 B \(x2 at the peak\) would need about 592 kB of memory, and 500 kB are available"):
+    with pytest.raises(ValueError, match=r"^scenario: 1 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 624 kB of memory, and 500 kB are available"):
         simulate(scenario, jax.random.key(0))
     with pytest.raises(ValueError, match=r"^scenarios: 10000 stacked x \d+ B of arrays would need about"):
         stack_scenarios([scenario] * 10000)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda sc: simulate(sc, lookout.seed_keys(0, 1)), r"^key must be one JAX PRNG key .*got an array of shape \(1,\) and dtype key<fry>: a batch of keys goes to simulate_batch$"),
+        (lambda sc: simulate(sc, 0), r"^key must be one JAX PRNG key .*got int$"),
+        (lambda sc: simulate(None, jax.random.key(0)), r"^scenario must be a lookout Scenario .*got NoneType$"),
+        (lambda sc: lookout.simulate_batch(sc, lookout.seed_keys(0, 1)[0]), r"^keys must be a 1-D batch of JAX PRNG keys, one per run .*got an array of shape \(\)"),
+        (lambda sc: lookout.simulate_batch(sc, [0, 1, 2]), r"^keys must be a 1-D batch .*got list$"),
+        (lambda sc: lookout.simulate_batch(lookout.stack_scenarios([sc] * 4), lookout.seed_keys(0, 3), batched_scenario=True),
+         r"^scenario: with batched_scenario=True every array of the scenario needs a leading run axis of 3 \(one per key\); its arrays lead with 4$"),
+        (lambda sc: lookout.simulate_batch(lookout.stack_scenarios([sc] * 5), lookout.seed_keys(0, 5)),
+         r"^scenario: plant and initial_state disagree: .*; a scenario stacked per run \(stack_scenarios\) needs batched_scenario=True$"),
+        (lambda sc: lookout.stack_scenarios([sc, fs.build(fs.Config(duration=30.0))]), r"^scenarios\[1\] differs from scenarios\[0\] in its structure"),
+        (lambda sc: lookout.stack_scenarios([]), r"^scenarios must be a non-empty list of Scenarios; got \[\]$"),
+        (lambda sc: lookout.stack_scenarios([sc, "x"]), r"^scenarios\[1\] must be a lookout Scenario; got str$"),
+        (lambda sc: lookout.seed_keys(0, True), r"^runs must be a positive integer; got True$"),
+    ],
+    ids=lambda value: "" if callable(value) else value[:30],
+)
+def test_the_simulation_api_refuses_what_it_cannot_run_in_one_line(call, message):
+    with pytest.raises(ValueError, match=message) as raised:
+        call(fs.build(fs.Config(duration=20.0)))
+    assert "\n" not in str(raised.value)

@@ -96,6 +96,8 @@ BAD_LOGS = [
     ({"guess_eta": np.zeros(2)}, r"guess.eta must have shape \(3,\) \(as in observer.guess\(\)\); got shape \(2,\)"),
     ({"guess_eta": np.full(3, np.nan)}, r"guess.eta must be finite"),
     ({"measurement_layout": POSITION_HEADING.renamed(suffix="_x").__class__(POSITION_HEADING.signals[:1])}, r"measurement_layout must have 3 entries \(the observer reads measured_position, measured_heading\); got 2"),
+    ({"measurements": np.zeros((3, 3)) + 1j}, r"measurements must hold real numbers; got complex numbers"),
+    ({"times": ["0", "0.1", "0.2"]}, r"times must hold real numbers; got text"),
 ]
 
 
@@ -110,6 +112,21 @@ def test_filter_refuses_a_bad_log_naming_the_argument(recorded, kwargs, message)
     with pytest.raises(ValueError, match=message) as raised:
         lookout.filter(observer, args.pop("times"), args.pop("measurements"), args.pop("inputs"), **args)
     assert "\n" not in str(raised.value)
+
+
+def test_filter_names_a_bad_observer_takes_an_integer_guess_and_warns_where_the_estimates_stop_being_finite(recorded):
+    scenario, trajectory, _ = recorded
+    observer = scenario.observer
+    for bad in (None, scenario):
+        with pytest.raises(ValueError, match=r"observer must be a lookout Observer \(a scenario's is scenario.observer\); got"):
+            lookout.filter(bad, [0.0, 0.1], np.zeros((2, 3)))
+    times, ys = np.asarray(trajectory.time)[:40], np.asarray(trajectory.measurement)[:40].copy()
+    integer = lookout.filter(observer, times, ys, guess=_guess_with(observer, eta=np.zeros(3, dtype=int)))
+    np.testing.assert_array_equal(integer.position_hat.values, lookout.filter(observer, times, ys).position_hat.values)
+    ys[10, 0] = 1e306  # one absurd sample: the estimates overflow after it, and the user is told where
+    with pytest.warns(RuntimeWarning, match=r"the estimates are not finite from row 11 \(t = 1.1 s\) on, after row 10's measurement \[ ?1.0000e\+306"):
+        log = lookout.filter(observer, times, ys)
+    assert log.status.values.tolist() == ["diverged"]
 
 
 def test_a_discrete_time_observer_needs_rows_one_sample_period_apart():
@@ -157,6 +174,8 @@ BAD_CALLS = [
     ((0.1, [0.0, 0.0], [0.0, 0.0, 0.0], 0.1), r"y must have 3 entries"),
     ((0.1, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 100.0), r"dt: a step of 100 s is too long for this observer: one prediction step multiplies a state error by"),
     ((0.1, [1e306, 0.0, 0.0], [0.0, 0.0, 0.0], 0.1), r"the step at t = 0.1 s over dt = 0.1 s gives a non-finite state or estimate; refused, the state is kept as it was"),
+    ((0.1, "abc", [0.0, 0.0, 0.0], 0.1), r"y must hold real numbers; got text"),
+    (("0.1", [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 0.1), r"t must hold real numbers"),
 ]
 
 

@@ -103,6 +103,9 @@ def _line_of(text: str, key: str | None) -> int | None:
         ("runs = 1", "runs = 2.0", "settings.runs (line {line}): must be an integer (no decimal point); got 2.0 (a number with a decimal point)"),
         ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, false, 0.1]", "settings.noise_std[1] (line {line}): must be a number; got false (a boolean)"),
         ("dropout_probability = 0.0", "dropout_probability = 1979-05-27", "settings.dropout_probability (line {line}): must be a number; got a TOML date: 1979-05-27"),
+        ("bias_initial = [10000.0, 5000.0, 100000.0]", "bias_initial = [inf, 5000.0, 100000.0]", "settings.bias_initial[0] (line {line}): must be finite; got inf"),
+        ("runs = 1", "runs = 99999999999999999999", "settings.runs (line {line}): must be at most 9223372036854775808"),
+        ("measurement_period = 1.0", "measurement_period = -1.0", "settings.measurement_period (line {line}): must be a finite positive number; got -1"),
         # damping that feeds energy in is no vessel
         ('model = "northern-clipper"', 'model = "custom"\nmass_matrix = [[5.3e6, 0, 0], [0, 8.3e6, 0], [0, 0, 3.7e9]]\ndamping_matrix = [[5.0e4, 0, 0], [0, 2.7e5, -4.4e7], [0, -4.4e7, 4.2e8]]',
          "settings.vessel.damping_matrix (line {line}): must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); the smallest eigenvalue of (D + D^T)/2 is -4.29e+06"),
@@ -242,6 +245,11 @@ def test_an_axis_over_the_case_sweeps_the_templates_cases():
         ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].values (line {line}): 'papers' is no case of fossen-strand-1999 (its cases: paper)"),
         ({"sweep": {"axes": [{"field": "case", "range": [0.0, 1.0], "steps": 2}]}}, "sweep.axes[0].field (line {line}): an axis over the case takes values (case names), alone, without scale"),
         ({"seeds_per_point": "8"}, 'seeds_per_point (line {line}): must be an integer (no decimal point); got "8" (a string)'),
+        ({"scenario": 5}, "scenario (line {line}): must be a string (in quotes); got 5"),
+        ({"sweep": {"axes": [{"field": "seed", "values": [1, 2]}]}}, "sweep: axes[0]: a campaign runs seeds_per_point seeds from seed at every point; 'seed' cannot be swept"),
+        ({"sweep": {"points": 5, "axes": [{"field": "wave_frequency", "values": [0.6, 0.8]}]}}, "sweep: points is for a latin-hypercube"),
+        ({"sweep": {"axes": [{"field": "wave_frequency", "values": [0.6, 0.8], "name": "point"}]}}, "sweep: axis name 'point' is taken by the store"),
+        ({"sweep": {"axes": [{"field": "wave_frequency", "values": [0.6, 0.8], "name": "rms_error__position"}]}}, "sweep: axis name 'rms_error__position' is taken by the store"),
         ({"after": 100.0}, "after (line {line}): 100 s is past the end of the run (29.9 s): the metrics would have no record"),
         ({"sweep": {"axes": [{"field": "duration", "values": [200.0, 20.0]}]}, "after": 25.0},
          "sweep.axes[0].values (line {line}): value 20.0: after (25 s) is past the end of that run (19.9 s)"),
@@ -429,7 +437,7 @@ def test_two_local_workers_give_the_one_process_store_even_when_a_worker_is_kill
 def test_a_chunk_that_does_not_fit_a_worker_is_refused_with_the_numbers(campaign_files, tmp_path):
     folder, spec = campaign_files
     campaign = load_campaign(spec)
-    with pytest.raises(ValueError, match=r"chunk_runs 3 needs about .* per chunk \(3 runs x 300 records x 296 B x 4, \+ 600 MB runtime\), and a worker has 100 MB"):
+    with pytest.raises(ValueError, match=r"chunk_runs 3 needs about .* per chunk \(300 records x \(3 runs x 296 B x 4 \+ 32 B\), \+ 600 MB runtime\), and a worker has 100 MB"):
         run_campaign(campaign, tmp_path / "small.zarr", workers=0, say=lambda text: None, available_memory=lambda: 100e6)
 
 
@@ -472,6 +480,19 @@ def test_lookout_run_refuses_a_billion_runs_before_making_anything(tmp_path, cap
     assert code == 2 and err.count("\n") == 1, err
     assert err.startswith("error: --runs 1000000000 over settings.duration 30 would need about ") and "use fewer --runs" in err, err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_folder_in_the_way_of_an_output_is_found_before_simulating(tmp_path, capsys):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(_scenario_text(tmp_path, capsys))
+    (tmp_path / "out" / "summary.json").mkdir(parents=True)
+    code, _, err = _run_cli(["run", str(scenario), "--out", str(tmp_path / "out")], capsys)
+    assert code == 2 and err == f"error: --out: {tmp_path / 'out' / 'summary.json'} is a folder, and lookout run writes the file summary.json there; give another --out\n", err
+    assert _tree_of(tmp_path / "out") == ["summary.json"]
+
+
+def _tree_of(folder: Path) -> list[str]:
+    return sorted(str(path.relative_to(folder)) for path in folder.rglob("*"))
 
 
 def test_a_scheduler_address_without_a_port_blames_the_option(campaign_files, tmp_path, capsys):
@@ -538,3 +559,19 @@ def test_a_store_opens_with_xarray_without_a_warning(campaign_files, tmp_path):
         warnings.simplefilter("error")
         ds = xr.open_zarr(store)
     assert "rms_error__position" in ds
+
+
+def test_settings_are_as_strict_in_python_as_in_a_file():
+    from pydantic import ValidationError
+
+    for changes, message in (
+        ({"duration": "100"}, "Input should be a valid number"),
+        ({"duration": True}, "Input should be a valid number"),
+        ({"runs": 2.0}, "Input should be a valid integer"),
+        ({"bias_initial": (float("inf"), 0.0, 0.0)}, "must be finite; got inf"),
+    ):
+        with pytest.raises(ValidationError, match=message):
+            fossen_strand_1999.Config(**changes)
+    # arrays may be lists or NumPy arrays, numbers NumPy scalars
+    config = fossen_strand_1999.Config(noise_std=np.array([0.1, 0.2, 0.3]), duration=np.float64(100.0), runs=np.int64(2))
+    assert config.noise_std == (0.1, 0.2, 0.3) and config.duration == 100.0 and config.runs == 2

@@ -123,6 +123,7 @@ _PUBLIC = {
     "seed_keys": ".sim",
     "simulate": ".sim",
     "simulate_batch": ".sim",
+    "stack_scenarios": ".sim",
 }
 __all__ = ["SMALL_LOOP_BYTES", "configure_cpu", "__version__", *_PUBLIC]
 

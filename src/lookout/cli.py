@@ -147,7 +147,7 @@ def _output_folder(option: str, text: str) -> Path:
             raise InputError(f"{option} must be a folder; {folder} is an existing file")
         _writable_folder(option, folder, "the results")
     else:
-        _writable_folder(option, folder.absolute().parent, f"--out {text}")
+        _writable_folder(option, folder.absolute().parent, f"{option} {text}")
     return folder
 
 
@@ -254,22 +254,30 @@ def _model_error(text: str) -> dict:
     return result
 
 
-def _check_memory(batches, runs_option: str = "--runs", duration_option: str = "--duration") -> None:
+def _check_memory(batches, runs_option: str = "--runs", duration_option: str = "--duration", runs: int | None = None) -> None:
     """Refuse a study whose records would not fit in memory, before simulating.
 
     ``batches`` are (scenario, runs) simulated one after another, so the largest
-    one sets the peak. Nothing that grows with the runs exists yet when this runs.
+    one sets the peak; ``runs`` is what the user asked for (a reproduction may batch
+    more, e.g. both of Kim's observers). Nothing that grows with the runs exists yet
+    when this runs.
     """
     from lookout.sim import record_nbytes
+    from lookout.sim.engine import RECORD_OVERHEAD_BYTES
 
-    scenario, runs = max(batches, key=lambda pair: pair[1] * pair[0].n_records * record_nbytes(pair[0]))
-    per_record = record_nbytes(scenario)
-    need = PEAK_MEMORY_PER_RECORD_BYTE * runs * scenario.n_records * per_record
+    def need_of(pair):
+        scenario, count = pair
+        return scenario.n_records * (PEAK_MEMORY_PER_RECORD_BYTE * count * record_nbytes(scenario) + RECORD_OVERHEAD_BYTES)
+
+    scenario, batch = max(batches, key=need_of)
+    need = need_of((scenario, batch))
+    runs = batch if runs is None else runs
     available = available_memory()
     if available is not None and need > available:
+        largest = "" if batch == runs else "its largest batch: "
         raise InputError(
             f"{runs_option} {runs} over {duration_option} {scenario.duration:g} would need about {format_bytes(need)} of memory "
-            f"({runs} run(s) x {scenario.n_records} records x {per_record} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results), "
+            f"({largest}{batch} run(s) x {scenario.n_records} records x {record_nbytes(scenario)} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results), "
             f"and {format_bytes(available)} are available: use fewer {runs_option} or a shorter {duration_option}"
         )
 
@@ -347,7 +355,7 @@ def reproduce(
     if write_scenario is not None:
         _write_scenario(name, config, write_scenario)
         return
-    _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)])
+    _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)], runs=config.runs)
     folder = _created_folder("--out", f"out/{name}" if out is None else out)
     with _simulating() as progress:
         summary = module.run(config, folder, progress=progress)

@@ -190,6 +190,8 @@ def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written") 
     try:
         ds.to_netcdf(partial, engine="netcdf4", encoding=encoding)
         os.replace(partial, path)
+    except OSError as error:
+        raise OSError(error.errno, f"cannot write {path}: {error.strerror or error}") from None
     finally:
         partial.unlink(missing_ok=True)
     return path

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import math
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
 from lookout.sim import MAX_SEED, integer_ratio
@@ -19,9 +21,12 @@ MAX_SAMPLES = 2**32
 
 
 def positive_count(value: int) -> int:
-    """``value`` if it is a positive integer (a number of runs or seeds)."""
+    """``value`` if it is a positive integer (a number of runs or seeds) that seeds can
+    count (at most 2^63: a JAX key takes a signed 64-bit seed)."""
     if value < 1:
         raise ValueError(f"must be a positive integer; got {value}")
+    if value > MAX_SEED + 1:
+        raise ValueError(f"must be at most {MAX_SEED + 1} (each run has its own signed 64-bit seed); got {value}")
     return value
 
 
@@ -43,18 +48,68 @@ def seed_for_runs(seed: int, runs: int) -> int:
 
 
 def whole_samples(duration: float, period: float | None, what: str = "the observer's sample period") -> float:
-    """``duration`` if it is a whole number of ``period`` (unchecked when the period itself failed)."""
-    if period is not None and integer_ratio(duration, period) is None:
+    """``duration`` if it is a whole number of ``period`` (unchecked when the period itself
+    failed, or when ``duration`` is not a positive number: its own check says so)."""
+    if period is not None and math.isfinite(duration) and duration > 0 and integer_ratio(duration, period) is None:
         raise ValueError(f"must be a whole multiple of {what} ({period:g} s); got {duration:g} s")
     return duration
 
 
-class RunsConfig(BaseModel):
-    """The part every reproduction's Config shares: frozen, no unknown fields, ``runs``
+def _plain(value):
+    """Lists and arrays as tuples, NumPy scalars as Python ones: what strict validation
+    takes for a tuple or a number."""
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return tuple(_plain(item) for item in value)
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _first_non_finite(value, location: tuple) -> tuple | None:
+    if isinstance(value, float):
+        return None if math.isfinite(value) else location
+    if isinstance(value, tuple):
+        for index, item in enumerate(value):
+            found = _first_non_finite(item, location + (index,))
+            if found is not None:
+                return found
+    return None
+
+
+class Settings(BaseModel):
+    """Settings as a user gives them, in a file or in Python: frozen, no unknown keys, and
+    strictly typed (pydantic's strict mode: a number must be a number, ``True`` and
+    ``"100"`` are not; arrays may be lists or NumPy arrays), every number finite."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _arrays_as_tuples(cls, data):
+        if isinstance(data, dict):
+            return {key: value if isinstance(value, dict) else _plain(value) for key, value in data.items()}
+        return data
+
+    @model_validator(mode="after")
+    def _every_number_finite(self):
+        for name in type(self).model_fields:
+            value = getattr(self, name)
+            location = _first_non_finite(value, (name,))
+            if location is not None:
+                bad = value
+                for index in location[1:]:
+                    bad = bad[index]
+                detail = InitErrorDetails(type=PydanticCustomError("not_finite", "must be finite; got {value}", {"value": bad}), loc=location, input=bad)
+                raise ValidationError.from_exception_data(type(self).__name__, [detail])
+        return self
+
+
+class RunsConfig(Settings):
+    """The part every reproduction's Config shares: :class:`Settings`, ``runs``
     vmapped runs over seeds ``seed .. seed + runs - 1``, each a valid JAX key. Subclasses
     may redeclare ``runs`` or ``seed`` for their own description; the checks stay."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     runs: int = Field(1, description="Monte Carlo runs (vmapped); run i uses seed + i")
     seed: int = Field(0, description="PRNG seed of run 0")
@@ -118,7 +173,7 @@ Matrix3 = tuple[Row3, Row3, Row3]
 VESSELS = ("northern-clipper",)
 
 
-class VesselSettings(BaseModel):
+class VesselSettings(Settings):
     """The vessel of a DP scenario: a built-in model by name, or the user's own matrices.
 
     ``model = "northern-clipper"`` is Fossen & Strand (1999), eqs. (56)–(57).
@@ -126,8 +181,6 @@ class VesselSettings(BaseModel):
     definite: assumption A1) and ``damping_matrix`` (D) in SI units (kg, kg m^2,
     kg/s, ...). ``mass`` and ``length`` scale the normalized ("bis") gains to SI.
     """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     model: str = Field("northern-clipper", description="'northern-clipper' (Fossen & Strand 1999, eqs. 56-57) or 'custom' (give mass_matrix and damping_matrix)")
     mass_matrix: Matrix3 | None = Field(None, description="M (3x3, SI, symmetric positive definite), only with model = 'custom'")

@@ -113,7 +113,7 @@ class Config(NoiseFreeConfig):
     """Settings of the reproduction; the runs themselves are :func:`simulations`."""
 
     # defaults are validated too: a changed plant_step must still divide the default sample_period
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    model_config = ConfigDict(validate_default=True)  # merged with Settings: frozen, strict, no unknown keys
 
     plant_step: float = Field(2e-4, description="RK4 step of plant and estimator (s); Sim 2 is stiff")
     sample_period: float = Field(1e-2, description="input hold and record period (s)")

@@ -42,7 +42,7 @@ from typing import Callable
 
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.actuators import NORTHERN_CLIPPER_THRUST_LIMIT, SaturatingActuator
 from lookout.analysis import estimation_errors
@@ -52,7 +52,7 @@ from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveMode
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.observers.sliding_mode import KIM_2002_BIAS_GAIN, KIM_2002_BIAS_TIME_CONSTANT, KIM_2002_SWITCHING_GAIN, KIM_2002_VELOCITY_GAIN, KIM_2002_WAVE
-from lookout.papers._config import RunsConfig, VesselSettings, finite_positive, positive_count, whole_samples
+from lookout.papers._config import RunsConfig, Settings, VesselSettings, finite_positive, positive_count, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.reference import ReferenceFilter
@@ -91,10 +91,8 @@ def gain_sets(mass: float = NORTHERN_CLIPPER_MASS, length: float = NORTHERN_CLIP
     }
 
 
-class ModelError(BaseModel):
+class ModelError(Settings):
     """How the plant differs from the observer's and controller's model."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     mass: float = Field(0.2, description="relative error of M: M_true = (1 + mass) M")
     damping: float = Field(0.5, description="relative error of D: D_true = (1 + damping) D")

@@ -577,6 +577,8 @@ def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20)
     Trajectory
         Recorded truths, estimates, measurements, references and inputs, with time.
     """
+    _checked_scenario(scenario)
+    key = checked_key(key)
     check_batch_memory(scenario, 1, "scenario")
     step = lambda carry, first, length: _segment_jit(scenario, key, carry, first, length)
     records = _run(step, _initial_carry_jit(scenario, key), scenario.n_records, progress, chunks, time_axis=0)
@@ -591,9 +593,20 @@ def stack_scenarios(scenarios: list[Scenario]) -> Scenario:
     """Scenarios that differ only in their arrays (gains, masses, model errors) as one
     scenario with a leading run axis, for ``simulate_batch(..., batched_scenario=True)``.
 
-    Their static structure (periods, durations, component types, sizes) must be equal;
-    jax.tree.map says which leaf differs otherwise.
+    Their static structure (periods, durations, component types, sizes) must be equal.
     """
+    if not isinstance(scenarios, (list, tuple)) or not scenarios:
+        raise ValueError(f"scenarios must be a non-empty list of Scenarios; got {scenarios!r:.60}")
+    for index, scenario in enumerate(scenarios):
+        if not isinstance(scenario, Scenario):
+            raise ValueError(f"scenarios[{index}] must be a lookout Scenario; got {type(scenario).__name__}")
+    first = jax.tree.structure(scenarios[0])
+    for index, scenario in enumerate(scenarios[1:], start=1):
+        if jax.tree.structure(scenario) != first or [np.shape(a) for a in jax.tree.leaves(scenario)] != [np.shape(a) for a in jax.tree.leaves(scenarios[0])]:
+            raise ValueError(
+                f"scenarios[{index}] differs from scenarios[0] in its structure (periods, durations, component types or sizes): "
+                "stacked scenarios may differ in their numbers only"
+            )
     if scenarios:
         leaves = [leaf for leaf in jax.tree.leaves(scenarios[0]) if eqx.is_array_like(leaf)]
         per_run = sum(np.asarray(leaf).nbytes for leaf in leaves)
@@ -633,7 +646,7 @@ def seed_keys(seed: int, runs: int) -> Array:
     Array
         ``runs`` keys, shape (runs,).
     """
-    if not (isinstance(runs, int) and runs >= 1):
+    if not (isinstance(runs, int) and not isinstance(runs, bool) and runs >= 1):
         raise ValueError(f"runs must be a positive integer; got {runs!r}")
     if not (isinstance(seed, int) and 0 <= seed <= MAX_SEED - runs + 1):
         raise ValueError(f"seed must be an integer from 0 to {MAX_SEED - runs + 1} (seeds seed ... seed + runs - 1 must fit a signed 64-bit integer); got {seed!r}")
@@ -655,16 +668,70 @@ def record_nbytes(scenario: Scenario) -> int:
 RECORD_COPIES = 2
 #: Bytes a key and its seed take while :func:`seed_keys` makes them.
 KEY_BYTES = 16
+#: Bytes a run's scan holds per record whatever the number of runs (the record times
+#: and indices, a metric window): measured about 20 B (a 3e7-record summary held
+#: 0.55 GB above the runtime).
+RECORD_OVERHEAD_BYTES = 32
+
+
+def _describe_key(value) -> str:
+    if isinstance(value, jax.Array):
+        return f"an array of shape {value.shape} and dtype {value.dtype}"
+    return type(value).__name__
+
+
+def _is_typed_key(value) -> bool:
+    return isinstance(value, jax.Array) and jnp.issubdtype(value.dtype, jax.dtypes.prng_key)
+
+
+def _is_raw_key(value, batch: bool) -> bool:
+    return isinstance(value, jax.Array) and value.dtype == jnp.uint32 and value.ndim == (2 if batch else 1) and value.shape[-1] == 2
+
+
+def checked_key(key) -> Array:
+    """``key`` if it is one PRNG key (typed, or a raw uint32 pair); else a ValueError."""
+    if (_is_typed_key(key) and key.ndim == 0) or _is_raw_key(key, batch=False):
+        return key
+    hint = ": a batch of keys goes to simulate_batch" if (_is_typed_key(key) and key.ndim == 1) or _is_raw_key(key, batch=True) else ""
+    raise ValueError(f"key must be one JAX PRNG key (jax.random.key(seed), or lookout.seed_keys(seed, 1)[0]); got {_describe_key(key)}{hint}")
+
+
+def checked_keys(keys) -> Array:
+    """``keys`` if it is a 1-D batch of PRNG keys; else a ValueError."""
+    if (_is_typed_key(keys) and keys.ndim == 1 and keys.shape[0] >= 1) or (_is_raw_key(keys, batch=True) and keys.shape[0] >= 1):
+        return keys
+    raise ValueError(f"keys must be a 1-D batch of JAX PRNG keys, one per run (lookout.seed_keys(seed, runs)); got {_describe_key(keys)}")
+
+
+def _checked_scenario(scenario, keys: Array | None = None, batched_scenario: bool = False) -> None:
+    """Refuse, in one line, a scenario that is not one, a batched scenario whose run axis
+    is not the keys', and a scenario stacked per run given without ``batched_scenario``."""
+    if not isinstance(scenario, Scenario):
+        raise ValueError(f"scenario must be a lookout Scenario (lookout.sim.Scenario, or a paper's build(config)); got {type(scenario).__name__}")
+    arrays = [leaf for leaf in jax.tree.leaves(eqx.filter(scenario, eqx.is_array))]
+    leading = {int(leaf.shape[0]) if leaf.ndim else None for leaf in arrays}
+    if batched_scenario:
+        runs = int(keys.shape[0])
+        if leading != {runs}:
+            shown = ", ".join("scalars" if size is None else str(size) for size in sorted(leading, key=lambda size: -1 if size is None else size))
+            raise ValueError(f"scenario: with batched_scenario=True every array of the scenario needs a leading run axis of {runs} (one per key); its arrays lead with {shown}")
+        check_fit(jax.tree.map(lambda leaf: leaf[0], scenario))
+        return
+    try:
+        check_fit(scenario)
+    except ValueError as error:
+        stacked = len(leading) == 1 and None not in leading and len(arrays) > 1
+        raise ValueError(f"scenario: {error}" + ("; a scenario stacked per run (stack_scenarios) needs batched_scenario=True" if stacked else "")) from None
 
 
 def check_batch_memory(scenario: Scenario, runs: int, argument: str = "keys", available: float | None = None) -> None:
     """Refuse (ValueError naming ``argument``) a batch of ``runs`` whose records cannot
     fit in the memory available now, before anything is allocated."""
     per_record = record_nbytes(scenario)
-    need = RECORD_COPIES * runs * scenario.n_records * per_record
+    need = scenario.n_records * (RECORD_COPIES * runs * per_record + RECORD_OVERHEAD_BYTES)
     refuse_unless_it_fits(
         need,
-        f"{argument}: {runs} run(s) x {scenario.n_records} records x {per_record} B (x{RECORD_COPIES} at the peak)",
+        f"{argument}: {runs} run(s) x {scenario.n_records} records x {per_record} B (x{RECORD_COPIES} at the peak, + {RECORD_OVERHEAD_BYTES} B per record)",
         "simulate fewer runs at a time, a shorter duration, or fewer records (record_every); a campaign (lookout.studies) runs them in chunks",
         available=available,
     )
@@ -707,6 +774,8 @@ def summarize_batch(scenario: Scenario, keys: Array, summary: Summary, *, batche
         of ``scenario.n_records``), left where they were computed (sharded across
         devices when there are several).
     """
+    keys = checked_keys(keys)
+    _checked_scenario(scenario, keys, batched_scenario)
     scenario, keys, carry = _sharded_batch(scenario, keys, batched_scenario)
     return _segment_batch(scenario, keys, carry, jnp.asarray(0), scenario.n_records, batched_scenario, summary)[1]
 
@@ -734,7 +803,9 @@ def simulate_batch(
     Trajectory
         With a leading run axis on every recorded array.
     """
-    check_batch_memory(scenario, int(np.shape(keys)[0]))
+    keys = checked_keys(keys)
+    _checked_scenario(scenario, keys, batched_scenario)
+    check_batch_memory(scenario, int(keys.shape[0]))
     scenario, keys, carry = _sharded_batch(scenario, keys, batched_scenario)
 
     def step(carry, first, length):

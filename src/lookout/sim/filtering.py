@@ -14,6 +14,8 @@ recorded measurements and inputs gives the simulation's estimates.
 
 from __future__ import annotations
 
+import warnings
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -40,6 +42,19 @@ def _describe(tree) -> str:
     return f"{type(tree).__name__} with {', '.join(parts)}" if parts else type(tree).__name__
 
 
+def real_array(name: str, value) -> np.ndarray:
+    """``value`` as a float64 array, or a ValueError naming ``name`` (text, complex numbers
+    and objects are not measurements)."""
+    try:
+        array = np.asarray(value)
+    except Exception as error:  # ragged sequences
+        raise ValueError(f"{name} must be an array of numbers; {error}") from None
+    if array.dtype.kind not in "iuf":
+        kinds = {"b": "booleans", "c": "complex numbers", "U": "text", "S": "text", "O": "objects", "M": "dates", "m": "time spans"}
+        raise ValueError(f"{name} must hold real numbers; got {kinds.get(array.dtype.kind, array.dtype.name)}")
+    return array.astype(float)
+
+
 def checked_guess(observer: Observer, guess):
     """``guess``, or the observer's own ``guess()`` when it is None; refused (ValueError
     naming ``guess``) unless it has the structure of ``observer.guess()`` with leaves
@@ -59,9 +74,10 @@ def checked_guess(observer: Observer, guess):
             shape = None
         if shape != np.shape(wanted):
             raise ValueError(f"{name} must have shape {np.shape(wanted)} (as in observer.guess()); got shape {np.shape(given)}")
-        if not np.all(np.isfinite(np.asarray(given, dtype=float))):
+        if not np.all(np.isfinite(real_array(name, given))):
             raise ValueError(f"{name} must be finite; got {np.asarray(given).tolist()}")
-    return guess
+    # every leaf in the observer's own dtype: an integer guess would change the state's types
+    return jax.tree.map(lambda leaf, wanted: jnp.asarray(leaf, dtype=jnp.result_type(wanted)), guess, expected)
 
 
 def _columns(name: str, array: np.ndarray, rows: int, layout: Layout, owner: str) -> None:
@@ -86,9 +102,14 @@ def step_amplification(observer: Observer, guess, y, u, dt) -> float:
 
 
 def _radius(observer: Observer, state, y, u, dt) -> float:
+    """The spectral radius (inf when the Jacobian itself is not finite: the step overflows)."""
     flat, unravel = ravel_pytree(state)
-    jacobian = _prediction_jacobian(observer, unravel, flat, y, u, jnp.asarray(dt, dtype=float))
-    return float(np.max(np.abs(np.linalg.eigvals(np.asarray(jacobian))))) if flat.size else 0.0
+    if not flat.size:
+        return 0.0
+    jacobian = np.asarray(_prediction_jacobian(observer, unravel, flat, y, u, jnp.asarray(dt, dtype=float)))
+    if not np.all(np.isfinite(jacobian)):
+        return float("inf")
+    return float(np.max(np.abs(np.linalg.eigvals(jacobian))))
 
 
 @eqx.filter_jit
@@ -199,8 +220,10 @@ def filter(  # noqa: A001 - lookout.filter, as the issue and the docs name it
         measurement, infinite measurements, non-finite inputs, or a guess that is not
         shaped as ``observer.guess()``.
     """
-    times = np.asarray(times, dtype=float)
-    measurements = np.asarray(measurements, dtype=float)
+    if not isinstance(observer, Observer):
+        raise ValueError(f"observer must be a lookout Observer (a scenario's is scenario.observer); got {type(observer).__name__}")
+    times = real_array("times", times)
+    measurements = real_array("measurements", measurements)
     if times.ndim != 1 or times.size < 1:
         raise ValueError(f"times must be a 1-D array with at least one row; got shape {times.shape}")
     if not np.all(np.isfinite(times)):
@@ -215,7 +238,7 @@ def filter(  # noqa: A001 - lookout.filter, as the issue and the docs name it
         if layout.size != wanted.size:
             raise ValueError(f"{name} must have {wanted.size} entries (the observer reads {', '.join(wanted.names) or 'none'}); got {layout.size}")
     _columns("measurements", measurements, times.size, observer.measurement_layout, "the observer")
-    inputs = np.zeros((times.size, observer.input_layout.size)) if inputs is None else np.asarray(inputs, dtype=float)
+    inputs = np.zeros((times.size, observer.input_layout.size)) if inputs is None else real_array("inputs", inputs)
     _columns("inputs", inputs, times.size, observer.input_layout, "the observer's prediction")
     if np.any(np.isinf(measurements)):
         row, column = np.argwhere(np.isinf(measurements))[0]
@@ -229,6 +252,16 @@ def filter(  # noqa: A001 - lookout.filter, as the issue and the docs name it
     _check_log_fits(observer, guess, measurements.shape[1], inputs.shape[1])
     _check_steps(observer, guess, times, measurements, inputs)
     estimates = _filter_scan(observer, guess, jnp.asarray(times), jnp.asarray(measurements), jnp.asarray(inputs))
+    finite = np.all([np.isfinite(np.asarray(leaf)).reshape(times.size, -1).all(axis=1) for leaf in jax.tree.leaves(estimates)], axis=0)
+    if not finite.all():
+        row = int(np.argmin(finite))
+        cause = max(row - 1, 0)  # the prediction from the row before made them so
+        warnings.warn(
+            f"lookout.filter: the estimates are not finite from row {row} (t = {times[row]:g} s) on, after row {cause}'s measurement "
+            f"{np.array2string(measurements[cause], precision=4)} and input {np.array2string(inputs[cause], precision=4)}; the Dataset's status says 'diverged'",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     signals = RecordSignals(
         truth=(), estimate=tuple(observer.estimate_signals), extra=tuple(observer.extra_signals),
         measurement=measurement_layout, reference=(), input=input_layout,
@@ -315,7 +348,7 @@ class Stepper:
 
     @staticmethod
     def _measurement(name: str, y, size: int, observer: Observer) -> np.ndarray:
-        y = np.asarray(y, dtype=float).ravel()
+        y = real_array(name, y).ravel()
         if y.shape != (size,):
             raise ValueError(f"{name} must have {size} entries ({', '.join(observer.measurement_layout.names)}); got {y.shape[0]}")
         if np.any(np.isinf(y)):
@@ -347,7 +380,7 @@ class Stepper:
         if self._last_time is not None and not t > self._last_time:
             raise ValueError(f"t must come after the previous call's t = {self._last_time:g} s; got {t:g} s (time must not go backwards)")
         y = self._measurement("y", y, self._measurement_size, self.observer)
-        u = np.asarray(u, dtype=float).ravel()
+        u = real_array("u", u).ravel()
         if u.shape != (self._input_size,):
             raise ValueError(f"u must have {self._input_size} entries ({', '.join(self.observer.input_layout.names) or 'none'}); got {u.shape[0]}")
         if not np.all(np.isfinite(u)):
@@ -363,7 +396,7 @@ class Stepper:
 
     @staticmethod
     def _number(name: str, value) -> float:
-        array = np.asarray(value, dtype=float)
+        array = real_array(name, value)
         if array.shape != ():
             raise ValueError(f"{name} must be a number (s); got shape {array.shape}")
         if not np.isfinite(array):

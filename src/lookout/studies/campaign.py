@@ -109,6 +109,12 @@ class Axis(BaseModel):
         return first if len(self.fields) == 1 else first.split("[")[0] + ("_scale" if self.scale else "")
 
 
+#: Names the store uses itself: an axis may not take them.
+RESERVED_NAMES = frozenset({"point", "seed", "diverged", "kept_time"})
+#: Settings a campaign sets itself (its seeds): no axis may sweep them.
+SEED_FIELDS = frozenset({"seed", "runs"})
+
+
 class Sweep(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -126,9 +132,18 @@ class Sweep(BaseModel):
                 raise ValueError(f"axes[{index}] of a latin-hypercube needs range (and no values)")
         if self.kind == "latin-hypercube" and (self.points is None or self.points < 1):
             raise ValueError("a latin-hypercube needs points >= 1")
+        if self.kind == "grid" and self.points is not None:
+            raise ValueError("points is for a latin-hypercube; a grid's points are the product of its axes' values")
+        for index, axis in enumerate(self.axes):
+            swept = sorted(set(axis.fields) & SEED_FIELDS)
+            if swept:
+                raise ValueError(f"axes[{index}]: a campaign runs seeds_per_point seeds from seed at every point; {swept[0]!r} cannot be swept")
         labels = [axis.label for axis in self.axes]
         if len(set(labels)) != len(labels):
             raise ValueError(f"axis names repeat: {labels}; give each axis a distinct name")
+        reserved = sorted({label for label in labels if label in RESERVED_NAMES or "__" in label})
+        if reserved:
+            raise ValueError(f"axis name {reserved[0]!r} is taken by the store (point, seed, diverged, and metric names with '__'); give the axis another name")
         return self
 
 
@@ -224,6 +239,9 @@ class Campaign:
     points: tuple[dict[str, Any], ...]  # axis label -> value, per point
     metric_names: tuple[str, ...]
     source: str
+    #: the most records a run of any swept value has (the base and each axis value
+    #: were built to validate them): what sizes a chunk's memory
+    records: int = 0
 
     @property
     def axes(self) -> tuple[Axis, ...]:
@@ -365,6 +383,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
         points = tuple(_latin_hypercube(axes, settings.sweep.points, settings.sweep.seed))
     base_values = base.settings.model_dump(mode="python")
     cases = {base.case: scenario_object}  # the built scenario of every swept case
+    records = [scenario_object.n_records]
     for index, axis in enumerate(axes):
         location = ("sweep", "axes", index, "field")
         for path in axis.fields:
@@ -398,6 +417,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
                 raise located(source, text, where, f"value {value!r} makes no scenario: {error}") from None
             if CASE in axis.fields:
                 cases[value] = built
+            records.append(built.n_records)
             _check_window(settings, built, source, text, where, value)
     names = settings.metrics or ()
     if not names:
@@ -416,7 +436,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
         for signal in settings.trajectories.signals:
             if signal not in recorded:
                 raise located(source, text, ("trajectories", "signals"), f"no recorded signal {signal!r} (recorded: {', '.join(sorted(recorded))})")
-    return Campaign(settings, base, points, tuple(names), source)
+    return Campaign(settings, base, points, tuple(names), source, records=max(records))
 
 
 def _check_window(settings: CampaignSettings, scenario, source: str, text: str | None, where: tuple, value) -> None:

@@ -99,9 +99,13 @@ def run(
     from lookout.studies import metrics as metric_module
     from lookout.studies.scenario_file import save, simulate_trajectory, to_dataset
 
+    written = ("run.nc", "scenario.toml", "summary.json")
+    for name in written:  # a folder in the way of an output is found before simulating
+        if (Path(out) / name).is_dir():
+            raise InputError(f"--out: {Path(out) / name} is a folder, and lookout run writes the file {name} there; give another --out")
     spec, scenario = _scenario(scenario_file, runs, seed)
     # the count, not the seeds: nothing that grows with the runs is made before the check
-    _cli()._check_memory([(scenario, spec.settings.runs)], "--runs" if runs is not None else "settings.runs", "settings.duration")
+    _cli()._check_memory([(scenario, spec.settings.runs)], "--runs" if runs is not None else f"{scenario_file}: settings.runs", "settings.duration")
     folder = _cli()._created_folder("--out", out)
     with _cli()._simulating() as progress:
         trajectory = simulate_trajectory(spec, scenario=scenario, progress=progress)
@@ -236,9 +240,10 @@ def campaign_report(
         target = Path(out)
     folder = None
     if figures is not None:
-        folder = _cli()._created_folder("--figures", figures)
+        folder = _cli()._output_folder("--figures", figures)  # made when there are figures to put in it
     written = write_report(path, target, figures_dir=folder)
-    console_print(f"report written to {written}" + (f"; figures in {folder}" if folder else ""))
+    drawn = folder is not None and folder.is_dir() and any(folder.glob("*.png"))
+    console_print(f"report written to {written}" + (f"; figures in {folder}" if drawn else "; no figures (no chunk has finished)" if folder else ""))
 
 
 def register(app: typer.Typer) -> None:

@@ -63,6 +63,9 @@ class Estimate:
     #: the driver's clock when the first compiled chunk came, and how many came since
     first_compiled: float | None = None
     compiled_since: int = 0
+    #: chunks that came with compilation (one per worker and program), and without
+    compiling_done: int = 0
+    compiled_seen: int = 0
 
 
 def record_bytes(campaign: Campaign, scenario) -> int:
@@ -81,11 +84,15 @@ def record_bytes(campaign: Campaign, scenario) -> int:
 
 def chunk_memory(campaign: Campaign) -> float:
     """Bytes one chunk needs on its worker: what its runs hold per record while they
-    are reduced, and the runtime."""
+    are reduced, what the scan holds per record whatever the runs (times, indices,
+    windows), and the runtime; for the longest run of the sweep."""
+    from lookout.sim.engine import RECORD_OVERHEAD_BYTES
     from lookout.studies.campaign import _point_scenario
 
     scenario = _point_scenario(campaign.canonical(), 0)
-    return PEAK_MEMORY_PER_RECORD_BYTE * campaign.chunk_runs * scenario.n_records * record_bytes(campaign, scenario) + WORKER_BASE_BYTES
+    records = max(campaign.records, scenario.n_records)
+    per_record = PEAK_MEMORY_PER_RECORD_BYTE * campaign.chunk_runs * record_bytes(campaign, scenario) + RECORD_OVERHEAD_BYTES
+    return records * per_record + WORKER_BASE_BYTES
 
 
 def check_memory(campaign: Campaign, available: float | None, workers: int) -> float:
@@ -94,11 +101,15 @@ def check_memory(campaign: Campaign, available: float | None, workers: int) -> f
     if available is not None and need > available:
         from lookout.studies.campaign import _point_scenario
 
+        from lookout.sim.engine import RECORD_OVERHEAD_BYTES
+
         scenario = _point_scenario(campaign.canonical(), 0)
+        records = max(campaign.records, scenario.n_records)
         raise ValueError(
-            f"chunk_runs {campaign.chunk_runs} needs about {format_bytes(need)} per chunk ({campaign.chunk_runs} runs x {scenario.n_records} records x "
-            f"{record_bytes(campaign, scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE}, + {format_bytes(WORKER_BASE_BYTES)} runtime), and a worker has "
-            f"{format_bytes(available)} ({workers} worker(s)): set a smaller chunk_runs (a divisor of seeds_per_point) or fewer workers"
+            f"chunk_runs {campaign.chunk_runs} needs about {format_bytes(need)} per chunk ({records} records x ({campaign.chunk_runs} runs x "
+            f"{record_bytes(campaign, scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE} + {RECORD_OVERHEAD_BYTES} B), + {format_bytes(WORKER_BASE_BYTES)} runtime), "
+            f"and a worker has {format_bytes(available)} ({workers} worker(s)): set a smaller chunk_runs (a divisor of seeds_per_point), "
+            "a shorter duration, or fewer workers"
         )
     return need
 
@@ -259,15 +270,23 @@ def _compute(campaign, store, chunks, pending, done, estimate: Estimate, disk: f
 
     def calibrate(estimate: Estimate, result: dict) -> None:
         """The first chunk gives the compile time; the estimate of the rest comes from the
-        driver's clock over the first compiled chunks (one, then
-        CALIBRATION_CHUNKS_PER_WORKER per worker): what the store receives per second, with the workers sharing
-        the machine, the scheduling and the writes included, not one chunk's own time."""
+        driver's clock over compiled chunks once every worker has compiled (each worker's
+        first chunk compiles; until the last of them is done, fewer workers deliver), over
+        CALIBRATION_CHUNKS_PER_WORKER chunks per worker: what the store receives per
+        second, with the workers sharing the machine, the scheduling and the writes
+        included, not one chunk's own time."""
         seconds = float(result["seconds"])
-        if estimate.compile_seconds is None and not result["compiled"]:
-            estimate.compile_seconds = seconds
-            say(f"first chunk: {seconds:.1f} s with compilation")
+        if not result["compiled"]:
+            estimate.compiling_done += 1
+            if estimate.compile_seconds is None:
+                estimate.compile_seconds = seconds
+                say(f"first chunk: {seconds:.1f} s with compilation")
             return
-        if not result["compiled"] or estimate.chunk_seconds is not None:
+        estimate.compiled_seen += 1
+        # wait for every worker's compiling chunk, unless one never comes (a worker that
+        # died while compiling and compiles again): then the others' chunks set the pace
+        waiting = estimate.compiling_done < min(estimate.workers, estimate.pending)
+        if estimate.chunk_seconds is not None or (waiting and estimate.compiled_seen <= CALIBRATION_CHUNKS_PER_WORKER * estimate.workers):
             return
         now = time.monotonic()
         if estimate.first_compiled is None:

@@ -738,7 +738,7 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
 
     figures = _build(ds, document) if started else []
     images = {figure.key: _png(figure.figure) for figure in figures}
-    if figures_dir is not None:
+    if figures_dir is not None and images:
         figures_dir = Path(figures_dir)
         figures_dir.mkdir(parents=True, exist_ok=True)
         for key, png in images.items():

@@ -186,6 +186,9 @@ def _validate(model: type[BaseModel], values: dict, source: str, text: str | Non
         raise FileError(describe(error, source, text, prefix)) from None
 
 
+#: The names pydantic gives the members of a union in an error's location.
+UNION_TAGS = frozenset({"str", "int", "float", "bool", "dict", "list", "tuple"})
+
 #: pydantic's strict type errors, as the file's reader would say them.
 STRICT_TYPES = {
     "float_type": "must be a number",
@@ -219,7 +222,8 @@ def _as_toml(value) -> str:
 def describe(error: ValidationError, source: str, text: str | None, prefix: tuple = ()) -> str:
     """One line for the first error of a pydantic validation: file, key, line, condition."""
     first = error.errors()[0]
-    location = prefix + tuple(part for part in first["loc"] if not (isinstance(part, str) and part.startswith("function-")))
+    # pydantic names the member of a union it tried ("scenario.str"): not a key of the file
+    location = prefix + tuple(part for part in first["loc"] if not (isinstance(part, str) and (part.startswith("function-") or part in UNION_TAGS or "[" in part)))
     message = first["msg"]
     if message.startswith("Value error, "):
         message = message[len("Value error, "):]
