@@ -275,6 +275,13 @@ def test_tables_printed_to_a_pipe_keep_their_width(capsys, monkeypatch, tmp_path
     assert all(cell in row for cell in cells) and len(row) > 80, text
 
 
+def test_a_bare_reproduce_writes_under_out_by_name(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main([*REPRODUCE, "--duration", "20"]) == 0
+    assert (tmp_path / "out" / "fossen-strand-1999" / "summary.json").is_file()
+    assert "written to the folder out/fossen-strand-1999" in capsys.readouterr().out
+
+
 def test_short_reproduce_writes_all_outputs(tmp_path, capsys):
     out = tmp_path / "new" / "folders" / "fs99"  # missing parents are created
     assert main([*REPRODUCE, "--out", str(out), "--duration", "100", "--seed", "3"]) == 0
