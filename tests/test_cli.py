@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+import lookout._commandline
 import lookout.cli
 from lookout.cli import main
 from lookout.papers import fossen_strand_1999
@@ -236,7 +237,7 @@ def test_output_folder_that_is_not_writable(capsys, tmp_path, monkeypatch):
     locked = tmp_path / "locked"
     locked.mkdir()
     real_access = os.access
-    monkeypatch.setattr(lookout.cli.os, "access", lambda path, mode: False if str(path) == str(locked) else real_access(path, mode))
+    monkeypatch.setattr(lookout._commandline.os, "access", lambda path, mode: False if str(path) == str(locked) else real_access(path, mode))
     assert main([*REPRODUCE, "--out", str(locked / "out"), "--duration", "10"]) == 2
     assert main([*DESIGN, "--wave-period", "7", "--bode", str(locked / "b.png")]) == 2
     errors = capsys.readouterr().err.strip().splitlines()
@@ -245,7 +246,7 @@ def test_output_folder_that_is_not_writable(capsys, tmp_path, monkeypatch):
 
 
 def test_memory_estimate_refuses_before_simulating(capsys, monkeypatch):
-    monkeypatch.setattr(lookout.cli, "available_memory", lambda: 8_000_000_000)
+    monkeypatch.setattr(lookout._commandline, "available_memory", lambda: 8_000_000_000)
     assert main([*REPRODUCE, "--duration", "1e7"]) == 2
     line = capsys.readouterr().err.strip()
     # 1e8 samples x (296 B of records, x4 while writing, + 32 B per record): 122 GB

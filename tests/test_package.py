@@ -56,3 +56,13 @@ def test_every_reproduction_is_named_in_the_catalog_without_importing_it():
         "assert all(REPRODUCTIONS[name].NAME == name and REPRODUCTIONS[name].TITLE == entry.title for name, entry in CATALOG.items()); print(len(CATALOG))"
     )
     assert result.returncode == 0 and result.stdout.strip() == "9", result.stderr
+
+
+def test_the_studies_commands_do_not_import_the_main_command():
+    """lookout.cli registers the studies' commands; they share helpers through
+    lookout._commandline, never by importing lookout.cli back (no import cycle)."""
+    result = _run(
+        "import sys, lookout.studies.cli, lookout.studies.execute; "
+        "assert 'lookout.cli' not in sys.modules, 'lookout.cli imported'; print('ok')"
+    )
+    assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr

@@ -7,23 +7,19 @@ option and the violated condition, exit code 2, before anything is written.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 from pydantic import ValidationError
 from rich import box
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from lookout._resources import available_memory, format_bytes
+from lookout._commandline import PIPE_WIDTH, check_memory, console, created_folder, image_file, simulating, writable_folder
 from lookout._validation import InputError
 from lookout._json import json_safe
 
@@ -44,16 +40,6 @@ design_app = typer.Typer(
     help="Design an observer and check its stability conditions. Exit code 0: the design passes; 1: a verdict fails; 2: bad input.",
 )
 app.add_typer(design_app, name="design")
-console = Console(soft_wrap=True)
-#: The width tables may take when the output is not a terminal (see main).
-PIPE_WIDTH = 1000
-
-#: The peak memory of a reproduction is about this many times its records: the
-#: simulated segments and their concatenation, the xarray copy, NetCDF and metric
-#: buffers. Measured 3.6x (40 runs x 3000 s of fossen-strand-1999: 346 MB of
-#: records, 1.23 GB of resident memory above the 0.57 GB of a single run).
-PEAK_MEMORY_PER_RECORD_BYTE = 4
-
 #: zeta_n of Fossen & Strand (1999), eq. (59), the default of --notch-damping.
 DEFAULT_NOTCH_DAMPING = 1.0
 #: Frequencies (rad/s) and the Lyapunov weight must lie in this range for the loop
@@ -111,81 +97,6 @@ def _positive_numbers(option: str, text: str) -> list[float]:
     if len(values) not in (1, 3) or not all(math.isfinite(v) and v > 0 for v in values):
         raise InputError(f"{option} must be one finite positive number, or three separated by commas (surge,sway,yaw); got {text}")
     return values * 3 if len(values) == 1 else values
-
-
-def _writable_folder(option: str, folder: Path, what: str) -> None:
-    """Fail unless ``folder`` can be written into: it exists and is writable, or its
-    nearest existing ancestor is a writable folder (every output's missing parent
-    folders are created when it is written: one rule for every ``--out``).
-
-    Permission bits do not answer that (root passes them, /proc and read-only file
-    systems refuse anyway), so a nameless temporary file is created and removed.
-    """
-    existing = folder.absolute()
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
-    if not existing.is_dir():
-        raise InputError(f"{option}: {existing} is a file, not a folder (on the way to {what})")
-    folder = existing if existing != folder.absolute() else folder
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise InputError(f"{option}: the folder {folder} is not writable")
-    try:
-        with tempfile.TemporaryFile(dir=folder):
-            pass
-    except OSError as error:
-        raise InputError(f"{option}: cannot write into the folder {folder}: {error.strerror}") from None
-
-
-def _output_folder(option: str, text: str) -> Path:
-    """Check an output folder before any work: not empty, not a file, and it or its
-    nearest existing ancestor writable."""
-    if not text.strip():
-        raise InputError(f"{option} must name a folder; got an empty path")
-    folder = Path(text)
-    if folder.exists():
-        if not folder.is_dir():
-            raise InputError(f"{option} must be a folder; {folder} is an existing file")
-        _writable_folder(option, folder, "the results")
-    else:
-        _writable_folder(option, folder.absolute().parent, f"{option} {text}")
-    return folder
-
-
-def _created_folder(option: str, text: str) -> Path:
-    """:func:`_output_folder`, created with its missing parents."""
-    folder = _output_folder(option, text)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise InputError(f"{option}: cannot create {folder}: {error.strerror}") from None
-    return folder
-
-
-@contextlib.contextmanager
-def _simulating():
-    """A progress bar on stderr while simulating; yields the engine's ``progress(done, total)``."""
-    _stderr = Console(stderr=True)  # a progress bar only where someone watches: a log gets none
-    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=_stderr, transient=True, disable=not _stderr.is_terminal) as bar:
-        task = bar.add_task("run", total=1.0)
-        yield lambda done, total: bar.update(task, completed=done / total)
-
-
-def _image_file(option: str, text: str) -> Path:
-    """Check a figure's file name: a suffix matplotlib writes, in an existing writable folder."""
-    from matplotlib.figure import Figure
-
-    if not text.strip():
-        raise InputError(f"{option} must name a file; got an empty path")
-    path = Path(text)
-    if path.is_dir():
-        raise InputError(f"{option} must name a file, not the folder {path}; e.g. {path / 'bode.png'}")
-    formats = Figure().canvas.get_supported_filetypes()
-    suffix = path.suffix.lower().lstrip(".")
-    if suffix not in formats:
-        listed = ["png", "pdf", "svg", *sorted(set(formats) - {"png", "pdf", "svg"})]
-        raise InputError(f"{option} must end in a format matplotlib writes ({', '.join('.' + name for name in listed)}); got {text}")
-    _writable_folder(option, path.absolute().parent, text)
-    return path
 
 
 def _analysable(option: str, symbol: str, value: float, unit: str) -> None:
@@ -252,34 +163,6 @@ def _model_error(text: str) -> dict:
     if unknown:
         raise InputError(f"--model-error: unknown key {unknown[0]!r}; the keys are mass, damping, force, force_period")
     return result
-
-
-def _check_memory(batches, runs_option: str = "--runs", duration_option: str = "--duration", runs: int | None = None) -> None:
-    """Refuse a study whose records would not fit in memory, before simulating.
-
-    ``batches`` are (scenario, runs) simulated one after another, so the largest
-    one sets the peak; ``runs`` is what the user asked for (a reproduction may batch
-    more, e.g. both of Kim's observers). Nothing that grows with the runs exists yet
-    when this runs.
-    """
-    from lookout.sim import record_nbytes
-    from lookout.sim.engine import RECORD_OVERHEAD_BYTES
-
-    def need_of(pair):
-        scenario, count = pair
-        return scenario.n_records * (PEAK_MEMORY_PER_RECORD_BYTE * count * record_nbytes(scenario) + RECORD_OVERHEAD_BYTES)
-
-    scenario, batch = max(batches, key=need_of)
-    need = need_of((scenario, batch))
-    runs = batch if runs is None else runs
-    available = available_memory()
-    if available is not None and need > available:
-        largest = "" if batch == runs else "its largest batch: "
-        raise InputError(
-            f"{runs_option} {runs} over {duration_option} {scenario.duration:g} would need about {format_bytes(need)} of memory "
-            f"({largest}{batch} run(s) x {scenario.n_records} records x {record_nbytes(scenario)} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results), "
-            f"and {format_bytes(available)} are available: use fewer {runs_option} or a shorter {duration_option}"
-        )
 
 
 # ----------------------------------------------------------------------------------
@@ -355,9 +238,9 @@ def reproduce(
     if write_scenario is not None:
         _write_scenario(name, config, write_scenario)
         return
-    _check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)], runs=config.runs)
-    folder = _created_folder("--out", f"out/{name}" if out is None else out)
-    with _simulating() as progress:
+    check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)], runs=config.runs)
+    folder = created_folder("--out", f"out/{name}" if out is None else out)
+    with simulating() as progress:
         summary = module.run(config, folder, progress=progress)
     _print_summary(summary, module.tables(summary), folder)
 
@@ -372,7 +255,7 @@ def _write_scenario(name: str, config, text: str) -> None:
         raise InputError(f"--write-scenario must name a file, not the folder {path}; e.g. {path / (name + '.toml')}")
     if path.suffix != ".toml":
         raise InputError(f"--write-scenario must end in .toml; got {text}")
-    _writable_folder("--write-scenario", path.absolute().parent, text)
+    writable_folder("--write-scenario", path.absolute().parent, text)
     template = templates()[name]
     save(ScenarioSpec(template, template.cases[0], config), path)
     console.print(f"scenario written to {path} (case {template.cases[0]!r}; cases: {', '.join(template.cases)}); run it with: lookout run {path} --out FOLDER", highlight=False)
@@ -461,7 +344,7 @@ def design_passive_observer(
     lam = _positive_numbers("--bias-gain", bias_gain) if bias_gain is not None else None
     _positive_number("--lyapunov-weight", lyapunov_weight)
     frequencies = [_positive_number("--frequency", value) for value in frequency or []]
-    bode_path = _image_file("--bode", bode) if bode is not None else None
+    bode_path = image_file("--bode", bode) if bode is not None else None
 
     paper = fossen_strand_1999.Config()  # the paper's (60), in normalized units
 
@@ -806,7 +689,7 @@ def _print_design(result: dict, observer, tuning, spr) -> None:
     say("design passes (exit code 0)" if result["passed"] else "design does not pass (exit code 1)")
 
 
-from lookout.studies.cli import register as _register_studies  # noqa: E402  (needs the helpers above)
+from lookout.studies.cli import register as _register_studies  # noqa: E402  (after the commands above: list, reproduce, design come first)
 
 _register_studies(app)
 

@@ -12,19 +12,13 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
+from lookout._commandline import check_memory, console, created_folder, output_folder, simulating, writable_folder
 from lookout._validation import InputError
 from lookout._json import json_safe
 from lookout.studies._toml import FileError
 
-def _cli():
-    """:mod:`lookout.cli`, imported when a command runs (it imports this module)."""
-    from lookout import cli
-
-    return cli
-
-
 def console_print(text: str) -> None:
-    _cli().console.print(text, highlight=False, markup=False)
+    console.print(text, highlight=False, markup=False)
 
 
 #: A dask scheduler address: an optional protocol, a host (a name, an IPv4 address or
@@ -105,9 +99,9 @@ def run(
             raise InputError(f"--out: {Path(out) / name} is a folder, and lookout run writes the file {name} there; give another --out")
     spec, scenario = _scenario(scenario_file, runs, seed)
     # the count, not the seeds: nothing that grows with the runs is made before the check
-    _cli()._check_memory([(scenario, spec.settings.runs)], "--runs" if runs is not None else f"{scenario_file}: settings.runs", "settings.duration")
-    folder = _cli()._created_folder("--out", out)
-    with _cli()._simulating() as progress:
+    check_memory([(scenario, spec.settings.runs)], "--runs" if runs is not None else f"{scenario_file}: settings.runs", "settings.duration")
+    folder = created_folder("--out", out)
+    with simulating() as progress:
         trajectory = simulate_trajectory(spec, scenario=scenario, progress=progress)
     ds = to_dataset(spec, trajectory)
     write_netcdf(ds, folder / "run.nc", history=f"lookout run {scenario_file} (seeds {spec.seeds[0]}..{spec.seeds[-1]})")
@@ -131,7 +125,7 @@ def run(
     table.add_column("mean over runs", justify="right")
     for metric in metrics:
         table.add_row(metric.name, metric.units, f"{float(values[metric.variable].mean()):.4g}")
-    _cli().console.print(table)
+    console.print(table)
     finite = summary["status"].count("finite")
     console_print(f"{finite}/{len(summary['status'])} runs finite; written to the folder {folder}: {', '.join(summary['files'])}")
 
@@ -157,7 +151,7 @@ def _store_path(option: str, text: str, *, must_exist: bool) -> Path:
     elif path.exists() and not path.is_dir():
         raise InputError(f"{option} must be a folder; {path} is an existing file")
     elif not path.exists():
-        _cli()._writable_folder(option, path.absolute().parent, f"{option} {text}")
+        writable_folder(option, path.absolute().parent, f"{option} {text}")
     return path
 
 
@@ -236,11 +230,11 @@ def campaign_report(
     if out is not None:
         if not out.strip() or not out.endswith((".html", ".htm")):
             raise InputError(f"--out must name an .html file; got {out!r}")
-        _cli()._writable_folder("--out", Path(out).absolute().parent, out)
+        writable_folder("--out", Path(out).absolute().parent, out)
         target = Path(out)
     folder = None
     if figures is not None:
-        folder = _cli()._output_folder("--figures", figures)  # made when there are figures to put in it
+        folder = output_folder("--figures", figures)  # made when there are figures to put in it
     written = write_report(path, target, figures_dir=folder)
     drawn = folder is not None and folder.is_dir() and any(folder.glob("*.png"))
     console_print(f"report written to {written}" + (f"; figures in {folder}" if drawn else "; no figures (no chunk has finished)" if folder else ""))

@@ -18,7 +18,6 @@ the next ``run`` computes the rest.
 
 from __future__ import annotations
 
-import math
 import os
 import shutil
 import time
@@ -27,12 +26,10 @@ from pathlib import Path
 from typing import Callable
 
 from lookout import _resources
-from lookout._resources import format_bytes
+from lookout._resources import PEAK_MEMORY_PER_RECORD_BYTE, format_bytes
 from lookout.studies.campaign import Campaign, compute_chunk
 from lookout.studies.store import CampaignStore
 
-#: As in the CLI: a chunk's peak memory is about this many times its records.
-PEAK_MEMORY_PER_RECORD_BYTE = 4
 #: What a chunk needs besides its records (the JAX runtime and compiled programs).
 WORKER_BASE_BYTES = 600e6
 #: A dask campaign in which no chunk finishes for max(STALL_SECONDS, STALL_CALIBRATIONS x
