@@ -16,7 +16,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-from lookout._resources import PEAK_MEMORY_PER_RECORD_BYTE, available_memory, format_bytes
+from lookout._resources import PEAK_MEMORY_PER_RECORD_BYTE, available_memory, format_bytes, nearest_existing
 from lookout._validation import InputError
 
 console = Console(soft_wrap=True)
@@ -32,9 +32,7 @@ def writable_folder(option: str, folder: Path, what: str) -> None:
     Permission bits do not answer that (root passes them, /proc and read-only file
     systems refuse anyway), so a nameless temporary file is created and removed.
     """
-    existing = folder.absolute()
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
+    existing = nearest_existing(folder)
     if not existing.is_dir():
         raise InputError(f"{option}: {existing} is a file, not a folder (on the way to {what})")
     folder = existing if existing != folder.absolute() else folder
@@ -72,11 +70,17 @@ def created_folder(option: str, text: str) -> Path:
     return folder
 
 
+def progress_bar(*columns) -> Progress:
+    """A transient progress bar on stderr, shown only where someone watches (a terminal):
+    a log or a pipe gets none."""
+    stderr = Console(stderr=True)
+    return Progress(*columns, console=stderr, transient=True, disable=not stderr.is_terminal)
+
+
 @contextlib.contextmanager
 def simulating():
     """A progress bar on stderr while simulating; yields the engine's ``progress(done, total)``."""
-    _stderr = Console(stderr=True)  # a progress bar only where someone watches: a log gets none
-    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn(), console=_stderr, transient=True, disable=not _stderr.is_terminal) as bar:
+    with progress_bar(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn()) as bar:
         task = bar.add_task("run", total=1.0)
         yield lambda done, total: bar.update(task, completed=done / total)
 

@@ -43,13 +43,19 @@ def available_memory() -> int | None:
         return None
 
 
-def free_disk(path: str | Path) -> int | None:
-    """Bytes free on the file system that holds ``path`` (or its nearest existing parent)."""
+def nearest_existing(path: str | Path) -> Path:
+    """``path`` made absolute, or its nearest ancestor that exists (where an output whose
+    missing parents will be created lands)."""
     path = Path(path).absolute()
     while not path.exists() and path != path.parent:
         path = path.parent
+    return path
+
+
+def free_disk(path: str | Path) -> int | None:
+    """Bytes free on the file system that holds ``path`` (or its nearest existing parent)."""
     try:
-        return shutil.disk_usage(path).free
+        return shutil.disk_usage(nearest_existing(path)).free
     except OSError:
         return None
 

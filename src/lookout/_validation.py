@@ -110,6 +110,11 @@ def _fmt(array: np.ndarray) -> str:
     return np.array2string(np.atleast_1d(array), precision=4, separator=", ")
 
 
+def one_line(message) -> str:
+    """``message`` (text or an exception) on one line: its whitespace runs made one space."""
+    return " ".join(str(message).split())
+
+
 class InputError(Exception):
     """Bad user input at the command line, reported as one line with exit code 2
     (defined here, not in :mod:`lookout.cli`, so that ``python -m lookout.cli`` and the

@@ -20,7 +20,7 @@ from rich import box
 from rich.table import Table
 
 from lookout._commandline import PIPE_WIDTH, check_memory, console, created_folder, image_file, simulating, writable_folder
-from lookout._validation import InputError
+from lookout._validation import InputError, one_line
 from lookout._json import json_safe
 
 try:  # typer >= 0.29 vendors click
@@ -694,10 +694,6 @@ from lookout.studies.cli import register as _register_studies  # noqa: E402  (af
 _register_studies(app)
 
 
-def _one_line(message: str) -> str:
-    return " ".join(str(message).split())
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning every input error into one line and exit code 2."""
     import lookout  # enables float64 before any computation
@@ -722,16 +718,16 @@ def main(argv: list[str] | None = None) -> int:
         print(error.format_message())  # the help text
         return 2
     except click_exceptions.UsageError as error:
-        print(f"error: {_one_line(error.format_message())}", file=sys.stderr)
+        print(f"error: {one_line(error.format_message())}", file=sys.stderr)
         return 2
     except (InputError, ValueError) as error:
-        print(f"error: {_one_line(error)}", file=sys.stderr)
+        print(f"error: {one_line(error)}", file=sys.stderr)
         return 2
     except OSError as error:  # a write that failed after the checks (disk full, a file system that changed)
         text = error.strerror or str(error)
         if error.filename and str(error.filename) not in text:
             text += f": {error.filename}"
-        print(f"error: {_one_line(text)}", file=sys.stderr)
+        print(f"error: {one_line(text)}", file=sys.stderr)
         return 1
     return code if isinstance(code, int) else 0
 

@@ -607,10 +607,9 @@ def stack_scenarios(scenarios: list[Scenario]) -> Scenario:
                 f"scenarios[{index}] differs from scenarios[0] in its structure (periods, durations, component types or sizes): "
                 "stacked scenarios may differ in their numbers only"
             )
-    if scenarios:
-        leaves = [leaf for leaf in jax.tree.leaves(scenarios[0]) if eqx.is_array_like(leaf)]
-        per_run = sum(np.asarray(leaf).nbytes for leaf in leaves)
-        refuse_unless_it_fits(len(scenarios) * per_run, f"scenarios: {len(scenarios)} stacked x {per_run} B of arrays", "stack fewer scenarios at a time")
+    leaves = [leaf for leaf in jax.tree.leaves(scenarios[0]) if eqx.is_array_like(leaf)]
+    per_run = sum(np.asarray(leaf).nbytes for leaf in leaves)
+    refuse_unless_it_fits(len(scenarios) * per_run, f"scenarios: {len(scenarios)} stacked x {per_run} B of arrays", "stack fewer scenarios at a time")
     return jax.tree.map(lambda *leaves: jnp.stack([jnp.asarray(leaf) for leaf in leaves]), *scenarios)
 
 

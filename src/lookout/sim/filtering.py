@@ -319,7 +319,6 @@ class Stepper:
             raise ValueError(f"input_size must be {n_u}, the length of the observer's input ({', '.join(observer.input_layout.names) or 'none'}); got {input_size!r}")
         guess = checked_guess(observer, guess)
         self.observer = observer
-        self._guess = guess
         self._measurement_size = n_y
         self._input_size = n_u
         flat_state, unravel_state = ravel_pytree(observer.init(jnp.asarray(y0), guess))

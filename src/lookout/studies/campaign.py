@@ -444,7 +444,7 @@ def _check_window(settings: CampaignSettings, scenario, source: str, text: str |
     after = settings.after
     if after is None:
         return
-    last = (scenario.n_records - 1) * scenario.sample_period * scenario.record_every
+    last = float(scenario.record_times[-1])
     if after > last + 1e-9 * max(1.0, abs(after)):
         if value is None:
             raise located(source, text, ("after",), f"{after:g} s is past the end of the run ({last:g} s): the metrics would have no record")

@@ -9,13 +9,16 @@ from typing import Annotated, Optional
 
 import typer
 from rich import box
-from rich.console import Console
 from rich.table import Table
 
-from lookout._commandline import check_memory, console, created_folder, output_folder, simulating, writable_folder
+from lookout._commandline import check_memory, console, created_folder, output_folder, progress_bar, simulating, writable_folder
 from lookout._validation import InputError
 from lookout._json import json_safe
 from lookout.studies._toml import FileError
+
+#: What ``lookout run`` writes into its folder.
+RUN_FILES = ("run.nc", "scenario.toml", "summary.json")
+
 
 def console_print(text: str) -> None:
     console.print(text, highlight=False, markup=False)
@@ -93,8 +96,7 @@ def run(
     from lookout.studies import metrics as metric_module
     from lookout.studies.scenario_file import save, simulate_trajectory, to_dataset
 
-    written = ("run.nc", "scenario.toml", "summary.json")
-    for name in written:  # a folder in the way of an output is found before simulating
+    for name in RUN_FILES:  # a folder in the way of an output is found before simulating
         if (Path(out) / name).is_dir():
             raise InputError(f"--out: {Path(out) / name} is a folder, and lookout run writes the file {name} there; give another --out")
     spec, scenario = _scenario(scenario_file, runs, seed)
@@ -115,7 +117,7 @@ def run(
         "seeds": spec.seeds,
         "status": ds.status.values.tolist(),
         "metrics": {m.name: {"units": m.units, "description": m.description + " (t >= half the run)", "per_run": values[m.variable].tolist()} for m in metrics},
-        "files": ["run.nc", "scenario.toml", "summary.json"],
+        "files": list(RUN_FILES),
     }
     (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False) + "\n")
 
@@ -166,7 +168,7 @@ def campaign_run(
 ) -> None:
     """Run (or resume) a campaign: each chunk of the sweep is one vmapped batch and one
     dask task; the metrics go to the store as chunks finish."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeRemainingColumn
 
     from lookout.studies.execute import SchedulerError, run_campaign
 
@@ -179,8 +181,7 @@ def campaign_run(
     campaign = _campaign(spec)
     store = _store_path("--out", out, must_exist=False)
     say = console_print
-    _stderr = Console(stderr=True)  # a progress bar only where someone watches: a log gets none
-    with Progress(TextColumn("chunks"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=_stderr, transient=True, disable=not _stderr.is_terminal) as bar:
+    with progress_bar(TextColumn("chunks"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn()) as bar:
         task = bar.add_task("chunks", total=len(campaign.chunks()), completed=0)
         try:
             result = run_campaign(

@@ -27,6 +27,7 @@ from typing import Callable
 
 from lookout import _resources
 from lookout._resources import PEAK_MEMORY_PER_RECORD_BYTE, format_bytes
+from lookout._validation import one_line
 from lookout.studies.campaign import Campaign, compute_chunk
 from lookout.studies.store import CampaignStore
 
@@ -213,7 +214,7 @@ def run_campaign(
             except Exception as error:  # an address dask cannot parse, or a scheduler that does not answer
                 if client is not None:
                     client.close()
-                raise SchedulerError(f"cannot reach the scheduler ({_one_line(error)})") from None
+                raise SchedulerError(f"cannot reach the scheduler ({one_line(error) or type(error).__name__})") from None
             limits = [w.get("memory_limit") or None for w in info.values()]
             per_worker = min(limits) if limits and all(limits) else None
             workers = max(1, len(info))
@@ -238,10 +239,6 @@ def run_campaign(
             client.close()
         if cluster is not None:
             cluster.close()
-
-
-def _one_line(error: BaseException) -> str:
-    return " ".join(str(error).split()) or type(error).__name__
 
 
 def _compute(campaign, store, chunks, pending, done, estimate: Estimate, disk: float, client, say, progress) -> dict:

@@ -37,6 +37,7 @@ from typing import Any, Callable
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
+from lookout._validation import one_line
 from lookout.studies._toml import FileError, key_line, read, write
 
 #: Top-level keys of a scenario file.
@@ -144,7 +145,7 @@ def build_located(spec: "ScenarioSpec", text: str | None = None):
     try:
         return spec.build()
     except ValueError as error:
-        reason = " ".join(str(error).split())
+        reason = one_line(error)
         path = blame(spec)
         if path is None:
             raise FileError(f"{spec.source}: settings: they make no scenario together ({spec.template.name}, case {spec.case}): {reason}") from None

@@ -139,8 +139,7 @@ class CampaignStore:
         kept = campaign.settings.trajectories
         if kept is not None:
             signals = {name: signal for _, name, signal in scenario.record_signals.variables()}
-            time = np.arange(scenario.n_records) * scenario.sample_period * scenario.record_every
-            coords["kept_time"] = ("kept_time", time[:: kept.every], {"units": "s", "long_name": "time of the kept records"})
+            coords["kept_time"] = ("kept_time", scenario.record_times[:: kept.every], {"units": "s", "long_name": "time of the kept records"})
             for name in kept.signals:
                 signal = signals[name]
                 dims = ("point", "seed", "kept_time") + ((signal.dim,) if signal.labels else ())
