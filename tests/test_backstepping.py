@@ -96,7 +96,7 @@ def test_for_observer_rejects_other_observers():
     from lookout.models.manipulators import TwoLinkArm
     from lookout.observers import VelocityObserver
 
-    with pytest.raises(ValueError, match="observer must be a PassiveObserver or SlidingModeObserver; got VelocityObserver"):
+    with pytest.raises(ValueError, match=r"observer must be a wave-filtering observer \(passive, sliding-mode\); got VelocityObserver"):
         ObserverBackstepping.for_observer(VelocityObserver(TwoLinkArm(), 5.0), **GAINS)
 
 

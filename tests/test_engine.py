@@ -82,6 +82,12 @@ class EchoController(Controller):
 
     source: str = eqx.field(static=True)
 
+    @property
+    def estimate_needs(self):
+        return () if self.source == "y" else ("position", "heading")
+
+    measurement_needs = reference_needs = property(lambda self: ())
+
     def init(self):
         return ()
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -16,11 +17,12 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
+from lookout.composition import compose
 from lookout.papers import REPRODUCTIONS, fossen_strand_1999
 from lookout.studies import _toml
 from lookout.studies.campaign import campaign_from_document, load_campaign
 from lookout.studies.execute import run_campaign
-from lookout.studies.scenario_file import ScenarioSpec, load, save, templates
+from lookout.studies.scenario_file import CompositionSpec, ScenarioSpec, load, save, templates
 from lookout.studies.store import CampaignStore
 
 # no xdist group: the tests spread over the workers (each builds the session fixtures it needs)
@@ -66,7 +68,7 @@ def test_a_scenario_file_written_by_the_reproduction_gives_its_numbers_exactly(t
     rms = np.sqrt((ran.position - ran.position_hat).sel(time=ran.time >= 10.0).pipe(lambda e: (e**2).sum("earth_axis").mean("time")))
     np.testing.assert_allclose(summary["metrics"]["rms_error:position"]["per_run"], rms.values, rtol=1e-12)
     # the copy in the folder runs again and says so
-    assert load(tmp_path / "run" / "scenario.toml").settings == load(scenario).settings
+    assert load(tmp_path / "run" / "scenario.toml").document() == load(scenario).document()
 
 
 @pytest.mark.parametrize("name", list(REPRODUCTIONS))
@@ -88,40 +90,56 @@ def _scenario_text(tmp_path, capsys) -> str:
 
 
 def _line_of(text: str, key: str | None) -> int | None:
-    """The line where ``key = ...`` is first set in ``text``."""
-    return next((n for n, content in enumerate(text.splitlines(), 1) if key and content.startswith(f"{key} =")), None)
+    """The line where ``key = ...`` is first set in ``text``; a dotted key
+    (``sensor.sample_period``) is looked for after its table's header."""
+    if not key:
+        return None
+    lines = text.splitlines()
+    *tables, name = re.sub(r"\[\d+\]", "", key).split(".")
+    start = 0
+    if tables:
+        header = f"[{'.'.join(tables)}]"
+        start = next((n for n, content in enumerate(lines) if content.strip() == header), None)
+        if start is None:
+            return None
+    found = next((n for n, content in enumerate(lines[start:], start + 1) if content.startswith(f"{name} =") or content.strip() == f"[{key}]"), None)
+    return found
+
+
+CUSTOM_VESSEL = 'kind = "custom"\nmass_matrix = [[5.3e6, 0, 0], [0, 8.3e6, 0], [0, 0, 3.7e9]]\ndamping_matrix = '
 
 
 @pytest.mark.parametrize(
     "old, new, expected",
     [
-        ("duration = 30.0", "durration = 30.0", "settings.durration (line {line}): unknown key"),
-        ("duration = 30.0", 'duration = "long"', 'settings.duration (line {line}): must be a number; got "long" (a string)'),
+        ("duration = 30.0", "durration = 30.0", "simulation.durration (line {line}): unknown key"),
+        ("duration = 30.0", 'duration = "long"', 'simulation.duration (line {line}): must be a number; got "long" (a string)'),
         # strictly typed: a boolean or a string is not a number, a float is not a count
-        ("duration = 30.0", "duration = true", "settings.duration (line {line}): must be a number; got true (a boolean)"),
-        ("duration = 30.0", 'duration = "100"', 'settings.duration (line {line}): must be a number; got "100" (a string)'),
-        ("runs = 1", "runs = 2.0", "settings.runs (line {line}): must be an integer (no decimal point); got 2.0 (a number with a decimal point)"),
-        ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, false, 0.1]", "settings.noise_std[1] (line {line}): must be a number; got false (a boolean)"),
-        ("dropout_probability = 0.0", "dropout_probability = 1979-05-27", "settings.dropout_probability (line {line}): must be a number; got a TOML date: 1979-05-27"),
-        ("bias_initial = [10000.0, 5000.0, 100000.0]", "bias_initial = [inf, 5000.0, 100000.0]", "settings.bias_initial[0] (line {line}): must be finite; got inf"),
-        ("runs = 1", "runs = 99999999999999999999", "settings.runs (line {line}): must be at most 9223372036854775808"),
-        ("measurement_period = 1.0", "measurement_period = -1.0", "settings.measurement_period (line {line}): must be a finite positive number; got -1"),
+        ("duration = 30.0", "duration = true", "simulation.duration (line {line}): must be a number; got true (a boolean)"),
+        ("duration = 30.0", 'duration = "100"', 'simulation.duration (line {line}): must be a number; got "100" (a string)'),
+        ("runs = 1", "runs = 2.0", "simulation.runs (line {line}): must be an integer (no decimal point); got 2.0 (a number with a decimal point)"),
+        ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, false, 0.1]", "sensor.noise_std[1] (line {line}): must be a number; got false (a boolean)"),
+        ("dropout_probability = 0.0", "dropout_probability = 1979-05-27", "sensor.dropout_probability (line {line}): must be a number; got a TOML date: 1979-05-27"),
+        ("bias = [10000.0, 5000.0, 100000.0]", "bias = [inf, 5000.0, 100000.0]", "plant.initial.bias[0] (line {line}): must be finite; got inf"),
+        ("runs = 1", "runs = 99999999999999999999", "simulation.runs (line {line}): must be at most 9223372036854775808"),
+        ("sample_period = 1.0", "sample_period = -1.0", "sensor.sample_period (line {line}): must be positive; got -1.0"),
         # damping that feeds energy in is no vessel
-        ('model = "northern-clipper"', 'model = "custom"\nmass_matrix = [[5.3e6, 0, 0], [0, 8.3e6, 0], [0, 0, 3.7e9]]\ndamping_matrix = [[5.0e4, 0, 0], [0, 2.7e5, -4.4e7], [0, -4.4e7, 4.2e8]]',
-         "settings.vessel.damping_matrix (line {line}): must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); the smallest eigenvalue of (D + D^T)/2 is -4.29e+06"),
+        ('kind = "northern-clipper"', CUSTOM_VESSEL + "[[5.0e4, 0, 0], [0, 2.7e5, -4.4e7], [0, -4.4e7, 4.2e8]]",
+         "plant.vessel.damping_matrix (line {line}): damping_matrix must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); the smallest eigenvalue of (D + D^T)/2 is -4.29e+06"),
         # the engine's rules under the file's names
-        ("measurement_period = 1.0", "measurement_period = 0.15", "settings.measurement_period (line {line}): must be a whole multiple of sample_period (0.1 s); got 0.15 s"),
-        ("duration = 30.0", "duration = 1e12", "settings.duration (line {line}): must be below 4.295e+09 samples of sample_period (0.1 s)"),
-        # a value only the components can refuse: the key that causes it, found by putting the defaults back one at a time
-        ("cutoff_frequency = 1.1", "cutoff_frequency = 0.5", "settings.cutoff_frequency (line {line}): 0.5 makes no scenario with the other settings: cutoff_frequency must exceed wave_frequency"),
-        ('model = "northern-clipper"', 'model = "custom"\nmass_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, -2.0]]\ndamping_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]',
-         "settings.vessel.mass_matrix (line {line}): must be symmetric positive definite; its smallest eigenvalue is -2"),
-        ('model = "northern-clipper"', 'model = "custom"', "settings.vessel: model 'custom' needs mass_matrix and damping_matrix"),
-        ('template = "fossen-strand-1999"', 'template = "nope"', "template (line {line}): unknown template 'nope'"),
-        ('case = "paper"', 'case = "other"', "case (line {line}): fossen-strand-1999 has no case 'other' (one of paper)"),
-        ("dropout_probability = 0.0", "dropout_probability = 1.5", "settings.dropout_probability (line {line}): must be in [0, 1); got 1.5"),
-        ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, 0.5]", "settings.noise_std (line {line}): too few entries"),
-        ("[settings]", "[settings", "not valid TOML"),
+        ("sample_period = 1.0", "sample_period = 0.15", "sensor.sample_period (line {line}): sensor sample_period[0] (0.15 s) must be an integer multiple of sample_period (0.1 s)"),
+        ("duration = 30.0", "duration = 1e12", "simulation.duration (line {line}): must be below 4.295e+09 samples of sample_period (0.1 s)"),
+        # a value only the component can refuse: the key its message names
+        ("cutoff_frequency = 1.1", "cutoff_frequency = 0.5", "observer.cutoff_frequency (line {line}): cutoff_frequency must exceed wave_frequency"),
+        ('kind = "northern-clipper"', 'kind = "custom"\nmass_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, -2.0]]\ndamping_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]',
+         "plant.vessel.mass_matrix (line {line}): mass_matrix must be symmetric positive definite; its smallest eigenvalue is -2"),
+        ('kind = "northern-clipper"', 'kind = "custom"', "plant.vessel (line {line}): missing key mass_matrix"),  # the table's header line
+        ('kind = "dp-vessel"', 'kind = "nope"', "plant.kind (line {line}): no plant kind 'nope' (one of "),
+        ('design = "fossen-strand-1999"', 'design = "other"', "observer.design (line {line}): no design 'other' (one of fossen-strand-1999, gains)"),
+        ("dropout_probability = 0.0", "dropout_probability = 1.5", "sensor.dropout_probability (line {line}): must be in [0, 1); got 1.5"),
+        ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, 0.5]", "sensor.noise_std (line {line}): sensor noise_std must be a scalar or have 3 entries; got shape (2,)"),
+        ("hold = \"measurement\"", "hold = \"both\"", "observer.hold (line {line}): Input should be 'measurement' or 'innovation'"),
+        ("[simulation]", "[simulation", "not valid TOML"),
     ],
 )
 def test_a_bad_scenario_file_is_one_line_naming_file_key_and_line(old, new, expected, tmp_path, capsys):
@@ -130,7 +148,7 @@ def test_a_bad_scenario_file_is_one_line_naming_file_key_and_line(old, new, expe
     bad = text.replace(old, new, 1)
     path = tmp_path / "bad.toml"
     path.write_text(bad)
-    key = expected.split(" (line")[0].split(".")[-1].split("[")[0] if "(line" in expected else None
+    key = expected.split(" (line")[0] if "(line" in expected else None
     code, out, err = _run_cli(["run", str(path), "--out", str(tmp_path / "x")], capsys)
     assert code == 2
     assert err.count("\n") == 1 and "Traceback" not in err
@@ -185,9 +203,9 @@ CAMPAIGN = {
     "divergence": {"signal": "position", "limit": 1000.0},
     "trajectories": {"signals": ["position", "position_hat", "measured_heading"], "every": 10},
     "sweep": {"kind": "grid", "axes": [
-        {"field": "wave_frequency", "values": [0.7, 1.0]},
-        {"field": ["bias_std[0]", "bias_std[1]", "bias_std[2]"], "values": [0.5, 2.0], "scale": True, "name": "bias_scale"},
-        {"field": "dropout_probability", "values": [0.0, 0.3]},
+        {"field": ["plant.waves.peak_frequency", "observer.wave_frequency"], "values": [0.7, 1.0], "name": "wave_frequency"},
+        {"field": ["plant.bias.std[0]", "plant.bias.std[1]", "plant.bias.std[2]"], "values": [0.5, 2.0], "scale": True, "name": "bias_scale"},
+        {"field": "sensor.dropout_probability", "values": [0.0, 0.3], "name": "dropout_probability"},
     ]},
 }
 
@@ -204,12 +222,14 @@ def test_campaign_points_are_the_grid_and_scale_multiplies_the_base(tmp_path, ca
     assert len(campaign.points) == 8 and len(campaign.chunks()) == 16
     assert campaign.points[5] == {"wave_frequency": 1.0, "bias_scale": 0.5, "dropout_probability": 0.3}
     changes = campaign.changes(5)
-    assert changes["bias_std[2]"] == 0.5 * 5e4 and changes["wave_frequency"] == 1.0
-    settings = campaign.point_spec(5).settings
-    assert settings.bias_std == (1e3, 1e3, 2.5e4) and settings.dropout_probability == 0.3
+    assert changes["plant.bias.std[2]"] == 0.5 * 5e4 and changes["observer.wave_frequency"] == changes["plant.waves.peak_frequency"] == 1.0
+    values = campaign.point_spec(5).values()
+    assert values["plant"]["bias"]["std"] == (1e3, 1e3, 2.5e4) and values["sensor"]["dropout_probability"] == 0.3
+    assert float(campaign.point_spec(5).build().observer.wave_frequency[0]) == 1.0
     # a Latin hypercube: one point per stratum of each axis
     lhs = campaign_from_document({"scenario": campaign.base.document(), "seeds_per_point": 2, "metrics": ["rms_error:position"], "sweep": {
-        "kind": "latin-hypercube", "points": 10, "seed": 3, "axes": [{"field": "wave_frequency", "range": [0.5, 1.0]}, {"field": "dropout_probability", "range": [0.0, 0.5]}]}}, "<lhs>")
+        "kind": "latin-hypercube", "points": 10, "seed": 3, "axes": [
+            {"field": "observer.wave_frequency", "range": [0.5, 1.0], "name": "wave_frequency"}, {"field": "sensor.dropout_probability", "range": [0.0, 0.5], "name": "dropout_probability"}]}}, "<lhs>")
     for label, (low, high) in (("wave_frequency", (0.5, 1.0)), ("dropout_probability", (0.0, 0.5))):
         strata = np.floor((np.array([p[label] for p in lhs.points]) - low) / (high - low) * 10).astype(int)
         assert sorted(strata) == list(range(10))
@@ -234,29 +254,29 @@ def test_an_axis_over_the_case_sweeps_the_templates_cases():
 @pytest.mark.parametrize(
     "changes, expected",
     [
-        ({"sweep": {"axes": [{"field": "wave_freqency", "values": [1.0]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'wave_freqency'"),
-        ({"sweep": {"axes": [{"field": "noise_std[3]", "values": [1.0]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'noise_std[3]'"),
-        ({"sweep": {"axes": [{"field": "dropout_probability", "values": [0.1, 1.5]}]}}, "sweep.axes[0].values (line {line}): value 1.5: settings.dropout_probability: must be in [0, 1); got 1.5"),
+        ({"sweep": {"axes": [{"field": "observer.wave_freqency", "values": [1.0]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'observer.wave_freqency'"),
+        ({"sweep": {"axes": [{"field": "sensor.noise_std[3]", "values": [1.0]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'sensor.noise_std[3]'"),
+        ({"sweep": {"axes": [{"field": "sensor.dropout_probability", "values": [0.1, 1.5]}]}}, "sweep.axes[0].values (line {line}): value 1.5: sensor.dropout_probability: must be in [0, 1); got 1.5"),
         ({"metrics": ["rms_tracking:position"]}, "metrics (line {line}): 'rms_tracking:position': the reference gives no desired 'position'"),
         ({"seeds_per_point": 4, "chunk_runs": 3}, "chunk_runs (line {line}): must be a positive divisor of seeds_per_point (4)"),
         ({"seed_per_point": 4}, "seed_per_point (line {line}): unknown key"),
-        ({"sweep": {"kind": "latin-hypercube", "axes": [{"field": "wave_frequency", "range": [0.5, 1.0]}]}}, "sweep: a latin-hypercube needs points >= 1"),
-        ({"sweep": {"axes": [{"field": "wave_frequency", "values": [0.5, 1.1]}]}}, "sweep.axes[0].values (line {line}): value 1.1 makes no scenario: cutoff_frequency must exceed wave_frequency"),
-        ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].values (line {line}): 'papers' is no case of fossen-strand-1999 (its cases: paper)"),
+        ({"sweep": {"kind": "latin-hypercube", "axes": [{"field": "observer.wave_frequency", "range": [0.5, 1.0]}]}}, "sweep (line {line}): a latin-hypercube needs points >= 1"),
+        ({"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.5, 1.1]}]}}, "sweep.axes[0].values (line {line}): value 1.1: observer.cutoff_frequency: cutoff_frequency must exceed wave_frequency"),
+        ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].field (line {line}): a composition has no cases: sweep its keys"),
         ({"sweep": {"axes": [{"field": "case", "range": [0.0, 1.0], "steps": 2}]}}, "sweep.axes[0].field (line {line}): an axis over the case takes values (case names), alone, without scale"),
         ({"seeds_per_point": "8"}, 'seeds_per_point (line {line}): must be an integer (no decimal point); got "8" (a string)'),
         ({"scenario": 5}, "scenario (line {line}): must be a string (in quotes); got 5"),
-        ({"sweep": {"axes": [{"field": "seed", "values": [1, 2]}]}}, "sweep: axes[0]: a campaign runs seeds_per_point seeds from seed at every point; 'seed' cannot be swept"),
-        ({"sweep": {"points": 5, "axes": [{"field": "wave_frequency", "values": [0.6, 0.8]}]}}, "sweep: points is for a latin-hypercube"),
-        ({"sweep": {"axes": [{"field": "wave_frequency", "values": [0.6, 0.8], "name": "point"}]}}, "sweep: axis name 'point' is taken by the store"),
-        ({"sweep": {"axes": [{"field": "wave_frequency", "values": [0.6, 0.8], "name": "rms_error__position"}]}}, "sweep: axis name 'rms_error__position' is taken by the store"),
+        ({"sweep": {"axes": [{"field": "seed", "values": [1, 2]}]}}, "sweep (line {line}): axes[0]: a campaign runs seeds_per_point seeds from seed at every point; 'seed' cannot be swept"),
+        ({"sweep": {"points": 5, "axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8]}]}}, "sweep (line {line}): points is for a latin-hypercube"),
+        ({"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8], "name": "point"}]}}, "sweep (line {line}): axis name 'point' is taken by the store"),
+        ({"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8], "name": "rms_error__position"}]}}, "sweep (line {line}): axis name 'rms_error__position' is taken by the store"),
         ({"after": 100.0}, "after (line {line}): 100 s is past the end of the run (29.9 s): the metrics would have no record"),
-        ({"sweep": {"axes": [{"field": "duration", "values": [200.0, 20.0]}]}, "after": 25.0},
+        ({"sweep": {"axes": [{"field": "simulation.duration", "values": [200.0, 20.0]}]}, "after": 25.0},
          "sweep.axes[0].values (line {line}): value 20.0: after (25 s) is past the end of that run (19.9 s)"),
         # sizes before allocation: neither the seeds nor the points are made
         ({"seeds_per_point": 10**12, "chunk_runs": 4}, "seeds_per_point (line {line}): 8 point(s) x 1000000000000 seeds in 2000000000000 chunks would need about"),
-        ({"sweep": {"kind": "latin-hypercube", "points": 10**12, "axes": [{"field": "wave_frequency", "range": [0.5, 1.0]}]}},
-         "sweep: 1000000000000 point(s) x 6 seeds in 2000000000000 chunks would need about"),
+        ({"sweep": {"kind": "latin-hypercube", "points": 10**12, "axes": [{"field": "observer.wave_frequency", "range": [0.5, 1.0]}]}},
+         "sweep (line {line}): 1000000000000 point(s) x 6 seeds in 2000000000000 chunks would need about"),
     ],
 )
 def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp_path, capsys):
@@ -279,8 +299,8 @@ def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp
 @pytest.fixture(scope="session")
 def campaign_files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("campaign")
-    template = templates()["fossen-strand-1999"]
-    save(ScenarioSpec(template, "paper", template.settings(duration=30.0)), folder / "base.toml")
+    composition = compose(fossen_strand_1999.composition(fossen_strand_1999.Config(duration=30.0)))
+    save(CompositionSpec(composition), folder / "base.toml")
     spec = _toml.write(folder / "campaign.toml", {"scenario": "base.toml", **CAMPAIGN})
     return folder, spec
 
@@ -478,7 +498,7 @@ def test_lookout_run_refuses_a_billion_runs_before_making_anything(tmp_path, cap
     scenario.write_text(_scenario_text(tmp_path, capsys))
     code, _, err = _run_cli(["run", str(scenario), "--out", str(tmp_path / "x"), "--runs", "1000000000"], capsys)
     assert code == 2 and err.count("\n") == 1, err
-    assert err.startswith("error: --runs 1000000000 over settings.duration 30 would need about ") and "use fewer --runs" in err, err
+    assert err.startswith("error: --runs 1000000000 over simulation.duration 30 would need about ") and "use fewer --runs" in err, err
     assert not (tmp_path / "x").exists()
 
 
@@ -542,10 +562,10 @@ def test_a_changed_spec_is_refused_naming_the_keys_that_differ(campaign_files, t
     CampaignStore.open_or_create(store, campaign)
     document = json.loads(campaign.canonical())
     document["seeds_per_point"], document["chunk_runs"] = 9, 3
-    document["scenario"]["settings"]["duration"] = 20.0
+    document["scenario"]["simulation"]["duration"] = 20.0
     changed = campaign_from_document(document, "<changed>")
     with pytest.raises(ValueError, match=r"holds another campaign \(fingerprint \w+, this spec's is \w+\): "
-                       r"scenario.settings.duration: 30.0 -> 20.0; seeds_per_point: 6 -> 9; resume it with its own spec"):
+                       r"scenario.simulation.duration: 30.0 -> 20.0; seeds_per_point: 6 -> 9; resume it with its own spec"):
         CampaignStore.open_or_create(store, changed)
 
 

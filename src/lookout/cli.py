@@ -246,6 +246,7 @@ def reproduce(
 
 
 def _write_scenario(name: str, config, text: str) -> None:
+    from lookout.papers import REPRODUCTIONS
     from lookout.studies.scenario_file import ScenarioSpec, save, templates
 
     if not text.strip():
@@ -257,7 +258,15 @@ def _write_scenario(name: str, config, text: str) -> None:
         raise InputError(f"--write-scenario must end in .toml; got {text}")
     writable_folder("--write-scenario", path.absolute().parent, text)
     template = templates()[name]
-    save(ScenarioSpec(template, template.cases[0], config), path)
+    module = REPRODUCTIONS[name]
+    if hasattr(module, "composition"):  # the reproductions written as compositions (issue 23: all of them)
+        from lookout.composition import compose
+        from lookout.studies.scenario_file import CompositionSpec
+
+        save(CompositionSpec(compose(module.composition(config, template.cases[0]))), path,
+             header=f"lookout scenario: {template.title}, case {template.cases[0]!r}, as a composition.\nRun it with: lookout run {path.name} --out DIR")
+    else:
+        save(ScenarioSpec(template, template.cases[0], config), path)
     console.print(f"scenario written to {path} (case {template.cases[0]!r}; cases: {', '.join(template.cases)}); run it with: lookout run {path} --out FOLDER", highlight=False)
 
 
@@ -692,6 +701,10 @@ def _print_design(result: dict, observer, tuning, spr) -> None:
 from lookout.studies.cli import register as _register_studies  # noqa: E402  (after the commands above: list, reproduce, design come first)
 
 _register_studies(app)
+
+from lookout.cli_components import register as _register_components  # noqa: E402
+
+_register_components(app)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,8 +30,8 @@ At sample k, time t_k::
     S     = observer.predict(S, t_k, y_k, v_k, dt)
 """
 
-from __future__ import annotations
-
+# no `from __future__ import annotations` here: equinox reads AbstractVar annotations, and
+# refuses them as strings (a stringified one would silently become an ordinary field)
 import abc
 from dataclasses import dataclass, field
 from typing import Any
@@ -176,6 +176,17 @@ class Plant(eqx.Module):
     def realize(self, key: Array) -> "Plant":
         """This plant with its per-run random parts drawn from ``key`` (or itself)."""
 
+    @abc.abstractmethod
+    def state(self, **parts):
+        """A state of this plant from named parts, zeros where not given (a
+        composition's ``[plant.initial]``; the keyword arguments are documented)."""
+
+    @abc.abstractmethod
+    def models(self) -> tuple:
+        """The models of this plant that an observer or a controller may be designed
+        for, by default (a vessel's M and D, a manipulator's model): a composition
+        gives a model-based component the plant's own model unless its table gives one."""
+
 
 class Sensor(eqx.Module):
     """A sampled measurement ``y = h(x) + noise``; NaN marks a dropped channel.
@@ -269,7 +280,17 @@ class Reference(eqx.Module):
 
 
 class Controller(eqx.Module):
-    """A control law; open-loop inputs and "no control" are controllers too."""
+    """A control law; open-loop inputs and "no control" are controllers too.
+
+    What it reads is declared (names, checked against the parts that provide them
+    before anything is compiled): ``estimate_needs`` of the observer's outputs,
+    ``measurement_needs`` of the sensor's channels, ``reference_needs`` of the
+    reference's signals. A field or a property may declare them.
+    """
+
+    estimate_needs: eqx.AbstractVar[tuple[str, ...]]
+    measurement_needs: eqx.AbstractVar[tuple[str, ...]]
+    reference_needs: eqx.AbstractVar[tuple[str, ...]]
 
     @abc.abstractmethod
     def init(self):

@@ -299,12 +299,12 @@ class EllipseReference(Reference):
 
     Parameters
     ----------
-    semi_axes : (a, b)
-        Semi-axes (m) along north and east, a, b > 0.
+    semi_axes : array_like, shape (2,), positive
+        Semi-axes a, b (m) along north and east.
     lap_speeds : sequence of float
         U_k (m/s) per lap, > 0.
-    centre : (x_c, y_c)
-        Centre (m).
+    centre : array_like, shape (2,)
+        Centre (x_c, y_c) (m).
     start_angle : float
         theta_0 (rad): theta_0 = 0 starts at (x_c + a, y_c) heading along +y for s = +1.
     direction : {1, -1}

@@ -40,12 +40,12 @@ class PositionHeadingSensor(Sensor):
 
     Parameters
     ----------
-    noise_std : array_like, shape (3,)
-        Standard deviation of d per channel (m, m, rad), >= 0.
-    sample_period : float or sequence of 3 floats
-        Seconds between samples of each channel (static: fixes the loop structure).
-    dropout_probability : float
-        Probability that a sample of a channel is missing (0 <= p < 1).
+    noise_std : array_like, shape (3,), non-negative
+        Standard deviation of d per channel (m, m, rad).
+    sample_period : float or sequence of 3 floats, positive
+        Seconds between samples of each channel (s; static: fixes the loop structure).
+    dropout_probability : float in [0, 1)
+        Probability that a sample of a channel is missing (1).
     """
 
     noise_std: Array

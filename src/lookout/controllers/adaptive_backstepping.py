@@ -35,7 +35,7 @@ from lookout._math import matvec
 from lookout.components import Controller, Layout
 from lookout.models.manipulators import JOINT_POSITION, joint_layout
 from lookout.models.parameters import AffineParameters
-from lookout.observers.adaptive_manipulator import read_estimate
+from lookout.observers.adaptive_manipulator import estimate_names, read_estimate
 
 
 @final
@@ -83,6 +83,11 @@ class AdaptiveObserverBackstepping(Controller):
         for name, value in (("observer gain K", self.observer_gain), ("position_gain C1", self.position_gain),
                             ("velocity_gain C2", self.velocity_gain), ("damping_weights d", self.damping_weights)):
             check.positive(name, value)
+
+    #: what (5.9) reads: q, x1_hat and theta_hat, and the joints' reference with two derivatives
+    estimate_needs = property(lambda self: estimate_names(self.parameters))
+    measurement_needs = property(lambda self: ())
+    reference_needs = property(lambda self: tuple(f"{n}_desired{s}" for s in ("", "_rate", "_acceleration") for n in self.position_layout.names))
 
     @property
     def size(self) -> int:

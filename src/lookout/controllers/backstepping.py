@@ -73,6 +73,13 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import rotate, rotate_transpose, rotation, ssa
 from lookout.components import Controller
+from lookout.observers.adaptive_dp import AdaptiveObserver
+from lookout.observers.wave_filtering import WaveFilteringObserver
+
+#: The estimate a DP controller reads: eta_hat and nu_hat.
+VESSEL_ESTIMATE = ("position", "heading", "velocity", "yaw_rate")
+#: The reference a DP tracking law reads: eta_d and its first two derivatives.
+VESSEL_REFERENCE = tuple(f"{name}_desired{suffix}" for suffix in ("", "_rate", "_acceleration") for name in ("position", "heading"))
 
 
 def _vector(estimate: dict, name: str) -> Array:
@@ -164,33 +171,49 @@ class ObserverBackstepping(Controller):
 
     @classmethod
     def for_observer(
-        cls, observer, *, integral_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0
+        cls, observer: WaveFilteringObserver, *, integral_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0
     ) -> "ObserverBackstepping":
-        """The controller for a passive or sliding-mode observer: M, D, H2, H4, Kbar and
-        the wave model are taken from ``observer``."""
-        from lookout.observers import PassiveObserver, SlidingModeObserver
+        """The controller for a wave-filtering observer (passive, sliding-mode): M, D,
+        H2, H4, Kbar and the wave model are taken from ``observer``.
 
-        if isinstance(observer, SlidingModeObserver):
-            passive, switching = observer.passive, observer.switching_gain
-        elif isinstance(observer, PassiveObserver):
-            passive, switching = observer, jnp.zeros(3)
-        else:
-            raise ValueError(f"observer must be a PassiveObserver or SlidingModeObserver; got {type(observer).__name__}")
-        inv_gamma = 1.0 / passive.lyapunov_weight
+        Parameters
+        ----------
+        observer : WaveFilteringObserver
+            The observer whose estimate the controller uses (in a composition, its observer).
+        integral_gain : array_like, shape (3,), non-negative
+            K_I (1/s).
+        position_gain : array_like, shape (3,), positive
+            C1 (1/s).
+        velocity_gain : array_like, shape (3,), positive
+            C2 (1/s).
+        damping_weights : array_like, shape (6,), non-negative
+            d1..d6 of the nonlinear damping D1 (d1..d3) and D2 (d4..d6) (s).
+        coupling_gain : array_like, shape (3,), positive
+            P1 (1/s^2), the weight of z1 in V_con; 1 is Kim's law as printed.
+        """
+        if not isinstance(observer, WaveFilteringObserver):
+            raise ValueError(f"observer must be a wave-filtering observer (passive, sliding-mode); got {type(observer).__name__}")
+        gains = observer.wave_filter_gains()
         return cls(
-            passive.mass_matrix,
-            passive.damping_matrix,
+            gains.mass_matrix,
+            gains.damping_matrix,
             integral_gain=integral_gain,
             position_gain=position_gain,
             velocity_gain=velocity_gain,
             coupling_gain=coupling_gain,
             damping_weights=damping_weights,
-            position_injection_gain=passive.position_injection_gain,
-            velocity_injection_gain=inv_gamma * passive.velocity_injection_gain,
-            switching_gain=switching,
-            wave_frequency=passive.wave_frequency,
-            wave_damping=passive.wave_damping,
+            position_injection_gain=gains.position_injection_gain,
+            velocity_injection_gain=gains.velocity_injection_gain,
+            switching_gain=gains.switching_gain,
+            wave_frequency=gains.wave_frequency,
+            wave_damping=gains.wave_damping,
         )
+
+    #: what the law reads (eqs. 18–26): the estimate with its wave motion, the measured
+    #: heading, and the reference with two derivatives
+    estimate_needs = property(lambda self: VESSEL_ESTIMATE + ("bias_force", "bias_moment", "wave_heading", "wave_heading_rate"))
+    measurement_needs = property(lambda self: ("measured_heading",))
+    reference_needs = property(lambda self: VESSEL_REFERENCE)
 
     def init(self):
         """The integral state e_I = 0 (m, m, rad s)."""
@@ -337,11 +360,23 @@ class VectorialBackstepping(Controller):
         check.positive("coupling_gain (P1)", self.coupling_gain)
 
     @classmethod
-    def for_observer(cls, observer, *, position_gain, velocity_gain, damping_weights, coupling_gain=1.0) -> "VectorialBackstepping":
+    def for_observer(cls, observer: AdaptiveObserver, *, position_gain, velocity_gain, damping_weights, coupling_gain=1.0) -> "VectorialBackstepping":
         """The controller for an :class:`~lookout.observers.AdaptiveObserver`: its
-        parametrization and K1, K2 are taken from ``observer``."""
-        from lookout.observers import AdaptiveObserver
+        parametrization and K1, K2 are taken from ``observer``.
 
+        Parameters
+        ----------
+        observer : AdaptiveObserver
+            The observer whose estimate (and theta_hat) the controller uses.
+        position_gain : array_like, shape (3,), positive
+            C1 (1/s).
+        velocity_gain : array_like, shape (3,), positive
+            C2 (1/s).
+        damping_weights : array_like, shape (6,), positive
+            d1..d6 (s).
+        coupling_gain : array_like, shape (3,), positive
+            P1 (1/s^2), 1 as printed.
+        """
         if not isinstance(observer, AdaptiveObserver):
             raise ValueError(f"observer must be an AdaptiveObserver; got {type(observer).__name__}")
         return cls(
@@ -353,6 +388,11 @@ class VectorialBackstepping(Controller):
             damping_weights=damping_weights,
             coupling_gain=coupling_gain,
         )
+
+    #: what the law (36) reads: the estimate and theta_hat, the measured heading, the reference
+    estimate_needs = property(lambda self: VESSEL_ESTIMATE + tuple(f"theta_{name}" for name in self.parametrization.names))
+    measurement_needs = property(lambda self: ("measured_heading",))
+    reference_needs = property(lambda self: VESSEL_REFERENCE)
 
     def init(self):
         """No internal state."""

@@ -40,7 +40,7 @@ from lookout import _validation as check
 from lookout._math import matvec
 from lookout.components import Controller
 from lookout.models.parameters import AffineParameters
-from lookout.observers.adaptive_manipulator import read_estimate
+from lookout.observers.adaptive_manipulator import estimate_names, read_estimate
 
 #: The reference signal the controller reads: ``<name>_desired`` (rad), ``_rate``, ``_acceleration``.
 PENDULUM_REFERENCE = "pendulum_angle"
@@ -96,6 +96,11 @@ class FurutaPendulumBackstepping(Controller):
         for name, value in (("position_gain c1", self.position_gain), ("position_damping d1", self.position_damping),
                             ("velocity_gain c2", self.velocity_gain), ("velocity_damping d2", self.velocity_damping)):
             check.positive(name, value)
+
+    #: what (6.9)–(6.11) read: the estimate's q, x1_hat and theta_hat, the pendulum's reference
+    estimate_needs = property(lambda self: estimate_names(self.parameters))
+    measurement_needs = property(lambda self: ())
+    reference_needs = property(lambda self: tuple(f"{PENDULUM_REFERENCE}_desired{s}" for s in ("", "_rate", "_acceleration")))
 
     def errors(self, q: Array, velocity: Array, reference: dict) -> tuple[Array, Array]:
         """(z1, z2) of (6.5)–(6.6)."""

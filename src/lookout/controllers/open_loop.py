@@ -64,6 +64,9 @@ class SinusoidalInput(Controller):
         value = jnp.atleast_1d(jnp.asarray(value, dtype=float))
         return cls(0.0, 0.0, offset=value, size=value.shape[0])
 
+    #: an open-loop input reads nothing
+    estimate_needs = measurement_needs = reference_needs = property(lambda self: ())
+
     def init(self):
         """No internal state."""
         return ()
@@ -85,6 +88,8 @@ class NoControl(Controller):
     """
 
     size: int = eqx.field(static=True)
+
+    estimate_needs = measurement_needs = reference_needs = property(lambda self: ())
 
     def init(self):
         """No internal state."""

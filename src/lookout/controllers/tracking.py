@@ -53,6 +53,10 @@ def _vector(values: dict, first: str, second: str) -> Array:
     return jnp.concatenate([jnp.asarray(values[first]), jnp.asarray(values[second])[None]])
 
 
+#: The reference the law reads: eta_ref and its first two derivatives.
+REFERENCE_NEEDS = tuple(f"{name}_desired{suffix}" for suffix in ("", "_rate", "_acceleration") for name in ("position", "heading"))
+
+
 def reference_velocity(reference: dict) -> tuple[Array, Array, Array]:
     """``(eta_ref, nu_ref, nu_ref')`` from an Earth-fixed reference sample:
     nu_ref = J^T(psi_ref) eta_ref', nu_ref' = J^T(psi_ref) eta_ref'' + S^T(r_ref) nu_ref."""
@@ -107,6 +111,11 @@ class TrackingController(Controller):
     def damping_gain(self) -> Array:
         """Kd = 2 M Lambda Omega - D (20), with D the model's linear damping."""
         return 2.0 * self.ship.mass_matrix * (self.damping_ratio * self.natural_frequency)[None, :] - self.ship.damping_matrix
+
+    #: what (23) reads: eta_hat, nu_hat and the reference velocity with its derivative
+    estimate_needs = property(lambda self: ("position", "heading", "velocity", "yaw_rate"))
+    measurement_needs = property(lambda self: ())
+    reference_needs = property(lambda self: REFERENCE_NEEDS)
 
     def init(self):
         """No internal state."""

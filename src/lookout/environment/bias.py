@@ -46,10 +46,10 @@ class GaussMarkovBias(eqx.Module):
 
         Parameters
         ----------
-        time_constant : array_like, shape (3,)
-            Time constants in seconds.
-        std : array_like, shape (3,)
-            Stationary standard deviation in N, N, N m.
+        time_constant : array_like, shape (3,), positive
+            Time constants T_i (s) of eq. (7).
+        std : array_like, shape (3,), non-negative
+            Stationary standard deviation (N, N, N m).
         """
         time_constant = check.vector("bias time_constant", time_constant)
         std = check.vector("bias std", std)

@@ -72,6 +72,17 @@ class LinearWaveModel(eqx.Module):
         default: a Gaussian motion exceeds it 0.27 % of the time). This is how
         lookout reads "amplitudes limited to 10 m, 10 m and 1.0 deg" in Fossen &
         Strand (1999), Section 6.1.
+
+        Parameters
+        ----------
+        peak_frequency : array_like, shape (3,), positive
+            Dominating wave frequency w0_i (rad/s).
+        damping_ratio : array_like, shape (3,), positive
+            Relative damping zeta_i (1).
+        amplitude : array_like, shape (3,), non-negative
+            Amplitude of the wave motion (m, m, rad), ``sigmas`` standard deviations.
+        sigmas : float, positive
+            Standard deviations the amplitude stands for (1).
         """
         if not sigmas > 0:
             raise ValueError(f"sigmas must be positive; got {sigmas}")

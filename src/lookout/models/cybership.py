@@ -266,6 +266,20 @@ class CybershipPlant(Plant):
             wave_rate = ramp * self.waves.rate(t, position, eta_rate[:2]) + ramp_rate * self.waves.motion(t, position)
         return CybershipState(eta=eta_rate, nu=self.ship.acceleration(state.nu, tau), wave=wave_rate)
 
+    def state(self, eta=0.0, nu=0.0, wave=0.0) -> CybershipState:
+        """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
+
+        Parameters
+        ----------
+        eta : array_like, shape (3,)
+            Position north, east (m) and heading (rad), Earth-fixed.
+        nu : array_like, shape (3,)
+            Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.
+        wave : array_like, shape (3,)
+            Wave-induced motion eta_w (m, m, rad).
+        """
+        return CybershipState.build(eta, nu, wave)
+
     def normalize(self, state: CybershipState) -> CybershipState:
         """Heading wrapped to [-pi, pi), as a compass reports it."""
         return state.wrapped()
@@ -273,6 +287,13 @@ class CybershipPlant(Plant):
     def variables(self, state: CybershipState) -> dict[str, Array]:
         """Position, heading, velocities and wave motion (:data:`CYBERSHIP_SIGNALS`)."""
         return state.signals()
+
+    def models(self) -> tuple:
+        """The ship (M, C, D, D_n), and its M and linear D as a DP vessel model (for the
+        observers of Fossen & Strand and Kim, which neglect C and D_n at DP speeds)."""
+        from lookout.models.vessel import DPVessel
+
+        return (self.ship, DPVessel(self.ship.mass_matrix, self.ship.damping_matrix))
 
     def realize(self, key: Array) -> "CybershipPlant":
         """The waves' random phases drawn from ``key`` (calm water: the plant itself)."""

@@ -187,6 +187,7 @@ class FurutaPlant(Plant):
     Parameters
     ----------
     model : FurutaConstants
+        The true pendulum in its constants, Coulomb friction included.
     stick_band : float
         |phi'| (rad/s) below which the arm may stick, > 0 (default 0.02).
     stick_relaxation : float
@@ -261,6 +262,22 @@ class FurutaPlant(Plant):
         force = force.at[0].add(-f)
         accel = jnp.array([mass[1, 1] * force[0] - mass[0, 1] * force[1], mass[0, 0] * force[1] - mass[1, 0] * force[0]]) / det
         return FurutaState(x.qdot, accel, sticking.astype(float))
+
+    def state(self, q=0.0, qdot=0.0) -> FurutaState:
+        """A state of this plant, not sticking (zeros where not given): a composition's ``[plant.initial]``.
+
+        Parameters
+        ----------
+        q : array_like, shape (2,)
+            (phi, theta): arm and pendulum angles (rad).
+        qdot : array_like, shape (2,)
+            Their rates (rad/s).
+        """
+        return FurutaState(jnp.asarray(check.vector("q", q, 2)), jnp.asarray(check.vector("qdot", qdot, 2)), jnp.asarray(0.0))
+
+    def models(self) -> tuple:
+        """The model in its constants (friction included)."""
+        return (self.model,)
 
     def normalize(self, x: FurutaState) -> FurutaState:
         """The identity: angles are not wrapped (an incremental encoder counts turns)."""

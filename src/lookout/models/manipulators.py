@@ -547,6 +547,7 @@ class ManipulatorPlant(Plant):
     Parameters
     ----------
     model : ManipulatorModel
+        The true manipulator (it may differ from the observer's and controller's model).
     force_noise : float or array_like, shape (n,)
         Standard deviation of the white force disturbance per joint, >= 0 (default 0).
 
@@ -590,6 +591,23 @@ class ManipulatorPlant(Plant):
         del t
         tau = u + self.force_noise * w
         return JointState(x.qdot, self.model.acceleration(x.q, x.qdot, tau))
+
+    def state(self, q=0.0, qdot=0.0) -> JointState:
+        """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Joint coordinates in joint order (rad, m).
+        qdot : array_like, shape (n,)
+            Their rates (rad/s, m/s).
+        """
+        n = self.model.size
+        return JointState(jnp.asarray(check.vector("q", q, n)), jnp.asarray(check.vector("qdot", qdot, n)))
+
+    def models(self) -> tuple:
+        """The manipulator model (M, C, F, G)."""
+        return (self.model,)
 
     def normalize(self, x: JointState) -> JointState:
         """The identity: joint angles are not wrapped (see the class docstring)."""

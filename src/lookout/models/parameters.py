@@ -158,7 +158,17 @@ class ModelParameters(AffineParameters):
     is Calugi's ch. 5 theta = m2, ``ModelParameters(pendulum, ("mass",))`` ch. 3's and
     ch. 4's theta = m. Each entry names a scalar field or one element of a vector field;
     the reference is the model's own values. Fields that do not enter affinely (a length)
-    are refused."""
+    are refused.
+
+    Parameters
+    ----------
+    base : ManipulatorModel
+        The model (in a composition, the plant's unless given).
+    fields : sequence of str
+        The unknown parameters: scalar fields (``"mass"``) or elements (``"masses[1]"``).
+    units : sequence of str, optional
+        One UDUNITS unit per field (``"kg"``), for the records of theta_hat.
+    """
 
     base: ManipulatorModel
     reference: Array

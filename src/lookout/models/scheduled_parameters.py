@@ -127,6 +127,10 @@ class ScheduledParameterPlant(Plant):
         values = np.asarray(self.values)[index]
         return {signal.name: values[..., j] for j, signal in enumerate(self.parameter_layout.signals)}
 
+    def models(self) -> tuple:
+        """The model with the first interval's parameters, and the parameters' description."""
+        return (self.parameters.model(self.values[0]), self.parameters)
+
     def realize(self, key: Array) -> "ScheduledParameterPlant":
         """No per-run randomness beyond the white noise: the plant itself."""
         del key

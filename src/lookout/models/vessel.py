@@ -195,7 +195,9 @@ class VesselPlant(Plant):
         The true vessel (it may differ from the observer's and controller's model:
         that difference is the model error).
     bias : GaussMarkovBias
+        The slowly varying environmental forces b (currents, mean wave drift, wind).
     waves : LinearWaveModel
+        The first-order wave-frequency motion eta_w added to the measured position.
     disturbance : BodyDisturbance, optional
         An unmodelled body-fixed force (Kim's E_nu w_nu); its white part adds three
         noise channels after the six of bias and waves.
@@ -227,6 +229,22 @@ class VesselPlant(Plant):
             wave_state=self.waves.derivative(state.wave_state, noise[3:6]),
         )
 
+    def state(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+        """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
+
+        Parameters
+        ----------
+        eta : array_like, shape (3,)
+            Position north, east (m) and heading (rad), Earth-fixed.
+        nu : array_like, shape (3,)
+            Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.
+        bias : array_like, shape (3,)
+            Bias forces and moment (N, N, N m), Earth-fixed.
+        wave_state : array_like, shape (6,)
+            Wave-model state [xi1, xi2] of eq. (11) (m s, m s, rad s, m, m, rad).
+        """
+        return VesselState.build(eta, nu, bias, wave_state)
+
     def normalize(self, state: VesselState) -> VesselState:
         """Heading wrapped to [-pi, pi), as a gyro compass reports it."""
         return state.wrapped()
@@ -234,6 +252,10 @@ class VesselPlant(Plant):
     def variables(self, state: VesselState) -> dict[str, Array]:
         """Position, heading, velocities, bias and wave motion (:data:`VESSEL_SIGNALS`)."""
         return state.signals()
+
+    def models(self) -> tuple:
+        """The true vessel (M, D, K)."""
+        return (self.vessel,)
 
     def realize(self, key: Array) -> "VesselPlant":
         """No per-run randomness beyond the white noise: the plant itself."""

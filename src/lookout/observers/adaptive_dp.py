@@ -482,7 +482,17 @@ class AdaptiveObserver(ContinuousObserver):
 
     def guess(self, eta=0.0, nu=0.0, theta=None) -> AdaptiveEstimate:
         """An initial estimate (eta, nu zero unless given; theta :attr:`initial_theta`
-        unless given), to pass to :meth:`init` through the Scenario."""
+        unless given), to pass to :meth:`init` through the Scenario.
+
+        Parameters
+        ----------
+        eta : array_like, shape (3,)
+            Position north, east (m) and heading (rad).
+        nu : array_like, shape (3,)
+            Velocity surge, sway (m/s) and yaw rate (rad/s).
+        theta : array_like, shape (p,), optional
+            theta_hat(0) (SI); default the observer's initial_theta.
+        """
         theta = self.initial_theta if theta is None else theta
         return AdaptiveEstimate(
             jnp.asarray(check.vector("eta", eta)),

@@ -68,6 +68,14 @@ def theta_signal_name(name: str) -> str:
     return f"{parameter_signal_name(name)}_hat"
 
 
+def estimate_names(parameters: AffineParameters) -> tuple[str, ...]:
+    """The estimate :func:`read_estimate` reads: the joints' positions and velocities and theta_hat."""
+    model = parameters.model(parameters.reference)
+    positions = joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION)
+    velocities = joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY)
+    return positions.names + velocities.names + tuple(theta_signal_name(name) for name in parameters.names)
+
+
 def read_estimate(estimate: dict, parameters: AffineParameters) -> tuple[Array, Array, Array]:
     """``(q, x1_hat, theta_hat)`` from the output of an :class:`AdaptiveManipulatorObserver`
     on ``parameters``: what the chapter 5 and 6 controllers close the loop on."""
@@ -240,7 +248,15 @@ class AdaptiveManipulatorObserver(Observer):
                     )
 
     def guess(self, velocity=0.0, theta=None) -> AdaptiveGuess:
-        """Initial estimates; theta_hat(0) defaults to the parameters' reference (the truth)."""
+        """Initial estimates; theta_hat(0) defaults to the parameters' reference (the truth).
+
+        Parameters
+        ----------
+        velocity : array_like, shape (n,)
+            x1_hat(0), the joints' velocity estimate (rad/s, m/s).
+        theta : array_like, shape (p,), optional
+            theta_hat(0), in the parameters' units; default their reference values.
+        """
         n = self.parameters.model(self.parameters.reference).size
         theta = self.parameters.reference if theta is None else theta
         return AdaptiveGuess(jnp.broadcast_to(jnp.asarray(velocity, dtype=float), (n,)),

@@ -158,7 +158,15 @@ class EarthFixedObserver(ContinuousObserver):
         check.positive("velocity_gain (L2)", self.velocity_gain)
 
     def guess(self, eta=0.0, velocity=0.0) -> EarthFixedGuess:
-        """An initial estimate: eta_hat(0) = ``eta`` and the Earth-frame ``velocity``."""
+        """An initial estimate: eta_hat(0) = ``eta`` and the Earth-frame ``velocity``.
+
+        Parameters
+        ----------
+        eta : array_like, shape (3,)
+            eta_hat(0): position north, east (m) and heading (rad).
+        velocity : array_like, shape (3,)
+            The Earth-frame velocity (m/s, m/s, rad/s) of v_hat(0) or zeta(0) (``initial_velocity``).
+        """
         return EarthFixedGuess(jnp.asarray(check.vector("eta", eta)), jnp.asarray(check.vector("velocity", velocity)))
 
     def innovation(self, estimate: EarthFixedEstimate, measurement: Array) -> Array:

@@ -252,7 +252,13 @@ class ParameterEstimator(ContinuousObserver):
 
     def guess(self, theta=None) -> Array:
         """An initial parameter estimate theta_hat(0): ``theta``, by default the
-        parameters' reference values (as :class:`AdaptiveManipulatorObserver` starts)."""
+        parameters' reference values (as :class:`AdaptiveManipulatorObserver` starts).
+
+        Parameters
+        ----------
+        theta : array_like, shape (p,), optional
+            theta_hat(0), in the parameters' units; default their reference values.
+        """
         theta = self.parameters.reference if theta is None else theta
         return jnp.asarray(check.vector("theta_hat(0)", theta, self.parameters.size))
 

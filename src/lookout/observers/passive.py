@@ -41,9 +41,10 @@ from typing import final
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
-from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
+from lookout.components import EARTH_FIXED, Layout, Signal
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
 from lookout.sensors import POSITION_HEADING
+from lookout.observers.wave_filtering import WaveFilterGains, WaveFilteringObserver
 from lookout.sim.integrators import rk4_step
 
 #: The innovation y~ = y - y_hat (eq. 26), an extra output of the observer.
@@ -136,6 +137,59 @@ def default_cutoff_frequency(wave_frequency):
     return np.maximum(PAPER_CUTOFF_FREQUENCY, CUTOFF_RATIO * np.asarray(wave_frequency, dtype=float))
 
 
+#: The velocity loop's bandwidth sqrt(Kappa_i / M_ii) as a fraction of w_o_i, in
+#: :func:`tuning_rule_gains`: Fossen & Strand's (60) on the Northern Clipper gives 0.094
+#: to 0.118 (surge, sway, yaw).
+VELOCITY_BANDWIDTH_RATIO = 0.1
+
+
+def tuning_rule_gains(mass_matrix, wave_frequency, bias_time_constant, velocity_bandwidth=None):
+    """Kappa and Lambda for a vessel of mass matrix M inside the tuning rule (48).
+
+    Fossen & Strand (1999), eq. (48): ``1/T_i << Lambda_i / Kappa_i < w_o_i`` (their
+    K3 / K4). This rule (lookout's choice) puts the ratio at the geometric middle of that
+    interval, ``Lambda_i / Kappa_i = sqrt(w_o_i / T_i)``, and sizes Kappa so that the
+    low-frequency loop M_ii nu' = -Kappa_i eta~ has the natural frequency
+    ``velocity_bandwidth`` (default :data:`VELOCITY_BANDWIDTH_RATIO` w_o, a decade below
+    the waves): ``Kappa_i = M_ii velocity_bandwidth_i^2``. On the Northern Clipper it
+    gives Kappa 0.72, 1.13 and 0.88 times the paper's (60) and Lambda 0.60, 0.94 and 0.73 times.
+
+    Parameters
+    ----------
+    mass_matrix : array_like, shape (3, 3)
+        M (kg, kg m^2).
+    wave_frequency : array_like, shape (3,)
+        w_o (rad/s).
+    bias_time_constant : array_like, shape (3,)
+        T (s).
+    velocity_bandwidth : array_like, shape (3,), optional
+        The low-frequency loop's natural frequency (rad/s).
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(Kappa, Lambda)``: N/m, N/m, N m/rad and the same per second.
+    """
+    w_o = check.vector("wave_frequency", wave_frequency)
+    period = check.vector("bias_time_constant", bias_time_constant)
+    bandwidth = VELOCITY_BANDWIDTH_RATIO * w_o if velocity_bandwidth is None else check.vector("velocity_bandwidth", velocity_bandwidth)
+    check.positive("velocity_bandwidth", bandwidth)
+    kappa = np.diag(np.asarray(mass_matrix, dtype=float)) * bandwidth**2
+    return kappa, kappa * np.sqrt(w_o / period)
+
+
+def wave_frequency_of(waves) -> np.ndarray:
+    """The dominating frequency (rad/s, per DOF) of a plant's wave model: a linear
+    model's w0, or a JONSWAP sea's spectral peak."""
+    if hasattr(waves, "peak_frequency") and not callable(waves.peak_frequency):
+        return check.vector("wave peak_frequency", waves.peak_frequency)
+    if hasattr(waves, "mean_period"):
+        from lookout.environment.jonswap import peak_frequency
+
+        return check.vector("wave peak_frequency", float(peak_frequency(waves.mean_period)))
+    raise ValueError(f"wave_frequency: give it (the wave model {type(waves).__name__} has no dominating frequency to take)")
+
+
 def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, gravity=GRAVITY):
     """Convert Kappa and Lambda from the normalized ("bis") system to SI.
 
@@ -174,7 +228,7 @@ def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, g
 
 
 @final
-class PassiveObserver(ContinuousObserver):
+class PassiveObserver(WaveFilteringObserver):
     """Fossen & Strand (1999) passive observer, eqs. (22)–(26), gains in SI.
 
     Use :meth:`design` to synthesize the wave-filter gains from the wave and notch
@@ -185,22 +239,24 @@ class PassiveObserver(ContinuousObserver):
     Parameters
     ----------
     mass_matrix, damping_matrix : array_like, shape (3, 3)
-        The observer's model M (symmetric positive definite) and D.
-    wave_frequency, wave_damping : array_like, shape (3,)
-        Wave model Omega of the observer (rad/s, -).
+        The observer's model M (symmetric positive definite) and D (SI).
+    wave_frequency : array_like, shape (3,), positive
+        The observer's wave frequencies w_oi of Omega (rad/s).
+    wave_damping : array_like, shape (3,), positive
+        The observer's wave damping ratios zeta_i of Omega (1).
     wave_injection_gain : array_like, shape (6,)
-        Diagonals of K1: [k1_1, k1_2, k1_3, k2_1, k2_2, k2_3] (eq. 40).
-    position_injection_gain : array_like, shape (3,)
-        Diagonal of K2, 1/s.
-    velocity_injection_gain : array_like, shape (3,)
-        Diagonal of Kappa: N/m, N/m, N m/rad.
-    bias_injection_gain : array_like, shape (3,)
-        Diagonal of Lambda: N/(m s), N/(m s), N m/(rad s).
-    bias_time_constant : array_like, shape (3,)
-        Diagonal of T (s).
-    lyapunov_weight : float
-        gamma > 0, the weight of the kinetic-energy term of the Lyapunov function (49).
-    steps_per_sample : int
+        Diagonals of K1: [k1_1, k1_2, k1_3, k2_1, k2_2, k2_3] (eq. 40; 1, 1/s).
+    position_injection_gain : array_like, shape (3,), positive
+        Diagonal of K2 (1/s).
+    velocity_injection_gain : array_like, shape (3,), positive
+        Diagonal of Kappa = K3 (N/m, N/m, N m/rad).
+    bias_injection_gain : array_like, shape (3,), positive
+        Diagonal of Lambda = K4 (N/(m s), N/(m s), N m/(rad s)).
+    bias_time_constant : array_like, shape (3,), positive
+        Diagonal of T, the observer's bias time constants (s).
+    lyapunov_weight : float, positive
+        gamma, the weight of the kinetic-energy term of the Lyapunov function (49) (1).
+    steps_per_sample : int, positive
         RK4 steps of :meth:`predict` per sample period.
     hold : {"measurement", "innovation"}
         What :meth:`predict` holds over a sample: y_k and J(y_k) (default), or the
@@ -281,18 +337,60 @@ class PassiveObserver(ContinuousObserver):
         cls,
         vessel: DPVessel,
         *,
-        wave_frequency,
-        wave_damping,
-        notch_damping,
-        cutoff_frequency,
-        velocity_injection_gain,
-        bias_injection_gain,
-        bias_time_constant,
+        waves=None,
+        wave_frequency=None,
+        wave_damping=0.1,
+        notch_damping=1.0,
+        cutoff_frequency=None,
+        velocity_injection_gain=None,
+        bias_injection_gain=None,
+        bias_time_constant=1000.0,
+        velocity_bandwidth=None,
         lyapunov_weight=1.0,
         steps_per_sample=1,
         hold="measurement",
     ) -> "PassiveObserver":
-        """Observer for ``vessel`` with K1, K2 from eqs. (45)–(47); other gains in SI."""
+        """Observer for ``vessel`` with K1, K2 from eqs. (45)–(47) and, unless given,
+        Kappa and Lambda inside the tuning rule (48) (:func:`tuning_rule_gains`).
+
+        The defaults are the paper's choices of Section 6.1 (zeta = 0.1, zeta_n = 1,
+        T = 1000 s) and rules for the rest, so that ``kind = "passive"`` alone gives an
+        observer for any DP vessel model.
+
+        Parameters
+        ----------
+        vessel : DPVessel
+            The observer's vessel model (M, D); in a composition, the plant's unless given.
+        waves : LinearWaveModel or JonswapWaves, optional
+            The sea to tune for when wave_frequency is not given (in a composition, the plant's).
+        wave_frequency : array_like, shape (3,), positive, optional
+            w_o (rad/s); default the dominating frequency of ``waves``.
+        wave_damping : array_like, shape (3,), positive
+            zeta of the observer's wave model (1); the paper's 0.1.
+        notch_damping : array_like, shape (3,), positive
+            zeta_ni of the notch filter, eq. (45) (1); the paper's 1.
+        cutoff_frequency : array_like, shape (3,), positive, optional
+            w_ci of the low-pass filter, eq. (45), above wave_frequency (rad/s); default
+            max(1.1 rad/s, 1.2255 w_o), the paper's ratio.
+        velocity_injection_gain : array_like, shape (3,), positive, optional
+            Kappa (N/m, N/m, N m/rad); default from the tuning rule (48).
+        bias_injection_gain : array_like, shape (3,), positive, optional
+            Lambda (N/(m s), N/(m s), N m/(rad s)); default from the tuning rule (48).
+        bias_time_constant : array_like, shape (3,), positive
+            T, the observer's bias time constants (s); the paper's 1000 s.
+        velocity_bandwidth : array_like, shape (3,), positive, optional
+            sqrt(Kappa_i / M_ii) of the default Kappa (rad/s); default 0.1 w_o.
+        """
+        if wave_frequency is None:
+            if waves is None:
+                raise ValueError("wave_frequency: give it (there is no wave model to take it from)")
+            wave_frequency = wave_frequency_of(waves)
+        if cutoff_frequency is None:
+            cutoff_frequency = default_cutoff_frequency(check.vector("wave_frequency", wave_frequency))
+        if velocity_injection_gain is None or bias_injection_gain is None:
+            kappa, lam = tuning_rule_gains(vessel.mass_matrix, wave_frequency, bias_time_constant, velocity_bandwidth)
+            velocity_injection_gain = kappa if velocity_injection_gain is None else velocity_injection_gain
+            bias_injection_gain = lam if bias_injection_gain is None else bias_injection_gain
         k1, k2, k3 = notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency)
         return cls(
             vessel.mass_matrix,
@@ -309,6 +407,13 @@ class PassiveObserver(ContinuousObserver):
             hold=hold,
         )
 
+    def wave_filter_gains(self) -> WaveFilterGains:
+        """M, D, the wave model, K2 and Kappa / gamma; no switching term."""
+        return WaveFilterGains(
+            self.mass_matrix, self.damping_matrix, self.wave_frequency, self.wave_damping,
+            self.position_injection_gain, self.velocity_injection_gain / self.lyapunov_weight, jnp.zeros(3),
+        )
+
     def wave_injection_matrix(self) -> np.ndarray:
         """K1 as the 6x3 matrix of eq. (40)."""
         gains = np.asarray(self.wave_injection_gain)
@@ -319,7 +424,19 @@ class PassiveObserver(ContinuousObserver):
         return np.diag(np.asarray(self.position_injection_gain))
 
     def guess(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
-        """An initial estimate (zeros unless given), to pass to :meth:`init`."""
+        """An initial estimate (zeros unless given), to pass to :meth:`init`.
+
+        Parameters
+        ----------
+        eta : array_like, shape (3,)
+            Position north, east (m) and heading (rad).
+        nu : array_like, shape (3,)
+            Velocity surge, sway (m/s) and yaw rate (rad/s).
+        bias : array_like, shape (3,)
+            Bias forces and moment (N, N, N m).
+        wave_state : array_like, shape (6,)
+            Wave-filter state [xi1, xi2] (m s, m s, rad s, m, m, rad).
+        """
         return VesselState.build(eta, nu, bias, wave_state)
 
     def init(self, y0: Array, guess: VesselState) -> VesselState:

@@ -45,9 +45,10 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
+from lookout.components import EARTH_FIXED, Layout, Signal
 from lookout.models.vessel import EARTH_AXES, VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
 from lookout.observers.passive import WAVE_FILTER_EXTRAS, PassiveObserver, predict_sample
+from lookout.observers.wave_filtering import WaveFilterGains, WaveFilteringObserver
 from lookout.sensors import POSITION_HEADING
 
 #: The switching term Kbar sat(y~ / eps) of eq. (6), an extra output.
@@ -66,6 +67,11 @@ KIM_2002_BIAS_TIME_CONSTANT = (1000.0, 1000.0, 10000.0)
 KIM_2002_WAVE = {"wave_frequency": 0.8976, "wave_damping": 0.1, "notch_damping": 1.0, "cutoff_frequency": 1.1}
 
 
+#: The boundary layer eps of :meth:`SlidingModeObserver.design` when none is given (m, m,
+#: rad; lookout's choice: a few times a DGNSS fix's and a gyro's noise).
+DEFAULT_BOUNDARY_LAYER = (1.0, 1.0, 0.02)
+
+
 def saturation(x, width=1.0):
     """sat(x / width) of Kim (2002), eq. (7), componentwise: x / width clipped to [-1, 1].
 
@@ -75,7 +81,7 @@ def saturation(x, width=1.0):
 
 
 @final
-class SlidingModeObserver(ContinuousObserver):
+class SlidingModeObserver(WaveFilteringObserver):
     """Kim (2002) sliding-mode observer, eqs. (6)–(7): a passive observer plus Kbar sat(y~/eps).
 
     Use :meth:`design` (H1, H2 from the wave model by Fossen & Strand (45)–(47), as
@@ -122,22 +128,58 @@ class SlidingModeObserver(ContinuousObserver):
         cls,
         vessel: DPVessel,
         *,
-        wave_frequency,
-        wave_damping,
-        notch_damping,
-        cutoff_frequency,
-        velocity_injection_gain,
-        bias_injection_gain,
-        bias_time_constant,
-        switching_gain,
-        boundary_layer,
+        waves=None,
+        wave_frequency=None,
+        wave_damping=0.1,
+        notch_damping=1.0,
+        cutoff_frequency=None,
+        velocity_injection_gain=None,
+        bias_injection_gain=None,
+        bias_time_constant=1000.0,
+        velocity_bandwidth=None,
+        switching_gain=0.0,
+        boundary_layer=DEFAULT_BOUNDARY_LAYER,
         steps_per_sample=1,
         hold="measurement",
     ) -> "SlidingModeObserver":
         """Observer for ``vessel``: H1, H2 from (45)–(47), H4 = ``velocity_injection_gain``,
-        H3 = ``bias_injection_gain`` (SI), and the switching term."""
+        H3 = ``bias_injection_gain`` (SI), and the switching term.
+
+        Parameters
+        ----------
+        vessel : DPVessel
+            The observer's vessel model (M, D); in a composition, the plant's unless given.
+        waves : LinearWaveModel or JonswapWaves, optional
+            The sea to tune for when wave_frequency is not given (in a composition, the plant's).
+        wave_frequency : array_like, shape (3,), positive, optional
+            The observer's wave frequencies w_oi (rad/s); default the dominating frequency of ``waves``.
+        wave_damping : array_like, shape (3,), positive
+            The observer's wave damping ratios zeta_i (1).
+        notch_damping : array_like, shape (3,), positive
+            zeta_ni of the notch filter, Fossen & Strand (45) (1).
+        cutoff_frequency : array_like, shape (3,), positive, optional
+            w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's.
+        velocity_injection_gain : array_like, shape (3,), positive, optional
+            Diagonal of H4 (N/m, N/m, N m/rad); default from the tuning rule (48) of the passive observer.
+        bias_injection_gain : array_like, shape (3,), positive, optional
+            Diagonal of H3 (N/(m s), N/(m s), N m/(rad s)); default from the tuning rule (48).
+        bias_time_constant : array_like, shape (3,), positive
+            The observer's bias time constants T (s).
+        velocity_bandwidth : array_like, shape (3,), positive, optional
+            sqrt(H4_i / M_ii) of the default H4 (rad/s); default 0.1 w_o.
+        switching_gain : array_like, shape (3,), non-negative
+            Kbar = diag(rho_i) (m/s, m/s, rad/s); zero gives the passive observer.
+        boundary_layer : array_like, shape (3,), positive
+            eps_i (m, m, rad), the width of the saturation's linear zone; default 1 m, 1 m, 0.02 rad.
+        steps_per_sample : int, positive
+            RK4 steps of predict per sample period.
+        hold : {"measurement", "innovation"}
+            What predict holds over a sample (as the passive observer's).
+        """
         passive = PassiveObserver.design(
             vessel,
+            waves=waves,
+            velocity_bandwidth=velocity_bandwidth,
             wave_frequency=wave_frequency,
             wave_damping=wave_damping,
             notch_damping=notch_damping,
@@ -168,6 +210,10 @@ class SlidingModeObserver(ContinuousObserver):
         }
         return cls.design(vessel, **settings)
 
+    def wave_filter_gains(self) -> WaveFilterGains:
+        """The passive part's model and gains, and Kbar."""
+        return self.passive.wave_filter_gains()._replace(switching_gain=self.switching_gain)
+
     # The gains under Kim's names ------------------------------------------------
     def gains(self) -> dict[str, np.ndarray]:
         """H1 (6x3), H2, H3, H4 (3x3) and Kbar (3x3) as matrices, SI."""
@@ -189,7 +235,19 @@ class SlidingModeObserver(ContinuousObserver):
         return self.passive.hold
 
     def guess(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
-        """An initial estimate (zeros unless given), to pass to :meth:`init`."""
+        """An initial estimate (zeros unless given), to pass to :meth:`init`.
+
+        Parameters
+        ----------
+        eta : array_like, shape (3,)
+            Position north, east (m) and heading (rad).
+        nu : array_like, shape (3,)
+            Velocity surge, sway (m/s) and yaw rate (rad/s).
+        bias : array_like, shape (3,)
+            Bias forces and moment (N, N, N m).
+        wave_state : array_like, shape (6,)
+            Wave-filter state [xi1, xi2] (m s, m s, rad s, m, m, rad).
+        """
         return self.passive.guess(eta, nu, bias, wave_state)
 
     def init(self, y0: Array, guess: VesselState) -> VesselState:

@@ -121,7 +121,13 @@ class VelocityObserver(ContinuousObserver):
         return state.z + self.gain * self._positions(state, y)
 
     def guess(self, velocity=0.0) -> Array:
-        """An initial velocity estimate x1_hat(0) (rad/s, m/s): ``velocity`` per joint (zero by default)."""
+        """An initial velocity estimate x1_hat(0) (rad/s, m/s): ``velocity`` per joint (zero by default).
+
+        Parameters
+        ----------
+        velocity : array_like, shape (n,)
+            x1_hat(0), the joints' velocity estimate (rad/s, m/s).
+        """
         return jnp.asarray(check.vector("velocity", velocity, self.model.size))
 
     def init(self, y0: Array, guess) -> VelocityObserverState:

@@ -38,7 +38,7 @@ from lookout.controllers import SinusoidalInput
 from lookout.models.manipulators import FreePendulum, ManipulatorPlant
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
-from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.results import write_netcdf

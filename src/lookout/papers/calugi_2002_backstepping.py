@@ -40,7 +40,7 @@ from lookout.controllers.adaptive_backstepping import AdaptiveObserverBacksteppi
 from lookout.models.manipulators import JOINT_POSITION, REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, ManipulatorPlant, TwoLinkArm, joint_layout
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
-from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.reference import ReferenceFilter

@@ -62,7 +62,7 @@ from lookout.controllers.furuta import PENDULUM_REFERENCE, FurutaPendulumBackste
 from lookout.models.furuta import PRINTED_CONSTANTS, PRINTED_COULOMB_FRICTION, FurutaConstants, FurutaPlant
 from lookout.models.parameters import ModelParameters
 from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver, theta_signal_name
-from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.reference import ReferenceFilter

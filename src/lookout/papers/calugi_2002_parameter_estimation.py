@@ -44,7 +44,7 @@ from lookout.models.manipulators import FreePendulum
 from lookout.models.parameters import AffineParameters, ModelParameters, PendulumInertia
 from lookout.models.scheduled_parameters import ScheduledParameterPlant
 from lookout.observers.parameter_estimator import ParameterEstimator, windowed_excitation
-from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.results import write_netcdf

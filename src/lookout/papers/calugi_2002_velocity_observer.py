@@ -34,7 +34,7 @@ from lookout.components import Controller
 from lookout.controllers import SinusoidalInput
 from lookout.models.manipulators import CartPendulum, FreePendulum, FurutaPendulum, ManipulatorModel, ManipulatorPlant, TwoLinkArm
 from lookout.observers import VelocityObserver
-from lookout.papers._config import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, significant, write_summary
 from lookout.results import write_netcdf

@@ -35,7 +35,7 @@ from lookout.controllers import VectorialBackstepping
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState
 from lookout.observers import AdaptiveObserver, InertiaParametrization
-from lookout.papers._config import RunsConfig, finite_positive, positive_count, whole_samples
+from lookout.settings import RunsConfig, finite_positive, positive_count, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.reference import ReferenceFilter

@@ -29,12 +29,14 @@ from lookout.controllers import SinusoidalInput
 from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState
 from lookout.observers import PassiveObserver, injection_gains_from_normalized
-from lookout.papers._config import RunsConfig, VesselSettings, finite_positive, whole_samples
+from lookout.papers._config import VesselSettings
+from lookout.settings import RunsConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
+from lookout.composition import compose
 
 NAME = "fossen-strand-1999"
 TITLE = CATALOG[NAME].title
@@ -106,40 +108,51 @@ class Config(RunsConfig):
 
 
 
-def build(config: Config) -> Scenario:
-    """The simulation scenario of Section 6.1 for ``config``."""
-    vessel = config.vessel.dp_vessel()
+#: The paper's tau, eq. (61): amplitude (N, N, N m) and frequencies (rad/s) of the sinusoids.
+INPUT_AMPLITUDE = 1000.0
+INPUT_FREQUENCIES = (0.05, 0.1, 0.07)
+
+
+def composition(config: Config, case: str = "paper") -> dict:
+    """The scenario of Section 6.1 for ``config`` as a composition (:mod:`lookout.composition`):
+    the normalized gains of (60) in SI, the bias of (7) and (58), the waves of (11) and (59)."""
+    del case
     velocity_gain, bias_gain = injection_gains_from_normalized(
         config.velocity_gain_normalized, config.bias_gain_normalized, mass=config.vessel.mass, length=config.vessel.length
     )
-    observer = PassiveObserver.design(
-        vessel,
-        wave_frequency=config.wave_frequency,
-        wave_damping=config.wave_damping,
-        notch_damping=config.notch_damping,
-        cutoff_frequency=config.cutoff_frequency,
-        velocity_injection_gain=velocity_gain,
-        bias_injection_gain=bias_gain,
-        bias_time_constant=config.bias_time_constant,
-    )
-    plant = VesselPlant(
-        vessel,
-        GaussMarkovBias.from_stationary_std(config.bias_time_constant, config.bias_std),
-        LinearWaveModel.from_amplitude(
-            config.wave_frequency, config.wave_damping, config.wave_amplitude, sigmas=config.wave_amplitude_sigmas
-        ),
-    )
-    return Scenario(
-        plant=plant,
-        sensor=PositionHeadingSensor(config.noise_std, config.measurement_period, config.dropout_probability),
-        observer=observer,
-        controller=SinusoidalInput.fossen_strand_1999(),
-        initial_state=VesselState.build(bias=config.bias_initial),
-        initial_estimate=observer.guess(),
-        plant_step=config.plant_step,
-        sample_period=config.sample_period,
-        duration=config.duration,
-    )
+    return {
+        "simulation": {
+            "runs": config.runs, "seed": config.seed, "plant_step": config.plant_step,
+            "sample_period": config.sample_period, "duration": config.duration,
+        },
+        "plant": {
+            "kind": "dp-vessel",
+            "vessel": config.vessel.composition(),
+            "bias": {"kind": "gauss-markov", "time_constant": config.bias_time_constant, "std": config.bias_std},
+            "waves": {
+                "kind": "linear", "peak_frequency": config.wave_frequency, "damping_ratio": config.wave_damping,
+                "amplitude": config.wave_amplitude, "sigmas": config.wave_amplitude_sigmas,
+            },
+            "initial": {"bias": config.bias_initial},
+        },
+        "sensor": {
+            "kind": "position-heading", "noise_std": config.noise_std, "sample_period": config.measurement_period,
+            "dropout_probability": config.dropout_probability,
+        },
+        "observer": {
+            "kind": "passive", "design": "fossen-strand-1999",
+            "wave_frequency": config.wave_frequency, "wave_damping": config.wave_damping,
+            "notch_damping": config.notch_damping, "cutoff_frequency": config.cutoff_frequency,
+            "velocity_injection_gain": velocity_gain.tolist(), "bias_injection_gain": bias_gain.tolist(),
+            "bias_time_constant": config.bias_time_constant,
+        },
+        "controller": {"kind": "sinusoidal", "amplitude": INPUT_AMPLITUDE, "frequency": INPUT_FREQUENCIES},
+    }
+
+
+def build(config: Config) -> Scenario:
+    """The simulation scenario of Section 6.1 for ``config``."""
+    return compose(composition(config)).scenario
 
 
 #: The paper's vectors over (surge, sway, yaw) from the recorded quantities, as

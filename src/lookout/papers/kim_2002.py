@@ -52,7 +52,8 @@ from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveMode
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.observers.sliding_mode import KIM_2002_BIAS_GAIN, KIM_2002_BIAS_TIME_CONSTANT, KIM_2002_SWITCHING_GAIN, KIM_2002_VELOCITY_GAIN, KIM_2002_WAVE
-from lookout.papers._config import RunsConfig, Settings, VesselSettings, finite_positive, positive_count, whole_samples
+from lookout.papers._config import VesselSettings
+from lookout.settings import RunsConfig, Settings, finite_positive, positive_count, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.reference import ReferenceFilter

@@ -36,7 +36,7 @@ from lookout.actuators import SaturatingActuator
 from lookout.controllers.tracking import TrackingController
 from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT, CybershipPlant, CybershipState, cybership2
 from lookout.observers.earth_fixed import EarthFixedObserver
-from lookout.papers._config import RunsConfig
+from lookout.settings import RunsConfig
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.reference import EllipseReference

@@ -283,6 +283,12 @@ def _check_fit(scenario: Scenario) -> None:
             f"sensor and plant disagree: the measurement has shape {_shape_of(y)}, the sensor's layout says ({sensor.measurement_layout.size},)"
         )
     y = jnp.zeros(sensor.measurement_layout.size)
+    measured = set(sensor.measurement_layout.names)
+    for name in observer.measurement_layout.names:
+        if name not in measured:
+            raise ValueError(
+                f"observer {kind_of(observer)} needs measurement {name}, which sensor {kind_of(sensor)} does not measure (it measures {', '.join(sensor.measurement_layout.names)})"
+            )
 
     state = _evaluate("observer and initial_estimate", observer.init, y, scenario.initial_estimate)
     estimate = _evaluate("observer and sensor", lambda s: observer.output(observer.update(s, 0.0, y), y), state)
@@ -292,12 +298,18 @@ def _check_fit(scenario: Scenario) -> None:
     for signal in observer.estimate_signals:
         truth_signal = plant_signals.get(signal.name)
         if truth_signal is None:
-            raise ValueError(f"observer and plant disagree: the observer estimates {signal.name!r}, which the plant does not have (its variables: {sorted(plant_signals)})")
+            # a quantity the plant does not model (a bias estimate on a plant without a
+            # bias): recorded as an estimate without a truth, and no error is taken of it
+            continue
         if (truth_signal.shape, truth_signal.units, truth_signal.labels) != (signal.shape, signal.units, signal.labels):
             raise ValueError(
                 f"observer and plant disagree: the estimate {signal.name!r} is {signal.shape} in {signal.units} over {signal.labels}, "
                 f"the plant's is {truth_signal.shape} in {truth_signal.units} over {truth_signal.labels}"
             )
+    inputs = set(layout.names)
+    for name in observer.input_layout.names:
+        if name not in inputs:
+            raise ValueError(f"observer {kind_of(observer)} needs input {name}, which plant {kind_of(plant)} does not take (it takes {', '.join(layout.names)})")
     predicted = _evaluate("observer and plant", lambda s: observer.predict(s, 0.0, y, u0, scenario.sample_period), state)
     if jax.tree.structure(predicted) != jax.tree.structure(state):
         raise ValueError("observer and plant disagree: observer.predict returns a state shaped unlike observer.init's")
@@ -308,6 +320,9 @@ def _check_fit(scenario: Scenario) -> None:
     sample = {s.name: jnp.zeros(s.shape) for s in reference.reference_signals}
 
     controller = scenario.controller
+    _check_needs(controller, "estimate", controller.estimate_needs, set(estimate), f"observer {kind_of(observer)} does not provide")
+    _check_needs(controller, "measurement", controller.measurement_needs, measured, f"sensor {kind_of(sensor)} does not measure")
+    _check_needs(controller, "reference", controller.reference_needs, set(sample), f"reference {kind_of(reference)} does not provide")
     outputs = {k: jnp.zeros(_shape_of(v)) for k, v in estimate.items()}
     _, u = _evaluate(
         "controller and plant", lambda: controller.step(controller.init(), 0.0, y, outputs, sample, scenario.sample_period)
@@ -317,6 +332,21 @@ def _check_fit(scenario: Scenario) -> None:
     applied = _evaluate("actuator and plant", scenario.actuator.apply, u0)
     if _shape_of(applied) != (layout.size,):
         raise ValueError(f"actuator and plant disagree: the applied input has shape {_shape_of(applied)}, the plant takes ({layout.size},)")
+
+
+def kind_of(component) -> str:
+    """The registered kind of a component (:mod:`lookout.registry`), for messages."""
+    from lookout.registry import kind_of as registered
+
+    return registered(component)
+
+
+def _check_needs(controller, what: str, needs, provided: set, who: str) -> None:
+    """Fail, naming the signal and both parts, unless every signal the controller needs is provided."""
+    for name in needs:
+        if name not in provided:
+            given = ", ".join(sorted(provided)) or "nothing"
+            raise ValueError(f"controller {kind_of(controller)} needs {what} {name}, which {who} (it gives {given})")
 
 
 #: Static loops up to this length are unrolled in Python instead of a lax.scan

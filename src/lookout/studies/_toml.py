@@ -123,6 +123,8 @@ def _key_line(text: str, names: list[str]) -> int | None:
         header = re.match(r"^\[\s*([^\[\]]+?)\s*\]$", stripped)
         if header:
             current = [part.strip().strip('"') for part in header.group(1).split(".")]
+            if current == names:  # the key is a table: its header
+                return number
             continue
         if current == tables and pattern.match(line):
             return number

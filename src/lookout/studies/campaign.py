@@ -43,7 +43,6 @@ its metrics (and decimated trajectories if asked): that is all that leaves a wor
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import hashlib
 import itertools
@@ -56,7 +55,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from lookout.papers._config import positive_count
+from lookout.settings import positive_count
 from lookout.studies._toml import FileError, read
 from lookout.studies.scenario_file import ScenarioSpec, build_located, describe, from_document, get_path, located, read_spec, validate_strictly
 
@@ -196,7 +195,7 @@ class CampaignSettings(BaseModel):
     @field_validator("seed")
     @classmethod
     def _seed(cls, value, info):
-        from lookout.papers._config import seed_for_runs
+        from lookout.settings import seed_for_runs
 
         return seed_for_runs(value, info.data.get("seeds_per_point", 1))
 
@@ -286,7 +285,7 @@ class Campaign:
     def changes(self, point: int) -> dict[str, Any]:
         """Settings path -> value at ``point`` (and ``case`` -> the case, when an axis
         sweeps the template's cases)."""
-        base = self.base.settings.model_dump(mode="python")
+        base = self.base.values()
         result = {}
         for axis in self.axes:
             value = self.points[point][axis.label]
@@ -317,8 +316,9 @@ CASE = "case"
 def _with_changes(base: ScenarioSpec, changes: dict[str, Any], source: str) -> ScenarioSpec:
     """``base`` with settings paths (and :data:`CASE`) set."""
     changes = dict(changes)
-    case = changes.pop(CASE, base.case)
-    return dataclasses.replace(base.with_settings(changes, source=source), case=case)
+    case = changes.pop(CASE, None)
+    changed = base.with_settings(changes, source=source)
+    return changed if case is None else changed.with_case(case)
 
 
 @functools.lru_cache(maxsize=256)
@@ -381,7 +381,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
         points = tuple({axis.label: value for axis, value in zip(axes, combo)} for combo in itertools.product(*grids)) if axes else ({},)
     else:
         points = tuple(_latin_hypercube(axes, settings.sweep.points, settings.sweep.seed))
-    base_values = base.settings.model_dump(mode="python")
+    base_values = base.values()
     cases = {base.case: scenario_object}  # the built scenario of every swept case
     records = [scenario_object.n_records]
     for index, axis in enumerate(axes):
@@ -390,9 +390,11 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
             if path == CASE:
                 if axis.scale or axis.values is None or len(axis.fields) > 1:
                     raise located(source, text, location, "an axis over the case takes values (case names), alone, without scale")
-                unknown = [value for value in axis.values if value not in base.template.cases]
+                unknown = [value for value in axis.values if value not in base.cases]
+                if not base.cases:
+                    raise located(source, text, location, "a composition has no cases: sweep its keys (e.g. observer.wave_frequency)")
                 if unknown:
-                    raise located(source, text, ("sweep", "axes", index, "values"), f"{unknown[0]!r} is no case of {base.template.name} (its cases: {', '.join(base.template.cases)})")
+                    raise located(source, text, ("sweep", "axes", index, "values"), f"{unknown[0]!r} is no case of {base.title.split(',')[0]} (its cases: {', '.join(base.cases)})")
                 continue
             try:
                 current = get_path(base_values, path) if _exists(base_values, path) else None

@@ -36,7 +36,7 @@ campaign_app = typer.Typer(
 
 
 def _scenario(path: str, runs: int | None, seed: int | None):
-    from lookout.papers._config import positive_count, seed_for_runs
+    from lookout.settings import positive_count, seed_for_runs
     from lookout.studies.scenario_file import build_located, read_spec
 
     try:
@@ -62,7 +62,8 @@ def _default_metrics(scenario) -> list[str]:
     """RMS estimation error of every estimated plant variable, RMS tracking error of
     every tracked one, over the second half of the run."""
     record = scenario.record_signals
-    names = [f"rms_error:{s.name}" for s in record.estimate]
+    truths = {s.name for s in record.truth}
+    names = [f"rms_error:{s.name}" for s in record.estimate if s.name in truths]
     names += [f"rms_tracking:{s.name[: -len('_desired')]}" for s in record.reference if s.name.endswith("_desired")]
     return names
 
@@ -83,8 +84,8 @@ def _batched(trajectory):
 def run(
     scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file (see examples/ and `lookout reproduce NAME --write-scenario FILE`).")],
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.")] = "out/run",
-    runs: Annotated[Optional[int], typer.Option(metavar="N", help="Runs over seeds (vmapped), instead of the file's settings.runs.")] = None,
-    seed: Annotated[Optional[int], typer.Option(metavar="INT", help="Seed of run 0, instead of the file's settings.seed.")] = None,
+    runs: Annotated[Optional[int], typer.Option(metavar="N", help="Runs over seeds (vmapped), instead of the file's own runs.")] = None,
+    seed: Annotated[Optional[int], typer.Option(metavar="INT", help="Seed of run 0, instead of the file's own seed.")] = None,
 ) -> None:
     """Simulate a scenario file.
 
@@ -101,7 +102,7 @@ def run(
             raise InputError(f"--out: {Path(out) / name} is a folder, and lookout run writes the file {name} there; give another --out")
     spec, scenario = _scenario(scenario_file, runs, seed)
     # the count, not the seeds: nothing that grows with the runs is made before the check
-    check_memory([(scenario, spec.settings.runs)], "--runs" if runs is not None else f"{scenario_file}: settings.runs", "settings.duration")
+    check_memory([(scenario, spec.runs)], "--runs" if runs is not None else f"{scenario_file}: {spec.runs_key}", spec.runs_key.replace("runs", "duration"))
     folder = created_folder("--out", out)
     with simulating() as progress:
         trajectory = simulate_trajectory(spec, scenario=scenario, progress=progress)
@@ -112,8 +113,7 @@ def run(
     metrics = metric_module.resolve(_default_metrics(scenario), scenario)
     values = metric_module.reduce(_batched(trajectory), metrics)
     summary = {
-        "template": spec.template.name,
-        "case": spec.case,
+        "scenario": spec.title,
         "seeds": spec.seeds,
         "status": ds.status.values.tolist(),
         "metrics": {m.name: {"units": m.units, "description": m.description + " (t >= half the run)", "per_run": values[m.variable].tolist()} for m in metrics},
@@ -121,7 +121,7 @@ def run(
     }
     (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False) + "\n")
 
-    table = Table(title=f"{spec.template.name}, case {spec.case}: {len(spec.seeds)} run(s)", title_justify="left", box=box.SIMPLE_HEAD)
+    table = Table(title=f"{spec.title}: {len(spec.seeds)} run(s)", title_justify="left", box=box.SIMPLE_HEAD)
     table.add_column("metric", justify="left")
     table.add_column("units", justify="left")
     table.add_column("mean over runs", justify="right")

@@ -159,6 +159,15 @@ def _setting_units(document: dict | None, fields: list[str]) -> str | None:
     (``"w_o (rad/s), eq. (59)"`` -> ``rad/s``); None when the description gives none."""
     if not document or not fields:
         return None
+    if "template" not in (document.get("scenario") or {}):  # a composition: its keys' descriptions
+        try:
+            from lookout.studies.scenario_file import composition_comments
+
+            description = composition_comments(document["scenario"]).get(re.sub(r"\[.*?\]", "", fields[0]), "")
+        except Exception:  # best effort, as below
+            return None
+        match = _UNIT.search(description)
+        return match.group(1) if match else None
     try:
         from pydantic import BaseModel
 
@@ -561,6 +570,69 @@ def _spec_html(document: dict | None, metrics: list[_Metric], n_points: int, chu
         return "<p>The store holds no campaign spec.</p>"
     parts = []
     scenario = document.get("scenario") or {}
+    if "template" not in scenario:
+        parts += _composition_html(scenario)
+        settings = _flatten(scenario.get("simulation") or {})
+    else:
+        parts += _template_html(scenario)
+        settings = _flatten(scenario.get("settings") or {})
+    parts += _campaign_html(document, metrics, settings, n_points, chunk_runs, total_chunks)
+    return "\n".join(parts)
+
+
+def _composition_html(scenario: dict) -> list[str]:
+    """The base scenario of a composition: its components, then every key with its
+    description (the keys that differ from their kind's default first)."""
+    from lookout import registry
+    from lookout.studies.scenario_file import composition_comments
+
+    components = [(role, f"{scenario[role].get('kind', '?')}" + (f" (design {scenario[role]['design']})" if "design" in scenario[role] else ""))
+                  for role in registry.COMPONENT_ROLES if isinstance(scenario.get(role), dict)]
+    try:
+        descriptions = composition_comments(scenario)
+    except Exception:  # a store written by another version: the values still show
+        descriptions = {}
+    rows, changed = [], []
+    for role in ("simulation", *registry.COMPONENT_ROLES):
+        for key, value in _flatten(scenario.get(role) or {}, f"{role}.").items():
+            if key.endswith(".kind") or key.endswith(".design"):
+                continue
+            rows.append([key, _spec_value(value), descriptions.get(key, "")])
+            default = _kind_default(scenario, key)
+            if default is not _NO_DEFAULT and json.dumps(value) != json.dumps(default):
+                changed.append([key, _spec_value(value), _spec_value(default), descriptions.get(key, "")])
+    parts = ["<h3>Base scenario</h3>", _definition_table(components, ' class="provenance" id="spec-scenario"')]
+    if changed:
+        parts += [f"<p>The keys that differ from their kind's default ({len(changed)}):</p>",
+                  _table(["key", "value", "default", "description"], changed, ' id="spec-changed" class="numbers"')]
+    parts.append(f"<details><summary>all {len(rows)} keys of the base scenario</summary>\n"
+                 + _table(["key", "value", "description"], rows, ' id="spec-settings" class="numbers"') + "\n</details>")
+    return parts
+
+
+_NO_DEFAULT = object()
+
+
+def _kind_default(scenario: dict, key: str):
+    """The default of a component's parameter at the dotted ``key`` (or _NO_DEFAULT)."""
+    from lookout import registry
+    from lookout.composition import plain
+
+    parts = key.split(".")
+    role, table = parts[0], scenario.get(parts[0])
+    try:
+        for part in parts[1:-1]:
+            role, table = part, table[part]
+        kind = registry.kind(role, table["kind"])
+        parameter = next(p for p in kind.parameters(table.get("design")) if p.name == parts[-1])
+    except Exception:  # initial values, simulation keys, an unknown kind: no default to show
+        return _NO_DEFAULT
+    return _NO_DEFAULT if parameter.required else plain(parameter.default)
+
+
+def _template_html(scenario: dict) -> list[str]:
+    """The base scenario of a template's file: the settings that differ from its defaults."""
+    parts = []
     template = str(scenario.get("template", "?"))
     title, defaults, descriptions = _template_info(template)
     settings = _flatten(scenario.get("settings") or {})
@@ -583,8 +655,12 @@ def _spec_html(document: dict | None, metrics: list[_Metric], n_points: int, chu
         parts += [f"<p>Every setting of the base scenario ({len(settings)}; the template is not known to this lookout, "
                   "so its defaults are not shown):</p>",
                   _table(["setting", "value", "description"], all_rows, ' id="spec-settings" class="numbers"')]
+    return parts
 
-    # the campaign around it
+
+def _campaign_html(document: dict, metrics: list, settings: dict, n_points: int, chunk_runs: int, total_chunks: int) -> list[str]:
+    """The campaign around the base scenario: seeds, chunks, metrics, window, the sweep."""
+    parts = []
     seeds = int(document.get("seeds_per_point", 1))
     first = int(document.get("seed", 0))
     blocks = max(1, seeds // max(1, chunk_runs))
@@ -637,7 +713,7 @@ def _spec_html(document: dict | None, metrics: list[_Metric], n_points: int, chu
         parts.append(_table(["axis", "field", "values", "applied"], rows, ' id="spec-axes" class="numbers"'))
     parts.append("<details><summary>the spec as JSON, scenario inlined (what a resume compares)</summary>\n"
                  f"<pre>{html.escape(_pretty_json(document))}</pre>\n</details>")
-    return "\n".join(parts)
+    return parts
 
 
 # ----------------------------------------------------------------------------------

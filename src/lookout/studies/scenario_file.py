@@ -37,7 +37,10 @@ from typing import Any, Callable
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
+from lookout import registry
 from lookout._validation import one_line
+from lookout.composition import Composition, CompositionError, SimulationSettings, compose
+from lookout.settings import explain
 from lookout.studies._toml import FileError, key_line, read, write
 
 #: Top-level keys of a scenario file.
@@ -87,6 +90,33 @@ class ScenarioSpec:
     def seeds(self) -> list[int]:
         return list(self.settings.seeds)
 
+    @property
+    def runs(self) -> int:
+        return self.settings.runs
+
+    @property
+    def title(self) -> str:
+        return f"{self.template.name}, case {self.case}"
+
+    @property
+    def stacked(self) -> bool:
+        return self.template.stacked
+
+    @property
+    def runs_key(self) -> str:
+        return "settings.runs"
+
+    @property
+    def cases(self) -> tuple[str, ...]:
+        return self.template.cases
+
+    def values(self) -> dict:
+        """The settings as plain data, for the paths a campaign sweeps."""
+        return self.settings.model_dump(mode="python")
+
+    def with_case(self, case: str) -> "ScenarioSpec":
+        return ScenarioSpec(self.template, case, self.settings, self.source)
+
     def document(self) -> dict:
         """The file's content as a dict: every setting spelled out."""
         return {"template": self.template.name, "case": self.case, "settings": self.settings.model_dump(mode="json")}
@@ -98,6 +128,98 @@ class ScenarioSpec:
         for path, value in changes.items():
             set_path(values, path, value, self.settings)
         return ScenarioSpec(self.template, self.case, _validate(self.template.settings, values, source or self.source, None, ("settings",)), source or self.source)
+
+
+@dataclass(frozen=True)
+class CompositionSpec:
+    """A scenario file that is a composition (:mod:`lookout.composition`): its tables
+    validated and built."""
+
+    composition: Composition
+    source: str = field(default="<scenario>")
+
+    def build(self):
+        """The :class:`~lookout.sim.Scenario` (built when the file was read)."""
+        return self.composition.scenario
+
+    @property
+    def seeds(self) -> list[int]:
+        return self.composition.seeds
+
+    @property
+    def runs(self) -> int:
+        return self.composition.simulation.runs
+
+    @property
+    def stacked(self) -> bool:
+        return self.composition.simulation.batch == "stacked"
+
+    @property
+    def runs_key(self) -> str:
+        return "simulation.runs"
+
+    #: a composition has no cases (a campaign sweeps its keys)
+    cases: tuple = ()
+    case = None
+
+    def values(self) -> dict:
+        """The full composition, for the paths a campaign sweeps."""
+        return self.composition.document
+
+    @property
+    def title(self) -> str:
+        kinds = self.composition.kinds
+        return ", ".join(f"{role} {kinds[role]}" for role in ("plant", "observer", "controller") if kinds[role] != "none")
+
+    def document(self) -> dict:
+        """The full composition: every key spelled out."""
+        return self.composition.document
+
+    def with_settings(self, changes: dict[str, Any], source: str | None = None) -> "CompositionSpec":
+        """This composition with ``changes`` (key paths from the file's root) applied."""
+        try:
+            return CompositionSpec(self.composition.with_changes(changes), source or self.source)
+        except CompositionError as error:
+            raise FileError(f"{source or self.source}: {error}") from None
+
+
+def composition_comments(document: dict) -> dict[str, str]:
+    """Every key of a full composition with its description (for the written file)."""
+    comments = {"simulation": "the time grid, the integrator, runs and seeds"}
+    for name, info in SimulationSettings.model_fields.items():
+        comments[f"simulation.{name}"] = info.description
+    for role in registry.COMPONENT_ROLES:
+        table = document.get(role)
+        if isinstance(table, dict):
+            _table_comments(role, table, role, comments)
+    return comments
+
+
+def _table_comments(role: str, table: dict, prefix: str, comments: dict) -> None:
+    try:
+        kind = registry.kind(role, table["kind"])
+    except (ValueError, KeyError):
+        return
+    comments[prefix] = f"{role}: {kind.description}"
+    comments[f"{prefix}.kind"] = f"one of {', '.join(registry.KINDS[role])} (`lookout components {role}`)"
+    if kind.designs:
+        comments[f"{prefix}.design"] = f"gain-synthesis rule: one of {', '.join(kind.designs)}"
+    parameters = kind.parameters(table.get("design"))
+    for p in parameters:
+        if p.sort == "part" and isinstance(table.get(p.name), dict):
+            _table_comments(p.name, table[p.name], f"{prefix}.{p.name}", comments)
+        elif p.description:
+            comments[f"{prefix}.{p.name}"] = p.description + ("" if p.sort != "part" or p.name in table else " (the plant's, unless given)")
+    if isinstance(table.get("initial"), dict):
+        comments[f"{prefix}.initial"] = "the initial state (zeros where left out)" if role == "plant" else "the initial guess (its defaults where left out)"
+        method = {"plant": "state", "observer": "guess"}.get(role)
+        owner = kind.component_class
+        if method and hasattr(owner, method):
+            function = getattr(owner, method)
+            target = f"{function.__module__}:{function.__qualname__}"
+            for p in registry._parameters(target, values_only=True):
+                if p.description:
+                    comments[f"{prefix}.initial.{p.name}"] = p.description
 
 
 def _changed_paths(values: dict, defaults: dict, prefix: tuple = ()) -> list[tuple]:
@@ -142,6 +264,8 @@ def build_located(spec: "ScenarioSpec", text: str | None = None):
     """``spec.build()``; a ``ValueError`` from the components becomes a
     :class:`FileError` naming the file's key that causes it (:func:`blame`), its line
     and value, with the component's reason after it."""
+    if isinstance(spec, CompositionSpec):
+        return spec.build()
     try:
         return spec.build()
     except ValueError as error:
@@ -187,58 +311,10 @@ def _validate(model: type[BaseModel], values: dict, source: str, text: str | Non
         raise FileError(describe(error, source, text, prefix)) from None
 
 
-#: The names pydantic gives the members of a union in an error's location.
-UNION_TAGS = frozenset({"str", "int", "float", "bool", "dict", "list", "tuple"})
-
-#: pydantic's strict type errors, as the file's reader would say them.
-STRICT_TYPES = {
-    "float_type": "must be a number",
-    "int_type": "must be an integer (no decimal point)",
-    "bool_type": "must be true or false",
-    "string_type": "must be a string (in quotes)",
-    "tuple_type": "must be an array",
-    "list_type": "must be an array",
-    "dict_type": "must be a table",
-    "model_type": "must be a table",
-}
-
-
-def _as_toml(value) -> str:
-    """A value as it reads in a TOML file: ``true``, ``"100"``, ``2.0``, ``[1, 2]``."""
-    if isinstance(value, bool):
-        return f"{str(value).lower()} (a boolean)"
-    if isinstance(value, str) and value.startswith("<a TOML ") and value.endswith(">"):
-        return value[1:-1]
-    if isinstance(value, str):
-        return f"{json.dumps(value)} (a string)"
-    if isinstance(value, float):
-        return f"{value!r} (a number with a decimal point)"
-    if isinstance(value, (list, tuple)):
-        return f"an array of {len(value)}"
-    if isinstance(value, dict):
-        return "a table"
-    return repr(value)
-
-
 def describe(error: ValidationError, source: str, text: str | None, prefix: tuple = ()) -> str:
     """One line for the first error of a pydantic validation: file, key, line, condition."""
-    first = error.errors()[0]
-    # pydantic names the member of a union it tried ("scenario.str"): not a key of the file
-    location = prefix + tuple(part for part in first["loc"] if not (isinstance(part, str) and (part.startswith("function-") or part in UNION_TAGS or "[" in part)))
-    message = first["msg"]
-    if message.startswith("Value error, "):
-        message = message[len("Value error, "):]
-    if first["type"] == "extra_forbidden":
-        message = "unknown key"
-    elif first["type"] == "missing" and isinstance(location[-1], int):
-        location, message = location[:-1], f"too few entries (no entry [{location[-1]}])"
-    elif first["type"] == "missing":
-        message = "missing key"
-    elif first["type"] in STRICT_TYPES:
-        message = f"{STRICT_TYPES[first['type']]}; got {_as_toml(first.get('input'))}"
-    elif "input" in first and first["type"] not in ("value_error", "assertion_error"):
-        message = f"{message}; got {first['input']!r}"
-    return str(located(source, text, location, message))
+    location, message = explain(error)
+    return str(located(source, text, prefix + location, message))
 
 
 def _path_parts(path: str) -> list:
@@ -289,8 +365,14 @@ def get_path(values: dict, path: str) -> Any:
     return target
 
 
-def from_document(document: dict, source: str = "<scenario>", text: str | None = None) -> ScenarioSpec:
-    """Validate a parsed scenario file (see the module docstring)."""
+def from_document(document: dict, source: str = "<scenario>", text: str | None = None) -> "ScenarioSpec | CompositionSpec":
+    """Validate a parsed scenario file (see the module docstring): a composition, or a
+    template's settings."""
+    if "template" not in document:
+        try:
+            return CompositionSpec(compose(document), source)
+        except CompositionError as error:
+            raise located(source, text, error.location, error.reason) if error.location else FileError(f"{source}: {error.reason}") from None
     unknown = [key for key in document if key not in TOP_KEYS]
     if unknown:
         raise located(source, text, (unknown[0],), f"unknown key (a scenario file has {', '.join(TOP_KEYS)})")
@@ -322,6 +404,12 @@ def load(path: str | Path, *, runs: int | None = None, seed: int | None = None) 
 
 
 def _load_document(document: dict, text: str, path, runs: int | None, seed: int | None) -> ScenarioSpec:
+    if "template" not in document:
+        simulation = document.get("simulation", {})
+        if isinstance(simulation, dict):
+            given = {"runs": runs, "seed": seed}
+            document = {**document, "simulation": {**simulation, **{k: v for k, v in given.items() if v is not None}}}
+        return from_document(document, str(path), text)
     settings = dict(document.get("settings", {})) if isinstance(document.get("settings", {}), dict) else document.get("settings")
     if isinstance(settings, dict):
         if runs is not None:
@@ -345,6 +433,9 @@ def _comments(model: type[BaseModel], prefix: str = "settings.") -> dict[str, st
 
 def save(spec: ScenarioSpec, path: str | Path, *, header: str | None = None) -> Path:
     """Write ``spec`` as a scenario file with every setting and its description."""
+    if isinstance(spec, CompositionSpec):
+        header = header or f"lookout scenario: {spec.title}.\nRun it with: lookout run {Path(path).name} --out DIR"
+        return write(path, spec.document(), composition_comments(spec.document()), header)
     header = header or (
         f"lookout scenario: {spec.template.title}, case {spec.case!r}.\n"
         f"Run it with: lookout run {Path(path).name} --out DIR"
@@ -368,7 +459,7 @@ def simulate_trajectory(spec: ScenarioSpec, *, progress=None, scenario=None):
     seeds = spec.seeds
     if len(seeds) == 1:
         return simulate(scenario, keys_of_seeds(seeds)[0], progress=progress)
-    if spec.template.stacked:
+    if spec.stacked:
         return simulate_batch(stack_scenarios([scenario] * len(seeds)), keys_of_seeds(seeds), batched_scenario=True, progress=progress)
     return simulate_batch(scenario, keys_of_seeds(seeds), progress=progress)
 
@@ -377,7 +468,10 @@ def to_dataset(spec: ScenarioSpec, trajectory):
     """The trajectory as an :class:`xarray.Dataset` with ``seed`` along ``run`` and the
     scenario (template, case, settings) in its attributes."""
     ds = trajectory.to_xarray().assign_coords(seed=("run", np.asarray(spec.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
-    ds.attrs.update({"template": spec.template.name, "case": spec.case, "settings": spec.settings.model_dump_json()})
+    if isinstance(spec, CompositionSpec):
+        ds.attrs.update({"composition": json.dumps(spec.document())})
+    else:
+        ds.attrs.update({"template": spec.template.name, "case": spec.case, "settings": spec.settings.model_dump_json()})
     return ds
 
 

@@ -148,7 +148,7 @@ class CampaignStore:
                     coords[signal.dim] = (signal.dim, np.asarray(signal.labels, dtype=object))  # variable-length strings: Zarr v3 has a spec for them
                 data[f"trajectory__{name}"] = (dims, empty(shape, (1, size) + shape[2:]), {"units": signal.units, "long_name": signal.long_name})
         ds = xr.Dataset(data, coords=coords, attrs={
-            "title": f"lookout campaign over {campaign.base.template.name} ({campaign.base.case})",
+            "title": f"lookout campaign over {campaign.base.title}",
             "lookout_version": _version(),
             "campaign_fingerprint": campaign.fingerprint(),
             "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
@@ -277,5 +277,7 @@ def status(path: str | Path) -> dict:
         "lookout_version": ds.attrs.get("lookout_version"),
         "created": ds.attrs.get("created"),
         "fingerprint": ds.attrs.get("campaign_fingerprint"),
-        "template": document["scenario"]["template"],
+        "scenario": document["scenario"].get("template") or ", ".join(
+            f"{role} {document['scenario'][role]['kind']}" for role in ("plant", "observer") if isinstance(document["scenario"].get(role), dict)
+        ),
     }

@@ -1,0 +1,98 @@
+"""The ``lookout components`` command: the registered kinds, their parameters, and what
+each needs and provides (registered by :mod:`lookout.cli`)."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Optional
+
+import typer
+from rich import box
+from rich.markup import escape
+from rich.table import Table
+
+from lookout._commandline import console
+from lookout._json import json_safe
+from lookout._validation import InputError
+
+
+def _matching(name: str | None):
+    from lookout import registry
+
+    if name is None:
+        return registry.kinds()
+    if name in registry.KINDS:
+        return registry.kinds(name)
+    found = [each for each in registry.kinds() if each.name == name]
+    if not found:
+        known = sorted({each.name for each in registry.kinds()})
+        raise InputError(f"KIND: no role or kind {name!r} (roles: {', '.join(registry.KINDS)}; kinds: {', '.join(known)})")
+    return found
+
+
+def _describe(each, design) -> dict:
+    from lookout import registry
+
+    entry = registry.describe_kind(each, design)
+    composition = registry.example(each) if each.role in registry.COMPONENT_ROLES else None
+    if composition is not None:
+        built = getattr(composition.scenario, each.role)
+        entry.update(registry.signals_of(each.role, built))
+    return entry
+
+
+def components(
+    kind: Annotated[Optional[str], typer.Argument(metavar="[KIND]", help="A role (observer, plant, ...) or a kind (passive, dp-vessel, ...).")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
+) -> None:
+    """List the registered components: kinds by role, or one kind's parameters (name,
+    default, type and range, description with units) and what it needs and provides.
+
+    A scenario file has one table per component ([plant], [sensor], [observer],
+    [controller], [reference], [actuator]) with `kind` and these parameters.
+    """
+    found = _matching(kind)
+    detail = kind is not None and all(each.name == kind for each in found)
+    if as_json:
+        entries = []
+        for each in found:
+            for design in each.designs or [None]:
+                entry = _describe(each, design) if detail else {"role": each.role, "kind": each.name, "designs": list(each.designs), "description": each.description}
+                entries.append(entry)
+                if not detail:
+                    break
+        print(json.dumps(json_safe(entries), indent=2))
+        return
+    if not detail:
+        table = Table(title="lookout components (`lookout components KIND` for one kind's parameters)", title_justify="left", box=box.SIMPLE_HEAD)
+        for column in ("role", "kind", "design rules", "description"):
+            table.add_column(column, justify="left")
+        for each in found:
+            table.add_row(each.role, each.name, ", ".join(each.designs), escape(each.description))
+        console.print(table)
+        return
+    for each in found:
+        for design in each.designs or [None]:
+            entry = _describe(each, design)
+            title = escape(f"{each.role} {each.name}" + (f", design {design!r}" if design else "") + f": {entry['description']}")
+            table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD)
+            for column in ("parameter", "default", "type", "description"):
+                table.add_column(column, justify="left")
+            for p in entry["parameters"]:
+                if p["sort"] == "value":
+                    default = "required" if p["required"] else json.dumps(p["default"])
+                elif p["sort"] == "part":
+                    default = "a table (kind ...)" + (", the plant's" if p["required"] else "")
+                else:
+                    default = "from the composition"
+                table.add_row(p["name"], escape(default), escape(p["type"]), escape(p["description"]))
+            console.print(table)
+            for what in ("provides", "needs"):
+                if entry.get(what):
+                    console.print(f"  {what}: {', '.join(entry[what])}", highlight=False)
+            console.print()
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``lookout components`` to the main command."""
+    app.command("components")(components)

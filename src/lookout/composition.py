@@ -1,0 +1,563 @@
+"""Compositions: a scenario as registered components, one table each.
+
+A composition is a document (a dict, or the TOML file of a scenario) with one table
+per component and a ``[simulation]`` table::
+
+    [simulation]                 # horizon, steps, runs and seed
+    duration = 600.0
+    plant_step = 0.1
+    sample_period = 0.1
+
+    [plant]                      # kind and parameters; sub-parts as nested tables
+    kind = "dp-vessel"
+    [plant.vessel]
+    kind = "northern-clipper"
+    [plant.initial]              # the plant's initial state (zeros where left out)
+    bias = [1e4, 5e3, 1e5]
+
+    [sensor]
+    kind = "position-heading"
+    noise_std = [0.5, 0.5, 0.0017]
+
+    [observer]
+    kind = "passive"
+    design = "fossen-strand-1999"   # the gain-synthesis rule (a kind may have several)
+    wave_frequency = 0.8976
+    ...
+    [observer.initial]           # the observer's initial guess (its guess())
+
+    [controller]                 # optional, as [reference] and [actuator]
+    kind = "sinusoidal"
+
+Each table's keys are its kind's parameters (:mod:`lookout.registry`: names, types,
+ranges and defaults from the component's own signature and docstring); a key left
+out takes its default, and a part an observer or a controller needs from the plant
+(the vessel model of a model-based observer) is the plant's unless the table gives
+its own (a model error). ``preset = "NAME:CASE"`` starts from a reproduction's case;
+the file's tables then override its keys, and a table with another ``kind`` replaces
+the preset's component.
+
+:func:`compose` validates a document and builds its :class:`~lookout.sim.Scenario`;
+every error is a :class:`CompositionError` with the key's location.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field, ValidationError, create_model, field_validator
+from pydantic.functional_validators import AfterValidator
+from typing_extensions import Annotated
+
+from lookout import registry
+from lookout._validation import one_line
+from lookout.settings import RunsConfig, Settings, explain, finite_positive
+
+#: The top-level keys of a composition.
+TOP_KEYS = ("preset", "simulation", *registry.COMPONENT_ROLES)
+#: Keys of a component's table that are not its kind's parameters.
+TABLE_KEYS = ("kind", "design", "initial")
+
+
+class CompositionError(ValueError):
+    """A composition that cannot be built: ``location`` is the key (a tuple of table
+    names, keys and indices), ``reason`` the condition; ``str()`` is one line."""
+
+    def __init__(self, location: tuple, reason: str):
+        self.location = tuple(location)
+        self.reason = reason
+        super().__init__(f"{key_text(self.location)}: {reason}" if self.location else reason)
+
+
+def key_text(location: tuple) -> str:
+    """``("observer", "wave_frequency", 2)`` -> ``observer.wave_frequency[2]``."""
+    text = ""
+    for part in location:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+class SimulationSettings(RunsConfig):
+    """The ``[simulation]`` table: the time grid, the integrator, runs and seeds."""
+
+    runs: int = Field(1, description="Monte Carlo runs (vmapped); run i uses seed + i")
+    seed: int = Field(0, description="PRNG seed of run 0 (run i uses seed + i)")
+    plant_step: float = Field(0.1, description="integration step of the plant (s)")
+    sample_period: float = Field(0.1, description="observer, reference and controller period (s), a multiple of plant_step")
+    duration: float = Field(600.0, description="simulated time (s), a multiple of sample_period * record_every")
+    record_every: int = Field(1, description="record one sample in this many")
+    integrator: Literal["rk4", "euler"] = Field("rk4", description="the plant's integrator: 'rk4' or 'euler'")
+    observer_mode: Literal["sampled", "continuous"] = Field(
+        "sampled", description="'sampled', or 'continuous': the observer integrated jointly with the plant on the noise-free measurement"
+    )
+    batch: Literal["shared", "stacked"] = Field(
+        "shared", description="runs vmapped over one shared scenario, or over a copy per run ('stacked'; equal to rounding)"
+    )
+
+    @field_validator("plant_step", "sample_period", "duration")
+    @classmethod
+    def _finite_positive(cls, value):
+        return finite_positive(value)
+
+    @field_validator("record_every")
+    @classmethod
+    def _positive(cls, value):
+        if value < 1:
+            raise ValueError(f"must be a positive integer; got {value}")
+        return value
+
+
+# ---------------------------------------------------------------- parameter schemas
+
+
+def _in_range(parameter: registry.Parameter):
+    low, high, low_in, high_in = parameter.range
+
+    def check(value):
+        for number in np.ravel(np.asarray(value, dtype=float)):
+            if not ((number >= low if low_in else number > low) and (number <= high if high_in else number < high)):
+                words = {(0.0, math.inf, False, False): "positive", (0.0, math.inf, True, False): "non-negative"}.get(parameter.range)
+                interval = f"{'[' if low_in else '('}{low:g}, {high:g}{']' if high_in else ')'}"
+                raise ValueError(f"must be {words}; got {_short(value)}" if words else f"must be in {interval}; got {_short(value)}")
+        return value
+
+    return check
+
+
+def _short(value) -> str:
+    return repr(value if not isinstance(value, tuple) else list(value))
+
+
+_ARRAY = float | tuple[float, ...] | tuple[tuple[float, ...], ...]
+
+
+def _annotation(parameter: registry.Parameter):
+    sort = parameter.value_type
+    if parameter.choices is not None:
+        annotation: Any = Literal[parameter.choices]
+    else:
+        annotation = {"float": float, "int": int, "bool": bool, "str": str, "strings": tuple[str, ...], "array": _ARRAY}.get(sort, _ARRAY)
+    if parameter.range is not None and sort in ("float", "int", "array"):
+        annotation = Annotated[annotation, AfterValidator(_in_range(parameter))]
+    if parameter.default is None:
+        annotation = annotation | None
+    return annotation
+
+
+def _default_value(default):
+    if default is registry.REQUIRED:
+        return ...
+    return plain(default)
+
+
+def plain(value):
+    """A default or a built value as file data: tuples of floats, Python scalars."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, (list, tuple)):
+        return tuple(plain(v) for v in value)
+    array = np.asarray(value)
+    if array.ndim == 0:
+        return array.item()
+    return plain(array.tolist())
+
+
+_MODELS: dict = {}
+
+
+def parameter_model(kind: registry.Kind, design: str | None):
+    """The pydantic model of a kind's value parameters (strict, every number finite)."""
+    key = (kind.role, kind.name, design)
+    if key not in _MODELS:
+        fields = {
+            p.name: (_annotation(p), Field(_default_value(p.default), description=p.description))
+            for p in kind.parameters(design)
+            if p.sort == "value"
+        }
+        name = re.sub(r"\W", "_", f"{kind.role}_{kind.name}_{design or ''}")
+        _MODELS[key] = create_model(name, __base__=Settings, **fields)
+    return _MODELS[key]
+
+
+def state_parameters(method) -> tuple[registry.Parameter, ...]:
+    """The parameters of a plant's ``state`` or an observer's ``guess`` method."""
+    function = getattr(method, "__func__", method)
+    owner = type(getattr(method, "__self__", None))
+    target = f"{function.__module__}:{owner.__qualname__}.{function.__name__}"
+    return registry._parameters(target, values_only=True)
+
+
+def _initial_model(kind_name: str, parameters):
+    fields = {p.name: (_annotation(p), Field(_default_value(p.default), description=p.description)) for p in parameters if p.sort == "value"}
+    return create_model(re.sub(r"\W", "_", f"initial_{kind_name}"), __base__=Settings, **fields)
+
+
+# ------------------------------------------------------------------------ building
+
+
+@dataclass
+class _Context:
+    """What later components may take from earlier ones."""
+
+    objects: list
+    plant: Any = None
+    #: role -> kind name of the components built so far
+    kinds: dict = None
+
+    def find(self, cls):
+        if not cls:
+            return None
+        for each in self.objects:
+            if isinstance(each, cls):
+                return each
+        return None
+
+    def add(self, component):
+        """``component`` and its parts (its fields that are modules: a plant's vessel, an
+        observer's parameters), which later components may take."""
+        import dataclasses
+
+        import equinox as eqx
+
+        self.objects.append(component)
+        if hasattr(component, "models") and hasattr(component, "variable_signals"):  # a plant: the models it offers first
+            self.objects.extend(component.models())
+        for each in dataclasses.fields(component):
+            value = getattr(component, each.name, None)
+            if isinstance(value, eqx.Module):
+                self.objects.append(value)
+
+
+def _validate(model, values: dict, location: tuple):
+    try:
+        return model.model_validate_json(_json(values), strict=True)
+    except ValidationError as error:
+        where, reason = explain(error)
+        if reason == "missing key" and where and isinstance(where[-1], str):  # a key not there has no line: name its table
+            where, reason = where[:-1], f"missing key {where[-1]}"
+        raise CompositionError(location + where, reason) from None
+
+
+def _json(values: dict) -> str:
+    import json
+
+    return json.dumps(values, allow_nan=True, default=lambda value: f"<a TOML {type(value).__name__}: {value}>")
+
+
+def _blamed(error: ValueError, table: dict, location: tuple, names) -> CompositionError:
+    """A component's own refusal, located at the key its message names (else the table)."""
+    reason = one_line(error)
+    for name in sorted(names, key=len, reverse=True):
+        if name in table and re.search(rf"(^|[\s(]){re.escape(name)}\b", reason):
+            return CompositionError(location + (name,), reason)
+    return CompositionError(location, reason)
+
+
+def _table(document: dict, role: str) -> dict:
+    table = document.get(role)
+    if table is None:
+        return {"kind": registry.DEFAULT_KINDS[role]} if role in registry.DEFAULT_KINDS else None
+    if not isinstance(table, dict):
+        raise CompositionError((role,), f"must be a table; got {type(table).__name__}")
+    return table
+
+
+def build_part(role: str, table: dict, location: tuple, context: _Context, *, defaults: bool = True) -> tuple[Any, dict]:
+    """Build the component of ``table`` (its ``kind`` of ``role``): ``(component, the
+    table with every parameter spelled out)``.
+
+    A part the table does not give is taken from the components built before (an
+    observer's vessel model is the plant's); with ``defaults`` (the plant, and any
+    table the file gives) a part found nowhere is its role's first kind, built with
+    its defaults, else it is refused (a controller for a ship on a plant with none)."""
+    if not isinstance(table, dict):
+        raise CompositionError(location, f"must be a table with a kind; got {type(table).__name__}")
+    known = registry.KINDS[role]
+    name = table.get("kind", next(iter(known)) if role not in registry.COMPONENT_ROLES else None)
+    if name is None:
+        raise CompositionError(location + ("kind",), f"missing key (one of {', '.join(known)}; `lookout components {role}` lists them)")
+    if not isinstance(name, str) or name not in known:
+        raise CompositionError(location + ("kind",), f"no {role} kind {name!r} (one of {', '.join(known)})")
+    kind = registry.kind(role, name)
+    design = table.get("design")
+    if design is not None and design not in kind.designs:
+        rules = f"one of {', '.join(kind.designs)}" if kind.designs else f"{role} {name} has no design rules"
+        raise CompositionError(location + ("design",), f"no design {design!r} ({rules})")
+    if design is None and kind.designs:
+        design = kind.designs[0]
+    parameters = kind.parameters(design)
+    by_name = {p.name: p for p in parameters}
+    allowed = set(by_name) | {"kind"} | ({"design"} if kind.designs else set()) | ({"initial"} if role in ("plant", "observer") else set())
+    for key in table:
+        if key not in allowed:
+            listed = ", ".join(p.name for p in parameters) or "none"
+            raise CompositionError(location + (key,), f"unknown key ({role} {name} takes: {listed})")
+
+    values = {key: value for key, value in table.items() if key in by_name and by_name[key].sort == "value"}
+    validated = _validate(parameter_model(kind, design), values, location)
+    arguments = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value" and not (p.default is None and getattr(validated, p.name) is None)}
+    normal: dict = {"kind": name, **({"design": design} if kind.designs else {})}
+    normal.update({key: plain(value) for key, value in arguments.items()})
+
+    for p in parameters:
+        if p.sort == "part" and p.name in registry.COMPONENT_ROLES:  # another component of the composition
+            found = context.find(_part_classes(p))
+            if p.name in table:
+                raise CompositionError(location + (p.name,), f"is the composition's [{p.name}] table, not a key of [{role}]")
+            if found is None:
+                wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.name
+                other = context.kinds.get(p.name)
+                reason = f"{p.name} {other} is not one" if other else f"there is no {p.name} before it"
+                raise CompositionError(location, f"{role} {name} needs a {p.name} that is a {wanted}; {reason}")
+            arguments[p.name] = found
+        elif p.sort == "part":
+            if p.name in table:
+                arguments[p.name], normal[p.name] = build_part(p.name, table[p.name], location + (p.name,), context)
+            elif context.find(_part_classes(p)) is not None:
+                arguments[p.name] = context.find(_part_classes(p))
+            elif p.required and defaults:
+                arguments[p.name], normal[p.name] = build_part(p.name, {}, location + (p.name,), context)
+            elif p.required:
+                wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.name
+                raise CompositionError(
+                    location, f"{role} {name} needs a {p.name} ({wanted}), and plant {context.kinds.get('plant')} has none; give [{key_text(location + (p.name,))}]"
+                )
+        elif p.sort == "context":
+            if p.name == "size" and p.name not in table:
+                if context.plant is not None:
+                    arguments["size"] = context.plant.input_layout.size
+            elif p.name == "signals":
+                arguments["signals"], normal["signals"] = _signals(table.get("signals"), location + ("signals",), context, p)
+            elif p.name in table:
+                raise CompositionError(location + (p.name,), f"is taken from the composition ({p.description or p.type}), not given")
+            else:
+                found = context.find(p.context) if isinstance(p.context, type) else None
+                if found is None and p.required:
+                    wanted = p.context.__name__ if isinstance(p.context, type) else p.context
+                    other = (context.kinds or {}).get(p.name)
+                    if other is not None:  # that part is there, of a kind that does not fit
+                        raise CompositionError(location, f"{role} {name} needs a {p.name} that is a {wanted}; {p.name} {other} is not one")
+                    raise CompositionError(location, f"{role} {name} needs a {wanted} ({p.name}), which the composition has not built before it")
+                if found is not None:
+                    arguments[p.name] = found
+    try:
+        component = kind.callable(design)(**arguments)
+    except ValueError as error:
+        raise _blamed(error, table, location, by_name) from None
+    expected = kind.component_class
+    if isinstance(expected, type) and expected is not type(None) and not isinstance(component, expected):
+        raise CompositionError(location, f"{role} {name} built a {type(component).__name__}, not a {expected.__name__}")
+    return component, normal
+
+
+def _part_classes(parameter: registry.Parameter) -> tuple:
+    """The classes a part may be taken from the composition as: its annotation's, else
+    the classes its role's kinds build."""
+    if isinstance(parameter.context, type):
+        return (parameter.context,)
+    return tuple(c for c in (k.component_class for k in registry.kinds(parameter.name)) if isinstance(c, type) and c is not type(None))
+
+
+def _signals(names, location, context: _Context, parameter):
+    variables = {s.name: s for s in context.plant.variable_signals} if context.plant is not None else {}
+    if names is None:
+        if parameter.required:
+            raise CompositionError(location, f"missing key (names of the plant's variables: {', '.join(variables)})")
+        return parameter.default, None
+    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+        raise CompositionError(location, "must be an array of the plant's variable names")
+    for index, each in enumerate(names):
+        if each not in variables:
+            raise CompositionError(location + (index,), f"the plant has no variable {each!r} (its variables: {', '.join(variables)})")
+    return tuple(variables[each] for each in names), tuple(names)
+
+
+def _initial(method, table, location: tuple, kind_name: str):
+    """``method(**table)`` (a plant's ``state`` or an observer's ``guess``), validated."""
+    parameters = state_parameters(method)
+    if table is None:
+        table = {}
+    if not isinstance(table, dict):
+        raise CompositionError(location, "must be a table")
+    validated = _validate(_initial_model(kind_name, parameters), table, location)
+    arguments = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value"}
+    try:
+        value = method(**arguments)
+    except ValueError as error:
+        raise _blamed(error, table, location, [p.name for p in parameters]) from None
+    return value, {key: plain(value) for key, value in arguments.items()}
+
+
+@dataclass(frozen=True)
+class Composition:
+    """A validated composition: its full document (every key spelled out), the
+    simulation settings and the built scenario."""
+
+    document: dict
+    simulation: SimulationSettings
+    scenario: Any
+    kinds: dict
+
+    @property
+    def seeds(self) -> list[int]:
+        return self.simulation.seeds
+
+    def with_changes(self, changes: dict[str, Any]) -> "Composition":
+        """This composition with ``changes`` (dotted paths from the document's root, e.g.
+        ``observer.velocity_injection_gain[2]``) applied, validated and built again."""
+        document = copy.deepcopy(self.document)
+        for path, value in changes.items():
+            set_path(document, path, value)
+        return compose(document)
+
+
+def merge(preset: dict, document: dict) -> dict:
+    """``document`` over ``preset``: a table with the preset's kind (and design) is
+    merged key by key (nested tables too), one with another kind replaces it."""
+    merged = copy.deepcopy(preset)
+    for key, value in document.items():
+        if key == "preset":
+            continue
+        base = merged.get(key)
+        if isinstance(value, dict) and isinstance(base, dict):
+            if "kind" in value and value["kind"] != base.get("kind"):
+                merged[key] = copy.deepcopy(value)
+            elif "design" in value and value["design"] != base.get("design"):
+                merged[key] = {**{k: v for k, v in base.items() if k in ("kind", "initial")}, **copy.deepcopy(value)}
+            else:
+                merged[key] = merge(base, value)
+        else:
+            merged[key] = copy.deepcopy(value)
+    return merged
+
+
+def compose(document: dict) -> Composition:
+    """Validate ``document`` and build its scenario; a :class:`CompositionError` names the key."""
+    from lookout.sim import Scenario
+
+    if not isinstance(document, dict):
+        raise CompositionError((), "a composition is a table of tables")
+    for key in document:
+        if key not in TOP_KEYS:
+            raise CompositionError((key,), f"unknown key (a composition has {', '.join(TOP_KEYS)})")
+    if "preset" in document:
+        document = merge(preset_document(document["preset"]), document)
+    simulation_table = document.get("simulation", {})
+    if not isinstance(simulation_table, dict):
+        raise CompositionError(("simulation",), "must be a table")
+    simulation = _validate(SimulationSettings, simulation_table, ("simulation",))
+    for role in ("plant", "sensor", "observer"):
+        if role not in document:
+            raise CompositionError((role,), f"missing table (a composition needs a plant, a sensor and an observer; `lookout components {role}` lists the kinds)")
+
+    context = _Context([], kinds={})
+    built, normal, kinds = {}, {"simulation": simulation.model_dump(mode="json")}, {}
+    for role in registry.COMPONENT_ROLES:
+        table = _table(document, role)
+        built[role], normal[role] = build_part(role, table, (role,), context, defaults=role == "plant")
+        kinds[role] = context.kinds[role] = normal[role]["kind"]
+        if role == "plant":
+            context.plant = built[role]
+        context.add(built[role])
+    plant_table, observer_table = document["plant"], document["observer"]
+    initial_state, normal["plant"]["initial"] = _initial(built["plant"].state, plant_table.get("initial"), ("plant", "initial"), kinds["plant"])
+    initial_estimate, normal["observer"]["initial"] = _initial(built["observer"].guess, observer_table.get("initial"), ("observer", "initial"), kinds["observer"])
+    try:
+        scenario = Scenario(
+            plant=built["plant"],
+            sensor=built["sensor"],
+            observer=built["observer"],
+            controller=built["controller"],
+            reference=built["reference"],
+            actuator=built["actuator"],
+            initial_state=initial_state,
+            initial_estimate=initial_estimate,
+            plant_step=simulation.plant_step,
+            sample_period=simulation.sample_period,
+            duration=simulation.duration,
+            record_every=simulation.record_every,
+            integrator=simulation.integrator,
+            observer_mode=simulation.observer_mode,
+        )
+    except ValueError as error:
+        raise _scenario_error(error, kinds) from None
+    return Composition(normal, simulation, scenario, kinds)
+
+
+def _scenario_error(error: ValueError, kinds: dict) -> CompositionError:
+    reason = one_line(error)
+    if reason.startswith("sensor sample_period"):
+        return CompositionError(("sensor", "sample_period"), reason)
+    for key in ("sample_period", "plant_step", "duration", "record_every", "observer_mode"):
+        if reason.startswith(key):
+            return CompositionError(("simulation", key), reason)
+    for role in ("controller", "observer"):  # a part that needs what another does not provide
+        if reason.startswith(f"{role} ") and " needs " in reason:
+            return CompositionError((role,), reason)
+    match = re.match(r"(\w+) and (\w+) (?:do not fit|disagree): (.*)", reason)
+    if match and match.group(1) in kinds and match.group(2) in kinds:
+        first, second, detail = match.groups()
+        return CompositionError((), f"{first} {kinds[first]} and {second} {kinds[second]} do not fit: {detail}")
+    return CompositionError((), reason)
+
+
+def preset_document(text) -> dict:
+    """The composition of a reproduction's case, named ``"NAME:CASE"`` (or ``"NAME"``: its
+    first case)."""
+    if not isinstance(text, str):
+        raise CompositionError(("preset",), f"must be a string NAME:CASE; got {text!r}")
+    name, _, case = text.partition(":")
+    try:
+        return registry.preset(name, case or None)
+    except ValueError as error:
+        raise CompositionError(("preset",), one_line(error)) from None
+
+
+# ------------------------------------------------------------------------- paths
+
+
+def path_parts(path: str) -> list:
+    """``"observer.wave_frequency[1]"`` -> ``["observer", "wave_frequency", 1]``."""
+    parts: list = []
+    for name in path.split("."):
+        match = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)", name)
+        if not match:
+            raise CompositionError((), f"{path!r} is not a key path (names joined by '.', indices as [i])")
+        parts.append(match.group(1))
+        parts += [int(i) for i in re.findall(r"\[(\d+)\]", match.group(2))]
+    return parts
+
+
+def set_path(document: dict, path: str, value: Any) -> None:
+    """Set the key at ``path`` of a full composition (the key must exist there)."""
+    parts = path_parts(path)
+    target: Any = document
+    for depth, part in enumerate(parts):
+        here = tuple(parts[: depth + 1])
+        if isinstance(part, int):
+            if not isinstance(target, (list, tuple)) or part >= len(target):
+                raise CompositionError(here, f"does not exist ({key_text(here[:-1])} has {len(target) if isinstance(target, (list, tuple)) else 'no'} entries)")
+        elif not isinstance(target, dict) or part not in target:
+            known = ", ".join(sorted(target)) if isinstance(target, dict) else "none"
+            raise CompositionError(here, f"no such key (known here: {known})")
+        if depth == len(parts) - 1:
+            target[part] = value
+        else:
+            child = target[part]
+            if isinstance(child, tuple):
+                child = list(child)
+                target[part] = child
+            target = child
+
+
+def get_path(document: dict, path: str) -> Any:
+    """The value at ``path`` of a composition."""
+    target: Any = document
+    for part in path_parts(path):
+        target = target[part]
+    return target
