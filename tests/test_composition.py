@@ -110,7 +110,7 @@ def test_a_component_needing_another_of_a_type_names_both():
         "reference": {"kind": "ellipse", "semi_axes": [2.0, 1.0], "lap_speeds": [0.05]},
         "controller": {"kind": "observer-backstepping", "integral_gain": 0.0, "position_gain": 0.1, "velocity_gain": 0.1, "damping_weights": 0.0},
     }
-    with pytest.raises(CompositionError, match=r"^controller: controller observer-backstepping needs a observer that is a WaveFilteringObserver; observer earth-fixed is not one$"):
+    with pytest.raises(CompositionError, match=r"^controller: controller observer-backstepping needs an observer that is a WaveFilteringObserver; observer earth-fixed is not one$"):
         compose(document)
 
 

@@ -305,23 +305,24 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
     normal.update({key: plain(value) for key, value in arguments.items()})
 
     for p in parameters:
-        if p.sort == "part" and p.name in registry.COMPONENT_ROLES:  # another component of the composition
+        if p.sort == "part" and p.role in registry.COMPONENT_ROLES:  # another component of the composition
             found = context.find(_part_classes(p))
             if p.name in table:
-                raise CompositionError(location + (p.name,), f"is the composition's [{p.name}] table, not a key of [{role}]")
+                raise CompositionError(location + (p.name,), f"is the composition's [{p.role}] table, not a key of [{role}]")
             if found is None:
-                wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.name
-                other = context.kinds.get(p.name)
-                reason = f"{p.name} {other} is not one" if other else f"there is no {p.name} before it"
-                raise CompositionError(location, f"{role} {name} needs a {p.name} that is a {wanted}; {reason}")
+                wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.role
+                other = context.kinds.get(p.role)
+                reason = f"{p.role} {other} is not one" if other else f"there is no {p.role} before it"
+                raise CompositionError(location, f"{role} {name} needs an {p.role} that is a {wanted}; {reason}" if p.role[0] in "aeiou"
+                                       else f"{role} {name} needs a {p.role} that is a {wanted}; {reason}")
             arguments[p.name] = found
         elif p.sort == "part":
             if p.name in table:
-                arguments[p.name], normal[p.name] = build_part(p.name, table[p.name], location + (p.name,), context)
-            elif context.find(_part_classes(p)) is not None:
+                arguments[p.name], normal[p.name] = build_part(p.role, table[p.name], location + (p.name,), context)
+            elif p.from_plant and context.find(_part_classes(p)) is not None:
                 arguments[p.name] = context.find(_part_classes(p))
             elif p.required and defaults:
-                arguments[p.name], normal[p.name] = build_part(p.name, {}, location + (p.name,), context)
+                arguments[p.name], normal[p.name] = build_part(p.role, {}, location + (p.name,), context)
             elif p.required:
                 wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.name
                 raise CompositionError(
@@ -360,7 +361,7 @@ def _part_classes(parameter: registry.Parameter) -> tuple:
     the classes its role's kinds build."""
     if isinstance(parameter.context, type):
         return (parameter.context,)
-    return tuple(c for c in (k.component_class for k in registry.kinds(parameter.name)) if isinstance(c, type) and c is not type(None))
+    return tuple(c for c in (k.component_class for k in registry.kinds(parameter.role)) if isinstance(c, type) and c is not type(None))
 
 
 def _signals(names, location, context: _Context, parameter):

@@ -47,6 +47,7 @@ KINDS: dict[str, dict[str, Any]] = {
         "cybership-ii": "lookout.models.cybership:CybershipPlant",
         "manipulator": "lookout.models.manipulators:ManipulatorPlant",
         "furuta": "lookout.models.furuta:FurutaPlant",
+        "scheduled-parameters": "lookout.models.scheduled_parameters:ScheduledParameterPlant",
     },
     # parts of plants (and the models of observers and controllers)
     "vessel": {
@@ -75,6 +76,10 @@ KINDS: dict[str, dict[str, Any]] = {
     },
     "parameters": {
         "model-fields": "lookout.models.parameters:ModelParameters",
+        "pendulum-inertia": "lookout.models.parameters:PendulumInertia",
+    },
+    "parametrization": {
+        "inertia-entries": "lookout.observers.adaptive_dp:InertiaParametrization",
     },
     "sensor": {
         "position-heading": "lookout.sensors:PositionHeadingSensor",
@@ -90,13 +95,18 @@ KINDS: dict[str, dict[str, Any]] = {
         "sliding-mode": {"kim-2002": "lookout.observers.sliding_mode:SlidingModeObserver.design"},
         "earth-fixed": "lookout.observers.earth_fixed:EarthFixedObserver",
         "velocity": "lookout.observers.velocity:VelocityObserver",
+        "adaptive-dp": "lookout.observers.adaptive_dp:AdaptiveObserver",
         "adaptive-manipulator": "lookout.observers.adaptive_manipulator:AdaptiveManipulatorObserver",
+        "parameter-estimator": "lookout.observers.parameter_estimator:ParameterEstimator",
     },
     "controller": {
         "none": "lookout.controllers.open_loop:NoControl",
         "sinusoidal": "lookout.controllers.open_loop:SinusoidalInput",
         "observer-backstepping": "lookout.controllers.backstepping:ObserverBackstepping.for_observer",
+        "vectorial-backstepping": "lookout.controllers.backstepping:VectorialBackstepping.for_observer",
         "tracking": "lookout.controllers.tracking:TrackingController",
+        "adaptive-backstepping": "lookout.controllers.adaptive_backstepping:AdaptiveObserverBackstepping",
+        "furuta-backstepping": "lookout.controllers.furuta:FurutaPendulumBackstepping",
     },
     "reference": {
         "none": "lookout.reference:NoReference",
@@ -144,6 +154,15 @@ class Parameter:
     description: str
     default: Any = REQUIRED
     context: Any = None
+    #: the role of a part (its name, or the role whose kinds build its annotated class)
+    role: str | None = None
+
+    @property
+    def from_plant(self) -> bool:
+        """A part taken from the components built before when the table does not give
+        it: a required one always, an optional one when its description says so
+        ("the plant's")."""
+        return self.required or "the plant's" in self.description
 
     @property
     def required(self) -> bool:
@@ -362,16 +381,29 @@ def _parameters(target: str, values_only: bool = False) -> tuple[Parameter, ...]
         type_text, description = docs.get(name, ("", ""))
         annotation = hints.get(name)
         component_type = _component_type(annotation)
+        role = None if values_only else (name if name in KINDS else _role_of_class(component_type))
         if values_only:
             sort = "value"
-        elif name in KINDS:
+        elif role is not None:
             sort = "part"
         elif component_type is not None or name in CONTEXT_NAMES:
             sort = "context"
         else:
             sort = "value"
-        parameters.append(Parameter(name, sort, type_text, _first_sentence(description), default, component_type or CONTEXT_NAMES.get(name)))
+        parameters.append(Parameter(name, sort, type_text, _first_sentence(description), default, component_type or CONTEXT_NAMES.get(name), role))
     return tuple(parameters)
+
+
+def _role_of_class(cls) -> str | None:
+    """The role whose kinds build instances of ``cls`` (a ManipulatorModel: ``model``)."""
+    if not isinstance(cls, type):
+        return None
+    for role, entries in KINDS.items():
+        for each in kinds(role):
+            built = each.component_class
+            if isinstance(built, type) and issubclass(built, cls):
+                return role
+    return None
 
 
 def _component_type(annotation) -> type | None:

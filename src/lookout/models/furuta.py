@@ -224,11 +224,6 @@ class FurutaPlant(Plant):
         if check.is_concrete(self.model.coulomb_friction) and float(np.asarray(self.model.coulomb_friction)[1]) != 0.0:
             raise ValueError("model.coulomb_friction[1] (the pendulum's) must be 0: FurutaPlant models stick-slip on the arm only")
 
-    def state(self, q, qdot=0.0) -> FurutaState:
-        """A :class:`FurutaState` at (q, q'), not yet stuck."""
-        return FurutaState(jnp.asarray(check.vector("q", q, 2), dtype=float), jnp.asarray(check.vector("qdot", qdot, 2), dtype=float),
-                           jnp.asarray(0.0))
-
     def friction_torque(self, q: Array, qdot: Array, tau: Array) -> tuple[Array, Array]:
         """``(f, sticking)``: the arm's friction torque tau_F (entering as tau_u - tau_F, (6.3))
         and whether the arm sticks, by the rule of the module docstring."""
@@ -273,7 +268,8 @@ class FurutaPlant(Plant):
         qdot : array_like, shape (2,)
             Their rates (rad/s).
         """
-        return FurutaState(jnp.asarray(check.vector("q", q, 2)), jnp.asarray(check.vector("qdot", qdot, 2)), jnp.asarray(0.0))
+        return FurutaState(jnp.asarray(check.vector("q", q, 2), dtype=float), jnp.asarray(check.vector("qdot", qdot, 2), dtype=float),
+                           jnp.asarray(0.0))
 
     def models(self) -> tuple:
         """The model in its constants (friction included)."""

@@ -581,11 +581,6 @@ class ManipulatorPlant(Plant):
     def __check_init__(self):
         check.positive("force_noise", self.force_noise, allow_zero=True)
 
-    def state(self, q, qdot=0.0) -> JointState:
-        """A :class:`JointState` from scalars or sequences, checked for size n."""
-        n = self.model.size
-        return JointState(jnp.asarray(check.vector("q", q, n)), jnp.asarray(check.vector("qdot", qdot, n)))
-
     def vector_field(self, t, x: JointState, u: Array, w: Array) -> JointState:
         """(q', qdot') of eq. (2.1) with friction F and the force disturbance."""
         del t

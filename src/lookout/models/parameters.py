@@ -217,7 +217,13 @@ class ModelParameters(AffineParameters):
 class PendulumInertia(AffineParameters):
     """The free pendulum in theta = (m l^2, m l) (kg m^2, kg m): M = theta_1,
     G = theta_2 g sin q, F as given. Calugi (2002), ch. 3, second simulation (3.13) with
-    phi = [q'', g sin q] (plus the friction's phi0 = c q')."""
+    phi = [q'', g sin q] (plus the friction's phi0 = c q').
+
+    Parameters
+    ----------
+    base : FreePendulum
+        The pendulum whose m l^2 and m l are the unknowns (in a composition, the plant's unless given).
+    """
 
     base: FreePendulum
     reference: Array

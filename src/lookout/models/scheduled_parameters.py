@@ -98,8 +98,17 @@ class ScheduledParameterPlant(Plant):
         """theta(t): the row of :attr:`values` whose interval holds t (right-continuous)."""
         return self.values[jnp.searchsorted(self.switch_times, t, side="right")]
 
-    def state(self, q, qdot=0.0) -> JointState:
-        """A :class:`JointState` from scalars or sequences, checked for size n."""
+    def state(self, q=0.0, qdot=0.0) -> JointState:
+        """A :class:`JointState` from scalars or sequences, checked for size n (zeros where
+        not given): a composition's ``[plant.initial]``.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Joint coordinates in joint order (rad, m).
+        qdot : array_like, shape (n,)
+            Their rates (rad/s, m/s).
+        """
         n = self.noise_size
         return JointState(jnp.asarray(check.vector("q", q, n)), jnp.asarray(check.vector("qdot", qdot, n)))
 

@@ -169,7 +169,7 @@ class InertiaParametrization(eqx.Module):
     model : DPVessel
         The known model (M, D, K). Its values at the unknown entries are ignored:
         :meth:`matrices` replaces them by theta.
-    unknowns : sequence
+    unknowns : sequence of str
         The unknown entries, each ``(kind, row, col)`` with kind ``"mass"``,
         ``"damping"`` or ``"stiffness"`` and **0-based** row, col, or a paper-style
         name (``"m11"`` = ``("mass", 0, 0)``, 1-based). An off-diagonal entry stands

@@ -25,16 +25,12 @@ import xarray as xr
 from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, settling_time
-from lookout.controllers import SinusoidalInput
-from lookout.environment import GaussMarkovBias, LinearWaveModel
-from lookout.models.vessel import VesselPlant, VesselState
-from lookout.observers import PassiveObserver, injection_gains_from_normalized
+from lookout.observers import injection_gains_from_normalized
 from lookout.papers._config import VesselSettings
 from lookout.settings import RunsConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.results import write_netcdf
-from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
 from lookout.composition import compose
 

@@ -207,7 +207,7 @@ def _table_comments(role: str, table: dict, prefix: str, comments: dict) -> None
     parameters = kind.parameters(table.get("design"))
     for p in parameters:
         if p.sort == "part" and isinstance(table.get(p.name), dict):
-            _table_comments(p.name, table[p.name], f"{prefix}.{p.name}", comments)
+            _table_comments(p.role, table[p.name], f"{prefix}.{p.name}", comments)
         elif p.description:
             comments[f"{prefix}.{p.name}"] = p.description + ("" if p.sort != "part" or p.name in table else " (the plant's, unless given)")
     if isinstance(table.get("initial"), dict):
