@@ -151,7 +151,7 @@ def test_bad_inputs_fail_with_one_line_naming_the_parameter(build, message):
 
 def test_the_continuous_form_needs_the_oracle_velocity():
     observer = _observer("continuous")
-    with pytest.raises(ValueError, match="observer AdaptiveObserver needs measurement measured_velocity, which sensor position-heading does not measure"):
+    with pytest.raises(ValueError, match="observer adaptive-dp needs measurement measured_velocity, which sensor position-heading does not measure"):
         Scenario(_plant(), PositionHeadingSensor(0.0, SAMPLE), observer, EXCITING, VesselState.build(), observer.guess(),
                  plant_step=SAMPLE, sample_period=SAMPLE, duration=1.0)
     with pytest.raises(ValueError, match="no vector field"):

@@ -19,7 +19,7 @@ from lookout.studies.report import report_figures, write_report
 from lookout.studies.store import CampaignStore
 
 DOCUMENT = {
-    "scenario": {"template": "fossen-strand-1999", "case": "paper", "settings": {"duration": 20.0}},
+    "scenario": {"preset": "fossen-strand-1999", "simulation": {"duration": 20.0}},
     "seeds_per_point": 4,
     "chunk_runs": 2,
     "metrics": ["rms_error:position", "max_excursion:position"],
@@ -28,8 +28,9 @@ DOCUMENT = {
     "sweep": {
         "kind": "grid",
         "axes": [
-            {"field": "wave_frequency", "values": [0.6, 0.8, 1.0]},
-            {"field": "dropout_probability", "values": [0.0, 0.1]},
+            # the sea and the observer tuned to it
+            {"field": ["plant.waves.peak_frequency", "observer.wave_frequency"], "values": [0.6, 0.8, 1.0], "name": "wave_frequency"},
+            {"field": "sensor.dropout_probability", "values": [0.0, 0.1], "name": "dropout_probability"},
         ],
     },
 }
@@ -186,14 +187,17 @@ def test_spec_is_a_readable_table(report):
     # what was run comes before what came out
     assert page.index('<section id="spec">') < page.index('<section id="summary">')
     scenario = dict(_rows(spec, "spec-scenario"))
-    assert scenario["template"].startswith("fossen-strand-1999: ") and scenario["case"] == "paper"
-    # the settings that differ from the template's defaults (only the duration), value and default
-    assert _rows(spec, "spec-changed") == [["setting", "value", "template default", "description"],
-                                           ["duration", "20", "3000", html_escape(description("duration"))]]
-    # every setting in a collapsed table, nested keys dotted
+    assert scenario == {"plant": "dp-vessel", "sensor": "position-heading", "observer": "passive (design fossen-strand-1999)",
+                        "reference": "none", "controller": "sinusoidal", "actuator": "ideal"}
+    # the keys that differ from their kind's default, value and default: the duration among them
+    changed = {row[0]: row[1:] for row in _rows(spec, "spec-changed")}
+    assert changed["key"] == ["value", "default", "description"]
+    assert changed["simulation.duration"] == ["20", "600", html_escape(description("simulation.duration"))]
+    assert changed["sensor.noise_std"][:2] == ["[0.5, 0.5, 0.00174533]", "0"] and "sensor.dropout_probability" not in changed
+    # every key in a collapsed table, nested keys dotted
     settings = {row[0]: row[1] for row in _rows(spec, "spec-settings")[1:]}
-    assert settings["vessel.model"] == "northern-clipper" and settings["bias_std"] == "[2000, 2000, 50000]"
-    assert "vessel" not in settings and spec.index("<details>") < spec.index('id="spec-settings"')
+    assert settings["plant.bias.std"] == "[2000, 2000, 50000]" and settings["observer.notch_damping"] == "1"
+    assert "plant.vessel" not in settings and spec.index("<details>") < spec.index('id="spec-settings"')
     campaign = dict((row[0], row[1]) for row in _rows(spec, "spec-campaign"))
     assert campaign["seeds"] == "4 per point: seeds 0 to 3, the same at every point"
     assert campaign["chunks"] == "2 runs per chunk: 12 chunks (6 points × 2 blocks of seeds)"
@@ -204,21 +208,22 @@ def test_spec_is_a_readable_table(report):
     assert campaign["trajectories kept"] == "none"
     assert "grid: 6 points, every combination of the axes" in spec
     assert _rows(spec, "spec-axes") == [["axis", "field", "values", "applied"],
-                                        ["wave_frequency", "wave_frequency", "0.6, 0.8, 1 (rad/s)", "sets the value"],
-                                        ["dropout_probability", "dropout_probability", "0, 0.1", "sets the value"]]
+                                        ["wave_frequency", "plant.waves.peak_frequency, observer.wave_frequency", "0.6, 0.8, 1 (rad/s)", "sets the value"],
+                                        ["dropout_probability", "sensor.dropout_probability", "0, 0.1", "sets the value"]]
     # the raw JSON only collapsed, after the tables
     assert spec.count("<pre>") == 1 and spec.index('id="spec-axes"') < spec.rindex("<details>") < spec.index("<pre>")
 
 
 def test_spec_defaults_window_and_divergence_rule():
     document = {key: value for key, value in json.loads(json.dumps(DOCUMENT)).items() if key not in ("after", "divergence")}
-    document["sweep"]["axes"][1] = {"name": "noise", "field": ["noise_std[0]", "noise_std[1]"], "range": [0.5, 2.0], "steps": 4,
+    document["scenario"] = campaign_from_document(json.loads(json.dumps(DOCUMENT)), "<test>").base.document()
+    document["sweep"]["axes"][1] = {"name": "noise", "field": ["sensor.noise_std[0]", "sensor.noise_std[1]"], "range": [0.5, 2.0], "steps": 4,
                                     "scale": True}
     spec = report_module._spec_html(document, [], 6, 2, 12)
     campaign = dict((row[0], row[1]) for row in _rows(spec, "spec-campaign"))
     assert campaign["metric window"] == "t ≥ 10 s: the second half of the run (the default)"
     assert campaign["diverged"] == "a truth or estimate that is not finite at any record (no divergence limit)"
-    assert _rows(spec, "spec-axes")[2] == ["noise", "noise_std[0], noise_std[1]", "4 steps over [0.5, 2]: 0.5, 1, 1.5, 2",
+    assert _rows(spec, "spec-axes")[2] == ["noise", "sensor.noise_std[0], sensor.noise_std[1]", "4 steps over [0.5, 2]: 0.5, 1, 1.5, 2",
                                            "× base value"]
 
 
@@ -228,10 +233,10 @@ def html_escape(text: str) -> str:
     return html.escape(text)
 
 
-def description(setting: str) -> str:
-    from lookout.studies.scenario_file import templates
+def description(key: str) -> str:
+    from lookout.studies.scenario_file import composition_comments
 
-    return templates()["fossen-strand-1999"].settings.model_fields[setting].description
+    return composition_comments(campaign_from_document(json.loads(json.dumps(DOCUMENT)), "<test>").base.document())[key]
 
 
 def test_figures_sit_in_two_columns_on_a_wide_page(report):

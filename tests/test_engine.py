@@ -303,7 +303,7 @@ def test_keys_of_seeds_and_stacked_scenarios_give_the_single_runs():
     keys = keys_of_seeds([3, 5])
     assert jax.random.key_data(keys[1]).tolist() == jax.random.key_data(seed_keys(5, 1)[0]).tolist()
     base = fs.build(fs.Config(duration=20.0))
-    other = dataclasses.replace(base, initial_state=fs.VesselState.build(eta=[5.0, 0.0, 0.0]))
+    other = dataclasses.replace(base, initial_state=base.plant.state(eta=[5.0, 0.0, 0.0]))
     batch = simulate_batch(stack_scenarios([base, other]), keys, batched_scenario=True)
     for i, scenario in enumerate((base, other)):
         single = simulate(scenario, keys[i])

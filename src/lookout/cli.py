@@ -238,7 +238,10 @@ def reproduce(
     if write_scenario is not None:
         _write_scenario(name, config, write_scenario)
         return
-    check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)], runs=config.runs)
+    if hasattr(module, "cases"):  # a Reproduction (issue 23: all of them)
+        check_memory(module.batches(config), runs=config.runs)
+    else:
+        check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)], runs=config.runs)
     folder = created_folder("--out", f"out/{name}" if out is None else out)
     with simulating() as progress:
         summary = module.run(config, folder, progress=progress)
@@ -257,17 +260,20 @@ def _write_scenario(name: str, config, text: str) -> None:
     if path.suffix != ".toml":
         raise InputError(f"--write-scenario must end in .toml; got {text}")
     writable_folder("--write-scenario", path.absolute().parent, text)
-    template = templates()[name]
     module = REPRODUCTIONS[name]
     if hasattr(module, "composition"):  # the reproductions written as compositions (issue 23: all of them)
         from lookout.composition import compose
         from lookout.studies.scenario_file import CompositionSpec
 
-        save(CompositionSpec(compose(module.composition(config, template.cases[0]))), path,
-             header=f"lookout scenario: {template.title}, case {template.cases[0]!r}, as a composition.\nRun it with: lookout run {path.name} --out DIR")
+        cases = getattr(module, "cases", None) or module.CASES
+        title = getattr(module, "title", None) or module.TITLE
+        save(CompositionSpec(compose(module.composition(config, cases[0]))), path,
+             header=f"lookout scenario: {title}, case {cases[0]!r} (preset \"{name}:{cases[0]}\"), as a composition.\nRun it with: lookout run {path.name} --out DIR")
     else:
-        save(ScenarioSpec(template, template.cases[0], config), path)
-    console.print(f"scenario written to {path} (case {template.cases[0]!r}; cases: {', '.join(template.cases)}); run it with: lookout run {path} --out FOLDER", highlight=False)
+        template = templates()[name]
+        cases = template.cases
+        save(ScenarioSpec(template, cases[0], config), path)
+    console.print(f"scenario written to {path} (case {cases[0]!r}; cases: {', '.join(cases)}); run it with: lookout run {path} --out FOLDER", highlight=False)
 
 
 def _print_summary(summary: dict, tables, out: Path) -> None:

@@ -425,7 +425,7 @@ def preset(name: str, case: str | None = None) -> dict:
     if name not in CATALOG:
         raise ValueError(f"no preset {name!r} (one of {', '.join(CATALOG)}, each with :CASE)")
     module = REPRODUCTIONS[name]
-    cases = module.CASES
+    cases = getattr(module, "cases", None) or module.CASES
     if case is None:
         case = cases[0]
     if case not in cases:
@@ -437,7 +437,12 @@ def presets() -> list[tuple[str, str]]:
     """Every reproduction case that is a composition, as (name, case)."""
     from lookout.papers import CATALOG, REPRODUCTIONS
 
-    return [(name, case) for name in CATALOG for case in REPRODUCTIONS[name].CASES if hasattr(REPRODUCTIONS[name], "composition")]
+    found = []
+    for name in CATALOG:
+        reproduction = REPRODUCTIONS[name]
+        if hasattr(reproduction, "composition"):  # issue 23: every reproduction, once all are compositions
+            found += [(name, case) for case in getattr(reproduction, "cases", None) or reproduction.CASES]
+    return found
 
 
 def example(each: Kind):

@@ -17,8 +17,8 @@ class SinusoidalInput(Controller):
     """u_i(t) = offset_i + amplitude_i sin(frequency_i t + phase_i), held over each sample.
 
     Fossen & Strand (1999), eq. (61) uses amplitude 1000 (N, N, N m) and
-    frequencies 0.05, 0.1, 0.07 rad/s (:meth:`fossen_strand_1999`); a constant input
-    is ``SinusoidalInput(0.0, 0.0, offset=u)`` (:meth:`constant`).
+    frequencies 0.05, 0.1, 0.07 rad/s (its reproduction's composition); a constant
+    input is ``SinusoidalInput(0.0, 0.0, offset=u)`` (:meth:`constant`).
 
     Parameters
     ----------
@@ -52,11 +52,6 @@ class SinusoidalInput(Controller):
         check.positive("input frequency", self.frequency, allow_zero=True)
         check.finite("input phase", self.phase)
         check.finite("input offset", self.offset)
-
-    @classmethod
-    def fossen_strand_1999(cls) -> "SinusoidalInput":
-        """tau of Fossen & Strand (1999), eq. (61)."""
-        return cls(1000.0, [0.05, 0.1, 0.07])
 
     @classmethod
     def constant(cls, value) -> "SinusoidalInput":

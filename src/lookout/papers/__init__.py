@@ -50,10 +50,13 @@ CATALOG: dict[str, Entry] = {
 
 
 class _Reproductions(Mapping):
-    """name -> module, importing a module when it is first asked for."""
+    """name -> its :class:`~lookout.papers._reproduction.Reproduction`, importing the
+    module when it is first asked for."""
 
     def __getitem__(self, name: str):
-        return importlib.import_module(f"{__name__}.{CATALOG[name].module}")
+        module = importlib.import_module(f"{__name__}.{CATALOG[name].module}")
+        # issue 23, while the paper modules move to Reproduction: a module not yet moved is itself
+        return getattr(module, "REPRODUCTION", module)
 
     def __iter__(self) -> Iterator[str]:
         return iter(CATALOG)
@@ -62,5 +65,5 @@ class _Reproductions(Mapping):
         return len(CATALOG)
 
 
-#: name -> module, in the order `lookout list` shows them
+#: name -> Reproduction, in the order `lookout list` shows them
 REPRODUCTIONS: Mapping = _Reproductions()

@@ -29,6 +29,7 @@ from lookout.observers import injection_gains_from_normalized
 from lookout.papers._config import VesselSettings
 from lookout.settings import RunsConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
+from lookout.papers._reproduction import Reproduction
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
@@ -286,19 +287,8 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     return summary
 
 
-#: The scenarios a scenario file can name as its ``case`` (the Section 6.1 study); the first is the
-#: default. See :mod:`lookout.studies.scenario_file`.
+#: The cases (one: the Section 6.1 study); a scenario file's preset "fossen-strand-1999" is it.
 CASES: tuple[str, ...] = ("paper",)
-
-
-def case_scenario(config: Config, case: str) -> Scenario:
-    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
-    return build(config)
-
-
-def scenarios(config: Config) -> list[Scenario]:
-    """The scenarios :func:`run` simulates (one), for estimates made before running."""
-    return [build(config)]
 
 
 def tables(summary: dict) -> list[Table]:
@@ -326,3 +316,23 @@ def tables(summary: dict) -> list[Table]:
             "second-half RMS; 0 means at that level from the start, not that the estimate tracks the truth",
         ),
     ]
+
+
+class FossenStrand1999(Reproduction):
+    """Fossen & Strand (1999), Section 6.1: the passive observer on the Northern Clipper."""
+
+    name = NAME
+    Config = Config
+    cases = CASES
+
+    def composition(self, config: Config, case: str) -> dict:
+        return composition(config, case)
+
+    def run(self, config: Config, out: Path, *, progress: Callable | None = None) -> dict:
+        return run(config, out, progress=progress)
+
+    def tables(self, summary: dict) -> list[Table]:
+        return tables(summary)
+
+
+REPRODUCTION = FossenStrand1999()

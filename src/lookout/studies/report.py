@@ -620,6 +620,11 @@ def _kind_default(scenario: dict, key: str):
 
     parts = key.split(".")
     role, table = parts[0], scenario.get(parts[0])
+    if role == "simulation":
+        from lookout.composition import SimulationSettings
+
+        field = SimulationSettings.model_fields.get(parts[-1])
+        return _NO_DEFAULT if field is None else field.default
     try:
         for part in parts[1:-1]:
             role, table = part, table[part]

@@ -70,6 +70,7 @@ def templates() -> dict[str, Template]:
     return {
         name: Template(name, module.TITLE, module.Config, module.CASES, module.case_scenario, getattr(module, "STACKED_BATCHES", False))
         for name, module in REPRODUCTIONS.items()
+        if not hasattr(module, "cases")  # issue 23: a Reproduction's files are compositions; the template form goes with the last
     }
 
 
