@@ -187,10 +187,7 @@ def test_a_custom_vessel_is_simulated_with_its_own_matrices(name, case, tmp_path
     heavier = (NORTHERN_CLIPPER_M * 2.0).tolist()
     extra = {"model_error": {"mass": 0.1, "damping": 0.0}} if name == "kim-2002" else {}
     config = reproduction.Config(duration=100.0, vessel={"model": "custom", "mass_matrix": heavier, "damping_matrix": NORTHERN_CLIPPER_D.tolist()}, **extra)
-    if hasattr(reproduction, "cases"):
-        path = save(CompositionSpec(compose(reproduction.composition(config, case))), tmp_path / "custom.toml")
-    else:  # issue 23: until kim-2002 is a composition
-        path = save(ScenarioSpec(templates()[name], case, config), tmp_path / "custom.toml")
+    path = save(CompositionSpec(compose(reproduction.composition(config, case))), tmp_path / "custom.toml")
     scenario = load(path).build()
     # the plant is the user's vessel (with Kim's model error on top); every model-based part uses its M
     truth = np.asarray(heavier) * (1.1 if name == "kim-2002" else 1.0)
@@ -245,20 +242,25 @@ def test_campaign_points_are_the_grid_and_scale_multiplies_the_base(tmp_path, ca
         assert sorted(strata) == list(range(10))
 
 
-def test_an_axis_over_the_case_sweeps_the_templates_cases():
+def test_an_axis_may_replace_a_component_and_sweep_a_model_error():
+    """Kim's two observers of Fig. 8 in one campaign: an axis whose values are observer
+    tables (the conventional one is the sliding-mode observer without its switching
+    term), crossed with the plant's mass error."""
+    base = compose({"preset": "kim-2002", "simulation": {"duration": 100.0}}).document
+    conventional = {**base["observer"], "switching_gain": [0.0, 0.0, 0.0]}
     document = {
-        "scenario": {"template": "kim-2002", "case": "sliding-mode", "settings": {"duration": 100.0}},
-        "seeds_per_point": 2, "chunk_runs": 2, "metrics": ["rms_tracking:position"],
-        "sweep": {"axes": [{"field": "case", "values": ["sliding-mode", "conventional"], "name": "observer"}, {"field": "model_error.mass", "values": [0.0, 0.2]}]},
+        "scenario": base, "seeds_per_point": 2, "chunk_runs": 2, "metrics": ["rms_tracking:position"],
+        "sweep": {"axes": [{"field": "observer", "values": [base["observer"], conventional], "name": "observer"},
+                           {"field": "plant.vessel.mass_scale", "values": [1.0, 1.2]}]},
     }
     campaign = campaign_from_document(document, "<kim>")
-    specs = [campaign.point_spec(point) for point in range(len(campaign.points))]
-    assert [(spec.case, spec.settings.model_error.mass) for spec in specs] == [
-        ("sliding-mode", 0.0), ("sliding-mode", 0.2), ("conventional", 0.0), ("conventional", 0.2)
-    ]
-    # the conventional observer is the sliding-mode one without its switching term
-    switching = [np.asarray(spec.build().observer.switching_gain) for spec in specs]
-    assert np.all(switching[0] > 0) and np.all(switching[2] == 0)
+    scenarios = [campaign.point_spec(point).build() for point in range(len(campaign.points))]
+    switching = [np.asarray(s.observer.switching_gain) for s in scenarios]
+    assert np.all(switching[0] > 0) and np.all(switching[1] > 0) and np.all(switching[2] == 0) and np.all(switching[3] == 0)
+    nominal = np.asarray(scenarios[0].observer.passive.mass_matrix)
+    for point, scale in enumerate([1.0, 1.2, 1.0, 1.2]):
+        np.testing.assert_allclose(np.asarray(scenarios[point].plant.vessel.mass_matrix), scale * nominal, rtol=1e-15)
+        np.testing.assert_array_equal(np.asarray(scenarios[point].observer.passive.mass_matrix), nominal)  # the model stays
 
 
 @pytest.mark.parametrize(

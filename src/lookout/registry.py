@@ -52,7 +52,7 @@ KINDS: dict[str, dict[str, Any]] = {
     # parts of plants (and the models of observers and controllers)
     "vessel": {
         "northern-clipper": "lookout.models.vessel:northern_clipper",
-        "custom": "lookout.models.vessel:DPVessel",
+        "custom": "lookout.models.vessel:scaled_vessel",
     },
     "ship": {
         "cybership-ii": "lookout.models.cybership:Cybership",

@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import xarray as xr
 
 from lookout.analysis import estimation_errors
 from lookout.cli import main
@@ -145,3 +146,21 @@ def test_noise_drives_theta_hat_down_at_the_derived_rate():
     ratio = float(drift.measured_rate.squeeze() / drift.predicted_rate.squeeze())
     assert 0.85 < ratio < 1.15, ratio
     assert float(drift.measured_rate_error.squeeze()) < 0.07 * abs(rate)
+
+
+@pytest.mark.parametrize("case", calugi_2003.CASES)
+def test_each_case_written_as_a_composition_runs_to_the_same_numbers(case, tmp_path):
+    """A gain set written as a scenario file and run by `lookout run` gives the
+    reproduction's numbers of that case bit for bit (its run simulates each case so)."""
+    from lookout.composition import compose
+    from lookout.studies.scenario_file import CompositionSpec, save
+
+    config = calugi_2003.Config(duration=60.0, runs=2, seed=4, sweep=False)
+    path = save(CompositionSpec(compose(calugi_2003.REPRODUCTION.composition(config, case))), tmp_path / f"{case}.toml")
+    assert main(["run", str(path), "--out", str(tmp_path / "run")]) == 0
+    ran = xr.open_dataset(tmp_path / "run" / "run.nc")
+    own = calugi_2003.simulate_case(config, case)
+    compared = [name for name, variable in own.data_vars.items() if variable.dtype.kind == "f"]
+    for name in compared:
+        np.testing.assert_array_equal(ran[name].values, own[name].values, err_msg=name)
+    assert len(compared) > 15 and list(ran.seed.values) == [4, 5]

@@ -211,3 +211,21 @@ def test_bad_kim_options_exit_2_with_one_line(argv, message, capsys):
 def test_kim_options_are_refused_for_other_reproductions(capsys):
     assert main(["reproduce", "fossen-strand-1999", "--model-error", "mass=0.1"]) == 2
     assert "--model-error: fossen-strand-1999 has no such setting" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("case", kim_2002.CASES)
+def test_each_case_written_as_a_composition_runs_to_the_same_numbers(case, tmp_path):
+    """A case written as a scenario file and run by `lookout run` gives the
+    reproduction's numbers of that case bit for bit (its run simulates each case so)."""
+    from lookout.composition import compose
+    from lookout.studies.scenario_file import CompositionSpec, save
+
+    config = kim_2002.Config(duration=100.0, runs=2, seed=5, sweep=False)
+    path = save(CompositionSpec(compose(kim_2002.REPRODUCTION.composition(config, case))), tmp_path / f"{case}.toml")
+    assert main(["run", str(path), "--out", str(tmp_path / "run")]) == 0
+    ran = xr.open_dataset(tmp_path / "run" / "run.nc")
+    own = kim_2002.simulate_case(config, case)
+    compared = [name for name, variable in own.data_vars.items() if variable.dtype.kind == "f"]
+    for name in compared:
+        np.testing.assert_array_equal(ran[name].values, own[name].values, err_msg=name)
+    assert len(compared) > 20 and list(ran.seed.values) == [5, 6]

@@ -176,9 +176,37 @@ class DPVessel(eqx.Module):
         return matvec(self.mass_inverse, force)
 
 
-def northern_clipper() -> DPVessel:
-    """The supply vessel Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57)."""
-    return DPVessel(NORTHERN_CLIPPER_M, NORTHERN_CLIPPER_D)
+def northern_clipper(mass_scale=1.0, damping_scale=1.0) -> DPVessel:
+    """The supply vessel Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57).
+
+    Parameters
+    ----------
+    mass_scale : float, non-negative
+        M multiplied entry by entry (1.2: a vessel 20 % heavier than the paper's, a model error) (1).
+    damping_scale : float, non-negative
+        D multiplied entry by entry (1).
+    """
+    return scaled_vessel(NORTHERN_CLIPPER_M, NORTHERN_CLIPPER_D, None, mass_scale, damping_scale)
+
+
+def scaled_vessel(mass_matrix, damping_matrix, stiffness_matrix=None, mass_scale=1.0, damping_scale=1.0) -> DPVessel:
+    """A DP vessel of M, D (and K), its M and D scaled entry by entry (a model error).
+
+    Parameters
+    ----------
+    mass_matrix : array_like, shape (3, 3)
+        M including added mass (kg, kg m, kg m^2); symmetric positive definite (assumption A1).
+    damping_matrix : array_like, shape (3, 3)
+        Linear damping D (kg/s, kg m/s, kg m^2/s); its symmetric part positive semi-definite.
+    stiffness_matrix : array_like, shape (3, 3), optional
+        Mooring stiffness K (N/m, N/rad, N m/rad); zero for a free-floating DP vessel.
+    mass_scale : float, non-negative
+        M multiplied entry by entry (1).
+    damping_scale : float, non-negative
+        D multiplied entry by entry (1).
+    """
+    vessel = DPVessel(mass_matrix, damping_matrix, stiffness_matrix)
+    return vessel if (mass_scale, damping_scale) == (1.0, 1.0) else vessel.scaled(mass_scale, damping_scale)
 
 
 @final

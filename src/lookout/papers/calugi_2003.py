@@ -19,7 +19,6 @@ P1 = 1 (the paper's law). Two gain sets: the printed one, and
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 from pathlib import Path
@@ -31,16 +30,12 @@ from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import estimation_errors
 from lookout.analysis.adaptive_dp import PRINTED_GAINS, calugi_2003_vessel, check_calugi_2003, noise_drift_rate, satisfying_gains
-from lookout.controllers import VectorialBackstepping
-from lookout.environment import GaussMarkovBias, LinearWaveModel
-from lookout.models.vessel import VesselPlant, VesselState
-from lookout.observers import AdaptiveObserver, InertiaParametrization
 from lookout.settings import RunsConfig, finite_positive, positive_count, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
-from lookout.reference import ReferenceFilter
+from lookout.composition import compose
+from lookout.papers._reproduction import Reproduction
 from lookout.results import write_netcdf
-from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, integer_ratio, keys_of_seeds, simulate_batch, stack_scenarios
 
 NAME = "calugi-2003"
@@ -159,7 +154,7 @@ def gains(name: str) -> dict:
     raise ValueError(f"gain set must be one of {', '.join(GAIN_SETS)}; got {name!r}")
 
 
-def build(
+def composition(
     config: Config,
     gain_set: str = "printed",
     *,
@@ -169,62 +164,58 @@ def build(
     adaptation_gain: float | None = None,
     waypoints=WAYPOINTS,
     form: str = "discrete",
-) -> Scenario:
-    """The closed loop of Section V with a gain set (``printed`` or ``satisfying``)."""
+    record_every: int = 1,
+    plant_step: float = PLANT_STEP,
+    observer_mode: str = "sampled",
+) -> dict:
+    """The closed loop of Section V with a gain set (``printed`` or ``satisfying``) as a
+    composition: the vessel of (59), theta = m11 within the bounds, the observer of
+    (65)-(67) (or (13)-(15) with ``form = "continuous"``, on the oracle velocity sensor),
+    the vectorial backstepping (36), the reference filter F(s) of (60)."""
     vessel = calugi_2003_vessel()
     true_m11 = m11()
     chosen = gains(gain_set)
     interval = config.sample_interval if sample_interval is None else sample_interval
     low, high = config.theta_bounds
-    parametrization = InertiaParametrization(vessel, ("m11",), [low * true_m11], [high * true_m11])
-    observer = AdaptiveObserver(
-        parametrization, chosen["K1"], chosen["K2"], config.adaptation_gain if adaptation_gain is None else adaptation_gain,
-        form=form, initial_theta=(config.initial_theta if initial_theta is None else initial_theta) * true_m11,
-    )
-    controller = VectorialBackstepping.for_observer(observer, position_gain=chosen["C1"], velocity_gain=chosen["C2"], damping_weights=chosen["d"])
-    plant = VesselPlant(vessel, GaussMarkovBias(1000.0), LinearWaveModel(0.8976, 0.1, 0.0))
     if form == "discrete":
-        sensor = PositionHeadingSensor(config.noise_std, interval)
+        sensor = {"kind": "position-heading", "noise_std": config.noise_std, "sample_period": interval}
     else:
-        from lookout.sensors import PositionHeadingVelocitySensor
+        sensor = {"kind": "position-heading-velocity", "noise_std": [*config.noise_std, 0.0, 0.0, 0.0], "sample_period": interval}
+    return {
+        "simulation": {
+            "runs": config.runs, "seed": config.seed, "plant_step": plant_step, "sample_period": interval,
+            "duration": config.duration if duration is None else duration, "record_every": record_every, "batch": "stacked",
+            "observer_mode": observer_mode,
+        },
+        "plant": {
+            "kind": "dp-vessel",
+            "vessel": {"kind": "custom", **{name: np.asarray(getattr(vessel, name)).tolist() for name in ("mass_matrix", "damping_matrix", "stiffness_matrix")}},
+            "bias": {"kind": "gauss-markov", "time_constant": 1000.0, "std": 0.0},
+            "waves": {"kind": "linear", "peak_frequency": 0.8976, "damping_ratio": 0.1, "amplitude": 0.0},
+        },
+        "sensor": sensor,
+        "observer": {
+            "kind": "adaptive-dp",
+            "parametrization": {"kind": "inertia-entries", "unknowns": ["m11"], "lower": [low * true_m11], "upper": [high * true_m11]},
+            "position_gain": chosen["K1"].tolist(), "velocity_gain": chosen["K2"].tolist(),
+            "adaptation_gain": config.adaptation_gain if adaptation_gain is None else adaptation_gain,
+            "form": form, "initial_theta": [(config.initial_theta if initial_theta is None else initial_theta) * true_m11],
+        },
+        "reference": {
+            "kind": "reference-filter", "signals": ["position", "heading"], "bandwidth": 0.1,
+            "schedule_times": [t for t, _ in waypoints], "setpoints": [list(p) for _, p in waypoints],
+        },
+        "controller": {"kind": "vectorial-backstepping", "position_gain": chosen["C1"], "velocity_gain": chosen["C2"], "damping_weights": chosen["d"].tolist()},
+    }
 
-        sensor = PositionHeadingVelocitySensor([*config.noise_std, 0.0, 0.0, 0.0], interval)
-    times = [t for t, _ in waypoints]
-    setpoints = [list(p) for _, p in waypoints]
-    return Scenario(
-        plant, sensor, observer, controller, VesselState.build(), observer.guess(),
-        plant_step=PLANT_STEP, sample_period=interval, duration=config.duration if duration is None else duration,
-        reference=ReferenceFilter.vessel(0.1, times, setpoints),
-    )
+
+def build(config: Config, gain_set: str = "printed", **changes) -> Scenario:
+    """The closed loop of Section V with a gain set; ``changes``: the keywords of :func:`composition`."""
+    return compose(composition(config, gain_set, **changes)).scenario
 
 
-
-
-
-#: The scenarios a scenario file can name as its ``case`` (one per gain set, in closed loop); the first is the
-#: default. See :mod:`lookout.studies.scenario_file`.
+#: The cases: one per gain set, in closed loop; the first is the default.
 CASES: tuple[str, ...] = GAIN_SETS
-
-#: :func:`run` vmaps its runs over scenarios stacked per run (see :mod:`lookout.studies.scenario_file`).
-STACKED_BATCHES = True
-
-
-def case_scenario(config: Config, case: str) -> Scenario:
-    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
-    return build(config, case)
-
-
-def scenarios(config: Config) -> list[Scenario]:
-    """The scenarios :func:`run` simulates (one per batch), for estimates before running."""
-    return [scenario for scenario, _ in batches(config)]
-
-
-def batches(config: Config) -> list[tuple[Scenario, int]]:
-    """(scenario, runs) of each vmapped batch :func:`run` simulates, for the memory estimate."""
-    result = [(build(config), len(GAIN_SETS) * config.runs)]
-    if config.sweep:
-        result.append((dataclasses.replace(build(config, sample_interval=0.01, duration=config.sweep_duration), record_every=sweep_record_every(0.01, config.sweep_duration)), 2 * config.sweep_seeds))
-    return result
 
 
 def sweep_record_every(interval: float, duration: float) -> int:
@@ -273,7 +264,7 @@ def interval_sweep(config: Config, intervals=INTERVALS, progress: Callable | Non
             raise ValueError(f"sweep_duration ({config.sweep_duration:g} s) must be a whole multiple of every interval; {interval:g} s is not")
         cases = [(name, seed) for name in GAIN_SETS for seed in seeds]
         scenario = stack_scenarios([
-            dataclasses.replace(build(config, name, sample_interval=interval, duration=config.sweep_duration), record_every=sweep_record_every(interval, config.sweep_duration))
+            build(config, name, sample_interval=interval, duration=config.sweep_duration, record_every=sweep_record_every(interval, config.sweep_duration))
             for name, _ in cases
         ])
         ds = simulate_batch(scenario, keys_of_seeds([seed for _, seed in cases]), batched_scenario=True).to_xarray()
@@ -299,10 +290,8 @@ def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gamma
         noisy = config.model_copy(update={"noise_std": std})
         for label, waypoints in setpoints.items():
             scenario = stack_scenarios([
-                dataclasses.replace(
-                    build(noisy, "printed", duration=config.sweep_duration, initial_theta=ratio, adaptation_gain=gamma, waypoints=waypoints),
-                    record_every=sweep_record_every(config.sample_interval, config.sweep_duration),
-                )
+                build(noisy, "printed", duration=config.sweep_duration, initial_theta=ratio, adaptation_gain=gamma, waypoints=waypoints,
+                      record_every=sweep_record_every(config.sample_interval, config.sweep_duration))
                 for gamma, ratio in cases
             ])
             ds = simulate_batch(scenario, keys_of_seeds([config.seed] * len(cases)), batched_scenario=True).to_xarray()
@@ -330,11 +319,8 @@ def discretization_order(config: Config, intervals=(0.04, 0.02, 0.01), gamma: fl
         runs = {}
         for form in ("discrete", "continuous"):
             scenario = stack_scenarios([
-                dataclasses.replace(
-                    build(quiet, name, sample_interval=interval, duration=duration, adaptation_gain=gamma, form=form),
-                    plant_step=plant_step, observer_mode="continuous" if form == "continuous" else "sampled",
-                    record_every=integer_ratio(intervals[0], interval),
-                )
+                build(quiet, name, sample_interval=interval, duration=duration, adaptation_gain=gamma, form=form, plant_step=plant_step,
+                      observer_mode="continuous" if form == "continuous" else "sampled", record_every=integer_ratio(intervals[0], interval))
                 for name in GAIN_SETS
             ])
             runs[form] = simulate_batch(scenario, keys_of_seeds([config.seed] * len(GAIN_SETS)), batched_scenario=True).to_xarray()
@@ -558,15 +544,26 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset |
 # run
 
 
+def simulate_case(config: Config, case: str, progress: Callable | None = None) -> xr.Dataset:
+    """The runs of one gain set over the seeds of ``config``, batched as a scenario file of
+    the case runs them (one scenario stacked per run): `lookout run` of the case's file
+    gives these numbers bit for bit."""
+    scenario = build(config, case)
+    return simulate_batch(stack_scenarios([scenario] * config.runs), keys_of_seeds(config.seeds), batched_scenario=True, progress=progress).to_xarray()
+
+
 def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate both gain sets in closed loop (and the sweeps); write NetCDF, figures and summary.json."""
     out.mkdir(parents=True, exist_ok=True)
     labels = [name for name in GAIN_SETS for _ in range(config.runs)]
     seeds = [seed for _ in GAIN_SETS for seed in config.seeds]
-    parts = 5 if config.sweep else 1
-    step = None if progress is None else (lambda done, total: progress(done / total, parts))
-    ds = simulate_batch(stack_scenarios([build(config, name) for name in labels]), keys_of_seeds(seeds), batched_scenario=True, progress=step).to_xarray()
-    ds = ds.assign_coords(gains=("run", np.asarray(labels, dtype=object)))
+    parts = len(GAIN_SETS) + (4 if config.sweep else 0)
+    cases = []
+    for index, name in enumerate(GAIN_SETS):
+        step = None if progress is None else (lambda done, total, index=index: progress(index + done / total, parts))
+        cases.append(simulate_case(config, name, step))
+    ds = xr.concat(cases, dim="run", data_vars="all", coords="minimal", compat="override", join="override")
+    ds = ds.assign_coords(gains=("run", np.asarray(labels, dtype=object)), seed=("run", np.asarray(seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
     ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "true_m11": m11()})
     write_netcdf(ds, out / "calugi_2003.nc", history=f"lookout reproduce {NAME} (seeds {seeds[0]}..{seeds[-1]}, both gain sets)")
     files = ["calugi_2003.nc"]
@@ -587,19 +584,19 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         per_set[name] = summary
     sweep = convergence = drift = order = None
     if config.sweep:
-        sweep = interval_sweep(config, progress=None if progress is None else (lambda done, total: progress(1.0 + done / total, parts)))
+        sweep = interval_sweep(config, progress=None if progress is None else (lambda done, total: progress(len(GAIN_SETS) + done / total, parts)))
         sweep.to_netcdf(out / "calugi_2003_interval_sweep.nc")
         convergence = convergence_study(config)
         if progress is not None:
-            progress(3.0, parts)
+            progress(len(GAIN_SETS) + 2.0, parts)
         convergence.to_netcdf(out / "calugi_2003_theta_convergence.nc")
         drift = noise_drift(config)
         if progress is not None:
-            progress(4.0, parts)
+            progress(len(GAIN_SETS) + 3.0, parts)
         drift.to_netcdf(out / "calugi_2003_noise_drift.nc")
         order = discretization_order(config)
         if progress is not None:
-            progress(5.0, parts)
+            progress(len(GAIN_SETS) + 4.0, parts)
         order.to_netcdf(out / "calugi_2003_discretization_order.nc")
         files += ["calugi_2003_interval_sweep.nc", "calugi_2003_theta_convergence.nc", "calugi_2003_noise_drift.nc", "calugi_2003_discretization_order.nc"]
     files += _figures(ds, sweep, convergence, out, config)
@@ -749,3 +746,31 @@ def tables(summary: dict) -> list[Table]:
             "predicted: -Gamma g k2 (1 + Delta k2) sigma^2 / Delta (analysis.adaptive_dp.noise_drift_rate)",
         ))
     return result
+
+
+class Calugi2003(Reproduction):
+    """Calugi, Robertsson & Johansson (2003), Section V: the adaptive observer and vectorial backstepping."""
+
+    name = NAME
+    Config = Config
+    cases = CASES
+
+    def composition(self, config: Config, case: str) -> dict:
+        return composition(config, case)
+
+    def batches(self, config: Config) -> list[tuple[Scenario, int]]:
+        """Each gain set's runs, and the largest sweep batch (Delta = 0.01 s)."""
+        result = [(build(config, case), config.runs) for case in CASES]
+        if config.sweep:
+            interval = 0.01
+            result.append((build(config, sample_interval=interval, duration=config.sweep_duration, record_every=sweep_record_every(interval, config.sweep_duration)), 2 * config.sweep_seeds))
+        return result
+
+    def run(self, config: Config, out: Path, *, progress: Callable | None = None) -> dict:
+        return run(config, out, progress=progress)
+
+    def tables(self, summary: dict) -> list[Table]:
+        return tables(summary)
+
+
+REPRODUCTION = Calugi2003()

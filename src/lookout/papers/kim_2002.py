@@ -35,7 +35,6 @@ Not given, or not usable as printed, and chosen here (docs/reproductions.md):
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 from typing import Callable
@@ -44,25 +43,32 @@ import numpy as np
 import xarray as xr
 from pydantic import Field, ValidationInfo, field_validator
 
-from lookout.actuators import NORTHERN_CLIPPER_THRUST_LIMIT, SaturatingActuator
+from lookout.actuators import NORTHERN_CLIPPER_THRUST_LIMIT
 from lookout.analysis import estimation_errors
 from lookout.analysis.sliding_mode import check_kim_2002
-from lookout.controllers import ObserverBackstepping
-from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveModel
-from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, VesselPlant, VesselState
+from lookout.environment import BodyDisturbance
+from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
-from lookout.observers.sliding_mode import KIM_2002_BIAS_GAIN, KIM_2002_BIAS_TIME_CONSTANT, KIM_2002_SWITCHING_GAIN, KIM_2002_VELOCITY_GAIN, KIM_2002_WAVE
 from lookout.papers._config import VesselSettings
 from lookout.settings import RunsConfig, Settings, finite_positive, positive_count, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
-from lookout.reference import ReferenceFilter
+from lookout.papers._reproduction import Reproduction
+from lookout.composition import compose
 from lookout.results import write_netcdf
-from lookout.sensors import PositionHeadingSensor
 from lookout.sim import Scenario, keys_of_seeds, simulate_batch, stack_scenarios
 
 NAME = "kim-2002"
 TITLE = CATALOG[NAME].title
+
+#: Kim (2002), (A.4): the observer's H3 and H4 (SI; the appendix swaps the labels of
+#: observer and controller gains, NOTES.md) and Kbar.
+BIAS_GAIN = (1e5, 1e5, 1e8)  # H3 = 1e6 diag(0.1, 0.1, 100)
+VELOCITY_GAIN = (1e4, 1e4, 1e7)  # H4 = 1e5 diag(0.1, 0.1, 100)
+SWITCHING_GAIN = (10.0, 10.0, 0.01)  # Kbar (m/s, m/s, rad/s)
+#: Kim (2002), (A.2) and (A.3): bias time constants (s), the wave model and the notch.
+BIAS_TIME_CONSTANT = (1000.0, 1000.0, 10000.0)
+WAVE = {"wave_frequency": 0.8976, "wave_damping": 0.1, "notch_damping": 1.0, "cutoff_frequency": 1.1}
 
 #: The two observers of Fig. 8: with and without the switching term, same controller.
 OBSERVERS = ("sliding-mode", "conventional")
@@ -87,7 +93,7 @@ def gain_sets(mass: float = NORTHERN_CLIPPER_MASS, length: float = NORTHERN_CLIP
     (60) scaled to SI with the vessel's ``mass`` and ``length``)."""
     kappa, lam = injection_gains_from_normalized((0.1, 0.1, 0.01), (0.01, 0.01, 0.001), mass=mass, length=length)
     return {
-        "printed": {"bias_injection_gain": KIM_2002_BIAS_GAIN, "velocity_injection_gain": KIM_2002_VELOCITY_GAIN},
+        "printed": {"bias_injection_gain": BIAS_GAIN, "velocity_injection_gain": VELOCITY_GAIN},
         "kyp": {"bias_injection_gain": tuple(float(v) for v in lam), "velocity_injection_gain": tuple(float(v) for v in kappa)},
     }
 
@@ -198,47 +204,63 @@ class Config(RunsConfig):
 
 
 
-def build(config: Config, observer: str = "sliding-mode", *, model_error: ModelError | None = None, gains: str | None = None, duration: float | None = None) -> Scenario:
-    """The closed loop of Section 5 with ``observer`` ("sliding-mode" or "conventional")."""
-    if observer not in OBSERVERS:
-        raise ValueError(f"observer must be one of {', '.join(OBSERVERS)}; got {observer!r}")
+def _vessel(config: Config, model_error: ModelError | None = None) -> dict:
+    """The vessel table: the model, or the plant (the model with ``model_error``'s M and D)."""
+    if model_error is None:
+        return config.vessel.composition()
+    scales = {"mass_scale": 1.0 + model_error.mass, "damping_scale": 1.0 + model_error.damping}
+    if config.vessel.model == "custom":
+        return {**config.vessel.composition(), **scales}
+    return {"kind": config.vessel.model, **scales}
+
+
+def composition(
+    config: Config, case: str = "sliding-mode", *, model_error: ModelError | None = None, gains: str | None = None,
+    duration: float | None = None, record_every: int = 1,
+) -> dict:
+    """The closed loop of Section 5 with the observer of ``case`` ("sliding-mode" or
+    "conventional", the same observer without its switching term) as a composition."""
+    if case not in OBSERVERS:
+        raise ValueError(f"observer must be one of {', '.join(OBSERVERS)}; got {case!r}")
     model_error = config.model_error if model_error is None else model_error
     gains = config.gains if gains is None else gains
-    model = config.vessel.dp_vessel()
-    switching = np.asarray(KIM_2002_SWITCHING_GAIN) * (1.0 if observer == "sliding-mode" else 0.0)
-    estimator = SlidingModeObserver.kim_2002(
-        model, boundary_layer=config.boundary_layer, switching_gain=switching, **gain_sets(config.vessel.mass, config.vessel.length)[gains]
-    )
-    controller = ObserverBackstepping.for_observer(
-        estimator,
-        integral_gain=config.integral_gain,
-        position_gain=config.position_gain,
-        velocity_gain=config.velocity_gain,
-        coupling_gain=config.coupling_gain,
-        damping_weights=config.damping_weights,
-    )
-    plant = VesselPlant(
-        model.scaled(1.0 + model_error.mass, 1.0 + model_error.damping),
-        GaussMarkovBias.from_stationary_std(KIM_2002_BIAS_TIME_CONSTANT, config.bias_std),
-        LinearWaveModel.from_amplitude(KIM_2002_WAVE["wave_frequency"], KIM_2002_WAVE["wave_damping"], config.wave_amplitude),
-        model_error.disturbance(),
-    )
-    times = [t for t, _ in WAYPOINTS]
-    setpoints = [list(p) for _, p in WAYPOINTS]
-    return Scenario(
-        plant=plant,
-        sensor=PositionHeadingSensor(config.noise_std, config.measurement_period),
-        observer=estimator,
-        controller=controller,
-        initial_state=VesselState.build(bias=config.bias_initial),
-        initial_estimate=estimator.guess(),
-        plant_step=config.plant_step,
-        sample_period=config.sample_period,
-        duration=config.duration if duration is None else duration,
-        reference=ReferenceFilter.vessel(config.reference_bandwidth, times, setpoints),
-        actuator=SaturatingActuator.northern_clipper(),
-    )
+    switching = np.asarray(SWITCHING_GAIN) * (1.0 if case == "sliding-mode" else 0.0)
+    half = 0.5 * model_error.force * np.array([1.0, 1.0, FORCE_LEVER_ARM])
+    return {
+        "simulation": {
+            "runs": config.runs, "seed": config.seed, "plant_step": config.plant_step, "sample_period": config.sample_period,
+            "duration": config.duration if duration is None else duration, "record_every": record_every, "batch": "stacked",
+        },
+        "plant": {
+            "kind": "dp-vessel",
+            "vessel": _vessel(config, model_error),
+            "bias": {"kind": "gauss-markov", "time_constant": BIAS_TIME_CONSTANT, "std": config.bias_std},
+            "waves": {"kind": "linear", "peak_frequency": WAVE["wave_frequency"], "damping_ratio": WAVE["wave_damping"], "amplitude": config.wave_amplitude},
+            "disturbance": {"kind": "body-force", "constant": half.tolist(), "amplitude": half.tolist(), "period": model_error.force_period},
+            "initial": {"bias": config.bias_initial},
+        },
+        "sensor": {"kind": "position-heading", "noise_std": config.noise_std, "sample_period": config.measurement_period},
+        "observer": {
+            "kind": "sliding-mode", "design": "kim-2002", "vessel": _vessel(config), **WAVE,
+            **gain_sets(config.vessel.mass, config.vessel.length)[gains], "bias_time_constant": BIAS_TIME_CONSTANT,
+            "switching_gain": switching.tolist(), "boundary_layer": config.boundary_layer,
+        },
+        "reference": {
+            "kind": "reference-filter", "signals": ["position", "heading"], "bandwidth": config.reference_bandwidth,
+            "schedule_times": [t for t, _ in WAYPOINTS], "setpoints": [list(p) for _, p in WAYPOINTS],
+        },
+        "controller": {
+            "kind": "observer-backstepping", "integral_gain": config.integral_gain, "position_gain": config.position_gain,
+            "velocity_gain": config.velocity_gain, "coupling_gain": config.coupling_gain, "damping_weights": config.damping_weights,
+        },
+        "actuator": {"kind": "thrust-limits", "limit": NORTHERN_CLIPPER_THRUST_LIMIT},
+    }
 
+
+def build(config: Config, observer: str = "sliding-mode", **changes) -> Scenario:
+    """The closed loop of Section 5 with ``observer`` ("sliding-mode" or "conventional");
+    ``changes``: the keywords of :func:`composition`."""
+    return compose(composition(config, observer, **changes)).scenario
 
 
 #: The sweep records one sample in this many (1 s): its table uses the tracking error
@@ -246,31 +268,8 @@ def build(config: Config, observer: str = "sliding-mode", *, model_error: ModelE
 SWEEP_RECORD_EVERY = 10
 
 
-#: The scenarios a scenario file can name as its ``case`` (one per observer, in closed loop); the first is the
-#: default. See :mod:`lookout.studies.scenario_file`.
+#: The cases: one per observer, in closed loop; the first is the default.
 CASES: tuple[str, ...] = OBSERVERS
-
-#: :func:`run` vmaps its runs over scenarios stacked per run (see :mod:`lookout.studies.scenario_file`).
-STACKED_BATCHES = True
-
-
-def case_scenario(config: Config, case: str) -> Scenario:
-    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
-    return build(config, case)
-
-
-def scenarios(config: Config) -> list[Scenario]:
-    """The scenarios :func:`run` simulates (one per batch), for estimates made before running."""
-    return [scenario for scenario, _ in batches(config)]
-
-
-def batches(config: Config) -> list[tuple[Scenario, int]]:
-    """(scenario, runs) of each vmapped batch :func:`run` simulates, for the memory estimate."""
-    result = [(build(config), len(OBSERVERS) * config.runs)]
-    if config.sweep:
-        sweep = dataclasses.replace(build(config, duration=config.sweep_duration), record_every=SWEEP_RECORD_EVERY)
-        result.append((sweep, 2 * len(OBSERVERS) * len(sweep_points()) * config.sweep_seeds))
-    return result
 
 
 # ---------------------------------------------------------------------------------
@@ -354,8 +353,7 @@ def run_sweep(config: Config, progress: Callable | None = None, points: list[tup
             for label, error in points:
                 for seed in seeds:
                     cases.append((gains, observer, label, seed))
-                    scenario = build(config, observer, model_error=error, gains=gains, duration=config.sweep_duration)
-                    scenarios_.append(dataclasses.replace(scenario, record_every=SWEEP_RECORD_EVERY))
+                    scenarios_.append(build(config, observer, model_error=error, gains=gains, duration=config.sweep_duration, record_every=SWEEP_RECORD_EVERY))
                     keys.append(seed)
     batch = simulate_batch(stack_scenarios(scenarios_), keys_of_seeds(keys), batched_scenario=True, progress=progress).to_xarray()
     metrics = closed_loop_metrics(batch)
@@ -600,14 +598,25 @@ def _sweep_figure(sweep: xr.Dataset):
 # run
 
 
+def simulate_case(config: Config, case: str, progress: Callable | None = None) -> xr.Dataset:
+    """The runs of one case (observer) over the seeds of ``config``, batched as a scenario
+    file of the case runs them (one scenario stacked per run): `lookout run` of the case's
+    file gives these numbers bit for bit."""
+    scenario = build(config, case)
+    return simulate_batch(stack_scenarios([scenario] * config.runs), keys_of_seeds(config.seeds), batched_scenario=True, progress=progress).to_xarray()
+
+
 def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate both observers in closed loop (and the sweep); write NetCDF, figures and summary.json."""
     out.mkdir(parents=True, exist_ok=True)
     labels = [observer for observer in OBSERVERS for _ in range(config.runs)]
     seeds = [seed for _ in OBSERVERS for seed in config.seeds]
-    parts = 2 if config.sweep else 1
-    step = None if progress is None else (lambda done, total: progress(done / total, parts))
-    ds = simulate_batch(stack_scenarios([build(config, observer) for observer in labels]), keys_of_seeds(seeds), batched_scenario=True, progress=step).to_xarray()
+    parts = len(OBSERVERS) + (1 if config.sweep else 0)
+    cases = []
+    for index, observer in enumerate(OBSERVERS):
+        step = None if progress is None else (lambda done, total, index=index: progress(index + done / total, parts))
+        cases.append(simulate_case(config, observer, step))
+    ds = xr.concat(cases, dim="run", data_vars="all", coords="minimal", compat="override", join="override")
     ds = ds.assign_coords(observer=("run", np.asarray(labels, dtype=object)), seed=("run", np.asarray(seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
     ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "gains": config.gains, "model_error": config.model_error.model_dump_json()})
     metrics = closed_loop_metrics(ds)
@@ -623,7 +632,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
 
     sweep = None
     if config.sweep:
-        later = None if progress is None else (lambda done, total: progress(1.0 + done / total, parts))
+        later = None if progress is None else (lambda done, total: progress(len(OBSERVERS) + done / total, parts))
         sweep = run_sweep(config, progress=later)
         sweep.to_netcdf(out / "kim_2002_sweep.nc")
         files.append("kim_2002_sweep.nc")
@@ -721,3 +730,31 @@ def tables(summary: dict) -> list[Table]:
                 )
             )
     return result
+
+
+class Kim2002(Reproduction):
+    """Kim (2002), Section 5: the sliding-mode observer and observer backstepping, and the claim of Fig. 8."""
+
+    name = NAME
+    Config = Config
+    cases = CASES
+
+    def composition(self, config: Config, case: str) -> dict:
+        return composition(config, case)
+
+    def batches(self, config: Config) -> list[tuple[Scenario, int]]:
+        """Each observer's runs, and the model-error sweep's batch."""
+        result = [(build(config, case), config.runs) for case in OBSERVERS]
+        if config.sweep:
+            sweep = build(config, duration=config.sweep_duration, record_every=SWEEP_RECORD_EVERY)
+            result.append((sweep, 2 * len(OBSERVERS) * len(sweep_points()) * config.sweep_seeds))
+        return result
+
+    def run(self, config: Config, out: Path, *, progress: Callable | None = None) -> dict:
+        return run(config, out, progress=progress)
+
+    def tables(self, summary: dict) -> list[Table]:
+        return tables(summary)
+
+
+REPRODUCTION = Kim2002()
