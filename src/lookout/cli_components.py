@@ -81,8 +81,10 @@ def components(
             for p in entry["parameters"]:
                 if p["sort"] == "value":
                     default = "required" if p["required"] else json.dumps(p["default"])
+                elif p["sort"] == "part" and p["role"] in ("observer", "controller", "sensor", "reference"):
+                    default = f"the composition's {p['role']}"
                 elif p["sort"] == "part":
-                    default = "a table (kind ...)" + (", the plant's" if p["required"] else "")
+                    default = f"a {p['role']} table" + ("; else the plant's" if p["from_plant"] else "")
                 else:
                     default = "from the composition"
                 table.add_row(p["name"], escape(default), escape(p["type"]), escape(p["description"]))

@@ -515,6 +515,8 @@ def describe_kind(each: Kind, design: str | None = None) -> dict:
                 "type": p.type,
                 "default": None if p.required else _plain(p.default),
                 "required": p.required and p.sort == "value",
+                "role": p.role,
+                "from_plant": p.sort == "part" and p.from_plant,
                 "description": p.description,
             }
             for p in each.parameters(design)

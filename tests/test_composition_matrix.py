@@ -1,0 +1,138 @@
+"""The composition matrix: every registered observer on every registered plant.
+
+Each plant is taken in the first reproduction case that has it (its sea, its sensor),
+run open loop (no controller, no reference); each observer kind is put in with the
+parameters it requires taken from the first case that uses it, the rest from its
+defaults and design rules for the plant at hand. Each pair either composes and runs 20
+simulated seconds with finite estimates, or is refused in one line that names the
+observer and what it lacks. docs/architecture.md holds the table this test computes
+(`LOOKOUT_WRITE_MATRIX=1 pytest tests/test_composition_matrix.py` rewrites it); the
+test fails when the table and the registry disagree.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import re
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+from lookout import registry
+from lookout.composition import CompositionError, compose
+from lookout.sim import simulate
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
+BEGIN, END = "<!-- composition matrix: begin -->", "<!-- composition matrix: end -->"
+DURATION = 20.0
+
+pytestmark = pytest.mark.xdist_group("composition_matrix")
+
+
+def _first_table(role: str, kind: str) -> dict | None:
+    """The table of ``kind`` in the first reproduction case that uses it."""
+    for name, case in registry.presets():
+        document = registry.preset(name, case)
+        table = document.get(role)
+        if isinstance(table, dict) and table.get("kind") == kind:
+            return document
+    return None
+
+
+def plant_bases() -> dict[str, dict]:
+    """Each plant kind's base composition: its first case, open loop."""
+    bases = {}
+    for each in registry.kinds("plant"):
+        document = _first_table("plant", each.name)
+        if document is None:
+            continue
+        base = copy.deepcopy(document)
+        base["controller"], base["reference"], base["actuator"] = {"kind": "none"}, {"kind": "none"}, {"kind": "ideal"}
+        base["simulation"] = {**base["simulation"], "duration": DURATION, "runs": 1, "record_every": 1}
+        bases[each.name] = base
+    return bases
+
+
+def observer_table(kind: str) -> dict:
+    """The kind with the parameters it requires (no default), as its first case gives them."""
+    table = {"kind": kind}
+    home = _first_table("observer", kind)
+    if home is None:
+        return table
+    given = home["observer"]
+    design = given.get("design")
+    if design is not None:
+        table["design"] = design
+    for p in registry.kind("observer", kind).parameters(design):
+        if p.required and p.name in given and p.sort in ("value", "part"):
+            table[p.name] = copy.deepcopy(given[p.name])
+    return table
+
+
+def _duration(base: dict) -> float:
+    """The 20 s run, or the nearest whole number of the base's samples and fixes above it."""
+    return DURATION
+
+
+def outcome(plant: str, base: dict, observer: str) -> str:
+    document = copy.deepcopy(base)
+    document["observer"] = observer_table(observer)
+    try:
+        composition = compose(document)
+    except CompositionError as error:
+        return f"refused: {error}"
+    trajectory = simulate(composition.scenario, jax.random.key(0))
+    finite = all(np.isfinite(np.asarray(leaf)).all() for leaf in jax.tree.leaves(trajectory.estimate))
+    return "runs" if finite else "diverges"
+
+
+@pytest.fixture(scope="module")
+def matrix() -> dict[tuple[str, str], str]:
+    bases = plant_bases()
+    return {(observer.name, plant): outcome(plant, base, observer.name) for observer in registry.kinds("observer") for plant, base in bases.items()}
+
+
+def render(matrix: dict[tuple[str, str], str]) -> str:
+    plants = sorted({plant for _, plant in matrix}, key=[k.name for k in registry.kinds("plant")].index)
+    observers = [k.name for k in registry.kinds("observer")]
+    lines = ["| observer \\ plant | " + " | ".join(plants) + " |", "|---|" + "---|" * len(plants)]
+    for observer in observers:
+        cells = []
+        for plant in plants:
+            result = matrix[(observer, plant)]
+            cells.append("runs" if result == "runs" else ("**diverges**" if result == "diverges" else "refused"))
+        lines.append(f"| {observer} | " + " | ".join(cells) + " |")
+    reasons = [f"- {observer} on {plant}: {result[len('refused: '):]}" for (observer, plant), result in matrix.items() if result.startswith("refused")]
+    return "\n".join(lines) + "\n\nWhy each refused pair is refused (the message `Scenario` or the composition gives):\n\n" + "\n".join(reasons)
+
+
+def test_every_pair_runs_or_is_refused_in_one_line_naming_the_observer(matrix):
+    for (observer, plant), result in matrix.items():
+        assert result != "diverges", f"observer {observer} on plant {plant} composes but its estimates are not finite after {DURATION:g} s"
+        if result.startswith("refused"):
+            message = result[len("refused: "):]
+            assert "\n" not in message and f"observer {observer}" in message or message.startswith("observer"), (observer, plant, message)
+
+
+def test_every_plant_and_observer_kind_is_in_the_matrix(matrix):
+    assert {plant for _, plant in matrix} == {k.name for k in registry.kinds("plant") if _first_table("plant", k.name) is not None}
+    assert {observer for observer, _ in matrix} == {k.name for k in registry.kinds("observer")}
+    # each observer runs on at least one plant: no kind is registered that nothing can use
+    for observer in {observer for observer, _ in matrix}:
+        assert any(result == "runs" for (o, _), result in matrix.items() if o == observer), observer
+
+
+def test_the_architecture_doc_holds_this_matrix(matrix):
+    table = render(matrix)
+    text = DOCS.read_text()
+    if os.environ.get("LOOKOUT_WRITE_MATRIX"):
+        before, _, rest = text.partition(BEGIN)
+        _, _, after = rest.partition(END)
+        DOCS.write_text(f"{before}{BEGIN}\n{table}\n{END}{after}" if BEGIN in text else f"{text}\n{BEGIN}\n{table}\n{END}\n")
+        text = DOCS.read_text()
+    found = re.search(re.escape(BEGIN) + r"\n(.*?)\n" + re.escape(END), text, re.DOTALL)
+    assert found, f"docs/architecture.md has no composition matrix between {BEGIN} and {END}"
+    assert found.group(1) == table, "docs/architecture.md's composition matrix differs from the registry's: rerun with LOOKOUT_WRITE_MATRIX=1"
