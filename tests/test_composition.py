@@ -106,7 +106,7 @@ def test_a_component_needing_another_of_a_type_names_both():
     document = {
         "preset": "fossen-strand-1999",
         "plant": {"kind": "cybership-ii"},
-        "observer": {"kind": "earth-fixed"},
+        "observer": {"kind": "earth-fixed", "position_gain": 1.0, "velocity_gain": 1.0},
         "reference": {"kind": "ellipse", "semi_axes": [2.0, 1.0], "lap_speeds": [0.05]},
         "controller": {"kind": "observer-backstepping", "integral_gain": 0.0, "position_gain": 0.1, "velocity_gain": 0.1, "damping_weights": 0.0},
     }

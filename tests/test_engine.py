@@ -239,7 +239,7 @@ def test_continuous_mode_needs_a_continuous_observer():
             return state
 
     base = fs.build(fs.Config(duration=10.0))
-    with pytest.raises(ValueError, match="observer_mode 'continuous' needs a ContinuousObserver; Frozen is not one"):
+    with pytest.raises(ValueError, match="observer_mode 'continuous' needs a ContinuousObserver; observer Frozen is not one"):
         _rebuild(base, observer=Frozen(), initial_estimate=None, observer_mode="continuous")
     # the same observer runs in sampled mode: an estimate of nothing
     ds = simulate(_rebuild(base, observer=Frozen(), initial_estimate=None), jax.random.key(0)).to_xarray()

@@ -249,13 +249,14 @@ def _json(values: dict) -> str:
     return json.dumps(values, allow_nan=True, default=lambda value: f"<a TOML {type(value).__name__}: {value}>")
 
 
-def _blamed(error: ValueError, table: dict, location: tuple, names) -> CompositionError:
-    """A component's own refusal, located at the key its message names (else the table)."""
+def _blamed(error: ValueError, table: dict, location: tuple, names, component: str = "") -> CompositionError:
+    """A component's own refusal, located at the key its message names (else at the
+    table, the component named)."""
     reason = one_line(error)
     for name in sorted(names, key=len, reverse=True):
         if name in table and re.search(rf"(^|[\s(]){re.escape(name)}\b", reason):
             return CompositionError(location + (name,), reason)
-    return CompositionError(location, reason)
+    return CompositionError(location, f"{component}: {reason}" if component and not reason.startswith(component) else reason)
 
 
 def _table(document: dict, role: str) -> dict:
@@ -298,12 +299,10 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
             listed = ", ".join(p.name for p in parameters) or "none"
             raise CompositionError(location + (key,), f"unknown key ({role} {name} takes: {listed})")
 
-    values = {key: value for key, value in table.items() if key in by_name and by_name[key].sort == "value"}
-    validated = _validate(parameter_model(kind, design), values, location)
-    arguments = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value" and not (p.default is None and getattr(validated, p.name) is None)}
-    normal: dict = {"kind": name, **({"design": design} if kind.designs else {})}
-    normal.update({key: plain(value) for key, value in arguments.items()})
-
+    # the parts first: a part that does not fit says more than a value left out
+    arguments: dict = {}
+    parts: dict = {}
+    normal = parts
     for p in parameters:
         if p.sort == "part" and p.role in registry.COMPONENT_ROLES:  # another component of the composition
             found = context.find(_part_classes(p))
@@ -318,11 +317,11 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
             arguments[p.name] = found
         elif p.sort == "part":
             if p.name in table:
-                arguments[p.name], normal[p.name] = build_part(p.role, table[p.name], location + (p.name,), context)
+                arguments[p.name], normal[p.name] = build_part(p.role, table[p.name], location + (p.name,), context, defaults=defaults)
             elif p.from_plant and context.find(_part_classes(p)) is not None:
                 arguments[p.name] = context.find(_part_classes(p))
             elif p.required and defaults:
-                arguments[p.name], normal[p.name] = build_part(p.role, {}, location + (p.name,), context)
+                arguments[p.name], normal[p.name] = build_part(p.role, {}, location + (p.name,), context, defaults=defaults)
             elif p.required:
                 wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.name
                 raise CompositionError(
@@ -346,10 +345,15 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                     raise CompositionError(location, f"{role} {name} needs a {wanted} ({p.name}), which the composition has not built before it")
                 if found is not None:
                     arguments[p.name] = found
+    values = {key: value for key, value in table.items() if key in by_name and by_name[key].sort == "value"}
+    validated = _validate(parameter_model(kind, design), values, location)
+    given = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value" and not (p.default is None and getattr(validated, p.name) is None)}
+    arguments.update(given)
+    normal = {"kind": name, **({"design": design} if kind.designs else {}), **{key: plain(value) for key, value in given.items()}, **parts}
     try:
         component = kind.callable(design)(**arguments)
     except ValueError as error:
-        raise _blamed(error, table, location, by_name) from None
+        raise _blamed(error, table, location, by_name, f"{role} {name}") from None
     expected = kind.component_class
     if isinstance(expected, type) and expected is not type(None) and not isinstance(component, expected):
         raise CompositionError(location, f"{role} {name} built a {type(component).__name__}, not a {expected.__name__}")
@@ -494,6 +498,9 @@ def _scenario_error(error: ValueError, kinds: dict) -> CompositionError:
     reason = one_line(error)
     if reason.startswith("sensor sample_period"):
         return CompositionError(("sensor", "sample_period"), reason)
+    if reason.startswith("observer and observer_mode 'continuous' do not fit: "):
+        detail = reason[len("observer and observer_mode 'continuous' do not fit: "):]
+        return CompositionError(("simulation", "observer_mode"), f"observer {kinds['observer']} cannot run in observer_mode 'continuous': {detail}")
     for key in ("sample_period", "plant_step", "duration", "record_every", "observer_mode"):
         if reason.startswith(key):
             return CompositionError(("simulation", key), reason)

@@ -381,7 +381,7 @@ def _parameters(target: str, values_only: bool = False) -> tuple[Parameter, ...]
         type_text, description = docs.get(name, ("", ""))
         annotation = hints.get(name)
         component_type = _component_type(annotation)
-        role = None if values_only else (name if name in KINDS else _role_of_class(component_type))
+        role = None if values_only else (_role_of_class(component_type) or (name if name in KINDS else None))
         if values_only:
             sort = "value"
         elif role is not None:

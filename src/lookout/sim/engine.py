@@ -161,7 +161,7 @@ class Scenario(eqx.Module):
         if self.observer_mode not in ("sampled", "continuous"):
             raise ValueError(f"observer_mode must be 'sampled' or 'continuous'; got {self.observer_mode!r}")
         if self.observer_mode == "continuous" and not isinstance(self.observer, ContinuousObserver):
-            raise ValueError(f"observer_mode 'continuous' needs a ContinuousObserver; {type(self.observer).__name__} is not one")
+            raise ValueError(f"observer_mode 'continuous' needs a ContinuousObserver; observer {kind_of(self.observer)} is not one")
         _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
         if len(self.sensor.sample_period) != self.sensor.measurement_layout.size:
             raise ValueError(
@@ -289,6 +289,11 @@ def _check_fit(scenario: Scenario) -> None:
             raise ValueError(
                 f"observer {kind_of(observer)} needs measurement {name}, which sensor {kind_of(sensor)} does not measure (it measures {', '.join(sensor.measurement_layout.names)})"
             )
+    if observer.measurement_layout.names != sensor.measurement_layout.names:  # observers read y by position
+        raise ValueError(
+            f"observer {kind_of(observer)} reads the measurement ({', '.join(observer.measurement_layout.names)}), "
+            f"and sensor {kind_of(sensor)} gives ({', '.join(sensor.measurement_layout.names)}): a sensor of exactly these channels is needed"
+        )
 
     state = _evaluate("observer and initial_estimate", observer.init, y, scenario.initial_estimate)
     estimate = _evaluate("observer and sensor", lambda s: observer.output(observer.update(s, 0.0, y), y), state)
@@ -311,6 +316,8 @@ def _check_fit(scenario: Scenario) -> None:
         if name not in inputs:
             raise ValueError(f"observer {kind_of(observer)} needs input {name}, which plant {kind_of(plant)} does not take (it takes {', '.join(layout.names)})")
     predicted = _evaluate("observer and plant", lambda s: observer.predict(s, 0.0, y, u0, scenario.sample_period), state)
+    if scenario.observer_mode == "continuous":
+        _evaluate("observer and observer_mode 'continuous'", lambda s: observer.vector_field(0.0, s, y, u0), state)
     if jax.tree.structure(predicted) != jax.tree.structure(state):
         raise ValueError("observer and plant disagree: observer.predict returns a state shaped unlike observer.init's")
 
