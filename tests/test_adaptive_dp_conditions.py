@@ -6,10 +6,6 @@ import numpy as np
 import pytest
 
 from lookout.analysis.adaptive_dp import (
-    CALUGI_2003_D,
-    CALUGI_2003_M,
-    PRINTED_GAINS,
-    calugi_2003_vessel,
     check_calugi_2003,
     closed_loop_conditions_57_58,
     loop_rates,
@@ -18,12 +14,16 @@ from lookout.analysis.adaptive_dp import (
     satisfying_gains,
     z_weight_bound,
 )
+from lookout.papers.calugi_2003 import CALUGI_2003_D, CALUGI_2003_M, PRINTED_GAINS
+from lookout.papers.calugi_2003 import paper_vessel as calugi_2003_vessel
 from lookout.models.vessel import NORTHERN_CLIPPER_D, DPVessel
 
 VESSEL = calugi_2003_vessel()
 M, D = CALUGI_2003_M, CALUGI_2003_D
 M11 = M[0, 0]
 PRINTED = {"K1": PRINTED_GAINS["K1"], "K2": PRINTED_GAINS["K2"], "d": PRINTED_GAINS["d"]}
+#: the gains satisfying_gains starts its search from: the printed ones
+PRINTED_START = {name: PRINTED_GAINS[name] for name in ("K1", "K2", "d", "C1", "C2")}
 
 
 def lmin(matrix):
@@ -37,7 +37,7 @@ def printed():
 
 @pytest.fixture(scope="module")
 def proposal():
-    return satisfying_gains(VESSEL)
+    return satisfying_gains(VESSEL, **PRINTED_START)
 
 
 # -- the printed parameters (59) ------------------------------------------------------
@@ -60,11 +60,12 @@ def test_model_bounds_are_the_quantities_the_proof_uses():
     assert b.damping_max == pytest.approx(np.linalg.norm(D, 2), rel=1e-12)
     assert b.damping_max == pytest.approx(4.19e8, rel=1e-3)
     assert b.stiffness_max == 0.0
-    assert b.assumptions == {"9": "holds", "10": "holds", "11": "holds"}
+    assert [(item.name, item.verdict) for item in b.assumptions] == [("(9)", "holds"), ("(10)", "holds"), ("(11)", "holds")]
+    assert b.assumptions[1].left == b.damping_min and b.assumptions[1].source == "Calugi et al. (2003), eq. (10)"
 
 
 def test_printed_gains_numbers(printed):
-    q = printed.closed_loop_57.quantities
+    q = printed["closed_loop_57"].quantities
     K2 = 1e-3 * np.eye(3)
     assert q["sigma1"] == pytest.approx(np.linalg.eigvalsh(1e-3 * np.eye(3))[0], rel=1e-12)
     # (20): sigma2 = lambda_min(K2^T M^T + M K2) / 2
@@ -79,27 +80,28 @@ def test_printed_gains_numbers(printed):
 
 def test_printed_gains_inequalities(printed):
     s2, dmin = 1e-3 * M11, 5.024e4
-    a, b = printed.observer_22.inequalities
+    a, b = printed["observer_22"].inequalities
     assert a.left == pytest.approx(1e-3) and a.right == pytest.approx(1.0 / (4.0 * (s2 + dmin)), rel=1e-12)
     assert a.right == pytest.approx(4.5003e-6, rel=1e-4)
     assert a.factor == pytest.approx(1e-3 * 4.0 * (s2 + dmin), rel=1e-12)  # 222.2
     assert (b.left, b.right, b.verdict) == (pytest.approx(s2), 0.0, "holds")
-    (c57,) = printed.closed_loop_57.inequalities
+    (c57,) = printed["closed_loop_57"].inequalities
     right = 60.0 / 4.0 + 1.0 / (4.0 * (s2 + dmin - 30.0 / 4.0))
     assert c57.right == pytest.approx(right, rel=1e-12)  # 15 + 4.5e-6
     assert c57.verdict == "fails"
     assert c57.factor == pytest.approx(1e-3 / right, rel=1e-12)  # 6.667e-5: the right side is 1.5e4 x the left
     assert 1.0 / c57.factor == pytest.approx(1.5e4, rel=1e-5)
-    (c58,) = printed.closed_loop_58.inequalities
+    (c58,) = printed["closed_loop_58"].inequalities
     assert (c58.left, c58.right, c58.verdict) == (pytest.approx(s2), 0.0, "holds")
 
 
 def test_tighter_combined_bound_is_valid_and_equal_here(printed):
     # lambda_min(sym(M K2 + D)) >= sigma2 + D_min (Weyl); for (59) both are the surge value
-    q = printed.observer_22.quantities
+    q = printed["observer_22"].quantities
     assert q["combined"] == pytest.approx(lmin(1e-3 * M + D), rel=1e-12)
     assert q["combined"] == pytest.approx(q["sigma2"] + q["damping_min"], rel=1e-12)
-    assert printed.observer_22.tighter.verdict == "holds"
+    (tighter,) = printed["observer_22"].informational
+    assert tighter.name == "(22a*)" and tighter.verdict == "holds"
     rng = np.random.default_rng(3)
     for _ in range(20):
         A = rng.standard_normal((3, 3))
@@ -120,9 +122,9 @@ def test_verdicts_do_not_depend_on_the_d_min_reading(printed):
         report = check_calugi_2003(VESSEL, **PRINTED, d_min=reading)
         assert report.verdicts == printed.verdicts
     report = check_calugi_2003(VESSEL, **PRINTED, d_min=0.0)
-    a, _ = report.observer_22.inequalities
+    a, _ = report["observer_22"].inequalities
     assert a.right == pytest.approx(1.0 / (4.0 * 1e-3 * M11), rel=1e-12)  # 4.71e-5
-    (c58,) = report.closed_loop_58.inequalities
+    (c58,) = report["closed_loop_58"].inequalities
     assert c58.right == pytest.approx(7.5)
     with pytest.raises(ValueError, match=r"^d_min must be .* <= lambda_min\(sym D\)"):
         check_calugi_2003(VESSEL, **PRINTED, d_min=4.19e8)  # the induced-norm reading is not a lower bound
@@ -179,9 +181,10 @@ def test_appendix_b_completing_squares_gives_g1_g2(seed):
 def test_worst_case_over_theta_is_at_an_end_point():
     low, high = 0.5 * M11, 2.0 * M11
     report = check_calugi_2003(VESSEL, **PRINTED, theta_bounds=[low, high])
-    assert report.observer_22.quantities["sigma2"] == pytest.approx(1e-3 * low, rel=1e-12)
-    assert report.bounds.mass_min == pytest.approx(low, rel=1e-12)
-    assert report.bounds.worst_theta["mass_min"] == [low]
+    assert report["observer_22"].quantities["sigma2"] == pytest.approx(1e-3 * low, rel=1e-12)
+    bounds = report.quantities["model_bounds"]
+    assert bounds["mass_min"] == pytest.approx(low, rel=1e-12)
+    assert bounds["worst_theta"]["mass_min"] == [low]
     assert report.verdicts == {"observer_22": "holds", "closed_loop_57": "fails", "closed_loop_58": "holds"}
     # lambda_min(sym(M(theta) K2)) is concave in theta: also for a full K2 the box minimum
     # is at an end point; check on a dense grid
@@ -199,8 +202,8 @@ def test_worst_case_over_theta_is_at_an_end_point():
 
 
 def test_z_weight_bound_is_where_the_reweighted_form_stops_being_definite(printed):
-    q = printed.closed_loop_57.quantities
-    w = printed.z_weight
+    q = printed["closed_loop_57"].quantities
+    w = printed.quantities["z_weight_bound"]
     assert w == pytest.approx(6.64e-5, rel=1e-2)
     assert 0.0 < w < 1.0  # the paper's V (47) is w = 1: (57) fails
 
@@ -220,7 +223,7 @@ def test_satisfying_gains_all_hold(proposal):
     assert proposal.report.verdicts == {"observer_22": "holds", "closed_loop_57": "holds", "closed_loop_58": "holds"}
     again = check_calugi_2003(VESSEL, K1=proposal.K1, K2=proposal.K2, d=proposal.d)
     assert again.holds
-    assert again.closed_loop_57.inequalities[0].factor >= 1.1
+    assert again["closed_loop_57"].inequalities[0].factor >= 1.1
     assert np.all(proposal.d >= 0.1) and np.all(np.diag(proposal.K1) >= 1e-3)
     chosen = {r.name: r for r in proposal.routes}[proposal.route]
     assert chosen.usable and chosen.step_gain <= 0.5
@@ -238,11 +241,11 @@ def test_satisfying_gains_default_choice_and_costs(proposal):
     assert proposal.route == "K1_and_d"
     assert np.allclose(proposal.K1, 0.05 * np.eye(3))
     assert np.allclose(proposal.d, [320.0] * 3 + [18.0] * 3)
-    assert satisfying_gains(VESSEL).to_dict() == proposal.to_dict()  # deterministic
+    assert satisfying_gains(VESSEL, **PRINTED_START).to_dict() == proposal.to_dict()  # deterministic
 
 
 def test_satisfying_gains_keeps_K1_at_low_speed():
-    slow = satisfying_gains(VESSEL, speed=0.05)
+    slow = satisfying_gains(VESSEL, speed=0.05, **PRINTED_START)
     assert slow.route == "d_split"
     assert np.allclose(slow.K1, 1e-3 * np.eye(3))
     assert slow.report.holds
@@ -253,13 +256,17 @@ def test_satisfying_gains_keeps_K1_at_low_speed():
 # -- output forms and inputs ---------------------------------------------------------------
 
 
-def test_to_dict_is_strict_json_and_text_fits(printed, proposal):
+def test_to_dict_is_strict_json_and_text(printed, proposal):
     for obj in (printed, proposal):
         json.dumps(obj.to_dict(), allow_nan=False)
-        assert all(len(line) <= 80 for line in obj.text().splitlines())
+    assert all(len(line) <= 80 for line in proposal.text().splitlines())
     data = printed.to_dict()
     assert data["closed_loop_58"]["inequalities"][0]["factor"] is None  # inf -> None
     assert data["verdicts"]["closed_loop_57"] == "fails"
+    assert data["quantities"]["z_weight_bound"] == pytest.approx(6.64e-5, rel=1e-2)
+    text = printed.text()
+    assert "(57) closed loop [Calugi et al. (2003), eq. (57)]: fails" in text
+    assert "note: with z'z weighted by w_z in V (47): proven for w_z < 6.64e-05" in text
     json.dumps(model_bounds(VESSEL, [0.9 * M11, 1.1 * M11]).to_dict(), allow_nan=False)
 
 
@@ -286,7 +293,7 @@ def test_bad_inputs_fail_with_one_line(kwargs, pattern):
 def test_bad_design_inputs():
     for kwargs, pattern in (({"speed": -1.0}, "^speed"), ({"margin": 0.5}, "^margin"), ({"step": 0.0}, "^step")):
         with pytest.raises(ValueError, match=pattern):
-            satisfying_gains(VESSEL, **kwargs)
+            satisfying_gains(VESSEL, **{**PRINTED_START, **kwargs})
 
 
 def test_stiffness_enters_through_its_norm():

@@ -56,7 +56,7 @@ def test_the_margin_must_keep_m_hat_positive_definite():
 
 
 def test_a_missing_sample_is_a_model_prediction_and_leaves_theta_alone():
-    observer = ch4.observer(ch4.Config(), 0.01)
+    observer = ch4.REPRODUCTION.scenario(ch4.Config(), "delta-0.01").observer
     state = observer.init(jnp.array([0.2]), observer.guess(0.5, 0.4))
     state = observer.update(state, 0.0, jnp.array([0.2]))
     tau = jnp.array([0.7])
@@ -72,13 +72,15 @@ def test_theorem_4_1_constants():
     """Pendulum: sigma = K m l^2 and C_M = 0 (global). Two-link: sigma = K lambda_min(M)."""
     report = check_theorem_4_1(ch4.parameters(), 20.0, 10.0, max_speed=1.2, initial_error=([1.0], [0.9]))
     assert report.quantities["sigma"] == pytest.approx(20.0 * 1.5**2)
-    assert report.holds and "global" in report.quantities["region"]
+    assert report.holds and report.notes == ("region (4.b) global: C_M = 0, it holds for every initial error",)
+    assert [item.name for item in report.inequalities] == ["(4.a)"]  # no (4.b) to check
     sigma = injection_bound(ARM, 5.0)
     assert sigma == pytest.approx(5.0 * configuration_bounds(ARM.model(ARM.reference)).min_inertia, rel=1e-3)
     arm = check_theorem_4_1(ARM, 5.0, 0.1, max_speed=1.0, initial_error=([1.0, 1.0], [0.8]))
     names = {item.name: item for item in arm.inequalities}
     assert names["(4.a)"].right == pytest.approx(arm.quantities["C_M"] * 1.0)
-    assert "(4.b)" in names
+    assert names["(4.b)"].right == pytest.approx(np.sqrt(1.0 + 1.0 + 0.8**2))
+    assert arm.verdicts == {"theorem_4_1": "fails"} and names["(4.a)"].source == "Calugi (2002), Theorem 4.1"
 
 
 def test_reproduce_calugi_2002_adaptive_observer_writes_its_outputs(tmp_path, capsys):

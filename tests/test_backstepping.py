@@ -11,7 +11,7 @@ from lookout.actuators import SaturatingActuator
 from lookout.controllers import ObserverBackstepping
 from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState, northern_clipper
-from lookout.observers import PassiveObserver, SlidingModeObserver
+from lookout.observers import PassiveObserver
 from lookout.papers import kim_2002
 from lookout.reference import ReferenceFilter
 from lookout.sensors import PositionHeadingSensor
@@ -22,7 +22,7 @@ BIAS = (1e4, 5e3, 1e5)
 
 
 def _observer(**kwargs):
-    return SlidingModeObserver.kim_2002(northern_clipper(), boundary_layer=(5.0, 5.0, 0.02), hold="innovation", **kim_2002.gain_sets()["kyp"], **kwargs)
+    return kim_2002.printed_observer(northern_clipper(), boundary_layer=(5.0, 5.0, 0.02), hold="innovation", **kim_2002.gain_sets()["kyp"], **kwargs)
 
 
 def _noise_free_loop(observer, duration=800.0, coupling_gain=0.01):

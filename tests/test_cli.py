@@ -55,55 +55,66 @@ def test_help_fits_80_columns_without_cut_names_or_bool_metavars(argv, capsys, m
         assert "Exit code 0" in text
 
 
+SPR = ("spr_surge", "spr_sway", "spr_yaw")
+TUNING_RULE = "(48) tuning rule 1/T << lambda/kappa < w_o < w_c [Fossen & Strand (1999), eq. (48)]"
+
+
+def _spr_header(dof: str) -> str:
+    return f"Theorem 1 SPR of h = hB h0, {dof} [Fossen & Strand (1999), Theorem 1, eqs. (38)-(39); Khalil (1996), Lemma 6.1]"
+
+
 def test_design_json_reports_gains_verdicts_and_frequency_response(capsys, tmp_path):
     bode = tmp_path / "bode.png"
     code = main([*DESIGN, "--wave-period", "7.0", "--frequency", "0.8976", "--frequency", "0.1", "--bode", str(bode), "--json"])
     assert code == 0
     result = json.loads(capsys.readouterr().out)
-    assert {"K1", "K2", "tuning_rule", "spr", "frequency_response", "passed"} <= set(result)
-    assert round(result["K1"][0][0], 4) == -2.2059 and round(result["K1"][3][0], 4) == 1.6157
-    assert result["tuning_rule"]["holds"] and result["spr"]["holds"] and result["passed"]
-    assert result["spr"]["verdict"] == "holds"
-    first = result["frequency_response"][0]
+    assert result["design"] == "passive-observer" and result["passed"] and result["verdict"] == "holds"
+    assert result["verdicts"] == {"tuning_rule_48": "holds", **{key: "holds" for key in SPR}}
+    K1 = result["quantities"]["K1"]
+    assert round(K1[0][0], 4) == -2.2059 and round(K1[3][0], 4) == 1.6157
+    assert result["spr_surge"]["quantities"]["certificate"]["verified"]
+    first = result["quantities"]["frequency_response"][0]
     assert set(first) == {"frequency", "magnitude", "phase_deg"}
-    assert bode.stat().st_size > 0
+    assert result["inputs"]["bode"] == str(bode) and bode.stat().st_size > 0
+    assert f"Bode plot written to {bode}" in result["notes"]
 
 
 def test_design_text_output(capsys):
     assert main([*DESIGN, "--wave-frequency", "0.8976", "--frequency", "0.5"]) == 0
     out = capsys.readouterr().out
-    assert "tuning rule (48), 1/T << lambda/kappa < w_o < w_c: holds" in out
-    assert "SPR of h = hB h0: holds" in out and "KYP certificate is verified" in out and "|h0(j0.5)|" in out
+    assert f"{TUNING_RULE}: holds" in out
+    assert "    surge: lambda/kappa < w_o: 0.03588 < 0.8976 rad/s: holds, margin 0.862, factor 25" in out
+    assert f"{_spr_header('yaw')}: holds" in out and "KYP certificate is verified" in out and "note: |h0(j0.5)|" in out
     assert "K1 = [diag(-2.206, -2.206, -2.206); diag(1.616, 1.616, 1.616)]" in out
     assert "cut-off w_c = 1.1 rad/s" in out  # the paper's ratio, followed by the default
-    assert "design passes (exit code 0)" in out
+    assert out.endswith("verdict: passes (exit code 0)\n")
 
 
 def test_design_default_cutoff_follows_the_wave_frequency(capsys):
     assert main([*DESIGN, "--wave-period", "5", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert result["cutoff_frequency"] == pytest.approx(1.1 / 0.8976 * 2 * np.pi / 5, rel=1e-12)
+    assert result["inputs"]["cutoff_frequency"] == pytest.approx(1.1 / 0.8976 * 2 * np.pi / 5, rel=1e-12)
     assert result["passed"]
     assert main([*DESIGN, "--wave-period", "5", "--cutoff-frequency", "2.5", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["cutoff_frequency"] == 2.5
+    assert json.loads(capsys.readouterr().out)["inputs"]["cutoff_frequency"] == 2.5
     # slower waves keep the paper's w_c = 1.1 rad/s (K2 independent of w_o, Remark 2), and pass
     assert main([*DESIGN, "--wave-period", "10", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert result["cutoff_frequency"] == 1.1 and result["passed"]
+    assert result["inputs"]["cutoff_frequency"] == 1.1 and result["passed"]
     # scaling w_c with w_o there would keep (48) but break SPR: the rule is not sufficient
     assert main([*DESIGN, "--wave-period", "10", "--cutoff-frequency", str(1.1 / 0.8976 * 2 * np.pi / 10), "--json"]) == 1
     result = json.loads(capsys.readouterr().out)
-    assert result["tuning_rule"]["holds"] and result["spr"]["verdict"] == "fails"
+    assert result["verdicts"] == {"tuning_rule_48": "holds", **{key: "fails" for key in SPR}} and result["verdict"] == "fails"
 
 
 def test_design_failing_verdict_exits_1_and_still_reports(capsys):
     assert main([*DESIGN, "--wave-period", "200"]) == 1
     out = capsys.readouterr().out
-    assert "tuning rule (48), 1/T << lambda/kappa < w_o < w_c: FAILS" in out and "SPR of h = hB h0: FAILS" in out
-    assert "design does not pass (exit code 1)" in out
+    assert f"{TUNING_RULE}: fails" in out and f"{_spr_header('surge')}: fails" in out
+    assert out.endswith("verdict: FAILS (exit code 1)\n")
     assert main([*DESIGN, "--wave-period", "200", "--json"]) == 1
     result = json.loads(capsys.readouterr().out)
-    assert not result["passed"] and result["spr"]["verdict"] == "fails"
+    assert not result["passed"] and result["verdict"] == "fails" and result["spr_surge"]["verdict"] == "fails"
 
 
 def test_spr_holds_never_appears_without_a_certificate(capsys):
@@ -111,13 +122,16 @@ def test_spr_holds_never_appears_without_a_certificate(capsys):
     the verdict says SPR is not established, why, and the design does not pass."""
     assert main([*DESIGN, "--wave-frequency", "0.8976", "--cutoff-frequency", "1e6", "--json"]) == 1
     result = json.loads(capsys.readouterr().out)
-    assert result["tuning_rule"]["holds"] and not result["spr"]["holds"] and result["spr"]["verdict"] == "unverified"
-    for loop in result["spr"]["loops"]:
-        assert loop["frequency_test"] and not loop["kyp_verified"] and not loop["spr"]
+    assert result["verdicts"] == {"tuning_rule_48": "holds", **{key: "unverified" for key in SPR}}
+    assert result["verdict"] == "unverified" and not result["passed"]
+    for key in SPR:
+        loop = result[key]
+        assert loop["quantities"]["frequency_test"] and not loop["quantities"]["certificate"]["verified"]
         assert "no KYP certificate was verified" in loop["reason"] and "poles span" in loop["reason"]
     assert main([*DESIGN, "--wave-frequency", "0.8976", "--cutoff-frequency", "1e6"]) == 1
     out = capsys.readouterr().out
-    assert "SPR of h = hB h0: NOT ESTABLISHED" in out and "SPR of h = hB h0: holds" not in out
+    assert f"{_spr_header('surge')}: unverified" in out and f"{_spr_header('surge')}: holds" not in out
+    assert out.endswith("verdict: NOT ESTABLISHED (exit code 1)\n")
 
 
 def test_design_prints_small_numbers_with_significant_digits(capsys):
@@ -132,11 +146,11 @@ def test_design_normalized_gains_convert_like_the_default(capsys):
     argv = [*DESIGN, "--wave-frequency", "0.8976", "--normalized", "--velocity-gain", "0.1,0.1,0.01", "--bias-gain", "0.01,0.01,0.001", "--json"]
     assert main(argv) == 0
     normalized = json.loads(capsys.readouterr().out)
-    assert normalized["velocity_injection_gain"] == pytest.approx(default["velocity_injection_gain"], rel=1e-12)
-    assert normalized["bias_injection_gain"] == pytest.approx(default["bias_injection_gain"], rel=1e-12)
+    assert normalized["inputs"]["velocity_injection_gain"] == pytest.approx(default["inputs"]["velocity_injection_gain"], rel=1e-12)
+    assert normalized["inputs"]["bias_injection_gain"] == pytest.approx(default["inputs"]["bias_injection_gain"], rel=1e-12)
     assert main([*DESIGN, "--wave-frequency", "0.8976", "--velocity-gain", "5e4", "--bias-gain", "2e3", "--json"]) == 0
     si = json.loads(capsys.readouterr().out)
-    assert si["velocity_injection_gain"] == [5e4, 5e4, 5e4] and si["bias_injection_gain"] == [2e3, 2e3, 2e3]
+    assert si["inputs"]["velocity_injection_gain"] == [5e4, 5e4, 5e4] and si["inputs"]["bias_injection_gain"] == [2e3, 2e3, 2e3]
 
 
 # Every bad input: exit code 2, one line on stderr naming the option, no traceback, nothing written.
@@ -353,16 +367,56 @@ def test_reproduce_calugi_2002_has_one_run(capsys):
 def test_design_sliding_mode_observer_printed_gains_fail_14_and_exit_1(capsys):
     assert main(["design", "sliding-mode-observer"]) == 1
     text = capsys.readouterr().out
-    assert "KYP (14) for Sigma_2: fails" in text and "min phase -172.59 deg" in text
-    assert "surge +0.0156 +- 0.1235j" in text and "verdict: FAILS (exit code 1)" in text
+    assert "(14) KYP for Sigma_2: P A + A^T P = -Q, B^T P = C, P, Q > 0 [Kim (2002), eq. (14)]: fails" in text
+    assert "(not in the verdict) surge: phase of h below 10 w_c > -90 deg: -172.6 > -90 deg: fails" in text
+    assert "surge +0.0156 +- 0.1235j" in text and "note: (17) not checked" in text
+    assert text.endswith("verdict: FAILS (exit code 1)\n")
 
 
 def test_design_sliding_mode_observer_kyp_gains_pass_and_json_is_strict(capsys):
     assert main(["design", "sliding-mode-observer", "--gains", "kyp", "--disturbance", "1e5,1e5,1e6", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["passed"] is True and result["verdicts"]["kyp_14"] == "holds"
-    assert result["verdicts"]["switching_gain_17"] == "holds"
-    assert result["switching_gain_17"]["required_gain"][0] == pytest.approx(2.05, rel=1e-2)
+    assert result["verdicts"]["switching_gain_17"] == "holds" and result["inputs"]["disturbance"] == [1e5, 1e5, 1e6]
+    assert result["switching_gain_17"]["quantities"]["required_gain"][0] == pytest.approx(2.05, rel=1e-2)
+    (surge,) = [item for item in result["inequalities"] if item["condition"] == "switching_gain_17" and item["name"] == "surge"]
+    assert surge["right"] == pytest.approx(2.05, rel=1e-2) and surge["left"] == 10.0 and surge["units"] == "m/s"
+
+
+#: One run of each design command, and its exit code.
+DESIGNS = {
+    "passive-observer": (["--wave-period", "7"], 0),
+    "sliding-mode-observer": (["--gains", "kyp"], 0),
+    "adaptive-observer": ([], 1),
+    "adaptive-arm": (["--arm", "pendulum"], 0),
+    "tracking-gains": (["--start", "measured"], 1),
+}
+
+
+@pytest.mark.parametrize("design", list(DESIGNS))
+def test_every_design_command_prints_and_dumps_one_layout(design, capsys):
+    """The same JSON keys, a block per condition with its inequalities, the flat list of
+    them all, exit code 0 exactly when the report holds; the text gives one line per
+    inequality with its numbers, verdict and margin, and ends with the verdict line."""
+    argv, code = DESIGNS[design]
+    assert main(["design", design, *argv, "--json"]) == code
+    result = json.loads(capsys.readouterr().out)
+    assert list(result)[:7] == ["design", "passed", "inputs", "title", "verdict", "holds", "verdicts"]
+    assert list(result)[-4:] == ["inequalities", "quantities", "summary", "notes"] and result["design"] == design
+    assert result["passed"] is result["holds"] is (result["verdict"] == "holds") is (code == 0)
+    flat = []
+    for key, verdict in result["verdicts"].items():
+        block = result[key]
+        assert block["key"] == key and block["verdict"] == verdict and block["source"] and block["reason"]
+        flat += [item | {"condition": key} for item in block["inequalities"]]
+    assert flat == result["inequalities"] and flat
+    assert {item["verdict"] for item in flat} <= {"holds", "fails", "unverified"}
+    assert main(["design", design, *argv]) == code
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"{result['title']}: {result['verdict']}"
+    assert lines[-1] == f"verdict: {'passes' if code == 0 else 'FAILS'} (exit code {code})"
+    for item in flat:
+        assert any(line.startswith(f"    {item['name']}: {item['relation']}: ") and f": {item['verdict']}, margin " in line for line in lines)
 
 
 @pytest.mark.parametrize(

@@ -1,9 +1,11 @@
 """The composition matrix: every registered observer on every registered plant.
 
-Each plant is taken in the first reproduction case that has it (its sea, its sensor),
+Each plant is taken in the first reproduction case that has it (its sea, its sensor,
+its time grid), or in the observer's own first case when that case has this plant, and
 run open loop (no controller, no reference); each observer kind is put in with the
-parameters it requires taken from the first case that uses it, the rest from its
-defaults and design rules for the plant at hand. Each pair either composes and runs 20
+values it requires and the parts that are not models (its unknown parameters) taken
+from its first case, its model from the plant, the rest from its defaults and design
+rules for the plant at hand. Each pair either composes and runs 20
 simulated seconds with finite estimates, or is refused in one line that names the
 observer and what it lacks. docs/architecture.md holds the table this test computes
 (`LOOKOUT_WRITE_MATRIX=1 pytest tests/test_composition_matrix.py` rewrites it); the
@@ -42,22 +44,33 @@ def _first_table(role: str, kind: str) -> dict | None:
     return None
 
 
+#: Roles of the models a plant offers (plant.models()): an observer takes them from the plant.
+MODEL_ROLES = {"vessel", "ship", "model"}
+
+
+def open_loop(document: dict) -> dict:
+    """``document`` without controller and reference, one run of about 20 s (a whole
+    number of its samples)."""
+    base = copy.deepcopy(document)
+    base["controller"], base["reference"], base["actuator"] = {"kind": "none"}, {"kind": "none"}, {"kind": "ideal"}
+    period = base["simulation"]["sample_period"]
+    base["simulation"] = {**base["simulation"], "duration": round(np.ceil(DURATION / period - 1e-9)) * period, "runs": 1, "record_every": 1}
+    return base
+
+
 def plant_bases() -> dict[str, dict]:
     """Each plant kind's base composition: its first case, open loop."""
     bases = {}
     for each in registry.kinds("plant"):
         document = _first_table("plant", each.name)
-        if document is None:
-            continue
-        base = copy.deepcopy(document)
-        base["controller"], base["reference"], base["actuator"] = {"kind": "none"}, {"kind": "none"}, {"kind": "ideal"}
-        base["simulation"] = {**base["simulation"], "duration": DURATION, "runs": 1, "record_every": 1}
-        bases[each.name] = base
+        if document is not None:
+            bases[each.name] = open_loop(document)
     return bases
 
 
 def observer_table(kind: str) -> dict:
-    """The kind with the parameters it requires (no default), as its first case gives them."""
+    """The kind with the values it requires and its parts that are not models, as its
+    first case gives them."""
     table = {"kind": kind}
     home = _first_table("observer", kind)
     if home is None:
@@ -67,18 +80,21 @@ def observer_table(kind: str) -> dict:
     if design is not None:
         table["design"] = design
     for p in registry.kind("observer", kind).parameters(design):
-        if p.required and p.name in given and p.sort in ("value", "part"):
+        if p.required and p.name in given and (p.sort == "value" or (p.sort == "part" and p.role not in MODEL_ROLES)):
             table[p.name] = copy.deepcopy(given[p.name])
     return table
 
 
-def _duration(base: dict) -> float:
-    """The 20 s run, or the nearest whole number of the base's samples and fixes above it."""
-    return DURATION
+def base_for(plant: str, observer: str, bases: dict) -> dict:
+    """The observer's own first case when it has this plant, else the plant's first case."""
+    home = _first_table("observer", observer)
+    if home is not None and home["plant"]["kind"] == plant:
+        return open_loop(home)
+    return bases[plant]
 
 
 def outcome(plant: str, base: dict, observer: str) -> str:
-    document = copy.deepcopy(base)
+    document = copy.deepcopy(base_for(plant, observer, {plant: base}))
     document["observer"] = observer_table(observer)
     try:
         composition = compose(document)

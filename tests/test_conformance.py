@@ -114,7 +114,6 @@ def _sliding_mode_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, dura
     from lookout.actuators import SaturatingActuator
     from lookout.controllers import ObserverBackstepping
     from lookout.models.vessel import VesselState, northern_clipper
-    from lookout.observers import SlidingModeObserver
     from lookout.papers import fossen_strand_1999 as fs
     from lookout.papers import kim_2002
     from lookout.reference import ReferenceFilter
@@ -123,7 +122,7 @@ def _sliding_mode_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, dura
     config = fs.Config(duration=duration, measurement_period=0.1 if perfect else 1.0, **quiet)
     base = fs.build(config)
     gains = kim_2002.gain_sets()["kyp"]
-    observer = SlidingModeObserver.kim_2002(
+    observer = kim_2002.printed_observer(
         northern_clipper(), boundary_layer=(5.0, 5.0, 0.02), switching_gain=gain * jnp.asarray([10.0, 10.0, 0.01]), hold=hold,
         velocity_injection_gain=gain * jnp.asarray(gains["velocity_injection_gain"]), bias_injection_gain=gain * jnp.asarray(gains["bias_injection_gain"]),
         bias_time_constant=config.bias_time_constant,

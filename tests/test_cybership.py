@@ -1,8 +1,6 @@
 """Cybership II (Wondergem et al. 2009, eq. 39), its Earth-fixed form, the observer (6),
 the tracking controller (18)/(23) and the ellipse reference."""
 
-import dataclasses
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -14,6 +12,7 @@ from lookout._math import rotate
 from lookout.controllers import TrackingController
 from lookout.models.cybership import CYBERSHIP_M, Cybership, CybershipPlant, cybership2
 from lookout.observers import EarthFixedObserver
+from lookout.papers.wondergem_2009.config import DAMPING_RATIO, NATURAL_FREQUENCY, OBSERVER_POSITION_GAIN, OBSERVER_VELOCITY_GAIN
 from lookout.reference import EllipseReference
 
 SHIP = cybership2()
@@ -87,7 +86,7 @@ def test_earth_fixed_form_integrated_alongside_gives_the_same_trajectory():
 
 
 def test_gains_20_and_the_closed_loop_19_per_dof():
-    controller = TrackingController(SHIP)
+    controller = TrackingController(SHIP, NATURAL_FREQUENCY, DAMPING_RATIO)
     Kp, Kd = (np.asarray(v) for v in controller.gains_table().values())
     # derivations-wondergem-2009.md, section 3 (printed Omega, Lambda = I)
     np.testing.assert_allclose(Kp, [[13.375, 0, 0], [0, 5.962, 0.414], [0, 0.178, 1.131]], atol=6e-4)
@@ -135,11 +134,31 @@ def test_ellipse_reference_and_observer_reject_bad_input():
     with pytest.raises(ValueError, match=r"position_gain \(L1\) must be positive"):
         EarthFixedObserver(SHIP, -1.0, 50.0)
     with pytest.raises(ValueError, match="method must be one of 'rk4', 'euler'"):
-        EarthFixedObserver(SHIP, method="heun")
+        EarthFixedObserver(SHIP, OBSERVER_POSITION_GAIN, OBSERVER_VELOCITY_GAIN, method="heun")
     with pytest.raises(ValueError, match="mass_matrix must have m12 = m13 = 0"):
         Cybership(np.array([[25.8, 1.0, 0.0], [1.0, 33.8, 1.0115], [0.0, 1.0115, 2.76]]))
     with pytest.raises(ValueError, match="wave_ramp must be positive"):
         CybershipPlant(SHIP, wave_ramp=0.0)
+
+
+def test_a_dp_vessel_as_a_ship_model_differs_from_it_by_c_nu_alone():
+    """The Northern Clipper's M and D in the form (16): its acceleration is the DP model's
+    (3) less M^-1 C(nu) nu, the term the DP model neglects; a mooring K or a surge coupled
+    to sway or yaw (m12, m13) is refused."""
+    from lookout.models.vessel import DPVessel, northern_clipper
+
+    vessel = northern_clipper()
+    ship = Cybership.from_dp_vessel(vessel)
+    nu, tau = jnp.array([1.2, -0.3, 0.01]), jnp.array([2.0e5, -5.0e4, 3.0e6])
+    dp = vessel.acceleration(jnp.zeros(3), nu, tau, jnp.zeros(3))
+    coriolis = np.linalg.solve(np.asarray(vessel.mass_matrix), np.asarray(ship.coriolis(nu) @ nu))
+    assert np.abs(coriolis).max() > 1e-3 * np.abs(np.asarray(dp)).max()  # at 1.2 m/s the term is not negligible
+    np.testing.assert_allclose(ship.acceleration(nu, tau), np.asarray(dp) - coriolis, rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(ship.quadratic_damping, np.zeros(3))
+    with pytest.raises(ValueError, match="vessel has a mooring stiffness K"):
+        Cybership.from_dp_vessel(DPVessel(vessel.mass_matrix, vessel.damping_matrix, np.diag([1e4, 1e4, 1e6])))
+    with pytest.raises(ValueError, match="mass_matrix must have m12 = m13 = 0"):
+        Cybership.from_dp_vessel(DPVessel(np.array([[5e6, 1e5, 0.0], [1e5, 8e6, 0.0], [0.0, 0.0, 4e9]]), vessel.damping_matrix))
 
 
 def test_matched_scheme_converges_and_tracks_to_the_sampling_error():
@@ -153,10 +172,10 @@ def test_matched_scheme_converges_and_tracks_to_the_sampling_error():
     config = w.Config(duration=80.0, sweep=False)
     tails = []
     for period in (0.01, 0.002):
-        scenario = dataclasses.replace(
-            w.build(config, "simulation"), reference=EllipseReference(config.semi_axes, (0.1,)),
-            sample_period=period, plant_step=period, record_every=int(round(0.1 / period)),
-        )
+        scenario = w.scenario(config, "simulation", {
+            "reference.lap_speeds": [0.1], "simulation.sample_period": period, "simulation.plant_step": period,
+            "simulation.record_every": int(round(0.1 / period)),
+        })
         ds = simulate(scenario, jax.random.key(0)).to_xarray().isel(run=0)
         observer_error = np.hypot(*(ds.position - ds.position_hat).values.T)
         if period == 0.01:

@@ -132,7 +132,7 @@ def test_filter_names_a_bad_observer_takes_an_integer_guess_and_warns_where_the_
 def test_a_discrete_time_observer_needs_rows_one_sample_period_apart():
     from lookout.papers import calugi_2002_adaptive_observer as ch4
 
-    scenario = ch4.case_scenario(ch4.Config(), "delta-0.01")
+    scenario = ch4.REPRODUCTION.scenario(ch4.Config(), "delta-0.01")
     observer = scenario.observer
     assert observer.sample_period == 0.01
     with pytest.raises(ValueError, match=r"times must step by the observer's sample_period 0.01 s \(a discrete-time observer\); the step from row 0 to 1 is 10 s; are the times in seconds\?"):

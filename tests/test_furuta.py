@@ -121,7 +121,7 @@ def test_exp_iii_printed_bounds_make_m_hat_indefinite():
 
 
 def test_every_experiment_runs_to_its_end_or_reports_why_not(tmp_path):
-    assert REPRODUCTIONS[ch6.NAME] is ch6
+    assert REPRODUCTIONS[ch6.NAME] is ch6.REPRODUCTION
     config = ch6.Config(duration=2.4)
     summary = ch6.run(config, tmp_path)
     experiments = summary["experiments"]

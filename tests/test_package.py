@@ -53,7 +53,7 @@ def test_every_reproduction_is_named_in_the_catalog_without_importing_it():
     result = _run(
         "import sys; from lookout.papers import CATALOG, REPRODUCTIONS; "
         "assert not any(m.startswith('lookout.papers.') and m != 'lookout.papers' for m in sys.modules); "
-        "assert all(getattr(REPRODUCTIONS[name], 'name', None) in (None, name) and getattr(REPRODUCTIONS[name], 'title', None) in (None, entry.title) for name, entry in CATALOG.items()); print(len(CATALOG))"
+        "assert all(REPRODUCTIONS[name].name == name and REPRODUCTIONS[name].title == entry.title for name, entry in CATALOG.items()); print(len(CATALOG))"
     )
     assert result.returncode == 0 and result.stdout.strip() == "9", result.stderr
 

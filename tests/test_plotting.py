@@ -275,6 +275,16 @@ def test_measurement_is_drawn_as_dots_in_the_zoom_column_only(ds):
     assert all("measured" not in lines_by_label(ax) for ax in axes[1:].ravel())
 
 
+def test_a_held_heading_gets_one_dot_per_sample_after_the_unwrapping(ds):
+    # the heading is put on the unwrapped truth's branch; a held sample must stay one dot
+    fig = plot_estimates(ds, SHIP_PANELS["yaw"])
+    dots = lines_by_label(estimate_axes(fig, 4)[0, 1])["measured"]
+    x = np.asarray(dots.get_xdata(), dtype=float)
+    measured = ds.measured_heading.isel(run=0).sel(time=slice(x.min(), None)).values
+    new = np.r_[True, measured[1:] != measured[:-1]] & np.isfinite(measured)
+    assert x.size == int(new.sum()) < int(np.isfinite(measured).sum())
+
+
 def test_legend_names_truth_estimate_measurement_and_window(ds):
     labels = legend_labels(plot_estimates(ds, SHIP_PANELS["sway"]))
     assert {"true", "estimate", "measured (zoom)", "zoom window"} <= labels

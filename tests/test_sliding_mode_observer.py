@@ -11,9 +11,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from lookout.models.vessel import northern_clipper
-from lookout.observers import PassiveObserver, SlidingModeObserver, saturation
-from lookout.observers.sliding_mode import KIM_2002_BIAS_GAIN, KIM_2002_VELOCITY_GAIN
+from lookout.observers import PassiveObserver, saturation
+from lookout.papers.kim_2002 import BIAS_GAIN as KIM_2002_BIAS_GAIN, VELOCITY_GAIN as KIM_2002_VELOCITY_GAIN
 from lookout.papers import fossen_strand_1999 as fs
+from lookout.papers import kim_2002
 from lookout.sim import simulate
 
 finite = st.floats(-1e6, 1e6, allow_nan=False)
@@ -46,7 +47,7 @@ def _scenario(observer, duration=120.0):
 
 
 def _printed(switching_gain, boundary_layer=(5.0, 5.0, 0.02), **overrides):
-    return SlidingModeObserver.kim_2002(northern_clipper(), boundary_layer=boundary_layer, switching_gain=switching_gain, **overrides)
+    return kim_2002.printed_observer(northern_clipper(), boundary_layer=boundary_layer, switching_gain=switching_gain, **overrides)
 
 
 def test_without_switching_the_sliding_mode_observer_is_the_passive_observer():
@@ -101,5 +102,5 @@ def test_outside_the_layer_the_switching_term_injects_kbar_in_eta_hat_dot():
 def test_bad_switching_parameters_fail_with_one_line(kwargs, message):
     settings = {"switching_gain": 1.0, "boundary_layer": 1.0, **kwargs}
     with pytest.raises(ValueError, match=message) as info:
-        SlidingModeObserver.kim_2002(northern_clipper(), **settings)
+        kim_2002.printed_observer(northern_clipper(), **settings)
     assert "\n" not in str(info.value)

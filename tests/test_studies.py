@@ -22,7 +22,7 @@ from lookout.papers import REPRODUCTIONS, fossen_strand_1999
 from lookout.studies import _toml
 from lookout.studies.campaign import campaign_from_document, load_campaign
 from lookout.studies.execute import run_campaign
-from lookout.studies.scenario_file import CompositionSpec, ScenarioSpec, load, save, templates
+from lookout.studies.scenario_file import CompositionSpec, load, save
 from lookout.studies.store import CampaignStore
 
 # no xdist group: the tests spread over the workers (each builds the session fixtures it needs)
@@ -74,14 +74,6 @@ def test_a_scenario_file_written_by_the_reproduction_gives_its_numbers_exactly(t
 @pytest.mark.parametrize("name", list(REPRODUCTIONS))
 def test_every_reproduction_writes_a_scenario_file_that_loads_and_builds(name, tmp_path):
     reproduction = REPRODUCTIONS[name]
-    if not hasattr(reproduction, "cases"):  # issue 23: a reproduction not yet a composition writes its template's settings
-        template = templates()[name]
-        config = template.settings()
-        path = save(ScenarioSpec(template, template.cases[-1], config), tmp_path / f"{name}.toml")
-        spec = load(path)
-        assert spec.settings == config and spec.case == template.cases[-1]
-        assert spec.build().n_records > 0
-        return
     for case in reproduction.cases:
         composition = compose(reproduction.composition(reproduction.Config(), case))
         path = save(CompositionSpec(composition), tmp_path / f"{name}-{case}.toml")
@@ -242,7 +234,7 @@ def test_campaign_points_are_the_grid_and_scale_multiplies_the_base(tmp_path, ca
         assert sorted(strata) == list(range(10))
 
 
-def test_an_axis_may_replace_a_component_and_sweep_a_model_error():
+def test_an_axis_may_replace_a_component_and_sweep_a_model_error(tmp_path):
     """Kim's two observers of Fig. 8 in one campaign: an axis whose values are observer
     tables (the conventional one is the sliding-mode observer without its switching
     term), crossed with the plant's mass error."""
@@ -261,6 +253,12 @@ def test_an_axis_may_replace_a_component_and_sweep_a_model_error():
     for point, scale in enumerate([1.0, 1.2, 1.0, 1.2]):
         np.testing.assert_allclose(np.asarray(scenarios[point].plant.vessel.mass_matrix), scale * nominal, rtol=1e-15)
         np.testing.assert_array_equal(np.asarray(scenarios[point].observer.passive.mass_matrix), nominal)  # the model stays
+    # the store names a replaced component by its kind, numbered when two share one
+    store = tmp_path / "kim.zarr"
+    run_campaign(campaign, store, workers=0, say=lambda text: None)
+    ds = CampaignStore(store).open().load()
+    assert list(ds.observer.values) == ["sliding-mode 1", "sliding-mode 1", "sliding-mode 2", "sliding-mode 2"]
+    assert np.isfinite(ds.rms_tracking__position).all()
 
 
 @pytest.mark.parametrize(
@@ -274,8 +272,10 @@ def test_an_axis_may_replace_a_component_and_sweep_a_model_error():
         ({"seed_per_point": 4}, "seed_per_point (line {line}): unknown key"),
         ({"sweep": {"kind": "latin-hypercube", "axes": [{"field": "observer.wave_frequency", "range": [0.5, 1.0]}]}}, "sweep (line {line}): a latin-hypercube needs points >= 1"),
         ({"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.5, 1.1]}]}}, "sweep.axes[0].values (line {line}): value 1.1: observer.cutoff_frequency: cutoff_frequency must exceed wave_frequency"),
-        ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].field (line {line}): a composition has no cases: sweep its keys"),
-        ({"sweep": {"axes": [{"field": "case", "range": [0.0, 1.0], "steps": 2}]}}, "sweep.axes[0].field (line {line}): an axis over the case takes values (case names), alone, without scale"),
+        ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'case'"),
+        # a whole component replaced by a table that is none
+        ({"sweep": {"axes": [{"field": "observer", "values": [{"kind": "passive"}, {"kind": "nope"}]}]}},
+         "sweep.axes[0].values (line {line}): value {{'kind': 'nope'}}: observer.kind: no observer kind 'nope'"),
         ({"seeds_per_point": "8"}, 'seeds_per_point (line {line}): must be an integer (no decimal point); got "8" (a string)'),
         ({"scenario": 5}, "scenario (line {line}): must be a string (in quotes); got 5"),
         ({"sweep": {"axes": [{"field": "seed", "values": [1, 2]}]}}, "sweep (line {line}): axes[0]: a campaign runs seeds_per_point seeds from seed at every point; 'seed' cannot be swept"),

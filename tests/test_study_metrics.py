@@ -11,7 +11,7 @@ from lookout._math import ssa
 from lookout.analysis import settling_time
 from lookout.sim import keys_of_seeds, simulate_batch
 from lookout.studies import metrics as metric_module
-from lookout.studies.scenario_file import templates
+from lookout.papers import kim_2002
 
 NAMES = [
     "rms_error:position", "rms_error:heading", "max_error:heading", "settling_time:position",
@@ -23,8 +23,7 @@ AFTER = 40.0
 
 @pytest.fixture(scope="module")
 def kim():
-    template = templates()["kim-2002"]
-    scenario = template.build(template.settings(duration=100.0), "sliding-mode")
+    scenario = kim_2002.REPRODUCTION.scenario(kim_2002.Config(duration=100.0), "sliding-mode")
     keys = keys_of_seeds([11, 12, 13, 14])
     return scenario, keys, simulate_batch(scenario, keys)
 

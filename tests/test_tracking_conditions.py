@@ -46,6 +46,8 @@ def test_the_printed_design_meets_10_and_11_and_fails_13_14_and_25():
     assert sides["(11)"][1] == pytest.approx(2.36, abs=0.01)
     assert sides["(13)"][1] == pytest.approx(4150, rel=1e-3)
     assert not report.holds and "(13)" in report.text()
+    assert report.verdicts == {"controller_25": "fails", "observer_3_1": "fails"}  # no reference bounds: no Prop. 3.3
+    assert {item.source for item in report["observer_3_1"].inequalities} == {f"Wondergem et al. (2009), eq. ({n})" for n in (10, 11, 13, 14)}
 
 
 def test_with_a_perfect_initial_estimate_13_needs_alpha11_plus_sqrt_gamma1():
@@ -100,7 +102,7 @@ def test_the_printed_gains_leave_no_eps3_for_27():
     assert item.verdict == "fails" and item.right == pytest.approx(24.07, abs=0.01)  # derivations section 4: 23.9 + r_max
     assert report.quantities["combined"]["epsilon3_max"] == 0.0
     assert not {"(30)", "(32)", "(33)"} & {item.name for item in report.inequalities}
-    assert "none exists" in report.text()
+    assert report.verdicts["combined_3_3"] == "fails" and "note: (30), (32), (33) need an eps3 that satisfies (27); none exists" in report.lines()
     measured = check_wondergem_2009(cybership2(), **MEASURED, **BOUNDS)
     assert _side(measured, "(27)").right == pytest.approx(4.382, abs=1e-3)  # V0 = lmax(P) ||x_e0||^2: 4.17 + r_max
 
@@ -121,6 +123,8 @@ def test_the_search_proposes_gains_that_meet_every_condition_and_no_less():
     assert _side(tighter, "(32)").verdict == "fails"
     assert proposal.euler_step_max == pytest.approx(2.0 / max(abs(p) for p in np.roots([1.0, L1, L2])), rel=1e-12)
     assert proposal.to_dict()["found"] is True
+    outcome = proposal.outcome()
+    assert outcome.holds and outcome.summary[0].startswith("proposed: Omega = ") and outcome.quantities["proposal"]["found"] is True
 
 
 def test_the_search_finds_nothing_from_the_printed_initial_estimate():
@@ -128,6 +132,8 @@ def test_the_search_finds_nothing_from_the_printed_initial_estimate():
 
     proposal = propose_wondergem_2009(cybership2(), **PRINTED, **BOUNDS)
     assert not proposal.found and proposal.report is None and "keep growing" in proposal.reason
+    outcome = proposal.outcome()  # nothing to check: not established
+    assert outcome.conditions == () and outcome.verdict == "unverified" and "keep growing" in outcome.summary[0]
 
 
 def test_prop_3_3_bad_input():

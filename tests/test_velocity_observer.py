@@ -25,10 +25,11 @@ from lookout.sim import Scenario, simulate
 PLANT_STEP = 1e-3
 SAMPLE_PERIOD = 1e-2
 # Section 2.3: model, K, q(0), q'(0), x1_hat(0), input (cart and Furuta: chosen, see above),
-# from the reproduction's table of systems
+# from the reproduction's scenario of each system
 SYSTEMS = {
-    name: (system.model, system.gain, list(system.initial_position), list(system.initial_velocity), list(system.initial_estimate), system.controller)
+    name: (scenario.plant.model, system.gain, list(system.initial_position), list(system.initial_velocity), list(system.initial_estimate), scenario.controller)
     for name, system in calugi.SYSTEMS.items()
+    for scenario in [calugi.REPRODUCTION.scenario(calugi.Config(), name)]
 }
 DURATION = {"pendulum": 12.0, "two_link": 6.0, "cart": 6.0, "furuta": 6.0}
 

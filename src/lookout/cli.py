@@ -119,23 +119,29 @@ def _within_range(option: str, values, *, allow_zero: bool = False) -> None:
         raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
 
 
-def _finish_design(passed: bool, payload: dict, texts, as_json: bool) -> None:
-    """The end of a ``design`` command: the JSON object, or the report(s) and the verdict
-    line; exit code 1 when a condition fails."""
+#: The last line of a design command's text, per verdict of its report.
+DESIGN_VERDICTS = {"holds": "passes", "fails": "FAILS", "unverified": "NOT ESTABLISHED"}
+
+
+def _finish_design(design: str, report, inputs: dict, as_json: bool) -> None:
+    """The end of every ``design`` command: the report (a :class:`lookout.analysis.Report`)
+    as one JSON object (``design``, ``passed``, ``inputs``, then the report's layout), or
+    as text with a last verdict line; exit code 0 when the report holds, else 1."""
+    passed = report.holds
     if as_json:
-        print(json.dumps(json_safe({"passed": passed, **payload}), allow_nan=False))
+        print(json.dumps(json_safe({"design": design, "passed": passed, "inputs": inputs, **report.to_dict()}), allow_nan=False))
     else:
-        for text in texts:
-            console.print(text, highlight=False, markup=False)
-        console.print(f"verdict: {'passes' if passed else 'FAILS'} (exit code {0 if passed else 1})", highlight=False, markup=False)
+        for line in report.lines():
+            console.print(line, highlight=False, markup=False)
+        console.print(f"verdict: {DESIGN_VERDICTS[report.verdict]} (exit code {0 if passed else 1})", highlight=False, markup=False)
     if not passed:
         raise typer.Exit(code=1)
 
 
-def _config(module, options: dict):
+def _config(reproduction, options: dict):
     """A reproduction's Config from the CLI options, pydantic's error turned into one line."""
     try:
-        return module.Config(**{key: value for key, value in options.items() if value is not None})
+        return reproduction.Config(**{key: value for key, value in options.items() if value is not None})
     except ValidationError as error:
         first = error.errors()[0]
         field = ".".join(str(part) for part in first["loc"])
@@ -225,32 +231,30 @@ def reproduce(
 
     if name not in REPRODUCTIONS:
         raise InputError(f"unknown reproduction {name!r}; available: {', '.join(REPRODUCTIONS)}")
-    module = REPRODUCTIONS[name]
+    reproduction = REPRODUCTIONS[name]
     extra = {
         "model_error": None if model_error is None else _model_error(model_error), "gains": gains, "sweep": sweep, "sample_interval": sample_interval,
         "conditions": None if condition is None else tuple(part.strip() for part in condition.split(",")),
     }
     for field, value in extra.items():
-        if value is not None and field not in module.Config.model_fields:
+        if value is not None and field not in reproduction.Config.model_fields:
             owners = [other for other, candidate in REPRODUCTIONS.items() if field in candidate.Config.model_fields]
             raise InputError(f"{REPRODUCE_OPTIONS[field]}: {name} has no such setting (it belongs to {', '.join(owners)})")
-    config = _config(module, {"seed": seed, "runs": runs, "duration": duration, **extra})
+    config = _config(reproduction, {"seed": seed, "runs": runs, "duration": duration, **extra})
     if write_scenario is not None:
         _write_scenario(name, config, write_scenario)
         return
-    if hasattr(module, "cases"):  # a Reproduction (issue 23: all of them)
-        check_memory(module.batches(config), runs=config.runs)
-    else:
-        check_memory(module.batches(config) if hasattr(module, "batches") else [(s, config.runs) for s in module.scenarios(config)], runs=config.runs)
+    check_memory(reproduction.batches(config), runs=config.runs)
     folder = created_folder("--out", f"out/{name}" if out is None else out)
     with simulating() as progress:
-        summary = module.run(config, folder, progress=progress)
-    _print_summary(summary, module.tables(summary), folder)
+        summary = reproduction.run(config, folder, progress=progress)
+    _print_summary(summary, reproduction.tables(summary), folder)
 
 
 def _write_scenario(name: str, config, text: str) -> None:
+    from lookout.composition import compose
     from lookout.papers import REPRODUCTIONS
-    from lookout.studies.scenario_file import ScenarioSpec, save, templates
+    from lookout.studies.scenario_file import CompositionSpec, save
 
     if not text.strip():
         raise InputError("--write-scenario must name a file; got an empty path")
@@ -260,19 +264,11 @@ def _write_scenario(name: str, config, text: str) -> None:
     if path.suffix != ".toml":
         raise InputError(f"--write-scenario must end in .toml; got {text}")
     writable_folder("--write-scenario", path.absolute().parent, text)
-    module = REPRODUCTIONS[name]
-    if hasattr(module, "composition"):  # the reproductions written as compositions (issue 23: all of them)
-        from lookout.composition import compose
-        from lookout.studies.scenario_file import CompositionSpec
-
-        cases = getattr(module, "cases", None) or module.CASES
-        title = getattr(module, "title", None) or module.TITLE
-        save(CompositionSpec(compose(module.composition(config, cases[0]))), path,
-             header=f"lookout scenario: {title}, case {cases[0]!r} (preset \"{name}:{cases[0]}\"), as a composition.\nRun it with: lookout run {path.name} --out DIR")
-    else:
-        template = templates()[name]
-        cases = template.cases
-        save(ScenarioSpec(template, cases[0], config), path)
+    reproduction = REPRODUCTIONS[name]
+    cases = reproduction.cases
+    save(CompositionSpec(compose(reproduction.composition(config, cases[0]))), path,
+         header=f"lookout scenario: {reproduction.title}, case {cases[0]!r} (preset \"{name}:{cases[0]}\"), as a composition.\n"
+                f"Run it with: lookout run {path.name} --out DIR")
     console.print(f"scenario written to {path} (case {cases[0]!r}; cases: {', '.join(cases)}); run it with: lookout run {path} --out FOLDER", highlight=False)
 
 
@@ -286,10 +282,6 @@ def _print_summary(summary: dict, tables, out: Path) -> None:
         console.print(table)
     finite = summary["status"].count("finite")
     console.print(f"{finite}/{len(summary['status'])} runs finite; written to the folder {out}: {', '.join(summary['files'])}", highlight=False)
-
-
-def _diagonal(values) -> str:
-    return "diag(" + ", ".join(f"{v:.4g}" for v in values) + ")"
 
 
 @design_app.command("passive-observer")
@@ -324,7 +316,7 @@ def design_passive_observer(
     """
     import numpy as np
 
-    from lookout.analysis import check_spr, check_tuning_rule, transfer_functions
+    from lookout.analysis import check_passive_observer, transfer_functions
     from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper
     from lookout.observers import CUTOFF_RATIO, PassiveObserver, default_cutoff_frequency, injection_gains_from_normalized
     from lookout.papers import fossen_strand_1999
@@ -394,34 +386,9 @@ def design_passive_observer(
         bias_time_constant=time_constants,
         lyapunov_weight=lyapunov_weight,
     )
-    tuning = check_tuning_rule(observer)
-    spr = check_spr(observer)
-    verdicts = {report.verdict for report in spr}
-    spr_verdict = "fails" if "fails" in verdicts else "unverified" if "unverified" in verdicts else "holds"
-    passed = tuning.holds and spr_verdict == "holds"
     h0 = transfer_functions(observer, frequencies)["h0"][:, 0] if frequencies else np.zeros(0)
-    result = {
-        "passed": passed,
-        "wave_frequency": wave_frequency,
-        "cutoff_frequency": cutoff_frequency,
-        "cutoff_rule": cutoff_rule,
-        "K1": observer.wave_injection_matrix().tolist(),
-        "K2": observer.position_injection_matrix().tolist(),
-        "velocity_injection_gain": np.asarray(observer.velocity_injection_gain).tolist(),
-        "bias_injection_gain": np.asarray(observer.bias_injection_gain).tolist(),
-        "tuning_rule": tuning.to_dict(),
-        "spr": {
-            "holds": spr_verdict == "holds",
-            "verdict": spr_verdict,
-            "loops": [
-                {k: v for k, v in report.to_dict().items() if k != "certificate"} | {"kyp_verified": bool(report.certificate and report.certificate["verified"])}
-                for report in spr
-            ],
-        },
-        "frequency_response": [
-            {"frequency": w, "magnitude": float(abs(h)), "phase_deg": float(np.degrees(np.angle(h)))} for w, h in zip(frequencies, h0)
-        ],
-    }
+    response = [{"frequency": w, "magnitude": float(abs(h)), "phase_deg": float(np.degrees(np.angle(h)))} for w, h in zip(frequencies, h0)]
+    notes = [f"|h0(j{item['frequency']:g})| = {item['magnitude']:.6g} s, phase {item['phase_deg']:.3f} deg" for item in response]
     if bode_path is not None:
         import matplotlib.pyplot as plt
 
@@ -432,13 +399,22 @@ def design_passive_observer(
         bode_path.parent.mkdir(parents=True, exist_ok=True)
         figure.savefig(bode_path, dpi=110)
         plt.close(figure)
-        result["bode"] = str(bode_path)
-    if as_json:
-        print(json.dumps(json_safe(result), allow_nan=False))
-    else:
-        _print_design(result, observer, tuning, spr)
-    if not passed:
-        raise typer.Exit(code=1)
+        notes.append(f"Bode plot written to {bode_path}")
+    report = check_passive_observer(observer).extended(
+        summary=[
+            f"wave frequency w_o = {wave_frequency:.4g} rad/s (period {2 * math.pi / wave_frequency:.4g} s), "
+            f"cut-off w_c = {cutoff_frequency:.4g} rad/s ({cutoff_rule})"
+        ],
+        notes=notes,
+        quantities={"frequency_response": response},
+    )
+    inputs = {
+        "wave_frequency": wave_frequency, "wave_damping": wave_damping, "notch_damping": notch_damping,
+        "cutoff_frequency": cutoff_frequency, "cutoff_rule": cutoff_rule, "bias_time_constant": time_constants,
+        "velocity_injection_gain": np.asarray(kappa_si).tolist(), "bias_injection_gain": np.asarray(lambda_si).tolist(),
+        "lyapunov_weight": lyapunov_weight, "frequency": frequencies, "bode": None if bode_path is None else str(bode_path),
+    }
+    _finish_design("passive-observer", report, inputs, as_json)
 
 
 def _non_negative_numbers(option: str, text: str) -> list[float]:
@@ -475,7 +451,6 @@ def design_sliding_mode_observer(
     """
     from lookout.analysis.sliding_mode import check_kim_2002
     from lookout.models.vessel import northern_clipper
-    from lookout.observers import SlidingModeObserver
     from lookout.papers import kim_2002
 
     sets = kim_2002.gain_sets()
@@ -492,11 +467,12 @@ def design_sliding_mode_observer(
     for option, values in (("--velocity-gain", chosen["velocity_injection_gain"]), ("--bias-gain", chosen["bias_injection_gain"]), ("--switching-gain", kbar), ("--boundary-layer", eps)):
         _within_range(option, values, allow_zero=True)
     model = northern_clipper()
-    observer = SlidingModeObserver.kim_2002(model, boundary_layer=eps, switching_gain=kbar, **chosen)
-    report = check_kim_2002(observer, model, disturbance_bound=bound)
-    verdicts = report.verdicts
-    passed = verdicts["tuning_rule_48"] == "holds" and verdicts["kyp_14"] == "holds" and "fails" not in verdicts.values()
-    _finish_design(passed, {"gain_set": gains, **report.to_dict()}, [report.text()], as_json)
+    observer = kim_2002.printed_observer(model, boundary_layer=eps, switching_gain=kbar, **chosen)
+    inputs = {
+        "gain_set": gains, "velocity_injection_gain": list(chosen["velocity_injection_gain"]), "bias_injection_gain": list(chosen["bias_injection_gain"]),
+        "switching_gain": kbar, "boundary_layer": eps, "disturbance": bound,
+    }
+    _finish_design("sliding-mode-observer", check_kim_2002(observer, model, disturbance_bound=bound), inputs, as_json)
 
 
 @design_app.command("adaptive-observer")
@@ -515,7 +491,8 @@ def design_adaptive_observer(
     Exit code 0 when all three hold, 1 when one fails (the report or JSON is still
     printed), 2 for bad input.
     """
-    from lookout.analysis.adaptive_dp import calugi_2003_vessel, check_calugi_2003
+    from lookout.analysis.adaptive_dp import check_calugi_2003
+    from lookout.papers.calugi_2003 import paper_vessel
 
     k1 = _positive_numbers("--k1", observer_gains)
     k2 = _positive_numbers("--k2", velocity_gains)
@@ -534,11 +511,10 @@ def design_adaptive_observer(
         raise InputError(f"--theta-bounds must satisfy 0 < LOW <= 1 <= HIGH (ratios to m11); got {theta_bounds}")
     for option, values in (("--k1", k1), ("--k2", k2), ("--d", d)):
         _within_range(option, values)
-    vessel = calugi_2003_vessel()
+    vessel = paper_vessel()
     m11 = float(vessel.mass_matrix[0, 0])
     report = check_calugi_2003(vessel, K1=k1, K2=k2, d=d, theta_bounds=[low * m11, high * m11])
-    passed = all(verdict == "holds" for verdict in report.verdicts.values())
-    _finish_design(passed, report.to_dict(), [report.text()], as_json)
+    _finish_design("adaptive-observer", report, {"K1": k1, "K2": k2, "d": d, "theta_bounds": [low, high]}, as_json)
 
 
 @design_app.command("adaptive-arm")
@@ -562,6 +538,7 @@ def design_adaptive_arm(
     Exit code 0 when every checked condition holds, 1 when one fails (the report or JSON
     is still printed), 2 for bad input.
     """
+    from lookout.analysis import Report
     from lookout.analysis.adaptive_manipulator import check_5_28, check_theorem_4_1
 
     if arm not in ("pendulum", "two-link"):
@@ -610,12 +587,17 @@ def design_adaptive_arm(
     d = numbers("--d", damping_weights, 2 * n) if damping_weights is not None else defaults["d"]
     for option, values in (("--k", K), ("--gamma", [G]), ("--d", d or [1.0])):
         _within_range(option, values)
-    theorem = check_theorem_4_1(parameters, K, G, max_speed, margin=margin, initial_error=(x, [theta]))
-    reports = {"theorem_4_1": theorem}
+    parts = [check_theorem_4_1(parameters, K, G, max_speed, margin=margin, initial_error=(x, [theta]))]
     if d is not None:
-        reports["condition_5_28"] = check_5_28(parameters, K, d, max_speed, initial_error=x)
-    passed = all(report.holds for report in reports.values())
-    _finish_design(passed, {"arm": arm, **{k: r.to_dict() for k, r in reports.items()}}, [r.text() for r in reports.values()], as_json)
+        parts.append(check_5_28(parameters, K, d, max_speed, initial_error=x))
+    report = Report(
+        f"Calugi (2002), {arm} arm: " + " and ".join(part.conditions[0].name for part in parts),
+        [condition for part in parts for condition in part.conditions],
+        quantities={part.conditions[0].key: part.quantities for part in parts},
+        notes=[note for part in parts for note in part.notes],
+    )
+    inputs = {"arm": arm, "K": K, "Gamma": G, "max_speed": max_speed, "margin": margin, "velocity_error": x, "theta_error": theta, "d": d}
+    _finish_design("adaptive-arm", report, inputs, as_json)
 
 
 @design_app.command("tracking-gains")
@@ -661,47 +643,18 @@ def design_tracking_gains(
     for option, key in (("--l1", "L1"), ("--l2", "L2"), ("--omega", "natural_frequency"), ("--lambda", "damping_ratio")):
         _within_range(option, gains[key])
     config = wondergem_2009.Config(start_angle=start_angle, direction=direction)
+    inputs = {"start": start, "velocity_bound": velocity_bound, "start_angle": start_angle, "direction": direction, "propose": propose}
     if propose:
         if len(set(gains["damping_ratio"])) != 1:
             raise InputError(f"--lambda must be one number with --propose (Lambda = lambda I); got {damping_ratio}")
         proposal = wondergem_2009.proposed_gains(config, velocity_bound, estimate=start, damping_ratio=gains["damping_ratio"][0])
-        passed = proposal.found and proposal.report is not None and proposal.report.holds
-        texts = [proposal.text()]
-        if not proposal.found and start == "printed":
-            texts.append("hint: --start measured (eta_hat0 = eta0, v_hat0 = 0) removes V0's dependence on L1, L2")
-        _finish_design(passed, {"start": start, **proposal.to_dict()}, texts, as_json)
+        hint = ["--start measured (eta_hat0 = eta0, v_hat0 = 0) removes V0's dependence on L1, L2"] if not proposal.found and start == "printed" else []
+        report = proposal.outcome().extended(notes=hint)
+        inputs["damping_ratio"] = gains["damping_ratio"][0]
     else:
         report = wondergem_2009.gain_conditions(config, velocity_bound, estimate=start, gains=gains, epsilon3=epsilon3)
-        _finish_design(report.holds, {"start": start, "gains": gains, **report.to_dict()}, [report.text()], as_json)
-
-
-def _print_design(result: dict, observer, tuning, spr) -> None:
-    import numpy as np
-
-    say = lambda text: console.print(text, highlight=False, markup=False)  # noqa: E731
-    k = np.asarray(observer.wave_injection_gain)
-    say(f"wave frequency w_o = {result['wave_frequency']:.4g} rad/s (period {2 * math.pi / result['wave_frequency']:.4g} s), "
-        f"cut-off w_c = {result['cutoff_frequency']:.4g} rad/s ({result['cutoff_rule']})")
-    say(f"K1 = [{_diagonal(k[:3])}; {_diagonal(k[3:])}]  (45)-(46)")
-    say(f"K2 = {_diagonal(observer.position_injection_gain)} 1/s  (47)")
-    say(f"Kappa = {_diagonal(observer.velocity_injection_gain)} N/m, N/m, N m/rad")
-    say(f"Lambda = {_diagonal(observer.bias_injection_gain)} N/(m s), N/(m s), N m/(rad s)")
-    say(f"tuning rule (48), 1/T << lambda/kappa < w_o < w_c: {'holds' if tuning.holds else 'FAILS'}")
-    for item in tuning.inequalities:
-        say(f"  {item.describe()}")
-    overall = {"holds": "holds", "fails": "FAILS", "unverified": "NOT ESTABLISHED"}[result["spr"]["verdict"]]
-    say(f"SPR of h = hB h0: {overall}")
-    for report in spr:
-        margin = report.min_phase_deg_in_band + 90.0
-        say(
-            f"  {report.dof}: {report.verdict}: {report.reason}; min phase below 10 w_c {report.min_phase_deg_in_band:.2f} deg "
-            f"at {report.min_phase_frequency_in_band:.4g} rad/s ({margin:+.2f} deg from -90)"
-        )
-    for item in result["frequency_response"]:
-        say(f"  |h0(j{item['frequency']:g})| = {item['magnitude']:.6g} s, phase {item['phase_deg']:.3f} deg")
-    if "bode" in result:
-        say(f"Bode plot written to {result['bode']}")
-    say("design passes (exit code 0)" if result["passed"] else "design does not pass (exit code 1)")
+        inputs |= {"gains": gains, "epsilon3": epsilon3}
+    _finish_design("tracking-gains", report, inputs, as_json)
 
 
 from lookout.studies.cli import register as _register_studies  # noqa: E402  (after the commands above: list, reproduce, design come first)

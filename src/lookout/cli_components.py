@@ -16,6 +16,63 @@ from lookout._json import json_safe
 from lookout._validation import InputError
 
 
+def example(each):
+    """A built composition with a component of kind ``each`` in it: the first
+    reproduction case that uses the kind, else the first case in which the kind, put in
+    place of that case's component with its defaults, composes. None if there is none."""
+    from lookout import registry
+    from lookout.composition import CompositionError, compose
+
+    documents = [registry.preset(name, case) for name, case in registry.presets()]
+    for document in documents:
+        table = _find_table(document, each.role)
+        if isinstance(table, dict) and table.get("kind") == each.name:
+            return compose(document)
+    for document in documents:
+        if each.role not in registry.COMPONENT_ROLES:
+            break
+        try:
+            return compose({**document, each.role: {"kind": each.name}})
+        except (CompositionError, ValueError):
+            continue
+    return None
+
+
+def _find_table(document: dict, role: str):
+    """The first table of ``role`` in a composition: a component's, or a part's."""
+    if role in document:
+        return document[role]
+    for value in document.values():
+        if isinstance(value, dict):
+            found = _find_table(value, role)
+            if found is not None:
+                return found
+    return None
+
+
+def signals_of(role: str, component) -> dict[str, list[str]]:
+    """What a built component provides and needs, by signal name."""
+    names = lambda signals: [s.name for s in signals]  # noqa: E731
+    if role == "plant":
+        return {"provides": names(component.variable_signals), "needs": [f"input {n}" for n in component.input_layout.names]}
+    if role == "sensor":
+        return {"provides": [f"measurement {n}" for n in component.measurement_layout.names], "needs": []}
+    if role == "observer":
+        return {
+            "provides": [f"estimate {n}" for n in names(component.estimate_signals)] + [f"extra {n}" for n in names(component.extra_signals)],
+            "needs": [f"measurement {n}" for n in component.measurement_layout.names] + [f"input {n}" for n in component.input_layout.names],
+        }
+    if role == "controller":
+        return {
+            "provides": ["input"],
+            "needs": [f"estimate {n}" for n in component.estimate_needs] + [f"measurement {n}" for n in component.measurement_needs]
+            + [f"reference {n}" for n in component.reference_needs],
+        }
+    if role == "reference":
+        return {"provides": [f"reference {n}" for n in names(component.reference_signals)], "needs": []}
+    return {"provides": [], "needs": []}
+
+
 def _matching(name: str | None):
     from lookout import registry
 
@@ -34,10 +91,10 @@ def _describe(each, design) -> dict:
     from lookout import registry
 
     entry = registry.describe_kind(each, design)
-    composition = registry.example(each) if each.role in registry.COMPONENT_ROLES else None
+    composition = example(each) if each.role in registry.COMPONENT_ROLES else None
     if composition is not None:
         built = getattr(composition.scenario, each.role)
-        entry.update(registry.signals_of(each.role, built))
+        entry.update(signals_of(each.role, built))
     return entry
 
 

@@ -369,17 +369,47 @@ def _part_classes(parameter: registry.Parameter) -> tuple:
 
 
 def _signals(names, location, context: _Context, parameter):
+    """The signals named: each a plant variable's name, or a table ``{name, units,
+    long_name, frame}`` of a scalar signal of its own (a setpoint that is none of the
+    plant's variables, such as the Furuta pendulum's unwrapped ``pendulum_angle``)."""
     variables = {s.name: s for s in context.plant.variable_signals} if context.plant is not None else {}
     if names is None:
         if parameter.required:
             raise CompositionError(location, f"missing key (names of the plant's variables: {', '.join(variables)})")
         return parameter.default, None
-    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
-        raise CompositionError(location, "must be an array of the plant's variable names")
+    if not isinstance(names, (list, tuple)) or not all(isinstance(n, (str, dict)) for n in names):
+        raise CompositionError(location, "must be an array of the plant's variable names (or tables {name, units, long_name, frame} of signals of their own)")
+    signals = []
     for index, each in enumerate(names):
-        if each not in variables:
+        if isinstance(each, dict):
+            signals.append(_own_signal(each, location + (index,)))
+        elif each in variables:
+            signals.append(variables[each])
+        else:
             raise CompositionError(location + (index,), f"the plant has no variable {each!r} (its variables: {', '.join(variables)})")
-    return tuple(variables[each] for each in names), tuple(names)
+    return tuple(signals), tuple(names)
+
+
+#: The keys of a signal's own table in ``signals`` (frame optional).
+SIGNAL_KEYS = ("name", "units", "long_name", "frame")
+
+
+def _own_signal(table: dict, location: tuple):
+    """A scalar :class:`~lookout.components.Signal` from a table of :data:`SIGNAL_KEYS`."""
+    from lookout.components import Signal
+
+    for key, value in table.items():
+        if key not in SIGNAL_KEYS:
+            raise CompositionError(location + (key,), f"unknown key (a signal has {', '.join(SIGNAL_KEYS)})")
+        if not isinstance(value, str):
+            raise CompositionError(location + (key,), f"must be a string; got {value!r}")
+    for key in SIGNAL_KEYS[:3]:
+        if key not in table:
+            raise CompositionError(location, f"missing key {key} (a signal has {', '.join(SIGNAL_KEYS)})")
+    try:
+        return Signal(table["name"], table["units"], table["long_name"], table.get("frame", ""))
+    except ValueError as error:
+        raise CompositionError(location, one_line(error)) from None
 
 
 def _initial(method, table, location: tuple, kind_name: str):
@@ -419,6 +449,23 @@ class Composition:
         for path, value in changes.items():
             set_path(document, path, value)
         return compose(document)
+
+
+def simulate(composition: Composition, *, progress=None):
+    """The composition's runs (seeds ``seed .. seed + runs - 1``): one run alone, several
+    vmapped over one shared scenario or, with ``simulation.batch = "stacked"``, over a
+    copy per run. ``lookout run``, the campaigns' base and the reproductions simulate a
+    composition through this one function, so the three agree to the bit."""
+    from lookout.sim import keys_of_seeds
+    from lookout.sim import simulate as simulate_one
+    from lookout.sim import simulate_batch, stack_scenarios
+
+    scenario, seeds = composition.scenario, composition.seeds
+    if len(seeds) == 1:
+        return simulate_one(scenario, keys_of_seeds(seeds)[0], progress=progress)
+    if composition.simulation.batch == "stacked":
+        return simulate_batch(stack_scenarios([scenario] * len(seeds)), keys_of_seeds(seeds), batched_scenario=True, progress=progress)
+    return simulate_batch(scenario, keys_of_seeds(seeds), progress=progress)
 
 
 def merge(preset: dict, document: dict) -> dict:

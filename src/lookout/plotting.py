@@ -6,12 +6,22 @@ Two figures, after Fossen & Strand (1999), Figs. 6 and 9–11:
   units and frames from the Dataset), full run and a zoomed window;
 * :func:`plot_bode` -- the frequency response of the error loops h0, hB and h of
   all three degrees of freedom, with the frequencies of the tuning rule (48).
+
+And the figures of ``lookout run``, for any composition, found from the Dataset's
+names (``<name>_hat``, ``theta_<name>``, ``measured_<name>``, ``<name>_desired``,
+``<name>_commanded`` / ``<name>_applied``), drawn as :func:`plot_estimates` draws:
+
+* :func:`plot_run_estimates` -- every estimate against its truth;
+* :func:`plot_run_reference` -- the reference against the truth;
+* :func:`plot_run_input` -- the commanded and the applied input.
 """
 
 from __future__ import annotations
 
 import math
 import operator
+import textwrap
+from dataclasses import dataclass
 
 import matplotlib
 
@@ -55,6 +65,18 @@ def _component(array: xr.DataArray, label: str | None) -> xr.DataArray:
     return array.sel({extra[0]: label})
 
 
+def _check_run(ds: xr.Dataset, run) -> int:
+    """``run`` as an index of the dataset's runs."""
+    runs = ds.sizes.get("run", 0)
+    try:
+        run = operator.index(run)
+    except TypeError:
+        raise ValueError(f"run must be an integer index with 0 <= run < {runs}; got {run!r}") from None
+    if not 0 <= run < runs:
+        raise ValueError(f"run must satisfy 0 <= run < {runs} (the dataset's number of runs); got {run}")
+    return run
+
+
 def _check_estimate_arguments(ds: xr.Dataset, panels, run, zoom) -> tuple[list, int, float]:
     try:
         panels = [(variable, label) for variable, label in panels]
@@ -66,13 +88,7 @@ def _check_estimate_arguments(ds: xr.Dataset, panels, run, zoom) -> tuple[list, 
         if variable not in ds or f"{variable}_hat" not in ds:
             raise ValueError(f"panels: the dataset has no variable {variable!r} with an estimate {variable + '_hat'!r}")
         _component(ds[variable], label)
-    runs = ds.sizes.get("run", 0)
-    try:
-        run = operator.index(run)
-    except TypeError:
-        raise ValueError(f"run must be an integer index with 0 <= run < {runs}; got {run!r}") from None
-    if not 0 <= run < runs:
-        raise ValueError(f"run must satisfy 0 <= run < {runs} (the dataset's number of runs); got {run}")
+    run = _check_run(ds, run)
     try:
         zoom = float(zoom)
     except (TypeError, ValueError):
@@ -202,6 +218,325 @@ def _check_targets(ds: xr.Dataset, panels, targets) -> dict[str, str]:
     return targets
 
 
+@dataclass
+class _Panel:
+    """One panel's curves in plot units (angles unwrapped, on the truth's branch).
+
+    ``truth`` is drawn thin and black on top; ``compared`` (an estimate, a reference,
+    a commanded input) wide and coloured under it; either may be missing, not both.
+    """
+
+    quantity: str
+    frame: str
+    truth: np.ndarray | None
+    compared: np.ndarray | None
+    target: np.ndarray | None = None
+    measured: np.ndarray | None = None
+    #: where ``measured`` holds a new sensor sample (told from the stored held values)
+    sampled: np.ndarray | None = None
+    #: a line written in the full-run panel (e.g. an estimate with no truth recorded)
+    note: str | None = None
+    #: samples shaded in every column (e.g. where the actuator limited the input)
+    marked: np.ndarray | None = None
+
+
+def _run_values(array: xr.DataArray | None, label: str | None, run: int) -> np.ndarray | None:
+    """The series of one component of ``array`` in one run, as floats (None stays None)."""
+    if array is None:
+        return None
+    return np.asarray(_component(array, label).isel(run=run).values, dtype=float)
+
+
+def _unwrap(angle: np.ndarray) -> np.ndarray:
+    """``np.unwrap`` over the finite samples (a NaN would end the unwrapping there)."""
+    out = np.array(angle, dtype=float)
+    finite = np.isfinite(out)
+    out[finite] = np.unwrap(out[finite])
+    return out
+
+
+def _quantity(variable: str, label) -> str:
+    """A panel's quantity: the variable's name in words and the component: "position north"."""
+    return f"{variable.replace('_', ' ')}{' ' + str(label) if label is not None else ''}"
+
+
+def _display_unit(units: str, series) -> tuple[float, str]:
+    """(factor, shown unit) of a panel: :data:`_DISPLAY_UNITS`, except that forces and
+    moments below 1 kN (an arm's joint torques) stay in N and N m."""
+    scale, shown = _DISPLAY_UNITS.get(units, (1.0, units))
+    if shown.startswith("kN"):
+        peaks = [np.nanmax(np.abs(values), initial=0.0) for values in series if values is not None and np.isfinite(values).any()]
+        if peaks and max(peaks) < 1e3:
+            return 1.0, units
+    return scale, shown
+
+
+def _make_panel(attrs, quantity: str, truth, compared, *, target=None, measured=None, note=None, marked=None) -> _Panel:
+    """A :class:`_Panel` of raw series in the dataset's units: angles unwrapped and put
+    on one branch, every series scaled to the displayed unit."""
+    sampled = None
+    if measured is not None:
+        # one dot per sensor sample: the held value changes at a new sample (told before
+        # the unwrapping, which would make every held value differ in its last bits)
+        sampled = np.r_[True, measured[1:] != measured[:-1]] & np.isfinite(measured)
+    if attrs.get("angle"):
+        # unwrap the truth (the compared series where there is none), then put the others on its branch
+        base = _unwrap(truth if truth is not None else compared)
+
+        def on_branch(values):
+            with np.errstate(invalid="ignore"):  # inf - inf where a run diverged: NaN, not drawn
+                return None if values is None else base + _wrap_to_pi(values - base)
+
+        if truth is not None:
+            truth, compared = base, on_branch(compared)
+        else:
+            compared = base
+        target, measured = on_branch(target), on_branch(measured)
+    scale, units = _display_unit(attrs.get("units", ""), (truth, compared, target))
+
+    def scaled(values):
+        return None if values is None else values * scale
+
+    return _Panel(f"{quantity} ({units})", attrs.get("frame", ""), scaled(truth), scaled(compared), scaled(target), scaled(measured), sampled, note, marked)
+
+
+def _panel_layout(groups: list[int], columns: int) -> list[list[int]]:
+    """The panels (indices 0..sum(groups)-1) of each column of a figure of ``columns``
+    columns, filled top to bottom: as few rows as the columns allow, and a group (the
+    components of one variable) kept in one column where it fits in one."""
+    total = sum(groups)
+    columns = max(1, min(columns, total))
+    rows = math.ceil(total / columns)
+    while True:
+        layout: list[list[int]] = []
+        index = 0
+        for size in groups:
+            if not layout or (len(layout[-1]) + size > rows and size <= rows and layout[-1]):
+                layout.append([])
+            for _ in range(size):
+                if len(layout[-1]) == rows:
+                    layout.append([])
+                layout[-1].append(index)
+                index += 1
+        if len(layout) <= columns:
+            return layout
+        rows += 1
+
+
+#: Relative width of the gap between two columns of panels (each a full run and its zooms).
+_COLUMN_GAP = 0.12
+
+
+def _panel_figure(layout: list[list[int]], windows, heading: str):
+    """A figure of panels laid out by ``layout`` (panel indices per column of panels),
+    each a full-run axis and one axis per zoom window; the x axes of a column are
+    shared. Returns the figure, ``(full, zoomed axes)`` per panel index and the top
+    full-run axis of each column."""
+    rows = max(len(column) for column in layout)
+    per_panel = 1 + len(windows)
+    ratios: list[float] = []
+    for number in range(len(layout)):
+        ratios += ([_COLUMN_GAP] if number else []) + [1.6] + [1.0] * len(windows)
+    # a title of more than two lines gets its own room, so that the panels keep theirs
+    title_room = 0.25 * max(0, heading.count("\n") - 1)
+    width = 11 + 3.6 * (len(windows) - 1) if len(layout) == 1 else len(layout) * (9.5 + 3.2 * (len(windows) - 1)) + 0.5
+    fig, axes = plt.subplots(
+        rows,
+        len(ratios),
+        figsize=(width, 2.25 * rows + (1.2 if rows < 4 else 0.0) + title_room),
+        layout="constrained",
+        sharex="col",
+        squeeze=False,
+        gridspec_kw={"width_ratios": tuple(ratios)},
+    )
+    cells: dict[int, tuple] = {}
+    tops = []
+    for number, column in enumerate(layout):
+        first = number * (per_panel + 1)
+        if number:
+            for ax in axes[:, first - 1]:
+                ax.set_axis_off()
+        for row in range(rows):
+            row_axes = axes[row, first : first + per_panel]
+            if row < len(column):
+                cells[column[row]] = (row_axes[0], row_axes[1:])
+            else:
+                for ax in row_axes:
+                    ax.set_visible(False)
+        for ax in axes[len(column) - 1, first : first + per_panel]:
+            ax.xaxis.set_tick_params(which="both", labelbottom=True)
+            ax.set_xlabel("time (s)")
+        for ax, (_, _, column_title) in zip(axes[0, first : first + per_panel], [(None, None, "full run")] + list(windows)):
+            ax.set_title(column_title, fontsize=10)
+        tops.append(axes[0, first])
+    return fig, [cells[index] for index in range(len(cells))], tops
+
+
+def _window_parts(time: np.ndarray, windows) -> list[slice]:
+    """The samples of each zoom window, one sample of margin either side so that the
+    zoomed curves reach the frame."""
+
+    def part_of(start, end):
+        first = max(int(np.searchsorted(time, start, side="left")) - 1, 0)
+        last = min(int(np.searchsorted(time, end, side="right")) + 1, time.size)
+        return slice(first, last)
+
+    return [part_of(start, end) for start, end, _ in windows]
+
+
+#: Where an input was limited (applied differs from commanded).
+_MARKED_STYLE = {"color": "tab:red", "alpha": 0.15, "lw": 0, "zorder": 0.5}
+
+
+#: Characters of a y label's line (the quantity and unit are wrapped at this width).
+_LABEL_WIDTH = 28
+#: A start that spans more than this many times the range of the rest of the run is
+#: a spike (a first sample far off) that :func:`_start_spike` keeps off the scale.
+SPIKE_RATIO = 5.0
+#: The part of the run that such a start may last.
+SPIKE_FRACTION = 0.02
+
+
+def _start_spike(time: np.ndarray, series) -> float | None:
+    """Seconds at the start of the run to leave off the full-run scale, or None: the
+    first :data:`SPIKE_FRACTION` of the run, when the curves span more than
+    :data:`SPIKE_RATIO` times their range over the rest of it."""
+    if time.size < 20 or not series:
+        return None
+    seconds = SPIKE_FRACTION * (time[-1] - time[0])
+    rest = time >= time[0] + seconds
+    values = np.concatenate(series)
+    later = np.concatenate([values[rest] for values in series])
+    values, later = values[np.isfinite(values)], later[np.isfinite(later)]
+    if not later.size or rest.sum() < 0.5 * time.size:
+        return None
+    span, later_span = float(values.max() - values.min()), float(later.max() - later.min())
+    return seconds if later_span > 0 and span > SPIKE_RATIO * later_span else None
+
+
+def _draw_panel(full, zoomed, panel: _Panel, time: np.ndarray, windows, parts, *, compared_style, compared_label="estimate",
+                truth_label="true", transient=None, clip_start=False) -> set[str]:
+    """Draw one panel into its full-run axis and zoom axes; return what it holds
+    (``dense``, ``measured``, ``target``, ``marked``, ``truth``, ``compared``) for the legend.
+
+    ``transient`` seconds at the start are left off the full-run scale; with
+    ``clip_start``, a start spike found by :func:`_start_spike` is, and the note gives
+    its extreme."""
+    drawn = {name for name in ("truth", "compared", "target") if getattr(panel, name) is not None}
+    truth, compared, target = panel.truth, panel.compared, panel.target
+    for start, end, _ in windows:
+        full.axvspan(start, end, **_WINDOW_STYLE, label="zoom window")
+    if panel.marked is not None and panel.marked.any():
+        drawn.add("marked")
+        for ax, part in [(full, slice(None))] + list(zip(zoomed, parts)):
+            ax.fill_between(time[part], 0, 1, where=panel.marked[part], transform=ax.get_xaxis_transform(), **_MARKED_STYLE, label="marked")
+    spike = _start_spike(time, [series for series in (truth, compared) if series is not None]) if clip_start and transient is None else None
+    # a spike at the start is no fast motion: the rest of the run tells whether the signal is dense
+    after = time >= time[0] + (spike or 0.0)
+    dense = is_dense(time[after], (truth if truth is not None else compared)[after])
+    if dense:
+        drawn.add("dense")
+        if truth is not None:
+            centres, low, high = _envelope(time, truth)
+            full.fill_between(centres, low, high, **_TRUTH_BAND_STYLE, label=f"{truth_label} (range)")
+        if compared is not None:
+            full.plot(*_outline(*_envelope(time, compared)), **compared_style, label=compared_label)
+        if target is not None:
+            full.plot(*_outline(*_envelope(time, target)), **_TARGET_STYLE, label="target")
+        if truth is not None:
+            full.plot(*_outline(centres, low, high), **_TRUTH_STYLE, label=truth_label)
+    else:
+        if compared is not None:
+            full.plot(time, compared, **compared_style, label=compared_label)
+        if target is not None:
+            full.plot(time, target, **_TARGET_STYLE, label="target")
+        if truth is not None:
+            full.plot(time, truth, **_TRUTH_STYLE, label=truth_label)
+    for ax, part in zip(zoomed, parts):
+        if compared is not None:
+            ax.plot(time[part], compared[part], **compared_style, label=compared_label)
+        if target is not None:
+            ax.plot(time[part], target[part], **_TARGET_STYLE, label="target")
+        if truth is not None:
+            ax.plot(time[part], truth[part], **_TRUTH_STYLE, label=truth_label)
+    for ax in (full, *zoomed):
+        ax.grid(alpha=0.3)
+        ax.ticklabel_format(axis="y", useOffset=False)  # "+4.247e6" above a panel reads as a value; a factor 1e6 does not
+    if panel.measured is not None:
+        drawn.add("measured")
+        for ax, part in zip(zoomed, parts):
+            new = panel.sampled[part]
+            ax.plot(time[part][new], panel.measured[part][new], **_MEASURED_STYLE, label="measured")
+    notes = [] if panel.note is None else [panel.note]
+    message = None
+    if transient is not None:
+        message = f"clipped: the first {float(transient):g} s leave this scale (see the zoom)"
+    else:
+        transient = spike
+    if transient is not None:
+        kept = time >= time[0] + float(transient)
+        present = [series for series in (truth, compared, target) if series is not None]
+        values = np.concatenate([series[kept] for series in present])
+        values = values[np.isfinite(values)]
+        if values.size:
+            low, high = float(values.min()), float(values.max())
+            pad = 0.08 * (high - low) if high > low else max(abs(high), 1.0) * 0.05
+            everything = np.concatenate([series for series in (truth, compared) if series is not None])
+            everything = everything[np.isfinite(everything)]
+            if everything.size and (everything.min() < low - pad or everything.max() > high + pad):
+                if message is None:  # a spike found here: said in the panel's note, placed clear of the curves
+                    extreme = everything.min() if low - everything.min() > everything.max() - high else everything.max()
+                    notes.append(_minus(f"clipped: the first {float(transient):.2g} s reach {extreme:.3g} {panel.quantity.rsplit('(', 1)[-1].rstrip(')')}"))
+                else:
+                    full.text(0.01, 0.03, message, transform=full.transAxes, fontsize=7.5, va="bottom", ha="left", gid="transient_note",
+                              bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.8})
+            full.set_ylim(low - pad, high + pad)
+    if notes:
+        # a legend of no entries: matplotlib puts it where it covers the fewest curves
+        note = full.legend(handles=[], title="\n".join(notes), loc="best", title_fontsize=7.5, framealpha=0.85, borderpad=0.3)
+        note.set_gid("panel_note")
+    quantity = textwrap.fill(panel.quantity, _LABEL_WIDTH, break_long_words=False)  # a long label stays beside its panel
+    full.set_ylabel(f"{panel.frame}\n{quantity}" if panel.frame else quantity)
+    for ax in zoomed:
+        ax.set_ylabel(quantity)
+    full.set_xlim(time[0], time[-1])
+    for ax, (start, end, _) in zip(zoomed, windows):
+        ax.set_xlim(start, end)
+    return drawn
+
+
+def _without_zorder(style: dict) -> dict:
+    return {k: v for k, v in style.items() if k != "zorder"}
+
+
+def _panel_legend(fig, drawn: set[str], *, compared_style, compared_label="estimate", truth_label="true", target_labels=(),
+                  marked_label="marked") -> None:
+    """One legend below the panels for what :func:`_draw_panel` drew."""
+    handles = []
+    if "truth" in drawn:
+        handles.append(Line2D([], [], **_without_zorder(_TRUTH_STYLE), label=truth_label))
+    if "compared" in drawn:
+        handles.append(Line2D([], [], **_without_zorder(compared_style), label=compared_label))
+    if "target" in drawn:
+        handles.append(Line2D([], [], **_without_zorder(_TARGET_STYLE), label="; ".join(target_labels)))
+    if "dense" in drawn and "truth" in drawn:
+        handles.append(Patch(**_without_zorder(_TRUTH_BAND_STYLE), label=f"{truth_label} (range per bin)"))
+    if "measured" in drawn:
+        handles.append(Line2D([], [], **{k: v for k, v in _MEASURED_STYLE.items() if k not in ("zorder", "alpha")}, label="measured (zoom)"))
+    if "marked" in drawn:
+        handles.append(Patch(**_without_zorder(_MARKED_STYLE), label=marked_label))
+    handles.append(Patch(facecolor="C0", alpha=0.12, label="zoom window"))
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 6), fontsize=9, frameon=False)
+
+
+def _dense_title(tops, drawn: set[str], time: np.ndarray) -> None:
+    """Say in the full-run columns' titles that dense signals are drawn as ranges."""
+    if "dense" in drawn:
+        bin_width = (time[-1] - time[0]) / ENVELOPE_BINS
+        for ax in tops:
+            ax.set_title(f"full run (dense signals: range per {bin_width:.3g} s)", fontsize=10)
+
+
 def plot_estimates(
     ds: xr.Dataset,
     panels,
@@ -274,130 +609,30 @@ def plot_estimates(
     if transient is not None and not (math.isfinite(float(transient)) and 0 <= float(transient) < time[-1] - time[0]):
         raise ValueError(f"transient must be a number of seconds with 0 <= transient < {time[-1] - time[0]:g} (the run); got {transient!r}")
 
-    def part_of(start, end):
-        # one sample of margin either side so the zoomed curves reach the frame
-        first = max(int(np.searchsorted(time, start, side="left")) - 1, 0)
-        last = min(int(np.searchsorted(time, end, side="right")) + 1, time.size)
-        return slice(first, last)
-
-    parts = [part_of(start, end) for start, end, _ in windows]
-    columns = 1 + len(windows)
     heading = title if title is not None else "true and estimated"
     caption = _run_caption(ds, run)
     heading = heading if caption is None else f"{heading}\n{caption}"
-    # a title of more than two lines gets its own room, so that the panels keep theirs
-    title_room = 0.25 * max(0, heading.count("\n") - 1)
-    fig, axes = plt.subplots(
-        len(panels),
-        columns,
-        figsize=(11 + 3.6 * (len(windows) - 1), 2.25 * len(panels) + (1.2 if len(panels) < 4 else 0.0) + title_room),
-        layout="constrained",
-        sharex="col",
-        squeeze=False,
-        gridspec_kw={"width_ratios": (1.6,) + (1.0,) * len(windows)},
-    )
-    any_measured = any_dense = any_target = False
+    fig, cells, tops = _panel_figure([list(range(len(panels)))], windows, heading)
+    parts = _window_parts(time, windows)
+    drawn: set[str] = set()
     target_labels = []
-    for row, (variable, label) in enumerate(panels):
-        attrs = ds[variable].attrs
-        truth = np.asarray(_component(ds[variable], label).isel(run=run).values, dtype=float)
-        estimate = np.asarray(_component(ds[f"{variable}_hat"], label).isel(run=run).values, dtype=float)
-        target = np.asarray(_component(ds[targets[variable]], label).isel(run=run).values, dtype=float) if variable in targets else None
-        measured_name = f"measured_{variable}"
-        measured = np.asarray(_component(ds[measured_name], label).isel(run=run).values, dtype=float) if measured_name in ds else None
-        if attrs.get("angle"):
-            # unwrap the truth, then put the estimate and measurement on the same branch
-            truth = np.unwrap(truth)
-            estimate = truth + _wrap_to_pi(estimate - truth)
-            if measured is not None:
-                measured = truth + _wrap_to_pi(measured - truth)
-            if target is not None:
-                target = truth + _wrap_to_pi(target - truth)
-        scale, units = _DISPLAY_UNITS.get(attrs.get("units", ""), (1.0, attrs.get("units", "")))
-        truth, estimate = truth * scale, estimate * scale
-        if target is not None:
-            target = target * scale
-            any_target = True
+    for (full, zoomed), (variable, label) in zip(cells, panels):
+        measured = f"measured_{variable}"
+        panel = _make_panel(
+            ds[variable].attrs,
+            _quantity(variable, label),
+            _run_values(ds[variable], label, run),
+            _run_values(ds[f"{variable}_hat"], label, run),
+            target=_run_values(ds[targets[variable]], label, run) if variable in targets else None,
+            measured=_run_values(ds[measured], label, run) if measured in ds else None,
+        )
+        if variable in targets:
             name = ds[targets[variable]].attrs.get("long_name", targets[variable])
             if name not in target_labels:
                 target_labels.append(name)
-
-        full, zoomed = axes[row, 0], axes[row, 1:]
-        for start, end, _ in windows:
-            full.axvspan(start, end, **_WINDOW_STYLE, label="zoom window")
-        dense = is_dense(time, truth)
-        any_dense |= dense
-        if dense:
-            centres, low, high = _envelope(time, truth)
-            full.fill_between(centres, low, high, **_TRUTH_BAND_STYLE, label="true (range)")
-            full.plot(*_outline(*_envelope(time, estimate)), **_ESTIMATE_STYLE, label="estimate")
-            if target is not None:
-                full.plot(*_outline(*_envelope(time, target)), **_TARGET_STYLE, label="target")
-            full.plot(*_outline(centres, low, high), **_TRUTH_STYLE, label="true")
-        else:
-            full.plot(time, estimate, **_ESTIMATE_STYLE, label="estimate")
-            if target is not None:
-                full.plot(time, target, **_TARGET_STYLE, label="target")
-            full.plot(time, truth, **_TRUTH_STYLE, label="true")
-        for ax, part in zip(zoomed, parts):
-            ax.plot(time[part], estimate[part], **_ESTIMATE_STYLE, label="estimate")
-            if target is not None:
-                ax.plot(time[part], target[part], **_TARGET_STYLE, label="target")
-            ax.plot(time[part], truth[part], **_TRUTH_STYLE, label="true")
-        for ax in axes[row]:
-            ax.grid(alpha=0.3)
-        if measured is not None:
-            any_measured = True
-            for ax, part in zip(zoomed, parts):
-                # one dot per sensor sample: the held value changes at a new sample
-                values = measured[part]
-                new = np.r_[True, values[1:] != values[:-1]] & np.isfinite(values)
-                ax.plot(time[part][new], values[new] * scale, **_MEASURED_STYLE, label="measured")
-        if transient is not None:
-            kept = time >= time[0] + float(transient)
-            shown = [truth[kept], estimate[kept]] + ([target[kept]] if target is not None else [])
-            values = np.concatenate(shown)
-            values = values[np.isfinite(values)]
-            if values.size:
-                low, high = float(values.min()), float(values.max())
-                pad = 0.08 * (high - low) if high > low else max(abs(high), 1.0) * 0.05
-                everything = np.concatenate([truth, estimate])
-                everything = everything[np.isfinite(everything)]
-                if everything.size and (everything.min() < low - pad or everything.max() > high + pad):
-                    full.text(0.01, 0.03, f"clipped: the first {float(transient):g} s leave this scale (see the zoom)", transform=full.transAxes,
-                              fontsize=7.5, va="bottom", ha="left", gid="transient_note",
-                              bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.8})
-                full.set_ylim(low - pad, high + pad)
-        quantity = f"{variable.replace('_', ' ')}{' ' + label if label is not None else ''} ({units})"
-        frame = attrs.get("frame", "")
-        full.set_ylabel(f"{frame}\n{quantity}" if frame else quantity)
-        for ax in zoomed:
-            ax.set_ylabel(quantity)
-        full.set_xlim(time[0], time[-1])
-        for ax, (start, end, _) in zip(zoomed, windows):
-            ax.set_xlim(start, end)
-    for ax in axes[-1]:
-        ax.set_xlabel("time (s)")
-    bin_width = (time[-1] - time[0]) / ENVELOPE_BINS
-    axes[0, 0].set_title("full run" + (f" (dense signals: range per {bin_width:.3g} s)" if any_dense else ""), fontsize=10)
-    for ax, (_, _, column_title) in zip(axes[0, 1:], windows):
-        ax.set_title(column_title, fontsize=10)
-
-    def style(values):
-        return {k: v for k, v in values.items() if k != "zorder"}
-
-    handles = [Line2D([], [], **style(_TRUTH_STYLE), label="true"), Line2D([], [], **style(_ESTIMATE_STYLE), label="estimate")]
-    if any_target:
-        handles.append(Line2D([], [], **style(_TARGET_STYLE), label="; ".join(target_labels)))
-    if any_dense:
-        handles.append(Patch(**style(_TRUTH_BAND_STYLE), label="true (range per bin)"))
-    if any_measured:
-        handles.append(
-            Line2D([], [], **{k: v for k, v in _MEASURED_STYLE.items() if k not in ("zorder", "alpha")}, label="measured (zoom)")
-        )
-    handles.append(Patch(facecolor="C0", alpha=0.12, label="zoom window"))
-    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 6), fontsize=9, frameon=False)
-
+        drawn |= _draw_panel(full, zoomed, panel, time, windows, parts, compared_style=_ESTIMATE_STYLE, transient=transient)
+    _dense_title(tops, drawn, time)
+    _panel_legend(fig, drawn, compared_style=_ESTIMATE_STYLE, target_labels=target_labels)
     fig.suptitle(heading)
     return fig
 
@@ -436,7 +671,7 @@ def plot_trajectories(ds: xr.Dataset, panels, *, run: int = 0, title: str | None
         scale, units = _DISPLAY_UNITS.get(attrs.get("units", ""), (1.0, attrs.get("units", "")))
         ax.plot(time, values * scale, color=_TRUTH_STYLE["color"], lw=1.2)
         frame = attrs.get("frame", "")
-        quantity = f"{variable.replace('_', ' ')}{' ' + label if label is not None else ''} ({units})"
+        quantity = f"{_quantity(variable, label)} ({units})"
         ax.set_ylabel(f"{frame}\n{quantity}" if frame else quantity)
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("time (s)")
@@ -445,6 +680,258 @@ def plot_trajectories(ds: xr.Dataset, panels, *, run: int = 0, title: str | None
     heading = title if title is not None else "trajectories"
     fig.suptitle(heading if caption is None else f"{heading}\n{caption}")
     return fig
+
+
+# --------------------------------------------------------------------------- lookout run
+
+#: Rows of panels in one column of a figure of :func:`plot_run_estimates` (and the
+#: others of ``lookout run``) before another column is opened; at most this many columns.
+RUN_FIGURE_ROWS = 6
+RUN_FIGURE_COLUMNS = 3
+#: The reference (desired) and the commanded input: wide and blue, under the thin black truth.
+_DESIRED_STYLE = {"color": "C0", "lw": 1.4, "zorder": 2}
+
+
+def _series_variable(ds: xr.Dataset, name: str) -> bool:
+    """Whether ``ds[name]`` is a numeric series per run: dims (run, time[, one label dim])."""
+    array = ds[name]
+    return array.dims[:2] == ("run", "time") and array.ndim <= 3 and np.issubdtype(array.dtype, np.number)
+
+
+def _labels(array: xr.DataArray) -> list:
+    """The components of a series: its labels, or [None] for a scalar."""
+    return array[array.dims[2]].values.tolist() if array.ndim == 3 else [None]
+
+
+def _matching(ds: xr.Dataset, name: str, like: str) -> str | None:
+    """``name`` if the dataset has it as a series with the dims of ``like``."""
+    return name if name in ds.data_vars and _series_variable(ds, name) and ds[name].dims == ds[like].dims else None
+
+
+def run_estimates(ds: xr.Dataset) -> list[tuple[str, str | None]]:
+    """``(estimate, truth or None)`` of every estimated variable of a results Dataset.
+
+    An estimate is ``<name>_hat`` (the estimate of the plant variable ``<name>``, or
+    a parameter estimate) or ``theta_<name>`` (a parameter estimate); its truth is
+    ``<name>`` with the same dims, where the dataset records one.
+    """
+    found = []
+    for name in ds.data_vars:
+        if (name.endswith("_hat") or name.startswith("theta_")) and _series_variable(ds, name):
+            truth = _matching(ds, name[: -len("_hat")], name) if name.endswith("_hat") else None
+            found.append((name, truth))
+    return found
+
+
+def run_references(ds: xr.Dataset) -> list[tuple[str, str | None, object]]:
+    """``(reference, truth or None, truth's component)`` of every ``<name>_desired``.
+
+    The truth is ``<name>`` with the same dims, or else a component of a vector of
+    the same unit named after it: ``pendulum_angle_desired`` is followed by the
+    ``pendulum`` component of ``joint_angle`` (its component is then given, for a
+    scalar reference; otherwise it is None).
+    """
+    found = []
+    for name in ds.data_vars:
+        if not (name.endswith("_desired") and _series_variable(ds, name)):
+            continue
+        base = name[: -len("_desired")]
+        truth, component = _matching(ds, base, name), None
+        if truth is None and ds[name].ndim == 2:
+            units = ds[name].attrs.get("units")
+            for other in ds.data_vars:
+                if _series_variable(ds, other) and ds[other].ndim == 3 and ds[other].attrs.get("units") == units:
+                    suffix = other.rsplit("_", 1)[-1]
+                    hits = [label for label in _labels(ds[other]) if f"{label}_{suffix}" == base]
+                    if hits:
+                        truth, component = other, hits[0]
+                        break
+        found.append((name, truth, component))
+    return found
+
+
+def run_inputs(ds: xr.Dataset) -> list[tuple[str, str]]:
+    """``(commanded, applied)`` of every input of a results Dataset that is not zero
+    throughout (a plant run unforced has nothing to show)."""
+    found = []
+    for name in ds.data_vars:
+        if name.endswith("_commanded") and _series_variable(ds, name):
+            applied = _matching(ds, name[: -len("_commanded")] + "_applied", name)
+            if applied is not None:
+                values = np.concatenate([np.asarray(ds[name].values, dtype=float).ravel(), np.asarray(ds[applied].values, dtype=float).ravel()])
+                if np.any(np.nan_to_num(values) != 0.0):
+                    found.append((name, applied))
+    return found
+
+
+def _run_figure(ds: xr.Dataset, groups: list[list[_Panel]], run: int, heading: str, *, zoom: float, compared_style, compared_label,
+                truth_label, marked_label="marked", columns: int | None = None):
+    """A figure of :func:`lookout run`: the panels of each group (a variable's
+    components) in columns of up to :data:`RUN_FIGURE_ROWS` rows, each a full run and
+    a zoom on its end, and the run it shows in the title."""
+    time = np.asarray(ds["time"].values, dtype=float)
+    windows = _windows(None, time, zoom)
+    # a run that diverged: the zoom shows the end of its finite part instead of an empty window
+    finite = np.zeros(time.size, dtype=bool)
+    for panel in (panel for group in groups for panel in group):
+        for series in (panel.truth, panel.compared):
+            if series is not None:
+                finite |= np.isfinite(series)
+    if finite.any() and not finite[-1] and np.flatnonzero(finite)[-1] > 0:
+        start, end = zoom_window(time[: np.flatnonzero(finite)[-1] + 1], zoom)
+        windows = [(start, end, f"zoom: last finite {end - start:.3g} s (shaded)")]
+    caption = _run_caption(ds, run)
+    if ds.sizes["run"] > 1:
+        caption += f"; the figure shows this run only, of the {ds.sizes['run']} in the dataset"
+    heading = heading if caption is None else f"{heading}\n{caption}"
+    sizes = [len(group) for group in groups]
+    if columns is None:
+        columns = min(RUN_FIGURE_COLUMNS, math.ceil(sum(sizes) / RUN_FIGURE_ROWS))
+    fig, cells, tops = _panel_figure(_panel_layout(sizes, columns), windows, heading)
+    parts = _window_parts(time, windows)
+    drawn: set[str] = set()
+    for (full, zoomed), panel in zip(cells, [panel for group in groups for panel in group]):
+        drawn |= _draw_panel(full, zoomed, panel, time, windows, parts, compared_style=compared_style, compared_label=compared_label,
+                             truth_label=truth_label, clip_start=True)
+    _dense_title(tops, drawn, time)
+    _panel_legend(fig, drawn, compared_style=compared_style, compared_label=compared_label, truth_label=truth_label, marked_label=marked_label)
+    fig.suptitle(heading)
+    return fig
+
+
+def _compared_groups(ds: xr.Dataset, run: int, rows) -> list[list[_Panel]]:
+    """The panels of each row ``(compared, truth, truth's component, shown name, note,
+    measured)`` (variables or None): one per component of ``compared``, whose truth is
+    that component of ``truth`` (or ``truth``'s given component, for a scalar)."""
+    return [
+        [
+            _make_panel(ds[truth if truth is not None else compared].attrs, _quantity(name, label),
+                        _run_values(ds[truth], component if component is not None else label, run) if truth is not None else None,
+                        _run_values(ds[compared], label, run),
+                        measured=_run_values(ds[measured], label, run) if measured is not None else None, note=note)
+            for label in _labels(ds[compared])
+        ]
+        for compared, truth, component, name, note, measured in rows
+    ]
+
+
+def _heading(title: str | None, what: str) -> str:
+    return what if title is None else f"{textwrap.fill(title, 110)}\n{what}"
+
+
+def plot_run_estimates(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+    """Every estimated variable of a run against its truth (``estimates.png`` of ``lookout run``).
+
+    One panel per component (north, east, heading; surge, sway, yaw rate; each joint
+    by name) of every estimate of :func:`run_estimates`, drawn as
+    :func:`plot_estimates` draws them: the whole run and a zoom on its end, the
+    estimate in orange under the thin black truth, the measurement of the variable
+    (``measured_<name>``) as dots in the zoom. An estimate without a truth in the
+    dataset (a parameter estimate, a bias estimate of a plant without a bias) is
+    drawn alone, and its panel says so. Many panels are laid out in columns of
+    :data:`RUN_FIGURE_ROWS`, the components of a variable kept together.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Results of ``lookout run`` (:meth:`lookout.Trajectory.to_xarray`).
+    run : int, default 0
+        The run shown, named with its seed in the title when there are several.
+    zoom : float, default 200.0
+        Seconds of the zoom at the end of the run (its last fifth when shorter than
+        ``5 * zoom``), as in :func:`plot_estimates`.
+    title : str, optional
+        A first title line (the scenario).
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        None when the dataset holds no estimate.
+    """
+    run = _check_run(ds, run)
+    rows = []
+    for estimate, truth in run_estimates(ds):
+        base = truth if truth is not None else estimate[: -len("_hat")] if estimate.endswith("_hat") else estimate
+        name = base
+        long_name = str(ds[estimate].attrs.get("long_name", ""))
+        if truth is None and long_name.startswith("estimated "):
+            name = long_name[len("estimated "):]  # "parameter masses[1]" rather than "masses 1"
+        note = None if truth is not None else "estimate only: no true value recorded"
+        rows.append((estimate, truth, None, name, note, _matching(ds, f"measured_{base}", estimate)))
+    groups = _compared_groups(ds, run, rows)
+    if not groups:
+        return None
+    return _run_figure(ds, groups, run, _heading(title, "true and estimated: every estimated variable"), zoom=zoom,
+                       compared_style=_ESTIMATE_STYLE, compared_label="estimate", truth_label="true")
+
+
+def plot_run_reference(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+    """The reference against the truth (``reference.png`` of ``lookout run``).
+
+    One panel per component of every ``<name>_desired`` (:func:`run_references`):
+    the desired value in blue under the thin black true one, the whole run and a zoom
+    on its end, where the tracking error is resolved. A reference without a recorded
+    truth is drawn alone, and its panel says so. Parameters as
+    :func:`plot_run_estimates`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        None when the dataset holds no reference.
+    """
+    run = _check_run(ds, run)
+    rows = [(reference, truth, component, reference[: -len("_desired")], None if truth is not None else "reference only: no true value recorded", None)
+            for reference, truth, component in run_references(ds)]
+    groups = _compared_groups(ds, run, rows)
+    if not groups:
+        return None
+    return _run_figure(ds, groups, run, _heading(title, "reference and truth"), zoom=zoom, compared_style=_DESIRED_STYLE,
+                       compared_label="desired", truth_label="true")
+
+
+def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+    """The commanded and the applied input (``input.png`` of ``lookout run``).
+
+    One panel per component of every input that is not zero throughout
+    (:func:`run_inputs`): the commanded input in blue under the thin black applied
+    one, the whole run and a zoom on its end; where the actuator changed the command
+    (a thrust limit) the time is shaded red, and the panel gives the largest
+    difference. Parameters as :func:`plot_run_estimates`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        None when the dataset holds no input that is not zero throughout.
+    """
+    run = _check_run(ds, run)
+    groups = []
+    any_limited = False
+    for commanded, applied in run_inputs(ds):
+        base = commanded[: -len("_commanded")]
+        panels = []
+        for label in _labels(ds[commanded]):
+            wanted, got = _run_values(ds[commanded], label, run), _run_values(ds[applied], label, run)
+            finite = np.isfinite(wanted) & np.isfinite(got)
+            size = np.max(np.abs(wanted[finite]), initial=0.0)
+            limited = np.zeros(wanted.shape, dtype=bool)
+            limited[finite] = np.abs(wanted[finite] - got[finite]) > 1e-9 * size
+            panel = _make_panel(ds[applied].attrs, _quantity(base, label), got, wanted, marked=limited)
+            if limited.any():
+                any_limited = True
+                peak = np.max(np.abs(panel.truth[finite]))
+                panel.note = f"limited {limited.sum() / finite.sum():.0%} of the time; applied at most {peak:.3g} {panel.quantity.rsplit('(', 1)[-1][:-1]}"
+            panels.append(panel)
+        groups.append(panels)
+    if not groups:
+        return None
+    if any_limited:
+        return _run_figure(ds, groups, run, _heading(title, "commanded and applied input"), zoom=zoom, compared_style=_DESIRED_STYLE,
+                           compared_label="commanded", truth_label="applied", marked_label="limited: applied ≠ commanded")
+    # the actuator passed every command on: one curve, and the title says so
+    for panel in (panel for group in groups for panel in group):
+        panel.compared = None
+    return _run_figure(ds, groups, run, _heading(title, "applied input (= commanded throughout: the actuator limited nothing)"), zoom=zoom,
+                       compared_style=_DESIRED_STYLE, compared_label="commanded", truth_label="applied (= commanded)")
 
 
 # --------------------------------------------------------------------------- Bode

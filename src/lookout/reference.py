@@ -280,8 +280,10 @@ class ReferenceFilter(Reference):
 
 @final
 class EllipseReference(Reference):
-    """An ellipse traced at a constant speed per lap, paced by arc length: the reference of
-    Wondergem et al. (2009), Section 5 (four laps at 0.05, 0.1, 0.15 and 0.2 m/s).
+    """An ellipse traced at a constant speed per lap, paced by arc length.
+
+    The reference of Wondergem et al. (2009), Section 5 (:mod:`lookout.papers.wondergem_2009`
+    chooses its ellipse and gives its four lap speeds).
 
     The path is x = x_c + a cos(theta), y = y_c + s b sin(theta) (x north, y east;
     s = +1 traces it with the yaw rate positive, s = -1 the other way), with the path

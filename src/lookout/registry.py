@@ -56,6 +56,7 @@ KINDS: dict[str, dict[str, Any]] = {
     },
     "ship": {
         "cybership-ii": "lookout.models.cybership:Cybership",
+        "dp-vessel": "lookout.models.cybership:Cybership.from_dp_vessel",
     },
     "model": {
         "two-link-arm": "lookout.models.manipulators:TwoLinkArm",
@@ -63,6 +64,7 @@ KINDS: dict[str, dict[str, Any]] = {
         "cart-pendulum": "lookout.models.manipulators:CartPendulum",
         "furuta-pendulum": "lookout.models.manipulators:FurutaPendulum",
         "furuta-constants": "lookout.models.furuta:FurutaConstants",
+        "printed-inertia-arm": "lookout.papers.calugi_2002_backstepping:PrintedInertiaArm",
     },
     "bias": {
         "gauss-markov": "lookout.environment.bias:GaussMarkovBias.from_stationary_std",
@@ -126,7 +128,7 @@ DEFAULT_KINDS = {"controller": "none", "reference": "none", "actuator": "ideal"}
 #: Context parameters that are not components: filled by the composition by name.
 CONTEXT_NAMES = {
     "size": "the plant's input size",
-    "signals": "the plant's variables of these names",
+    "signals": "the plant's variables of these names, or tables {name, units, long_name, frame} of signals of their own",
 }
 
 
@@ -417,88 +419,35 @@ def _component_type(annotation) -> type | None:
     return None
 
 
+#: Where the presets live: the reproductions (resolved by name when asked for, as the
+#: kinds are, so that the registry imports none of the modules it names).
+PRESETS = "lookout.papers"
+
+
+def _reproductions():
+    papers = importlib.import_module(PRESETS)
+    return papers.CATALOG, papers.REPRODUCTIONS
+
+
 def preset(name: str, case: str | None = None) -> dict:
     """The composition of a reproduction's case (its first case when ``case`` is None),
     with the reproduction's default settings."""
-    from lookout.papers import CATALOG, REPRODUCTIONS
-
+    CATALOG, REPRODUCTIONS = _reproductions()
     if name not in CATALOG:
         raise ValueError(f"no preset {name!r} (one of {', '.join(CATALOG)}, each with :CASE)")
-    module = REPRODUCTIONS[name]
-    cases = getattr(module, "cases", None) or module.CASES
+    reproduction = REPRODUCTIONS[name]
+    cases = reproduction.cases
     if case is None:
         case = cases[0]
     if case not in cases:
         raise ValueError(f"{name} has no case {case!r} (one of {', '.join(cases)})")
-    return module.composition(module.Config(), case)
+    return reproduction.composition(reproduction.Config(), case)
 
 
 def presets() -> list[tuple[str, str]]:
-    """Every reproduction case that is a composition, as (name, case)."""
-    from lookout.papers import CATALOG, REPRODUCTIONS
-
-    found = []
-    for name in CATALOG:
-        reproduction = REPRODUCTIONS[name]
-        if hasattr(reproduction, "composition"):  # issue 23: every reproduction, once all are compositions
-            found += [(name, case) for case in getattr(reproduction, "cases", None) or reproduction.CASES]
-    return found
-
-
-def example(each: Kind):
-    """A built composition with a component of kind ``each`` in it: the first
-    reproduction case that uses the kind, else the first case in which the kind, put in
-    place of that case's component with its defaults, composes. None if there is none."""
-    from lookout.composition import CompositionError, compose
-
-    documents = [preset(name, case) for name, case in presets()]
-    for document in documents:
-        table = _find_table(document, each.role)
-        if isinstance(table, dict) and table.get("kind") == each.name:
-            return compose(document)
-    for document in documents:
-        if each.role not in COMPONENT_ROLES:
-            break
-        try:
-            return compose({**document, each.role: {"kind": each.name}})
-        except (CompositionError, ValueError):
-            continue
-    return None
-
-
-def _find_table(document: dict, role: str):
-    """The first table of ``role`` in a composition: a component's, or a part's."""
-    if role in document:
-        return document[role]
-    for value in document.values():
-        if isinstance(value, dict):
-            found = _find_table(value, role)
-            if found is not None:
-                return found
-    return None
-
-
-def signals_of(role: str, component) -> dict[str, list[str]]:
-    """What a built component provides and needs, by signal name."""
-    names = lambda signals: [s.name for s in signals]  # noqa: E731
-    if role == "plant":
-        return {"provides": names(component.variable_signals), "needs": [f"input {n}" for n in component.input_layout.names]}
-    if role == "sensor":
-        return {"provides": [f"measurement {n}" for n in component.measurement_layout.names], "needs": []}
-    if role == "observer":
-        return {
-            "provides": [f"estimate {n}" for n in names(component.estimate_signals)] + [f"extra {n}" for n in names(component.extra_signals)],
-            "needs": [f"measurement {n}" for n in component.measurement_layout.names] + [f"input {n}" for n in component.input_layout.names],
-        }
-    if role == "controller":
-        return {
-            "provides": ["input"],
-            "needs": [f"estimate {n}" for n in component.estimate_needs] + [f"measurement {n}" for n in component.measurement_needs]
-            + [f"reference {n}" for n in component.reference_needs],
-        }
-    if role == "reference":
-        return {"provides": [f"reference {n}" for n in names(component.reference_signals)], "needs": []}
-    return {"provides": [], "needs": []}
+    """Every reproduction's case, as (name, case)."""
+    CATALOG, REPRODUCTIONS = _reproductions()
+    return [(name, case) for name in CATALOG for case in REPRODUCTIONS[name].cases]
 
 
 def describe_kind(each: Kind, design: str | None = None) -> dict:

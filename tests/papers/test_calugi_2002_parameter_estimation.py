@@ -7,10 +7,17 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
+from lookout.composition import compose
 from lookout.papers import calugi_2002_parameter_estimation as ch3
+from lookout.studies.scenario_file import CompositionSpec, save
 
 #: one worker runs these tests (make test: --dist loadgroup), and the session fixture computes the reproduction once there
 pytestmark = pytest.mark.xdist_group("calugi_2002_parameter_estimation")
+
+
+def segmented_progress(done, total):
+    """A progress callback, as ``lookout run`` gives one: the reproduction then simulates in
+    the same segments and reuses the compiled program (the numbers are the same either way)."""
 
 
 @pytest.fixture(scope="session")
@@ -98,6 +105,20 @@ def test_bad_options_exit_2_with_one_line(argv, message, capsys):
     assert main(["reproduce", ch3.NAME, *argv]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_scenario_file_of_each_run_gives_the_reproductions_numbers_exactly(tmp_path):
+    config = ch3.Config(duration=1.0, pe_window=0.5)
+    for case in ch3.REPRODUCTION.cases:
+        path = tmp_path / f"{case}.toml"
+        save(CompositionSpec(compose(ch3.REPRODUCTION.composition(config, case))), path)
+        assert main(["run", str(path), "--out", str(tmp_path / case)]) == 0
+        _, reproduced = ch3.simulate_run(config, case, progress=segmented_progress)
+        with xr.open_dataset(tmp_path / case / "run.nc") as ran:
+            compared = [name for name, variable in ran.data_vars.items() if variable.dtype.kind == "f"]
+            for name in compared:
+                np.testing.assert_array_equal(ran[name].values, reproduced[name].values, err_msg=f"{case}: {name}")
+        assert {"joint_angle", "joint_rate", "filtered_regressor_inertia" if case.startswith("sim2") else "mass_hat"} <= set(compared), case
 
 
 def test_bad_settings_of_the_config_name_the_field():

@@ -125,7 +125,8 @@ def test_noise_drives_theta_hat_down_at_the_derived_rate():
     sigma^2 / Delta (analysis.adaptive_dp.noise_drift_rate). g is checked against the control
     law itself (d tau_u / d u_hat = d11 - m11_hat g at rest), the rate against simulation
     (printed gains, 1 m noise, Gamma = 1e8, 16 seeds: measured 0.96 of the prediction, standard error 5 %)."""
-    from lookout.analysis.adaptive_dp import CALUGI_2003_D, noise_drift_rate
+    from lookout.analysis.adaptive_dp import noise_drift_rate
+    from lookout.papers.calugi_2003 import CALUGI_2003_D
 
     config = calugi_2003.Config()
     printed = calugi_2003.gains("printed")
@@ -159,7 +160,9 @@ def test_each_case_written_as_a_composition_runs_to_the_same_numbers(case, tmp_p
     path = save(CompositionSpec(compose(calugi_2003.REPRODUCTION.composition(config, case))), tmp_path / f"{case}.toml")
     assert main(["run", str(path), "--out", str(tmp_path / "run")]) == 0
     ran = xr.open_dataset(tmp_path / "run" / "run.nc")
-    own = calugi_2003.simulate_case(config, case)
+    from lookout.papers._reproduction import simulate_cases
+
+    own = simulate_cases(calugi_2003.REPRODUCTION, config, [case], "gains")
     compared = [name for name, variable in own.data_vars.items() if variable.dtype.kind == "f"]
     for name in compared:
         np.testing.assert_array_equal(ran[name].values, own[name].values, err_msg=name)

@@ -224,7 +224,9 @@ def test_each_case_written_as_a_composition_runs_to_the_same_numbers(case, tmp_p
     path = save(CompositionSpec(compose(kim_2002.REPRODUCTION.composition(config, case))), tmp_path / f"{case}.toml")
     assert main(["run", str(path), "--out", str(tmp_path / "run")]) == 0
     ran = xr.open_dataset(tmp_path / "run" / "run.nc")
-    own = kim_2002.simulate_case(config, case)
+    from lookout.papers._reproduction import simulate_cases
+
+    own = simulate_cases(kim_2002.REPRODUCTION, config, [case], "observer")
     compared = [name for name, variable in own.data_vars.items() if variable.dtype.kind == "f"]
     for name in compared:
         np.testing.assert_array_equal(ran[name].values, own[name].values, err_msg=name)

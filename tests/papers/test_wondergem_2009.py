@@ -4,10 +4,13 @@ import json
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from lookout.cli import main
+from lookout.composition import compose
 from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT
 from lookout.papers import wondergem_2009 as w
+from lookout.studies.scenario_file import CompositionSpec, save
 
 
 def test_error_index_of_known_signals():
@@ -71,7 +74,7 @@ def test_reference_thrust_on_a_circle_by_hand():
     sway = 25.8 * U * r - 0.11 * r
     yaw = 1.0115 * r * U + 0.5 * r
     np.testing.assert_allclose(thrust["steady_peak"], [abs(surge), abs(sway), abs(yaw)], rtol=1e-9)
-    controller = w.build(w.Config(semi_axes=(R, R))).controller
+    controller = w.scenario(w.Config(semi_axes=(R, R)), "simulation").controller
     step = np.abs(np.asarray(controller.damping_gain) @ np.array([0.05, 0.0, 0.05 / R]))
     np.testing.assert_allclose(thrust["lap_step_peak"], step, rtol=1e-9)
     assert thrust["feasible"] is True
@@ -112,3 +115,20 @@ def test_the_10_hz_hold_makes_the_20_hz_command_alternate():
     assert rows["10 Hz held"]["lap4_surge_error_m"] is None  # 40 s does not reach lap 4
     assert rows["10 Hz held, no limits"]["surge_command_step_N"] > 1.0
     assert rows["20 Hz"]["surge_command_step_N"] < 0.05
+
+
+@pytest.mark.parametrize("case", w.REPRODUCTION.cases)
+def test_a_case_written_as_a_scenario_file_gives_the_reproductions_numbers_exactly(case, tmp_path):
+    """Each case's composition, saved as a scenario file and run by ``lookout run``, gives
+    every float variable of the reproduction's own simulation of the case, bit for bit."""
+    config = w.Config(duration=10.0, seed=3)
+    path = save(CompositionSpec(compose(w.REPRODUCTION.composition(config, case))), tmp_path / f"{case}.toml")
+    out = tmp_path / "run"
+    assert main(["run", str(path), "--out", str(out)]) == 0
+    ran = xr.open_dataset(out / "run.nc")
+    reproduced = w.simulate_condition(config, case)
+    compared = [name for name, variable in reproduced.data_vars.items() if variable.dtype.kind == "f"]
+    for name in compared:
+        np.testing.assert_array_equal(ran[name].values, reproduced[name].values, err_msg=name)
+    assert len(compared) >= 20 and list(ran.seed.values) == [3]
+    assert (float(np.abs(ran.wave_position).max()) > 0) == (case == "basin-waves")  # the waves reach the measurement

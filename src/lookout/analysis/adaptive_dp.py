@@ -71,42 +71,20 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.optimize
 
 from lookout._json import json_safe as _json_safe
+from lookout.analysis.conditions import TOLERANCE, Condition, Inequality, Report, Verdict, number, numbers
 from lookout.models.vessel import DPVessel
-
-#: Calugi et al. (2003), eq. (59): the off-shore supply vessel of Fossen & Strand
-#: (1999), Fig. 8, as printed. (59) prints d11 = 5.024e4 and d23 = d32 = -4.399e6
-#: where F&S (57) (:data:`lookout.models.vessel.NORTHERN_CLIPPER_D`) has 5.0242e4
-#: and -4.3933e6: this module uses (59)'s numbers for this paper. K = 0.
-CALUGI_2003_M = np.diag([5.3122e6, 8.2831e6, 3.7454e9])
-CALUGI_2003_D = np.array([[5.024e4, 0.0, 0.0], [0.0, 2.7229e5, -4.399e6], [0.0, -4.399e6, 4.1894e8]])
-
-#: The observer-controller parameters of Section V (SI; Gamma for theta = m11).
-PRINTED_GAINS = {
-    "K1": (1e-3, 1e-3, 1e-3),
-    "K2": (1e-3, 1e-3, 1e-3),
-    "d": (0.1,) * 6,
-    "C1": (0.1, 0.1, 0.1),
-    "C2": (0.1, 0.1, 0.1),
-    "Gamma": 1e3,
-}
 
 #: The unknown parameter of Section V: theta = m11.
 M11 = (("M", 0, 0),)
 
-VERDICTS = ("holds", "fails", "unverified")
-#: Relative tolerance within which the two sides of an inequality count as equal.
-TOLERANCE = 1e-12
-
-
-def calugi_2003_vessel() -> DPVessel:
-    """The vessel of (59): :data:`CALUGI_2003_M`, :data:`CALUGI_2003_D`, K = 0."""
-    return DPVessel(CALUGI_2003_M, CALUGI_2003_D)
+#: The paper, as each check cites it.
+PAPER = "Calugi et al. (2003)"
 
 
 # -- inputs ----------------------------------------------------------------------------
@@ -261,9 +239,9 @@ class ModelBounds:
         The vessel's values of the unknown entries.
     worst_theta : dict
         The theta (vertex) at which each bound is attained.
-    assumptions : dict
-        "9": M_min > 0; "10": D_min > 0; "11": K_max finite ("holds"/"fails"). The
-        printed lower bound 0 < ||K|| fails for K = 0 but is used by no step.
+    assumptions : tuple of Inequality
+        (9) M_min > 0, (10) D_min > 0, (11) K_max < inf. The printed lower bound
+        0 < ||K|| fails for K = 0 but is used by no step, so it is not checked.
     """
 
     mass_min: float
@@ -275,7 +253,7 @@ class ModelBounds:
     unknown: list[str]
     theta_true: list[float]
     worst_theta: dict[str, list[float]]
-    assumptions: dict[str, str]
+    assumptions: tuple[Inequality, ...]
 
     def to_dict(self) -> dict:
         """JSON-safe form (non-finite numbers are None)."""
@@ -291,7 +269,7 @@ class ModelBounds:
                 "unknown": list(self.unknown),
                 "theta_true": list(self.theta_true),
                 "worst_theta": dict(self.worst_theta),
-                "assumptions": dict(self.assumptions),
+                "assumptions": [item.to_dict() for item in self.assumptions],
             }
         )
 
@@ -308,7 +286,7 @@ def model_bounds(vessel: DPVessel, theta_bounds=None, *, unknown=M11) -> ModelBo
     Parameters
     ----------
     vessel : DPVessel
-        The true model (M, D, K); for the paper, :func:`calugi_2003_vessel`.
+        The true model (M, D, K); for the paper, :func:`lookout.papers.calugi_2003.paper_vessel`.
     theta_bounds : array_like, optional
         [lower, upper] of each unknown entry (shape (2,) for one, (p, 2) for p);
         None: the model is known. Must contain the vessel's values.
@@ -343,111 +321,20 @@ def model_bounds(vessel: DPVessel, theta_bounds=None, *, unknown=M11) -> ModelBo
             "damping_max": at_damping_max,
             "stiffness_max": at_stiffness_max,
         },
-        assumptions={
-            "9": "holds" if mass_min > 0 else "fails",
-            "10": "holds" if damping_min > 0 else "fails",
-            "11": "holds" if math.isfinite(stiffness_max) else "fails",
-        },
+        assumptions=(
+            Inequality.check("(9)", "M_min > 0", mass_min, ">", 0.0, units="kg", source=f"{PAPER}, eq. (9)"),
+            Inequality.check("(10)", "D_min > 0", damping_min, ">", 0.0, units="kg/s", source=f"{PAPER}, eq. (10)"),
+            Inequality.check("(11)", "K_max < inf", stiffness_max, "<", math.inf, units="N/m", source=f"{PAPER}, eq. (11)"),
+        ),
     )
 
 
 # -- inequalities ----------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class Inequality:
-    """One inequality ``left > right`` of a condition, with its numbers.
-
-    ``factor`` = left/right (> 1 when it holds; inf when right = 0 < left, None in
-    JSON); ``margin`` = left - right. ``verdict`` is "holds" (left > right),
-    "fails" (left < right) or "unverified" (equal within :data:`TOLERANCE`).
-    """
-
-    name: str
-    relation: str
-    left: float
-    right: float
-    units: str
-    verdict: str
-    factor: float
-    margin: float
-
-    def to_dict(self) -> dict:
-        return _json_safe(
-            {
-                "name": self.name,
-                "relation": self.relation,
-                "left": self.left,
-                "right": self.right,
-                "units": self.units,
-                "verdict": self.verdict,
-                "factor": self.factor,
-                "margin": self.margin,
-            }
-        )
-
-    def describe(self) -> list[str]:
-        """Two lines of at most 80 columns: the relation, then the numbers."""
-        if math.isfinite(self.factor):
-            ratio = f"factor {self.factor:.3g}"
-        else:
-            ratio = "right side 0" if self.right == 0 else "no factor"
-        name = f"{self.name:<6}" if len(self.name) < 6 else f"{self.name} "
-        return [
-            f"  {name}{self.relation}"[:80],
-            f"        {_fmt(self.left, 4)} vs {_fmt(self.right, 4)}: {self.verdict}, {ratio}"[:80],
-        ]
-
-
-def _inequality(name: str, relation: str, left: float, right: float, units: str) -> Inequality:
-    left, right = float(left), float(right)
-    scale = max(abs(left), abs(right))
-    if abs(left - right) <= TOLERANCE * scale:
-        verdict = "unverified"
-    else:
-        verdict = "holds" if left > right else "fails"
-    if right > 0 and left >= 0:
-        factor = left / right
-    elif right == 0 and left > 0:
-        factor = math.inf
-    else:
-        factor = math.nan
-    return Inequality(name, relation, left, right, units, verdict, factor, left - right)
-
-
-@dataclass(frozen=True)
-class Condition:
-    """A numbered condition of the paper: its inequalities and the verdict.
-
-    ``verdict`` is "holds" when every inequality holds, "fails" when one fails,
-    else "unverified". ``quantities`` holds the numbers it was built from (SI).
-    ``tighter`` (informational, not in the verdict) is the first inequality with
-    lambda_min(sym(M K2 + D)) in place of sigma2 + D_min: valid (Weyl:
-    lambda_min(A + B) >= lambda_min(A) + lambda_min(B)) and never weaker.
-    """
-
-    name: str
-    inequalities: list[Inequality]
-    quantities: dict[str, float]
-    tighter: Inequality | None = None
-
-    @property
-    def verdict(self) -> str:
-        verdicts = [item.verdict for item in self.inequalities]
-        if "fails" in verdicts:
-            return "fails"
-        return "holds" if all(v == "holds" for v in verdicts) else "unverified"
-
-    def to_dict(self) -> dict:
-        return _json_safe(
-            {
-                "name": self.name,
-                "verdict": self.verdict,
-                "inequalities": [item.to_dict() for item in self.inequalities],
-                "quantities": dict(self.quantities),
-                "tighter": None if self.tighter is None else self.tighter.to_dict(),
-            }
-        )
+def _greater(name: str, relation: str, left: float, right: float, units: str, equation: str) -> Inequality:
+    """``left > right``, an inequality of the paper's ``equation``."""
+    return Inequality.check(name, relation, left, ">", right, units=units, source=f"{PAPER}, eq. {equation}")
 
 
 def _observer_quantities(vessel, K2, theta_bounds, unknown, d_min) -> dict[str, float]:
@@ -501,6 +388,14 @@ def observer_condition_22(vessel: DPVessel, *, K1, K2, theta_bounds=None, unknow
     d_min : float, optional
         A D_min reading to use instead of lambda_min(sym D) (e.g. 0); must not
         exceed it.
+
+    Returns
+    -------
+    Condition
+        ``observer_22`` with (22a), (22b); ``quantities`` the numbers it was built from
+        (SI). Informational (not in the verdict): (22a*), (22a) with
+        lambda_min(sym(M K2 + D)) in place of sigma2 + D_min, valid (Weyl:
+        lambda_min(A + B) >= lambda_min(A) + lambda_min(B)) and never weaker.
     """
     K1 = _k1(K1)
     sigma1 = float(np.linalg.eigvalsh(_sym(K1))[0])
@@ -508,12 +403,13 @@ def observer_condition_22(vessel: DPVessel, *, K1, K2, theta_bounds=None, unknow
     coupling = (1.0 + q["stiffness_max"]) ** 2
     c = q["sigma2"] + q["damping_min"]
     right = coupling / (4.0 * c) if c > 0 else math.inf
-    first = _inequality("(22a)", "sigma1 > (1+K_max)^2/(4(sigma2+D_min))", sigma1, right, UNITS_22A)
-    second = _inequality("(22b)", "sigma2 > 0", q["sigma2"], 0.0, UNITS_SIGMA2)
+    first = _greater("(22a)", "sigma1 > (1+K_max)^2/(4(sigma2+D_min))", sigma1, right, UNITS_22A, "(22)")
+    second = _greater("(22b)", "sigma2 > 0", q["sigma2"], 0.0, UNITS_SIGMA2, "(22)")
     tight_right = coupling / (4.0 * q["combined"]) if q["combined"] > 0 else math.inf
-    tighter = _inequality("(22a*)", "sigma1 > (1+K_max)^2/(4 lmin(sym(MK2+D)))", sigma1, tight_right, UNITS_22A)
+    tighter = _greater("(22a*)", "sigma1 > (1+K_max)^2/(4 lmin(sym(MK2+D)))", sigma1, tight_right, UNITS_22A, "(22), read with lmin(sym(MK2+D)) for sigma2+D_min")
     quantities = {"sigma1": sigma1} | q
-    return Condition("22", [first, second], quantities, tighter)
+    return Condition("observer_22", "(22)", "adaptive observer", f"{PAPER}, eq. (22)", [first, second],
+                     informational=[tighter], quantities=quantities)
 
 
 def _g(d: np.ndarray, coupling_gain: np.ndarray) -> tuple[float, float]:
@@ -544,7 +440,8 @@ def closed_loop_conditions_57_58(
     Returns
     -------
     (Condition, Condition)
-        (57) and (58).
+        ``closed_loop_57`` and ``closed_loop_58``, each with its tighter variant
+        ((57*), (58*), lambda_min(sym(M K2 + D)) for sigma2 + D_min) as informational.
     """
     K1 = _k1(K1)
     d = _weights(d)
@@ -555,17 +452,19 @@ def closed_loop_conditions_57_58(
     coupling = (1.0 + q["stiffness_max"]) ** 2
     c = q["sigma2"] + q["damping_min"] - g2 / 4.0
     right = g1 / 4.0 + (coupling / (4.0 * c) if c > 0 else math.inf)
-    first = _inequality("(57)", "sigma1 > g1/4 + (1+K_max)^2/(4(sigma2+D_min-g2/4))", sigma1, right, UNITS_57)
+    first = _greater("(57)", "sigma1 > g1/4 + (1+K_max)^2/(4(sigma2+D_min-g2/4))", sigma1, right, UNITS_57, "(57)")
     c_tight = q["combined"] - g2 / 4.0
     tight = g1 / 4.0 + (coupling / (4.0 * c_tight) if c_tight > 0 else math.inf)
-    tighter = _inequality("(57*)", "sigma1 > g1/4 + (1+K_max)^2/(4(lmin(..)-g2/4))", sigma1, tight, UNITS_57)
+    tighter = _greater("(57*)", "sigma1 > g1/4 + (1+K_max)^2/(4(lmin(..)-g2/4))", sigma1, tight, UNITS_57, "(57), read with lmin(sym(MK2+D)) for sigma2+D_min")
     quantities = {"sigma1": sigma1, "g1": g1, "g2": g2} | q
-    c57 = Condition("57", [first], quantities, tighter)
-    second = _inequality(
-        "(58)", "sigma2 > max(0, g2/4 - D_min)", q["sigma2"], max(0.0, g2 / 4.0 - q["damping_min"]), UNITS_58
+    c57 = Condition("closed_loop_57", "(57)", "closed loop", f"{PAPER}, eq. (57)", [first],
+                    informational=[tighter], quantities=quantities)
+    second = _greater(
+        "(58)", "sigma2 > max(0, g2/4 - D_min)", q["sigma2"], max(0.0, g2 / 4.0 - q["damping_min"]), UNITS_58, "(58)"
     )
-    tight58 = _inequality("(58*)", "lmin(sym(MK2+D)) > g2/4", q["combined"], g2 / 4.0, UNITS_58)
-    c58 = Condition("58", [second], dict(quantities), tight58)
+    tight58 = _greater("(58*)", "lmin(sym(MK2+D)) > g2/4", q["combined"], g2 / 4.0, UNITS_58, "(58), read with lmin(sym(MK2+D)) for sigma2+D_min")
+    c58 = Condition("closed_loop_58", "(58)", "closed loop", f"{PAPER}, eq. (58)", [second],
+                    informational=[tight58], quantities=dict(quantities))
     return c57, c58
 
 
@@ -638,100 +537,42 @@ def noise_drift_rate(*, K1, K2, d, gamma: float, noise_std: float, interval: flo
 # -- the report ------------------------------------------------------------------------
 
 
-@dataclass
-class Calugi2003Report:
-    """Conditions (22), (57), (58) of Calugi et al. (2003) for one gain set.
-
-    ``verdicts``: {"observer_22", "closed_loop_57", "closed_loop_58"} ->
-    "holds" / "fails" / "unverified". ``z_weight`` is :func:`z_weight_bound`: the
-    closed loop is proven by V with z'z weighted by any w_z below it (the printed
-    (47) is w_z = 1).
-    """
-
-    gains: dict[str, np.ndarray]
-    bounds: ModelBounds
-    observer_22: Condition
-    closed_loop_57: Condition
-    closed_loop_58: Condition
-    z_weight: float
-    verdicts: dict[str, str] = field(default_factory=dict)
-
-    @property
-    def holds(self) -> bool:
-        """True when (22), (57) and (58) all hold."""
-        return all(v == "holds" for v in self.verdicts.values())
-
-    def to_dict(self) -> dict:
-        """JSON-safe: plain floats, lists and strings; non-finite numbers are None."""
-        return _json_safe(
-            {
-                "paper": "Calugi, Robertsson & Johansson (2003)",
-                "gains": {k: np.asarray(v).tolist() for k, v in self.gains.items()},
-                "gain_units": {"K1": "1/s", "K2": "1/s", "d": "s", "coupling_gain": "1/s^2"},
-                "verdicts": dict(self.verdicts),
-                "model_bounds": self.bounds.to_dict(),
-                "observer_22": self.observer_22.to_dict(),
-                "closed_loop_57": self.closed_loop_57.to_dict(),
-                "closed_loop_58": self.closed_loop_58.to_dict(),
-                "z_weight_bound": self.z_weight,
-            }
-        )
-
-    def text(self) -> str:
-        """A short report, at most 80 columns."""
-        b, q = self.bounds, self.closed_loop_57.quantities
-        g = self.gains
-        lines = ["Calugi et al. (2003): conditions (22), (57), (58)", ""]
-        if b.theta_bounds is None:
-            theta = f"{', '.join(b.unknown)} known"
-        else:
-            theta = "; ".join(f"{n} in [{lo:.5g}, {hi:.5g}]" for n, (lo, hi) in zip(b.unknown, b.theta_bounds))
-        lines.append(f"Model (worst case, {theta}):"[:80])
-        lines.append(f"  M_min {_fmt(b.mass_min)}  M_max {_fmt(b.mass_max)} kg (9, lambda of M)")
-        lines.append(f"  D_min {_fmt(b.damping_min)} kg/s (lambda_min sym D)  D_max {_fmt(b.damping_max)}")
-        lines.append(f"  K_max {_fmt(b.stiffness_max)} N/m (||K||_2)")
-        lines.append("Gains:")
-        for name, units in (("K1", "1/s"), ("K2", "1/s")):
-            matrix = np.asarray(g[name])
-            diagonal = np.allclose(matrix, np.diag(np.diag(matrix)))
-            shown = _fmt_vec(np.diag(matrix)) if diagonal else "(full 3x3, see to_dict)"
-            lines.append(f"  {name} {'diag' if diagonal else ''} {shown} {units}"[:80])
-        lines.append(f"  d  {_fmt_vec(g['d'])} s"[:80])
-        if not np.allclose(g["coupling_gain"], 1.0):
-            lines.append(f"  P1 {_fmt_vec(g['coupling_gain'])} 1/s^2")
-        lines.append(
-            f"  sigma1 {_fmt(q['sigma1'])} 1/s, sigma2 {_fmt(q['sigma2'])} kg/s, "
-            f"g1 {_fmt(q['g1'])}, g2 {_fmt(q['g2'])} 1/s"[:80]
-        )
-        if q["damping_min"] != q["damping_min_model"]:
-            lines.append(f"  D_min read as {_fmt(q['damping_min'])} kg/s")
-        for key, condition, title in (
-            ("observer_22", self.observer_22, "Observer (22)"),
-            ("closed_loop_57", self.closed_loop_57, "Closed loop (57)"),
-            ("closed_loop_58", self.closed_loop_58, "Closed loop (58)"),
-        ):
-            lines.append(f"{title}: {self.verdicts[key]}")
-            for item in condition.inequalities:
-                lines.extend(item.describe())
-        w = self.z_weight
-        if math.isfinite(w) and w > 0:
-            lines.append(f"With z'z weighted by w_z in V (47): proven for w_z < {w:.3g}")
-        elif w > 0:
-            lines.append("With z'z weighted by w_z in V (47): proven for every w_z")
-        else:
-            lines.append("No weight w_z on z'z proves it: (22) does not hold")
-        return "\n".join(line[:80] for line in lines)
+def _calugi_summary(bounds: ModelBounds, gains: dict, quantities: dict) -> list[str]:
+    """The model's worst-case constants and the gains, as lines under the report's title."""
+    if bounds.theta_bounds is None:
+        theta = f"{', '.join(bounds.unknown)} known"
+    else:
+        theta = "; ".join(f"{n} in [{lo:.5g}, {hi:.5g}]" for n, (lo, hi) in zip(bounds.unknown, bounds.theta_bounds))
+    lines = [
+        f"model (worst case, {theta}):",
+        f"  M_min {number(bounds.mass_min, 3)}  M_max {number(bounds.mass_max, 3)} kg (9, lambda of M)",
+        f"  D_min {number(bounds.damping_min, 3)} kg/s (lambda_min sym D)  D_max {number(bounds.damping_max, 3)}",
+        f"  K_max {number(bounds.stiffness_max, 3)} N/m (||K||_2)",
+        "gains:",
+    ]
+    for name in ("K1", "K2"):
+        matrix = np.asarray(gains[name])
+        diagonal = np.allclose(matrix, np.diag(np.diag(matrix)))
+        lines.append(f"  {name} {'diag ' + numbers(np.diag(matrix)) if diagonal else '(full 3x3, see the JSON)'} 1/s")
+    lines.append(f"  d  {numbers(gains['d'])} s")
+    if not np.allclose(gains["coupling_gain"], 1.0):
+        lines.append(f"  P1 {numbers(gains['coupling_gain'])} 1/s^2")
+    q = quantities
+    lines.append(f"  sigma1 {number(q['sigma1'], 3)} 1/s, sigma2 {number(q['sigma2'], 3)} kg/s, g1 {number(q['g1'], 3)}, g2 {number(q['g2'], 3)} 1/s")
+    if q["damping_min"] != q["damping_min_model"]:
+        lines.append(f"  D_min read as {number(q['damping_min'], 3)} kg/s")
+    return lines
 
 
 def check_calugi_2003(
     vessel: DPVessel, *, K1, K2, d, theta_bounds=None, unknown=M11, d_min=None, coupling_gain=1.0
-) -> Calugi2003Report:
+) -> Report:
     """Check (22), (57) and (58) of Calugi et al. (2003) for a vessel and gain set.
 
     Parameters
     ----------
     vessel : DPVessel
-        The true model; for the paper :func:`calugi_2003_vessel` ((59)'s numbers).
+        The true model; for the paper :func:`lookout.papers.calugi_2003.paper_vessel` ((59)'s numbers).
     K1, K2 : scalar, 3-vector (diagonal) or 3x3
         Observer gains (1/s); K1 positive definite.
     d : array_like, shape (6,)
@@ -748,7 +589,13 @@ def check_calugi_2003(
 
     Returns
     -------
-    Calugi2003Report
+    Report
+        Conditions ``observer_22``, ``closed_loop_57``, ``closed_loop_58``
+        (:func:`observer_condition_22`, :func:`closed_loop_conditions_57_58`).
+        ``quantities``: ``gains`` and their units, ``model_bounds``
+        (:meth:`ModelBounds.to_dict`) and ``z_weight_bound`` (:func:`z_weight_bound`):
+        the closed loop is proven by V with z'z weighted by any w_z below it (the
+        printed (47) is w_z = 1).
     """
     K1m, K2m = _k1(K1), _gain_matrix("K2", K2)
     d = _weights(d)
@@ -760,9 +607,25 @@ def check_calugi_2003(
     )
     q = c57.quantities
     w = z_weight_bound(q["sigma1"], q["sigma2"], q["damping_min"], q["stiffness_max"], q["g1"], q["g2"])
-    verdicts = {"observer_22": c22.verdict, "closed_loop_57": c57.verdict, "closed_loop_58": c58.verdict}
     gains = {"K1": K1m, "K2": K2m, "d": d, "coupling_gain": coupling_gain}
-    return Calugi2003Report(gains, bounds, c22, c57, c58, w, verdicts)
+    if math.isfinite(w) and w > 0:
+        weight = f"with z'z weighted by w_z in V (47): proven for w_z < {w:.3g}"
+    elif w > 0:
+        weight = "with z'z weighted by w_z in V (47): proven for every w_z"
+    else:
+        weight = "no weight w_z on z'z proves it: (22) does not hold"
+    return Report(
+        f"{PAPER}: conditions (22), (57), (58)",
+        (c22, c57, c58),
+        quantities={
+            "gains": gains,
+            "gain_units": {"K1": "1/s", "K2": "1/s", "d": "s", "coupling_gain": "1/s^2"},
+            "model_bounds": bounds.to_dict(),
+            "z_weight_bound": w,
+        },
+        summary=_calugi_summary(bounds, gains, q),
+        notes=(weight,),
+    )
 
 
 # -- gains that satisfy (57)-(58) ------------------------------------------------------
@@ -827,7 +690,7 @@ class GainRoute:
     fastest_rate: float
     step_gain: float
     usable: bool
-    verdicts: dict[str, str]
+    verdicts: dict[str, Verdict]
     note: str
 
     def to_dict(self) -> dict:
@@ -854,7 +717,7 @@ class GainProposal:
     """The gain set :func:`satisfying_gains` chose, why, and every route it weighed.
 
     ``K1``, ``K2`` (3x3, 1/s), ``d`` (6, s) are the chosen set; ``report`` its
-    :class:`Calugi2003Report`; ``route`` the chosen route's name; ``reason`` one
+    :func:`check_calugi_2003` report; ``route`` the chosen route's name; ``reason`` one
     line; ``routes`` all routes; ``design`` the step (s), speed (m/s),
     max_step_gain and margin it was built for.
     """
@@ -864,7 +727,7 @@ class GainProposal:
     d: np.ndarray
     route: str
     reason: str
-    report: Calugi2003Report
+    report: Report
     routes: list[GainRoute]
     design: dict[str, float]
 
@@ -886,8 +749,8 @@ class GainProposal:
     def text(self) -> str:
         """The chosen set and the routes, at most 80 columns."""
         lines = [f"Gains satisfying (57)-(58): route {self.route}", f"  {self.reason}"]
-        lines.append(f"  K1 diag {_fmt_vec(np.diag(self.K1))} 1/s")
-        lines.append(f"  d       {_fmt_vec(self.d)} s")
+        lines.append(f"  K1 diag {numbers(np.diag(self.K1))} 1/s")
+        lines.append(f"  d       {numbers(self.d)} s")
         dz = self.design
         lines.append(
             f"Routes (|v| <= {dz['speed']:g} m/s, step {dz['step']:g} s, usable if "
@@ -899,9 +762,9 @@ class GainProposal:
                 lines.append(f"  {r.name:<11} infeasible: {r.note}"[:80])
                 continue
             lines.append(
-                f"  {r.name:<11}{_fmt(np.diag(r.K1).max()):>8}{_fmt(r.d[:3].max()):>9}"
-                f"{_fmt(r.d[3:].max()):>9}{_fmt(r.D2.max()):>9}{_fmt(r.fastest_rate):>9}"
-                f"{_fmt(r.factor_57):>9}  {'yes' if r.usable else 'no'}"
+                f"  {r.name:<11}{number(np.diag(r.K1).max(), 3):>8}{number(r.d[:3].max(), 3):>9}"
+                f"{number(r.d[3:].max(), 3):>9}{number(r.D2.max(), 3):>9}{number(r.fastest_rate, 3):>9}"
+                f"{number(r.factor_57, 3):>9}  {'yes' if r.usable else 'no'}"
             )
         return "\n".join(line[:80] for line in lines)
 
@@ -922,11 +785,11 @@ K1_FACTORS = tuple(m * 10.0**e for e in range(5) for m in (1.0, 1.5, 2.0, 3.0, 4
 def satisfying_gains(
     vessel: DPVessel,
     *,
-    K1=PRINTED_GAINS["K1"],
-    K2=PRINTED_GAINS["K2"],
-    d=PRINTED_GAINS["d"],
-    C1=PRINTED_GAINS["C1"],
-    C2=PRINTED_GAINS["C2"],
+    K1,
+    K2,
+    d,
+    C1,
+    C2,
     theta_bounds=None,
     unknown=M11,
     coupling_gain=1.0,
@@ -935,7 +798,8 @@ def satisfying_gains(
     max_step_gain: float = 0.5,
     margin: float = 1.1,
 ) -> GainProposal:
-    """A gain set that satisfies (57)–(58), found from the given one (default: (59)'s).
+    """A gain set that satisfies (57)–(58), found from the given one (the paper's: the
+    Calugi 2003 reproduction's ``PRINTED_GAINS``).
 
     (57) needs g1/4 = sum 1/(4 d_i) below sigma1 (the second term is ~4.5e-6 1/s
     here), so there are two levers, and the routes weighed are:
@@ -1003,7 +867,7 @@ def satisfying_gains(
     c0, sigma2, dmin = q["sigma2"] + q["damping_min"], q["sigma2"], q["damping_min"]
     design = {"step": float(step), "speed": float(speed), "max_step_gain": float(max_step_gain), "margin": float(margin)}
 
-    def check(K1x, dx) -> Calugi2003Report:
+    def check(K1x, dx) -> Report:
         return check_calugi_2003(
             vessel, K1=K1x, K2=K2m, d=dx, theta_bounds=theta_bounds, unknown=unknown, coupling_gain=P1
         )
@@ -1014,7 +878,7 @@ def satisfying_gains(
         fastest = float(max(rates["loop"].max(), np.linalg.norm(K1x, 2), np.linalg.norm(K2m, 2)))
         return GainRoute(
             name, np.asarray(K1x, float), np.asarray(dx, float), feasible,
-            report.closed_loop_57.inequalities[0].factor, rates["D1"], rates["D2"], fastest,
+            report["closed_loop_57"].inequalities[0].factor, rates["D1"], rates["D2"], fastest,
             step * fastest, feasible and step * fastest <= max_step_gain, dict(report.verdicts), note,
         )
 
@@ -1068,7 +932,7 @@ def satisfying_gains(
 
     routes: list[GainRoute] = []
     given = route("given", K1m, d0, "the gains as given")
-    if given.verdicts["closed_loop_57"] == "holds" and given.verdicts["closed_loop_58"] == "holds" and given.factor_57 >= margin:
+    if given.verdicts["closed_loop_57"] == Verdict.HOLDS and given.verdicts["closed_loop_58"] == Verdict.HOLDS and given.factor_57 >= margin:
         report = check(K1m, d0)
         return GainProposal(K1m, K2m, d0, "given", "the given gains already satisfy (57)-(58)", report, [given], design)
 
@@ -1095,8 +959,8 @@ def satisfying_gains(
         routes.append(route("d_split", K1m, d_split, "d1..3 and d4..6 raised, K1 kept"))
 
     start = check(K1m, d0)
-    needed = float(start.closed_loop_57.inequalities[0].right)
-    c58 = start.closed_loop_58.inequalities[0]
+    needed = float(start["closed_loop_57"].inequalities[0].right)
+    c58 = start["closed_loop_58"].inequalities[0]
     if math.isfinite(needed) and c58.factor >= margin:
         factor = _round_up(max(1.0, margin * needed / sigma1_0))
         routes.append(route("K1_only", factor * K1m, d0, f"K1 x {factor:.3g}, d kept"))
@@ -1119,7 +983,7 @@ def satisfying_gains(
         routes.append(mixed)
 
     by_name = {r.name: r for r in routes}
-    satisfied = [r for r in routes if r.feasible and all(v == "holds" for v in r.verdicts.values())]
+    satisfied = [r for r in routes if r.feasible and all(v == Verdict.HOLDS for v in r.verdicts.values())]
     names = {r.name for r in satisfied}
     if "d_split" in names and by_name["d_split"].usable:
         chosen = by_name["d_split"]
@@ -1143,31 +1007,10 @@ def satisfying_gains(
     return GainProposal(chosen.K1, K2m, chosen.d, chosen.name, reason, report, [given] + routes, design)
 
 
-# -- formatting ------------------------------------------------------------------------
-
-
-def _fmt(value: float, digits: int = 3) -> str:
-    value = float(value)
-    if math.isnan(value):
-        return "nan"
-    return f"{value:.{digits}g}" if math.isfinite(value) else ("inf" if value > 0 else "-inf")
-
-
-def _fmt_vec(values) -> str:
-    return " ".join(f"{_fmt(float(v)):>8}" for v in np.ravel(values))
-
-
 __all__ = [
-    "CALUGI_2003_D",
-    "CALUGI_2003_M",
-    "PRINTED_GAINS",
-    "Calugi2003Report",
-    "Condition",
     "GainProposal",
     "GainRoute",
-    "Inequality",
     "ModelBounds",
-    "calugi_2003_vessel",
     "check_calugi_2003",
     "closed_loop_conditions_57_58",
     "loop_rates",

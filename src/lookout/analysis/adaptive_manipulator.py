@@ -23,40 +23,19 @@ configuration space as for Theorem 2.1 (:mod:`lookout.analysis.velocity`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from lookout import _validation as check
-from lookout._json import json_safe
-from lookout.analysis.adaptive_dp import Inequality, _inequality
+from lookout.analysis.conditions import Condition, Inequality, Report
 from lookout.analysis.velocity import _grid, configuration_angles, configuration_bounds
 from lookout.models.parameters import AffineParameters
 
-
-@dataclass
-class AdaptiveObserverReport:
-    """(4.a) and, with an initial error, (4.b), each with both sides; the constants."""
-
-    inequalities: list[Inequality]
-    quantities: dict = field(default_factory=dict)
-
-    @property
-    def holds(self) -> bool:
-        return all(item.verdict == "holds" for item in self.inequalities)
-
-    def to_dict(self) -> dict:
-        return json_safe({"holds": self.holds, "inequalities": [item.to_dict() for item in self.inequalities], "quantities": self.quantities})
-
-    title: str = "Calugi (2002): adaptive observer conditions"
-
-    def text(self) -> str:
-        lines = [self.title]
-        for item in self.inequalities:
-            lines += item.describe()
-        return "\n".join(lines)
+PAPER = "Calugi (2002)"
+#: Units of sigma and the other side of (4.a) and (5.28): those of K M (1/s times inertia).
+INJECTION_UNITS = "1/s kg m2"
 
 
 def injection_bound(parameters: AffineParameters, gain, *, grid_points: int = 64) -> float:
@@ -74,10 +53,14 @@ def injection_bound(parameters: AffineParameters, gain, *, grid_points: int = 64
 
 
 def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_speed: float, *, margin: float = 0.0,
-                      initial_error=None) -> AdaptiveObserverReport:
+                      initial_error=None) -> Report:
     """Theorem 4.1 for the arm and unknowns ``parameters`` (true values at its reference),
     K, Gamma (diagonals), w_max >= ||q'||, beta = ``margin`` >= 0 and, optionally, the
-    initial errors (x1~(0), theta~(0)) to place in the region (4.b)."""
+    initial errors (x1~(0), theta~(0)) to place in the region (4.b).
+
+    Returns a report with the condition ``theorem_4_1``: (4.a) and, with an initial error
+    and C_M > 0, (4.b) (with C_M = 0 the region is global: a note says so); the constants
+    in ``quantities``."""
     model = parameters.model(parameters.reference)
     K = np.asarray(check.vector("observer gain K", gain, model.size), dtype=float)
     Gamma = np.asarray(check.vector("adaptation gain Gamma", adaptation_gain, parameters.size), dtype=float)
@@ -90,31 +73,37 @@ def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_s
     c_m = bounds.coriolis_bound
     p_l = min(bounds.min_inertia, 1.0 / Gamma.max())
     p_u = max(bounds.max_inertia, 1.0 / Gamma.min())
-    inequalities = [_inequality("(4.a)", "sigma > C_M w_max + beta", sigma, c_m * max_speed + margin, "1/s kg m2")]
+    source = f"{PAPER}, Theorem 4.1"
+    inequalities = [Inequality.check("(4.a)", "sigma > C_M w_max + beta", sigma, ">", c_m * max_speed + margin,
+                                     units=INJECTION_UNITS, source=source)]
     radius = math.inf if c_m == 0 else math.sqrt(p_l / p_u) * ((sigma - margin) / c_m - max_speed)
     quantities = {
         "sigma": sigma, "C_M": c_m, "M_m": bounds.min_inertia, "M_M": bounds.max_inertia, "p_l": p_l, "p_u": p_u,
         "max_speed": max_speed, "beta": margin, "radius": radius,
     }
+    notes = []
     if initial_error is not None and c_m == 0:
-        quantities["region"] = "global: C_M = 0, (4.b) holds for every initial error"
+        notes.append("region (4.b) global: C_M = 0, it holds for every initial error")
     if initial_error is not None and c_m > 0:
         x_error, theta_error = initial_error
         norm = float(np.linalg.norm(np.concatenate([np.atleast_1d(np.asarray(x_error, dtype=float)), np.atleast_1d(np.asarray(theta_error, dtype=float))])))
         if not math.isfinite(norm):
             raise ValueError(f"initial_error must be finite; got {initial_error!r}")
-        inequalities.append(_inequality("(4.b)", "sqrt(p_l/p_u) ((sigma - beta)/C_M - w_max) > ||e(0)||", radius, norm, "mixed"))
+        inequalities.append(Inequality.check("(4.b)", "sqrt(p_l/p_u) ((sigma - beta)/C_M - w_max) > ||e(0)||", radius, ">", norm,
+                                             units="mixed", source=source))
         quantities["initial_error_norm"] = norm
-    return AdaptiveObserverReport(inequalities, quantities, "Calugi (2002), Theorem 4.1: adaptive observer")
+    condition = Condition("theorem_4_1", "Theorem 4.1", "adaptive observer: x1~ -> 0, theta~ bounded", source, inequalities)
+    return Report(f"{PAPER}, Theorem 4.1: adaptive observer", (condition,), quantities, notes=notes)
 
 
-def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: float, initial_error=0.0) -> AdaptiveObserverReport:
+def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: float, initial_error=0.0) -> Report:
     """(5.28) of Calugi (2002), ch. 5, for the closed loop of (5.9) with the adaptive observer:
     from (5.27), V' <= -z^T C_z z - (sigma - C_M w_max - C_M |x1~| - p/4) |x1~|^2 with
     sigma = inf_q lambda_min(K M + M K)/2 and p = sum_{i=1}^{2n} 1/d_i (the thesis's "6"
     and omega_{i+3} are carried over from the ship case; derivations-thesis-ch3-6.md).
     Two inequalities: at rest (w_max = 0, x1~ = 0; a necessary part) and with the given
-    w_max and |x1~| (the initial velocity error)."""
+    w_max and |x1~| (the initial velocity error). Returns a report with the condition
+    ``condition_5_28``."""
     model = parameters.model(parameters.reference)
     d = np.asarray(check.vector("damping_weights d", damping_weights, 2 * model.size), dtype=float)
     check.positive("damping_weights d", d)
@@ -125,12 +114,15 @@ def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: f
     sigma = injection_bound(parameters, gain)
     c_m = configuration_bounds(model).coriolis_bound
     p = float(np.sum(1.0 / d))
+    source = f"{PAPER}, eq. (5.28)"
     inequalities = [
-        _inequality("(5.28) at rest", "sigma > p/4", sigma, p / 4.0, "1/s kg m2"),
-        _inequality("(5.28)", "sigma > C_M w_max + C_M |x1~| + p/4", sigma, c_m * max_speed + c_m * error + p / 4.0, "1/s kg m2"),
+        Inequality.check("(5.28) at rest", "sigma > p/4", sigma, ">", p / 4.0, units=INJECTION_UNITS, source=source),
+        Inequality.check("(5.28)", "sigma > C_M w_max + C_M |x1~| + p/4", sigma, ">", c_m * max_speed + c_m * error + p / 4.0,
+                         units=INJECTION_UNITS, source=source),
     ]
-    return AdaptiveObserverReport(inequalities, {"sigma": sigma, "C_M": c_m, "p": p, "max_speed": max_speed, "velocity_error": error},
-                                  "Calugi (2002), (5.28): adaptive observer backstepping")
+    condition = Condition("condition_5_28", "(5.28)", "adaptive observer backstepping, closed loop", source, inequalities)
+    return Report(f"{PAPER}, (5.28): adaptive observer backstepping", (condition,),
+                  {"sigma": sigma, "C_M": c_m, "p": p, "max_speed": max_speed, "velocity_error": error})
 
 
-__all__ = ["AdaptiveObserverReport", "check_5_28", "check_theorem_4_1", "injection_bound"]
+__all__ = ["check_5_28", "check_theorem_4_1", "injection_bound"]

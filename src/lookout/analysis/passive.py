@@ -19,12 +19,14 @@ The observer is GES (Theorem 1) when each h is strictly positive real.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+import functools
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
 import xarray as xr
 
+from lookout.analysis.conditions import Condition, Inequality, Report, Verdict
 from lookout.models.vessel import DOF
 from lookout.observers.passive import PassiveObserver
 
@@ -208,119 +210,64 @@ def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Datase
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
-@dataclass
-class Inequality:
-    """One inequality of the tuning rule (48) for one DOF."""
-
-    dof: str
-    relation: str
-    lhs: float
-    rhs: float
-    holds: bool
-    margin: float
-    required_margin: float
-
-    def describe(self) -> str:
-        """One line: the inequality, its values and whether it holds.
-
-        The two sides get 4 significant digits, or as many more as it takes to show
-        that they differ.
-        """
-        verdict = "holds" if self.holds else f"FAILS (ratio {self.margin:.3g}, needs > {self.required_margin:g})"
-        for digits in range(4, 18):
-            lhs, rhs = f"{self.lhs:.{digits}g}", f"{self.rhs:.{digits}g}"
-            if lhs != rhs or self.lhs == self.rhs:
-                break
-        return f"{self.dof}: {self.relation}: {lhs} vs {rhs} -> {verdict}"
+#: Paper and equation of each check of this module.
+SOURCE_48 = "Fossen & Strand (1999), eq. (48)"
+SOURCE_SPR = "Fossen & Strand (1999), Theorem 1, eqs. (38)-(39); Khalil (1996), Lemma 6.1"
+#: Units of lim w^2 Re h(jw) = -C A B: those of h per second squared.
+LIMIT_UNITS = {"translation": "N/(m s)", "yaw": "N m/(rad s)"}
 
 
-@dataclass
-class TuningRuleReport:
-    """Result of checking 1/T << lambda/kappa < w_o < w_c (eq. 48) per DOF."""
-
-    inequalities: list[Inequality] = field(default_factory=list)
-    much_less_factor: float = 10.0
-
-    @property
-    def holds(self) -> bool:
-        """True when every inequality holds."""
-        return all(item.holds for item in self.inequalities)
-
-    @property
-    def failures(self) -> list[Inequality]:
-        """The inequalities that fail."""
-        return [item for item in self.inequalities if not item.holds]
-
-    def to_dict(self) -> dict:
-        """JSON-ready form."""
-        return {
-            "holds": self.holds,
-            "much_less_factor": self.much_less_factor,
-            "inequalities": [asdict(item) for item in self.inequalities],
-        }
+def _kind(dof: str) -> str:
+    return "yaw" if dof in ROTATION_DOF else "translation"
 
 
-def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10.0) -> TuningRuleReport:
+def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10.0) -> Condition:
     """Check the tuning rule of Fossen & Strand (1999), eq. (48), per DOF.
 
     ``1/T_i << lambda_i/kappa_i < w_oi < w_ci``, with w_c the position gain k3
-    (eq. 47). "<<" is read as "smaller by at least ``much_less_factor``".
+    (eq. 47). "<<" is read as "smaller by at least ``much_less_factor``", i.e.
+    ``much_less_factor / T <= lambda/kappa``.
 
     Returns
     -------
-    TuningRuleReport
-        Every inequality with its two sides, the ratio rhs/lhs and the verdict.
+    Condition
+        ``tuning_rule_48``: three inequalities per DOF (rad/s), named by the DOF.
     """
     if not much_less_factor >= 1:
         raise ValueError(f"much_less_factor must be >= 1; got {much_less_factor}")
     g = _gains(observer)
-    report = TuningRuleReport(much_less_factor=much_less_factor)
+    inequalities = []
+    much_less = (f"1/T << lambda/kappa, read as {much_less_factor:g}/T <= lambda/kappa", "<=") if much_less_factor > 1 else ("1/T < lambda/kappa", "<")
     for i, dof in enumerate(DOF):
         corner = g["lam"][i] / g["kappa"][i]
         chain = [
-            ("1/T << lambda/kappa", 1.0 / g["T"][i], corner, much_less_factor),
-            ("lambda/kappa < w_o", corner, g["w0"][i], 1.0),
-            ("w_o < w_c", g["w0"][i], g["k3"][i], 1.0),
+            (*much_less, much_less_factor / g["T"][i], corner),
+            ("lambda/kappa < w_o", "<", corner, g["w0"][i]),
+            ("w_o < w_c", "<", g["w0"][i], g["k3"][i]),
         ]
-        for relation, lhs, rhs, needed in chain:
-            margin = rhs / lhs
-            holds = margin >= needed if needed > 1 else margin > 1.0
-            report.inequalities.append(Inequality(dof, relation, float(lhs), float(rhs), bool(holds), float(margin), needed))
-    return report
+        for relation, comparison, left, right in chain:
+            inequalities.append(Inequality.check(dof, relation, left, comparison, right, units="rad/s", source=SOURCE_48))
+    return Condition(
+        "tuning_rule_48", "(48)", "tuning rule 1/T << lambda/kappa < w_o < w_c", SOURCE_48, inequalities,
+        quantities={"much_less_factor": much_less_factor},
+    )
 
 
-@dataclass
-class SPRReport:
-    """SPR verdict for one DOF's loop h = hB h0, and its KYP certificate.
+@dataclass(frozen=True)
+class SPRCondition(Condition):
+    """Strict positive realness of one DOF's loop h = hB h0, with its KYP certificate.
 
-    ``verdict`` is ``"holds"`` (the frequency-domain conditions hold and a KYP
-    certificate is verified), ``"fails"`` (a frequency-domain condition fails:
-    the loop is not SPR) or ``"unverified"`` (the frequency-domain conditions hold
-    on the grid but no certificate could be verified to tolerance, so SPR is not
-    established); ``reason`` says which condition decided it, with numbers.
+    The inequalities (named by the DOF): A Hurwitz, min Re h(jw) > 0 on the grid and
+    lim w^2 Re h(jw) = -C A B > 0 (Khalil 1996, Lemma 6.1), and, where these hold, the
+    certificate's P > 0, Q > 0 and B^T P = C (eqs. 38-39), which are ``unverified``
+    (not ``fails``) when no certificate is found: a failed search does not disprove
+    SPR. So the verdict is ``holds`` only with a verified certificate. Informational:
+    the minimum phase below 10 w_c against -90 deg, the SPR margin near the notch.
+    ``quantities`` holds the numbers, ``certificate`` among them
+    (:func:`kyp_certificate`, None when the frequency conditions fail).
     """
 
-    dof: str
-    hurwitz: bool
-    min_real_part: float
-    min_real_part_frequency: float
-    min_phase_deg: float
-    min_phase_deg_in_band: float
-    min_phase_frequency_in_band: float
-    high_frequency_limit: float
-    frequency_test: bool
-    verdict: str
-    reason: str
-    certificate: dict | None = None
-
-    @property
-    def spr(self) -> bool:
-        """True when SPR is established: frequency conditions and a verified certificate."""
-        return self.verdict == "holds"
-
-    def to_dict(self) -> dict:
-        """JSON-ready form (the certificate's matrices as nested lists)."""
-        return asdict(self) | {"spr": self.spr}
+    dof: str = field(kw_only=True)
 
 
 def minimum_phase_in_band(frequencies, phase_deg, cutoff_frequency: float) -> tuple[float, float]:
@@ -339,7 +286,17 @@ def minimum_phase_in_band(frequencies, phase_deg, cutoff_frequency: float) -> tu
     return float(phase_deg[index]), float(frequencies[index])
 
 
-def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRReport]:
+def _certificate_inequalities(dof: str, certificate: dict) -> list[Inequality]:
+    """P > 0, Q > 0 and B^T P = C of a candidate certificate: ``unverified`` when they fail."""
+    check = functools.partial(Inequality.check, dof, source=SOURCE_SPR, failure=Verdict.UNVERIFIED)
+    return [
+        check("P > 0: lambda_min(S P S) > 0, S = diag(P)^-1/2", certificate["min_eig_P"], ">", 0.0, units=""),
+        check("Q > 0: lambda_min(S Q S) > 0, S = diag(Q)^-1/2", certificate["min_eig_Q"], ">", 0.0, units=""),
+        check("B^T P = C: max|B^T P - C| / max|C| < 1e-8", certificate["residual_output"], "<", 1e-8, units=""),
+    ]
+
+
+def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRCondition]:
     """Check that each decoupled loop h_i(s) = hB_i(s) h0_i(s) is strictly positive real.
 
     Conditions (Khalil 1996, Lemma 6.1, for strictly proper h = C (sI - A)^-1 B):
@@ -349,40 +306,47 @@ def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRReport]
     ``lim w^2 Re h(jw) = -C A B > 0``. Where these hold, a KYP certificate
     (P = P^T > 0, Q = Q^T > 0 with PA + A^T P = -Q and B^T P = C, eqs. 38–39) is
     computed by :func:`kyp_certificate` and verified; SPR is reported as holding
-    only then (``verdict``). The report also gives the minimum phase below 10 w_c
-    (``min_phase_deg_in_band``): the SPR margin near the notch, which the overall
-    minimum (the -90 deg asymptote) hides.
+    only then (:class:`SPRCondition`). The report also gives the minimum phase below
+    10 w_c (``min_phase_deg_in_band``): the SPR margin near the notch, which the
+    overall minimum (the -90 deg asymptote) hides.
 
     Returns
     -------
-    list of SPRReport
-        One per DOF.
+    list of SPRCondition
+        One per DOF, keys ``spr_surge``, ``spr_sway``, ``spr_yaw``.
     """
     g = _gains(observer)
     if frequencies is None:
         frequencies = default_frequencies(observer, points=20000, decades=3.0)
-    reports = []
+    conditions = []
     for i, dof in enumerate(DOF):
         w = np.sort(np.concatenate([np.asarray(frequencies, dtype=float), [g["w0"][i]]]))
         A, B, C = error_loop(observer, i)
         poles = np.linalg.eigvals(A)
-        hurwitz = bool(poles.real.max() < 0)
         h = transfer_functions(observer, w)["h"][:, i]
         real = h.real
         j = int(np.argmin(real))
         phase = np.degrees(np.angle(h))
         in_band_phase, in_band_frequency = minimum_phase_in_band(w, phase, g["k3"][i])
         limit = float(-(C @ A @ B).item())
-        frequency_test = hurwitz and bool(real.min() > 0) and limit > 0
+        kind = _kind(dof)
+        check = functools.partial(Inequality.check, dof, source=SOURCE_SPR)
+        frequency_domain = [
+            check("A Hurwitz: max Re eig(A) < 0", float(poles.real.max()), "<", 0.0, units="1/s"),
+            check("min over the grid of Re h(jw) > 0", float(real[j]), ">", 0.0, units=RESPONSE_UNITS["h"][kind]),
+            check("lim w^2 Re h(jw) = -C A B > 0", limit, ">", 0.0, units=LIMIT_UNITS[kind]),
+        ]
+        frequency_test = all(item.holds for item in frequency_domain)
         certificate = kyp_certificate(observer, i) if frequency_test else None
-        if not hurwitz:
-            verdict, reason = "fails", f"A is not Hurwitz: its largest real part is {poles.real.max():.3g}"
-        elif not real.min() > 0:
-            verdict, reason = "fails", f"Re h(jw) = {real[j]:.3g} <= 0 at w = {w[j]:.4g} rad/s (phase {phase[j]:.2f} deg)"
-        elif not limit > 0:
-            verdict, reason = "fails", f"lim w^2 Re h(jw) = -CAB = {limit:.3g} <= 0"
+        hurwitz, positive, limit_positive = frequency_domain
+        if not hurwitz.holds:
+            reason = f"A is not Hurwitz: its largest real part is {poles.real.max():.3g}"
+        elif not positive.holds:
+            reason = f"Re h(jw) = {real[j]:.3g} <= 0 at w = {w[j]:.4g} rad/s (phase {phase[j]:.2f} deg)"
+        elif not limit_positive.holds:
+            reason = f"lim w^2 Re h(jw) = -CAB = {limit:.3g} <= 0"
         elif certificate["verified"]:
-            verdict, reason = "holds", "frequency-domain conditions hold and the KYP certificate is verified"
+            reason = "frequency-domain conditions hold and the KYP certificate is verified"
         else:
             speeds = np.abs(poles)
             if certificate["P"] is None or not np.isfinite([certificate["min_eig_P"], certificate["min_eig_Q"]]).all():
@@ -392,29 +356,60 @@ def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRReport]
                     f"the best candidate's smallest normalized eigenvalue is {certificate['min_eig_P'] + 0.0:.2g} for P "
                     f"and {certificate['min_eig_Q'] + 0.0:.2g} for Q, both must be > 0"
                 )
-            verdict = "unverified"
             reason = (
                 f"Re h(jw) > 0 on the grid, but no KYP certificate was verified in float64 ({best}; "
                 f"the loop's poles span {speeds.min():.3g} to {speeds.max():.3g} rad/s, a ratio of {speeds.max() / speeds.min():.2g}): "
                 "SPR is not established"
             )
-        reports.append(
-            SPRReport(
+        conditions.append(
+            SPRCondition(
+                f"spr_{dof}", "Theorem 1", f"SPR of h = hB h0, {dof}", SOURCE_SPR,
+                frequency_domain + ([] if certificate is None else _certificate_inequalities(dof, certificate)),
+                reason,
+                informational=(check("phase of h below 10 w_c > -90 deg", in_band_phase, ">", -90.0, units="deg"),),
+                quantities={
+                    "min_real_part": float(real[j]),
+                    "min_real_part_frequency": float(w[j]),
+                    "min_phase_deg": float(phase.min()),
+                    "min_phase_deg_in_band": in_band_phase,
+                    "min_phase_frequency_in_band": in_band_frequency,
+                    "high_frequency_limit": limit,
+                    "frequency_test": frequency_test,
+                    "certificate": certificate,
+                },
                 dof=dof,
-                hurwitz=hurwitz,
-                min_real_part=float(real[j]),
-                min_real_part_frequency=float(w[j]),
-                min_phase_deg=float(phase.min()),
-                min_phase_deg_in_band=in_band_phase,
-                min_phase_frequency_in_band=in_band_frequency,
-                high_frequency_limit=limit,
-                frequency_test=frequency_test,
-                verdict=verdict,
-                reason=reason,
-                certificate=certificate,
             )
         )
-    return reports
+    return conditions
+
+
+def _diagonal(values) -> str:
+    return "diag(" + ", ".join(f"{v:.4g}" for v in np.ravel(values)) + ")"
+
+
+def check_passive_observer(observer: PassiveObserver, *, much_less_factor: float = 10.0, frequencies=None) -> Report:
+    """The tuning rule (48) (:func:`check_tuning_rule`) and SPR of each loop
+    (:func:`check_spr`, Theorem 1) for ``observer``, with its gains (45)-(47)."""
+    k = np.asarray(observer.wave_injection_gain)
+    return Report(
+        "Fossen & Strand (1999) passive observer: tuning rule (48), SPR of h = hB h0 (Theorem 1)",
+        (check_tuning_rule(observer, much_less_factor=much_less_factor), *check_spr(observer, frequencies=frequencies)),
+        quantities={
+            "K1": observer.wave_injection_matrix(),
+            "K2": observer.position_injection_matrix(),
+            "velocity_injection_gain": np.asarray(observer.velocity_injection_gain),
+            "bias_injection_gain": np.asarray(observer.bias_injection_gain),
+            "bias_time_constant": np.asarray(observer.bias_time_constant),
+            "lyapunov_weight": float(observer.lyapunov_weight),
+        },
+        summary=(
+            f"K1 = [{_diagonal(k[:3])}; {_diagonal(k[3:])}]  (45)-(46)",
+            f"K2 = {_diagonal(observer.position_injection_gain)} 1/s  (47)",
+            f"Kappa = {_diagonal(observer.velocity_injection_gain)} N/m, N/m, N m/rad",
+            f"Lambda = {_diagonal(observer.bias_injection_gain)} N/(m s), N/(m s), N m/(rad s)",
+            f"T = {_diagonal(observer.bias_time_constant)} s",
+        ),
+    )
 
 
 def _normalized_min_eig(matrix: np.ndarray) -> float:

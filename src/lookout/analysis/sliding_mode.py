@@ -23,7 +23,8 @@ of the observer (6), for the model of (1)–(5) without noise and J = J(y) = R(p
 * :func:`switching_gain_required`: condition (17) made concrete, the switching gain
   that a bound on the unmodelled force E_nu w_nu requires, and the force bound that
   a given Kbar covers;
-* :func:`check_kim_2002`: all of it for one observer, as a report with verdicts.
+* :func:`check_kim_2002`: all of it for one observer, as a
+  :class:`~lookout.analysis.conditions.Report`.
 
 Findings for the printed gains (A.2)–(A.4) on the Northern Clipper (tested in
 tests/test_sliding_mode_analysis.py): H3/H4 = 10 1/s > w_o breaks rule (48); the
@@ -42,17 +43,17 @@ heading when the surge and sway gains and wave models are equal, as in Kim's (A.
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import scipy.integrate
 import scipy.linalg
 import scipy.optimize
 
-from lookout._json import finite_or_none as _finite
-from lookout._json import json_safe as _json_safe
-from lookout.analysis.passive import SPRReport, TuningRuleReport, _normalized_min_eig, check_spr, check_tuning_rule
+from lookout.analysis.conditions import Condition, Inequality, Report, Verdict, number, numbers
+from lookout.analysis.passive import _normalized_min_eig, check_spr, check_tuning_rule
 from lookout.models.vessel import DOF, DPVessel
 from lookout.observers.passive import PassiveObserver
 from lookout.observers.sliding_mode import SlidingModeObserver
@@ -70,7 +71,10 @@ VELOCITY_UNITS = ("m/s", "m/s", "rad/s")
 #: Units of the disturbance bound F per axis (body-fixed force, force, moment).
 FORCE_UNITS = ("N", "N", "N m")
 
-VERDICTS = ("holds", "fails", "unverified")
+#: Where the checks of this module come from.
+SOURCE_ERROR_SYSTEM = "Kim (2002), (8)-(10), corrected (derivations K1)"
+SOURCE_14 = "Kim (2002), eq. (14)"
+SOURCE_17 = "Kim (2002), eqs. (15)-(17), corrected (derivations K2)"
 
 
 def _parts(observer) -> tuple[PassiveObserver, np.ndarray, np.ndarray]:
@@ -207,27 +211,29 @@ class Mode:
 
 @dataclass
 class EigenvalueReport:
-    """Eigenvalues of an error-system matrix and the stability verdict.
+    """Eigenvalues of an error-system matrix and the stability inequality.
 
-    ``verdict`` is "holds" (every real part < -tolerance), "fails" (one > +tolerance)
-    or "unverified" (the largest real part lies within the tolerance of zero,
-    where rounding decides). ``tolerance = 1e-8 * max |lambda|``.
+    ``stability`` is ``max Re lambda < 0`` with an absolute tolerance of
+    ``1e-8 * max |lambda|``: ``holds`` (every real part below -tolerance), ``fails``
+    (one above +tolerance) or ``unverified`` (the largest real part lies within the
+    tolerance of zero, where rounding decides).
     """
 
     eigenvalues: np.ndarray
-    max_real_part: float
-    tolerance: float
-    verdict: str
+    stability: Inequality
     unstable: list[Mode]
     slowest: Mode
 
+    @property
+    def verdict(self) -> Verdict:
+        """The stability inequality's verdict."""
+        return self.stability.verdict
+
     def to_dict(self) -> dict:
+        """The eigenvalues and modes (the verdict is the inequality's)."""
         return {
             "eigenvalues_real": [float(v.real) for v in self.eigenvalues],
             "eigenvalues_imag": [float(v.imag) for v in self.eigenvalues],
-            "max_real_part": float(self.max_real_part),
-            "tolerance": float(self.tolerance),
-            "verdict": self.verdict,
             "unstable": [asdict(m) for m in self.unstable],
             "slowest": asdict(self.slowest),
         }
@@ -248,7 +254,7 @@ def _axis_scaling(matrix: np.ndarray) -> np.ndarray:
 
 
 def eigenvalue_report(matrix, *, heading: float = 0.0, relative_tolerance: float = 1e-8) -> EigenvalueReport:
-    """Eigenvalues of an error-system matrix, its unstable modes and the verdict.
+    """Eigenvalues of an error-system matrix, its unstable modes and the stability inequality.
 
     The matrix is first scaled (bias errors in units of position) and, for the
     15-state error system, its Earth-fixed states are rotated into body axes with
@@ -272,8 +278,10 @@ def eigenvalue_report(matrix, *, heading: float = 0.0, relative_tolerance: float
     order = np.lexsort((-values.imag, -values.real))
     values, vectors = values[order], vectors[:, order]
     tolerance = relative_tolerance * max(float(np.abs(values).max()), np.finfo(float).tiny)
-    largest = float(values.real.max())
-    verdict = "holds" if largest < -tolerance else "fails" if largest > tolerance else "unverified"
+    stability = Inequality.check(
+        "max Re lambda", "max Re lambda(A_e) < 0", float(values.real.max()), "<", 0.0, units="1/s",
+        source=SOURCE_ERROR_SYSTEM, tolerance=tolerance,
+    )
 
     def mode(k: int) -> Mode:
         lam = values[k]
@@ -289,64 +297,13 @@ def eigenvalue_report(matrix, *, heading: float = 0.0, relative_tolerance: float
         )
 
     unstable = [mode(k) for k in range(n) if values[k].real > tolerance and values[k].imag >= 0]
-    return EigenvalueReport(
-        eigenvalues=values,
-        max_real_part=largest,
-        tolerance=tolerance,
-        verdict=verdict,
-        unstable=unstable,
-        slowest=mode(int(np.argmax(values.real))),
-    )
+    return EigenvalueReport(eigenvalues=values, stability=stability, unstable=unstable, slowest=mode(int(np.argmax(values.real))))
 
 
 # -- KYP (14) ------------------------------------------------------------------------
 
 
-@dataclass
-class KYPReport:
-    """The KYP conditions (14) for Sigma_2: per-DOF SPR reports and, when all hold,
-    the assembled P (12x12), Q and the residuals of (14) on the full matrices."""
-
-    verdict: str
-    reason: str
-    per_dof: list[SPRReport]
-    P: np.ndarray | None = None
-    Q: np.ndarray | None = None
-    residual_lyapunov: float | None = None  # max|PA + A^T P + Q| / max|Q|
-    residual_output: float | None = None  # max|B^T P - C| / max|C|
-    min_eig_P: float | None = None  # of the diagonally normalized matrices
-    min_eig_Q: float | None = None
-
-    def to_dict(self, *, matrices: bool = False) -> dict:
-        out = {
-            "verdict": self.verdict,
-            "reason": self.reason,
-            "per_dof": [_spr_summary(r) for r in self.per_dof],
-            "residual_lyapunov": self.residual_lyapunov,
-            "residual_output": self.residual_output,
-            "min_eig_P": self.min_eig_P,
-            "min_eig_Q": self.min_eig_Q,
-        }
-        if matrices:
-            out["P"] = None if self.P is None else self.P.tolist()
-            out["Q"] = None if self.Q is None else self.Q.tolist()
-        return out
-
-
-def _spr_summary(report: SPRReport) -> dict:
-    return {
-        "dof": report.dof,
-        "verdict": report.verdict,
-        "reason": report.reason,
-        "hurwitz": report.hurwitz,
-        "min_phase_deg_in_band": report.min_phase_deg_in_band,
-        "min_phase_frequency_in_band": report.min_phase_frequency_in_band,
-        "min_real_part": report.min_real_part,
-        "min_real_part_frequency": report.min_real_part_frequency,
-    }
-
-
-def kyp_14(observer, *, frequencies=None) -> KYPReport:
+def kyp_14(observer, *, frequencies=None) -> Condition:
     """Check Kim's (14), P A + A^T P = -Q, B^T P = C with P, Q > 0, for Sigma_2.
 
     The gains are diagonal, so Sigma_2 splits into three SISO loops and (14) holds
@@ -355,38 +312,59 @@ def kyp_14(observer, *, frequencies=None) -> KYPReport:
     the certificates are assembled block-wise into the 12x12 P and Q and (14) is
     verified again on the full matrices of :func:`sigma2`. The switching term does
     not enter (14): Kbar multiplies sat, not the linear part.
+
+    Returns
+    -------
+    Condition
+        ``kyp_14``: the per-DOF inequalities of the SPR checks and, when all hold, P > 0,
+        Q > 0 and the residuals of (14) on the assembled matrices (``unverified``, not
+        ``fails``, when these fail: the per-DOF certificates exist). ``quantities``: P, Q
+        (None unless assembled), the residuals and per DOF the numbers of its SPR check.
     """
     passive, _, _ = _parts(observer)
     per_dof = check_spr(passive, frequencies=frequencies)
-    failing = [r for r in per_dof if r.verdict == "fails"]
+    inequalities = [item for r in per_dof for item in r.inequalities]
+    informational = [item for r in per_dof for item in r.informational]
+    quantities = {
+        "P": None, "Q": None, "residual_lyapunov": None, "residual_output": None,
+        "per_dof": {r.dof: {k: v for k, v in r.quantities.items() if k != "certificate"} | {"verdict": r.verdict, "reason": r.reason} for r in per_dof},
+    }
+
+    def condition(reason: str) -> Condition:
+        return Condition("kyp_14", "(14)", "KYP for Sigma_2: P A + A^T P = -Q, B^T P = C, P, Q > 0", SOURCE_14,
+                         inequalities, reason, informational, quantities)
+
+    failing = [r for r in per_dof if r.verdict == Verdict.FAILS]
     if failing:
-        reason = "; ".join(f"{r.dof}: {r.reason}" for r in failing)
-        return KYPReport("fails", f"not SPR, so no P, Q exist: {reason}", per_dof)
-    unverified = [r for r in per_dof if r.verdict != "holds"]
+        return condition("not SPR, so no P, Q exist: " + "; ".join(f"{r.dof}: {r.reason}" for r in failing))
+    unverified = [r for r in per_dof if r.verdict != Verdict.HOLDS]
     if unverified:
-        reason = "; ".join(f"{r.dof}: {r.reason}" for r in unverified)
-        return KYPReport("unverified", reason, per_dof)
+        return condition("; ".join(f"{r.dof}: {r.reason}" for r in unverified))
     A, B, C = sigma2(passive)
     P = np.zeros((12, 12))
     for i, report in enumerate(per_dof):
         index = [i, 3 + i, 6 + i, 9 + i]
-        P[np.ix_(index, index)] = np.asarray(report.certificate["P"])
+        P[np.ix_(index, index)] = np.asarray(report.quantities["certificate"]["P"])
     P = 0.5 * (P + P.T)
     Q = -(P @ A + A.T @ P)
     Q = 0.5 * (Q + Q.T)
     residual_lyapunov = float(np.abs(P @ A + A.T @ P + Q).max() / np.abs(Q).max())
     residual_output = float(np.abs(B.T @ P - C).max() / np.abs(C).max())
     min_p, min_q = _normalized_min_eig(P), _normalized_min_eig(Q)
-    verified = min_p > 0 and min_q > 0 and residual_output < 1e-8 and residual_lyapunov < 1e-8
-    if verified:
-        verdict, reason = "holds", "each DOF is SPR; the assembled P, Q satisfy (14) on the full Sigma_2"
-    else:
-        verdict = "unverified"
-        reason = (
-            f"per-DOF certificates hold but the assembled ones do not verify (min eig P {min_p:.2g}, "
-            f"Q {min_q:.2g}, B^T P - C residual {residual_output:.2g})"
-        )
-    return KYPReport(verdict, reason, per_dof, P, Q, residual_lyapunov, residual_output, min_p, min_q)
+    quantities.update(P=P, Q=Q, residual_lyapunov=residual_lyapunov, residual_output=residual_output)
+    check = functools.partial(Inequality.check, "Sigma_2", units="", source=SOURCE_14, failure=Verdict.UNVERIFIED)
+    inequalities += [
+        check("P > 0: lambda_min(S P S) > 0, S = diag(P)^-1/2", min_p, ">", 0.0),
+        check("Q > 0: lambda_min(S Q S) > 0, S = diag(Q)^-1/2", min_q, ">", 0.0),
+        check("B^T P = C: max|B^T P - C| / max|C| < 1e-8", residual_output, "<", 1e-8),
+        check("P A + A^T P = -Q: max|P A + A^T P + Q| / max|Q| < 1e-8", residual_lyapunov, "<", 1e-8),
+    ]
+    if all(item.holds for item in inequalities):
+        return condition("each DOF is SPR; the assembled P, Q satisfy (14) on the full Sigma_2")
+    return condition(
+        f"per-DOF certificates hold but the assembled ones do not verify (min eig P {min_p:.2g}, "
+        f"Q {min_q:.2g}, B^T P - C residual {residual_output:.2g})"
+    )
 
 
 # -- (17): the switching gain a bounded disturbance requires ------------------------
@@ -498,51 +476,6 @@ def peak_to_peak_gains(
     return out
 
 
-@dataclass
-class SwitchingGainReport:
-    """Condition (17) made concrete for a bound on the unmodelled force.
-
-    ``disturbance_bound`` F (N, N, N m, body-fixed, componentwise |f_k(t)| <= F_k);
-    ``peak_to_peak_gain`` ||g_jk||_1 of (M s + D)^-1; ``velocity_bound``
-    b_j = sum_k ||g_jk||_1 F_k >= sup_t |nu~_d,j| (m/s, m/s, rad/s);
-    ``required_gain`` rho: sqrt(b_1^2 + b_2^2) for the two position axes (any
-    heading), b_3 for heading. With a switching gain Kbar: ``margin`` Kbar/rho,
-    ``axis_verdicts`` and ``verdict``; ``coverage`` is the largest F_k that Kbar
-    covers with the force on axis k alone, and ``coverage_limited_by`` the axis of
-    Kbar that sets it.
-    """
-
-    disturbance_bound: np.ndarray
-    peak_to_peak_gain: np.ndarray
-    velocity_bound: np.ndarray
-    required_gain: np.ndarray
-    switching_gain: np.ndarray | None = None
-    margin: np.ndarray | None = None
-    axis_verdicts: list[str] | None = None
-    verdict: str = "unverified"
-    coverage: np.ndarray | None = None
-    coverage_limited_by: list[str] | None = None
-
-    def to_dict(self) -> dict:
-        def vec(x):
-            return None if x is None else [_finite(v) for v in np.ravel(x)]
-
-        return {
-            "disturbance_bound": vec(self.disturbance_bound),
-            "disturbance_units": list(FORCE_UNITS),
-            "peak_to_peak_gain": [vec(row) for row in self.peak_to_peak_gain],
-            "velocity_bound": vec(self.velocity_bound),
-            "required_gain": vec(self.required_gain),
-            "gain_units": list(VELOCITY_UNITS),
-            "switching_gain": vec(self.switching_gain),
-            "margin": vec(self.margin),
-            "axis_verdicts": self.axis_verdicts,
-            "verdict": self.verdict,
-            "coverage": vec(self.coverage),
-            "coverage_limited_by": self.coverage_limited_by,
-        }
-
-
 def _required(gains: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     velocity = gains @ bound
     planar = math.hypot(velocity[0], velocity[1])
@@ -569,7 +502,7 @@ def disturbance_coverage(vessel: DPVessel, switching_gain, *, gains=None) -> tup
     return coverage, limited
 
 
-def switching_gain_required(vessel: DPVessel, disturbance_bound, *, observer=None) -> SwitchingGainReport:
+def switching_gain_required(vessel: DPVessel, disturbance_bound, *, observer=None) -> Condition:
     """The switching gain rho = diag(Kbar) that (17) requires for a bounded disturbance.
 
     Kim's (15)–(17), corrected (derivations K2): the velocity error splits as
@@ -600,8 +533,17 @@ def switching_gain_required(vessel: DPVessel, disturbance_bound, *, observer=Non
     disturbance_bound : array_like, shape (3,)
         F (N, N, N m), >= 0.
     observer : SlidingModeObserver, optional
-        When given, its Kbar is compared with rho (margin, verdict) and its coverage
-        (:func:`disturbance_coverage`) is reported.
+        When given, its Kbar is compared with rho: one inequality per axis,
+        ``Kbar_i >= rho_i`` (m/s, m/s, rad/s). Without it there is nothing to compare
+        and the verdict is ``unverified``.
+
+    Returns
+    -------
+    Condition
+        ``switching_gain_17``. ``quantities``: ``disturbance_bound`` F,
+        ``peak_to_peak_gain`` ||g_jk||_1 of (M s + D)^-1, ``velocity_bound``
+        b_j >= sup_t |nu~_d,j| (m/s, m/s, rad/s), ``required_gain`` rho and, with an
+        observer, ``switching_gain`` Kbar.
     """
     bound = np.asarray(disturbance_bound, float)
     if bound.shape == ():
@@ -610,131 +552,59 @@ def switching_gain_required(vessel: DPVessel, disturbance_bound, *, observer=Non
         raise ValueError(f"disturbance_bound must be 3 finite values >= 0 (N, N, N m); got {disturbance_bound!r}")
     gains = peak_to_peak_gains(vessel.mass_matrix, vessel.damping_matrix)
     velocity, required = _required(gains, bound)
-    report = SwitchingGainReport(bound, gains, velocity, required)
+    quantities = {
+        "disturbance_bound": bound, "disturbance_units": list(FORCE_UNITS), "peak_to_peak_gain": gains,
+        "velocity_bound": velocity, "required_gain": required, "gain_units": list(VELOCITY_UNITS),
+    }
+    inequalities, reason = [], "no switching gain to compare with rho"
     if observer is not None:
         _, kbar, _ = _parts(observer)
-        report.switching_gain = kbar
-        with np.errstate(divide="ignore", invalid="ignore"):
-            report.margin = np.where(required > 0, kbar / np.where(required > 0, required, 1.0), np.inf)
-        report.axis_verdicts = ["holds" if kbar[i] >= required[i] else "fails" for i in range(3)]
-        report.verdict = "holds" if all(v == "holds" for v in report.axis_verdicts) else "fails"
-        report.coverage, report.coverage_limited_by = disturbance_coverage(vessel, kbar, gains=gains)
-    return report
+        quantities["switching_gain"] = kbar
+        relations = ("Kbar_1 >= rho_1 = sqrt(b_1^2 + b_2^2)", "Kbar_2 >= rho_2 = sqrt(b_1^2 + b_2^2)", "Kbar_3 >= rho_3 = b_3")
+        inequalities = [
+            Inequality.check(DOF[i], relations[i], kbar[i], ">=", required[i], units=VELOCITY_UNITS[i], source=SOURCE_17)
+            for i in range(3)
+        ]
+        reason = f"for |f| <= F = ({', '.join(number(v, 3) for v in bound)}) N, N, N m"
+    return Condition("switching_gain_17", "(17)", "switching gain dominates a bounded disturbance", SOURCE_17,
+                     inequalities, reason, quantities=quantities)
 
 
 # -- the whole check -----------------------------------------------------------------
 
 
-@dataclass
-class Kim2002Report:
-    """Kim (2002) Section 3.2 conditions for one observer; see :func:`check_kim_2002`."""
-
-    gains: dict[str, np.ndarray]
-    boundary_layer: np.ndarray
-    heading: float
-    tuning_rule: TuningRuleReport
-    kyp: KYPReport
-    without_switching: EigenvalueReport
-    inside_layer: EigenvalueReport
-    switching: SwitchingGainReport | None
-    coverage: np.ndarray  # the largest |f_k| that Kbar covers, axis k alone (N, N, N m)
-    coverage_limited_by: list[str]
-    verdicts: dict[str, str] = field(default_factory=dict)
-
-    def to_dict(self) -> dict:
-        """JSON-safe: plain floats, lists and strings; non-finite numbers are None."""
-        return _json_safe(
-            {
-                "gains": {name: value.tolist() for name, value in self.gains.items()},
-                "boundary_layer": self.boundary_layer.tolist(),
-                "heading": self.heading,
-                "verdicts": dict(self.verdicts),
-                "tuning_rule_48": self.tuning_rule.to_dict(),
-                "kyp_14": self.kyp.to_dict(matrices=True),
-                "error_system_without_switching": self.without_switching.to_dict(),
-                "error_system_inside_layer": self.inside_layer.to_dict(),
-                "switching_gain_17": None if self.switching is None else self.switching.to_dict(),
-                "kbar_coverage": {
-                    "force_bound": self.coverage.tolist(),
-                    "units": list(FORCE_UNITS),
-                    "limited_by": list(self.coverage_limited_by),
-                },
-            }
+def _stability(key: str, title: str, report: EigenvalueReport) -> Condition:
+    """An error system's stability as a condition, its unstable modes in the reason."""
+    if report.unstable:
+        reason = "; ".join(
+            f"{m.axis} {m.real:+.3g} +- {m.frequency:.4g}j 1/s: grows x e in {m.e_folding_time:.3g} s, period {number(m.period, 3)} s"
+            for m in report.unstable
         )
-
-    def text(self) -> str:
-        """A short report, at most 80 columns."""
-        g = self.gains
-        lines = ["Kim (2002) sliding-mode observer: conditions of Section 3.2", ""]
-        lines.append("Gains (SI): diagonals per DOF surge, sway, yaw")
-        lines.append(f"  H1 xi1  {_fmt_vec(np.diag(g['H1'][:3]))}")
-        lines.append(f"  H1 xi2  {_fmt_vec(np.diag(g['H1'][3:]))}")
-        for name in ("H2", "H3", "H4", "Kbar"):
-            lines.append(f"  {name:<6} {_fmt_vec(np.diag(g[name]))}")
-        lines.append(f"  eps    {_fmt_vec(self.boundary_layer)}  (m, m, rad)")
-        lines.append("")
-        lines.append(f"F&S tuning rule (48): {self.verdicts['tuning_rule_48']}")
-        for item in self.tuning_rule.failures:
-            lines.append(f"  {item.dof}: {item.relation}: {item.lhs:.4g} vs {item.rhs:.4g}")
-        lines.append(f"KYP (14) for Sigma_2: {self.verdicts['kyp_14']}")
-        for r in self.kyp.per_dof:
-            lines.append(
-                f"  {r.dof:<5} {r.verdict:<10} min phase {r.min_phase_deg_in_band:7.2f} deg "
-                f"at {r.min_phase_frequency_in_band:.3g} rad/s"
-            )
-        for name, report, key in (
-            ("Kbar = 0", self.without_switching, "error_system_stable_without_switching"),
-            ("inside layer", self.inside_layer, "error_system_stable_inside_layer"),
-        ):
-            lines.append(
-                f"Error system, {name}: {self.verdicts[key]} (max Re {report.max_real_part:.3g} 1/s)"
-            )
-            for m in report.unstable:
-                lines.append(
-                    f"  {m.axis:<5} {m.real:+.3g} +- {m.frequency:.4g}j: grows x e in "
-                    f"{m.e_folding_time:.3g} s, period {_fmt(m.period)} s"
-                )
-        s = self.switching
-        lines.append(f"Switching gain (17): {self.verdicts['switching_gain_17']}")
-        if s is None:
-            lines.append("  no disturbance bound given")
-        else:
-            lines.append(f"  force bound F   {_fmt_vec(s.disturbance_bound)}  (N, N, N m)")
-            lines.append(f"  required rho    {_fmt_vec(s.required_gain)}  (m/s, m/s, rad/s)")
-            if s.margin is not None:
-                lines.append(f"  Kbar / rho      {_fmt_vec(s.margin)}")
-        lines.append("  Kbar covers body-fixed forces, one axis at a time:")
-        for k in range(3):
-            lines.append(
-                f"    {DOF[k]:<5} |f| <= {_fmt(self.coverage[k], 4)} {FORCE_UNITS[k]} "
-                f"(limited by the {self.coverage_limited_by[k]} gain)"
-            )
-        if self.verdicts["kyp_14"] != "holds":
-            lines.append("  (17) presupposes (14): without P, Q it proves nothing.")
-        return "\n".join(line[:80] for line in lines)
+    elif report.verdict == Verdict.HOLDS:
+        m = report.slowest
+        reason = f"slowest mode {m.real:+.3g} +- {m.frequency:.4g}j 1/s ({m.axis})"
+    else:
+        reason = "the largest real part lies within the tolerance of zero: rounding decides"
+    return Condition(key, "(8)-(10)", title, SOURCE_ERROR_SYSTEM, (report.stability,), reason, quantities=report.to_dict())
 
 
-def _fmt(value: float, digits: int = 3) -> str:
-    return f"{value:.{digits}g}" if math.isfinite(value) else "inf"
-
-
-def _fmt_vec(values) -> str:
-    return "  ".join(f"{_fmt(float(v)):>9}" for v in np.ravel(values))
-
-
-def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, heading: float = 0.0) -> Kim2002Report:
+def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, heading: float = 0.0) -> Report:
     """Check the conditions of Kim (2002), Section 3.2, for ``observer``.
 
-    * ``tuning_rule_48``: Fossen & Strand's rule (48) for ``observer.passive``;
+    The conditions, by key:
+
+    * ``tuning_rule_48``: Fossen & Strand's rule (48) for ``observer.passive``
+      (:func:`lookout.analysis.passive.check_tuning_rule`);
     * ``kyp_14``: (14) for Sigma_2 (:func:`kyp_14`): "holds" only with verified P, Q;
     * ``error_system_stable_without_switching``: the 15-state error system with
       Kbar = 0 (:func:`error_system`, :func:`eigenvalue_report`);
     * ``error_system_stable_inside_layer``: the same with H2 + Kbar/eps;
     * ``switching_gain_17``: Kbar >= rho for ``disturbance_bound``
-      (:func:`switching_gain_required`), "unverified" without a bound.
+      (:func:`switching_gain_required`); not checked without a bound (a note says so).
 
-    The report also gives the forces that the observer's Kbar covers in (17), one
-    axis at a time (:func:`disturbance_coverage`), and a text form (:meth:`text`).
+    The report's ``quantities`` give the gains, eps, the heading and the forces that
+    the observer's Kbar covers in (17), one axis at a time (``kbar_coverage``,
+    :func:`disturbance_coverage`); its summary the gains, its notes the coverage.
 
     Parameters
     ----------
@@ -756,19 +626,38 @@ def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, headin
             "H4": np.diag(np.asarray(passive.velocity_injection_gain)),
             "Kbar": np.zeros((3, 3)),
         }
-    tuning = check_tuning_rule(passive)
     kyp = kyp_14(passive)
-    without = eigenvalue_report(error_system(observer, vessel, heading=heading), heading=heading)
-    inside = eigenvalue_report(error_system(observer, vessel, heading=heading, inside_layer=True), heading=heading)
-    switching = None
-    if disturbance_bound is not None:
-        switching = switching_gain_required(vessel, disturbance_bound, observer=observer)
+    conditions = [
+        check_tuning_rule(passive),
+        kyp,
+        _stability("error_system_stable_without_switching", "error system stable, Kbar = 0",
+                   eigenvalue_report(error_system(observer, vessel, heading=heading), heading=heading)),
+        _stability("error_system_stable_inside_layer", "error system stable inside the layer, H2 + Kbar/eps",
+                   eigenvalue_report(error_system(observer, vessel, heading=heading, inside_layer=True), heading=heading)),
+    ]
+    notes = []
+    if disturbance_bound is None:
+        notes.append("(17) not checked: no bound on the unmodelled force given")
+    else:
+        conditions.append(switching_gain_required(vessel, disturbance_bound, observer=observer))
     coverage, limited_by = disturbance_coverage(vessel, kbar)
-    verdicts = {
-        "tuning_rule_48": "holds" if tuning.holds else "fails",
-        "kyp_14": kyp.verdict,
-        "error_system_stable_without_switching": without.verdict,
-        "error_system_stable_inside_layer": inside.verdict,
-        "switching_gain_17": "unverified" if switching is None else switching.verdict,
+    notes += [
+        f"Kbar covers |f_{DOF[k]}| <= {number(coverage[k], 4)} {FORCE_UNITS[k]} alone (limited by the {limited_by[k]} gain)"
+        for k in range(3)
+    ]
+    if kyp.verdict != Verdict.HOLDS:
+        notes.append("(17) presupposes (14): without P, Q it proves nothing")
+    summary = [
+        "gains (SI), diagonals per DOF surge, sway, yaw:",
+        f"H1 xi1 {numbers(np.diag(gains['H1'][:3]))}",
+        f"H1 xi2 {numbers(np.diag(gains['H1'][3:]))}",
+        *(f"{name:<6} {numbers(np.diag(gains[name]))}" for name in ("H2", "H3", "H4", "Kbar")),
+        f"eps    {numbers(eps)}  (m, m, rad)",
+    ]
+    quantities = {
+        "gains": gains,
+        "boundary_layer": eps,
+        "heading": float(heading),
+        "kbar_coverage": {"force_bound": coverage, "units": list(FORCE_UNITS), "limited_by": limited_by},
     }
-    return Kim2002Report(gains, eps, float(heading), tuning, kyp, without, inside, switching, coverage, limited_by, verdicts)
+    return Report("Kim (2002) sliding-mode observer: conditions of Section 3.2", conditions, quantities, summary, notes)

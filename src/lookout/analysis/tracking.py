@@ -67,13 +67,21 @@ As printed the procedure is circular: V0 depends on L1 and L2, chosen after eps3
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from lookout._math import rotate, rotate_transpose, ssa
-from lookout.analysis.adaptive_dp import Inequality, _inequality
 from lookout._json import json_safe
+from lookout._math import rotate, rotate_transpose, ssa
+from lookout.analysis.conditions import Condition, Inequality, Report
+
+PAPER = "Wondergem et al. (2009)"
+
+
+def _check(name: str, relation: str, left: float, right: float, units: str, comparison: str = ">") -> Inequality:
+    """An inequality of the paper, its source the equation that ``name`` numbers ((10a) is of (10))."""
+    equation = name[:-2] + ")" if name[-2] in "ab" else name
+    return Inequality.check(name, relation, left, comparison, right, units=units, source=f"{PAPER}, eq. {equation}")
 
 
 def _unit_sphere(count: int = 181) -> np.ndarray:
@@ -200,40 +208,6 @@ def _observer(constants: dict, start: dict, L2_max, velocity_bound) -> dict:
             "L2_bound": 0.5 * M_M * C_M * velocity_bound + 0.25 * M_M * d_M1, "L1_bound": _l1_bound(alpha11, gamma1, gamma2)}
 
 
-@dataclass
-class TrackingGainReport:
-    """Conditions (25), Prop. 3.1 ((10), (11), (13), (14)) and, when the reference's
-    bounds are given, Prop. 3.3 ((27), (29)–(33)) for one gain set."""
-
-    inequalities: list[Inequality]
-    quantities: dict = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
-
-    @property
-    def holds(self) -> bool:
-        return all(item.verdict == "holds" for item in self.inequalities)
-
-    def verdict(self, *names: str) -> str:
-        """'holds' when every named inequality holds, else 'fails' ('missing' if none is there)."""
-        chosen = [item for item in self.inequalities if item.name in names]
-        if not chosen:
-            return "missing"
-        return "holds" if all(item.verdict == "holds" for item in chosen) else "fails"
-
-    def to_dict(self) -> dict:
-        return json_safe({
-            "holds": self.holds, "inequalities": [item.to_dict() for item in self.inequalities],
-            "quantities": self.quantities, "notes": self.notes,
-        })
-
-    def text(self) -> str:
-        lines = ["Wondergem et al. (2009): gain conditions"]
-        for item in self.inequalities:
-            lines += item.describe()
-        lines += [f"  note: {note}" for note in self.notes]
-        return "\n".join(lines)
-
-
 def check_wondergem_2009(
     ship,
     *,
@@ -252,14 +226,21 @@ def check_wondergem_2009(
     reference_speed_max: float | None = None,
     reference_acceleration_max: float | None = None,
     epsilon3: float | None = None,
-) -> TrackingGainReport:
+) -> Report:
     """The conditions for a :class:`~lookout.models.cybership.Cybership` (its M, D and
     quadratic damping), observer gains (L1, L2) (scalars or diagonals), Omega, Lambda, the
     initial state and estimates (v_hat(0) = ``velocity_hat0``, Earth frame), the reference
     at t_0 (eta_ref0, nu_ref0 body) and its largest yaw rate, and the velocity bound V_M
     of Prop. 3.1. With ``reference_speed_max`` (sup ||nu_ref||) and
     ``reference_acceleration_max`` (sup ||nu_ref'||) also Prop. 3.3 (27)–(33), at
-    ``epsilon3`` or, by default, the largest eps3 that (27) admits."""
+    ``epsilon3`` or, by default, the largest eps3 that (27) admits.
+
+    Returns a :class:`~lookout.analysis.conditions.Report` with the conditions
+    ``controller_25`` ((25)), ``observer_3_1`` (Prop. 3.1: (10a), (10b), (11), (13) and,
+    when gamma2 > 0, (14)) and, with the reference's bounds, ``combined_3_3``
+    (Prop. 3.3: (27) and, when an eps3 satisfies it, (30), (32) and, when gamma2 > 0,
+    (33); (29) is (10) and (31) always holds). ``quantities`` holds the model
+    constants and the numbers of (15) and (28)-(37)."""
     for name, value in (("yaw_rate_max", yaw_rate_max), ("velocity_bound", velocity_bound),
                         ("reference_speed_max", reference_speed_max), ("reference_acceleration_max", reference_acceleration_max)):
         if value is not None and not (math.isfinite(value) and value >= 0):
@@ -280,22 +261,27 @@ def check_wondergem_2009(
     dp = abs(controller["p11"][0] - controller["p11"][1])
     kappa_r = (dp + math.sqrt(dp * dp + 4.0)) / 2.0 if corrected else 1.0
     ratio = math.sqrt(controller["P_max"] / controller["P_min"])
-    inequalities = [
-        _inequality("(25)", "lmin(Q) > r_max" + (" kappa_r" if corrected else "") + " + sqrt(lmax(P)/lmin(P)) |x_e0|",
-                    controller["Q_min"], kappa_r * yaw_rate_max + ratio * start["x_e0"], "1/s"),
+    controller_25 = [
+        _check("(25)", "lmin(Q) > r_max" + (" kappa_r" if corrected else "") + " + sqrt(lmax(P)/lmin(P)) |x_e0|",
+               controller["Q_min"], kappa_r * yaw_rate_max + ratio * start["x_e0"], "1/s"),
     ]
 
     # observer, Prop. 3.1
     observer = _observer(constants, start, L2.max(), velocity_bound)
-    inequalities += [
-        _inequality("(10a)", "lmin(L1) > 1", L1.min(), 1.0, "1/s"),
-        _inequality("(10b)", "lmin(L2) >= 1", L2.min() + 1e-300, 1.0, "1/s2"),
-        _inequality("(11)", "lmin(L2) > M_M C_M V_M / 2 + M_M d_M1 / 4", L2.min(), observer["L2_bound"], "1/s2"),
-        _inequality("(13)", "lmin(L1) > [(2 a11 + g2) + sqrt((2 a11 + g2)^2 - 4 (a11^2 - g1))] / 2", L1.min(), observer["L1_bound"], "1/s"),
+    observer_3_1 = [
+        _check("(10a)", "lmin(L1) > 1", L1.min(), 1.0, "1/s"),
+        _check("(10b)", "lmin(L2) >= 1", L2.min(), 1.0, "1/s2", ">="),
+        _check("(11)", "lmin(L2) > M_M C_M V_M / 2 + M_M d_M1 / 4", L2.min(), observer["L2_bound"], "1/s2"),
+        _check("(13)", "lmin(L1) > [(2 a11 + g2) + sqrt((2 a11 + g2)^2 - 4 (a11^2 - g1))] / 2", L1.min(), observer["L1_bound"], "1/s"),
     ]
     if observer["gamma2"] > 0:
-        inequalities.append(_inequality("(14)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)",
-                                        ((L1.min() - observer["alpha11"]) ** 2 - observer["gamma1"]) / observer["gamma2"], L1.max(), "1/s"))
+        observer_3_1.append(_check("(14)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)",
+                                   ((L1.min() - observer["alpha11"]) ** 2 - observer["gamma1"]) / observer["gamma2"], L1.max(), "1/s", ">="))
+    conditions = [
+        Condition("controller_25", "(25)", "controller: alpha_bar > 0", f"{PAPER}, Proposition 3.2, eq. (25)", controller_25),
+        Condition("observer_3_1", "Proposition 3.1", "observer: (10), (11), (13), (14)", f"{PAPER}, Proposition 3.1, eqs. (10)-(15)",
+                  observer_3_1),
+    ]
     quantities = {
         "M_M": constants["M_M"], "C_M_christoffel": constants["C_M"],
         "C_M_body": float(max(constants["M"][0, 0], math.hypot(constants["M"][1, 1], constants["M"][1, 2]))),
@@ -311,26 +297,28 @@ def check_wondergem_2009(
         combined = _combined(constants, controller, start, L1.min(), L1.max(), L2.min(), L2.max(), yaw_rate_max,
                              reference_speed_max, reference_acceleration_max, epsilon3)
         if epsilon3 is None:
-            inequalities.append(_inequality("(27)", "eps3 exists: lmin(Q) > r_max + sqrt(V0/lmin(P))",
-                                            controller["Q_min"], yaw_rate_max + combined["s"], "1/s"))
+            combined_3_3 = [_check("(27)", "eps3 exists: lmin(Q) > r_max + sqrt(V0/lmin(P))",
+                                   controller["Q_min"], yaw_rate_max + combined["s"], "1/s")]
         else:
-            inequalities.append(_inequality("(27)", "lmin(Q) > r_max + eps3^2 lmax(P) (B + C s) + s, s = sqrt(V0/lmin(P))",
-                                            controller["Q_min"], combined["alpha_bar_1_loss"], "1/s"))
+            combined_3_3 = [_check("(27)", "lmin(Q) > r_max + eps3^2 lmax(P) (B + C s) + s, s = sqrt(V0/lmin(P))",
+                                   controller["Q_min"], combined["alpha_bar_1_loss"], "1/s")]
         if "epsilon3" in combined:
-            inequalities += [
-                _inequality("(30)", "lmin(L2) > ... + 2 eps3^-2 lmax(P) (...) sqrt(V0/lmin(P))", L2.min(), combined["L2_bound"], "1/s2"),
-                _inequality("(32)", "lmin(L1) > [(2 a11 + g2) + sqrt(...)] / 2 with (34)-(37)", L1.min(), combined["L1_bound"], "1/s"),
+            combined_3_3 += [
+                _check("(30)", "lmin(L2) > ... + 2 eps3^-2 lmax(P) (...) sqrt(V0/lmin(P))", L2.min(), combined["L2_bound"], "1/s2"),
+                _check("(32)", "lmin(L1) > [(2 a11 + g2) + sqrt(...)] / 2 with (34)-(37)", L1.min(), combined["L1_bound"], "1/s"),
             ]
             if combined["gamma2"] > 0:
-                inequalities.append(_inequality("(33)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)", combined["L1_max_bound"], L1.max(), "1/s"))
+                combined_3_3.append(_check("(33)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)", combined["L1_max_bound"], L1.max(), "1/s", ">="))
         else:
             notes.append("(30), (32), (33) need an eps3 that satisfies (27); none exists")
+        conditions.append(Condition("combined_3_3", "Proposition 3.3", "combined scheme: (27), (30), (32), (33)",
+                                    f"{PAPER}, Proposition 3.3, eqs. (27)-(37)", combined_3_3))
         quantities["combined"] = {
             key: combined[key] for key in ("V0", "epsilon3_max", "epsilon3", "d_M1", "d_M3", "alpha11", "gamma", "gamma1", "gamma2") if key in combined
         }
         quantities["combined"].update(reference_speed_max=reference_speed_max, reference_acceleration_max=reference_acceleration_max,
                                       Kp_norm=controller["Kp"], Kd_norm=controller["Kd"], D_plus_Kd_norm=controller["DKd"])
-    return TrackingGainReport(inequalities, quantities, notes)
+    return Report(f"{PAPER}: gain conditions", conditions, quantities, notes=notes)
 
 
 @dataclass
@@ -343,7 +331,7 @@ class GainProposal:
     observer_gains: tuple[float, float]
     epsilon3: float
     iterations: int
-    report: TrackingGainReport | None
+    report: Report | None
     reason: str = ""
 
     @property
@@ -356,27 +344,38 @@ class GainProposal:
         """The largest forward-Euler step that keeps the linear part stable, 2 / |fastest pole| (s)."""
         return 2.0 / max(abs(p) for p in self.observer_poles)
 
-    def to_dict(self) -> dict:
+    def search(self) -> dict:
+        """The search's result, without the check of the gains: JSON-safe."""
         return json_safe({
             "observer_poles": self.observer_poles if self.found else None,
             "euler_step_max_s": self.euler_step_max if self.found else None,
             "found": self.found, "natural_frequency": self.natural_frequency, "damping_ratio": self.damping_ratio,
             "observer_gains": {"L1": self.observer_gains[0], "L2": self.observer_gains[1]}, "epsilon3": self.epsilon3,
             "iterations": self.iterations, "reason": self.reason,
-            "report": self.report.to_dict() if self.report is not None else None,
         })
 
-    def text(self) -> str:
+    def to_dict(self) -> dict:
+        """:meth:`search` and the check of the gains (``report``, None when none were found)."""
+        return self.search() | {"report": self.report.to_dict() if self.report is not None else None}
+
+    def summary(self) -> list[str]:
+        """The proposed gains, or why there are none."""
         if not self.found:
-            return f"no gains found after {self.iterations} iterations: {self.reason}"
+            return [f"no gains found after {self.iterations} iterations: {self.reason}"]
         L1, L2 = self.observer_gains
-        lines = [
+        return [
             f"proposed: Omega = {self.natural_frequency:.4g} I rad/s, Lambda = {self.damping_ratio:g} I, "
             f"L1 = {L1:.4g} I 1/s, L2 = {L2:.4g} I 1/s2, eps3 = {self.epsilon3:.3g} ({self.iterations} iterations)",
             f"observer poles {', '.join(f'{p:.4g}' for p in self.observer_poles)} 1/s: forward Euler needs a step below "
             f"{self.euler_step_max:.3g} s",
         ]
-        return "\n".join(lines + ([self.report.text()] if self.report is not None else []))
+
+    def outcome(self) -> Report:
+        """The check of the proposed gains, with :meth:`summary` and :meth:`search`
+        (``quantities["proposal"]``); when none were found, a report without
+        conditions (verdict ``unverified``) that says why."""
+        report = self.report if self.report is not None else Report(f"{PAPER}: gain search", ())
+        return report.extended(summary=self.summary(), quantities={"proposal": self.search()})
 
 
 def propose_wondergem_2009(
@@ -461,4 +460,4 @@ def propose_wondergem_2009(
                         f"{math.sqrt(start['eta_tilde0_sq']):.3g} makes the procedure's fixed point run away; start the estimate at the measurement")
 
 
-__all__ = ["GainProposal", "TrackingGainReport", "check_wondergem_2009", "christoffel_bound", "controller_p_matrix", "propose_wondergem_2009"]
+__all__ = ["GainProposal", "check_wondergem_2009", "christoffel_bound", "controller_p_matrix", "propose_wondergem_2009"]

@@ -54,6 +54,8 @@ import numpy as np
 import scipy.optimize
 
 from lookout import _validation as check
+from lookout._json import json_safe
+from lookout.analysis.conditions import Condition, Inequality, Report
 from lookout.models.manipulators import PRISMATIC, REVOLUTE, ManipulatorModel
 
 #: Random configurations at which the dependence of M on each coordinate is probed.
@@ -238,17 +240,15 @@ class VelocityObserverCondition:
         w_max of (2.2) (joint-space 2-norm of q').
     threshold : float
         3 C_M w_max / M_m (1/s).
-    margin : float
-        effective_gain - threshold.
-    satisfied : bool
-        margin > 0: Theorem 2.1's sufficient condition holds.
     radius : float
         Region (2.13): M_m effective_gain / C_M - 2 w_max (``inf`` when C_M = 0);
         exponential convergence for every initial error of smaller norm.
     initial_error : float or None
         ||x1~(0)|| if given.
-    inside_region : bool or None
-        initial_error < radius, if given.
+    report : Report
+        The conditions: ``theorem_2_1`` (effective_gain > threshold) and, with an
+        initial error, ``region_2_13`` (radius > initial_error); the numbers above in
+        its ``quantities``.
     """
 
     gain_bound: float
@@ -259,20 +259,34 @@ class VelocityObserverCondition:
     coriolis_bound: float
     max_speed: float
     threshold: float
-    margin: float
-    satisfied: bool
     radius: float
-    initial_error: float | None = None
-    inside_region: bool | None = None
+    initial_error: float | None
+    report: Report
+
+    @property
+    def satisfied(self) -> bool:
+        """Theorem 2.1's sufficient condition holds."""
+        return self.report["theorem_2_1"].holds
+
+    @property
+    def margin(self) -> float:
+        """effective_gain - threshold."""
+        return self.report["theorem_2_1"].inequalities[0].margin
+
+    @property
+    def inside_region(self) -> bool | None:
+        """initial_error < radius, if an initial error is given."""
+        return self.report["region_2_13"].holds if self.initial_error is not None else None
 
     def to_dict(self) -> dict:
-        """Plain Python values (``radius`` may be ``inf``)."""
-        return asdict(self)
+        """The report's JSON, and its numbers, ``satisfied``, ``margin`` and ``inside_region``
+        also at the top level (non-finite numbers are None)."""
+        legacy = {**self.report.quantities, "satisfied": self.satisfied, "margin": self.margin, "inside_region": self.inside_region}
+        return self.report.to_dict() | json_safe(legacy)
 
     def __str__(self) -> str:
-        verdict = "holds" if self.satisfied else "fails"
         text = (
-            f"Theorem 2.1 {verdict}: sigma_eff = {self.effective_gain:.4g} vs 3 C_M w_max / M_m = {self.threshold:.4g} "
+            f"Theorem 2.1 {self.report['theorem_2_1'].verdict}: sigma_eff = {self.effective_gain:.4g} vs 3 C_M w_max / M_m = {self.threshold:.4g} "
             f"(C_M = {self.coriolis_bound:.4g}, M_m = {self.min_inertia:.4g}, w_max = {self.max_speed:.4g}); "
             f"region (2.13) radius {self.radius:.4g}"
         )
@@ -331,19 +345,20 @@ def velocity_observer_condition(
     w_max = float(max_speed)
     threshold = 3.0 * c_max * w_max / low
     radius = math.inf if c_max == 0.0 else low * effective / c_max - 2.0 * w_max
-    inside = None if initial_error is None else bool(float(initial_error) < radius)
-    return VelocityObserverCondition(
-        gain_bound=sigma,
-        friction_bound=phi,
-        effective_gain=effective,
-        min_inertia=low,
-        max_inertia=high,
-        coriolis_bound=c_max,
-        max_speed=w_max,
-        threshold=threshold,
-        margin=effective - threshold,
-        satisfied=bool(effective > threshold),
-        radius=radius,
-        initial_error=None if initial_error is None else float(initial_error),
-        inside_region=inside,
-    )
+    error = None if initial_error is None else float(initial_error)
+    numbers = {
+        "gain_bound": sigma, "friction_bound": phi, "effective_gain": effective, "min_inertia": low, "max_inertia": high,
+        "coriolis_bound": c_max, "max_speed": w_max, "threshold": threshold, "radius": radius, "initial_error": error,
+    }
+    source = "Calugi (2002), Theorem 2.1, eq. (2.11)"
+    conditions = [
+        Condition("theorem_2_1", "Theorem 2.1", "velocity observer: x1~ -> 0 exponentially", source,
+                  [Inequality.check("sigma_eff", "sigma + min(phi, 0) > 3 C_M w_max / M_m", effective, ">", threshold, units="1/s", source=source)]),
+    ]
+    if error is not None:
+        region = "Calugi (2002), Remark 2.1, region (2.13)"
+        conditions.append(Condition("region_2_13", "(2.13)", "the initial error inside the region", region,
+                                    [Inequality.check("||x1~(0)||", "M_m sigma_eff / C_M - 2 w_max > ||x1~(0)||", radius, ">", error,
+                                                      units="joint-space norm of q'", source=region)]))
+    report = Report("Calugi (2002), Theorem 2.1: velocity observer", conditions, numbers)
+    return VelocityObserverCondition(**numbers, report=report)

@@ -52,12 +52,14 @@ class AdaptiveObserverBackstepping(Controller):
     ----------
     parameters : AffineParameters
         The model and its unknowns, as the observer's.
-    observer_gain : float or array_like, shape (n,)
+    observer_gain : float or array_like, shape (n,), positive
         K of the observer (1/s), for Omega (5.11).
-    position_gain, velocity_gain : float or array_like, shape (n,)
-        C1 and C2 (1/s), > 0.
-    damping_weights : float or array_like, shape (2n,)
-        d_1..d_2n (s), > 0.
+    position_gain : float or array_like, shape (n,), positive
+        C1 of (5.9) (1/s).
+    velocity_gain : float or array_like, shape (n,), positive
+        C2 of (5.9) (1/s).
+    damping_weights : float or array_like, shape (2n,), positive
+        d_1..d_2n: D1 = diag(d_1..d_n) (1/s) and D2 = diag(d_{n+i} |omega_i|^2) of (5.12).
     """
 
     parameters: AffineParameters

@@ -70,8 +70,14 @@ class FurutaPendulumBackstepping(Controller):
     parameters : AffineParameters
         The model (a :class:`~lookout.models.furuta.FurutaConstants`) and its unknowns, as
         the observer's.
-    position_gain, position_damping, velocity_gain, velocity_damping : float
-        c1, d1, c2, d2 (1/s), > 0 (thesis: 10, 1, 10, and d2 = 2 in Exp. I, 1 in II–IV).
+    position_gain : float, positive
+        c1 of (6.6) (1/s); the thesis's 10.
+    position_damping : float, positive
+        d1 of (6.6) (1/s); the thesis's 1.
+    velocity_gain : float, positive
+        c2 of (6.9)–(6.11) (1/s); the thesis's 10.
+    velocity_damping : float, positive
+        d2 of (6.9)–(6.11) (1/s); the thesis's 2 in experiment I, 1 in II–IV.
     """
 
     parameters: AffineParameters

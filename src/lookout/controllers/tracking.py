@@ -16,8 +16,8 @@ which gives, with d/dt R = S^T(e_r) R, exactly (19)::
 
 Gains (20): M^-1 Kp = Omega^2, M^-1 (D + Kd) = 2 Lambda Omega, so that Kp = M Omega^2
 and Kd = 2 M Lambda Omega - D, and each DOF of z = J^T e_eta obeys
-z'' + 2 lambda_i omega_i z' + omega_i^2 z = 0 (checked in the tests). The printed
-gains Omega = diag(0.72, 0.42, 0.64), Lambda = I.
+z'' + 2 lambda_i omega_i z' + omega_i^2 z = 0 (checked in the tests). The paper's
+example prints Omega = diag(0.72, 0.42, 0.64), Lambda = I (:mod:`lookout.papers.wondergem_2009`).
 
 The output-feedback scheme (23) evaluates (18) on the observer's estimates
 (derivations-wondergem-2009.md, section 3; the J(psi~) - I and S^T(r~) terms of (87)
@@ -81,17 +81,18 @@ class TrackingController(Controller):
     ----------
     ship : Cybership
         The controller's model (M, C, D, D_n); linear damping only in the basin scheme.
-    natural_frequency : array_like, shape (3,)
-        Omega (rad/s), printed (0.72, 0.42, 0.64).
-    damping_ratio : array_like, shape (3,)
-        Lambda, printed 1.
+        In a composition, the plant's ship model (else the observer's) unless given.
+    natural_frequency : array_like, shape (3,), positive
+        Omega (rad/s) of (20): the natural frequencies of the error dynamics (19).
+    damping_ratio : array_like, shape (3,), positive
+        Lambda of (20): the relative damping of the error dynamics (19) (1: critically damped).
     """
 
     ship: Cybership
     natural_frequency: Array
     damping_ratio: Array
 
-    def __init__(self, ship: Cybership, natural_frequency=(0.72, 0.42, 0.64), damping_ratio=1.0):
+    def __init__(self, ship: Cybership, natural_frequency, damping_ratio=1.0):
         if not isinstance(ship, Cybership):
             raise ValueError(f"ship must be a Cybership; got {type(ship).__name__}")
         self.ship = ship

@@ -42,12 +42,10 @@ exactly and that the shape depends on T1 only through w T1. Choices and checks:
   2 pi m0 / m1 = 0.9250 T1 at gamma = 1 (Pierson–Moskowitz: 2 pi / (944^(1/4)
   Gamma(3/4)), exactly), 1.0003 T1 at 3.3, 1.0292 T1 at 5 and 1.0522 T1 at 7. For a
   sea given by its mean period at another gamma, pass that period divided by the
-  ratio at its gamma as ``mean_period``. Wondergem et
-  al. (2009) give a "time mean period of 0.75 seconds" with gamma = 3.3; lookout
-  reads it as T1, so that Tp = T1 / 0.834 = 0.899 s and wp = 6.99 rad/s. The
-  alternatives: read as the zero-crossing period Tz (T1 = 1.073 Tz, Tp = 0.964 s),
-  or as Tp itself (wp = 8.38 rad/s). Pass ``mean_period = 1.073 Tz`` or
-  ``0.834 Tp`` for those readings.
+  ratio at its gamma as ``mean_period``; for a sea given by its zero-crossing period
+  Tz, ``mean_period = 1.073 Tz``; by its peak period Tp, ``0.834 Tp``
+  (:mod:`lookout.papers.wondergem_2009` says how it reads its paper's "time mean
+  period").
 - **Cross-check.** DNV-RP-C205 writes the spectrum as
   ``A_gamma (5/16) Hs^2 wp^4 w^-5 exp(-1.25 (wp/w)^4)
   gamma^exp(-(w - wp)^2 / (2 sigma^2 wp^2))``. With wp = 5.24 / T1 the shapes
@@ -83,8 +81,8 @@ dw = 0.27 rad/s at T1 = 0.75 s.
 
 Motion of the hull
 ------------------
-Wondergem et al. (2009) give no response amplitude operator. lookout's crude,
-documented choice, applied to the measurement as y = eta + eta_w:
+With no response amplitude operator of a hull at hand, lookout's crude, documented
+choice, applied to the measurement as y = eta + eta_w:
 
 - Surge/sway: the horizontal orbital displacement of the surface particles. Deep
   water, linear theory: for ``zeta = A cos(theta)``, theta = w t - k s + phi, the
@@ -94,15 +92,17 @@ documented choice, applied to the measurement as y = eta + eta_w:
 - G_k = |sinc(k_k L / 2)| = |sin(k_k L / 2) / (k_k L / 2)|, the magnitude of the
   average of a component over a hull of length L lying along the wave direction.
   The exact average has the sign of sinc(k L/2), which flips the phase of some
-  components shorter than the hull (L/2 < wavelength < L, ...); the magnitude is taken (as an RAO's amplitude is), which
-  changes phases but no statistics. At the peak of the paper's sea the wavelength
-  (1.26 m) is about the hull length (1.255 m), so G is small there (0.006) and the
-  motion comes mostly from the longer waves on the low side of the peak.
+  components shorter than the hull (L/2 < wavelength < L, ...); the magnitude is taken
+  (as an RAO's amplitude is), which changes phases but no statistics. At the peak of
+  the basin sea of Wondergem et al. (2009) (Hs = 0.01 m, T1 = 0.75 s, gamma = 3.3)
+  the wavelength (1.26 m) is about the length of Cybership II (1.255 m), so G is
+  small there (0.006) and the motion comes mostly from the longer waves on the low
+  side of the peak.
 - Yaw: ``psi_w = yaw_gain * sum_k G_k A_k k_k sin(theta_k)``, yaw_gain times the
   hull-averaged surface slope d zeta / ds along chi (rad per unit slope). A
   long-crested sea exerts no yaw moment on a hull that is aligned with it, so any
   such term is a stand-in; the default 0.1 gives a yaw motion of about 0.013 deg
-  std for the paper's sea (and surge 0.4 mm std for waves along x, against an
+  std for that sea (and surge 0.4 mm std for waves along x, against an
   elevation std of Hs/4 = 2.5 mm: the hull gain removes most of the peak).
 
 ``rate(t, position, velocity)`` is the exact time derivative of
@@ -135,7 +135,8 @@ from lookout._math import sincos
 MEAN_TO_PEAK_PERIOD = 0.834
 #: The default frequency band, in multiples of the peak frequency.
 DEFAULT_BAND = (0.5, 3.0)
-#: Length of Cybership II (m), the default hull length.
+#: The default hull length (m): Cybership II's length over all, the small hull this
+#: model was written for (:data:`lookout.models.cybership.CYBERSHIP_LENGTH`).
 CYBERSHIP_II_LENGTH = 1.255
 
 
@@ -325,7 +326,8 @@ class JonswapWaves(eqx.Module):
     band : pair of floats, optional
         (w_lo, w_hi) in rad/s, 0 < w_lo < w_hi; default (0.5 wp, 3 wp).
     hull_length : float
-        L (m), >= 0, for the averaging gain |sinc(k L / 2)| (0: no averaging).
+        L (m), >= 0, for the averaging gain |sinc(k L / 2)| (0: no averaging); the default
+        is Cybership II's 1.255 m.
     yaw_gain : float
         Yaw motion per unit hull-averaged wave slope (rad), >= 0.
     gravity : float

@@ -47,7 +47,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, rotation, ssa
 from lookout.components import Layout, Plant, Signal
-from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS
+from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
 
 #: Wondergem et al. (2009), eq. (39).
 CYBERSHIP_M = np.array([[25.8, 0.0, 0.0], [0.0, 33.8, 1.0115], [0.0, 1.0115, 2.76]])
@@ -71,7 +71,7 @@ def skew(r) -> Array:
 
 @final
 class Cybership(eqx.Module):
-    """The ship model of eq. (16) with (39): M, C(nu), linear D and D_n(nu).
+    """A ship model (16): M, C(nu) of M, linear D and D_n(nu); by default Cybership II's (39).
 
     Parameters
     ----------
@@ -102,6 +102,29 @@ class Cybership(eqx.Module):
         self.damping_matrix = jnp.asarray(damping_matrix, dtype=float)
         self.quadratic_damping = jnp.asarray(check.vector("quadratic_damping", quadratic_damping))
         self.mass_inverse = jnp.linalg.inv(self.mass_matrix)
+
+    @classmethod
+    def from_dp_vessel(cls, vessel: DPVessel) -> "Cybership":
+        """A DP vessel in the form (16): its M and linear D, the C(nu) of that M, no D_n.
+
+        So that the observer (6) and the tracking scheme (23), which take a ship model
+        (16), run on a DP vessel (a composition's ``[plant] kind = "dp-vessel"``). The
+        DP model (Fossen & Strand 1999, eq. 3) has no C(nu): it neglects it at DP
+        speeds, and the model built here adds it (the rigid-body and added-mass C(nu) of
+        its M, with m12 = m13 = 0), so at speed the scheme models a term the DP plant
+        does not have.
+
+        Parameters
+        ----------
+        vessel : DPVessel
+            The vessel (in a composition, the plant's): M with m12 = m13 = 0 (surge
+            decoupled from sway and yaw, as C(nu) assumes), and no mooring stiffness K
+            (the model (16) has none).
+        """
+        if check.is_concrete(vessel.stiffness_matrix) and np.any(np.asarray(vessel.stiffness_matrix) != 0):
+            stiffness = np.asarray(vessel.stiffness_matrix).tolist()
+            raise ValueError(f"vessel has a mooring stiffness K (the ship model (16) has none); got K = {stiffness}")
+        return cls(vessel.mass_matrix, vessel.damping_matrix, np.zeros(3))
 
     def linear(self) -> "Cybership":
         """The same ship with D_n = 0 (the model of the basin scheme, Section 5)."""

@@ -91,14 +91,18 @@ class FurutaConstants(ManipulatorModel):
 
     Parameters
     ----------
-    alpha, beta, gamma : float
-        kg m^2 (0.00354, 0.00384, 0.00258 printed), alpha, beta > 0.
-    delta : float
-        N m (0.103 printed), >= 0.
-    coulomb_friction : array_like, shape (2,)
-        tau_C per joint, N m, >= 0 ((0.028, 0) printed).
-    friction : array_like, shape (2,)
-        Viscous friction per joint, N m s/rad, >= 0 (none in the thesis).
+    alpha : float
+        alpha (kg m^2), above gamma^2/beta so that M is positive definite at every theta; Section 6.1: 0.00354.
+    beta : float, positive
+        beta (kg m^2); Section 6.1: 0.00384.
+    gamma : float
+        gamma (kg m^2); Section 6.1: 0.00258.
+    delta : float, non-negative
+        delta (N m), the pendulum's gravity torque coefficient; Section 6.1: 0.103.
+    coulomb_friction : array_like, shape (2,), non-negative
+        tau_C per joint (N m) of (6.4); Section 6.1: (0.028, 0), on the arm only.
+    friction : array_like, shape (2,), non-negative
+        Viscous friction per joint (N m s/rad); none in the thesis.
     """
 
     alpha: Array
@@ -188,11 +192,11 @@ class FurutaPlant(Plant):
     ----------
     model : FurutaConstants
         The true pendulum in its constants, Coulomb friction included.
-    stick_band : float
-        |phi'| (rad/s) below which the arm may stick, > 0 (default 0.02).
-    stick_relaxation : float
-        Time constant (s) by which a sticking arm's residual speed goes to zero, > 0
-        (default 1 ms; keep it >= 2 plant steps for RK4).
+    stick_band : float, positive
+        |phi'| (rad/s) below which the arm may stick; default 0.02.
+    stick_relaxation : float, positive
+        Time constant (s) by which a sticking arm's residual speed goes to zero; default
+        1 ms (keep it >= 2 plant steps for RK4).
     """
 
     model: FurutaConstants

@@ -245,14 +245,14 @@ class FreePendulum(ManipulatorModel):
 
     Parameters
     ----------
-    mass : float
-        m, kg (0.5).
-    length : float
-        l, m (0.5).
-    friction : float
-        c, N m s/rad (0.1).
-    gravity_acceleration : float
-        g, m/s^2 (9.81).
+    mass : float, positive
+        m, the point mass at the pendulum's end (kg); Section 2.3: 0.5.
+    length : float, positive
+        l, the distance of the mass from the pivot (m); Section 2.3: 0.5.
+    friction : float, non-negative
+        c, the viscous friction at the pivot (N m s/rad); Section 2.3: 0.1.
+    gravity_acceleration : float, non-negative
+        g (m/s^2); 9.81, the thesis's n.
     """
 
     mass: Array
@@ -298,14 +298,14 @@ class TwoLinkArm(ManipulatorModel):
 
     Parameters
     ----------
-    masses : array_like, shape (2,)
-        m1, m2: point masses at the ends of links 1 and 2, kg (0.5, 0.7).
-    lengths : array_like, shape (2,)
-        l1, l2, m (1, 1.5).
-    friction : array_like, shape (2,)
-        c1, c2, N m s/rad (0.5, 0.1).
-    gravity_acceleration : float
-        g, m/s^2 (9.81).
+    masses : array_like, shape (2,), positive
+        m1, m2: the point masses at the ends of links 1 and 2 (kg); Section 2.3: (0.5, 0.7).
+    lengths : array_like, shape (2,), positive
+        l1, l2: the links' lengths (m); Section 2.3: (1, 1.5).
+    friction : array_like, shape (2,), non-negative
+        c1, c2: the viscous friction at the joints (N m s/rad); Section 2.3: (0.5, 0.1).
+    gravity_acceleration : float, non-negative
+        g (m/s^2); 9.81, the thesis's n.
     """
 
     masses: Array
@@ -367,16 +367,16 @@ class CartPendulum(ManipulatorModel):
 
     Parameters
     ----------
-    cart_mass : float
-        m1, kg (2).
-    pendulum_mass : float
-        m2, kg (0.2).
-    pendulum_length : float
-        l, m (0.5).
-    friction : array_like, shape (2,)
-        c1 (N s/m), c2 (N m s/rad): (0.4, 0.1).
-    gravity_acceleration : float
-        g, m/s^2 (9.81).
+    cart_mass : float, positive
+        m1, the cart's mass (kg); Section 2.3: 2.
+    pendulum_mass : float, positive
+        m2, the point mass at the pendulum's end (kg); Section 2.3: 0.2.
+    pendulum_length : float, positive
+        l, the distance of m2 from the pivot on the cart (m); Section 2.3: 0.5.
+    friction : array_like, shape (2,), non-negative
+        c1 (N s/m), the cart's viscous friction, and c2 (N m s/rad), the pivot's; Section 2.3: (0.4, 0.1).
+    gravity_acceleration : float, non-negative
+        g (m/s^2); 9.81, the thesis's n.
     """
 
     cart_mass: Array
@@ -434,16 +434,22 @@ class FurutaPendulum(ManipulatorModel):
 
     Parameters
     ----------
-    pillar_inertia : float
-        J, kg m^2 (1).
-    arm_mass, pendulum_mass, tip_mass : float
-        m1, m2, m3, kg (0.4, 0.1, 0.5).
-    arm_length, pendulum_length : float
-        l1, l2, m (0.7, 0.5).
-    friction : array_like, shape (2,)
-        c1, c2, N m s/rad (0.4, 0.2).
-    gravity_acceleration : float
-        g, m/s^2 (9.81).
+    pillar_inertia : float, positive
+        J, the pillar's moment of inertia about its axis (kg m^2); Section 2.3: 1.
+    arm_mass : float, positive
+        m1, the horizontal arm's mass, a uniform rod (kg); Section 2.3: 0.4.
+    pendulum_mass : float, positive
+        m2, the pendulum's mass, a uniform rod (kg); Section 2.3: 0.1.
+    tip_mass : float, non-negative
+        m3, the point mass at the pendulum's tip (kg); Section 2.3: 0.5.
+    arm_length : float, positive
+        l1, the arm's length (m); Section 2.3: 0.7.
+    pendulum_length : float, positive
+        l2, the pendulum's length (m); Section 2.3: 0.5.
+    friction : array_like, shape (2,), non-negative
+        c1, c2: the viscous friction of the arm and the pendulum (N m s/rad); Section 2.3: (0.4, 0.2).
+    gravity_acceleration : float, non-negative
+        g (m/s^2); 9.81, the thesis's n.
     """
 
     pillar_inertia: Array
@@ -548,8 +554,9 @@ class ManipulatorPlant(Plant):
     ----------
     model : ManipulatorModel
         The true manipulator (it may differ from the observer's and controller's model).
-    force_noise : float or array_like, shape (n,)
-        Standard deviation of the white force disturbance per joint, >= 0 (default 0).
+    force_noise : float or array_like, shape (n,), non-negative
+        Standard deviation of the white force disturbance per joint (N m sqrt(s) or
+        N sqrt(s)); default 0, none.
 
     Raises
     ------

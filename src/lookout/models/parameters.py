@@ -154,11 +154,12 @@ def _parse_field(entry: str) -> tuple[str, int | None]:
 
 @final
 class ModelParameters(AffineParameters):
-    """Fields of a model as the unknown parameters: ``ModelParameters(arm, ("masses[1]",))``
-    is Calugi's ch. 5 theta = m2, ``ModelParameters(pendulum, ("mass",))`` ch. 3's and
-    ch. 4's theta = m. Each entry names a scalar field or one element of a vector field;
-    the reference is the model's own values. Fields that do not enter affinely (a length)
-    are refused.
+    """Fields of a model as the unknown parameters theta of Property 4.2.
+
+    ``ModelParameters(arm, ("masses[1]",))`` is Calugi's ch. 5 theta = m2,
+    ``ModelParameters(pendulum, ("mass",))`` ch. 3's and ch. 4's theta = m. Each entry
+    names a scalar field or one element of a vector field; the reference is the model's
+    own values. Fields that do not enter affinely (a length) are refused.
 
     Parameters
     ----------

@@ -42,11 +42,12 @@ class ScheduledParameterPlant(Plant):
     parameters : AffineParameters
         Which parameters change, and the model they build (its other parameters fixed).
     values : array_like, shape (K + 1, p) or (p,)
-        theta on each interval; one row means constant parameters.
+        theta on each interval, finite, in the parameters' units; one row means constant parameters.
     switch_times : sequence of K floats
-        Increasing times (s) at which theta jumps to the next row.
-    force_noise : float or array_like, shape (n,)
-        Standard deviation of a white force disturbance per joint, >= 0 (default 0).
+        Strictly increasing, finite times (s) at which theta jumps to the next row.
+    force_noise : float or array_like, shape (n,), non-negative
+        Standard deviation of a white force disturbance per joint (N m sqrt(s) or N sqrt(s));
+        default 0, none.
     """
 
     parameters: AffineParameters

@@ -170,20 +170,26 @@ class AdaptiveManipulatorObserver(Observer):
     parameters : AffineParameters
         The model and which of its parameters are unknown; the observer's model is
         ``parameters.model(theta_hat)``.
-    gain : float or array_like, shape (n,)
-        Diagonal of K (1/s), > 0.
-    adaptation_gain : float or array_like, shape (p,)
-        Diagonal of Gamma, >= 0; 0 freezes that parameter (with all of Gamma 0 this is the
-        chapter-2 velocity observer in the discrete form (4.34), as Calugi's Exp. I runs it).
-    lower, upper : array_like, shape (p,)
-        Bounds l < h of the resetting (4.45); default none (-inf, inf).
-    margin : float or array_like, shape (p,)
-        mu >= 0 of (4.45).
-    sample_period : float
+    gain : float or array_like, shape (n,), positive
+        Diagonal of K (1/s), with |1 - Delta K| < 1.
+    adaptation_gain : float or array_like, shape (p,), non-negative
+        Diagonal of Gamma; 0 freezes that parameter (with all of Gamma 0 this is the
+        chapter-2 velocity observer in the discrete form (4.34), as Calugi's experiment I runs it).
+    lower : array_like, shape (p,)
+        Lower bounds l of the resetting (4.45), below ``upper``; default none (-inf).
+    upper : array_like, shape (p,)
+        Upper bounds h of the resetting (4.45), above ``lower``; default none (inf).
+    margin : float or array_like, shape (p,), non-negative
+        mu of (4.45): M(q; theta_hat) must stay positive definite on [l - mu, h + mu].
+    sample_period : float, positive
         Delta (s): the engine's sample period, fixed here because (4.34) is written for it.
     regressor : AffineParameters, optional
         Whose regressor phi (4.7) uses; default ``parameters``. Only to reproduce a printed
         model whose M_hat and phi disagree (Calugi 2002, (5.37) against (5.41)).
+    check_bounds : bool
+        Refuse bounds and a margin that let M(q; theta_hat) lose positive definiteness on
+        [lower - mu, upper + mu] (default true); false only to reproduce a printed setting
+        that fails (Calugi 2002, experiment III).
     """
 
     parameters: AffineParameters
@@ -194,6 +200,7 @@ class AdaptiveManipulatorObserver(Observer):
     upper: Array
     margin: Array
     sample_period: float = eqx.field(static=True)
+    check_bounds: bool = eqx.field(static=True)
     estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
     extra_signals: tuple[Signal, ...] = eqx.field(static=True)
     #: the joint positions it reads and the joint torques/forces applied
@@ -201,7 +208,7 @@ class AdaptiveManipulatorObserver(Observer):
     input_layout: Layout = eqx.field(static=True)
 
     def __init__(self, parameters: AffineParameters, gain, adaptation_gain, *, sample_period: float,
-                 lower=None, upper=None, margin=0.0, regressor: AffineParameters | None = None):
+                 lower=None, upper=None, margin=0.0, regressor: AffineParameters | None = None, check_bounds: bool = True):
         if not isinstance(parameters, AffineParameters):
             raise ValueError(f"parameters must be an AffineParameters; got {type(parameters).__name__}")
         if regressor is not None and not (isinstance(regressor, AffineParameters) and regressor.names == parameters.names):
@@ -218,6 +225,9 @@ class AdaptiveManipulatorObserver(Observer):
         if not (isinstance(sample_period, (int, float)) and np.isfinite(sample_period) and sample_period > 0):
             raise ValueError(f"sample_period must be finite and positive (s); got {sample_period!r}")
         self.sample_period = float(sample_period)
+        if not isinstance(check_bounds, bool):
+            raise ValueError(f"check_bounds must be true or false; got {check_bounds!r}")
+        self.check_bounds = check_bounds
         self.measurement_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_MEASUREMENT)
         self.input_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_INPUT)
         self.estimate_signals = (joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION).signals
@@ -238,7 +248,7 @@ class AdaptiveManipulatorObserver(Observer):
             lower, upper = np.asarray(self.lower), np.asarray(self.upper)
             if np.any(np.isnan(lower)) or np.any(np.isnan(upper)) or np.any(lower >= upper):
                 raise ValueError(f"lower must be below upper for every parameter; got {lower.tolist()}, {upper.tolist()}")
-            if np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)):
+            if self.check_bounds and np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)):
                 low, high = lower - np.asarray(self.margin), upper + np.asarray(self.margin)
                 smallest = mass_matrix_margin(self.parameters, low, high)
                 if not smallest > 0:

@@ -22,8 +22,8 @@ eta'' = -M*^-1 [C* eta' + d* - J tau] and the same tau in both,
     eta~'' + L1 eta~' + L2 eta~ = -M*^-1 [C*(eta') eta' - C*(v_hat) v_hat] - M*^-1 [d*(eta') - d*(v_hat)]   (8)
 
 whose right side vanishes when eta' = v_hat: with a matched model the linear part
-s^2 + 15 s + 50 = (s + 5)(s + 10) of the printed L1 = 15 I, L2 = 50 I governs the
-errors near zero.
+s^2 + L1 s + L2 governs the errors near zero: (s + 5)(s + 10) for the paper's L1 = 15 I,
+L2 = 50 I (:mod:`lookout.papers.wondergem_2009`).
 
 Choices
 -------
@@ -109,10 +109,11 @@ class EarthFixedObserver(ContinuousObserver):
     ----------
     ship : Cybership
         The observer's model (it may differ from the plant: linear damping only in the
-        basin scheme).
-    position_gain, velocity_gain : array_like
-        Diagonals of L1 and L2 (1/s, 1/s^2): scalar, (3,) or a diagonal 3x3 matrix.
-        The paper's gains are L1 = 15 I, L2 = 50 I.
+        basin scheme); in a composition, the plant's unless given.
+    position_gain : array_like
+        L1 (1/s) of (6a), positive: a scalar, its diagonal (3,) or a diagonal 3x3 matrix.
+    velocity_gain : array_like
+        L2 (1/s^2) of (6b), positive: a scalar, its diagonal (3,) or a diagonal 3x3 matrix.
     steps_per_sample : int
         Integration steps of :meth:`predict` per sample.
     method : {"rk4", "euler"}
@@ -134,7 +135,7 @@ class EarthFixedObserver(ContinuousObserver):
     input_layout: Layout = eqx.field(static=True)
     sample_period: None = eqx.field(static=True)
 
-    def __init__(self, ship: Cybership, position_gain=15.0, velocity_gain=50.0, *, steps_per_sample=1, method="rk4", initial_velocity="estimate"):
+    def __init__(self, ship: Cybership, position_gain, velocity_gain, *, steps_per_sample=1, method="rk4", initial_velocity="estimate"):
         if not isinstance(ship, Cybership):
             raise ValueError(f"ship must be a Cybership; got {type(ship).__name__}")
         self.ship = ship

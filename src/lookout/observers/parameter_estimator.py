@@ -135,11 +135,11 @@ class ParameterEstimator(ContinuousObserver):
     ----------
     parameters : AffineParameters
         The unknown parameters and the model they build; every parameter needs a unit.
-    gain : float or array_like, shape (p,)
-        h of (3.9), > 0 (a scalar, or the diagonal of a positive diagonal matrix).
-    filter_pole : float
-        a of the filter 1/(s + a) (rad/s), > 0; the thesis's 1.
-    steps_per_sample : int
+    gain : float or array_like, shape (p,), positive
+        h of (3.9): a scalar, or the diagonal of a positive diagonal matrix.
+    filter_pole : float, positive
+        a of the filter 1/(s + a) (rad/s); the thesis's 1.
+    steps_per_sample : int, positive
         RK4 steps of :meth:`predict` per sample period (sampled mode).
     """
 

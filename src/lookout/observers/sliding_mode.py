@@ -57,16 +57,6 @@ SWITCHING_SIGNALS = (
     Signal("switching_heading", "rad/s", "switching term Kbar sat(y~/eps) of eq. (6), heading", EARTH_FIXED),
 )
 
-#: Kim (2002), Appendix (A.4): the observer's bias and velocity injection gains
-#: (printed under "controller gains"; the labels are swapped, NOTES.md) and Kbar.
-KIM_2002_BIAS_GAIN = (1e5, 1e5, 1e8)  # H3 = 1e6 diag(0.1, 0.1, 100)
-KIM_2002_VELOCITY_GAIN = (1e4, 1e4, 1e7)  # H4 = 1e5 diag(0.1, 0.1, 100)
-KIM_2002_SWITCHING_GAIN = (10.0, 10.0, 0.01)  # Kbar (m/s, m/s, rad/s)
-#: Kim (2002), (A.2) and (A.3).
-KIM_2002_BIAS_TIME_CONSTANT = (1000.0, 1000.0, 10000.0)
-KIM_2002_WAVE = {"wave_frequency": 0.8976, "wave_damping": 0.1, "notch_damping": 1.0, "cutoff_frequency": 1.1}
-
-
 #: The boundary layer eps of :meth:`SlidingModeObserver.design` when none is given (m, m,
 #: rad; lookout's choice: a few times a DGNSS fix's and a gyro's noise).
 DEFAULT_BOUNDARY_LAYER = (1.0, 1.0, 0.02)
@@ -85,7 +75,7 @@ class SlidingModeObserver(WaveFilteringObserver):
     """Kim (2002) sliding-mode observer, eqs. (6)–(7): a passive observer plus Kbar sat(y~/eps).
 
     Use :meth:`design` (H1, H2 from the wave model by Fossen & Strand (45)–(47), as
-    Kim's (A.3) does) or :meth:`kim_2002` for the printed gains. The state is a
+    Kim's (A.3) does); the printed gains are the Kim reproduction's (:func:`lookout.papers.kim_2002.printed_observer`). The state is a
     :class:`~lookout.models.VesselState` of estimates.
 
     Parameters
@@ -192,23 +182,6 @@ class SlidingModeObserver(WaveFilteringObserver):
             hold=hold,
         )
         return cls(passive, switching_gain, boundary_layer)
-
-    @classmethod
-    def kim_2002(cls, vessel: DPVessel, *, boundary_layer, **overrides) -> "SlidingModeObserver":
-        """The printed gains of Kim (2002), (A.2)–(A.4); ``overrides`` replace any of them.
-
-        The boundary layer eps is not given in the paper: it must be chosen.
-        """
-        settings = {
-            **KIM_2002_WAVE,
-            "velocity_injection_gain": KIM_2002_VELOCITY_GAIN,
-            "bias_injection_gain": KIM_2002_BIAS_GAIN,
-            "bias_time_constant": KIM_2002_BIAS_TIME_CONSTANT,
-            "switching_gain": KIM_2002_SWITCHING_GAIN,
-            "boundary_layer": boundary_layer,
-            **overrides,
-        }
-        return cls.design(vessel, **settings)
 
     def wave_filter_gains(self) -> WaveFilterGains:
         """The passive part's model and gains, and Kbar."""

@@ -79,10 +79,10 @@ class VelocityObserver(ContinuousObserver):
     ----------
     model : ManipulatorModel
         The observer's own model M, C, F, G (it may differ from the plant's).
-    gain : float or array_like, shape (n,)
-        Diagonal of K (1/s), > 0.
-    steps_per_sample : int
-        RK4 steps of :meth:`predict` per sample period.
+    gain : float or array_like, shape (n,), positive
+        Diagonal of K (1/s).
+    steps_per_sample : int, positive
+        RK4 steps of :meth:`predict` per sample period (sampled mode).
     """
 
     model: ManipulatorModel

@@ -1,13 +1,15 @@
-"""Reproduced publications: one module each, with a scenario, metrics and figures.
+"""Reproduced publications: one module (or package) each, data plus checks.
 
-Every module has ``NAME``, ``TITLE``, a pydantic ``Config`` (seed, runs, duration and
-the paper's settings), ``scenarios(config)`` (what it will simulate, for estimates
-before running), ``run(config, out, progress=None) -> summary`` (simulates, writes
-NetCDF, figures and summary.json) and ``tables(summary)`` (the summary for the
-terminal). Importing this package enables float64 (via :mod:`lookout`).
+Every module defines its pydantic ``Config`` (seed, runs, duration and the paper's
+settings), ``composition(config, case)`` (each case as a composition of registered
+components, :mod:`lookout.composition`), ``run(config, out, progress=None) -> summary``
+(simulates, writes NetCDF, figures and summary.json), ``tables(summary)`` (the summary
+for the terminal), and ``REPRODUCTION``: its :class:`~lookout.papers._reproduction.Reproduction`.
+Importing this package enables float64 (via :mod:`lookout`).
 
 :data:`CATALOG` names them without importing them (``lookout list`` reads it);
-:data:`REPRODUCTIONS` gives the modules, each imported when it is first asked for.
+:data:`REPRODUCTIONS` gives each one's ``REPRODUCTION``, its module imported when it is
+first asked for.
 """
 
 from __future__ import annotations
@@ -54,9 +56,7 @@ class _Reproductions(Mapping):
     module when it is first asked for."""
 
     def __getitem__(self, name: str):
-        module = importlib.import_module(f"{__name__}.{CATALOG[name].module}")
-        # issue 23, while the paper modules move to Reproduction: a module not yet moved is itself
-        return getattr(module, "REPRODUCTION", module)
+        return importlib.import_module(f"{__name__}.{CATALOG[name].module}").REPRODUCTION
 
     def __iter__(self) -> Iterator[str]:
         return iter(CATALOG)

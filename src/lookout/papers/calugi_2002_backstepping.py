@@ -23,6 +23,7 @@ by RK4 at 1 ms with tau held over each 10 ms sample.
 
 from __future__ import annotations
 
+import copy
 import math
 from pathlib import Path
 from typing import Callable, ClassVar, final
@@ -36,17 +37,16 @@ from pydantic import Field, field_validator
 
 from lookout import _validation as check
 from lookout.analysis.adaptive_manipulator import check_5_28
-from lookout.controllers.adaptive_backstepping import AdaptiveObserverBackstepping
-from lookout.models.manipulators import JOINT_POSITION, REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, ManipulatorPlant, TwoLinkArm, joint_layout
+from lookout.composition import compose
+from lookout.models.manipulators import REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, TwoLinkArm
 from lookout.models.parameters import ModelParameters
-from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
 from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
+from lookout.papers._reproduction import Reproduction
 from lookout.reference import ReferenceFilter
 from lookout.results import write_netcdf
-from lookout.sensors import JointEncoder
-from lookout.sim import Scenario, simulate
+from lookout.sim import Scenario, seed_keys, simulate
 
 NAME = "calugi-2002-backstepping"
 TITLE = CATALOG[NAME].title
@@ -58,9 +58,25 @@ VARIANTS = ("corrected", "printed")
 
 @final
 class PrintedInertiaArm(ManipulatorModel):
-    """The two-link arm with (5.37)'s M_22 as printed: m2_true l2^2, whatever the mass
-    parameter; M_11, M_12, G and the Christoffel C (M_22 is constant either way) as in
-    :class:`~lookout.models.manipulators.TwoLinkArm`. Only for showing the erratum."""
+    """The two-link arm with (5.37)'s M_22 as printed: m2_true l2^2, whatever the mass parameter.
+
+    M_11, M_12, G and the Christoffel C (M_22 is constant either way) are those of
+    :class:`~lookout.models.manipulators.TwoLinkArm` with ``masses``; only M_22 keeps the
+    printed mass. Only for showing the erratum (the ``printed`` case).
+
+    Parameters
+    ----------
+    masses : array_like, shape (2,)
+        m1, m2 (kg) of M_11, M_12 and G; m2 is the unknown theta of the observer.
+    lengths : array_like, shape (2,)
+        l1, l2 (m).
+    friction : array_like, shape (2,)
+        c1, c2 (N m s/rad); none in Section 5.3.
+    gravity_acceleration : float
+        g (m/s^2).
+    printed_mass : float
+        The m2 of the printed M_22 = m2 l2^2 (kg): the true 1.5 kg, whatever ``masses[1]`` is.
+    """
 
     masses: Array
     lengths: Array
@@ -114,58 +130,87 @@ class Config(NoiseFreeConfig):
         return finite_positive(value)
 
 
-def parameters(variant: str = "corrected") -> ModelParameters:
-    """theta = m2 of the arm (the observer's and the controller's model)."""
-    if variant not in VARIANTS:
-        raise ValueError(f"variant must be one of {', '.join(VARIANTS)}; got {variant!r}")
-    base = TwoLinkArm(MASSES, LENGTHS, (0.0, 0.0)) if variant == "corrected" else PrintedInertiaArm()
-    return ModelParameters(base, ("masses[1]",), units=("kg",))
+#: The cases: M_hat as (4.20) needs it, and (5.37) as printed.
+CASES: tuple[str, ...] = VARIANTS
+#: The true arm of Section 5.3 (a ``model`` table): m1 = 1 kg, m2 = 1.5 kg, l1 = l2 = 1 m, no friction.
+ARM = {"kind": "two-link-arm", "masses": list(MASSES), "lengths": list(LENGTHS), "friction": [0.0, 0.0]}
+#: (5.37) as printed (a ``model`` table of :class:`PrintedInertiaArm`): M_22 at the true m2.
+PRINTED_ARM = {"kind": "printed-inertia-arm", "masses": list(MASSES), "lengths": list(LENGTHS), "friction": [0.0, 0.0], "printed_mass": MASSES[1]}
+#: theta = m2 (a ``parameters`` table), of the plant's arm unless a ``base`` is added.
+UNKNOWN_MASS = {"kind": "model-fields", "fields": ["masses[1]"], "units": ["kg"]}
+#: The printed gains: K = 5 I, Gamma = 0.1, C1 = C2 = 2 I, d_i = 1.
+OBSERVER_GAIN, ADAPTATION_GAIN, POSITION_GAIN, VELOCITY_GAIN, DAMPING_WEIGHT = 5.0, 0.1, 2.0, 2.0, 1.0
+#: The reference filter F = (w / (s + w))^3 with w = 2 rad/s, so F = 8/(s + 2)^3.
+FILTER_BANDWIDTH = 2.0
 
 
-def reference(config: Config) -> ReferenceFilter:
-    """F = 8/(s + 2)^3 on a +-amplitude square wave per joint, +1 first, from rest at q = 0."""
-    arm = TwoLinkArm(MASSES, LENGTHS, (0.0, 0.0))
+def reference_table(config: Config) -> dict:
+    """F = 8/(s + 2)^3 on a +-amplitude square wave per joint, +1 first, from rest at q = 0,
+    over the plant's ``joint_angle`` (a ``reference`` table)."""
     half = config.period / 2.0
     switches = int(math.ceil(config.duration / half))
-    setpoints = [[config.amplitude * (1 if k % 2 == 0 else -1)] * 2 for k in range(switches)]
-    return ReferenceFilter(joint_layout(arm.joint_names, arm.joint_kinds, JOINT_POSITION).signals, 2.0,
-                           [k * half for k in range(switches)], setpoints, initial=[0.0, 0.0])
+    return {
+        "kind": "reference-filter", "signals": ["joint_angle"], "bandwidth": FILTER_BANDWIDTH,
+        "schedule_times": [k * half for k in range(switches)],
+        "setpoints": [[config.amplitude * (1 if k % 2 == 0 else -1)] * 2 for k in range(switches)], "initial": [0.0, 0.0],
+    }
+
+
+def composition(config: Config, case: str) -> dict:
+    """The closed loop of Section 5.3 as a composition (:mod:`lookout.composition`), with
+    (5.37) ``case`` "corrected" (M_hat = M(q; theta_hat)) or "printed" (M_hat_22 = m2 l2^2
+    at the true m2, in psi and tau): the arm, the encoder of q, the observer (4.34)–(4.35)
+    and the law (5.9) on the same model, tracking :func:`reference_table`. The printed run
+    keeps (5.41)'s regressor (it has l2^2 psi_2 in row 2), of the true arm: only M_hat is
+    printed wrong."""
+    if case not in CASES:
+        raise ValueError(f"case must be one of {', '.join(CASES)}; got {case!r}")
+    observer = {
+        "kind": "adaptive-manipulator", "parameters": UNKNOWN_MASS if case == "corrected" else {**UNKNOWN_MASS, "base": PRINTED_ARM},
+        "gain": OBSERVER_GAIN, "adaptation_gain": ADAPTATION_GAIN, "sample_period": SAMPLE_PERIOD,
+        "initial": {"velocity": [1.0, 1.0], "theta": [config.initial_theta]},
+    }
+    if case == "printed":
+        observer["regressor"] = UNKNOWN_MASS
+    return copy.deepcopy({  # the document is the caller's: the module's tables stay as they are
+        "simulation": {"runs": config.runs, "seed": config.seed, "plant_step": PLANT_STEP, "sample_period": SAMPLE_PERIOD,
+                       "duration": config.duration},
+        "plant": {"kind": "manipulator", "model": ARM, "initial": {"q": [0.0, 0.0], "qdot": [0.0, 0.0]}},
+        "sensor": {"kind": "joint-encoder", "sample_period": SAMPLE_PERIOD},
+        "observer": observer,
+        "reference": reference_table(config),
+        "controller": {"kind": "adaptive-backstepping", "observer_gain": OBSERVER_GAIN, "position_gain": POSITION_GAIN,
+                       "velocity_gain": VELOCITY_GAIN, "damping_weights": DAMPING_WEIGHT},
+    })
 
 
 def build(config: Config, variant: str = "corrected") -> Scenario:
     """The closed loop of Section 5.3, ``variant`` "corrected" or "printed" (5.37)."""
-    truth = TwoLinkArm(MASSES, LENGTHS, (0.0, 0.0))
-    plant = ManipulatorPlant(truth)
-    unknowns = parameters(variant)
-    # the printed run keeps (5.41)'s regressor (it has l2^2 psi2 in row 2): only M_hat is printed wrong
-    observer = AdaptiveManipulatorObserver(unknowns, 5.0, 0.1, sample_period=SAMPLE_PERIOD, regressor=parameters("corrected"))
-    controller = AdaptiveObserverBackstepping(unknowns, 5.0, 2.0, 2.0, 1.0)
-    return Scenario(
-        plant, JointEncoder(truth, sample_period=SAMPLE_PERIOD), observer, controller,
-        plant.state([0.0, 0.0], [0.0, 0.0]), observer.guess([1.0, 1.0], config.initial_theta),
-        plant_step=PLANT_STEP, sample_period=SAMPLE_PERIOD, duration=config.duration, reference=reference(config),
-        record_every=1,
-    )
+    return compose(composition(config, variant)).scenario
 
 
-#: The scenarios a scenario file can name as its ``case`` (one per variant of (5.37)); the first is the
-#: default. See :mod:`lookout.studies.scenario_file`.
-CASES: tuple[str, ...] = VARIANTS
+def parameters(variant: str = "corrected") -> ModelParameters:
+    """theta = m2 of the arm: the observer's and the controller's model of ``variant``."""
+    return build(Config(), variant).observer.parameters
 
 
-def case_scenario(config: Config, case: str) -> Scenario:
-    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
-    return build(config, case)
+def reference(config: Config) -> ReferenceFilter:
+    """The reference filter of :func:`reference_table`."""
+    return build(config).reference
 
 
-def scenarios(config: Config) -> list[Scenario]:
-    """The scenarios :func:`run` simulates (one per variant)."""
-    return [build(config, variant) for variant in VARIANTS]
+def simulate_case(config: Config, case: str, *, progress: Callable | None = None) -> tuple[Scenario, xr.Dataset]:
+    """Simulate case ``case``: its scenario and the Dataset :func:`run` writes."""
+    scenario = build(config, case)
+    ds = simulate(scenario, seed_keys(config.seed, 1)[0], progress=progress).to_xarray()
+    ds.attrs.update({"reproduction": NAME, "title": TITLE, "variant": case, "config": config.model_dump_json()})
+    return scenario, ds
 
 
-def summarize(ds: xr.Dataset) -> dict:
+def summarize(ds: xr.Dataset, unknowns: ModelParameters) -> dict:
     """tau(0), theta_hat's extremes and values at 5 and 10 s, the tracking error after 10 s,
-    max |tau| after 1 s, and where the run stopped being finite."""
+    max |tau| after 1 s, where the run stopped being finite, and where M_hat = ``unknowns``'
+    M(q; theta_hat) first lost positive definiteness."""
     time = ds.time.values
     theta = ds.masses_1_hat.values
     tau = ds.joint_torque_applied.values
@@ -190,8 +235,7 @@ def summarize(ds: xr.Dataset) -> dict:
         "tau_max_after_1s": float(np.abs(tau[(time >= 1.0) & finite]).max()) if ((time >= 1.0) & finite).any() else None,
     }
     # where M_hat(q) first loses positive definiteness (the printed run)
-    model_of = parameters("printed" if "printed" in ds.attrs.get("variant", "") else "corrected")
-    eig = np.asarray(jax.jit(jax.vmap(lambda q, th: jnp.linalg.eigvalsh(model_of.model(jnp.atleast_1d(th)).mass_matrix(q))[0]))(
+    eig = np.asarray(jax.jit(jax.vmap(lambda q, th: jnp.linalg.eigvalsh(unknowns.model(jnp.atleast_1d(th)).mass_matrix(q))[0]))(
         jnp.asarray(np.nan_to_num(angle[ok])), jnp.asarray(ok_theta)))
     indefinite = np.flatnonzero(eig <= 0)
     result["m_hat_indefinite_from_s"] = float(time[indefinite[0]]) if indefinite.size else None
@@ -202,20 +246,18 @@ def summarize(ds: xr.Dataset) -> dict:
 def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate both variants; write NetCDF, figures and summary.json."""
     out.mkdir(parents=True, exist_ok=True)
-    results, per_variant, files = {}, {}, []
+    results, per_variant, unknowns, files = {}, {}, {}, []
     for index, variant in enumerate(VARIANTS):
-        ds = simulate(build(config, variant), jax.random.PRNGKey(config.seed)).to_xarray()
-        ds.attrs.update({"reproduction": NAME, "title": TITLE, "variant": variant, "config": config.model_dump_json()})
+        step = None if progress is None else (lambda done, total, i=index: progress(i + done / total, len(VARIANTS)))
+        scenario, ds = simulate_case(config, variant, progress=step)
         filename = f"calugi_2002_backstepping_{variant}.nc"
         write_netcdf(ds, out / filename, history=f"lookout reproduce {NAME} ({variant} (5.37))")
         files.append(filename)
         results[variant] = ds.isel(run=0)
-        results[variant].attrs["variant"] = variant
-        per_variant[variant] = summarize(results[variant])
-        if progress is not None:
-            progress(index + 1, len(VARIANTS))
+        unknowns[variant] = scenario.observer.parameters
+        per_variant[variant] = summarize(results[variant], unknowns[variant])
     corrected = results["corrected"]
-    condition = check_5_28(parameters(), 5.0, 1.0, max_speed=float(np.linalg.norm(corrected.joint_rate.values, axis=1).max()),
+    condition = check_5_28(unknowns["corrected"], OBSERVER_GAIN, DAMPING_WEIGHT, max_speed=float(np.linalg.norm(corrected.joint_rate.values, axis=1).max()),
                            initial_error=np.array([1.0, 1.0]))
     files += _figures(results, out)
     summary = {
@@ -300,4 +342,8 @@ def tables(summary: dict) -> list[Table]:
     return result
 
 
-__all__ = ["Config", "NAME", "PrintedInertiaArm", "TITLE", "VARIANTS", "build", "parameters", "reference", "run", "scenarios", "summarize", "tables"]
+#: Calugi (2002), Section 5.3: adaptive observer backstepping on the two-link arm, m2 unknown.
+REPRODUCTION = Reproduction(NAME, Config, CASES, composition, run, tables)
+
+__all__ = ["CASES", "Config", "NAME", "PrintedInertiaArm", "REPRODUCTION", "TITLE", "VARIANTS", "build", "composition", "parameters", "reference",
+           "reference_table", "run", "simulate_case", "summarize", "tables"]

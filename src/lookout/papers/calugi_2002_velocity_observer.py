@@ -18,27 +18,25 @@ and the largest speed of the run as omega_max.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import fit_decay_rate
 from lookout.analysis.velocity import configuration_bounds, velocity_observer_condition
-from lookout.components import Controller
-from lookout.controllers import SinusoidalInput
-from lookout.models.manipulators import CartPendulum, FreePendulum, FurutaPendulum, ManipulatorModel, ManipulatorPlant, TwoLinkArm
-from lookout.observers import VelocityObserver
+from lookout.composition import compose
+from lookout.models.manipulators import ManipulatorModel
 from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, significant, write_summary
+from lookout.papers._reproduction import Reproduction
 from lookout.results import write_netcdf
-from lookout.sensors import JointEncoder
 from lookout.sim import Scenario, seed_keys, simulate
 
 NAME = "calugi-2002-velocity-observer"
@@ -47,37 +45,55 @@ TITLE = CATALOG[NAME].title
 
 @dataclass(frozen=True)
 class System:
-    """One simulation of Section 2.3: model, gain, initial conditions, input, figures."""
+    """One simulation of Section 2.3: model, gain, initial conditions, input, figures.
+
+    ``model`` and ``input`` are composition tables (:mod:`lookout.composition`): the
+    manipulator (a ``model`` kind) and the open-loop input (a ``controller`` kind).
+    """
 
     label: str
-    model: ManipulatorModel
+    model: dict
     gain: float
     initial_position: tuple[float, ...]
     initial_velocity: tuple[float, ...]
     initial_estimate: tuple[float, ...]
-    controller: Controller
+    input: dict
     input_description: str
     trajectory_figure: str | None
     velocity_figure: str
 
 
+def _constant_input(value: list[float]) -> dict:
+    """A constant input as a ``sinusoidal`` controller table (zero amplitude, the value as offset)."""
+    return {"kind": "sinusoidal", "amplitude": 0.0, "frequency": 0.0, "offset": value}
+
+
 #: Section 2.3 with its printed parameters; the cart and Furuta inputs are chosen.
 SYSTEMS = {
     "pendulum": System(
-        "free pendulum", FreePendulum(), 2.0 - 0.1 / (0.5 * 0.5**2), (2.0,), (0.0,), (2.2,),
-        SinusoidalInput.constant([0.0]), "tau = 0 (printed)", None, "2.2",
+        "free pendulum", {"kind": "pendulum", "mass": 0.5, "length": 0.5, "friction": 0.1},
+        2.0 - 0.1 / (0.5 * 0.5**2), (2.0,), (0.0,), (2.2,),
+        _constant_input([0.0]), "tau = 0 (printed)", None, "2.2",
     ),
     "two_link": System(
-        "two-link manipulator", TwoLinkArm(), 5.0, (-math.pi / 4, -math.pi / 4), (0.0, 0.0), (-4.0, -4.0),
-        SinusoidalInput.constant([2.0, 1.0]), "tau = (2, 1) N m (printed)", "2.3", "2.4",
+        "two-link manipulator", {"kind": "two-link-arm", "masses": [0.5, 0.7], "lengths": [1.0, 1.5], "friction": [0.5, 0.1]},
+        5.0, (-math.pi / 4, -math.pi / 4), (0.0, 0.0), (-4.0, -4.0),
+        _constant_input([2.0, 1.0]), "tau = (2, 1) N m (printed)", "2.3", "2.4",
     ),
     "cart": System(
-        "pendulum on the coach", CartPendulum(), 5.0, (-1.0, 1.0), (0.0, 0.0), (-5.0, 5.0),
-        SinusoidalInput([2.0, 0.0], [2.0, 0.0]), "F(t) = 2 sin(2 t) N on the cart (chosen), tau2 = 0 (printed)", "2.5", "2.6",
+        "pendulum on the coach",
+        {"kind": "cart-pendulum", "cart_mass": 2.0, "pendulum_mass": 0.2, "pendulum_length": 0.5, "friction": [0.4, 0.1]},
+        5.0, (-1.0, 1.0), (0.0, 0.0), (-5.0, 5.0),
+        {"kind": "sinusoidal", "amplitude": [2.0, 0.0], "frequency": [2.0, 0.0]},
+        "F(t) = 2 sin(2 t) N on the cart (chosen), tau2 = 0 (printed)", "2.5", "2.6",
     ),
     "furuta": System(
-        "Furuta pendulum", FurutaPendulum(), 5.0, (1.0, -1.0), (0.0, 0.0), (-5.0, -5.0),
-        SinusoidalInput([0.5, 0.0], [1.0, 0.0]), "tau(t) = 0.5 sin(t) N m on the arm (chosen), tau2 = 0 (printed)", "2.7", "2.8",
+        "Furuta pendulum",
+        {"kind": "furuta-pendulum", "pillar_inertia": 1.0, "arm_mass": 0.4, "pendulum_mass": 0.1, "tip_mass": 0.5,
+         "arm_length": 0.7, "pendulum_length": 0.5, "friction": [0.4, 0.2]},
+        5.0, (1.0, -1.0), (0.0, 0.0), (-5.0, -5.0),
+        {"kind": "sinusoidal", "amplitude": [0.5, 0.0], "frequency": [1.0, 0.0]},
+        "tau(t) = 0.5 sin(t) N m on the arm (chosen), tau2 = 0 (printed)", "2.7", "2.8",
     ),
 }
 
@@ -104,37 +120,41 @@ class Config(NoiseFreeConfig):
         return value
 
 
-def build(config: Config, name: str) -> Scenario:
-    """The scenario of system ``name`` (a key of :data:`SYSTEMS`)."""
-    system = SYSTEMS[name]
-    plant = ManipulatorPlant(system.model)
-    return Scenario(
-        plant,
-        JointEncoder(system.model, sample_period=config.sample_period),
-        VelocityObserver(system.model, system.gain),
-        system.controller,
-        plant.state(system.initial_position, system.initial_velocity),
-        jnp.asarray(system.initial_estimate, dtype=float),
-        plant_step=config.plant_step,
-        sample_period=config.sample_period,
-        duration=config.duration,
-        observer_mode="continuous",
-    )
-
-
-#: The scenarios a scenario file can name as its ``case`` (one per system); the first is the
-#: default. See :mod:`lookout.studies.scenario_file`.
+#: The cases, one per system of :data:`SYSTEMS`; the first is the default.
 CASES: tuple[str, ...] = tuple(SYSTEMS)
 
 
-def case_scenario(config: Config, case: str) -> Scenario:
-    """The scenario of ``case`` (one of :data:`CASES`) for ``config``, as :func:`run` simulates it."""
-    return build(config, case)
+def composition(config: Config, case: str) -> dict:
+    """System ``case`` (a key of :data:`SYSTEMS`) as a composition (:mod:`lookout.composition`):
+    the manipulator (2.1) with the encoder of q and the observer (2.6)–(2.7) on the plant's
+    own model, integrated jointly with the plant on the exact q (``observer_mode = "continuous"``)."""
+    system = SYSTEMS[case]
+    return copy.deepcopy({  # the document is the caller's: SYSTEMS' tables stay as they are
+        "simulation": {
+            "runs": config.runs, "seed": config.seed, "plant_step": config.plant_step,
+            "sample_period": config.sample_period, "duration": config.duration, "observer_mode": "continuous",
+        },
+        "plant": {"kind": "manipulator", "model": system.model,
+                  "initial": {"q": list(system.initial_position), "qdot": list(system.initial_velocity)}},
+        "sensor": {"kind": "joint-encoder", "sample_period": config.sample_period},
+        "observer": {"kind": "velocity", "gain": system.gain, "initial": {"velocity": list(system.initial_estimate)}},
+        "controller": system.input,
+    })
 
 
-def scenarios(config: Config) -> list[Scenario]:
-    """The scenarios :func:`run` simulates, one per system."""
-    return [build(config, name) for name in SYSTEMS]
+def build(config: Config, name: str) -> Scenario:
+    """The scenario of system ``name`` (a key of :data:`SYSTEMS`)."""
+    return compose(composition(config, name)).scenario
+
+
+def simulate_system(config: Config, name: str, *, progress: Callable | None = None) -> tuple[Scenario, xr.Dataset]:
+    """Simulate system ``name`` (one noise-free run): its scenario and the Dataset :func:`run` writes."""
+    scenario = build(config, name)
+    ds = simulate(scenario, seed_keys(config.seed, 1)[0], progress=progress).to_xarray()
+    # the runs draw no random numbers: the seed is an attribute, not a coordinate that
+    # figures would name as "the run's seed"
+    ds.attrs.update({"reproduction": NAME, "system": SYSTEMS[name].label, "title": TITLE, "config": config.model_dump_json(), "seed": config.seed})
+    return scenario, ds
 
 
 def _velocity_names(ds: xr.Dataset) -> list[str]:
@@ -161,9 +181,10 @@ def _decay(time: np.ndarray, magnitude: np.ndarray) -> dict:
     return {"rate": fit["rate"], "r_squared": fit["r_squared"], "fitted_from_s": fit["t_start"], "fitted_to_s": fit["t_end"]}
 
 
-def summarize(ds: xr.Dataset, name: str) -> dict:
+def summarize(ds: xr.Dataset, name: str, model: ManipulatorModel) -> dict:
     """Per joint and for the norm: the velocity error at the start and end, the fitted
-    decay rate, and Theorem 2.1 with omega_max the largest speed of the run."""
+    decay rate, and Theorem 2.1 for the observer's ``model`` with omega_max the largest
+    speed of the run."""
     system = SYSTEMS[name]
     time = ds.time.values
     truth, estimate = _joint_series(ds), _joint_series(ds, "_hat")
@@ -174,7 +195,7 @@ def summarize(ds: xr.Dataset, name: str) -> dict:
     errors = np.stack([truth[j] - estimate[j] for j in truth], axis=-1)
     norm = np.linalg.norm(errors, axis=-1)
     speed = float(np.linalg.norm(np.stack(list(truth.values()), axis=-1), axis=-1).max())
-    report = velocity_observer_condition(system.model, system.gain, speed, initial_error=float(norm[0]), bounds=configuration_bounds(system.model))
+    report = velocity_observer_condition(model, system.gain, speed, initial_error=float(norm[0]), bounds=configuration_bounds(model))
     return {
         "label": system.label,
         "gain": system.gain,
@@ -196,13 +217,9 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
 
     out.mkdir(parents=True, exist_ok=True)
     files, systems, status = [], {}, []
-    key = seed_keys(config.seed, 1)[0]
     for index, (name, system) in enumerate(SYSTEMS.items()):
         step = None if progress is None else (lambda done, total, i=index: progress(i + done / total, len(SYSTEMS)))
-        ds = simulate(build(config, name), key, progress=step).to_xarray()
-        # the runs draw no random numbers: the seed is an attribute, not a coordinate that
-        # figures would name as "the run's seed"
-        ds.attrs.update({"reproduction": NAME, "system": system.label, "title": TITLE, "config": config.model_dump_json(), "seed": config.seed})
+        scenario, ds = simulate_system(config, name, progress=step)
         filename = f"calugi_2002_{name}.nc"
         write_netcdf(ds, out / filename, history=f"lookout reproduce {NAME}: {system.label}")
         files.append(filename)
@@ -222,7 +239,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
             figure.savefig(out / filename, dpi=110)
             plt.close(figure)
             files.append(filename)
-        systems[name] = summarize(ds, name)
+        systems[name] = summarize(ds, name, scenario.observer.model)
     summary = {
         "reproduction": NAME,
         "config": config.model_dump(),
@@ -268,3 +285,7 @@ def tables(summary: dict) -> list[Table]:
             "region (2.13): the initial errors it guarantees, M_m sigma_eff / C_M - 2 w_max",
         ),
     ]
+
+
+#: Calugi (2002), Section 2.3: the reduced-order velocity observer on four manipulators.
+REPRODUCTION = Reproduction(NAME, Config, CASES, composition, run, tables)

@@ -29,17 +29,41 @@ import xarray as xr
 from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import estimation_errors
-from lookout.analysis.adaptive_dp import PRINTED_GAINS, calugi_2003_vessel, check_calugi_2003, noise_drift_rate, satisfying_gains
+from lookout.analysis.adaptive_dp import check_calugi_2003, noise_drift_rate, satisfying_gains
+from lookout.models.vessel import DPVessel
 from lookout.settings import RunsConfig, finite_positive, positive_count, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, significant, write_summary
 from lookout.composition import compose
-from lookout.papers._reproduction import Reproduction
+from lookout.papers._reproduction import Reproduction, simulate_cases
 from lookout.results import write_netcdf
 from lookout.sim import Scenario, integer_ratio, keys_of_seeds, simulate_batch, stack_scenarios
 
 NAME = "calugi-2003"
 TITLE = CATALOG[NAME].title
+
+#: Calugi et al. (2003), eq. (59): the off-shore supply vessel of Fossen & Strand
+#: (1999), Fig. 8, as printed. (59) prints d11 = 5.024e4 and d23 = d32 = -4.399e6
+#: where F&S (57) (:data:`lookout.models.vessel.NORTHERN_CLIPPER_D`) has 5.0242e4
+#: and -4.3933e6: this reproduction uses (59)'s numbers. K = 0.
+CALUGI_2003_M = np.diag([5.3122e6, 8.2831e6, 3.7454e9])
+CALUGI_2003_D = np.array([[5.024e4, 0.0, 0.0], [0.0, 2.7229e5, -4.399e6], [0.0, -4.399e6, 4.1894e8]])
+
+#: The observer-controller parameters of Section V (SI; Gamma for theta = m11).
+PRINTED_GAINS = {
+    "K1": (1e-3, 1e-3, 1e-3),
+    "K2": (1e-3, 1e-3, 1e-3),
+    "d": (0.1,) * 6,
+    "C1": (0.1, 0.1, 0.1),
+    "C2": (0.1, 0.1, 0.1),
+    "Gamma": 1e3,
+}
+
+def paper_vessel() -> DPVessel:
+    """The vessel of (59): :data:`CALUGI_2003_M`, :data:`CALUGI_2003_D`, K = 0."""
+    return DPVessel(CALUGI_2003_M, CALUGI_2003_D)
+
+
 GAIN_SETS = ("printed", "satisfying")
 #: Setpoint schedule (time s, [north m, east m, heading rad]) through F(s) of (60).
 WAYPOINTS = (
@@ -62,7 +86,7 @@ NOISE_LEVELS = (0.1, 1.0)
 
 
 def m11() -> float:
-    return float(np.asarray(calugi_2003_vessel().mass_matrix)[0, 0])
+    return float(np.asarray(paper_vessel().mass_matrix)[0, 0])
 
 
 class Config(RunsConfig):
@@ -133,7 +157,7 @@ def _satisfying_proposal():
     """satisfying_gains for the paper's vessel and bounds, searched once (0.7 s) rather than
     once per scenario the sweeps build."""
     # designed for 1 m/s, about twice the reference's peak speed (0.027 x 20 m/s)
-    return satisfying_gains(calugi_2003_vessel(), theta_bounds=[0.5 * m11(), 2.0 * m11()], speed=DESIGN_SPEED)
+    return satisfying_gains(paper_vessel(), theta_bounds=[0.5 * m11(), 2.0 * m11()], speed=DESIGN_SPEED, **{k: PRINTED_GAINS[k] for k in ('K1', 'K2', 'd', 'C1', 'C2')})
 
 
 def gains(name: str) -> dict:
@@ -172,7 +196,7 @@ def composition(
     composition: the vessel of (59), theta = m11 within the bounds, the observer of
     (65)-(67) (or (13)-(15) with ``form = "continuous"``, on the oracle velocity sensor),
     the vectorial backstepping (36), the reference filter F(s) of (60)."""
-    vessel = calugi_2003_vessel()
+    vessel = paper_vessel()
     true_m11 = m11()
     chosen = gains(gain_set)
     interval = config.sample_interval if sample_interval is None else sample_interval
@@ -544,32 +568,20 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset |
 # run
 
 
-def simulate_case(config: Config, case: str, progress: Callable | None = None) -> xr.Dataset:
-    """The runs of one gain set over the seeds of ``config``, batched as a scenario file of
-    the case runs them (one scenario stacked per run): `lookout run` of the case's file
-    gives these numbers bit for bit."""
-    scenario = build(config, case)
-    return simulate_batch(stack_scenarios([scenario] * config.runs), keys_of_seeds(config.seeds), batched_scenario=True, progress=progress).to_xarray()
-
-
 def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate both gain sets in closed loop (and the sweeps); write NetCDF, figures and summary.json."""
     out.mkdir(parents=True, exist_ok=True)
     labels = [name for name in GAIN_SETS for _ in range(config.runs)]
     seeds = [seed for _ in GAIN_SETS for seed in config.seeds]
     parts = len(GAIN_SETS) + (4 if config.sweep else 0)
-    cases = []
-    for index, name in enumerate(GAIN_SETS):
-        step = None if progress is None else (lambda done, total, index=index: progress(index + done / total, parts))
-        cases.append(simulate_case(config, name, step))
-    ds = xr.concat(cases, dim="run", data_vars="all", coords="minimal", compat="override", join="override")
-    ds = ds.assign_coords(gains=("run", np.asarray(labels, dtype=object)), seed=("run", np.asarray(seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
+    # each gain set as `lookout run` of its case's file simulates it: the same numbers to the bit
+    ds = simulate_cases(REPRODUCTION, config, GAIN_SETS, "gains", progress=progress, parts=parts)
     ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "true_m11": m11()})
     write_netcdf(ds, out / "calugi_2003.nc", history=f"lookout reproduce {NAME} (seeds {seeds[0]}..{seeds[-1]}, both gain sets)")
     files = ["calugi_2003.nc"]
     metrics = loop_metrics(ds)
     per_set = {}
-    vessel = calugi_2003_vessel()
+    vessel = paper_vessel()
     bounds = [config.theta_bounds[0] * m11(), config.theta_bounds[1] * m11()]
     for name in GAIN_SETS:
         chosen = np.asarray(labels) == name
@@ -748,29 +760,14 @@ def tables(summary: dict) -> list[Table]:
     return result
 
 
-class Calugi2003(Reproduction):
-    """Calugi, Robertsson & Johansson (2003), Section V: the adaptive observer and vectorial backstepping."""
-
-    name = NAME
-    Config = Config
-    cases = CASES
-
-    def composition(self, config: Config, case: str) -> dict:
-        return composition(config, case)
-
-    def batches(self, config: Config) -> list[tuple[Scenario, int]]:
-        """Each gain set's runs, and the largest sweep batch (Delta = 0.01 s)."""
-        result = [(build(config, case), config.runs) for case in CASES]
-        if config.sweep:
-            interval = 0.01
-            result.append((build(config, sample_interval=interval, duration=config.sweep_duration, record_every=sweep_record_every(interval, config.sweep_duration)), 2 * config.sweep_seeds))
-        return result
-
-    def run(self, config: Config, out: Path, *, progress: Callable | None = None) -> dict:
-        return run(config, out, progress=progress)
-
-    def tables(self, summary: dict) -> list[Table]:
-        return tables(summary)
+def batches(config: Config) -> list[tuple[Scenario, int]]:
+    """Each gain set's runs, and the largest sweep batch (Delta = 0.01 s)."""
+    result = [(build(config, case), config.runs) for case in CASES]
+    if config.sweep:
+        interval = 0.01
+        result.append((build(config, sample_interval=interval, duration=config.sweep_duration, record_every=sweep_record_every(interval, config.sweep_duration)), 2 * config.sweep_seeds))
+    return result
 
 
-REPRODUCTION = Calugi2003()
+#: Calugi, Robertsson & Johansson (2003), Section V: the adaptive observer and vectorial backstepping.
+REPRODUCTION = Reproduction(NAME, Config, CASES, composition, run, tables, batches_of=batches)

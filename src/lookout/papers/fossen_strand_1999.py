@@ -318,21 +318,5 @@ def tables(summary: dict) -> list[Table]:
     ]
 
 
-class FossenStrand1999(Reproduction):
-    """Fossen & Strand (1999), Section 6.1: the passive observer on the Northern Clipper."""
-
-    name = NAME
-    Config = Config
-    cases = CASES
-
-    def composition(self, config: Config, case: str) -> dict:
-        return composition(config, case)
-
-    def run(self, config: Config, out: Path, *, progress: Callable | None = None) -> dict:
-        return run(config, out, progress=progress)
-
-    def tables(self, summary: dict) -> list[Table]:
-        return tables(summary)
-
-
-REPRODUCTION = FossenStrand1999()
+#: Fossen & Strand (1999), Section 6.1: the passive observer on the Northern Clipper.
+REPRODUCTION = Reproduction(NAME, Config, CASES, composition, run, tables)

@@ -53,7 +53,7 @@ from lookout.papers._config import VesselSettings
 from lookout.settings import RunsConfig, Settings, finite_positive, positive_count, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
-from lookout.papers._reproduction import Reproduction
+from lookout.papers._reproduction import Reproduction, simulate_cases
 from lookout.composition import compose
 from lookout.results import write_netcdf
 from lookout.sim import Scenario, keys_of_seeds, simulate_batch, stack_scenarios
@@ -85,6 +85,17 @@ FORCE_LEVER_ARM = 5.0
 #: A run has diverged when its low-frequency position leaves the reference, or its
 #: position estimate leaves the true position, by more than this (m) at any time.
 DIVERGED_DISTANCE = 100.0
+
+
+def printed_observer(vessel, *, boundary_layer, **overrides) -> SlidingModeObserver:
+    """The sliding-mode observer with the printed gains of (A.2)–(A.4) for ``vessel``;
+    ``overrides`` replace any of them (keywords of :meth:`SlidingModeObserver.design`).
+    The boundary layer eps is not given in the paper: it must be chosen."""
+    settings = {
+        **WAVE, "velocity_injection_gain": VELOCITY_GAIN, "bias_injection_gain": BIAS_GAIN, "bias_time_constant": BIAS_TIME_CONSTANT,
+        "switching_gain": SWITCHING_GAIN, "boundary_layer": boundary_layer, **overrides,
+    }
+    return SlidingModeObserver.design(vessel, **settings)
 
 
 def gain_sets(mass: float = NORTHERN_CLIPPER_MASS, length: float = NORTHERN_CLIPPER_LENGTH) -> dict[str, dict]:
@@ -598,26 +609,14 @@ def _sweep_figure(sweep: xr.Dataset):
 # run
 
 
-def simulate_case(config: Config, case: str, progress: Callable | None = None) -> xr.Dataset:
-    """The runs of one case (observer) over the seeds of ``config``, batched as a scenario
-    file of the case runs them (one scenario stacked per run): `lookout run` of the case's
-    file gives these numbers bit for bit."""
-    scenario = build(config, case)
-    return simulate_batch(stack_scenarios([scenario] * config.runs), keys_of_seeds(config.seeds), batched_scenario=True, progress=progress).to_xarray()
-
-
 def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate both observers in closed loop (and the sweep); write NetCDF, figures and summary.json."""
     out.mkdir(parents=True, exist_ok=True)
     labels = [observer for observer in OBSERVERS for _ in range(config.runs)]
     seeds = [seed for _ in OBSERVERS for seed in config.seeds]
     parts = len(OBSERVERS) + (1 if config.sweep else 0)
-    cases = []
-    for index, observer in enumerate(OBSERVERS):
-        step = None if progress is None else (lambda done, total, index=index: progress(index + done / total, parts))
-        cases.append(simulate_case(config, observer, step))
-    ds = xr.concat(cases, dim="run", data_vars="all", coords="minimal", compat="override", join="override")
-    ds = ds.assign_coords(observer=("run", np.asarray(labels, dtype=object)), seed=("run", np.asarray(seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
+    # each observer as `lookout run` of its case's file simulates it: the same numbers to the bit
+    ds = simulate_cases(REPRODUCTION, config, OBSERVERS, "observer", progress=progress, parts=parts)
     ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "gains": config.gains, "model_error": config.model_error.model_dump_json()})
     metrics = closed_loop_metrics(ds)
     # a run counts as diverged as the table counts it: non-finite, or the vessel or its
@@ -641,7 +640,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     model = config.vessel.dp_vessel()
     reports = {}
     for gains in ("printed", "kyp"):
-        observer = SlidingModeObserver.kim_2002(model, boundary_layer=config.boundary_layer, **gain_sets(config.vessel.mass, config.vessel.length)[gains])
+        observer = printed_observer(model, boundary_layer=config.boundary_layer, **gain_sets(config.vessel.mass, config.vessel.length)[gains])
         reports[gains] = check_kim_2002(observer, model).to_dict()
     summary = {
         "reproduction": NAME,
@@ -732,29 +731,14 @@ def tables(summary: dict) -> list[Table]:
     return result
 
 
-class Kim2002(Reproduction):
-    """Kim (2002), Section 5: the sliding-mode observer and observer backstepping, and the claim of Fig. 8."""
-
-    name = NAME
-    Config = Config
-    cases = CASES
-
-    def composition(self, config: Config, case: str) -> dict:
-        return composition(config, case)
-
-    def batches(self, config: Config) -> list[tuple[Scenario, int]]:
-        """Each observer's runs, and the model-error sweep's batch."""
-        result = [(build(config, case), config.runs) for case in OBSERVERS]
-        if config.sweep:
-            sweep = build(config, duration=config.sweep_duration, record_every=SWEEP_RECORD_EVERY)
-            result.append((sweep, 2 * len(OBSERVERS) * len(sweep_points()) * config.sweep_seeds))
-        return result
-
-    def run(self, config: Config, out: Path, *, progress: Callable | None = None) -> dict:
-        return run(config, out, progress=progress)
-
-    def tables(self, summary: dict) -> list[Table]:
-        return tables(summary)
+def batches(config: Config) -> list[tuple[Scenario, int]]:
+    """Each observer's runs, and the model-error sweep's batch."""
+    result = [(build(config, case), config.runs) for case in OBSERVERS]
+    if config.sweep:
+        sweep = build(config, duration=config.sweep_duration, record_every=SWEEP_RECORD_EVERY)
+        result.append((sweep, 2 * len(OBSERVERS) * len(sweep_points()) * config.sweep_seeds))
+    return result
 
 
-REPRODUCTION = Kim2002()
+#: Kim (2002), Section 5: the sliding-mode observer and observer backstepping, and the claim of Fig. 8.
+REPRODUCTION = Reproduction(NAME, Config, CASES, composition, run, tables, batches_of=batches)

@@ -16,12 +16,13 @@ A campaign spec is a TOML file::
     [sweep]
     kind = "grid"                     # or "latin-hypercube" (then `points` and `seed`)
 
-    [[sweep.axes]]
-    field = "wave_frequency"          # a settings path of the scenario
+    [[sweep.axes]]                    # a key of the scenario's composition; several keys take
+    name = "wave_frequency"           # the same value (the sea and the observer tuned to it)
+    field = ["plant.waves.peak_frequency", "observer.wave_frequency"]
     values = [0.6, 0.9, 1.2]
 
     [[sweep.axes]]
-    field = ["bias_std[0]", "bias_std[1]", "bias_std[2]"]
+    field = ["plant.bias.std[0]", "plant.bias.std[1]", "plant.bias.std[2]"]
     values = [0.5, 1.0, 2.0]
     scale = true                      # multiply the base values instead of replacing them
 
@@ -30,9 +31,9 @@ A campaign spec is a TOML file::
     every = 10
 
 A grid axis gives ``values``, or ``range = [low, high]`` with ``steps``; a
-Latin-hypercube axis gives ``range``. ``field = "case"`` with case names as values
-sweeps the template's cases (``["sliding-mode", "conventional"]``: both of Kim's
-observers in one campaign). The points of a grid are the Cartesian product
+Latin-hypercube axis gives ``range``. An axis whose field is a whole table
+(``field = "observer"``) and whose values are tables replaces that component at each
+point (several observers on the same runs). The points of a grid are the Cartesian product
 of the axes (the last axis varies fastest); a Latin hypercube draws ``points`` points
 with one point in each of ``points`` equal strata of every axis.
 
@@ -57,7 +58,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from lookout.settings import positive_count
 from lookout.studies._toml import FileError, read
-from lookout.studies.scenario_file import ScenarioSpec, build_located, describe, from_document, get_path, located, read_spec, validate_strictly
+from lookout.composition import get_path
+from lookout.studies.scenario_file import CompositionSpec, describe, from_document, located, read_spec, validate_strictly
 
 #: The largest batch a chunk defaults to.
 DEFAULT_CHUNK_RUNS = 64
@@ -68,7 +70,7 @@ class Axis(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    field: str | tuple[str, ...] = Field(description="settings path(s) of the scenario, set to the same value")
+    field: str | tuple[str, ...] = Field(description="key path(s) of the scenario's composition (plant.waves.peak_frequency, observer), set to the same value")
     values: tuple[Any, ...] | None = Field(None, description="the values (grid)")
     range: tuple[float, float] | None = Field(None, description="[low, high]: steps values (grid) or strata (latin-hypercube)")
     steps: int | None = Field(None, description="number of evenly spaced values over range (grid)")
@@ -99,6 +101,16 @@ class Axis(BaseModel):
     @property
     def fields(self) -> tuple[str, ...]:
         return (self.field,) if isinstance(self.field, str) else tuple(self.field)
+
+    def value_label(self, value):
+        """A value as the store and the report show it: a replaced component by its kind
+        (numbered in the axis's order when two values share one)."""
+        if not isinstance(value, dict):
+            return value
+        kinds = [v.get("kind", "?") if isinstance(v, dict) else str(v) for v in self.values or ()]
+        index = next(i for i, v in enumerate(self.values) if v == value)
+        kind = kinds[index]
+        return kind if kinds.count(kind) == 1 else f"{kind} {kinds[: index + 1].count(kind)}"
 
     @property
     def label(self) -> str:
@@ -234,7 +246,7 @@ class Campaign:
     """A validated campaign: its settings, base scenario, sweep points and metrics."""
 
     settings: CampaignSettings
-    base: ScenarioSpec
+    base: CompositionSpec
     points: tuple[dict[str, Any], ...]  # axis label -> value, per point
     metric_names: tuple[str, ...]
     source: str
@@ -278,13 +290,12 @@ class Campaign:
     def fingerprint(self) -> str:
         return fingerprint_of(self.document())
 
-    def point_spec(self, point: int) -> ScenarioSpec:
+    def point_spec(self, point: int) -> CompositionSpec:
         """The scenario of sweep point ``point``."""
         return _point_spec(self.canonical(), point)
 
     def changes(self, point: int) -> dict[str, Any]:
-        """Settings path -> value at ``point`` (and ``case`` -> the case, when an axis
-        sweeps the template's cases)."""
+        """Key path -> value at ``point``."""
         base = self.base.values()
         result = {}
         for axis in self.axes:
@@ -309,20 +320,13 @@ def _campaign(canonical: str) -> Campaign:
     return campaign_from_document(json.loads(canonical), "<campaign>")
 
 
-#: The axis field that sweeps the template's cases (e.g. both of Kim's observers).
-CASE = "case"
-
-
-def _with_changes(base: ScenarioSpec, changes: dict[str, Any], source: str) -> ScenarioSpec:
-    """``base`` with settings paths (and :data:`CASE`) set."""
-    changes = dict(changes)
-    case = changes.pop(CASE, None)
-    changed = base.with_settings(changes, source=source)
-    return changed if case is None else changed.with_case(case)
+def _with_changes(base: CompositionSpec, changes: dict[str, Any], source: str) -> CompositionSpec:
+    """``base`` with the keys at ``changes``' paths set (a path may name a whole table)."""
+    return base.with_settings(dict(changes), source=source)
 
 
 @functools.lru_cache(maxsize=256)
-def _point_spec(canonical: str, point: int) -> ScenarioSpec:
+def _point_spec(canonical: str, point: int) -> CompositionSpec:
     campaign = _campaign(canonical)
     return _with_changes(campaign.base, campaign.changes(point), f"{campaign.source} (point {point})")
 
@@ -364,11 +368,11 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
         path = Path(scenario)
         if not path.is_absolute() and folder is not None:
             path = folder / path
-        base, base_text = read_spec(path)
+        base = read_spec(path)[0]
     else:
-        base, base_text = from_document(scenario, f"{source} [scenario]", None), None
+        base = from_document(scenario, f"{source} [scenario]", None)
     axes = settings.sweep.axes
-    scenario_object = build_located(base, base_text)
+    scenario_object = base.build()
     # sizes first: nothing that grows with the points or seeds exists before this check
     try:
         check_driver_memory(settings, scenario_object)
@@ -382,20 +386,11 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
     else:
         points = tuple(_latin_hypercube(axes, settings.sweep.points, settings.sweep.seed))
     base_values = base.values()
-    cases = {base.case: scenario_object}  # the built scenario of every swept case
+    variants = [scenario_object]  # the base and every swept component: each metric must apply to each
     records = [scenario_object.n_records]
     for index, axis in enumerate(axes):
         location = ("sweep", "axes", index, "field")
         for path in axis.fields:
-            if path == CASE:
-                if axis.scale or axis.values is None or len(axis.fields) > 1:
-                    raise located(source, text, location, "an axis over the case takes values (case names), alone, without scale")
-                unknown = [value for value in axis.values if value not in base.cases]
-                if not base.cases:
-                    raise located(source, text, location, "a composition has no cases: sweep its keys (e.g. observer.wave_frequency)")
-                if unknown:
-                    raise located(source, text, ("sweep", "axes", index, "values"), f"{unknown[0]!r} is no case of {base.title.split(',')[0]} (its cases: {', '.join(base.cases)})")
-                continue
             try:
                 current = get_path(base_values, path) if _exists(base_values, path) else None
                 if not _exists(base_values, path):
@@ -417,15 +412,15 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
                 built = changed.build()
             except ValueError as error:
                 raise located(source, text, where, f"value {value!r} makes no scenario: {error}") from None
-            if CASE in axis.fields:
-                cases[value] = built
+            if isinstance(value, dict):  # a whole component replaced
+                variants.append(built)
             records.append(built.n_records)
             _check_window(settings, built, source, text, where, value)
     names = settings.metrics or ()
     if not names:
         raise located(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.studies.metrics)")
     try:
-        for built in cases.values():  # every metric applies to every swept case
+        for built in variants:  # every metric applies to every swept component
             metric_module.resolve(list(names), built)
         if settings.divergence is not None:
             signal = settings.divergence.signal
@@ -519,7 +514,7 @@ def _exists(values: dict, path: str) -> bool:
     try:
         get_path(values, path)
         return True
-    except (KeyError, IndexError, TypeError, FileError):
+    except (KeyError, IndexError, TypeError, ValueError):
         return False
 
 
@@ -535,7 +530,7 @@ def load_campaign(path: str | Path) -> Campaign:
 
 #: (campaign, scenario structure, batch size) of the chunks this process has computed:
 #: a later one with the same key runs compiled (points that differ in numbers only,
-#: or cases that differ in numbers only, share one program).
+#: share one program).
 _COMPUTED: set[tuple] = set()
 
 

@@ -16,8 +16,14 @@ from lookout._validation import InputError
 from lookout._json import json_safe
 from lookout.studies._toml import FileError
 
-#: What ``lookout run`` writes into its folder.
+#: What ``lookout run`` writes into its folder, always.
 RUN_FILES = ("run.nc", "scenario.toml", "summary.json")
+#: And its figures of run 0, each where the run has something to show: every estimate
+#: against its truth, the reference against the truth, the commanded and applied input
+#: (:func:`lookout.plotting.plot_run_estimates`, ``plot_run_reference``, ``plot_run_input``).
+RUN_FIGURES = ("estimates.png", "reference.png", "input.png")
+#: Resolution of those figures (that of the reproductions' figures).
+RUN_FIGURE_DPI = 110
 
 
 def console_print(text: str) -> None:
@@ -37,7 +43,7 @@ campaign_app = typer.Typer(
 
 def _scenario(path: str, runs: int | None, seed: int | None):
     from lookout.settings import positive_count, seed_for_runs
-    from lookout.studies.scenario_file import build_located, read_spec
+    from lookout.studies.scenario_file import read_spec
 
     try:
         if runs is not None:
@@ -51,8 +57,8 @@ def _scenario(path: str, runs: int | None, seed: int | None):
         raise InputError(f"--seed {error}") from None
 
     try:
-        spec, text = read_spec(path, runs=runs, seed=seed)
-        scenario = build_located(spec, text)
+        spec = read_spec(path, runs=runs, seed=seed)[0]
+        scenario = spec.build()
     except FileError as error:
         raise InputError(str(error)) from None
     return spec, scenario
@@ -60,11 +66,13 @@ def _scenario(path: str, runs: int | None, seed: int | None):
 
 def _default_metrics(scenario) -> list[str]:
     """RMS estimation error of every estimated plant variable, RMS tracking error of
-    every tracked one, over the second half of the run."""
+    every tracked one (a setpoint that is none of the plant's variables has no tracking
+    error), over the second half of the run."""
     record = scenario.record_signals
     truths = {s.name for s in record.truth}
     names = [f"rms_error:{s.name}" for s in record.estimate if s.name in truths]
-    names += [f"rms_tracking:{s.name[: -len('_desired')]}" for s in record.reference if s.name.endswith("_desired")]
+    names += [f"rms_tracking:{s.name.removesuffix('_desired')}" for s in record.reference
+              if s.name.endswith("_desired") and s.name.removesuffix("_desired") in truths]
     return names
 
 
@@ -90,14 +98,20 @@ def run(
     """Simulate a scenario file.
 
     Writes run.nc (every recorded signal of every run), scenario.toml (the scenario
-    with every setting spelled out) and summary.json (RMS estimation and tracking
-    errors per run over the second half, and which runs diverged) to --out.
+    with every setting spelled out), summary.json (RMS estimation and tracking
+    errors per run over the second half, which runs diverged, the files written) and
+    figures of run 0 to --out: estimates.png (every estimated variable against its
+    truth, with its measurement; an estimate without a truth alone), reference.png
+    (the reference against the truth) where there is a reference, and input.png (the
+    commanded and applied input, shaded where the actuator limited it) where the
+    input is not zero throughout. A figure that does not apply is not written (one
+    left from an earlier run into the folder is removed).
     """
     from lookout.results import write_netcdf
     from lookout.studies import metrics as metric_module
     from lookout.studies.scenario_file import save, simulate_trajectory, to_dataset
 
-    for name in RUN_FILES:  # a folder in the way of an output is found before simulating
+    for name in RUN_FILES + RUN_FIGURES:  # a folder in the way of an output is found before simulating
         if (Path(out) / name).is_dir():
             raise InputError(f"--out: {Path(out) / name} is a folder, and lookout run writes the file {name} there; give another --out")
     spec, scenario = _scenario(scenario_file, runs, seed)
@@ -105,10 +119,11 @@ def run(
     check_memory([(scenario, spec.runs)], "--runs" if runs is not None else f"{scenario_file}: {spec.runs_key}", spec.runs_key.replace("runs", "duration"))
     folder = created_folder("--out", out)
     with simulating() as progress:
-        trajectory = simulate_trajectory(spec, scenario=scenario, progress=progress)
+        trajectory = simulate_trajectory(spec, progress=progress)
     ds = to_dataset(spec, trajectory)
     write_netcdf(ds, folder / "run.nc", history=f"lookout run {scenario_file} (seeds {spec.seeds[0]}..{spec.seeds[-1]})")
     save(spec, folder / "scenario.toml", header=f"lookout scenario, as run into this folder from {scenario_file}.\nRun it again with: lookout run scenario.toml --out DIR")
+    figures = _write_figures(ds, folder, spec.title)
 
     metrics = metric_module.resolve(_default_metrics(scenario), scenario)
     values = metric_module.reduce(_batched(trajectory), metrics)
@@ -117,7 +132,7 @@ def run(
         "seeds": spec.seeds,
         "status": ds.status.values.tolist(),
         "metrics": {m.name: {"units": m.units, "description": m.description + " (t >= half the run)", "per_run": values[m.variable].tolist()} for m in metrics},
-        "files": list(RUN_FILES),
+        "files": list(RUN_FILES) + figures,
     }
     (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False) + "\n")
 
@@ -130,6 +145,29 @@ def run(
     console.print(table)
     finite = summary["status"].count("finite")
     console_print(f"{finite}/{len(summary['status'])} runs finite; written to the folder {folder}: {', '.join(summary['files'])}")
+
+
+def _write_figures(ds, folder: Path, title: str) -> list[str]:
+    """Write the :data:`RUN_FIGURES` that apply to ``ds`` (run 0) into ``folder``;
+    remove those that do not (left by an earlier run); return the names written."""
+    import matplotlib.pyplot as plt
+
+    from lookout.plotting import plot_run_estimates, plot_run_input, plot_run_reference
+
+    written = []
+    for name, draw in zip(RUN_FIGURES, (plot_run_estimates, plot_run_reference, plot_run_input)):
+        figure = draw(ds, run=0, title=title)
+        path = folder / name
+        if figure is None:
+            if path.is_file() or path.is_symlink():
+                path.unlink()
+            continue
+        try:
+            figure.savefig(path, dpi=RUN_FIGURE_DPI)
+        finally:
+            plt.close(figure)
+        written.append(name)
+    return written
 
 
 def _campaign(spec_path: str):

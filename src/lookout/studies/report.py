@@ -11,8 +11,8 @@ The page holds, in order:
 - **provenance**: the title, the completion status (chunks and runs done; a store
   whose campaign is still running says it is partial), lookout version, creation time,
   campaign fingerprint, sweep kind and sizes, compute time and workers;
-- the **campaign spec** as tables: the base scenario (template, case, the settings that
-  differ from the template's defaults, and every setting, nested keys dotted, collapsed),
+- the **campaign spec** as tables: the base scenario (its components, the keys that
+  differ from their kind's defaults, and every key, dotted, collapsed),
   the seeds, chunks, metrics, metric window, divergence rule and kept trajectories, and
   the sweep axes (fields, values or range, units, scale); the spec as JSON, collapsed;
 - a **summary** table per metric (median and 10th/90th percentiles over every computed run);
@@ -155,38 +155,18 @@ _UNIT = re.compile(r"\(([A-Za-z%][A-Za-z0-9/^*.·%-]{0,11})\)")
 
 
 def _setting_units(document: dict | None, fields: list[str]) -> str | None:
-    """The units of a scenario setting, read from its template's field description
-    (``"w_o (rad/s), eq. (59)"`` -> ``rad/s``); None when the description gives none."""
+    """The units of a scenario key, read from its description (``"Dominating wave
+    frequency w0_i (rad/s)."`` -> ``rad/s``); None when the description gives none."""
     if not document or not fields:
         return None
-    if "template" not in (document.get("scenario") or {}):  # a composition: its keys' descriptions
-        try:
-            from lookout.studies.scenario_file import composition_comments
-
-            description = composition_comments(document["scenario"]).get(re.sub(r"\[.*?\]", "", fields[0]), "")
-        except Exception:  # best effort, as below
-            return None
-        match = _UNIT.search(description)
-        return match.group(1) if match else None
     try:
-        from pydantic import BaseModel
+        from lookout.studies.scenario_file import composition_comments
 
-        from lookout.studies.scenario_file import templates
-
-        model = templates()[document["scenario"]["template"]].settings
-        parts = [re.sub(r"\[.*?\]", "", part) for part in fields[0].split(".")]
-        for i, part in enumerate(parts):
-            info = model.model_fields[part]
-            if i == len(parts) - 1:
-                match = _UNIT.search(info.description or "")
-                return match.group(1) if match else None
-            import typing
-
-            candidates = [info.annotation, *typing.get_args(info.annotation)]
-            model = next(c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel))
+        description = composition_comments(document["scenario"]).get(re.sub(r"\[.*?\]", "", fields[0]), "")
     except Exception:  # best effort: a label without units is still a label
         return None
-    return None
+    match = _UNIT.search(description)
+    return match.group(1) if match else None
 
 
 def _axes(ds, document: dict | None) -> list[_Axis]:
@@ -519,26 +499,9 @@ def _flatten(settings: dict, prefix: str = "") -> dict[str, Any]:
     return flat
 
 
-def _template_info(name: str) -> tuple[str | None, dict[str, Any] | None, dict[str, str]]:
-    """(title, default settings by dotted key, descriptions by dotted key) of a template;
-    (None, None, {}) for a template this lookout does not know."""
-    try:
-        from lookout.studies.scenario_file import _comments, templates
-
-        template = templates()[name]
-    except Exception:  # a store written by another version: the table still shows the values
-        return None, None, {}
-    try:
-        defaults = _flatten(template.settings().model_dump(mode="json"))
-    except Exception:  # a template whose settings have no defaults
-        defaults = None
-    descriptions = {key[len("settings."):]: text for key, text in _comments(template.settings).items()}
-    return template.title, defaults, descriptions
-
-
 def _axis_rows(document: dict, kind: str) -> list[list[str]]:
     """One row per sweep axis: its name, field(s), values (with units) and how it applies."""
-    from lookout.studies.campaign import CASE, Axis
+    from lookout.studies.campaign import Axis
     from lookout.studies.store import variable_name
 
     rows = []
@@ -548,17 +511,18 @@ def _axis_rows(document: dict, kind: str) -> list[list[str]]:
         except Exception:  # a store written by another version: show what it holds
             rows.append(["?", _spec_value(raw.get("field")), _spec_value(raw), ""])
             continue
-        units = None if axis.scale or CASE in axis.fields else _setting_units(document, list(axis.fields))
+        tables = axis.values is not None and any(isinstance(v, dict) for v in axis.values)
+        units = None if axis.scale or tables else _setting_units(document, list(axis.fields))
         suffix = f" ({units})" if units else ""
         if axis.values is not None:
-            values = ", ".join(_spec_value(v) for v in axis.values) + suffix
+            values = ", ".join(_spec_value(axis.value_label(v)) for v in axis.values) + suffix
         elif kind == "grid":
             grid = np.linspace(axis.range[0], axis.range[1], axis.steps).tolist()
             values = (f"{axis.steps} steps over [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}: "
                       + ", ".join(_spec_value(v) for v in grid))
         else:
             values = f"range [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}"
-        applied = "case of the template" if CASE in axis.fields else ("× base value" if axis.scale else "sets the value")
+        applied = "replaces the component" if tables else ("× base value" if axis.scale else "sets the value")
         rows.append([variable_name(axis.label), ", ".join(axis.fields), values, applied])
     return rows
 
@@ -570,12 +534,8 @@ def _spec_html(document: dict | None, metrics: list[_Metric], n_points: int, chu
         return "<p>The store holds no campaign spec.</p>"
     parts = []
     scenario = document.get("scenario") or {}
-    if "template" not in scenario:
-        parts += _composition_html(scenario)
-        settings = _flatten(scenario.get("simulation") or {})
-    else:
-        parts += _template_html(scenario)
-        settings = _flatten(scenario.get("settings") or {})
+    parts += _composition_html(scenario)
+    settings = _flatten(scenario.get("simulation") or {})
     parts += _campaign_html(document, metrics, settings, n_points, chunk_runs, total_chunks)
     return "\n".join(parts)
 
@@ -633,34 +593,6 @@ def _kind_default(scenario: dict, key: str):
     except Exception:  # initial values, simulation keys, an unknown kind: no default to show
         return _NO_DEFAULT
     return _NO_DEFAULT if parameter.required else plain(parameter.default)
-
-
-def _template_html(scenario: dict) -> list[str]:
-    """The base scenario of a template's file: the settings that differ from its defaults."""
-    parts = []
-    template = str(scenario.get("template", "?"))
-    title, defaults, descriptions = _template_info(template)
-    settings = _flatten(scenario.get("settings") or {})
-    parts += ["<h3>Base scenario</h3>",
-              _definition_table([("template", template + (f": {title}" if title else "")), ("case", str(scenario.get("case", "?")))],
-                                ' class="provenance" id="spec-scenario"')]
-    all_rows = [[key, _spec_value(value), descriptions.get(key, "")] for key, value in settings.items()]
-    if defaults is not None:
-        changed = [[key, _spec_value(value), _spec_value(defaults[key]) if key in defaults else "(not a setting here)", descriptions.get(key, "")]
-                   for key, value in settings.items()
-                   if key not in defaults or json.dumps(value, sort_keys=True) != json.dumps(defaults[key], sort_keys=True)]
-        if changed:
-            parts += [f"<p>The settings that differ from the template's defaults ({len(changed)} of {len(settings)}):</p>",
-                      _table(["setting", "value", "template default", "description"], changed, ' id="spec-changed" class="numbers"')]
-        else:
-            parts.append(f"<p>Every setting ({len(settings)}) takes the template's default.</p>")
-        parts.append(f"<details><summary>all {len(settings)} settings of the base scenario</summary>\n"
-                     + _table(["setting", "value", "description"], all_rows, ' id="spec-settings" class="numbers"') + "\n</details>")
-    else:
-        parts += [f"<p>Every setting of the base scenario ({len(settings)}; the template is not known to this lookout, "
-                  "so its defaults are not shown):</p>",
-                  _table(["setting", "value", "description"], all_rows, ' id="spec-settings" class="numbers"')]
-    return parts
 
 
 def _campaign_html(document: dict, metrics: list, settings: dict, n_points: int, chunk_runs: int, total_chunks: int) -> list[str]:

@@ -134,7 +134,9 @@ class CampaignStore:
             data[metric.variable] = (("point", "seed"), empty((n_points, n_seeds), (1, size)), {"units": metric.units, "long_name": metric.description, "metric": metric.name})
         data["diverged"] = (("point", "seed"), empty((n_points, n_seeds), (1, size)), {"long_name": "1 if the run diverged, 0 if not", "metric": "diverged"})
         for axis in campaign.axes:
-            coords[variable_name(axis.label)] = ("point", np.asarray([point[axis.label] for point in campaign.points]), {
+            values = [axis.value_label(point[axis.label]) for point in campaign.points]
+            # strings as variable-length strings: Zarr v3 has a spec for them, not for fixed-length ones
+            coords[variable_name(axis.label)] = ("point", np.asarray(values, dtype=object if any(isinstance(v, str) for v in values) else None), {
                 "long_name": axis.label, "fields": ", ".join(axis.fields), "scale": int(axis.scale)})
         kept = campaign.settings.trajectories
         if kept is not None:
