@@ -1,14 +1,11 @@
 """Calugi (2002), ch. 5: each variant's composition, written as a scenario file and run by
 ``lookout run``, gives the reproduction's numbers."""
 
+from .roundtrip import assert_same_floats, run_written_case
 import numpy as np
 import pytest
-import xarray as xr
 
-from lookout.cli import main
-from lookout.composition import compose
 from lookout.papers import calugi_2002_backstepping as ch5
-from lookout.studies.scenario_file import CompositionSpec, save
 
 pytestmark = pytest.mark.xdist_group("calugi_2002_backstepping")
 
@@ -21,14 +18,9 @@ def segmented_progress(done, total):
 def test_a_scenario_file_of_each_variant_gives_the_reproductions_numbers_exactly(tmp_path):
     config = ch5.Config(duration=11.0)
     for case in ch5.REPRODUCTION.cases:
-        path = tmp_path / f"{case}.toml"
-        save(CompositionSpec(compose(ch5.REPRODUCTION.composition(config, case))), path)
-        assert main(["run", str(path), "--out", str(tmp_path / case)]) == 0
+        ran = run_written_case(ch5.REPRODUCTION, config, case, tmp_path)
         _, reproduced = ch5.simulate_case(config, case, progress=segmented_progress)
-        with xr.open_dataset(tmp_path / case / "run.nc") as ran:
-            compared = [name for name, variable in ran.data_vars.items() if variable.dtype.kind == "f"]
-            for name in compared:
-                np.testing.assert_array_equal(ran[name].values, reproduced[name].values, err_msg=f"{case}: {name}")
+        compared = assert_same_floats(ran, reproduced, case)
         assert {"joint_angle", "joint_rate_hat", "masses_1_hat", "joint_angle_desired", "joint_torque_applied"} <= set(compared), case
 
 

@@ -1,5 +1,6 @@
 """Calugi, Robertsson & Johansson (2003): the closed loop, V of (47), the reproduction's outputs."""
 
+from .roundtrip import assert_same_floats, run_written_case
 import dataclasses
 import json
 
@@ -7,7 +8,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-import xarray as xr
 
 from lookout.analysis import estimation_errors
 from lookout.cli import main
@@ -153,17 +153,9 @@ def test_noise_drives_theta_hat_down_at_the_derived_rate():
 def test_each_case_written_as_a_composition_runs_to_the_same_numbers(case, tmp_path):
     """A gain set written as a scenario file and run by `lookout run` gives the
     reproduction's numbers of that case bit for bit (its run simulates each case so)."""
-    from lookout.composition import compose
-    from lookout.studies.scenario_file import CompositionSpec, save
-
-    config = calugi_2003.Config(duration=60.0, runs=2, seed=4, sweep=False)
-    path = save(CompositionSpec(compose(calugi_2003.REPRODUCTION.composition(config, case))), tmp_path / f"{case}.toml")
-    assert main(["run", str(path), "--out", str(tmp_path / "run")]) == 0
-    ran = xr.open_dataset(tmp_path / "run" / "run.nc")
     from lookout.papers._reproduction import simulate_cases
 
-    own = simulate_cases(calugi_2003.REPRODUCTION, config, [case], "gains")
-    compared = [name for name, variable in own.data_vars.items() if variable.dtype.kind == "f"]
-    for name in compared:
-        np.testing.assert_array_equal(ran[name].values, own[name].values, err_msg=name)
+    config = calugi_2003.Config(duration=60.0, runs=2, seed=4, sweep=False)
+    ran = run_written_case(calugi_2003.REPRODUCTION, config, case, tmp_path)
+    compared = assert_same_floats(ran, simulate_cases(calugi_2003.REPRODUCTION, config, [case], "gains"), case)
     assert len(compared) > 15 and list(ran.seed.values) == [4, 5]

@@ -6,6 +6,7 @@ ship drift away while the sliding-mode observer tracks. Measured here on 2 seeds
 unmodelled force), for the printed observer gains and for gains that satisfy (14).
 """
 
+from .roundtrip import assert_same_floats, run_written_case
 import json
 
 import numpy as np
@@ -217,17 +218,9 @@ def test_kim_options_are_refused_for_other_reproductions(capsys):
 def test_each_case_written_as_a_composition_runs_to_the_same_numbers(case, tmp_path):
     """A case written as a scenario file and run by `lookout run` gives the
     reproduction's numbers of that case bit for bit (its run simulates each case so)."""
-    from lookout.composition import compose
-    from lookout.studies.scenario_file import CompositionSpec, save
-
-    config = kim_2002.Config(duration=100.0, runs=2, seed=5, sweep=False)
-    path = save(CompositionSpec(compose(kim_2002.REPRODUCTION.composition(config, case))), tmp_path / f"{case}.toml")
-    assert main(["run", str(path), "--out", str(tmp_path / "run")]) == 0
-    ran = xr.open_dataset(tmp_path / "run" / "run.nc")
     from lookout.papers._reproduction import simulate_cases
 
-    own = simulate_cases(kim_2002.REPRODUCTION, config, [case], "observer")
-    compared = [name for name, variable in own.data_vars.items() if variable.dtype.kind == "f"]
-    for name in compared:
-        np.testing.assert_array_equal(ran[name].values, own[name].values, err_msg=name)
+    config = kim_2002.Config(duration=100.0, runs=2, seed=5, sweep=False)
+    ran = run_written_case(kim_2002.REPRODUCTION, config, case, tmp_path)
+    compared = assert_same_floats(ran, simulate_cases(kim_2002.REPRODUCTION, config, [case], "observer"), case)
     assert len(compared) > 20 and list(ran.seed.values) == [5, 6]

@@ -1,16 +1,14 @@
 """Wondergem et al. (2009): the error index (43) and the reproduction's outputs."""
 
+from .roundtrip import assert_same_floats, run_written_case
 import json
 
 import numpy as np
 import pytest
-import xarray as xr
 
 from lookout.cli import main
-from lookout.composition import compose
 from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT
 from lookout.papers import wondergem_2009 as w
-from lookout.studies.scenario_file import CompositionSpec, save
 
 
 def test_error_index_of_known_signals():
@@ -122,13 +120,8 @@ def test_a_case_written_as_a_scenario_file_gives_the_reproductions_numbers_exact
     """Each case's composition, saved as a scenario file and run by ``lookout run``, gives
     every float variable of the reproduction's own simulation of the case, bit for bit."""
     config = w.Config(duration=10.0, seed=3)
-    path = save(CompositionSpec(compose(w.REPRODUCTION.composition(config, case))), tmp_path / f"{case}.toml")
-    out = tmp_path / "run"
-    assert main(["run", str(path), "--out", str(out)]) == 0
-    ran = xr.open_dataset(out / "run.nc")
+    ran = run_written_case(w.REPRODUCTION, config, case, tmp_path)
     reproduced = w.simulate_condition(config, case)
-    compared = [name for name, variable in reproduced.data_vars.items() if variable.dtype.kind == "f"]
-    for name in compared:
-        np.testing.assert_array_equal(ran[name].values, reproduced[name].values, err_msg=name)
+    compared = assert_same_floats(ran, reproduced, case)
     assert len(compared) >= 20 and list(ran.seed.values) == [3]
     assert (float(np.abs(ran.wave_position).max()) > 0) == (case == "basin-waves")  # the waves reach the measurement
