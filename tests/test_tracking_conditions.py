@@ -5,8 +5,11 @@ import pytest
 
 from lookout.analysis.tracking import check_wondergem_2009, christoffel_bound, controller_p_matrix
 from lookout.models.cybership import CYBERSHIP_M, cybership2
+from lookout.papers.wondergem_2009.config import NATURAL_FREQUENCY, OBSERVER_POSITION_GAIN, OBSERVER_VELOCITY_GAIN
 
 A, B = 3.5, 1.823  # the reproduction's ellipse: curvature a / b^2 at the start and at its largest
+#: the printed gains of the observer (6) and the controller (20), the reproduction's
+GAINS = dict(observer_gains=(OBSERVER_POSITION_GAIN, OBSERVER_VELOCITY_GAIN), natural_frequency=NATURAL_FREQUENCY)
 PRINTED = dict(
     eta0=(3.8, -1.2, np.pi / 2), nu0=(0.0, 0.0, 0.0), eta_hat0=(4.0, -1.0, 2.94), velocity_hat0=(0.5, 0.5, -0.5),
     reference_position0=(A, 0.0, np.pi / 2), reference_velocity0=(0.05, 0.0, 0.05 * A / B**2), yaw_rate_max=0.2 * A / B**2,
@@ -33,7 +36,7 @@ def test_christoffel_bound_against_a_random_search():
 
 
 def test_the_printed_design_meets_10_and_11_and_fails_13_14_and_25():
-    report = check_wondergem_2009(cybership2(), **PRINTED)
+    report = check_wondergem_2009(cybership2(), **PRINTED, **GAINS)
     verdicts = {item.name: item.verdict for item in report.inequalities}
     assert verdicts == {"(25)": "fails", "(10a)": "holds", "(10b)": "holds", "(11)": "holds", "(13)": "fails", "(14)": "fails"}
     sides = {item.name: (item.left, item.right) for item in report.inequalities}
@@ -52,7 +55,7 @@ def test_the_printed_design_meets_10_and_11_and_fails_13_14_and_25():
 
 def test_with_a_perfect_initial_estimate_13_needs_alpha11_plus_sqrt_gamma1():
     """eta_hat0 = eta0 removes gamma2 and (14); (13) becomes lmin(L1) > alpha11 + sqrt(gamma1)."""
-    report = check_wondergem_2009(cybership2(), **{**PRINTED, "eta_hat0": PRINTED["eta0"], "velocity_hat0": (0.0, 0.0, 0.0)})
+    report = check_wondergem_2009(cybership2(), **GAINS, **{**PRINTED, "eta_hat0": PRINTED["eta0"], "velocity_hat0": (0.0, 0.0, 0.0)})
     names = [item.name for item in report.inequalities]
     assert "(14)" not in names
     q = report.quantities
@@ -63,9 +66,9 @@ def test_with_a_perfect_initial_estimate_13_needs_alpha11_plus_sqrt_gamma1():
 
 def test_bad_input_fails_with_one_line():
     with pytest.raises(ValueError, match=r"^observer_gains must be finite and positive"):
-        check_wondergem_2009(cybership2(), **PRINTED, observer_gains=(0.0, 50.0))
+        check_wondergem_2009(cybership2(), **PRINTED, **{**GAINS, "observer_gains": (0.0, 50.0)})
     with pytest.raises(ValueError, match=r"^velocity_bound must be finite and >= 0"):
-        check_wondergem_2009(cybership2(), **PRINTED, velocity_bound=-1.0)
+        check_wondergem_2009(cybership2(), **PRINTED, **GAINS, velocity_bound=-1.0)
 
 
 # Proposition 3.3: the combined scheme --------------------------------------------------
@@ -97,13 +100,13 @@ def test_27_is_zero_at_the_largest_eps3_and_the_eps3_bounds_fall_with_eps3():
 
 
 def test_the_printed_gains_leave_no_eps3_for_27():
-    report = check_wondergem_2009(cybership2(), **PRINTED, **BOUNDS)
+    report = check_wondergem_2009(cybership2(), **PRINTED, **GAINS, **BOUNDS)
     item = _side(report, "(27)")
     assert item.verdict == "fails" and item.right == pytest.approx(24.07, abs=0.01)  # derivations section 4: 23.9 + r_max
     assert report.quantities["combined"]["epsilon3_max"] == 0.0
     assert not {"(30)", "(32)", "(33)"} & {item.name for item in report.inequalities}
     assert report.verdicts["combined_3_3"] == "fails" and "note: (30), (32), (33) need an eps3 that satisfies (27); none exists" in report.lines()
-    measured = check_wondergem_2009(cybership2(), **MEASURED, **BOUNDS)
+    measured = check_wondergem_2009(cybership2(), **MEASURED, **BOUNDS, **GAINS)
     assert _side(measured, "(27)").right == pytest.approx(4.382, abs=1e-3)  # V0 = lmax(P) ||x_e0||^2: 4.17 + r_max
 
 
@@ -138,9 +141,9 @@ def test_the_search_finds_nothing_from_the_printed_initial_estimate():
 
 def test_prop_3_3_bad_input():
     with pytest.raises(ValueError, match=r"^reference_speed_max and reference_acceleration_max must be given together"):
-        check_wondergem_2009(cybership2(), **PRINTED, reference_speed_max=0.3)
+        check_wondergem_2009(cybership2(), **PRINTED, **GAINS, reference_speed_max=0.3)
     with pytest.raises(ValueError, match=r"^epsilon3 must be finite and positive"):
-        check_wondergem_2009(cybership2(), **PRINTED, **BOUNDS, epsilon3=0.0)
+        check_wondergem_2009(cybership2(), **PRINTED, **GAINS, **BOUNDS, epsilon3=0.0)
     from lookout.analysis.tracking import propose_wondergem_2009
 
     with pytest.raises(ValueError, match=r"^margin must be finite and > 1"):

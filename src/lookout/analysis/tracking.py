@@ -211,8 +211,8 @@ def _observer(constants: dict, start: dict, L2_max, velocity_bound) -> dict:
 def check_wondergem_2009(
     ship,
     *,
-    observer_gains=(15.0, 50.0),
-    natural_frequency=(0.72, 0.42, 0.64),
+    observer_gains,
+    natural_frequency,
     damping_ratio=1.0,
     eta0,
     nu0,
