@@ -45,7 +45,8 @@ concrete values only (:mod:`lookout._validation`), so a model can be built insid
 with state :class:`JointState`.
 """
 
-from __future__ import annotations
+# no `from __future__ import annotations` here: equinox reads AbstractVar annotations, and
+# refuses them as strings (a stringified one would silently become an ordinary field)
 
 import abc
 from typing import ClassVar, final

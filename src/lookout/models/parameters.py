@@ -29,7 +29,8 @@ Two kinds of parameter set:
   second simulation, where neither m nor l enters affinely but both products do.
 """
 
-from __future__ import annotations
+# no `from __future__ import annotations` here: equinox reads AbstractVar annotations, and
+# refuses them as strings (a stringified one would silently become an ordinary field)
 
 import abc
 import re
