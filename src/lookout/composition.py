@@ -44,9 +44,10 @@ every error is a :class:`CompositionError` with the key's location.
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -56,12 +57,10 @@ from typing_extensions import Annotated
 
 from lookout import registry
 from lookout._validation import one_line
-from lookout.settings import RunsConfig, Settings, explain, finite_positive
+from lookout.settings import RunsConfig, Settings, explain, finite_positive, validate_strictly
 
 #: The top-level keys of a composition.
 TOP_KEYS = ("preset", "simulation", *registry.COMPONENT_ROLES)
-#: Keys of a component's table that are not its kind's parameters.
-TABLE_KEYS = ("kind", "design", "initial")
 
 
 class CompositionError(ValueError):
@@ -184,17 +183,23 @@ def parameter_model(kind: registry.Kind, design: str | None):
     return _MODELS[key]
 
 
-def state_parameters(method) -> tuple[registry.Parameter, ...]:
-    """The parameters of a plant's ``state`` or an observer's ``guess`` method."""
+def _method_target(method) -> str:
     function = getattr(method, "__func__", method)
-    owner = type(getattr(method, "__self__", None))
-    target = f"{function.__module__}:{owner.__qualname__}.{function.__name__}"
-    return registry._parameters(target, values_only=True)
+    return f"{function.__module__}:{function.__qualname__}"
 
 
-def _initial_model(kind_name: str, parameters):
-    fields = {p.name: (_annotation(p), Field(_default_value(p.default), description=p.description)) for p in parameters if p.sort == "value"}
-    return create_model(re.sub(r"\W", "_", f"initial_{kind_name}"), __base__=Settings, **fields)
+def state_parameters(method) -> tuple[registry.Parameter, ...]:
+    """The parameters of a plant's ``state`` or an observer's ``guess`` method (bound, or
+    as its class has it)."""
+    return registry._parameters(_method_target(method), values_only=True)
+
+
+@functools.cache
+def _initial_model(target: str):
+    """The pydantic model of the method ``target``'s keywords (built once per method)."""
+    parameters = registry._parameters(target, values_only=True)
+    fields = {p.name: (_annotation(p), Field(_default_value(p.default), description=p.description)) for p in parameters}
+    return create_model(re.sub(r"\W", "_", f"initial_{target}"), __base__=Settings, **fields)
 
 
 # ------------------------------------------------------------------------ building
@@ -207,7 +212,7 @@ class _Context:
     objects: list
     plant: Any = None
     #: role -> kind name of the components built so far
-    kinds: dict = None
+    kinds: dict = field(default_factory=dict)
 
     def find(self, cls):
         if not cls:
@@ -235,18 +240,12 @@ class _Context:
 
 def _validate(model, values: dict, location: tuple):
     try:
-        return model.model_validate_json(_json(values), strict=True)
+        return validate_strictly(model, values)
     except ValidationError as error:
         where, reason = explain(error)
         if reason == "missing key" and where and isinstance(where[-1], str):  # a key not there has no line: name its table
             where, reason = where[:-1], f"missing key {where[-1]}"
         raise CompositionError(location + where, reason) from None
-
-
-def _json(values: dict) -> str:
-    import json
-
-    return json.dumps(values, allow_nan=True, default=lambda value: f"<a TOML {type(value).__name__}: {value}>")
 
 
 def _blamed(error: ValueError, table: dict, location: tuple, names, component: str = "") -> CompositionError:
@@ -339,7 +338,7 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                 found = context.find(p.context) if isinstance(p.context, type) else None
                 if found is None and p.required:
                     wanted = p.context.__name__ if isinstance(p.context, type) else p.context
-                    other = (context.kinds or {}).get(p.name)
+                    other = context.kinds.get(p.name)
                     if other is not None:  # that part is there, of a kind that does not fit
                         raise CompositionError(location, f"{role} {name} needs a {p.name} that is a {wanted}; {p.name} {other} is not one")
                     raise CompositionError(location, f"{role} {name} needs a {wanted} ({p.name}), which the composition has not built before it")
@@ -412,14 +411,14 @@ def _own_signal(table: dict, location: tuple):
         raise CompositionError(location, one_line(error)) from None
 
 
-def _initial(method, table, location: tuple, kind_name: str):
+def _initial(method, table, location: tuple):
     """``method(**table)`` (a plant's ``state`` or an observer's ``guess``), validated."""
     parameters = state_parameters(method)
     if table is None:
         table = {}
     if not isinstance(table, dict):
         raise CompositionError(location, "must be a table")
-    validated = _validate(_initial_model(kind_name, parameters), table, location)
+    validated = _validate(_initial_model(_method_target(method)), table, location)
     arguments = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value"}
     try:
         value = method(**arguments)
@@ -507,7 +506,7 @@ def compose(document: dict) -> Composition:
         if role not in document:
             raise CompositionError((role,), f"missing table (a composition needs a plant, a sensor and an observer; `lookout components {role}` lists the kinds)")
 
-    context = _Context([], kinds={})
+    context = _Context([])
     built, normal, kinds = {}, {"simulation": simulation.model_dump(mode="json")}, {}
     for role in registry.COMPONENT_ROLES:
         table = _table(document, role)
@@ -517,8 +516,8 @@ def compose(document: dict) -> Composition:
             context.plant = built[role]
         context.add(built[role])
     plant_table, observer_table = document["plant"], document["observer"]
-    initial_state, normal["plant"]["initial"] = _initial(built["plant"].state, plant_table.get("initial"), ("plant", "initial"), kinds["plant"])
-    initial_estimate, normal["observer"]["initial"] = _initial(built["observer"].guess, observer_table.get("initial"), ("observer", "initial"), kinds["observer"])
+    initial_state, normal["plant"]["initial"] = _initial(built["plant"].state, plant_table.get("initial"), ("plant", "initial"))
+    initial_estimate, normal["observer"]["initial"] = _initial(built["observer"].guess, observer_table.get("initial"), ("observer", "initial"))
     try:
         scenario = Scenario(
             plant=built["plant"],

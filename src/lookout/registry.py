@@ -206,10 +206,6 @@ class Parameter:
         first = re.split(r"[,\s]", text.strip(), maxsplit=1)[0]
         return {"float": "float", "int": "int", "bool": "bool", "str": "str"}.get(first, "array" if "float" in text else "")
 
-    def summary(self) -> str:
-        """A one-line description: the description's first sentence."""
-        return self.description
-
 
 def _number(text: str) -> float:
     text = text.strip()
@@ -269,6 +265,7 @@ def _resolve(target: str):
     return value
 
 
+@functools.cache
 def _owner(target: str) -> type:
     module, _, qualname = target.partition(":")
     parts = qualname.split(".")

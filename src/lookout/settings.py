@@ -223,3 +223,13 @@ def explain(error: ValidationError) -> tuple[tuple, str]:
     elif "input" in first and first["type"] not in ("value_error", "assertion_error"):
         message = f"{message}; got {first['input']!r}"
     return location, message
+
+
+def validate_strictly(model: type[BaseModel], values: dict) -> BaseModel:
+    """``model`` validated from a file's ``values`` in pydantic's strict mode: a number
+    must be a number (an integer is one), a boolean a boolean and a string a string
+    (``duration = true`` and ``duration = "100"`` are refused, not read as 1 s and
+    100 s). The values go through JSON, whose strict mode takes arrays for tuples; a
+    TOML date or time becomes a string, which no number or boolean accepts."""
+    text = json.dumps(values, allow_nan=True, default=lambda value: f"<a TOML {type(value).__name__}: {value}>")
+    return model.model_validate_json(text, strict=True)

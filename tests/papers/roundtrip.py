@@ -29,3 +29,8 @@ def assert_same_floats(ran: xr.Dataset, reproduced: xr.Dataset, label: str = "")
     for name in compared:
         np.testing.assert_array_equal(ran[name].values, reproduced[name].values, err_msg=f"{label}: {name}")
     return compared
+
+
+def segmented_progress(done, total):
+    """A progress callback, as ``lookout run`` gives one: a reproduction given it simulates
+    in the same segments and reuses the compiled program (the numbers are the same either way)."""

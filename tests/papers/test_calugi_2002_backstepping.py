@@ -1,18 +1,13 @@
 """Calugi (2002), ch. 5: each variant's composition, written as a scenario file and run by
 ``lookout run``, gives the reproduction's numbers."""
 
-from .roundtrip import assert_same_floats, run_written_case
 import numpy as np
 import pytest
 
 from lookout.papers import calugi_2002_backstepping as ch5
+from .roundtrip import assert_same_floats, run_written_case, segmented_progress
 
 pytestmark = pytest.mark.xdist_group("calugi_2002_backstepping")
-
-
-def segmented_progress(done, total):
-    """A progress callback, as ``lookout run`` gives one: the reproduction then simulates in
-    the same segments and reuses the compiled program (the numbers are the same either way)."""
 
 
 def test_a_scenario_file_of_each_variant_gives_the_reproductions_numbers_exactly(tmp_path):

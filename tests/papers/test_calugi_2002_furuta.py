@@ -9,13 +9,9 @@ from lookout.cli import main
 from lookout.composition import compose
 from lookout.papers import calugi_2002_furuta as ch6
 from lookout.studies.scenario_file import CompositionSpec, save
+from .roundtrip import segmented_progress
 
 pytestmark = pytest.mark.xdist_group("calugi_2002_furuta")
-
-
-def segmented_progress(done, total):
-    """A progress callback, as ``lookout run`` gives one: the reproduction then simulates in
-    the same segments and reuses the compiled program (the numbers are the same either way)."""
 
 
 def test_a_scenario_file_of_each_experiment_gives_the_reproductions_numbers_exactly(tmp_path):

@@ -10,14 +10,10 @@ from lookout.cli import main
 from lookout.composition import compose
 from lookout.papers import calugi_2002_parameter_estimation as ch3
 from lookout.studies.scenario_file import CompositionSpec, save
+from .roundtrip import segmented_progress
 
 #: one worker runs these tests (make test: --dist loadgroup), and the session fixture computes the reproduction once there
 pytestmark = pytest.mark.xdist_group("calugi_2002_parameter_estimation")
-
-
-def segmented_progress(done, total):
-    """A progress callback, as ``lookout run`` gives one: the reproduction then simulates in
-    the same segments and reuses the compiled program (the numbers are the same either way)."""
 
 
 @pytest.fixture(scope="session")

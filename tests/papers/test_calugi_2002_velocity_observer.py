@@ -1,17 +1,12 @@
 """Calugi (2002), ch. 2: each system's composition, written as a scenario file and run by
 ``lookout run``, gives the reproduction's numbers."""
 
-from .roundtrip import assert_same_floats, run_written_case
 import pytest
 
 from lookout.papers import calugi_2002_velocity_observer as ch2
+from .roundtrip import assert_same_floats, run_written_case, segmented_progress
 
 pytestmark = pytest.mark.xdist_group("calugi_2002_velocity_observer")
-
-
-def segmented_progress(done, total):
-    """A progress callback, as ``lookout run`` gives one: the reproduction then simulates in
-    the same segments and reuses the compiled program (the numbers are the same either way)."""
 
 
 def test_a_scenario_file_of_each_system_gives_the_reproductions_numbers_exactly(tmp_path):

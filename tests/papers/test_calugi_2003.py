@@ -1,6 +1,5 @@
 """Calugi, Robertsson & Johansson (2003): the closed loop, V of (47), the reproduction's outputs."""
 
-from .roundtrip import assert_same_floats, run_written_case
 import dataclasses
 import json
 
@@ -13,6 +12,7 @@ from lookout.analysis import estimation_errors
 from lookout.cli import main
 from lookout.papers import calugi_2003
 from lookout.sim import simulate
+from .roundtrip import assert_same_floats, run_written_case
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ ship drift away while the sliding-mode observer tracks. Measured here on 2 seeds
 unmodelled force), for the printed observer gains and for gains that satisfy (14).
 """
 
-from .roundtrip import assert_same_floats, run_written_case
 import json
 
 import numpy as np
@@ -15,6 +14,7 @@ import xarray as xr
 
 from lookout.cli import main
 from lookout.papers import kim_2002
+from .roundtrip import assert_same_floats, run_written_case
 
 SEEDS = (0, 1)
 #: one worker computes the module's fixture once (make test runs pytest --dist loadgroup)

@@ -1,6 +1,5 @@
 """Wondergem et al. (2009): the error index (43) and the reproduction's outputs."""
 
-from .roundtrip import assert_same_floats, run_written_case
 import json
 
 import numpy as np
@@ -9,6 +8,7 @@ import pytest
 from lookout.cli import main
 from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT
 from lookout.papers import wondergem_2009 as w
+from .roundtrip import assert_same_floats, run_written_case
 
 
 def test_error_index_of_known_signals():

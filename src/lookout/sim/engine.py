@@ -327,9 +327,9 @@ def _check_fit(scenario: Scenario) -> None:
     sample = {s.name: jnp.zeros(s.shape) for s in reference.reference_signals}
 
     controller = scenario.controller
-    _check_needs(controller, "estimate", controller.estimate_needs, set(estimate), f"observer {kind_of(observer)} does not provide")
-    _check_needs(controller, "measurement", controller.measurement_needs, measured, f"sensor {kind_of(sensor)} does not measure")
-    _check_needs(controller, "reference", controller.reference_needs, set(sample), f"reference {kind_of(reference)} does not provide")
+    _check_needs(controller, "estimate", controller.estimate_needs, set(estimate), ("observer", observer, "does not provide"))
+    _check_needs(controller, "measurement", controller.measurement_needs, measured, ("sensor", sensor, "does not measure"))
+    _check_needs(controller, "reference", controller.reference_needs, set(sample), ("reference", reference, "does not provide"))
     outputs = {k: jnp.zeros(_shape_of(v)) for k, v in estimate.items()}
     _, u = _evaluate(
         "controller and plant", lambda: controller.step(controller.init(), 0.0, y, outputs, sample, scenario.sample_period)
@@ -348,12 +348,15 @@ def kind_of(component) -> str:
     return registered(component)
 
 
-def _check_needs(controller, what: str, needs, provided: set, who: str) -> None:
-    """Fail, naming the signal and both parts, unless every signal the controller needs is provided."""
+def _check_needs(controller, what: str, needs, provided: set, provider: tuple) -> None:
+    """Fail, naming the signal and both parts, unless every signal the controller needs is
+    provided; ``provider`` is (its role, the component, the verb of a refusal). The kinds
+    are looked up only for the message (it imports every kind's module)."""
     for name in needs:
         if name not in provided:
+            role, component, verb = provider
             given = ", ".join(sorted(provided)) or "nothing"
-            raise ValueError(f"controller {kind_of(controller)} needs {what} {name}, which {who} (it gives {given})")
+            raise ValueError(f"controller {kind_of(controller)} needs {what} {name}, which {role} {kind_of(component)} {verb} (it gives {given})")
 
 
 #: Static loops up to this length are unrolled in Python instead of a lax.scan

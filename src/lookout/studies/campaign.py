@@ -59,7 +59,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from lookout.settings import positive_count
 from lookout.studies._toml import FileError, read
 from lookout.composition import get_path
-from lookout.studies.scenario_file import CompositionSpec, describe, from_document, located, read_spec, validate_strictly
+from lookout.settings import validate_strictly
+from lookout.studies.scenario_file import CompositionSpec, describe, from_document, located, read_spec
 
 #: The largest batch a chunk defaults to.
 DEFAULT_CHUNK_RUNS = 64

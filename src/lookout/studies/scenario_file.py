@@ -32,10 +32,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ValidationError
+from pydantic import ValidationError
 
 from lookout import registry
-from lookout.composition import Composition, CompositionError, SimulationSettings, compose
+from lookout.composition import Composition, CompositionError, SimulationSettings, compose, key_text, state_parameters
 from lookout.settings import explain
 from lookout.studies._toml import FileError, key_line, read, write
 
@@ -59,10 +59,6 @@ class CompositionSpec:
     @property
     def runs(self) -> int:
         return self.composition.simulation.runs
-
-    @property
-    def stacked(self) -> bool:
-        return self.composition.simulation.batch == "stacked"
 
     @property
     def runs_key(self) -> str:
@@ -121,9 +117,7 @@ def _table_comments(role: str, table: dict, prefix: str, comments: dict) -> None
         method = {"plant": "state", "observer": "guess"}.get(role)
         owner = kind.component_class
         if method and hasattr(owner, method):
-            function = getattr(owner, method)
-            target = f"{function.__module__}:{function.__qualname__}"
-            for p in registry._parameters(target, values_only=True):
+            for p in state_parameters(getattr(owner, method)):
                 if p.description:
                     comments[f"{prefix}.initial.{p.name}"] = p.description
 
@@ -160,29 +154,12 @@ def save(spec: CompositionSpec, path: str | Path, *, header: str | None = None) 
     return write(path, spec.document(), composition_comments(spec.document()), header)
 
 
-def _location_text(location: tuple) -> str:
-    text = ""
-    for part in location:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
-    return text
-
-
 def located(source: str, text: str | None, location: tuple, message: str) -> FileError:
     """The one-line error for the key at ``location``: file, key, its line in ``text``
     when it can be found, and ``message``."""
     line = key_line(text, location) if text else None
     where = f" (line {line})" if line else ""
-    return FileError(f"{source}: {_location_text(location)}{where}: {message}")
-
-
-def validate_strictly(model: type[BaseModel], values: dict) -> BaseModel:
-    """``model`` validated from a file's ``values`` in pydantic's strict mode: a number
-    must be a number (an integer is one), a boolean a boolean and a string a string
-    (``duration = true`` and ``duration = "100"`` are refused, not read as 1 s and
-    100 s). The values go through JSON, whose strict mode takes arrays for tuples; a
-    TOML date or time becomes a string, which no number or boolean accepts."""
-    text = json.dumps(values, allow_nan=True, default=lambda value: f"<a TOML {type(value).__name__}: {value}>")
-    return model.model_validate_json(text, strict=True)
+    return FileError(f"{source}: {key_text(location)}{where}: {message}")
 
 
 def describe(error: ValidationError, source: str, text: str | None, prefix: tuple = ()) -> str:
