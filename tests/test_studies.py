@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import re
@@ -17,7 +18,9 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
-from lookout.composition import compose
+from lookout.composition import compose, set_path
+from lookout.sim import keys_of_seeds, simulate_batch
+from lookout.studies import metrics as metric_module
 from lookout.papers import REPRODUCTIONS, fossen_strand_1999
 from lookout.studies import _toml
 from lookout.studies.campaign import campaign_from_document, load_campaign
@@ -261,6 +264,42 @@ def test_an_axis_may_replace_a_component_and_sweep_a_model_error(tmp_path):
     assert np.isfinite(ds.rms_tracking__position).all()
 
 
+def test_a_cases_axis_sets_several_keys_per_value(tmp_path):
+    """A gain set (two keys) crossed with a model error one kind at a time: each case
+    sets its own keys, the store names it by its label, and a point's metrics equal
+    those of the same composition changed by hand and reduced from its records."""
+    base = compose({"preset": "kim-2002", "simulation": {"duration": 100.0, "record_every": 10}}).document
+    low = {"observer.bias_injection_gain": [1e4, 1e4, 1e7], "observer.velocity_injection_gain": [1e3, 1e3, 1e6]}
+    document = {
+        "scenario": base, "seeds_per_point": 2, "metrics": ["rms_tracking:position"], "after": 0.0,
+        "divergence": {"signal": "position", "limit": 100.0},
+        "sweep": {"axes": [
+            {"name": "gains", "labels": ["printed", "low"], "cases": [{}, low]},
+            {"name": "model_error", "cases": [{}, {"plant.vessel.mass_scale": 1.25}, {"plant.vessel.damping_scale": 0.75}]},
+        ]},
+    }
+    campaign = campaign_from_document(document, "<cases>")
+    assert len(campaign.points) == 6
+    assert [p["model_error"] for p in campaign.points[:3]] == ["base", "plant.vessel.mass_scale=1.25", "plant.vessel.damping_scale=0.75"]
+    changes = campaign.changes(4)
+    assert changes == {**low, "plant.vessel.mass_scale": 1.25}
+    scenario = campaign.point_spec(4).build()
+    np.testing.assert_array_equal(np.asarray(scenario.observer.passive.bias_injection_gain), low["observer.bias_injection_gain"])
+    assert float(scenario.plant.vessel.mass_matrix[0, 0]) == pytest.approx(1.25 / 1.2 * float(campaign.point_spec(0).build().plant.vessel.mass_matrix[0, 0]))
+    store = tmp_path / "cases.zarr"
+    run_campaign(campaign, store, workers=0, say=lambda text: None)
+    ds = CampaignStore(store).open().load()
+    assert list(ds.gains.values) == ["printed"] * 3 + ["low"] * 3 and ds.model_error.values[4] == "plant.vessel.mass_scale=1.25"
+    # the reference: the point's composition written out by hand, simulated with its records kept
+    by_hand = copy.deepcopy(base)
+    for path, value in {**low, "plant.vessel.mass_scale": 1.25}.items():
+        set_path(by_hand, path, value)
+    reference = compose(by_hand).scenario
+    metrics = metric_module.resolve(["rms_tracking:position"], reference)
+    expected = metric_module.reduce(simulate_batch(reference, keys_of_seeds([0, 1])), metrics, after=0.0, divergence=("position", 100.0))
+    np.testing.assert_allclose(ds.rms_tracking__position.values[4], expected["rms_tracking__position"], rtol=1e-6)
+
+
 @pytest.mark.parametrize(
     "changes, expected",
     [
@@ -273,6 +312,15 @@ def test_an_axis_may_replace_a_component_and_sweep_a_model_error(tmp_path):
         ({"sweep": {"kind": "latin-hypercube", "axes": [{"field": "observer.wave_frequency", "range": [0.5, 1.0]}]}}, "sweep (line {line}): a latin-hypercube needs points >= 1"),
         ({"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.5, 1.1]}]}}, "sweep.axes[0].values (line {line}): value 1.1: observer.cutoff_frequency: cutoff_frequency must exceed wave_frequency"),
         ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'case'"),
+        # a cases axis
+        ({"sweep": {"axes": [{"name": "gains", "cases": [{"observer.wave_freqency": 1.0}]}]}}, "sweep.axes[0].cases (line {line}): the scenario has no setting 'observer.wave_freqency'"),
+        ({"sweep": {"axes": [{"name": "gains", "cases": [{}, {"sensor.dropout_probability": 1.5}]}]}},
+         "sweep.axes[0].cases (line {line}): case 'sensor.dropout_probability=1.5': sensor.dropout_probability: must be in [0, 1); got 1.5"),
+        ({"sweep": {"axes": [{"cases": [{}]}]}}, "sweep.axes[0] (line {line}): an axis with cases needs a name"),
+        ({"sweep": {"axes": [{"name": "g", "field": "sensor.dropout_probability", "cases": [{}]}]}}, "sweep.axes[0] (line {line}): an axis with cases sets its keys per case: drop field"),
+        ({"sweep": {"axes": [{"name": "g", "labels": ["a"], "cases": [{}, {"sensor.dropout_probability": 0.1}]}]}},
+         "sweep.axes[0] (line {line}): labels must name each of the 2 cases; got 1 label(s)"),
+        ({"sweep": {"kind": "latin-hypercube", "points": 3, "axes": [{"name": "g", "cases": [{}]}]}}, "sweep (line {line}): axes[0]: cases are for a grid"),
         # a whole component replaced by a table that is none
         ({"sweep": {"axes": [{"field": "observer", "values": [{"kind": "passive"}, {"kind": "nope"}]}]}},
          "sweep.axes[0].values (line {line}): value {{'kind': 'nope'}}: observer.kind: no observer kind 'nope'"),

@@ -50,6 +50,24 @@ def mean_and_spread(mean: float, spread: float) -> str:
     return f"({mean / scale:.{decimals}f} ± {spread / scale:.{decimals}f})e{exponent}"
 
 
+def sweep_rows(columns: dict[str, dict[str, dict]], key: str = "tracking_rms_m") -> tuple[tuple[str, ...], ...]:
+    """A sweep's table rows: ``columns`` maps a column (a gain set, an observer) to row
+    label -> ``{key: mean or None, "diverged": k, "seeds": n}``; a cell is the mean to 3
+    significant digits ("-" when every seed diverged) and "(k/n div.)" when some did."""
+    labels = list(next(iter(columns.values())))
+    rows = []
+    for label in labels:
+        row = [label]
+        for cells in columns.values():
+            entry = cells[label]
+            text = "-" if entry[key] is None else significant(entry[key])
+            if entry["diverged"]:
+                text += f" ({entry['diverged']}/{entry['seeds']} div.)"
+            row.append(text)
+        rows.append(tuple(row))
+    return tuple(rows)
+
+
 def save_figures(figures: dict, out) -> list[str]:
     """Write each matplotlib figure of ``{filename: figure}`` to ``out`` at 110 dpi, close
     it, and return the file names."""

@@ -20,6 +20,12 @@ class FileError(ValueError):
     names the file, the key (and its line where it can be found) and the condition."""
 
 
+def _key(key: str) -> str:
+    """A key as TOML writes it: bare when it can be, quoted otherwise (a key path such
+    as ``observer.wave_frequency`` inside a table is one key, not a nested one)."""
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _scalar(key)
+
+
 def _scalar(value: Any) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -37,7 +43,7 @@ def _scalar(value: Any) -> str:
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_scalar(item) for item in value) + "]"
     if isinstance(value, dict):  # a table inside an array: an inline table
-        return "{ " + ", ".join(f"{key} = {_scalar(item)}" for key, item in value.items() if item is not None) + " }"
+        return "{ " + ", ".join(f"{_key(key)} = {_scalar(item)}" for key, item in value.items() if item is not None) + " }"
     raise TypeError(f"cannot write {type(value).__name__} to TOML")
 
 
@@ -62,12 +68,12 @@ def dumps(document: dict, comments: dict[str, str] | None = None, header: str | 
         tables = {k: v for k, v in values.items() if isinstance(v, dict)}
         for key, value in scalars.items():
             lines.extend(_comment(comments.get(f"{prefix}{key}")))
-            lines.append(f"{key} = {_scalar(value)}")
+            lines.append(f"{_key(key)} = {_scalar(value)}")
         for key, value in tables.items():
             lines.append("")
             lines.extend(_comment(comments.get(f"{prefix}{key}")))
-            lines.append(f"[{prefix}{key}]")
-            table(f"{prefix}{key}.", value)
+            lines.append(f"[{prefix}{_key(key)}]")
+            table(f"{prefix}{_key(key)}.", value)
 
     table("", document)
     return "\n".join(lines) + "\n"

@@ -31,7 +31,15 @@ A campaign spec is a TOML file::
     every = 10
 
 A grid axis gives ``values``, or ``range = [low, high]`` with ``steps``; a
-Latin-hypercube axis gives ``range``. An axis whose field is a whole table
+Latin-hypercube axis gives ``range``. A grid axis may instead give ``cases``: one
+table of key paths per value, each setting several keys at once (a gain set, a
+model error of one kind at a time), named by ``labels``::
+
+    [[sweep.axes]]
+    name = "model_error"
+    labels = ["none", "mass +25 %", "damping +25 %"]
+    cases = [{}, {"plant.vessel.mass_scale" = 1.25}, {"plant.vessel.damping_scale" = 1.25}]
+ An axis whose field is a whole table
 (``field = "observer"``) and whose values are tables replaces that component at each
 point (several observers on the same runs). The points of a grid are the Cartesian product
 of the axes (the last axis varies fastest); a Latin hypercube draws ``points`` points
@@ -71,19 +79,54 @@ class Axis(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    field: str | tuple[str, ...] = Field(description="key path(s) of the scenario's composition (plant.waves.peak_frequency, observer), set to the same value")
+    field: str | tuple[str, ...] | None = Field(None, description="key path(s) of the scenario's composition (plant.waves.peak_frequency, observer), set to the same value")
     values: tuple[Any, ...] | None = Field(None, description="the values (grid)")
+    cases: tuple[dict[str, Any], ...] | None = Field(None, description="instead of field and values: per value, key path -> value of the keys it sets (grid)")
+    labels: tuple[str | float, ...] | None = Field(None, description="the cases' names in the store and report (default: what each case sets)")
     range: tuple[float, float] | None = Field(None, description="[low, high]: steps values (grid) or strata (latin-hypercube)")
     steps: int | None = Field(None, description="number of evenly spaced values over range (grid)")
     scale: bool = Field(False, description="multiply each field's base value by the axis value instead of setting it")
     name: str | None = Field(None, description="the axis's name in the store and report (default: from field)")
 
-    @field_validator("values")
+    @field_validator("values", "cases")
     @classmethod
     def _some_values(cls, value):
         if value is not None and len(value) == 0:
             raise ValueError("must hold at least one value")
         return value
+
+    @model_validator(mode="after")
+    def _field_or_cases(self):
+        if self.cases is None:
+            if self.field is None:
+                raise ValueError("an axis needs field (with values, or range and steps), or cases")
+            if self.labels is not None:
+                raise ValueError("labels name the cases of a cases axis; an axis with field is labelled by its values")
+            return self
+        others = [name for name in ("field", "values", "range", "steps") if getattr(self, name) is not None] + (["scale"] if self.scale else [])
+        if others:
+            raise ValueError(f"an axis with cases sets its keys per case: drop {others[0]}")
+        if self.name is None:
+            raise ValueError("an axis with cases needs a name")
+        if self.labels is not None:
+            if len(self.labels) != len(self.cases):
+                raise ValueError(f"labels must name each of the {len(self.cases)} cases; got {len(self.labels)} label(s)")
+            if len(set(self.labels)) != len(self.labels):
+                raise ValueError(f"labels repeat: {list(self.labels)}")
+        elif len(set(self.case_labels)) != len(self.cases):
+            raise ValueError("two cases set the same keys to the same values; drop one")
+        return self
+
+    @property
+    def case_labels(self) -> tuple:
+        """Each case's name: its label, or what it sets (``base`` for an empty case)."""
+        if self.labels is not None:
+            return self.labels
+        return tuple(", ".join(f"{key}={json.dumps(value)}" for key, value in case.items()) or "base" for case in self.cases)
+
+    def case_changes(self, label) -> dict[str, Any]:
+        """Key path -> value of the case named ``label``."""
+        return dict(self.cases[self.case_labels.index(label)])
 
     @field_validator("range")
     @classmethod
@@ -101,12 +144,15 @@ class Axis(BaseModel):
 
     @property
     def fields(self) -> tuple[str, ...]:
+        """The key paths it sets (for cases: every key any case sets, in order)."""
+        if self.cases is not None:
+            return tuple(dict.fromkeys(key for case in self.cases for key in case))
         return (self.field,) if isinstance(self.field, str) else tuple(self.field)
 
     def value_label(self, value):
         """A value as the store and the report show it: a replaced component by its kind
-        (numbered in the axis's order when two values share one)."""
-        if not isinstance(value, dict):
+        (numbered in the axis's order when two values share one); a case by its label."""
+        if self.cases is not None or not isinstance(value, dict):
             return value
         kinds = [v.get("kind", "?") if isinstance(v, dict) else str(v) for v in self.values or ()]
         index = next(i for i, v in enumerate(self.values) if v == value)
@@ -138,8 +184,10 @@ class Sweep(BaseModel):
     @model_validator(mode="after")
     def _consistent(self):
         for index, axis in enumerate(self.axes):
-            if self.kind == "grid" and (axis.values is None) == (axis.range is None or axis.steps is None):
+            if self.kind == "grid" and axis.cases is None and (axis.values is None) == (axis.range is None or axis.steps is None):
                 raise ValueError(f"axes[{index}] of a grid needs values, or range and steps")
+            if self.kind == "latin-hypercube" and axis.cases is not None:
+                raise ValueError(f"axes[{index}]: cases are for a grid; a latin-hypercube axis needs range")
             if self.kind == "latin-hypercube" and (axis.range is None or axis.values is not None):
                 raise ValueError(f"axes[{index}] of a latin-hypercube needs range (and no values)")
         if self.kind == "latin-hypercube" and (self.points is None or self.points < 1):
@@ -300,9 +348,7 @@ class Campaign:
         base = self.base.values()
         result = {}
         for axis in self.axes:
-            value = self.points[point][axis.label]
-            for path in axis.fields:
-                result[path] = get_path(base, path) * value if axis.scale else value
+            result.update(_axis_changes(axis, base, self.points[point][axis.label]))
         return result
 
 
@@ -339,7 +385,16 @@ def _point_scenario(canonical: str, point: int):
     return _point_spec(canonical, point).build()
 
 
+def _axis_changes(axis: Axis, base: dict, value) -> dict[str, Any]:
+    """Key path -> value that ``axis`` sets at its value ``value`` (a case's label, for cases)."""
+    if axis.cases is not None:
+        return axis.case_changes(value)
+    return {path: (get_path(base, path) * value if axis.scale else value) for path in axis.fields}
+
+
 def _grid_values(axis: Axis) -> list:
+    if axis.cases is not None:
+        return list(axis.case_labels)
     if axis.values is not None:
         return list(axis.values)
     return np.linspace(axis.range[0], axis.range[1], axis.steps).tolist()
@@ -390,7 +445,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
     variants = [scenario_object]  # the base and every swept component: each metric must apply to each
     records = [scenario_object.n_records]
     for index, axis in enumerate(axes):
-        location = ("sweep", "axes", index, "field")
+        location = ("sweep", "axes", index, "cases" if axis.cases is not None else "field")
         for path in axis.fields:
             try:
                 current = get_path(base_values, path) if _exists(base_values, path) else None
@@ -402,18 +457,19 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
                 raise located(source, text, location, str(error)) from None
         # every value of the axis must make a valid scenario (checked on the base)
         for value in (_grid_values(axis) if settings.sweep.kind == "grid" else list(axis.range)):
-            changes = {path: (get_path(base_values, path) * value if axis.scale else value) for path in axis.fields}
-            where = ("sweep", "axes", index, "values" if axis.values is not None else "range")
+            changes = _axis_changes(axis, base_values, value)
+            where = ("sweep", "axes", index, "cases" if axis.cases is not None else "values" if axis.values is not None else "range")
+            word = "case" if axis.cases is not None else "value"
             try:
                 changed = _with_changes(base, changes, source)
             except FileError as error:
                 detail = str(error).split(": ", 1)[-1]
-                raise located(source, text, where, f"value {value!r}: {detail}") from None
+                raise located(source, text, where, f"{word} {value!r}: {detail}") from None
             try:
                 built = changed.build()
             except ValueError as error:
-                raise located(source, text, where, f"value {value!r} makes no scenario: {error}") from None
-            if isinstance(value, dict):  # a whole component replaced
+                raise located(source, text, where, f"{word} {value!r} makes no scenario: {error}") from None
+            if any(isinstance(v, dict) for v in changes.values()):  # a whole component replaced
                 variants.append(built)
             records.append(built.n_records)
             _check_window(settings, built, source, text, where, value)
@@ -462,7 +518,7 @@ def point_count(settings: CampaignSettings) -> int:
     """The number of sweep points, from the axes alone (without making them)."""
     if settings.sweep.kind == "latin-hypercube":
         return int(settings.sweep.points)
-    return math.prod(len(axis.values) if axis.values is not None else int(axis.steps) for axis in settings.sweep.axes)
+    return math.prod(len(_grid_values(axis)) if axis.steps is None else int(axis.steps) for axis in settings.sweep.axes)
 
 
 def kept_values(settings: CampaignSettings, scenario) -> int:

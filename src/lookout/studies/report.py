@@ -511,6 +511,13 @@ def _axis_rows(document: dict, kind: str) -> list[list[str]]:
         except Exception:  # a store written by another version: show what it holds
             rows.append(["?", _spec_value(raw.get("field")), _spec_value(raw), ""])
             continue
+        if axis.cases is not None:
+            values = "; ".join(
+                f"{_spec_value(label)}: " + (", ".join(f"{key} = {_spec_value(value)}" for key, value in case.items()) or "the base")
+                for label, case in zip(axis.case_labels, axis.cases)
+            )
+            rows.append([variable_name(axis.label), ", ".join(axis.fields), values, "each case sets its keys"])
+            continue
         tables = axis.values is not None and any(isinstance(v, dict) for v in axis.values)
         units = None if axis.scale or tables else _setting_units(document, list(axis.fields))
         suffix = f" ({units})" if units else ""

@@ -207,6 +207,30 @@ class CampaignStore:
 
         return xr.open_zarr(self.path, consolidated=False)
 
+    def grid(self):
+        """A grid campaign's store with the sweep point unfolded into one dimension per
+        axis (in the axes' order, each with its values in the order the spec gives
+        them) and ``seed``: ``(axis_1, ..., axis_n, seed)``."""
+        import xarray as xr
+
+        ds = self.open().load()
+        if ds.attrs.get("sweep_kind") != "grid":
+            raise ValueError(f"{self.path}: only a grid campaign's points form a grid; this one is a {ds.attrs.get('sweep_kind')}")
+        names = json.loads(ds.attrs.get("axes", "[]"))
+        levels = {}
+        for name in names:
+            values = ds[name].values.tolist()
+            levels[name] = list(dict.fromkeys(values))
+        shape = tuple(len(levels[name]) for name in names)
+        data = {}
+        for variable, array in ds.data_vars.items():
+            if array.dims[:2] != ("point", "seed"):
+                continue
+            data[variable] = ((*names, *array.dims[1:]), array.values.reshape(shape + array.shape[1:]), array.attrs)
+        coords = {name: (name, np.asarray(levels[name], dtype=ds[name].dtype), ds[name].attrs) for name in names}
+        coords.update({name: coordinate for name, coordinate in ds.coords.items() if "point" not in coordinate.dims})
+        return xr.Dataset(data, coords=coords, attrs=ds.attrs)
+
     # ------------------------------------------------------------------ writing
     @staticmethod
     def _atomic_write(path: Path, text: str) -> None:
