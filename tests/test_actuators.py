@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from lookout.actuators import NORTHERN_CLIPPER_THRUST_LIMIT, IdealActuator, SaturatingActuator
+from lookout.actuators import IdealActuator, SaturatingActuator
+from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_THRUST_LIMIT
 from lookout.sim import Scenario, simulate
 
 # XLA:CPU flushes subnormals to zero, so none are drawn
@@ -60,13 +61,14 @@ def test_apply_works_under_jit_and_vmap_over_limits_and_time():
 
 
 def test_northern_clipper_limits():
-    actuator = SaturatingActuator.northern_clipper()
+    actuator = SaturatingActuator(NORTHERN_CLIPPER_THRUST_LIMIT)
     limit = np.asarray(actuator.limit)
     assert limit.shape == (3,) and np.all(np.isfinite(limit)) and np.all(limit > 0)
     np.testing.assert_array_equal(limit, NORTHERN_CLIPPER_THRUST_LIMIT)
     # surge above sway (main propellers against tunnel thrusters); yaw about sway x a
     # lever of 0.3-0.6 L (76.2 m)
-    assert limit[0] > limit[1] and 0.3 * 76.2 <= limit[2] / limit[1] <= 0.6 * 76.2
+    assert NORTHERN_CLIPPER_LENGTH == 76.2
+    assert limit[0] > limit[1] and 0.3 * NORTHERN_CLIPPER_LENGTH <= limit[2] / limit[1] <= 0.6 * NORTHERN_CLIPPER_LENGTH
     # far above the loads of Fossen & Strand (1999): bias 10 kN, 5 kN, 100 kN m
     assert np.all(limit > np.array([1e4, 5e3, 1e5]) * 10)
 
@@ -92,7 +94,7 @@ def test_bad_limits_fail_with_one_line(limit, kwargs, message):
 
 def test_command_of_the_wrong_size_is_rejected():
     with pytest.raises(ValueError, match="SaturatingActuator has 3 limits; the commanded input has shape"):
-        SaturatingActuator.northern_clipper().apply(jnp.zeros(2))
+        SaturatingActuator(NORTHERN_CLIPPER_THRUST_LIMIT).apply(jnp.zeros(2))
 
 
 def _fossen_strand(actuator, duration=20.0):

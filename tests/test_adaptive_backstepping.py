@@ -62,7 +62,7 @@ def test_design_adaptive_arm_checks_theorem_4_1_and_5_28(capsys):
     assert "verdict: passes (exit code 0)" in capsys.readouterr().out
     assert main(["design", "adaptive-arm", "--json"]) == 1  # the two-link arm's printed gains
     result = json.loads(capsys.readouterr().out)
-    assert result["passed"] is False
+    assert result["holds"] is False and "passed" not in result
     (at_rest,) = [item for item in result["condition_5_28"]["inequalities"] if item["name"] == "(5.28) at rest"]
     assert at_rest["verdict"] == "fails" and at_rest["right"] == 1.0
 

@@ -25,11 +25,12 @@ def _observer(kappa, lam, T=1000.0):
 
 def test_paper_gains_satisfy_tuning_rule_and_spr_with_verified_kyp(paper_observer):
     assert check_tuning_rule(paper_observer).holds
-    for report in check_spr(paper_observer):
+    for index, report in enumerate(check_spr(paper_observer)):
         assert report.holds and report.quantities["frequency_test"]
+        assert report.key == f"spr_{['surge', 'sway', 'yaw'][index]}"
         certificate = report.quantities["certificate"]
         assert certificate["verified"]
-        A, B, C = error_loop(paper_observer, ["surge", "sway", "yaw"].index(report.dof))
+        A, B, C = error_loop(paper_observer, index)
         P, Q = np.array(certificate["P"]), np.array(certificate["Q"])
         np.testing.assert_allclose(P, P.T, rtol=1e-12)
         np.testing.assert_allclose(P @ A + A.T @ P, -Q, rtol=1e-9, atol=1e-9 * np.abs(Q).max())
@@ -155,7 +156,7 @@ def test_spr_is_not_claimed_without_a_verified_certificate():
 def test_passive_observer_report_has_the_tuning_rule_and_spr_per_dof(paper_observer):
     report = check_passive_observer(paper_observer)
     assert list(report.verdicts) == ["tuning_rule_48", "spr_surge", "spr_sway", "spr_yaw"]
-    assert report.holds and [report[key].dof for key in ("spr_surge", "spr_sway", "spr_yaw")] == ["surge", "sway", "yaw"]
+    assert report.holds and [{item.name for item in report[key].inequalities} for key in ("spr_surge", "spr_sway", "spr_yaw")] == [{"surge"}, {"sway"}, {"yaw"}]
     assert np.asarray(report.quantities["K2"]).diagonal() == pytest.approx([1.1] * 3)
     assert any(line.startswith("K1 = [diag(-2.206") for line in report.summary)
 
@@ -227,9 +228,10 @@ def test_condition_and_report_derive_their_verdicts_and_share_one_layout():
     assert report.verdict == "fails" and report.verdicts == {"a": "unverified", "b": "fails"} and report["b"] is b
     assert report.inequalities == (holds, open_, holds, fails)  # informational ones left out
     data = json.loads(json.dumps(report.to_dict(), allow_nan=False))
-    assert list(data) == ["title", "verdict", "holds", "verdicts", "a", "b", "inequalities", "quantities", "summary", "notes"]
+    # each inequality once, in its condition's block
+    assert list(data) == ["title", "verdict", "holds", "verdicts", "a", "b", "quantities", "summary", "notes"]
     assert data["b"]["inequalities"][1]["verdict"] == "fails" and data["b"]["informational"][0]["name"] == "(1)"
-    assert [item["condition"] for item in data["inequalities"]] == ["a", "a", "b", "b"]
+    assert [item["verdict"] for key in data["verdicts"] for item in data[key]["inequalities"]] == ["holds", "unverified", "holds", "fails"]
     assert data["quantities"] == {"gain": [1.0, 2.0]}
     lines = report.lines()
     assert lines[:2] == ["A paper (2000): two conditions: fails", "  gains: 1, 2"]
@@ -240,6 +242,6 @@ def test_condition_and_report_derive_their_verdicts_and_share_one_layout():
     with pytest.raises(ValueError, match="unique"):
         Report("t", [a, a])
     with pytest.raises(ValueError, match="must not be a report key"):
-        Report("t", [Condition("passed", "(1)", "x", "A paper", [holds])])
+        Report("t", [Condition("inputs", "(1)", "x", "A paper", [holds])])
     with pytest.raises(ValueError, match="one line"):
         Condition("c", "(3)", "third", "A paper", [holds], reason="two\nlines")

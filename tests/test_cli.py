@@ -68,7 +68,7 @@ def test_design_json_reports_gains_verdicts_and_frequency_response(capsys, tmp_p
     code = main([*DESIGN, "--wave-period", "7.0", "--frequency", "0.8976", "--frequency", "0.1", "--bode", str(bode), "--json"])
     assert code == 0
     result = json.loads(capsys.readouterr().out)
-    assert result["design"] == "passive-observer" and result["passed"] and result["verdict"] == "holds"
+    assert result["design"] == "passive-observer" and result["holds"] and result["verdict"] == "holds"
     assert result["verdicts"] == {"tuning_rule_48": "holds", **{key: "holds" for key in SPR}}
     K1 = result["quantities"]["K1"]
     assert round(K1[0][0], 4) == -2.2059 and round(K1[3][0], 4) == 1.6157
@@ -94,13 +94,13 @@ def test_design_default_cutoff_follows_the_wave_frequency(capsys):
     assert main([*DESIGN, "--wave-period", "5", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["inputs"]["cutoff_frequency"] == pytest.approx(1.1 / 0.8976 * 2 * np.pi / 5, rel=1e-12)
-    assert result["passed"]
+    assert result["holds"]
     assert main([*DESIGN, "--wave-period", "5", "--cutoff-frequency", "2.5", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["inputs"]["cutoff_frequency"] == 2.5
     # slower waves keep the paper's w_c = 1.1 rad/s (K2 independent of w_o, Remark 2), and pass
     assert main([*DESIGN, "--wave-period", "10", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert result["inputs"]["cutoff_frequency"] == 1.1 and result["passed"]
+    assert result["inputs"]["cutoff_frequency"] == 1.1 and result["holds"]
     # scaling w_c with w_o there would keep (48) but break SPR: the rule is not sufficient
     assert main([*DESIGN, "--wave-period", "10", "--cutoff-frequency", str(1.1 / 0.8976 * 2 * np.pi / 10), "--json"]) == 1
     result = json.loads(capsys.readouterr().out)
@@ -114,7 +114,7 @@ def test_design_failing_verdict_exits_1_and_still_reports(capsys):
     assert out.endswith("verdict: FAILS (exit code 1)\n")
     assert main([*DESIGN, "--wave-period", "200", "--json"]) == 1
     result = json.loads(capsys.readouterr().out)
-    assert not result["passed"] and result["verdict"] == "fails" and result["spr_surge"]["verdict"] == "fails"
+    assert not result["holds"] and result["verdict"] == "fails" and result["spr_surge"]["verdict"] == "fails"
 
 
 def test_spr_holds_never_appears_without_a_certificate(capsys):
@@ -123,7 +123,7 @@ def test_spr_holds_never_appears_without_a_certificate(capsys):
     assert main([*DESIGN, "--wave-frequency", "0.8976", "--cutoff-frequency", "1e6", "--json"]) == 1
     result = json.loads(capsys.readouterr().out)
     assert result["verdicts"] == {"tuning_rule_48": "holds", **{key: "unverified" for key in SPR}}
-    assert result["verdict"] == "unverified" and not result["passed"]
+    assert result["verdict"] == "unverified" and not result["holds"]
     for key in SPR:
         loop = result[key]
         assert loop["quantities"]["frequency_test"] and not loop["quantities"]["certificate"]["verified"]
@@ -348,8 +348,9 @@ def test_reproduce_calugi_2002_writes_every_system_and_reports_theorem_2_1(tmp_p
     for name, system in summary["systems"].items():
         assert (out / f"calugi_2002_{name}.nc").stat().st_size > 0
         assert system["error_norm"]["final_error"] < 0.05 * system["error_norm"]["initial_error"]  # pendulum: e^-4 after 2 s
-        assert set(system["theorem_2_1"]) >= {"effective_gain", "threshold", "satisfied", "radius"}
-    assert summary["systems"]["pendulum"]["theorem_2_1"]["satisfied"] and summary["systems"]["pendulum"]["theorem_2_1"]["radius"] is None
+        assert set(system["theorem_2_1"]["quantities"]) >= {"effective_gain", "threshold", "radius"}
+    pendulum = summary["systems"]["pendulum"]["theorem_2_1"]
+    assert pendulum["verdicts"]["theorem_2_1"] == "holds" and pendulum["quantities"]["radius"] is None
     for figure in ("fig2_2_pendulum_velocities.png", "fig2_3_two_link_positions.png", "fig2_8_furuta_velocities.png"):
         assert (out / figure).stat().st_size > 0
     text = capsys.readouterr().out
@@ -376,10 +377,10 @@ def test_design_sliding_mode_observer_printed_gains_fail_14_and_exit_1(capsys):
 def test_design_sliding_mode_observer_kyp_gains_pass_and_json_is_strict(capsys):
     assert main(["design", "sliding-mode-observer", "--gains", "kyp", "--disturbance", "1e5,1e5,1e6", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert result["passed"] is True and result["verdicts"]["kyp_14"] == "holds"
+    assert result["holds"] is True and result["verdicts"]["kyp_14"] == "holds"
     assert result["verdicts"]["switching_gain_17"] == "holds" and result["inputs"]["disturbance"] == [1e5, 1e5, 1e6]
     assert result["switching_gain_17"]["quantities"]["required_gain"][0] == pytest.approx(2.05, rel=1e-2)
-    (surge,) = [item for item in result["inequalities"] if item["condition"] == "switching_gain_17" and item["name"] == "surge"]
+    (surge,) = [item for item in result["switching_gain_17"]["inequalities"] if item["name"] == "surge"]
     assert surge["right"] == pytest.approx(2.05, rel=1e-2) and surge["left"] == 10.0 and surge["units"] == "m/s"
 
 
@@ -395,21 +396,21 @@ DESIGNS = {
 
 @pytest.mark.parametrize("design", list(DESIGNS))
 def test_every_design_command_prints_and_dumps_one_layout(design, capsys):
-    """The same JSON keys, a block per condition with its inequalities, the flat list of
-    them all, exit code 0 exactly when the report holds; the text gives one line per
-    inequality with its numbers, verdict and margin, and ends with the verdict line."""
+    """The same JSON keys (the design, its inputs, then the report's one layout), a block
+    per condition with its inequalities, exit code 0 exactly when the report holds; the
+    text gives one line per inequality with its numbers, verdict and margin, and ends
+    with the verdict line."""
     argv, code = DESIGNS[design]
     assert main(["design", design, *argv, "--json"]) == code
     result = json.loads(capsys.readouterr().out)
-    assert list(result)[:7] == ["design", "passed", "inputs", "title", "verdict", "holds", "verdicts"]
-    assert list(result)[-4:] == ["inequalities", "quantities", "summary", "notes"] and result["design"] == design
-    assert result["passed"] is result["holds"] is (result["verdict"] == "holds") is (code == 0)
+    assert list(result) == ["design", "inputs", "title", "verdict", "holds", "verdicts", *result["verdicts"], "quantities", "summary", "notes"]
+    assert result["design"] == design and result["holds"] is (result["verdict"] == "holds") is (code == 0)
     flat = []
     for key, verdict in result["verdicts"].items():
         block = result[key]
         assert block["key"] == key and block["verdict"] == verdict and block["source"] and block["reason"]
-        flat += [item | {"condition": key} for item in block["inequalities"]]
-    assert flat == result["inequalities"] and flat
+        flat += block["inequalities"]
+    assert flat
     assert {item["verdict"] for item in flat} <= {"holds", "fails", "unverified"}
     assert main(["design", design, *argv]) == code
     lines = capsys.readouterr().out.splitlines()
@@ -433,3 +434,20 @@ def test_design_sliding_mode_observer_bad_input_exits_2_with_one_line(argv, mess
     assert main(["design", "sliding-mode-observer", *argv]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_components_lists_the_design_rules_of_each_kind(capsys):
+    """The kinds with gain-synthesis rules, the default first; one entry per rule of a kind."""
+    assert main(["components", "--json"]) == 0
+    rules = {(entry["role"], entry["kind"]): entry["designs"] for entry in json.loads(capsys.readouterr().out) if entry["designs"]}
+    assert rules == {
+        ("observer", "passive"): ["fossen-strand-1999", "gains"],
+        ("observer", "sliding-mode"): ["kim-2002", "gains"],
+        ("observer", "earth-fixed"): ["gains", "wondergem-2009"],
+        ("controller", "tracking"): ["gains", "wondergem-2009"],
+    }
+    assert main(["components", "tracking", "--json"]) == 0
+    entries = json.loads(capsys.readouterr().out)
+    assert [entry["design"] for entry in entries] == ["gains", "wondergem-2009"]
+    keys = [{p["name"] for p in entry["parameters"]} for entry in entries]
+    assert keys[0] == {"ship", "natural_frequency", "damping_ratio"} and {"reference_speed_max", "start_position", "margin"} <= keys[1]

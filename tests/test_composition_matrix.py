@@ -105,10 +105,15 @@ def outcome(plant: str, base: dict, observer: str) -> str:
     return "runs" if finite else "diverges"
 
 
-@pytest.fixture(scope="module")
-def matrix() -> dict[tuple[str, str], str]:
+def test_every_pair_runs_or_is_refused_every_kind_is_in_and_the_docs_hold_the_matrix():
+    """One test computes the matrix once (38 s) and checks it three ways: each pair runs
+    or is refused in one line naming the observer; every kind is in it; and
+    docs/architecture.md holds it."""
     bases = plant_bases()
-    return {(observer.name, plant): outcome(plant, base, observer.name) for observer in registry.kinds("observer") for plant, base in bases.items()}
+    matrix = {(observer.name, plant): outcome(plant, base, observer.name) for observer in registry.kinds("observer") for plant, base in bases.items()}
+    check_runs_or_refused(matrix)
+    check_every_kind(matrix)
+    check_the_doc(matrix)
 
 
 def render(matrix: dict[tuple[str, str], str]) -> str:
@@ -125,7 +130,7 @@ def render(matrix: dict[tuple[str, str], str]) -> str:
     return "\n".join(lines) + "\n\nWhy each refused pair is refused (the message `Scenario` or the composition gives):\n\n" + "\n".join(reasons)
 
 
-def test_every_pair_runs_or_is_refused_in_one_line_naming_the_observer(matrix):
+def check_runs_or_refused(matrix):
     for (observer, plant), result in matrix.items():
         assert result != "diverges", f"observer {observer} on plant {plant} composes but its estimates are not finite after {DURATION:g} s"
         if result.startswith("refused"):
@@ -133,7 +138,7 @@ def test_every_pair_runs_or_is_refused_in_one_line_naming_the_observer(matrix):
             assert "\n" not in message and f"observer {observer}" in message or message.startswith("observer"), (observer, plant, message)
 
 
-def test_every_plant_and_observer_kind_is_in_the_matrix(matrix):
+def check_every_kind(matrix):
     assert {plant for _, plant in matrix} == {k.name for k in registry.kinds("plant") if _first_table("plant", k.name) is not None}
     assert {observer for observer, _ in matrix} == {k.name for k in registry.kinds("observer")}
     # each observer runs on at least one plant: no kind is registered that nothing can use
@@ -141,7 +146,7 @@ def test_every_plant_and_observer_kind_is_in_the_matrix(matrix):
         assert any(result == "runs" for (o, _), result in matrix.items() if o == observer), observer
 
 
-def test_the_architecture_doc_holds_this_matrix(matrix):
+def check_the_doc(matrix):
     table = render(matrix)
     text = DOCS.read_text()
     if os.environ.get("LOOKOUT_WRITE_MATRIX"):

@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 
 from lookout.environment import JonswapWaves, jonswap_spectrum, peak_frequency, spectral_moment
+from lookout.models.cybership import CYBERSHIP_LENGTH
 
-# the sea of Wondergem et al. (2009): Hs = 0.01 m, mean period 0.75 s (read as T1), gamma = 3.3
-HS, T1, GAMMA = 0.01, 0.75, 3.3
+# the sea of Wondergem et al. (2009): Hs = 0.01 m, mean period 0.75 s (read as T1), gamma = 3.3,
+# on Cybership II's hull (L = 1.255 m)
+HS, T1, GAMMA, L = 0.01, 0.75, 3.3, CYBERSHIP_LENGTH
 M0 = HS**2 / 16.0
 WP = peak_frequency(T1)
 
@@ -45,7 +47,7 @@ def elevation(waves, t, position):
 
 @pytest.fixture(scope="module")
 def waves():
-    return JonswapWaves(HS, T1, direction=0.6)
+    return JonswapWaves(HS, T1, direction=0.6, hull_length=L)
 
 
 @pytest.fixture(scope="module")
@@ -293,14 +295,15 @@ def test_orbital_displacement_is_forward_under_a_crest():
 
 
 def test_hull_gain_is_the_magnitude_of_the_hull_average(realized):
-    kl = np.asarray(realized.wavenumbers) * 1.255 / 2.0
+    assert L == 1.255  # Wondergem et al. (2009)'s Cybership II
+    kl = np.asarray(realized.wavenumbers) * L / 2.0
     np.testing.assert_allclose(realized.hull_gains, np.abs(np.sin(kl) / kl), rtol=1e-12)
     # at the peak the wavelength (1.26 m) is about the hull length: the hull averages it out
     assert abs(math.sin(WP**2 / 9.81 * 1.255 / 2) / (WP**2 / 9.81 * 1.255 / 2)) < 0.01
 
 
 def test_zero_height_gives_no_motion_and_no_nan():
-    calm = _realize(JonswapWaves(0.0, T1), jax.random.key(3))
+    calm = _realize(JonswapWaves(0.0, T1, hull_length=L), jax.random.key(3))
     position, velocity = jnp.array([1.0, 2.0]), jnp.array([0.2, -0.1])
     for value in (motion(calm, 5.0, position), rate(calm, 5.0, position, velocity), elevation(calm, 5.0, position), calm.amplitudes):
         assert np.all(np.isfinite(np.asarray(value)))
@@ -338,7 +341,22 @@ def test_describe_is_plain_numbers(waves):
     ],
 )
 def test_rejects_bad_parameters(kwargs, message):
-    arguments = {"significant_height": HS, "mean_period": T1} | kwargs
+    arguments = {"significant_height": HS, "mean_period": T1, "hull_length": L} | kwargs
     with pytest.raises(ValueError, match=message) as error:
         JonswapWaves(**arguments)
     assert "\n" not in str(error.value)
+
+
+def test_the_hull_length_is_the_vessels_and_a_file_must_give_it():
+    """No vessel's length is a default of the generic sea: a composition states it."""
+    from lookout.composition import CompositionError, compose
+
+    with pytest.raises(TypeError, match="hull_length"):
+        JonswapWaves(HS, T1)
+    plant = {"kind": "cybership-ii", "waves": {"kind": "jonswap", "significant_height": HS, "mean_period": T1}}
+    document = {"preset": "wondergem-2009", "plant": plant}
+    with pytest.raises(CompositionError) as raised:
+        compose(document)
+    assert str(raised.value) == "plant.waves: missing key hull_length"
+    plant["waves"]["hull_length"] = L
+    assert float(compose(document).scenario.plant.waves.hull_length) == L

@@ -268,7 +268,7 @@ def test_a_cases_axis_sets_several_keys_per_value(tmp_path):
     """A gain set (two keys) crossed with a model error one kind at a time: each case
     sets its own keys, the store names it by its label, and a point's metrics equal
     those of the same composition changed by hand and reduced from its records."""
-    base = compose({"preset": "kim-2002", "simulation": {"duration": 100.0, "record_every": 10}}).document
+    base = compose({"preset": "kim-2002", "simulation": {"duration": 50.0, "record_every": 10}}).document
     low = {"observer.bias_injection_gain": [1e4, 1e4, 1e7], "observer.velocity_injection_gain": [1e3, 1e3, 1e6]}
     document = {
         "scenario": base, "seeds_per_point": 2, "metrics": ["rms_tracking:position"], "after": 0.0,

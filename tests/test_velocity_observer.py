@@ -155,8 +155,13 @@ def test_theorem_2_1_report_numbers_against_closed_forms():
     assert report.threshold == pytest.approx(3 * cart.coriolis_bound * 2.0 / cart.min_inertia)
     assert report.radius == pytest.approx(cart.min_inertia * 5.0 / cart.coriolis_bound - 4.0)
     assert report.margin == pytest.approx(5.0 - report.threshold) and report.satisfied == (report.margin > 0)
-    as_dict = report.to_dict()
-    assert set(as_dict) >= {"gain_bound", "threshold", "satisfied", "margin", "radius", "coriolis_bound", "min_inertia"}
+    # JSON in the conditions' one layout: the numbers are the report's quantities
+    as_dict = report.report.to_dict()
+    assert as_dict["verdicts"] == {"theorem_2_1": as_dict["theorem_2_1"]["verdict"], "region_2_13": as_dict["region_2_13"]["verdict"]}
+    assert set(as_dict["quantities"]) >= {"gain_bound", "threshold", "radius", "coriolis_bound", "min_inertia"}
+    (sides,) = as_dict["theorem_2_1"]["inequalities"]
+    assert (sides["left"], sides["right"], sides["margin"]) == (5.0, pytest.approx(report.threshold), pytest.approx(report.margin))
+    assert not hasattr(report, "to_dict")
 
 
 def test_prismatic_coordinate_in_the_inertia_is_refused():

@@ -11,11 +11,6 @@ from jax import Array
 from lookout import _validation as check
 from lookout.components import Actuator
 
-#: Thrust limits chosen for the Northern Clipper (surge force N, sway force N, yaw
-#: moment N m); Fossen & Strand (1999) give none. See
-#: :meth:`SaturatingActuator.northern_clipper`.
-NORTHERN_CLIPPER_THRUST_LIMIT = (5.0e5, 3.0e5, 1.0e7)
-
 
 @final
 class IdealActuator(Actuator):
@@ -73,28 +68,6 @@ class SaturatingActuator(Actuator):
         array = np.asarray(self.limit, dtype=float)
         if np.any(np.isnan(array)) or np.any(array <= 0):
             raise ValueError(f"limit must be positive (inf for no limit); got {check._fmt(array)}")
-
-    @classmethod
-    def northern_clipper(cls) -> "SaturatingActuator":
-        """Thrust limits for the Northern Clipper (76.2 m, 4.59e6 kg; Fossen & Strand 1999).
-
-        The paper gives none; chosen here (:data:`NORTHERN_CLIPPER_THRUST_LIMIT`):
-
-        - surge force 0.5 MN: about 50 t of the roughly 80 t bollard pull of a
-          twin-screw supply vessel of 70-80 m of the 1990s, the share a DP system
-          typically keeps available (the rest is margin);
-        - sway force 0.3 MN: two bow and one stern tunnel thruster of 600-800 kW at
-          about 12 kg of thrust per kW (about 26 t), plus a little from the main
-          propellers and rudders;
-        - yaw moment 1.0e7 N m: bow and stern thrusters about +-33 m (0.43 L) from
-          midships pushing in opposite directions, 0.3 MN x 33 m.
-
-        For the input layout of :data:`lookout.models.vessel.VESSEL_INPUT`:
-        ``force`` (surge, sway) in N, then ``moment`` in N m. Against the paper's
-        loads (bias of 10 kN, 5 kN, 100 kN m; tau of 1 kN) these limits never bind;
-        they matter for a controller that moves the vessel.
-        """
-        return cls(NORTHERN_CLIPPER_THRUST_LIMIT)
 
     def _check_shape(self, u: Array) -> None:
         if jnp.shape(u)[-1:] != self.limit.shape:

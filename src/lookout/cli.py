@@ -125,16 +125,16 @@ DESIGN_VERDICTS = {"holds": "passes", "fails": "FAILS", "unverified": "NOT ESTAB
 
 def _finish_design(design: str, report, inputs: dict, as_json: bool) -> None:
     """The end of every ``design`` command: the report (a :class:`lookout.analysis.Report`)
-    as one JSON object (``design``, ``passed``, ``inputs``, then the report's layout), or
-    as text with a last verdict line; exit code 0 when the report holds, else 1."""
-    passed = report.holds
+    as one JSON object (``design``, ``inputs``, then the report's own layout, whose
+    ``verdict`` and ``holds`` say whether it passes), or as text with a last verdict line;
+    exit code 0 when the report holds, else 1."""
     if as_json:
-        print(json.dumps(json_safe({"design": design, "passed": passed, "inputs": inputs, **report.to_dict()}), allow_nan=False))
+        print(json.dumps(json_safe({"design": design, "inputs": inputs, **report.to_dict()}), allow_nan=False))
     else:
         for line in report.lines():
             console.print(line, highlight=False, markup=False)
-        console.print(f"verdict: {DESIGN_VERDICTS[report.verdict]} (exit code {0 if passed else 1})", highlight=False, markup=False)
-    if not passed:
+        console.print(f"verdict: {DESIGN_VERDICTS[report.verdict]} (exit code {0 if report.holds else 1})", highlight=False, markup=False)
+    if not report.holds:
         raise typer.Exit(code=1)
 
 
@@ -602,15 +602,23 @@ def design_adaptive_arm(
 
 @design_app.command("tracking-gains")
 def design_tracking_gains(
-    position_gain: Annotated[str, typer.Option("--l1", metavar="L1[,L1,L1]", help="Observer gain L1 diagonal (1/s).")] = "15",
-    velocity_gain: Annotated[str, typer.Option("--l2", metavar="L2[,L2,L2]", help="Observer gain L2 diagonal (1/s2).")] = "50",
-    omega: Annotated[str, typer.Option("--omega", metavar="W[,W,W]", help="Omega diagonal (rad/s), natural frequencies of the error dynamics (20).")] = "0.72,0.42,0.64",
-    damping_ratio: Annotated[str, typer.Option("--lambda", metavar="Z[,Z,Z]", help="Lambda diagonal, relative damping of the error dynamics (20).")] = "1",
+    position_gain: Annotated[Optional[str], typer.Option("--l1", metavar="L1[,L1,L1]", help="Observer gain L1 diagonal (1/s).", show_default="Section 5's")] = None,
+    velocity_gain: Annotated[Optional[str], typer.Option("--l2", metavar="L2[,L2,L2]", help="Observer gain L2 diagonal (1/s2).", show_default="Section 5's")] = None,
+    omega: Annotated[
+        Optional[str], typer.Option("--omega", metavar="W[,W,W]", help="Omega diagonal (rad/s), natural frequencies of the error dynamics (20).", show_default="Section 5's")
+    ] = None,
+    damping_ratio: Annotated[
+        Optional[str], typer.Option("--lambda", metavar="Z[,Z,Z]", help="Lambda diagonal, relative damping of the error dynamics (20).", show_default="Section 5's")
+    ] = None,
     start: Annotated[str, typer.Option(metavar="ESTIMATE", help="Initial estimate: printed (Section 5's eta_hat0 and velocity estimate) or measured (eta_hat0 = eta0, v_hat0 = 0).")] = "printed",
-    velocity_bound: Annotated[float, typer.Option(metavar="V_M", help="Bound on the ship's speed ||eta'|| (m/s) for Proposition 3.1.")] = 0.3,
+    velocity_bound: Annotated[
+        Optional[float], typer.Option(metavar="V_M", help="Bound on the ship's speed ||eta'|| (m/s) for Proposition 3.1.", show_default="the reproduction's")
+    ] = None,
     epsilon3: Annotated[Optional[float], typer.Option(metavar="EPS", help="eps3 of Proposition 3.3; default the largest that (27) admits.")] = None,
-    start_angle: Annotated[float, typer.Option(metavar="RAD", help="Start of the reference on the ellipse, theta_0 (rad).")] = 0.0,
-    direction: Annotated[int, typer.Option(metavar="1|-1", help="1: yaw rate positive, -1: negative.")] = 1,
+    start_angle: Annotated[
+        Optional[float], typer.Option(metavar="RAD", help="Start of the reference on the ellipse, theta_0 (rad).", show_default="the reproduction's")
+    ] = None,
+    direction: Annotated[Optional[int], typer.Option(metavar="1|-1", help="1: yaw rate positive, -1: negative.", show_default="the reproduction's")] = None,
     propose: Annotated[bool, typer.Option("--propose", help="Search for gains that satisfy every condition (uses --lambda, --start, --velocity-bound; ignores --l1, --l2, --omega).")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
 ) -> None:
@@ -619,30 +627,40 @@ def design_tracking_gains(
     (25) for the controller, Proposition 3.1 ((10), (11), (13), (14)) for the observer
     and Proposition 3.3 ((27), (29)-(33)) for the combined scheme, each inequality with
     both sides, at Section 5's initial conditions. With --propose, the gains a search
-    finds that satisfy all of them, and their check.
+    finds that satisfy all of them, and their check. The defaults are the paper's
+    printed gains and the reproduction's settings (lookout.papers.wondergem_2009).
 
     Exit code 0 when every condition holds (with --propose: gains were found), 1 when
     one fails (the report or JSON is still printed), 2 for bad input.
     """
+    import numpy as np
+
     from lookout.papers import wondergem_2009
+    from lookout.papers.wondergem_2009 import config as paper
 
     if start not in ("printed", "measured"):
         raise InputError(f"--start must be printed or measured; got {start!r}")
-    if direction not in (1, -1):
+    if direction is not None and direction not in (1, -1):
         raise InputError(f"--direction must be 1 or -1; got {direction}")
-    if not math.isfinite(start_angle):
+    if start_angle is not None and not math.isfinite(start_angle):
         raise InputError(f"--start-angle must be finite; got {start_angle}")
+    velocity_bound = paper.VELOCITY_BOUND if velocity_bound is None else velocity_bound
     if not (math.isfinite(velocity_bound) and 0 <= velocity_bound <= 100):
         raise InputError(f"--velocity-bound must lie within 0..100 m/s; got {velocity_bound:g}")
     if epsilon3 is not None:
         _positive_number("--epsilon3", epsilon3)
+
+    def chosen(option: str, text: str | None, printed) -> list[float]:
+        return _positive_numbers(option, text) if text is not None else [float(v) for v in np.broadcast_to(printed, 3)]
+
     gains = {
-        "L1": _positive_numbers("--l1", position_gain), "L2": _positive_numbers("--l2", velocity_gain),
-        "natural_frequency": _positive_numbers("--omega", omega), "damping_ratio": _positive_numbers("--lambda", damping_ratio),
+        "L1": chosen("--l1", position_gain, paper.OBSERVER_POSITION_GAIN), "L2": chosen("--l2", velocity_gain, paper.OBSERVER_VELOCITY_GAIN),
+        "natural_frequency": chosen("--omega", omega, paper.NATURAL_FREQUENCY), "damping_ratio": chosen("--lambda", damping_ratio, paper.DAMPING_RATIO),
     }
     for option, key in (("--l1", "L1"), ("--l2", "L2"), ("--omega", "natural_frequency"), ("--lambda", "damping_ratio")):
         _within_range(option, gains[key])
-    config = wondergem_2009.Config(start_angle=start_angle, direction=direction)
+    config = wondergem_2009.Config(**{key: value for key, value in (("start_angle", start_angle), ("direction", direction)) if value is not None})
+    start_angle, direction = config.start_angle, config.direction
     inputs = {"start": start, "velocity_bound": velocity_bound, "start_angle": start_angle, "direction": direction, "propose": propose}
     if propose:
         if len(set(gains["damping_ratio"])) != 1:

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import operator
 import math
 import re
 from dataclasses import dataclass, field
@@ -204,6 +205,10 @@ def _initial_model(target: str):
 
 # ------------------------------------------------------------------------ building
 
+#: Context parameters a component takes from the composition's [simulation] unless its
+#: table gives them (a Kalman filter's propagation: the plant's own step and integrator).
+SIMULATION_CONTEXT = {"plant_step": "plant_step", "filter_period": "sample_period", "integrator": "integrator"}
+
 
 @dataclass
 class _Context:
@@ -211,6 +216,8 @@ class _Context:
 
     objects: list
     plant: Any = None
+    #: the composition's [simulation] (its steps and integrator, for a component that takes them)
+    simulation: Any = None
     #: role -> kind name of the components built so far
     kinds: dict = field(default_factory=dict)
 
@@ -327,7 +334,11 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                     location, f"{role} {name} needs a {p.name} ({wanted}), and plant {context.kinds.get('plant')} has none; give [{key_text(location + (p.name,))}]"
                 )
         elif p.sort == "context":
-            if p.name == "size" and p.name not in table:
+            if p.name in SIMULATION_CONTEXT:
+                arguments[p.name] = table.get(p.name, getattr(context.simulation, SIMULATION_CONTEXT[p.name]))
+                if p.name in table:
+                    normal[p.name] = table[p.name]
+            elif p.name == "size" and p.name not in table:
                 if context.plant is not None:
                     arguments["size"] = context.plant.input_layout.size
             elif p.name == "signals":
@@ -411,14 +422,23 @@ def _own_signal(table: dict, location: tuple):
         raise CompositionError(location, one_line(error)) from None
 
 
+def keywords_of(method):
+    """The method whose keywords a bound ``method`` takes: itself, or, for one that
+    passes them on (its function's ``parameters_from``, e.g. ``"model.state"``: a
+    Kalman filter's ``guess`` takes its model plant's state parts), that method of the
+    same object."""
+    path = getattr(getattr(method, "__func__", method), "parameters_from", None)
+    return method if path is None or not hasattr(method, "__self__") else operator.attrgetter(path)(method.__self__)
+
+
 def _initial(method, table, location: tuple):
     """``method(**table)`` (a plant's ``state`` or an observer's ``guess``), validated."""
-    parameters = state_parameters(method)
+    parameters = state_parameters(keywords_of(method))
     if table is None:
         table = {}
     if not isinstance(table, dict):
         raise CompositionError(location, "must be a table")
-    validated = _validate(_initial_model(_method_target(method)), table, location)
+    validated = _validate(_initial_model(_method_target(keywords_of(method))), table, location)
     arguments = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value"}
     try:
         value = method(**arguments)
@@ -506,7 +526,7 @@ def compose(document: dict) -> Composition:
         if role not in document:
             raise CompositionError((role,), f"missing table (a composition needs a plant, a sensor and an observer; `lookout components {role}` lists the kinds)")
 
-    context = _Context([])
+    context = _Context([], simulation=simulation)
     built, normal, kinds = {}, {"simulation": simulation.model_dump(mode="json")}, {}
     for role in registry.COMPONENT_ROLES:
         table = _table(document, role)

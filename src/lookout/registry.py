@@ -94,19 +94,30 @@ KINDS: dict[str, dict[str, Any]] = {
             "fossen-strand-1999": "lookout.observers.passive:PassiveObserver.design",
             "gains": "lookout.observers.passive:PassiveObserver",
         },
-        "sliding-mode": {"kim-2002": "lookout.observers.sliding_mode:SlidingModeObserver.design"},
-        "earth-fixed": "lookout.observers.earth_fixed:EarthFixedObserver",
+        "sliding-mode": {
+            "kim-2002": "lookout.observers.sliding_mode:SlidingModeObserver.design",
+            "gains": "lookout.observers.sliding_mode:SlidingModeObserver.from_gains",
+        },
+        "earth-fixed": {
+            "gains": "lookout.observers.earth_fixed:EarthFixedObserver",
+            "wondergem-2009": "lookout.observers.earth_fixed:EarthFixedObserver.design",
+        },
         "velocity": "lookout.observers.velocity:VelocityObserver",
         "adaptive-dp": "lookout.observers.adaptive_dp:AdaptiveObserver",
         "adaptive-manipulator": "lookout.observers.adaptive_manipulator:AdaptiveManipulatorObserver",
         "parameter-estimator": "lookout.observers.parameter_estimator:ParameterEstimator",
+        "ekf": "lookout.observers.ekf:ExtendedKalmanFilter",
+        "ukf": "lookout.observers.ukf:UnscentedKalmanFilter",
     },
     "controller": {
         "none": "lookout.controllers.open_loop:NoControl",
         "sinusoidal": "lookout.controllers.open_loop:SinusoidalInput",
         "observer-backstepping": "lookout.controllers.backstepping:ObserverBackstepping.for_observer",
         "vectorial-backstepping": "lookout.controllers.backstepping:VectorialBackstepping.for_observer",
-        "tracking": "lookout.controllers.tracking:TrackingController",
+        "tracking": {
+            "gains": "lookout.controllers.tracking:TrackingController",
+            "wondergem-2009": "lookout.controllers.tracking:TrackingController.design",
+        },
         "adaptive-backstepping": "lookout.controllers.adaptive_backstepping:AdaptiveObserverBackstepping",
         "furuta-backstepping": "lookout.controllers.furuta:FurutaPendulumBackstepping",
     },
@@ -128,6 +139,9 @@ DEFAULT_KINDS = {"controller": "none", "reference": "none", "actuator": "ideal"}
 #: Context parameters that are not components: filled by the composition by name.
 CONTEXT_NAMES = {
     "size": "the plant's input size",
+    "plant_step": "the composition's simulation.plant_step",
+    "filter_period": "the composition's simulation.sample_period",
+    "integrator": "the composition's simulation.integrator",
     "signals": "the plant's variables of these names, or tables {name, units, long_name, frame} of signals of their own",
 }
 
@@ -448,12 +462,15 @@ def presets() -> list[tuple[str, str]]:
 
 
 def describe_kind(each: Kind, design: str | None = None) -> dict:
-    """A kind as plain data (for ``lookout components --json`` and the docs)."""
+    """A kind as plain data (for ``lookout components --json`` and the docs): with its
+    design rules, the one described (``design``: the default when None; None for a kind
+    without rules) and that rule's parameters."""
     return {
         "role": each.role,
         "kind": each.name,
         "description": each.description,
         "designs": list(each.designs),
+        "design": design if design is not None else (each.designs[0] if each.designs else None),
         "parameters": [
             {
                 "name": p.name,

@@ -24,14 +24,14 @@ JSON (:meth:`Report.to_dict`), one layout for every report::
      key: {"key", "name", "title", "source", "verdict", "reason",
            "inequalities": [inequality, ...], "informational": [inequality, ...],
            "quantities": {...}},               # one block per condition, under its key
-     "inequalities": [inequality + {"condition": key}, ...],   # all of them, flat
      "quantities": {...}, "summary": [str, ...], "notes": [str, ...]}
 
     inequality = {"name", "relation", "left", "comparison", "right", "units", "source",
                   "verdict", "margin", "factor", "tolerance"}
 
-(non-finite numbers are null). The flat list is the table view (one row per
-inequality); the blocks give each condition with its reason. Terminal
+(non-finite numbers are null). Each inequality is written once, in its condition's
+block; ``verdicts`` gives the blocks' keys in order (:func:`inequalities_in` reads them
+all back as one table). Terminal
 (:meth:`Report.lines`): the title and verdict, the summary lines, then per condition a
 header (name, title, source, verdict), its reason and one line per inequality (name,
 relation, the two sides, units, verdict, margin), then the notes.
@@ -58,9 +58,7 @@ COMPARISONS = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": oper
 
 #: Top-level keys of :meth:`Report.to_dict` (and those a design command adds), which no
 #: condition key may take.
-RESERVED_KEYS = frozenset(
-    {"title", "verdict", "holds", "verdicts", "inequalities", "quantities", "summary", "notes", "design", "passed", "inputs"}
-)
+RESERVED_KEYS = frozenset({"title", "verdict", "holds", "verdicts", "quantities", "summary", "notes", "design", "inputs"})
 
 
 class Verdict(enum.StrEnum):
@@ -398,9 +396,6 @@ class Report:
                 "holds": self.holds,
                 "verdicts": self.verdicts,
                 **{condition.key: condition.to_dict() for condition in self.conditions},
-                "inequalities": [
-                    item.to_dict() | {"condition": condition.key} for condition in self.conditions for item in condition.inequalities
-                ],
                 "quantities": dict(self.quantities),
                 "summary": list(self.summary),
                 "notes": list(self.notes),
@@ -419,4 +414,12 @@ class Report:
         return "\n".join(self.lines())
 
 
-__all__ = ["COMPARISONS", "RESERVED_KEYS", "TOLERANCE", "Condition", "Inequality", "Report", "Verdict", "number", "numbers"]
+def inequalities_in(data: Mapping) -> list[dict]:
+    """Every inequality of a report's JSON (:meth:`Report.to_dict`, as a summary.json holds
+    it), condition by condition in the order of its ``verdicts`` (the table view)."""
+    return [item for key in data["verdicts"] for item in data[key]["inequalities"]]
+
+
+__all__ = [
+    "COMPARISONS", "RESERVED_KEYS", "TOLERANCE", "Condition", "Inequality", "Report", "Verdict", "inequalities_in", "number", "numbers",
+]

@@ -20,7 +20,6 @@ The observer is GES (Theorem 1) when each h is strictly positive real.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
@@ -253,23 +252,6 @@ def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10
     )
 
 
-@dataclass(frozen=True)
-class SPRCondition(Condition):
-    """Strict positive realness of one DOF's loop h = hB h0, with its KYP certificate.
-
-    The inequalities (named by the DOF): A Hurwitz, min Re h(jw) > 0 on the grid and
-    lim w^2 Re h(jw) = -C A B > 0 (Khalil 1996, Lemma 6.1), and, where these hold, the
-    certificate's P > 0, Q > 0 and B^T P = C (eqs. 38-39), which are ``unverified``
-    (not ``fails``) when no certificate is found: a failed search does not disprove
-    SPR. So the verdict is ``holds`` only with a verified certificate. Informational:
-    the minimum phase below 10 w_c against -90 deg, the SPR margin near the notch.
-    ``quantities`` holds the numbers, ``certificate`` among them
-    (:func:`kyp_certificate`, None when the frequency conditions fail).
-    """
-
-    dof: str = field(kw_only=True)
-
-
 def minimum_phase_in_band(frequencies, phase_deg, cutoff_frequency: float) -> tuple[float, float]:
     """Smallest phase of h (deg) at frequencies up to 10 w_c, and where (rad/s).
 
@@ -296,7 +278,7 @@ def _certificate_inequalities(dof: str, certificate: dict) -> list[Inequality]:
     ]
 
 
-def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRCondition]:
+def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[Condition]:
     """Check that each decoupled loop h_i(s) = hB_i(s) h0_i(s) is strictly positive real.
 
     Conditions (Khalil 1996, Lemma 6.1, for strictly proper h = C (sI - A)^-1 B):
@@ -305,15 +287,20 @@ def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRConditi
     loop, :func:`default_frequencies`, plus the notch frequency); and
     ``lim w^2 Re h(jw) = -C A B > 0``. Where these hold, a KYP certificate
     (P = P^T > 0, Q = Q^T > 0 with PA + A^T P = -Q and B^T P = C, eqs. 38–39) is
-    computed by :func:`kyp_certificate` and verified; SPR is reported as holding
-    only then (:class:`SPRCondition`). The report also gives the minimum phase below
-    10 w_c (``min_phase_deg_in_band``): the SPR margin near the notch, which the
+    computed by :func:`kyp_certificate` and verified; its P > 0, Q > 0 and B^T P = C
+    are ``unverified`` (not ``fails``) when no certificate is found, since a failed
+    search does not disprove SPR, so SPR holds only with a verified certificate. The
+    condition also gives, not in the verdict, the minimum phase below 10 w_c against
+    -90 deg (``min_phase_deg_in_band``): the SPR margin near the notch, which the
     overall minimum (the -90 deg asymptote) hides.
 
     Returns
     -------
-    list of SPRCondition
-        One per DOF, keys ``spr_surge``, ``spr_sway``, ``spr_yaw``.
+    list of Condition
+        One per DOF, in the order of :data:`~lookout.models.vessel.DOF`, keys
+        ``spr_surge``, ``spr_sway``, ``spr_yaw``; each inequality is named by its DOF.
+        ``quantities`` holds the numbers, ``certificate`` among them
+        (:func:`kyp_certificate`, None when the frequency conditions fail).
     """
     g = _gains(observer)
     if frequencies is None:
@@ -362,7 +349,7 @@ def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRConditi
                 "SPR is not established"
             )
         conditions.append(
-            SPRCondition(
+            Condition(
                 f"spr_{dof}", "Theorem 1", f"SPR of h = hB h0, {dof}", SOURCE_SPR,
                 frequency_domain + ([] if certificate is None else _certificate_inequalities(dof, certificate)),
                 reason,
@@ -377,7 +364,6 @@ def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[SPRConditi
                     "frequency_test": frequency_test,
                     "certificate": certificate,
                 },
-                dof=dof,
             )
         )
     return conditions

@@ -52,11 +52,11 @@ import scipy.integrate
 import scipy.linalg
 import scipy.optimize
 
+from lookout import _validation as check
 from lookout.analysis.conditions import Condition, Inequality, Report, Verdict, number, numbers
-from lookout.analysis.passive import _normalized_min_eig, check_spr, check_tuning_rule
+from lookout.analysis.passive import _normalized_min_eig, check_spr, check_tuning_rule, transfer_functions
 from lookout.models.vessel import DOF, DPVessel
 from lookout.observers.passive import PassiveObserver
-from lookout.observers.sliding_mode import SlidingModeObserver
 
 #: Names of the 15 error states, in the order of :func:`error_system`.
 ERROR_STATES = (
@@ -77,9 +77,16 @@ SOURCE_14 = "Kim (2002), eq. (14)"
 SOURCE_17 = "Kim (2002), eqs. (15)-(17), corrected (derivations K2)"
 
 
+def _is_sliding_mode(observer) -> bool:
+    """A sliding-mode observer (:class:`lookout.observers.SlidingModeObserver`): a passive
+    part and a switching term. Recognized by its parts, not its class, because that
+    class's design rule imports this module's check of (14)."""
+    return isinstance(getattr(observer, "passive", None), PassiveObserver) and hasattr(observer, "switching_gain")
+
+
 def _parts(observer) -> tuple[PassiveObserver, np.ndarray, np.ndarray]:
     """(passive observer, Kbar, eps) of a sliding-mode or passive observer."""
-    if isinstance(observer, SlidingModeObserver):
+    if _is_sliding_mode(observer):
         return observer.passive, np.asarray(observer.switching_gain, float), np.asarray(observer.boundary_layer, float)
     if isinstance(observer, PassiveObserver):
         return observer, np.zeros(3), np.ones(3)
@@ -327,19 +334,20 @@ def kyp_14(observer, *, frequencies=None) -> Condition:
     informational = [item for r in per_dof for item in r.informational]
     quantities = {
         "P": None, "Q": None, "residual_lyapunov": None, "residual_output": None,
-        "per_dof": {r.dof: {k: v for k, v in r.quantities.items() if k != "certificate"} | {"verdict": r.verdict, "reason": r.reason} for r in per_dof},
+        "per_dof": {dof: {k: v for k, v in r.quantities.items() if k != "certificate"} | {"verdict": r.verdict, "reason": r.reason}
+                    for dof, r in zip(DOF, per_dof)},
     }
 
     def condition(reason: str) -> Condition:
         return Condition("kyp_14", "(14)", "KYP for Sigma_2: P A + A^T P = -Q, B^T P = C, P, Q > 0", SOURCE_14,
                          inequalities, reason, informational, quantities)
 
-    failing = [r for r in per_dof if r.verdict == Verdict.FAILS]
+    failing = [(dof, r) for dof, r in zip(DOF, per_dof) if r.verdict == Verdict.FAILS]
     if failing:
-        return condition("not SPR, so no P, Q exist: " + "; ".join(f"{r.dof}: {r.reason}" for r in failing))
-    unverified = [r for r in per_dof if r.verdict != Verdict.HOLDS]
+        return condition("not SPR, so no P, Q exist: " + "; ".join(f"{dof}: {r.reason}" for dof, r in failing))
+    unverified = [(dof, r) for dof, r in zip(DOF, per_dof) if r.verdict != Verdict.HOLDS]
     if unverified:
-        return condition("; ".join(f"{r.dof}: {r.reason}" for r in unverified))
+        return condition("; ".join(f"{dof}: {r.reason}" for dof, r in unverified))
     A, B, C = sigma2(passive)
     P = np.zeros((12, 12))
     for i, report in enumerate(per_dof):
@@ -365,6 +373,81 @@ def kyp_14(observer, *, frequencies=None) -> Condition:
         f"per-DOF certificates hold but the assembled ones do not verify (min eig P {min_p:.2g}, "
         f"Q {min_q:.2g}, B^T P - C residual {residual_output:.2g})"
     )
+
+
+#: The parameter of :meth:`~lookout.observers.SlidingModeObserver.design` that each
+#: inequality of the tuning rule (48) asks to change, by its relation's start.
+_RULE_48_PARAMETERS = (("1/T", "bias_time_constant", "larger"), ("lambda/kappa", "bias_injection_gain", "smaller"),
+                       ("w_o", "cutoff_frequency", "larger"))
+
+
+def _loop_numbers(passive: PassiveObserver) -> tuple:
+    """The numbers (14) depends on: the wave model, K1, K2, Kappa, Lambda, T, gamma."""
+    fields = ("wave_frequency", "wave_damping", "wave_injection_gain", "position_injection_gain", "velocity_injection_gain",
+              "bias_injection_gain", "bias_time_constant", "lyapunov_weight")
+    return tuple(tuple(np.ravel(np.asarray(getattr(passive, name), dtype=float)).tolist()) for name in fields)
+
+
+#: :func:`_refusal` per set of gains (:func:`_loop_numbers`): a sweep builds the same observer many times.
+_REFUSALS: dict[tuple, str] = {}
+
+
+def _refusal(passive: PassiveObserver) -> str:
+    """The one-line refusal of :func:`require_kyp_14` for these gains ("" when (14) holds)."""
+    condition = kyp_14(passive)
+    if condition.holds:
+        return ""
+    per_dof = condition.quantities["per_dof"]
+    dof, numbers_of_dof = next((d, q) for d, q in per_dof.items() if q["verdict"] != Verdict.HOLDS)
+    index = DOF.index(dof)
+    rule = check_tuning_rule(passive)
+    broken = [item for item in rule.inequalities if item.name == dof and not item.holds]
+    if broken:
+        item = broken[0]
+        parameter, advice = next((name, advice) for start, name, advice in _RULE_48_PARAMETERS if item.relation.startswith(start))
+        why = f"Fossen & Strand's (48) fails: {item.relation}: {number(item.left, 4)} {item.comparison} {number(item.right, 4)} rad/s"
+    else:
+        # the factor of h = hB h0 that lags more where Re h is negative (where the phase
+        # comes nearest -90 deg below 10 w_c, when no certificate was found) takes the blame
+        negative = numbers_of_dof["min_real_part"] <= 0
+        w = numbers_of_dof["min_real_part_frequency" if negative else "min_phase_frequency_in_band"]
+        response = transfer_functions(passive, [w])
+        lag_bias = float(np.degrees(np.angle(response["hB"][0, index])))
+        lag_filter = float(np.degrees(np.angle(response["h0"][0, index])))
+        parameter, advice = ("bias_injection_gain", "smaller") if lag_bias < lag_filter else ("cutoff_frequency", "larger")
+        why = f"at w = {number(w, 4)} rad/s hB lags {lag_bias:.1f} deg and h0 {lag_filter:.1f} deg"
+    return f"{parameter} must be {advice}: the gains violate Kim (2002)'s (14) ({dof}: {numbers_of_dof['reason']}; {why})"
+
+
+def require_kyp_14(observer) -> None:
+    """Refuse gains that violate Kim (2002)'s (14): a one-line ``ValueError`` naming the
+    parameter of :meth:`~lookout.observers.SlidingModeObserver.design` to change.
+
+    (14) is checked by :func:`kyp_14` (``holds`` only with verified P, Q; a loop that is
+    SPR on the grid without a verified certificate is refused too). The parameter named
+    is the one of the first inequality of the tuning rule (48) that fails in the first
+    DOF where (14) does (:func:`lookout.analysis.passive.check_tuning_rule`: 1/T << H3/H4
+    -> ``bias_time_constant``, H3/H4 < w_o -> ``bias_injection_gain``, w_o < w_c ->
+    ``cutoff_frequency``); when (48) holds there, the factor of h = hB h0 that lags more
+    where Re h is smallest (or, when Re h > 0 on the grid but no certificate verifies,
+    where h's phase comes nearest -90 deg below 10 w_c): hB (``bias_injection_gain``)
+    or h0 (``cutoff_frequency``). Observers built under ``jit`` (traced gains) are not checked.
+    """
+    import jax
+
+    passive = observer.passive if _is_sliding_mode(observer) else observer
+    if not isinstance(passive, PassiveObserver):
+        raise ValueError(f"observer must be a SlidingModeObserver or a PassiveObserver; got {type(observer).__name__}")
+    if not all(check.is_concrete(leaf) for leaf in jax.tree_util.tree_leaves(passive)):
+        return  # built under jit or vmap: checked where the gains are concrete
+    key = _loop_numbers(passive)
+    if key not in _REFUSALS:
+        if len(_REFUSALS) >= 256:
+            _REFUSALS.clear()
+        _REFUSALS[key] = _refusal(passive)
+    refusal = _REFUSALS[key]
+    if refusal:
+        raise ValueError(refusal)
 
 
 # -- (17): the switching gain a bounded disturbance requires ------------------------
@@ -616,7 +699,7 @@ def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, headin
         Heading of J for the error systems (rad).
     """
     passive, kbar, eps = _parts(observer)
-    if isinstance(observer, SlidingModeObserver):
+    if _is_sliding_mode(observer):
         gains = observer.gains()
     else:
         gains = {

@@ -62,15 +62,20 @@ so (27) is reported as the existence of an eps3 (its eps3 -> 0 limit, (97)) and 
 
 As printed the procedure is circular: V0 depends on L1 and L2, chosen after eps3.
 :func:`propose_wondergem_2009` resolves it by a fixed-point iteration on (V0, L1, L2).
+:func:`wondergem_2009_gains` is that search as the design rule ``wondergem-2009`` of the
+observer (6) and the tracking controller (23) (one proposal for both, or a one-line
+refusal naming the argument that leaves the procedure without gains).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from lookout import _validation as check
 from lookout._json import json_safe
 from lookout._math import rotate, rotate_transpose, ssa
 from lookout.analysis.conditions import Condition, Inequality, Report
@@ -321,7 +326,7 @@ def check_wondergem_2009(
     return Report(f"{PAPER}: gain conditions", conditions, quantities, notes=notes)
 
 
-@dataclass
+@dataclass(frozen=True)
 class GainProposal:
     """Gains from :func:`propose_wondergem_2009`: uniform Omega = omega I, isotropic L1, L2."""
 
@@ -345,7 +350,8 @@ class GainProposal:
         return 2.0 / max(abs(p) for p in self.observer_poles)
 
     def search(self) -> dict:
-        """The search's result, without the check of the gains: JSON-safe."""
+        """The search's result, without the check of the gains: JSON-safe (what
+        :meth:`outcome` puts in its ``quantities["proposal"]``)."""
         return json_safe({
             "observer_poles": self.observer_poles if self.found else None,
             "euler_step_max_s": self.euler_step_max if self.found else None,
@@ -353,10 +359,6 @@ class GainProposal:
             "observer_gains": {"L1": self.observer_gains[0], "L2": self.observer_gains[1]}, "epsilon3": self.epsilon3,
             "iterations": self.iterations, "reason": self.reason,
         })
-
-    def to_dict(self) -> dict:
-        """:meth:`search` and the check of the gains (``report``, None when none were found)."""
-        return self.search() | {"report": self.report.to_dict() if self.report is not None else None}
 
     def summary(self) -> list[str]:
         """The proposed gains, or why there are none."""
@@ -371,9 +373,10 @@ class GainProposal:
         ]
 
     def outcome(self) -> Report:
-        """The check of the proposed gains, with :meth:`summary` and :meth:`search`
-        (``quantities["proposal"]``); when none were found, a report without
-        conditions (verdict ``unverified``) that says why."""
+        """The proposal as a :class:`~lookout.analysis.conditions.Report`: the check of the
+        proposed gains, with :meth:`summary` and :meth:`search` (``quantities["proposal"]``);
+        when none were found, a report without conditions (verdict ``unverified``) that
+        says why. Its :meth:`~lookout.analysis.conditions.Report.to_dict` is the JSON form."""
         report = self.report if self.report is not None else Report(f"{PAPER}: gain search", ())
         return report.extended(summary=self.summary(), quantities={"proposal": self.search()})
 
@@ -460,4 +463,105 @@ def propose_wondergem_2009(
                         f"{math.sqrt(start['eta_tilde0_sq']):.3g} makes the procedure's fixed point run away; start the estimate at the measurement")
 
 
-__all__ = ["GainProposal", "check_wondergem_2009", "christoffel_bound", "controller_p_matrix", "propose_wondergem_2009"]
+def _vector(name: str, value) -> tuple[float, ...]:
+    """``value`` as 3 finite floats (a scalar for all three), or a ValueError naming ``name``."""
+    array = check.vector(name, value)
+    check.finite(name, array)
+    return tuple(float(v) for v in array)
+
+
+def _bound(name: str, value, *, low: float = 0.0, strict: bool = False) -> float:
+    """``value`` as a finite float >= ``low`` (> ``low`` with ``strict``), or a ValueError naming ``name``."""
+    number = float(value)
+    if not (math.isfinite(number) and (number > low if strict else number >= low)):
+        raise ValueError(f"{name} must be finite and {'>' if strict else '>='} {low:g}; got {value!r}")
+    return number
+
+
+@functools.lru_cache(maxsize=32)
+def _cached_proposal(ship_numbers: tuple, start: tuple, bounds: tuple, damping_ratio: float, velocity_bound: float,
+                     margin: float) -> GainProposal:
+    """:func:`propose_wondergem_2009` once per ship and inputs: the observer's rule and the
+    controller's rule of one composition ask for the same proposal."""
+    from lookout.models.cybership import Cybership
+
+    mass, damping, quadratic = (np.asarray(part) for part in ship_numbers)
+    eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_velocity0 = start
+    yaw_rate_max, speed_max, acceleration_max = bounds
+    return propose_wondergem_2009(
+        Cybership(mass.reshape(3, 3), damping.reshape(3, 3), quadratic), damping_ratio=damping_ratio, eta0=eta0, nu0=nu0,
+        eta_hat0=eta_hat0, velocity_hat0=velocity_hat0, reference_position0=reference_position0,
+        reference_velocity0=reference_velocity0, yaw_rate_max=yaw_rate_max, reference_speed_max=speed_max,
+        reference_acceleration_max=acceleration_max, velocity_bound=velocity_bound, margin=margin,
+    )
+
+
+def wondergem_2009_gains(
+    ship,
+    *,
+    reference_position,
+    reference_velocity,
+    reference_yaw_rate_max,
+    reference_speed_max,
+    reference_acceleration_max,
+    start_position,
+    start_velocity=0.0,
+    estimate_position=None,
+    estimate_velocity=0.0,
+    damping_ratio=1.0,
+    velocity_bound=0.3,
+    margin=1.1,
+) -> GainProposal:
+    """The gains of Wondergem et al. (2009)'s tuning procedure (steps 1–7 after Prop. 3.3)
+    for ``ship``, a start and a reference: the design rule ``wondergem-2009`` of the
+    observer (6) (:meth:`lookout.observers.EarthFixedObserver.design`) and of the tracking
+    scheme (23) (:meth:`lookout.controllers.TrackingController.design`), which take one
+    proposal between them, L1, L2 and Omega, Lambda being chosen together.
+
+    :func:`propose_wondergem_2009` with the arguments named for a composition's keys
+    (``start_position`` is eta_0, ``estimate_position`` eta_hat_0, default eta_0: the
+    estimate started at the measurement; ``estimate_velocity`` the Earth-frame v_hat(0)),
+    computed once per ship and inputs. The returned proposal's gains satisfy (25),
+    Prop. 3.1 ((10), (11), (13), (14)) and Prop. 3.3 ((27), (29)–(33)) at its eps3
+    (:attr:`GainProposal.report`, from :func:`check_wondergem_2009`).
+
+    Raises
+    ------
+    ValueError
+        One line naming the argument: a value out of range, or the start from which the
+        procedure finds no gains. With eta_hat_0 != eta_0, V0 (28) grows with L1 and L2
+        and the fixed point can run away (``estimate_position``); from eta_hat_0 = eta_0
+        the initial tracking error ||x_e0|| must leave (27) an eps3 for some
+        omega <= 100 rad/s (``start_position``).
+    """
+    ship_numbers = tuple(tuple(np.asarray(getattr(ship, name), dtype=float).ravel().tolist())
+                         for name in ("mass_matrix", "damping_matrix", "quadratic_damping"))
+    position = _vector("start_position", start_position)
+    start = (
+        position, _vector("start_velocity", start_velocity),
+        position if estimate_position is None else _vector("estimate_position", estimate_position),
+        _vector("estimate_velocity", estimate_velocity), _vector("reference_position", reference_position),
+        _vector("reference_velocity", reference_velocity),
+    )
+    bounds = (_bound("reference_yaw_rate_max", reference_yaw_rate_max), _bound("reference_speed_max", reference_speed_max),
+              _bound("reference_acceleration_max", reference_acceleration_max))
+    ratio = _bound("damping_ratio", damping_ratio, strict=True)
+    speed = _bound("velocity_bound", velocity_bound)
+    factor = _bound("margin", margin, low=1.0, strict=True)
+    proposal = _cached_proposal(ship_numbers, start, bounds, ratio, speed, factor)
+    if proposal.found and proposal.report is not None and proposal.report.holds:
+        return proposal
+    estimate_error = math.sqrt(_start(*start)["eta_tilde0_sq"])
+    if estimate_error > 0:
+        L1, L2 = proposal.observer_gains
+        raise ValueError(
+            f"estimate_position is too far from the measurement for {PAPER}'s procedure: with ||eta_hat(0) - eta(0)|| = "
+            f"{estimate_error:.3g} (m and rad in one norm) V0 (28) grows with L1 and L2 and their fixed point runs away "
+            f"(L1 = {L1:.3g}, L2 = {L2:.3g} after {proposal.iterations} iterations); leave it out to start the estimate at the measurement"
+        )
+    raise ValueError(f"start_position is too far from the reference for {PAPER}'s procedure: {proposal.reason}")
+
+
+__all__ = [
+    "GainProposal", "check_wondergem_2009", "christoffel_bound", "controller_p_matrix", "propose_wondergem_2009", "wondergem_2009_gains",
+]

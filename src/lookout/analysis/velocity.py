@@ -54,7 +54,6 @@ import numpy as np
 import scipy.optimize
 
 from lookout import _validation as check
-from lookout._json import json_safe
 from lookout.analysis.conditions import Condition, Inequality, Report
 from lookout.models.manipulators import PRISMATIC, REVOLUTE, ManipulatorModel
 
@@ -248,7 +247,8 @@ class VelocityObserverCondition:
     report : Report
         The conditions: ``theorem_2_1`` (effective_gain > threshold) and, with an
         initial error, ``region_2_13`` (radius > initial_error); the numbers above in
-        its ``quantities``.
+        its ``quantities``. Its :meth:`~lookout.analysis.conditions.Report.to_dict` is
+        the JSON form.
     """
 
     gain_bound: float
@@ -277,12 +277,6 @@ class VelocityObserverCondition:
     def inside_region(self) -> bool | None:
         """initial_error < radius, if an initial error is given."""
         return self.report["region_2_13"].holds if self.initial_error is not None else None
-
-    def to_dict(self) -> dict:
-        """The report's JSON, and its numbers, ``satisfied``, ``margin`` and ``inside_region``
-        also at the top level (non-finite numbers are None)."""
-        legacy = {**self.report.quantities, "satisfied": self.satisfied, "margin": self.margin, "inside_region": self.inside_region}
-        return self.report.to_dict() | json_safe(legacy)
 
     def __str__(self) -> str:
         text = (

@@ -103,6 +103,78 @@ class TrackingController(Controller):
         check.positive("natural_frequency (Omega)", self.natural_frequency)
         check.positive("damping_ratio (Lambda)", self.damping_ratio)
 
+    @classmethod
+    def design(
+        cls,
+        ship: Cybership,
+        *,
+        reference_position,
+        reference_velocity,
+        reference_yaw_rate_max,
+        reference_speed_max,
+        reference_acceleration_max,
+        start_position,
+        start_velocity=0.0,
+        estimate_position=None,
+        estimate_velocity=0.0,
+        damping_ratio=1.0,
+        velocity_bound=0.3,
+        margin=1.1,
+    ) -> "TrackingController":
+        """The scheme (23) for ``ship`` with Omega = omega I and Lambda = ``damping_ratio`` I
+        from Wondergem et al. (2009)'s gain tuning procedure (steps 1–7 after Prop. 3.3),
+        Kp = M Omega^2 and Kd = 2 M Lambda Omega - D by (24).
+
+        omega is the smallest-L1 choice of a 1 % grid where an eps3 satisfies (27) (so (25),
+        (21) hold), with the observer gains L1, L2 that satisfy (29)–(33) chosen with it
+        (:func:`lookout.analysis.tracking.propose_wondergem_2009`): the observer's rule of
+        the same name, given the same reference and start, takes the L1, L2 of the same
+        proposal (:func:`lookout.analysis.tracking.wondergem_2009_gains`), and the pair
+        satisfies (25), Prop. 3.1 ((10)–(15)) and Prop. 3.3 ((27)–(37)) at that start.
+        Uniform Omega keeps kappa_r = 1: the gap in (81) does not arise.
+
+        Parameters
+        ----------
+        ship : Cybership
+            The controller's model (M, C, D, D_n); in a composition, the plant's ship model
+            (else the observer's) unless given.
+        reference_position : array_like, shape (3,)
+            eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.
+        reference_velocity : array_like, shape (3,)
+            nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.
+        reference_yaw_rate_max : float, non-negative
+            r_ref^max, the largest |r_ref| of the reference (rad/s).
+        reference_speed_max : float, non-negative
+            sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).
+        reference_acceleration_max : float, non-negative
+            sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.
+        start_position : array_like, shape (3,)
+            eta(0): the ship's initial position north, east (m) and heading (rad).
+        start_velocity : array_like, shape (3,)
+            nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).
+        estimate_position : array_like, shape (3,), optional
+            eta_hat(0), the observer's initial position estimate (m, m, rad); default
+            ``start_position``, the estimate started at the measurement.
+        estimate_velocity : array_like, shape (3,)
+            v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).
+        damping_ratio : float, positive
+            lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).
+        velocity_bound : float, non-negative
+            V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).
+        margin : float, in (1, inf)
+            Factor by which L1 and L2 exceed their largest lower bound (1).
+        """
+        from lookout.analysis.tracking import wondergem_2009_gains
+
+        proposal = wondergem_2009_gains(
+            ship, reference_position=reference_position, reference_velocity=reference_velocity,
+            reference_yaw_rate_max=reference_yaw_rate_max, reference_speed_max=reference_speed_max,
+            reference_acceleration_max=reference_acceleration_max, start_position=start_position, start_velocity=start_velocity,
+            estimate_position=estimate_position, estimate_velocity=estimate_velocity, damping_ratio=damping_ratio,
+            velocity_bound=velocity_bound, margin=margin,
+        )
+        return cls(ship, proposal.natural_frequency, proposal.damping_ratio)
+
     @property
     def stiffness_gain(self) -> Array:
         """Kp = M Omega^2 (20)."""

@@ -135,9 +135,6 @@ from lookout._math import sincos
 MEAN_TO_PEAK_PERIOD = 0.834
 #: The default frequency band, in multiples of the peak frequency.
 DEFAULT_BAND = (0.5, 3.0)
-#: The default hull length (m): Cybership II's length over all, the small hull this
-#: model was written for (:data:`lookout.models.cybership.CYBERSHIP_LENGTH`).
-CYBERSHIP_II_LENGTH = 1.255
 
 
 def _namespace(*values):
@@ -325,9 +322,10 @@ class JonswapWaves(eqx.Module):
         Number of frequency components N (static), >= 1.
     band : pair of floats, optional
         (w_lo, w_hi) in rad/s, 0 < w_lo < w_hi; default (0.5 wp, 3 wp).
-    hull_length : float
-        L (m), >= 0, for the averaging gain |sinc(k L / 2)| (0: no averaging); the default
-        is Cybership II's 1.255 m.
+    hull_length : float, non-negative
+        L (m), the length of the hull the waves move, for the averaging gain |sinc(k L / 2)|
+        (0: no averaging); no default, since it is the vessel's (Cybership II's is 1.255 m,
+        :data:`lookout.models.cybership.CYBERSHIP_LENGTH`).
     yaw_gain : float
         Yaw motion per unit hull-averaged wave slope (rad), >= 0.
     gravity : float
@@ -362,7 +360,8 @@ class JonswapWaves(eqx.Module):
         direction=0.0,
         components=64,
         band=None,
-        hull_length=CYBERSHIP_II_LENGTH,
+        *,
+        hull_length,
         yaw_gain=0.1,
         gravity=9.81,
     ):

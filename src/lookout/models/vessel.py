@@ -60,6 +60,22 @@ NORTHERN_CLIPPER_M = np.diag([5.3122e6, 8.2831e6, 3.7454e9])
 NORTHERN_CLIPPER_D = np.array(
     [[5.0242e4, 0.0, 0.0], [0.0, 2.7229e5, -4.3933e6], [0.0, -4.3933e6, 4.1894e8]]
 )
+#: Thrust limits chosen for the Northern Clipper (surge force N, sway force N, yaw moment
+#: N m; the input layout of :data:`VESSEL_INPUT`), for an actuator ``kind =
+#: "thrust-limits"`` (:class:`lookout.actuators.SaturatingActuator`); Fossen & Strand
+#: (1999) give none:
+#:
+#: - surge force 0.5 MN: about 50 t of the roughly 80 t bollard pull of a twin-screw
+#:   supply vessel of 70-80 m of the 1990s, the share a DP system typically keeps
+#:   available (the rest is margin);
+#: - sway force 0.3 MN: two bow and one stern tunnel thruster of 600-800 kW at about
+#:   12 kg of thrust per kW (about 26 t), plus a little from the main propellers and rudders;
+#: - yaw moment 1.0e7 N m: bow and stern thrusters about +-33 m (0.43 L) from midships
+#:   pushing in opposite directions, 0.3 MN x 33 m.
+#:
+#: Against the paper's loads (bias of 10 kN, 5 kN, 100 kN m; tau of 1 kN) these limits
+#: never bind; they matter for a controller that moves the vessel.
+NORTHERN_CLIPPER_THRUST_LIMIT = (5.0e5, 3.0e5, 1.0e7)
 
 
 class VesselState(eqx.Module):

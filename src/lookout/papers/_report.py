@@ -79,6 +79,15 @@ def save_figures(figures: dict, out) -> list[str]:
     return list(figures)
 
 
+def summary_header(name: str, config, status, *, runs: int | None = None, seeds=None) -> dict:
+    """The keys every reproduction's summary.json starts with: its name, settings, runs,
+    seeds and each run's status (runs and seeds: the config's unless given)."""
+    return {
+        "reproduction": name, "config": config.model_dump(), "runs": config.runs if runs is None else runs,
+        "seeds": list(config.seeds if seeds is None else seeds), "status": [str(value) for value in status],
+    }
+
+
 def write_summary(summary: dict, out) -> dict:
     """Write ``summary`` as strict JSON (NaN and inf as null, see :func:`json_safe`) to
     ``out / "summary.json"`` and return the JSON-safe copy."""

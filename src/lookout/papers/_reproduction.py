@@ -90,3 +90,19 @@ def simulate_cases(reproduction: Reproduction, config, cases, coordinate: str, *
     labels = [case for case in cases for _ in range(config.runs)]
     seeds = [seed for _ in cases for seed in config.seeds]
     return ds.assign_coords({coordinate: ("run", np.asarray(labels, dtype=object)), "seed": ("run", np.asarray(seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"})})
+
+
+def simulate_each(cases, simulate_case: Callable, out, filename: str, history: Callable[[str], str], *, progress: Callable | None = None):
+    """For each case in order: ``scenario, ds = simulate_case(case, progress=step)``, the
+    dataset written to ``out / filename.format(case=case)`` with ``history(case)``;
+    yields ``(case, scenario, ds, written file name)``. ``progress(done, total)`` covers
+    the cases, one part each."""
+    from lookout.results import write_netcdf
+
+    cases = list(cases)
+    for index, case in enumerate(cases):
+        step = None if progress is None else (lambda done, total, index=index: progress(index + done / total, len(cases)))
+        scenario, ds = simulate_case(case, progress=step)
+        name = filename.format(case=case)
+        write_netcdf(ds, out / name, history=history(case))
+        yield case, scenario, ds, name

@@ -37,15 +37,15 @@ from pydantic import Field, field_validator
 
 from lookout import _validation as check
 from lookout.analysis.adaptive_manipulator import check_5_28
+from lookout.analysis.conditions import inequalities_in
 from lookout.composition import compose
 from lookout.models.manipulators import REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, TwoLinkArm
 from lookout.models.parameters import ModelParameters
 from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
-from lookout.papers._reproduction import Reproduction
+from lookout.papers._reproduction import Reproduction, simulate_each
 from lookout.reference import ReferenceFilter
-from lookout.results import write_netcdf
 from lookout.sim import Scenario, seed_keys, simulate
 
 NAME = "calugi-2002-backstepping"
@@ -247,11 +247,9 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate both variants; write NetCDF, figures and summary.json."""
     out.mkdir(parents=True, exist_ok=True)
     results, per_variant, unknowns, files = {}, {}, {}, []
-    for index, variant in enumerate(VARIANTS):
-        step = None if progress is None else (lambda done, total, i=index: progress(i + done / total, len(VARIANTS)))
-        scenario, ds = simulate_case(config, variant, progress=step)
-        filename = f"calugi_2002_backstepping_{variant}.nc"
-        write_netcdf(ds, out / filename, history=f"lookout reproduce {NAME} ({variant} (5.37))")
+    each = simulate_each(VARIANTS, lambda variant, progress: simulate_case(config, variant, progress=progress), out, "calugi_2002_backstepping_{case}.nc",
+                         lambda variant: f"lookout reproduce {NAME} ({variant} (5.37))", progress=progress)
+    for variant, scenario, ds, filename in each:
         files.append(filename)
         results[variant] = ds.isel(run=0)
         unknowns[variant] = scenario.observer.parameters
@@ -336,7 +334,7 @@ def tables(summary: dict) -> list[Table]:
     result.append(Table(
         "(5.28) for the printed gains (K = 5, d_i = 1)",
         ("", "condition", "left", "right", "verdict"),
-        tuple((item["name"], item["relation"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"]) for item in condition["inequalities"]),
+        tuple((item["name"], item["relation"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"]) for item in inequalities_in(condition)),
         f"sigma = inf lambda_min(KM + MK)/2; C_M = {condition['quantities']['C_M']:.3g} (Christoffel); w_max from the corrected run",
     ))
     return result

@@ -34,9 +34,8 @@ from lookout.composition import compose
 from lookout.models.manipulators import ManipulatorModel
 from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.papers import CATALOG
-from lookout.papers._report import Table, significant, write_summary
-from lookout.papers._reproduction import Reproduction
-from lookout.results import write_netcdf
+from lookout.papers._report import Table, significant, summary_header, write_summary
+from lookout.papers._reproduction import Reproduction, simulate_each
 from lookout.sim import Scenario, seed_keys, simulate
 
 NAME = "calugi-2002-velocity-observer"
@@ -205,7 +204,7 @@ def summarize(ds: xr.Dataset, name: str, model: ManipulatorModel) -> dict:
         "initial_estimate": list(system.initial_estimate),
         "joints": joints,
         "error_norm": {"initial_error": float(norm[0]), "final_error": float(norm[-1]), **_decay(time, norm)},
-        "theorem_2_1": report.to_dict(),
+        "theorem_2_1": report.report.to_dict(),
     }
 
 
@@ -217,11 +216,10 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
 
     out.mkdir(parents=True, exist_ok=True)
     files, systems, status = [], {}, []
-    for index, (name, system) in enumerate(SYSTEMS.items()):
-        step = None if progress is None else (lambda done, total, i=index: progress(i + done / total, len(SYSTEMS)))
-        scenario, ds = simulate_system(config, name, progress=step)
-        filename = f"calugi_2002_{name}.nc"
-        write_netcdf(ds, out / filename, history=f"lookout reproduce {NAME}: {system.label}")
+    each = simulate_each(SYSTEMS, lambda name, progress: simulate_system(config, name, progress=progress), out, "calugi_2002_{case}.nc",
+                         lambda name: f"lookout reproduce {NAME}: {SYSTEMS[name].label}", progress=progress)
+    for name, scenario, ds, filename in each:
+        system = SYSTEMS[name]
         files.append(filename)
         status += ds.status.values.tolist()
         velocities = [(variable, label) for variable in _velocity_names(ds) for label in ds[variable][ds[variable].dims[-1]].values.tolist()]
@@ -241,11 +239,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
             files.append(filename)
         systems[name] = summarize(ds, name, scenario.observer.model)
     summary = {
-        "reproduction": NAME,
-        "config": config.model_dump(),
-        "runs": 1,
-        "seeds": [config.seed],
-        "status": status,
+        **summary_header(NAME, config, status, runs=1, seeds=[config.seed]),
         "systems": systems,
         "files": sorted([*files, "summary.json"]),
     }
@@ -259,14 +253,15 @@ def tables(summary: dict) -> list[Table]:
         for joint, values in system["joints"].items():
             rate = values["rate"]
             errors.append((f"{name} {joint}", significant(values["initial_error"]), significant(values["final_error"]), "-" if rate is None else f"{rate:.3f}"))
-        condition = system["theorem_2_1"]
-        radius = condition["radius"]
+        report = system["theorem_2_1"]
+        numbers = report["quantities"]
+        radius = numbers["radius"]
         theorem.append(
             (
                 name,
-                f"{condition['effective_gain']:.3g}",
-                f"{condition['threshold']:.3g}",
-                "holds" if condition["satisfied"] else "fails",
+                f"{numbers['effective_gain']:.3g}",
+                f"{numbers['threshold']:.3g}",
+                report["verdicts"]["theorem_2_1"],
                 "unbounded" if radius is None else f"{radius:.3g}",
             )
         )

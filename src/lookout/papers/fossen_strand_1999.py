@@ -279,7 +279,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
                 "bias_injection_gain": np.asarray(observer.bias_injection_gain).tolist(),
             },
             "tuning_rule_holds": check_tuning_rule(observer).holds,
-            "spr": {report.dof: report.verdict for report in check_spr(observer)},
+            "spr": {dof: report.verdict for dof, report in zip(DOF, check_spr(observer))},
             "files": sorted(["fossen_strand_1999.nc", "bode.nc", "summary.json", *figures]),
         }
     )

@@ -54,9 +54,8 @@ from lookout.actuators import IdealActuator
 from lookout.components import Actuator, ContinuousObserver, Controller, Observer, Plant, Reference, Sensor, Signal
 from lookout.reference import NoReference
 from lookout.results import RecordSignals, Trajectory
-from lookout.sim.integrators import euler_step, rk4_step
+from lookout.sim.integrators import INTEGRATORS
 
-INTEGRATORS = {"rk4": rk4_step, "euler": euler_step}
 
 
 def integer_ratio(value: float, base: float) -> int | None:

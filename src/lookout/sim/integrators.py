@@ -42,3 +42,7 @@ def rk4_step(field: Callable, t, state, step):
 def euler_step(field: Callable, t, state, step):
     """One explicit Euler step of ``state' = field(t, state)`` (same signature as rk4_step)."""
     return _axpy(step, field(t, state), state)
+
+
+#: The integrators a scenario (and a Kalman filter's propagation) may name.
+INTEGRATORS = {"rk4": rk4_step, "euler": euler_step}

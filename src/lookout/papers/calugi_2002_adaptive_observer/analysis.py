@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from lookout.analysis.conditions import inequalities_in
 from lookout.papers._report import Table, significant
 
 from .composition import build, order_composition, simulate_document
@@ -116,7 +117,7 @@ def tables(summary: dict) -> list[Table]:
     result.append(Table(
         "Theorem 4.1 (C_M = 0 for the pendulum: the region is global)",
         ("", "condition", "left", "right", "verdict"),
-        tuple((item["name"], item["relation"], _number(item["left"]), _number(item["right"]), item["verdict"]) for item in theorem["inequalities"]),
+        tuple((item["name"], item["relation"], _number(item["left"]), _number(item["right"]), item["verdict"]) for item in inequalities_in(theorem)),
         f"sigma = K m l^2 = {theorem['quantities']['sigma']:.4g}; w_max from the run",
     ))
     if summary.get("order"):

@@ -36,9 +36,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-from lookout.papers._report import save_figures, write_summary
-from lookout.papers._reproduction import Reproduction
-from lookout.results import write_netcdf
+from lookout.papers._report import save_figures, summary_header, write_summary
+from lookout.papers._reproduction import Reproduction, simulate_each
 
 from . import composition as _composition
 from .analysis import settle_time, summarize, tables
@@ -52,20 +51,14 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate the four runs; write NetCDF, figures and summary.json under ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     results, estimators, files, status = {}, {}, [], []
-    for index, name in enumerate(SIMULATIONS):
-        step = None if progress is None else (lambda done, total, i=index: progress(i + done / total, len(SIMULATIONS)))
-        scenario, ds = simulate_run(config, name, progress=step)
-        filename = f"calugi_2002_ch3_{name}.nc"
-        write_netcdf(ds, out / filename, history=f"lookout reproduce {NAME}: {SIMULATIONS[name].label}")
+    each = simulate_each(SIMULATIONS, lambda name, progress: simulate_run(config, name, progress=progress), out, "calugi_2002_ch3_{case}.nc",
+                         lambda name: f"lookout reproduce {NAME}: {SIMULATIONS[name].label}", progress=progress)
+    for name, scenario, ds, filename in each:
         files.append(filename)
         status += ds.status.values.tolist()
         results[name], estimators[name] = ds, scenario.observer
     summary = {
-        "reproduction": NAME,
-        "config": config.model_dump(),
-        "runs": 1,
-        "seeds": [config.seed],
-        "status": status,
+        **summary_header(NAME, config, status, runs=1, seeds=[config.seed]),
         "input": f"{input_text(config)} (chosen), held over {config.sample_period:g} s",
         **summarize(config, results, estimators),
     }

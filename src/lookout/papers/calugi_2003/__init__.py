@@ -30,7 +30,7 @@ from typing import Callable
 import numpy as np
 
 from lookout.analysis.adaptive_dp import check_calugi_2003
-from lookout.papers._report import write_summary
+from lookout.papers._report import summary_header, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_cases
 from lookout.papers.calugi_2003.analysis import loop_metrics
 from lookout.papers.calugi_2003.composition import CASES, build, composition
@@ -90,11 +90,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         files += [STORE, "calugi_2003_theta_convergence.nc", "calugi_2003_noise_drift.nc", "calugi_2003_discretization_order.nc"]
     files += _figures(ds, sweep, convergence, out, config)
     summary = {
-        "reproduction": NAME,
-        "config": config.model_dump(),
-        "runs": config.runs,
-        "seeds": config.seeds,
-        "status": ds.status.values.tolist(),
+        **summary_header(NAME, config, ds.status.values.tolist()),
         "true_m11": m11(),
         "gain_sets": per_set,
         "interval_sweep": None if sweep is None else sweep_summary(sweep),

@@ -24,7 +24,7 @@ Not given, or not usable as printed, and chosen here (docs/reproductions.md):
   see :mod:`lookout.controllers.backstepping`).
 * The trajectory: setpoint moves of 30 m and 0.2 rad through a third-order reference
   filter of bandwidth 0.03 rad/s (:data:`WAYPOINTS`).
-* Thrust limits: the Northern Clipper's (:data:`lookout.actuators.NORTHERN_CLIPPER_THRUST_LIMIT`).
+* Thrust limits: the Northern Clipper's (:data:`lookout.models.vessel.NORTHERN_CLIPPER_THRUST_LIMIT`).
 * The model error (the paper gives none): the plant's M and D scaled and an
   unmodelled body-fixed force; default M_true = 1.2 M, D_true = 1.5 D and a force
   F = 4 kN (twice the bias std) as F [1, 1, 5 m] (1/2 + 1/2 sin(2 pi t / 100 s)).
@@ -46,7 +46,7 @@ from typing import Callable
 import numpy as np
 
 from lookout.analysis.sliding_mode import check_kim_2002
-from lookout.papers._report import write_summary
+from lookout.papers._report import summary_header, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_cases
 from lookout.papers.kim_2002.analysis import _aggregate, bias_with_model_error, closed_loop_metrics, diverged_at
 from lookout.papers.kim_2002.composition import CASES, build, composition
@@ -91,11 +91,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         observer = printed_observer(model, boundary_layer=config.boundary_layer, **gain_sets(config.vessel.mass, config.vessel.length)[gains])
         reports[gains] = check_kim_2002(observer, model).to_dict()
     summary = {
-        "reproduction": NAME,
-        "config": config.model_dump(),
-        "runs": config.runs,
-        "seeds": config.seeds,
-        "status": ds.status.values.tolist(),
+        **summary_header(NAME, config, ds.status.values.tolist()),
         "observers": per_observer,
         "stability": reports,
         "sweep": None if sweep is None else sweep_summary(sweep),

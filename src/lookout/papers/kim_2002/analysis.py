@@ -8,7 +8,7 @@ import math
 import numpy as np
 import xarray as xr
 
-from lookout.actuators import NORTHERN_CLIPPER_THRUST_LIMIT
+from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT
 from lookout.analysis import estimation_errors
 from lookout.papers._report import significant
 from lookout.papers.kim_2002.composition import build

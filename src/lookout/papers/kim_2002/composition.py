@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lookout.actuators import NORTHERN_CLIPPER_THRUST_LIMIT
+from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT
 from lookout.composition import compose
 from lookout.papers.kim_2002.config import (
     BIAS_TIME_CONSTANT, FORCE_LEVER_ARM, OBSERVERS, SWITCHING_GAIN, WAVE, WAYPOINTS, Config, ModelError, gain_sets,
@@ -50,7 +50,7 @@ def composition(
         },
         "sensor": {"kind": "position-heading", "noise_std": config.noise_std, "sample_period": config.measurement_period},
         "observer": {
-            "kind": "sliding-mode", "design": "kim-2002", "vessel": _vessel(config), **WAVE,
+            "kind": "sliding-mode", "design": "gains", "vessel": _vessel(config), **WAVE,
             **gain_sets(config.vessel.mass, config.vessel.length)[gains], "bias_time_constant": BIAS_TIME_CONSTANT,
             "switching_gain": switching.tolist(), "boundary_layer": config.boundary_layer,
         },

@@ -46,13 +46,13 @@ DIVERGED_DISTANCE = 100.0
 
 def printed_observer(vessel, *, boundary_layer, **overrides) -> SlidingModeObserver:
     """The sliding-mode observer with the printed gains of (A.2)–(A.4) for ``vessel``;
-    ``overrides`` replace any of them (keywords of :meth:`SlidingModeObserver.design`).
+    ``overrides`` replace any of them (keywords of :meth:`SlidingModeObserver.from_gains`).
     The boundary layer eps is not given in the paper: it must be chosen."""
     settings = {
         **WAVE, "velocity_injection_gain": VELOCITY_GAIN, "bias_injection_gain": BIAS_GAIN, "bias_time_constant": BIAS_TIME_CONSTANT,
         "switching_gain": SWITCHING_GAIN, "boundary_layer": boundary_layer, **overrides,
     }
-    return SlidingModeObserver.design(vessel, **settings)
+    return SlidingModeObserver.from_gains(vessel, **settings)
 
 
 def gain_sets(mass: float = NORTHERN_CLIPPER_MASS, length: float = NORTHERN_CLIPPER_LENGTH) -> dict[str, dict]:

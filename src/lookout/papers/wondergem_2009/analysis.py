@@ -17,6 +17,7 @@ from lookout.papers.wondergem_2009.config import (
     NATURAL_FREQUENCY,
     OBSERVER_POSITION_GAIN,
     OBSERVER_VELOCITY_GAIN,
+    VELOCITY_BOUND,
     Config,
 )
 from lookout.reference import EllipseReference
@@ -176,7 +177,7 @@ def _reference_arguments(config: Config, bounds: dict | None) -> dict:
     }
 
 
-def gain_conditions(config: Config, velocity_bound: float = 0.3, *, estimate: str = "printed", gains: dict | None = None, epsilon3=None,
+def gain_conditions(config: Config, velocity_bound: float = VELOCITY_BOUND, *, estimate: str = "printed", gains: dict | None = None, epsilon3=None,
                     bounds: dict | None = None):
     """Conditions (25), Prop. 3.1 and Prop. 3.3
     (:func:`lookout.analysis.tracking.check_wondergem_2009`) at the configured start, for
@@ -192,7 +193,7 @@ def gain_conditions(config: Config, velocity_bound: float = 0.3, *, estimate: st
     )
 
 
-def proposed_gains(config: Config, velocity_bound: float = 0.3, *, estimate: str = "measured", damping_ratio: float = DAMPING_RATIO,
+def proposed_gains(config: Config, velocity_bound: float = VELOCITY_BOUND, *, estimate: str = "measured", damping_ratio: float = DAMPING_RATIO,
                    bounds: dict | None = None):
     """:func:`lookout.analysis.tracking.propose_wondergem_2009` at the configured start."""
     from lookout.analysis.tracking import propose_wondergem_2009
@@ -205,12 +206,13 @@ def proposed_gains(config: Config, velocity_bound: float = 0.3, *, estimate: str
 
 def gain_study(config: Config) -> dict:
     """summary.json's gain part: the printed gains at the printed start and with the
-    estimate started at the measurement, the search's proposal, and the ellipse's thrust."""
+    estimate started at the measurement, the search's proposal (a report: the check of the
+    gains found, the search's numbers in ``quantities["proposal"]``), and the ellipse's thrust."""
     bounds = reference_bounds(config)
     proposal = proposed_gains(config, bounds=bounds)
     return {
         "gain_conditions": gain_conditions(config, bounds=bounds).to_dict(),
         "gain_conditions_measured_start": gain_conditions(config, estimate="measured", bounds=bounds).to_dict(),
-        "gain_proposal": proposal.to_dict(),
+        "gain_proposal": proposal.outcome().to_dict(),
         "reference_thrust": reference_thrust(config),
     }

@@ -27,6 +27,9 @@ OBSERVER_POSITION_GAIN = 15.0
 OBSERVER_VELOCITY_GAIN = 50.0
 NATURAL_FREQUENCY = (0.72, 0.42, 0.64)
 DAMPING_RATIO = 1.0
+#: V_M of Prop. 3.1 (m/s), the bound on the ship's speed ||eta'|| the gain conditions are
+#: checked for: the paper gives none; the ellipse's sup ||nu_ref|| is 0.29 (reference_bounds).
+VELOCITY_BOUND = 0.3
 #: Integration step of the plant (s), and the controller's period in the simulation condition.
 PLANT_STEP = 0.01
 #: The basin scheme's period (s): observer and controller at 20 Hz.

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from lookout.analysis.conditions import inequalities_in
 from lookout.papers._report import Table, significant
+from lookout.papers.wondergem_2009.config import VELOCITY_BOUND
 
 
 def tables(summary: dict) -> list[Table]:
@@ -29,18 +31,18 @@ def tables(summary: dict) -> list[Table]:
     )]
     conditions, measured = summary.get("gain_conditions"), summary.get("gain_conditions_measured_start")
     if conditions and measured:
-        sides = {item["name"]: item for item in measured["inequalities"]}
+        sides = {item["name"]: item for item in inequalities_in(measured)}
         rows = tuple(
             (item["name"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"],
              *((f"{sides[item['name']]['right']:.4g}", sides[item["name"]]["verdict"]) if item["name"] in sides else ("-", "-")))
-            for item in conditions["inequalities"]
+            for item in inequalities_in(conditions)
         )
         result.append(Table(
-            "Gain conditions for the printed gains: (25), Proposition 3.1 (V_M = 0.3 m/s), Proposition 3.3",
+            f"Gain conditions for the printed gains: (25), Proposition 3.1 (V_M = {VELOCITY_BOUND:g} m/s), Proposition 3.3",
             ("", "left", "right", "verdict", "right, eta_hat0 = eta0", "verdict"), rows,
             "sufficient conditions, at the printed start and with the estimate started at the measurement (v_hat0 = 0)",
         ))
-    proposal = summary.get("gain_proposal")
+    proposal = (summary.get("gain_proposal") or {}).get("quantities", {}).get("proposal")
     if proposal and proposal["found"]:
         result.append(Table(
             "Gains the search proposes (eta_hat0 = eta0, v_hat0 = 0): every condition holds",

@@ -1,0 +1,401 @@
+"""Continuous-discrete Kalman filtering over any Plant and Sensor: what the extended
+(:mod:`lookout.observers.ekf`) and the unscented (:mod:`lookout.observers.ukf`) filter share.
+
+The model is the filter's own plant (any :class:`~lookout.components.Plant`) and
+sensor, with no model-specific code::
+
+    x' = f(t, x, u, w)          the plant's vector field; x its state raveled into a vector,
+                                w its unit white noise inputs (noise_size of them)
+    y_k = h(x_k) + v_k          h = sensor.ideal, v_k ~ N(0, R)
+
+**Propagation** over one sample [t_k, t_k + dt] is the engine's own discretization:
+the plant's integrator (RK4 or Euler) in ``dt / plant_step`` steps of ``plant_step``
+with the input held, and the noise of step j held over it as the engine holds it,
+w_j ~ N(0, diag(q) / plant_step) (q: ``process_noise``, 1 for the plant's own
+intensities). With x_{k+1} = Phi(x_k, w_1, ..., w_n) that step, its Jacobians at
+w = 0, F = dPhi/dx and G_j = dPhi/dw_j, give the discrete process noise
+
+    Q_d = sum_j G_j diag(q) G_j^T / plant_step + S dt,
+
+S the continuous intensity ``state_noise`` added per state entry (for a plant
+without noise of its own, or for what its model leaves out). This is the
+continuous-discrete filter of Jazwinski (1970), Stochastic Processes and Filtering
+Theory, Section 8.4 (mean by the noise-free model, covariance by the linearized
+step), with the propagation discretized exactly as the simulated plant is.
+
+**Correction** when a sample arrives: a channel takes part when it is due (its
+sample period, :attr:`Sensor.sample_period`, divides t: between its samples the
+engine holds the last value, which is not a new measurement) and is finite (NaN: a
+dropout). A missing channel is masked at static shapes: its row of H (or of the
+unscented filter's measurement deviations) and its innovation are zero and its row
+and column of R are those of a unit variance, so its Kalman gain column is exactly
+zero and jit and vmap keep one program. Angle channels (``Signal.angle``) have their
+innovations wrapped by ``ssa``; angle states (those the plant's ``normalize`` wraps,
+found by probing it at 3 pi / 2) are wrapped after each correction. A correction
+whose result is not finite leaves the prior unchanged, so a bad sample cannot poison
+the filter's state.
+
+Defaults derived from the scenario (each can be given instead):
+
+* R from the sensor's own noise: J J^T, J the Jacobian of ``sensor.measure`` with
+  respect to its standard normals at zero (exact for additive Gaussian noise); it must
+  be positive definite (a noiseless channel needs ``measurement_noise``).
+* P_0 from the steady state: the solution of the discrete algebraic Riccati equation
+  of the model linearized at the initial guess (u = 0, t = 0) over one observer
+  sample, the covariance of a filter that has run for ever (scipy's
+  ``solve_discrete_are``); a model whose own noise does not reach every state has
+  none, and then ``initial_std`` must be given.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.flatten_util import ravel_pytree
+
+from lookout import _validation as check
+from lookout._math import ssa
+from lookout.components import Layout, Observer, Plant, Sensor, Signal
+from lookout.sim.integrators import INTEGRATORS
+
+
+class KalmanState(eqx.Module):
+    """Internal state of a Kalman filter.
+
+    Attributes
+    ----------
+    mean : Array, shape (n,)
+        The estimate of the plant's state, raveled (``jax.flatten_util.ravel_pytree``
+        of the model's ``state()``).
+    covariance : Array, shape (n, n)
+        Its error covariance P.
+    """
+
+    mean: Array
+    covariance: Array
+
+
+def _angle_entries(model: Plant) -> tuple[bool, ...]:
+    """Per raveled state entry: whether the plant's ``normalize`` wraps it (an angle)."""
+    probe = 1.5 * math.pi
+    back = np.asarray(_probe_normalize(model, probe))
+    return tuple(bool(abs(value - (probe - 2.0 * math.pi)) < 1e-9) for value in back)
+
+
+@eqx.filter_jit
+def _probe_normalize(model: Plant, probe: float) -> Array:
+    """Entry i of the normalized state that has ``probe`` in entry i only, for every i."""
+    zero, unravel = ravel_pytree(model.state())
+    moved = jnp.eye(zero.size) * probe
+    return jnp.diagonal(jax.vmap(lambda x: ravel_pytree(model.normalize(unravel(x)))[0])(moved))
+
+
+def _state_vector(model: Plant, value, name: str) -> np.ndarray | None:
+    """A per-state-entry vector: None, a flat array of the state's size, or a table of
+    the plant's state parts (the keywords of its ``state``, as ``[plant.initial]``)."""
+    if value is None:
+        return None
+    size = ravel_pytree(model.state())[0].size
+    if isinstance(value, dict):
+        try:
+            vector = np.asarray(ravel_pytree(model.state(**value))[0], dtype=float)
+        except TypeError as error:
+            raise ValueError(f"{name}: {error}") from None
+    else:
+        vector = np.asarray(value, dtype=float)
+        if vector.shape != (size,):
+            raise ValueError(f"{name} must have one entry per state entry ({size}), or be a table of the plant's state parts; got shape {vector.shape}")
+    if not (np.all(np.isfinite(vector)) and np.all(vector >= 0)):
+        raise ValueError(f"{name} must be finite and >= 0; got {vector.tolist()}")
+    return vector
+
+
+def _sensor_covariance(sensor: Sensor, x) -> np.ndarray:
+    """R = J J^T, J the Jacobian of the sensor's measurement with respect to its
+    standard normals at zero (NaN entries, channels dropped at zero, count as zero)."""
+    jacobian = np.nan_to_num(np.asarray(_measurement_jacobian(sensor, x), dtype=float), nan=0.0)
+    return jacobian @ jacobian.T
+
+
+@eqx.filter_jit
+def _measurement_jacobian(sensor: Sensor, x) -> Array:
+    return jax.jacfwd(lambda normals: sensor.measure(x, normals))(jnp.zeros(sensor.noise_size))
+
+
+def masked(y: Array, predicted: Array, due: Array, angles: tuple[bool, ...]) -> tuple[Array, Array]:
+    """(innovation, mask): ``y - predicted`` on the channels that are due and finite (angle
+    channels wrapped), zero elsewhere; the mask is 1.0 where a channel takes part."""
+    use = due & jnp.isfinite(y)
+    difference = jnp.where(use, y, predicted) - predicted
+    difference = jnp.where(jnp.asarray(angles), ssa(difference), difference)
+    return jnp.where(use, difference, 0.0), use.astype(predicted.dtype)
+
+
+def masked_noise(covariance: Array, mask: Array) -> Array:
+    """R with the rows and columns of missing channels replaced by those of a unit
+    variance (so S stays invertible and their gain columns are zero)."""
+    both = mask[:, None] * mask[None, :]
+    return covariance * both + jnp.diag(1.0 - mask)
+
+
+def _symmetric(matrix: Array) -> Array:
+    return 0.5 * (matrix + matrix.T)
+
+
+class KalmanFilter(Observer):
+    """What the continuous-discrete EKF and UKF share (see the module docstring): the
+    model, the noise, the propagation step and its Jacobians, the masking, the
+    interface to the engine. Concrete filters implement :meth:`propagate` and
+    :meth:`correct`."""
+
+    model: Plant
+    sensor: Sensor
+    process_noise: Array        # (noise_size,) intensity of each of the model's noise inputs
+    state_noise: Array          # (n,) continuous intensity added per state entry
+    measurement_covariance: Array   # (m, m) R
+    initial_covariance: Array   # (n, n) P_0
+    plant_step: float = eqx.field(static=True)
+    integrator: str = eqx.field(static=True)
+    state_angles: tuple[bool, ...] = eqx.field(static=True)
+    channel_angles: tuple[bool, ...] = eqx.field(static=True)
+    channel_periods: tuple[float, ...] = eqx.field(static=True)
+    estimate_signals: tuple[Signal, ...] = eqx.field(static=True)
+    extra_signals: tuple[Signal, ...] = eqx.field(static=True)
+    measurement_layout: Layout = eqx.field(static=True)
+    input_layout: Layout = eqx.field(static=True)
+    sample_period: None = eqx.field(static=True)
+
+    # ------------------------------------------------------------------ the model
+    def _unravel(self, vector: Array):
+        return ravel_pytree(self.model.state())[1](vector)
+
+    def _ravel(self, state) -> Array:
+        return ravel_pytree(state)[0]
+
+    def step(self, mean: Array, t, u: Array, dt, noise: Array | None = None) -> Array:
+        """Phi: the model over one sample from ``mean`` (raveled) with ``u`` held and
+        ``noise`` (substeps x noise_size, zero when None) held over each substep."""
+        h = self.plant_step
+        substeps = self.substeps(dt)
+        size = self.model.noise_size
+        noise = jnp.zeros((substeps, size)) if noise is None else noise
+        integrate = INTEGRATORS[self.integrator]
+        state = self._unravel(mean)
+        for j in range(substeps):  # a handful of substeps per sample: unrolled, as the engine's
+            state = integrate(lambda s, z, w=noise[j]: self.model.vector_field(s, z, u, w), t + j * h, state, h)
+        return self._ravel(state)
+
+    def substeps(self, dt) -> int:
+        """Integration steps per sample of ``dt`` s."""
+        count = round(float(dt) / self.plant_step)
+        if count < 1 or abs(count * self.plant_step - float(dt)) > 1e-9 * max(1.0, float(dt)):
+            raise ValueError(f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)")
+        return count
+
+    def linearized(self, mean: Array, t, u: Array, dt) -> tuple[Array, Array]:
+        """(F, Q_d) of one sample at ``mean`` (module docstring): both from one forward-mode
+        Jacobian of the step in the state and the noise together."""
+        substeps, size, n = self.substeps(dt), self.model.noise_size, mean.size
+        q = jnp.diag(self.state_noise) * dt
+        joint = jax.jacfwd(lambda z: self.step(z[:n], t, u, dt, z[n:].reshape(substeps, size)))(jnp.concatenate([mean, jnp.zeros(substeps * size)]))
+        transition, noise = joint[:, :n], joint[:, n:]
+        weighted = noise * jnp.tile(self.process_noise, substeps)[None, :]
+        return transition, _symmetric(weighted @ noise.T / self.plant_step + q)
+
+    def process_covariance(self, mean: Array, t, u: Array, dt) -> Array:
+        """Q_d over one sample (module docstring), linearized at ``mean``."""
+        substeps, size = self.substeps(dt), self.model.noise_size
+        q = jnp.diag(self.state_noise) * dt
+        if size == 0:
+            return q
+        jacobian = jax.jacfwd(lambda w: self.step(mean, t, u, dt, w.reshape(substeps, size)))(jnp.zeros(substeps * size))
+        weighted = jacobian * jnp.tile(self.process_noise, substeps)[None, :]
+        return _symmetric(weighted @ jacobian.T / self.plant_step + q)
+
+    def due(self, t) -> Array:
+        """Per channel: whether a new sample of it arrives at ``t``."""
+        periods = jnp.asarray(self.channel_periods)
+        ratio = t / periods
+        return jnp.abs(ratio - jnp.round(ratio)) <= 1e-6
+
+    def measurement(self, mean: Array) -> Array:
+        """h(x): the sensor's noise-free measurement of the raveled state."""
+        return self.sensor.ideal(self._unravel(mean))
+
+    def normalized(self, mean: Array) -> Array:
+        """The raveled state with its angles wrapped."""
+        return self._ravel(self.model.normalize(self._unravel(mean)))
+
+    # ------------------------------------------------------------------ the filter
+    @abc.abstractmethod
+    def propagate(self, state: KalmanState, t, u: Array, dt) -> KalmanState:
+        """The prior at t + dt from the posterior at t."""
+
+    @abc.abstractmethod
+    def correct(self, state: KalmanState, t, y: Array) -> KalmanState:
+        """The posterior at t from the prior and the sample ``y`` (channels masked)."""
+
+    # ------------------------------------------------------------------ Observer
+    def guess(self, **parts):
+        """The model plant's state from its named parts (the keywords of the plant's
+        ``state``; zeros where not given)."""
+        return self.model.state(**parts)
+
+    guess.parameters_from = "model.state"  # the composition's [observer.initial] takes the plant's parts
+
+    def init(self, y0: Array, guess) -> KalmanState:
+        del y0  # the correction at t_0 (update) takes the first sample
+        return KalmanState(self._ravel(guess), self.initial_covariance)
+
+    def update(self, state: KalmanState, t, y: Array) -> KalmanState:
+        # a branch, not a select: t (hence which channels are due) is the same for every
+        # run of a batch, so under vmap the samples with no fix skip the correction
+        corrected = jax.lax.cond(jnp.any(self.due(t)), lambda s: self.correct(s, t, y), lambda s: s, state)
+        finite = jnp.all(jnp.isfinite(corrected.mean)) & jnp.all(jnp.isfinite(corrected.covariance))
+        return jax.tree.map(lambda new, old: jnp.where(finite, new, old), corrected, state)
+
+    def output(self, state: KalmanState, y: Array) -> dict[str, Array]:
+        return dict(self.model.variables(self._unravel(state.mean)))
+
+    def predict(self, state: KalmanState, t, y: Array, u: Array, dt) -> KalmanState:
+        return self.propagate(state, t, u, dt)
+
+
+def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, measurement_noise, initial_std, plant_step, sample_period,
+                  integrator) -> dict:
+    """The shared fields of a Kalman filter on ``plant`` and ``sensor``, validated, with
+    the defaults of the module docstring (the steady state from the extended filter's
+    linearization, for either filter)."""
+    if not isinstance(plant, Plant):
+        raise ValueError(f"plant must be a Plant; got {type(plant).__name__}")
+    if not isinstance(sensor, Sensor):
+        raise ValueError(f"sensor must be a Sensor; got {type(sensor).__name__}")
+    check.positive("plant_step", plant_step)
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
+    zero, _ = ravel_pytree(plant.state())
+    n, m, size = zero.size, sensor.measurement_layout.size, plant.noise_size
+    if process_noise is None:
+        q = jnp.ones(size)
+    elif not check.is_concrete(process_noise):  # traced (built under vmap or grad): checked where concrete
+        q = jnp.broadcast_to(jnp.asarray(process_noise, dtype=float), (size,))
+    else:
+        q = np.asarray(process_noise, dtype=float)
+        if q.shape != (size,) or not (np.all(np.isfinite(q)) and np.all(q >= 0)):
+            raise ValueError(f"process_noise must be {size} finite intensities >= 0 (one per noise input of the plant); got {q.tolist()}")
+    s = _state_vector(plant, state_noise, "state_noise")
+    s = np.zeros(n) if s is None else s
+    if measurement_noise is None:
+        r = _sensor_covariance(sensor, plant.state())
+        eigenvalues = np.linalg.eigvalsh(r)
+        if eigenvalues.min() <= 1e-300:
+            silent = [signal for signal, value in zip(_channel_names(sensor.measurement_layout), np.diag(r)) if value <= 0]
+            raise ValueError(
+                f"measurement_noise: the sensor's own noise is zero on {', '.join(silent) or 'a combination of channels'}; "
+                "give measurement_noise (a standard deviation per channel)"
+            )
+    else:
+        std = np.asarray(measurement_noise, dtype=float)
+        if std.shape != (m,) or not (np.all(np.isfinite(std)) and np.all(std > 0)):
+            raise ValueError(f"measurement_noise must be {m} finite standard deviations > 0 (one per measured channel); got {std.tolist()}")
+        r = np.diag(std**2)
+    fields = {
+        "model": plant, "sensor": sensor, "process_noise": jnp.asarray(q), "state_noise": jnp.asarray(s),
+        "measurement_covariance": jnp.asarray(r), "plant_step": float(plant_step), "integrator": integrator,
+        "state_angles": _angle_entries(plant),
+        "channel_angles": tuple(bool(signal.angle) for signal in sensor.measurement_layout.signals for _ in range(signal.size)),
+        "channel_periods": tuple(float(p) for p in sensor.sample_period),
+        "estimate_signals": tuple(plant.variable_signals), "extra_signals": (),
+        "measurement_layout": sensor.measurement_layout, "input_layout": plant.input_layout, "sample_period": None,
+    }
+    std = _state_vector(plant, initial_std, "initial_std")
+    if std is not None:
+        fields["initial_covariance"] = jnp.diag(jnp.asarray(std**2))
+    else:
+        fields["initial_covariance"] = jnp.asarray(_steady_state(fields, sample_period))
+    return fields
+
+
+def _channel_names(layout: Layout) -> list[str]:
+    return [f"{signal.name}[{label}]" if signal.labels else signal.name for signal in layout.signals for label in (signal.labels or ("",))]
+
+
+def _steady_state(fields: dict, sample_period: float) -> np.ndarray:
+    """P_0: the prior covariance of the steady-state filter of the model linearized at
+    its zero state over one observer sample (scipy's solve_discrete_are)."""
+    from scipy.linalg import solve_discrete_are
+
+    check.positive("sample_period", sample_period)
+    n = ravel_pytree(fields["model"].state())[0].size
+    probe = _Linearization(**fields, initial_covariance=jnp.zeros((n, n)))
+    transition, noise, observation = (np.asarray(a) for a in _linearized(probe, float(sample_period)))
+    try:
+        solution = solve_discrete_are(transition.T, observation.T, noise, np.asarray(fields["measurement_covariance"]))
+    except (np.linalg.LinAlgError, ValueError) as error:
+        reason = str(error).split("\n")[0]
+        raise ValueError(
+            f"initial_std: the model's steady-state covariance does not exist ({reason}: its own noise does not reach every state); "
+            "give initial_std (a table of the plant's state parts, or one standard deviation per state entry)"
+        ) from None
+    solution = 0.5 * (solution + solution.T)
+    scale = np.sqrt(np.abs(np.diag(solution)))
+    # positive definite, judged on the correlation matrix (the states' units differ by 1e10)
+    if not np.all(np.isfinite(solution)) or np.any(scale <= 0) or np.linalg.eigvalsh(solution / np.outer(scale, scale)).min() <= 1e-12:
+        raise ValueError("initial_std: the model's steady-state covariance is not positive definite; give initial_std")
+    return np.asarray(solution)
+
+
+@eqx.filter_jit
+def _linearized(probe: KalmanFilter, dt: float):
+    """(F, Q_d, H) of the model at its zero state, u = 0, t = 0, over ``dt``."""
+    zero = probe._ravel(probe.model.state())
+    u = jnp.zeros(probe.input_layout.size)
+    transition = jax.jacfwd(lambda x: probe.step(x, 0.0, u, dt))(zero)
+    return transition, probe.process_covariance(zero, 0.0, u, dt), jax.jacfwd(probe.measurement)(zero)
+
+
+class _Linearization(KalmanFilter):
+    """A filter's fields without a prior of its own (to linearize the model for P_0)."""
+
+    def propagate(self, state, t, u, dt):
+        raise NotImplementedError
+
+    def correct(self, state, t, y):
+        raise NotImplementedError
+
+
+#: The parameters every Kalman filter takes (numpydoc; the registry reads them).
+PARAMETERS = """
+    plant : Plant
+        The filter's model of the plant (default: the composition's plant; give a
+        ``[observer.plant]`` table for a model that differs from the truth).
+    sensor : Sensor
+        The filter's model of the sensor (default: the composition's sensor).
+    process_noise : array_like, shape (noise_size,), non-negative, optional
+        Intensity of each of the model's unit white noise inputs (1: the model's own;
+        default all 1).
+    state_noise : array_like or table, non-negative, optional
+        Continuous-time process noise intensity added per state entry (units^2/s): one
+        per raveled state entry, or a table of the plant's state parts as
+        ``[plant.initial]`` takes them (default 0).
+    measurement_noise : array_like, shape (m,), positive, optional
+        Standard deviation of each measured channel, R = diag(std^2) (default: the
+        sensor's own noise).
+    initial_std : array_like or table, non-negative, optional
+        Standard deviation of the initial guess per state entry, or a table of the
+        plant's state parts (default: the steady-state filter's, from the Riccati
+        equation).
+    plant_step : float, positive
+        Step of the propagation (s); default the composition's ``simulation.plant_step``,
+        which makes the propagation the simulated plant's own discretization.
+    filter_period : float, positive
+        The filter's sample period (s), for the steady-state P_0; default the
+        composition's ``simulation.sample_period``.
+    integrator : str
+        ``rk4`` or ``euler``; default the composition's ``simulation.integrator``."""
