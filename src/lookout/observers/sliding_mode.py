@@ -161,16 +161,7 @@ class SlidingModeObserver(WaveFilteringObserver):
         ----------
         vessel : DPVessel
             The observer's vessel model (M, D); in a composition, the plant's unless given.
-        waves : LinearWaveModel or JonswapWaves, optional
-            The sea to tune for when wave_frequency is not given (in a composition, the plant's).
-        wave_frequency : array_like, shape (3,), positive, optional
-            The observer's wave frequencies w_oi (rad/s); default the dominating frequency of ``waves``.
-        wave_damping : array_like, shape (3,), positive
-            The observer's wave damping ratios zeta_i (1).
-        notch_damping : array_like, shape (3,), positive
-            zeta_ni of the notch filter, Fossen & Strand (45) (1).
-        cutoff_frequency : array_like, shape (3,), positive, optional
-            w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's.
+{sea_parameters}
         velocity_injection_gain : array_like, shape (3,), positive, optional
             Diagonal of H4 (N/m, N/m, N m/rad); default from the tuning rule (48) of the passive observer.
         bias_injection_gain : array_like, shape (3,), positive, optional
@@ -230,16 +221,7 @@ class SlidingModeObserver(WaveFilteringObserver):
             Diagonal of H4 (N/m, N/m, N m/rad).
         bias_injection_gain : array_like, shape (3,), positive
             Diagonal of H3 (N/(m s), N/(m s), N m/(rad s)).
-        waves : LinearWaveModel or JonswapWaves, optional
-            The sea to tune for when wave_frequency is not given (in a composition, the plant's).
-        wave_frequency : array_like, shape (3,), positive, optional
-            The observer's wave frequencies w_oi (rad/s); default the dominating frequency of ``waves``.
-        wave_damping : array_like, shape (3,), positive
-            The observer's wave damping ratios zeta_i (1).
-        notch_damping : array_like, shape (3,), positive
-            zeta_ni of the notch filter, Fossen & Strand (45) (1).
-        cutoff_frequency : array_like, shape (3,), positive, optional
-            w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's.
+{sea_parameters}
         bias_time_constant : array_like, shape (3,), positive
             The observer's bias time constants T (s).
         switching_gain : array_like, shape (3,), non-negative
@@ -345,3 +327,19 @@ class SlidingModeObserver(WaveFilteringObserver):
         out = self.passive.output(estimate, measurement)
         switching = self.switching_term(self.innovation(estimate, measurement))
         return {**out, "switching_position": switching[:2], "switching_heading": switching[2]}
+
+
+
+#: The sea and wave-model parameters both design rules take (numpydoc).
+_SEA_PARAMETERS = """        waves : LinearWaveModel or JonswapWaves, optional
+            The sea to tune for when wave_frequency is not given (in a composition, the plant's).
+        wave_frequency : array_like, shape (3,), positive, optional
+            The observer's wave frequencies w_oi (rad/s); default the dominating frequency of ``waves``.
+        wave_damping : array_like, shape (3,), positive
+            The observer's wave damping ratios zeta_i (1).
+        notch_damping : array_like, shape (3,), positive
+            zeta_ni of the notch filter, Fossen & Strand (45) (1).
+        cutoff_frequency : array_like, shape (3,), positive, optional
+            w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's."""
+for _rule in (SlidingModeObserver.design, SlidingModeObserver.from_gains):
+    _rule.__func__.__doc__ = _rule.__func__.__doc__.replace("{sea_parameters}", _SEA_PARAMETERS)
