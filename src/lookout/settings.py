@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Annotated
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from lookout.sim import MAX_SEED, integer_ratio
@@ -37,6 +38,13 @@ def finite_positive(value: float) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"must be a finite positive number; got {value:g}")
     return value
+
+
+#: A setting that must be a finite positive number (a step, a duration, a gain): the
+#: check of :func:`finite_positive`, with its message, under the field's name.
+PositiveFloat = Annotated[float, AfterValidator(finite_positive)]
+#: A setting that must be a positive count of runs or seeds (:func:`positive_count`).
+PositiveCount = Annotated[int, AfterValidator(positive_count)]
 
 
 def seed_for_runs(seed: int, runs: int) -> int:

@@ -8,7 +8,7 @@ import math
 from pydantic import Field, field_validator, model_validator
 
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
-from lookout.settings import Settings, finite_positive
+from lookout.settings import PositiveFloat, Settings
 
 Row3 = tuple[float, float, float]
 #: A 3x3 matrix as three rows (a TOML array of three arrays of three numbers).
@@ -29,8 +29,8 @@ class VesselSettings(Settings):
     model: str = Field("northern-clipper", description="'northern-clipper' (Fossen & Strand 1999, eqs. 56-57) or 'custom' (give mass_matrix and damping_matrix)")
     mass_matrix: Matrix3 | None = Field(None, description="M (3x3, SI, symmetric positive definite), only with model = 'custom'")
     damping_matrix: Matrix3 | None = Field(None, description="D (3x3, SI), only with model = 'custom'")
-    mass: float = Field(NORTHERN_CLIPPER_MASS, description="vessel mass m (kg) of the bis normalization")
-    length: float = Field(NORTHERN_CLIPPER_LENGTH, description="length L (m) of the bis normalization")
+    mass: PositiveFloat = Field(NORTHERN_CLIPPER_MASS, description="vessel mass m (kg) of the bis normalization")
+    length: PositiveFloat = Field(NORTHERN_CLIPPER_LENGTH, description="length L (m) of the bis normalization")
 
     @field_validator("model")
     @classmethod
@@ -65,10 +65,6 @@ class VesselSettings(Settings):
                 raise ValueError(str(error).replace("D must", "must", 1)) from None
         return value
 
-    @field_validator("mass", "length")
-    @classmethod
-    def _finite_positive(cls, value):
-        return finite_positive(value)
 
     @model_validator(mode="after")
     def _matrices_with_custom(self):

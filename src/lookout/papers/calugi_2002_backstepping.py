@@ -41,7 +41,7 @@ from lookout.analysis.conditions import inequalities_in
 from lookout.composition import compose
 from lookout.models.manipulators import REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, TwoLinkArm
 from lookout.models.parameters import ModelParameters
-from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
@@ -111,9 +111,9 @@ class Config(NoiseFreeConfig):
     """Settings of the reproduction; every field has the thesis's value or a stated choice."""
 
     duration: float = Field(40.0, description="simulated time (s); two periods of the square wave (chosen)")
-    amplitude: float = Field(1.0, description="square wave amplitude (rad), chosen")
-    period: float = Field(20.0, description="square wave period (s), chosen")
-    initial_theta: float = Field(0.7, description="theta_hat(0) (kg), printed")
+    amplitude: PositiveFloat = Field(1.0, description="square wave amplitude (rad), chosen")
+    period: PositiveFloat = Field(20.0, description="square wave period (s), chosen")
+    initial_theta: PositiveFloat = Field(0.7, description="theta_hat(0) (kg), printed")
 
     @field_validator("duration")
     @classmethod
@@ -124,10 +124,6 @@ class Config(NoiseFreeConfig):
             raise ValueError(f"must be at least 11 s (the summary reports theta_hat at 10 s); got {value:g} s")
         return value
 
-    @field_validator("amplitude", "period", "initial_theta")
-    @classmethod
-    def _positive(cls, value):
-        return finite_positive(value)
 
 
 #: The cases: M_hat as (4.20) needs it, and (5.37) as printed.

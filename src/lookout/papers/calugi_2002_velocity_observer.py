@@ -32,7 +32,7 @@ from lookout.analysis import fit_decay_rate
 from lookout.analysis.velocity import configuration_bounds, velocity_observer_condition
 from lookout.composition import compose
 from lookout.models.manipulators import ManipulatorModel
-from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, PositiveFloat, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, significant, summary_header, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
@@ -100,14 +100,10 @@ SYSTEMS = {
 class Config(NoiseFreeConfig):
     """Settings of the reproduction; the systems themselves are :data:`SYSTEMS`."""
 
-    plant_step: float = Field(1e-3, description="RK4 step of plant and observer (s)")
-    sample_period: float = Field(1e-2, description="record and input period (s)")
-    duration: float = Field(10.0, description="simulated time per system (s)")
+    plant_step: PositiveFloat = Field(1e-3, description="RK4 step of plant and observer (s)")
+    sample_period: PositiveFloat = Field(1e-2, description="record and input period (s)")
+    duration: PositiveFloat = Field(10.0, description="simulated time per system (s)")
 
-    @field_validator("plant_step", "sample_period", "duration")
-    @classmethod
-    def _finite_positive(cls, value):
-        return finite_positive(value)
 
     @field_validator("duration")
     @classmethod

@@ -27,7 +27,7 @@ from pydantic import Field, ValidationInfo, field_validator
 from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, settling_time
 from lookout.observers import injection_gains_from_normalized
 from lookout.papers._config import VesselSettings
-from lookout.settings import RunsConfig, finite_positive, whole_samples
+from lookout.settings import PositiveFloat, RunsConfig, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._reproduction import Reproduction
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
@@ -50,19 +50,19 @@ class Config(RunsConfig):
     """
 
     seed: int = Field(0, description="PRNG seed of run 0 (run i uses seed + i)")
-    plant_step: float = Field(0.1, description="RK4 step of the plant (s)")
-    sample_period: float = Field(0.1, description="observer period (s)")
-    measurement_period: float = Field(1.0, description="position and heading sample period (s), paper: 1 Hz")
-    duration: float = Field(3000.0, description="simulated time (s), a multiple of sample_period, at least 10 measurement periods")
-    wave_frequency: float = Field(0.8976, description="w_o (rad/s), eq. (59)")
-    wave_damping: float = Field(0.1, description="zeta, eq. (59)")
-    notch_damping: float = Field(1.0, description="zeta_n, eq. (59)")
-    cutoff_frequency: float = Field(1.1, description="w_c (rad/s), eq. (59)")
-    bias_time_constant: float = Field(1000.0, description="T (s), eq. (58)")
+    plant_step: PositiveFloat = Field(0.1, description="RK4 step of the plant (s)")
+    sample_period: PositiveFloat = Field(0.1, description="observer period (s)")
+    measurement_period: PositiveFloat = Field(1.0, description="position and heading sample period (s), paper: 1 Hz")
+    duration: PositiveFloat = Field(3000.0, description="simulated time (s), a multiple of sample_period, at least 10 measurement periods")
+    wave_frequency: PositiveFloat = Field(0.8976, description="w_o (rad/s), eq. (59)")
+    wave_damping: PositiveFloat = Field(0.1, description="zeta, eq. (59)")
+    notch_damping: PositiveFloat = Field(1.0, description="zeta_n, eq. (59)")
+    cutoff_frequency: PositiveFloat = Field(1.1, description="w_c (rad/s), eq. (59)")
+    bias_time_constant: PositiveFloat = Field(1000.0, description="T (s), eq. (58)")
     velocity_gain_normalized: tuple[float, float, float] = (0.1, 0.1, 0.01)
     bias_gain_normalized: tuple[float, float, float] = (0.01, 0.01, 0.001)
     wave_amplitude: tuple[float, float, float] = (10.0, 10.0, float(np.radians(1.0)))
-    wave_amplitude_sigmas: float = 3.0
+    wave_amplitude_sigmas: PositiveFloat = 3.0
     bias_std: tuple[float, float, float] = (2e3, 2e3, 5e4)
     bias_initial: tuple[float, float, float] = (1e4, 5e3, 1e5)
     noise_std: tuple[float, float, float] = (0.5, 0.5, float(np.radians(0.1)))
@@ -76,13 +76,6 @@ class Config(RunsConfig):
             raise ValueError(f"must be in [0, 1); got {value:g}")
         return value
 
-    @field_validator(
-        "plant_step", "sample_period", "measurement_period", "duration", "wave_frequency",
-        "wave_damping", "notch_damping", "cutoff_frequency", "bias_time_constant", "wave_amplitude_sigmas",
-    )
-    @classmethod
-    def _finite_positive(cls, value):
-        return finite_positive(value)
 
     @field_validator("duration")
     @classmethod

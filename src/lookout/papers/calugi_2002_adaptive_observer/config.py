@@ -9,7 +9,7 @@ from pydantic import Field, field_validator
 from lookout.models.manipulators import FreePendulum
 from lookout.models.parameters import ModelParameters
 from lookout.papers import CATALOG
-from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
 
 NAME = "calugi-2002-adaptive-observer"
 TITLE = CATALOG[NAME].title
@@ -28,11 +28,11 @@ class Config(NoiseFreeConfig):
     """Settings of the reproduction; every field has the thesis's value or a stated choice."""
 
     duration: float = Field(300.0, description="simulated time (s); Fig. 4.3's long run")
-    gain: float = Field(20.0, description="K (1/s)")
-    adaptation_gain: float = Field(10.0, description="Gamma")
-    initial_mass: float = Field(0.1, description="theta_hat(0) (kg)")
+    gain: PositiveFloat = Field(20.0, description="K (1/s)")
+    adaptation_gain: PositiveFloat = Field(10.0, description="Gamma")
+    initial_mass: PositiveFloat = Field(0.1, description="theta_hat(0) (kg)")
     input_amplitude: float = Field(1.0, description="tau = A sin(w t): A (N m), chosen")
-    input_frequency: float = Field(1.0, description="tau = A sin(w t): w (rad/s), chosen")
+    input_frequency: PositiveFloat = Field(1.0, description="tau = A sin(w t): w (rad/s), chosen")
     bounds: tuple[float, float] = Field((0.05, 5.0), description="resetting bounds [l, h] of m (kg), chosen")
     margin: float = Field(0.01, description="resetting margin mu (kg), chosen")
     sweep: bool = Field(True, description="the studies: the order against the continuous observer, and the run in which the resets fire")
@@ -46,10 +46,6 @@ class Config(NoiseFreeConfig):
             raise ValueError(f"must be at least 20 s (Fig. 4.2's window); got {value:g} s")
         return value
 
-    @field_validator("gain", "adaptation_gain", "initial_mass", "input_frequency")
-    @classmethod
-    def _positive(cls, value):
-        return finite_positive(value)
 
     @field_validator("input_amplitude", "margin")
     @classmethod

@@ -9,7 +9,7 @@ import numpy as np
 from pydantic import ConfigDict, Field, ValidationInfo, field_validator
 
 from lookout.papers import CATALOG
-from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.settings import NoiseFreeConfig, PositiveFloat, whole_samples
 
 NAME = "calugi-2002-parameter-estimation"
 TITLE = CATALOG[NAME].title
@@ -72,18 +72,14 @@ class Config(NoiseFreeConfig):
     # defaults are validated too: a changed plant_step must still divide the default sample_period
     model_config = ConfigDict(validate_default=True)  # merged with Settings: frozen, strict, no unknown keys
 
-    plant_step: float = Field(2e-4, description="RK4 step of plant and estimator (s); Sim 2 is stiff")
-    sample_period: float = Field(1e-2, description="input hold and record period (s)")
+    plant_step: PositiveFloat = Field(2e-4, description="RK4 step of plant and estimator (s); Sim 2 is stiff")
+    sample_period: PositiveFloat = Field(1e-2, description="input hold and record period (s)")
     input_amplitude: float = Field(5.0, description="tau = amplitude sin(frequency t) (N m), chosen")
-    input_frequency: float = Field(1.0, description="rad/s, chosen")
-    filter_pole: float = Field(1.0, description="a of the filter 1/(s + a) (rad/s); the thesis's 1")
-    pe_window: float = Field(5.0, description="T of the persistence-of-excitation check (s)")
-    duration: float = Field(60.0, description="simulated time per run (s)")
+    input_frequency: PositiveFloat = Field(1.0, description="rad/s, chosen")
+    filter_pole: PositiveFloat = Field(1.0, description="a of the filter 1/(s + a) (rad/s); the thesis's 1")
+    pe_window: PositiveFloat = Field(5.0, description="T of the persistence-of-excitation check (s)")
+    duration: PositiveFloat = Field(60.0, description="simulated time per run (s)")
 
-    @field_validator("plant_step", "sample_period", "duration", "input_frequency", "filter_pole", "pe_window")
-    @classmethod
-    def _finite_positive(cls, value):
-        return finite_positive(value)
 
     @field_validator("input_amplitude")
     @classmethod

@@ -12,7 +12,7 @@ from pydantic import Field, ValidationInfo, field_validator
 from lookout.analysis.adaptive_dp import satisfying_gains
 from lookout.models.vessel import DPVessel
 from lookout.papers import CATALOG
-from lookout.settings import RunsConfig, finite_positive, positive_count, whole_samples
+from lookout.settings import PositiveCount, PositiveFloat, RunsConfig, finite_positive, whole_samples
 from lookout.sim import integer_ratio
 
 
@@ -74,17 +74,13 @@ class Config(RunsConfig):
     sample_interval: float = Field(0.1, description="Delta (s), observer and controller sample interval, (65)-(67)")
     duration: float = Field(1200.0, description="simulated time (s)")
     noise_std: tuple[float, float, float] = (1.0, 1.0, float(np.radians(0.1)))
-    initial_theta: float = Field(0.8, description="theta_hat(0) / m11")
+    initial_theta: PositiveFloat = Field(0.8, description="theta_hat(0) / m11")
     theta_bounds: tuple[float, float] = (0.5, 2.0)
-    adaptation_gain: float = Field(1e3, description="Gamma (printed 1e3)")
+    adaptation_gain: PositiveFloat = Field(1e3, description="Gamma (printed 1e3)")
     sweep: bool = Field(True, description="run the Delta sweep, the parameter-convergence study and the noise-drift study")
-    sweep_seeds: int = Field(2, description="seeds per point of the sweeps")
+    sweep_seeds: PositiveCount = Field(2, description="seeds per point of the sweeps")
     sweep_duration: float = Field(600.0, description="simulated time of each sweep run (s)")
 
-    @field_validator("sweep_seeds")
-    @classmethod
-    def _positive_count(cls, value):
-        return positive_count(value)
 
     @field_validator("sample_interval")
     @classmethod
@@ -103,10 +99,6 @@ class Config(RunsConfig):
             raise ValueError(f"must be at least 60 s; got {value:g} s")
         return value
 
-    @field_validator("initial_theta", "adaptation_gain")
-    @classmethod
-    def _positive(cls, value):
-        return finite_positive(value)
 
     @field_validator("noise_std")
     @classmethod

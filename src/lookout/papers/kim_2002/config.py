@@ -13,7 +13,7 @@ from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.papers import CATALOG
 from lookout.papers._config import VesselSettings
-from lookout.settings import RunsConfig, Settings, finite_positive, positive_count, whole_samples
+from lookout.settings import PositiveCount, PositiveFloat, RunsConfig, Settings, finite_positive, whole_samples
 
 NAME = "kim-2002"
 TITLE = CATALOG[NAME].title
@@ -72,7 +72,7 @@ class ModelError(Settings):
     mass: float = Field(0.2, description="relative error of M: M_true = (1 + mass) M")
     damping: float = Field(0.5, description="relative error of D: D_true = (1 + damping) D")
     force: float = Field(4000.0, description="unmodelled body-fixed force F (N): F [1, 1, 5 m] (1 + sin(2 pi t / period)) / 2")
-    force_period: float = Field(100.0, description="period of the unmodelled force (s)")
+    force_period: PositiveFloat = Field(100.0, description="period of the unmodelled force (s)")
 
     @field_validator("mass", "damping")
     @classmethod
@@ -88,10 +88,6 @@ class ModelError(Settings):
             raise ValueError(f"must be a finite number >= 0; got {value:g}")
         return value
 
-    @field_validator("force_period")
-    @classmethod
-    def _positive(cls, value):
-        return finite_positive(value)
 
     def disturbance(self) -> BodyDisturbance:
         half = 0.5 * self.force * np.array([1.0, 1.0, FORCE_LEVER_ARM])
@@ -103,10 +99,10 @@ class Config(RunsConfig):
 
     runs: int = Field(1, description="Monte Carlo runs per observer (vmapped); run i uses seed + i")
     seed: int = Field(0, description="PRNG seed of run 0")
-    plant_step: float = Field(0.1, description="RK4 step of the plant (s), the paper's 0.1 s")
-    sample_period: float = Field(0.1, description="observer and controller period (s)")
-    measurement_period: float = Field(1.0, description="position and heading fixes (s), as the Fossen & Strand reproduction")
-    duration: float = Field(2600.0, description="simulated time (s)")
+    plant_step: PositiveFloat = Field(0.1, description="RK4 step of the plant (s), the paper's 0.1 s")
+    sample_period: PositiveFloat = Field(0.1, description="observer and controller period (s)")
+    measurement_period: PositiveFloat = Field(1.0, description="position and heading fixes (s), as the Fossen & Strand reproduction")
+    duration: PositiveFloat = Field(2600.0, description="simulated time (s)")
     gains: str = Field("printed", description="observer H3, H4: 'printed' (A.4) or 'kyp' (Fossen & Strand (60) in SI, satisfies (14))")
     vessel: VesselSettings = Field(
         VesselSettings(),
@@ -114,29 +110,21 @@ class Config(RunsConfig):
     )
     boundary_layer: tuple[float, float, float] = (5.0, 5.0, float(np.radians(1.0)))
     integral_gain: float = Field(0.01, description="K_I (1/s); printed 100")
-    position_gain: float = Field(0.1, description="C1 (1/s), (A.5)")
-    velocity_gain: float = Field(0.1, description="C2 (1/s), (A.5)")
-    coupling_gain: float = Field(0.01, description="P1 (1/s^2); 1 is Kim's law as printed")
+    position_gain: PositiveFloat = Field(0.1, description="C1 (1/s), (A.5)")
+    velocity_gain: PositiveFloat = Field(0.1, description="C2 (1/s), (A.5)")
+    coupling_gain: PositiveFloat = Field(0.01, description="P1 (1/s^2); 1 is Kim's law as printed")
     damping_weights: tuple[float, float, float, float, float, float] = (1e-3, 1e-3, 1e-3, 1e-2, 1e-2, 1e-2)
-    reference_bandwidth: float = Field(0.03, description="reference filter bandwidth (rad/s)")
+    reference_bandwidth: PositiveFloat = Field(0.03, description="reference filter bandwidth (rad/s)")
     model_error: ModelError = ModelError()
     wave_amplitude: tuple[float, float, float] = (10.0, 10.0, float(np.radians(1.0)))
     bias_std: tuple[float, float, float] = (2e3, 2e3, 5e4)
     bias_initial: tuple[float, float, float] = (1e4, 5e3, 1e5)
     noise_std: tuple[float, float, float] = (0.5, 0.5, float(np.radians(0.1)))
     sweep: bool = Field(True, description="run the model-error sweep of the Fig. 8 claim")
-    sweep_seeds: int = Field(2, description="seeds per point of the sweep")
-    sweep_duration: float = Field(1400.0, description="simulated time of each sweep run (s)")
+    sweep_seeds: PositiveCount = Field(2, description="seeds per point of the sweep")
+    sweep_duration: PositiveFloat = Field(1400.0, description="simulated time of each sweep run (s)")
 
-    @field_validator("sweep_seeds")
-    @classmethod
-    def _positive_count(cls, value):
-        return positive_count(value)
 
-    @field_validator("plant_step", "sample_period", "measurement_period", "duration", "sweep_duration", "reference_bandwidth", "position_gain", "velocity_gain", "coupling_gain")
-    @classmethod
-    def _finite_positive(cls, value):
-        return finite_positive(value)
 
     @field_validator("integral_gain")
     @classmethod
