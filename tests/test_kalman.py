@@ -310,3 +310,20 @@ def test_the_ukf_follows_a_heading_through_plus_minus_pi_without_a_jump():
     object.__setattr__(naive, "channel_angles", (False,) * 3)  # static fields: set on a copy
     object.__setattr__(naive, "state_angles", (False,) * len(ukf.state_angles))
     assert worst_error(naive) > 0.3  # measured 0.50 rad, and it stays
+
+
+def test_a_composition_gives_the_filter_its_plant_steps_and_a_table_of_state_parts():
+    from lookout.composition import CompositionError
+    from lookout.studies._toml import read
+
+    document, _ = read("examples/dp-observer.toml")
+    std = {"eta": [5.0, 5.0, 0.05], "nu": [0.5, 0.5, 0.005], "bias": [5e3, 5e3, 1e5], "wave_state": [1.0, 1.0, 0.01, 1.0, 1.0, 0.01]}
+    document["observer"] = {"kind": "ukf", "initial_std": std, "initial": {"bias": [1e4, 5e3, 1e5]}}
+    composition = compose(document)
+    ukf = composition.scenario.observer
+    assert ukf.plant_step == document["simulation"]["plant_step"] and ukf.integrator == "rk4"
+    np.testing.assert_allclose(np.sqrt(np.diag(np.asarray(ukf.initial_covariance)))[6:9], std["bias"])
+    np.testing.assert_array_equal(np.asarray(composition.scenario.initial_estimate.bias), [1e4, 5e3, 1e5])
+    document["observer"]["initial_std"] = {"eta": [5.0, 5.0, 0.05], "speed": [1.0]}
+    with pytest.raises(CompositionError, match=r"observer.initial_std: .*unexpected keyword argument 'speed'"):
+        compose(document)

@@ -119,7 +119,8 @@ def _in_range(parameter: registry.Parameter):
     low, high, low_in, high_in = parameter.range
 
     def check(value):
-        for number in np.ravel(np.asarray(value, dtype=float)):
+        values = list(value.values()) if isinstance(value, dict) else [value]
+        for number in np.concatenate([np.ravel(np.asarray(v, dtype=float)) for v in values] or [np.zeros(0)]):
             if not ((number >= low if low_in else number > low) and (number <= high if high_in else number < high)):
                 words = {(0.0, math.inf, False, False): "positive", (0.0, math.inf, True, False): "non-negative"}.get(parameter.range)
                 interval = f"{'[' if low_in else '('}{low:g}, {high:g}{']' if high_in else ')'}"
@@ -141,8 +142,9 @@ def _annotation(parameter: registry.Parameter):
     if parameter.choices is not None:
         annotation: Any = Literal[parameter.choices]
     else:
-        annotation = {"float": float, "int": int, "bool": bool, "str": str, "strings": tuple[str, ...], "array": _ARRAY}.get(sort, _ARRAY)
-    if parameter.range is not None and sort in ("float", "int", "array"):
+        annotation = {"float": float, "int": int, "bool": bool, "str": str, "strings": tuple[str, ...], "array": _ARRAY,
+                      "parts": _ARRAY | dict[str, float | list[float]]}.get(sort, _ARRAY)
+    if parameter.range is not None and sort in ("float", "int", "array", "parts"):
         annotation = Annotated[annotation, AfterValidator(_in_range(parameter))]
     if parameter.default is None:
         annotation = annotation | None

@@ -209,10 +209,13 @@ class Parameter:
 
     @property
     def value_type(self) -> str:
-        """``"float"``, ``"int"``, ``"bool"``, ``"str"``, ``"array"`` or ``"strings"``."""
+        """``"float"``, ``"int"``, ``"bool"``, ``"str"``, ``"array"``, ``"strings"``, or
+        ``"parts"`` (an array, or a table of named arrays: "array_like or table")."""
         text = self.type.lower()
         if self.choices is not None:
             return "str"
+        if re.search(r"\bor table\b", text):
+            return "parts"
         if re.search(r"(sequence|tuple|list) of str", text):
             return "strings"
         if "array" in text or "sequence" in text:
