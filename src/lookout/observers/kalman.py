@@ -202,21 +202,19 @@ class KalmanFilter(Observer):
         """(F, Q_d) of one sample at ``mean`` (module docstring): both from one forward-mode
         Jacobian of the step in the state and the noise together."""
         substeps, size, n = self.substeps(dt), self.model.noise_size, mean.size
-        q = jnp.diag(self.state_noise) * dt
         joint = jax.jacfwd(lambda z: self.step(z[:n], t, u, dt, z[n:].reshape(substeps, size)))(jnp.concatenate([mean, jnp.zeros(substeps * size)]))
-        transition, noise = joint[:, :n], joint[:, n:]
-        weighted = noise * jnp.tile(self.process_noise, substeps)[None, :]
-        return transition, _symmetric(weighted @ noise.T / self.plant_step + q)
+        return joint[:, :n], self._noise_covariance(joint[:, n:], dt)
 
     def process_covariance(self, mean: Array, t, u: Array, dt) -> Array:
         """Q_d over one sample (module docstring), linearized at ``mean``."""
         substeps, size = self.substeps(dt), self.model.noise_size
-        q = jnp.diag(self.state_noise) * dt
-        if size == 0:
-            return q
         jacobian = jax.jacfwd(lambda w: self.step(mean, t, u, dt, w.reshape(substeps, size)))(jnp.zeros(substeps * size))
-        weighted = jacobian * jnp.tile(self.process_noise, substeps)[None, :]
-        return _symmetric(weighted @ jacobian.T / self.plant_step + q)
+        return self._noise_covariance(jacobian, dt)
+
+    def _noise_covariance(self, noise_jacobian: Array, dt) -> Array:
+        """Q_d from G = [G_1 ... G_n], the step's Jacobian in the noise of its substeps."""
+        weighted = noise_jacobian * jnp.tile(self.process_noise, self.substeps(dt))[None, :]
+        return _symmetric(weighted @ noise_jacobian.T / self.plant_step + jnp.diag(self.state_noise) * dt)
 
     def due(self, t) -> Array:
         """Per channel: whether a new sample of it arrives at ``t``."""
@@ -355,9 +353,8 @@ def _steady_state(fields: dict, sample_period: float) -> np.ndarray:
 def _linearized(probe: KalmanFilter, dt: float):
     """(F, Q_d, H) of the model at its zero state, u = 0, t = 0, over ``dt``."""
     zero = probe._ravel(probe.model.state())
-    u = jnp.zeros(probe.input_layout.size)
-    transition = jax.jacfwd(lambda x: probe.step(x, 0.0, u, dt))(zero)
-    return transition, probe.process_covariance(zero, 0.0, u, dt), jax.jacfwd(probe.measurement)(zero)
+    transition, noise = probe.linearized(zero, 0.0, jnp.zeros(probe.input_layout.size), dt)
+    return transition, noise, jax.jacfwd(probe.measurement)(zero)
 
 
 class _Linearization(KalmanFilter):
