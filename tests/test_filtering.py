@@ -193,3 +193,22 @@ def test_a_bad_call_raises_and_leaves_the_stepper_as_it_was(recorded, call, mess
     reference = lookout.Stepper(observer, y0=[1.0, 2.0, 0.1])
     reference(0.0, [1.0, 2.0, 0.1], [0.0, 0.0, 0.0], 0.1)
     np.testing.assert_array_equal(stepper(0.1, [1.0, 2.0, np.nan], [1e3, 0.0, 0.0], 0.1)["position"], reference(0.1, [1.0, 2.0, np.nan], [1e3, 0.0, 0.0], 0.1)["position"])
+
+
+def test_a_kalman_filter_on_a_log_gives_the_simulation_estimates():
+    """The EKF steps a log whose time steps are known only when it runs (its propagation
+    splits each step into the substeps of its filter period): the simulation's
+    estimates, to rounding."""
+    from lookout.composition import compose
+    from lookout.registry import preset
+
+    document = preset("fossen-strand-1999", "paper")
+    document["simulation"]["duration"] = 60.0
+    document["observer"] = {"kind": "ekf"}
+    scenario = compose(document).scenario
+    trajectory = simulate(scenario, jax.random.key(0))
+    ds = trajectory.to_xarray()
+    log = lookout.filter(scenario.observer, trajectory.time, trajectory.measurement, trajectory.applied, guess=scenario.initial_estimate,
+                         measurement_layout=POSITION_HEADING, input_layout=VESSEL_INPUT)
+    for name in ("position_hat", "heading_hat", "velocity_hat", "bias_force_hat", "wave_position_hat"):
+        np.testing.assert_allclose(log[name].values, ds[name].values, rtol=1e-9, atol=1e-9 * float(np.abs(ds[name]).max()))

@@ -327,3 +327,78 @@ def test_a_composition_gives_the_filter_its_plant_steps_and_a_table_of_state_par
     document["observer"]["initial_std"] = {"eta": [5.0, 5.0, 0.05], "speed": [1.0]}
     with pytest.raises(CompositionError, match=r"observer.initial_std: .*unexpected keyword argument 'speed'"):
         compose(document)
+
+
+# ------------------------------------------------------------------ an unknown input disturbance
+
+
+@pytest.mark.parametrize("kind", [ExtendedKalmanFilter, UnscentedKalmanFilter])
+def test_an_input_disturbance_is_the_exact_kalman_filter_of_the_augmented_model(kind):
+    """With ``input_disturbance`` the state is [x, d], x driven by u + d and d a random
+    walk: the exact Kalman filter of that augmented discrete model (written here)."""
+    intensity = 0.3
+    F, Bd, Q = _discrete_model()
+    Fa = np.block([[F, Bd], [np.zeros((1, 2)), np.eye(1)]])
+    Qa = np.block([[Q, np.zeros((2, 1))], [np.zeros((1, 2)), intensity * SAMPLE * np.eye(1)]])
+    Ca = np.hstack([C, np.zeros((1, 1))])
+    R = np.array([[NOISE_STD**2]])
+    ys, us = _linear_data()
+    ys = ys + 0.5  # an offset the disturbance explains
+    ys[7] = np.nan
+    filter_ = kind(LinearPlant(), LinearSensor(), initial_std=[2.0, 1.0, 1.5], input_disturbance=[intensity], plant_step=STEP, filter_period=SAMPLE)
+    means, covariances = _drive(filter_, ys, us, filter_.guess(position=0.5))
+    x, P = np.array([0.5, 0.0, 0.0]), np.diag([4.0, 1.0, 2.25])
+    expected_means, expected_covariances = [], []
+    for y, u in zip(ys, us):
+        if np.all(np.isfinite(y)):
+            K = P @ Ca.T @ np.linalg.inv(Ca @ P @ Ca.T + R)
+            x = x + K @ (y - Ca @ x)
+            I_KH = np.eye(3) - K @ Ca
+            P = I_KH @ P @ I_KH.T + K @ R @ K.T
+        expected_means.append(x.copy())
+        expected_covariances.append(P.copy())
+        x = Fa @ x + np.concatenate([Bd @ u, [0.0]])
+        P = Fa @ P @ Fa.T + Qa
+    tolerance = 1e-10 if kind is ExtendedKalmanFilter else 1e-8
+    np.testing.assert_allclose(means, expected_means, rtol=0, atol=tolerance)
+    np.testing.assert_allclose(covariances, expected_covariances, rtol=0, atol=tolerance)
+    # and it is recorded as the input's disturbance
+    assert [s.name for s in filter_.extra_signals] == ["disturbance_force"]
+    output = filter_.output(filter_.init(ys[0], filter_.guess()), ys[0])
+    assert set(output) == {"state", "disturbance_force"}
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"input_disturbance": [0.0]}, "input_disturbance must be 1 finite intensities > 0"),
+        ({"input_disturbance": [1.0, 1.0]}, "input_disturbance must be 1 finite intensities > 0"),
+        ({"initial_std": [1.0, 1.0]}, "initial_std must have one entry per state entry (3: the plant's and the input disturbance's)"),
+        ({"initial_std": {"position": 1.0, "rate": 1.0}}, "initial_std: give input_disturbance too"),
+    ],
+)
+def test_bad_disturbance_arguments_are_one_line_naming_them(changes, message):
+    arguments = {"initial_std": [1.0, 1.0, 1.0], "input_disturbance": [0.1], "plant_step": STEP, "filter_period": SAMPLE, **changes}
+    with pytest.raises(ValueError) as error:
+        ExtendedKalmanFilter(LinearPlant(), LinearSensor(), **arguments)
+    assert message in str(error.value) and "\n" not in str(error.value)
+
+
+def test_a_filter_may_have_a_plant_model_of_its_own():
+    """``[observer.plant]``: the filter's model differs from the truth (a model error),
+    built from its table alone; the composition's plant is unchanged."""
+    from lookout.composition import CompositionError
+    from lookout.studies._toml import read
+
+    document, _ = read("examples/dp-observer.toml")
+    model = copy.deepcopy(document["plant"])
+    model.pop("initial")
+    model["vessel"]["mass_scale"] = 1.2
+    document["observer"] = {"kind": "ekf", "plant": model}
+    composition = compose(document)
+    scenario = composition.scenario
+    np.testing.assert_array_equal(np.asarray(scenario.observer.model.vessel.mass_matrix), 1.2 * np.asarray(scenario.plant.vessel.mass_matrix))
+    assert composition.document["observer"]["plant"]["vessel"]["mass_scale"] == 1.2
+    document["observer"]["plant"]["vessel"]["mass_scale"] = -1.0
+    with pytest.raises(CompositionError, match=r"^observer.plant.vessel.mass_scale: "):
+        compose(document)

@@ -86,3 +86,56 @@ def test_a_window_past_the_end_is_refused(kim):
     scenario, keys, trajectory = kim
     with pytest.raises(ValueError, match=r"after \(200 s\) is past the end of the run \(99.9 s\)"):
         metric_module.reduce(trajectory, metric_module.resolve(NAMES[:1], scenario), after=200.0)
+
+
+def test_an_outage_silences_its_channels_and_its_metrics_equal_numpy():
+    """A 60 s position outage (the sensor's outage_*): the position fixes are NaN from its
+    start until its end, the heading is not; outage_drift and recovery_time equal NumPy's
+    reading of the recorded runs, and are NaN without an outage."""
+    from lookout.composition import compose
+    from lookout.registry import preset
+
+    document = preset("fossen-strand-1999", "paper")
+    document["simulation"]["duration"] = 300.0
+    document["sensor"].update(outage_signals=["measured_position"], outage_start=120.0, outage_duration=60.0)
+    scenario = compose(document).scenario
+    keys = keys_of_seeds([0, 1, 2])
+    metrics = metric_module.resolve(["outage_drift:position", "recovery_time:position", "rms_error:position"], scenario)
+    assert [m.units for m in metrics] == ["m", "s", "m"]
+    summarized = metric_module.summarize(scenario, keys, metrics)
+    trajectory = simulate_batch(scenario, keys)
+    time = np.asarray(trajectory.time)
+    measured = np.asarray(trajectory.measurement)
+    lost = np.isnan(measured[0, :, 0])
+    assert time[lost].min() == 120.0 and time[lost].max() == pytest.approx(179.9) and not np.isnan(measured[..., 2]).any()
+    error = np.linalg.norm(np.asarray(trajectory.truth["position"]) - np.asarray(trajectory.estimate["position"]), axis=-1)
+    inside = (time >= 120.0) & (time < 180.0)
+    np.testing.assert_allclose(summarized["outage_drift__position"], error[:, inside].max(axis=1), rtol=1e-14)
+    level = np.sqrt((error[:, (time >= 60.0) & (time < 120.0)] ** 2).mean(axis=1))
+    expected = []
+    for run in range(3):
+        back = [t - 180.0 for i, t in enumerate(time) if t >= 180.0 and np.sqrt((error[run, i: i + 600] ** 2).mean()) <= 1.25 * level[run]]
+        expected.append(back[0] if back else np.nan)
+    np.testing.assert_allclose(summarized["recovery_time__position"], expected, rtol=1e-12, atol=1e-9)
+    reduced = metric_module.reduce(trajectory, metrics, outage=metric_module.outage_of(scenario))
+    for name in ("outage_drift__position", "recovery_time__position", "rms_error__position"):
+        np.testing.assert_allclose(reduced[name], summarized[name], rtol=1e-12, equal_nan=True)
+    # no outage: NaN, not a number that looks measured
+    quiet = metric_module.reduce(trajectory, metrics)
+    assert np.isnan(quiet["outage_drift__position"]).all() and np.isnan(quiet["recovery_time__position"]).all()
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"outage_signals": ["measured_speed"]}, "outage_signals: the sensor measures no 'measured_speed'"),
+        ({"outage_duration": 10.0}, "outage_duration needs outage_signals"),
+        ({"outage_signals": ["measured_position"], "outage_start": -1.0}, "outage_start"),
+    ],
+)
+def test_a_bad_outage_is_refused_in_one_line(changes, message):
+    from lookout.sensors import PositionHeadingSensor
+
+    with pytest.raises(ValueError) as error:
+        PositionHeadingSensor(**changes)
+    assert message in str(error.value) and "\n" not in str(error.value)

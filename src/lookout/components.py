@@ -19,7 +19,7 @@ The sample loop (see :mod:`lookout.sim`)
 ----------------------------------------
 At sample k, time t_k::
 
-    y_k   = sensor.measure(x(t_k), normals)         channels not due hold their last sample
+    y_k   = sensor.sample(t_k, x(t_k), normals)     channels not due hold their last sample
     S     = observer.update(S, t_k, y_k)            correction (discrete observers)
     e_k   = observer.output(S, y_k)                 labelled estimate at t_k
     R, r_k = reference.step(R, t_k, dt, normals)
@@ -188,16 +188,44 @@ class Plant(eqx.Module):
         gives a model-based component the plant's own model unless its table gives one."""
 
 
+class Outage(eqx.Module):
+    """Channels of a sensor that measure nothing (NaN) over ``[start, start + duration)``:
+    a position reference that loses its fix for a minute, a gyro that stops. The
+    observer rides through it as through any dropout.
+
+    Parameters
+    ----------
+    start, duration : float
+        When the outage begins and how long it lasts (s); a duration of 0 is no
+        outage (the sensor keeps the structure of one, so that a study over outages
+        compiles once).
+    channels : tuple of bool
+        Per channel of the measurement: whether the outage silences it (static).
+    """
+
+    start: Array
+    duration: Array
+    channels: tuple[bool, ...] = eqx.field(static=True)
+
+    def lost(self, t) -> Array:
+        """Per channel: whether it is silenced at ``t``."""
+        inside = (t >= self.start) & (t < self.start + self.duration)
+        return inside & jnp.asarray(self.channels)
+
+
 class Sensor(eqx.Module):
     """A sampled measurement ``y = h(x) + noise``; NaN marks a dropped channel.
 
     Each entry of ``y`` is a channel with its own sample period; between samples
-    the engine holds a channel's last value.
+    the engine holds a channel's last value. ``outage`` (an :class:`Outage`, or None)
+    silences channels over a time window; the engine samples through :meth:`sample`,
+    which applies it.
     """
 
     measurement_layout: eqx.AbstractVar[Layout]
     sample_period: eqx.AbstractVar[tuple[float, ...]]
     noise_size: eqx.AbstractVar[int]
+    outage: Outage | None = eqx.field(default=None, kw_only=True)
 
     @abc.abstractmethod
     def measure(self, x, normals: Array) -> Array:
@@ -206,6 +234,11 @@ class Sensor(eqx.Module):
     @abc.abstractmethod
     def ideal(self, x) -> Array:
         """The noise-free, never-dropped measurement (continuous-time analysis)."""
+
+    def sample(self, t, x, normals: Array) -> Array:
+        """:meth:`measure` at time ``t``, with the channels of an outage NaN."""
+        y = self.measure(x, normals)
+        return y if self.outage is None else jnp.where(self.outage.lost(t), jnp.nan, y)
 
 
 class Observer(eqx.Module):

@@ -62,6 +62,9 @@ from lookout.settings import RunsConfig, Settings, explain, finite_positive, val
 
 #: The top-level keys of a composition.
 TOP_KEYS = ("preset", "simulation", *registry.COMPONENT_ROLES)
+#: Components of which another component may hold a model of its own (a Kalman filter's
+#: ``[observer.plant]``): by default the composition's, else built from the table given.
+MODEL_ROLES = ("plant", "sensor")
 
 
 class CompositionError(ValueError):
@@ -312,7 +315,12 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
     parts: dict = {}
     normal = parts
     for p in parameters:
-        if p.sort == "part" and p.role in registry.COMPONENT_ROLES:  # another component of the composition
+        if p.sort == "part" and p.role in MODEL_ROLES and p.name in table:
+            # a model of the plant or the sensor (a Kalman filter's), built as the composition
+            # builds its own: from its table alone
+            own = _Context([], simulation=context.simulation)
+            arguments[p.name], normal[p.name] = build_part(p.role, table[p.name], location + (p.name,), own, defaults=True)
+        elif p.sort == "part" and p.role in registry.COMPONENT_ROLES:  # another component of the composition
             found = context.find(_part_classes(p))
             if p.name in table:
                 raise CompositionError(location + (p.name,), f"is the composition's [{p.role}] table, not a key of [{role}]")
@@ -610,7 +618,9 @@ def path_parts(path: str) -> list:
 
 
 def set_path(document: dict, path: str, value: Any) -> None:
-    """Set the key at ``path`` of a full composition (the key must exist there)."""
+    """Set the key at ``path`` of a full composition: the key must exist there, unless the
+    value is a table (a part given where the composition took one from elsewhere, such as
+    an observer's own vessel model; building the composition checks its keys)."""
     parts = path_parts(path)
     target: Any = document
     for depth, part in enumerate(parts):
@@ -618,7 +628,7 @@ def set_path(document: dict, path: str, value: Any) -> None:
         if isinstance(part, int):
             if not isinstance(target, (list, tuple)) or part >= len(target):
                 raise CompositionError(here, f"does not exist ({key_text(here[:-1])} has {len(target) if isinstance(target, (list, tuple)) else 'no'} entries)")
-        elif not isinstance(target, dict) or part not in target:
+        elif not isinstance(target, dict) or (part not in target and not (depth == len(parts) - 1 and isinstance(value, dict))):
             known = ", ".join(sorted(target)) if isinstance(target, dict) else "none"
             raise CompositionError(here, f"no such key (known here: {known})")
         if depth == len(parts) - 1:

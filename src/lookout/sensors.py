@@ -7,6 +7,8 @@ gyro compass reports it.
 
 from __future__ import annotations
 
+import re
+
 import equinox as eqx
 import jax
 import jax.scipy.special
@@ -18,8 +20,50 @@ from typing import final
 
 from lookout import _validation as check
 from lookout._math import ssa
-from lookout.components import EARTH_FIXED, Layout, Sensor, Signal
+from lookout.components import EARTH_FIXED, Layout, Outage, Sensor, Signal
 from lookout.models.vessel import EARTH_AXES, VesselState
+
+#: The parameters of an outage, which every sensor takes (numpydoc; the registry reads them).
+OUTAGE_PARAMETERS = """    outage_signals : sequence of str, optional
+        Measured signals that an outage silences (``measured_position``: a position
+        reference that loses its fix); default none, and no outage.
+    outage_start : float, non-negative
+        When the outage begins (s).
+    outage_duration : float, non-negative
+        How long it lasts (s); 0 is none (the sensor keeps an outage's structure).
+"""
+
+
+def with_outage_parameters(cls):
+    """Add :data:`OUTAGE_PARAMETERS` at the end of the class's numpydoc Parameters section."""
+    doc = cls.__doc__
+    start = doc.index("Parameters\n")
+    following = re.search(r"\n\n    [A-Z][a-z]+\n    -+\n", doc[start:])
+    end = start + following.start() + 1 if following else len(doc.rstrip()) + 1
+    cls.__doc__ = doc[:end].rstrip("\n ") + "\n" + OUTAGE_PARAMETERS + doc[end:]
+    return cls
+
+
+def outage_of(layout: Layout, signals, start, duration) -> Outage | None:
+    """The :class:`~lookout.components.Outage` of ``signals`` (names of ``layout``'s
+    signals) over ``[start, start + duration)``; None without signals."""
+    if signals is None or len(signals) == 0:
+        if check.is_concrete(duration) and float(np.max(duration)) > 0.0:
+            raise ValueError("outage_duration needs outage_signals: name the measured signals the outage silences")
+        return None
+    if isinstance(signals, str):
+        signals = (signals,)
+    names = layout.names
+    for name in signals:
+        if name not in names:
+            raise ValueError(f"outage_signals: the sensor measures no {name!r} (it measures {', '.join(names)})")
+    for name, value in (("outage_start", start), ("outage_duration", duration)):
+        if check.is_concrete(value):
+            number = np.asarray(value, dtype=float)
+            if number.shape != () or not (np.isfinite(number) and number >= 0.0):
+                raise ValueError(f"{name} must be a finite number of seconds >= 0; got {value}")
+    channels = tuple(signal.name in signals for signal in layout.signals for _ in range(signal.size))
+    return Outage(jnp.asarray(start, dtype=float), jnp.asarray(duration, dtype=float), channels)
 
 #: What a DGPS and a gyro compass report: y = eta + eta_w + d (eq. 12).
 POSITION_HEADING = Layout(
@@ -31,6 +75,7 @@ POSITION_HEADING = Layout(
 
 
 @final
+@with_outage_parameters
 class PositionHeadingSensor(Sensor):
     """Position fixes (x, y) and heading, each channel with its own noise and rate.
 
@@ -54,10 +99,11 @@ class PositionHeadingSensor(Sensor):
     noise_size: int = eqx.field(static=True, default=6, kw_only=True)
     measurement_layout: Layout = eqx.field(static=True, default=POSITION_HEADING, kw_only=True)
 
-    def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0):
+    def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0, outage_signals=None, outage_start=0.0, outage_duration=0.0):
         self.noise_std = jnp.asarray(check.vector("sensor noise_std", noise_std))
         self.dropout_probability = jnp.asarray(float(dropout_probability))
         self.sample_period = tuple(float(p) for p in check.vector("sensor sample_period", sample_period))
+        self.outage = outage_of(POSITION_HEADING, outage_signals, outage_start, outage_duration)
 
     def __check_init__(self):
         check.positive("sensor noise_std", self.noise_std, allow_zero=True)
@@ -96,6 +142,7 @@ from lookout.models.manipulators import JOINT_MEASUREMENT, JointState, Manipulat
 
 
 @final
+@with_outage_parameters
 class JointEncoder(Sensor):
     """Joint position encoders: q with Gaussian noise, quantization, per-joint rates and dropouts.
 
@@ -135,7 +182,8 @@ class JointEncoder(Sensor):
     noise_size: int = eqx.field(static=True)
     measurement_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, model, *, sample_period, noise_std=0.0, quantization=0.0, dropout_probability=0.0):
+    def __init__(self, model, *, sample_period, noise_std=0.0, quantization=0.0, dropout_probability=0.0, outage_signals=None, outage_start=0.0,
+                 outage_duration=0.0):
         if isinstance(model, ManipulatorPlant):
             model = model.model
         if not isinstance(model, ManipulatorModel):
@@ -147,6 +195,7 @@ class JointEncoder(Sensor):
         self.sample_period = tuple(float(p) for p in check.vector("encoder sample_period", sample_period, n))
         self.noise_size = 2 * n
         self.measurement_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_MEASUREMENT)
+        self.outage = outage_of(self.measurement_layout, outage_signals, outage_start, outage_duration)
 
     def __check_init__(self):
         check.positive("encoder noise_std", self.noise_std, allow_zero=True)
@@ -200,6 +249,7 @@ POSITION_HEADING_VELOCITY = Layout(
 
 
 @final
+@with_outage_parameters
 class PositionHeadingVelocitySensor(Sensor):
     """ORACLE SENSOR, FOR ANALYSIS IN SIMULATION ONLY: measures eta AND the velocity nu.
 
@@ -234,10 +284,11 @@ class PositionHeadingVelocitySensor(Sensor):
     noise_size: int = eqx.field(static=True, default=12, kw_only=True)
     measurement_layout: Layout = eqx.field(static=True, default=POSITION_HEADING_VELOCITY, kw_only=True)
 
-    def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0):
+    def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0, outage_signals=None, outage_start=0.0, outage_duration=0.0):
         self.noise_std = jnp.asarray(check.vector("oracle sensor noise_std", noise_std, 6))
         self.dropout_probability = jnp.asarray(float(dropout_probability))
         self.sample_period = tuple(float(p) for p in check.vector("oracle sensor sample_period", sample_period, 6))
+        self.outage = outage_of(POSITION_HEADING_VELOCITY, outage_signals, outage_start, outage_duration)
 
     def __check_init__(self):
         check.positive("oracle sensor noise_std", self.noise_std, allow_zero=True)
@@ -289,6 +340,7 @@ def joint_state_layout(model: ManipulatorModel) -> Layout:
 
 
 @final
+@with_outage_parameters
 class JointStateSensor(Sensor):
     """Joint positions and rates ``y = [q, q'] + noise``; NaN marks a dropped channel.
 
@@ -318,7 +370,7 @@ class JointStateSensor(Sensor):
     noise_size: int = eqx.field(static=True)
     measurement_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, model, *, sample_period, noise_std=0.0, dropout_probability=0.0):
+    def __init__(self, model, *, sample_period, noise_std=0.0, dropout_probability=0.0, outage_signals=None, outage_start=0.0, outage_duration=0.0):
         model = getattr(model, "model", model)
         if not isinstance(model, ManipulatorModel):
             raise ValueError(f"JointStateSensor needs a ManipulatorModel or a manipulator plant; got {type(model).__name__}")
@@ -328,6 +380,7 @@ class JointStateSensor(Sensor):
         self.sample_period = tuple(float(p) for p in check.vector("joint state sensor sample_period", sample_period, channels))
         self.noise_size = 2 * channels
         self.measurement_layout = joint_state_layout(model)
+        self.outage = outage_of(self.measurement_layout, outage_signals, outage_start, outage_duration)
 
     def __check_init__(self):
         check.positive("joint state sensor noise_std", self.noise_std, allow_zero=True)

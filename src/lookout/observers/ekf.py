@@ -37,10 +37,12 @@ class ExtendedKalmanFilter(KalmanFilter):
     Parameters
     ----------""" + PARAMETERS
 
-    def __init__(self, plant: Plant, sensor: Sensor, process_noise=None, state_noise=None, measurement_noise=None, initial_std=None, *,
+    def __init__(self, plant: Plant, sensor: Sensor, process_noise=None, state_noise=None, measurement_noise=None, initial_std=None,
+                 input_disturbance=None, *,
                  plant_step: float, filter_period: float, integrator: str = "rk4"):
         fields = kalman_fields(plant, sensor, process_noise=process_noise, state_noise=state_noise, measurement_noise=measurement_noise,
-                               initial_std=initial_std, plant_step=plant_step, sample_period=filter_period, integrator=integrator)
+                               initial_std=initial_std, plant_step=plant_step, sample_period=filter_period, integrator=integrator,
+                               input_disturbance=input_disturbance)
         for name, value in fields.items():
             setattr(self, name, value)
 

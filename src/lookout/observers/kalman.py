@@ -35,6 +35,16 @@ found by probing it at 3 pi / 2) are wrapped after each correction. A correction
 whose result is not finite leaves the prior unchanged, so a bad sample cannot poison
 the filter's state.
 
+**Unknown input disturbance** (``input_disturbance``, off by default): the usual DP
+practice for a model without a bias of its own. The state is augmented by d, one entry
+per input entry, a random walk ``d' = w_d`` with ``E[w_d w_d^T] = diag(q_d)``, and the
+model is driven by u + d: an unknown slowly varying force (current, wind, mean wave
+drift) that the filter estimates as it estimates any state. Its process noise enters
+Q_d as ``q_d dt`` (the cross terms with the plant's states, of order dt^2, are left
+out, as for ``state_noise``). Its estimate is recorded as ``disturbance_<input>``
+(for the DP vessel ``disturbance_force`` and ``disturbance_moment``, in the input's
+body-fixed frame).
+
 Defaults derived from the scenario (each can be given instead):
 
 * R from the sensor's own noise: J J^T, J the Jacobian of ``sensor.measure`` with
@@ -60,7 +70,7 @@ from jax import Array
 from jax.flatten_util import ravel_pytree
 
 from lookout import _validation as check
-from lookout._math import ssa
+from lookout._math import ssa, unmarked
 from lookout.components import Layout, Observer, Plant, Sensor, Signal
 from lookout.sim.integrators import INTEGRATORS
 
@@ -72,7 +82,8 @@ class KalmanState(eqx.Module):
     ----------
     mean : Array, shape (n,)
         The estimate of the plant's state, raveled (``jax.flatten_util.ravel_pytree``
-        of the model's ``state()``).
+        of the model's ``state()``), followed by the input disturbance's when the
+        filter estimates one.
     covariance : Array, shape (n, n)
         Its error covariance P.
     """
@@ -96,21 +107,37 @@ def _probe_normalize(model: Plant, probe: float) -> Array:
     return jnp.diagonal(jax.vmap(lambda x: ravel_pytree(model.normalize(unravel(x)))[0])(moved))
 
 
-def _state_vector(model: Plant, value, name: str) -> np.ndarray | None:
+#: The key of the input disturbance's entries in a table of state parts.
+DISTURBANCE = "input_disturbance"
+
+
+def _state_vector(model: Plant, value, name: str, disturbance_size: int = 0, default_disturbance: float | None = None) -> np.ndarray | None:
     """A per-state-entry vector: None, a flat array of the state's size, or a table of
-    the plant's state parts (the keywords of its ``state``, as ``[plant.initial]``)."""
+    the plant's state parts (the keywords of its ``state``, as ``[plant.initial]``).
+    With ``disturbance_size`` entries of an input disturbance appended: in a table under
+    :data:`DISTURBANCE` (``default_disturbance`` each where the table has none)."""
     if value is None:
         return None
-    size = ravel_pytree(model.state())[0].size
+    size = ravel_pytree(model.state())[0].size + disturbance_size
     if isinstance(value, dict):
+        parts = dict(value)
+        extra = parts.pop(DISTURBANCE, None)
+        if extra is not None and not disturbance_size:
+            raise ValueError(f"{name}: {DISTURBANCE} is for a filter with input_disturbance; this one estimates none")
+        if extra is None:
+            if disturbance_size and default_disturbance is None:
+                raise ValueError(f"{name}: give {DISTURBANCE} too (one entry per input entry: {disturbance_size})")
+            extra = np.full(disturbance_size, default_disturbance if disturbance_size else 0.0)
+        extra = np.broadcast_to(np.asarray(extra, dtype=float), (disturbance_size,)) if disturbance_size else np.zeros(0)
         try:
-            vector = np.asarray(ravel_pytree(model.state(**value))[0], dtype=float)
+            vector = np.concatenate([np.asarray(ravel_pytree(model.state(**parts))[0], dtype=float), extra])
         except TypeError as error:
             raise ValueError(f"{name}: {error}") from None
     else:
         vector = np.asarray(value, dtype=float)
         if vector.shape != (size,):
-            raise ValueError(f"{name} must have one entry per state entry ({size}), or be a table of the plant's state parts; got shape {vector.shape}")
+            what = f"state entry ({size}: the plant's and the input disturbance's)" if disturbance_size else f"state entry ({size})"
+            raise ValueError(f"{name} must have one entry per {what}, or be a table of the plant's state parts; got shape {vector.shape}")
     if not (np.all(np.isfinite(vector)) and np.all(vector >= 0)):
         raise ValueError(f"{name} must be finite and >= 0; got {vector.tolist()}")
     return vector
@@ -157,11 +184,14 @@ class KalmanFilter(Observer):
     model: Plant
     sensor: Sensor
     process_noise: Array        # (noise_size,) intensity of each of the model's noise inputs
-    state_noise: Array          # (n,) continuous intensity added per state entry
+    state_noise: Array          # (n,) continuous intensity added per state entry (the disturbance's last)
     measurement_covariance: Array   # (m, m) R
     initial_covariance: Array   # (n, n) P_0
     plant_step: float = eqx.field(static=True)
+    filter_period: float = eqx.field(static=True)
     integrator: str = eqx.field(static=True)
+    state_size: int = eqx.field(static=True)          # entries of the plant's raveled state
+    disturbance_size: int = eqx.field(static=True)    # entries of the input disturbance (0: none)
     state_angles: tuple[bool, ...] = eqx.field(static=True)
     channel_angles: tuple[bool, ...] = eqx.field(static=True)
     channel_periods: tuple[float, ...] = eqx.field(static=True)
@@ -173,30 +203,53 @@ class KalmanFilter(Observer):
 
     # ------------------------------------------------------------------ the model
     def _unravel(self, vector: Array):
-        return ravel_pytree(self.model.state())[1](vector)
+        """The plant's state from the filter's (the input disturbance left out)."""
+        return ravel_pytree(self.model.state())[1](vector[: self.state_size])
 
     def _ravel(self, state) -> Array:
         return ravel_pytree(state)[0]
 
+    def augmented(self, state, disturbance: Array | None = None) -> Array:
+        """The filter's vector of a plant state: raveled, with the input disturbance
+        (zero unless given) appended when the filter estimates one."""
+        disturbance = jnp.zeros(self.disturbance_size) if disturbance is None else disturbance
+        return jnp.concatenate([self._ravel(state), disturbance])
+
     def step(self, mean: Array, t, u: Array, dt, noise: Array | None = None) -> Array:
         """Phi: the model over one sample from ``mean`` (raveled) with ``u`` held and
         ``noise`` (substeps x noise_size, zero when None) held over each substep."""
-        h = self.plant_step
-        substeps = self.substeps(dt)
+        substeps, h = self.substeps(dt), self.substep(dt)
         size = self.model.noise_size
         noise = jnp.zeros((substeps, size)) if noise is None else noise
         integrate = INTEGRATORS[self.integrator]
-        state = self._unravel(mean)
-        for j in range(substeps):  # a handful of substeps per sample: unrolled, as the engine's
-            state = integrate(lambda s, z, w=noise[j]: self.model.vector_field(s, z, u, w), t + j * h, state, h)
-        return self._ravel(state)
+        state, disturbance = mean[: self.state_size], mean[self.state_size:]
+        driven = u + disturbance if self.disturbance_size else u
+
+        def field(s, x, w):
+            # integrated on the raveled vector (elementwise, as on the state's leaves): its
+            # Jacobian by forward mode is 4x faster than through the state's PyTree
+            return self._ravel(self.model.vector_field(s, self._unravel(x), driven, w))
+
+        with unmarked():  # the step is differentiated (EKF) or vmapped over sigma points (UKF)
+            for j in range(substeps):  # a handful of substeps per sample: unrolled, as the engine's
+                state = integrate(lambda s, x, w=noise[j]: field(s, x, w), t + j * h, state, h)
+        return jnp.concatenate([state, disturbance])
 
     def substeps(self, dt) -> int:
-        """Integration steps per sample of ``dt`` s."""
+        """Integration steps per sample of ``dt`` s: ``dt / plant_step``; for a ``dt`` known
+        only when the filter runs (a log's time steps, :func:`lookout.filter`), as many as
+        in one ``filter_period``."""
+        if not check.is_concrete(dt):
+            return max(1, round(self.filter_period / self.plant_step))
         count = round(float(dt) / self.plant_step)
         if count < 1 or abs(count * self.plant_step - float(dt)) > 1e-9 * max(1.0, float(dt)):
             raise ValueError(f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)")
         return count
+
+    def substep(self, dt):
+        """The integration step over a sample of ``dt`` s: ``plant_step``, or ``dt`` split
+        evenly when ``dt`` is known only when the filter runs."""
+        return self.plant_step if check.is_concrete(dt) else dt / self.substeps(dt)
 
     def linearized(self, mean: Array, t, u: Array, dt) -> tuple[Array, Array]:
         """(F, Q_d) of one sample at ``mean`` (module docstring): both from one forward-mode
@@ -214,7 +267,7 @@ class KalmanFilter(Observer):
     def _noise_covariance(self, noise_jacobian: Array, dt) -> Array:
         """Q_d from G = [G_1 ... G_n], the step's Jacobian in the noise of its substeps."""
         weighted = noise_jacobian * jnp.tile(self.process_noise, self.substeps(dt))[None, :]
-        return _symmetric(weighted @ noise_jacobian.T / self.plant_step + jnp.diag(self.state_noise) * dt)
+        return _symmetric(weighted @ noise_jacobian.T / self.substep(dt) + jnp.diag(self.state_noise) * dt)
 
     def due(self, t) -> Array:
         """Per channel: whether a new sample of it arrives at ``t``."""
@@ -227,8 +280,8 @@ class KalmanFilter(Observer):
         return self.sensor.ideal(self._unravel(mean))
 
     def normalized(self, mean: Array) -> Array:
-        """The raveled state with its angles wrapped."""
-        return self._ravel(self.model.normalize(self._unravel(mean)))
+        """The filter's state with its angles wrapped."""
+        return self.augmented(self.model.normalize(self._unravel(mean)), mean[self.state_size:])
 
     # ------------------------------------------------------------------ the filter
     @abc.abstractmethod
@@ -249,7 +302,7 @@ class KalmanFilter(Observer):
 
     def init(self, y0: Array, guess) -> KalmanState:
         del y0  # the correction at t_0 (update) takes the first sample
-        return KalmanState(self._ravel(guess), self.initial_covariance)
+        return KalmanState(self.augmented(guess), self.initial_covariance)
 
     def update(self, state: KalmanState, t, y: Array) -> KalmanState:
         # a branch, not a select: t (hence which channels are due) is the same for every
@@ -259,14 +312,18 @@ class KalmanFilter(Observer):
         return jax.tree.map(lambda new, old: jnp.where(finite, new, old), corrected, state)
 
     def output(self, state: KalmanState, y: Array) -> dict[str, Array]:
-        return dict(self.model.variables(self._unravel(state.mean)))
+        estimate = dict(self.model.variables(self._unravel(state.mean)))
+        if self.disturbance_size:
+            disturbance = self.input_layout.split(state.mean[self.state_size:])
+            estimate.update({f"disturbance_{name}": value for name, value in disturbance.items()})
+        return estimate
 
     def predict(self, state: KalmanState, t, y: Array, u: Array, dt) -> KalmanState:
         return self.propagate(state, t, u, dt)
 
 
 def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, measurement_noise, initial_std, plant_step, sample_period,
-                  integrator) -> dict:
+                  integrator, input_disturbance=None) -> dict:
     """The shared fields of a Kalman filter on ``plant`` and ``sensor``, validated, with
     the defaults of the module docstring (the steady state from the extended filter's
     linearization, for either filter)."""
@@ -275,10 +332,21 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
     if not isinstance(sensor, Sensor):
         raise ValueError(f"sensor must be a Sensor; got {type(sensor).__name__}")
     check.positive("plant_step", plant_step)
+    check.positive("filter_period", sample_period)
     if integrator not in INTEGRATORS:
         raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
     zero, _ = ravel_pytree(plant.state())
     n, m, size = zero.size, sensor.measurement_layout.size, plant.noise_size
+    inputs = plant.input_layout.size
+    if input_disturbance is None:
+        disturbance = np.zeros(0)
+    else:
+        disturbance = np.broadcast_to(np.asarray(input_disturbance, dtype=float), np.shape(input_disturbance) or (inputs,))
+        if disturbance.shape != (inputs,) or not (np.all(np.isfinite(disturbance)) and np.all(disturbance > 0)):
+            raise ValueError(
+                f"input_disturbance must be {inputs} finite intensities > 0 (one per input entry of the plant, units^2/s); got {np.asarray(input_disturbance).tolist()}"
+            )
+    d = disturbance.size
     if process_noise is None:
         q = jnp.ones(size)
     elif not check.is_concrete(process_noise):  # traced (built under vmap or grad): checked where concrete
@@ -287,8 +355,9 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
         q = np.asarray(process_noise, dtype=float)
         if q.shape != (size,) or not (np.all(np.isfinite(q)) and np.all(q >= 0)):
             raise ValueError(f"process_noise must be {size} finite intensities >= 0 (one per noise input of the plant); got {q.tolist()}")
-    s = _state_vector(plant, state_noise, "state_noise")
-    s = np.zeros(n) if s is None else s
+    s = _state_vector(plant, state_noise, "state_noise", d, default_disturbance=0.0)
+    s = np.zeros(n + d) if s is None else s
+    s = np.concatenate([s[:n], s[n:] + disturbance])  # the disturbance's random walk
     if measurement_noise is None:
         r = _sensor_covariance(sensor, plant.state())
         eigenvalues = np.linalg.eigvalsh(r)
@@ -305,14 +374,15 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
         r = np.diag(std**2)
     fields = {
         "model": plant, "sensor": sensor, "process_noise": jnp.asarray(q), "state_noise": jnp.asarray(s),
-        "measurement_covariance": jnp.asarray(r), "plant_step": float(plant_step), "integrator": integrator,
-        "state_angles": _angle_entries(plant),
+        "measurement_covariance": jnp.asarray(r), "plant_step": float(plant_step), "filter_period": float(sample_period), "integrator": integrator,
+        "state_size": n, "disturbance_size": d, "state_angles": _angle_entries(plant) + (False,) * d,
         "channel_angles": tuple(bool(signal.angle) for signal in sensor.measurement_layout.signals for _ in range(signal.size)),
         "channel_periods": tuple(float(p) for p in sensor.sample_period),
-        "estimate_signals": tuple(plant.variable_signals), "extra_signals": (),
+        "estimate_signals": tuple(plant.variable_signals),
+        "extra_signals": tuple(plant.input_layout.renamed(prefix="disturbance_", long_prefix="estimated input disturbance: ").signals) if d else (),
         "measurement_layout": sensor.measurement_layout, "input_layout": plant.input_layout, "sample_period": None,
     }
-    std = _state_vector(plant, initial_std, "initial_std")
+    std = _state_vector(plant, initial_std, "initial_std", d)
     if std is not None:
         fields["initial_covariance"] = jnp.diag(jnp.asarray(std**2))
     else:
@@ -329,8 +399,7 @@ def _steady_state(fields: dict, sample_period: float) -> np.ndarray:
     its zero state over one observer sample (scipy's solve_discrete_are)."""
     from scipy.linalg import solve_discrete_are
 
-    check.positive("sample_period", sample_period)
-    n = ravel_pytree(fields["model"].state())[0].size
+    n = fields["state_size"] + fields["disturbance_size"]
     probe = _Linearization(**fields, initial_covariance=jnp.zeros((n, n)))
     transition, noise, observation = (np.asarray(a) for a in _linearized(probe, float(sample_period)))
     try:
@@ -352,7 +421,7 @@ def _steady_state(fields: dict, sample_period: float) -> np.ndarray:
 @eqx.filter_jit
 def _linearized(probe: KalmanFilter, dt: float):
     """(F, Q_d, H) of the model at its zero state, u = 0, t = 0, over ``dt``."""
-    zero = probe._ravel(probe.model.state())
+    zero = probe.augmented(probe.model.state())
     transition, noise = probe.linearized(zero, 0.0, jnp.zeros(probe.input_layout.size), dt)
     return transition, noise, jax.jacfwd(probe.measurement)(zero)
 
@@ -386,8 +455,12 @@ PARAMETERS = """
         sensor's own noise).
     initial_std : array_like or table, non-negative, optional
         Standard deviation of the initial guess per state entry, or a table of the
-        plant's state parts (default: the steady-state filter's, from the Riccati
-        equation).
+        plant's state parts and ``input_disturbance`` (default: the steady-state
+        filter's, from the Riccati equation).
+    input_disturbance : array_like, positive, optional
+        Estimate an unknown disturbance added to the plant's input, a random walk of
+        this intensity per input entry (units^2/s): the usual DP bias state, for a
+        model without one (default none).
     plant_step : float, positive
         Step of the propagation (s); default the composition's ``simulation.plant_step``,
         which makes the propagation the simulated plant's own discretization.

@@ -68,9 +68,11 @@ class UnscentedKalmanFilter(KalmanFilter):
     kappa: float = eqx.field(static=True)
 
     def __init__(self, plant: Plant, sensor: Sensor, process_noise=None, state_noise=None, measurement_noise=None, initial_std=None,
+                 input_disturbance=None,
                  alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0, *, plant_step: float, filter_period: float, integrator: str = "rk4"):
         fields = kalman_fields(plant, sensor, process_noise=process_noise, state_noise=state_noise, measurement_noise=measurement_noise,
-                               initial_std=initial_std, plant_step=plant_step, sample_period=filter_period, integrator=integrator)
+                               initial_std=initial_std, plant_step=plant_step, sample_period=filter_period, integrator=integrator,
+                               input_disturbance=input_disturbance)
         for name, value in fields.items():
             setattr(self, name, value)
         n = fields["initial_covariance"].shape[0]

@@ -433,7 +433,7 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
 
     if scenario.observer_mode == "sampled":
         due = (k % jnp.asarray(scenario.sensor_steps)) == 0
-        measured = sensor.measure(state, _sensor_noise(scenario, key, k, due))
+        measured = sensor.sample(t, state, _sensor_noise(scenario, key, k, due))
         y = jnp.where(due, measured, held)
     else:
         y = sensor.ideal(state)
@@ -481,7 +481,7 @@ def _initial_carry(scenario: Scenario, key: Array):
     """
     x0 = scenario.initial_state
     if scenario.observer_mode == "sampled":
-        y0 = scenario.sensor.measure(x0, _sensor_noise(scenario, key, jnp.asarray(0), jnp.asarray(True)))
+        y0 = scenario.sensor.sample(0.0, x0, _sensor_noise(scenario, key, jnp.asarray(0), jnp.asarray(True)))
     else:
         y0 = scenario.sensor.ideal(x0)
     carry = (x0, scenario.observer.init(y0, scenario.initial_estimate), y0, scenario.reference.init(), scenario.controller.init())

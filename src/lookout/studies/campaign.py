@@ -449,7 +449,10 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
         for path in axis.fields:
             try:
                 current = get_path(base_values, path) if _exists(base_values, path) else None
-                if not _exists(base_values, path):
+                # a whole table may be given where the base takes a part from elsewhere (an
+                # observer's own vessel model): its building checks its keys
+                table = axis.cases is not None and all(isinstance(case.get(path, {}), dict) for case in axis.cases)
+                if not _exists(base_values, path) and not (table and _exists(base_values, path.rpartition(".")[0])):
                     raise FileError(f"the scenario has no setting {path!r}")
                 if axis.scale and not isinstance(current, (int, float)):
                     raise FileError(f"scale = true needs a number at {path!r}; it holds {current!r}")
@@ -616,7 +619,8 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
     keys = keys_of_seeds(list(seeds))
     metrics = metric_module.resolve(list(campaign.metric_names), scenario)
     divergence = campaign.settings.divergence
-    options = {"after": campaign.settings.after, "divergence": None if divergence is None else (divergence.signal, divergence.limit)}
+    options = {"after": campaign.settings.after, "divergence": None if divergence is None else (divergence.signal, divergence.limit),
+               "outage": metric_module.outage_of(scenario)}
     kept = campaign.settings.trajectories
     if kept is None:  # the metrics accumulate as the runs go; no records are held
         out = metric_module.summarize(scenario, keys, metrics, **options)

@@ -76,7 +76,9 @@ def record_bytes(campaign: Campaign, scenario) -> int:
     from lookout.sim import record_nbytes
 
     if campaign.settings.trajectories is None:
-        return sum(1 for name in campaign.metric_names if name.startswith("settling_time:")) * jnp.zeros(()).dtype.itemsize
+        from lookout.studies.metrics import SERIES_KINDS
+
+        return sum(1 for name in campaign.metric_names if name.partition(":")[0] in SERIES_KINDS) * jnp.zeros(()).dtype.itemsize
     return record_nbytes(scenario)
 
 
@@ -124,6 +126,17 @@ def _local_env() -> dict:
     if "xla_cpu_small_while_loop_byte_threshold" not in flags:
         flags += f" --xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES}"
     return {"XLA_FLAGS": " ".join((flags + " --xla_force_host_platform_device_count=1").split())}
+
+
+def local_cluster(workers: int):
+    """A ``LocalCluster`` of ``workers`` single-threaded worker processes bound to
+    127.0.0.1, each with one XLA device (:func:`_local_env`)."""
+    from dask.distributed import LocalCluster
+
+    return LocalCluster(
+        n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
+        env=_local_env(), memory_limit=0,
+    )
 
 
 class SchedulerError(ConnectionError):
@@ -199,13 +212,10 @@ def run_campaign(
     disk = check_disk(campaign, path, len(pending), None if free_disk is None else free_disk(Path(path)))
     client = cluster = None
     if not local:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
 
         if scheduler is None:
-            cluster = LocalCluster(
-                n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
-                env=_local_env(), memory_limit=0,
-            )
+            cluster = local_cluster(workers)
             client = Client(cluster)
         else:
             try:

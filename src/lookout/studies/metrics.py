@@ -20,7 +20,15 @@ kind               per run
 ``rms_input``      RMS over t >= after of |u_applied| for the input signal u
 ``max_input``      largest |u_applied| over t >= after
 ``final``          |x| (or |x_hat|, for an observer's own output) at the last record
+``outage_drift``   largest |x - x_hat| while the sensor's outage lasts
+``recovery_time``  time from the outage's end until the RMS of |x - x_hat| over the
+                   next outage-length window is back within 25 % of its RMS over the
+                   same length of time before the outage
 =================  ==============================================================
+
+The two outage metrics need a sensor with an outage (its ``outage_signals``,
+``outage_start`` and ``outage_duration``); without one, or with an outage of 0 s,
+they are NaN, as a recovery time is when the error does not come back within the run.
 
 Every campaign also keeps ``diverged``: a non-finite truth or estimate at any record,
 or, with a divergence limit, the estimation or tracking error of the limit's signal
@@ -56,7 +64,13 @@ KINDS = {
     "rms_input": ("input", "RMS applied input"),
     "max_input": ("input", "largest applied input"),
     "final": ("any", "final value"),
+    "outage_drift": ("estimate", "largest estimation error during the sensor outage"),
+    "recovery_time": ("estimate", "recovery time after the sensor outage"),
 }
+#: The kinds that keep the error's norm at every record (reduced when the run ends).
+SERIES_KINDS = ("settling_time", "recovery_time")
+#: recovery_time: back within this fraction above the error's level before the outage.
+RECOVERY_TOLERANCE = 0.25
 
 
 @dataclass(frozen=True)
@@ -121,7 +135,7 @@ def resolve(names: list[str], scenario) -> list[Metric]:
             found = truth or signals["extra"].get(signal)
             if found is None:
                 raise ValueError(f"{name!r}: no recorded {signal!r} (plant variables: {', '.join(signals['truth'])}; observer outputs: {', '.join(signals['extra']) or 'none'})")
-        units = "s" if kind == "settling_time" else found.units
+        units = "s" if kind in ("settling_time", "recovery_time") else found.units
         metrics.append(Metric(kind, signal, units, f"{description} of {found.long_name}"))
     return metrics
 
@@ -142,6 +156,24 @@ def _settling_time(norm, time, final_rms, tolerance: float = 0.10):
     tail_power = jnp.flip(jnp.cumsum(jnp.flip(norm**2, axis=-1), axis=-1), axis=-1) / count
     inside = jnp.sqrt(tail_power) <= (1.0 + tolerance) * final_rms[..., None]
     return jnp.where(inside.any(axis=-1), time[jnp.argmax(inside, axis=-1)], jnp.nan)
+
+
+def _recovery_time(norm, time, before, start, end):
+    """First time after the outage's end (records ``start`` to ``end``) from which the
+    RMS of ``norm`` over the next outage-length window is within
+    :data:`RECOVERY_TOLERANCE` of its RMS over the window before the outage (records
+    ``before`` to ``start``), counted from the end; NaN when there is no outage or the
+    error does not come back."""
+    n = norm.shape[-1]
+    index = jnp.arange(n)
+    power = jnp.concatenate([jnp.zeros(norm.shape[:-1] + (1,)), jnp.cumsum(norm**2, axis=-1)], axis=-1)  # power[i] = sum of the first i
+    level = jnp.sqrt((power[..., start] - power[..., before]) / jnp.maximum(start - before, 1))
+    length = jnp.maximum(end - start, 1)
+    stop = jnp.minimum(index + length, n)
+    ahead = jnp.sqrt((jnp.take(power, stop, axis=-1) - power[..., :-1]) / (stop - index))
+    back = (index >= end) & (ahead <= (1.0 + RECOVERY_TOLERANCE) * level[..., None])
+    found = back.any(axis=-1) & (end > start) & (start > before)
+    return jnp.where(found, time[jnp.argmax(back, axis=-1)] - time[jnp.minimum(end, n - 1)], jnp.nan)
 
 
 @dataclass(frozen=True)
@@ -169,6 +201,9 @@ class MetricSummary(Summary):
     layout: Any = eqx.field(static=True)   # the input layout (to split the applied input)
     first: int = eqx.field(static=True)    # first record of the window t >= after
     n_records: int = eqx.field(static=True)
+    #: records of the sensor's outage: the window before it starts, its first, and the
+    #: first after it (arrays, so that outages of other lengths share one program)
+    outage: Any = (0, 0, 0)
 
     def _origins(self) -> tuple[str, ...]:
         """Signals whose excursion is measured from their first record (no reference)."""
@@ -192,7 +227,7 @@ class MetricSummary(Summary):
                 value = truth[name] if name in truth else estimate[name]
                 final[variable] = jnp.sqrt(jnp.sum(jnp.asarray(value) ** 2))
                 continue
-            if kind in ("rms_error", "max_error", "settling_time"):
+            if kind in ("rms_error", "max_error", "settling_time", "outage_drift", "recovery_time"):
                 norm = error(name, vector, angle)
             elif kind in ("rms_tracking", "max_tracking"):
                 norm = tracking(name, vector, angle)
@@ -201,7 +236,12 @@ class MetricSummary(Summary):
                 norm = _norm(_difference(truth[name], base, angle), vector)
             else:  # rms_input, max_input
                 norm = _norm(inputs[name], vector)
-            if kind.startswith("rms") or kind == "settling_time":
+            if kind == "recovery_time":
+                series[variable] = norm
+            elif kind == "outage_drift":
+                _, start, end = self.outage
+                peak[variable] = jnp.where((index >= start) & (index < end), norm, -jnp.inf)
+            elif kind.startswith("rms") or kind == "settling_time":
                 power[variable] = jnp.where(window, norm**2, 0.0)
                 if kind == "settling_time":
                     series[variable] = norm
@@ -252,9 +292,14 @@ class MetricSummary(Summary):
         for variable, kind, _, _, _ in self.plan.metrics:
             if kind == "final":
                 out[variable] = accumulated["final"][variable]
+            elif kind == "recovery_time":
+                out[variable] = _recovery_time(series[variable], time, *self.outage)
             elif kind.startswith("rms") or kind == "settling_time":
                 rms = jnp.sqrt(accumulated["power"][variable] / count)
                 out[variable] = rms if kind != "settling_time" else _settling_time(series[variable], time, rms)
+            elif kind == "outage_drift":
+                drift = accumulated["peak"][variable]
+                out[variable] = jnp.where(jnp.isfinite(drift), drift, jnp.nan)
             else:
                 out[variable] = accumulated["peak"][variable]
         diverged = ~accumulated["finite"] | accumulated["beyond"]
@@ -263,11 +308,19 @@ class MetricSummary(Summary):
         return out
 
 
-def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None) -> MetricSummary:
+def outage_of(scenario) -> tuple[float, float] | None:
+    """(start, duration) of the sensor's outage in ``scenario`` (s), or None."""
+    outage = scenario.sensor.outage
+    return None if outage is None else (float(outage.start), float(outage.duration))
+
+
+def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None,
+            outage: tuple[float, float] | None = None) -> MetricSummary:
     """The :class:`MetricSummary` of ``metrics`` for runs recording ``record`` at
-    ``time``: the window t >= ``after`` (default half the run), and ``divergence =
+    ``time``: the window t >= ``after`` (default half the run), ``divergence =
     (signal, limit)``, which also marks a run diverged when the estimation error or
-    the tracking error of ``signal`` exceeds ``limit`` at any record."""
+    the tracking error of ``signal`` exceeds ``limit`` at any record, and the sensor's
+    ``outage = (start, duration)`` (s) for the outage metrics."""
     after = time[-1] / 2.0 if after is None else after
     window = time >= after - 1e-9 * max(1.0, abs(after))
     if not window.any():
@@ -278,7 +331,11 @@ def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, a
     if divergence is not None:
         signal = shapes[divergence[0]]
         limit = (divergence[0], float(divergence[1]), bool(signal.labels), bool(signal.angle))
-    return MetricSummary(_Plan(rows, limit), record.input, int(np.argmax(window)), len(time))
+    windows = (0, 0, 0)
+    if outage is not None:
+        start, duration = outage
+        windows = tuple(int(np.searchsorted(time, edge - 1e-9 * max(1.0, abs(edge)))) for edge in (start - duration, start, start + duration))
+    return MetricSummary(_Plan(rows, limit), record.input, int(np.argmax(window)), len(time), tuple(jnp.asarray(i) for i in windows))
 
 
 @eqx.filter_jit
@@ -303,25 +360,30 @@ def _reduce_records(summary: MetricSummary, records, time):
     return summary.finish(accumulated, series, time)
 
 
-def summarize(scenario, keys, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None) -> dict[str, np.ndarray]:
+def summarize(scenario, keys, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None,
+              outage: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
     """Simulate the runs of ``keys`` and return each metric per run (shape ``(runs,)``)
     and ``diverged``, without holding their records: the metrics accumulate in the
     engine's scan (:func:`lookout.sim.summarize_batch`). Equals :func:`reduce` of
-    ``simulate_batch(scenario, keys)`` to rounding (sums taken in another order)."""
+    ``simulate_batch(scenario, keys)`` to rounding (sums taken in another order).
+    ``outage`` defaults to the scenario's sensor's (:func:`outage_of`)."""
     time = scenario.record_times
-    plan = summary(scenario.record_signals, time, metrics, after=after, divergence=divergence)
+    outage = outage_of(scenario) if outage is None else outage
+    plan = summary(scenario.record_signals, time, metrics, after=after, divergence=divergence, outage=outage)
     accumulated, series = summarize_batch(scenario, keys, plan)
     result = _finish(plan, accumulated, series, jnp.asarray(time))
     return {name: np.asarray(value) for name, value in result.items()}
 
 
-def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None) -> dict[str, np.ndarray]:
+def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None,
+           outage: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
     """Each metric per run (shape ``(runs,)``) and ``diverged`` (bool), from a batched
     :class:`~lookout.Trajectory`, in one jitted program on the device that holds the
-    runs (only these numbers are copied back). The same terms as :func:`summarize`.
+    runs (only these numbers are copied back). The same terms as :func:`summarize`;
+    ``outage = (start, duration)`` is the sensor's outage, for the outage metrics.
     """
     time = np.asarray(trajectory.time)
-    plan = summary(trajectory.signals, time, metrics, after=after, divergence=divergence)
+    plan = summary(trajectory.signals, time, metrics, after=after, divergence=divergence, outage=outage)
     records = (trajectory.truth, trajectory.estimate, trajectory.measurement, trajectory.reference, trajectory.command, trajectory.applied)
     result = _reduce_records(plan, records, jnp.asarray(time))
     return {name: np.asarray(value) for name, value in result.items()}
