@@ -8,6 +8,7 @@ Merwe (2000), "The unscented Kalman filter for nonlinear estimation", Section 3
 
     lambda = alpha^2 (n + kappa) - n
     chi_0 = x,  chi_i = x + [sqrt((n + lambda) P)]_i,  chi_(n+i) = x - [...]_i
+                (sqrt: the Cholesky factor, taken on the correlation matrix)
     W0_m = lambda / (n + lambda),  W0_c = W0_m + 1 - alpha^2 + beta,
     Wi_m = Wi_c = 1 / (2 (n + lambda))
 
@@ -39,6 +40,21 @@ from lookout.observers.kalman import PARAMETERS, KalmanFilter, KalmanState, _sym
 
 def _wrapped(deviations: Array, angles: tuple[bool, ...]) -> Array:
     return jnp.where(jnp.asarray(angles), ssa(deviations), deviations)
+
+
+def square_root(covariance: Array) -> Array:
+    """A lower-triangular L with L L^T = ``covariance``, for a covariance whose entries
+    span many decades (a vessel's states: 1e-4 to 1e10) and may have exactly zero
+    variances (a state known exactly, such as a wave state the model has none of): the
+    Cholesky factor of the correlation matrix (unit diagonal where a variance is zero),
+    scaled by the standard deviations. Rows of zero variance are zero."""
+    covariance = _symmetric(covariance)
+    std = jnp.sqrt(jnp.maximum(jnp.diagonal(covariance), 0.0))
+    known = std > 0.0
+    scale = jnp.where(known, std, 1.0)
+    correlation = covariance / jnp.outer(scale, scale)
+    correlation = jnp.where(jnp.outer(known, known), correlation, jnp.diag(jnp.where(known, 0.0, 1.0)))
+    return jnp.linalg.cholesky(correlation) * std[:, None]
 
 
 def _mean(points: Array, weights: Array, angles: tuple[bool, ...]) -> Array:
@@ -92,7 +108,7 @@ class UnscentedKalmanFilter(KalmanFilter):
         return mean_weights, covariance_weights, n + spread
 
     def _points(self, mean: Array, covariance: Array, scale: float) -> Array:
-        root = jnp.linalg.cholesky(_symmetric(scale * covariance))
+        root = square_root(scale * covariance)
         return jnp.concatenate([mean[None, :], mean + root.T, mean - root.T])
 
     def propagate(self, state: KalmanState, t, u: Array, dt) -> KalmanState:
