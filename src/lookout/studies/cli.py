@@ -279,7 +279,97 @@ def campaign_report(
     console_print(f"report written to {written}" + (f"; figures in {folder}" if drawn else "; no figures (no chunk has finished)" if folder else ""))
 
 
+benchmark_app = typer.Typer(
+    no_args_is_help=True,
+    rich_markup_mode=None,
+    help="Benchmarks: every observer that fits a plant, on the same seeds, sea states, dropouts and model errors.",
+)
+
+
+@benchmark_app.command("observers")
+def benchmark_observers(
+    out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder: one subfolder per plant, with its stores, tables, figures and report.")] = "out/benchmark",
+    plant: Annotated[Optional[str], typer.Option(metavar="KIND", help="Only this plant's benchmark (dp-vessel, cybership-ii, manipulator).", show_default="every shipped one")] = None,
+    spec: Annotated[Optional[str], typer.Option(metavar="SPEC.toml", help="Your own benchmark spec instead (see lookout/studies/benchmarks/).")] = None,
+    quick: Annotated[bool, typer.Option("--quick", help="The specs' quick size: shorter runs, fewer seeds.")] = False,
+    workers: Annotated[
+        Optional[int], typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
+    ] = None,
+    scheduler: Annotated[Optional[str], typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")] = None,
+) -> None:
+    """Run every observer of a benchmark spec on identical scenarios and write, per
+    plant, the metrics' tables (table.md, table.csv), figures, benchmark.nc, an HTML
+    report (report.html) and each observer's campaign store and report. A benchmark
+    whose stores exist resumes."""
+    import os
+
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
+
+    from lookout.studies import benchmark as bench
+    from lookout.studies.execute import SchedulerError, local_cluster
+
+    if plant is not None and spec is not None:
+        raise InputError("give --plant (a shipped benchmark) or --spec (your own), not both")
+    if workers is not None and workers < 0:
+        raise InputError(f"--workers must be 0 (this process) or a positive number of workers; got {workers}")
+    if workers is not None and scheduler is not None:
+        raise InputError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
+    if scheduler is not None and not SCHEDULER_ADDRESS.fullmatch(scheduler.strip()):
+        raise InputError(f"--scheduler must be an address with a port, such as tcp://10.0.0.5:8786; got {scheduler!r}")
+    if spec is not None:
+        if not Path(spec).is_file():
+            raise InputError(f"--spec: no file {spec}")
+        paths = [Path(spec)]
+    else:
+        try:
+            paths = [bench.shipped_spec(plant)] if plant is not None else [bench.shipped_spec(name) for name in bench.shipped_plants()]
+        except ValueError as error:
+            raise InputError(str(error)) from None
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"--out must be a folder; {folder} is an existing file")
+    if not folder.exists():
+        writable_folder("--out", folder.absolute().parent, f"--out {out}")
+    size = "quick" if quick else "full"
+    prepared = []
+    for path in paths:  # every spec and every campaign is checked before anything runs
+        try:
+            prepared.append(bench.prepare(bench.load_benchmark(path), size, folder))
+        except FileError as error:
+            raise InputError(str(error)) from None
+        except ValueError as error:
+            raise InputError(f"{path}: {error}" if not str(error).startswith("--out") else str(error)) from None
+    folder.mkdir(parents=True, exist_ok=True)
+    command = " ".join(["lookout benchmark observers", f"--out {out}"] + ([f"--plant {plant}"] if plant else []) + ([f"--spec {spec}"] if spec else [])
+                       + (["--quick"] if quick else []))
+    cluster = None
+    address = scheduler
+    if scheduler is None and workers != 0:
+        cluster = local_cluster(workers or os.cpu_count() or 1)  # one cluster for every plant
+        address = cluster.scheduler_address
+    try:
+        for each in prepared:
+            console_print(f"{each.benchmark.name}: {each.benchmark.spec.title} ({size}: {len(each.campaigns)} observers)")
+            with progress_bar(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()) as bar:
+                tasks = {}
+
+                def progress(name, done, total, bar=bar, tasks=tasks):
+                    if name not in tasks:
+                        tasks[name] = bar.add_task(name, total=total)
+                    bar.update(tasks[name], completed=done)
+
+                try:
+                    result = bench.run_benchmark(each, workers=workers, cluster_address=address, say=console_print, progress=progress, command=command)
+                except SchedulerError as error:
+                    raise InputError(f"--scheduler {scheduler}: {error}") from None
+            console_print(f"{each.benchmark.name}: done in {result.seconds:.0f} s; {result.written['report']}, {result.written['table']}, {result.written['figures']}")
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
 def register(app: typer.Typer) -> None:
-    """Add ``run`` and ``campaign`` to the ``lookout`` command."""
+    """Add ``run``, ``campaign`` and ``benchmark`` to the ``lookout`` command."""
     app.command("run")(run)
     app.add_typer(campaign_app, name="campaign")
+    app.add_typer(benchmark_app, name="benchmark")

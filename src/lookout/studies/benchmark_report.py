@@ -1,0 +1,407 @@
+"""The observer benchmark's results: one Dataset, tables, figures and an HTML page.
+
+:func:`collect` reads the campaign stores of a benchmark (one per observer,
+:mod:`lookout.studies.benchmark`) into one :class:`xarray.Dataset` over
+``(observer, condition, seed)``, with each observer's cost and what it is given.
+:func:`write_results` writes, into the benchmark's folder:
+
+- ``benchmark.nc``: that Dataset (NetCDF, CF attributes);
+- ``table.md``: the tables in Markdown (what docs/choosing-an-observer.md quotes), and
+  ``table.csv``: one row per observer, condition and metric (median, 10th and 90th
+  percentiles over the seeds, runs diverged);
+- ``figures/``: per RMS metric, its median per condition and observer (bars, 10-90 %
+  spread as whiskers, on a log scale); the cost per sample; the outage's drift and
+  recovery;
+- ``report.html``: one self-contained page with the tables and the figures, linking
+  each observer's campaign report (``reports/<observer>.html``, the campaign report of
+  :mod:`lookout.studies.report`).
+
+Medians and percentiles are over the runs that did not diverge; a cell whose runs
+diverged says how many.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import json
+from pathlib import Path
+
+import numpy as np
+
+#: Percentiles of the spread.
+LOW, HIGH = 10, 90
+#: A median within this fraction of its column's best is marked best too (the Kalman
+#: filters often tie to three digits).
+TIE = 0.01
+#: Kinds of metric with a table and a figure per condition.
+PER_CONDITION = ("rms_error",)
+
+
+def collect(stores: dict[str, Path], costs: dict[str, float], told: dict[str, str], *, metrics: list[str] = (), title: str = "", command: str = ""):
+    """The benchmark's results as one Dataset over ``(observer, condition, seed)``:
+    every metric of any observer (NaN where an observer does not estimate the signal),
+    in the order of ``metrics`` (``KIND:SIGNAL``; others after, by name), then
+    ``diverged``, ``cost`` (us per sample) and ``told`` per observer."""
+    import xarray as xr
+
+    from lookout.studies.store import CampaignStore
+
+    grids = {name: CampaignStore(path).grid() for name, path in stores.items()}
+    first = next(iter(grids.values()))
+    conditions = [str(c) for c in first["condition"].values]
+    seeds = first["seed"].values
+    variables: dict[str, dict] = {}
+    for grid in grids.values():
+        for name, array in grid.data_vars.items():
+            if name not in variables and array.dims == ("condition", "seed"):
+                variables[name] = dict(array.attrs)
+    observers = list(stores)
+    order = [name.replace(":", "__") for name in metrics]
+    ranked = sorted(variables, key=lambda name: (name == "diverged", order.index(name) if name in order else len(order), name))
+    data = {}
+    for name in ranked:
+        attrs = variables[name]
+        values = np.full((len(observers), len(conditions), len(seeds)), np.nan)
+        for i, observer in enumerate(observers):
+            grid = grids[observer]
+            if name in grid:
+                values[i] = grid[name].values
+        data[name] = (("observer", "condition", "seed"), values, attrs)
+    data["cost"] = (("observer",), np.asarray([costs[o] for o in observers]),
+                    {"units": "us", "long_name": "cost per sample of the observer alone (one run, compiled)"})
+    ds = xr.Dataset(
+        data,
+        coords={
+            "observer": ("observer", np.asarray(observers, dtype=object), {"long_name": "observer"}),
+            "condition": ("condition", np.asarray(conditions, dtype=object), {"long_name": "condition (one change from the baseline)"}),
+            "seed": ("seed", seeds, {"long_name": "PRNG seed of the run"}),
+            "told": ("observer", np.asarray([told[o] for o in observers], dtype=object), {"long_name": "what the observer is given"}),
+        },
+        attrs={"title": title, "Conventions": "CF-1.10", "history": command, "source": "lookout benchmark observers"},
+    )
+    return ds
+
+
+def _metric_parts(name: str) -> tuple[str, str]:
+    kind, _, signal = name.partition("__")
+    return kind, signal
+
+
+def _statistics(values: np.ndarray, diverged: np.ndarray) -> tuple[float, float, float, int, int]:
+    """(median, low, high, runs diverged, runs) of one cell, over the runs that did not diverge."""
+    finished = np.isfinite(diverged)
+    bad = int(np.sum(diverged[finished] > 0.5))
+    good = values[finished & (diverged < 0.5) & np.isfinite(values)]
+    if good.size == 0:
+        return np.nan, np.nan, np.nan, bad, int(finished.sum())
+    low, median, high = np.percentile(good, [LOW, 50, HIGH])
+    return float(median), float(low), float(high), bad, int(finished.sum())
+
+
+def _number(value: float) -> str:
+    if not np.isfinite(value):
+        return "—"
+    if value == 0:
+        return "0"
+    if abs(value) >= 1e4 or abs(value) < 1e-2:
+        return f"{value:.2e}"
+    return f"{value:.3g}"
+
+
+def metric_label(ds, name: str) -> str:
+    attrs = ds[name].attrs
+    kind, signal = _metric_parts(name)
+    return f"{kind.replace('_', ' ')} of {signal.replace('_', ' ')} ({attrs.get('units', '')})"
+
+
+def cell_table(ds, name: str) -> tuple[list[str], list[list[str]]]:
+    """Rows observer, columns condition: the median of ``name`` (the best of each column,
+    and those within :data:`TIE` of it, marked **bold** in Markdown), with the runs
+    diverged where any did."""
+    header = ["observer"] + [str(c) for c in ds.condition.values]
+    medians = np.full((ds.sizes["observer"], ds.sizes["condition"]), np.nan)
+    cells = []
+    for i, observer in enumerate(ds.observer.values):
+        row = []
+        for j in range(ds.sizes["condition"]):
+            median, _, _, bad, runs = _statistics(ds[name].values[i, j], ds["diverged"].values[i, j])
+            medians[i, j] = median
+            row.append((median, bad, runs))
+        cells.append(row)
+    best = np.nanmin(np.where(np.isfinite(medians), medians, np.inf), axis=0)
+    rows = []
+    for i, observer in enumerate(ds.observer.values):
+        row = [str(observer)]
+        for j, (median, bad, runs) in enumerate(cells[i]):
+            text = _number(median)
+            if np.isfinite(median) and np.isfinite(best[j]) and median <= best[j] * (1.0 + TIE):
+                text = f"**{text}**"
+            if bad:
+                text += f" ({bad}/{runs} diverged)"
+            row.append(text)
+        rows.append(row)
+    return header, rows
+
+
+def summary_table(ds, outage: str | None, convergence: str | None) -> tuple[list[str], list[list[str]]]:
+    """One row per observer: what it is given, its cost, runs diverged, and (where the
+    metrics hold them) its convergence time at the baseline and its outage drift and
+    recovery."""
+    header = ["observer", "given", "cost (µs/sample)", "runs diverged"]
+    if convergence:
+        header.append(f"converges in (s), {ds.condition.values[0]}")
+    if outage:
+        header += ["outage drift", "recovery (s)"]
+    rows = []
+    for i, observer in enumerate(ds.observer.values):
+        diverged = ds["diverged"].values[i]
+        finished = np.isfinite(diverged)
+        row = [str(observer), str(ds.told.values[i]), _number(float(ds.cost.values[i])), f"{int(np.sum(diverged[finished] > 0.5))} of {int(finished.sum())}"]
+        if convergence:
+            median = _statistics(ds[convergence].values[i, 0], diverged[0])[0] if convergence in ds else np.nan
+            row.append(_number(median))
+        if outage:
+            drift_name, recovery_name = outage
+            values = ds[drift_name].values[i]
+            j = int(np.argmax(np.isfinite(values).any(axis=1))) if np.isfinite(values).any() else 0
+            drift = _statistics(values[j], diverged[j])[0]
+            recovery = _statistics(ds[recovery_name].values[i, j], diverged[j])[0] if recovery_name in ds else np.nan
+            units = ds[drift_name].attrs.get("units", "")
+            row += [f"{_number(drift)} {units}" if np.isfinite(drift) else "—", _number(recovery)]
+        rows.append(row)
+    return header, rows
+
+
+def _markdown(header: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(cell.replace("|", "/") for cell in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _names(ds) -> tuple[list[str], tuple[str, str] | None, str | None]:
+    """(per-condition metrics, (drift, recovery) names or None, convergence name or None)."""
+    metrics = [n for n in ds.data_vars if "__" in n and _metric_parts(n)[0] in PER_CONDITION]
+    drift = next((n for n in ds.data_vars if n.startswith("outage_drift__")), None)
+    recovery = next((n for n in ds.data_vars if n.startswith("recovery_time__")), None)
+    convergence = next((n for n in ds.data_vars if n.startswith("settling_time__")), None)
+    return metrics, ((drift, recovery) if drift else None), convergence
+
+
+def markdown(ds) -> str:
+    """The benchmark's tables in Markdown."""
+    metrics, outage, convergence = _names(ds)
+    parts = [f"### {ds.attrs.get('title', 'benchmark')}", ""]
+    if ds.attrs.get("history"):
+        parts += [f"`{ds.attrs['history']}`", ""]
+    seeds = ds.sizes["seed"]
+    parts += [f"Each cell: the median over {seeds} seeds (the same seeds for every observer); **bold**: the best of the column; "
+              "— where the observer does not estimate the signal.", ""]
+    parts += [_markdown(*summary_table(ds, outage, convergence)), ""]
+    for name in metrics:
+        parts += [f"#### {metric_label(ds, name)}", "", _markdown(*cell_table(ds, name)), ""]
+    return "\n".join(parts)
+
+
+def rows_csv(ds) -> list[dict]:
+    """One row per observer, condition and metric: median, percentiles, runs diverged."""
+    rows = []
+    for name in [n for n in ds.data_vars if "__" in n]:
+        for i, observer in enumerate(ds.observer.values):
+            for j, condition in enumerate(ds.condition.values):
+                median, low, high, bad, runs = _statistics(ds[name].values[i, j], ds["diverged"].values[i, j])
+                rows.append({"observer": observer, "condition": condition, "metric": name.replace("__", ":"), "units": ds[name].attrs.get("units", ""),
+                             "median": median, f"p{LOW}": low, f"p{HIGH}": high, "runs": runs, "diverged": bad, "cost_us": float(ds.cost.values[i])})
+    return rows
+
+
+# ------------------------------------------------------------------ figures
+
+
+def _colors(count: int):
+    import matplotlib
+
+    palette = matplotlib.colormaps["tab10"]
+    return [palette(i % 10) for i in range(count)]
+
+
+def metric_figure(ds, name: str):
+    """Median per condition and observer (bars), 10-90 % whiskers, log scale."""
+    import matplotlib.pyplot as plt
+
+    observers, conditions = list(ds.observer.values), list(ds.condition.values)
+    figure, ax = plt.subplots(figsize=(11.0, 4.2), dpi=100, layout="constrained")
+    width = 0.8 / len(observers)
+    x = np.arange(len(conditions))
+    for i, (observer, color) in enumerate(zip(observers, _colors(len(observers)))):
+        stats = [_statistics(ds[name].values[i, j], ds["diverged"].values[i, j]) for j in range(len(conditions))]
+        median = np.asarray([s[0] for s in stats])
+        low = np.asarray([s[1] for s in stats])
+        high = np.asarray([s[2] for s in stats])
+        if not np.isfinite(median).any():
+            continue
+        position = x - 0.4 + width * (i + 0.5)
+        ax.bar(position, median, width, color=color, label=str(observer))
+        ax.errorbar(position, median, yerr=[median - low, high - median], fmt="none", ecolor="black", elinewidth=0.8, capsize=2)
+        for j, s in enumerate(stats):
+            if s[3]:
+                ax.annotate(f"{s[3]} div.", (position[j], np.nanmax([median[j], 1e-300]) if np.isfinite(median[j]) else 1.0),
+                            fontsize=7, ha="center", va="bottom", rotation=90)
+    _log_axis(ax.yaxis)
+    ax.set_xticks(x, conditions, rotation=20, ha="right")
+    ax.set_ylabel(metric_label(ds, name))
+    ax.set_title(f"{metric_label(ds, name)}: median over {ds.sizes['seed']} seeds, whiskers {LOW}-{HIGH} %")
+    ax.grid(axis="y", which="both", alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False, title="observer")
+    return figure
+
+
+def _log_axis(axis) -> None:
+    """A log scale whose ticks read as plain numbers (0.3, 1, 2), not powers of ten."""
+    from matplotlib.ticker import FuncFormatter, LogLocator
+
+    axis.axes.set_yscale("log") if axis is axis.axes.yaxis else axis.axes.set_xscale("log")
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    axis.set_minor_formatter(FuncFormatter(lambda value, _: ""))
+
+
+def cost_figure(ds):
+    """Cost per sample of each observer alone (log scale)."""
+    import matplotlib.pyplot as plt
+
+    figure, ax = plt.subplots(figsize=(7.0, 0.5 + 0.45 * ds.sizes["observer"]), dpi=100, layout="constrained")
+    observers = list(ds.observer.values)
+    cost = ds.cost.values
+    ax.barh(np.arange(len(observers)), cost, color=_colors(len(observers)))
+    for i, value in enumerate(cost):
+        ax.annotate(f" {_number(float(value))} µs", (value, i), va="center", fontsize=8)
+    ax.set_yticks(np.arange(len(observers)), observers)
+    ax.invert_yaxis()
+    _log_axis(ax.xaxis)
+    ax.set_xlim(right=ax.get_xlim()[1] * 4)
+    ax.set_xlabel("µs per sample (the observer alone, one run, compiled)")
+    ax.set_title("what each observer costs")
+    ax.grid(axis="x", which="both", alpha=0.3)
+    return figure
+
+
+def outage_figure(ds, drift: str, recovery: str | None):
+    """The outage condition: drift of the estimate during it and recovery after it."""
+    import matplotlib.pyplot as plt
+
+    observers = list(ds.observer.values)
+    values = ds[drift].values
+    j = int(np.argmax(np.isfinite(values).any(axis=(0, 2)))) if np.isfinite(values).any() else 0
+    panels = [drift] + ([recovery] if recovery else [])
+    figure, axes = plt.subplots(1, len(panels), figsize=(11.0, 3.6), dpi=100, layout="constrained", squeeze=False)
+    for ax, name in zip(axes[0], panels):
+        stats = [_statistics(ds[name].values[i, j], ds["diverged"].values[i, j]) for i in range(len(observers))]
+        median = np.asarray([s[0] for s in stats])
+        low = np.asarray([s[1] for s in stats])
+        high = np.asarray([s[2] for s in stats])
+        ax.bar(np.arange(len(observers)), np.where(np.isfinite(median), median, 0.0), color=_colors(len(observers)))
+        ax.errorbar(np.arange(len(observers)), median, yerr=[median - low, high - median], fmt="none", ecolor="black", elinewidth=0.8, capsize=3)
+        ax.set_xticks(np.arange(len(observers)), observers, rotation=20, ha="right")
+        ax.set_ylabel(metric_label(ds, name))
+        ax.grid(axis="y", alpha=0.3)
+    figure.suptitle(f"{ds.condition.values[j]}: median over {ds.sizes['seed']} seeds, whiskers {LOW}-{HIGH} %")
+    return figure
+
+
+def figures(ds) -> dict[str, object]:
+    """File name -> matplotlib figure, for every figure of the benchmark."""
+    metrics, outage, _ = _names(ds)
+    found = {f"{name}.png": metric_figure(ds, name) for name in metrics}
+    found["cost.png"] = cost_figure(ds)
+    if outage:
+        found["outage.png"] = outage_figure(ds, *outage)
+    return found
+
+
+# ------------------------------------------------------------------ writing
+
+
+def _markdown_cell(text: str) -> str:
+    """A Markdown cell as HTML (bold and nothing else)."""
+    escaped = html.escape(text)
+    if escaped.startswith("**"):
+        head, _, rest = escaped[2:].partition("**")
+        return f"<b>{head}</b>{rest}"
+    return escaped
+
+
+def _html_table(header: list[str], rows: list[list[str]]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "\n".join("<tr>" + "".join(f"<td>{_markdown_cell(c)}</td>" for c in row) + "</tr>" for row in rows)
+    return f"<table>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
+
+
+STYLE = """
+body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1400px; padding: 0 1em; color: #222; }
+table { border-collapse: collapse; margin: 0.5em 0 1.5em; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.5em; text-align: left; vertical-align: top; }
+th { background: #f3f3f3; }
+img { max-width: 100%; height: auto; }
+figure { margin: 1em 0; }
+code { background: #f5f5f5; padding: 0 0.2em; }
+"""
+
+
+def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> dict[str, Path]:
+    """Write ``benchmark.nc``, ``table.md``, ``table.csv``, ``figures/*.png`` and
+    ``report.html`` into ``folder``; return name -> path."""
+    import base64
+    import io
+
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    written = {}
+    netcdf = ds.copy()
+    for name in ("observer", "condition", "told"):
+        netcdf[name] = netcdf[name].astype(str)
+    path = folder / "benchmark.nc"
+    netcdf.to_netcdf(path)
+    written["netcdf"] = path
+    text = markdown(ds)
+    (folder / "table.md").write_text(text + "\n", encoding="utf-8")
+    written["table"] = folder / "table.md"
+    rows = rows_csv(ds)
+    with open(folder / "table.csv", "w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    written["csv"] = folder / "table.csv"
+    images = {}
+    figure_folder = folder / "figures"
+    figure_folder.mkdir(exist_ok=True)
+    for name, figure in figures(ds).items():
+        buffer = io.BytesIO()
+        figure.savefig(buffer, format="png", dpi=150)
+        plt.close(figure)
+        images[name] = buffer.getvalue()
+        (figure_folder / name).write_bytes(images[name])
+    written["figures"] = figure_folder
+    metrics, outage, convergence = _names(ds)
+    parts = ["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
+             f"<title>{html.escape(ds.attrs.get('title', 'benchmark'))}</title>", f"<style>{STYLE}</style>", "</head>", "<body>",
+             f"<h1>{html.escape(ds.attrs.get('title', 'benchmark'))}</h1>"]
+    if ds.attrs.get("history"):
+        parts.append(f"<p>Made by <code>{html.escape(ds.attrs['history'])}</code>.</p>")
+    parts.append(f"<p>Medians over {ds.sizes['seed']} seeds, the same for every observer; the best of each column in bold.</p>")
+    parts += ["<h2>The observers</h2>", _html_table(*summary_table(ds, outage, convergence))]
+    parts += [f'<figure><img src="data:image/png;base64,{base64.b64encode(images["cost.png"]).decode()}" alt="cost per sample"></figure>']
+    for name in metrics:
+        parts += [f"<h2>{html.escape(metric_label(ds, name))}</h2>", _html_table(*cell_table(ds, name)),
+                  f'<figure><img src="data:image/png;base64,{base64.b64encode(images[name + ".png"]).decode()}" alt="{html.escape(name)}"></figure>']
+    if outage:
+        parts += ["<h2>The outage</h2>", f'<figure><img src="data:image/png;base64,{base64.b64encode(images["outage.png"]).decode()}" alt="outage"></figure>']
+    if reports:
+        links = "".join(f'<li><a href="{html.escape(str(path.relative_to(folder)))}">{html.escape(name)}</a></li>' for name, path in reports.items())
+        parts += ["<h2>Each observer's campaign</h2>", f"<ul>{links}</ul>"]
+    parts += ["</body>", "</html>"]
+    (folder / "report.html").write_text("\n".join(parts) + "\n", encoding="utf-8")
+    written["report"] = folder / "report.html"
+    (folder / "summary.json").write_text(json.dumps({"title": ds.attrs.get("title"), "cost_us": dict(zip(map(str, ds.observer.values), map(float, ds.cost.values)))}, indent=2))
+    return written
