@@ -47,7 +47,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from lookout import registry
 from lookout.composition import MODEL_ROLES, CompositionError, compose, merge, preset_document, set_path
-from lookout.settings import positive_count, validate_strictly
+from lookout.settings import PositiveCount, PositiveFloat, validate_strictly
 from lookout.studies._toml import FileError, read
 from lookout.studies.campaign import Campaign, Divergence, campaign_from_document
 from lookout.studies.scenario_file import describe, located
@@ -90,22 +90,10 @@ class Size(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    duration: float = Field(description="simulated time of each run (s)")
-    seeds: int = Field(description="runs per observer and condition (seeds seed .. seed + seeds - 1)")
+    duration: PositiveFloat = Field(description="simulated time of each run (s)")
+    seeds: PositiveCount = Field(description="runs per observer and condition (seeds seed .. seed + seeds - 1)")
     after: float | None = Field(None, description="the metrics over t >= after (s); default half the run")
     outage_start: float | None = Field(None, description="when an outage condition's outage begins (s)")
-
-    @field_validator("duration")
-    @classmethod
-    def _positive(cls, value):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"must be a finite positive number of seconds; got {value:g}")
-        return value
-
-    @field_validator("seeds")
-    @classmethod
-    def _count(cls, value):
-        return positive_count(value)
 
 
 class BenchmarkSpec(BaseModel):

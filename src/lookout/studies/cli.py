@@ -34,6 +34,16 @@ def console_print(text: str) -> None:
 #: a bracketed IPv6 address) and a port.
 SCHEDULER_ADDRESS = re.compile(r"(?:[a-z][a-z0-9+.-]*://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):[0-9]{1,5}")
 
+def _check_cluster_options(workers: int | None, scheduler: str | None) -> None:
+    """Refuse (one line) a negative --workers, both options, or a scheduler address without a port."""
+    if workers is not None and workers < 0:
+        raise InputError(f"--workers must be 0 (this process) or a positive number of workers; got {workers}")
+    if workers is not None and scheduler is not None:
+        raise InputError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
+    if scheduler is not None and not SCHEDULER_ADDRESS.fullmatch(scheduler.strip()):
+        raise InputError(f"--scheduler must be an address with a port, such as tcp://10.0.0.5:8786; got {scheduler!r}")
+
+
 campaign_app = typer.Typer(
     no_args_is_help=True,
     rich_markup_mode=None,
@@ -210,12 +220,7 @@ def campaign_run(
 
     from lookout.studies.execute import SchedulerError, run_campaign
 
-    if workers is not None and workers < 0:
-        raise InputError(f"--workers must be 0 (this process) or a positive number of workers; got {workers}")
-    if workers is not None and scheduler is not None:
-        raise InputError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
-    if scheduler is not None and not SCHEDULER_ADDRESS.fullmatch(scheduler.strip()):
-        raise InputError(f"--scheduler must be an address with a port, such as tcp://10.0.0.5:8786; got {scheduler!r}")
+    _check_cluster_options(workers, scheduler)
     campaign = _campaign(spec)
     store = _store_path("--out", out, must_exist=False)
     say = console_print
@@ -310,12 +315,7 @@ def benchmark_observers(
 
     if plant is not None and spec is not None:
         raise InputError("give --plant (a shipped benchmark) or --spec (your own), not both")
-    if workers is not None and workers < 0:
-        raise InputError(f"--workers must be 0 (this process) or a positive number of workers; got {workers}")
-    if workers is not None and scheduler is not None:
-        raise InputError("give --workers or --scheduler, not both (a scheduler's cluster has its own workers)")
-    if scheduler is not None and not SCHEDULER_ADDRESS.fullmatch(scheduler.strip()):
-        raise InputError(f"--scheduler must be an address with a port, such as tcp://10.0.0.5:8786; got {scheduler!r}")
+    _check_cluster_options(workers, scheduler)
     if spec is not None:
         if not Path(spec).is_file():
             raise InputError(f"--spec: no file {spec}")
