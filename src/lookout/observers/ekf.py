@@ -48,8 +48,8 @@ class ExtendedKalmanFilter(KalmanFilter):
 
     def propagate(self, state: KalmanState, t, u: Array, dt) -> KalmanState:
         mean, covariance = state.mean, state.covariance
-        transition, noise = self.linearized(mean, t, u, dt)
-        prior = self.normalized(self.step(mean, t, u, dt))
+        transition, noise, stepped = self.linearized(mean, t, u, dt)
+        prior = self.normalized(stepped)
         return KalmanState(prior, _symmetric(transition @ covariance @ transition.T + noise))
 
     def correct(self, state: KalmanState, t, y: Array) -> KalmanState:

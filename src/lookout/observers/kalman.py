@@ -251,12 +251,15 @@ class KalmanFilter(Observer):
         evenly when ``dt`` is known only when the filter runs."""
         return self.plant_step if check.is_concrete(dt) else dt / self.substeps(dt)
 
-    def linearized(self, mean: Array, t, u: Array, dt) -> tuple[Array, Array]:
-        """(F, Q_d) of one sample at ``mean`` (module docstring): both from one forward-mode
-        Jacobian of the step in the state and the noise together."""
+    def linearized(self, mean: Array, t, u: Array, dt) -> tuple[Array, Array, Array]:
+        """(F, Q_d, Phi(mean)) of one sample at ``mean`` (module docstring): the Jacobians
+        from one forward-mode pass of the step in the state and the noise together, which
+        gives the step's value too."""
         substeps, size, n = self.substeps(dt), self.model.noise_size, mean.size
-        joint = jax.jacfwd(lambda z: self.step(z[:n], t, u, dt, z[n:].reshape(substeps, size)))(jnp.concatenate([mean, jnp.zeros(substeps * size)]))
-        return joint[:, :n], self._noise_covariance(joint[:, n:], dt)
+        joint = jnp.concatenate([mean, jnp.zeros(substeps * size)])
+        step = lambda z: self.step(z[:n], t, u, dt, z[n:].reshape(substeps, size))  # noqa: E731
+        value, columns = jax.vmap(lambda tangent: jax.jvp(step, (joint,), (tangent,)), out_axes=(None, 1))(jnp.eye(joint.size))
+        return columns[:, :n], self._noise_covariance(columns[:, n:], dt), value
 
     def process_covariance(self, mean: Array, t, u: Array, dt) -> Array:
         """Q_d over one sample (module docstring), linearized at ``mean``."""
@@ -422,7 +425,7 @@ def _steady_state(fields: dict, sample_period: float) -> np.ndarray:
 def _linearized(probe: KalmanFilter, dt: float):
     """(F, Q_d, H) of the model at its zero state, u = 0, t = 0, over ``dt``."""
     zero = probe.augmented(probe.model.state())
-    transition, noise = probe.linearized(zero, 0.0, jnp.zeros(probe.input_layout.size), dt)
+    transition, noise, _ = probe.linearized(zero, 0.0, jnp.zeros(probe.input_layout.size), dt)
     return transition, noise, jax.jacfwd(probe.measurement)(zero)
 
 
