@@ -209,3 +209,11 @@ def test_the_shipped_specs_run_every_observer_that_fits_their_plant():
         kinds = {table["kind"] for table in spec.observers.values()}
         fits = {observer for observer, cells in rows.items() if cells[plants.index(plant)] == "runs"} - needs_another_sensor
         assert fits <= kinds, (plant, fits - kinds)
+
+
+def test_a_bad_condition_is_refused_at_the_condition(tmp_path, capsys):
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(TINY.format(extra="").replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duraton" = 20.0'))
+    assert main(["benchmark", "observers", "--spec", str(spec), "--out", str(tmp_path / "out"), "--quick"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.endswith("conditions[1]: outage (observer passive): the scenario has no setting 'sensor.outage_duraton'"), error

@@ -350,8 +350,28 @@ def observer_campaign(benchmark: Benchmark, size_name: str, name: str) -> Observ
     try:
         campaign = campaign_from_document(document, f"{benchmark.source} [observers.{name}]")
     except FileError as error:
-        raise FileError(str(error)) from None
+        raise _condition_error(benchmark, name, str(error)) from None
     return ObserverCampaign(name, campaign, told(full, spec.observers[name]))
+
+
+def _condition_error(benchmark: Benchmark, observer: str, message: str) -> FileError:
+    """A campaign's refusal of a condition's case, located at the spec's condition (the
+    campaign's ``sweep.axes[0].cases`` is the benchmark's ``conditions``)."""
+    import re
+
+    _, _, detail = message.partition(".cases: ")
+    if not detail:
+        return FileError(message)
+    names = [c.name for c in benchmark.spec.conditions]
+    named = re.match(r"case '(.*?)'(?: makes no scenario)?: (.*)", detail)
+    missing = re.search(r"no setting '(.*?)'", detail)
+    if named and named.group(1) in names:
+        index, detail = names.index(named.group(1)), named.group(2)
+    elif missing:
+        index = next((i for i, c in enumerate(benchmark.spec.conditions) if missing.group(1) in {**c.changes, **c.truth_only}), 0)
+    else:
+        return FileError(message)
+    return benchmark.located(("conditions", index), f"{names[index]} (observer {observer}): {detail}")
 
 
 def campaigns(benchmark: Benchmark, size_name: str, observers: list[str] | None = None) -> list[ObserverCampaign]:
