@@ -3,7 +3,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out/fossen-strand-1999
 
-.PHONY: demo test bench study clean
+.PHONY: demo test bench study observer-benchmark clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -32,6 +32,15 @@ study: $(VENV)/.installed
 	$(BIN)/lookout campaign report $(STUDIES)/dp-study.zarr --figures docs/study/dp-study
 	$(BIN)/lookout campaign run examples/kim-model-error.toml --out $(STUDIES)/kim-model-error.zarr
 	$(BIN)/lookout campaign report $(STUDIES)/kim-model-error.zarr --figures docs/study/kim-model-error
+
+# The observer benchmark (docs/choosing-an-observer.md): every observer on each shipped
+# plant; its tables and figures are copied to docs/benchmark/.
+BENCHMARK ?= out/benchmark
+observer-benchmark: $(VENV)/.installed
+	$(BIN)/lookout benchmark observers --out $(BENCHMARK)
+	for plant in dp-vessel cybership-ii manipulator; do \
+		mkdir -p docs/benchmark/$$plant && cp $(BENCHMARK)/$$plant/table.md $(BENCHMARK)/$$plant/figures/*.png docs/benchmark/$$plant/; \
+	done
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py
