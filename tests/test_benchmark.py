@@ -211,6 +211,16 @@ def test_the_shipped_specs_run_every_observer_that_fits_their_plant():
         assert fits <= kinds, (plant, fits - kinds)
 
 
+def test_a_misspelled_metric_is_refused_not_left_out(tmp_path, capsys):
+    """An observer that does not estimate a plant variable is not measured on it; a
+    metric that is no metric of the plant is an error, not a silently empty column."""
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(TINY.format(extra="").replace('"rms_error:bias_force"', '"rms_error:bias_forse"'))
+    assert main(["benchmark", "observers", "--spec", str(spec), "--out", str(tmp_path / "out"), "--quick"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "metrics" in error and "bias_forse" in error and "\n" not in error, error
+
+
 def test_a_bad_condition_is_refused_at_the_condition(tmp_path, capsys):
     spec = tmp_path / "tiny.toml"
     spec.write_text(TINY.format(extra="").replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duraton" = 20.0'))

@@ -273,15 +273,21 @@ def condition_case(benchmark: Benchmark, base: dict, condition: Condition) -> di
 
 
 def applicable_metrics(names, scenario) -> list[str]:
-    """The metrics of ``names`` that apply to ``scenario`` (the signals its observer estimates)."""
+    """The metrics of ``names`` that apply to ``scenario``: an estimation metric of a
+    plant variable its observer does not estimate is left out; a name that is no metric,
+    or a signal the plant does not have, is refused (ValueError)."""
     from lookout.studies import metrics as metric_module
 
+    truth = {signal.name for signal in scenario.record_signals.truth}
     found = []
     for name in names:
         try:
             metric_module.resolve([name], scenario)
         except ValueError:
-            continue
+            kind, _, signal = name.partition(":")
+            if metric_module.KINDS.get(kind, ("",))[0] == "estimate" and signal in truth:
+                continue  # the plant has it; this observer does not estimate it
+            raise
         found.append(name)
     return found
 
@@ -325,7 +331,10 @@ def observer_campaign(benchmark: Benchmark, size_name: str, name: str) -> Observ
         where = location + error.location[1:] if error.location[:1] == ("observer",) else ("scenario",) + error.location
         raise benchmark.located(where, error.reason) from None
     full = composition.document
-    metrics = applicable_metrics(spec.metrics, composition.scenario)
+    try:
+        metrics = applicable_metrics(spec.metrics, composition.scenario)
+    except ValueError as error:
+        raise benchmark.located(("metrics",), str(error)) from None
     if not metrics:
         raise benchmark.located(("metrics",), f"no metric applies to observer {name} (it estimates {', '.join(s.name for s in composition.scenario.record_signals.estimate)})")
     cases = []

@@ -144,7 +144,7 @@ def cell_table(ds, name: str) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
-def summary_table(ds, outage: str | None, convergence: str | None) -> tuple[list[str], list[list[str]]]:
+def summary_table(ds, outage: tuple[str, str | None] | None, convergence: str | None) -> tuple[list[str], list[list[str]]]:
     """One row per observer: what it is given, its cost, runs diverged, and (where the
     metrics hold them) its convergence time at the baseline and its outage drift and
     recovery."""
