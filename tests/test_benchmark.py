@@ -170,7 +170,7 @@ def test_the_command_writes_tables_figures_and_reports(tmp_path, capsys):
     capsys.readouterr()
     assert main(["benchmark", "observers", "--spec", str(spec), "--out", str(out), "--workers", "0"]) == 2
     error = capsys.readouterr().err.strip()
-    assert error.startswith("error: --out: ") and "passive.zarr holds a benchmark of other settings" in error and "\n" not in error
+    assert error.startswith("error: --out: ") and "passive.zarr holds observer passive's benchmark with other settings (outage_start: 60.0 -> 100.0; duration: 100.0 -> 200.0)" in error and "\n" not in error, error
 
 
 @pytest.mark.parametrize(
@@ -227,3 +227,13 @@ def test_a_bad_condition_is_refused_at_the_condition(tmp_path, capsys):
     assert main(["benchmark", "observers", "--spec", str(spec), "--out", str(tmp_path / "out"), "--quick"]) == 2
     error = capsys.readouterr().err.strip()
     assert error.endswith("conditions[1]: outage (observer passive): the scenario has no setting 'sensor.outage_duraton'"), error
+
+
+def test_an_outage_that_outlasts_the_run_is_refused(tmp_path, capsys):
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(TINY.format(extra="").replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 50.0'))
+    assert main(["benchmark", "observers", "--spec", str(spec), "--out", str(tmp_path / "out"), "--quick"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.endswith("conditions[1]: outage: the outage ends at 110 s, not before the quick run does (100 s): the recovery after it "
+                          "cannot be measured; start it earlier (quick.outage_start)"), error
+    assert not (tmp_path / "out").exists()

@@ -183,7 +183,7 @@ def test_a_held_sample_is_not_a_new_measurement():
         ({"measurement_noise": [0.0]}, "measurement_noise must be 1 finite standard deviations > 0"),
         ({"process_noise": [1.0, 2.0]}, "process_noise must be 1 finite intensities >= 0"),
         ({"initial_std": [1.0]}, "initial_std must have one entry per state entry (2)"),
-        ({"initial_std": {"position": 1.0, "speed": 2.0}}, "initial_std: "),
+        ({"initial_std": {"position": 1.0, "speed": 2.0}}, "initial_std: the plant's state has no part 'speed' (its parts: position, rate)"),
         ({"state_noise": [-1.0, 0.0]}, "state_noise must be finite and >= 0"),
         ({"plant_step": -0.1}, "plant_step"),
         ({"integrator": "rk45"}, "integrator must be one of rk4, euler"),
@@ -325,7 +325,7 @@ def test_a_composition_gives_the_filter_its_plant_steps_and_a_table_of_state_par
     np.testing.assert_allclose(np.sqrt(np.diag(np.asarray(ukf.initial_covariance)))[6:9], std["bias"])
     np.testing.assert_array_equal(np.asarray(composition.scenario.initial_estimate.bias), [1e4, 5e3, 1e5])
     document["observer"]["initial_std"] = {"eta": [5.0, 5.0, 0.05], "speed": [1.0]}
-    with pytest.raises(CompositionError, match=r"observer.initial_std: .*unexpected keyword argument 'speed'"):
+    with pytest.raises(CompositionError, match=r"observer.initial_std: .*the plant's state has no part 'speed' \(its parts: eta, nu, bias, wave_state\)"):
         compose(document)
 
 
@@ -371,8 +371,10 @@ def test_an_input_disturbance_is_the_exact_kalman_filter_of_the_augmented_model(
 @pytest.mark.parametrize(
     "changes, message",
     [
-        ({"input_disturbance": [0.0]}, "input_disturbance must be 1 finite intensities > 0"),
-        ({"input_disturbance": [1.0, 1.0]}, "input_disturbance must be 1 finite intensities > 0"),
+        ({"input_disturbance": [-1.0]}, "input_disturbance must be 1 finite intensities >= 0"),
+        ({"input_disturbance": [1.0, 1.0]}, "input_disturbance must be 1 finite intensities >= 0"),
+        ({"initial_std": {"position": 1.0, "rate": 1.0, "input_disturbance": [1.0, 2.0]}}, "initial_std: input_disturbance must have one entry per input entry (1)"),
+        ({"initial_std": {"position": 1.0, "wave": 1.0, "input_disturbance": 1.0}}, "initial_std: the plant's state has no part 'wave' (its parts: position, rate, and input_disturbance)"),
         ({"initial_std": [1.0, 1.0]}, "initial_std must have one entry per state entry (3: the plant's and the input disturbance's)"),
         ({"initial_std": {"position": 1.0, "rate": 1.0}}, "initial_std: give input_disturbance too"),
     ],

@@ -124,8 +124,10 @@ def _in_range(parameter: registry.Parameter):
     def check(value):
         values = list(value.values()) if isinstance(value, dict) else [value]
         for number in np.concatenate([np.ravel(np.asarray(v, dtype=float)) for v in values] or [np.zeros(0)]):
-            if not ((number >= low if low_in else number > low) and (number <= high if high_in else number < high)):
+            if not ((number >= low if low_in else number > low) and (number <= high if high_in else number < high)) or (np.isinf(number) and high == math.inf):
                 words = {(0.0, math.inf, False, False): "positive", (0.0, math.inf, True, False): "non-negative"}.get(parameter.range)
+                if words and not np.isfinite(number):
+                    words = f"finite and {words}"
                 interval = f"{'[' if low_in else '('}{low:g}, {high:g}{']' if high_in else ')'}"
                 raise ValueError(f"must be {words}; got {_short(value)}" if words else f"must be in {interval}; got {_short(value)}")
         return value

@@ -60,6 +60,7 @@ Defaults derived from the scenario (each can be given instead):
 from __future__ import annotations
 
 import abc
+import inspect
 import math
 
 import equinox as eqx
@@ -128,10 +129,18 @@ def _state_vector(model: Plant, value, name: str, disturbance_size: int = 0, def
             if disturbance_size and default_disturbance is None:
                 raise ValueError(f"{name}: give {DISTURBANCE} too (one entry per input entry: {disturbance_size})")
             extra = np.full(disturbance_size, default_disturbance if disturbance_size else 0.0)
-        extra = np.broadcast_to(np.asarray(extra, dtype=float), (disturbance_size,)) if disturbance_size else np.zeros(0)
+        extra = np.asarray(extra, dtype=float)
+        if disturbance_size and extra.shape not in ((), (disturbance_size,)):
+            raise ValueError(f"{name}: {DISTURBANCE} must have one entry per input entry ({disturbance_size}); got shape {extra.shape}")
+        extra = np.broadcast_to(extra, (disturbance_size,)) if disturbance_size else np.zeros(0)
+        known = [key for key in inspect.signature(model.state).parameters]
+        unknown = [key for key in parts if key not in known]
+        if unknown:
+            raise ValueError(f"{name}: the plant's state has no part {unknown[0]!r} (its parts: {', '.join(known)}"
+                             + (f", and {DISTURBANCE}" if disturbance_size else "") + ")")
         try:
             vector = np.concatenate([np.asarray(ravel_pytree(model.state(**parts))[0], dtype=float), extra])
-        except TypeError as error:
+        except (TypeError, ValueError) as error:
             raise ValueError(f"{name}: {error}") from None
     else:
         vector = np.asarray(value, dtype=float)
@@ -345,9 +354,9 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
         disturbance = np.zeros(0)
     else:
         disturbance = np.broadcast_to(np.asarray(input_disturbance, dtype=float), np.shape(input_disturbance) or (inputs,))
-        if disturbance.shape != (inputs,) or not (np.all(np.isfinite(disturbance)) and np.all(disturbance > 0)):
+        if disturbance.shape != (inputs,) or not (np.all(np.isfinite(disturbance)) and np.all(disturbance >= 0)):
             raise ValueError(
-                f"input_disturbance must be {inputs} finite intensities > 0 (one per input entry of the plant, units^2/s); got {np.asarray(input_disturbance).tolist()}"
+                f"input_disturbance must be {inputs} finite intensities >= 0 (one per input entry of the plant, units^2/s); got {np.asarray(input_disturbance).tolist()}"
             )
     d = disturbance.size
     if process_noise is None:
@@ -460,10 +469,11 @@ PARAMETERS = """
         Standard deviation of the initial guess per state entry, or a table of the
         plant's state parts and ``input_disturbance`` (default: the steady-state
         filter's, from the Riccati equation).
-    input_disturbance : array_like, positive, optional
+    input_disturbance : array_like, non-negative, optional
         Estimate an unknown disturbance added to the plant's input, a random walk of
-        this intensity per input entry (units^2/s): the usual DP bias state, for a
-        model without one (default none).
+        this intensity per input entry (units^2/s; 0: a constant, and with an initial
+        std of 0 none on that entry): the usual DP bias state, for a model without one
+        (default none).
     plant_step : float, positive
         Step of the propagation (s); default the composition's ``simulation.plant_step``,
         which makes the propagation the simulated plant's own discretization.

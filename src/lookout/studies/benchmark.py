@@ -272,6 +272,15 @@ def condition_case(benchmark: Benchmark, base: dict, condition: Condition) -> di
     return case
 
 
+def describe_condition(condition: Condition) -> str:
+    """What ``condition`` changes, in words: ``key = value`` (the model error's keys marked)."""
+    import json
+
+    told = [f"{key} = {json.dumps(value)}" for key, value in condition.changes.items()]
+    error = [f"{key} = {json.dumps(value)} (the plant alone)" for key, value in condition.truth_only.items()]
+    return "; ".join(told + error)
+
+
 def applicable_metrics(names, scenario) -> list[str]:
     """The metrics of ``names`` that apply to ``scenario``: an estimation metric of a
     plant variable its observer does not estimate is left out; a name that is no metric,
@@ -328,7 +337,12 @@ def observer_campaign(benchmark: Benchmark, size_name: str, name: str) -> Observ
     try:
         composition = compose(base)
     except CompositionError as error:
-        where = location + error.location[1:] if error.location[:1] == ("observer",) else ("scenario",) + error.location
+        if error.location[:1] == ("observer",):
+            where = location + error.location[1:]
+        elif error.location[:2] == ("sensor", "outage_signals"):  # the spec's own key, not its scenario's
+            where = ("outage_signals",)
+        else:
+            where = ("scenario",) + error.location
         raise benchmark.located(where, error.reason) from None
     full = composition.document
     try:
@@ -383,8 +397,22 @@ def _condition_error(benchmark: Benchmark, observer: str, message: str) -> FileE
     return benchmark.located(("conditions", index), f"{names[index]} (observer {observer}): {detail}")
 
 
+def check_outages(benchmark: Benchmark, size_name: str) -> None:
+    """Refuse (at the condition) an outage that does not end before the run does: the
+    recovery after it could not be measured."""
+    size = getattr(benchmark.spec, size_name)
+    for index, condition in enumerate(benchmark.spec.conditions):
+        start = condition.changes.get("sensor.outage_start", size.outage_start)
+        length = condition.changes.get("sensor.outage_duration", 0.0)
+        if benchmark.spec.outage_signals and isinstance(length, (int, float)) and length > 0 and isinstance(start, (int, float)) \
+                and start + length >= size.duration:
+            raise benchmark.located(("conditions", index), f"{condition.name}: the outage ends at {start + length:g} s, not before the {size_name} run "
+                                    f"does ({size.duration:g} s): the recovery after it cannot be measured; start it earlier ({size_name}.outage_start)")
+
+
 def campaigns(benchmark: Benchmark, size_name: str, observers: list[str] | None = None) -> list[ObserverCampaign]:
     """Every observer's campaign (or those named), checked before anything runs."""
+    check_outages(benchmark, size_name)
     names = list(benchmark.spec.observers) if observers is None else observers
     return [observer_campaign(benchmark, size_name, name) for name in names]
 
@@ -435,16 +463,38 @@ def prepare(benchmark: Benchmark, size_name: str, out: Path, observers: list[str
     store of other settings is refused, naming it). Writes nothing."""
     from lookout.studies.store import CampaignStore
 
+    from lookout.studies.store import differences
+
     folder = Path(out) / benchmark.name
     prepared = Prepared(benchmark, size_name, folder, campaigns(benchmark, size_name, observers))
     for each in prepared.campaigns:
         path = prepared.store(each.name)
+        store = CampaignStore(path)
         try:
-            CampaignStore(path).holds(each.campaign)
+            store.holds(each.campaign)
         except ValueError as error:
-            raise ValueError(f"--out: {path} holds a benchmark of other settings (the {'quick' if size_name == 'full' else 'full'} one, or another spec): "
-                             f"give another --out, or remove it ({str(error).split(': ', 1)[-1][:200]})") from None
+            held = store.campaign_document()
+            if held is None:
+                raise ValueError(f"--out: {error}") from None
+            changed = [_short(_spec_words(line)) for line in differences(held, each.campaign.document())]
+            raise ValueError(f"--out: {path} holds observer {each.name}'s benchmark with other settings ({'; '.join(changed[:3])}"
+                             f"{f'; and {len(changed) - 3} more' if len(changed) > 3 else ''}): give another --out, or remove {path}") from None
     return prepared
+
+
+#: A campaign's keys as a benchmark spec names them.
+_SPEC_WORDS = (("sweep.axes[0].labels", "condition names"), ("sweep.axes[0].cases", "conditions"), ("seeds_per_point", "seeds"),
+               ("scenario.simulation.duration", "duration"), ("scenario.sensor.outage_start", "outage_start"), ("scenario.observer", "observer"))
+
+
+def _spec_words(text: str) -> str:
+    for campaign_key, spec_words in _SPEC_WORDS:
+        text = text.replace(campaign_key, spec_words)
+    return text
+
+
+def _short(text: str, limit: int = 90) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 @dataclass
@@ -498,7 +548,8 @@ def run_benchmark(prepared: Prepared, *, workers: int | None = None, scheduler: 
         costs[each.name] = observer_cost(each.campaign.base.build(), prepared.benchmark.spec.seed)
         say(f"{each.name}: {costs[each.name]:.3g} us per sample (the observer alone, one run)")
     told_by = {each.name: each.told for each in prepared.campaigns}
-    ds = benchmark_report.collect(stores, costs, told_by, metrics=list(prepared.benchmark.spec.metrics), title=prepared.benchmark.spec.title, command=command)
+    ds = benchmark_report.collect(stores, costs, told_by, metrics=list(prepared.benchmark.spec.metrics), title=prepared.benchmark.spec.title, command=command,
+                                  changes={c.name: describe_condition(c) for c in prepared.benchmark.spec.conditions})
     reports = {name: write_report(path, prepared.folder / "reports" / f"{name}.html") for name, path in stores.items()}
     written = benchmark_report.write_results(ds, prepared.folder, reports)
     return Result(prepared.folder, stores, costs, told_by, time.perf_counter() - start, written)

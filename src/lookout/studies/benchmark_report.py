@@ -38,11 +38,13 @@ TIE = 0.01
 PER_CONDITION = ("rms_error",)
 
 
-def collect(stores: dict[str, Path], costs: dict[str, float], told: dict[str, str], *, metrics: list[str] = (), title: str = "", command: str = ""):
+def collect(stores: dict[str, Path], costs: dict[str, float], told: dict[str, str], *, metrics: list[str] = (), title: str = "", command: str = "",
+            changes: dict[str, str] | None = None):
     """The benchmark's results as one Dataset over ``(observer, condition, seed)``:
     every metric of any observer (NaN where an observer does not estimate the signal),
     in the order of ``metrics`` (``KIND:SIGNAL``; others after, by name), then
-    ``diverged``, ``cost`` (us per sample) and ``told`` per observer."""
+    ``diverged``, ``cost`` (us per sample) and ``told`` per observer, and what each
+    condition changes (``changes``: condition name -> words)."""
     import xarray as xr
 
     from lookout.studies.store import CampaignStore
@@ -77,6 +79,8 @@ def collect(stores: dict[str, Path], costs: dict[str, float], told: dict[str, st
             "condition": ("condition", np.asarray(conditions, dtype=object), {"long_name": "condition (one change from the baseline)"}),
             "seed": ("seed", seeds, {"long_name": "PRNG seed of the run"}),
             "told": ("observer", np.asarray([told[o] for o in observers], dtype=object), {"long_name": "what the observer is given"}),
+            "changes": ("condition", np.asarray([(changes or {}).get(c, "") for c in conditions], dtype=object),
+                        {"long_name": "what the condition changes from the baseline"}),
         },
         attrs={"title": title, "Conventions": "CF-1.10", "history": command, "source": "lookout benchmark observers"},
     )
@@ -195,12 +199,19 @@ def markdown(ds) -> str:
     if ds.attrs.get("history"):
         parts += [f"`{ds.attrs['history']}`", ""]
     seeds = ds.sizes["seed"]
-    parts += [f"Each cell: the median over {seeds} seeds (the same seeds for every observer); **bold**: the best of the column; "
-              "— where the observer does not estimate the signal.", ""]
+    parts += [f"Each cell: the median over {seeds} seeds (the same seeds for every observer); **bold**: the best of the column and those "
+              f"within {TIE:.0%} of it; —: no value (the observer does not estimate the signal; for the outage, no outage or no recovery "
+              "within the run).", ""]
+    parts += [_markdown(*conditions_table(ds)), ""]
     parts += [_markdown(*summary_table(ds, outage, convergence)), ""]
     for name in metrics:
         parts += [f"#### {metric_label(ds, name)}", "", _markdown(*cell_table(ds, name)), ""]
     return "\n".join(parts)
+
+
+def conditions_table(ds) -> tuple[list[str], list[list[str]]]:
+    """What each condition changes from the baseline."""
+    return ["condition", "changes"], [[str(c), str(w) or "nothing (the baseline)"] for c, w in zip(ds.condition.values, ds.changes.values)]
 
 
 def rows_csv(ds) -> list[dict]:
@@ -226,7 +237,7 @@ def _colors(count: int):
 
 
 def metric_figure(ds, name: str):
-    """Median per condition and observer (bars), 10-90 % whiskers, log scale."""
+    """Median per condition and observer (markers), 10-90 % whiskers, log scale."""
     import matplotlib.pyplot as plt
 
     observers, conditions = list(ds.observer.values), list(ds.condition.values)
@@ -241,14 +252,18 @@ def metric_figure(ds, name: str):
         if not np.isfinite(median).any():
             continue
         position = x - 0.4 + width * (i + 0.5)
-        ax.bar(position, median, width, color=color, label=str(observer))
-        ax.errorbar(position, median, yerr=[median - low, high - median], fmt="none", ecolor="black", elinewidth=0.8, capsize=2)
+        # markers, not bars: a bar's length means nothing on a log scale
+        ax.errorbar(position, median, yerr=[median - low, high - median], fmt="o", color=color, markersize=5, elinewidth=1.2, capsize=2.5,
+                    label=str(observer))
         for j, s in enumerate(stats):
             if s[3]:
                 ax.annotate(f"{s[3]} div.", (position[j], np.nanmax([median[j], 1e-300]) if np.isfinite(median[j]) else 1.0),
                             fontsize=7, ha="center", va="bottom", rotation=90)
     _log_axis(ax.yaxis)
     ax.set_xticks(x, conditions, rotation=20, ha="right")
+    for edge in x[:-1] + 0.5:
+        ax.axvline(edge, color="0.85", linewidth=0.8)
+    ax.set_xlim(-0.5, len(conditions) - 0.5)
     ax.set_ylabel(metric_label(ds, name))
     ax.set_title(f"{metric_label(ds, name)}: median over {ds.sizes['seed']} seeds, whiskers {LOW}-{HIGH} %")
     ax.grid(axis="y", which="both", alpha=0.3)
@@ -302,6 +317,9 @@ def outage_figure(ds, drift: str, recovery: str | None):
         high = np.asarray([s[2] for s in stats])
         ax.bar(np.arange(len(observers)), np.where(np.isfinite(median), median, 0.0), color=_colors(len(observers)))
         ax.errorbar(np.arange(len(observers)), median, yerr=[median - low, high - median], fmt="none", ecolor="black", elinewidth=0.8, capsize=3)
+        for i, value in enumerate(median):
+            if not np.isfinite(value):
+                ax.annotate("no value", (i, 0.0), ha="center", va="bottom", fontsize=8, color="0.4", rotation=90)
         ax.set_xticks(np.arange(len(observers)), observers, rotation=20, ha="right")
         ax.set_ylabel(metric_label(ds, name))
         ax.grid(axis="y", alpha=0.3)
@@ -359,7 +377,7 @@ def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> d
     folder.mkdir(parents=True, exist_ok=True)
     written = {}
     netcdf = ds.copy()
-    for name in ("observer", "condition", "told"):
+    for name in ("observer", "condition", "told", "changes"):
         netcdf[name] = netcdf[name].astype(str)
     path = folder / "benchmark.nc"
     netcdf.to_netcdf(path)
@@ -389,7 +407,10 @@ def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> d
              f"<h1>{html.escape(ds.attrs.get('title', 'benchmark'))}</h1>"]
     if ds.attrs.get("history"):
         parts.append(f"<p>Made by <code>{html.escape(ds.attrs['history'])}</code>.</p>")
-    parts.append(f"<p>Medians over {ds.sizes['seed']} seeds, the same for every observer; the best of each column in bold.</p>")
+    parts.append(f"<p>Medians over {ds.sizes['seed']} seeds, the same for every observer; the best of each column, and those within "
+                 f"{TIE:.0%} of it, in bold; —: no value (the observer does not estimate the signal; for the outage, no outage or no "
+                 "recovery within the run).</p>")
+    parts += ["<h2>The conditions</h2>", _html_table(*conditions_table(ds))]
     parts += ["<h2>The observers</h2>", _html_table(*summary_table(ds, outage, convergence))]
     parts += [f'<figure><img src="data:image/png;base64,{base64.b64encode(images["cost.png"]).decode()}" alt="cost per sample"></figure>']
     for name in metrics:

@@ -307,6 +307,7 @@ def benchmark_observers(
     report (report.html) and each observer's campaign store and report. A benchmark
     whose stores exist resumes."""
     import os
+    import shutil
 
     from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
 
@@ -318,7 +319,7 @@ def benchmark_observers(
     _check_cluster_options(workers, scheduler)
     if spec is not None:
         if not Path(spec).is_file():
-            raise InputError(f"--spec: no file {spec}")
+            raise InputError(f"--spec: {spec} is a folder, not a benchmark spec" if Path(spec).is_dir() else f"--spec: no file {spec}")
         paths = [Path(spec)]
     else:
         try:
@@ -339,17 +340,21 @@ def benchmark_observers(
             raise InputError(str(error)) from None
         except ValueError as error:
             raise InputError(f"{path}: {error}" if not str(error).startswith("--out") else str(error)) from None
+    created = not folder.exists()
     folder.mkdir(parents=True, exist_ok=True)
     command = " ".join(["lookout benchmark observers", f"--out {out}"] + ([f"--plant {plant}"] if plant else []) + ([f"--spec {spec}"] if spec else [])
                        + (["--quick"] if quick else []))
     cluster = None
     address = scheduler
-    if scheduler is None and workers != 0:
-        cluster = local_cluster(workers or os.cpu_count() or 1)  # one cluster for every plant
-        address = cluster.scheduler_address
     try:
+        if scheduler is None and workers != 0:
+            cluster = local_cluster(workers or os.cpu_count() or 1)  # one cluster for every plant
+            address = cluster.scheduler_address
         for each in prepared:
-            console_print(f"{each.benchmark.name}: {each.benchmark.spec.title} ({size}: {len(each.campaigns)} observers)")
+            count = len(each.campaigns)
+            resumed = sum(each.store(c.name).exists() for c in each.campaigns)
+            console_print(f"{each.benchmark.name}: {each.benchmark.spec.title} ({size}: {count} observer{'s' * (count != 1)}"
+                          + (f"; resuming {resumed} store{'s' * (resumed != 1)} in {each.folder})" if resumed else ")"))
             with progress_bar(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()) as bar:
                 tasks = {}
 
@@ -363,6 +368,12 @@ def benchmark_observers(
                 except SchedulerError as error:
                     raise InputError(f"--scheduler {scheduler}: {error}") from None
             console_print(f"{each.benchmark.name}: done in {result.seconds:.0f} s; {result.written['report']}, {result.written['table']}, {result.written['figures']}")
+    except BaseException as error:
+        if created and not any(folder.rglob("*.zarr")):  # nothing of value: leave no folder behind
+            shutil.rmtree(folder, ignore_errors=True)
+        if isinstance(error, KeyboardInterrupt):
+            console_print(f"interrupted: the chunks stored so far are kept; the same command resumes the benchmark from {folder}")
+        raise
     finally:
         if cluster is not None:
             cluster.close()

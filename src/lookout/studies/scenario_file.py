@@ -159,7 +159,7 @@ def located(source: str, text: str | None, location: tuple, message: str) -> Fil
     when it can be found, and ``message``."""
     line = key_line(text, location) if text else None
     where = f" (line {line})" if line else ""
-    return FileError(f"{source}: {key_text(location)}{where}: {message}")
+    return FileError(f"{source}: {key_text(location)}{where}: {message}" if location else f"{source}: {message}")
 
 
 def describe(error: ValidationError, source: str, text: str | None, prefix: tuple = ()) -> str:
