@@ -275,7 +275,10 @@ def _log_axis(axis) -> None:
     """A log scale whose ticks read as plain numbers (0.3, 1, 2), not powers of ten."""
     from matplotlib.ticker import FuncFormatter, LogLocator
 
-    axis.axes.set_yscale("log") if axis is axis.axes.yaxis else axis.axes.set_xscale("log")
+    if axis is axis.axes.yaxis:
+        axis.axes.set_yscale("log")
+    else:
+        axis.axes.set_xscale("log")
     axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
     axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
     axis.set_minor_formatter(FuncFormatter(lambda value, _: ""))
