@@ -683,6 +683,10 @@ from lookout.cli_components import register as _register_components  # noqa: E40
 
 _register_components(app)
 
+from lookout.tuning.cli import register as _register_tuning  # noqa: E402
+
+_register_tuning(app)
+
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning every input error into one line and exit code 2."""

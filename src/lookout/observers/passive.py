@@ -110,6 +110,12 @@ def notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequ
             f"cutoff_frequency must exceed wave_frequency (w_c > w_o); got {cutoff_frequency.tolist()} "
             f"<= {wave_frequency.tolist()} rad/s"
         )
+    return notch_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency)
+
+
+def notch_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency):
+    """Eqs. (45)–(47) without the checks of :func:`notch_filter_gains`: NumPy or JAX
+    arrays (a tuner differentiates through it)."""
     spread = notch_damping - wave_damping
     k1 = -2.0 * spread * cutoff_frequency / wave_frequency  # eq. (45)
     k2 = 2.0 * spread * wave_frequency  # eq. (46)

@@ -1,0 +1,77 @@
+"""The ``lookout tune`` command (registered by :mod:`lookout.cli`)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from lookout._validation import InputError
+
+
+def tune_command(
+    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file whose observer has a tunable family (passive).")],
+    out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder: tuned.toml, tuning.json, training.png, held_out.png.")] = "out/tune",
+    objective: Annotated[str, typer.Option(metavar="TERMS", help="KIND:SIGNAL or WEIGHT*KIND:SIGNAL joined by +, KIND one of rms_error, rms_tracking, rms_input.")] = "rms_error:position",
+    train_seeds: Annotated[int, typer.Option(metavar="N", help="Training runs: seeds seed .. seed + N - 1 of the file.")] = 16,
+    test_seeds: Annotated[int, typer.Option(metavar="M", help="Held-out runs: the M seeds after the training seeds.")] = 16,
+    steps: Annotated[int, typer.Option(metavar="N", help="Optimizer steps (Adam).")] = 30,
+    learning_rate: Annotated[float, typer.Option(metavar="RATE", help="Adam's step in the gains' parameters (log-scale for positive gains).")] = 0.1,
+) -> None:
+    """Tune the gains of a scenario's observer by gradient through the simulation, inside
+    its paper's conditions (every returned gain set satisfies them as lookout design
+    checks them), and compare the start and the result on held-out seeds."""
+    import math
+
+    from lookout._commandline import console, created_folder
+    from lookout.settings import positive_count
+    from lookout.studies.cli import _scenario, console_print
+    from lookout.tuning.tune import check_gradient_memory, tune, write_results
+
+    for option, value in (("--train-seeds", train_seeds), ("--test-seeds", test_seeds), ("--steps", steps)):
+        try:
+            positive_count(value)
+        except ValueError as error:
+            raise InputError(f"{option}: {error}") from None
+    if not (math.isfinite(learning_rate) and learning_rate > 0):
+        raise InputError(f"--learning-rate must be a finite positive number; got {learning_rate:g}")
+    spec, scenario = _scenario(scenario_file, None, None)
+    check_gradient_memory(scenario, train_seeds)
+    first = spec.seeds[0]
+    train = list(range(first, first + train_seeds))
+    test = list(range(first + train_seeds, first + train_seeds + test_seeds))
+    try:
+        from lookout.tuning.families import family_of
+
+        family_of(scenario.observer)
+        from lookout.tuning.tune import parse_objective
+
+        parse_objective(objective, scenario)
+    except ValueError as error:
+        raise InputError(f"{scenario_file}: {error}" if not str(error).startswith("--") else str(error)) from None
+    folder = created_folder("--out", out)
+    command = f"lookout tune {scenario_file} --objective '{objective}' --train-seeds {train_seeds} --test-seeds {test_seeds} --steps {steps} --learning-rate {learning_rate:g}"
+    try:
+        result = tune(scenario, objective, train_seeds=train, test_seeds=test, steps=steps, learning_rate=learning_rate, say=console_print)
+    except ValueError as error:
+        raise InputError(f"{scenario_file}: {error}") from None
+    written = write_results(result, spec.composition, folder, source=scenario_file, command=command)
+    import numpy as np
+    from rich import box
+    from rich.table import Table
+
+    table = Table(title=f"{result.family.name}; objective {result.objective.text}", title_justify="left", box=box.SIMPLE_HEAD)
+    for column in ("held-out metric", "start (median)", "tuned (median)", "change"):
+        table.add_column(column, justify="right" if column != "held-out metric" else "left")
+    for name, values in result.held_out.items():
+        a, b = float(np.median(values["start"])), float(np.median(values["tuned"]))
+        table.add_row(name, f"{a:.4g}", f"{b:.4g}", f"{(b - a) / a:+.1%}")
+    console.print(table)
+    verdicts = ", ".join(f"{key} {verdict}" for key, verdict in result.report_after.verdicts.items())
+    console_print(f"conditions of the tuned gains: {verdicts}")
+    console_print(f"{result.stopped or 'all steps taken'}; {result.seconds:.0f} s; written to {folder}: " + ", ".join(p.name for p in written.values()))
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``tune`` to the ``lookout`` command."""
+    app.command("tune")(tune_command)

@@ -1,0 +1,291 @@
+"""Gains that perform and stay proven: tuning by gradient through the simulation.
+
+The objective is the mean, over training seeds, of a weighted sum of campaign metrics
+(:mod:`lookout.studies.metrics`) that are differentiable in the gains: RMS estimation,
+tracking or input values (``rms_error:position + 0.01*rms_input:force``). It is computed
+by the engine's own batch (:func:`lookout.sim.summarize_batch`, the metrics accumulated
+in the scan), and ``jax.value_and_grad`` differentiates it through the whole simulation
+with respect to the family's unconstrained parameters theta
+(:mod:`lookout.tuning.families`): every theta gives gains inside the conditions that
+the family writes as a parametrization. optax's Adam moves theta; a step whose gains
+fail a condition that can only be checked (SPR by its KYP certificate), or whose
+objective is not finite, is halved until it passes (at most :data:`BACKTRACKS` times),
+and the tuner stops when none passes. So every gain set it returns, including the
+start, satisfies every condition of its family as the ``lookout design`` command
+checks it.
+
+Held-out seeds (after the training seeds) measure the start and the tuned gains on
+runs the tuner never saw.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from lookout.tuning.families import Family, family_of
+
+#: Metric kinds an objective may use: smooth in the gains (an RMS over the window).
+DIFFERENTIABLE = ("rms_error", "rms_tracking", "rms_input")
+#: Halvings of a step that fails a condition before the tuner stops.
+BACKTRACKS = 8
+
+
+@dataclass(frozen=True)
+class Objective:
+    """A weighted sum of metrics: ``(weight, metric name)`` terms."""
+
+    terms: tuple[tuple[float, str], ...]
+
+    @property
+    def text(self) -> str:
+        return " + ".join(name if weight == 1.0 else f"{weight:g}*{name}" for weight, name in self.terms)
+
+
+def parse_objective(text: str, scenario) -> tuple[Objective, list]:
+    """``"rms_error:position + 0.01*rms_error:velocity"`` for ``scenario``: the objective
+    and its resolved metrics; a ValueError names a term that is not a differentiable
+    metric of the scenario."""
+    from lookout.studies import metrics as metric_module
+
+    terms = []
+    for part in (p.strip() for p in text.split("+")):
+        match = re.fullmatch(r"(?:([0-9.eE+-]+)\s*\*\s*)?([a-z_]+:[a-z_]+)", part)
+        if not match:
+            raise ValueError(f"--objective: {part!r} is not a term (write KIND:SIGNAL or WEIGHT*KIND:SIGNAL, joined by +)")
+        weight = float(match.group(1)) if match.group(1) else 1.0
+        if not (math.isfinite(weight) and weight > 0):
+            raise ValueError(f"--objective: the weight of {match.group(2)} must be a finite positive number; got {weight:g}")
+        kind = match.group(2).partition(":")[0]
+        if kind not in DIFFERENTIABLE:
+            raise ValueError(f"--objective: {match.group(2)} is not smooth in the gains; use one of {', '.join(DIFFERENTIABLE)}")
+        terms.append((weight, match.group(2)))
+    try:
+        metrics = metric_module.resolve([name for _, name in terms], scenario)
+    except ValueError as error:
+        raise ValueError(f"--objective: {error}") from None
+    return Objective(tuple(terms)), metrics
+
+
+def _objective_function(scenario, family: Family, objective: Objective, metrics, after: float | None):
+    """gains, keys -> (objective, per-run values of each metric)."""
+    from lookout.sim import summarize_batch
+    from lookout.studies import metrics as metric_module
+
+    time_grid = np.asarray(scenario.record_times)
+    plan = metric_module.summary(scenario.record_signals, time_grid, metrics, after=after)
+    weights = [weight for weight, _ in objective.terms]
+
+    def value(gains, keys):
+        observer = family.apply(scenario.observer, gains)
+        tuned = eqx.tree_at(lambda s: s.observer, scenario, observer)
+        accumulated, series = summarize_batch(tuned, keys, plan)
+        out = plan.finish(accumulated, series, jnp.asarray(time_grid))
+        per_run = {m.name: out[m.variable] for m in metrics}
+        total = sum(w * jnp.mean(per_run[m.name]) for w, m in zip(weights, metrics))
+        return total, per_run
+
+    return value
+
+
+@dataclass
+class Step:
+    """One step of the tuner: the objective at its start, and what became of it."""
+
+    step: int
+    objective: float
+    gains: list
+    halvings: int
+    accepted: bool
+
+
+@dataclass
+class Tuning:
+    """What :func:`tune` found."""
+
+    family: Family
+    objective: Objective
+    start_gains: tuple
+    gains: tuple
+    steps: list[Step] = field(default_factory=list)
+    stopped: str = ""
+    seconds: float = 0.0
+    report_before: object = None
+    report_after: object = None
+    held_out: dict = field(default_factory=dict)  # metric -> {"start": per run, "tuned": per run}
+    units: dict = field(default_factory=dict)     # metric -> its units
+    train_seeds: list = field(default_factory=list)
+    test_seeds: list = field(default_factory=list)
+
+
+def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: list[int], steps: int = 30, learning_rate: float = 0.1,
+         after: float | None = None, say: Callable[[str], None] = print) -> Tuning:
+    """Tune the gains of ``scenario``'s observer (its family, :func:`family_of`) for the
+    objective over ``train_seeds``; measure the start and the result on ``test_seeds``."""
+    import optax
+
+    from lookout.sim import keys_of_seeds
+
+    started = time.perf_counter()
+    family = family_of(scenario.observer)
+    objective, metrics = parse_objective(objective_text, scenario)
+    start = family.current(scenario.observer)
+    report_before = family.check(family.apply(scenario.observer, start))
+    if not report_before.holds:
+        failing = [key for key, verdict in report_before.verdicts.items() if verdict != "holds"]
+        raise ValueError(f"the starting gains do not satisfy {', '.join(failing)} (lookout design passive-observer shows why); start from gains that do")
+    value = _objective_function(scenario, family, objective, metrics, after)
+    value_and_grad = eqx.filter_jit(jax.value_and_grad(lambda theta, keys: value(family.gains(theta), keys)[0]))
+    evaluate = eqx.filter_jit(value)
+    train = keys_of_seeds(list(train_seeds))
+    theta = jnp.asarray(family.theta(start))
+    optimizer = optax.adam(learning_rate)
+    state = optimizer.init(theta)
+    result = Tuning(family, objective, start, start, train_seeds=list(train_seeds), test_seeds=list(test_seeds), report_before=report_before,
+                    units={m.name: m.units for m in metrics})
+    refused = 0
+    for step in range(steps):
+        current, gradient = value_and_grad(theta, train)
+        current = float(current)
+        if not (math.isfinite(current) and bool(jnp.all(jnp.isfinite(gradient)))):
+            result.stopped = f"step {step}: the objective or its gradient is not finite"
+            break
+        updates, new_state = optimizer.update(gradient, state)
+        halvings = 0
+        while True:
+            candidate = theta + updates
+            gains = family.gains(candidate)
+            if family.check(family.apply(scenario.observer, gains)).holds:
+                break
+            halvings += 1
+            if halvings > BACKTRACKS:
+                break
+            updates = updates / 2.0
+        accepted = halvings <= BACKTRACKS
+        result.steps.append(Step(step, current, [np.asarray(g).tolist() for g in family.gains(theta)], halvings, accepted))
+        say(f"step {step + 1}/{steps}: objective {current:.6g}" + (f" ({halvings} halving{'s' * (halvings != 1)} to stay inside the conditions)" if halvings else "")
+            + ("" if accepted else "; no halving kept the conditions"))
+        if accepted:
+            theta, state = candidate, new_state
+            refused = 0
+            continue
+        # Adam's momentum points across the boundary: forget it and try again from here
+        refused += 1
+        if refused == 2:
+            result.stopped = f"step {step + 1}: twice in a row, no step of {BACKTRACKS} halvings kept the conditions (the gains are at their boundary)"
+            break
+        state = optimizer.init(theta)
+    final = float(evaluate(family.gains(theta), train)[0])
+    result.steps.append(Step(len(result.steps), final, [np.asarray(g).tolist() for g in family.gains(theta)], 0, True))
+    result.gains = tuple(np.asarray(g, dtype=float) for g in family.gains(theta))
+    result.report_after = family.check(family.apply(scenario.observer, result.gains))
+    test = keys_of_seeds(list(test_seeds))
+    before_runs = evaluate(tuple(jnp.asarray(g) for g in start), test)[1]
+    after_runs = evaluate(family.gains(theta), test)[1]
+    result.held_out = {name: {"start": np.asarray(before_runs[name]).tolist(), "tuned": np.asarray(after_runs[name]).tolist()} for name in before_runs}
+    result.seconds = time.perf_counter() - started
+    return result
+
+
+#: Memory a gradient holds per run and plant step, as a multiple of one record's bytes:
+#: the scan's residuals for reverse mode (measured on the DP vessel: about 2.1 kB per
+#: run and sample, 7x its 300 B record; the bound takes 8x).
+GRADIENT_RECORD_FACTOR = 8
+
+
+def check_gradient_memory(scenario, runs: int, available: float | None = None) -> float:
+    """Refuse (ValueError naming --train-seeds) a gradient over ``runs`` runs that would
+    not fit in memory; return the bytes it needs."""
+    from lookout._resources import refuse_unless_it_fits
+    from lookout.sim import record_nbytes
+
+    samples = round(scenario.duration / scenario.sample_period) * scenario.substeps
+    need = GRADIENT_RECORD_FACTOR * runs * samples * record_nbytes(scenario) + 600e6
+    refuse_unless_it_fits(need, f"--train-seeds: a gradient over {runs} runs x {samples} plant steps",
+                          "use fewer training seeds or a shorter duration", available=available)
+    return need
+
+
+def write_results(result: Tuning, composition, folder, *, source: str, command: str) -> dict:
+    """Write into ``folder``: ``tuned.toml`` (the scenario with the tuned gains, ready for
+    ``lookout run``), ``tuning.json`` (objective, seeds, steps, gains, every condition
+    before and after, held-out values), ``training.png`` and ``held_out.png``."""
+    import copy
+    import json
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    from lookout._json import json_safe
+    from lookout.composition import compose, set_path
+    from lookout.studies.scenario_file import CompositionSpec, save
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    document = copy.deepcopy(composition.document)
+    for key, gains in zip(result.family.keys, result.gains):
+        table, name = key.split(".", 1)
+        document[table][name] = np.asarray(gains).tolist()
+    tuned = compose(document)
+    if "design" in document["observer"]:
+        set_path(document, "observer.design", document["observer"]["design"])
+    scenario_path = save(CompositionSpec(tuned, str(folder / "tuned.toml")), folder / "tuned.toml",
+                         header=f"lookout scenario: {source} with the gains {command} found.\nRun it with: lookout run tuned.toml --out DIR")
+    medians = {name: {which: float(np.median(values[which])) for which in ("start", "tuned")} for name, values in result.held_out.items()}
+    summary = {
+        "command": command,
+        "scenario": source,
+        "family": result.family.name,
+        "objective": result.objective.text,
+        "train_seeds": result.train_seeds,
+        "test_seeds": result.test_seeds,
+        "stopped": result.stopped or f"after {len(result.steps) - 1} steps",
+        "seconds": result.seconds,
+        "gains": {key: {"start": np.asarray(a).tolist(), "tuned": np.asarray(b).tolist()} for key, a, b in zip(result.family.keys, result.start_gains, result.gains)},
+        "steps": [{"step": s.step, "objective": s.objective, "halvings": s.halvings, "accepted": s.accepted} for s in result.steps],
+        "conditions_before": result.report_before.to_dict(),
+        "conditions_after": result.report_after.to_dict(),
+        "held_out": result.held_out,
+        "held_out_median": medians,
+    }
+    (folder / "tuning.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False) + "\n")
+
+    figure, ax = plt.subplots(figsize=(7.0, 3.6), dpi=100, layout="constrained")
+    ax.plot([s.step for s in result.steps], [s.objective for s in result.steps], "o-", color="tab:blue")
+    for s in result.steps:
+        if s.halvings:
+            ax.annotate(f"{s.halvings}", (s.step, s.objective), textcoords="offset points", xytext=(0, 6), ha="center", fontsize=7, color="0.4")
+    ax.set_xlabel("step")
+    ax.set_ylabel(f"objective: {result.objective.text}")
+    ax.set_title(f"training: mean over {len(result.train_seeds)} seeds (numbers: halvings to stay inside the conditions)", fontsize=9)
+    ax.grid(alpha=0.3)
+    figure.savefig(folder / "training.png", dpi=150)
+    plt.close(figure)
+
+    names = list(result.held_out)
+    figure, axes = plt.subplots(1, len(names), figsize=(3.6 * len(names) + 1.0, 3.8), dpi=100, layout="constrained", squeeze=False)
+    for ax, name in zip(axes[0], names):
+        start, tuned_values = np.asarray(result.held_out[name]["start"]), np.asarray(result.held_out[name]["tuned"])
+        for a, b in zip(start, tuned_values):
+            ax.plot([0, 1], [a, b], color="0.75", linewidth=0.8)
+        ax.plot(np.zeros_like(start), start, "o", color="tab:gray", label="start")
+        ax.plot(np.ones_like(tuned_values), tuned_values, "o", color="tab:orange", label="tuned")
+        ax.plot([0, 1], [np.median(start), np.median(tuned_values)], "k_", markersize=30, markeredgewidth=2, label="median")
+        ax.set_xticks([0, 1], ["start", "tuned"])
+        ax.set_xlim(-0.5, 1.5)
+        ax.set_title(name, fontsize=9)
+        ax.set_ylabel(f"{name} ({result.units.get(name, '')})")
+        ax.grid(axis="y", alpha=0.3)
+    axes[0][0].legend(fontsize=8)
+    figure.suptitle(f"held-out seeds {result.test_seeds[0]}..{result.test_seeds[-1]}: each line one seed", fontsize=10)
+    figure.savefig(folder / "held_out.png", dpi=150)
+    plt.close(figure)
+    return {"scenario": scenario_path, "json": folder / "tuning.json", "training": folder / "training.png", "held_out": folder / "held_out.png"}
