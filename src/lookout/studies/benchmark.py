@@ -461,9 +461,7 @@ def prepare(benchmark: Benchmark, size_name: str, out: Path, observers: list[str
     """Check the benchmark before anything runs: every observer's campaign is built and
     validated, and each store in ``out/<spec name>/`` holds that campaign or nothing (a
     store of other settings is refused, naming it). Writes nothing."""
-    from lookout.studies.store import CampaignStore
-
-    from lookout.studies.store import differences
+    from lookout.studies.store import CampaignStore, differences
 
     folder = Path(out) / benchmark.name
     prepared = Prepared(benchmark, size_name, folder, campaigns(benchmark, size_name, observers))
@@ -510,13 +508,12 @@ class Result:
 
 
 def run_benchmark(prepared: Prepared, *, workers: int | None = None, scheduler: str | None = None,
-                  say: Callable[[str], None] = print, progress: Callable[[str, int, int], None] | None = None, command: str = "",
-                  cluster_address: str | None = None) -> Result:
+                  say: Callable[[str], None] = print, progress: Callable[[str, int, int], None] | None = None, command: str = "") -> Result:
     """Run a prepared benchmark: its campaigns (one per observer, into
     ``<folder>/<observer>.zarr``, each resumed when its store holds it), then each
     observer's cost, then the results (:func:`lookout.studies.benchmark_report.write_results`)
     and each observer's campaign report. Local dask workers (``workers``; 0: this
-    process), or a running cluster (``scheduler``, or ``cluster_address``: one this
+    process), or a running cluster at ``scheduler`` (one of the user's, or one this
     process started for several benchmarks)."""
     import os
 
@@ -527,7 +524,7 @@ def run_benchmark(prepared: Prepared, *, workers: int | None = None, scheduler: 
     start = time.perf_counter()
     prepared.folder.mkdir(parents=True, exist_ok=True)
     cluster = None
-    address = scheduler or cluster_address
+    address = scheduler
     if address is None and workers != 0:
         cluster = local_cluster(workers or os.cpu_count() or 1)
         address = cluster.scheduler_address

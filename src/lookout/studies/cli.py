@@ -326,11 +326,7 @@ def benchmark_observers(
             paths = [bench.shipped_spec(plant)] if plant is not None else [bench.shipped_spec(name) for name in bench.shipped_plants()]
         except ValueError as error:
             raise InputError(str(error)) from None
-    folder = Path(out)
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"--out must be a folder; {folder} is an existing file")
-    if not folder.exists():
-        writable_folder("--out", folder.absolute().parent, f"--out {out}")
+    folder = output_folder("--out", out)
     size = "quick" if quick else "full"
     prepared = []
     for path in paths:  # every spec and every campaign is checked before anything runs
@@ -364,7 +360,7 @@ def benchmark_observers(
                     bar.update(tasks[name], completed=done)
 
                 try:
-                    result = bench.run_benchmark(each, workers=workers, cluster_address=address, say=console_print, progress=progress, command=command)
+                    result = bench.run_benchmark(each, workers=workers, scheduler=address, say=console_print, progress=progress, command=command)
                 except SchedulerError as error:
                     raise InputError(f"--scheduler {scheduler}: {error}") from None
             console_print(f"{each.benchmark.name}: done in {result.seconds:.0f} s; {result.written['report']}, {result.written['table']}, {result.written['figures']}")

@@ -23,7 +23,7 @@ def tune_command(
     checks them), and compare the start and the result on held-out seeds."""
     import math
 
-    from lookout._commandline import console, created_folder
+    from lookout._commandline import console, output_folder
     from lookout.settings import positive_count
     from lookout.studies.cli import _scenario, console_print
     from lookout.tuning.tune import check_gradient_memory, tune, write_results
@@ -40,21 +40,12 @@ def tune_command(
     first = spec.seeds[0]
     train = list(range(first, first + train_seeds))
     test = list(range(first + train_seeds, first + train_seeds + test_seeds))
-    try:
-        from lookout.tuning.families import family_of
-
-        family_of(scenario.observer)
-        from lookout.tuning.tune import parse_objective
-
-        parse_objective(objective, scenario)
-    except ValueError as error:
-        raise InputError(f"{scenario_file}: {error}" if not str(error).startswith("--") else str(error)) from None
-    folder = created_folder("--out", out)
+    folder = output_folder("--out", out)  # checked now, made when the results are written
     command = f"lookout tune {scenario_file} --objective '{objective}' --train-seeds {train_seeds} --test-seeds {test_seeds} --steps {steps} --learning-rate {learning_rate:g}"
     try:
         result = tune(scenario, objective, train_seeds=train, test_seeds=test, steps=steps, learning_rate=learning_rate, say=console_print)
-    except ValueError as error:
-        raise InputError(f"{scenario_file}: {error}") from None
+    except ValueError as error:  # the family, the objective, the starting gains: refused before any simulation
+        raise InputError(str(error) if str(error).startswith("--") else f"{scenario_file}: {error}") from None
     written = write_results(result, spec.composition, folder, source=scenario_file, command=command)
     import numpy as np
     from rich import box

@@ -206,9 +206,10 @@ def check_gradient_memory(scenario, runs: int, available: float | None = None) -
     not fit in memory; return the bytes it needs."""
     from lookout._resources import refuse_unless_it_fits
     from lookout.sim import record_nbytes
+    from lookout.studies.execute import WORKER_BASE_BYTES
 
     samples = round(scenario.duration / scenario.sample_period) * scenario.substeps
-    need = GRADIENT_RECORD_FACTOR * runs * samples * record_nbytes(scenario) + 600e6
+    need = GRADIENT_RECORD_FACTOR * runs * samples * record_nbytes(scenario) + WORKER_BASE_BYTES
     refuse_unless_it_fits(need, f"--train-seeds: a gradient over {runs} runs x {samples} plant steps",
                           "use fewer training seeds or a shorter duration", available=available)
     return need
