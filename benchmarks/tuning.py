@@ -44,11 +44,11 @@ def main() -> None:
     document = preset("fossen-strand-1999", "paper")
     document["simulation"]["duration"] = options.duration
     scenario = compose(document).scenario
-    family = family_of(scenario.observer)
+    family = family_of(scenario)
     objective, metrics = parse_objective("rms_error:bias_force", scenario)
     value = _objective_function(scenario, family, objective, metrics, None)
     keys = keys_of_seeds(list(range(options.seeds)))
-    theta = jnp.asarray(family.theta(family.current(scenario.observer)))
+    theta = jnp.asarray(family.theta(family.current(scenario)))
     forward = jax.jit(lambda t: value(family.gains(t), keys)[0])
     gradient = jax.jit(jax.value_and_grad(lambda t: value(family.gains(t), keys)[0]))
     seconds_forward = best_of(lambda: forward(theta))

@@ -15,7 +15,8 @@ from lookout.cli import main
 from lookout.composition import compose
 from lookout.registry import preset
 from lookout.sim import keys_of_seeds
-from lookout.tuning.families import PassiveFamily, family_of
+from lookout.tuning.families import family_of
+from lookout.tuning.families.passive import PassiveFamily
 from lookout.tuning.tune import _objective_function, parse_objective
 
 pytestmark = pytest.mark.xdist_group("tuning")
@@ -31,13 +32,13 @@ def _scenario(duration: float, **observer):
 def test_the_gradient_matches_central_differences_at_the_starting_gains():
     """Kappa, Lambda, w_c and zeta_n of the passive observer, through 200 s of two runs."""
     scenario = compose(_scenario(200.0)).scenario
-    family = family_of(scenario.observer)
+    family = family_of(scenario)
     assert isinstance(family, PassiveFamily)
     objective, metrics = parse_objective("rms_error:bias_force + 100*rms_error:position", scenario)
     value = _objective_function(scenario, family, objective, metrics, None)
     keys = keys_of_seeds([3, 4])
     f = jax.jit(lambda theta: value(family.gains(theta), keys)[0])
-    theta = jnp.asarray(family.theta(family.current(scenario.observer)))
+    theta = jnp.asarray(family.theta(family.current(scenario)))
     gradient = np.asarray(jax.jit(jax.grad(lambda t: value(family.gains(t), keys)[0]))(theta))
     step = 1e-5
     central = np.asarray([(f(theta.at[i].add(step)) - f(theta.at[i].add(-step))) / (2 * step) for i in range(theta.size)])
@@ -47,8 +48,8 @@ def test_the_gradient_matches_central_differences_at_the_starting_gains():
 
 def test_the_parametrization_round_trips_and_stays_inside_48():
     scenario = compose(_scenario(100.0)).scenario
-    family = family_of(scenario.observer)
-    start = family.current(scenario.observer)
+    family = family_of(scenario)
+    start = family.current(scenario)
     for given, back in zip(start, family.gains(jnp.asarray(family.theta(start)))):
         np.testing.assert_allclose(np.asarray(back), given, rtol=1e-12)
     rng = np.random.default_rng(0)
@@ -119,12 +120,15 @@ def test_a_scenario_whose_conditions_cannot_be_met_is_refused_naming_the_conditi
     assert "tuning rule (48): 10/T (2 rad/s) is not below w_o (0.8976 rad/s) in surge" in error and "\n" not in error, error
 
 
-def test_an_observer_without_a_family_is_refused(tmp_path, capsys):
+def test_an_observer_without_a_family_is_refused(tmp_path, capsys, monkeypatch):
+    """(The registry without the passive family: every shipped observer has one.)"""
     from lookout.studies._toml import write
+    from lookout.tuning import families
 
+    monkeypatch.setattr(families, "OBSERVER_FAMILIES", {k: v for k, v in families.OBSERVER_FAMILIES.items() if k != "passive"})
     document = _scenario(100.0)
-    document["observer"] = {"kind": "ekf"}
     source = tmp_path / "dp.toml"
     write(source, document)
     assert main(["tune", str(source), "--out", str(tmp_path / "out")]) == 2
-    assert "observer ekf has no tunable family yet (tunable: passive)" in capsys.readouterr().err
+    error = capsys.readouterr().err
+    assert "neither observer passive nor controller sinusoidal has a tunable family yet (tunable observers: " in error, error

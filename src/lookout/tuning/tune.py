@@ -85,8 +85,7 @@ def _objective_function(scenario, family: Family, objective: Objective, metrics,
     weights = [weight for weight, _ in objective.terms]
 
     def value(gains, keys):
-        observer = family.apply(scenario.observer, gains)
-        tuned = eqx.tree_at(lambda s: s.observer, scenario, observer)
+        tuned = family.apply(scenario, gains)
         accumulated, series = summarize_batch(tuned, keys, plan)
         out = plan.finish(accumulated, series, jnp.asarray(time_grid))
         per_run = {m.name: out[m.variable] for m in metrics}
@@ -128,20 +127,20 @@ class Tuning:
 
 def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: list[int], steps: int = 30, learning_rate: float = 0.1,
          after: float | None = None, say: Callable[[str], None] = print) -> Tuning:
-    """Tune the gains of ``scenario``'s observer (its family, :func:`family_of`) for the
+    """Tune the gains of ``scenario``'s observer and controller (their family, :func:`family_of`) for the
     objective over ``train_seeds``; measure the start and the result on ``test_seeds``."""
     import optax
 
     from lookout.sim import keys_of_seeds
 
     started = time.perf_counter()
-    family = family_of(scenario.observer)
+    family = family_of(scenario)
     objective, metrics = parse_objective(objective_text, scenario)
-    start = family.current(scenario.observer)
-    report_before = family.check(family.apply(scenario.observer, start))
+    start = family.current(scenario)
+    report_before = family.check(family.apply(scenario, start))
     if not report_before.holds:
         failing = [key for key, verdict in report_before.verdicts.items() if verdict != "holds"]
-        raise ValueError(f"the starting gains do not satisfy {', '.join(failing)} (lookout design passive-observer shows why); start from gains that do")
+        raise ValueError(f"the starting gains do not satisfy {', '.join(failing)} ({family.design} shows why); start from gains that do")
     value = _objective_function(scenario, family, objective, metrics, after)
     value_and_grad = eqx.filter_jit(jax.value_and_grad(lambda theta, keys: value(family.gains(theta), keys)[0]))
     evaluate = eqx.filter_jit(value)
@@ -163,7 +162,7 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
         while True:
             candidate = theta + updates
             gains = family.gains(candidate)
-            if family.check(family.apply(scenario.observer, gains)).holds:
+            if family.check(family.apply(scenario, gains)).holds:
                 break
             halvings += 1
             if halvings > BACKTRACKS:
@@ -186,7 +185,7 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     final = float(evaluate(family.gains(theta), train)[0])
     result.steps.append(Step(len(result.steps), final, [np.asarray(g).tolist() for g in family.gains(theta)], 0, True))
     result.gains = tuple(np.asarray(g, dtype=float) for g in family.gains(theta))
-    result.report_after = family.check(family.apply(scenario.observer, result.gains))
+    result.report_after = family.check(family.apply(scenario, result.gains))
     test = keys_of_seeds(list(test_seeds))
     before_runs = evaluate(tuple(jnp.asarray(g) for g in start), test)[1]
     after_runs = evaluate(family.gains(theta), test)[1]
