@@ -44,7 +44,7 @@ def main() -> None:
     document = preset("fossen-strand-1999", "paper")
     document["simulation"]["duration"] = options.duration
     scenario = compose(document).scenario
-    family = family_of(scenario)
+    family = family_of(scenario)[0]
     objective, metrics = parse_objective("rms_error:bias_force", scenario)
     value = _objective_function(scenario, family, objective, metrics, None)
     keys = keys_of_seeds(list(range(options.seeds)))

@@ -32,7 +32,7 @@ def _scenario(duration: float, **observer):
 def test_the_gradient_matches_central_differences_at_the_starting_gains():
     """Kappa, Lambda, w_c and zeta_n of the passive observer, through 200 s of two runs."""
     scenario = compose(_scenario(200.0)).scenario
-    family = family_of(scenario)
+    family = family_of(scenario)[0]
     assert isinstance(family, PassiveFamily)
     objective, metrics = parse_objective("rms_error:bias_force + 100*rms_error:position", scenario)
     value = _objective_function(scenario, family, objective, metrics, None)
@@ -48,7 +48,7 @@ def test_the_gradient_matches_central_differences_at_the_starting_gains():
 
 def test_the_parametrization_round_trips_and_stays_inside_48():
     scenario = compose(_scenario(100.0)).scenario
-    family = family_of(scenario)
+    family = family_of(scenario)[0]
     start = family.current(scenario)
     for given, back in zip(start, family.gains(jnp.asarray(family.theta(start)))):
         np.testing.assert_allclose(np.asarray(back), given, rtol=1e-12)

@@ -333,6 +333,12 @@ class Controller(eqx.Module):
     def step(self, state, t, y: Array, estimate: dict, reference: dict, dt):
         """``(state, u)``: the commanded input at ``t``, laid out as the plant's input."""
 
+    def follow(self, observer) -> "Controller":
+        """This controller with the gains it copies from ``observer`` taken again
+        (traceable): after the observer's gains change (tuning). A controller that
+        copies none returns itself."""
+        return self
+
 
 class Actuator(eqx.Module):
     """What the plant receives for a commanded input (limits, saturation)."""

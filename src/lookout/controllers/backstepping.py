@@ -209,6 +209,15 @@ class ObserverBackstepping(Controller):
             wave_damping=gains.wave_damping,
         )
 
+    def follow(self, observer) -> "ObserverBackstepping":
+        """H2, H4, Kbar and the wave model taken again from ``observer`` (traceable)."""
+        gains = observer.wave_filter_gains()
+        return eqx.tree_at(
+            lambda c: (c.position_injection_gain, c.velocity_injection_gain, c.switching_gain, c.wave_frequency, c.wave_damping), self,
+            tuple(jnp.broadcast_to(jnp.asarray(v, dtype=float), (3,)) for v in (gains.position_injection_gain, gains.velocity_injection_gain,
+                                                                               gains.switching_gain, gains.wave_frequency, gains.wave_damping)),
+        )
+
     #: what the law reads (eqs. 18–26): the estimate with its wave motion, the measured
     #: heading, and the reference with two derivatives
     estimate_needs = property(lambda self: VESSEL_ESTIMATE + ("bias_force", "bias_moment", "wave_heading", "wave_heading_rate"))
@@ -388,6 +397,12 @@ class VectorialBackstepping(Controller):
             damping_weights=damping_weights,
             coupling_gain=coupling_gain,
         )
+
+    def follow(self, observer) -> "VectorialBackstepping":
+        """K1, K2 taken again from ``observer`` (traceable)."""
+        return eqx.tree_at(lambda c: (c.observer_position_gain, c.observer_velocity_gain), self,
+                           (jnp.broadcast_to(jnp.asarray(observer.position_gain, dtype=float), self.observer_position_gain.shape),
+                            jnp.broadcast_to(jnp.asarray(observer.velocity_gain, dtype=float), self.observer_velocity_gain.shape)))
 
     #: what the law (36) reads: the estimate and theta_hat, the measured heading, the reference
     estimate_needs = property(lambda self: VESSEL_ESTIMATE + tuple(f"theta_{name}" for name in self.parametrization.names))

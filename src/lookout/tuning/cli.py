@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Optional
 
 import typer
 
@@ -17,6 +17,8 @@ def tune_command(
     test_seeds: Annotated[int, typer.Option(metavar="M", help="Held-out runs: the M seeds after the training seeds.")] = 16,
     steps: Annotated[int, typer.Option(metavar="N", help="Optimizer steps (Adam).")] = 30,
     learning_rate: Annotated[float, typer.Option(metavar="RATE", help="Adam's step in the gains' parameters (log-scale for positive gains).")] = 0.1,
+    tune_components: Annotated[Optional[str], typer.Option("--tune", metavar="observer,controller", help="The components to tune.",
+                                                           show_default="each that has a family and whose conditions can hold")] = None,
 ) -> None:
     """Tune the gains of a scenario's observer by gradient through the simulation, inside
     its paper's conditions (every returned gain set satisfies them as lookout design
@@ -41,9 +43,12 @@ def tune_command(
     train = list(range(first, first + train_seeds))
     test = list(range(first + train_seeds, first + train_seeds + test_seeds))
     folder = output_folder("--out", out)  # checked now, made when the results are written
-    command = f"lookout tune {scenario_file} --objective '{objective}' --train-seeds {train_seeds} --test-seeds {test_seeds} --steps {steps} --learning-rate {learning_rate:g}"
+    command = (f"lookout tune {scenario_file} --objective '{objective}' --train-seeds {train_seeds} --test-seeds {test_seeds} --steps {steps} "
+               f"--learning-rate {learning_rate:g}" + (f" --tune {tune_components}" if tune_components else ""))
     try:
-        result = tune(scenario, objective, train_seeds=train, test_seeds=test, steps=steps, learning_rate=learning_rate, say=console_print)
+        components = None if tune_components is None else tuple(part.strip() for part in tune_components.split(","))
+        result = tune(scenario, objective, train_seeds=train, test_seeds=test, steps=steps, learning_rate=learning_rate, components=components,
+                      say=console_print)
     except ValueError as error:  # the family, the objective, the starting gains: refused before any simulation
         raise InputError(str(error) if str(error).startswith("--") else f"{scenario_file}: {error}") from None
     written = write_results(result, spec.composition, folder, source=scenario_file, command=command)
@@ -52,11 +57,12 @@ def tune_command(
     from rich.table import Table
 
     table = Table(title=f"{result.family.name}; objective {result.objective.text}", title_justify="left", box=box.SIMPLE_HEAD)
-    for column in ("held-out metric", "start (median)", "tuned (median)", "change"):
+    given = result.given_gains is not None
+    for column in ("held-out metric", *(("file's gains (median)",) if given else ()), "start (median)", "tuned (median)", "change"):
         table.add_column(column, justify="right" if column != "held-out metric" else "left")
     for name, values in result.held_out.items():
         a, b = float(np.median(values["start"])), float(np.median(values["tuned"]))
-        table.add_row(name, f"{a:.4g}", f"{b:.4g}", f"{(b - a) / a:+.1%}")
+        table.add_row(name, *((f"{float(np.median(values['given'])):.4g}",) if given else ()), f"{a:.4g}", f"{b:.4g}", f"{(b - a) / a:+.1%}")
     console.print(table)
     verdicts = ", ".join(f"{key} {verdict}" for key, verdict in result.report_after.verdicts.items())
     console_print(f"conditions of the tuned gains: {verdicts}")

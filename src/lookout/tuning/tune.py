@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lookout.tuning.families import Family, family_of
+from lookout.tuning.families import Family, build, family_of
 
 #: Metric kinds an objective may use: smooth in the gains (an RMS over the window).
 DIFFERENTIABLE = ("rms_error", "rms_tracking", "rms_input")
@@ -75,8 +75,9 @@ def parse_objective(text: str, scenario) -> tuple[Objective, list]:
     return Objective(tuple(terms)), metrics
 
 
-def _objective_function(scenario, family: Family, objective: Objective, metrics, after: float | None):
-    """gains, keys -> (objective, per-run values of each metric)."""
+def _objective_function(scenario, family: Family | None, objective: Objective, metrics, after: float | None):
+    """gains, keys -> (objective, per-run values of each metric); with ``family`` None,
+    scenario, keys -> the same."""
     from lookout.sim import summarize_batch
     from lookout.studies import metrics as metric_module
 
@@ -85,7 +86,7 @@ def _objective_function(scenario, family: Family, objective: Objective, metrics,
     weights = [weight for weight, _ in objective.terms]
 
     def value(gains, keys):
-        tuned = family.apply(scenario, gains)
+        tuned = gains if family is None else build(family, scenario, gains)
         accumulated, series = summarize_batch(tuned, keys, plan)
         out = plan.finish(accumulated, series, jnp.asarray(time_grid))
         per_run = {m.name: out[m.variable] for m in metrics}
@@ -123,24 +124,29 @@ class Tuning:
     units: dict = field(default_factory=dict)     # metric -> its units
     train_seeds: list = field(default_factory=list)
     test_seeds: list = field(default_factory=list)
+    notes: list = field(default_factory=list)     # components left as they are, a start moved inside the conditions
+    given_gains: tuple | None = None              # the scenario's own gains, when outside the conditions
+    report_given: object = None                   # and their conditions
 
 
 def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: list[int], steps: int = 30, learning_rate: float = 0.1,
-         after: float | None = None, say: Callable[[str], None] = print) -> Tuning:
-    """Tune the gains of ``scenario``'s observer and controller (their family, :func:`family_of`) for the
-    objective over ``train_seeds``; measure the start and the result on ``test_seeds``."""
+         after: float | None = None, components: tuple[str, ...] | None = None, say: Callable[[str], None] = print) -> Tuning:
+    """Tune the gains of ``scenario``'s observer and controller (their family,
+    :func:`~lookout.tuning.families.family_of`; ``components`` chooses among them) for the
+    objective over ``train_seeds``; measure the scenario's own gains, the start (the
+    nearest gains inside the conditions when its own are outside) and the result on
+    ``test_seeds``."""
     import optax
 
     from lookout.sim import keys_of_seeds
 
     started = time.perf_counter()
-    family = family_of(scenario)
     objective, metrics = parse_objective(objective_text, scenario)
-    start = family.current(scenario)
-    report_before = family.check(family.apply(scenario, start))
-    if not report_before.holds:
-        failing = [key for key, verdict in report_before.verdicts.items() if verdict != "holds"]
-        raise ValueError(f"the starting gains do not satisfy {', '.join(failing)} ({family.design} shows why); start from gains that do")
+    family, start, notes = family_of(scenario, components)
+    for note in notes:
+        say(note)
+    report_before = family.check(build(family, scenario, start))
+    given = None if all(np.array_equal(np.asarray(a, float), np.asarray(b, float)) for a, b in zip(start, family.current(scenario))) else scenario
     value = _objective_function(scenario, family, objective, metrics, after)
     value_and_grad = eqx.filter_jit(jax.value_and_grad(lambda theta, keys: value(family.gains(theta), keys)[0]))
     evaluate = eqx.filter_jit(value)
@@ -149,7 +155,10 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     optimizer = optax.adam(learning_rate)
     state = optimizer.init(theta)
     result = Tuning(family, objective, start, start, train_seeds=list(train_seeds), test_seeds=list(test_seeds), report_before=report_before,
-                    units={m.name: m.units for m in metrics})
+                    units={m.name: m.units for m in metrics}, notes=notes)
+    if given is not None:
+        result.given_gains = family.current(scenario)
+        result.report_given = family.check(scenario)
     refused = 0
     for step in range(steps):
         current, gradient = value_and_grad(theta, train)
@@ -162,7 +171,7 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
         while True:
             candidate = theta + updates
             gains = family.gains(candidate)
-            if family.check(family.apply(scenario, gains)).holds:
+            if family.check(build(family, scenario, gains)).holds:
                 break
             halvings += 1
             if halvings > BACKTRACKS:
@@ -185,11 +194,15 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     final = float(evaluate(family.gains(theta), train)[0])
     result.steps.append(Step(len(result.steps), final, [np.asarray(g).tolist() for g in family.gains(theta)], 0, True))
     result.gains = tuple(np.asarray(g, dtype=float) for g in family.gains(theta))
-    result.report_after = family.check(family.apply(scenario, result.gains))
+    result.report_after = family.check(build(family, scenario, result.gains))
     test = keys_of_seeds(list(test_seeds))
     before_runs = evaluate(tuple(jnp.asarray(g) for g in start), test)[1]
     after_runs = evaluate(family.gains(theta), test)[1]
     result.held_out = {name: {"start": np.asarray(before_runs[name]).tolist(), "tuned": np.asarray(after_runs[name]).tolist()} for name in before_runs}
+    if given is not None:  # the file's own gains, outside the conditions
+        given_runs = eqx.filter_jit(_objective_function(scenario, None, objective, metrics, after))(scenario, test)[1]
+        for name in result.held_out:
+            result.held_out[name] = {"given": np.asarray(given_runs[name]).tolist(), **result.held_out[name]}
     result.seconds = time.perf_counter() - started
     return result
 
@@ -239,7 +252,8 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
         set_path(document, "observer.design", document["observer"]["design"])
     scenario_path = save(CompositionSpec(tuned, str(folder / "tuned.toml")), folder / "tuned.toml",
                          header=f"lookout scenario: {source} with the gains {command} found.\nRun it with: lookout run tuned.toml --out DIR")
-    medians = {name: {which: float(np.median(values[which])) for which in ("start", "tuned")} for name, values in result.held_out.items()}
+    medians = {name: {which: float(np.median(v)) for which, v in values.items()} for name, values in result.held_out.items()}
+    given = {} if result.given_gains is None else {"given": result.given_gains}
     summary = {
         "command": command,
         "scenario": source,
@@ -249,8 +263,11 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
         "test_seeds": result.test_seeds,
         "stopped": result.stopped or f"after {len(result.steps) - 1} steps",
         "seconds": result.seconds,
-        "gains": {key: {"start": np.asarray(a).tolist(), "tuned": np.asarray(b).tolist()} for key, a, b in zip(result.family.keys, result.start_gains, result.gains)},
+        "notes": result.notes,
+        "gains": {key: {**{which: np.asarray(g[i]).tolist() for which, g in given.items()}, "start": np.asarray(a).tolist(), "tuned": np.asarray(b).tolist()}
+                  for i, (key, a, b) in enumerate(zip(result.family.keys, result.start_gains, result.gains))},
         "steps": [{"step": s.step, "objective": s.objective, "halvings": s.halvings, "accepted": s.accepted} for s in result.steps],
+        **({} if result.report_given is None else {"conditions_given": result.report_given.to_dict()}),
         "conditions_before": result.report_before.to_dict(),
         "conditions_after": result.report_after.to_dict(),
         "held_out": result.held_out,
@@ -272,19 +289,23 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
 
     names = list(result.held_out)
     figure, axes = plt.subplots(1, len(names), figsize=(3.6 * len(names) + 1.0, 3.8), dpi=100, layout="constrained", squeeze=False)
+    colours = {"given": "tab:red", "start": "tab:gray", "tuned": "tab:orange"}
+    labels = {"given": "file's gains\n(outside)", "start": "start", "tuned": "tuned"}
     for ax, name in zip(axes[0], names):
-        start, tuned_values = np.asarray(result.held_out[name]["start"]), np.asarray(result.held_out[name]["tuned"])
-        for a, b in zip(start, tuned_values):
-            ax.plot([0, 1], [a, b], color="0.75", linewidth=0.8)
-        ax.plot(np.zeros_like(start), start, "o", color="tab:gray", label="start")
-        ax.plot(np.ones_like(tuned_values), tuned_values, "o", color="tab:orange", label="tuned")
-        ax.plot([0, 1], [np.median(start), np.median(tuned_values)], "k_", markersize=30, markeredgewidth=2, label="median")
-        ax.set_xticks([0, 1], ["start", "tuned"])
-        ax.set_xlim(-0.5, 1.5)
+        columns = list(result.held_out[name])
+        values = [np.asarray(result.held_out[name][c]) for c in columns]
+        for run in np.stack(values, axis=1):
+            ax.plot(range(len(columns)), run, color="0.75", linewidth=0.8)
+        for x, (column, v) in enumerate(zip(columns, values)):
+            ax.plot(np.full_like(v, x), v, "o", color=colours[column], label=labels[column].replace("\n", " "))
+        ax.plot(range(len(columns)), [np.median(v) for v in values], "k_", markersize=30, markeredgewidth=2, label="median")
+        ax.set_xticks(range(len(columns)), [labels[c] for c in columns])
+        ax.set_xlim(-0.5, len(columns) - 0.5)
         ax.set_title(name, fontsize=9)
         ax.set_ylabel(f"{name} ({result.units.get(name, '')})")
         ax.grid(axis="y", alpha=0.3)
-    axes[0][0].legend(fontsize=8)
+    handles, labels_ = axes[0][0].get_legend_handles_labels()
+    figure.legend(handles, labels_, loc="outside lower center", ncol=len(handles), fontsize=8)
     figure.suptitle(f"held-out seeds {result.test_seeds[0]}..{result.test_seeds[-1]}: each line one seed", fontsize=10)
     figure.savefig(folder / "held_out.png", dpi=150)
     plt.close(figure)

@@ -25,9 +25,12 @@ import numpy as np
 #: observer kind -> "module:class" of its family (the class's ``of(scenario)`` builds it).
 OBSERVER_FAMILIES = {
     "passive": "lookout.tuning.families.passive:PassiveFamily",
+    "sliding-mode": "lookout.tuning.families.sliding_mode:SlidingModeFamily",
 }
 #: controller kind -> "module:class" of its family.
-CONTROLLER_FAMILIES: dict[str, str] = {}
+CONTROLLER_FAMILIES = {
+    "observer-backstepping": "lookout.tuning.families.positive:ObserverBacksteppingFamily",
+}
 
 
 class Family(abc.ABC):
@@ -60,18 +63,45 @@ class Family(abc.ABC):
         """The conditions, as the ``lookout design`` command checks them: a
         :class:`~lookout.analysis.conditions.Report`."""
 
-    def size(self, scenario) -> int:
-        """The length of theta."""
-        return int(np.size(self.theta(self.current(scenario))))
+    def candidates(self, scenario):
+        """Gain sets inside the conditions written as a parametrization, nearest the
+        scenario's own first, for a start when the scenario's own gains are outside
+        (:func:`start`); none by default."""
+        return iter(())
+
+
+def build(family: Family, scenario, gains):
+    """``scenario`` with ``gains``, and its controller following the observer's gains it
+    copies (:meth:`lookout.components.Controller.follow`): traceable."""
+    import equinox as eqx
+
+    tuned = family.apply(scenario, gains)
+    return eqx.tree_at(lambda s: s.controller, tuned, tuned.controller.follow(tuned.observer))
+
+
+def start(family: Family, scenario) -> tuple:
+    """Where tuning starts: the scenario's own gains when every condition of ``family``
+    holds for them; else the first of :meth:`Family.candidates` for which they hold; else
+    a ValueError naming the conditions that fail and the command that says why."""
+    own = family.current(scenario)
+    report = family.check(build(family, scenario, own))
+    if report.holds:
+        return own
+    for gains in family.candidates(scenario):
+        if family.check(build(family, scenario, gains)).holds:
+            return gains
+    failing = [key for key, verdict in report.verdicts.items() if verdict != "holds"]
+    raise ValueError(f"the starting gains do not satisfy {', '.join(failing)} ({family.design} shows why), and no nearby gains inside "
+                     "the parametrized conditions satisfy them; start from gains that do")
 
 
 class Joint(Family):
     """Several families tuned together (an observer's and its controller's): theta laid
     end to end, the gains in the order of the parts, every part's conditions checked."""
 
-    def __init__(self, parts: list[Family], scenario):
+    def __init__(self, parts: list[Family], starts: list[tuple]):
         self.parts = tuple(parts)
-        self.sizes = tuple(part.size(scenario) for part in parts)
+        self.sizes = tuple(int(np.size(part.theta(gains))) for part, gains in zip(parts, starts))
         self.name = "; ".join(part.name for part in parts)
         self.keys = tuple(key for part in parts for key in part.keys)
         self.design = " and ".join(dict.fromkeys(part.design for part in parts))
@@ -112,21 +142,52 @@ def _load(path: str):
     return getattr(importlib.import_module(module), name)
 
 
-def family_of(scenario) -> Family:
-    """The tunable family of ``scenario``: its observer's, joined with its controller's
-    where that has one; a ValueError lists the kinds that have one."""
+#: The components a tuning may change.
+COMPONENTS = ("observer", "controller")
+
+
+def family_of(scenario, components: tuple[str, ...] | None = None) -> tuple[Family, tuple, list[str]]:
+    """The tunable family of ``scenario``, where it starts (:func:`start`) and notes.
+
+    ``components`` (default: each that has a family) chooses among the observer and the
+    controller. A component chosen by default whose conditions cannot be met at its
+    start is left as it is, with a note saying why; one asked for by name is refused
+    (ValueError). A ValueError lists the kinds that have a family when none is left."""
     from lookout.registry import kind_of
 
-    observer, controller = kind_of(scenario.observer), kind_of(scenario.controller)
-    parts = []
-    if observer in OBSERVER_FAMILIES:
-        parts.append(_load(OBSERVER_FAMILIES[observer]).of(scenario))
-    if controller in CONTROLLER_FAMILIES:
-        parts.append(_load(CONTROLLER_FAMILIES[controller]).of(scenario))
+    kinds = {"observer": (kind_of(scenario.observer), OBSERVER_FAMILIES), "controller": (kind_of(scenario.controller), CONTROLLER_FAMILIES)}
+    asked = components is not None
+    for name in components or ():
+        if name not in COMPONENTS:
+            raise ValueError(f"--tune: {name!r} is not a component; use {' or '.join(COMPONENTS)}")
+    parts, starts, notes, errors = [], [], [], []
+    for role in components or COMPONENTS:
+        kind, registry = kinds[role]
+        if kind not in registry:
+            if asked:
+                raise ValueError(f"--tune: {role} {kind} has no tunable family (tunable {role}s: {', '.join(registry) or 'none'})")
+            continue
+        try:
+            part = _load(registry[kind]).of(scenario)
+            gains = start(part, scenario)
+        except ValueError as error:
+            if asked:
+                raise ValueError(f"{role} {kind}: {error}") from None
+            errors.append(f"{role} {kind}: {error}")
+            notes.append(f"{role} {kind} left as it is: {error}")
+            continue
+        if any(not np.allclose(np.asarray(a, float), np.asarray(b, float), rtol=1e-12, atol=0.0) for a, b in zip(gains, part.current(scenario))):
+            notes.append(f"{role} {kind}: its own gains are outside the conditions; tuning starts from the nearest inside them")
+        parts.append(part)
+        starts.append(gains)
     if not parts:
-        raise ValueError(f"neither observer {observer} nor controller {controller} has a tunable family yet (tunable observers: "
-                         f"{', '.join(OBSERVER_FAMILIES)}; controllers: {', '.join(CONTROLLER_FAMILIES) or 'none'})")
-    return parts[0] if len(parts) == 1 else Joint(parts, scenario)
+        if errors:
+            raise ValueError(errors[0])
+        raise ValueError(f"neither observer {kinds['observer'][0]} nor controller {kinds['controller'][0]} has a tunable family yet (tunable "
+                         f"observers: {', '.join(OBSERVER_FAMILIES)}; controllers: {', '.join(CONTROLLER_FAMILIES) or 'none'})")
+    if len(parts) == 1:
+        return parts[0], starts[0], notes
+    return Joint(parts, starts), tuple(g for gains in starts for g in gains), notes
 
 
-__all__ = ["CONTROLLER_FAMILIES", "OBSERVER_FAMILIES", "Family", "Joint", "family_of"]
+__all__ = ["COMPONENTS", "CONTROLLER_FAMILIES", "OBSERVER_FAMILIES", "Family", "Joint", "build", "family_of", "start"]

@@ -20,6 +20,8 @@ MUCH_LESS = 10.0
 #: How far inside its interval lambda/kappa stays: the open interval of (48) as a closed
 #: one a rounding cannot leave.
 INSIDE = 1e-3
+#: Gain sets :meth:`PassiveFamily.candidates` tries.
+CANDIDATES = 17
 
 
 @dataclass(frozen=True)
@@ -50,16 +52,21 @@ class PassiveFamily(Family):
     def of(cls, scenario) -> "PassiveFamily":
         """The family of ``scenario``'s observer; a ValueError names (48) when no Kappa,
         Lambda can satisfy it (10/T not below w_o in some DOF)."""
-        observer = cls.passive(scenario)
-        low = MUCH_LESS / np.asarray(observer.bias_time_constant, dtype=float)
-        high = np.asarray(observer.wave_frequency, dtype=float)
+        return cls(*cls.chain(cls.passive(scenario)))
+
+    @staticmethod
+    def chain(observer) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """10/T, w_o and zeta per DOF of a passive observer; a ValueError names (48) when
+        10/T is not below w_o in some DOF."""
+        low = MUCH_LESS / np.asarray(observer.bias_time_constant, dtype=float) * np.ones(3)
+        high = np.asarray(observer.wave_frequency, dtype=float) * np.ones(3)
         for dof, (a, b) in zip(("surge", "sway", "yaw"), zip(low, high)):
             if not a < b:
                 raise ValueError(
                     f"tuning rule (48): 10/T ({a:.4g} rad/s) is not below w_o ({b:.4g} rad/s) in {dof}, so no Kappa, Lambda satisfies "
                     "1/T << lambda/kappa < w_o; lengthen bias_time_constant or check the wave frequency"
                 )
-        return cls(low, high, np.asarray(observer.wave_damping, dtype=float))
+        return low, high, np.asarray(observer.wave_damping, dtype=float) * np.ones(3)
 
     @staticmethod
     def passive(scenario):
@@ -88,6 +95,22 @@ class PassiveFamily(Family):
             )
         return np.concatenate([np.log(kappa), np.log(fraction / (1.0 - fraction)), _softplus_inverse(cutoff - self.high * (1.0 + INSIDE)),
                                _softplus_inverse(notch - self.wave_damping * (1.0 + INSIDE))])
+
+    def candidates(self, scenario):
+        """Gains inside (48) for a scenario whose own are outside it (Kim's printed H3/H4 =
+        10 rad/s > w_o): Kappa kept, lambda/kappa moved into its interval, from the nearest
+        end across to the other (in the parameter b, over :data:`CANDIDATES` points: SPR
+        may hold only in part of it), w_c and zeta_n raised above their floors where they
+        are below."""
+        kappa, lam, cutoff, notch = (np.asarray(g, dtype=float) for g in self.current(scenario)[:4])
+        fraction = ((lam / kappa - self.low) / (self.high - self.low) - INSIDE) / (1.0 - 2.0 * INSIDE)
+        nearest = np.clip(fraction, 0.01, 0.99)
+        b = np.log(nearest / (1.0 - nearest))
+        c = _softplus_inverse(np.maximum(cutoff - self.high * (1.0 + INSIDE), 0.2 * self.high))
+        d = _softplus_inverse(np.maximum(notch - self.wave_damping * (1.0 + INSIDE), self.wave_damping))
+        for k in range(CANDIDATES):
+            theta = np.concatenate([np.log(kappa), b * (1.0 - 2.0 * k / (CANDIDATES - 1)), c, d])
+            yield tuple(np.asarray(g) for g in PassiveFamily.gains(self, jnp.asarray(theta)))
 
     def apply(self, scenario, gains):
         from lookout.observers.passive import notch_gains
