@@ -18,6 +18,7 @@ from lookout.sim import keys_of_seeds
 from lookout.tuning.families import family_of
 from lookout.tuning.families.passive import PassiveFamily
 from lookout.tuning.tune import _objective_function, parse_objective
+from tuning_checks import gradient_and_central_differences
 
 pytestmark = pytest.mark.xdist_group("tuning")
 
@@ -37,11 +38,8 @@ def test_the_gradient_matches_central_differences_at_the_starting_gains():
     objective, metrics = parse_objective("rms_error:bias_force + 100*rms_error:position", scenario)
     value = _objective_function(scenario, family, objective, metrics, None)
     keys = keys_of_seeds([3, 4])
-    f = jax.jit(lambda theta: value(family.gains(theta), keys)[0])
     theta = jnp.asarray(family.theta(family.current(scenario)))
-    gradient = np.asarray(jax.jit(jax.grad(lambda t: value(family.gains(t), keys)[0]))(theta))
-    step = 1e-5
-    central = np.asarray([(f(theta.at[i].add(step)) - f(theta.at[i].add(-step))) / (2 * step) for i in range(theta.size)])
+    gradient, central = gradient_and_central_differences(value, family, theta, keys, 1e-5)
     np.testing.assert_allclose(gradient, central, rtol=1e-5, atol=1e-6 * np.abs(central).max())
     assert np.abs(gradient).min() > 0  # every parameter moves the objective
 

@@ -19,8 +19,9 @@ from lookout.tuning.families import Joint, build, family_of
 from lookout.tuning.families.positive import ObserverBacksteppingFamily
 from lookout.tuning.families.sliding_mode import SlidingModeFamily
 from lookout.tuning.tune import _objective_function, parse_objective
+from tuning_checks import gradient_and_central_differences
 
-pytestmark = pytest.mark.xdist_group("tuning")
+pytestmark = pytest.mark.xdist_group("tuning-kim")
 
 EXAMPLE = "examples/kim-closed-loop.toml"
 
@@ -61,11 +62,8 @@ def test_the_gradient_matches_central_differences_for_the_observer_and_the_contr
     objective, metrics = parse_objective("rms_tracking:position + rms_error:position", scenario)
     value = _objective_function(scenario, family, objective, metrics, None)
     keys = keys_of_seeds([1, 2])
-    f = jax.jit(lambda theta: value(family.gains(theta), keys)[0])
     theta = jnp.asarray(family.theta(start))
-    gradient = np.asarray(jax.jit(jax.grad(lambda t: value(family.gains(t), keys)[0]))(theta))
-    step = 1e-5
-    central = np.asarray([(f(theta.at[i].add(step)) - f(theta.at[i].add(-step))) / (2 * step) for i in range(theta.size)])
+    gradient, central = gradient_and_central_differences(value, family, theta, keys, 1e-5)
     np.testing.assert_allclose(gradient, central, rtol=2e-4, atol=1e-5 * np.abs(central).max())
     assert np.count_nonzero(np.abs(gradient) > 1e-6 * np.abs(gradient).max()) >= theta.size - 3
 

@@ -141,8 +141,14 @@ def resolve(names: list[str], scenario) -> list[Metric]:
 
 
 def _norm(values, vector: bool):
-    """|values|: the norm over the last axis of a vector signal."""
-    return jnp.sqrt(jnp.sum(values**2, axis=-1)) if vector else jnp.abs(values)
+    """|values|: the norm over the last axis of a vector signal. Its gradient is 0, not
+    NaN, at a zero vector (sqrt's derivative is infinite at 0: the inner ``where`` keeps
+    it out of the gradient, as tuning differentiates through an error that starts at 0)."""
+    if not vector:
+        return jnp.abs(values)
+    square = jnp.sum(values**2, axis=-1)
+    positive = square > 0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, square, 1.0)), 0.0)
 
 
 def _difference(a, b, angle: bool):

@@ -25,11 +25,17 @@ import numpy as np
 #: observer kind -> "module:class" of its family (the class's ``of(scenario)`` builds it).
 OBSERVER_FAMILIES = {
     "passive": "lookout.tuning.families.passive:PassiveFamily",
+    "ekf": "lookout.tuning.families.kalman:KalmanFamily",
+    "ukf": "lookout.tuning.families.kalman:KalmanFamily",
     "sliding-mode": "lookout.tuning.families.sliding_mode:SlidingModeFamily",
+    "earth-fixed": "lookout.tuning.families.tracking:EarthFixedFamily",
+    "velocity": "lookout.tuning.families.velocity:VelocityFamily",
+    "adaptive-manipulator": "lookout.tuning.families.adaptive_manipulator:AdaptiveManipulatorFamily",
 }
 #: controller kind -> "module:class" of its family.
 CONTROLLER_FAMILIES = {
     "observer-backstepping": "lookout.tuning.families.positive:ObserverBacksteppingFamily",
+    "tracking": "lookout.tuning.families.tracking:TrackingFamily",
 }
 
 
