@@ -98,6 +98,7 @@ def test_a_bound_the_integration_cannot_follow_is_refused_naming_the_step(tmp_pa
     N m), beyond what RK4 integrates at 10 Hz."""
     document, _ = read("examples/wondergem-northern-clipper.toml")
     document["simulation"]["duration"] = 10.0
+    document["observer"]["steps_per_sample"] = 1  # the example's 8 follow it
     source = tmp_path / "nc.toml"
     write(source, document)
     assert main(["tune", str(source), "--out", str(tmp_path / "out")]) == 2

@@ -49,6 +49,7 @@ from __future__ import annotations
 from typing import final
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -278,13 +279,15 @@ class EarthFixedObserver(ContinuousObserver):
             del time
             return self.rates(x, self.innovation(x, measurement), heading, tau)
 
-        state = estimate
-        for i in range(steps):
+        def advance(i, state):
             if self.method == "euler":
                 rate = field(t + i * h, state)
-                state = EarthFixedEstimate(state.eta + h * rate.eta, state.zeta + h * rate.zeta)
-            else:
-                state = rk4_step(field, t + i * h, state, h)
+                return EarthFixedEstimate(state.eta + h * rate.eta, state.zeta + h * rate.zeta)
+            return rk4_step(field, t + i * h, state, h)
+
+        # one step inline; more as a loop, so that the program (and its gradient, which
+        # tuning compiles) does not grow with steps_per_sample
+        state = advance(0, estimate) if steps == 1 else jax.lax.fori_loop(0, steps, advance, estimate)
         return self.normalize(state)
 
     def normalize(self, estimate: EarthFixedEstimate) -> EarthFixedEstimate:

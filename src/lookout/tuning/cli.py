@@ -37,6 +37,7 @@ def tune_command(
             raise InputError(f"{option}: {error}") from None
     if not (math.isfinite(learning_rate) and learning_rate > 0):
         raise InputError(f"--learning-rate must be a finite positive number; got {learning_rate:g}")
+    _refuse_a_study(scenario_file)
     spec, scenario = _scenario(scenario_file, None, None)
     check_gradient_memory(scenario, train_seeds)
     first = spec.seeds[0]
@@ -67,6 +68,20 @@ def tune_command(
     verdicts = ", ".join(f"{key} {verdict}" for key, verdict in result.report_after.verdicts.items())
     console_print(f"conditions of the tuned gains: {verdicts}")
     console_print(f"{result.stopped or 'all steps taken'}; {result.seconds:.0f} s; written to {folder}: " + ", ".join(p.name for p in written.values()))
+
+
+def _refuse_a_study(path: str) -> None:
+    """A campaign's study file (``scenario = "..."`` and a sweep) is not a scenario: say
+    which scenario to tune instead of reporting its keys as unknown."""
+    from lookout.studies._toml import read
+
+    try:
+        document, _ = read(path)
+    except Exception:
+        return  # the scenario reader says what is wrong with the file
+    if isinstance(document.get("scenario"), str) and "simulation" not in document:
+        raise InputError(f"{path} is a campaign's study (a sweep over {document['scenario']}); tune its scenario: lookout tune "
+                         f"{document['scenario']} (relative to the study's folder)")
 
 
 def register(app: typer.Typer) -> None:
