@@ -130,3 +130,10 @@ def test_an_observer_without_a_family_is_refused(tmp_path, capsys, monkeypatch):
     assert main(["tune", str(source), "--out", str(tmp_path / "out")]) == 2
     error = capsys.readouterr().err
     assert "neither observer passive nor controller sinusoidal has a tunable family yet (tunable observers: " in error, error
+
+
+def test_a_campaign_study_file_is_refused_naming_its_scenario(tmp_path, capsys):
+    assert main(["tune", "examples/kim-model-error.toml", "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "examples/kim-model-error.toml is a campaign's study (a sweep over kim-closed-loop.toml); tune its scenario" in error, error
+    assert "\n" not in error and not (tmp_path / "out").exists()

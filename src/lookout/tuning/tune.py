@@ -10,7 +10,7 @@ with respect to the family's unconstrained parameters theta
 the family writes as a parametrization. optax's Adam moves theta; a step whose gains
 fail a condition that can only be checked (SPR by its KYP certificate), or whose
 objective is not finite, is halved until it passes (at most :data:`BACKTRACKS` times),
-and the tuner stops when none passes. So every gain set it returns, including the
+and the tuner stops when none passes twice in a row. So every gain set it returns, including the
 start, satisfies every condition of its family as the ``lookout design`` command
 checks it.
 
@@ -159,30 +159,33 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     if given is not None:
         result.given_gains = family.current(scenario)
         result.report_given = family.check(scenario)
+    def finite(value, gradient) -> bool:
+        return math.isfinite(float(value)) and bool(jnp.all(jnp.isfinite(gradient)))
+
+    current, gradient = value_and_grad(theta, train)
+    if not finite(current, gradient):
+        raise ValueError("the objective or its gradient is not finite at the starting gains (a run diverges); start from gains that keep it finite")
     refused = 0
     for step in range(steps):
-        current, gradient = value_and_grad(theta, train)
-        current = float(current)
-        if not (math.isfinite(current) and bool(jnp.all(jnp.isfinite(gradient)))):
-            result.stopped = f"step {step}: the objective or its gradient is not finite"
-            break
         updates, new_state = optimizer.update(gradient, state)
         halvings = 0
-        while True:
+        while True:  # halve until the conditions hold and the objective stays finite
             candidate = theta + updates
-            gains = family.gains(candidate)
-            if family.check(build(family, scenario, gains)).holds:
-                break
+            if family.check(build(family, scenario, family.gains(candidate))).holds:
+                value, candidate_gradient = value_and_grad(candidate, train)
+                if finite(value, candidate_gradient):
+                    break
             halvings += 1
             if halvings > BACKTRACKS:
                 break
             updates = updates / 2.0
         accepted = halvings <= BACKTRACKS
-        result.steps.append(Step(step, current, [np.asarray(g).tolist() for g in family.gains(theta)], halvings, accepted))
-        say(f"step {step + 1}/{steps}: objective {current:.6g}" + (f" ({halvings} halving{'s' * (halvings != 1)} to stay inside the conditions)" if halvings else "")
+        result.steps.append(Step(step, float(current), [np.asarray(g).tolist() for g in family.gains(theta)], halvings, accepted))
+        say(f"step {step + 1}/{steps}: objective {float(current):.6g}"
+            + (f" ({halvings} halving{'s' * (halvings != 1)} to stay inside the conditions)" if halvings else "")
             + ("" if accepted else "; no halving kept the conditions"))
         if accepted:
-            theta, state = candidate, new_state
+            theta, state, current, gradient = candidate, new_state, value, candidate_gradient
             refused = 0
             continue
         # Adam's momentum points across the boundary: forget it and try again from here
@@ -191,8 +194,7 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
             result.stopped = f"step {step + 1}: twice in a row, no step of {BACKTRACKS} halvings kept the conditions (the gains are at their boundary)"
             break
         state = optimizer.init(theta)
-    final = float(evaluate(family.gains(theta), train)[0])
-    result.steps.append(Step(len(result.steps), final, [np.asarray(g).tolist() for g in family.gains(theta)], 0, True))
+    result.steps.append(Step(len(result.steps), float(current), [np.asarray(g).tolist() for g in family.gains(theta)], 0, True))
     result.gains = tuple(np.asarray(g, dtype=float) for g in family.gains(theta))
     result.report_after = family.check(build(family, scenario, result.gains))
     test = keys_of_seeds(list(test_seeds))

@@ -31,11 +31,13 @@ OBSERVER_FAMILIES = {
     "earth-fixed": "lookout.tuning.families.tracking:EarthFixedFamily",
     "velocity": "lookout.tuning.families.velocity:VelocityFamily",
     "adaptive-manipulator": "lookout.tuning.families.adaptive_manipulator:AdaptiveManipulatorFamily",
+    "adaptive-dp": "lookout.tuning.families.adaptive_dp:AdaptiveDPFamily",
 }
 #: controller kind -> "module:class" of its family.
 CONTROLLER_FAMILIES = {
     "observer-backstepping": "lookout.tuning.families.positive:ObserverBacksteppingFamily",
     "tracking": "lookout.tuning.families.tracking:TrackingFamily",
+    "vectorial-backstepping": "lookout.tuning.families.adaptive_dp:VectorialBacksteppingFamily",
 }
 
 
