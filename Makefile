@@ -3,7 +3,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out/fossen-strand-1999
 
-.PHONY: demo test bench study observer-benchmark clean
+.PHONY: demo test bench study observer-benchmark tuning-study clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -41,6 +41,10 @@ observer-benchmark: $(VENV)/.installed
 	for plant in dp-vessel cybership-ii manipulator; do \
 		mkdir -p docs/benchmark/$$plant && cp $(BENCHMARK)/$$plant/table.md $(BENCHMARK)/$$plant/figures/*.png docs/benchmark/$$plant/; \
 	done
+
+# docs/tuning/: lookout tune on six cases and the table of docs/tuning.md's study (about 12 minutes on 2 cores)
+tuning-study: $(VENV)/.installed
+	$(BIN)/python docs/tuning/study.py
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py

@@ -10,7 +10,7 @@ The cases (sizes chosen to fit a 2-core machine in about half an hour):
   seas of the observer benchmark (docs/benchmark), the observer told the sea's peak
   frequency (w_c = 1.2255 w_o where the paper's 1.1 rad/s would be below it);
 - ekf-paper: the EKF (every default: the plant's own model and noise) on the same runs;
-- kim-mass+25%: Kim's (2002) closed loop (examples/kim-closed-loop.toml) on a vessel
+- kim-mass-plus-25: Kim's (2002) closed loop (examples/kim-closed-loop.toml) on a vessel
   25 % heavier than the model its observer and controller are built on;
 - wondergem-cybership: Wondergem et al.'s (2009) Cybership II around their ellipse in
   their basin's waves and sensor noise (the reproduction's basin-waves case), the
@@ -70,7 +70,7 @@ CASES = {
     **{f"passive-{sea}": (lambda sea=sea: _dp(sea), ["--objective", DP, "--train-seeds", "8", "--test-seeds", "16", "--steps", "15", "--learning-rate", "0.1"])
        for sea in SEAS},
     "ekf-paper": (lambda: _dp("paper", {"kind": "ekf"}), ["--objective", DP, "--train-seeds", "8", "--test-seeds", "16", "--steps", "8", "--learning-rate", "0.3"]),
-    "kim-mass+25%": (_kim, ["--objective", "rms_tracking:position + rms_error:position", "--train-seeds", "4", "--test-seeds", "8", "--steps", "8"]),
+    "kim-mass-plus-25": (_kim, ["--objective", "rms_tracking:position + rms_error:position", "--train-seeds", "4", "--test-seeds", "8", "--steps", "8"]),
     "wondergem-cybership": (_wondergem, ["--objective", "rms_tracking:position + rms_error:velocity", "--train-seeds", "4", "--test-seeds", "8",
                                          "--steps", "8"]),
 }
@@ -86,8 +86,7 @@ def run(case: str) -> None:
     command = [str(Path(sys.executable).parent / "lookout"), "tune", str((folder / "scenario.toml").relative_to(ROOT)), "--out",
                str(folder.relative_to(ROOT)), *options]
     print("lookout " + " ".join(command[1:]), flush=True)
-    with open(folder / "tune.log", "w") as log:
-        subprocess.run(command, cwd=ROOT, check=True, stdout=log, stderr=subprocess.STDOUT)
+    subprocess.run(command, cwd=ROOT, check=True)
 
 
 def table() -> str:
