@@ -148,7 +148,12 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     report_before = family.check(build(family, scenario, start))
     given = None if all(np.array_equal(np.asarray(a, float), np.asarray(b, float)) for a, b in zip(start, family.current(scenario))) else scenario
     value = _objective_function(scenario, family, objective, metrics, after)
-    value_and_grad = eqx.filter_jit(jax.value_and_grad(lambda theta, keys: value(family.gains(theta), keys)[0]))
+    with_runs = eqx.filter_jit(jax.value_and_grad(lambda theta, keys: value(family.gains(theta), keys), has_aux=True))
+
+    def value_and_grad(theta, keys):
+        (total, _), gradient = with_runs(theta, keys)
+        return total, gradient
+
     evaluate = eqx.filter_jit(value)
     train = keys_of_seeds(list(train_seeds))
     theta = jnp.asarray(family.theta(start))
@@ -198,8 +203,16 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     result.gains = tuple(np.asarray(g, dtype=float) for g in family.gains(theta))
     result.report_after = family.check(build(family, scenario, result.gains))
     test = keys_of_seeds(list(test_seeds))
-    before_runs = evaluate(tuple(jnp.asarray(g) for g in start), test)[1]
-    after_runs = evaluate(family.gains(theta), test)[1]
+
+    def runs_of(parameters):
+        """Each held-out run's metrics: through the compiled gradient when the held-out batch
+        has the training batch's size (no second compilation; its gradient is dropped)."""
+        if len(test_seeds) == len(train_seeds):
+            return with_runs(parameters, test)[0][1]
+        return evaluate(family.gains(parameters), test)[1]
+
+    before_runs = runs_of(jnp.asarray(family.theta(start)))
+    after_runs = runs_of(theta)
     result.held_out = {name: {"start": np.asarray(before_runs[name]).tolist(), "tuned": np.asarray(after_runs[name]).tolist()} for name in before_runs}
     if given is not None:  # the file's own gains, outside the conditions
         given_runs = eqx.filter_jit(_objective_function(scenario, None, objective, metrics, after))(scenario, test)[1]
