@@ -137,3 +137,19 @@ def test_a_campaign_study_file_is_refused_naming_its_scenario(tmp_path, capsys):
     error = capsys.readouterr().err.strip()
     assert "examples/kim-model-error.toml is a campaign's study (a sweep over kim-closed-loop.toml); tune its scenario" in error, error
     assert "\n" not in error and not (tmp_path / "out").exists()
+
+
+def test_a_gradient_that_would_not_fit_in_memory_is_refused_before_it_runs(tmp_path, capsys, monkeypatch):
+    """The compiled program's own memory analysis (the test's program is the CLI test's:
+    the compilation cache serves it), against 100 MB available."""
+    from lookout import _resources
+    from lookout.studies._toml import write
+
+    monkeypatch.setattr(_resources, "available_memory", lambda: 100e6)
+    source = tmp_path / "dp.toml"
+    write(source, _scenario(300.0))
+    assert main(["tune", str(source), "--out", str(tmp_path / "out"), "--objective", "rms_error:bias_force", "--train-seeds", "4",
+                 "--test-seeds", "4", "--steps", "6", "--learning-rate", "0.2"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "--train-seeds: a gradient over 4 runs would need about" in error and "use fewer training seeds or a shorter duration" in error, error
+    assert "\n" not in error and not (tmp_path / "out").exists()

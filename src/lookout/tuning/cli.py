@@ -28,7 +28,7 @@ def tune_command(
     from lookout._commandline import console, output_folder
     from lookout.settings import positive_count
     from lookout.studies.cli import _scenario, console_print
-    from lookout.tuning.tune import check_gradient_memory, tune, write_results
+    from lookout.tuning.tune import tune, write_results
 
     for option, value in (("--train-seeds", train_seeds), ("--test-seeds", test_seeds), ("--steps", steps)):
         try:
@@ -39,7 +39,6 @@ def tune_command(
         raise InputError(f"--learning-rate must be a finite positive number; got {learning_rate:g}")
     _refuse_a_study(scenario_file)
     spec, scenario = _scenario(scenario_file, None, None)
-    check_gradient_memory(scenario, train_seeds)
     first = spec.seeds[0]
     train = list(range(first, first + train_seeds))
     test = list(range(first + train_seeds, first + train_seeds + test_seeds))
