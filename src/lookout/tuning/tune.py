@@ -165,8 +165,9 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     if given is not None:
         result.given_gains = family.current(scenario)
         result.report_given = family.check(scenario)
-    def finite(value, gradient) -> bool:
-        return math.isfinite(float(value)) and bool(jnp.all(jnp.isfinite(gradient)))
+
+    def finite(total, gradient) -> bool:
+        return math.isfinite(float(total)) and bool(jnp.all(jnp.isfinite(gradient)))
 
     current, gradient = value_and_grad(theta, train)
     if not finite(current, gradient):
@@ -178,8 +179,8 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
         while True:  # halve until the conditions hold and the objective stays finite
             candidate = theta + updates
             if family.check(build(family, scenario, family.gains(candidate))).holds:
-                value, candidate_gradient = value_and_grad(candidate, train)
-                if finite(value, candidate_gradient):
+                candidate_value, candidate_gradient = value_and_grad(candidate, train)
+                if finite(candidate_value, candidate_gradient):
                     break
             halvings += 1
             if halvings > BACKTRACKS:
@@ -191,7 +192,7 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
             + (f" ({halvings} halving{'s' * (halvings != 1)} to stay inside the conditions)" if halvings else "")
             + ("" if accepted else "; no halving kept the conditions"))
         if accepted:
-            theta, state, current, gradient = candidate, new_state, value, candidate_gradient
+            theta, state, current, gradient = candidate, new_state, candidate_value, candidate_gradient
             refused = 0
             continue
         # Adam's momentum points across the boundary: forget it and try again from here
