@@ -20,9 +20,10 @@ def tune_command(
     tune_components: Annotated[Optional[str], typer.Option("--tune", metavar="observer,controller", help="The components to tune.",
                                                            show_default="each that has a family and whose conditions can hold")] = None,
 ) -> None:
-    """Tune the gains of a scenario's observer by gradient through the simulation, inside
-    its paper's conditions (every returned gain set satisfies them as lookout design
-    checks them), and compare the start and the result on held-out seeds."""
+    """Tune the gains of a scenario's observer and controller by gradient through the
+    simulation, inside their papers' conditions (every returned gain set satisfies them
+    as lookout design checks them), and compare the start and the result on held-out
+    seeds."""
     import math
 
     from lookout._commandline import console, output_folder
