@@ -150,6 +150,23 @@ def _load(path: str):
     return getattr(importlib.import_module(module), name)
 
 
+#: The largest h |lambda| on the negative real axis that each integration method keeps
+#: stable (RK4: the real root of 1 - x + x^2/2 - x^3/6 + x^4/24 = 1, x = 2.785; Euler: 2).
+STABLE_STEP = {"rk4": 2.785, "euler": 2.0}
+
+
+def integration_stable(step: float, fastest: float, method: str, gains: str, source: str):
+    """The condition that a sampled observer integrates its fastest error pole, near
+    -``fastest`` (1/s), stably: ``step * fastest < STABLE_STEP[method]``; ``gains`` names
+    the gains in the relation (``"L1"``, ``"K1, K2"``)."""
+    from lookout.analysis.conditions import Condition, Inequality
+
+    bound = STABLE_STEP[method]
+    return Condition("integration_stable", f"h {gains} < x_stable", "the sampled observer integrates the error poles stably", source,
+                     [Inequality.check(f"h max {gains}", f"h max({gains}) < {bound} ({method})", step * fastest, "<", bound, units="1",
+                                       source=source)])
+
+
 #: The components a tuning may change.
 COMPONENTS = ("observer", "controller")
 

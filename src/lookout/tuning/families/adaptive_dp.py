@@ -70,9 +70,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from lookout.tuning.families import Family
+from lookout.tuning.families import Family, integration_stable
 from lookout.tuning.families.positive import Gain, PositiveGains
-from lookout.tuning.families.tracking import STABLE_STEP
 
 #: How far above its floor a parametrized gain stays (relative).
 INSIDE = 1e-3
@@ -292,10 +291,7 @@ class AdaptiveDPFamily(Family):
             source = f"{PAPER}, eqs. (65)-(66) (|1 - Delta K| < 1)"
             return Condition("integration_65_66", "(65)-(66)", "the discrete observer's steps (I - Delta K1), (I - Delta K2) contract", source,
                              [Inequality.check("Delta max K", "Delta max(K1, K2) < 2", self.step * fastest, "<", 2.0, units="1", source=source)])
-        source = f"{PAPER}, eqs. (13)-(14), integrated by RK4 (lookout)"
-        return Condition("integration_stable", "h K < x_stable", "the sampled observer integrates the error poles stably", source,
-                         [Inequality.check("h max K", f"h max(K1, K2) < {STABLE_STEP['rk4']}", self.step * fastest, "<", STABLE_STEP["rk4"], units="1",
-                                           source=source)])
+        return integration_stable(self.step, fastest, "rk4", "K1, K2", f"{PAPER}, eqs. (13)-(14), integrated by RK4 (lookout)")
 
     def check(self, scenario):
         """(22), (57), (58) as ``lookout design adaptive-observer`` checks them (only (22)

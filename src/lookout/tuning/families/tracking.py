@@ -33,15 +33,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lookout.tuning.families import Family
+from lookout.tuning.families import STABLE_STEP, Family, integration_stable
 
 #: How far above a lower bound a parametrized gain stays (relative).
 INSIDE = 1e-3
 #: Prop. 3.1's velocity bound V_M (m/s) when the scenario gives none: the design rule's default.
 VELOCITY_BOUND = 0.3
-#: The largest h |lambda| on the negative real axis that each integration method keeps
-#: stable (RK4: the real root of 1 - x + x^2/2 - x^3/6 + x^4/24 = 1, x = 2.785; Euler: 2).
-STABLE_STEP = {"rk4": 2.785, "euler": 2.0}
 
 
 def _reference_data(scenario) -> dict:
@@ -134,13 +131,11 @@ class EarthFixedFamily(_Wondergem):
     def check(self, scenario):
         """Prop. 3.1 and the integration's stability: L1's fastest error pole, near -L1,
         inside the method's stable step (a gain set that cannot be integrated is refused)."""
-        from lookout.analysis.conditions import Condition, Inequality, Report
+        from lookout.analysis.conditions import Report
 
         report = super().check(scenario)
         fastest = float(np.max(np.asarray(scenario.observer.position_gain)))
-        integration = Condition("integration_stable", "h L1 < x_stable", "the sampled observer integrates the error poles stably", "lookout",
-                                [Inequality.check("h max L1", f"h max(L1) < {STABLE_STEP[scenario.observer.method]} ({scenario.observer.method})",
-                                                  self.step * fastest, "<", STABLE_STEP[scenario.observer.method], units="1", source="lookout")])
+        integration = integration_stable(self.step, fastest, scenario.observer.method, "L1", "lookout")
         return Report(report.title, [*report.conditions, integration], report.quantities, report.summary, report.notes)
 
     @classmethod
