@@ -1,0 +1,230 @@
+"""NMEA 0183 parsing (lookout.io.nmea) and logs (lookout.io.logs): the sentences a DP
+system reads, checksums, IEC 61162-450 framing, sources, and fuzzing: no line raises,
+every line is counted once, memory stays bounded."""
+
+from __future__ import annotations
+
+import math
+import tracemalloc
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lookout.io.logs import CsvLog, log_format, nmea_log, nmea_log_line
+from lookout.io.nmea import CAUSES, MAX_LINE, LineSplitter, NmeaParser, checksum, sentence
+from lookout.io.simulated_log import gga, ths
+
+# published examples (checksums recomputed where the source's was for other fields)
+GGA = sentence("GP", "GGA", ["123519.00", "4807.0381234", "S", "01131.0001234", "W", 4, "08", "0.9", "545.4", "M", "46.9", "M", "", ""])
+RMC = sentence("GP", "RMC", ["123519", "A", "4807.038", "N", "01131.000", "E", "022.4", "084.4", "230394", "003.1", "W"])
+GLL = sentence("GN", "GLL", ["4916.45", "N", "12311.12", "W", "225444", "A", "A"])
+HDT = sentence("HE", "HDT", ["274.07", "T"])
+THS = sentence("IN", "THS", ["77.52", "A"])
+ROT = sentence("TI", "ROT", ["-0.3", "A"])
+GST = sentence("GP", "GST", ["172814.0", "0.006", "0.023", "0.020", "273.6", "0.023", "0.020", "0.031"])
+
+
+def test_checksum_of_a_published_sentence():
+    # NMEA's own example: $GPGLL,5300.97914,N,00259.98174,E,125926,A*28
+    assert checksum(b"GPGLL,5300.97914,N,00259.98174,E,125926,A") == 0x28
+
+
+def test_the_seven_sentences():
+    parser = NmeaParser()
+    got = {s.split(",")[0][3:]: parser.line(s, 10.0, "10.0.0.5:10110") for s in (GGA, RMC, GLL, HDT, THS, ROT, GST)}
+    assert parser.counts["accepted"] == 7 and parser.lines == 7
+    (fix,) = got["GGA"]
+    assert fix.kind == "position" and fix.source == "GP@10.0.0.5:10110" and fix.time == 10.0
+    assert fix.values[0] == pytest.approx(-(48 + 7.0381234 / 60), abs=1e-9)  # S and W are negative
+    assert fix.values[1] == pytest.approx(-(11 + 31.0001234 / 60), abs=1e-9)
+    assert fix.values[2:] == (4.0, 0.9)
+    assert got["RMC"][0].values[:2] == pytest.approx((48 + 7.038 / 60, 11 + 31 / 60))
+    assert got["GLL"][0].values[:2] == pytest.approx((49 + 16.45 / 60, -(123 + 11.12 / 60)))
+    assert got["HDT"][0].values == (274.07,) and got["THS"][0].values == (77.52,)
+    assert got["THS"][0].source == "IN@10.0.0.5:10110"
+    assert got["ROT"][0].kind == "rate_of_turn" and got["ROT"][0].values == (-0.3,)
+    assert got["GST"][0].kind == "position_error" and got["GST"][0].values == (0.023, 0.020)
+
+
+@pytest.mark.parametrize(
+    "line, cause",
+    [
+        (GGA[:-2] + "00", "checksum"),
+        (GGA.replace("4807", "4817"), "checksum"),
+        (GGA.split("*")[0], "checksum"),  # no checksum
+        (sentence("GP", "GGA", ["", "", "", "", "", 0, "00", "99.9", "", "", "", "", "", ""]), "no_fix"),
+        (sentence("GP", "RMC", ["123519", "V", "", "", "", "", "", "", "230394", "", ""]), "no_fix"),
+        (sentence("HE", "THS", ["", "V"]), "no_fix"),
+        (sentence("HE", "THS", ["12.0", "M"]), "no_fix"),  # manual input: not a measurement
+        (sentence("TI", "ROT", ["1.0", "V"]), "no_fix"),
+        (sentence("GP", "GGA", ["1200"]), "malformed"),  # truncated before the position
+        (sentence("GP", "GGA", ["120000", "9107.0", "N", "01131.0", "E", 1, "08", "0.9", "", "", "", "", "", ""]), "malformed"),
+        (sentence("HE", "HDT", ["abc", "T"]), "malformed"),
+        (sentence("HE", "THS", ["400.0", "A"]), "malformed"),
+        (sentence("II", "XDR", ["A", "1.0", "D", "PITCH"]), "unsupported"),
+        ("garbage", "malformed"),
+        ("", "empty"),
+        ("$" + "A" * (MAX_LINE + 5), "too_long"),
+    ],
+)
+def test_each_bad_line_is_counted_under_its_cause(line, cause):
+    parser = NmeaParser()
+    assert parser.line(line, 0.0) == []
+    assert parser.counts[cause] == 1 and parser.lines == 1
+
+
+def test_a_sentence_without_checksum_when_allowed():
+    parser = NmeaParser(require_checksum=False)
+    assert parser.line(HDT.split("*")[0], 0.0)[0].values == (274.07,)
+    with pytest.raises(ValueError, match="require_checksum must be True or False"):
+        NmeaParser(require_checksum="yes")
+
+
+def test_iec_61162_450_datagram_with_tag_blocks_and_two_receivers():
+    def tagged(source, body):
+        tags = f"s:{source},c:1796083200".encode()
+        return b"\\" + tags + b"*%02X\\" % checksum(tags) + body.encode()
+
+    datagram = b"UdPbC\x00" + tagged("GP0001", GGA) + b"\r\n" + tagged("GP0002", GGA) + b"\r\n" + THS.encode() + b"\r\n"
+    parser = NmeaParser()
+    readings = parser.datagram(datagram, 5.0, "192.168.1.7:60001")
+    assert [r.source for r in readings] == ["GP@GP0001", "GP@GP0002", "IN@192.168.1.7:60001"]
+    assert parser.sources[("GP@GP0001", "position")] == 1 and parser.sources[("GP@GP0002", "position")] == 1
+    bad_tag = b"\\s:GP0001*00\\" + GGA.encode()
+    assert parser.datagram(bad_tag, 6.0) == [] and parser.counts["checksum"] == 1
+
+
+def test_the_example_logs_sentences_round_trip():
+    parser = NmeaParser()
+    (fix,) = parser.line(gga(3600.5, 63.4412345678, -10.4012345678), 0.0)
+    assert fix.values[0] == pytest.approx(63.4412345678, abs=2e-9)  # 7 decimals of minutes: 1.7e-9 degrees
+    assert fix.values[1] == pytest.approx(-10.4012345678, abs=2e-9)
+    (heading,) = parser.line(ths(-0.25), 0.0)
+    assert heading.values == (359.75,)
+
+
+def test_line_splitter_keeps_lines_across_chunks_and_drops_huge_ones():
+    splitter = LineSplitter()
+    assert splitter.feed(b"$GPHDT,1") == []
+    assert splitter.feed(b"2.0,T*2F\r") == [b"$GPHDT,12.0,T*2F"]
+    assert splitter.feed(b"\n") == []
+    assert splitter.feed(b"x" * (3 * MAX_LINE)) == []
+    lines = splitter.feed(b"yyy\nok\n")
+    assert len(lines) == 2 and len(lines[0]) > MAX_LINE and lines[1] == b"ok"
+    assert splitter.feed(b"tail") == [] and splitter.flush() == [b"tail"]
+    parser = NmeaParser()
+    parser.line(lines[0], 0.0)
+    assert parser.counts["too_long"] == 1
+
+
+# ---------------------------------------------------------------- fuzzing
+_good = st.sampled_from([GGA, RMC, GLL, HDT, THS, ROT, GST])
+
+
+@st.composite
+def _damaged(draw):
+    line = draw(_good)
+    how = draw(st.sampled_from(["truncate", "flip", "insert", "checksum", "fields"]))
+    if how == "truncate":
+        return line[: draw(st.integers(0, len(line)))]
+    if how == "flip":
+        i = draw(st.integers(0, len(line) - 1))
+        return line[:i] + draw(st.characters(codec="ascii")) + line[i + 1 :]
+    if how == "insert":
+        i = draw(st.integers(0, len(line)))
+        return line[:i] + draw(st.text(min_size=1, max_size=20)) + line[i:]
+    if how == "checksum":
+        return line.split("*")[0] + "*" + draw(st.text(alphabet="0123456789ABCDEFxyz", min_size=0, max_size=3))
+    # well-framed sentences with random fields (valid checksums, nonsense content)
+    fields = draw(st.lists(st.text(alphabet=st.characters(codec="ascii", exclude_characters="*$\r\n,"), max_size=12), max_size=15))
+    return sentence(line[1:3], line[3:6], fields)
+
+
+_lines = st.one_of(_good, _damaged(), st.binary(max_size=200), st.text(max_size=200), st.binary(min_size=MAX_LINE, max_size=MAX_LINE + 200))
+
+
+@settings(max_examples=300)
+@given(st.lists(_lines, max_size=30))
+def test_fuzzed_lines_never_raise_and_each_is_counted_once(lines):
+    parser = NmeaParser()
+    readings = 0
+    for line in lines:
+        got = parser.line(line, 1.0)
+        assert len(got) <= 1
+        readings += len(got)
+        for reading in got:
+            assert all(isinstance(v, float) for v in reading.values) and all(not math.isinf(v) for v in reading.values)
+    assert parser.lines == len(lines)
+    assert parser.counts["accepted"] == readings
+    assert set(parser.counts) == set(CAUSES)
+
+
+@settings(max_examples=150)
+@given(st.lists(st.one_of(_good, _damaged()), max_size=20), st.randoms(use_true_random=False))
+def test_fuzzed_datagrams_and_reordered_streams(lines, random):
+    random.shuffle(lines)
+    parser = NmeaParser()
+    payload = b"\r\n".join(line.encode("utf-8", "replace") if isinstance(line, str) else line for line in lines)
+    parser.datagram(b"UdPbC\x00" + payload, 0.0, "x")
+    assert parser.lines == sum(1 for piece in payload.splitlines() if piece.strip())
+    # the same bytes as a stream in random chunks: the same counts
+    stream, splitter = NmeaParser(), LineSplitter()
+    cut = sorted(random.sample(range(len(payload) + 1), k=min(5, len(payload) + 1)))
+    for a, b in zip([0, *cut], [*cut, len(payload)]):
+        for line in splitter.feed(payload[a:b]):
+            stream.line(line, 0.0)
+    for line in splitter.flush():
+        stream.line(line, 0.0)
+    assert stream.counts["accepted"] == parser.counts["accepted"]
+
+
+def test_parser_memory_stays_flat_over_many_bad_lines():
+    parser, splitter = NmeaParser(), LineSplitter()
+    junk = [b"$GPGGA,garbage*00\r\n", b"\x00\xff" * 300 + b"\n", GGA.encode() + b"\r\n", b"y" * 5000]
+
+    def churn(n):
+        for i in range(n):
+            for line in splitter.feed(junk[i % len(junk)]):
+                parser.line(line, float(i))
+
+    churn(2000)
+    tracemalloc.start()
+    before = tracemalloc.get_traced_memory()[0]
+    churn(20000)
+    grown = tracemalloc.get_traced_memory()[0] - before
+    tracemalloc.stop()
+    assert grown < 64 * 1024, f"the parser kept {grown} bytes over 20000 lines"
+    assert parser.lines == sum(parser.counts.values())
+
+
+# ---------------------------------------------------------------- logs
+def test_logs_of_both_formats(tmp_path):
+    text = tmp_path / "a.nmea"
+    text.write_text(f"# comment\n10.5 {GGA}\n10.6 {THS}\nnot-a-time {HDT}\n\n11.0 {HDT[:-2]}00\n")
+    assert log_format(text) == "nmea"
+    parser = NmeaParser()
+    readings = list(nmea_log(text, parser))
+    assert [r.time for r in readings] == [10.5, 10.6]
+    assert parser.counts["malformed"] == 1 and parser.counts["checksum"] == 1
+    assert nmea_log_line(b"   ", parser) == []
+
+    csv = tmp_path / "a.csv"
+    csv.write_text("time,north,east,heading\n0.0,1.5,-2.5,10.0\n0.1,,,11.0\n0.2,1,2,3,4\nx,1,2,3\ninf,1,2,3\n0.3,inf,1,\n")
+    assert log_format(csv) == "csv-position"
+    log = CsvLog(csv)
+    readings = list(log)
+    assert [(r.kind, r.values) for r in readings] == [("local_position", (1.5, -2.5)), ("heading", (10.0,)), ("heading", (11.0,))]
+    assert log.counts == {"accepted": 2, "malformed": 4}
+    thrust = tmp_path / "t.csv"
+    thrust.write_text("time,surge,sway,yaw\n0.0,1,2,3\n")
+    assert [r.values for r in CsvLog(thrust)] == [(1.0, 2.0, 3.0)]
+
+
+def test_log_format_errors_name_the_file(tmp_path):
+    bad = tmp_path / "b.csv"
+    bad.write_text("t,x,y\n1,2,3\n")
+    with pytest.raises(ValueError, match=r"b.csv: a CSV log's first line must be time,north,east,heading or time,surge,sway,yaw"):
+        log_format(bad)
+    with pytest.raises(ValueError, match="cannot be read"):
+        log_format(tmp_path / "missing.nmea")
