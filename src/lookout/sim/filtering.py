@@ -14,6 +14,8 @@ recorded measurements and inputs gives the simulation's estimates.
 
 from __future__ import annotations
 
+import math
+import operator
 import warnings
 
 import equinox as eqx
@@ -277,9 +279,10 @@ class Stepper:
     """An observer for live use: one compiled call per incoming sample.
 
     The observer's functions are compiled once, with the observer's gains baked in.
-    State, inputs and estimate cross the boundary as one flat float64 vector each,
-    so a call is one dispatch of a compiled function with two arguments (about
-    10 us on the development machine, docs/benchmarks.md), not a trace.
+    State and inputs cross the boundary as one flat float64 vector, the next state
+    and the estimate come back as another, so a call is one dispatch of a compiled
+    function with one argument, not a trace (docs/benchmarks.md, "Live stepping
+    against MCSimPython").
 
     A bad call never changes the state: non-finite ``t``, ``dt`` or ``u``, infinite
     ``y``, ``dt <= 0``, ``t`` not after the previous call's, a ``dt`` other than a
@@ -305,6 +308,9 @@ class Stepper:
     >>> stepper = Stepper(observer, observer.guess(), y0, input_size=3)   # doctest: +SKIP
     >>> estimate = stepper(t, y, u, dt)   # estimate at t; the state moves to t + dt
     """
+
+    _FLOATS = (float, np.float64)  # times a call takes as they are (checked for finiteness)
+    _FLOAT64 = np.dtype(np.float64)
 
     def __init__(self, observer: Observer, guess=None, y0=None, input_size: int | None = None):
         if not isinstance(observer, Observer):
@@ -335,8 +341,11 @@ class Stepper:
             estimate = observer.output(state, y)
             state = ravel_pytree(observer.predict(state, t, y, u, dt))[0]
             flat_estimate = jnp.concatenate([jnp.ravel(leaf) for leaf in jax.tree.leaves(estimate)])
-            # one flag rides with the estimate: was the step finite?
-            healthy = jnp.all(jnp.isfinite(state)) & jnp.all(jnp.isfinite(flat_estimate))
+            # one flag rides with the estimate: was the step finite? The state and the
+            # estimates of plant variables must be; an extra output may be NaN where a
+            # channel is missing (the innovation of a dropout)
+            estimates = [jnp.ravel(estimate[signal.name]) for signal in observer.estimate_signals if signal.name in estimate]
+            healthy = jnp.all(jnp.isfinite(state)) & jnp.all(jnp.isfinite(jnp.concatenate(estimates) if estimates else flat_estimate))
             return state, jnp.concatenate([flat_estimate, healthy[None].astype(flat_estimate.dtype)])
 
         self._advance = jax.jit(advance)
@@ -344,6 +353,35 @@ class Stepper:
         self._flat_state = flat_state
         self._last_time: float | None = None
         self._checked_step = 0.0  # the longest dt whose amplification was checked
+        self._period = observer.sample_period
+        # The call's path when state and estimate are float64 (lookout's default): one
+        # buffer [state, t, dt, y, u] in and one vector [next state, estimate, flag]
+        # out, the same operations as `advance`. One argument and one result instead of
+        # two each, no per-call allocation of the input, and the estimate's pieces read
+        # back by precomputed indices (docs/benchmarks.md, "Live stepping against
+        # MCSimPython").
+        n_s = int(flat_state.size)
+        self._state_size = n_s
+        self._step = None
+        if flat_state.dtype == np.float64 and all(leaf.dtype == np.float64 for leaf in leaves):
+
+            def step(buffer):
+                state, flat_estimate = advance(buffer[:n_s], buffer[n_s:])
+                return jnp.concatenate([state, flat_estimate])
+
+            self._step = jax.jit(step)
+            self._buffer = np.zeros(n_s + 2 + n_y + n_u)
+            self._measured = self._buffer[n_s + 2 : n_s + 2 + n_y]  # views the call fills
+            self._applied = self._buffer[n_s + 2 + n_y :]
+        # a dict of scalars and vectors (every observer's output) is read back as views
+        # of the result by index; anything else through the tree
+        index = jax.tree.unflatten(self._estimate_tree, list(range(len(leaves))))
+        self._names = None
+        if type(index) is dict and all(type(i) is int for i in index.values()) and all(len(leaf.shape) <= 1 for leaf in leaves):
+            keys = [(n_s + start, Ellipsis) if shape == () else slice(n_s + start, n_s + end) for start, end, shape in self._pieces]
+            keys = [keys[i] for i in index.values()]
+            self._names = tuple(index)
+            self._take = operator.itemgetter(*keys) if len(keys) > 1 else (lambda flat, key=keys[0]: (flat[key],))
 
     @staticmethod
     def _measurement(name: str, y, size: int, observer: Observer) -> np.ndarray:
@@ -373,25 +411,48 @@ class Stepper:
         ValueError
             On a bad argument (see the class docstring); the state is left as it was.
         """
-        t, dt = self._number("t", t), self._number("dt", dt)
+        # A Python or NumPy float, and a float64 vector of the right length, pass the
+        # checks here; anything else, or anything these checks refuse, goes through the
+        # full conversion and checks, which give the messages.
+        t = float(t) if t.__class__ in self._FLOATS and math.isfinite(t) else self._number("t", t)
+        dt = float(dt) if dt.__class__ in self._FLOATS and math.isfinite(dt) else self._number("dt", dt)
         if not dt > 0:
             raise ValueError(f"dt must be positive (s, the time to the next sample); got {dt:g}")
         if self._last_time is not None and not t > self._last_time:
             raise ValueError(f"t must come after the previous call's t = {self._last_time:g} s; got {t:g} s (time must not go backwards)")
-        y = self._measurement("y", y, self._measurement_size, self.observer)
-        u = real_array("u", u).ravel()
-        if u.shape != (self._input_size,):
-            raise ValueError(f"u must have {self._input_size} entries ({', '.join(self.observer.input_layout.names) or 'none'}); got {u.shape[0]}")
-        if not np.all(np.isfinite(u)):
-            raise ValueError(f"u must be finite (the input applied until t + dt); got {u.tolist()}")
-        self._check_step(dt, y, u)
-        flat_state, flat_estimate = self._advance(self._flat_state, np.concatenate(([t, dt], y, u)))
-        flat = np.asarray(flat_estimate)
+        n_y, n_u = self._measurement_size, self._input_size
+        if not (y.__class__ is np.ndarray and y.dtype is self._FLOAT64 and y.shape == (n_y,) and not any(map(math.isinf, y.tolist()))):
+            y = self._measurement("y", y, n_y, self.observer)
+        if not (u.__class__ is np.ndarray and u.dtype is self._FLOAT64 and u.shape == (n_u,) and all(map(math.isfinite, u.tolist()))):
+            u = real_array("u", u).ravel()
+            if u.shape != (n_u,):
+                raise ValueError(f"u must have {n_u} entries ({', '.join(self.observer.input_layout.names) or 'none'}); got {u.shape[0]}")
+            if not np.all(np.isfinite(u)):
+                raise ValueError(f"u must be finite (the input applied until t + dt); got {u.tolist()}")
+        if self._period is not None or dt > self._checked_step:
+            self._check_step(dt, y, u)
+        n_s = self._state_size
+        if self._step is None:
+            flat_state, flat_estimate = self._advance(self._flat_state, np.concatenate(([t, dt], y, u)))
+            flat = np.asarray(flat_estimate)
+        else:
+            buffer = self._buffer
+            buffer[:n_s] = self._flat_state
+            buffer[n_s] = t
+            buffer[n_s + 1] = dt
+            self._measured[:] = y
+            self._applied[:] = u
+            flat = np.asarray(self._step(buffer))
+            flat_state = flat[:n_s]
         if flat[-1] != 1.0:
             raise ValueError(f"the step at t = {t:g} s over dt = {dt:g} s gives a non-finite state or estimate; refused, the state is kept as it was")
         self._flat_state = flat_state
         self._last_time = t
-        return jax.tree.unflatten(self._estimate_tree, [flat[start:end].reshape(shape) for start, end, shape in self._pieces])
+        if self._step is None:
+            return jax.tree.unflatten(self._estimate_tree, [flat[start:end].reshape(shape) for start, end, shape in self._pieces])
+        if self._names is None:
+            return jax.tree.unflatten(self._estimate_tree, [flat[n_s + start : n_s + end].reshape(shape) for start, end, shape in self._pieces])
+        return dict(zip(self._names, self._take(flat)))
 
     @staticmethod
     def _number(name: str, value) -> float:
@@ -414,3 +475,83 @@ class Stepper:
         if not radius <= MAX_STEP_AMPLIFICATION:
             raise ValueError("dt: " + _too_long(radius, dt, "a step of"))
         self._checked_step = dt
+
+    def checkpoint(self) -> tuple:
+        """The state and the time of the last call, to :meth:`restore` (a live session
+        takes a step back when a reading turns out to be a wild point)."""
+        return (self._flat_state, self._last_time)
+
+    def restore(self, checkpoint: tuple) -> None:
+        """Go back to a :meth:`checkpoint` of this stepper."""
+        self._flat_state, self._last_time = checkpoint
+
+    def template(self) -> dict:
+        """The estimate's names and shapes (arrays of NaN), without stepping."""
+        return jax.tree.unflatten(self._estimate_tree, [np.full(shape, np.nan) for _, _, shape in self._pieces])
+
+    def run(self, times, ys, us, dt) -> tuple[dict, np.ndarray]:
+        """Several calls in one compiled scan: step ``i`` is ``self(times[i], ys[i],
+        us[i], dt)``. A step whose result is not finite is refused as a call would be
+        (the state stays as it was before it; its row of estimates is NaN), and the
+        scan goes on with the next.
+
+        Returns
+        -------
+        estimates : dict of numpy.ndarray
+            One row per step.
+        healthy : numpy.ndarray of bool
+            False where a step was refused.
+        """
+        times = real_array("times", times).ravel()
+        ys = real_array("ys", ys)
+        us = real_array("us", us)
+        dt = self._number("dt", dt)
+        n = times.size
+        if n == 0 or ys.shape != (n, self._measurement_size) or us.shape != (n, self._input_size):
+            raise ValueError(f"times, ys and us must have one row per step ({n}) of 1, {self._measurement_size} and {self._input_size} entries; "
+                             f"got shapes {times.shape}, {ys.shape}, {us.shape}")
+        if not dt > 0:
+            raise ValueError(f"dt must be positive (s, the time to the next sample); got {dt:g}")
+        if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0) or (self._last_time is not None and not times[0] > self._last_time):
+            raise ValueError("times must be finite and increasing, after the previous call's t")
+        if np.any(np.isinf(ys)):
+            raise ValueError("ys must be finite or NaN (a missing channel)")
+        if not np.all(np.isfinite(us)):
+            raise ValueError("us must be finite (the input applied until t + dt)")
+        self._check_step(dt, ys[0], us[0])
+        packed = np.concatenate([times[:, None], np.full((n, 1), dt), ys, us], axis=1)
+        # rows padded to a power of two (at least 64) and masked: one compilation serves
+        # every block up to that size
+        size = max(64, 1 << (n - 1).bit_length())
+        valid = np.arange(size) < n
+        packed = np.concatenate([packed, np.repeat(packed[-1:], size - n, axis=0)])
+        if not hasattr(self, "_scan"):
+            advance = self._advance.__wrapped__
+
+            def scan(flat, rows, valid):
+                def body(state, row_valid):
+                    row, ok = row_valid
+                    new, flat_estimate = advance(state, row)
+                    healthy = flat_estimate[-1] == 1.0
+                    return jnp.where(healthy & ok, new, state), flat_estimate
+
+                return jax.lax.scan(body, flat, (rows, valid))
+
+            self._scan = jax.jit(scan)
+        flat_state, flat = self._scan(self._flat_state, packed, valid)
+        flat = np.array(flat[:n])
+        healthy = flat[:, -1] == 1.0
+        flat[~healthy, :-1] = np.nan
+        self._flat_state = flat_state
+        self._last_time = float(times[healthy][-1]) if healthy.any() else self._last_time
+        pieces = [flat[:, start:end].reshape((n, *shape)) for start, end, shape in self._pieces]
+        return jax.tree.unflatten(self._estimate_tree, pieces), healthy
+
+    def reset(self, y0, guess=None) -> None:
+        """Start over from the first measurement ``y0`` and ``guess`` (default the
+        observer's), keeping what is compiled: a live session compiles on a stand-in
+        measurement before data comes, then resets on the first real one."""
+        y0 = self._measurement("y0", y0, self._measurement_size, self.observer)
+        guess = checked_guess(self.observer, guess)
+        self._flat_state = ravel_pytree(self.observer.init(jnp.asarray(y0), guess))[0]
+        self._last_time = None
