@@ -687,6 +687,10 @@ from lookout.tuning.cli import register as _register_tuning  # noqa: E402
 
 _register_tuning(app)
 
+from lookout.live.cli import register as _register_live  # noqa: E402
+
+_register_live(app)
+
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning every input error into one line and exit code 2."""

@@ -164,12 +164,12 @@ class Trajectory(eqx.Module):
         return write_netcdf(self.to_xarray(), path)
 
 
-def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written") -> Path:
+def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written", unlimited_dims: tuple[str, ...] = ()) -> Path:
     """Write ``ds`` as compressed NetCDF-4 with a CF ``history`` line; return the path.
 
     Numeric variables are deflated (zlib, level 4, with byte shuffling); the
     ``history`` attribute gains a line with the time, lookout's version and
-    ``history``.
+    ``history``. ``unlimited_dims`` may grow later (a live session appends along ``time``).
     """
     path = Path(path)
     ds = ds.copy()
@@ -188,7 +188,7 @@ def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written") 
     # written beside and renamed into place: a write that fails leaves no half file
     partial = path.with_name(path.name + ".partial")
     try:
-        ds.to_netcdf(partial, engine="netcdf4", encoding=encoding)
+        ds.to_netcdf(partial, engine="netcdf4", encoding=encoding, unlimited_dims=list(unlimited_dims))
         os.replace(partial, path)
     except OSError as error:
         raise OSError(error.errno, f"cannot write {path}: {error.strerror or error}") from None

@@ -1,0 +1,181 @@
+"""The live-data rules as an observer: hold, timeout and the wild-point gate.
+
+:class:`GatedObserver` wraps any observer whose measurement holds the channels a
+stream fills (``measured_position``, ``measured_heading``). Its own measurement is
+what a stream gives at one step: each channel's *new* reading (NaN when none came
+since the last step) and the time it arrived (session seconds). Inside it:
+
+- a channel holds its last accepted reading, as a simulated sensor holds its sample
+  (:mod:`lookout.sensors`), until the reading is older than the channel's timeout;
+  then the channel is NaN, a dropout the observer predicts through (dead reckoning);
+- a new reading whose innovation (the wrapped observer's ``innovation_<name>``
+  output, ``y - y_hat``, taken with the reading) is longer than the channel's gate is
+  a wild point: the step uses the held reading instead and the wild one is dropped;
+  after ``reopen_after`` wild points in a row the next one passes, so an estimate that
+  drifted during an outage takes the position back.
+
+Because the rules are part of the observer's step, a live session
+(:class:`~lookout.Stepper`, one compiled call per step) and a fast replay (the same
+step in a ``lax.scan``) apply them identically, and the Stepper's guarantees hold: a
+step that is not finite leaves the state as it was.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import jax
+
+from lookout.components import Layout, Observer, Signal
+
+
+class GatedState(eqx.Module):
+    """The wrapped observer's state and the channels' memory."""
+
+    inner: object
+    held: jnp.ndarray  # last accepted reading per measurement entry
+    held_time: jnp.ndarray  # its arrival (session s) per channel
+    wild_in_row: jnp.ndarray  # wild points in a row per channel
+    used: jnp.ndarray  # the measurement the step used, 0 where missing (the state stays finite)
+    missing: jnp.ndarray  # 1 where that measurement was NaN
+    gated: jnp.ndarray  # 1 where the step's new reading was a wild point
+
+    @property
+    def measurement(self):
+        """The measurement the step used, NaN where missing."""
+        return jnp.where(self.missing > 0, jnp.nan, self.used)
+
+
+class GatedObserver(Observer):
+    """``inner`` stepped on stream readings with hold, timeout and a wild-point gate.
+
+    Parameters
+    ----------
+    inner : Observer
+    channels : tuple of str
+        The names (in ``inner.measurement_layout``) the stream fills.
+    gate : array_like, shape (len(channels),)
+        Largest innovation norm accepted per channel (its units: m, rad).
+    timeout : array_like, shape (len(channels),)
+        Seconds after which a channel's reading is not used.
+    reopen_after : int
+        Wild points in a row after which the next reading passes.
+    """
+
+    inner: Observer
+    gate: jnp.ndarray
+    timeout: jnp.ndarray
+    channels: tuple = eqx.field(static=True)
+    reopen_after: int = eqx.field(static=True)
+
+    def __check_init__(self):
+        names = self.inner.measurement_layout.names
+        for name in self.channels:
+            if name not in names:
+                raise ValueError(f"channels: {name!r} is not in the observer's measurement ({', '.join(names)})")
+        if jnp.shape(self.gate) != (len(self.channels),) or jnp.shape(self.timeout) != (len(self.channels),):
+            raise ValueError(f"gate and timeout must have one entry per channel ({len(self.channels)})")
+
+    # -- what it reads and gives
+    @property
+    def _columns(self) -> tuple:
+        """(start, stop) of each channel in the wrapped observer's measurement."""
+        spans, start = {}, 0
+        for signal in self.inner.measurement_layout.signals:
+            spans[signal.name] = (start, start + signal.size)
+            start += signal.size
+        return tuple(spans[name] for name in self.channels)
+
+    @property
+    def measurement_layout(self) -> Layout:
+        arrivals = tuple(Signal(f"arrival_{name.removeprefix('measured_')}", "s", f"arrival of the new {name.removeprefix('measured_')} reading (NaN: none)")
+                         for name in self.channels)
+        return Layout(self.inner.measurement_layout.signals + arrivals)
+
+    @property
+    def input_layout(self) -> Layout:
+        return self.inner.input_layout
+
+    @property
+    def sample_period(self):
+        return self.inner.sample_period
+
+    @property
+    def estimate_signals(self):
+        return self.inner.estimate_signals
+
+    @property
+    def extra_signals(self):
+        flags = []
+        for name in self.channels:
+            short = name.removeprefix("measured_")
+            flags.append(Signal(f"gated_{short}", "1", f"new {short} reading rejected as a wild point"))
+            flags.append(Signal(f"outage_{short}", "1", f"{short} older than its timeout: dead reckoning"))
+        return tuple(self.inner.extra_signals) + tuple(flags)
+
+    def guess(self):
+        return self.inner.guess()
+
+    # -- the rules
+    def _split(self, y):
+        size = self.inner.measurement_layout.size
+        return y[:size], y[size:]
+
+    def _candidate(self, state: GatedState, t, new, arrival):
+        """The measurement with each channel's new reading, else its held one (NaN when too old)."""
+        y = state.held
+        for index, (start, stop) in enumerate(self._columns):
+            fresh = jnp.isfinite(arrival[index])
+            alive = t - state.held_time[index] <= self.timeout[index]
+            y = y.at[start:stop].set(jnp.where(fresh, new[start:stop], jnp.where(alive, state.held[start:stop], jnp.nan)))
+        return y
+
+    def init(self, y0, guess):
+        new, arrival = self._split(jnp.asarray(y0))
+        n = len(self.channels)
+        # every part of the state is finite (a Stepper refuses a step that is not):
+        # a missing reading is held as 0 with an arrival long ago
+        held = jnp.where(jnp.isfinite(new), new, 0.0)
+        held_time = jnp.where(jnp.isfinite(arrival), arrival, -1e300)
+        return GatedState(self.inner.init(new, guess), held, held_time, jnp.zeros(n), held, (~jnp.isfinite(new)).astype(held.dtype), jnp.zeros(n))
+
+    def update(self, state: GatedState, t, y):
+        new, arrival = self._split(y)
+        candidate = self._candidate(state, t, new, arrival)
+        trial = self.inner.update(state.inner, t, candidate)
+        estimate = self.inner.output(trial, candidate)
+        wild = []
+        for index, name in enumerate(self.channels):
+            innovation = estimate.get(name.replace("measured_", "innovation_"))
+            size = jnp.linalg.norm(jnp.atleast_1d(innovation)) if innovation is not None else 0.0
+            wild.append(jnp.isfinite(arrival[index]) & (size > self.gate[index]) & (state.wild_in_row[index] < self.reopen_after))
+        wild = jnp.stack(wild)
+        kept_arrival = jnp.where(wild, jnp.nan, arrival)
+        used = self._candidate(state, t, new, kept_arrival)
+        redone = self.inner.update(state.inner, t, used)
+        inner = jax.tree.map(lambda a, b: jnp.where(jnp.any(wild), a, b), redone, trial)
+        accepted = jnp.isfinite(kept_arrival)
+        held, held_time = state.held, state.held_time
+        for index, (start, stop) in enumerate(self._columns):
+            held = held.at[start:stop].set(jnp.where(accepted[index], new[start:stop], held[start:stop]))
+        held_time = jnp.where(accepted, arrival, held_time)
+        in_row = jnp.where(jnp.isfinite(arrival), jnp.where(wild, state.wild_in_row + 1, 0.0), state.wild_in_row)
+        missing = ~jnp.isfinite(used)
+        return GatedState(inner, held, held_time, in_row, jnp.where(missing, 0.0, used), missing.astype(used.dtype), wild.astype(used.dtype))
+
+    def output(self, state: GatedState, y):
+        """The wrapped observer's outputs, the gate and outage flags, and under
+        ``"measurement_used"`` the measurement the step used (held readings), which a
+        session records as its measurement: 0 where it was NaN (an outage, a channel the
+        stream does not fill), because a :class:`~lookout.Stepper` refuses a step whose
+        outputs are not finite; the outage flags say where."""
+        estimate = dict(self.inner.output(state.inner, state.measurement))
+        estimate["measurement_used"] = state.used
+        for index, ((start, stop), name) in enumerate(zip(self._columns, self.channels)):
+            short = name.removeprefix("measured_")
+            estimate[f"gated_{short}"] = state.gated[index]
+            estimate[f"outage_{short}"] = jnp.any(state.missing[start:stop] > 0).astype(state.used.dtype)
+        return estimate
+
+    def predict(self, state: GatedState, t, y, u, dt):
+        return eqx.tree_at(lambda s: s.inner, state, self.inner.predict(state.inner, t, state.measurement, u, dt))

@@ -1,0 +1,174 @@
+"""Where a live session's estimates go: JSON lines (stdout or UDP) and a NetCDF file.
+
+The NetCDF file has the layout of a simulation's (:meth:`lookout.Trajectory.to_xarray`:
+``position_hat``, ``innovation_position``, ``measured_position``, ``force_applied``, ...,
+dims run, time and the label dims) with ``time`` unlimited, and a few variables of the
+session's own: ``gated_<channel>`` and ``outage_<channel>`` flags and ``step_seconds``.
+The first flush writes the file beside its name and renames it into place; every later
+flush appends the rows since the last one and syncs, so a session that is killed
+loses at most the rows of one flush interval and leaves a file that opens.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import socket
+import sys
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+import xarray as xr
+
+from lookout.results import RecordSignals, Trajectory, write_netcdf
+
+
+def _plain(value):
+    array = np.asarray(value)
+    if array.ndim == 0:
+        number = float(array)
+        return number if math.isfinite(number) else None
+    return [None if not math.isfinite(v) else float(v) for v in array.ravel()]
+
+
+def json_line(block, i: int, frame=None, gated=(), outage=()) -> str:
+    """Step ``i`` of a :class:`~lookout.live.session.Block` as a JSON object on one
+    line: ``time`` (the stream's clock), ``session_time``, each estimate by name (NaN as
+    null), ``latitude_hat`` and ``longitude_hat`` when positions are fixes."""
+    out = {"time": round(float(block.time[i]), 6), "session_time": round(float(block.session_time[i]), 6)}
+    out.update({name: _plain(value[i]) for name, value in block.estimate.items()})
+    if frame is not None and "position" in block.estimate:
+        north, east = np.asarray(block.estimate["position"][i], dtype=float)[:2]
+        latitude, longitude, _ = frame.geodetic(north, east, 0.0)
+        out["latitude_hat"], out["longitude_hat"] = float(latitude), float(longitude)
+    return json.dumps(out, separators=(",", ":"))
+
+
+class Publisher:
+    """Sends each step as a JSON line to stdout (``"-"``) or to ``udp://HOST:PORT``."""
+
+    def __init__(self, target: str, frame_of=None):
+        self.target = target
+        self.frame_of = frame_of or (lambda: None)
+        self._socket = None
+        if target != "-":
+            self._address = parse_udp(target, "--publish")
+            self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sent = 0
+
+    def __call__(self, block) -> None:
+        frame = self.frame_of()
+        for i in range(len(block)):
+            line = json_line(block, i, frame)
+            if self._socket is None:
+                sys.stdout.write(line + "\n")
+            else:
+                self._socket.sendto(line.encode() + b"\n", self._address)
+            self.sent += 1
+        if self._socket is None:
+            sys.stdout.flush()
+
+    def close(self) -> None:
+        if self._socket is not None:
+            self._socket.close()
+
+
+def parse_udp(text: str, option: str, default_host: str = "127.0.0.1", any_port: bool = False) -> tuple[str, int]:
+    """``(host, port)`` of ``udp://HOST:PORT`` (``udp://:PORT`` means ``default_host``;
+    with ``any_port``, port 0 asks the system for a free one, to listen on).
+
+    Raises
+    ------
+    ValueError
+        Naming ``option`` when the text is not such an address.
+    """
+    if not isinstance(text, str) or not text.startswith("udp://"):
+        raise ValueError(f"{option} must be udp://HOST:PORT; got {text!r}")
+    host, _, port = text[len("udp://") :].rpartition(":")
+    try:
+        number = int(port)
+    except ValueError:
+        number = -1
+    if not (0 if any_port else 1) <= number < 65536:
+        raise ValueError(f"{option} must be udp://HOST:PORT with a port in {0 if any_port else 1}..65535; got {text!r}")
+    return host or default_host, number
+
+
+class SessionWriter:
+    """A NetCDF file of a session, appended every ``flush_every`` steps.
+
+    Parameters
+    ----------
+    path : path
+    observer : Observer
+        Names, units and frames of the estimates, measurements and input (the observer
+        the session wraps).
+    attrs : dict
+        Global attributes (scenario, source, frame).
+    flush_every : int
+        Steps between flushes.
+    """
+
+    def __init__(self, path, observer, attrs: dict, flush_every: int = 100):
+        self.path = Path(path)
+        self.signals = RecordSignals(
+            truth=(), estimate=tuple(observer.estimate_signals), extra=tuple(observer.extra_signals),
+            measurement=observer.measurement_layout, reference=(), input=observer.input_layout,
+        )
+        self.attrs = dict(attrs)
+        self.flush_every = int(flush_every)
+        self._blocks: list = []
+        self._kept = 0
+        self.written = 0
+
+    def add(self, block) -> None:
+        """Keep ``block``; flush when ``flush_every`` steps are kept."""
+        self._blocks.append(block)
+        self._kept += len(block)
+        if self._kept >= self.flush_every:
+            self.flush()
+
+    def _dataset(self) -> xr.Dataset:
+        blocks = self._blocks
+        names = list(blocks[0].estimate)
+        estimates = {name: np.concatenate([b.estimate[name] for b in blocks]) for name in names}
+        flags = {name: estimates.pop(name) for name in names if name.startswith(("gated_", "outage_"))}
+        inputs = np.concatenate([b.input for b in blocks])
+        trajectory = Trajectory(
+            np.concatenate([b.session_time for b in blocks]), {}, estimates, np.concatenate([b.measurement for b in blocks]), {},
+            inputs, inputs, signals=self.signals, batched=False, attrs=self.attrs,
+        )
+        ds = trajectory.to_xarray()
+        for name, values in flags.items():
+            what = "rejected as a wild point" if name.startswith("gated_") else "older than its timeout: dead reckoning"
+            ds[name] = (("run", "time"), values[None].astype("i1"), {"long_name": f"{name.split('_', 1)[1]} reading {what}", "units": "1"})
+        ds["step_seconds"] = (("run", "time"), np.concatenate([b.step_seconds for b in blocks])[None],
+                              {"long_name": "wall-clock time to compute the step", "units": "s"})
+        ds["clock_time"] = (("time",), np.concatenate([b.time for b in blocks]),
+                            {"long_name": "time of the step on the stream's clock", "units": "s"})
+        return ds
+
+    def flush(self) -> None:
+        """Write the kept steps (the first flush creates the file)."""
+        if not self._blocks:
+            return
+        ds = self._dataset()
+        if self.written == 0:
+            write_netcdf(ds, self.path, history="lookout live session", unlimited_dims=("time",))
+        else:
+            with netCDF4.Dataset(self.path, "a") as handle:
+                start = handle.dimensions["time"].size
+                for name, variable in ds.variables.items():
+                    if "time" not in variable.dims:
+                        continue
+                    index = tuple(slice(start, start + ds.sizes["time"]) if dim == "time" else slice(None) for dim in variable.dims)
+                    handle.variables[name][index] = variable.values
+                handle.sync()
+        self.written += self._kept
+        self._blocks.clear()
+        self._kept = 0
+
+    def close(self) -> None:
+        """Flush what is left."""
+        self.flush()

@@ -1,0 +1,421 @@
+"""An observer on a stream of position and heading readings, one step per sample period.
+
+:class:`Session` takes readings in the order they arrived (:meth:`Session.feed`) and
+steps a scenario's observer on a fixed grid ``t_n = n h`` (h the scenario's sample
+period) with :meth:`Session.advance`: each step on the readings that had arrived by
+``t_n``. What happens to a reading:
+
+- a position fix needs a GGA fix quality of at least ``min_quality`` and an HDOP of
+  at most ``max_hdop``; it becomes local north/east on WGS-84 about the session's
+  :class:`~lookout.io.LocalFrame` (the first fix's, unless one is given);
+- a heading is wrapped to [-pi, pi), as a simulated heading sensor's;
+- of several sources of one kind (two DGNSS receivers), the one in use stays in use
+  until it has been silent for the channel's timeout; then the next that speaks;
+- the newest reading of each channel since the last step goes into the step. Hold,
+  timeout and the wild-point gate are :class:`~lookout.live.gate.GatedObserver`'s,
+  inside the compiled step.
+
+A step's results come out as a :class:`Block` (one step live; many in a fast replay,
+which runs ``batch`` steps in one compiled scan). Events (outage, recovered, gated,
+source, frame) go to ``on_event``.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from lookout.io.geodesy import LocalFrame
+from lookout.io.nmea import Reading
+from lookout.live.gate import GatedObserver
+from lookout.sim.filtering import Stepper
+
+#: The measurement signals a live observer's layout may name, and the reading kind
+#: that fills each.
+CHANNELS = {"measured_position": "position", "measured_heading": "heading"}
+
+
+def _positive(name: str, value) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a finite positive number; got {value!r}")
+
+
+@dataclass(frozen=True)
+class Gates:
+    """What a reading must pass to be used.
+
+    Parameters
+    ----------
+    min_quality : int
+        Lowest GGA fix quality accepted (1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float).
+    max_hdop : float
+        Highest HDOP accepted.
+    position_gate : float
+        Largest position innovation accepted (m).
+    heading_gate : float
+        Largest heading innovation accepted (degrees).
+    position_timeout, heading_timeout : float
+        Age (s) after which a channel's last reading is no longer used.
+    reopen_after : int
+        Wild points in a row after which the gate lets the next reading through.
+    """
+
+    min_quality: int = 1
+    max_hdop: float = 5.0
+    position_gate: float = 30.0
+    heading_gate: float = 15.0
+    position_timeout: float = 2.5
+    heading_timeout: float = 1.0
+    reopen_after: int = 5
+
+    def __post_init__(self):
+        if isinstance(self.min_quality, bool) or not isinstance(self.min_quality, (int, np.integer)) or not 0 <= self.min_quality <= 9:
+            raise ValueError(f"min_quality must be an integer GGA fix quality in 0..9; got {self.min_quality!r}")
+        for name in ("max_hdop", "position_gate", "heading_gate", "position_timeout", "heading_timeout"):
+            _positive(name, getattr(self, name))
+        if isinstance(self.reopen_after, bool) or not isinstance(self.reopen_after, (int, np.integer)) or self.reopen_after < 1:
+            raise ValueError(f"reopen_after must be a positive integer; got {self.reopen_after!r}")
+
+
+@dataclass
+class Block:
+    """Consecutive steps' results.
+
+    Attributes
+    ----------
+    time : ndarray (n,)
+        Step times on the stream's clock (s).
+    session_time : ndarray (n,)
+        Seconds since the session's first step.
+    estimate : dict of ndarray
+        The observer's outputs, one row per step (with ``gated_<channel>`` and
+        ``outage_<channel>`` flags).
+    measurement : ndarray (n, n_y)
+        What each step used (held readings; NaN in an outage).
+    input : ndarray (n, n_u)
+    step_seconds : ndarray (n,)
+        Wall-clock seconds per step (a scan's time shared out).
+    """
+
+    time: np.ndarray
+    session_time: np.ndarray
+    estimate: dict
+    measurement: np.ndarray
+    input: np.ndarray
+    step_seconds: np.ndarray
+
+    def __len__(self) -> int:
+        return self.time.size
+
+    def row(self, i: int) -> dict:
+        """Step ``i`` as a dict (``time``, ``session_time``, ``estimate``...)."""
+        return {"time": float(self.time[i]), "session_time": float(self.session_time[i]),
+                "estimate": {name: value[i] for name, value in self.estimate.items()}}
+
+
+@dataclass
+class _Channel:
+    """What a session knows of one measured signal."""
+
+    name: str
+    kind: str
+    columns: slice
+    timeout: float
+    source: str | None = None
+    source_time: float = -math.inf  # the last reading of the source in use
+    new: tuple | None = None  # the newest reading since the last step
+    new_time: float = math.nan
+    in_outage: bool = False
+    outage_since: float = math.nan
+
+    def __post_init__(self):
+        self.counts = {"accepted": 0, "gated": 0, "quality": 0, "hdop": 0, "other_source": 0}
+
+
+class Session:
+    """A scenario's observer stepped on readings as they arrive.
+
+    Parameters
+    ----------
+    observer : Observer
+        Its measurement layout must name ``measured_position`` (north, east) and/or
+        ``measured_heading``; other measured channels stay NaN.
+    sample_period : float
+        The observer's step (s), the scenario's ``simulation.sample_period``.
+    guess : PyTree, optional
+        The observer's initial guess (default ``observer.guess()``).
+    frame : LocalFrame, optional
+        The local north-east frame of position fixes; default the first accepted fix.
+    gates : Gates, optional
+    on_event : callable, optional
+        Called with a dict for each event (frame, source, gated, outage, recovered,
+        refused).
+    batch : int
+        Steps per compiled call: 1 live (each step as soon as it is due), more in a
+        fast replay (:meth:`finish` runs what is left).
+    step_on : {"heading", "position", None}
+        The channel whose reading takes its step at once, without waiting for the
+        step's time (default heading, the fastest of a DP vessel's: its estimate
+        leaves as soon as its sentence came); the others' readings go into the next
+        step taken. None: steps at their times only.
+    """
+
+    def __init__(self, observer, sample_period: float, *, guess=None, frame: LocalFrame | None = None, gates: Gates | None = None,
+                 on_event=None, batch: int = 1, step_on: str | None = "heading"):
+        _positive("sample_period", sample_period)
+        if frame is not None and not isinstance(frame, LocalFrame):
+            raise ValueError(f"frame must be a lookout.io.LocalFrame; got {type(frame).__name__}")
+        gates = Gates() if gates is None else gates
+        if not isinstance(gates, Gates):
+            raise ValueError(f"gates must be a lookout.live.Gates; got {type(gates).__name__}")
+        if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
+            raise ValueError(f"batch must be a positive integer; got {batch!r}")
+        layout = observer.measurement_layout
+        names = layout.names
+        if not set(names) & set(CHANNELS):
+            raise ValueError(f"observer {type(observer).__name__} measures {', '.join(names)}; live data fills measured_position (north, east) and measured_heading")
+        if "measured_position" in names and layout.signals[names.index("measured_position")].labels != ("north", "east"):
+            raise ValueError("observer's measured_position must be (north, east) for position fixes")
+        period = getattr(observer, "sample_period", None)
+        if period is not None and abs(period - sample_period) > 1e-9 * period:
+            raise ValueError(f"sample_period must be the observer's own {period:g} s (a discrete-time observer); got {sample_period:g} s")
+        if step_on not in (None, "heading", "position"):
+            raise ValueError(f"step_on must be 'heading', 'position' or None; got {step_on!r}")
+        self.observer = observer
+        self.step_on = step_on if step_on in {CHANNELS[name] for name in names if name in CHANNELS} else None
+        self.sample_period = float(sample_period)
+        self.guess = guess
+        self.frame = frame
+        self.gates = gates
+        self.on_event = on_event
+        self.batch = int(batch)
+        self.channels: dict[str, _Channel] = {}
+        start = 0
+        for signal in layout.signals:
+            if signal.name in CHANNELS:
+                kind = CHANNELS[signal.name]
+                timeout = gates.position_timeout if kind == "position" else gates.heading_timeout
+                self.channels[kind] = _Channel(signal.name, kind, slice(start, start + signal.size), timeout)
+            start += signal.size
+        self.gated_observer = GatedObserver(
+            inner=observer,
+            channels=tuple(c.name for c in self.channels.values()),
+            gate=np.array([gates.position_gate if c.kind == "position" else math.radians(gates.heading_gate) for c in self.channels.values()]),
+            timeout=np.array([c.timeout for c in self.channels.values()]),
+            reopen_after=gates.reopen_after,
+        )
+        self._size = layout.size
+        self._input = np.zeros(observer.input_layout.size)
+        self.thrust_seen = False
+        self.stepper: Stepper | None = None
+        self.step_index: int | None = None  # n of the next step, t_n = n h
+        self.start_index: int | None = None
+        self.steps = 0
+        self.late = 0
+        self.refused = 0
+        self.events: list[dict] = []
+        self.event_counts = {"outage": 0, "recovered": 0, "gated": 0, "source": 0, "refused": 0}
+        # the steps kept for the next compiled call: times, session times, raw measurements, inputs
+        n_raw = self._size + len(self.channels)
+        self._times = np.empty(self.batch)
+        self._session_times = np.empty(self.batch)
+        self._raw = np.empty((self.batch, n_raw))
+        self._inputs = np.empty((self.batch, self._input.size))
+        self._kept = 0
+        self._started = False
+        self._last_reading = -math.inf
+
+    # ----------------------------------------------------------------- readings
+    def feed(self, reading: Reading) -> list[Block]:
+        """Take one reading (in arrival order); the next step uses it. A reading of the
+        ``step_on`` channel takes its step at once (the blocks computed are returned)."""
+        if reading.time < self._last_reading:
+            self.late += 1  # stamped before the reading before it: a reordered log
+            return []
+        self._last_reading = reading.time
+        self._take(reading)
+        if reading.kind in ("heading", "position", "local_position") and self.step_on == {"local_position": "position"}.get(reading.kind, reading.kind):
+            if self.step_index is None:
+                self._start()
+            if self.step_index is not None and self.time_of(self.step_index - 1) < reading.time <= self.time_of(self.step_index):
+                return self._take_steps(self.step_index + 1)
+        return []
+
+    def _take(self, reading: Reading) -> None:
+        if reading.kind == "thrust":
+            self._input = np.asarray(reading.values, dtype=float)
+            self.thrust_seen = True
+            return
+        kind = {"local_position": "position", "position": "position", "heading": "heading"}.get(reading.kind)
+        channel = self.channels.get(kind)
+        if channel is None:
+            return  # rate of turn and the error ellipse are counted by the parser, not used
+        if reading.kind == "position":
+            latitude, longitude, quality, hdop = reading.values
+            if quality < self.gates.min_quality:
+                channel.counts["quality"] += 1
+                return
+            if hdop > self.gates.max_hdop:
+                channel.counts["hdop"] += 1
+                return
+            if self.frame is None:
+                self.frame = LocalFrame(latitude, longitude)
+                self._event("frame", reading.time, latitude=latitude, longitude=longitude)
+            north, east, _ = self.frame.ned(latitude, longitude)
+            value = (float(north), float(east))
+        elif reading.kind == "local_position":
+            value = (float(reading.values[0]), float(reading.values[1]))
+        else:
+            # wrapped to [-pi, pi) as a simulated heading sensor's (lookout.sensors)
+            angle = math.radians(reading.values[0])
+            value = (angle - 2 * math.pi * math.floor((angle + math.pi) / (2 * math.pi)),)
+        if channel.source is not None and reading.source != channel.source and reading.time - channel.source_time <= channel.timeout:
+            channel.counts["other_source"] += 1
+            return
+        if reading.source != channel.source:
+            self._event("source", reading.time, channel=channel.name, source=reading.source, previous=channel.source)
+            channel.source = reading.source
+        channel.source_time = reading.time
+        channel.new, channel.new_time = value, reading.time
+        channel.counts["accepted"] += 1
+
+    # ----------------------------------------------------------------- stepping
+    def time_of(self, n: int) -> float:
+        """The stream-clock time of step ``n``."""
+        return n * self.sample_period
+
+    @property
+    def next_step_time(self) -> float | None:
+        """When the next step is due (None before the first reading of every channel)."""
+        return None if self.step_index is None else self.time_of(self.step_index)
+
+    def _event(self, kind: str, t: float, **details) -> None:
+        event = {"event": kind, "time": t, **details}
+        if self.start_index is not None:
+            event["session_time"] = t - self.time_of(self.start_index)
+        self.event_counts[kind] = self.event_counts.get(kind, 0) + 1
+        self.events.append(event)
+        if len(self.events) > 1000:  # the latest; the counts keep the totals
+            del self.events[:500]
+        if self.on_event is not None:
+            self.on_event(event)
+
+    def _start(self) -> None:
+        """Set the first step: the one that has a reading of every channel."""
+        if self.step_index is None and all(channel.new is not None for channel in self.channels.values()):
+            first = max(channel.new_time for channel in self.channels.values())
+            self.step_index = self.start_index = math.ceil(first / self.sample_period - 1e-9)
+
+    def advance(self, until: float) -> list[Block]:
+        """Take every step with ``t_n < until`` (a reading stamped ``until`` is not in
+        them); return the blocks computed (a fast replay computes ``batch`` at a time)."""
+        self._start()
+        if self.step_index is None:
+            return []
+        return self._take_steps(lambda: self.time_of(self.step_index) < until)
+
+    def _take_steps(self, more) -> list[Block]:
+        """Steps from ``step_index`` on while ``more()``, or up to ``more`` (an int, exclusive)."""
+        if isinstance(more, int):
+            end = more
+            more = lambda: self.step_index < end  # noqa: E731
+        blocks = []
+        while more():
+            self._row(self.step_index)
+            self.step_index += 1
+            if self._kept == self.batch:
+                blocks.append(self._run())
+        return blocks
+
+    def warm_up(self) -> None:
+        """Compile the step before data comes (on a stand-in measurement), so that the
+        first steps of a live session are not late by a compilation."""
+        raw = np.zeros(self._size + len(self.channels))
+        self.stepper = Stepper(self.gated_observer, self.guess, raw)
+        checkpoint = self.stepper.checkpoint()
+        self.stepper(0.0, raw, np.zeros_like(self._input), self.sample_period)
+        self.stepper.restore(checkpoint)
+
+    def finish(self) -> list[Block]:
+        """Run the steps kept for a batch."""
+        return [self._run()] if self._kept else []
+
+    def _row(self, n: int) -> None:
+        """Keep step n: each channel's new reading and its arrival (session s), NaN
+        where none came."""
+        i = self._kept
+        start = self.time_of(self.start_index)
+        self._times[i] = self.time_of(n)
+        self._session_times[i] = (n - self.start_index) * self.sample_period
+        raw = self._raw[i]
+        raw[:] = math.nan
+        for index, channel in enumerate(self.channels.values()):
+            if channel.new is not None:
+                raw[channel.columns] = channel.new
+                raw[self._size + index] = channel.new_time - start
+                channel.new = None
+        self._inputs[i] = self._input
+        self._kept += 1
+
+    def _run(self) -> Block:
+        n = self._kept
+        self._kept = 0
+        times, session_times = self._times[:n].copy(), self._session_times[:n].copy()
+        raw, inputs = self._raw[:n].copy(), self._inputs[:n].copy()
+        started = _time.perf_counter()
+        if not self._started:
+            if not self.thrust_seen:
+                warnings.warn("lookout live: no thrust feedback; the observer predicts with zero input", RuntimeWarning, stacklevel=4)
+            if self.stepper is None:
+                self.stepper = Stepper(self.gated_observer, self.guess, raw[0])
+            else:
+                self.stepper.reset(raw[0], self.guess)
+            self._started = True
+        if n == 1:
+            try:
+                estimates = {name: np.asarray(value)[None] for name, value in self.stepper(session_times[0], raw[0], inputs[0], self.sample_period).items()}
+                healthy = np.ones(1, dtype=bool)
+            except ValueError as error:
+                estimates, healthy = None, np.zeros(1, dtype=bool)
+                self._event("refused", times[0], reason=str(error))
+        else:
+            estimates, healthy = self.stepper.run(session_times, raw, inputs, self.sample_period)
+        seconds = (_time.perf_counter() - started) / n
+        if estimates is None:  # one refused step: the state is as it was
+            estimates = {name: np.full((1, *np.shape(value)), np.nan) for name, value in self.stepper.template().items()}
+        measurement = np.array(estimates.pop("measurement_used"), dtype=float)
+        filled = np.zeros(self._size, dtype=bool)
+        for channel in self.channels.values():
+            filled[channel.columns] = True
+            measurement[np.asarray(estimates[f"outage_{channel.kind}"]) > 0, channel.columns] = np.nan
+        measurement[:, ~filled] = np.nan
+        refused = ~healthy
+        if refused.any():
+            self.refused += int(refused.sum())
+            if n > 1:
+                for i in np.flatnonzero(refused)[:10]:
+                    self._event("refused", times[i], reason="the step is not finite; the state is kept")
+        self._events(times, estimates)
+        self.steps += n
+        return Block(times, session_times, estimates, measurement, inputs, np.full(n, seconds))
+
+    def _events(self, times: np.ndarray, estimates: dict) -> None:
+        for channel in self.channels.values():
+            short = channel.kind
+            gated = np.asarray(estimates[f"gated_{short}"]) > 0
+            channel.counts["gated"] += int(gated.sum())
+            for i in np.flatnonzero(gated):
+                self._event("gated", times[i], channel=channel.name, source=channel.source)
+            outage = np.asarray(estimates[f"outage_{short}"]) > 0
+            previous = np.concatenate([[channel.in_outage], outage[:-1]])
+            for i in np.flatnonzero(outage != previous):
+                if outage[i]:
+                    channel.outage_since = times[i]
+                    self._event("outage", times[i], channel=channel.name)
+                else:
+                    self._event("recovered", times[i], channel=channel.name, outage=float(times[i] - channel.outage_since))
+            channel.in_outage = bool(outage[-1])
