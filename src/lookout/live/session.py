@@ -404,8 +404,22 @@ class Session:
         return Block(times, session_times, estimates, measurement, inputs, np.full(n, seconds))
 
     def _events(self, times: np.ndarray, estimates: dict) -> None:
+        """Count gated points and report outages from the steps' flags."""
         for channel in self.channels.values():
             short = channel.kind
+            if len(times) == 1:  # a live step: the same on Python numbers (a tenth of the time)
+                if estimates[f"gated_{short}"][0] > 0:
+                    channel.counts["gated"] += 1
+                    self._event("gated", float(times[0]), channel=channel.name, source=channel.source)
+                lost = bool(estimates[f"outage_{short}"][0] > 0)
+                if lost != channel.in_outage:
+                    if lost:
+                        channel.outage_since = float(times[0])
+                        self._event("outage", float(times[0]), channel=channel.name)
+                    else:
+                        self._event("recovered", float(times[0]), channel=channel.name, outage=float(times[0]) - channel.outage_since)
+                    channel.in_outage = lost
+                continue
             gated = np.asarray(estimates[f"gated_{short}"]) > 0
             channel.counts["gated"] += int(gated.sum())
             for i in np.flatnonzero(gated):
