@@ -234,6 +234,15 @@ def test_a_day_of_10_hz_data_in_flat_memory():
     assert grown < 16e6, f"memory grew {grown / 1e6:.1f} MB from 2 h to 24 h"
 
 
+def test_a_refused_steps_row_publishes_without_a_position():
+    from lookout.live.output import json_line
+    from lookout.live.session import Block
+
+    block = Block(np.array([1.0]), np.array([0.0]), {"position": np.full((1, 2), np.nan)}, np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(1))
+    line = json.loads(json_line(block, 0, ORIGIN))
+    assert line["position"] == [None, None] and "latitude_hat" not in line
+
+
 def test_latencies_keep_a_fixed_window():
     latencies = Latencies(size=4)
     assert latencies.percentiles() == {}
@@ -267,13 +276,17 @@ def test_fix_quality_hdop_and_a_second_receiver():
     lat, lon = 63.44, 10.40
     session.feed(Reading(0.01, "GP@a", "position", (lat, lon, 1.0, 0.8), "GGA"))  # GPS only: refused
     session.feed(Reading(0.02, "GP@a", "position", (lat, lon, 2.0, 3.5), "GGA"))  # HDOP: refused
+    session.feed(Reading(0.025, "GP@a", "position", (lat, lon, 6.0, 0.8), "GGA"))  # the receiver's own dead reckoning: refused
     session.feed(Reading(0.03, "GP@a", "position", (lat, lon, 2.0, 0.8), "GGA"))
     session.feed(Reading(0.04, "GP@b", "position", (lat + 1e-5, lon, 2.0, 0.8), "GGA"))  # the other receiver, while a speaks
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         (block,) = session.feed(Reading(0.05, "HE", "heading", (10.0,), "THS"))  # the step at 0.1 s, at once
     counts = session.channels["position"].counts
-    assert (counts["quality"], counts["hdop"], counts["accepted"], counts["other_source"]) == (1, 1, 1, 1)
+    assert (counts["quality"], counts["hdop"], counts["accepted"], counts["other_source"]) == (2, 1, 1, 1)
+    # a second gyro while the first speaks: counted, and it takes no step
+    assert session.feed(Reading(0.11, "HE@b", "heading", (12.0,), "THS")) == []
+    assert session.channels["heading"].counts["other_source"] == 1
     assert session.frame == LocalFrame(lat, lon)
     assert block.time[0] == pytest.approx(0.1)
     np.testing.assert_allclose(block.measurement[0], [0.0, 0.0, math.radians(10.0)], atol=1e-12)
@@ -314,6 +327,7 @@ def test_replay_cli_writes_the_session(tmp_path, capsys):
         (["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:99999"], "--nmea must be udp://HOST:PORT with a port in 0..65535"),
         (["live", "examples/live-dp.toml", "--nmea", "/no/such/device"], "--nmea must be udp://HOST:PORT, - (stdin) or an existing device or file"),
         (["live", "examples/live-dp.toml", "--publish", "tcp://x:1"], "--publish must be udp://HOST:PORT"),
+        (["live", "examples/live-dp.toml", "--nmea", "examples/logs/dp-vessel.nmea"], "is a regular file: its lines have no arrival times live"),
         (["live", "examples/live-dp.toml", "--idle", "-2"], "--idle must be a finite positive number of seconds"),
         (["write-log", "examples/live-dp.toml", "--outage", "1"], "--outage must be START,LENGTH in seconds"),
         (["write-log", "examples/velocity-two-link-arm.toml"], "the sensor must measure position and heading"),

@@ -185,6 +185,10 @@ def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written", 
         for name, variable in ds.variables.items()
         if np.issubdtype(variable.dtype, np.number) and variable.ndim > 0
     }
+    for name, settings in encoding.items():  # a growing dimension in chunks of 1024 (netCDF's default is 1)
+        dims = ds[name].dims
+        if any(dim in unlimited_dims for dim in dims):
+            settings["chunksizes"] = tuple(1024 if dim in unlimited_dims else ds.sizes[dim] for dim in dims)
     # written beside and renamed into place: a write that fails leaves no half file
     partial = path.with_name(path.name + ".partial")
     try:

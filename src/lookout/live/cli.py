@@ -68,7 +68,9 @@ def _outputs(session, out: Optional[str], publish: Optional[str], scenario_file:
 
         writable_folder("--out", path.absolute().parent, out)
         path.absolute().parent.mkdir(parents=True, exist_ok=True)
-        writer = SessionWriter(path, session.observer, {"scenario": scenario_file, "source_of_data": source}, flush_every=flush_every)
+        writer = SessionWriter(path, session.observer, {"scenario": scenario_file, "source_of_data": source}, flush_every=flush_every,
+                               attrs_of=lambda: {} if session.frame is None else {"origin_latitude": session.frame.latitude,
+                                                                                 "origin_longitude": session.frame.longitude})
         emitters.append(writer.add)
         closers.append(writer.close)
     if publish is not None:
@@ -77,7 +79,10 @@ def _outputs(session, out: Optional[str], publish: Optional[str], scenario_file:
                 parse_udp(publish, "--publish")
             except ValueError as error:
                 raise InputError(str(error)) from None
-        publisher = Publisher(publish, frame_of=lambda: session.frame)
+        try:
+            publisher = Publisher(publish, frame_of=lambda: session.frame)
+        except ValueError as error:
+            raise InputError(str(error)) from None
         emitters.append(publisher)
         closers.append(publisher.close)
 
@@ -86,8 +91,6 @@ def _outputs(session, out: Optional[str], publish: Optional[str], scenario_file:
             each(record)
 
     def close():
-        if writer is not None and session.frame is not None:
-            writer.attrs.update({"origin_latitude": session.frame.latitude, "origin_longitude": session.frame.longitude})
         for each in closers:
             each()
 
@@ -109,7 +112,7 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
         which, lat = "compute", (f"{np.mean(kept) * 1e6:.1f} us per step after the first block (which compiles)" if kept.size else "")
     else:
         which, lat = "step", " ".join(f"p{p} {v * 1e3:.2f} ms" for p, v in outcome.processing.percentiles().items())
-    outages = sum(1 for event in session.events if event["event"] == "outage")
+    outages = session.event_counts["outage"]
     return (f"{'done' if final else 'status'}: {outcome.steps} steps, {outcome.readings} readings; " + ", ".join(rates)
             + f"; rejected {sum(rejected.values())} ({', '.join(f'{k} {v}' for k, v in rejected.items()) or 'none'})"
             + f"; quality/HDOP {quality}; gated {gated}; outages {outages}; late {session.late}; {which} {lat or '-'}")
@@ -215,9 +218,9 @@ def replay_command(
             outcome = replay(session, log, thrust=thrust, speed=speed, emit=emit, parser=parser,
                              status=lambda o: say(_status_line(session, parser, o)))
     except ValueError as error:
-        close()
         raise InputError(str(error)) from None
-    close()
+    finally:  # what was computed is written, whatever stopped the replay
+        close()
     if outcome.steps == 0:
         raise InputError(f"{log}: no step was taken: the log never had both a usable position and a heading ({_status_line(session, parser, outcome, True)})")
     span = outcome.last_time - outcome.first_time
@@ -258,7 +261,7 @@ def live_command(
     publish: Publish = None,
     thrust: Annotated[Optional[str], typer.Option(metavar="SOURCE", help="Thrust feedback lines surge,sway,yaw (N, N, N m): udp://HOST:PORT or a path.", show_default="zero, with a warning")] = None,
     duration: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop after this long.")] = None,
-    idle: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long.")] = None,
+    idle: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long (counted from the first data).")] = None,
     origin: Origin = None,
     min_quality: MinQuality = 1,
     max_hdop: MaxHdop = 5.0,
@@ -301,11 +304,13 @@ def live_command(
     say(f"listening on {source[2]} (Ctrl-C stops)")
     import warnings
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        outcome = live(session, source, thrust=thrust_source, emit=emit, parser=parser, duration=duration, idle=idle,
-                       status=lambda o: say(_status_line(session, parser, o)))
-    close()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            outcome = live(session, source, thrust=thrust_source, emit=emit, parser=parser, duration=duration, idle=idle,
+                           status=lambda o: say(_status_line(session, parser, o)))
+    finally:  # what was computed is written, whatever stopped the session
+        close()
     say(_status_line(session, parser, outcome, final=True) + (f"; written to {out}" if out and outcome.steps else ""))
 
 

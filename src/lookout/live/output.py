@@ -38,8 +38,8 @@ def json_line(block, i: int, frame=None, gated=(), outage=()) -> str:
     null), ``latitude_hat`` and ``longitude_hat`` when positions are fixes."""
     out = {"time": round(float(block.time[i]), 6), "session_time": round(float(block.session_time[i]), 6)}
     out.update({name: _plain(value[i]) for name, value in block.estimate.items()})
-    if frame is not None and "position" in block.estimate:
-        north, east = np.asarray(block.estimate["position"][i], dtype=float)[:2]
+    north, east = np.asarray(block.estimate["position"][i], dtype=float)[:2] if "position" in block.estimate else (math.nan, math.nan)
+    if frame is not None and math.isfinite(north) and math.isfinite(east):  # a refused step's row is NaN
         latitude, longitude, _ = frame.geodetic(north, east, 0.0)
         out["latitude_hat"], out["longitude_hat"] = float(latitude), float(longitude)
     return json.dumps(out, separators=(",", ":"))
@@ -53,9 +53,14 @@ class Publisher:
         self.frame_of = frame_of or (lambda: None)
         self._socket = None
         if target != "-":
-            self._address = parse_udp(target, "--publish")
+            host, port = parse_udp(target, "--publish")
+            try:  # resolved once, not at every send
+                self._address = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)[0][4]
+            except OSError as error:
+                raise ValueError(f"--publish {target}: cannot resolve {host} ({error})") from None
             self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sent = 0
+        self.failed = 0
 
     def __call__(self, block) -> None:
         frame = self.frame_of()
@@ -64,7 +69,11 @@ class Publisher:
             if self._socket is None:
                 sys.stdout.write(line + "\n")
             else:
-                self._socket.sendto(line.encode() + b"\n", self._address)
+                try:  # a network that refuses one datagram does not stop the session
+                    self._socket.sendto(line.encode() + b"\n", self._address)
+                except OSError:
+                    self.failed += 1
+                    continue
             self.sent += 1
         if self._socket is None:
             sys.stdout.flush()
@@ -110,13 +119,14 @@ class SessionWriter:
         Steps between flushes.
     """
 
-    def __init__(self, path, observer, attrs: dict, flush_every: int = 100):
+    def __init__(self, path, observer, attrs: dict, flush_every: int = 100, attrs_of=None):
         self.path = Path(path)
         self.signals = RecordSignals(
             truth=(), estimate=tuple(observer.estimate_signals), extra=tuple(observer.extra_signals),
             measurement=observer.measurement_layout, reference=(), input=observer.input_layout,
         )
         self.attrs = dict(attrs)
+        self.attrs_of = attrs_of or dict  # attributes known only once data came (the frame's origin)
         self.flush_every = int(flush_every)
         self._blocks: list = []
         self._kept = 0
@@ -142,7 +152,7 @@ class SessionWriter:
         ds = trajectory.to_xarray()
         for name, values in flags.items():
             what = "rejected as a wild point" if name.startswith("gated_") else "older than its timeout: dead reckoning"
-            ds[name] = (("run", "time"), values[None].astype("i1"), {"long_name": f"{name.split('_', 1)[1]} reading {what}", "units": "1"})
+            ds[name] = (("run", "time"), np.nan_to_num(values[None], nan=-1).astype("i1"), {"long_name": f"{name.split('_', 1)[1]} reading {what} (-1: a refused step)", "units": "1"})
         ds["step_seconds"] = (("run", "time"), np.concatenate([b.step_seconds for b in blocks])[None],
                               {"long_name": "wall-clock time to compute the step", "units": "s"})
         ds["clock_time"] = (("time",), np.concatenate([b.time for b in blocks]),
@@ -155,10 +165,11 @@ class SessionWriter:
             return
         ds = self._dataset()
         if self.written == 0:
+            ds.attrs.update(self.attrs_of())
             write_netcdf(ds, self.path, history="lookout live session", unlimited_dims=("time",))
         else:
             with netCDF4.Dataset(self.path, "a") as handle:
-                start = handle.dimensions["time"].size
+                start = self.written  # not the file's size: a failed append is written over
                 for name, variable in ds.variables.items():
                     if "time" not in variable.dims:
                         continue

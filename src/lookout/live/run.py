@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import heapq
 import math
+import os
 import select
 import socket
 import sys
@@ -165,6 +166,8 @@ def open_source(text: str, option: str = "--nmea"):
     path = Path(text)
     if not path.exists():
         raise ValueError(f"{option} must be udp://HOST:PORT, - (stdin) or an existing device or file; {text} does not exist")
+    if path.is_file():
+        raise ValueError(f"{option} {text} is a regular file: its lines have no arrival times live; replay a log with lookout replay, or pipe a stream to --nmea -")
     try:
         handle = path.open("rb", buffering=0)
     except OSError as error:
@@ -183,7 +186,7 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
     thrust_splitter = LineSplitter()
     outcome = Outcome(counts=parser.counts)
     started = clock()
-    last_heard = started
+    last_heard = None  # --idle counts from the first data
     last_status = started
     arrivals: deque = deque(maxlen=64)  # (arrival time) of readings not yet in a step
     handles = [handle] + ([thrust[1]] if thrust is not None else [])
@@ -193,7 +196,7 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
             now = clock()
             if duration is not None and now - started >= duration:
                 break
-            if idle is not None and now - last_heard >= idle:
+            if idle is not None and last_heard is not None and now - last_heard >= idle:
                 break
             due = session.next_step_time if session.step_index is not None else now + 0.05
             wait = max(0.0, min(due - now, 0.05))
@@ -205,13 +208,20 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
                         data, address = ready_handle.recvfrom(65536)
                     except BlockingIOError:
                         continue
-                    origin = f"{address[0]}:{address[1]}"
+                    origin = address[0]  # by address: a sender may use a new port per datagram
                     lines = data.splitlines()
                 else:
-                    data = ready_handle.read(65536) if hasattr(ready_handle, "read") else b""
+                    # what has arrived, not a full buffer (a buffered read of stdin waits for 64 KiB)
+                    data = os.read(ready_handle.fileno(), 65536)
                     if not data:
+                        handles.remove(ready_handle)
                         if not is_thrust:
                             ended = True
+                            lines = splitter.flush()
+                            arrival = clock()
+                            for reading in (r for line in lines for r in parser.line(line, arrival, "")):
+                                arrivals.append(reading.time)
+                                _emit_live(session.feed(reading), emit, outcome, arrivals, clock)
                         continue
                     origin = ""
                     lines = (thrust_splitter if is_thrust else splitter).feed(data)

@@ -237,31 +237,33 @@ class Session:
             self.late += 1  # stamped before the reading before it: a reordered log
             return []
         self._last_reading = reading.time
-        self._take(reading)
-        if reading.kind in ("heading", "position", "local_position") and self.step_on == {"local_position": "position"}.get(reading.kind, reading.kind):
+        taken = self._take(reading)
+        if taken and self.step_on == {"local_position": "position"}.get(reading.kind, reading.kind):
             if self.step_index is None:
                 self._start()
             if self.step_index is not None and self.time_of(self.step_index - 1) < reading.time <= self.time_of(self.step_index):
                 return self._take_steps(self.step_index + 1)
         return []
 
-    def _take(self, reading: Reading) -> None:
+    def _take(self, reading: Reading) -> bool:
+        """Keep the reading for the next step; whether it was kept as a measurement."""
         if reading.kind == "thrust":
             self._input = np.asarray(reading.values, dtype=float)
             self.thrust_seen = True
-            return
+            return False
         kind = {"local_position": "position", "position": "position", "heading": "heading"}.get(reading.kind)
         channel = self.channels.get(kind)
         if channel is None:
-            return  # rate of turn and the error ellipse are counted by the parser, not used
+            return False  # rate of turn and the error ellipse are counted by the parser, not used
         if reading.kind == "position":
             latitude, longitude, quality, hdop = reading.values
-            if quality < self.gates.min_quality:
+            # 6 estimated (the receiver's own dead reckoning), 7 manual, 8 simulator: never a fix
+            if quality < self.gates.min_quality or quality in (6.0, 7.0, 8.0):
                 channel.counts["quality"] += 1
-                return
-            if hdop > self.gates.max_hdop:
+                return False
+            if hdop > self.gates.max_hdop:  # an HDOP the sentence leaves empty (NaN) passes
                 channel.counts["hdop"] += 1
-                return
+                return False
             if self.frame is None:
                 self.frame = LocalFrame(latitude, longitude)
                 self._event("frame", reading.time, latitude=latitude, longitude=longitude)
@@ -275,13 +277,14 @@ class Session:
             value = (angle - 2 * math.pi * math.floor((angle + math.pi) / (2 * math.pi)),)
         if channel.source is not None and reading.source != channel.source and reading.time - channel.source_time <= channel.timeout:
             channel.counts["other_source"] += 1
-            return
+            return False
         if reading.source != channel.source:
             self._event("source", reading.time, channel=channel.name, source=reading.source, previous=channel.source)
             channel.source = reading.source
         channel.source_time = reading.time
         channel.new, channel.new_time = value, reading.time
         channel.counts["accepted"] += 1
+        return True
 
     # ----------------------------------------------------------------- stepping
     def time_of(self, n: int) -> float:
@@ -399,12 +402,14 @@ class Session:
             if n > 1:
                 for i in np.flatnonzero(refused)[:10]:
                     self._event("refused", times[i], reason="the step is not finite; the state is kept")
-        self._events(times, estimates)
+        self._events(times[healthy], {name: np.asarray(value)[healthy] for name, value in estimates.items()})
         self.steps += n
         return Block(times, session_times, estimates, measurement, inputs, np.full(n, seconds))
 
     def _events(self, times: np.ndarray, estimates: dict) -> None:
         """Count gated points and report outages from the steps' flags."""
+        if len(times) == 0:  # every step refused
+            return
         for channel in self.channels.values():
             short = channel.kind
             if len(times) == 1:  # a live step: the same on Python numbers (a tenth of the time)
