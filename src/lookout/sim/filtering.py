@@ -520,9 +520,11 @@ class Stepper:
             raise ValueError("us must be finite (the input applied until t + dt)")
         self._check_step(dt, ys[0], us[0])
         packed = np.concatenate([times[:, None], np.full((n, 1), dt), ys, us], axis=1)
-        # rows padded to a power of two (at least 64) and masked: one compilation serves
-        # every block up to that size
-        size = max(64, 1 << (n - 1).bit_length())
+        # rows padded to a power of two (at least 64, and at least the largest block so
+        # far) and masked: one compilation serves every block up to that size, a
+        # replay's last, shorter block included
+        size = max(64, 1 << (n - 1).bit_length(), getattr(self, "_scan_size", 0))
+        self._scan_size = size
         valid = np.arange(size) < n
         packed = np.concatenate([packed, np.repeat(packed[-1:], size - n, axis=0)])
         if not hasattr(self, "_scan"):
