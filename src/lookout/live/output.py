@@ -21,15 +21,8 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
+from lookout._json import json_safe
 from lookout.results import RecordSignals, Trajectory, write_netcdf
-
-
-def _plain(value):
-    array = np.asarray(value)
-    if array.ndim == 0:
-        number = float(array)
-        return number if math.isfinite(number) else None
-    return [None if not math.isfinite(v) else float(v) for v in array.ravel()]
 
 
 def json_line(block, i: int, frame=None, gated=(), outage=()) -> str:
@@ -37,7 +30,7 @@ def json_line(block, i: int, frame=None, gated=(), outage=()) -> str:
     line: ``time`` (the stream's clock), ``session_time``, each estimate by name (NaN as
     null), ``latitude_hat`` and ``longitude_hat`` when positions are fixes."""
     out = {"time": round(float(block.time[i]), 6), "session_time": round(float(block.session_time[i]), 6)}
-    out.update({name: _plain(value[i]) for name, value in block.estimate.items()})
+    out.update({name: json_safe(np.asarray(value[i])) for name, value in block.estimate.items()})
     north, east = np.asarray(block.estimate["position"][i], dtype=float)[:2] if "position" in block.estimate else (math.nan, math.nan)
     if frame is not None and math.isfinite(north) and math.isfinite(east):  # a refused step's row is NaN
         latitude, longitude, _ = frame.geodetic(north, east, 0.0)

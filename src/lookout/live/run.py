@@ -137,10 +137,20 @@ def replay(session: Session, log: str | Path, *, thrust: str | Path | None = Non
     return outcome
 
 
-def _emit(blocks, emit, outcome: Outcome) -> None:
+def _emit(blocks, emit, outcome: Outcome, arrivals: deque | None = None, clock=None) -> None:
+    """Hand each block to ``emit`` and count it; live (``arrivals`` of the readings not yet
+    in a step, and the ``clock``), the latency from the newest reading a step used to its
+    estimate leaving."""
     for block in blocks:
         if emit is not None:
             emit(block)
+        if arrivals is not None:
+            left = clock()
+            newest = None
+            while arrivals and arrivals[0] <= block.time[-1]:
+                newest = arrivals.popleft()
+            if newest is not None:
+                outcome.latency.add(left - newest)
         outcome.steps += len(block)
         outcome.processing.add(float(block.step_seconds[0]))
 
@@ -221,7 +231,7 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
                             arrival = clock()
                             for reading in (r for line in lines for r in parser.line(line, arrival, "")):
                                 arrivals.append(reading.time)
-                                _emit_live(session.feed(reading), emit, outcome, arrivals, clock)
+                                _emit(session.feed(reading), emit, outcome, arrivals, clock)
                         continue
                     origin = ""
                     lines = (thrust_splitter if is_thrust else splitter).feed(data)
@@ -234,14 +244,14 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
                 else:
                     readings = [r for line in lines for r in parser.line(line, arrival, origin)]
                 for reading in readings:
-                    _emit_live(session.advance(reading.time), emit, outcome, arrivals, clock)
+                    _emit(session.advance(reading.time), emit, outcome, arrivals, clock)
                     arrivals.append(reading.time)
-                    _emit_live(session.feed(reading), emit, outcome, arrivals, clock)
+                    _emit(session.feed(reading), emit, outcome, arrivals, clock)
                     outcome.readings += 1
                     if outcome.first_time is None:
                         outcome.first_time = reading.time
                     outcome.last_time = reading.time
-            _emit_live(session.advance(clock()), emit, outcome, arrivals, clock)
+            _emit(session.advance(clock()), emit, outcome, arrivals, clock)
             if status is not None and clock() - last_status > status_every:
                 last_status = clock()
                 outcome.wall_seconds = last_status - started
@@ -250,17 +260,3 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
         pass
     outcome.wall_seconds = clock() - started
     return outcome
-
-
-def _emit_live(blocks, emit, outcome: Outcome, arrivals: deque, clock) -> None:
-    for block in blocks:
-        if emit is not None:
-            emit(block)
-        left = clock()
-        newest = None
-        while arrivals and arrivals[0] <= block.time[-1]:
-            newest = arrivals.popleft()
-        if newest is not None:  # from the newest reading the step used to its estimate leaving
-            outcome.latency.add(left - newest)
-        outcome.steps += len(block)
-        outcome.processing.add(float(block.step_seconds[0]))

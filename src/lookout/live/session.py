@@ -111,10 +111,6 @@ class Block:
     def __len__(self) -> int:
         return self.time.size
 
-    def row(self, i: int) -> dict:
-        """Step ``i`` as a dict (``time``, ``session_time``, ``estimate``...)."""
-        return {"time": float(self.time[i]), "session_time": float(self.session_time[i]),
-                "estimate": {name: value[i] for name, value in self.estimate.items()}}
 
 
 @dataclass
@@ -242,7 +238,8 @@ class Session:
             if self.step_index is None:
                 self._start()
             if self.step_index is not None and self.time_of(self.step_index - 1) < reading.time <= self.time_of(self.step_index):
-                return self._take_steps(self.step_index + 1)
+                end = self.step_index + 1
+                return self._take_steps(lambda: self.step_index < end)
         return []
 
     def _take(self, reading: Reading) -> bool:
@@ -322,10 +319,7 @@ class Session:
         return self._take_steps(lambda: self.time_of(self.step_index) < until)
 
     def _take_steps(self, more) -> list[Block]:
-        """Steps from ``step_index`` on while ``more()``, or up to ``more`` (an int, exclusive)."""
-        if isinstance(more, int):
-            end = more
-            more = lambda: self.step_index < end  # noqa: E731
+        """Steps from ``step_index`` on while ``more()``."""
         blocks = []
         while more():
             self._row(self.step_index)
@@ -339,9 +333,7 @@ class Session:
         first steps of a live session are not late by a compilation."""
         raw = np.zeros(self._size + len(self.channels))
         self.stepper = Stepper(self.gated_observer, self.guess, raw)
-        checkpoint = self.stepper.checkpoint()
-        self.stepper(0.0, raw, np.zeros_like(self._input), self.sample_period)
-        self.stepper.restore(checkpoint)
+        self.stepper(0.0, raw, np.zeros_like(self._input), self.sample_period)  # the first real step resets it
 
     def finish(self) -> list[Block]:
         """Run the steps kept for a batch."""

@@ -476,15 +476,6 @@ class Stepper:
             raise ValueError("dt: " + _too_long(radius, dt, "a step of"))
         self._checked_step = dt
 
-    def checkpoint(self) -> tuple:
-        """The state and the time of the last call, to :meth:`restore` (a live session
-        takes a step back when a reading turns out to be a wild point)."""
-        return (self._flat_state, self._last_time)
-
-    def restore(self, checkpoint: tuple) -> None:
-        """Go back to a :meth:`checkpoint` of this stepper."""
-        self._flat_state, self._last_time = checkpoint
-
     def template(self) -> dict:
         """The estimate's names and shapes (arrays of NaN), without stepping."""
         return jax.tree.unflatten(self._estimate_tree, [np.full(shape, np.nan) for _, _, shape in self._pieces])
