@@ -12,6 +12,7 @@ from typing import Annotated, Optional
 import typer
 
 from lookout._validation import InputError
+from lookout.live.session import Gates  # the defaults of the gate options
 
 #: Steps per compiled scan in a fast replay.
 REPLAY_BATCH = 4096
@@ -160,12 +161,12 @@ def replay_command(
     fast: Annotated[bool, typer.Option("--fast", help="As fast as it goes (the default).")] = False,
     publish: Publish = None,
     origin: Origin = None,
-    min_quality: MinQuality = 1,
-    max_hdop: MaxHdop = 5.0,
-    position_gate: PositionGate = 30.0,
-    heading_gate: HeadingGate = 15.0,
-    position_timeout: PositionTimeout = 2.5,
-    heading_timeout: HeadingTimeout = 1.0,
+    min_quality: MinQuality = Gates.min_quality,
+    max_hdop: MaxHdop = Gates.max_hdop,
+    position_gate: PositionGate = Gates.position_gate,
+    heading_gate: HeadingGate = Gates.heading_gate,
+    position_timeout: PositionTimeout = Gates.position_timeout,
+    heading_timeout: HeadingTimeout = Gates.heading_timeout,
     flush_every: FlushEvery = 1000,
     truth: Annotated[Optional[str], typer.Option(metavar="TRUTH.nc", help="The run behind a simulated log (lookout write-log), for --figure.")] = None,
     figure: Annotated[Optional[str], typer.Option(metavar="FILE.png", help="Draw the estimates (against --truth if given) from --out.")] = None,
@@ -263,12 +264,12 @@ def live_command(
     duration: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop after this long.")] = None,
     idle: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long (counted from the first data).")] = None,
     origin: Origin = None,
-    min_quality: MinQuality = 1,
-    max_hdop: MaxHdop = 5.0,
-    position_gate: PositionGate = 30.0,
-    heading_gate: HeadingGate = 15.0,
-    position_timeout: PositionTimeout = 2.5,
-    heading_timeout: HeadingTimeout = 1.0,
+    min_quality: MinQuality = Gates.min_quality,
+    max_hdop: MaxHdop = Gates.max_hdop,
+    position_gate: PositionGate = Gates.position_gate,
+    heading_gate: HeadingGate = Gates.heading_gate,
+    position_timeout: PositionTimeout = Gates.position_timeout,
+    heading_timeout: HeadingTimeout = Gates.heading_timeout,
     flush_every: FlushEvery = 100,
     quiet: Quiet = False,
 ) -> None:
