@@ -108,11 +108,12 @@ def _velocity(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0
     )
 
 
-def _sliding_mode_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0, hold="measurement") -> Scenario:
+def _sliding_mode_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0, hold="measurement", thrusters=False) -> Scenario:
     """Kim (2002): the sliding-mode observer in closed loop with observer backstepping,
-    a reference filter and thrust limits; ``gain`` scales H3, H4 and Kbar."""
+    a reference filter and thrust limits (or, with ``thrusters``, the supply vessel's
+    thrusters and QP allocation); ``gain`` scales H3, H4 and Kbar."""
     from lookout import PositionHeadingSensor
-    from lookout.actuators import SaturatingActuator
+    from lookout.actuators import SaturatingActuator, ThrusterLayout, ThrusterSystem
     from lookout.controllers import ObserverBackstepping
     from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT, VesselState, northern_clipper
     from lookout.papers import fossen_strand_1999 as fs
@@ -137,7 +138,7 @@ def _sliding_mode_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, dura
         base.plant, sensor, observer, controller, start, start if perfect else observer.guess(),
         plant_step=config.plant_step, sample_period=config.sample_period, duration=config.duration,
         reference=ReferenceFilter.vessel(0.05, [0.0, 5.0], [[0.0, 0.0, 0.0], [10.0, 5.0, 0.1]]),
-        actuator=SaturatingActuator(NORTHERN_CLIPPER_THRUST_LIMIT),
+        actuator=ThrusterSystem(ThrusterLayout.supply_vessel()) if thrusters else SaturatingActuator(NORTHERN_CLIPPER_THRUST_LIMIT),
     )
 
 
@@ -309,6 +310,11 @@ CASES = [
         "sliding-mode observer and backstepping (Kim 2002)", _sliding_mode_loop,
         exact=(("continuous", {}), ("sampled", {"hold": "innovation"})), error_variable="velocity", gradient="forward",
     ),
+    # the same loop through thrusters: rate limits and QP allocation bind from the first sample
+    Case(
+        "sliding-mode observer and backstepping through thrusters (Kim 2002)", functools.partial(_sliding_mode_loop, thrusters=True),
+        exact=(("sampled", {"hold": "innovation"}),), error_variable="velocity", gradient="forward",
+    ),
     Case(
         "adaptive observer and vectorial backstepping (Calugi et al. 2003)", _adaptive_loop,
         exact=(("continuous", {"form": "continuous"}),), error_variable="velocity", gradient="forward",
@@ -475,7 +481,7 @@ def test_decimated_records_are_every_nth_sample_of_the_full_run(case):
 
 GRADIENT_CASES = [c for c in CASES if c.gradient is not None and c.name.split(" (")[0] in (
     "passive observer", "parameter estimator", "sliding-mode observer and backstepping",
-    "adaptive observer with resetting and observer backstepping",
+    "sliding-mode observer and backstepping through thrusters", "adaptive observer with resetting and observer backstepping",
 )]
 
 

@@ -24,8 +24,8 @@ At sample k, time t_k::
     e_k   = observer.output(S, y_k)                 labelled estimate at t_k
     R, r_k = reference.step(R, t_k, dt, normals)
     C, u_k = controller.step(C, t_k, y_k, e_k, r_k, dt)
-    v_k   = actuator.apply(u_k)
-    record (truth, e_k, y_k, r_k, u_k, v_k)
+    A, v_k = actuator.step(A, t_k, u_k, dt)         applied input (and actuator outputs a_k)
+    record (truth, e_k, y_k, r_k, u_k, v_k, a_k)
     x(t_k+1) = integrate plant.vector_field(t, x, v_k, w) over [t_k, t_k+1]
     S     = observer.predict(S, t_k, y_k, v_k, dt)
 """
@@ -341,7 +341,39 @@ class Controller(eqx.Module):
 
 
 class Actuator(eqx.Module):
-    """What the plant receives for a commanded input (limits, saturation)."""
+    """What the plant receives for a commanded input: limits, thrusters and their allocation.
+
+    An actuator may have a state (a thruster's delivered thrust and angle, the last
+    allocation) that the engine carries from sample to sample: :meth:`step` maps the
+    command ``u_k`` at ``t_k`` to the input applied over [t_k, t_k+1] and the state at
+    t_k+1. ``output_signals`` are what it records besides the applied input (each
+    thruster's commanded and delivered thrust), by name, as :meth:`step` returns them.
+    """
+
+    output_signals: eqx.AbstractVar[tuple[Signal, ...]]
+
+    @abc.abstractmethod
+    def init(self):
+        """Internal state at t_0 (a PyTree; ``()`` for none)."""
+
+    @abc.abstractmethod
+    def step(self, state, t, u: Array, dt):
+        """``(state, applied, outputs)``: the input applied over [t, t + dt] for the
+        command ``u``, the state at t + dt, and ``{name: value}`` of :attr:`output_signals`."""
+
+
+class StatelessActuator(Actuator):
+    """An actuator that is a function of the command alone (saturation, identity)."""
+
+    @property
+    def output_signals(self) -> tuple[Signal, ...]:
+        return ()
+
+    def init(self):
+        return ()
+
+    def step(self, state, t, u: Array, dt):
+        return state, self.apply(u), {}
 
     @abc.abstractmethod
     def apply(self, u: Array) -> Array:

@@ -127,8 +127,14 @@ KINDS: dict[str, dict[str, Any]] = {
         "ellipse": "lookout.reference:EllipseReference",
     },
     "actuator": {
-        "ideal": "lookout.actuators:IdealActuator",
-        "thrust-limits": "lookout.actuators:SaturatingActuator",
+        "ideal": "lookout.actuators.limits:IdealActuator",
+        "thrust-limits": "lookout.actuators.limits:SaturatingActuator",
+        "thrusters": "lookout.actuators.thrusters:ThrusterSystem",
+    },
+    "layout": {
+        "supply-vessel": "lookout.actuators.layout:ThrusterLayout.supply_vessel",
+        "cybership-ii": "lookout.actuators.layout:ThrusterLayout.cybership_ii",
+        "custom": "lookout.actuators.layout:ThrusterLayout",
     },
 }
 

@@ -35,15 +35,16 @@ class RecordSignals:
     measurement: Layout
     reference: tuple[Signal, ...]
     input: Layout
+    actuation: tuple[Signal, ...] = ()
 
     def variables(self) -> list[tuple[str, str, Signal]]:
         """``(group, variable name, signal)`` for every recorded quantity, in order.
 
         Groups: ``truth``, ``estimate``, ``measurement``, ``reference``,
-        ``command``, ``applied``. An estimate of a plant variable is named
+        ``command``, ``applied``, ``actuation``. An estimate of a plant variable is named
         ``<name>_hat``; the observer's extra outputs (innovations, parameter
         estimates) keep their names; inputs are ``<name>_commanded`` and
-        ``<name>_applied``.
+        ``<name>_applied``; the actuator's outputs (each thruster's thrust) keep their names.
         """
         rows = [("truth", s.name, s) for s in self.truth]
         rows += [("estimate", f"{s.name}_hat", s) for s in self.estimate]
@@ -52,6 +53,7 @@ class RecordSignals:
         rows += [("reference", s.name, s) for s in self.reference]
         rows += [("command", f"{s.name}_commanded", s) for s in self.input.signals]
         rows += [("applied", f"{s.name}_applied", s) for s in self.input.signals]
+        rows += [("actuation", s.name, s) for s in self.actuation]
         names = [name for _, name, _ in rows]
         duplicated = sorted({name for name in names if names.count(name) > 1})
         if duplicated:
@@ -83,6 +85,9 @@ class Trajectory(eqx.Module):
         The reference samples.
     command, applied : Array, shape ``([run,] time, n_u)``
         Commanded and applied input.
+    actuation : dict of Array
+        The actuator's outputs (:attr:`~lookout.components.Actuator.output_signals`),
+        empty for an actuator without any.
     signals : RecordSignals
         Names, units and frames.
     batched : bool
@@ -101,6 +106,7 @@ class Trajectory(eqx.Module):
     signals: RecordSignals = eqx.field(static=True)
     batched: bool = eqx.field(static=True, default=False)
     attrs: dict = eqx.field(static=True, default_factory=dict)
+    actuation: Any = eqx.field(default_factory=dict)
 
     def _groups(self) -> dict[str, dict]:
         return {
@@ -110,6 +116,7 @@ class Trajectory(eqx.Module):
             "reference": self.reference,
             "command": self.signals.input.split(np.asarray(self.command)),
             "applied": self.signals.input.split(np.asarray(self.applied)),
+            "actuation": self.actuation,
         }
 
     def to_xarray(self) -> xr.Dataset:

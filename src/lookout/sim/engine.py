@@ -10,8 +10,8 @@ runs in this order::
     3. e_k = observer.output(S, y_k)                  labelled estimate at t_k
     4. r_k = reference.step(R, t_k, dt, normals)
     5. u_k = controller.step(C, t_k, y_k, e_k, r_k, dt)
-    6. v_k = actuator.apply(u_k)
-    7. record (plant.variables(x(t_k)), e_k, y_k, r_k, u_k, v_k)
+    6. A, v_k, a_k = actuator.step(A, t_k, u_k, dt)   applied input, actuator outputs
+    7. record (plant.variables(x(t_k)), e_k, y_k, r_k, u_k, v_k, a_k)
     8. plant integrated over [t_k, t_k+1] with v_k held (RK4 or Euler substeps of
        ``plant_step``, process noise held over each substep with variance
        1/plant_step), then ``plant.normalize``;
@@ -205,6 +205,7 @@ class Scenario(eqx.Module):
             measurement=self.sensor.measurement_layout,
             reference=tuple(self.reference.reference_signals),
             input=self.plant.input_layout,
+            actuation=tuple(self.actuator.output_signals),
         )
 
 
@@ -335,7 +336,9 @@ def _check_fit(scenario: Scenario) -> None:
     )
     if _shape_of(u) != (layout.size,):
         raise ValueError(f"controller and plant disagree: the controller's input has shape {_shape_of(u)}, the plant takes ({layout.size},)")
-    applied = _evaluate("actuator and plant", scenario.actuator.apply, u0)
+    actuator = scenario.actuator
+    _, applied, outputs = _evaluate("actuator and plant", lambda: actuator.step(actuator.init(), 0.0, u0, scenario.sample_period))
+    _compare("actuator", "its signals", "actuator.step", {k: _shape_of(v) for k, v in outputs.items()}, actuator.output_signals)
     if _shape_of(applied) != (layout.size,):
         raise ValueError(f"actuator and plant disagree: the applied input has shape {_shape_of(applied)}, the plant takes ({layout.size},)")
 
@@ -427,7 +430,7 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
     sensor, observer, reference, controller = scenario.sensor, scenario.observer, scenario.reference, scenario.controller
     h, substeps, dt = scenario.plant_step, scenario.substeps, scenario.sample_period
     integrate = INTEGRATORS[scenario.integrator]
-    state, estimate_state, held, reference_state, control_state = carry
+    state, estimate_state, held, reference_state, control_state, actuator_state = carry
     t = _sample_time(scenario, k)
     noise = _process_noise(scenario, key, k)
 
@@ -445,8 +448,9 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
     # the applied input is read by every integration stage of plant and observer:
     # computed once (a value made in the loop body is otherwise recomputed by XLA:CPU
     # in every kernel that reads it)
-    applied = computed_once(scenario.actuator.apply(command))
-    record = (plant.variables(state), estimate, y, reference_sample, command, applied)
+    actuator_state, applied, actuation = scenario.actuator.step(actuator_state, t, command, dt)
+    applied = computed_once(applied)
+    record = (plant.variables(state), estimate, y, reference_sample, command, applied, actuation)
 
     if scenario.observer_mode == "sampled":
         estimate_state = observer.predict(estimate_state, t, y, applied, dt)
@@ -467,11 +471,11 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
 
         (state, estimate_state), _ = _static_scan(substep, (state, estimate_state), jnp.arange(substeps), substeps)
         estimate_state = observer.normalize(estimate_state)
-    return (plant.normalize(state), estimate_state, y, reference_state, control_state), record
+    return (plant.normalize(state), estimate_state, y, reference_state, control_state, actuator_state), record
 
 
 def _initial_carry(scenario: Scenario, key: Array):
-    """Plant state, observer state, held sensor samples, reference and controller state.
+    """Plant state, observer state, held sensor samples, reference, controller and actuator state.
 
     The observer starts from ``observer.init(y_0, initial_estimate)`` with y_0 the
     sample that sample 0 takes (the same numbers: the noise is a function of the
@@ -484,7 +488,9 @@ def _initial_carry(scenario: Scenario, key: Array):
         y0 = scenario.sensor.sample(0.0, x0, _sensor_noise(scenario, key, jnp.asarray(0), jnp.asarray(True)))
     else:
         y0 = scenario.sensor.ideal(x0)
-    carry = (x0, scenario.observer.init(y0, scenario.initial_estimate), y0, scenario.reference.init(), scenario.controller.init())
+    carry = (
+        x0, scenario.observer.init(y0, scenario.initial_estimate), y0, scenario.reference.init(), scenario.controller.init(), scenario.actuator.init(),
+    )
     return jax.tree.map(lambda leaf: jnp.asarray(leaf, dtype=jnp.result_type(leaf)), carry)
 
 
@@ -494,7 +500,7 @@ class Summary(eqx.Module):
     The engine calls :meth:`init` once with the shapes of a record, then, at every
     recorded sample i (in order), ``accumulated, series_i = update(accumulated, i,
     record)``, and keeps every ``series_i`` (None keeps nothing); ``record`` is
-    ``(truth, estimate, measurement, reference, command, applied)`` of one run, as
+    ``(truth, estimate, measurement, reference, command, applied, actuation)`` of one run, as
     :class:`~lookout.Trajectory` holds them without the run and time axes.
     Subclasses hold only static configuration (one compiled program per
     configuration).
@@ -590,10 +596,10 @@ def _run(step: Callable, carry, n_records: int, progress, chunks: int, time_axis
 
 
 def _trajectory(scenario: Scenario, records, batched: bool) -> Trajectory:
-    truth, estimate, measurement, reference, command, applied = records
+    truth, estimate, measurement, reference, command, applied, actuation = records
     return Trajectory(
         scenario.record_times, truth, estimate, measurement, reference, command, applied,
-        signals=scenario.record_signals, batched=batched, attrs=_attrs(scenario),
+        signals=scenario.record_signals, batched=batched, attrs=_attrs(scenario), actuation=actuation,
     )
 
 
@@ -697,7 +703,7 @@ def record_nbytes(scenario: Scenario) -> int:
     estimate, measurement, reference and inputs), from the signals the components
     declare (the fit check made sure the records have those shapes), without a trace."""
     signals = scenario.record_signals
-    size = sum(s.size for s in (*signals.truth, *signals.estimate, *signals.extra, *signals.reference))
+    size = sum(s.size for s in (*signals.truth, *signals.estimate, *signals.extra, *signals.reference, *signals.actuation))
     return int((size + signals.measurement.size + 2 * signals.input.size) * jnp.zeros(()).dtype.itemsize)
 
 

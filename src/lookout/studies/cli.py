@@ -96,7 +96,7 @@ def _batched(trajectory):
         return trajectory
     add = lambda tree: jax.tree.map(lambda a: a[None], tree)  # noqa: E731
     return Trajectory(trajectory.time, add(trajectory.truth), add(trajectory.estimate), add(trajectory.measurement), add(trajectory.reference),
-                      add(trajectory.command), add(trajectory.applied), trajectory.signals, True, trajectory.attrs)
+                      add(trajectory.command), add(trajectory.applied), trajectory.signals, True, trajectory.attrs, add(trajectory.actuation))
 
 
 def run(

@@ -217,7 +217,7 @@ class MetricSummary(Summary):
 
     def terms(self, index, record, origin):
         """One record's contribution (one run): see the class docstring."""
-        truth, estimate, _, reference, _, applied = record
+        truth, estimate, _, reference, _, applied, _ = record
         inputs = self.layout.split(applied)
         window = index >= self.first
 
@@ -390,6 +390,7 @@ def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, div
     """
     time = np.asarray(trajectory.time)
     plan = summary(trajectory.signals, time, metrics, after=after, divergence=divergence, outage=outage)
-    records = (trajectory.truth, trajectory.estimate, trajectory.measurement, trajectory.reference, trajectory.command, trajectory.applied)
+    records = (trajectory.truth, trajectory.estimate, trajectory.measurement, trajectory.reference, trajectory.command, trajectory.applied,
+               trajectory.actuation)
     result = _reduce_records(plan, records, jnp.asarray(time))
     return {name: np.asarray(value) for name, value in result.items()}

@@ -1,4 +1,4 @@
-"""Actuators: what the plant receives for a commanded input."""
+"""Actuators without a state: the command unchanged, or limited entry by entry."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout.components import Actuator
+from lookout.components import StatelessActuator
 
 
 @final
-class IdealActuator(Actuator):
+class IdealActuator(StatelessActuator):
     """The plant receives the commanded input unchanged (no limits)."""
 
     def apply(self, u):
@@ -38,7 +38,7 @@ def _limit_vector(limit, size: int | None):
 
 
 @final
-class SaturatingActuator(Actuator):
+class SaturatingActuator(StatelessActuator):
     """Symmetric magnitude saturation per input entry: applied = clip(u, -limit, limit).
 
     Each entry of the plant's input (e.g. surge force, sway force, yaw moment of a

@@ -1,0 +1,302 @@
+"""A vessel's thrusters as data: kind, position, limits and response of each.
+
+Three kinds of thruster (Fossen, *Handbook of Marine Craft Hydrodynamics and Motion
+Control*, 2011, Section 12.3, actuator models and the extended thrust formulation):
+
+``tunnel``
+    Thrust T along a fixed direction (``direction``, 90 deg for a sideways tunnel),
+    ``min_thrust <= T <= max_thrust``.
+``azimuth``
+    Thrust 0 <= T <= ``max_thrust`` along the thruster's angle alpha, which turns at
+    most ``turn_rate`` (rad/s).
+``main``
+    A main propeller with a rudder behind it: thrust T along ``direction`` (0 deg:
+    ahead), ``min_thrust`` (astern, <= 0) to ``max_thrust``, and the rudder's lift
+    L = ``rudder_lift`` * delta * max(T, 0) across it (a slipstream model: lift grows
+    with the rudder angle delta and the propeller's thrust, and vanishes astern; drag
+    neglected), |delta| <= ``max_rudder``, turning at most ``turn_rate``.
+
+Every thruster's thrust follows its command as a first-order lag of ``time_constant``
+(s) and changes at most ``thrust_rate`` (N/s). A thruster at body-fixed position
+(x, y) whose force is (F_x, F_y) gives the generalized force
+(F_x, F_y, x F_y - y F_x) in surge, sway and yaw.
+
+For allocation each thruster has "extended" variables whose map to the generalized
+force is linear: a tunnel's T; an azimuth's force components (F_x, F_y) (Fossen
+(2011), eq. (12.247)); a main propeller's T and rudder lift L. :attr:`B` is that map.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import final
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from lookout import _validation as check
+
+#: The kinds of thruster.
+THRUSTER_KINDS = ("tunnel", "azimuth", "main")
+
+
+def magnitude(x, y):
+    """sqrt(x^2 + y^2) with a finite derivative at the origin (0 there, not NaN)."""
+    square = x**2 + y**2
+    return jnp.where(square > 0, jnp.sqrt(jnp.where(square > 0, square, 1.0)), 0.0)
+
+
+def direction_of(x, y, fallback):
+    """atan2(y, x), and ``fallback`` where (x, y) is the origin (finite derivatives both ways)."""
+    zero = (x == 0) & (y == 0)
+    return jnp.where(zero, fallback, jnp.arctan2(jnp.where(zero, 0.0, y), jnp.where(zero, 1.0, x)))
+
+
+def _column(name: str, value, count: int) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.ndim == 0:
+        array = np.full(count, float(array))
+    if array.shape != (count,):
+        raise ValueError(f"{name} must have one entry per thruster ({count}); got shape {array.shape}")
+    return array
+
+
+@final
+class ThrusterLayout(eqx.Module):
+    """A vessel's thrusters: one entry per thruster in every column.
+
+    Parameters
+    ----------
+    names : sequence of str
+        A distinct name per thruster (the labels of its records).
+    kinds : sequence of str
+        ``"tunnel"``, ``"azimuth"`` or ``"main"`` (a main propeller with a rudder).
+    x, y : array_like
+        Position of each thruster, body-fixed, forward and starboard of the origin (m).
+    direction : array_like
+        A tunnel's thrust direction and a main propeller's (rad from the bow,
+        clockwise seen from above; pi/2 pushes to starboard); an azimuth's initial angle.
+    max_thrust : array_like
+        Largest thrust (N); positive.
+    min_thrust : array_like
+        Smallest thrust (N, negative: astern or to port). An
+        azimuth's is 0 whatever is given (it turns instead of reversing). Between
+        -max_thrust and 0.
+    thrust_rate : array_like, optional
+        Largest change of thrust per second (N/s); positive. None: no limit.
+    time_constant : array_like
+        Time constant of the first-order response of thrust to its command (s);
+        non-negative, 0 for an instant response.
+    turn_rate : array_like, optional
+        Largest turning rate of an azimuth or a rudder (rad/s); positive. None: no
+        limit. A tunnel's is not used.
+    max_rudder : array_like
+        A main propeller's largest rudder angle (rad); positive, below pi/2. Not
+        used by the other kinds.
+    rudder_lift : array_like
+        A main propeller's rudder lift per radian of rudder angle per newton of thrust
+        (1/rad); non-negative. Not used by the other kinds.
+    weight : array_like
+        Allocation weight of each thruster's squared thrust relative to its largest
+        (1); positive. A larger weight spares the thruster.
+    """
+
+    names: tuple[str, ...] = eqx.field(static=True)
+    kinds: tuple[str, ...] = eqx.field(static=True)
+    x: np.ndarray
+    y: np.ndarray
+    direction: np.ndarray
+    max_thrust: np.ndarray
+    min_thrust: np.ndarray
+    thrust_rate: np.ndarray
+    time_constant: np.ndarray
+    turn_rate: np.ndarray
+    max_rudder: np.ndarray
+    rudder_lift: np.ndarray
+    weight: np.ndarray
+
+    def __init__(
+        self, names, kinds, x, y, direction, max_thrust, min_thrust=0.0, thrust_rate=None,
+        time_constant=0.0, turn_rate=None, max_rudder=0.6, rudder_lift=0.0, weight=1.0,
+    ):
+        thrust_rate = math.inf if thrust_rate is None else thrust_rate
+        turn_rate = math.inf if turn_rate is None else turn_rate
+        if isinstance(names, str) or isinstance(kinds, str):
+            raise ValueError("names and kinds must be lists of strings, one per thruster")
+        self.names = tuple(str(n) for n in names)
+        self.kinds = tuple(str(k) for k in kinds)
+        count = len(self.names)
+        if count == 0:
+            raise ValueError("names must name at least one thruster")
+        if len(self.kinds) != count:
+            raise ValueError(f"kinds must have one entry per thruster ({count}); got {len(self.kinds)}")
+        unknown = sorted(set(self.kinds) - set(THRUSTER_KINDS))
+        if unknown:
+            raise ValueError(f"kinds must be among {', '.join(THRUSTER_KINDS)}; got {', '.join(unknown)}")
+        if len(set(self.names)) != count:
+            raise ValueError(f"names must be distinct; got {list(self.names)}")
+        columns = dict(
+            x=x, y=y, direction=direction, max_thrust=max_thrust, min_thrust=min_thrust, thrust_rate=thrust_rate,
+            time_constant=time_constant, turn_rate=turn_rate, max_rudder=max_rudder, rudder_lift=rudder_lift, weight=weight,
+        )
+        for name, value in columns.items():
+            array = _column(name, value, count)
+            if name == "min_thrust":
+                array = np.where(np.asarray(self.kinds) == "azimuth", 0.0, array)
+            if np.any(np.isnan(array)):
+                raise ValueError(f"{name} must not be NaN; got {check._fmt(array)}")
+            setattr(self, name, array)
+        self._check()
+
+    def _check(self):
+        finite = ("x", "y", "direction", "max_thrust", "min_thrust", "max_rudder", "rudder_lift", "weight")
+        for name in finite:
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise ValueError(f"{name} must be finite; got {check._fmt(getattr(self, name))}")
+        for name in ("max_thrust", "thrust_rate", "turn_rate", "weight"):
+            if np.any(getattr(self, name) <= 0):
+                raise ValueError(f"{name} must be positive; got {check._fmt(getattr(self, name))}")
+        if np.any(self.time_constant < 0):
+            raise ValueError(f"time_constant must be non-negative; got {check._fmt(self.time_constant)}")
+        if np.any(self.min_thrust > 0) or np.any(self.min_thrust < -self.max_thrust):
+            raise ValueError(f"min_thrust must be in [-max_thrust, 0]; got {check._fmt(self.min_thrust)}")
+        main = self.is_kind("main")
+        if np.any(main & ((self.max_rudder <= 0) | (self.max_rudder >= math.pi / 2))):
+            raise ValueError(f"max_rudder must be in (0, pi/2) for a main propeller; got {check._fmt(self.max_rudder[main])}")
+        if np.any(self.rudder_lift < 0):
+            raise ValueError(f"rudder_lift must be non-negative; got {check._fmt(self.rudder_lift)}")
+        rank = np.linalg.matrix_rank(self.B)
+        if rank < 3:
+            raise ValueError(
+                f"the thrusters {list(self.names)} span only {rank} of surge, sway and yaw: "
+                "a layout must be able to push in every direction and turn (check x, y, direction and rudder_lift)"
+            )
+
+    # -- structure -------------------------------------------------------------------------
+
+    @property
+    def size(self) -> int:
+        """Number of thrusters."""
+        return len(self.names)
+
+    def is_kind(self, kind: str) -> np.ndarray:
+        """Boolean mask of the thrusters of ``kind``."""
+        return np.asarray(self.kinds) == kind
+
+    @property
+    def variables(self) -> tuple[tuple[int, str], ...]:
+        """The extended variables, in order: (thruster index, part), part one of
+        ``"thrust"`` (a tunnel's or a main propeller's T), ``"x"``, ``"y"`` (an
+        azimuth's force components) and ``"lift"`` (a main propeller's rudder lift)."""
+        parts = {"tunnel": ("thrust",), "azimuth": ("x", "y"), "main": ("thrust", "lift")}
+        return tuple((i, part) for i, kind in enumerate(self.kinds) for part in parts[kind])
+
+    def _variable_direction(self, i: int, part: str) -> float:
+        if part == "x":
+            return 0.0
+        if part == "y":
+            return math.pi / 2
+        return float(self.direction[i]) + (math.pi / 2 if part == "lift" else 0.0)
+
+    @property
+    def B(self) -> np.ndarray:
+        """The (3, n_variables) map from the extended variables to (X, Y, N)."""
+        columns = []
+        for i, part in self.variables:
+            angle = self._variable_direction(i, part)
+            fx, fy = math.cos(angle), math.sin(angle)
+            columns.append([fx, fy, self.x[i] * fy - self.y[i] * fx])
+        return np.asarray(columns, dtype=float).T
+
+    @property
+    def variable_scale(self) -> np.ndarray:
+        """Each extended variable's largest magnitude (N): the thruster's largest
+        thrust; for a rudder's lift, rudder_lift * max_rudder * max_thrust (at least
+        a millionth of the thrust, so that a lift-less rudder still scales)."""
+        scale = []
+        for i, part in self.variables:
+            value = float(self.max_thrust[i])
+            if part == "lift":
+                value = max(value * float(self.rudder_lift[i] * self.max_rudder[i]), 1e-6 * value)
+            scale.append(value)
+        return np.asarray(scale)
+
+    @property
+    def force_scale(self) -> np.ndarray:
+        """(X, Y, N) scale: what every variable at its largest magnitude adds up to per axis."""
+        return np.abs(self.B) @ self.variable_scale
+
+    # -- the thrusters' forces --------------------------------------------------------------
+
+    def forces(self, thrust, angle):
+        """Generalized force (X, Y, N) of the thrusters at ``thrust`` (n,) and ``angle`` (n,).
+
+        ``angle`` is an azimuth's angle and a main propeller's rudder angle (a tunnel's
+        is not read).
+        """
+        thrust, angle = jnp.asarray(thrust), jnp.asarray(angle)
+        azimuth = jnp.asarray(self.is_kind("azimuth"))
+        main = jnp.asarray(self.is_kind("main"))
+        heading = jnp.where(azimuth, angle, jnp.asarray(self.direction))
+        along = thrust
+        across = jnp.where(main, jnp.asarray(self.rudder_lift) * angle * jnp.maximum(thrust, 0.0), 0.0)
+        c, s = jnp.cos(heading), jnp.sin(heading)
+        fx = along * c - across * s
+        fy = along * s + across * c
+        moment = jnp.asarray(self.x) * fy - jnp.asarray(self.y) * fx
+        return jnp.stack([fx.sum(-1), fy.sum(-1), moment.sum(-1)], axis=-1)
+
+    # -- shipped layouts --------------------------------------------------------------------
+
+    @classmethod
+    def cybership_ii(cls, time_constant: float = 0.2) -> "ThrusterLayout":
+        """Cybership II, the 1:70 model supply ship of Wondergem et al. (2009), Section 5:
+        two screw-rudder pairs at the stern and a tunnel thruster in the bow.
+
+        The paper gives the layout in words and the largest generalized force (surge
+        2 N, sway 1.5 N, yaw 1.5 N m), not the thrusters' numbers; these are chosen
+        (a documented guess) on the 1.255 m hull so that the layout's reach stays within
+        those bounds: screws 1.0 N ahead and 0.5 N astern each at x = -0.55 m,
+        y = +-0.08 m, rudders +-35 deg at 1.5 rad/s with a lift of 0.6 per radian
+        (0.37 N of lift per rudder at full thrust); the bow tunnel +-0.75 N at
+        x = +0.47 m. Thrust changes at most 5 N/s (the paper: "the growth rate of the
+        actuated forces is limited", no number).
+
+        Parameters
+        ----------
+        time_constant : float
+            Thrust response time constant of every thruster (s); non-negative.
+        """
+        return cls(
+            names=("port-main", "starboard-main", "bow-tunnel"),
+            kinds=("main", "main", "tunnel"),
+            x=(-0.55, -0.55, 0.47), y=(-0.08, 0.08, 0.0), direction=(0.0, 0.0, math.pi / 2),
+            max_thrust=(1.0, 1.0, 0.75), min_thrust=(-0.5, -0.5, -0.75), thrust_rate=5.0,
+            time_constant=time_constant, turn_rate=1.5, max_rudder=math.radians(35.0), rudder_lift=0.6,
+        )
+
+    @classmethod
+    def supply_vessel(cls, time_constant: float = 2.0) -> "ThrusterLayout":
+        """A 76 m platform supply vessel the size of the Northern Clipper of Fossen &
+        Strand (1999): two bow tunnel thrusters and two azimuth thrusters aft.
+
+        Neither paper gives a thruster layout; this one is a plausible, documented guess
+        in the proportions of supply vessels of that length: bow tunnels of 130 kN
+        (about 1 MW each) at x = +30 and +27 m, azimuths of 300 kN (about 2.5 MW)
+        at x = -33 m, y = -+6 m turning at 10 deg/s. Thrust changes at most 40 kN/s per
+        tunnel and 60 kN/s per azimuth; thrust follows its command with a time
+        constant of ``time_constant``.
+
+        Parameters
+        ----------
+        time_constant : float
+            Thrust response time constant of every thruster (s); non-negative.
+        """
+        return cls(
+            names=("bow-tunnel-1", "bow-tunnel-2", "port-azimuth", "starboard-azimuth"),
+            kinds=("tunnel", "tunnel", "azimuth", "azimuth"),
+            x=(30.0, 27.0, -33.0, -33.0), y=(0.0, 0.0, -6.0, 6.0), direction=(math.pi / 2, math.pi / 2, 0.0, 0.0),
+            max_thrust=(1.3e5, 1.3e5, 3.0e5, 3.0e5), min_thrust=(-1.3e5, -1.3e5, 0.0, 0.0),
+            thrust_rate=(4.0e4, 4.0e4, 6.0e4, 6.0e4), time_constant=time_constant, turn_rate=math.radians(10.0),
+        )
