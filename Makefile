@@ -3,7 +3,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out/fossen-strand-1999
 
-.PHONY: demo test bench study observer-benchmark tuning-study clean
+.PHONY: demo test bench study observer-benchmark tuning-study thruster-study clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +45,10 @@ observer-benchmark: $(VENV)/.installed
 # docs/tuning/: lookout tune on six cases and the table of docs/tuning.md's study (about 12 minutes on 2 cores)
 tuning-study: $(VENV)/.installed
 	$(BIN)/python docs/tuning/study.py
+
+# docs/thrusters.md's allocation study: the papers' loops through thrusters (about 17 minutes on 2 cores)
+thruster-study: $(VENV)/.installed
+	$(BIN)/python docs/thrusters/study.py
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py

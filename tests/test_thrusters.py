@@ -16,6 +16,7 @@ from scipy.optimize import LinearConstraint, minimize
 from lookout.actuators import Allocator, ThrusterLayout, ThrusterSystem
 from lookout.actuators.qp import active_set
 from lookout.actuators.thrusters import at_limit, relative_power
+from lookout.studies.metrics import reduce, resolve, summarize
 
 LAYOUTS = {"supply-vessel": ThrusterLayout.supply_vessel, "cybership-ii": ThrusterLayout.cybership_ii}
 DT = 0.1
@@ -96,7 +97,7 @@ def test_saturated_allocation_meets_every_limit_and_minimizes_the_weighted_slack
         state = _random_state(system, rng, 5 + trial)
         tau = rng.uniform(-1, 1, 3) * layout.force_scale * (0.4 if trial % 2 else 2.5)
         u, info = allocate(allocator, jnp.asarray(tau), state[2], state[1])
-        G, h, start = (np.asarray(a) for a in allocator.constraints(state[2], state[1], DT))
+        G, h, start = (np.asarray(a) for a in allocator.constraints(state[2], state[1], DT, info["unconstrained"]))
         u = np.asarray(u)
         assert bool(info["converged"]) and bool(info["saturated"])
         assert np.all(G @ u <= h + 1e-9), (trial, np.max(G @ u - h))
@@ -184,12 +185,12 @@ def test_closed_loop_thrusters_never_exceed_their_limits():
 def test_limits_and_power_metrics():
     layout = ThrusterLayout.supply_vessel()
     thrust = np.array([[1.3e5, -1.3e5, 3.0e5, 0.0], [0.0, 0.0, 0.0, 0.0], [6.5e4, 0.0, 1.5e5, 1.5e5]])
-    np.testing.assert_array_equal(at_limit(layout, thrust), [[True, True, True, False], [False] * 4, [False] * 4])
-    power = relative_power(layout, thrust)
+    np.testing.assert_array_equal(at_limit(thrust, layout.max_thrust, layout.min_thrust), [[True, True, True, False], [False] * 4, [False] * 4])
+    power = np.asarray(relative_power(thrust, layout.max_thrust))
     assert power[1] == 0.0
     # at full thrust everywhere the installed power; at half thrust 2^-1.5 of it
-    assert relative_power(layout, layout.max_thrust) == pytest.approx(1.0)
-    assert relative_power(layout, 0.5 * layout.max_thrust) == pytest.approx(0.5**1.5)
+    assert float(relative_power(layout.max_thrust, layout.max_thrust)) == pytest.approx(1.0)
+    assert float(relative_power(0.5 * layout.max_thrust, layout.max_thrust)) == pytest.approx(0.5**1.5)
 
 
 def test_an_infeasible_command_is_a_shortfall_and_a_nan_command_is_nan():
@@ -225,6 +226,16 @@ def test_thrusters_are_recorded_with_units_and_a_thruster_dimension(tmp_path):
     path = ds.pipe(lambda d: __import__("lookout.results", fromlist=["write_netcdf"]).write_netcdf(d, tmp_path / "run.nc"))
     with xr.open_dataset(path) as back:
         np.testing.assert_array_equal(back.thrust.values, ds.thrust.values)
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from lookout.plotting import plot_run_thrusters
+
+    figure = plot_run_thrusters(ds)
+    lines = [line for axis in figure.axes for line in axis.get_lines()]
+    assert len(lines) >= 2 * 4 * 2  # delivered and commanded thrust of 4 thrusters, whole run and zoom
+    assert plot_run_thrusters(ds.drop_vars(["thrust"])) is None
 
 
 @pytest.mark.parametrize(
@@ -264,3 +275,49 @@ def test_the_shipped_layouts_reach_what_their_documentation_says():
     supply = Allocator(ThrusterLayout.supply_vessel())
     reach = supply.reach * supply.force_scale
     assert reach[1, 0] == pytest.approx(6.0e5, rel=1e-6)  # two azimuths of 300 kN ahead
+
+
+def test_thruster_metrics_in_the_scan_equal_them_from_the_records():
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
+    from test_conformance import _sliding_mode_loop
+
+    from lookout.sim import simulate_batch
+
+    scenario = _sliding_mode_loop(thrusters=True, duration=20.0)
+    metrics = resolve(["mean_power:thrust", "time_at_limit:thrust", "rms_error:velocity"], scenario)
+    keys = jax.random.split(jax.random.key(1), 2)
+    inside = summarize(scenario, keys, metrics, after=0.0)
+    batch = simulate_batch(scenario, keys)
+    outside = reduce(batch, metrics, after=0.0)
+    for name in ("mean_power__thrust", "time_at_limit__thrust"):
+        np.testing.assert_allclose(inside[name], outside[name], rtol=1e-12)
+    layout = scenario.actuator.layout
+    thrust = np.asarray(batch.actuation["thrust"])
+    np.testing.assert_allclose(inside["mean_power__thrust"], np.asarray(relative_power(thrust, layout.max_thrust)).mean(axis=1), rtol=1e-12)
+    expected = np.asarray(at_limit(thrust, layout.max_thrust, layout.min_thrust)).any(axis=-1).mean(axis=1)
+    np.testing.assert_allclose(inside["time_at_limit__thrust"], expected)
+    assert np.all(inside["mean_power__thrust"] > 0)
+    with pytest.raises(ValueError, match="mean_power:thrust"):
+        resolve(["mean_power:force"], scenario)
+
+
+@pytest.mark.parametrize("name", LAYOUTS)
+def test_qpax_and_the_active_set_method_find_the_same_allocation(name):
+    """The two QP solvers (lookout's active set, qpax's interior point) on the same
+    saturated problems: the same command to 1e-8 of the largest thrust."""
+    pytest.importorskip("qpax")
+    layout = LAYOUTS[name]()
+    ours, theirs = ThrusterSystem(layout), ThrusterSystem(layout, solver="qpax")
+    allocate = eqx.filter_jit(lambda a, tau, previous, angle: a.allocate(tau, previous, angle, DT))
+    rng = np.random.default_rng(3)
+    saturated = 0
+    for trial in range(10):
+        state = _random_state(ours, rng, 3 + trial)
+        tau = jnp.asarray(rng.uniform(-1, 1, 3) * layout.force_scale)
+        u, info = allocate(ours.allocator, tau, state[2], state[1])
+        v, _ = allocate(theirs.allocator, tau, state[2], state[1])
+        np.testing.assert_allclose(np.asarray(u), np.asarray(v), atol=1e-8)
+        saturated += bool(info["saturated"])
+    assert saturated >= 5

@@ -934,6 +934,69 @@ def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: 
                        compared_style=_DESIRED_STYLE, compared_label="commanded", truth_label="applied (= commanded)")
 
 
+def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+    """Each thruster's thrust and angle, commanded and delivered, and the allocation's
+    shortfall (``thrusters.png`` of ``lookout run`` with a thruster actuator).
+
+    Left the whole run, right a zoom on its last ``zoom`` seconds. Top: thrust per
+    thruster, the delivered thrust solid over the commanded one dotted, in the same
+    colour. Middle: the angle of each azimuth and rudder (deg), delivered solid,
+    commanded dotted (tunnels have none). Bottom: the largest part of the commanded
+    force the thrusters left unproduced, as a fraction of their reach, with the time
+    the allocation was saturated shaded.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        None when the dataset holds no thrusters (no variable ``thrust``).
+    """
+    import matplotlib.pyplot as plt
+
+    run = _check_run(ds, run)
+    if "thrust" not in ds.variables or "thruster" not in ds.dims:
+        return None
+    time = ds["time"].values
+    names = [str(n) for n in ds["thruster"].values]
+    turning = [i for i, name in enumerate(names) if np.ptp(ds["thruster_angle"].isel(run=run, thruster=i).values) > 0
+               or np.ptp(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values) > 0]
+    figure, axes = plt.subplots(3, 2, figsize=(12, 8.5), sharex="col", gridspec_kw={"width_ratios": (2, 1)}, layout="constrained")
+    start = max(time[0], time[-1] - zoom)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    saturated = ds["allocation_saturated"].isel(run=run).values > 0.5
+    for column, (low, high) in enumerate(((time[0], time[-1]), (start, time[-1]))):
+        window = (time >= low) & (time <= high)
+        thrust_axis, angle_axis, short_axis = axes[:, column]
+        for i, name in enumerate(names):
+            colour = colours[i % len(colours)]
+            thrust_axis.plot(time[window], ds["thrust_commanded"].isel(run=run, thruster=i).values[window] / 1e3, ":", color=colour, lw=1.0)
+            thrust_axis.plot(time[window], ds["thrust"].isel(run=run, thruster=i).values[window] / 1e3, "-", color=colour, lw=1.1, label=name)
+            if i in turning:
+                angle_axis.plot(time[window], np.degrees(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values[window]), ":", color=colour, lw=1.0)
+                angle_axis.plot(time[window], np.degrees(ds["thruster_angle"].isel(run=run, thruster=i).values[window]), "-", color=colour, lw=1.1,
+                                label=name)
+        short_axis.plot(time[window], ds["allocation_shortfall"].isel(run=run).values[window], color="k", lw=1.0, label="shortfall")
+        for first, last in _runs(time[window], saturated[window]):
+            short_axis.axvspan(first, last, color="tab:red", alpha=0.15, lw=0)
+        thrust_axis.set_ylabel("thrust (kN)")
+        angle_axis.set_ylabel("angle (deg)")
+        short_axis.set_ylabel("shortfall (1)")
+        short_axis.set_xlabel("time (s)")
+        for axis in (thrust_axis, angle_axis, short_axis):
+            axis.grid(alpha=0.3)
+            axis.set_xlim(low, high)
+        thrust_axis.set_title("full run" if column == 0 else f"zoom: last {time[-1] - start:g} s")
+    if not turning:
+        for axis in axes[1]:
+            axis.text(0.5, 0.5, "no azimuth or rudder", ha="center", va="center", transform=axis.transAxes)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    handles += [plt.Line2D([], [], color="grey", ls="-"), plt.Line2D([], [], color="grey", ls=":"),
+                plt.matplotlib.patches.Patch(color="tab:red", alpha=0.15)]
+    labels += ["delivered", "commanded", "allocation saturated"]
+    figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 7), frameon=False)
+    figure.suptitle(_heading(title, f"thrusters: thrust, angle and allocation shortfall\nrun {run} of {ds.sizes['run']}"))
+    return figure
+
+
 # --------------------------------------------------------------------------- Bode
 
 #: The frequencies of the tuning rule (48): dataset variable, legend label, gid, style.

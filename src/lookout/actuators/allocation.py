@@ -63,9 +63,12 @@ from lookout.actuators.qp import active_set
 #: h of a row that never binds.
 NEVER = 1e30
 ALLOCATION_METHODS = ("qp", "pseudo-inverse")
+QP_SOLVERS = ("active-set", "qpax")
 #: An azimuth's turning sector is capped at this half-width (rad) below pi (a wider
 #: sector is not convex); at turn_rate dt >= pi there is no sector.
 LARGEST_SECTOR = 1.5
+#: A scaled force below this is no direction (an idle thruster's rounding).
+IDLE = 1e-3
 
 
 def _unit(angle):
@@ -94,6 +97,11 @@ class Allocator(eqx.Module):
         (:attr:`reach`) before allocating, as a per-axis saturation would: a command
         far beyond the thrusters' reach on one axis then does not take the thrust
         another axis needs. False allocates tau as it comes.
+    solver : {"active-set", "qpax"}
+        The QP's solver: lookout's active-set method (:mod:`lookout.actuators.qp`;
+        exact, and cheap when few limits change from sample to sample), or qpax's
+        primal-dual interior-point method (Tracy & Manchester, 2024; the ``qpax``
+        package, installed with lookout's ``dev`` extra), for comparison.
     """
 
     layout: ThrusterLayout
@@ -109,11 +117,20 @@ class Allocator(eqx.Module):
     method: str = eqx.field(static=True)
     polygon_sides: int = eqx.field(static=True)
     clip_to_reach: bool = eqx.field(static=True)
+    solver: str = eqx.field(static=True)
 
     def __init__(self, layout: ThrusterLayout, method: Literal["qp", "pseudo-inverse"] = "qp", slack_weight=1e6, polygon_sides: int = 16,
-                 clip_to_reach: bool = True):
+                 clip_to_reach: bool = True, solver: Literal["active-set", "qpax"] = "active-set"):
         if method not in ALLOCATION_METHODS:
             raise ValueError(f"allocation must be one of {', '.join(ALLOCATION_METHODS)}; got {method!r}")
+        if solver not in QP_SOLVERS:
+            raise ValueError(f"solver must be one of {', '.join(QP_SOLVERS)}; got {solver!r}")
+        if solver == "qpax":
+            try:
+                import qpax  # noqa: F401
+            except ImportError:
+                raise ValueError("solver 'qpax' needs the qpax package (pip install qpax, or lookout's dev extra)") from None
+        self.solver = solver
         try:
             slack = np.broadcast_to(np.asarray(slack_weight, dtype=float), (3,)).copy()
         except (TypeError, ValueError):
@@ -146,11 +163,13 @@ class Allocator(eqx.Module):
 
     # -- the limits --------------------------------------------------------------------------
 
-    def constraints(self, previous: Array, angle: Array, dt) -> tuple[Array, Array, Array]:
+    def constraints(self, previous: Array, angle: Array, dt, preferred: Array | None = None) -> tuple[Array, Array, Array]:
         """``(G, h, start)``: the limits G u <= h on the scaled command after the scaled
         ``previous`` command, with the thrusters at ``angle`` (an azimuth's, a rudder's)
         and a step ``dt``, and a scaled command that meets them all (see the module
-        docstring)."""
+        docstring). With the ``preferred`` (unconstrained) allocation, an azimuth's
+        thrust is capped at cos(its angle from the preferred direction) of its largest
+        (0 beyond 90 degrees), lowered no faster than its rate allows."""
         layout, n = self.layout, self.size
         rows, bounds = [], []
         start = jnp.asarray(previous, dtype=float)
@@ -186,9 +205,15 @@ class Allocator(eqx.Module):
                 apothem = math.cos(math.pi / self.polygon_sides)
                 along0 = jnp.minimum(magnitude(previous[jx], previous[jy]), apothem)
                 c, s = _unit(angle[i])
-                start = start.at[jx].set(along0 * c).at[jy].set(along0 * s)
                 step = layout.thrust_rate[i] * dt / self.scale[jx]
-                row([(jx, c), (jy, s)], along0 + step)
+                high = along0 + step
+                if preferred is not None:  # pointing away from where it is wanted: thrust down, so it turns
+                    wanted = magnitude(preferred[jx], preferred[jy]) > IDLE
+                    alignment = jnp.where(wanted, (preferred[jx] * c + preferred[jy] * s) / jnp.maximum(magnitude(preferred[jx], preferred[jy]), IDLE), 1.0)
+                    high = jnp.maximum(jnp.minimum(high, apothem * jnp.maximum(alignment, 0.0)), along0 - step)
+                along_start = jnp.minimum(along0, high)
+                start = start.at[jx].set(along_start * c).at[jy].set(along_start * s)
+                row([(jx, c), (jy, s)], high)
                 row([(jx, -c), (jy, -s)], -(along0 - step))
                 row([(jx, -s), (jy, c)], step)
                 row([(jx, s), (jy, -c)], step)
@@ -252,32 +277,42 @@ class Allocator(eqx.Module):
 
     # -- allocation --------------------------------------------------------------------------
 
-    def allocate(self, tau: Array, previous: Array, angle: Array, dt) -> tuple[Array, dict]:
+    def allocate(self, tau: Array, previous: Array, angle: Array, dt, working: Array | None = None) -> tuple[Array, dict]:
         """The scaled command for ``tau`` (N, N, N m) after the scaled ``previous``
-        command, with the thrusters at ``angle``.
+        command, with the thrusters at ``angle``; ``working`` is the previous sample's
+        active set (``info["working"]``), tried first.
 
         Returns ``(u, info)``; ``info`` has ``unconstrained`` (the scaled weighted
         least-squares solution, which idle azimuths turn toward), ``saturated`` (it
         broke a limit), ``shortfall`` (largest |tau - B u| over the axes, as a fraction
-        of each axis's :attr:`force_scale`), and the QP's ``iterations`` and
-        ``converged``. A non-finite ``tau`` gives a NaN command.
+        of each axis's :attr:`force_scale`), and the QP's ``iterations``, ``converged``
+        and ``working`` (its active set; empty when unsaturated). A non-finite ``tau``
+        gives a NaN command.
         """
         wanted = jnp.asarray(tau) / self.force_scale
         target = jnp.clip(wanted, self.reach[0], self.reach[1]) if self.clip_to_reach else wanted
-        G, h, start = self.constraints(previous, angle, dt)
         unconstrained = self.pseudo_inverse_matrix @ target
+        G, h, start = self.constraints(previous, angle, dt, unconstrained)
         saturated = ~jnp.all(G @ unconstrained <= h + 1e-12)
+        active = jnp.full(self.size, -1)
         if self.method == "pseudo-inverse":
             u = self._saturate(unconstrained, previous, dt)
             iterations, converged = jnp.asarray(0), jnp.asarray(True)
         else:
             q = -(self.B.T @ (self.slack_weights * (self.target_matrix @ target)))
-            solved, _, iterations, converged = active_set(self.P, q, G, h, start, max_iterations=G.shape[0] + self.size, needed=saturated)
+            if self.solver == "qpax":
+                solved, iterations, converged = _qpax(self.P, q, G, h)
+            else:
+                solved, found, iterations, converged = active_set(
+                    self.P, q, G, h, start, max_iterations=G.shape[0] + self.size, needed=saturated, warm=working
+                )
+                active = jnp.where(saturated, found, active)
             u = jnp.where(saturated, solved, unconstrained)
             converged = converged | ~saturated
         u = jnp.where(jnp.all(jnp.isfinite(target)), u, jnp.nan)
         shortfall = jnp.max(jnp.abs(wanted - self.B @ u))
-        return u, {"unconstrained": unconstrained, "saturated": saturated, "shortfall": shortfall, "iterations": iterations, "converged": converged}
+        return u, {"unconstrained": unconstrained, "saturated": saturated, "shortfall": shortfall, "iterations": iterations, "converged": converged,
+                   "working": active}
 
     def _saturate(self, u: Array, previous: Array, dt) -> Array:
         """Each thruster limited on its own: a thrust into its force and rate limits, an
@@ -305,3 +340,16 @@ class Allocator(eqx.Module):
                 jl = self._index(i, "lift")
                 out = out.at[jl].set(jnp.clip(u[jl], -jnp.maximum(thrust, 0.0), jnp.maximum(thrust, 0.0)))
         return out
+
+
+def _qpax(P, q, G, h):
+    """The QP by qpax's interior-point method (differentiable by its own rule): the same
+    scaling of P as :func:`lookout.actuators.qp.active_set`, rows that never bind left out."""
+    import qpax
+
+    size = jnp.max(jnp.abs(P))
+    bind = h < NEVER
+    n = P.shape[0]
+    x = qpax.solve_qp_primal(P / size, q / size, jnp.zeros((0, n)), jnp.zeros(0), jnp.where(bind[:, None], G, 0.0), jnp.where(bind, h, 1.0),
+                             solver_tol=1e-10, max_iter=50)
+    return x, jnp.asarray(-1), jnp.all(jnp.isfinite(x))

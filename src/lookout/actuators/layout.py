@@ -53,15 +53,6 @@ def direction_of(x, y, fallback):
     return jnp.where(zero, fallback, jnp.arctan2(jnp.where(zero, 0.0, y), jnp.where(zero, 1.0, x)))
 
 
-def _column(name: str, value, count: int) -> np.ndarray:
-    array = np.asarray(value, dtype=float)
-    if array.ndim == 0:
-        array = np.full(count, float(array))
-    if array.shape != (count,):
-        raise ValueError(f"{name} must have one entry per thruster ({count}); got shape {array.shape}")
-    return array
-
-
 @final
 class ThrusterLayout(eqx.Module):
     """A vessel's thrusters: one entry per thruster in every column.
@@ -141,7 +132,7 @@ class ThrusterLayout(eqx.Module):
             time_constant=time_constant, turn_rate=turn_rate, max_rudder=max_rudder, rudder_lift=rudder_lift, weight=weight,
         )
         for name, value in columns.items():
-            array = _column(name, value, count)
+            array = check.vector(name, value, count)
             if name == "min_thrust":
                 array = np.where(np.asarray(self.kinds) == "azimuth", 0.0, array)
             if np.any(np.isnan(array)):

@@ -53,7 +53,7 @@ def solve_on_working_set(P, q, G, h, working) -> tuple[Array, Array]:
     return solution[:n], jnp.where(on, solution[n:], 0.0)
 
 
-def active_set(P, q, G, h, x0, *, max_iterations: int, tolerance: float = 1e-10, needed=True):
+def active_set(P, q, G, h, x0, *, max_iterations: int, tolerance: float = 1e-10, needed=True, warm=None):
     """Solve the QP from the feasible point ``x0`` (Nocedal & Wright, Algorithm 16.3).
 
     Parameters
@@ -74,6 +74,11 @@ def active_set(P, q, G, h, x0, *, max_iterations: int, tolerance: float = 1e-10,
         False skips the iterations (the caller has the answer another way; under
         ``vmap`` a batch iterates only while one of its members needs it). A
         non-finite ``q`` or ``x0`` also skips them.
+    warm : Array of int, shape (n,), optional
+        A guess of the active set (the previous sample's ``working``): when the
+        minimizer on it is feasible and its multipliers are non-negative, it is the
+        solution (the KKT conditions hold) and no iteration is taken; else the
+        iterations start from ``x0`` with an empty working set.
 
     Returns
     -------
@@ -134,8 +139,17 @@ def active_set(P, q, G, h, x0, *, max_iterations: int, tolerance: float = 1e-10,
         return (~done) & (iteration < max_iterations)
 
     skip = ~jnp.asarray(needed) | ~jnp.all(jnp.isfinite(q_)) | ~jnp.all(jnp.isfinite(x0_))
-    start = (x0_, jnp.full(n, EMPTY), jnp.asarray(0), skip)
+    start_working, start_x, guessed = jnp.full(n, EMPTY), x0_, jnp.asarray(False)
+    if warm is not None:
+        warm = jnp.asarray(warm)
+        guess, multipliers = solve_on_working_set(P_, q_, G_, h_, warm)
+        guessed = jnp.all(jnp.isfinite(guess)) & jnp.all(jnp.isfinite(multipliers)) \
+            & jnp.all(G_ @ guess <= h_ + tolerance) & jnp.all(multipliers >= -tolerance)
+        start_working = jnp.where(guessed, warm, start_working)
+        start_x = jnp.where(guessed, guess, start_x)
+    start = (start_x, start_working, jnp.asarray(0), skip | guessed)
     x, working, iterations, converged = jax.lax.while_loop(going, body, start)
+    converged = converged | (guessed & ~skip)
     # the differentiable solution: one solve on the active set found
     exact, _ = solve_on_working_set(P, q, G, h, working)
     x = jnp.where(converged & ~skip, exact, x)

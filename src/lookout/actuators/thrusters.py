@@ -8,14 +8,10 @@ import jax.numpy as jnp
 from jax import Array
 
 from lookout._math import ssa
-from lookout.actuators.allocation import Allocator
+from lookout.actuators.allocation import IDLE, Allocator
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.components import Actuator, Signal
 
-#: A commanded thrust below this fraction of a thruster's largest is idle: its direction
-#: (an azimuth's force, a rudder's lift over thrust) is rounding, so an idle azimuth turns
-#: toward the unconstrained allocation's direction and an idle rudder holds.
-IDLE = 1e-3
 
 
 def _thruster_signal(name: str, units: str, long_name: str, labels, angle: bool = False) -> Signal:
@@ -59,17 +55,19 @@ class ThrusterSystem(Actuator):
     clip_to_reach : bool
         Clip each axis of the command to what the thrusters reach on it alone before
         allocating (:class:`~lookout.actuators.allocation.Allocator`).
+    solver : {"active-set", "qpax"}
+        The QP's solver (:class:`~lookout.actuators.allocation.Allocator`).
     """
 
     layout: ThrusterLayout
     allocator: Allocator
 
     def __init__(self, layout: ThrusterLayout, allocation: Literal["qp", "pseudo-inverse"] = "qp", slack_weight=1e6, polygon_sides: int = 16,
-                 clip_to_reach: bool = True):
+                 clip_to_reach: bool = True, solver: Literal["active-set", "qpax"] = "active-set"):
         if not isinstance(layout, ThrusterLayout):
             raise ValueError(f"layout must be a ThrusterLayout; got {type(layout).__name__}")
         self.layout = layout
-        self.allocator = Allocator(layout, allocation, slack_weight, polygon_sides, clip_to_reach)
+        self.allocator = Allocator(layout, allocation, slack_weight, polygon_sides, clip_to_reach, solver)
 
     @property
     def output_signals(self) -> tuple[Signal, ...]:
@@ -84,10 +82,11 @@ class ThrusterSystem(Actuator):
         )
 
     def init(self):
-        """Every thruster idle: zero thrust, azimuths at their initial angle, rudders amidships."""
+        """Every thruster idle: zero thrust, azimuths at their initial angle, rudders
+        amidships; no previous command, no active set (the QP's warm start)."""
         layout = self.layout
         angle = jnp.where(jnp.asarray(layout.is_kind("main")), 0.0, jnp.asarray(layout.direction, dtype=float))
-        return jnp.zeros(layout.size), angle, jnp.zeros(self.allocator.size)
+        return jnp.zeros(layout.size), angle, jnp.zeros(self.allocator.size), jnp.full(self.allocator.size, -1)
 
     def commands(self, u: Array, angle: Array, preferred: Array) -> tuple[Array, Array]:
         """Each thruster's commanded thrust (N) and angle (rad) from the scaled allocation
@@ -136,8 +135,8 @@ class ThrusterSystem(Actuator):
 
     def step(self, state, t, u: Array, dt):
         """Allocate ``u`` = (X, Y, N), move the thrusters over ``dt``; see the class docstring."""
-        thrust, angle, previous = state
-        allocated, info = self.allocator.allocate(u, previous, angle, dt)
+        thrust, angle, previous, working = state
+        allocated, info = self.allocator.allocate(u, previous, angle, dt, working)
         thrust_command, angle_command = self.commands(allocated, angle, info["unconstrained"])
         thrust, angle = self.respond(thrust, angle, thrust_command, angle_command, dt)
         applied = self.layout.forces(thrust, angle)
@@ -149,29 +148,25 @@ class ThrusterSystem(Actuator):
             "allocation_saturated": info["saturated"].astype(float),
             "allocation_shortfall": info["shortfall"],
         }
-        return (thrust, angle, allocated), applied, outputs
+        return (thrust, angle, allocated, info["working"]), applied, outputs
 
 
-def at_limit(layout: ThrusterLayout, thrust, tolerance: float = 1e-6):
-    """Whether each thruster's thrust is at its largest or smallest (within ``tolerance``
-    of its largest thrust): ``thrust`` shaped (..., n)."""
-    import numpy as np
+def at_limit(thrust, largest, smallest, tolerance: float = 1e-6):
+    """Whether each thruster's thrust (..., n) is at its ``largest`` or (when negative)
+    ``smallest`` thrust (n,), within ``tolerance`` of its largest (JAX, so a campaign's
+    metric takes it inside the simulation; NumPy arrays in, JAX arrays out)."""
+    thrust, largest, smallest = jnp.asarray(thrust), jnp.asarray(largest), jnp.asarray(smallest)
+    margin = tolerance * largest
+    return (thrust >= largest - margin) | ((thrust <= smallest + margin) & (smallest < 0))
 
-    thrust = np.asarray(thrust)
-    margin = tolerance * layout.max_thrust
-    return (thrust >= layout.max_thrust - margin) | ((thrust <= layout.min_thrust + margin) & (layout.min_thrust < 0))
 
-
-def relative_power(layout: ThrusterLayout, thrust):
+def relative_power(thrust, largest):
     """The thrusters' power as a fraction of the installed power, ``thrust`` shaped (..., n).
 
     A propeller's power at bollard pull grows as |T|^(3/2) (momentum theory,
     P = |T|^(3/2) / sqrt(2 rho A)); with the disc area A of each thruster in
-    proportion to its largest thrust (equal disc loading), thruster i at T_i draws
+    proportion to its ``largest`` thrust (equal disc loading), thruster i at T_i draws
     (|T_i| / T_max,i)^(3/2) of its installed power, which is in proportion to T_max,i.
     """
-    import numpy as np
-
-    fraction = (np.abs(np.asarray(thrust)) / layout.max_thrust) ** 1.5
-    return np.sum(fraction * layout.max_thrust, axis=-1) / np.sum(layout.max_thrust)
-
+    thrust, largest = jnp.asarray(thrust), jnp.asarray(largest)
+    return jnp.sum((jnp.abs(thrust) / largest) ** 1.5 * largest, axis=-1) / jnp.sum(largest)

@@ -21,7 +21,7 @@ RUN_FILES = ("run.nc", "scenario.toml", "summary.json")
 #: And its figures of run 0, each where the run has something to show: every estimate
 #: against its truth, the reference against the truth, the commanded and applied input
 #: (:func:`lookout.plotting.plot_run_estimates`, ``plot_run_reference``, ``plot_run_input``).
-RUN_FIGURES = ("estimates.png", "reference.png", "input.png")
+RUN_FIGURES = ("estimates.png", "reference.png", "input.png", "thrusters.png")
 #: Resolution of those figures (that of the reproductions' figures).
 RUN_FIGURE_DPI = 110
 
@@ -83,6 +83,8 @@ def _default_metrics(scenario) -> list[str]:
     names = [f"rms_error:{s.name}" for s in record.estimate if s.name in truths]
     names += [f"rms_tracking:{s.name.removesuffix('_desired')}" for s in record.reference
               if s.name.endswith("_desired") and s.name.removesuffix("_desired") in truths]
+    if "thrust" in {s.name for s in record.actuation} and getattr(scenario.actuator, "layout", None) is not None:
+        names += ["mean_power:thrust", "time_at_limit:thrust"]
     return names
 
 
@@ -112,9 +114,10 @@ def run(
     errors per run over the second half, which runs diverged, the files written) and
     figures of run 0 to --out: estimates.png (every estimated variable against its
     truth, with its measurement; an estimate without a truth alone), reference.png
-    (the reference against the truth) where there is a reference, and input.png (the
+    (the reference against the truth) where there is a reference, input.png (the
     commanded and applied input, shaded where the actuator limited it) where the
-    input is not zero throughout. A figure that does not apply is not written (one
+    input is not zero throughout, and thrusters.png (each thruster's thrust and angle,
+    and the allocation's shortfall) with a thruster actuator. A figure that does not apply is not written (one
     left from an earlier run into the folder is removed).
     """
     from lookout.results import write_netcdf
@@ -162,10 +165,10 @@ def _write_figures(ds, folder: Path, title: str) -> list[str]:
     remove those that do not (left by an earlier run); return the names written."""
     import matplotlib.pyplot as plt
 
-    from lookout.plotting import plot_run_estimates, plot_run_input, plot_run_reference
+    from lookout.plotting import plot_run_estimates, plot_run_input, plot_run_reference, plot_run_thrusters
 
     written = []
-    for name, draw in zip(RUN_FIGURES, (plot_run_estimates, plot_run_reference, plot_run_input)):
+    for name, draw in zip(RUN_FIGURES, (plot_run_estimates, plot_run_reference, plot_run_input, plot_run_thrusters)):
         figure = draw(ds, run=0, title=title)
         path = folder / name
         if figure is None:

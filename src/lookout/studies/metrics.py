@@ -24,6 +24,11 @@ kind               per run
 ``recovery_time``  time from the outage's end until the RMS of |x - x_hat| over the
                    next outage-length window is back within 25 % of its RMS over the
                    same length of time before the outage
+``mean_power``     mean over t >= after of the thrusters' power as a fraction of the
+                   installed power (signal ``thrust``: a thruster actuator's delivered
+                   thrust; :func:`lookout.actuators.thrusters.relative_power`)
+``time_at_limit``  fraction of t >= after with some thruster at its largest or smallest
+                   thrust (signal ``thrust``; :func:`lookout.actuators.thrusters.at_limit`)
 =================  ==============================================================
 
 The two outage metrics need a sensor with an outage (its ``outage_signals``,
@@ -66,7 +71,13 @@ KINDS = {
     "final": ("any", "final value"),
     "outage_drift": ("estimate", "largest estimation error during the sensor outage"),
     "recovery_time": ("estimate", "recovery time after the sensor outage"),
+    "mean_power": ("thrusters", "mean power as a fraction of the installed power"),
+    "time_at_limit": ("thrusters", "fraction of the time with a thruster at a thrust limit"),
 }
+#: The kinds that average a per-record value over the window (no square root).
+MEAN_KINDS = ("mean_power", "time_at_limit")
+#: time_at_limit: a thrust within this fraction of the largest thrust of a limit is at it.
+AT_LIMIT_TOLERANCE = 1e-6
 #: The kinds that keep the error's norm at every record (reduced when the run ends).
 SERIES_KINDS = ("settling_time", "recovery_time")
 #: recovery_time: back within this fraction above the error's level before the outage.
@@ -81,6 +92,8 @@ class Metric:
     signal: str
     units: str
     description: str
+    #: the thrusters' (largest, smallest) thrust, for the thruster metrics
+    thrust_limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None
 
     @property
     def name(self) -> str:
@@ -131,6 +144,12 @@ def resolve(names: list[str], scenario) -> list[Metric]:
             found = signals["input"].get(signal)
             if found is None:
                 raise ValueError(f"{name!r}: the plant has no input {signal!r} (its inputs: {', '.join(signals['input'])})")
+        elif needs == "thrusters":
+            layout = getattr(scenario.actuator, "layout", None)
+            if signal != "thrust" or layout is None:
+                raise ValueError(f"{name!r}: write {kind}:thrust, with a thruster actuator ([actuator] kind = \"thrusters\")")
+            metrics.append(Metric(kind, signal, "1", f"{description} (thrusters)", (tuple(map(float, layout.max_thrust)), tuple(map(float, layout.min_thrust)))))
+            continue
         else:
             found = truth or signals["extra"].get(signal)
             if found is None:
@@ -188,6 +207,7 @@ class _Plan:
 
     metrics: tuple[tuple[str, str, str, bool, bool], ...]  # (variable, kind, signal, vector, angle)
     divergence: tuple[str, float, bool, bool] | None       # (signal, limit, vector, angle)
+    thrust_limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (largest, smallest)
 
 
 class MetricSummary(Summary):
@@ -217,7 +237,7 @@ class MetricSummary(Summary):
 
     def terms(self, index, record, origin):
         """One record's contribution (one run): see the class docstring."""
-        truth, estimate, _, reference, _, applied, _ = record
+        truth, estimate, _, reference, _, applied, actuation = record
         inputs = self.layout.split(applied)
         window = index >= self.first
 
@@ -232,6 +252,17 @@ class MetricSummary(Summary):
             if kind == "final":
                 value = truth[name] if name in truth else estimate[name]
                 final[variable] = jnp.sqrt(jnp.sum(jnp.asarray(value) ** 2))
+                continue
+            if kind in MEAN_KINDS:
+                from lookout.actuators.thrusters import at_limit, relative_power
+
+                largest, smallest = self.plan.thrust_limits
+                thrust = actuation["thrust"]
+                if kind == "mean_power":
+                    value = relative_power(thrust, largest)
+                else:
+                    value = jnp.any(at_limit(thrust, largest, smallest, AT_LIMIT_TOLERANCE)).astype(float)
+                power[variable] = jnp.where(window, value, 0.0)
                 continue
             if kind in ("rms_error", "max_error", "settling_time", "outage_drift", "recovery_time"):
                 norm = error(name, vector, angle)
@@ -300,6 +331,8 @@ class MetricSummary(Summary):
                 out[variable] = accumulated["final"][variable]
             elif kind == "recovery_time":
                 out[variable] = _recovery_time(series[variable], time, *self.outage)
+            elif kind in MEAN_KINDS:
+                out[variable] = accumulated["power"][variable] / count
             elif kind.startswith("rms") or kind == "settling_time":
                 rms = jnp.sqrt(accumulated["power"][variable] / count)
                 out[variable] = rms if kind != "settling_time" else _settling_time(series[variable], time, rms)
@@ -331,8 +364,10 @@ def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, a
     window = time >= after - 1e-9 * max(1.0, abs(after))
     if not window.any():
         raise ValueError(f"after ({after:g} s) is past the end of the run ({time[-1]:g} s)")
-    shapes = {s.name: s for s in record.truth} | {s.name: s for s in record.input.signals} | {s.name: s for s in record.extra}
+    shapes = {s.name: s for s in record.truth} | {s.name: s for s in record.input.signals} | {s.name: s for s in record.extra} | {
+        s.name: s for s in record.actuation}
     rows = tuple((m.variable, m.kind, m.signal, bool(shapes[m.signal].labels), bool(shapes[m.signal].angle)) for m in metrics)
+    thrust_limits = next((m.thrust_limits for m in metrics if m.thrust_limits is not None), None)
     limit = None
     if divergence is not None:
         signal = shapes[divergence[0]]
@@ -341,7 +376,7 @@ def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, a
     if outage is not None:
         start, duration = outage
         windows = tuple(int(np.searchsorted(time, edge - 1e-9 * max(1.0, abs(edge)))) for edge in (start - duration, start, start + duration))
-    return MetricSummary(_Plan(rows, limit), record.input, int(np.argmax(window)), len(time), tuple(jnp.asarray(i) for i in windows))
+    return MetricSummary(_Plan(rows, limit, thrust_limits), record.input, int(np.argmax(window)), len(time), tuple(jnp.asarray(i) for i in windows))
 
 
 @eqx.filter_jit
