@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import jax.scipy.linalg
 from jax import Array
 
 #: Working-set slot that holds no row.
@@ -37,19 +36,16 @@ def _system(P, G, working):
     rows = jnp.where(on[:, None], G[jnp.maximum(working, 0)], 0.0)
     top = jnp.concatenate([P, rows.T], axis=1)
     bottom = jnp.concatenate([rows, jnp.diag(jnp.where(on, 0.0, 1.0))], axis=1)
-    return jnp.concatenate([top, bottom], axis=0), rows, on, n
+    return jnp.concatenate([top, bottom], axis=0), on
 
 
 def solve_on_working_set(P, q, G, h, working) -> tuple[Array, Array]:
     """The minimizer of 1/2 x^T P x + q^T x with the working set's rows held as
     equalities (G_W x = h_W), and their multipliers (0 in free slots)."""
-    K, rows, on, n = _system(P, G, working)
+    n = P.shape[0]
+    K, on = _system(P, G, working)
     rhs = jnp.concatenate([-q, jnp.where(on, h[jnp.maximum(working, 0)], 0.0)])
-    factors = jax.scipy.linalg.lu_factor(K)
-    solution = jax.scipy.linalg.lu_solve(factors, rhs)
-    # one step of iterative refinement: P carries the slack weight (1e6), so K is badly
-    # scaled and a plain solve leaves errors of a part in 1e9 of the thrust
-    solution = solution + jax.scipy.linalg.lu_solve(factors, rhs - K @ solution)
+    solution = jnp.linalg.solve(K, rhs)
     return solution[:n], jnp.where(on, solution[n:], 0.0)
 
 
@@ -104,11 +100,9 @@ def active_set(P, q, G, h, x0, *, max_iterations: int, tolerance: float = 1e-10,
     def body(carry):
         x, working, iteration, done = carry
         on = working >= 0
-        # the step p to the minimizer on the working set: G_W p = 0
-        K, rows, _, _ = _system(P_, G_, working)
-        rhs = jnp.concatenate([-(P_ @ x + q_), jnp.zeros(n)])
-        solution = jnp.linalg.solve(K, rhs)
-        p, multipliers = solution[:n], jnp.where(on, solution[n:], 0.0)
+        # the step p to the minimizer on the working set (G_W p = 0): the same sub-problem
+        # with the gradient at x for q and zero right-hand sides
+        p, multipliers = solve_on_working_set(P_, P_ @ x + q_, G_, jnp.zeros(m), working)
         # n independent rows leave no step: what a solve returns then is rounding
         still = jnp.all(on) | (jnp.max(jnp.abs(p)) <= tolerance * (1.0 + jnp.max(jnp.abs(x))))
         p = jnp.where(jnp.all(on), 0.0, p)
