@@ -102,7 +102,27 @@ def outcome(plant: str, base: dict, observer: str) -> str:
         return f"refused: {error}"
     trajectory = simulate(composition.scenario, jax.random.key(0))
     finite = all(np.isfinite(np.asarray(leaf)).all() for leaf in jax.tree.leaves(trajectory.estimate))
-    return "runs" if finite else "diverges"
+    if not finite:
+        return "diverges"
+    start_error = off_the_first_measurement(composition.scenario, trajectory)
+    return f"starts off its first measurement: {start_error}" if start_error else "runs"
+
+
+def off_the_first_measurement(scenario, trajectory) -> str:
+    """Where the estimate at t_0 of a measured variable (``measured_X`` of the sensor, ``X``
+    of the estimate) differs from the first measurement, for a guess that leaves it to the
+    measurement (every observer's default): "" when none does."""
+    measured = scenario.sensor.measurement_layout.split(np.asarray(trajectory.measurement)[0])
+    estimate = trajectory.estimate
+    for name, value in measured.items():
+        signal = name.removeprefix("measured_")
+        if signal not in estimate or not np.all(np.isfinite(value)):
+            continue
+        start = np.asarray(estimate[signal])[0]
+        difference = np.abs(np.angle(np.exp(1j * (start - value)))) if name == "measured_heading" else np.abs(start - value)
+        if np.max(difference) > 1e-9 * (1.0 + np.max(np.abs(value))):
+            return f"{signal} starts at {np.round(start, 6).tolist()}, the first measurement is {np.round(value, 6).tolist()}"
+    return ""
 
 
 def test_every_pair_runs_or_is_refused_every_kind_is_in_and_the_docs_hold_the_matrix():
@@ -133,6 +153,7 @@ def render(matrix: dict[tuple[str, str], str]) -> str:
 def check_runs_or_refused(matrix):
     for (observer, plant), result in matrix.items():
         assert result != "diverges", f"observer {observer} on plant {plant} composes but its estimates are not finite after {DURATION:g} s"
+        assert not result.startswith("starts off"), f"observer {observer} on plant {plant} {result}"
         if result.startswith("refused"):
             message = result[len("refused: "):]
             assert "\n" not in message and f"observer {observer}" in message or message.startswith("observer"), (observer, plant, message)

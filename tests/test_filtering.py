@@ -94,7 +94,8 @@ BAD_LOGS = [
     ({"guess": {"eta": np.zeros(3)}}, r"guess must be shaped like observer.guess\(\) \(VesselState with eta \(3,\), nu \(3,\), bias \(3,\), wave_state \(6,\)\); got dict"),
     ({"guess": "eta"}, r"guess must be shaped like observer.guess\(\)"),
     ({"guess_eta": np.zeros(2)}, r"guess.eta must have shape \(3,\) \(as in observer.guess\(\)\); got shape \(2,\)"),
-    ({"guess_eta": np.full(3, np.nan)}, r"guess.eta must be finite"),
+    ({"guess_eta": np.array([0.0, 0.0, np.inf])}, r"^guess.eta must be finite \(NaN only where observer.guess\(\) leaves a state to the first measurement\); got \[0.0, 0.0, inf\]$"),
+    ({"guess_nu": np.full(3, np.nan)}, r"^guess.nu must be finite; got \[nan, nan, nan\]$"),  # NaN only where the first measurement gives the state
     ({"measurement_layout": POSITION_HEADING.renamed(suffix="_x").__class__(POSITION_HEADING.signals[:1])}, r"measurement_layout must have 3 entries \(the observer reads measured_position, measured_heading\); got 2"),
     ({"measurements": np.zeros((3, 3)) + 1j}, r"measurements must hold real numbers; got complex numbers"),
     ({"times": ["0", "0.1", "0.2"]}, r"times must hold real numbers; got text"),
@@ -108,6 +109,8 @@ def test_filter_refuses_a_bad_log_naming_the_argument(recorded, kwargs, message)
     args = {"times": [0.0, 0.1, 0.2], "measurements": np.zeros((3, 3)), "inputs": np.zeros((3, 3)), "guess": observer.guess()}
     if "guess_eta" in kwargs:
         kwargs = {"guess": _guess_with(observer, eta=kwargs["guess_eta"])}
+    if "guess_nu" in kwargs:
+        kwargs = {"guess": _guess_with(observer, nu=kwargs["guess_nu"])}
     args |= kwargs
     with pytest.raises(ValueError, match=message) as raised:
         lookout.filter(observer, args.pop("times"), args.pop("measurements"), args.pop("inputs"), **args)
@@ -122,7 +125,7 @@ def test_filter_names_a_bad_observer_takes_an_integer_guess_and_warns_where_the_
             lookout.filter(bad, [0.0, 0.1], np.zeros((2, 3)))
     times, ys = np.asarray(trajectory.time)[:40], np.asarray(trajectory.measurement)[:40].copy()
     integer = lookout.filter(observer, times, ys, guess=_guess_with(observer, eta=np.zeros(3, dtype=int)))
-    np.testing.assert_array_equal(integer.position_hat.values, lookout.filter(observer, times, ys).position_hat.values)
+    np.testing.assert_array_equal(integer.position_hat.values, lookout.filter(observer, times, ys, guess=_guess_with(observer, eta=np.zeros(3))).position_hat.values)
     ys[10, 0] = 1e306  # one absurd sample: the estimates overflow after it, and the user is told where
     with pytest.warns(RuntimeWarning, match=r"the estimates are not finite from row 11 \(t = 1.1 s\) on, after row 10's measurement \[ ?1.0000e\+306"):
         log = lookout.filter(observer, times, ys)

@@ -82,7 +82,7 @@ def test_inside_the_layer_the_switching_term_is_an_extra_position_gain():
 
 def test_outside_the_layer_the_switching_term_injects_kbar_in_eta_hat_dot():
     observer = _printed(np.array([10.0, 10.0, 0.01]), (1.0, 1.0, 0.01))
-    estimate = observer.guess()
+    estimate = observer.guess(eta=0.0)
     measurement = jnp.array([50.0, -50.0, 0.5])
     rates = observer.vector_field(0.0, estimate, measurement, jnp.zeros(3))
     base = observer.passive.vector_field(0.0, estimate, measurement, jnp.zeros(3))

@@ -289,19 +289,19 @@ class CybershipPlant(Plant):
             wave_rate = ramp * self.waves.rate(t, position, eta_rate[:2]) + ramp_rate * self.waves.motion(t, position)
         return CybershipState(eta=eta_rate, nu=self.ship.acceleration(state.nu, tau), wave=wave_rate)
 
-    def state(self, eta=0.0, nu=0.0, wave=0.0) -> CybershipState:
+    def state(self, eta=None, nu=0.0, wave=0.0) -> CybershipState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 
         Parameters
         ----------
-        eta : array_like, shape (3,)
-            Position north, east (m) and heading (rad), Earth-fixed.
+        eta : array_like, shape (3,), optional
+            Position north, east (m) and heading (rad), Earth-fixed (zeros when not given; an observer's guess takes it from the first measurement).
         nu : array_like, shape (3,)
             Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.
         wave : array_like, shape (3,)
             Wave-induced motion eta_w (m, m, rad).
         """
-        return CybershipState.build(eta, nu, wave)
+        return CybershipState.build(0.0 if eta is None else eta, nu, wave)
 
     def normalize(self, state: CybershipState) -> CybershipState:
         """Heading wrapped to [-pi, pi), as a compass reports it."""

@@ -262,17 +262,17 @@ class FurutaPlant(Plant):
         accel = jnp.array([mass[1, 1] * force[0] - mass[0, 1] * force[1], mass[0, 0] * force[1] - mass[1, 0] * force[0]]) / det
         return FurutaState(x.qdot, accel, sticking.astype(float))
 
-    def state(self, q=0.0, qdot=0.0) -> FurutaState:
+    def state(self, q=None, qdot=0.0) -> FurutaState:
         """A state of this plant, not sticking (zeros where not given): a composition's ``[plant.initial]``.
 
         Parameters
         ----------
-        q : array_like, shape (2,)
-            (phi, theta): arm and pendulum angles (rad).
+        q : array_like, shape (2,), optional
+            (phi, theta): arm and pendulum angles (rad; zeros when not given; an observer's guess takes it from the first measurement).
         qdot : array_like, shape (2,)
             Their rates (rad/s).
         """
-        return FurutaState(jnp.asarray(check.vector("q", q, 2), dtype=float), jnp.asarray(check.vector("qdot", qdot, 2), dtype=float),
+        return FurutaState(jnp.asarray(check.vector("q", 0.0 if q is None else q, 2), dtype=float), jnp.asarray(check.vector("qdot", qdot, 2), dtype=float),
                            jnp.asarray(0.0))
 
     def models(self) -> tuple:

@@ -595,18 +595,18 @@ class ManipulatorPlant(Plant):
         tau = u + self.force_noise * w
         return JointState(x.qdot, self.model.acceleration(x.q, x.qdot, tau))
 
-    def state(self, q=0.0, qdot=0.0) -> JointState:
+    def state(self, q=None, qdot=0.0) -> JointState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Joint coordinates in joint order (rad, m).
+        q : array_like, shape (n,), optional
+            Joint coordinates in joint order (rad, m; zeros when not given; an observer's guess takes it from the first measurement).
         qdot : array_like, shape (n,)
             Their rates (rad/s, m/s).
         """
         n = self.model.size
-        return JointState(jnp.asarray(check.vector("q", q, n)), jnp.asarray(check.vector("qdot", qdot, n)))
+        return JointState(jnp.asarray(check.vector("q", 0.0 if q is None else q, n)), jnp.asarray(check.vector("qdot", qdot, n)))
 
     def models(self) -> tuple:
         """The manipulator model (M, C, F, G)."""

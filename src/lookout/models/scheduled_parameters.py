@@ -99,19 +99,19 @@ class ScheduledParameterPlant(Plant):
         """theta(t): the row of :attr:`values` whose interval holds t (right-continuous)."""
         return self.values[jnp.searchsorted(self.switch_times, t, side="right")]
 
-    def state(self, q=0.0, qdot=0.0) -> JointState:
+    def state(self, q=None, qdot=0.0) -> JointState:
         """A :class:`JointState` from scalars or sequences, checked for size n (zeros where
         not given): a composition's ``[plant.initial]``.
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Joint coordinates in joint order (rad, m).
+        q : array_like, shape (n,), optional
+            Joint coordinates in joint order (rad, m; zeros when not given; an observer's guess takes it from the first measurement).
         qdot : array_like, shape (n,)
             Their rates (rad/s, m/s).
         """
         n = self.noise_size
-        return JointState(jnp.asarray(check.vector("q", q, n)), jnp.asarray(check.vector("qdot", qdot, n)))
+        return JointState(jnp.asarray(check.vector("q", 0.0 if q is None else q, n)), jnp.asarray(check.vector("qdot", qdot, n)))
 
     def vector_field(self, t, x: JointState, u: Array, w: Array) -> JointState:
         """(q', qdot') of eq. (2.1) with the model of theta(t)."""

@@ -273,13 +273,13 @@ class VesselPlant(Plant):
             wave_state=self.waves.derivative(state.wave_state, noise[3:6]),
         )
 
-    def state(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+    def state(self, eta=None, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 
         Parameters
         ----------
-        eta : array_like, shape (3,)
-            Position north, east (m) and heading (rad), Earth-fixed.
+        eta : array_like, shape (3,), optional
+            Position north, east (m) and heading (rad), Earth-fixed (zeros when not given; an observer's guess takes it from the first measurement).
         nu : array_like, shape (3,)
             Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.
         bias : array_like, shape (3,)
@@ -287,7 +287,7 @@ class VesselPlant(Plant):
         wave_state : array_like, shape (6,)
             Wave-model state [xi1, xi2] of eq. (11) (m s, m s, rad s, m, m, rad).
         """
-        return VesselState.build(eta, nu, bias, wave_state)
+        return VesselState.build(0.0 if eta is None else eta, nu, bias, wave_state)
 
     def normalize(self, state: VesselState) -> VesselState:
         """Heading wrapped to [-pi, pi), as a gyro compass reports it."""

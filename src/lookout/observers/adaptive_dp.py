@@ -112,6 +112,7 @@ from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, solve, ssa
 from lookout.components import ContinuousObserver, Layout, Signal
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
+from lookout.observers.start import from_first_measurement
 from lookout.sensors import POSITION_HEADING, POSITION_HEADING_VELOCITY
 from lookout.sim.integrators import rk4_step
 
@@ -480,14 +481,15 @@ class AdaptiveObserver(ContinuousObserver):
     def discrete(self) -> bool:
         return self.form == "discrete"
 
-    def guess(self, eta=0.0, nu=0.0, theta=None) -> AdaptiveEstimate:
-        """An initial estimate (eta, nu zero unless given; theta :attr:`initial_theta`
-        unless given), to pass to :meth:`init` through the Scenario.
+    def guess(self, eta=None, nu=0.0, theta=None) -> AdaptiveEstimate:
+        """An initial estimate (eta the first measurement unless given; nu zero unless
+        given; theta :attr:`initial_theta` unless given), to pass to :meth:`init` through
+        the Scenario.
 
         Parameters
         ----------
-        eta : array_like, shape (3,)
-            Position north, east (m) and heading (rad).
+        eta : array_like, shape (3,), optional
+            Position north, east (m) and heading (rad); default the first measurement.
         nu : array_like, shape (3,)
             Velocity surge, sway (m/s) and yaw rate (rad/s).
         theta : array_like, shape (p,), optional
@@ -518,13 +520,14 @@ class AdaptiveObserver(ContinuousObserver):
 
     # The Observer contract -----------------------------------------------------------
     def init(self, y0: Array, guess: AdaptiveEstimate) -> AdaptiveObserverState:
-        """The estimate at t_0 is the guess (theta_hat clipped to the bounds); eta(0) = y0
-        is stored as the base of the first difference (a NaN channel of y0 is replaced
-        by the guess's eta)."""
+        """The estimate at t_0 is the guess (theta_hat clipped to the bounds), eta_hat(0)
+        = y0 where the guess leaves eta to the first measurement
+        (:mod:`lookout.observers.start`); eta(0) = y0 is stored as the base of the first
+        difference (a NaN channel of y0 is replaced by eta_hat(0))."""
         if not isinstance(guess, AdaptiveEstimate):
             raise ValueError(f"the initial estimate of an AdaptiveObserver must be an AdaptiveEstimate (observer.guess(...)); got {type(guess).__name__}")
-        eta = jnp.asarray(guess.eta, dtype=float)
         y = jnp.asarray(y0, dtype=float)[:3]
+        eta = from_first_measurement(jnp.asarray(guess.eta, dtype=float), y, angles=(2,))
         measured = jnp.where(jnp.isfinite(y), y, eta)
         measured = measured.at[2].set(ssa(measured[2]))
         p = self.parametrization.size

@@ -60,6 +60,7 @@ from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
 from lookout.analysis.tracking import RULE_PARAMETERS
 from lookout.models.cybership import CYBERSHIP_SIGNALS, Cybership
 from lookout.models.vessel import VESSEL_INPUT
+from lookout.observers.start import from_first_measurement
 from lookout.sensors import POSITION_HEADING
 from lookout.sim.integrators import rk4_step
 
@@ -224,13 +225,15 @@ class EarthFixedObserver(ContinuousObserver):
         position_gain, velocity_gain = proposal.observer_gains
         return cls(ship, position_gain, velocity_gain, steps_per_sample=steps_per_sample, method=method, initial_velocity=initial_velocity)
 
-    def guess(self, eta=0.0, velocity=0.0) -> EarthFixedGuess:
-        """An initial estimate: eta_hat(0) = ``eta`` and the Earth-frame ``velocity``.
+    def guess(self, eta=None, velocity=0.0) -> EarthFixedGuess:
+        """An initial estimate: eta_hat(0) = ``eta`` (the first measurement unless given)
+        and the Earth-frame ``velocity``.
 
         Parameters
         ----------
-        eta : array_like, shape (3,)
-            eta_hat(0): position north, east (m) and heading (rad).
+        eta : array_like, shape (3,), optional
+            eta_hat(0): position north, east (m) and heading (rad); default the first
+            measurement.
         velocity : array_like, shape (3,)
             The Earth-frame velocity (m/s, m/s, rad/s) of v_hat(0) or zeta(0) (``initial_velocity``).
         """
@@ -247,8 +250,10 @@ class EarthFixedObserver(ContinuousObserver):
         return jnp.where(jnp.isfinite(measurement[2]), measurement[2], estimate.eta[2])
 
     def init(self, y0: Array, guess: EarthFixedGuess) -> EarthFixedEstimate:
-        """eta_hat(0) from the guess; zeta(0) = v - L1 eta~(0) (v is v_hat(0)) or v (v is zeta(0))."""
-        eta = guess.eta.at[2].set(ssa(guess.eta[2]))
+        """eta_hat(0) from the guess, or y_0 where the guess leaves it to the first
+        measurement (:mod:`lookout.observers.start`); zeta(0) = v - L1 eta~(0) (v is
+        v_hat(0)) or v (v is zeta(0))."""
+        eta = from_first_measurement(guess.eta, y0, angles=(2,))
         start = EarthFixedEstimate(eta, jnp.zeros(3))
         zeta = jnp.where(self.velocity_is_state, guess.velocity, guess.velocity - self.position_gain * self.innovation(start, y0))
         return EarthFixedEstimate(eta, zeta)

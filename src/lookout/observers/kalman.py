@@ -72,6 +72,7 @@ from jax.flatten_util import ravel_pytree
 
 from lookout import _validation as check
 from lookout._math import ssa, unmarked
+from lookout._resources import refuse_unless_it_fits
 from lookout.components import Layout, Observer, Plant, Sensor, Signal
 from lookout.sim.integrators import INTEGRATORS
 
@@ -106,6 +107,32 @@ def _probe_normalize(model: Plant, probe: float) -> Array:
     zero, unravel = ravel_pytree(model.state())
     moved = jnp.eye(zero.size) * probe
     return jnp.diagonal(jax.vmap(lambda x: ravel_pytree(model.normalize(unravel(x)))[0])(moved))
+
+
+#: Most propagation steps per sample: the step's Jacobian in the noise of every one costs
+#: their number squared (64 steps: about 1.7e5 model evaluations a sample on a 3-DOF vessel).
+MAX_PROPAGATION_STEPS = 64
+#: Substeps per sample up to which the propagation is unrolled in the trace (beyond, a scan).
+UNROLLED_SUBSTEPS = 16
+#: Gauss-Newton steps that solve the states left to the first measurement (:meth:`KalmanFilter.init`).
+INITIAL_SOLVE_STEPS = 3
+
+
+def working_nbytes(n: int, substeps: int, noise_size: int) -> int:
+    """Bytes one sample of a Kalman filter holds on an n-entry state propagated in
+    ``substeps`` steps with ``noise_size`` noise inputs each: the Jacobians of the step in
+    the state and the noise, by forward mode over an identity of n + substeps x
+    noise_size columns, each carrying the step's intermediates (RK4: four stages of n per
+    substep)."""
+    columns = n + substeps * noise_size
+    return 8 * columns * (columns + 4 * n * substeps + n)
+
+
+def _measured_parts(model: Plant) -> tuple[str, ...]:
+    """The keywords of the plant's ``state`` whose default is None: the parts a sensor
+    measures directly (a vessel's eta, an arm's q), which an observer's guess leaves to
+    the first measurement."""
+    return tuple(name for name, parameter in inspect.signature(model.state).parameters.items() if parameter.default is None)
 
 
 #: The key of the input disturbance's entries in a table of state parts.
@@ -240,9 +267,17 @@ class KalmanFilter(Observer):
             return self._ravel(self.model.vector_field(s, self._unravel(x), driven, w))
 
         with unmarked():  # the step is differentiated (EKF) or vmapped over sigma points (UKF)
-            for j in range(substeps):  # a handful of substeps per sample: unrolled, as the engine's
-                state = integrate(lambda s, x, w=noise[j]: field(s, x, w), t + j * h, state, h)
+            if substeps <= UNROLLED_SUBSTEPS:  # a handful of substeps per sample: unrolled, as the engine's
+                for j in range(substeps):
+                    state = integrate(lambda s, x, w=noise[j]: field(s, x, w), t + j * h, state, h)
+            else:  # many: a loop, whose compilation does not grow with them
+                state, _ = jax.lax.scan(lambda x, j: (integrate(lambda s, y: field(s, y, noise[j]), t + j * h, x, h), None), state, jnp.arange(substeps))
         return jnp.concatenate([state, disturbance])
+
+    @property
+    def working_nbytes(self) -> int:
+        """Bytes one run holds while the filter takes a sample (:func:`working_nbytes`)."""
+        return working_nbytes(self.state_size + self.disturbance_size, max(1, round(self.filter_period / self.plant_step)), self.model.noise_size)
 
     def substeps(self, dt) -> int:
         """Integration steps per sample of ``dt`` s: ``dt / plant_step``; for a ``dt`` known
@@ -307,14 +342,30 @@ class KalmanFilter(Observer):
     # ------------------------------------------------------------------ Observer
     def guess(self, **parts):
         """The model plant's state from its named parts (the keywords of the plant's
-        ``state``; zeros where not given)."""
-        return self.model.state(**parts)
+        ``state``; zeros where not given, except the parts a plant leaves to a
+        measurement (a default of None: a vessel's eta, an arm's q), which are NaN: the
+        first measurement sets them, :meth:`init`)."""
+        unset = {name: math.nan for name in _measured_parts(self.model) if parts.get(name) is None}
+        return self.model.state(**{**{name: value for name, value in parts.items() if value is not None}, **unset})
 
     guess.parameters_from = "model.state"  # the composition's [observer.initial] takes the plant's parts
 
     def init(self, y0: Array, guess) -> KalmanState:
-        del y0  # the correction at t_0 (update) takes the first sample
-        return KalmanState(self.augmented(guess), self.initial_covariance)
+        """x_0 from the guess, its NaN entries (the states left to the first measurement,
+        :mod:`lookout.observers.start`) solved from y_0: the least change of them that
+        makes h(x_0) = y_0 on the channels y_0 has, by Gauss-Newton steps from 0 (one is
+        exact for a measurement linear in them, as a vessel's eta + eta_w is in eta); P_0
+        as given. The correction at t_0 (:meth:`update`) then takes the first sample."""
+        mean = self.augmented(guess)
+        unknown = jnp.isnan(mean)
+        mean = jnp.where(unknown, 0.0, mean)
+        y0 = jnp.asarray(y0, dtype=float)
+        present = jnp.isfinite(y0)
+        for _ in range(INITIAL_SOLVE_STEPS):
+            residual, _ = masked(y0, self.measurement(mean), present, self.channel_angles)
+            jacobian = jax.jacfwd(self.measurement)(mean) * unknown[None, :] * present[:, None]
+            mean = mean + jnp.linalg.pinv(jacobian) @ residual
+        return KalmanState(mean, self.initial_covariance)
 
     def update(self, state: KalmanState, t, y: Array) -> KalmanState:
         # a branch, not a select: t (hence which channels are due) is the same for every
@@ -359,6 +410,14 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
                 f"input_disturbance must be {inputs} finite intensities >= 0 (one per input entry of the plant, units^2/s); got {np.asarray(input_disturbance).tolist()}"
             )
     d = disturbance.size
+    substeps = max(1, round(float(sample_period) / float(plant_step)))
+    if substeps > MAX_PROPAGATION_STEPS:  # the linearization runs through every one, at a cost in their square
+        raise ValueError(f"plant_step ({float(plant_step):g} s) makes {substeps} propagation steps per sample of {float(sample_period):g} s, and a "
+                         f"Kalman filter linearizes through each (its work grows with their square): at most {MAX_PROPAGATION_STEPS}; give the filter "
+                         f"a plant_step of its own of at least {float(sample_period) / MAX_PROPAGATION_STEPS:.3g} s")
+    refuse_unless_it_fits(working_nbytes(n + d, substeps, size),
+                          f"plant_step {float(plant_step):g} s ({substeps} propagation steps per sample of {float(sample_period):g} s, "
+                          f"{substeps * size} noise inputs to linearize in)", "give a longer plant_step")
     if process_noise is None:
         q = jnp.ones(size)
     elif not check.is_concrete(process_noise):  # traced (built under vmap or grad): checked where concrete

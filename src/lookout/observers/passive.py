@@ -44,6 +44,7 @@ from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.components import EARTH_FIXED, Layout, Signal
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
 from lookout.sensors import POSITION_HEADING
+from lookout.observers.start import from_first_measurement
 from lookout.observers.wave_filtering import WaveFilterGains, WaveFilteringObserver
 from lookout.sim.integrators import rk4_step
 
@@ -429,13 +430,15 @@ class PassiveObserver(WaveFilteringObserver):
         """K2 as the 3x3 matrix of eq. (41)."""
         return np.diag(np.asarray(self.position_injection_gain))
 
-    def guess(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
-        """An initial estimate (zeros unless given), to pass to :meth:`init`.
+    def guess(self, eta=None, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+        """An initial estimate (zeros unless given; eta the first measurement unless
+        given), to pass to :meth:`init`.
 
         Parameters
         ----------
-        eta : array_like, shape (3,)
-            Position north, east (m) and heading (rad).
+        eta : array_like, shape (3,), optional
+            Position north, east (m) and heading (rad); default the first measurement
+            (less the guessed wave motion).
         nu : array_like, shape (3,)
             Velocity surge, sway (m/s) and yaw rate (rad/s).
         bias : array_like, shape (3,)
@@ -446,9 +449,11 @@ class PassiveObserver(WaveFilteringObserver):
         return VesselState.build(eta, nu, bias, wave_state)
 
     def init(self, y0: Array, guess: VesselState) -> VesselState:
-        """The estimate at t_0 is the guess (the paper starts the observer at zero)."""
-        del y0
-        return guess
+        """The estimate at t_0 is the guess, with eta_hat(0) = y_0 - eta_w_hat(0) (eq. 12
+        without noise) where the guess leaves eta to the first measurement
+        (:mod:`lookout.observers.start`). Fossen & Strand (1999) do not state eta_hat(0)."""
+        measured = jnp.asarray(y0, dtype=float) - guess.wave
+        return eqx.tree_at(lambda s: s.eta, guess, from_first_measurement(guess.eta, measured, angles=(2,)))
 
     def update(self, estimate: VesselState, t, measurement: Array) -> VesselState:
         """No discrete correction: the measurement enters through (22)–(25)."""

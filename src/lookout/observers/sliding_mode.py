@@ -265,13 +265,15 @@ class SlidingModeObserver(WaveFilteringObserver):
     def hold(self) -> str:
         return self.passive.hold
 
-    def guess(self, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
-        """An initial estimate (zeros unless given), to pass to :meth:`init`.
+    def guess(self, eta=None, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+        """An initial estimate (zeros unless given; eta the first measurement unless
+        given), to pass to :meth:`init`.
 
         Parameters
         ----------
-        eta : array_like, shape (3,)
-            Position north, east (m) and heading (rad).
+        eta : array_like, shape (3,), optional
+            Position north, east (m) and heading (rad); default the first measurement
+            (less the guessed wave motion).
         nu : array_like, shape (3,)
             Velocity surge, sway (m/s) and yaw rate (rad/s).
         bias : array_like, shape (3,)
@@ -282,7 +284,8 @@ class SlidingModeObserver(WaveFilteringObserver):
         return self.passive.guess(eta, nu, bias, wave_state)
 
     def init(self, y0: Array, guess: VesselState) -> VesselState:
-        """The estimate at t_0 is the guess."""
+        """The estimate at t_0 is the guess, eta_hat(0) from the first measurement unless
+        the guess gives it (as the passive observer's; Kim (2002) does not state it)."""
         return self.passive.init(y0, guess)
 
     def update(self, estimate: VesselState, t, measurement: Array) -> VesselState:

@@ -60,7 +60,8 @@ def real_array(name: str, value) -> np.ndarray:
 def checked_guess(observer: Observer, guess):
     """``guess``, or the observer's own ``guess()`` when it is None; refused (ValueError
     naming ``guess``) unless it has the structure of ``observer.guess()`` with leaves
-    that broadcast to its shapes and finite entries."""
+    that broadcast to its shapes and finite entries (NaN only where ``observer.guess()``
+    has NaN: a state left to the first measurement, :mod:`lookout.observers.start`)."""
     expected = observer.guess()
     if guess is None:
         return expected
@@ -76,8 +77,11 @@ def checked_guess(observer: Observer, guess):
             shape = None
         if shape != np.shape(wanted):
             raise ValueError(f"{name} must have shape {np.shape(wanted)} (as in observer.guess()); got shape {np.shape(given)}")
-        if not np.all(np.isfinite(real_array(name, given))):
-            raise ValueError(f"{name} must be finite; got {np.asarray(given).tolist()}")
+        values = np.broadcast_to(real_array(name, given), shape)
+        left_to_measurement = np.isnan(np.broadcast_to(np.asarray(wanted, dtype=float), shape))
+        if not np.all(np.isfinite(values) | (np.isnan(values) & left_to_measurement)):
+            where = " (NaN only where observer.guess() leaves a state to the first measurement)" if left_to_measurement.any() else ""
+            raise ValueError(f"{name} must be finite{where}; got {np.asarray(given).tolist()}")
     # every leaf in the observer's own dtype: an integer guess would change the state's types
     return jax.tree.map(lambda leaf, wanted: jnp.asarray(leaf, dtype=jnp.result_type(wanted)), guess, expected)
 

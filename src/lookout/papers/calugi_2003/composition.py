@@ -56,6 +56,9 @@ def composition(
             "position_gain": chosen["K1"].tolist(), "velocity_gain": chosen["K2"].tolist(),
             "adaptation_gain": config.adaptation_gain if adaptation_gain is None else adaptation_gain,
             "form": form, "initial_theta": [(config.initial_theta if initial_theta is None else initial_theta) * true_m11],
+            # eta_hat(0) at the vessel's true start, not its first (noisy) fix: the noise-drift
+            # rate of the studies (analysis.adaptive_dp.noise_drift_rate) is derived from that start
+            "initial": {"eta": [0.0, 0.0, 0.0]},
         },
         "reference": {
             "kind": "reference-filter", "signals": ["position", "heading"], "bandwidth": 0.1,
