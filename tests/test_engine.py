@@ -189,6 +189,11 @@ def _rebuild(base: Scenario, **changes) -> Scenario:
         ({"plant_step": -0.1}, "plant_step must be positive"),
         ({"integrator": "midpoint"}, r"integrator must be one of \['euler', 'rk4'\]; got 'midpoint'"),
         ({"sensor": PositionHeadingSensor(0.0, [0.25, 1.0, 1.0])}, r"sensor sample_period\[0\] \(0.25 s\) must be an integer multiple of sample_period"),
+        # the process noise of a sample is one draw of at most 65536 numbers: a step so short it cannot be is refused, not run for days
+        ({"plant_step": 1e-9}, r"^plant_step \(1e-09 s\) makes 100000000 plant steps per sample of 0.1 s; at most 10922 \(6 process noise inputs each\): a plant_step of at least 9.16e-06 s$"),
+        # an outage that would silence nothing is no outage
+        ({"sensor": PositionHeadingSensor(0.0, 1.0, outage_signals=["measured_position"], outage_start=10.0, outage_duration=5.0)},
+         r"^sensor outage_start \(10 s\) must be before the run's end \(duration 10 s\)"),
     ],
 )
 def test_scenario_rejects_inconsistent_rates(changes, message):
@@ -330,6 +335,31 @@ def test_sizes_from_the_caller_are_checked_against_memory_before_anything_is_all
         simulate(scenario, jax.random.key(0))
     with pytest.raises(ValueError, match=r"^scenarios: 10000 stacked x \d+ B of arrays would need about"):
         stack_scenarios([scenario] * 10000)
+
+
+def test_the_memory_check_counts_what_a_run_holds_while_it_takes_a_sample():
+    """An EKF linearizes through every plant step of a sample: 64 of them on the DP vessel
+    hold a Jacobian over 402 columns. The batch check adds that to the records, and a
+    filter with more steps than it takes is refused naming plant_step."""
+    from lookout.composition import CompositionError, compose
+    from lookout.observers.kalman import working_nbytes as kalman_bytes
+    from lookout.registry import preset
+    from lookout.sim import check_batch_memory, record_nbytes, working_nbytes
+
+    document = preset("fossen-strand-1999", "paper")
+    document["simulation"].update(duration=10.0, plant_step=0.1 / 64)
+    document["observer"] = {"kind": "ekf"}
+    scenario = compose(document).scenario
+    working = working_nbytes(scenario)
+    assert working == 64 * 6 * 8 + kalman_bytes(scenario.observer.state_size, 64, 6)
+    runs = 1000
+    records = scenario.n_records * (2 * runs * record_nbytes(scenario) + 32)
+    check_batch_memory(scenario, runs, available=records + 1.01 * runs * working)
+    with pytest.raises(ValueError, match=r"^keys: 1000 run\(s\) x 100 records x \d+ B \(x2 at the peak, \+ 32 B per record\) \+ 1000 x [\d.]+ MB while a sample is taken would need"):
+        check_batch_memory(scenario, runs, available=records + 0.99 * runs * working)
+    document["simulation"]["plant_step"] = 0.1 / 128
+    with pytest.raises(CompositionError, match=r"plant_step \(0.00078125 s\) makes 128 propagation steps per sample of 0.1 s, .*: at most 64; give the filter a plant_step of its own of at least 0.00156 s"):
+        compose(document)
 
 
 @pytest.mark.parametrize(

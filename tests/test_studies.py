@@ -156,6 +156,7 @@ def test_a_bad_scenario_file_is_one_line_naming_file_key_and_line(old, new, expe
     assert err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith(f"error: {path}: ")
     assert expected.format(line=_line_of(bad, key)) in err, err
+    assert err.count("; got") <= 1, err  # what was given, said once
     assert not (tmp_path / "x").exists()
 
 
@@ -347,6 +348,15 @@ def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp
     code, _, err = _run_cli(["campaign", "run", str(spec), "--out", str(tmp_path / "store"), "--workers", "0"], capsys)
     assert code == 2 and err.count("\n") == 1, err
     assert err.startswith(f"error: {spec}: ") and expected.format(line=line) in err, err
+    assert not (tmp_path / "store").exists()
+
+
+def test_a_scenario_file_given_as_a_campaign_spec_says_what_it_is(tmp_path, capsys):
+    scenario = tmp_path / "base.toml"
+    scenario.write_text(_scenario_text(tmp_path, capsys))
+    code, _, err = _run_cli(["campaign", "run", str(scenario), "--out", str(tmp_path / "store"), "--workers", "0"], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"error: {scenario}: a scenario file, not a campaign spec: run it with lookout run {scenario}, or sweep it"), err
     assert not (tmp_path / "store").exists()
 
 

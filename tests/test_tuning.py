@@ -5,6 +5,7 @@ design command's own analysis, held-out seeds, and what is refused."""
 from __future__ import annotations
 
 import json
+import re
 
 import jax
 import jax.numpy as jnp
@@ -82,6 +83,14 @@ def test_lookout_tune_improves_held_out_seeds_and_stays_inside_every_condition(t
     # measured: 2402 -> 2303 N (-4.1 %) on seeds 4..7, the tuner stopping at SPR's boundary after 5 steps
     assert medians["tuned"] <= 0.98 * medians["start"], medians
     assert summary["steps"][-1]["objective"] < summary["steps"][0]["objective"]
+    # a refused step tried itself and BACKTRACKS halvings, and says that number wherever it is reported
+    from lookout.tuning.tune import BACKTRACKS
+
+    refused = [s for s in summary["steps"] if not s["accepted"]]
+    assert refused and all(s["halvings"] == BACKTRACKS for s in refused), summary["steps"]
+    assert all(s["halvings"] <= BACKTRACKS for s in summary["steps"])
+    said = "".join(capsys.readouterr())
+    assert {int(n) for n in re.findall(r"its (\d+) halvings", said)} == {BACKTRACKS}, said
 
 
 @pytest.mark.parametrize(

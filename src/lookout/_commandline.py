@@ -103,20 +103,20 @@ def image_file(option: str, text: str) -> Path:
     return path
 
 
-def check_memory(batches, runs_option: str = "--runs", duration_option: str = "--duration", runs: int | None = None) -> None:
-    """Refuse a study whose records would not fit in memory, before simulating.
+def check_memory(batches, runs_option: str = "--runs", duration_option: str = "--duration", runs: int | None = None, where: str | None = None) -> None:
+    """Refuse a study whose records and working memory would not fit, before simulating.
 
     ``batches`` are (scenario, runs) simulated one after another, so the largest
     one sets the peak; ``runs`` is what the user asked for (a reproduction may batch
-    more, e.g. both of Kim's observers). Nothing that grows with the runs exists yet
-    when this runs.
+    more, e.g. both of Kim's observers); ``where`` (a file) starts the message. Nothing
+    that grows with the runs exists yet when this runs.
     """
-    from lookout.sim import record_nbytes
+    from lookout.sim import record_nbytes, working_nbytes
     from lookout.sim.engine import RECORD_OVERHEAD_BYTES
 
     def need_of(pair):
         scenario, count = pair
-        return scenario.n_records * (PEAK_MEMORY_PER_RECORD_BYTE * count * record_nbytes(scenario) + RECORD_OVERHEAD_BYTES)
+        return scenario.n_records * (PEAK_MEMORY_PER_RECORD_BYTE * count * record_nbytes(scenario) + RECORD_OVERHEAD_BYTES) + count * working_nbytes(scenario)
 
     scenario, batch = max(batches, key=need_of)
     need = need_of((scenario, batch))
@@ -124,9 +124,11 @@ def check_memory(batches, runs_option: str = "--runs", duration_option: str = "-
     available = available_memory()
     if available is not None and need > available:
         largest = "" if batch == runs else "its largest batch: "
+        working = working_nbytes(scenario)
+        steps = f" + {batch} x {format_bytes(working)} while a sample is taken" if working > 2**20 else ""
         raise InputError(
-            f"{runs_option} {runs} over {duration_option} {scenario.duration:g} would need about {format_bytes(need)} of memory "
-            f"({largest}{batch} run(s) x {scenario.n_records} records x {record_nbytes(scenario)} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results), "
+            f"{where + ': ' if where else ''}{runs_option} {runs} over {duration_option} {scenario.duration:g} would need about {format_bytes(need)} of memory "
+            f"({largest}{batch} run(s) x {scenario.n_records} records x {record_nbytes(scenario)} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results{steps}), "
             f"and {format_bytes(available)} are available: use fewer {runs_option} or a shorter {duration_option}"
         )
 

@@ -73,6 +73,10 @@ def _unit_interval(hi: Array, lo: Array) -> Array:
     return (mantissa + 1.0) * 2.0**-52
 
 
+#: Most numbers one call draws per sample (a counter of 16 bits per sample).
+MAX_COUNT = 2**16
+
+
 def standard_normal(key: Array, sample: Array, count: int, stream: int = 0) -> Array:
     """``count`` standard normal numbers of stream ``stream`` for each entry of ``sample``.
 
@@ -102,8 +106,8 @@ def standard_normal(key: Array, sample: Array, count: int, stream: int = 0) -> A
     -------
     Array, shape ``sample.shape + (count,)``, float64
     """
-    if not 0 <= count <= 2**16:
-        raise ValueError(f"count must be in 0 .. 65536, got {count}")
+    if not 0 <= count <= MAX_COUNT:
+        raise ValueError(f"count must be in 0 .. {MAX_COUNT}, got {count}")
     if not 0 <= stream < 2**16:
         raise ValueError(f"stream must be in 0 .. 65535, got {stream}")
     if count == 0:

@@ -98,6 +98,18 @@ def _describe(each, design) -> dict:
     return entry
 
 
+def _plant_part_default(role: str) -> str:
+    """What a plant takes for a required part its file leaves out: its role's first kind
+    with that kind's defaults, where the kind has a default for every value."""
+    from lookout import registry
+
+    first = registry.kinds(role)[0]
+    missing = [p.name for p in first.parameters() if p.sort == "value" and p.required]
+    if missing:
+        return f"required: a {role} table ({first.name} needs {', '.join(missing)})"
+    return f"a {role} table; else {first.name} with its defaults"
+
+
 def components(
     kind: Annotated[Optional[str], typer.Argument(metavar="[KIND]", help="A role (observer, plant, ...) or a kind (passive, dp-vessel, ...).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
@@ -140,6 +152,8 @@ def components(
                     default = "required" if p["required"] else json.dumps(p["default"])
                 elif p["sort"] == "part" and p["role"] in ("observer", "controller", "sensor", "reference"):
                     default = f"the composition's {p['role']}"
+                elif p["sort"] == "part" and each.role == "plant" and p["from_plant"]:  # a plant's required part: its table or its role's first kind
+                    default = _plant_part_default(p["role"])
                 elif p["sort"] == "part":
                     default = f"a {p['role']} table" + ("; else the plant's" if p["from_plant"] else "")
                 else:

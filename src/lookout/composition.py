@@ -339,7 +339,12 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
             elif p.from_plant and context.find(_part_classes(p)) is not None:
                 arguments[p.name] = context.find(_part_classes(p))
             elif p.required and defaults:
-                arguments[p.name], normal[p.name] = build_part(p.role, {}, location + (p.name,), context, defaults=defaults)
+                try:
+                    arguments[p.name], normal[p.name] = build_part(p.role, {}, location + (p.name,), context, defaults=defaults)
+                except CompositionError as error:  # the file has no such table: blame the table that lacks it
+                    first = next(iter(registry.KINDS[p.role]))
+                    raise CompositionError(location, f"{role} {name} needs a {p.name}: give [{key_text(location + (p.name,))}] "
+                                                     f"(kind {first}: {error.reason})") from None
             elif p.required:
                 wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.name
                 raise CompositionError(
@@ -576,6 +581,8 @@ def _scenario_error(error: ValueError, kinds: dict) -> CompositionError:
     reason = one_line(error)
     if reason.startswith("sensor sample_period"):
         return CompositionError(("sensor", "sample_period"), reason)
+    if reason.startswith("sensor outage_start"):
+        return CompositionError(("sensor", "outage_start"), reason)
     if reason.startswith("observer and observer_mode 'continuous' do not fit: "):
         detail = reason[len("observer and observer_mode 'continuous' do not fit: "):]
         return CompositionError(("simulation", "observer_mode"), f"observer {kinds['observer']} cannot run in observer_mode 'continuous': {detail}")

@@ -228,7 +228,7 @@ def explain(error: ValidationError) -> tuple[tuple, str]:
         message = "missing key"
     elif first["type"] in STRICT_TYPES:
         message = f"{STRICT_TYPES[first['type']]}; got {_as_toml(first.get('input'))}"
-    elif "input" in first and first["type"] not in ("value_error", "assertion_error"):
+    elif "input" in first and first["type"] not in ("value_error", "assertion_error", "not_finite"):  # not_finite says what it got
         message = f"{message}; got {first['input']!r}"
     return location, message
 

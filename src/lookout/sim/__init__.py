@@ -19,6 +19,7 @@ from .engine import check_batch_memory as check_batch_memory
 from .engine import check_fit as check_fit
 from .engine import integer_ratio as integer_ratio
 from .engine import record_nbytes as record_nbytes
+from .engine import working_nbytes as working_nbytes
 from .engine import keys_of_seeds as keys_of_seeds
 from .engine import seed_keys as seed_keys
 from .engine import stack_scenarios as stack_scenarios

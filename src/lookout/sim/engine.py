@@ -48,8 +48,9 @@ from jax import Array
 from jax.flatten_util import ravel_pytree
 
 from lookout._math import computed_once
-from lookout._random import standard_normal
-from lookout._resources import refuse_unless_it_fits
+from lookout._validation import is_concrete
+from lookout._random import MAX_COUNT, standard_normal
+from lookout._resources import format_bytes, refuse_unless_it_fits
 from lookout.actuators import IdealActuator
 from lookout.components import Actuator, ContinuousObserver, Controller, Observer, Plant, Reference, Sensor, Signal
 from lookout.reference import NoReference
@@ -161,13 +162,22 @@ class Scenario(eqx.Module):
             raise ValueError(f"observer_mode must be 'sampled' or 'continuous'; got {self.observer_mode!r}")
         if self.observer_mode == "continuous" and not isinstance(self.observer, ContinuousObserver):
             raise ValueError(f"observer_mode 'continuous' needs a ContinuousObserver; observer {kind_of(self.observer)} is not one")
-        _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
+        substeps = _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
+        if substeps * self.plant.noise_size > MAX_COUNT:  # the process noise of a sample is one draw
+            most = MAX_COUNT // max(1, self.plant.noise_size)
+            raise ValueError(f"plant_step ({self.plant_step:g} s) makes {substeps} plant steps per sample of {self.sample_period:g} s; at most {most} "
+                             f"({self.plant.noise_size} process noise inputs each): a plant_step of at least {self.sample_period / most:.3g} s")
         if len(self.sensor.sample_period) != self.sensor.measurement_layout.size:
             raise ValueError(
                 f"sensor has {len(self.sensor.sample_period)} sample periods for {self.sensor.measurement_layout.size} channels"
             )
         for channel, period in enumerate(self.sensor.sample_period):
             _ratio(f"sensor sample_period[{channel}]", period, "sample_period", self.sample_period)
+        outage = getattr(self.sensor, "outage", None)
+        if outage is not None and is_concrete(outage.start) and is_concrete(outage.duration):
+            start, length = np.asarray(outage.start, dtype=float), np.asarray(outage.duration, dtype=float)
+            if np.any((length > 0) & (start >= self.duration)):  # it would silence nothing
+                raise ValueError(f"sensor outage_start ({float(np.max(start)):g} s) must be before the run's end (duration {self.duration:g} s) for an outage to happen")
         _ratio("duration", self.duration, "sample_period * record_every", self.sample_period * self.record_every)
         if self.duration / self.sample_period >= 2**32:
             raise ValueError(
@@ -768,14 +778,25 @@ def _checked_scenario(scenario, keys: Array | None = None, batched_scenario: boo
         raise ValueError(f"scenario: {error}" + ("; a scenario stacked per run (stack_scenarios) needs batched_scenario=True" if stacked else "")) from None
 
 
+def working_nbytes(scenario: Scenario) -> int:
+    """Bytes one run holds while it takes a sample, beyond its records: the process noise
+    of the sample's plant steps, and what its components declare (a component's
+    ``working_nbytes``: a Kalman filter's Jacobians, a thruster allocation's matrices)."""
+    own = scenario.substeps * scenario.plant.noise_size * jnp.zeros(()).dtype.itemsize
+    parts = (scenario.plant, scenario.sensor, scenario.observer, scenario.reference, scenario.controller, scenario.actuator)
+    return int(own + sum(int(getattr(part, "working_nbytes", 0)) for part in parts))
+
+
 def check_batch_memory(scenario: Scenario, runs: int, argument: str = "keys", available: float | None = None) -> None:
-    """Refuse (ValueError naming ``argument``) a batch of ``runs`` whose records cannot
-    fit in the memory available now, before anything is allocated."""
+    """Refuse (ValueError naming ``argument``) a batch of ``runs`` whose records and
+    working memory cannot fit in the memory available now, before anything is allocated."""
     per_record = record_nbytes(scenario)
-    need = scenario.n_records * (RECORD_COPIES * runs * per_record + RECORD_OVERHEAD_BYTES)
+    working = working_nbytes(scenario)
+    need = scenario.n_records * (RECORD_COPIES * runs * per_record + RECORD_OVERHEAD_BYTES) + runs * working
     refuse_unless_it_fits(
         need,
-        f"{argument}: {runs} run(s) x {scenario.n_records} records x {per_record} B (x{RECORD_COPIES} at the peak, + {RECORD_OVERHEAD_BYTES} B per record)",
+        f"{argument}: {runs} run(s) x {scenario.n_records} records x {per_record} B (x{RECORD_COPIES} at the peak, + {RECORD_OVERHEAD_BYTES} B per record)"
+        + (f" + {runs} x {format_bytes(working)} while a sample is taken" if working > 2**20 else ""),
         "simulate fewer runs at a time, a shorter duration, or fewer records (record_every); a campaign (lookout.studies) runs them in chunks",
         available=available,
     )

@@ -415,6 +415,10 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
     exists and takes the axis's values, and that every metric applies."""
     from lookout.studies import metrics as metric_module
 
+    if "scenario" not in document and ({"preset", "plant", "observer"} & set(document)):
+        name = Path(source).name
+        raise FileError(f"{source}: a scenario file, not a campaign spec: run it with lookout run {source}, or sweep it from a spec "
+                        f"that names it (scenario = \"{name}\", with [sweep] axes; docs/studies.md)")
     try:
         settings = validate_strictly(CampaignSettings, document)
     except ValidationError as error:

@@ -129,7 +129,7 @@ def run(
             raise InputError(f"--out: {Path(out) / name} is a folder, and lookout run writes the file {name} there; give another --out")
     spec, scenario = _scenario(scenario_file, runs, seed)
     # the count, not the seeds: nothing that grows with the runs is made before the check
-    check_memory([(scenario, spec.runs)], "--runs" if runs is not None else f"{scenario_file}: {spec.runs_key}", spec.runs_key.replace("runs", "duration"))
+    check_memory([(scenario, spec.runs)], "--runs" if runs is not None else spec.runs_key, spec.runs_key.replace("runs", "duration"), where=scenario_file)
     folder = created_folder("--out", out)
     with simulating() as progress:
         trajectory = simulate_trajectory(spec, progress=progress)

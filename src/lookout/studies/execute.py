@@ -91,8 +91,10 @@ def chunk_memory(campaign: Campaign) -> float:
 
     scenario = _point_scenario(campaign.canonical(), 0)
     records = max(campaign.records, scenario.n_records)
+    from lookout.sim import working_nbytes
+
     per_record = PEAK_MEMORY_PER_RECORD_BYTE * campaign.chunk_runs * record_bytes(campaign, scenario) + RECORD_OVERHEAD_BYTES
-    return records * per_record + WORKER_BASE_BYTES
+    return records * per_record + campaign.chunk_runs * working_nbytes(scenario) + WORKER_BASE_BYTES
 
 
 def check_memory(campaign: Campaign, available: float | None, workers: int) -> float:
@@ -103,11 +105,15 @@ def check_memory(campaign: Campaign, available: float | None, workers: int) -> f
 
         from lookout.sim.engine import RECORD_OVERHEAD_BYTES
 
+        from lookout.sim import working_nbytes
+
         scenario = _point_scenario(campaign.canonical(), 0)
         records = max(campaign.records, scenario.n_records)
+        working = working_nbytes(scenario)
+        steps = f", + {campaign.chunk_runs} runs x {format_bytes(working)} while a sample is taken" if working > 2**20 else ""
         raise ValueError(
             f"chunk_runs {campaign.chunk_runs} needs about {format_bytes(need)} per chunk ({records} records x ({campaign.chunk_runs} runs x "
-            f"{record_bytes(campaign, scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE} + {RECORD_OVERHEAD_BYTES} B), + {format_bytes(WORKER_BASE_BYTES)} runtime), "
+            f"{record_bytes(campaign, scenario)} B x {PEAK_MEMORY_PER_RECORD_BYTE} + {RECORD_OVERHEAD_BYTES} B){steps}, + {format_bytes(WORKER_BASE_BYTES)} runtime), "
             f"and a worker has {format_bytes(available)} ({workers} worker(s)): set a smaller chunk_runs (a divisor of seeds_per_point), "
             "a shorter duration, or fewer workers"
         )

@@ -175,22 +175,20 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     refused = 0
     for step in range(steps):
         updates, new_state = optimizer.update(gradient, state)
-        halvings = 0
+        halvings, accepted = 0, False
         while True:  # halve until the conditions hold and the objective stays finite
             candidate = theta + updates
             if family.check(build(family, scenario, family.gains(candidate))).holds:
                 candidate_value, candidate_gradient = value_and_grad(candidate, train)
-                if finite(candidate_value, candidate_gradient):
-                    break
-            halvings += 1
-            if halvings > BACKTRACKS:
+                accepted = finite(candidate_value, candidate_gradient)
+            if accepted or halvings == BACKTRACKS:  # kept, or the step and its BACKTRACKS halvings all tried
                 break
+            halvings += 1
             updates = updates / 2.0
-        accepted = halvings <= BACKTRACKS
         result.steps.append(Step(step, float(current), [np.asarray(g).tolist() for g in family.gains(theta)], halvings, accepted))
         say(f"step {step + 1}/{steps}: objective {float(current):.6g}"
-            + (f" ({halvings} halving{'s' * (halvings != 1)} to stay inside the conditions)" if halvings else "")
-            + ("" if accepted else "; no halving kept the conditions"))
+            + (f" ({halvings} halving{'s' * (halvings != 1)} to stay inside the conditions)" if halvings and accepted else "")
+            + ("" if accepted else f"; neither the step nor its {halvings} halvings kept the conditions"))
         if accepted:
             theta, state, current, gradient = candidate, new_state, candidate_value, candidate_gradient
             refused = 0
@@ -198,7 +196,7 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
         # Adam's momentum points across the boundary: forget it and try again from here
         refused += 1
         if refused == 2:
-            result.stopped = f"step {step + 1}: twice in a row, no step of {BACKTRACKS} halvings kept the conditions (the gains are at their boundary)"
+            result.stopped = f"step {step + 1}: twice in a row, neither the step nor its {BACKTRACKS} halvings kept the conditions (the gains are at their boundary)"
             break
         state = optimizer.init(theta)
     result.steps.append(Step(len(result.steps), float(current), [np.asarray(g).tolist() for g in family.gains(theta)], 0, True))
@@ -253,7 +251,10 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
     import json
     from pathlib import Path
 
+    import textwrap
+
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     from lookout._json import json_safe
     from lookout.composition import compose, set_path
@@ -299,7 +300,8 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
         if s.halvings:
             ax.annotate(f"{s.halvings}", (s.step, s.objective), textcoords="offset points", xytext=(0, 6), ha="center", fontsize=7, color="0.4")
     ax.set_xlabel("step")
-    ax.set_ylabel(f"objective: {result.objective.text}")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # steps are counted
+    ax.set_ylabel("objective\n" + textwrap.fill(result.objective.text, 40), fontsize=8)
     ax.set_title(f"training: mean over {len(result.train_seeds)} seeds (numbers: halvings to stay inside the conditions)", fontsize=9)
     ax.grid(alpha=0.3)
     figure.savefig(folder / "training.png", dpi=150)
