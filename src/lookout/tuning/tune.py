@@ -297,12 +297,14 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
     figure, ax = plt.subplots(figsize=(7.0, 3.6), dpi=100, layout="constrained")
     ax.plot([s.step for s in result.steps], [s.objective for s in result.steps], "o-", color="tab:blue")
     for s in result.steps:
-        if s.halvings:
-            ax.annotate(f"{s.halvings}", (s.step, s.objective), textcoords="offset points", xytext=(0, 6), ha="center", fontsize=7, color="0.4")
+        if s.halvings or not s.accepted:
+            ax.annotate(f"{s.halvings}" if s.accepted else "refused", (s.step, s.objective), textcoords="offset points", xytext=(0, 6),
+                        ha="center", fontsize=7, color="0.4" if s.accepted else "tab:red")
+    ax.margins(y=0.12)  # room for the numbers above the points
     ax.set_xlabel("step")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # steps are counted
     ax.set_ylabel("objective\n" + textwrap.fill(result.objective.text, 40), fontsize=8)
-    ax.set_title(f"training: mean over {len(result.train_seeds)} seeds (numbers: halvings to stay inside the conditions)", fontsize=9)
+    ax.set_title(f"training: mean over {len(result.train_seeds)} seeds (numbers: halvings to stay inside the conditions; refused: no halving did)", fontsize=9)
     ax.grid(alpha=0.3)
     figure.savefig(folder / "training.png", dpi=150)
     plt.close(figure)
