@@ -1,5 +1,7 @@
 """Observers over a recorded log (lookout.filter) and live (lookout.Stepper)."""
 
+import re
+
 import equinox as eqx
 import jax
 import numpy as np
@@ -130,6 +132,25 @@ def test_filter_names_a_bad_observer_takes_an_integer_guess_and_warns_where_the_
     with pytest.warns(RuntimeWarning, match=r"the estimates are not finite from row 11 \(t = 1.1 s\) on, after row 10's measurement \[ ?1.0000e\+306"):
         log = lookout.filter(observer, times, ys)
     assert log.status.values.tolist() == ["diverged"]
+
+
+def test_the_step_length_check_is_the_filters_and_a_replays(recorded):
+    """check_step_length, the test lookout.filter runs on a log's longest row step and
+    lookout replay on a log's typical step: the spectral radius of one prediction
+    step's Jacobian against MAX_STEP_AMPLIFICATION, refused with "are the times in
+    seconds?" and returned otherwise."""
+    from lookout.sim.filtering import MAX_STEP_AMPLIFICATION, check_step_length, step_amplification
+
+    scenario, _, _ = recorded
+    observer, guess, zeros = scenario.observer, scenario.initial_estimate, np.zeros(3)
+    radius = check_step_length(observer, guess, zeros, zeros, 0.1, "a step of")
+    assert radius == step_amplification(observer, guess, zeros, zeros, 0.1) and radius <= MAX_STEP_AMPLIFICATION
+    too_long = step_amplification(observer, guess, zeros, zeros, 100.0)
+    assert too_long > MAX_STEP_AMPLIFICATION
+    expected = (f"LOG x: its typical step between lines, 100 s is too long for this observer: one prediction step multiplies a state error by "
+                f"{too_long:.3g} (above 2 the estimates diverge); are the times in seconds?")
+    with pytest.raises(ValueError, match="^" + re.escape(expected)):
+        check_step_length(observer, guess, zeros, zeros, 100.0, "LOG x: its typical step between lines,")
 
 
 def test_a_discrete_time_observer_needs_rows_one_sample_period_apart():

@@ -167,7 +167,17 @@ class NmeaParser:
         self.sources[(reading.source, reading.kind)] += 1
         return [reading]
 
-    def _parse(self, line, time: float, origin: str):
+    def frame(self, line: bytes | str) -> tuple[str, str]:
+        """``(cause, formatter)`` of a line's framing alone: its length, tag block,
+        start character, checksum and address, without parsing its fields (cheap: a
+        pre-scan of a log, :func:`lookout.io.logs.scan_log`). ``cause`` is one of
+        :data:`CAUSES`, ``"accepted"`` when the line is a supported sentence whose
+        fields remain to be read; nothing is counted."""
+        cause, framed = self._frame(line)
+        return cause, (framed[2] if framed else "")
+
+    def _frame(self, line):
+        """``(cause, (line, talker, formatter, tags))``: the framing checks of :meth:`line`."""
         if isinstance(line, str):
             line = line.encode("ascii", "replace")
         if len(line) > MAX_LINE:
@@ -196,6 +206,13 @@ class NmeaParser:
         talker, formatter = (address[:2], address[2:]) if not address.startswith("P") else (address[:1], address[1:])
         if formatter not in SUPPORTED:
             return "unsupported", None
+        return "accepted", (line, talker, formatter, tags)
+
+    def _parse(self, line, time: float, origin: str):
+        cause, framed = self._frame(line)
+        if framed is None:
+            return cause, None
+        line, talker, formatter, tags = framed
         try:
             message = NMEAReader.parse(line, validate=VALNONE)
             kind, values = _values(formatter, message)

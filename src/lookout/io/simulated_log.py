@@ -77,7 +77,8 @@ def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFram
     epoch : float
         Unix time of the run's t = 0.
     outage : (start, length), optional
-        Seconds of run time without fixes.
+        Seconds of run time without fixes: finite, ``length`` positive, and within the
+        run (``start + length`` at most its duration).
     corrupted, wild_points : int
         Corrupted copies of sentences, and fixes 60 m off, added to the log.
     seed : int
@@ -87,14 +88,31 @@ def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFram
     -------
     dict
         The written paths by role (``nmea``, ``csv``, ``thrust``, ``truth``).
+
+    Raises
+    ------
+    ValueError
+        Naming ``outage`` when it is not a window within the run, before anything is
+        written.
     """
     from lookout.results import write_netcdf
 
     frame = frame or LocalFrame(63.44, 10.40)
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
     ds = ds.isel(run=0) if "run" in ds.dims else ds
     step = float(ds.attrs["sample_period_s"])
+    if outage is not None:
+        try:
+            start, length = (float(value) for value in outage)
+        except (TypeError, ValueError):
+            raise ValueError(f"outage must be (start, length) in seconds, or None; got {outage!r}") from None
+        end = float(ds["time"].values[-1]) + step  # the run's duration
+        if not (math.isfinite(start) and math.isfinite(length) and start >= 0 and length > 0):
+            raise ValueError(f"outage must be (start, length) with start >= 0 and length > 0 (s); got ({start:g}, {length:g})")
+        if start + length > end + 1e-9 * end:
+            raise ValueError(f"outage ({start:g}, {length:g}) ends at {start + length:g} s, after the run's end: its duration is {end:g} s")
+        outage = (start, length)
+    folder.mkdir(parents=True, exist_ok=True)
     periods = [float(p) for p in str(ds.attrs["sensor_sample_period_s"]).strip("[]").split(",")]
     every_position, every_heading = round(periods[0] / step), round(periods[2] / step)
     times = np.asarray(ds["time"].values, dtype=float)

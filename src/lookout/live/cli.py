@@ -1,4 +1,4 @@
-"""``lookout live``, ``lookout replay`` and ``lookout write-log`` (registered by :mod:`lookout.cli`)."""
+"""``lookout live``, ``lookout replay``, ``lookout write-log`` and ``lookout play`` (registered by :mod:`lookout.cli`)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from typing import Annotated, Optional
 import typer
 
 from lookout._validation import InputError
+from lookout.live.run import MAX_GAP  # the default of --max-gap
 from lookout.live.session import Gates  # the defaults of the gate options
 
 #: Steps per compiled scan in a fast replay.
@@ -24,62 +25,99 @@ _GATES = {
     "heading_gate": ("--heading-gate", "Largest heading innovation used (degrees)."),
     "position_timeout": ("--position-timeout", "Seconds after which the last fix is not used (dead reckoning)."),
     "heading_timeout": ("--heading-timeout", "Seconds after which the last heading is not used."),
+    "gate_probability": ("--gate-probability", "A Kalman filter's gate: the probability that a good reading passes (its NIS under the chi-square bound)."),
 }
 
 
-def _session(scenario_file: str, origin: Optional[str], gates: dict, on_event, batch: int = 1):
-    from lookout.io.geodesy import LocalFrame
-    from lookout.live.session import Gates, Session
-    from lookout.studies.cli import _scenario
+def _gate_values(gates: dict):
+    from lookout.live.session import Gates
 
     try:
-        gate_values = Gates(**gates)
+        return Gates(**gates)
     except ValueError as error:
         name = str(error).split(" ", 1)[0]
         option = _GATES.get(name, (name,))[0]
         raise InputError(f"{option}{str(error)[len(name):]}") from None
-    frame = None
-    if origin is not None:
-        try:
-            latitude, longitude = (float(part) for part in origin.split(","))
-            frame = LocalFrame(latitude, longitude)
-        except ValueError as error:
-            detail = str(error) if "must" in str(error) else "two numbers, degrees"
-            raise InputError(f"--origin must be LAT,LON in degrees ({detail}); got {origin!r}") from None
+
+
+def _frame(origin: Optional[str]):
+    from lookout.io.geodesy import LocalFrame
+
+    if origin is None:
+        return None
+    try:
+        latitude, longitude = (float(part) for part in origin.split(","))
+        return LocalFrame(latitude, longitude)
+    except ValueError as error:
+        detail = str(error) if "must" in str(error) else "two numbers, degrees"
+        raise InputError(f"--origin must be LAT,LON in degrees ({detail}); got {origin!r}") from None
+
+
+def _session(scenario_file: str, origin: Optional[str], gates: dict, on_event, say, batch: int = 1):
+    """The scenario's observer in a :class:`~lookout.live.Session`; a warning of the
+    session (a channel its observer cannot gate) said in one line."""
+    import warnings
+
+    from lookout.live.session import Session
+    from lookout.studies.cli import _scenario
+
+    gate_values = _gate_values(gates)
+    frame = _frame(origin)
     spec, scenario = _scenario(scenario_file, None, None)
     try:
-        session = Session(scenario.observer, scenario.sample_period, guess=scenario.initial_estimate, frame=frame, gates=gate_values, on_event=on_event, batch=batch)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", UserWarning)
+            session = Session(scenario.observer, scenario.sample_period, guess=scenario.initial_estimate, frame=frame, gates=gate_values,
+                              on_event=on_event, batch=batch)
     except ValueError as error:
         raise InputError(f"{scenario_file}: {error}") from None
+    for warning in caught:
+        say(f"warning: {warning.message}")
     return session
 
 
+def _check_out(out: Optional[str]) -> None:
+    """Refuse a bad --out before any work; nothing is created (the writer makes the file
+    and its folders at its first write)."""
+    if out is None:
+        return
+    path = Path(out)
+    if not out.strip():
+        raise InputError("--out must name a file; got an empty path")
+    if path.suffix != ".nc":
+        raise InputError(f"--out must name a NetCDF file ending in .nc; got {out}")
+    if path.is_dir():
+        raise InputError(f"--out must name a file, not the folder {out}")
+    from lookout._commandline import writable_folder
+
+    writable_folder("--out", path.absolute().parent, out)
+
+
+def _check_publish(publish: Optional[str]) -> None:
+    if publish is not None and publish != "-":
+        from lookout.live.output import parse_udp
+
+        try:
+            parse_udp(publish, "--publish")
+        except ValueError as error:
+            raise InputError(str(error)) from None
+
+
 def _outputs(session, out: Optional[str], publish: Optional[str], scenario_file: str, source: str, flush_every: int):
-    from lookout.live.output import Publisher, SessionWriter, parse_udp
+    """``(emit, close, remove)``: each step to the writer and the publisher; ``close``
+    writes what is kept; ``remove`` takes back what the writer created (a command refused
+    after it wrote)."""
+    from lookout.live.output import Publisher, SessionWriter
 
     emitters, closers = [], []
     writer = None
     if out is not None:
-        path = Path(out)
-        if path.suffix != ".nc":
-            raise InputError(f"--out must name a NetCDF file ending in .nc; got {out}")
-        if path.is_dir():
-            raise InputError(f"--out must name a file, not the folder {out}")
-        from lookout._commandline import writable_folder
-
-        writable_folder("--out", path.absolute().parent, out)
-        path.absolute().parent.mkdir(parents=True, exist_ok=True)
-        writer = SessionWriter(path, session.observer, {"scenario": scenario_file, "source_of_data": source}, flush_every=flush_every,
+        writer = SessionWriter(Path(out), session.observer, {"scenario": scenario_file, "source_of_data": source}, flush_every=flush_every,
                                attrs_of=lambda: {} if session.frame is None else {"origin_latitude": session.frame.latitude,
                                                                                  "origin_longitude": session.frame.longitude})
         emitters.append(writer.add)
         closers.append(writer.close)
     if publish is not None:
-        if publish != "-":
-            try:
-                parse_udp(publish, "--publish")
-            except ValueError as error:
-                raise InputError(str(error)) from None
         try:
             publisher = Publisher(publish, frame_of=lambda: session.frame)
         except ValueError as error:
@@ -95,7 +133,11 @@ def _outputs(session, out: Optional[str], publish: Optional[str], scenario_file:
         for each in closers:
             each()
 
-    return emit, close, writer
+    def remove():
+        if writer is not None:
+            writer.remove()
+
+    return emit, close, remove
 
 
 def _status_line(session, parser, outcome, final: bool = False) -> str:
@@ -114,14 +156,67 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
     else:
         which, lat = "step", " ".join(f"p{p} {v * 1e3:.2f} ms" for p, v in outcome.processing.percentiles().items())
     outages = session.event_counts["outage"]
+    thrust = ""
+    if outcome.thrust_counts:
+        bad = outcome.thrust_rejected
+        thrust = (f"; thrust rejected {sum(bad.values())} ({', '.join(f'{k} {v}' for k, v in bad.items())}: the previous thrust held)" if bad
+                  else "; thrust rejected 0")
     return (f"{'done' if final else 'status'}: {outcome.steps} steps, {outcome.readings} readings; " + ", ".join(rates)
-            + f"; rejected {sum(rejected.values())} ({', '.join(f'{k} {v}' for k, v in rejected.items()) or 'none'})"
-            + f"; quality/HDOP {quality}; gated {gated}; outages {outages}; late {session.late}; {which} {lat or '-'}")
+            + f"; rejected {sum(rejected.values())} ({', '.join(f'{k} {v}' for k, v in rejected.items()) or 'none'})" + thrust
+            + f"; quality/HDOP {quality}; gated {gated} ({session.gate_rule}); outages {outages}; gaps {session.gaps}; late {session.late}; {which} {lat or '-'}")
 
 
-def _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout) -> dict:
+def _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout, gate_probability) -> dict:
     return {"min_quality": min_quality, "max_hdop": max_hdop, "position_gate": position_gate, "heading_gate": heading_gate,
-            "position_timeout": position_timeout, "heading_timeout": heading_timeout}
+            "position_timeout": position_timeout, "heading_timeout": heading_timeout, "gate_probability": gate_probability}
+
+
+def _positive_seconds(option: str, value: Optional[float]) -> None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise InputError(f"{option} must be a finite positive number of seconds; got {value:g}")
+
+
+def _existing_file(option: str, path: Optional[str]) -> None:
+    if path is not None and not Path(path).is_file():
+        raise InputError(f"{option} must be an existing file; got {path}" + (" (a folder)" if Path(path).is_dir() else ""))
+
+
+def _format(option: str, path: str) -> str:
+    """The log's format (:func:`lookout.io.logs.log_format`), a bad file refused naming ``option``."""
+    from lookout.io.logs import log_format
+
+    try:
+        return log_format(path, option)
+    except ValueError as error:
+        raise InputError(str(error)) from None
+
+
+def _check_truth(truth: str) -> None:
+    """Refuse a --truth that is not a NetCDF run with what the figure draws."""
+    import xarray as xr
+
+    from lookout.live.figures import PANELS
+
+    try:
+        ds = xr.open_dataset(truth)
+    except Exception:  # noqa: BLE001 - xarray raises several types for a file it has no engine for
+        raise InputError(f"--truth {truth}: not a NetCDF file lookout can read (it takes a run's NetCDF, e.g. NAME-truth.nc of lookout write-log)") from None
+    with ds:
+        missing = sorted({name for name, _ in PANELS if name not in ds})
+        if missing:
+            raise InputError(f"--truth {truth} has no {', '.join(missing)}: it must be a run of a vessel scenario (e.g. NAME-truth.nc of lookout write-log)")
+        if "run" not in ds.dims or "time" not in ds.coords or ds.sizes["time"] < 2:
+            raise InputError(f"--truth {truth} must have a run dimension and a time axis of at least two records (a run written by lookout)")
+
+
+def _check_truth_period(truth: str, sample_period: float) -> None:
+    """Refuse a --truth whose time step is not the scenario's sample period (the session's step)."""
+    import xarray as xr
+
+    with xr.open_dataset(truth) as ds:
+        step = float(ds["time"].values[1] - ds["time"].values[0])
+    if abs(step - sample_period) > 1e-9 * sample_period:
+        raise InputError(f"--truth {truth} is recorded every {step:g} s; the scenario's observer steps every {sample_period:g} s: give the truth of this scenario's run")
 
 
 def _say(quiet: bool):
@@ -133,9 +228,11 @@ def _say(quiet: bool):
 
 def _on_event(say):
     def on_event(event):
-        if event["event"] in ("outage", "recovered", "source", "reopened"):
+        when = f"{event['session_time']:.1f} s into the session" if "session_time" in event else f"clock {event['time']:.2f} s"
+        if event["event"] == "gap":
+            say(f"gap at {when}: no reading for {event['length']:.1f} s (every channel dead-reckoned)")
+        elif event["event"] in ("outage", "recovered", "source", "reopened"):
             details = ", ".join(f"{k} {v:.6g} s" if isinstance(v, float) else f"{k} {v}" for k, v in event.items() if k not in ("event", "time", "session_time"))
-            when = f"{event['session_time']:.1f} s into the session" if "session_time" in event else f"clock {event['time']:.2f} s"
             say(f"{event['event']} at {when}: {details}")
     return on_event
 
@@ -149,7 +246,10 @@ PositionGate = Annotated[float, typer.Option("--position-gate", help=_GATES["pos
 HeadingGate = Annotated[float, typer.Option("--heading-gate", help=_GATES["heading_gate"][1])]
 PositionTimeout = Annotated[float, typer.Option("--position-timeout", help=_GATES["position_timeout"][1])]
 HeadingTimeout = Annotated[float, typer.Option("--heading-timeout", help=_GATES["heading_timeout"][1])]
+GateProbability = Annotated[float, typer.Option("--gate-probability", help=_GATES["gate_probability"][1])]
 FlushEvery = Annotated[int, typer.Option(metavar="STEPS", help="Steps between writes of --out (a killed session loses at most these).")]
+MaxGap = Annotated[float, typer.Option("--max-gap", metavar="SECONDS",
+                                       help="The longest silence of the log (no line at all) accepted; a longer one is refused (docs/live.md: why 60 s).")]
 
 
 def replay_command(
@@ -167,6 +267,8 @@ def replay_command(
     heading_gate: HeadingGate = Gates.heading_gate,
     position_timeout: PositionTimeout = Gates.position_timeout,
     heading_timeout: HeadingTimeout = Gates.heading_timeout,
+    gate_probability: GateProbability = Gates.gate_probability,
+    max_gap: MaxGap = MAX_GAP,
     flush_every: FlushEvery = 1000,
     truth: Annotated[Optional[str], typer.Option(metavar="TRUTH.nc", help="The run behind a simulated log (lookout write-log), for --figure.")] = None,
     figure: Annotated[Optional[str], typer.Option(metavar="FILE.png", help="Draw the estimates (against --truth if given) from --out.")] = None,
@@ -174,61 +276,102 @@ def replay_command(
 ) -> None:
     """Run a scenario's observer over a recorded log, as it would have run live."""
     from lookout.io.nmea import NmeaParser
-    from lookout.live.run import replay
+    from lookout.live.run import check_replay, replay
 
+    # what the user typed, then the files, then the scenario: each refused before any work
     if speed is not None and fast:
         raise InputError("--speed and --fast exclude each other: give one")
     if speed is not None and not (math.isfinite(speed) and speed > 0):
         raise InputError(f"--speed must be a finite positive factor; got {speed:g}")
     if flush_every < 1:
         raise InputError(f"--flush-every must be a positive number of steps; got {flush_every}")
+    _positive_seconds("--max-gap", max_gap)
     if figure is not None and out is None:
         raise InputError("--figure needs --out: the figure is drawn from the session's file")
     if truth is not None and figure is None:
         raise InputError("--truth is for --figure: give --figure FILE.png too")
+    gates = _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout, gate_probability)
+    _gate_values(gates)
+    _frame(origin)
+    _check_out(out)
+    _check_publish(publish)
     figure_path = None
     if figure is not None:
         from lookout._commandline import image_file
 
         figure_path = image_file("--figure", figure)
+        if out is not None and figure_path.absolute() == Path(out).absolute():
+            raise InputError(f"--figure and --out must be two files; both are {out}")
     for option, path in (("LOG", log), ("--thrust", thrust), ("--truth", truth)):
-        if path is not None and not Path(path).is_file():
-            raise InputError(f"{option} must be an existing file; got {path}")
-    from lookout.io.logs import log_format
+        _existing_file(option, path)
+    if _format("LOG", log) == "csv-thrust":
+        raise InputError(f"LOG {log} is a thrust log (time,surge,sway,yaw): give it with --thrust, and a position log as LOG")
+    if thrust is not None and _format("--thrust", thrust) != "csv-thrust":
+        raise InputError(f"--thrust {thrust} must be a CSV log whose first line is time,surge,sway,yaw")
+    if truth is not None:
+        _check_truth(truth)
+    # what the replay says is held until its first step: a replay refused after reading
+    # the log (no step taken) ends in one line
+    held: list | None = []
+    say_now = _say(quiet)
 
-    try:
-        if log_format(log) == "csv-thrust":
-            raise InputError(f"LOG {log} is a thrust log (time,surge,sway,yaw): give it with --thrust, and a position log as LOG")
-        if thrust is not None and log_format(thrust) != "csv-thrust":
-            raise InputError(f"--thrust {thrust} must be a CSV log whose first line is time,surge,sway,yaw")
-    except ValueError as error:
-        raise InputError(str(error)) from None
-    say = _say(quiet)
+    def say(text: str) -> None:
+        if held is None:
+            say_now(text)
+        else:
+            held.append(text)
+
     # paced: one step per compiled call, as live; fast: a scan over blocks of steps
-    session = _session(scenario_file, origin, _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout), _on_event(say),
-                       batch=1 if speed is not None else REPLAY_BATCH)
-    emit, close, writer = _outputs(session, out, publish, scenario_file, f"replay of {log}", flush_every)
+    session = _session(scenario_file, origin, gates, _on_event(say), say, batch=1 if speed is not None else REPLAY_BATCH)
+    if truth is not None:
+        _check_truth_period(truth, session.sample_period)
+    try:  # the logs' times, order and lines, before any step
+        check = check_replay(session, log, thrust, max_gap)
+    except ValueError as error:
+        raise InputError(str(error).replace("max_gap", "--max-gap")) from None
+    write, close, remove = _outputs(session, out, publish, scenario_file, f"replay of {log}", flush_every)
+
+    def emit(block) -> None:
+        nonlocal held
+        if held is not None:
+            kept, held = held, None
+            for text in kept:
+                say_now(text)
+        write(block)
+
     parser = NmeaParser()
     import warnings
 
+    if thrust is None:
+        say("no --thrust: the observer predicts with zero input")
+    elif max(check.thrust.first - check.log.first, check.log.newest - check.thrust.newest) > session.gap_after:  # more than a silence
+        say(f"--thrust covers {max(check.thrust.first, check.log.first) - check.log.first:.1f} to "
+            f"{min(check.thrust.newest, check.log.newest) - check.log.first:.1f} s of the log's {check.log.span:.1f} s: zero input before, the last thrust held after")
+    refused = None
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            if thrust is None:
-                say("no --thrust: the observer predicts with zero input")
-            outcome = replay(session, log, thrust=thrust, speed=speed, emit=emit, parser=parser,
+            outcome = replay(session, log, thrust=thrust, speed=speed, emit=emit, parser=parser, max_gap=max_gap, check=check,
                              status=lambda o: say(_status_line(session, parser, o)))
-    except ValueError as error:
-        raise InputError(str(error)) from None
-    finally:  # what was computed is written, whatever stopped the replay
+    except ValueError as error:  # the log's check (before any step) or a refusal on the way
+        refused = str(error).replace("max_gap", "--max-gap")
+    finally:  # what was computed is written, whatever stopped the replay (Ctrl-C keeps it)
         close()
+    if refused is not None:
+        remove()
+        raise InputError(refused)
     if outcome.steps == 0:
+        remove()
         raise InputError(f"{log}: no step was taken: the log never had both a usable position and a heading ({_status_line(session, parser, outcome, True)})")
     span = outcome.last_time - outcome.first_time
     say(_status_line(session, parser, outcome, final=True))
     say(f"{span:.1f} s of log in {outcome.wall_seconds:.2f} s ({span / outcome.wall_seconds:.0f}x real time)" + (f"; written to {out}" if out else ""))
     if figure_path is not None:
-        _figure(out, truth, figure_path, log)
+        try:
+            _figure(out, truth, figure_path, log)
+        except InputError:
+            remove()  # a refused command leaves nothing: the session's file goes with it
+            raise
 
 
 def _figure(out: str, truth: Optional[str], path: Path, log: str) -> None:
@@ -244,8 +387,8 @@ def _figure(out: str, truth: Optional[str], path: Path, log: str) -> None:
         if truth is not None:
             try:
                 truth_ds = xr.open_dataset(truth)
-            except (OSError, ValueError) as error:
-                raise InputError(f"--truth {truth}: not a NetCDF file lookout can read ({error})") from None
+            except Exception:  # noqa: BLE001 - checked before the replay; a file changed since
+                raise InputError(f"--truth {truth}: not a NetCDF file lookout can read") from None
         try:
             fig = plot_session(session.load(), truth_ds, title=f"lookout replay {Path(log).name}")
         except ValueError as error:
@@ -257,10 +400,10 @@ def _figure(out: str, truth: Optional[str], path: Path, log: str) -> None:
 
 def live_command(
     scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")],
-    nmea: Annotated[str, typer.Option(metavar="SOURCE", help="udp://HOST:PORT (bound; HOST default 127.0.0.1), - (stdin) or a serial device or file.")] = "udp://127.0.0.1:10110",
+    nmea: Annotated[str, typer.Option(metavar="SOURCE", help="udp://HOST:PORT (bound; HOST default 127.0.0.1), - (stdin) or a serial device or FIFO.")] = "udp://127.0.0.1:10110",
     out: Annotated[Optional[str], typer.Option(metavar="FILE.nc", help="The session's estimates as NetCDF (a simulation's layout).")] = None,
     publish: Publish = None,
-    thrust: Annotated[Optional[str], typer.Option(metavar="SOURCE", help="Thrust feedback lines surge,sway,yaw (N, N, N m): udp://HOST:PORT or a path.", show_default="zero, with a warning")] = None,
+    thrust: Annotated[Optional[str], typer.Option(metavar="SOURCE", help="Thrust feedback lines surge,sway,yaw (N, N, N m): udp://HOST:PORT, - (stdin) or a device or FIFO.", show_default="zero, with a warning")] = None,
     duration: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop after this long.")] = None,
     idle: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long (counted from the first data).")] = None,
     origin: Origin = None,
@@ -270,6 +413,7 @@ def live_command(
     heading_gate: HeadingGate = Gates.heading_gate,
     position_timeout: PositionTimeout = Gates.position_timeout,
     heading_timeout: HeadingTimeout = Gates.heading_timeout,
+    gate_probability: GateProbability = Gates.gate_probability,
     flush_every: FlushEvery = 100,
     quiet: Quiet = False,
 ) -> None:
@@ -282,22 +426,40 @@ def live_command(
     # client starts, which nothing before this line has started
     jax.config.update("jax_cpu_enable_async_dispatch", False)
     from lookout.io.nmea import NmeaParser
+    from lookout.live.output import parse_udp
     from lookout.live.run import live, open_source
 
     for option, value in (("--duration", duration), ("--idle", idle)):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise InputError(f"{option} must be a finite positive number of seconds; got {value:g}")
+        _positive_seconds(option, value)
     if flush_every < 1:
         raise InputError(f"--flush-every must be a positive number of steps; got {flush_every}")
+    gates = _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout, gate_probability)
+    _gate_values(gates)
+    _frame(origin)
+    _check_out(out)
+    _check_publish(publish)
+    if thrust is not None and thrust == nmea:
+        raise InputError(f"--thrust and --nmea must be two sources; both are {nmea}")
+    for option, text in (("--nmea", nmea), ("--thrust", thrust)):
+        try:
+            if text is not None and text.startswith("udp://"):
+                parse_udp(text, option, any_port=True)
+        except ValueError as error:
+            raise InputError(str(error)) from None
     say = _say(quiet)
-    session = _session(scenario_file, origin, _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout), _on_event(say))
-    emit, close, writer = _outputs(session, out, publish, scenario_file, f"live from {nmea}", flush_every)
+    session = _session(scenario_file, origin, gates, _on_event(say), say)
+    # the sources are opened (bound) before anything is created; a refusal leaves nothing
     try:
         source = open_source(nmea, "--nmea")
+    except ValueError as error:
+        raise InputError(str(error)) from None
+    try:
         thrust_source = open_source(thrust, "--thrust") if thrust is not None else None
     except ValueError as error:
-        close()
+        if source[1] is not sys.stdin.buffer:
+            source[1].close()
         raise InputError(str(error)) from None
+    emit, close, _ = _outputs(session, out, publish, scenario_file, f"live from {nmea}", flush_every)
     if thrust_source is None:
         say("no --thrust: the observer predicts with zero input")
     parser = NmeaParser()
@@ -320,7 +482,7 @@ def write_log_command(
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Where NAME.nmea, NAME.csv, NAME-thrust.csv and NAME-truth.nc go.")] = "out/log",
     name: Annotated[str, typer.Option(metavar="NAME", help="The files' stem.")] = "dp-vessel",
     origin: Annotated[str, typer.Option(metavar="LAT,LON", help="Where north = east = 0 lies (degrees).")] = "63.44,10.40",
-    outage: Annotated[Optional[str], typer.Option(metavar="START,LENGTH", help="Seconds of run time without fixes.")] = "300,30",
+    outage: Annotated[Optional[str], typer.Option(metavar="START,LENGTH", help="Seconds of run time without fixes, within the run (none: no outage).")] = "300,30",
     seed: Annotated[int, typer.Option(help="Seed of the arrival jitter and the corruptions (the run's own is the file's).")] = 0,
 ) -> None:
     """Simulate a scenario once and write what a bridge computer would have logged: GGA
@@ -328,19 +490,13 @@ def write_log_command(
     samples as CSV, the thrust, and the run's truth."""
     import re
 
-    from lookout._commandline import created_folder, simulating
-    from lookout.io.geodesy import LocalFrame
+    from lookout._commandline import output_folder, simulating
     from lookout.io.simulated_log import write_simulated_log
     from lookout.studies.cli import _scenario
 
-    if not re.fullmatch(r"[A-Za-z0-9._-]+", name):
+    if not re.fullmatch(r"[A-Za-z0-9._-]+", name) or name in (".", ".."):
         raise InputError(f"--name must be a file stem of letters, digits, '.', '_' or '-'; got {name!r}")
-    try:
-        latitude, longitude = (float(part) for part in origin.split(","))
-        frame = LocalFrame(latitude, longitude)
-    except ValueError as error:
-        detail = str(error) if "must" in str(error) else "two numbers, degrees"
-        raise InputError(f"--origin must be LAT,LON in degrees ({detail}); got {origin!r}") from None
+    frame = _frame(origin)
     window = None
     if outage is not None and outage.lower() != "none":
         try:
@@ -349,19 +505,29 @@ def write_log_command(
                 raise ValueError
         except ValueError:
             raise InputError(f"--outage must be START,LENGTH in seconds (finite, >= 0) or none; got {outage!r}") from None
+        if window[1] == 0:
+            raise InputError(f"--outage LENGTH must be positive (none: no outage); got {outage!r}")
+    if seed < 0:
+        raise InputError(f"--seed must be a non-negative integer; got {seed}")
+    folder = output_folder("--out", out)
     spec, scenario = _scenario(scenario_file, 1, None)
     wanted = {"measured_position", "measured_heading"}
     if not wanted <= set(scenario.sensor.measurement_layout.names):
         raise InputError(f"{scenario_file}: the sensor must measure position and heading (kind position-heading); it measures "
                          f"{', '.join(scenario.sensor.measurement_layout.names)}")
-    folder = created_folder("--out", out)
+    if window is not None and window[0] + window[1] > scenario.duration:
+        raise InputError(f"--outage {outage} ends at {window[0] + window[1]:g} s, after the run's end: its duration is {scenario.duration:g} s "
+                         f"(give START + LENGTH <= {scenario.duration:g}, or none)")
     from lookout.composition import simulate
 
     with simulating() as progress:
         trajectory = simulate(spec.composition, progress=progress)
     ds = trajectory.to_xarray()
     ds.attrs["scenario"] = scenario_file
-    paths = write_simulated_log(ds, folder, name=name, frame=frame, outage=window, seed=seed)
+    try:
+        paths = write_simulated_log(ds, folder, name=name, frame=frame, outage=window, seed=seed)
+    except ValueError as error:
+        raise InputError(str(error)) from None
     print("written: " + ", ".join(str(path) for path in paths.values()))
 
 
@@ -370,26 +536,45 @@ def play_command(
     to: Annotated[str, typer.Option(metavar="udp://HOST:PORT", help="Where the sentences go.")] = "udp://127.0.0.1:10110",
     speed: Annotated[float, typer.Option(metavar="FACTOR", help="Log seconds per wall-clock second (1: as recorded, what a live observer needs).")] = 1.0,
     duration: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop after this many seconds of log.")] = None,
+    max_gap: MaxGap = MAX_GAP,
 ) -> None:
     """Send an NMEA log's sentences over UDP at the pace they were recorded: a stand-in
     for a ship's network, to try lookout live."""
     import socket
     import time
 
+    from lookout.io.logs import scan_log
     from lookout.live.output import parse_udp
+    from lookout.live.run import check_log_order
 
     if not (math.isfinite(speed) and speed > 0):
         raise InputError(f"--speed must be a finite positive factor; got {speed:g}")
-    if duration is not None and not (math.isfinite(duration) and duration > 0):
-        raise InputError(f"--duration must be a finite positive number of seconds; got {duration:g}")
-    if not Path(log).is_file():
-        raise InputError(f"LOG must be an existing file; got {log}")
+    _positive_seconds("--duration", duration)
+    _positive_seconds("--max-gap", max_gap)
     try:
-        address = parse_udp(to, "--to")
+        host, port = parse_udp(to, "--to")
+        address = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)[0][4]
     except ValueError as error:
         raise InputError(str(error)) from None
+    except OSError:
+        raise InputError(f"--to {to}: cannot resolve the host {host}") from None
+    _existing_file("LOG", log)
+    if _format("LOG", log) != "nmea":
+        raise InputError(f"LOG {log} is a CSV log: play sends NMEA sentences (TIME SENTENCE lines); replay a CSV log with lookout replay")
+    try:
+        scan = scan_log(log, "LOG")
+        check_log_order(scan, max(Gates.position_timeout, Gates.heading_timeout))
+    except ValueError as error:
+        raise InputError(str(error)) from None
+    if not (scan.usable["position"] or scan.usable["heading"] or scan.usable["other"]):
+        raise InputError(f"LOG {log}: no line is a supported sentence with a valid checksum ({', '.join(f'{k} {v}' for k, v in scan.usable.items())})")
+    if scan.typical_step > max_gap:
+        raise InputError(f"LOG {log}: its lines are typically {scan.typical_step:.3g} s apart, more than --max-gap {max_gap:g} s: are the times in seconds?")
+    if scan.longest_gap > max_gap:
+        raise InputError(f"LOG {log}: no line for {scan.longest_gap:.6g} s before line {scan.gap_line} ({scan.gap_start - scan.first:.6g} s into the log), "
+                         f"longer than --max-gap {max_gap:g} s, which play would wait; allow it with a longer --max-gap, or split the log there")
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sent = skipped = 0
+    sent = skipped = failed = 0
     first = None
     started = time.perf_counter()
     try:
@@ -398,6 +583,8 @@ def play_command(
                 stamp, _, sentence = raw.strip().partition(b" ")
                 try:
                     t = float(stamp)
+                    if not math.isfinite(t):
+                        raise ValueError
                 except ValueError:
                     skipped += 1  # comments and lines without a time
                     continue
@@ -407,18 +594,22 @@ def play_command(
                 ahead = (t - first) / speed - (time.perf_counter() - started)
                 if ahead > 0:
                     time.sleep(ahead)
-                sender.sendto(sentence.strip() + b"\r\n", address)
+                try:  # a network that refuses one datagram does not stop the play
+                    sender.sendto(sentence.strip() + b"\r\n", address)
+                except OSError:
+                    failed += 1
+                    continue
                 sent += 1
     except KeyboardInterrupt:
         pass
     finally:
         sender.close()
-    print(f"sent {sent} sentences to {address[0]}:{address[1]} in {time.perf_counter() - started:.1f} s ({skipped} lines without a time skipped)",
-          file=sys.stderr)
+    print(f"sent {sent} sentences to {address[0]}:{address[1]} in {time.perf_counter() - started:.1f} s ({skipped} lines without a time skipped"
+          + (f", {failed} refused by the network" if failed else "") + ")", file=sys.stderr)
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``live``, ``replay`` and ``write-log`` to the ``lookout`` command."""
+    """Add ``live``, ``replay``, ``write-log`` and ``play`` to the ``lookout`` command."""
     app.command("live")(live_command)
     app.command("replay")(replay_command)
     app.command("write-log")(write_log_command)

@@ -8,11 +8,23 @@ since the last step) and the time it arrived (session seconds). Inside it:
 - a channel holds its last accepted reading, as a simulated sensor holds its sample
   (:mod:`lookout.sensors`), until the reading is older than the channel's timeout;
   then the channel is NaN, a dropout the observer predicts through (dead reckoning);
-- a new reading whose innovation (the wrapped observer's ``innovation_<name>``
-  output, ``y - y_hat``, taken with the reading) is longer than the channel's gate is
-  a wild point: the step uses the held reading instead and the wild one is dropped;
-  after ``reopen_after`` wild points in a row the next one passes, so an estimate that
-  drifted during an outage takes the position back.
+- a new reading that fails the channel's test is a wild point: the step uses the held
+  reading instead and the wild one is dropped; after ``reopen_after`` wild points in
+  a row the next one passes, so an estimate that drifted during an outage takes the
+  position back. The test is one of (:func:`gate_tests` picks it per channel):
+
+  - ``"nis"`` for an observer that gives its innovation's covariance (a Kalman
+    filter's :meth:`~lookout.observers.kalman.KalmanFilter.innovation_statistics`):
+    the validation gate of a Kalman filter, the normalized innovation squared
+    nu^T S^-1 nu of the channel at the prior against a bound, the chi-square quantile
+    of the gate probability with the channel's size as degrees of freedom
+    (Bar-Shalom, Li & Kirubarajan 2001, Estimation with Applications to Tracking and
+    Navigation, Wiley; the NIS's chi-square distribution: Section 5.4);
+  - ``"innovation"`` for an observer with an ``innovation_<channel>`` output
+    (``y - y_hat``, taken with the reading): its length against a bound in the
+    channel's units (m, rad);
+  - ``"none"`` for an observer that gives neither: the channel is not gated (a
+    session says so; it is never gated silently off).
 
 Because the rules are part of the observer's step, a live session
 (:class:`~lookout.Stepper`, one compiled call per step) and a fast replay (the same
@@ -46,6 +58,20 @@ class GatedState(eqx.Module):
         return jnp.where(self.missing > 0, jnp.nan, self.used)
 
 
+#: The tests a channel's new reading can be gated by (module docstring).
+GATE_TESTS = ("nis", "innovation", "none")
+
+
+def gate_tests(observer: Observer, channels) -> tuple[str, ...]:
+    """The test each of ``channels`` is gated by for ``observer``: ``"nis"`` when it
+    gives ``innovation_statistics`` (the Kalman filters), else ``"innovation"`` when it
+    declares an ``innovation_<channel>`` output, else ``"none"``."""
+    if callable(getattr(observer, "innovation_statistics", None)):
+        return ("nis",) * len(channels)
+    outputs = {signal.name for signal in observer.extra_signals}
+    return tuple("innovation" if name.replace("measured_", "innovation_") in outputs else "none" for name in channels)
+
+
 class GatedObserver(Observer):
     """``inner`` stepped on stream readings with hold, timeout and a wild-point gate.
 
@@ -55,11 +81,15 @@ class GatedObserver(Observer):
     channels : tuple of str
         The names (in ``inner.measurement_layout``) the stream fills.
     gate : array_like, shape (len(channels),)
-        Largest innovation norm accepted per channel (its units: m, rad).
+        Per channel, the bound of its test: the longest innovation accepted (its units:
+        m, rad) for ``"innovation"``, the largest normalized innovation squared for
+        ``"nis"``; ignored for ``"none"``.
     timeout : array_like, shape (len(channels),)
         Seconds after which a channel's reading is not used.
     reopen_after : int
         Wild points in a row after which the next reading passes.
+    tests : tuple of str, optional
+        The test of each channel (:data:`GATE_TESTS`); default :func:`gate_tests`.
     """
 
     inner: Observer
@@ -67,6 +97,15 @@ class GatedObserver(Observer):
     timeout: jnp.ndarray
     channels: tuple = eqx.field(static=True)
     reopen_after: int = eqx.field(static=True)
+    tests: tuple = eqx.field(static=True)
+
+    def __init__(self, inner: Observer, channels, gate, timeout, reopen_after: int, tests=None):
+        self.inner = inner
+        self.channels = tuple(channels)
+        self.gate = jnp.asarray(gate, dtype=float)
+        self.timeout = jnp.asarray(timeout, dtype=float)
+        self.reopen_after = reopen_after
+        self.tests = gate_tests(inner, self.channels) if tests is None else tuple(tests)
 
     def __check_init__(self):
         names = self.inner.measurement_layout.names
@@ -75,6 +114,10 @@ class GatedObserver(Observer):
                 raise ValueError(f"channels: {name!r} is not in the observer's measurement ({', '.join(names)})")
         if jnp.shape(self.gate) != (len(self.channels),) or jnp.shape(self.timeout) != (len(self.channels),):
             raise ValueError(f"gate and timeout must have one entry per channel ({len(self.channels)})")
+        if len(self.tests) != len(self.channels) or any(test not in GATE_TESTS for test in self.tests):
+            raise ValueError(f"tests must give one of {', '.join(GATE_TESTS)} per channel ({len(self.channels)}); got {self.tests!r}")
+        if "nis" in self.tests and not callable(getattr(self.inner, "innovation_statistics", None)):
+            raise ValueError(f"tests: 'nis' needs an observer with innovation_statistics (a Kalman filter); {type(self.inner).__name__} has none")
 
     # -- what it reads and gives
     @property
@@ -139,21 +182,39 @@ class GatedObserver(Observer):
         held_time = jnp.where(jnp.isfinite(arrival), arrival, -1e300)
         return GatedState(self.inner.init(new, guess), held, held_time, jnp.zeros(n), held, (~jnp.isfinite(new)).astype(held.dtype), jnp.zeros(n))
 
+    def _statistics(self, state: GatedState, t, candidate):
+        """Per channel, what its test compares with its gate (0 for ``"none"``), and the
+        wrapped observer's trial update on ``candidate`` when an ``"innovation"`` test
+        needed it (None otherwise)."""
+        trial = None
+        if "nis" in self.tests:
+            innovation, covariance = self.inner.innovation_statistics(state.inner, candidate)
+        if "innovation" in self.tests:
+            trial = self.inner.update(state.inner, t, candidate)
+            estimate = self.inner.output(trial, candidate)
+        sizes = []
+        for name, test, (start, stop) in zip(self.channels, self.tests, self._columns):
+            if test == "nis":
+                nu = innovation[start:stop]
+                statistics = nu @ jnp.linalg.solve(covariance[start:stop, start:stop], nu)
+            elif test == "innovation":
+                statistics = jnp.linalg.norm(jnp.atleast_1d(estimate[name.replace("measured_", "innovation_")]))
+            else:
+                statistics = jnp.zeros(())
+            sizes.append(statistics)
+        return jnp.stack(sizes), trial
+
     def update(self, state: GatedState, t, y):
         new, arrival = self._split(y)
         candidate = self._candidate(state, t, new, arrival)
-        trial = self.inner.update(state.inner, t, candidate)
-        estimate = self.inner.output(trial, candidate)
-        wild = []
-        for index, name in enumerate(self.channels):
-            innovation = estimate.get(name.replace("measured_", "innovation_"))
-            size = jnp.linalg.norm(jnp.atleast_1d(innovation)) if innovation is not None else 0.0
-            wild.append(jnp.isfinite(arrival[index]) & (size > self.gate[index]) & (state.wild_in_row[index] < self.reopen_after))
-        wild = jnp.stack(wild)
+        sizes, trial = self._statistics(state, t, candidate)
+        tested = jnp.asarray([test != "none" for test in self.tests])
+        wild = tested & jnp.isfinite(arrival) & (sizes > self.gate) & (state.wild_in_row < self.reopen_after)
         kept_arrival = jnp.where(wild, jnp.nan, arrival)
         used = self._candidate(state, t, new, kept_arrival)
         redone = self.inner.update(state.inner, t, used)
-        inner = jax.tree.map(lambda a, b: jnp.where(jnp.any(wild), a, b), redone, trial)
+        # the trial update on the candidate is the step's when no reading was wild
+        inner = redone if trial is None else jax.tree.map(lambda a, b: jnp.where(jnp.any(wild), a, b), redone, trial)
         accepted = jnp.isfinite(kept_arrival)
         held, held_time = state.held, state.held_time
         for index, (start, stop) in enumerate(self._columns):

@@ -4,9 +4,12 @@ The NetCDF file has the layout of a simulation's (:meth:`lookout.Trajectory.to_x
 ``position_hat``, ``innovation_position``, ``measured_position``, ``force_applied``, ...,
 dims run, time and the label dims) with ``time`` unlimited, and a few variables of the
 session's own: ``gated_<channel>`` and ``outage_<channel>`` flags and ``step_seconds``.
-The first flush writes the file beside its name and renames it into place; every later
-flush appends the rows since the last one and syncs, so a session that is killed
-loses at most the rows of one flush interval and leaves a file that opens.
+The first flush creates the file's missing folders, writes the file beside its name and
+renames it into place; nothing is created before (a session that takes no step leaves
+nothing). Every later flush appends the rows since the last one and syncs, so a
+session that is killed loses at most the rows of one flush interval and leaves a file
+that opens. :meth:`SessionWriter.remove` takes back what the writer created (a command
+refused after it wrote).
 """
 
 from __future__ import annotations
@@ -124,6 +127,7 @@ class SessionWriter:
         self._blocks: list = []
         self._kept = 0
         self.written = 0
+        self._created: list[Path] = []  # the file, then the folders made for it (innermost first)
 
     def add(self, block) -> None:
         """Keep ``block``; flush when ``flush_every`` steps are kept."""
@@ -159,6 +163,14 @@ class SessionWriter:
         ds = self._dataset()
         if self.written == 0:
             ds.attrs.update(self.attrs_of())
+            folder = self.path.absolute().parent
+            missing = []
+            while not folder.exists():
+                missing.append(folder)
+                folder = folder.parent
+            for each in reversed(missing):
+                each.mkdir()
+            self._created = [self.path, *missing]
             write_netcdf(ds, self.path, history="lookout live session", unlimited_dims=("time",))
         else:
             with netCDF4.Dataset(self.path, "a") as handle:
@@ -176,3 +188,16 @@ class SessionWriter:
     def close(self) -> None:
         """Flush what is left."""
         self.flush()
+
+    def remove(self) -> None:
+        """Delete the file and the folders the writer created for it (a folder only if
+        it is empty), and keep nothing more."""
+        self._blocks.clear()
+        self._kept = 0
+        for path in self._created:
+            try:
+                path.unlink() if path == self.path else path.rmdir()
+            except OSError:
+                pass  # gone already, or a folder something else has written into since
+        self._created = []
+        self.written = 0

@@ -3,27 +3,41 @@
 Both feed a :class:`~lookout.live.session.Session` the same way: for each reading in
 arrival order, first the steps that were due before it arrived, then the reading. A
 replay takes its arrival times from the log, a live session from the computer's
-clock (Unix time), so a replayed log gives what the live session gave.
+clock (Unix time, kept monotone: a step of the system clock does not move it), so a
+replayed log gives what the live session gave.
+
+Before a replay takes a step, :func:`check_replay` reads the logs' times once
+(:func:`lookout.io.logs.scan_log`) and refuses what the session could not replay
+faithfully: a log with nothing to give, a log out of order, a log whose times are not
+in seconds, a silence longer than ``max_gap``, a thrust log on another clock.
 """
 
 from __future__ import annotations
 
-import heapq
 import math
 import os
 import select
 import socket
 import sys
 import time as _time
-from collections import deque
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from lookout.io.logs import CsvLog, log_format, nmea_log
+from lookout.io.logs import CsvLog, LogScan, log_format, nmea_log, scan_log
 from lookout.io.nmea import LineSplitter, NmeaParser, Reading
 from lookout.live.session import Session
+from lookout.sim.filtering import check_step_length
+
+#: The longest silence of a log (s) a replay dead-reckons through unless told more:
+#: docs/live.md, "Why 60 s for --max-gap", gives the reason.
+MAX_GAP = 60.0
+#: The share of a log's lines that may be stamped before a line above them (reordered
+#: by the logger; each is dropped as late); more (and more than one line) is a log out
+#: of order.
+MAX_LATE_SHARE = 0.01
 
 
 class Latencies:
@@ -62,21 +76,138 @@ class Outcome:
     processing: Latencies = field(default_factory=Latencies)
     latency: Latencies = field(default_factory=Latencies)
     counts: dict = field(default_factory=dict)  # lines by cause (the parser's, or a CSV log's rows)
+    thrust_counts: dict = field(default_factory=dict)  # thrust rows or lines by cause (empty without thrust)
+    check: ReplayCheck | None = None  # a replay's: what check_replay found
 
     @property
     def rejected(self) -> dict:
         """The lines that gave no reading, by cause (zeros left out)."""
         return {cause: n for cause, n in self.counts.items() if cause != "accepted" and n}
 
+    @property
+    def thrust_rejected(self) -> dict:
+        """The thrust rows or lines that gave no thrust, by cause (zeros left out):
+        ``missing`` (an empty or NaN value: the previous thrust stays applied) and
+        ``malformed``."""
+        return {cause: n for cause, n in self.thrust_counts.items() if cause != "accepted" and n}
 
-def _thrust_line(line: bytes, time: float) -> Reading | None:
-    """A live thrust line ``surge,sway,yaw`` (N, N, N m), or None if it is not one."""
+
+@dataclass
+class ReplayCheck:
+    """What :func:`check_replay` found: the scans of the log and of the thrust log."""
+
+    log: LogScan
+    thrust: LogScan | None = None
+
+
+def _described(scan: LogScan) -> str:
+    counts = ", ".join(f"{cause} {n}" for cause, n in sorted(scan.usable.items(), key=lambda item: -item[1]))
+    return f"{scan.lines} lines: {counts}" if counts else "no line but comments"
+
+
+def check_log_order(scan: LogScan, tolerance: float) -> None:
+    """Refuse (ValueError naming the log) a log without a timed line, or one not in the
+    order its lines arrived: a line stamped more than ``tolerance`` seconds before a line
+    above it, or more than :data:`MAX_LATE_SHARE` of its lines stamped before one above."""
+    where = f"{scan.option} {scan.path}"
+    if scan.timed == 0:
+        raise ValueError(f"{where}: no line has a time ({_described(scan)}); a log's lines are TIME SENTENCE, TIME in seconds")
+    if scan.back > tolerance:
+        raise ValueError(
+            f"{where}: its times run backwards: line {scan.back_line} is stamped {scan.back:.6g} s before line {scan.back_from} "
+            f"(more than {tolerance:g} s: a clock that stepped back, or logs joined out of order); a log must be in the order its lines arrived: sort it, or split it where its clock stepped back"
+        )
+    if scan.late > max(MAX_LATE_SHARE * scan.timed, 1):
+        ends = f"; it ends {scan.first - scan.last:.6g} s before it starts" if scan.last < scan.first else ""
+        raise ValueError(
+            f"{where}: its times run backwards: {scan.late} of its {scan.timed} timed lines are stamped before a line above them{ends} "
+            f"(up to {100 * MAX_LATE_SHARE:g} % are replayed as reordered lines, each dropped as late); a log must be in the order its lines arrived"
+        )
+
+
+def check_replay(session: Session, log: str | Path, thrust: str | Path | None = None, max_gap: float = MAX_GAP) -> ReplayCheck:
+    """Refuse, before any step, a log that ``session`` cannot replay faithfully.
+
+    One pass over each log (:func:`lookout.io.logs.scan_log`: times and framing, no
+    field parsed), then, each refusal a ``ValueError`` of one line naming the log:
+
+    - the log has no line of a channel the observer reads (every sentence fails its
+      checksum, an empty log, a log of comments);
+    - its times run backwards: a line stamped more than the longest channel timeout
+      before a line above it (a clock that stepped back, two logs joined in the wrong
+      order), or more than :data:`MAX_LATE_SHARE` of its lines stamped before a line
+      above them (a log reversed or shuffled). Fewer are replayed as reordered lines,
+      each counted ``late`` and dropped, as a live session drops them;
+    - its times are not in seconds: its typical step between lines (the median) is
+      longer than the longest channel timeout and is a step the observer cannot take
+      (:func:`lookout.sim.filtering.check_step_length`, the test of
+      :func:`lookout.filter`: one prediction step over it amplifies a state error more
+      than :data:`~lookout.sim.filtering.MAX_STEP_AMPLIFICATION` times);
+    - a silence longer than ``max_gap`` seconds: the session would dead-reckon
+      through it, step by step, with nothing to correct it;
+    - the thrust log is out of order, has no row with a thrust, or does not overlap
+      the log's time span (another clock, or milliseconds).
+
+    Parameters
+    ----------
+    max_gap : float
+        The longest silence accepted (s); default :data:`MAX_GAP`.
+    """
+    if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating, np.integer)) or not (math.isfinite(max_gap) and max_gap > 0):
+        raise ValueError(f"max_gap must be a finite positive number of seconds; got {max_gap!r}")
+    tolerance = session.gap_after
+    scan = scan_log(log, "LOG")
+    if scan.format == "csv-thrust":
+        raise ValueError(f"LOG {log} is a thrust log (time,surge,sway,yaw): give it as the thrust, and a position log as LOG")
+    check_log_order(scan, tolerance)
+    for kind in session.channels:
+        if not scan.usable[kind]:
+            raise ValueError(f"LOG {log}: no line gives a {kind} reading ({_described(scan)}); the observer needs {' and '.join(session.channels)}")
+    typical = scan.typical_step
+    if typical > tolerance and session.observer.sample_period is None:
+        observer = session.observer
+        zeros = np.zeros(observer.measurement_layout.size), np.zeros(observer.input_layout.size)
+        check_step_length(observer, session.guess if session.guess is not None else observer.guess(), *zeros, typical,
+                          f"LOG {log}: its typical step between lines,")
+    if scan.longest_gap > max_gap:
+        hint = " (are the times in seconds?)" if typical > max_gap else ""
+        raise ValueError(
+            f"LOG {log}: no line for {scan.longest_gap:.6g} s before line {scan.gap_line} ({scan.gap_start - scan.first:.6g} s into the log), "
+            f"longer than max_gap {max_gap:g} s{hint}; a replay would dead-reckon through it with nothing to correct it: give a longer max_gap to replay it anyway, or split the log there"
+        )
+    check = ReplayCheck(scan)
+    if thrust is not None:
+        thrust_scan = scan_log(thrust, "--thrust")
+        if thrust_scan.format != "csv-thrust":
+            raise ValueError(f"--thrust {thrust} must be a CSV log whose first line is time,surge,sway,yaw")
+        check_log_order(thrust_scan, tolerance)
+        if not thrust_scan.usable["thrust"]:
+            raise ValueError(f"--thrust {thrust}: no row gives a thrust ({_described(thrust_scan)})")
+        if thrust_scan.newest < scan.first or thrust_scan.first > scan.newest:
+            raise ValueError(
+                f"--thrust {thrust}: its times ({thrust_scan.first:.6g} to {thrust_scan.newest:.6g} s) do not overlap the log's "
+                f"({scan.first:.6g} to {scan.newest:.6g} s); are both in seconds, on the same clock?"
+            )
+        check.thrust = thrust_scan
+    return check
+
+
+def _thrust_line(line: bytes, time: float, counts: Counter | None = None) -> Reading | None:
+    """A live thrust line ``surge,sway,yaw`` (N, N, N m), or None if it is not one
+    (counted in ``counts``: ``malformed``, or ``missing`` for an empty or NaN value,
+    which leaves the previous thrust applied)."""
+    counts = Counter() if counts is None else counts
     try:
-        values = tuple(float(cell) for cell in line.decode("ascii").strip().split(","))
+        values = tuple(float(cell) if cell.strip() else math.nan for cell in line.decode("ascii").strip().split(","))
     except (UnicodeDecodeError, ValueError):
+        values = ()
+    if len(values) != 3 or any(math.isinf(v) for v in values):
+        counts["malformed"] += 1
         return None
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+    if not all(math.isfinite(v) for v in values):
+        counts["missing"] += 1
         return None
+    counts["accepted"] += 1
     return Reading(time, "thrust", "thrust", values, "CSV")
 
 
@@ -92,8 +223,12 @@ def log_readings(path: str | Path, parser: NmeaParser):
 
 
 def replay(session: Session, log: str | Path, *, thrust: str | Path | None = None, speed: float | None = None,
-           emit=None, parser: NmeaParser | None = None, status=None, status_every: float = 5.0) -> Outcome:
+           emit=None, parser: NmeaParser | None = None, status=None, status_every: float = 5.0, max_gap: float = MAX_GAP,
+           check: ReplayCheck | None = None) -> Outcome:
     """Step ``session`` through a log; ``emit(record)`` for each step.
+
+    The logs are checked first (:func:`check_replay`); thrust rows after the log's
+    last line are not used (the session ends with the log).
 
     Parameters
     ----------
@@ -102,19 +237,27 @@ def replay(session: Session, log: str | Path, *, thrust: str | Path | None = Non
         it goes.
     status : callable, optional
         Called with the :class:`Outcome` every ``status_every`` wall seconds.
+    max_gap : float
+        The longest silence of the log accepted (s), :func:`check_replay`.
+    check : ReplayCheck, optional
+        What :func:`check_replay` gave for these logs and ``session``, when the caller
+        has checked them already (they are not read twice).
+
+    Raises
+    ------
+    ValueError
+        As :func:`check_replay`, before any step.
     """
+    check = check if check is not None else check_replay(session, log, thrust, max_gap)
     parser = parser or NmeaParser()
     readings, counts = log_readings(log, parser)
-    streams = [readings]
+    thrust_log = None
     if thrust is not None:
-        thrust_log = CsvLog(thrust, source="thrust")
-        if thrust_log.kind != "thrust":
-            raise ValueError(f"--thrust {thrust}: the first line must be time,surge,sway,yaw")
-        streams.append(iter(thrust_log))
-    outcome = Outcome(counts=counts)
+        thrust_log = CsvLog(thrust, source="thrust", option="--thrust")
+    outcome = Outcome(counts=counts, thrust_counts=thrust_log.counts if thrust_log is not None else {}, check=check)
     started = _time.perf_counter()
     last_status = started
-    for reading in heapq.merge(*streams, key=lambda r: r.time) if len(streams) > 1 else streams[0]:
+    for reading in _merged(readings, iter(thrust_log) if thrust_log is not None else None):
         if outcome.first_time is None:
             outcome.first_time = reading.time
         if speed is not None:
@@ -124,7 +267,7 @@ def replay(session: Session, log: str | Path, *, thrust: str | Path | None = Non
         _emit(session.advance(reading.time), emit, outcome)
         _emit(session.feed(reading), emit, outcome)
         outcome.readings += 1
-        outcome.last_time = reading.time
+        outcome.last_time = max(reading.time, outcome.last_time if outcome.last_time is not None else -math.inf)
         if status is not None and _time.perf_counter() - last_status > status_every:
             last_status = _time.perf_counter()
             outcome.wall_seconds = last_status - started
@@ -135,6 +278,20 @@ def replay(session: Session, log: str | Path, *, thrust: str | Path | None = Non
     _emit(session.finish(), emit, outcome)
     outcome.wall_seconds = _time.perf_counter() - started
     return outcome
+
+
+def _merged(readings, thrust):
+    """The log's readings with the thrust readings stamped before each (a thrust and a
+    reading of one time: the reading first); none after the log's last reading."""
+    if thrust is None:
+        yield from readings
+        return
+    pending = next(thrust, None)
+    for reading in readings:
+        while pending is not None and pending.time < reading.time:
+            yield pending
+            pending = next(thrust, None)
+        yield reading
 
 
 def _emit(blocks, emit, outcome: Outcome, arrivals: deque | None = None, clock=None) -> None:
@@ -175,9 +332,11 @@ def open_source(text: str, option: str = "--nmea"):
         return "stream", sys.stdin.buffer, "stdin"
     path = Path(text)
     if not path.exists():
-        raise ValueError(f"{option} must be udp://HOST:PORT, - (stdin) or an existing device or file; {text} does not exist")
+        raise ValueError(f"{option} must be udp://HOST:PORT, - (stdin) or an existing serial device or FIFO; {text} does not exist")
     if path.is_file():
-        raise ValueError(f"{option} {text} is a regular file: its lines have no arrival times live; replay a log with lookout replay, or pipe a stream to --nmea -")
+        raise ValueError(f"{option} {text} is a regular file: its lines have no arrival times live; replay a log with lookout replay, or give a stream (udp://, -, a device or a FIFO)")
+    if path.is_dir():
+        raise ValueError(f"{option} {text} is a folder; give udp://HOST:PORT, - (stdin), a serial device or a FIFO")
     try:
         handle = path.open("rb", buffering=0)
     except OSError as error:
@@ -185,16 +344,26 @@ def open_source(text: str, option: str = "--nmea"):
     return "stream", handle, str(path)
 
 
+def unix_clock():
+    """A clock of Unix time that never steps: Unix time when it is made, then the
+    monotonic clock's seconds since (a live session's clock: a system clock set back
+    by NTP or by hand would make the readings after it late, and one set forward a gap)."""
+    origin, start = _time.time(), _time.monotonic()
+    return lambda: origin + (_time.monotonic() - start)
+
+
 def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser | None = None, duration: float | None = None,
-         idle: float | None = None, status=None, status_every: float = 5.0, clock=_time.time) -> Outcome:
+         idle: float | None = None, status=None, status_every: float = 5.0, clock=None) -> Outcome:
     """Step ``session`` on a live source (from :func:`open_source`) until ``duration``
     seconds have passed, nothing arrived for ``idle`` seconds, the stream ends, or
-    Ctrl-C. ``thrust`` is a second source of ``surge,sway,yaw`` lines."""
+    Ctrl-C. ``thrust`` is a second source of ``surge,sway,yaw`` lines. ``clock``
+    (seconds) stamps each reading's arrival; default :func:`unix_clock`."""
+    clock = clock or unix_clock()
     parser = parser or NmeaParser()
     kind, handle, where = source
     splitter = LineSplitter()
     thrust_splitter = LineSplitter()
-    outcome = Outcome(counts=parser.counts)
+    outcome = Outcome(counts=parser.counts, thrust_counts=Counter() if thrust is not None else {})
     started = clock()
     last_heard = None  # --idle counts from the first data
     last_status = started
@@ -238,7 +407,7 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
                 arrival = clock()
                 last_heard = arrival
                 if is_thrust:
-                    readings = [r for r in (_thrust_line(line, arrival) for line in lines) if r is not None]
+                    readings = [r for r in (_thrust_line(line, arrival, outcome.thrust_counts) for line in lines) if r is not None]
                 elif kind == "udp":
                     readings = parser.datagram(data, arrival, origin)
                 else:

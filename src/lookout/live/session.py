@@ -13,11 +13,17 @@ period) with :meth:`Session.advance`: each step on the readings that had arrived
   until it has been silent for the channel's timeout; then the next that speaks;
 - the newest reading of each channel since the last step goes into the step. Hold,
   timeout and the wild-point gate are :class:`~lookout.live.gate.GatedObserver`'s,
-  inside the compiled step.
+  inside the compiled step: a Kalman filter's readings are gated on their normalized
+  innovation squared (the chi-square bound of ``gate_probability``), another
+  observer's on the length of its ``innovation_<channel>`` output (``position_gate``,
+  ``heading_gate``); a channel the observer gives neither for is not gated, and the
+  session says so (:attr:`Session.ungated`, a warning);
+- a silence of every channel longer than the longest timeout is a ``gap`` event
+  (where it starts and how long it was), reported when the next reading comes.
 
 A step's results come out as a :class:`Block` (one step live; many in a fast replay,
 which runs ``batch`` steps in one compiled scan). Events (outage, recovered, gated,
-source, frame) go to ``on_event``.
+source, frame, gap, refused) go to ``on_event``.
 """
 
 from __future__ import annotations
@@ -31,7 +37,7 @@ import numpy as np
 
 from lookout.io.geodesy import LocalFrame
 from lookout.io.nmea import Reading
-from lookout.live.gate import GatedObserver
+from lookout.live.gate import GatedObserver, gate_tests
 from lookout.sim.filtering import Stepper
 
 #: The measurement signals a live observer's layout may name, and the reading kind
@@ -62,6 +68,12 @@ class Gates:
         Age (s) after which a channel's last reading is no longer used.
     reopen_after : int
         Wild points in a row after which the gate lets the next reading through.
+    gate_probability : float
+        The gate of a Kalman filter's readings: the probability that a reading of a
+        consistent filter passes (its normalized innovation squared below the
+        chi-square quantile of this probability). 0.9999 rejects one good reading in
+        10 000 (a 10 Hz heading: one every 17 min) and a fix 60 m off when its
+        innovation's standard deviation is below 14 m (a 2-DOF bound of 18.4).
     """
 
     min_quality: int = 1
@@ -71,6 +83,7 @@ class Gates:
     position_timeout: float = 2.5
     heading_timeout: float = 1.0
     reopen_after: int = 5
+    gate_probability: float = 0.9999
 
     def __post_init__(self):
         if isinstance(self.min_quality, bool) or not isinstance(self.min_quality, (int, np.integer)) or not 0 <= self.min_quality <= 9:
@@ -79,6 +92,9 @@ class Gates:
             _positive(name, getattr(self, name))
         if isinstance(self.reopen_after, bool) or not isinstance(self.reopen_after, (int, np.integer)) or self.reopen_after < 1:
             raise ValueError(f"reopen_after must be a positive integer; got {self.reopen_after!r}")
+        probability = self.gate_probability
+        if isinstance(probability, bool) or not isinstance(probability, (int, float, np.floating, np.integer)) or not 0.0 < probability < 1.0:
+            raise ValueError(f"gate_probability must be a probability strictly between 0 and 1; got {probability!r}")
 
 
 @dataclass
@@ -149,7 +165,7 @@ class Session:
     gates : Gates, optional
     on_event : callable, optional
         Called with a dict for each event (frame, source, gated, outage, recovered,
-        refused).
+        gap, refused).
     batch : int
         Steps per compiled call: 1 live (each step as soon as it is due), more in a
         fast replay (:meth:`finish` runs what is left).
@@ -197,13 +213,28 @@ class Session:
                 timeout = gates.position_timeout if kind == "position" else gates.heading_timeout
                 self.channels[kind] = _Channel(signal.name, kind, slice(start, start + signal.size), timeout)
             start += signal.size
-        self.gated_observer = GatedObserver(
-            inner=observer,
-            channels=tuple(c.name for c in self.channels.values()),
-            gate=np.array([gates.position_gate if c.kind == "position" else math.radians(gates.heading_gate) for c in self.channels.values()]),
-            timeout=np.array([c.timeout for c in self.channels.values()]),
-            reopen_after=gates.reopen_after,
-        )
+        from scipy.stats import chi2  # here: scipy.stats takes a while to import, and the command imports this module
+
+        names = tuple(c.name for c in self.channels.values())
+        tests = gate_tests(observer, names)
+        bounds = []
+        for channel, test in zip(self.channels.values(), tests):
+            if test == "nis":  # the chi-square quantile, the channel's size its degrees of freedom
+                bounds.append(float(chi2.ppf(gates.gate_probability, channel.columns.stop - channel.columns.start)))
+            else:
+                bounds.append(gates.position_gate if channel.kind == "position" else math.radians(gates.heading_gate))
+        self.gate_tests = dict(zip(self.channels, tests))
+        #: The channels no test gates (the observer gives neither innovation statistics nor an innovation output).
+        self.ungated = tuple(kind for kind, test in self.gate_tests.items() if test == "none")
+        if self.ungated:
+            warnings.warn(f"lookout live: observer {type(observer).__name__} gives no innovation for {', '.join(self.ungated)}: "
+                          "wild points there are not gated", UserWarning, stacklevel=2)
+        self.gated_observer = GatedObserver(observer, names, np.array(bounds), np.array([c.timeout for c in self.channels.values()]),
+                                            gates.reopen_after, tests)
+        #: A silence of every channel longer than this (s) is a gap: the longest timeout.
+        self.gap_after = max(c.timeout for c in self.channels.values())
+        self.gaps = 0
+        self._last_measurement = math.nan
         self._size = layout.size
         self._input = np.zeros(observer.input_layout.size)
         self.thrust_seen = False
@@ -214,7 +245,7 @@ class Session:
         self.late = 0
         self.refused = 0
         self.events: list[dict] = []
-        self.event_counts = {"outage": 0, "recovered": 0, "gated": 0, "source": 0, "refused": 0}
+        self.event_counts = {"outage": 0, "recovered": 0, "gated": 0, "source": 0, "refused": 0, "gap": 0}
         # the steps kept for the next compiled call: times, session times, raw measurements, inputs
         n_raw = self._size + len(self.channels)
         self._times = np.empty(self.batch)
@@ -225,6 +256,22 @@ class Session:
         self._started = False
         self._last_reading = -math.inf
 
+    @property
+    def gate_rule(self) -> str:
+        """The gate in words, for a status line: ``NIS > chi-square 99.99 %``,
+        ``position innovation > 30 m, heading innovation > 15 deg``, or ``off``."""
+        words = {}
+        for kind, test in self.gate_tests.items():
+            if test == "nis":
+                words[kind] = f"NIS > chi-square {100 * self.gates.gate_probability:g} %"
+            elif test == "innovation":
+                words[kind] = f"innovation > {self.gates.position_gate:g} m" if kind == "position" else f"innovation > {self.gates.heading_gate:g} deg"
+            else:
+                words[kind] = "off"
+        if len(set(words.values())) == 1 and "innovation" not in next(iter(words.values())):
+            return next(iter(words.values()))
+        return ", ".join(f"{kind} {rule}" for kind, rule in words.items())
+
     # ----------------------------------------------------------------- readings
     def feed(self, reading: Reading) -> list[Block]:
         """Take one reading (in arrival order); the next step uses it. A reading of the
@@ -233,6 +280,12 @@ class Session:
             self.late += 1  # stamped before the reading before it: a reordered log
             return []
         self._last_reading = reading.time
+        if reading.kind != "thrust":
+            silence = reading.time - self._last_measurement
+            if silence > self.gap_after:
+                self.gaps += 1
+                self._event("gap", self._last_measurement, length=silence)
+            self._last_measurement = reading.time
         taken = self._take(reading)
         if taken and self.step_on == {"local_position": "position"}.get(reading.kind, reading.kind):
             if self.step_index is None:

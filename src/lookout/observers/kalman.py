@@ -339,6 +339,18 @@ class KalmanFilter(Observer):
     def correct(self, state: KalmanState, t, y: Array) -> KalmanState:
         """The posterior at t from the prior and the sample ``y`` (channels masked)."""
 
+    @abc.abstractmethod
+    def innovation_statistics(self, state: KalmanState, y: Array) -> tuple[Array, Array]:
+        """``(nu, S)``: the innovation of ``y`` at the prior ``state`` and its covariance,
+        nu = y - y_hat (angle channels wrapped) and S = cov(nu) = H P- H^T + R (the
+        extended filter's) or its unscented counterpart, on every finite channel whether
+        or not it is due (a missing one: zero innovation, unit variance). What a
+        validation gate tests: nu_c^T S_cc^-1 nu_c, the normalized innovation squared
+        of channel c, is chi-square with the channel's size as degrees of freedom when
+        the filter is consistent (Bar-Shalom, Li & Kirubarajan 2001, Estimation with
+        Applications to Tracking and Navigation, Section 5.4); :class:`lookout.live.GatedObserver`
+        gates a live reading on it."""
+
     # ------------------------------------------------------------------ Observer
     def guess(self, **parts):
         """The model plant's state from its named parts (the keywords of the plant's
@@ -504,6 +516,9 @@ class _Linearization(KalmanFilter):
         raise NotImplementedError
 
     def correct(self, state, t, y):
+        raise NotImplementedError
+
+    def innovation_statistics(self, state, y):
         raise NotImplementedError
 
 

@@ -120,17 +120,27 @@ class UnscentedKalmanFilter(KalmanFilter):
         covariance = (deviations * covariance_weights[:, None]).T @ deviations + self.process_covariance(state.mean, t, u, dt)
         return KalmanState(self.normalized(prior), _symmetric(covariance))
 
-    def correct(self, state: KalmanState, t, y: Array) -> KalmanState:
-        n = state.mean.size
-        mean_weights, covariance_weights, scale = self._weights(n)
+    def _innovation(self, state: KalmanState, y: Array, due: Array):
+        """(nu, S, sigma points, their measurement deviations, covariance weights) on the
+        channels that are ``due`` and finite, the others masked."""
+        mean_weights, covariance_weights, scale = self._weights(state.mean.size)
         points = self._points(state.mean, state.covariance, scale)
         measured = jax.vmap(self.measurement)(points)
         predicted = _mean(measured, mean_weights, self.channel_angles)
-        innovation, mask = masked(y, predicted, self.due(t), self.channel_angles)
+        innovation, mask = masked(y, predicted, due, self.channel_angles)
         errors = _wrapped(measured - predicted, self.channel_angles) * mask[None, :]
-        deviations = _wrapped(points - state.mean, self.state_angles)
         noise = masked_noise(self.measurement_covariance, mask)
         innovation_covariance = _symmetric((errors * covariance_weights[:, None]).T @ errors + noise)
+        return innovation, innovation_covariance, points, errors, covariance_weights
+
+    def innovation_statistics(self, state: KalmanState, y: Array) -> tuple[Array, Array]:
+        """nu = y - y_hat and S = sum W_c e_i e_i^T + R at the prior (:meth:`KalmanFilter.innovation_statistics`)."""
+        innovation, innovation_covariance, *_ = self._innovation(state, y, jnp.ones(jnp.shape(y), dtype=bool))
+        return innovation, innovation_covariance
+
+    def correct(self, state: KalmanState, t, y: Array) -> KalmanState:
+        innovation, innovation_covariance, points, errors, covariance_weights = self._innovation(state, y, self.due(t))
+        deviations = _wrapped(points - state.mean, self.state_angles)
         cross = (deviations * covariance_weights[:, None]).T @ errors
         gain = jnp.linalg.solve(innovation_covariance, cross.T).T
         posterior = self.normalized(state.mean + gain @ innovation)

@@ -123,6 +123,34 @@ def _prediction_jacobian(observer, unravel, flat, y, u, dt):
     return jax.jacfwd(lambda vector: ravel_pytree(observer.predict(unravel(vector), 0.0, y, u, dt))[0])(flat)
 
 
+def check_step_length(observer: Observer, guess, y, u, dt: float, where: str) -> float:
+    """Refuse a time step the observer cannot take in one prediction: the screening of
+    :func:`step_amplification` against :data:`MAX_STEP_AMPLIFICATION`, the test that
+    tells a log read in the wrong unit (milliseconds) from one in seconds. Used by
+    :func:`filter` on a log's longest row step and by ``lookout replay`` on a log's
+    typical step between lines.
+
+    Parameters
+    ----------
+    where : str
+        What the step is, for the message (``"the longest row step (row 3 to 4),"``).
+
+    Returns
+    -------
+    float
+        The amplification (spectral radius) found.
+
+    Raises
+    ------
+    ValueError
+        ``"{where} {dt} s is too long for this observer: ...; are the times in seconds?"``.
+    """
+    radius = step_amplification(observer, guess, y, u, dt)
+    if not radius <= MAX_STEP_AMPLIFICATION:
+        raise ValueError(_too_long(radius, float(dt), where))
+    return radius
+
+
 def _too_long(radius: float, dt: float, where: str) -> str:
     return (
         f"{where} {dt:g} s is too long for this observer: one prediction step multiplies a state error by {radius:.3g} "
@@ -147,9 +175,7 @@ def _check_steps(observer: Observer, guess, times: np.ndarray, measurements: np.
             )
         return
     row = int(np.argmax(steps))
-    radius = step_amplification(observer, guess, measurements[0], inputs[0], steps[row])
-    if not radius <= MAX_STEP_AMPLIFICATION:
-        raise ValueError("times: " + _too_long(radius, float(steps[row]), f"the longest row step (row {row} to {row + 1}),"))
+    check_step_length(observer, guess, measurements[0], inputs[0], float(steps[row]), f"times: the longest row step (row {row} to {row + 1}),")
 
 
 def _check_log_fits(observer: Observer, guess, n_y: int, n_u: int) -> None:
