@@ -206,7 +206,7 @@ def _filter_scan(observer: Observer, guess, times: Array, measurements: Array, i
     return estimates
 
 
-def filter(  # noqa: A001 - lookout.filter, as the issue and the docs name it
+def filter(  # noqa: A001 - lookout.filter, as the docs name it
     observer: Observer,
     times,
     measurements,
