@@ -129,7 +129,7 @@ def check_memory(batches, runs_option: str = "--runs", duration_option: str = "-
         raise InputError(
             f"{where + ': ' if where else ''}{runs_option} {runs} over {duration_option} {scenario.duration:g} would need about {format_bytes(need)} of memory "
             f"({largest}{batch} run(s) x {scenario.n_records} records x {record_nbytes(scenario)} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results{steps}), "
-            f"and {format_bytes(available)} are available: use fewer {runs_option} or a shorter {duration_option}"
+            f"and {format_bytes(available)} are available: " + (f"use fewer {runs_option} or a shorter {duration_option}" if runs > 1 else f"use a shorter {duration_option}")
         )
 
 

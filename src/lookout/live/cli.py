@@ -518,8 +518,10 @@ def write_log_command(
     if window is not None and window[0] + window[1] > scenario.duration:
         raise InputError(f"--outage {outage} ends at {window[0] + window[1]:g} s, after the run's end: its duration is {scenario.duration:g} s "
                          f"(give START + LENGTH <= {scenario.duration:g}, or none)")
+    from lookout._commandline import check_memory
     from lookout.composition import simulate
 
+    check_memory([(scenario, 1)], "simulation.runs", "simulation.duration", where=scenario_file)
     with simulating() as progress:
         trajectory = simulate(spec.composition, progress=progress)
     ds = trajectory.to_xarray()
