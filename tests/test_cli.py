@@ -445,6 +445,7 @@ def test_components_lists_the_design_rules_of_each_kind(capsys):
         ("observer", "sliding-mode"): ["kim-2002", "gains"],
         ("observer", "earth-fixed"): ["gains", "wondergem-2009"],
         ("controller", "tracking"): ["gains", "wondergem-2009"],
+        ("controller", "pid"): ["pole-placement", "gains"],
     }
     assert main(["components", "tracking", "--json"]) == 0
     entries = json.loads(capsys.readouterr().out)

@@ -120,6 +120,7 @@ KINDS: dict[str, dict[str, Any]] = {
         },
         "adaptive-backstepping": "lookout.controllers.adaptive_backstepping:AdaptiveObserverBackstepping",
         "furuta-backstepping": "lookout.controllers.furuta:FurutaPendulumBackstepping",
+        "pid": {"pole-placement": "lookout.controllers.pid:PidController.design", "gains": "lookout.controllers.pid:PidController"},
     },
     "reference": {
         "none": "lookout.reference:NoReference",

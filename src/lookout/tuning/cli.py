@@ -10,7 +10,7 @@ from lookout._validation import InputError
 
 
 def tune_command(
-    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file whose observer or controller has a tunable family (lookout.tuning.families: observers passive, sliding-mode, earth-fixed, adaptive-dp, ekf, ukf, velocity, adaptive-manipulator; controllers observer-backstepping, vectorial-backstepping, tracking).")],
+    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file whose observer or controller has a tunable family (lookout.tuning.families: observers passive, sliding-mode, earth-fixed, adaptive-dp, ekf, ukf, velocity, adaptive-manipulator; controllers observer-backstepping, vectorial-backstepping, tracking, pid).")],
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder: tuned.toml, tuning.json, training.png, held_out.png.")] = "out/tune",
     objective: Annotated[str, typer.Option(metavar="TERMS", help="KIND:SIGNAL or WEIGHT*KIND:SIGNAL joined by +, KIND one of rms_error, rms_tracking, rms_input.")] = "rms_error:position",
     train_seeds: Annotated[int, typer.Option(metavar="N", help="Training runs: seeds seed .. seed + N - 1 of the file.")] = 16,

@@ -38,6 +38,7 @@ CONTROLLER_FAMILIES = {
     "observer-backstepping": "lookout.tuning.families.positive:ObserverBacksteppingFamily",
     "tracking": "lookout.tuning.families.tracking:TrackingFamily",
     "vectorial-backstepping": "lookout.tuning.families.adaptive_dp:VectorialBacksteppingFamily",
+    "pid": "lookout.tuning.families.pid:PidFamily",
 }
 
 
