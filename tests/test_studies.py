@@ -351,6 +351,25 @@ def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp
     assert not (tmp_path / "store").exists()
 
 
+@pytest.mark.parametrize(
+    "table, expected",
+    [
+        # a value the file's schema refuses
+        ('[observer]\nswitching_gain = [{many}, -1.0]\n', "observer.switching_gain (line 5): must be non-negative; got [1.0, 1.0, 1.0, 1.0, ..., 1.0, 1.0, 1.0, -1.0] (100000 entries)"),
+        # a value only the component can refuse
+        ('[reference]\nkind = "reference-filter"\nsignals = ["position", "heading"]\nschedule_times = [{many}, 0.0]\nsetpoints = [{setpoints}]\n',
+         "reference.schedule_times (line 7): schedule_times must be strictly increasing; got [1., 1., 1., 1., ..., 1., 1., 1., 0.]"),
+    ],
+)
+def test_a_refused_array_of_any_size_is_one_short_line(table, expected, tmp_path, capsys):
+    path = tmp_path / "big.toml"
+    path.write_text('preset = "kim-2002"\n[simulation]\nduration = 60.0\n' + table.format(many=", ".join(["1.0"] * 99999), setpoints=", ".join(["[0.0, 0.0, 0.0]"] * 100000)))
+    code, _, err = _run_cli(["run", str(path), "--out", str(tmp_path / "x")], capsys)
+    assert code == 2 and err.count("\n") == 1 and expected in err, err[:500]
+    assert len(err) < 400, len(err)
+    assert not (tmp_path / "x").exists()
+
+
 def test_a_scenario_file_given_as_a_campaign_spec_says_what_it_is(tmp_path, capsys):
     scenario = tmp_path / "base.toml"
     scenario.write_text(_scenario_text(tmp_path, capsys))

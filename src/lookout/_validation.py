@@ -107,7 +107,31 @@ def square(name: str, matrix: Any, *, size: int = 3) -> None:
 
 
 def _fmt(array: np.ndarray) -> str:
-    return np.array2string(np.atleast_1d(array), precision=4, separator=", ")
+    return np.array2string(np.atleast_1d(array), precision=4, separator=", ", threshold=SHOWN_ENTRIES, edgeitems=SHOWN_ENTRIES // 2)
+
+
+#: The most entries of an array a message shows (a longer one is summarized, so that a
+#: message stays one short line whatever the size of what was given).
+SHOWN_ENTRIES = 8
+
+
+def short(value) -> str:
+    """``value`` as a message shows it: its repr, or for a sequence of more than
+    :data:`SHOWN_ENTRIES` numbers its first and last few and its size."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            array = None
+        if array is not None and array.size > SHOWN_ENTRIES:
+            flat = array.ravel()
+            half = SHOWN_ENTRIES // 2
+            shown = ", ".join(repr(float(v)) for v in flat[:half]) + ", ..., " + ", ".join(repr(float(v)) for v in flat[-half:])
+            return f"[{shown}] ({array.size} entries{f', shape {array.shape}' if array.ndim > 1 else ''})"
+        if isinstance(value, tuple):
+            return repr(list(value))
+    text = repr(value)
+    return text if len(text) <= 200 else text[:200] + "..."
 
 
 def one_line(message) -> str:

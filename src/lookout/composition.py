@@ -57,7 +57,7 @@ from pydantic.functional_validators import AfterValidator
 from typing_extensions import Annotated
 
 from lookout import registry
-from lookout._validation import one_line
+from lookout._validation import one_line, short
 from lookout.settings import RunsConfig, Settings, explain, finite_positive, validate_strictly
 
 #: The top-level keys of a composition.
@@ -136,7 +136,7 @@ def _in_range(parameter: registry.Parameter):
 
 
 def _short(value) -> str:
-    return repr(value if not isinstance(value, tuple) else list(value))
+    return short(value)
 
 
 _ARRAY = float | tuple[float, ...] | tuple[tuple[float, ...], ...]

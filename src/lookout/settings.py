@@ -16,6 +16,7 @@ import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
+from lookout._validation import short
 from lookout.sim import MAX_SEED, integer_ratio
 
 
@@ -229,7 +230,7 @@ def explain(error: ValidationError) -> tuple[tuple, str]:
     elif first["type"] in STRICT_TYPES:
         message = f"{STRICT_TYPES[first['type']]}; got {_as_toml(first.get('input'))}"
     elif "input" in first and first["type"] not in ("value_error", "assertion_error", "not_finite"):  # not_finite says what it got
-        message = f"{message}; got {first['input']!r}"
+        message = f"{message}; got {short(first['input'])}"
     return location, message
 
 
