@@ -13,11 +13,35 @@
   spread as whiskers, on a log scale); the cost per sample; the outage's drift and
   recovery;
 - ``report.html``: one self-contained page with the tables and the figures, linking
-  each observer's campaign report (``reports/<observer>.html``, the campaign report of
+  each observer's campaign report (``reports/<store>.html``, the campaign report of
   :mod:`lookout.studies.report`).
 
 Medians and percentiles are over the runs that did not diverge; a cell whose runs
 diverged says how many.
+
+**Which observer to pick** (:func:`recommend`), per condition, from the measured table:
+
+1. The lead metric is, of ``recommend_by`` (the spec's; by default every
+   ``rms_tracking`` metric, which only a closed loop has, then every ``rms_error``
+   metric, in the spec's order: :func:`lead_metrics`), the one that the most observers
+   have at the condition, the first of those on a tie (the DP vessel's position: every
+   observer estimates it; an arm's joint rate, which the velocity observer estimates
+   and its joint angle not).
+2. An observer with a diverged run at the condition is not considered (and is named).
+3. The others are ranked by their median over the seeds. Walking down the ranking,
+   an observer is *clearly worse* than the best when its median is more than
+   :data:`MARGIN` above the best's and the best has the lower value on enough of the
+   paired seeds (every observer runs the same seeds) that a one-sided sign test
+   rejects "either is as likely to be lower" at :data:`SIGN_LEVEL` (Conover, *Practical
+   Nonparametric Statistics*, 3rd ed., Wiley 1999, Section 3.4, the sign test: under
+   the null hypothesis the number of seeds the best wins is Binomial(n, 1/2)): all 4
+   of 4 seeds, 12 of 16. The observers above the first clearly worse one are tied with
+   the best; of them the cheapest (µs per sample; costs within :data:`COST_TIE` of the
+   lowest count as equal, and then the lower median) is recommended, and the first
+   clearly worse one is the "next" it is compared with (the ratio of the medians, and
+   the costs).
+4. With fewer seeds than the sign test needs (3 or fewer at 10 %), nothing can be
+   separated: the lowest median is named, marked provisional.
 """
 
 from __future__ import annotations
@@ -25,6 +49,8 @@ from __future__ import annotations
 import csv
 import html
 import json
+import math
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,26 +61,50 @@ LOW, HIGH = 10, 90
 #: filters often tie to three digits).
 TIE = 0.01
 #: Kinds of metric with a table and a figure per condition.
-PER_CONDITION = ("rms_error",)
+PER_CONDITION = ("rms_error", "rms_tracking")
+#: The recommendation: an observer is clearly worse than the best only if its median is
+#: more than this fraction above the best's ...
+MARGIN = 0.05
+#: ... and a one-sided sign test over the paired seeds rejects a tie at this level.
+SIGN_LEVEL = 0.10
+#: Of the observers tied with the best, the cheapest is recommended; costs within this
+#: fraction of the lowest count as equal (a timing's noise), and then the lower median.
+COST_TIE = 0.10
 
 
-def collect(stores: dict[str, Path], costs: dict[str, float], told: dict[str, str], *, metrics: list[str] = (), title: str = "", command: str = "",
-            changes: dict[str, str] | None = None):
+def lead_metrics(metrics) -> list[str]:
+    """The metrics that may lead the recommendation by default: every ``rms_tracking``
+    metric (a closed loop's: what its user feels), then every ``rms_error`` metric, in
+    the order of ``metrics`` (``KIND:SIGNAL``). At a condition, the one of them that
+    the most observers have leads (the first of those)."""
+    tracking = [name for name in metrics if name.startswith("rms_tracking:")]
+    errors = [name for name in metrics if name.startswith("rms_error:")]
+    return tracking + errors
+
+
+def collect(stores: dict[str, Path | list[Path]], costs: dict[str, float], told: dict[str, str], *, metrics: list[str] = (), title: str = "",
+            command: str = "", changes: dict[str, str] | None = None, conditions: list[str] | None = None, recommend_by: list[str] | None = None,
+            skipped: list[str] = ()):
     """The benchmark's results as one Dataset over ``(observer, condition, seed)``:
-    every metric of any observer (NaN where an observer does not estimate the signal),
-    in the order of ``metrics`` (``KIND:SIGNAL``; others after, by name), then
-    ``diverged``, ``cost`` (us per sample) and ``told`` per observer, and what each
-    condition changes (``changes``: condition name -> words)."""
+    every metric of any observer (NaN where an observer does not estimate the signal,
+    or does not run at the condition), in the order of ``metrics`` (``KIND:SIGNAL``;
+    others after, by name), then ``diverged``, ``cost`` (us per sample) and ``told``
+    per observer, and what each condition changes (``changes``: condition name ->
+    words). An observer's results may be in several stores (a closed-loop condition
+    is a campaign of its own); ``conditions`` orders them (default: as the stores
+    have them). Attributes: ``recommend_by`` (JSON; default :func:`lead_metrics`) and
+    ``skipped`` (JSON: what was not run, and why)."""
     import xarray as xr
 
     from lookout.studies.store import CampaignStore
 
-    grids = {name: CampaignStore(path).grid() for name, path in stores.items()}
-    first = next(iter(grids.values()))
-    conditions = [str(c) for c in first["condition"].values]
-    seeds = first["seed"].values
+    grids = {name: [CampaignStore(path).grid() for path in ([paths] if isinstance(paths, (str, Path)) else paths)] for name, paths in stores.items()}
+    every = [grid for found in grids.values() for grid in found]
+    if conditions is None:
+        conditions = list(dict.fromkeys(str(c) for grid in every for c in grid["condition"].values))
+    seeds = every[0]["seed"].values
     variables: dict[str, dict] = {}
-    for grid in grids.values():
+    for grid in every:
         for name, array in grid.data_vars.items():
             if name not in variables and array.dims == ("condition", "seed"):
                 variables[name] = dict(array.attrs)
@@ -66,9 +116,12 @@ def collect(stores: dict[str, Path], costs: dict[str, float], told: dict[str, st
         attrs = variables[name]
         values = np.full((len(observers), len(conditions), len(seeds)), np.nan)
         for i, observer in enumerate(observers):
-            grid = grids[observer]
-            if name in grid:
-                values[i] = grid[name].values
+            for grid in grids[observer]:
+                if name not in grid:
+                    continue
+                for k, condition in enumerate(str(c) for c in grid["condition"].values):
+                    if condition in conditions:
+                        values[i, conditions.index(condition)] = grid[name].values[k]
         data[name] = (("observer", "condition", "seed"), values, attrs)
     data["cost"] = (("observer",), np.asarray([costs[o] for o in observers]),
                     {"units": "us", "long_name": "cost per sample of the observer alone (one run, compiled)"})
@@ -82,9 +135,173 @@ def collect(stores: dict[str, Path], costs: dict[str, float], told: dict[str, st
             "changes": ("condition", np.asarray([(changes or {}).get(c, "") for c in conditions], dtype=object),
                         {"long_name": "what the condition changes from the baseline"}),
         },
-        attrs={"title": title, "Conventions": "CF-1.10", "history": command, "source": "lookout benchmark observers"},
+        attrs={"title": title, "Conventions": "CF-1.10", "history": command, "source": "lookout benchmark observers",
+               "recommend_by": json.dumps(list(recommend_by) if recommend_by else lead_metrics(metrics)), "skipped": json.dumps(list(skipped))},
     )
     return ds
+
+
+# ------------------------------------------------------------------ which observer to pick
+
+
+def sign_test_wins(n: int, level: float = SIGN_LEVEL) -> int | None:
+    """The fewest of ``n`` paired seeds the better observer must win for a one-sided sign
+    test to reject a tie at ``level`` (Conover 1999, Section 3.4): the smallest k with
+    P(Binomial(n, 1/2) >= k) <= ``level``; None when not even n of n does."""
+    needed, tail = None, 0
+    for k in range(n, -1, -1):
+        tail += math.comb(n, k)
+        if tail / 2**n > level:
+            break
+        needed = k
+    return needed
+
+
+@dataclass(frozen=True)
+class Recommendation:
+    """Which observer to pick at one condition, and the numbers that say so (the rule:
+    the module docstring)."""
+
+    condition: str
+    observer: str | None  # None: no observer has a value of a lead metric without diverging
+    metric: str | None  # its variable, e.g. rms_error__position
+    label: str  # e.g. "RMS position error"
+    units: str
+    value: float  # the observer's median of the metric
+    cost: float  # its us per sample
+    tied: tuple[str, ...] = ()  # observers not clearly worse than the best (the pick is the cheapest of them and the best)
+    next: str | None = None  # the first clearly worse observer
+    ratio: float = math.nan  # next's median / the pick's
+    next_cost: float = math.nan
+    seeds: int = 0
+    provisional: bool = False  # too few seeds to separate any two observers
+    excluded: tuple[str, ...] = ()  # observers with a diverged run here, "name (k of n runs diverged)"
+    cheaper: bool = True  # cheaper than each observer it ties with by more than COST_TIE (else as cheap, and the lower median)
+
+    def text(self) -> str:
+        """One line: "rough sea: ekf, RMS position error 0.41 m, 1.8x better than passive
+        (next), at 12 us per sample against 1.1 us"."""
+        if self.observer is None:
+            line = f"{self.condition}: no observer to recommend ({'every observer diverged' if self.excluded else 'no lead metric has a value'})"
+        else:
+            cheaper = f"the {'cheaper' if len(self.tied) == 1 else 'cheapest'}" if self.cheaper else f"as cheap (within {COST_TIE:.0%}), the lower median"
+            pick = self.observer + (f" (tied with {', '.join(self.tied)}; {cheaper})" if self.tied else "")
+            units = f" {self.units}" if self.units and self.units != "1" else ""
+            line = f"{self.condition}: {pick}, {self.label} {_number(self.value)}{units}"
+            if self.next is not None:
+                line += f", {_ratio(self.ratio)} than {self.next} (next)" if self.provisional is False else \
+                        f", {_ratio(self.ratio)} than {self.next} by the medians"
+                line += f", at {_number(self.cost)} us per sample against {_number(self.next_cost)} us"
+            else:
+                line += f", at {_number(self.cost)} us per sample" + (" (the only observer measured)" if not self.tied else "")
+            if self.provisional:
+                line += f"; provisional: {self.seeds} seed{'s' * (self.seeds != 1)} cannot separate observers (a sign test at {SIGN_LEVEL:.0%} needs {_fewest_seeds()})"
+        if self.excluded:
+            line += f"; not considered: {', '.join(self.excluded)}"
+        return line
+
+    def as_dict(self) -> dict:
+        found = asdict(self)
+        found["text"] = self.text()
+        return found
+
+
+def _fewest_seeds() -> int:
+    return next(n for n in range(1, 64) if sign_test_wins(n) is not None)
+
+
+def _ratio(ratio: float) -> str:
+    if not np.isfinite(ratio):
+        return "infinitely better"
+    if ratio < 1.0:
+        return f"{1 / ratio:.3g}x worse"  # only with too few seeds to call the order (provisional)
+    return f"{ratio:.0f}x better" if ratio >= 10 else f"{ratio:.1f}x better" if ratio >= 1.1 else f"{ratio:.2f}x better"
+
+
+_LABELS = {"rms_error": "RMS {} error", "max_error": "largest {} error", "rms_tracking": "RMS {} tracking error",
+           "max_tracking": "largest {} tracking error", "settling_time": "settling time of the {} error", "outage_drift": "{} drift in the outage",
+           "recovery_time": "recovery time of {}", "max_excursion": "largest {} excursion", "rms_input": "RMS {}", "max_input": "largest {}"}
+
+
+def short_label(name: str) -> str:
+    """``rms_error__position`` -> ``RMS position error``."""
+    kind, signal = _metric_parts(name)
+    return _LABELS.get(kind, kind.replace("_", " ") + " of {}").format(signal.replace("_", " "))
+
+
+def recommend(ds) -> list[Recommendation]:
+    """The recommendation per condition of a benchmark's Dataset (:func:`collect`), by
+    the rule of the module docstring."""
+    lead = [name.replace(":", "__") for name in json.loads(ds.attrs.get("recommend_by") or "[]")]
+    lead = [name for name in lead if name in ds] or [n for n in (x.replace(":", "__") for x in lead_metrics([v.replace("__", ":") for v in ds.data_vars]))
+                                                     if n in ds]
+    observers = [str(o) for o in ds.observer.values]
+    cost = np.asarray(ds.cost.values, dtype=float)
+    found = []
+    for j, condition in enumerate(str(c) for c in ds.condition.values):
+        diverged = ds["diverged"].values[:, j, :]
+        excluded, candidates = [], []
+        for i, name in enumerate(observers):
+            finished = np.isfinite(diverged[i])
+            bad = int(np.sum(diverged[i][finished] > 0.5))
+            if bad:
+                excluded.append(f"{name} ({bad} of {int(finished.sum())} runs diverged)")
+            elif finished.any():
+                candidates.append(i)
+        # the lead metric: of the lead metrics, the one the most observers have here (the first of those)
+        coverage = {m: sum(bool(np.isfinite(ds[m].values[i, j]).any()) for i in candidates) for m in lead}
+        metric = max(lead, key=lambda m: (coverage[m], -lead.index(m))) if lead and max(coverage.values()) > 0 else None
+        if metric is None:
+            found.append(Recommendation(condition, None, None, "", "", math.nan, math.nan, excluded=tuple(excluded)))
+            continue
+        values = ds[metric].values[:, j, :]
+        median = {i: float(np.median(values[i][np.isfinite(values[i])])) for i in candidates if np.isfinite(values[i]).any()}
+        ranking = sorted(median, key=lambda i: (median[i], observers[i]))
+        best = ranking[0]
+        paired = [np.isfinite(values[best]) & np.isfinite(values[i]) for i in ranking]
+        seeds = int(max(p.sum() for p in paired))
+        provisional = sign_test_wins(seeds) is None
+
+        def clearly_worse(i: int) -> bool:
+            both = np.isfinite(values[best]) & np.isfinite(values[i])
+            needed = sign_test_wins(int(both.sum()))
+            wins = int(np.sum(values[best][both] < values[i][both]))
+            return needed is not None and wins >= needed and median[i] > (1.0 + MARGIN) * median[best]
+
+        if provisional:
+            group, following = [best], (ranking[1] if len(ranking) > 1 else None)
+        else:
+            following = next((i for i in ranking[1:] if clearly_worse(i)), None)
+            group = ranking[: ranking.index(following)] if following is not None else ranking
+        lowest = min(cost[i] for i in group)
+        pick = min(group, key=lambda i: (cost[i] > (1.0 + COST_TIE) * lowest, median[i]))
+        cheaper = all(cost[i] > (1.0 + COST_TIE) * cost[pick] for i in group if i != pick)
+        ratio = (median[following] / median[pick] if median[pick] > 0 else math.inf) if following is not None else math.nan
+        found.append(Recommendation(
+            condition, observers[pick], metric, short_label(metric), ds[metric].attrs.get("units", ""), median[pick], float(cost[pick]),
+            tuple(observers[i] for i in group if i != pick), None if following is None else observers[following], ratio,
+            math.nan if following is None else float(cost[following]), seeds, provisional, tuple(excluded), cheaper))
+    return found
+
+
+def overall(recommendations: list[Recommendation]) -> str:
+    """One line: which observer is recommended at how many conditions."""
+    counts: dict[str, int] = {}
+    for each in recommendations:
+        if each.observer is not None:
+            counts[each.observer] = counts.get(each.observer, 0) + 1
+    ranked = sorted(counts.items(), key=lambda item: -item[1])
+    return f"over {len(recommendations)} condition{'s' * (len(recommendations) != 1)}: " + \
+        (", ".join(f"{name} recommended at {count}" for name, count in ranked) or "no recommendation")
+
+
+def recommendation_rule() -> str:
+    """The rule, in one paragraph (for the tables and the report)."""
+    return (f"Per condition, by {{lead}}: observers with a diverged run are not considered; "
+            f"the others are ranked by their median; an observer is clearly worse than the best when its median is more than {MARGIN:.0%} above "
+            f"and the best is lower on enough of the paired seeds for a one-sided sign test at {SIGN_LEVEL:.0%} ({sign_test_wins(4)} of 4, "
+            f"{sign_test_wins(16)} of 16); the observers ranked above the first clearly worse one tie with the best, and the cheapest of them "
+            f"is recommended (costs within {COST_TIE:.0%} count as equal, and then the lower median).")
 
 
 def _metric_parts(name: str) -> tuple[str, str]:
@@ -202,11 +419,25 @@ def markdown(ds) -> str:
     parts += [f"Each cell: the median over {seeds} seeds (the same seeds for every observer); **bold**: the best of the column and those "
               f"within {TIE:.0%} of it; —: no value (the observer does not estimate the signal; for the outage, no outage or no recovery "
               "within the run).", ""]
+    recommendations = recommend(ds)
+    parts += ["#### Which observer", ""] + [f"- {each.text()}" for each in recommendations] + ["", overall(recommendations) + ".", ""]
+    parts += [rule_text(ds), ""]
     parts += [_markdown(*conditions_table(ds)), ""]
     parts += [_markdown(*summary_table(ds, outage, convergence)), ""]
+    skipped = json.loads(ds.attrs.get("skipped") or "[]")
+    if skipped:
+        parts += ["Not run:", ""] + [f"- {line}" for line in skipped] + [""]
     for name in metrics:
         parts += [f"#### {metric_label(ds, name)}", "", _markdown(*cell_table(ds, name)), ""]
     return "\n".join(parts)
+
+
+def rule_text(ds) -> str:
+    """The recommendation's rule with this benchmark's lead metrics."""
+    lead = [short_label(name.replace(":", "__")) for name in json.loads(ds.attrs.get("recommend_by") or "[]")]
+    words = f"the {lead[0]}" if len(lead) == 1 else f"the one of {', '.join(lead)} that the most observers have there (the first on a tie)" \
+        if lead else "the RMS errors"
+    return recommendation_rule().format(lead=words)
 
 
 def conditions_table(ds) -> tuple[list[str], list[list[str]]]:
@@ -413,8 +644,14 @@ def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> d
     parts.append(f"<p>Medians over {ds.sizes['seed']} seeds, the same for every observer; the best of each column, and those within "
                  f"{TIE:.0%} of it, in bold; —: no value (the observer does not estimate the signal; for the outage, no outage or no "
                  "recovery within the run).</p>")
+    recommendations = recommend(ds)
+    items = "".join(f"<li>{html.escape(each.text())}</li>" for each in recommendations)
+    parts += ["<h2>Which observer</h2>", f"<ul>{items}</ul>", f"<p>{html.escape(overall(recommendations))}.</p>", f"<p>{html.escape(rule_text(ds))}</p>"]
     parts += ["<h2>The conditions</h2>", _html_table(*conditions_table(ds))]
     parts += ["<h2>The observers</h2>", _html_table(*summary_table(ds, outage, convergence))]
+    skipped = json.loads(ds.attrs.get("skipped") or "[]")
+    if skipped:
+        parts += ["<p>Not run:</p>", "<ul>" + "".join(f"<li>{html.escape(line)}</li>" for line in skipped) + "</ul>"]
     parts += [f'<figure><img src="data:image/png;base64,{base64.b64encode(images["cost.png"]).decode()}" alt="cost per sample"></figure>']
     for name in metrics:
         parts += [f"<h2>{html.escape(metric_label(ds, name))}</h2>", _html_table(*cell_table(ds, name)),
@@ -427,5 +664,9 @@ def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> d
     parts += ["</body>", "</html>"]
     (folder / "report.html").write_text("\n".join(parts) + "\n", encoding="utf-8")
     written["report"] = folder / "report.html"
-    (folder / "summary.json").write_text(json.dumps({"title": ds.attrs.get("title"), "cost_us": dict(zip(map(str, ds.observer.values), map(float, ds.cost.values)))}, indent=2))
+    from lookout._json import json_safe
+
+    summary = {"title": ds.attrs.get("title"), "cost_us": dict(zip(map(str, ds.observer.values), map(float, ds.cost.values))),
+               "recommendations": [each.as_dict() for each in recommendations], "skipped": skipped}
+    (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False) + "\n")
     return written

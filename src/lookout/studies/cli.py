@@ -298,7 +298,11 @@ benchmark_app = typer.Typer(
 def benchmark_observers(
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder: one subfolder per plant, with its stores, tables, figures and report.")] = "out/benchmark",
     plant: Annotated[Optional[str], typer.Option(metavar="KIND", help="Only this plant's benchmark (dp-vessel, cybership-ii, manipulator).", show_default="every shipped one")] = None,
-    spec: Annotated[Optional[str], typer.Option(metavar="SPEC.toml", help="Your own benchmark spec instead (see lookout/studies/benchmarks/).")] = None,
+    spec: Annotated[
+        Optional[str],
+        typer.Option(metavar="FILE.toml", help="Your own benchmark spec (see lookout/studies/benchmarks/), or a scenario file: its plant, sensor and sea, "
+                                               "every observer that composes on them, its own observer as given, the plant kind's conditions."),
+    ] = None,
     quick: Annotated[bool, typer.Option("--quick", help="The specs' quick size: shorter runs, fewer seeds.")] = False,
     workers: Annotated[
         Optional[int], typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
@@ -307,20 +311,25 @@ def benchmark_observers(
 ) -> None:
     """Run every observer of a benchmark spec on identical scenarios and write, per
     plant, the metrics' tables (table.md, table.csv), figures, benchmark.nc, an HTML
-    report (report.html) and each observer's campaign store and report. A benchmark
-    whose stores exist resumes."""
+    report (report.html) and each observer's campaign store and report, and say which
+    observer to pick per condition (the rule: docs/choosing-an-observer.md). A
+    benchmark whose stores exist resumes. Everything is checked before anything is
+    written: a refusal leaves nothing behind."""
     import os
     import shutil
 
     from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
 
     from lookout.studies import benchmark as bench
+    from lookout.studies import benchmark_report
     from lookout.studies.execute import SchedulerError, local_cluster
 
     if plant is not None and spec is not None:
         raise InputError("give --plant (a shipped benchmark) or --spec (your own), not both")
     _check_cluster_options(workers, scheduler)
     if spec is not None:
+        if not spec.strip():
+            raise InputError("--spec must name a file; got an empty path")
         if not Path(spec).is_file():
             raise InputError(f"--spec: {spec} is a folder, not a benchmark spec" if Path(spec).is_dir() else f"--spec: no file {spec}")
         paths = [Path(spec)]
@@ -339,7 +348,16 @@ def benchmark_observers(
             raise InputError(str(error)) from None
         except ValueError as error:
             raise InputError(f"{path}: {error}" if not str(error).startswith("--out") else str(error)) from None
-    created = not folder.exists()
+    names = [each.folder for each in prepared]
+    if len(set(names)) != len(names):
+        raise InputError(f"--out: two benchmarks would share the folder {next(n for n in names if names.count(n) > 1)}")
+    try:
+        bench.check_resources(prepared, workers, scheduler)
+    except SchedulerError as error:
+        raise InputError(f"--scheduler {scheduler}: {error}") from None
+    except ValueError as error:
+        raise InputError(f"--out {out}: {error}" if "disk space" in str(error) else str(error)) from None
+    created = [each for each in [folder] + [p.folder for p in prepared] if not each.exists()]
     folder.mkdir(parents=True, exist_ok=True)
     command = " ".join(["lookout benchmark observers", f"--out {out}"] + ([f"--plant {plant}"] if plant else []) + ([f"--spec {spec}"] if spec else [])
                        + (["--quick"] if quick else []))
@@ -350,10 +368,12 @@ def benchmark_observers(
             cluster = local_cluster(workers or os.cpu_count() or 1)  # one cluster for every plant
             address = cluster.scheduler_address
         for each in prepared:
-            count = len(each.campaigns)
-            resumed = sum(each.store(c.name).exists() for c in each.campaigns)
-            console_print(f"{each.benchmark.name}: {each.benchmark.spec.title} ({size}: {count} observer{'s' * (count != 1)}"
+            observers = list(dict.fromkeys(c.name for c in each.campaigns))
+            resumed = sum(each.store(c).exists() for c in each.campaigns)
+            console_print(f"{each.benchmark.name}: {each.benchmark.spec.title} ({size}: {len(observers)} observer{'s' * (len(observers) != 1)}"
                           + (f"; resuming {resumed} store{'s' * (resumed != 1)} in {each.folder})" if resumed else ")"))
+            for note in each.notes:
+                console_print(f"  {note}")
             with progress_bar(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()) as bar:
                 tasks = {}
 
@@ -367,9 +387,13 @@ def benchmark_observers(
                 except SchedulerError as error:
                     raise InputError(f"--scheduler {scheduler}: {error}") from None
             console_print(f"{each.benchmark.name}: done in {result.seconds:.0f} s; {result.written['report']}, {result.written['table']}, {result.written['figures']}")
+            console_print(f"{each.benchmark.name}: which observer ({benchmark_report.overall(result.recommendations)}):")
+            for recommendation in result.recommendations:
+                console_print(f"  {recommendation.text()}")
     except BaseException as error:
-        if created and not any(folder.rglob("*.zarr")):  # nothing of value: leave no folder behind
-            shutil.rmtree(folder, ignore_errors=True)
+        for made in reversed(created):  # nothing of value: leave no folder behind
+            if made.exists() and not any(made.rglob("*.zarr")):
+                shutil.rmtree(made, ignore_errors=True)
         if isinstance(error, KeyboardInterrupt):
             console_print(f"interrupted: the chunks stored so far are kept; the same command resumes the benchmark from {folder}")
         raise
