@@ -587,7 +587,7 @@ def test_lookout_run_refuses_a_billion_runs_before_making_anything(tmp_path, cap
     scenario.write_text(_scenario_text(tmp_path, capsys))
     code, _, err = _run_cli(["run", str(scenario), "--out", str(tmp_path / "x"), "--runs", "1000000000"], capsys)
     assert code == 2 and err.count("\n") == 1, err
-    assert err.startswith("error: --runs 1000000000 over simulation.duration 30 would need about ") and "use fewer --runs" in err, err
+    assert err.startswith(f"error: {scenario}: --runs 1000000000 over simulation.duration 30 would need about ") and "use fewer --runs" in err, err
     assert not (tmp_path / "x").exists()
 
 
