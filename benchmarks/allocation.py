@@ -10,7 +10,7 @@ as a batch of runs, five ways, each the same loop with another actuator:
 (d) the thrusters with the QP, qpax's interior-point solver (if qpax is installed);
 (e) the ideal actuator, for scale.
 
-Prints simulated seconds per wall second (all runs), each against (a) (the issue's
+Prints simulated seconds per wall second (all runs), each against (a) (the
 target: (c) >= 0.5 x (a)), and the share of samples at which the allocation was saturated. Compilation is
 excluded (each is run once to warm up); the figure is the median of --repeats.
 

@@ -3,6 +3,9 @@ closed-loop observer ranking, rerun with thrusters instead of generalized forces
 
     .venv/bin/python docs/thrusters/study.py            # make thruster-study
     .venv/bin/python docs/thrusters/study.py --quick    # shorter runs, fewer seeds
+    .venv/bin/python docs/thrusters/study.py --turning out/thrusters-dp/run.nc   # a run's azimuths
+    .venv/bin/python docs/thrusters/study.py --example steering_bias=0.2        # the example, an option changed
+    .venv/bin/python docs/thrusters/study.py --loops kim-2002 --qp steering_bias=0.2   # the QP's cells, options changed
 
 For each loop, each observer that fits it, and each actuation (the ideal actuator;
 per-axis saturation at the layout's reach; the thrusters with the weighted
@@ -128,7 +131,20 @@ def main(argv=None) -> int:
     parser.add_argument("--figure-only", action="store_true", help="draw kim-2002.png alone")
     parser.add_argument("--one-limit-at-a-time", action="store_true",
                         help="Calugi et al. (2003)'s loop, 400 s, seed 0, through the supply vessel with one of its limits at a time")
+    parser.add_argument("--turning", nargs="+", metavar="RUN_NC",
+                        help="for each run.nc of `lookout run` with thrusters: degrees each azimuth turned, mean power, saturation, tracking")
+    parser.add_argument("--qp", nargs="+", metavar="KEY=VALUE",
+                        help="only the QP's cells, with these [actuator] options (TOML values); printed, not written to the table")
+    parser.add_argument("--example", nargs="*", metavar="KEY=VALUE",
+                        help="run examples/thrusters-dp.toml with these [actuator] options and measure it as --turning does")
     args = parser.parse_args(argv)
+    if args.example is not None:
+        example(args.example)
+        return 0
+    if args.turning:
+        for path in args.turning:
+            turning(Path(path))
+        return 0
     if args.figure_only:
         figure()
         return 0
@@ -140,7 +156,10 @@ def main(argv=None) -> int:
         loop = LOOPS[loop_name]
         seeds = 2 if args.quick else (args.seeds or loop["seeds"])
         used[loop_name] = seeds
-        for (observer_name, observer), (actuation_name, actuator) in itertools.product(loop["observers"]().items(), actuations(loop["layout"]).items()):
+        cells = actuations(loop["layout"])
+        if args.qp:
+            cells = {"thrusters, QP": {**cells["thrusters, QP"], **_options(args.qp)}}
+        for (observer_name, observer), (actuation_name, actuator) in itertools.product(loop["observers"]().items(), cells.items()):
             document = copy.deepcopy(loop["document"]())
             if "duration" in loop and not args.full:
                 document["simulation"]["duration"] = loop["duration"]
@@ -162,16 +181,93 @@ def main(argv=None) -> int:
             medians = {k: float(np.nanmedian(v)) for k, v in result.items() if k != "diverged"}
             print(f"{loop_name} / {observer_name} / {actuation_name}: {seconds:.0f} s, "
                   + ", ".join(f"{k} {v:.4g}" for k, v in medians.items()), flush=True)
+    if args.qp:
+        return 0
     write(rows, used, args)
     if "kim-2002" in args.loops and not args.quick:
         figure()
     return 0
 
 
+def _options(options: list[str]) -> dict:
+    """``KEY=VALUE`` strings as a table (each VALUE a TOML value)."""
+    table = {}
+    for option in options:
+        key, _, value = option.partition("=")
+        table[key] = tomllib.loads(f"value = {value}")["value"]
+    return table
+
+
+def turning(path: Path) -> None:
+    """What the thrusters of one recorded run (``lookout run``'s run.nc, run 0) did over the
+    whole run: the degrees each azimuth turned in all (the sum of |ssa(angle change)| over
+    the samples), the mean power as a fraction of the installed power (delivered thrust;
+    :func:`lookout.actuators.thrusters.relative_power`), the fractions of the samples
+    saturated and with a thruster at a limit, the largest shortfall, the RMS position
+    tracking error, and how the commanded surge force swings (its standard deviation, and
+    the share of its variance below 0.4 rad/s, periods over 16 s)."""
+    import xarray as xr
+
+    from lookout._math import ssa
+    from lookout.actuators.thrusters import at_limit, relative_power
+
+    with xr.open_dataset(path) as ds:
+        run = ds.isel(run=0).load()
+    angle = run.thruster_angle.transpose("time", "thruster").values
+    turned = np.degrees(np.abs(np.asarray(ssa(np.diff(angle, axis=0)))).sum(axis=0))
+    thrust = run.thrust.transpose("time", "thruster").values
+    layout = _layout_of(path.parent / "scenario.toml")  # the limits are not in the records
+    power = float(np.mean(np.asarray(relative_power(thrust, layout.max_thrust))))
+    limit = float(np.mean(np.asarray(at_limit(thrust, layout.max_thrust, layout.min_thrust)).any(axis=-1)))
+    error = np.hypot(*(run.position - run.position_desired).transpose("earth_axis", "time").values)
+    surge = run.force_commanded.isel(body_axis=0).values
+    surge = surge - surge.mean()
+    spectrum = np.abs(np.fft.rfft(surge)) ** 2
+    frequency = 2 * np.pi * np.fft.rfftfreq(surge.size, float(run.time.values[1] - run.time.values[0]))
+    slow = spectrum[(frequency > 0) & (frequency < 0.4)].sum() / spectrum[frequency > 0].sum()
+    names = [str(name) for name in run.thruster.values]
+    azimuths = ", ".join(f"{name} {value:.0f} deg" for name, value, kind in zip(names, turned, layout.kinds) if kind == "azimuth")
+    print(f"{path}: {run.time.values[-1]:g} s; turned: {azimuths}; mean power {power:.4f} of the installed power; "
+          f"saturated in {run.allocation_saturated.values.mean():.4f} of the samples; a thruster at a limit in {limit:.4f}; "
+          f"largest shortfall {run.allocation_shortfall.values.max():.3f}; RMS position tracking {np.sqrt(np.mean(error**2)):.3f} m; "
+          f"commanded surge force: standard deviation {surge.std() / 1e3:.0f} kN, {100 * slow:.0f} % of its variance below 0.4 rad/s", flush=True)
+
+
+def example(options: list[str]) -> None:
+    """examples/thrusters-dp.toml with ``KEY=VALUE`` [actuator] options (TOML values),
+    run as `lookout run` runs it, then measured by :func:`turning`."""
+    import tempfile
+
+    from lookout.cli import main as lookout
+
+    with open(ROOT / "examples" / "thrusters-dp.toml", "rb") as handle:
+        document = tomllib.load(handle)
+    document["actuator"].update(_options(options))
+    from lookout.studies import _toml
+
+    with tempfile.TemporaryDirectory() as folder:
+        scenario = _toml.write(Path(folder) / "scenario-in.toml", document)
+        if lookout(["run", str(scenario), "--out", str(Path(folder) / "run")]) != 0:
+            raise SystemExit(1)
+        print(" ".join(options) or "defaults", end=": ")
+        turning(Path(folder) / "run" / "run.nc")
+
+
+def _layout_of(scenario: Path) -> ThrusterLayout:
+    """The thruster layout of a scenario file (``lookout run`` writes one next to run.nc),
+    built from its [actuator.layout] table alone."""
+    from lookout import registry
+
+    with open(scenario, "rb") as handle:
+        table = dict(tomllib.load(handle)["actuator"]["layout"])
+    return registry.kind("layout", table.pop("kind", "custom")).callable()(**table)
+
+
 def one_limit_at_a_time() -> None:
     """Which of the supply vessel's limits breaks Calugi et al. (2003)'s loop: its layout with
     no limit but force, then with the thrust lag, the rate limits or the turning rate alone
-    (QP and pseudo-inverse; 400 s, seed 0). Prints the RMS position tracking error."""
+    (the QP, the QP with its azimuths unsteered, the pseudo-inverse; 400 s, seed 0). Prints
+    the RMS position tracking error."""
     layout = ThrusterLayout.supply_vessel()
     table = {name: list(getattr(layout, name)) for name in ("x", "y", "direction", "max_thrust", "min_thrust")}
     base = {"kind": "custom", "names": list(layout.names), "kinds": list(layout.kinds), **table}
@@ -181,14 +277,20 @@ def one_limit_at_a_time() -> None:
         "+ rate limits": {"thrust_rate": list(layout.thrust_rate)},
         f"+ turning {np.degrees(layout.turn_rate[2]):g} deg/s": {"turn_rate": float(layout.turn_rate[2])},
     }
-    for allocation in ("qp", "pseudo-inverse"):
+    allocations = {
+        "qp": {"allocation": "qp"},
+        # the azimuths turned toward each sample's command at once, as far as their rate allows (no filter, no deadband)
+        "qp, unsteered": {"allocation": "qp", "steering_time_constant": 0.0, "steering_deadband": 0.0, "steering_load": 0.0},
+        "pseudo-inverse": {"allocation": "pseudo-inverse"},
+    }
+    for allocation, options in allocations.items():
         for name, extra in limits.items():
             document = preset("calugi-2003", "satisfying")
             document["simulation"].update(duration=400.0, runs=1)
-            document["actuator"] = {"kind": "thrusters", "allocation": allocation, "layout": {**base, **extra}}
+            document["actuator"] = {"kind": "thrusters", **options, "layout": {**base, **extra}}
             result, _ = run_case(document, 1, ["rms_tracking:position"])
             print(f"{allocation}, {name}: RMS position tracking {float(result['rms_tracking__position'][0]):.3g} m", flush=True)
-            if allocation == "qp" and not extra:
+            if allocation == "qp, unsteered" and not extra:  # a loop that tracks: its command as the controller means it
                 ds = composition.simulate(composition.compose(document)).to_xarray().isel(run=0)
                 rate = np.max(np.abs(np.diff(ds.force_commanded.values, axis=0)), axis=0) / float(np.diff(ds.time.values[:2])[0])
                 print(f"  the commanded force changes by up to {rate[0]:.3g} N/s in surge and {rate[1]:.3g} N/s in sway", flush=True)

@@ -555,6 +555,10 @@ def compose(document: dict) -> Composition:
     plant_table, observer_table = document["plant"], document["observer"]
     initial_state, normal["plant"]["initial"] = _initial(built["plant"].state, plant_table.get("initial"), ("plant", "initial"))
     initial_estimate, normal["observer"]["initial"] = _initial(built["observer"].guess, observer_table.get("initial"), ("observer", "initial"))
+    refusal = getattr(built["actuator"], "plant_input_refusal", None)  # an actuator that drives one kind of plant only
+    reason = refusal(built["plant"].input_layout, kinds["plant"]) if refusal is not None else None
+    if reason is not None:
+        raise CompositionError(("actuator",), reason)
     try:
         scenario = Scenario(
             plant=built["plant"],

@@ -13,66 +13,199 @@ singularity avoidance using sequential quadratic programming", IEEE TCST 12(1), 
     least-weighted u that produces tau exactly (W: each thruster's weight over its
     largest thrust squared), then each thruster saturated on its own (force and rate
     limits; an azimuth told the direction of its force, which it turns to at its
-    rate while pushing): the classical unconstrained allocation.
+    rate while pushing): the classical unconstrained allocation. Its azimuths follow
+    every turn of tau, noise included.
 ``"qp"``
-    The same solution when it respects every limit (it is then optimal), else
+    The azimuths are *steered* (below): each turns slowly, if at all, and at each
+    sample the QP allocates the thrust along the steered angles,
 
-        minimize  u^T W u + s^T Q s   subject to  B u = tau + s,  u in the limits
+        minimize  (u - u_b)^T W (u - u_b) + s^T Q s   subject to  B u = tau + s,  u in the limits
 
-    with the slack s weighted by Q = ``slack_weight`` (tau scaled per axis): when
-    tau cannot be produced, the thrusters produce the tau closest to it in the
-    Q-weighted norm. The QP's target is tau moved by Q^-1 (B W^-1 B^T)^-1 tau (a
-    part in ``slack_weight`` of tau), which makes the QP's unconstrained optimum the
-    weighted least-squares solution exactly: the allocation is then continuous where
-    it passes from that solution to the QP's (a penalty QP on tau itself would jump
-    by a part in ``slack_weight`` there). The limits, all linear and all met by a start point built from
-    the previous command (so :func:`lookout.actuators.qp.active_set` can start there):
+    with u_b the azimuths' bias (below; 0 without one) and the slack s weighted by
+    Q = ``slack_weight`` (tau scaled per axis): when tau cannot be produced, the
+    thrusters produce the tau closest to it in the Q-weighted norm. The QP's target
+    is tau moved by Q^-1 (B W^-1 B^T)^-1 tau (a part in ``slack_weight`` of tau),
+    which makes its unconstrained optimum u_b + W^-1 B^T (B W^-1 B^T)^-1 tau exactly
+    (the biased least-squares solution, which produces tau): where that solution
+    meets every limit it is the allocation, and the allocation is continuous where it
+    passes to the QP's. The limits, all linear and all met by a start point built
+    from the previous command (so :func:`lookout.actuators.qp.active_set` can start
+    there):
 
-    - force: a tunnel's and a main propeller's thrust in [min_thrust, max_thrust]
-      (a main propeller ahead after ahead, so that its rudder's lift stays convex);
-      an azimuth's |F| <= max_thrust as the inscribed polygon of ``polygon_sides``
-      sides, so a command never exceeds it;
-    - rate: a thrust within thrust_rate dt of its previous command; an azimuth's
-      force within thrust_rate dt of its previous thrust along and across its
-      current direction;
-    - turning: an azimuth's force within turn_rate dt of its current angle (a
-      sector, when turn_rate dt < pi), and a rudder's lift within the rudder angles
-      reachable in dt, |delta| <= max_rudder, ahead only (L = rudder_lift delta T):
-      whatever the QP commands is delivered after one sample. An azimuth the QP
-      leaves idle turns toward the direction the unconstrained solution wants (a
-      sector QP alone would never turn a thruster that points the wrong way).
+    - a tunnel's and a main propeller's thrust in [min_thrust, max_thrust] (a main
+      propeller ahead after ahead, so that its rudder's lift stays convex) and within
+      thrust_rate dt of its previous command;
+    - a rudder's lift within the rudder angles reachable in dt, |delta| <= max_rudder,
+      ahead only (L = rudder_lift delta T);
+    - an azimuth's force along its steered angle (none across it), its thrust in
+      [0, max_thrust] (the thrust circle, exactly) and within thrust_rate dt of its
+      previous command.
+
+    Whatever the QP commands is delivered after one sample, up to the thrust lag.
+
+Azimuth steering and bias (``"qp"``)
+    Sørdalen, "Optimal thrust allocation for marine vessels", Control Eng. Practice
+    5(9), 1997, filters the azimuths' directions so that they align with the
+    direction where most force is required instead of following every change of the
+    command, to spare the thrusters' wear and tear (Fossen, 2011, Section 12.3;
+    Johansen & Fossen, "Control allocation - a survey", Automatica 49(5), 2013, count
+    such turning among the costs an allocation should keep low); DP systems also
+    *bias* azimuths, pushing them against each other so that a small force of either
+    sign is a change of thrust, not a turn. lookout's form of both (the filter, the
+    rules and the null-space bias are lookout's choices, not equations of the papers):
+
+    1. the bias u_b is the part of ``steering_bias`` max_thrust along each azimuth's
+       ``direction`` that produces no force: s projected onto the null space of B,
+       u_b = s - W^-1 B^T (B W^-1 B^T)^-1 B s (so azimuths whose directions oppose
+       bias each other, and the tunnels take up the moment of the pair; azimuths
+       pointing the same way have no bias);
+    2. the demand d is tau through a first-order low-pass of time constant
+       ``steering_time_constant``: d_k = d_k-1 + (1 - exp(-dt / T_s)) (tau_k - d_k-1);
+    3. azimuth i wants the direction of its force f_i in u_b + W^-1 B^T (B W^-1 B^T)^-1 d,
+       under a load |f_i| / max_thrust_i;
+    4. it holds its angle unless its load exceeds ``steering_load`` and it points
+       more than ``steering_deadband`` away from that direction; then it turns toward
+       it at its turning rate until it points there (a turn once begun is finished
+       unless the load falls below ``steering_load``).
+
+    So an idle or lightly loaded azimuth holds its angle, force at the wave frequency
+    or noise in tau hardly moves d, and a turn begins only when the steady demand has
+    turned by the deadband; the fast part of tau is thrust along the held angles.
 
 Variables, tau and slack are scaled (each variable by its largest magnitude, each
 axis of tau by :attr:`ThrusterLayout.force_scale`) so the QP is equally well
 conditioned for a model ship and a supply vessel.
+
+What the allocation reports per sample: ``shortfall``, the largest part of tau it
+left unproduced, |tau - B u| on an axis as a fraction of that axis's reach
+(:attr:`Allocator.axis_reach`); ``saturated``, a shortfall above :data:`SATURATED`:
+the limits (force, rate, turning) kept the allocation from producing tau.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Literal, final
+from typing import Literal, NamedTuple, final
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from lookout.actuators.layout import ThrusterLayout, magnitude
+from lookout._math import ssa
+from lookout._resources import refuse_unless_it_fits
+from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.actuators.qp import active_set
 
-#: h of a row that never binds.
-NEVER = 1e30
 ALLOCATION_METHODS = ("qp", "pseudo-inverse")
 QP_SOLVERS = ("active-set", "qpax")
-#: An azimuth's turning sector is capped at this half-width (rad) below pi (a wider
-#: sector is not convex); at turn_rate dt >= pi there is no sector.
-LARGEST_SECTOR = 1.5
 #: A scaled force below this is no direction (an idle thruster's rounding).
 IDLE = 1e-3
+#: A sample is saturated when the allocation leaves more than this fraction of an
+#: axis's reach unproduced (6 kN of the supply vessel's 600 kN in surge): a
+#: shortfall visible on the thrusters' figure. A QP whose limits bind but still
+#: produce tau leaves about 1 / slack_weight (1e-6 by default) for the slack.
+SATURATED = 1e-2
+#: The QP's defaults, and why:
+#: slack_weight: tau is produced to about a millionth of its scale whenever the limits allow it.
+DEFAULT_SLACK_WEIGHT = 1e6
+#: steering_time_constant (s): longer than a DP sea state's wave periods (about 5 to
+#: 12 s), so the filter passes a wave-frequency force at a fifth of its amplitude or
+#: less (1 / sqrt(1 + (2 pi 10 / 12)^2) = 0.19 at 12 s), and short enough that the
+#: filtered demand reaches 95 % of a step (a setpoint move, a change of the weather)
+#: in 30 s.
+DEFAULT_STEERING_TIME_CONSTANT = 10.0
+#: steering_deadband (rad), 10 deg: an azimuth held up to 10 deg off the wanted
+#: direction still gives cos(10 deg) = 98.5 % of its thrust along it, and the
+#: 17 % across it is a force the other thrusters absorb.
+DEFAULT_STEERING_DEADBAND = math.radians(10.0)
+#: steering_load: below 5 % of its largest thrust (1 % of its power, |T|^1.5) an
+#: azimuth's steady demand is not worth a turn; its direction is then mostly noise
+#: left by the filter.
+DEFAULT_STEERING_LOAD = 0.05
+#: steering_bias: 30 % of an azimuth's largest thrust (16 % of its power), so that a
+#: pair pushing against each other answers a force of either sign up to 60 % of one
+#: azimuth's thrust along their line with a change of thrust at the thrust rate, not
+#: a turn of 180 degrees at the turning rate (measured against 20 % on
+#: examples/thrusters-dp.toml: half the turning for a tenth more power; docs/thrusters.md).
+DEFAULT_STEERING_BIAS = 0.3
 
 
-def _unit(angle):
-    return jnp.cos(angle), jnp.sin(angle)
+class _Indices(NamedTuple):
+    """Static index arrays of the extended variables, by kind of thruster."""
+
+    tunnel: np.ndarray        # thruster indices
+    tunnel_thrust: np.ndarray  # variable indices
+    main: np.ndarray
+    main_thrust: np.ndarray
+    main_lift: np.ndarray
+    azimuth: np.ndarray
+    azimuth_x: np.ndarray
+    azimuth_y: np.ndarray
+
+
+def _indices(layout: ThrusterLayout) -> _Indices:
+    position = {variable: j for j, variable in enumerate(layout.variables)}
+    kinds = np.asarray(layout.kinds)
+
+    def of(kind, part=None):
+        thrusters = np.flatnonzero(kinds == kind)
+        if part is None:
+            return thrusters
+        return np.asarray([position[(int(i), part)] for i in thrusters], dtype=int)
+
+    return _Indices(of("tunnel"), of("tunnel", "thrust"), of("main"), of("main", "thrust"), of("main", "lift"),
+                    of("azimuth"), of("azimuth", "x"), of("azimuth", "y"))
+
+
+def limit_rows(layout: ThrusterLayout) -> int:
+    """Rows of the QP's limits: 2 per tunnel (thrust), 4 per main propeller (thrust
+    and lift), 4 per azimuth (thrust, and none across its angle).
+
+    Parameters
+    ----------
+    layout : ThrusterLayout
+        The thrusters.
+
+    Returns
+    -------
+    int
+        The number of rows of :meth:`Allocator.constraints`.
+    """
+    count = {kind: int(np.sum(layout.is_kind(kind))) for kind in ("tunnel", "main", "azimuth")}
+    return 2 * count["tunnel"] + 4 * count["main"] + 4 * count["azimuth"]
+
+
+def working_nbytes(layout: ThrusterLayout, method: str = "qp") -> int:
+    """Bytes one allocation holds, float64, with n variables and m limit rows: its
+    matrices (B and the pseudo-inverse, 3 x n each; the QP's P, n x n) and one sample's
+    work: the limits G (m x n) and the QP's KKT systems, (2n x 2n) each, with their LU
+    factors, for the warm start's solve, the iterations' and the final one (six such
+    matrices at most live at once; :mod:`lookout.actuators.qp`), and vectors of n and
+    m. The pseudo-inverse holds the 3 x n matrices and vectors only. The reach is in
+    closed form (:meth:`Allocator._reach`, O(n)): there is no linear program to hold.
+
+    Computed from the layout's size alone, before anything of that size is allocated
+    (:class:`Allocator` refuses a layout whose allocation does not fit the memory
+    available).
+
+    Parameters
+    ----------
+    layout : ThrusterLayout
+        The thrusters.
+    method : {"qp", "pseudo-inverse"}
+        The allocation method.
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
+    n, m = len(layout.variables), limit_rows(layout)
+    floats = 8 * n + 16 * (n + m) + 64
+    if method == "qp":
+        floats += n * n + m * n + 6 * (2 * n) ** 2
+    return 8 * floats
 
 
 @final
@@ -85,23 +218,38 @@ class Allocator(eqx.Module):
         The thrusters.
     method : {"qp", "pseudo-inverse"}
         The allocation method.
-    slack_weight : float or array_like, shape (3,)
-        Weight of the squared scaled slack (surge, sway, yaw) against the squared
-        scaled thrust in the QP; positive. Large: tau is produced whenever the limits
-        allow it (within about 1/slack_weight of its scale); unequal: the axis with the
-        larger weight is kept first when tau cannot be produced.
-    polygon_sides : int
-        Sides of the polygon inside an azimuth's thrust circle; at least 4.
+    slack_weight : float or array_like, shape (3,), optional
+        ``"qp"`` only. Weight of the squared scaled slack (surge, sway, yaw) against
+        the squared scaled thrust; positive (default :data:`DEFAULT_SLACK_WEIGHT`).
+        Large: tau is produced whenever the limits allow it (within about
+        1/slack_weight of its scale); unequal: the axis with the larger weight is
+        kept first when tau cannot be produced.
     clip_to_reach : bool
         Clip each axis of tau to what the thrusters can produce on that axis alone
         (:attr:`reach`) before allocating, as a per-axis saturation would: a command
         far beyond the thrusters' reach on one axis then does not take the thrust
         another axis needs. False allocates tau as it comes.
-    solver : {"active-set", "qpax"}
-        The QP's solver: lookout's active-set method (:mod:`lookout.actuators.qp`;
-        exact, and cheap when few limits change from sample to sample), or qpax's
-        primal-dual interior-point method (Tracy & Manchester, 2024; the ``qpax``
-        package, installed with lookout's ``dev`` extra), for comparison.
+    solver : {"active-set", "qpax"}, optional
+        ``"qp"`` only. The QP's solver: lookout's active-set method
+        (:mod:`lookout.actuators.qp`; exact, and cheap when few limits change from
+        sample to sample; the default), or qpax's primal-dual interior-point method
+        (Tracy & Manchester, 2024; the ``qpax`` package, installed with lookout's
+        ``dev`` extra), for comparison.
+    steering_time_constant : float, optional
+        ``"qp"`` only. Time constant of the low-pass filter on tau whose allocation
+        the azimuths turn toward (s); non-negative, 0 for none (default
+        :data:`DEFAULT_STEERING_TIME_CONSTANT`).
+    steering_deadband : float, optional
+        ``"qp"`` only. Angle an azimuth may point away from its filtered direction
+        before it turns (rad); in [0, pi] (default :data:`DEFAULT_STEERING_DEADBAND`).
+    steering_load : float, optional
+        ``"qp"`` only. Filtered load (a fraction of the azimuth's largest thrust) below
+        which an azimuth holds its angle; in [0, 1] (default
+        :data:`DEFAULT_STEERING_LOAD`).
+    steering_bias : float, optional
+        ``"qp"`` only. Thrust (a fraction of its largest) each azimuth puts along its
+        layout ``direction``, of which the part that produces no force is its bias
+        u_b; in [0, 1) (default :data:`DEFAULT_STEERING_BIAS`; 0 for none).
     """
 
     layout: ThrusterLayout
@@ -109,20 +257,52 @@ class Allocator(eqx.Module):
     scale: Array      # each variable's largest magnitude (N)
     force_scale: Array
     weights: Array
-    slack_weights: Array
     pseudo_inverse_matrix: Array
-    P: Array
-    target_matrix: Array  # the QP's target from the scaled tau (see the module docstring)
     reach: Array      # (2, 3) scaled: the smallest and largest of each axis alone
+    slack_weights: Array | None
+    P: Array | None
+    target_matrix: Array | None  # the QP's target from the scaled tau (see the module docstring)
+    steering_time_constant: Array | None
+    steering_deadband: Array | None
+    steering_load: Array | None
+    bias: Array | None  # u_b, scaled
     method: str = eqx.field(static=True)
-    polygon_sides: int = eqx.field(static=True)
     clip_to_reach: bool = eqx.field(static=True)
-    solver: str = eqx.field(static=True)
+    solver: str | None = eqx.field(static=True)
 
-    def __init__(self, layout: ThrusterLayout, method: Literal["qp", "pseudo-inverse"] = "qp", slack_weight=1e6, polygon_sides: int = 16,
-                 clip_to_reach: bool = True, solver: Literal["active-set", "qpax"] = "active-set"):
+    def __init__(self, layout: ThrusterLayout, method: Literal["qp", "pseudo-inverse"] = "qp", slack_weight=None, clip_to_reach: bool = True,
+                 solver: Literal["active-set", "qpax"] | None = None, steering_time_constant=None, steering_deadband=None, steering_load=None,
+                 steering_bias=None):
+        if not isinstance(layout, ThrusterLayout):
+            raise ValueError(f"layout must be a ThrusterLayout; got {type(layout).__name__}")
         if method not in ALLOCATION_METHODS:
             raise ValueError(f"allocation must be one of {', '.join(ALLOCATION_METHODS)}; got {method!r}")
+        qp_options = dict(slack_weight=slack_weight, solver=solver, steering_time_constant=steering_time_constant,
+                          steering_deadband=steering_deadband, steering_load=steering_load, steering_bias=steering_bias)
+        if method != "qp":
+            for name, value in qp_options.items():
+                if value is not None:
+                    raise ValueError(f"{name} applies to allocation 'qp' only, and this allocation is {method!r}: leave {name} out, or allocate by 'qp'")
+        self.method, self.clip_to_reach = method, bool(clip_to_reach)
+        variables, rows = len(layout.variables), limit_rows(layout)
+        refuse_unless_it_fits(
+            working_nbytes(layout, method), f"the allocation of {layout.size} thrusters ({variables} variables, {rows} limits)",
+            "use fewer thrusters (the QP's matrices grow as the square of the variables: one per tunnel, two per azimuth or main propeller)",
+        )
+        self.layout = layout
+        self.scale, self.force_scale = layout.variable_scale, layout.force_scale
+        self.B = layout.B * self.scale[None, :] / self.force_scale[:, None]
+        self.weights = np.array([layout.weight[i] for i, _ in layout.variables])
+        inverse_weighted = self.B.T / self.weights[:, None]  # W^-1 B^T, without the n x n W^-1
+        gram = self.B @ inverse_weighted
+        self.pseudo_inverse_matrix = inverse_weighted @ np.linalg.inv(gram)
+        self.reach = self._reach()
+        if method != "qp":
+            self.solver = None
+            self.slack_weights = self.P = self.target_matrix = None
+            self.steering_time_constant = self.steering_deadband = self.steering_load = self.bias = None
+            return
+        solver = "active-set" if solver is None else solver
         if solver not in QP_SOLVERS:
             raise ValueError(f"solver must be one of {', '.join(QP_SOLVERS)}; got {solver!r}")
         if solver == "qpax":
@@ -131,225 +311,268 @@ class Allocator(eqx.Module):
             except ImportError:
                 raise ValueError("solver 'qpax' needs the qpax package (pip install qpax, or lookout's dev extra)") from None
         self.solver = solver
+        slack_weight = DEFAULT_SLACK_WEIGHT if slack_weight is None else slack_weight
         try:
             slack = np.broadcast_to(np.asarray(slack_weight, dtype=float), (3,)).copy()
         except (TypeError, ValueError):
             slack = np.full(3, np.nan)
         if not np.all(np.isfinite(slack)) or np.any(slack <= 0):
-            raise ValueError(f"slack_weight must be a positive number or three of them (surge, sway, yaw); got {slack_weight!r}")
-        if not isinstance(polygon_sides, int) or isinstance(polygon_sides, bool) or polygon_sides < 4:
-            raise ValueError(f"polygon_sides must be an integer of at least 4; got {polygon_sides!r}")
-        self.layout, self.method, self.polygon_sides, self.clip_to_reach = layout, method, polygon_sides, bool(clip_to_reach)
-        self.scale, self.force_scale = layout.variable_scale, layout.force_scale
-        self.B = layout.B * self.scale[None, :] / self.force_scale[:, None]
-        self.weights = np.array([layout.weight[i] for i, _ in layout.variables])
+            raise ValueError(f"slack_weight must be a positive number or three of them (surge, sway, yaw); got {_brief(slack_weight)}")
         self.slack_weights = slack
-        inverse = np.diag(1.0 / self.weights)
-        self.pseudo_inverse_matrix = inverse @ self.B.T @ np.linalg.inv(self.B @ inverse @ self.B.T)
-        # u^T W u + (B u - tau)^T Q (B u - tau) = u^T P u - 2 tau^T Q B u + const
+        # (u - u_b)^T W (u - u_b) + (B u - t')^T Q (B u - t') = u^T P u - 2 (W u_b + B^T Q t')^T u + const
         self.P = np.diag(self.weights) + self.B.T @ np.diag(slack) @ self.B
-        # stationarity W u + B^T Q (B u - t') = 0 holds at u = W^-1 B^T lam, lam = (B W^-1 B^T)^-1 t,
-        # for t' = t + Q^-1 lam: the penalty QP's unconstrained optimum is the least-squares one
-        self.target_matrix = np.eye(3) + np.diag(1.0 / slack) @ np.linalg.inv(self.B @ inverse @ self.B.T)
-        self.reach = self._reach()
+        # stationarity W (u - u_b) + B^T Q (B u - t') = 0 holds at u = u_b + W^-1 B^T lam,
+        # lam = (B W^-1 B^T)^-1 t (B u_b = 0, so B u = t), for t' = t + Q^-1 lam: the penalty
+        # QP's unconstrained optimum is the biased least-squares one
+        self.target_matrix = np.eye(3) + np.diag(1.0 / slack) @ np.linalg.inv(gram)
+        self.steering_time_constant = _option("steering_time_constant", steering_time_constant, DEFAULT_STEERING_TIME_CONSTANT, 0.0, math.inf)
+        self.steering_deadband = _option("steering_deadband", steering_deadband, DEFAULT_STEERING_DEADBAND, 0.0, math.pi)
+        self.steering_load = _option("steering_load", steering_load, DEFAULT_STEERING_LOAD, 0.0, 1.0)
+        bias = float(_option("steering_bias", steering_bias, DEFAULT_STEERING_BIAS, 0.0, 1.0, high_included=False))
+        index = self.indices
+        wanted = np.zeros(variables)
+        wanted[index.azimuth_x] = bias * np.cos(layout.direction[index.azimuth])
+        wanted[index.azimuth_y] = bias * np.sin(layout.direction[index.azimuth])
+        self.bias = wanted - self.pseudo_inverse_matrix @ (self.B @ wanted)  # its part in the null space of B
 
     @property
     def size(self) -> int:
         """Number of extended variables."""
         return self.B.shape[1]
 
-    def _index(self, i: int, part: str) -> int:
-        return self.layout.variables.index((i, part))
+    @property
+    def indices(self) -> _Indices:
+        """The extended variables' indices by kind of thruster (static NumPy arrays)."""
+        return _indices(self.layout)
+
+    @property
+    def working_nbytes(self) -> int:
+        """Bytes one run's allocation holds while stepping (:func:`working_nbytes`)."""
+        return working_nbytes(self.layout, self.method)
+
+    def target(self, tau: Array) -> tuple[Array, Array]:
+        """``(wanted, target)``: tau scaled per axis, and clipped to :attr:`reach` with
+        ``clip_to_reach``."""
+        wanted = jnp.asarray(tau) / self.force_scale
+        return wanted, (jnp.clip(wanted, self.reach[0], self.reach[1]) if self.clip_to_reach else wanted)
+
+    # -- azimuth steering ---------------------------------------------------------------------
+
+    def steer(self, demand: Array, angle: Array, turning: Array, tau: Array, dt) -> tuple[Array, Array, Array]:
+        """One sample of the azimuth steering (module docstring): ``(demand, angle,
+        turning)`` after tau arrives, from the scaled filtered ``demand`` (3,), the
+        thrusters' ``angle`` (n,) and whether each azimuth is ``turning`` (n,).
+
+        The returned angle is each azimuth's angle at the end of the sample (within
+        turn_rate dt of ``angle``); the other thrusters' entries are ``angle``'s. A
+        non-finite tau leaves the demand as it was."""
+        layout, index = self.layout, self.indices
+        _, target = self.target(tau)
+        time_constant = self.steering_time_constant
+        gain = jnp.where(time_constant > 0, -jnp.expm1(-dt / jnp.where(time_constant > 0, time_constant, 1.0)), 1.0)
+        demand = jnp.where(jnp.all(jnp.isfinite(target)), demand + gain * (target - demand), demand)
+        if index.azimuth.size == 0:
+            return demand, angle, turning
+        wished = self.pseudo_inverse_matrix @ demand + self.bias  # scaled: an azimuth's force as a fraction of its largest
+        fx, fy = wished[index.azimuth_x], wished[index.azimuth_y]
+        current = angle[index.azimuth]
+        error = ssa(direction_of(fx, fy, current) - current)
+        reachable = jnp.asarray(layout.turn_rate[index.azimuth]) * dt
+        turn = (magnitude(fx, fy) > self.steering_load) & (turning[index.azimuth] | (jnp.abs(error) > self.steering_deadband))
+        steered = jnp.where(turn, ssa(current + jnp.clip(error, -reachable, reachable)), current)
+        return demand, angle.at[index.azimuth].set(steered), turning.at[index.azimuth].set(turn & (jnp.abs(error) > reachable))
 
     # -- the limits --------------------------------------------------------------------------
 
-    def constraints(self, previous: Array, angle: Array, dt, preferred: Array | None = None) -> tuple[Array, Array, Array]:
+    def constraints(self, previous: Array, angle: Array, dt) -> tuple[Array, Array, Array]:
         """``(G, h, start)``: the limits G u <= h on the scaled command after the scaled
-        ``previous`` command, with the thrusters at ``angle`` (an azimuth's, a rudder's)
-        and a step ``dt``, and a scaled command that meets them all (see the module
-        docstring). With the ``preferred`` (unconstrained) allocation, an azimuth's
-        thrust is capped at cos(its angle from the preferred direction) of its largest
-        (0 beyond 90 degrees), lowered no faster than its rate allows."""
-        layout, n = self.layout, self.size
-        rows, bounds = [], []
-        start = jnp.asarray(previous, dtype=float)
+        ``previous`` command, with the azimuths at their steered ``angle`` and the rudders
+        at theirs, over a step ``dt``, and a scaled command that meets them all (see the
+        module docstring). Rows: each tunnel's and main propeller's thrust (upper, then
+        lower), each main propeller's lift (upper, lower), each azimuth's thrust
+        (upper, lower) and its force across its angle (<= 0, >= 0)."""
+        layout, index, n = self.layout, self.indices, self.size
+        previous = jnp.asarray(previous, dtype=float)
+        start = previous
+        rows, columns, entries, bounds = [], [], [], []
+        count = 0
 
-        def row(entries, bound):
-            g = jnp.zeros(n)
-            for j, value in entries:
-                g = g.at[j].set(value)
-            rows.append(g)
-            bounds.append(jnp.asarray(bound, dtype=float))
+        def add(column_values, bound):
+            # one row per entry of ``bound``; column_values: [(variable indices, values), ...]
+            nonlocal count
+            size = len(bound)
+            for variables, values in column_values:
+                rows.append(np.arange(count, count + size))
+                columns.append(np.asarray(variables))
+                entries.append(jnp.broadcast_to(jnp.asarray(values, dtype=float), (size,)))
+            bounds.append(bound)
+            count += size
 
-        for i, kind in enumerate(layout.kinds):
-            if kind in ("tunnel", "main"):
-                j = self._index(i, "thrust")
-                step = layout.thrust_rate[i] * dt / self.scale[j]
-                low = jnp.maximum(layout.min_thrust[i] / self.scale[j], previous[j] - step)
-                if kind == "main":
-                    low = jnp.where(previous[j] > 0, jnp.maximum(low, 0.0), low)
-                row([(j, 1.0)], jnp.minimum(layout.max_thrust[i] / self.scale[j], previous[j] + step))
-                row([(j, -1.0)], -low)
-            if kind == "main":
-                jt, jl = self._index(i, "thrust"), self._index(i, "lift")
-                reachable = layout.turn_rate[i] * dt
-                ahead = previous[jt] > 0
-                # L / (k d_max T_max) between (delta -+ turn) / d_max times T / T_max; astern L = 0
-                high = jnp.where(ahead, jnp.minimum(angle[i] + reachable, layout.max_rudder[i]) / layout.max_rudder[i], 0.0)
-                low = jnp.where(ahead, jnp.maximum(angle[i] - reachable, -layout.max_rudder[i]) / layout.max_rudder[i], 0.0)
-                row([(jl, 1.0), (jt, -high)], 0.0)
-                row([(jl, -1.0), (jt, low)], 0.0)
-                start = start.at[jl].set(angle[i] / layout.max_rudder[i] * jnp.maximum(previous[jt], 0.0))
-            if kind == "azimuth":
-                jx, jy = self._index(i, "x"), self._index(i, "y")
-                apothem = math.cos(math.pi / self.polygon_sides)
-                along0 = jnp.minimum(magnitude(previous[jx], previous[jy]), apothem)
-                c, s = _unit(angle[i])
-                step = layout.thrust_rate[i] * dt / self.scale[jx]
-                high = along0 + step
-                if preferred is not None:  # pointing away from where it is wanted: thrust down, so it turns
-                    wanted = magnitude(preferred[jx], preferred[jy]) > IDLE
-                    alignment = jnp.where(wanted, (preferred[jx] * c + preferred[jy] * s) / jnp.maximum(magnitude(preferred[jx], preferred[jy]), IDLE), 1.0)
-                    high = jnp.maximum(jnp.minimum(high, apothem * jnp.maximum(alignment, 0.0)), along0 - step)
-                along_start = jnp.minimum(along0, high)
-                start = start.at[jx].set(along_start * c).at[jy].set(along_start * s)
-                row([(jx, c), (jy, s)], high)
-                row([(jx, -c), (jy, -s)], -(along0 - step))
-                row([(jx, -s), (jy, c)], step)
-                row([(jx, s), (jy, -c)], step)
-                reachable = layout.turn_rate[i] * dt
-                width = jnp.minimum(reachable, LARGEST_SECTOR)
-                sector = jnp.where(reachable < math.pi, 0.0, NEVER)
-                right_c, right_s = _unit(angle[i] - width)
-                left_c, left_s = _unit(angle[i] + width)
-                row([(jx, right_s), (jy, -right_c)], sector)
-                row([(jx, -left_s), (jy, left_c)], sector)
-                for k in range(self.polygon_sides):
-                    normal = (2 * k + 1) * math.pi / self.polygon_sides
-                    row([(jx, math.cos(normal)), (jy, math.sin(normal))], apothem)
-        return jnp.stack(rows), jnp.stack(bounds), start
+        # thrust of tunnels and main propellers: the force and rate limits
+        thrusters = np.concatenate([index.tunnel, index.main])
+        variables = np.concatenate([index.tunnel_thrust, index.main_thrust])
+        if thrusters.size:
+            step = jnp.asarray(layout.thrust_rate[thrusters]) * dt / self.scale[variables]
+            low = jnp.maximum(layout.min_thrust[thrusters] / self.scale[variables], previous[variables] - step)
+            main = np.asarray(layout.is_kind("main"))[thrusters]
+            low = jnp.where(main & (previous[variables] > 0), jnp.maximum(low, 0.0), low)
+            high = jnp.minimum(layout.max_thrust[thrusters] / self.scale[variables], previous[variables] + step)
+            add([(variables, 1.0)], high)
+            add([(variables, -1.0)], -low)
+        # a rudder's lift L / (k d_max T_max) between (delta -+ turn) / d_max times T / T_max; astern L = 0
+        if index.main.size:
+            jt, jl, i = index.main_thrust, index.main_lift, index.main
+            reachable = jnp.asarray(layout.turn_rate[i]) * dt
+            ahead = previous[jt] > 0
+            largest = jnp.asarray(layout.max_rudder[i])
+            high = jnp.where(ahead, jnp.minimum(angle[i] + reachable, largest) / largest, 0.0)
+            low = jnp.where(ahead, jnp.maximum(angle[i] - reachable, -largest) / largest, 0.0)
+            add([(jl, 1.0), (jt, -high)], jnp.zeros(i.size))
+            add([(jl, -1.0), (jt, low)], jnp.zeros(i.size))
+            start = start.at[jl].set(angle[i] / largest * jnp.maximum(previous[jt], 0.0))
+        # an azimuth's force along its steered angle, its thrust within its circle and rate
+        if index.azimuth.size:
+            jx, jy, i = index.azimuth_x, index.azimuth_y, index.azimuth
+            c, s = jnp.cos(angle[i]), jnp.sin(angle[i])
+            along0 = jnp.minimum(magnitude(previous[jx], previous[jy]), 1.0)
+            step = jnp.asarray(layout.thrust_rate[i]) * dt / self.scale[jx]
+            add([(jx, c), (jy, s)], jnp.minimum(along0 + step, 1.0))
+            add([(jx, -c), (jy, -s)], -jnp.maximum(along0 - step, 0.0))
+            add([(jx, -s), (jy, c)], jnp.zeros(i.size))
+            add([(jx, s), (jy, -c)], jnp.zeros(i.size))
+            start = start.at[jx].set(along0 * c).at[jy].set(along0 * s)
+        G = jnp.zeros((count, n)).at[np.concatenate(rows), np.concatenate(columns)].set(jnp.concatenate(entries))
+        return G, jnp.concatenate(bounds), start
 
     def _reach(self) -> np.ndarray:
         """(2, 3): the smallest and largest of each axis of the scaled tau that the force
-        limits allow, each axis alone (linear programs; a main propeller either ahead
-        with its rudder or astern without lift, whichever reaches further)."""
-        from scipy.optimize import linprog
+        limits allow, each axis alone. With the other axes free, each thruster adds its
+        own extreme (the limits are per thruster), in closed form: a tunnel at either
+        limit; an azimuth's thrust circle, max_thrust |(B_x, B_y)|; a main propeller
+        ahead with its rudder (|L| <= rudder_lift max_rudder T) or astern without lift,
+        whichever reaches further."""
+        layout, index = self.layout, self.indices
+        B = layout.B  # newtons
+        low, high = np.zeros(3), np.zeros(3)
+        i, j = index.tunnel, index.tunnel_thrust
+        ends = np.stack([B[:, j] * layout.min_thrust[i], B[:, j] * layout.max_thrust[i]])
+        low, high = low + ends.min(axis=0).sum(axis=-1), high + ends.max(axis=0).sum(axis=-1)
+        i = index.azimuth
+        circle = np.hypot(B[:, index.azimuth_x], B[:, index.azimuth_y]) * layout.max_thrust[i]
+        low, high = low - circle.sum(axis=-1), high + circle.sum(axis=-1)
+        i, jt, jl = index.main, index.main_thrust, index.main_lift
+        lift = np.abs(B[:, jl]) * layout.rudder_lift[i] * layout.max_rudder[i]  # largest |L| per newton of thrust, on each axis
+        ahead_high, ahead_low = np.maximum((B[:, jt] + lift) * layout.max_thrust[i], 0.0), np.minimum((B[:, jt] - lift) * layout.max_thrust[i], 0.0)
+        astern = B[:, jt] * layout.min_thrust[i]
+        low = low + np.minimum(ahead_low, np.minimum(astern, 0.0)).sum(axis=-1)
+        high = high + np.maximum(ahead_high, np.maximum(astern, 0.0)).sum(axis=-1)
+        return np.stack([low, high]) / self.force_scale
 
-        layout, n = self.layout, self.size
-        mains = [i for i, kind in enumerate(layout.kinds) if kind == "main"]
-        reach = np.zeros((2, 3))
-        for axis in range(3):
-            for side, sign in ((0, 1.0), (1, -1.0)):  # minimize sign * tau_axis
-                best = math.inf
-                for astern in range(2 ** len(mains)):
-                    rows, bounds, limits = [], [], [(None, None)] * n
-                    for i, kind in enumerate(layout.kinds):
-                        if kind in ("tunnel", "main"):
-                            j = self._index(i, "thrust")
-                            limits[j] = (layout.min_thrust[i] / self.scale[j], layout.max_thrust[i] / self.scale[j])
-                        if kind == "main":
-                            jt, jl = self._index(i, "thrust"), self._index(i, "lift")
-                            if astern >> mains.index(i) & 1:
-                                limits[jt], limits[jl] = (limits[jt][0], 0.0), (0.0, 0.0)
-                            else:
-                                limits[jt] = (0.0, limits[jt][1])
-                                for sign_l in (1.0, -1.0):
-                                    g = np.zeros(n)
-                                    g[jl], g[jt] = sign_l, -1.0
-                                    rows.append(g)
-                                    bounds.append(0.0)
-                        if kind == "azimuth":
-                            jx, jy = self._index(i, "x"), self._index(i, "y")
-                            for k in range(self.polygon_sides):
-                                normal = (2 * k + 1) * math.pi / self.polygon_sides
-                                g = np.zeros(n)
-                                g[jx], g[jy] = math.cos(normal), math.sin(normal)
-                                rows.append(g)
-                                bounds.append(math.cos(math.pi / self.polygon_sides))
-                    result = linprog(
-                        sign * self.B[axis], A_ub=np.asarray(rows) if rows else None, b_ub=np.asarray(bounds) if rows else None,
-                        bounds=limits, method="highs",
-                    )
-                    if result.status == 0:
-                        best = min(best, result.fun)
-                reach[side, axis] = sign * best
-        return reach
+    @property
+    def axis_reach(self) -> Array:
+        """(3,) scaled: each axis's reach, the larger of its two directions (the
+        shortfall's unit)."""
+        return jnp.maximum(-self.reach[0], self.reach[1])
 
     # -- allocation --------------------------------------------------------------------------
 
     def allocate(self, tau: Array, previous: Array, angle: Array, dt, working: Array | None = None) -> tuple[Array, dict]:
         """The scaled command for ``tau`` (N, N, N m) after the scaled ``previous``
-        command, with the thrusters at ``angle``; ``working`` is the previous sample's
-        active set (``info["working"]``), tried first.
+        command, with the thrusters at ``angle`` (an azimuth's steered angle, a
+        rudder's angle); ``working`` is the previous sample's active set
+        (``info["working"]``), tried first.
 
         Returns ``(u, info)``; ``info`` has ``unconstrained`` (the scaled weighted
-        least-squares solution, which idle azimuths turn toward), ``saturated`` (it
-        broke a limit), ``shortfall`` (largest |tau - B u| over the axes, as a fraction
-        of each axis's :attr:`force_scale`), and the QP's ``iterations``, ``converged``
-        and ``working`` (its active set; empty when unsaturated). A non-finite ``tau``
-        gives a NaN command.
+        least-squares solution, biased with ``"qp"``), ``constrained`` (it broke a limit, so the QP was
+        solved), ``shortfall`` (largest |tau - B u| over the axes, as a fraction of each
+        axis's reach), ``saturated`` (shortfall above :data:`SATURATED`), and the QP's
+        ``iterations``, ``converged`` and ``working`` (its active set; empty when not
+        constrained). A non-finite ``tau`` gives a NaN command.
         """
-        wanted = jnp.asarray(tau) / self.force_scale
-        target = jnp.clip(wanted, self.reach[0], self.reach[1]) if self.clip_to_reach else wanted
+        wanted, target = self.target(tau)
         unconstrained = self.pseudo_inverse_matrix @ target
-        G, h, start = self.constraints(previous, angle, dt, unconstrained)
-        saturated = ~jnp.all(G @ unconstrained <= h + 1e-12)
+        if self.method == "qp":
+            unconstrained = unconstrained + self.bias
         active = jnp.full(self.size, -1)
         if self.method == "pseudo-inverse":
             u = self._saturate(unconstrained, previous, dt)
+            constrained = jnp.any(jnp.abs(u - unconstrained) > 1e-12)
             iterations, converged = jnp.asarray(0), jnp.asarray(True)
         else:
-            q = -(self.B.T @ (self.slack_weights * (self.target_matrix @ target)))
+            G, h, start = self.constraints(previous, angle, dt)
+            constrained = ~jnp.all(G @ unconstrained <= h + 1e-12)
+            q = -(self.B.T @ (self.slack_weights * (self.target_matrix @ target))) - self.weights * self.bias
             if self.solver == "qpax":
-                solved, iterations, converged = _qpax(self.P, q, G, h)
+                solved, iterations, converged = _qpax(self.P, q, G, h, self.indices.azimuth.size)
             else:
                 solved, found, iterations, converged = active_set(
-                    self.P, q, G, h, start, max_iterations=G.shape[0] + self.size, needed=saturated, warm=working
+                    self.P, q, G, h, start, max_iterations=G.shape[0] + self.size, needed=constrained, warm=working
                 )
-                active = jnp.where(saturated, found, active)
-            u = jnp.where(saturated, solved, unconstrained)
-            converged = converged | ~saturated
+                active = jnp.where(constrained, found, active)
+            u = jnp.where(constrained, solved, unconstrained)
+            converged = converged | ~constrained
         u = jnp.where(jnp.all(jnp.isfinite(target)), u, jnp.nan)
-        shortfall = jnp.max(jnp.abs(wanted - self.B @ u))
-        return u, {"unconstrained": unconstrained, "saturated": saturated, "shortfall": shortfall, "iterations": iterations, "converged": converged,
-                   "working": active}
+        shortfall = jnp.max(jnp.abs(wanted - self.B @ u) / self.axis_reach)
+        return u, {"unconstrained": unconstrained, "constrained": constrained, "saturated": shortfall > SATURATED, "shortfall": shortfall,
+                   "iterations": iterations, "converged": converged, "working": active}
 
     def _saturate(self, u: Array, previous: Array, dt) -> Array:
         """Each thruster limited on its own: a thrust into its force and rate limits, an
         azimuth's force scaled into its circle with its magnitude rate-limited, a
         rudder's lift into its angle limits."""
-        layout = self.layout
+        layout, index = self.layout, self.indices
         out = u
-        for i, kind in enumerate(layout.kinds):
-            if kind == "azimuth":
-                jx, jy = self._index(i, "x"), self._index(i, "y")
-                step = layout.thrust_rate[i] * dt / self.scale[jx]
-                norm = magnitude(u[jx], u[jy])
-                old = magnitude(previous[jx], previous[jy])
-                wanted = jnp.clip(jnp.minimum(norm, 1.0), old - step, old + step)
-                factor = jnp.where(norm > 0, wanted / jnp.where(norm > 0, norm, 1.0), 0.0)
-                out = out.at[jx].set(u[jx] * factor).at[jy].set(u[jy] * factor)
-                continue
-            j = self._index(i, "thrust")
-            step = layout.thrust_rate[i] * dt / self.scale[j]
-            low = jnp.maximum(layout.min_thrust[i] / self.scale[j], previous[j] - step)
-            high = jnp.minimum(layout.max_thrust[i] / self.scale[j], previous[j] + step)
-            thrust = jnp.clip(u[j], low, high)
-            out = out.at[j].set(thrust)
-            if kind == "main":
-                jl = self._index(i, "lift")
-                out = out.at[jl].set(jnp.clip(u[jl], -jnp.maximum(thrust, 0.0), jnp.maximum(thrust, 0.0)))
+        if index.azimuth.size:
+            jx, jy, i = index.azimuth_x, index.azimuth_y, index.azimuth
+            step = jnp.asarray(layout.thrust_rate[i]) * dt / self.scale[jx]
+            norm = magnitude(u[jx], u[jy])
+            old = magnitude(previous[jx], previous[jy])
+            wanted = jnp.clip(jnp.minimum(norm, 1.0), old - step, old + step)
+            factor = jnp.where(norm > 0, wanted / jnp.where(norm > 0, norm, 1.0), 0.0)
+            out = out.at[jx].set(u[jx] * factor).at[jy].set(u[jy] * factor)
+        thrusters = np.concatenate([index.tunnel, index.main])
+        if thrusters.size:
+            j = np.concatenate([index.tunnel_thrust, index.main_thrust])
+            step = jnp.asarray(layout.thrust_rate[thrusters]) * dt / self.scale[j]
+            low = jnp.maximum(layout.min_thrust[thrusters] / self.scale[j], previous[j] - step)
+            high = jnp.minimum(layout.max_thrust[thrusters] / self.scale[j], previous[j] + step)
+            out = out.at[j].set(jnp.clip(u[j], low, high))
+        if index.main.size:
+            thrust = out[index.main_thrust]
+            out = out.at[index.main_lift].set(jnp.clip(u[index.main_lift], -jnp.maximum(thrust, 0.0), jnp.maximum(thrust, 0.0)))
         return out
 
 
-def _qpax(P, q, G, h):
+def _brief(value) -> str:
+    """A value for a one-line message: short, never an array dump."""
+    text = repr(value.tolist() if isinstance(value, np.ndarray) else value)
+    return text if len(text) <= 60 else f"{text[:50]}... ({np.size(value)} entries)"
+
+
+def _option(name: str, value, default: float, low: float, high: float, high_included: bool = True) -> np.ndarray:
+    """A scalar option in [low, high] (or [low, high)), its default when None, as a
+    float64 array (a gain: changing it does not trace again)."""
+    value = default if value is None else value
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number; got {_brief(value)}") from None
+    if not (low <= number and (number <= high if high_included else number < high)) or math.isnan(number):
+        interval = f"[{low:g}, {'pi' if high == math.pi else f'{high:g}'}{']' if high_included else ')'}"
+        raise ValueError(f"{name} must be in {interval}; got {number:g}")
+    return np.asarray(number)
+
+
+def _qpax(P, q, G, h, azimuths: int):
     """The QP by qpax's interior-point method (differentiable by its own rule): the same
-    scaling of P as :func:`lookout.actuators.qp.active_set`, rows that never bind left out."""
+    scaling of P as :func:`lookout.actuators.qp.active_set`. The last 2 ``azimuths``
+    rows of :meth:`Allocator.constraints` hold each azimuth's force across its angle
+    at <= 0 and >= 0: an equality, which an interior-point method needs as one (the
+    pair has no interior)."""
     import qpax
 
     size = jnp.max(jnp.abs(P))
-    bind = h < NEVER
-    n = P.shape[0]
-    x = qpax.solve_qp_primal(P / size, q / size, jnp.zeros((0, n)), jnp.zeros(0), jnp.where(bind[:, None], G, 0.0), jnp.where(bind, h, 1.0),
-                             solver_tol=1e-10, max_iter=50)
+    m = G.shape[0]
+    equal = slice(m - 2 * azimuths, m - azimuths)
+    x = qpax.solve_qp_primal(P / size, q / size, G[equal], h[equal], G[: m - 2 * azimuths], h[: m - 2 * azimuths], solver_tol=1e-10, max_iter=50)
     return x, jnp.asarray(-1), jnp.all(jnp.isfinite(x))

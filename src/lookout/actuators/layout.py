@@ -39,6 +39,28 @@ from lookout import _validation as check
 
 #: The kinds of thruster.
 THRUSTER_KINDS = ("tunnel", "azimuth", "main")
+KIND_PLURALS = {"tunnel": "tunnels", "azimuth": "azimuths", "main": "main propellers"}
+#: The columns that apply to some kinds only: one number is theirs; given per thruster,
+#: the other kinds' entries must be 0 (an entry that would be ignored is refused).
+APPLIES_TO = {"min_thrust": ("tunnel", "main"), "turn_rate": ("azimuth", "main"), "max_rudder": ("main",), "rudder_lift": ("main",)}
+#: Their defaults (the value of a layout that does not give them).
+DEFAULTS = {"min_thrust": 0.0, "turn_rate": math.inf, "max_rudder": 0.6, "rudder_lift": 0.0}
+NOT_APPLICABLE = {
+    "min_thrust": "an azimuth pushes one way and turns to push the other",
+    "turn_rate": "a tunnel does not turn",
+    "max_rudder": "only a main propeller has a rudder",
+    "rudder_lift": "only a main propeller has a rudder",
+}
+
+
+def _short(text: str, limit: int = 40) -> str:
+    """A name cut to ``limit`` characters for a message."""
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _listed(items: list[str], shown: int = 3) -> str:
+    """The first ``shown`` items, and how many more."""
+    return ", ".join(items[:shown]) + (f" and {len(items) - shown} more" if len(items) > shown else "")
 
 
 def magnitude(x, y):
@@ -67,13 +89,16 @@ class ThrusterLayout(eqx.Module):
         Position of each thruster, body-fixed, forward and starboard of the origin (m).
     direction : array_like
         A tunnel's thrust direction and a main propeller's (rad from the bow,
-        clockwise seen from above; pi/2 pushes to starboard); an azimuth's initial angle.
+        clockwise seen from above; pi/2 pushes to starboard); an azimuth's bias
+        direction, where it points when idle (azimuths pointing against each other
+        bias each other; :mod:`lookout.actuators.allocation`).
     max_thrust : array_like
         Largest thrust (N); positive.
     min_thrust : array_like
-        Smallest thrust (N, negative: astern or to port). An
-        azimuth's is 0 whatever is given (it turns instead of reversing). Between
-        -max_thrust and 0.
+        Smallest thrust (N, negative: astern or to port) of a tunnel or a main
+        propeller; between -max_thrust and 0. An azimuth pushes one way only (it turns
+        to push the other): one number is the tunnels' and main propellers', and a list
+        gives 0 for each azimuth.
     thrust_rate : array_like, optional
         Largest change of thrust per second (N/s); positive. None: no limit.
     time_constant : array_like
@@ -81,13 +106,14 @@ class ThrusterLayout(eqx.Module):
         non-negative, 0 for an instant response.
     turn_rate : array_like, optional
         Largest turning rate of an azimuth or a rudder (rad/s); positive. None: no
-        limit. A tunnel's is not used.
+        limit. One number is the azimuths' and rudders'; a list gives 0 for each tunnel.
     max_rudder : array_like
-        A main propeller's largest rudder angle (rad); positive, below pi/2. Not
-        used by the other kinds.
+        A main propeller's largest rudder angle (rad); positive, below pi/2. One number
+        is the main propellers'; a list gives 0 for each other thruster.
     rudder_lift : array_like
         A main propeller's rudder lift per radian of rudder angle per newton of thrust
-        (1/rad); non-negative. Not used by the other kinds.
+        (1/rad); non-negative. One number is the main propellers'; a list gives 0 for
+        each other thruster.
     weight : array_like
         Allocation weight of each thruster's squared thrust relative to its largest
         (1); positive. A larger weight spares the thruster.
@@ -122,45 +148,70 @@ class ThrusterLayout(eqx.Module):
             raise ValueError("names must name at least one thruster")
         if len(self.kinds) != count:
             raise ValueError(f"kinds must have one entry per thruster ({count}); got {len(self.kinds)}")
-        unknown = sorted(set(self.kinds) - set(THRUSTER_KINDS))
+        unknown = [kind for kind in dict.fromkeys(self.kinds) if kind not in THRUSTER_KINDS]
         if unknown:
-            raise ValueError(f"kinds must be among {', '.join(THRUSTER_KINDS)}; got {', '.join(unknown)}")
-        if len(set(self.names)) != count:
-            raise ValueError(f"names must be distinct; got {list(self.names)}")
+            raise ValueError(f"kinds must be among {', '.join(THRUSTER_KINDS)}; got {_listed([repr(_short(k)) for k in unknown])}")
+        seen: dict[str, int] = {}
+        for name in self.names:
+            seen[name] = seen.get(name, 0) + 1
+            if seen[name] == 2:
+                raise ValueError(f"names must be distinct; {_short(name)!r} is given more than once")
         columns = dict(
             x=x, y=y, direction=direction, max_thrust=max_thrust, min_thrust=min_thrust, thrust_rate=thrust_rate,
             time_constant=time_constant, turn_rate=turn_rate, max_rudder=max_rudder, rudder_lift=rudder_lift, weight=weight,
         )
+        kind_array = np.asarray(self.kinds)
         for name, value in columns.items():
             array = check.vector(name, value, count)
-            if name == "min_thrust":
-                array = np.where(np.asarray(self.kinds) == "azimuth", 0.0, array)
-            if np.any(np.isnan(array)):
-                raise ValueError(f"{name} must not be NaN; got {check._fmt(array)}")
+            self._refuse(name, np.isnan(array), array, "must not be NaN")
+            kinds_it_applies_to = APPLIES_TO.get(name)
+            if kinds_it_applies_to is not None:
+                other = ~np.isin(kind_array, kinds_it_applies_to)
+                if np.all(other) and np.ndim(value) == 0 and float(value) != DEFAULTS[name]:
+                    raise ValueError(
+                        f"{name} applies to {' and '.join(KIND_PLURALS[k] for k in kinds_it_applies_to)} only, and this layout has none: "
+                        f"leave {name} out; got {float(value):g}"
+                    )
+                if np.ndim(value) > 0:  # given per thruster: the others' entries say "none"
+                    wrong = other & (array != 0)
+                    if np.any(wrong):
+                        first = int(np.argmax(wrong))
+                        raise ValueError(
+                            f"{name} of {self.kinds[first]} {_short(self.names[first])!r} must be 0: {NOT_APPLICABLE[name]} "
+                            f"(give 0 for each {' and '.join(sorted(set(kind_array[other])))}, or one number for the {' and '.join(KIND_PLURALS[k] for k in kinds_it_applies_to)}); "
+                            f"got {array[first]:g}"
+                        )
+                array = np.where(other, 0.0, array)
             setattr(self, name, array)
         self._check()
 
+    def _refuse(self, name: str, bad: np.ndarray, values: np.ndarray, condition: str) -> None:
+        """Fail, naming ``name``, the first thrusters where ``bad`` and their values, when any is."""
+        if not np.any(bad):
+            return
+        where = np.flatnonzero(bad)
+        shown = ", ".join(f"{values[i]:g} for {_short(self.names[i])!r}" for i in where[:3])
+        more = f" and {where.size - 3} more" if where.size > 3 else ""
+        raise ValueError(f"{name} {condition}; got {shown}{more}")
+
     def _check(self):
-        finite = ("x", "y", "direction", "max_thrust", "min_thrust", "max_rudder", "rudder_lift", "weight")
-        for name in finite:
-            if not np.all(np.isfinite(getattr(self, name))):
-                raise ValueError(f"{name} must be finite; got {check._fmt(getattr(self, name))}")
-        for name in ("max_thrust", "thrust_rate", "turn_rate", "weight"):
-            if np.any(getattr(self, name) <= 0):
-                raise ValueError(f"{name} must be positive; got {check._fmt(getattr(self, name))}")
-        if np.any(self.time_constant < 0):
-            raise ValueError(f"time_constant must be non-negative; got {check._fmt(self.time_constant)}")
-        if np.any(self.min_thrust > 0) or np.any(self.min_thrust < -self.max_thrust):
-            raise ValueError(f"min_thrust must be in [-max_thrust, 0]; got {check._fmt(self.min_thrust)}")
+        for name in ("x", "y", "direction", "max_thrust", "min_thrust", "max_rudder", "rudder_lift", "weight"):
+            values = getattr(self, name)
+            self._refuse(name, ~np.isfinite(values), values, "must be finite")
+        for name in ("max_thrust", "thrust_rate", "weight"):
+            self._refuse(name, getattr(self, name) <= 0, getattr(self, name), "must be positive")
+        self._refuse("time_constant", self.time_constant < 0, self.time_constant, "must be non-negative")
+        turning = self.is_kind("azimuth") | self.is_kind("main")
+        self._refuse("turn_rate", turning & (self.turn_rate <= 0), self.turn_rate, "must be positive for an azimuth or a rudder")
+        self._refuse("min_thrust", (self.min_thrust > 0) | (self.min_thrust < -self.max_thrust), self.min_thrust, "must be in [-max_thrust, 0]")
         main = self.is_kind("main")
-        if np.any(main & ((self.max_rudder <= 0) | (self.max_rudder >= math.pi / 2))):
-            raise ValueError(f"max_rudder must be in (0, pi/2) for a main propeller; got {check._fmt(self.max_rudder[main])}")
-        if np.any(self.rudder_lift < 0):
-            raise ValueError(f"rudder_lift must be non-negative; got {check._fmt(self.rudder_lift)}")
+        self._refuse("max_rudder", main & ((self.max_rudder <= 0) | (self.max_rudder >= math.pi / 2)), self.max_rudder,
+                     "must be in (0, pi/2) for a main propeller")
+        self._refuse("rudder_lift", self.rudder_lift < 0, self.rudder_lift, "must be non-negative")
         rank = np.linalg.matrix_rank(self.B)
         if rank < 3:
             raise ValueError(
-                f"the thrusters {list(self.names)} span only {rank} of surge, sway and yaw: "
+                f"the thrusters ({_listed([repr(_short(n)) for n in self.names])}) span only {rank} of surge, sway and yaw: "
                 "a layout must be able to push in every direction and turn (check x, y, direction and rudder_lift)"
             )
 
@@ -275,7 +326,9 @@ class ThrusterLayout(eqx.Module):
         Neither paper gives a thruster layout; this one is a plausible, documented guess
         in the proportions of supply vessels of that length: bow tunnels of 130 kN
         (about 1 MW each) at x = +30 and +27 m, azimuths of 300 kN (about 2.5 MW)
-        at x = -33 m, y = -+6 m turning at 10 deg/s. Thrust changes at most 40 kN/s per
+        at x = -33 m, y = -+6 m turning at 10 deg/s, the port one ahead and the
+        starboard one astern (their bias directions: they push against each other when
+        idle; :mod:`lookout.actuators.allocation`). Thrust changes at most 40 kN/s per
         tunnel and 60 kN/s per azimuth; thrust follows its command with a time
         constant of ``time_constant``.
 
@@ -287,7 +340,7 @@ class ThrusterLayout(eqx.Module):
         return cls(
             names=("bow-tunnel-1", "bow-tunnel-2", "port-azimuth", "starboard-azimuth"),
             kinds=("tunnel", "tunnel", "azimuth", "azimuth"),
-            x=(30.0, 27.0, -33.0, -33.0), y=(0.0, 0.0, -6.0, 6.0), direction=(math.pi / 2, math.pi / 2, 0.0, 0.0),
+            x=(30.0, 27.0, -33.0, -33.0), y=(0.0, 0.0, -6.0, 6.0), direction=(math.pi / 2, math.pi / 2, 0.0, math.pi),
             max_thrust=(1.3e5, 1.3e5, 3.0e5, 3.0e5), min_thrust=(-1.3e5, -1.3e5, 0.0, 0.0),
             thrust_rate=(4.0e4, 4.0e4, 6.0e4, 6.0e4), time_constant=time_constant, turn_rate=math.radians(10.0),
         )

@@ -10,12 +10,35 @@ from jax import Array
 from lookout._math import ssa
 from lookout.actuators.allocation import IDLE, Allocator
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
-from lookout.components import Actuator, Signal
-
+from lookout.components import Actuator, Layout, Signal
 
 
 def _thruster_signal(name: str, units: str, long_name: str, labels, angle: bool = False) -> Signal:
     return Signal(name, units, long_name, "body-fixed", tuple(labels), "thruster", angle)
+
+
+#: What the thrusters act on: a 3-DOF vessel's input, (name, units, labels) of each signal.
+VESSEL_INPUT_SIGNALS = (("force", "N", ("surge", "sway")), ("moment", "N m", ()))
+
+
+def describe_input(layout: Layout) -> str:
+    """A plant's input in words, for a message: ``joint_torque (N m: shoulder, elbow)``.
+
+    Parameters
+    ----------
+    layout : Layout
+        The plant's input layout (its first four signals are named, and six labels of each).
+
+    Returns
+    -------
+    str
+    """
+    parts = []
+    for signal in layout.signals[:4]:
+        labels = f": {', '.join(signal.labels[:6])}{', ...' if len(signal.labels) > 6 else ''}" if signal.labels else ""
+        parts.append(f"{signal.name} ({signal.units}{labels})")
+    more = f" and {len(layout.signals) - 4} more" if len(layout.signals) > 4 else ""
+    return ", ".join(parts) + more if parts else "no input"
 
 
 @final
@@ -23,7 +46,8 @@ class ThrusterSystem(Actuator):
     """A vessel's thrusters between the controller's generalized force and the hull.
 
     At each sample k the commanded tau_k = (X, Y, N) is allocated to the thrusters'
-    commands (:class:`~lookout.actuators.allocation.Allocator`); each thruster's thrust
+    commands (:class:`~lookout.actuators.allocation.Allocator`; with ``"qp"`` the
+    azimuths are first steered toward the filtered demand); each thruster's thrust
     then moves toward its command as a first-order lag over the sample,
     T_k+1 = T_k + (1 - exp(-dt / time_constant)) (T_cmd - T_k), limited to
     ``thrust_rate`` dt and to its force limits, and an azimuth's angle or a rudder turns
@@ -35,11 +59,12 @@ class ThrusterSystem(Actuator):
     Recorded per thruster (dimension ``thruster``): ``thrust`` and
     ``thrust_commanded`` (N), ``thruster_angle`` and ``thruster_angle_commanded``
     (rad: an azimuth's angle, a rudder's angle, a tunnel's fixed direction); and per
-    sample ``allocation_saturated`` (1 when the unconstrained allocation broke a limit)
-    and ``allocation_shortfall`` (the largest part of tau left unproduced, as a
-    fraction of each axis's reach; 0 when tau is produced). An infeasible tau is a
-    shortfall, never a NaN; a NaN command (a failed controller) gives NaN thrust, so
-    the run is seen to fail.
+    sample ``allocation_shortfall`` (the largest part of tau the allocation left
+    unproduced, |tau - B u| on an axis as a fraction of that axis's reach; 0 when tau
+    is produced) and ``allocation_saturated`` (1 when the shortfall is above
+    :data:`~lookout.actuators.allocation.SATURATED`, 0.1 % of the reach: the limits kept
+    the allocation from producing tau). An infeasible tau is a shortfall, never a NaN;
+    a NaN command (a failed controller) gives NaN thrust, so the run is seen to fail.
 
     Parameters
     ----------
@@ -47,27 +72,43 @@ class ThrusterSystem(Actuator):
         The thrusters.
     allocation : {"qp", "pseudo-inverse"}
         Allocation method (:mod:`lookout.actuators.allocation`).
-    slack_weight : float or array_like
-        The QP's weight of the unproduced force (surge, sway, yaw) against thrust;
-        positive.
-    polygon_sides : int
-        Sides of the polygon inside an azimuth's thrust circle in the QP; at least 4.
+    slack_weight : float or array_like, optional
+        ``"qp"`` only: the QP's weight of the unproduced force (surge, sway, yaw) against
+        thrust; positive (default 1e6).
     clip_to_reach : bool
         Clip each axis of the command to what the thrusters reach on it alone before
         allocating (:class:`~lookout.actuators.allocation.Allocator`).
-    solver : {"active-set", "qpax"}
-        The QP's solver (:class:`~lookout.actuators.allocation.Allocator`).
+    solver : {"active-set", "qpax"}, optional
+        ``"qp"`` only: the QP's solver (default "active-set";
+        :class:`~lookout.actuators.allocation.Allocator`).
+    steering_time_constant : float, non-negative, optional
+        ``"qp"`` only: time constant of the low-pass filter on the command whose
+        allocation the azimuths turn toward (s; default 10 s, longer than a DP sea's
+        wave periods; 0 for none).
+    steering_deadband : float, in [0, pi], optional
+        ``"qp"`` only: how far an azimuth may point from its filtered direction before
+        it turns (rad; default 10 deg, where it still gives 98.5 % of its thrust along it).
+    steering_load : float, in [0, 1], optional
+        ``"qp"`` only: the filtered load (fraction of its largest thrust) below which an
+        azimuth holds its angle (default 0.05).
+    steering_bias : float, in [0, 1), optional
+        ``"qp"`` only: thrust (fraction of its largest) each azimuth puts along its
+        layout ``direction``, of which the part that produces no force is kept as a
+        bias: azimuths pointing against each other then answer a small force of either
+        sign with thrust, not a turn (default 0.2; 0 for none).
     """
 
     layout: ThrusterLayout
     allocator: Allocator
 
-    def __init__(self, layout: ThrusterLayout, allocation: Literal["qp", "pseudo-inverse"] = "qp", slack_weight=1e6, polygon_sides: int = 16,
-                 clip_to_reach: bool = True, solver: Literal["active-set", "qpax"] = "active-set"):
+    def __init__(self, layout: ThrusterLayout, allocation: Literal["qp", "pseudo-inverse"] = "qp", slack_weight=None, clip_to_reach: bool = True,
+                 solver: Literal["active-set", "qpax"] | None = None, steering_time_constant=None, steering_deadband=None, steering_load=None,
+                 steering_bias=None):
         if not isinstance(layout, ThrusterLayout):
             raise ValueError(f"layout must be a ThrusterLayout; got {type(layout).__name__}")
         self.layout = layout
-        self.allocator = Allocator(layout, allocation, slack_weight, polygon_sides, clip_to_reach, solver)
+        self.allocator = Allocator(layout, allocation, slack_weight, clip_to_reach, solver, steering_time_constant, steering_deadband, steering_load,
+                                   steering_bias)
 
     @property
     def output_signals(self) -> tuple[Signal, ...]:
@@ -77,47 +118,81 @@ class ThrusterSystem(Actuator):
             _thruster_signal("thrust_commanded", "N", "commanded thrust", names),
             _thruster_signal("thruster_angle", "rad", "thruster angle (azimuth or rudder)", names, angle=True),
             _thruster_signal("thruster_angle_commanded", "rad", "commanded thruster angle (azimuth or rudder)", names, angle=True),
-            Signal("allocation_saturated", "1", "allocation limited by a thruster limit (1) or not (0)"),
-            Signal("allocation_shortfall", "1", "largest unproduced part of the commanded force, as a fraction of the thrusters' reach"),
+            Signal("allocation_saturated", "1", "allocation short of the commanded force by more than 0.1 % of the reach (1) or not (0)"),
+            Signal("allocation_shortfall", "1", "largest unproduced part of the commanded force, as a fraction of the thrusters' reach on its axis"),
         )
 
+    @property
+    def working_nbytes(self) -> int:
+        """Bytes one run holds while stepping: the allocation's matrices and one sample's
+        work (:func:`lookout.actuators.allocation.working_nbytes`), and the state."""
+        return self.allocator.working_nbytes + 8 * (4 * self.layout.size + 3 * self.allocator.size + 3)
+
+    def plant_input_refusal(self, plant_input: Layout, plant_kind: str) -> str | None:
+        """Why these thrusters cannot drive a plant whose input is ``plant_input`` (its
+        kind ``plant_kind`` for the message), or None when they can: they produce a 3-DOF
+        vessel's force (surge, sway) and moment (yaw)."""
+        given = tuple((s.name, s.units, tuple(s.labels)) for s in plant_input.signals)
+        if given == VESSEL_INPUT_SIGNALS:
+            return None
+        from lookout.registry import kind_of
+
+        return f"actuator {kind_of(self)} needs a 3-DOF vessel plant (force surge, sway; moment yaw); plant {plant_kind} takes {describe_input(plant_input)}"
+
     def init(self):
-        """Every thruster idle: zero thrust, azimuths at their initial angle, rudders
-        amidships; no previous command, no active set (the QP's warm start)."""
-        layout = self.layout
+        """Every thruster idle: zero thrust, rudders amidships, azimuths pointing where
+        their bias points (along their layout ``direction`` without one); no previous
+        command, no active set (the QP's warm start), no demand and no azimuth turning
+        (the steering's state)."""
+        layout, allocator = self.layout, self.allocator
         angle = jnp.where(jnp.asarray(layout.is_kind("main")), 0.0, jnp.asarray(layout.direction, dtype=float))
-        return jnp.zeros(layout.size), angle, jnp.zeros(self.allocator.size), jnp.full(self.allocator.size, -1)
+        index = allocator.indices
+        if allocator.bias is not None and index.azimuth.size:
+            bx, by = allocator.bias[index.azimuth_x], allocator.bias[index.azimuth_y]
+            biased = magnitude(bx, by) > IDLE
+            angle = angle.at[index.azimuth].set(jnp.where(biased, direction_of(bx, by, angle[index.azimuth]), angle[index.azimuth]))
+        return (jnp.zeros(layout.size), angle, jnp.zeros(allocator.size), jnp.full(allocator.size, -1), jnp.zeros(3),
+                jnp.zeros(layout.size, dtype=bool))
 
     def commands(self, u: Array, angle: Array, preferred: Array) -> tuple[Array, Array]:
         """Each thruster's commanded thrust (N) and angle (rad) from the scaled allocation
-        ``u``. An idle azimuth turns toward its force in the scaled ``preferred``
-        allocation (the unconstrained one); an angle left undefined holds ``angle``."""
-        layout, allocator = self.layout, self.allocator
+        ``u``, with the azimuths at ``angle`` (the steered angle with ``"qp"``, the
+        current one with ``"pseudo-inverse"``).
+
+        ``"qp"``: an azimuth's command is its thrust along its steered angle, and that
+        angle. ``"pseudo-inverse"``: an azimuth turns toward its force, or, idle, toward
+        its force in the scaled ``preferred`` allocation (the unconstrained one); an
+        angle left undefined holds ``angle``."""
+        layout, allocator, index = self.layout, self.allocator, self.allocator.indices
         physical = u * allocator.scale
-        wished = preferred * allocator.scale
-        thrust, target = [], []
-        for i, kind in enumerate(layout.kinds):
-            if kind == "azimuth":
-                fx = physical[layout.variables.index((i, "x"))]
-                fy = physical[layout.variables.index((i, "y"))]
-                size = magnitude(fx, fy)
-                wx, wy = wished[layout.variables.index((i, "x"))], wished[layout.variables.index((i, "y"))]
-                idle = size <= IDLE * layout.max_thrust[i]
-                wanted = magnitude(wx, wy) > IDLE * layout.max_thrust[i]
-                thrust.append(size)
-                target.append(jnp.where(~idle, direction_of(fx, fy, angle[i]), jnp.where(wanted, direction_of(wx, wy, angle[i]), angle[i])))
-                continue
-            value = physical[layout.variables.index((i, "thrust"))]
-            thrust.append(value)
-            if kind == "main":
-                lift = physical[layout.variables.index((i, "lift"))]
-                ahead = value > IDLE * layout.max_thrust[i]
-                gain = layout.rudder_lift[i] * jnp.where(ahead, value, 1.0)
-                rudder = jnp.where(ahead & (layout.rudder_lift[i] > 0), lift / jnp.where(gain > 0, gain, 1.0), angle[i])
-                target.append(jnp.clip(rudder, -layout.max_rudder[i], layout.max_rudder[i]))
+        thrust = jnp.zeros(layout.size)
+        target = jnp.asarray(layout.direction, dtype=float)
+        if index.tunnel.size:
+            thrust = thrust.at[index.tunnel].set(physical[index.tunnel_thrust])
+        if index.azimuth.size:
+            i, jx, jy = index.azimuth, index.azimuth_x, index.azimuth_y
+            fx, fy = physical[jx], physical[jy]
+            size = magnitude(fx, fy)
+            thrust = thrust.at[i].set(size)
+            if allocator.method == "qp":
+                target = target.at[i].set(angle[i])
             else:
-                target.append(jnp.asarray(layout.direction[i], dtype=float))
-        return jnp.stack(thrust), jnp.stack(target)
+                wished = preferred * allocator.scale
+                wx, wy = wished[jx], wished[jy]
+                largest = jnp.asarray(layout.max_thrust[i])
+                idle = size <= IDLE * largest
+                wanted = magnitude(wx, wy) > IDLE * largest
+                target = target.at[i].set(jnp.where(~idle, direction_of(fx, fy, angle[i]), jnp.where(wanted, direction_of(wx, wy, angle[i]), angle[i])))
+        if index.main.size:
+            i = index.main
+            value, lift = physical[index.main_thrust], physical[index.main_lift]
+            thrust = thrust.at[i].set(value)
+            largest, coefficient, rudder = jnp.asarray(layout.max_thrust[i]), jnp.asarray(layout.rudder_lift[i]), jnp.asarray(layout.max_rudder[i])
+            ahead = value > IDLE * largest
+            gain = coefficient * jnp.where(ahead, value, 1.0)
+            angle_wanted = jnp.where(ahead & (coefficient > 0), lift / jnp.where(gain > 0, gain, 1.0), angle[i])
+            target = target.at[i].set(jnp.clip(angle_wanted, -rudder, rudder))
+        return thrust, target
 
     def respond(self, thrust: Array, angle: Array, thrust_command: Array, angle_command: Array, dt) -> tuple[Array, Array]:
         """The thrusters' thrust and angle after ``dt`` from ``thrust`` and ``angle``
@@ -135,9 +210,14 @@ class ThrusterSystem(Actuator):
 
     def step(self, state, t, u: Array, dt):
         """Allocate ``u`` = (X, Y, N), move the thrusters over ``dt``; see the class docstring."""
-        thrust, angle, previous, working = state
-        allocated, info = self.allocator.allocate(u, previous, angle, dt, working)
-        thrust_command, angle_command = self.commands(allocated, angle, info["unconstrained"])
+        if jnp.shape(u) != (3,):
+            raise ValueError(f"thrusters take a 3-DOF vessel's force (surge, sway) and moment (yaw), 3 entries; got an input of shape {jnp.shape(u)}")
+        thrust, angle, previous, working, demand, turning = state
+        steered = angle
+        if self.allocator.method == "qp":
+            demand, steered, turning = self.allocator.steer(demand, angle, turning, u, dt)
+        allocated, info = self.allocator.allocate(u, previous, steered, dt, working)
+        thrust_command, angle_command = self.commands(allocated, steered, info["unconstrained"])
         thrust, angle = self.respond(thrust, angle, thrust_command, angle_command, dt)
         applied = self.layout.forces(thrust, angle)
         outputs = {
@@ -148,13 +228,24 @@ class ThrusterSystem(Actuator):
             "allocation_saturated": info["saturated"].astype(float),
             "allocation_shortfall": info["shortfall"],
         }
-        return (thrust, angle, allocated, info["working"]), applied, outputs
+        return (thrust, angle, allocated, info["working"], demand, turning), applied, outputs
 
 
-def at_limit(thrust, largest, smallest, tolerance: float = 1e-6):
+#: A delivered thrust within this fraction of a thruster's largest thrust of a limit
+#: is at it: thrust approaches its command through a first-order lag, so it reaches
+#: a limit it is commanded to only in the limit of time; 1 % of the largest thrust is
+#: within a line's width on the thrusters' figure.
+AT_LIMIT = 0.01
+
+
+def at_limit(thrust, largest, smallest, tolerance: float = AT_LIMIT):
     """Whether each thruster's thrust (..., n) is at its ``largest`` or (when negative)
     ``smallest`` thrust (n,), within ``tolerance`` of its largest (JAX, so a campaign's
-    metric takes it inside the simulation; NumPy arrays in, JAX arrays out)."""
+    metric takes it inside the simulation; NumPy arrays in, JAX arrays out).
+
+    ``time_at_limit:thrust`` is the fraction of the samples with some thruster at a
+    limit by this test, on the delivered thrust (the solid curves of ``thrusters.png``
+    at the top or bottom of a thruster's range)."""
     thrust, largest, smallest = jnp.asarray(thrust), jnp.asarray(largest), jnp.asarray(smallest)
     margin = tolerance * largest
     return (thrust >= largest - margin) | ((thrust <= smallest + margin) & (smallest < 0))

@@ -27,8 +27,9 @@ kind               per run
 ``mean_power``     mean over t >= after of the thrusters' power as a fraction of the
                    installed power (signal ``thrust``: a thruster actuator's delivered
                    thrust; :func:`lookout.actuators.thrusters.relative_power`)
-``time_at_limit``  fraction of t >= after with some thruster at its largest or smallest
-                   thrust (signal ``thrust``; :func:`lookout.actuators.thrusters.at_limit`)
+``time_at_limit``  fraction of t >= after with some thruster within 1 % of its largest
+                   or smallest thrust (signal ``thrust``;
+                   :func:`lookout.actuators.thrusters.at_limit`)
 =================  ==============================================================
 
 The two outage metrics need a sensor with an outage (its ``outage_signals``,
@@ -76,8 +77,10 @@ KINDS = {
 }
 #: The kinds that average a per-record value over the window (no square root).
 MEAN_KINDS = ("mean_power", "time_at_limit")
-#: time_at_limit: a thrust within this fraction of the largest thrust of a limit is at it.
-AT_LIMIT_TOLERANCE = 1e-6
+#: time_at_limit: a thrust within this fraction of the largest thrust of a limit is at
+#: it (:data:`lookout.actuators.thrusters.AT_LIMIT`: a lagging thrust reaches a limit
+#: only in the limit of time).
+AT_LIMIT_TOLERANCE = 0.01
 #: The kinds that keep the error's norm at every record (reduced when the run ends).
 SERIES_KINDS = ("settling_time", "recovery_time")
 #: recovery_time: back within this fraction above the error's level before the outage.
