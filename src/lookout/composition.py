@@ -129,14 +129,10 @@ def _in_range(parameter: registry.Parameter):
                 if words and not np.isfinite(number):
                     words = f"finite and {words}"
                 interval = f"{'[' if low_in else '('}{low:g}, {high:g}{']' if high_in else ')'}"
-                raise ValueError(f"must be {words}; got {_short(value)}" if words else f"must be in {interval}; got {_short(value)}")
+                raise ValueError(f"must be {words}; got {short(value)}" if words else f"must be in {interval}; got {short(value)}")
         return value
 
     return check
-
-
-def _short(value) -> str:
-    return short(value)
 
 
 _ARRAY = float | tuple[float, ...] | tuple[tuple[float, ...], ...]
