@@ -266,7 +266,7 @@ def test_memory_estimate_refuses_before_simulating(capsys, monkeypatch):
     # 1e8 samples x (296 B of records, x4 while writing, + 32 B per record): 122 GB
     assert line == (
         "error: --runs 1 over --duration 1e+07 would need about 122 GB of memory (1 run(s) x 100000000 records x 296 B, "
-        "x4 while writing results), and 8 GB are available: use fewer --runs or a shorter --duration"
+        "x4 while writing results), and 8 GB are available: use a shorter --duration"
     )
 
 
