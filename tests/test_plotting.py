@@ -708,3 +708,15 @@ def test_bode_draws_one_column_per_loop_for_any_number_of_loops(response):
     assert len(fig.axes) == 4 and fig.axes[0].get_title().startswith("yaw")
     fig = plot_bode(response.isel(dof=[0, 1]))
     assert len(fig.axes) == 8
+
+
+def test_an_azimuth_pointing_astern_is_drawn_without_jumps():
+    """An angle wandering across +-180 deg (an azimuth astern) is drawn as a continuous
+    line near 180 deg, not as jumps between +-180 that look like turning."""
+    from lookout._math import ssa
+    from lookout.plotting import _continuous_degrees
+
+    truth = np.pi + 0.2 * np.sin(np.linspace(0.0, 20.0, 500))
+    drawn = _continuous_degrees(np.asarray(ssa(truth)))
+    assert np.abs(np.diff(drawn)).max() < 1.0
+    np.testing.assert_allclose(drawn, np.degrees(truth) - 360.0 * (np.median(np.degrees(truth)) > 180.0), atol=1e-9)

@@ -934,6 +934,14 @@ def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: 
                        compared_style=_DESIRED_STYLE, compared_label="commanded", truth_label="applied (= commanded)")
 
 
+def _continuous_degrees(angle: np.ndarray) -> np.ndarray:
+    """An angle series in degrees without its +-180 deg jumps (an azimuth pointing astern
+    would otherwise be drawn as vertical lines that look like turning), shifted by whole
+    turns so that its median lies in (-180, 180]."""
+    degrees = np.degrees(np.unwrap(np.asarray(angle, dtype=float)))
+    return degrees - 360.0 * np.round(np.median(degrees) / 360.0)
+
+
 def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
     """Each thruster's thrust and angle, commanded and delivered, and the allocation's
     shortfall (``thrusters.png`` of ``lookout run`` with a thruster actuator).
@@ -971,8 +979,8 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
             thrust_axis.plot(time[window], ds["thrust_commanded"].isel(run=run, thruster=i).values[window] / 1e3, ":", color=colour, lw=1.0)
             thrust_axis.plot(time[window], ds["thrust"].isel(run=run, thruster=i).values[window] / 1e3, "-", color=colour, lw=1.1, label=name)
             if i in turning:
-                angle_axis.plot(time[window], np.degrees(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values[window]), ":", color=colour, lw=1.0)
-                angle_axis.plot(time[window], np.degrees(ds["thruster_angle"].isel(run=run, thruster=i).values[window]), "-", color=colour, lw=1.1,
+                angle_axis.plot(time[window], _continuous_degrees(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values)[window], ":", color=colour, lw=1.0)
+                angle_axis.plot(time[window], _continuous_degrees(ds["thruster_angle"].isel(run=run, thruster=i).values)[window], "-", color=colour, lw=1.1,
                                 label=name)
         short_axis.plot(time[window], ds["allocation_shortfall"].isel(run=run).values[window], color="k", lw=1.0, label="shortfall")
         for first, last in _runs(time[window], saturated[window]):
