@@ -34,20 +34,20 @@ def vector(name: str, value: Any, size: int = 3):
         if array.ndim == 0:
             array = jnp.broadcast_to(array, (size,))
         if array.shape != (size,):
-            raise ValueError(f"{name} must be a scalar or have {size} entries; got shape {array.shape}")
+            raise ParameterError(key(name), f"{name} must be a scalar or have {size} entries; got shape {array.shape}")
         return array
     array = np.asarray(value, dtype=float)
     if array.ndim == 0:
         array = np.full(size, float(array))
     if array.shape != (size,):
-        raise ValueError(f"{name} must be a scalar or have {size} entries; got shape {array.shape}")
+        raise ParameterError(key(name), f"{name} must be a scalar or have {size} entries; got shape {array.shape}")
     return array
 
 
 def finite(name: str, value: Any) -> None:
     """Fail unless every entry of ``value`` is finite."""
     if is_concrete(value) and not np.all(np.isfinite(np.asarray(value, dtype=float))):
-        raise ValueError(f"{name} must be finite; got {np.asarray(value).tolist()}")
+        raise ParameterError(key(name), f"{name} must be finite; got {np.asarray(value).tolist()}")
 
 
 def positive(name: str, value: Any, *, allow_zero: bool = False) -> None:
@@ -59,7 +59,7 @@ def positive(name: str, value: Any, *, allow_zero: bool = False) -> None:
     bad = array < 0 if allow_zero else array <= 0
     if np.any(bad):
         condition = "non-negative" if allow_zero else "positive"
-        raise ValueError(f"{name} must be {condition}; got {_fmt(array)}")
+        raise ParameterError(key(name), f"{name} must be {condition}; got {_fmt(array)}")
 
 
 def symmetric_positive_definite(name: str, matrix: Any, *, size: int | None = None) -> None:
@@ -70,14 +70,14 @@ def symmetric_positive_definite(name: str, matrix: Any, *, size: int | None = No
     array = np.asarray(matrix, dtype=float)
     if array.ndim != 2 or array.shape[0] != array.shape[1] or (size is not None and array.shape != (size, size)):
         expected = f"{size}x{size}" if size is not None else "square"
-        raise ValueError(f"{name} must be a {expected} matrix; got shape {array.shape}")
+        raise ParameterError(key(name), f"{name} must be a {expected} matrix; got shape {array.shape}")
     scale = max(np.abs(array).max(), np.finfo(float).tiny)
     asymmetry = np.abs(array - array.T).max()
     if asymmetry > 1e-9 * scale:
-        raise ValueError(f"{name} must be symmetric; max |{name} - {name}^T| is {asymmetry:.3g}")
+        raise ParameterError(key(name), f"{name} must be symmetric; max |{name} - {name}^T| is {asymmetry:.3g}")
     smallest = np.linalg.eigvalsh(array).min()
     if smallest <= 0:
-        raise ValueError(
+        raise ParameterError(key(name),
             f"{name} must be symmetric positive definite; its smallest eigenvalue is {smallest:.3g}"
         )
 
@@ -90,7 +90,7 @@ def dissipative(name: str, matrix: Any) -> None:
     array = np.asarray(matrix, dtype=float)
     smallest = float(np.linalg.eigvalsh(0.5 * (array + array.T)).min())
     if smallest < -1e-12 * max(np.abs(array).max(), np.finfo(float).tiny):
-        raise ValueError(
+        raise ParameterError(key(name),
             f"{name} must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); "
             f"the smallest eigenvalue of (D + D^T)/2 is {smallest:.3g}"
         )
@@ -103,7 +103,7 @@ def square(name: str, matrix: Any, *, size: int = 3) -> None:
     finite(name, matrix)
     shape = np.shape(matrix)
     if shape != (size, size):
-        raise ValueError(f"{name} must be a {size}x{size} matrix; got shape {shape}")
+        raise ParameterError(key(name), f"{name} must be a {size}x{size} matrix; got shape {shape}")
 
 
 def _fmt(array: np.ndarray) -> str:
@@ -137,6 +137,33 @@ def short(value) -> str:
 def one_line(message) -> str:
     """``message`` (text or an exception) on one line: its whitespace runs made one space."""
     return " ".join(str(message).split())
+
+
+class ParameterError(ValueError):
+    """A refusal of one parameter: ``location`` is the key path it concerns, as data
+    (``("wave_frequency",)``, ``("sensor", "sample_period")``), so that a scenario file's
+    error names the key and its line without reading the message; ``str()`` is the
+    message, one line."""
+
+    def __init__(self, location, message: str):
+        self.location = (location,) if isinstance(location, str) else tuple(location)
+        super().__init__(message)
+
+
+class FitError(ValueError):
+    """Two parts of a scenario that do not fit together: ``parts`` names them (roles,
+    or a role and a setting); ``str()`` is the message, one line naming both."""
+
+    def __init__(self, parts: tuple[str, str], message: str):
+        self.parts = tuple(parts)
+        super().__init__(message)
+
+
+def key(name: str) -> str:
+    """The key a check's ``name`` concerns: its last word, without an index
+    (``"sensor sample_period[2]"`` -> ``"sample_period"``)."""
+    words = name.split()
+    return words[-1].split("[")[0] if words else name
 
 
 class InputError(Exception):

@@ -78,12 +78,12 @@ def _matching(name: str | None):
 
     if name is None:
         return registry.kinds()
-    if name in registry.KINDS:
+    if name in registry.ROLES:
         return registry.kinds(name)
     found = [each for each in registry.kinds() if each.name == name]
     if not found:
         known = sorted({each.name for each in registry.kinds()})
-        raise InputError(f"KIND: no role or kind {name!r} (roles: {', '.join(registry.KINDS)}; kinds: {', '.join(known)})")
+        raise InputError(f"KIND: no role or kind {name!r} (roles: {', '.join(registry.ROLES)}; kinds: {', '.join(known)})")
     return found
 
 

@@ -57,7 +57,7 @@ from pydantic.functional_validators import AfterValidator
 from typing_extensions import Annotated
 
 from lookout import registry
-from lookout._validation import one_line, short
+from lookout._validation import FitError, ParameterError, one_line, short
 from lookout.settings import RunsConfig, Settings, explain, finite_positive, validate_strictly
 
 #: The top-level keys of a composition.
@@ -187,23 +187,17 @@ def parameter_model(kind: registry.Kind, design: str | None):
     return _MODELS[key]
 
 
-def _method_target(method) -> str:
-    function = getattr(method, "__func__", method)
-    return f"{function.__module__}:{function.__qualname__}"
-
-
 def state_parameters(method) -> tuple[registry.Parameter, ...]:
-    """The parameters of a plant's ``state`` or an observer's ``guess`` method (bound, or
-    as its class has it)."""
-    return registry._parameters(_method_target(method), values_only=True)
+    """The keys of a plant's ``state`` or an observer's ``guess`` method (bound, or as
+    its class has it), as the method declares them."""
+    return registry.initial_parameters(method)
 
 
 @functools.cache
-def _initial_model(target: str):
-    """The pydantic model of the method ``target``'s keywords (built once per method)."""
-    parameters = registry._parameters(target, values_only=True)
-    fields = {p.name: (_annotation(p), Field(_default_value(p.default), description=p.description)) for p in parameters}
-    return create_model(re.sub(r"\W", "_", f"initial_{target}"), __base__=Settings, **fields)
+def _initial_model(function):
+    """The pydantic model of the keys ``function`` (a ``state`` or ``guess``) declares (built once per method)."""
+    fields = {p.name: (_annotation(p), Field(_default_value(p.default), description=p.description)) for p in registry.initial_parameters(function)}
+    return create_model(re.sub(r"\W", "_", f"initial_{function.__module__}_{function.__qualname__}"), __base__=Settings, **fields)
 
 
 # ------------------------------------------------------------------------ building
@@ -259,12 +253,13 @@ def _validate(model, values: dict, location: tuple):
 
 
 def _blamed(error: ValueError, table: dict, location: tuple, names, component: str = "") -> CompositionError:
-    """A component's own refusal, located at the key its message names (else at the
-    table, the component named)."""
+    """A component's own refusal: at the key it concerns when it is a
+    :class:`~lookout._validation.ParameterError` of a key the table gives, else at the
+    table, naming the component."""
     reason = one_line(error)
-    for name in sorted(names, key=len, reverse=True):
-        if name in table and re.search(rf"(^|[\s(]){re.escape(name)}\b", reason):
-            return CompositionError(location + (name,), reason)
+    where = getattr(error, "location", ())
+    if isinstance(error, ParameterError) and where and where[0] in names and where[0] in table:
+        return CompositionError(location + where[:1], reason)
     return CompositionError(location, f"{component}: {reason}" if component and not reason.startswith(component) else reason)
 
 
@@ -287,8 +282,8 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
     its defaults, else it is refused (a controller for a ship on a plant with none)."""
     if not isinstance(table, dict):
         raise CompositionError(location, f"must be a table with a kind; got {type(table).__name__}")
-    known = registry.KINDS[role]
-    name = table.get("kind", next(iter(known)) if role not in registry.COMPONENT_ROLES else None)
+    known = registry.names(role)
+    name = table.get("kind", registry.default_kind(role))
     if name is None:
         raise CompositionError(location + ("kind",), f"missing key (one of {', '.join(known)}; `lookout components {role}` lists them)")
     if not isinstance(name, str) or name not in known:
@@ -338,7 +333,7 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                 try:
                     arguments[p.name], normal[p.name] = build_part(p.role, {}, location + (p.name,), context, defaults=defaults)
                 except CompositionError as error:  # the file has no such table: blame the table that lacks it
-                    first = next(iter(registry.KINDS[p.role]))
+                    first = registry.default_kind(p.role)
                     raise CompositionError(location, f"{role} {name} needs a {p.name}: give [{key_text(location + (p.name,))}] "
                                                      f"(kind {first}: {error.reason})") from None
             elif p.required:
@@ -436,11 +431,10 @@ def _own_signal(table: dict, location: tuple):
 
 
 def keywords_of(method):
-    """The method whose keywords a bound ``method`` takes: itself, or, for one that
-    passes them on (its function's ``parameters_from``, e.g. ``"model.state"``: a
-    Kalman filter's ``guess`` takes its model plant's state parts), that method of the
-    same object."""
-    path = getattr(getattr(method, "__func__", method), "parameters_from", None)
+    """The method whose keywords a bound ``method`` takes: itself, or, for one declared
+    to take another's (``initial_values(same_as="model.state")``: a Kalman filter's
+    ``guess`` takes its model plant's state keys), that method of the same object."""
+    path = registry.initial_same_as(method)
     return method if path is None or not hasattr(method, "__self__") else operator.attrgetter(path)(method.__self__)
 
 
@@ -451,7 +445,7 @@ def _initial(method, table, location: tuple):
         table = {}
     if not isinstance(table, dict):
         raise CompositionError(location, "must be a table")
-    validated = _validate(_initial_model(_method_target(keywords_of(method))), table, location)
+    validated = _validate(_initial_model(getattr(keywords_of(method), "__func__", keywords_of(method))), table, location)
     arguments = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value"}
     try:
         value = method(**arguments)
@@ -577,25 +571,24 @@ def compose(document: dict) -> Composition:
     return Composition(normal, simulation, scenario, kinds)
 
 
+#: The Scenario's own settings, which a file gives in [simulation].
+SIMULATION_KEYS = ("plant_step", "sample_period", "duration", "record_every", "integrator", "observer_mode")
+
+
 def _scenario_error(error: ValueError, kinds: dict) -> CompositionError:
+    """The Scenario's refusal at the file's key: a setting's under [simulation], a
+    part's at its table; two parts that do not fit, named with their kinds."""
     reason = one_line(error)
-    if reason.startswith("sensor sample_period"):
-        return CompositionError(("sensor", "sample_period"), reason)
-    if reason.startswith("sensor outage_start"):
-        return CompositionError(("sensor", "outage_start"), reason)
-    if reason.startswith("observer and observer_mode 'continuous' do not fit: "):
-        detail = reason[len("observer and observer_mode 'continuous' do not fit: "):]
-        return CompositionError(("simulation", "observer_mode"), f"observer {kinds['observer']} cannot run in observer_mode 'continuous': {detail}")
-    for key in ("sample_period", "plant_step", "duration", "record_every", "observer_mode"):
-        if reason.startswith(key):
-            return CompositionError(("simulation", key), reason)
-    for role in ("controller", "observer"):  # a part that needs what another does not provide
-        if reason.startswith(f"{role} ") and " needs " in reason:
-            return CompositionError((role,), reason)
-    match = re.match(r"(\w+) and (\w+) (?:do not fit|disagree): (.*)", reason)
-    if match and match.group(1) in kinds and match.group(2) in kinds:
-        first, second, detail = match.groups()
-        return CompositionError((), f"{first} {kinds[first]} and {second} {kinds[second]} do not fit: {detail}")
+    if isinstance(error, ParameterError) and error.location:
+        first = error.location[0]
+        return CompositionError(("simulation", *error.location) if first in SIMULATION_KEYS else error.location, reason)
+    if isinstance(error, FitError):
+        first, second = error.parts
+        detail = reason.split(": ", 1)[1] if ": " in reason else reason
+        if second == "observer_mode 'continuous'":
+            return CompositionError(("simulation", "observer_mode"), f"observer {kinds['observer']} cannot run in observer_mode 'continuous': {detail}")
+        if first in kinds and second in kinds:
+            return CompositionError((), f"{first} {kinds[first]} and {second} {kinds[second]} do not fit: {detail}")
     return CompositionError((), reason)
 
 

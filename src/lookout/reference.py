@@ -19,12 +19,19 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import Layout, Reference, Signal
+from lookout.scenario.declare import Context, POSITIVE, Value, component
 
 #: A switch time counts as reached at sample time t when ``time <= t + SWITCH_TOLERANCE * max(1, |t|)``:
 #: a sample time that rounds a hair below a switch time does not postpone the switch by a sample.
 SWITCH_TOLERANCE = 1e-9
 
 
+@component(
+    "reference", "none",
+    summary="No reference: an observer run open loop, or a controller that needs none.",
+    parameters=(
+    ),
+)
 @final
 class NoReference(Reference):
     """No reference: an observer run open loop, or a controller that needs none."""
@@ -74,9 +81,20 @@ def _strictly_increasing(name: str, value) -> None:
         return
     array = np.asarray(value, dtype=float)
     if array.size > 1 and not np.all(np.diff(array) > 0):
-        raise ValueError(f"{name} must be strictly increasing; got {check._fmt(array)}")
+        raise check.ParameterError(check.key(name), f"{name} must be strictly increasing; got {check._fmt(array)}")
 
 
+@component(
+    "reference", "reference-filter",
+    summary="Third-order critically damped reference model per degree of freedom.",
+    parameters=(
+        Context("signals", "The setpoint signals, scalars or vectors (e.g. position over north, east in m, and heading in rad with angle=True); the setpoint vector lays them end to end (lookout.components.Layout), n entries."),
+        Value("bandwidth", "array", "w_i (rad/s), > 0; a scalar applies to every DOF.", shape="(n,) or scalar"),
+        Value("schedule_times", "array", "Times (s) at which the setpoints take effect; finite, strictly increasing.", shape="(m,)"),
+        Value("setpoints", "array", "Setpoint vector from each schedule time on, finite (shape (n,) for m = 1).", shape="(m, n)"),
+        Value("initial", "array", "x_d at t = 0 (rates and acceleration start at zero); default the first setpoint.", shape="(n,)"),
+    ),
+)
 @final
 class ReferenceFilter(Reference):
     """Third-order critically damped reference model per degree of freedom.
@@ -160,7 +178,7 @@ class ReferenceFilter(Reference):
     def __init__(self, signals, bandwidth, schedule_times, setpoints, initial=None):
         signals = tuple(signals)
         if not signals or not all(isinstance(s, Signal) for s in signals):
-            raise ValueError(f"signals must be a non-empty sequence of lookout Signals; got {signals!r}")
+            raise check.ParameterError("signals", f"signals must be a non-empty sequence of lookout Signals; got {signals!r}")
         layout = Layout(signals)  # checks the names are distinct
         n = layout.size
         self.setpoint_signals = signals
@@ -170,13 +188,13 @@ class ReferenceFilter(Reference):
         if times.ndim == 0:
             times = times[None]
         if times.ndim != 1 or times.shape[0] == 0:
-            raise ValueError(f"schedule_times must be a non-empty 1-D sequence; got shape {times.shape}")
+            raise check.ParameterError("schedule_times", f"schedule_times must be a non-empty 1-D sequence; got shape {times.shape}")
         values = jnp.asarray(setpoints, dtype=float)
         if values.ndim == 1 and times.shape[0] == 1:
             values = values[None]
         if values.shape != (times.shape[0], n):
-            raise ValueError(
-                f"setpoints must have shape ({times.shape[0]}, {n}) (one setpoint of {n} entries per schedule time); got shape {values.shape}"
+            raise check.ParameterError(
+                "setpoints", f"setpoints must have shape ({times.shape[0]}, {n}) (one setpoint of {n} entries per schedule time); got shape {values.shape}"
             )
         self.schedule_times = times
         self.setpoints = values
@@ -278,6 +296,18 @@ class ReferenceFilter(Reference):
         return new_state, sample
 
 
+@component(
+    "reference", "ellipse",
+    summary="An ellipse traced at a constant speed per lap, paced by arc length.",
+    parameters=(
+        Value("semi_axes", "array", "Semi-axes a, b (m) along north and east.", shape="(2,)", range=POSITIVE),
+        Value("lap_speeds", "array", "U_k (m/s) per lap, > 0."),
+        Value("centre", "array", "Centre (x_c, y_c) (m).", shape="(2,)"),
+        Value("start_angle", "float", "theta_0 (rad): theta_0 = 0 starts at (x_c + a, y_c) heading along +y for s = +1."),
+        Value("direction", "str", "s above.", choices=(1, -1)),
+        Value("substeps", "int", "RK4 steps for theta per sample."),
+    ),
+)
 @final
 class EllipseReference(Reference):
     """An ellipse traced at a constant speed per lap, paced by arc length.
@@ -330,16 +360,16 @@ class EllipseReference(Reference):
         self.semi_axes = jnp.asarray(check.vector("semi_axes", semi_axes, 2))
         speeds = np.asarray(lap_speeds, dtype=float) if check.is_concrete(lap_speeds) else lap_speeds
         if check.is_concrete(lap_speeds) and speeds.ndim != 1:
-            raise ValueError(f"lap_speeds must be a sequence of speeds (m/s); got shape {speeds.shape}")
+            raise check.ParameterError("lap_speeds", f"lap_speeds must be a sequence of speeds (m/s); got shape {speeds.shape}")
         self.lap_speeds = jnp.asarray(speeds, dtype=float)
         self.centre = jnp.asarray(check.vector("centre", centre, 2))
         check.finite("start_angle", start_angle)
         self.start_angle = jnp.asarray(start_angle, dtype=float)
         if check.is_concrete(direction) and float(np.asarray(direction)) not in (1.0, -1.0):
-            raise ValueError(f"direction must be 1 or -1; got {direction!r}")
+            raise check.ParameterError("direction", f"direction must be 1 or -1; got {direction!r}")
         self.direction = jnp.asarray(direction, dtype=float)
         if not (isinstance(substeps, int) and not isinstance(substeps, bool) and substeps >= 1):
-            raise ValueError(f"substeps must be a positive integer; got {substeps!r}")
+            raise check.ParameterError("substeps", f"substeps must be a positive integer; got {substeps!r}")
         self.substeps = substeps
         by_name = {s.name: s for s in VESSEL_SIGNALS}
         self.reference_signals = reference_filter_signals((by_name["position"], by_name["heading"]))

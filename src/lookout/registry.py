@@ -1,28 +1,16 @@
 """The component registry: every plant, sensor, observer, controller, reference,
 actuator and environment part lookout can compose, by role and kind name.
 
-A kind is one line of :data:`KINDS`: the role, the kind's name and the callable that
-builds it (``"module:Class"`` or ``"module:Class.classmethod"``), imported only when the
-kind is used. A kind with several gain-synthesis rules (``design`` in a file) maps
-each rule's name to its own callable; the first is the default. Nothing else is
-written for a kind: its parameter schema (names, defaults, types, ranges, a
-one-line description with the units) is read from the callable's signature and its
-numpydoc ``Parameters`` section (the callable's own, then its class's), so the
-documentation and the file format cannot disagree.
-
-Parameters of a kind are of three sorts:
-
-* **values** (numbers, vectors, matrices, strings, flags) given in the file's table;
-  the numpydoc type says what is taken: ``float``, ``int``, ``bool``, ``str``,
-  ``{"a", "b"}`` (one of), ``array_like`` / ``sequence`` (a number or an array), and
-  may add a range: ``positive``, ``non-negative``, ``in [a, b)``;
-* **parts** (a parameter named after a role of :data:`KINDS`, e.g. a plant's
-  ``vessel``, ``bias``, ``waves``): a nested table with its own ``kind``;
-* **context** (a parameter annotated with a component class, e.g. an observer's
-  ``vessel: DPVessel`` or a controller's ``observer``): taken from the parts already
-  built (the plant's own vessel, the composition's observer) unless the file gives a
-  table for it. ``size`` is the plant's input size and ``signals`` the plant's
-  variables named in the file.
+A kind is declared once, next to the class that builds it, with
+:func:`lookout.scenario.declare.component` (see that module): its role, name, summary,
+its parameters as typed declarations (values with their types, shapes, ranges and
+choices; parts and whether the plant may give them; context the composition fills),
+its gain-synthesis rules, tuning family and condition checks. This module collects
+the declarations of lookout's own modules (:data:`BUILTIN_MODULES`), of installed
+packages (the entry-point group ``lookout.components``: each entry point names a
+module to import) and of plugin files a scenario names (:func:`load_plugin`). Defaults
+come from the builder's signature and the classes a part accepts from its annotations;
+nothing is read from a docstring.
 
 ``lookout components`` lists the kinds (:func:`describe_kind`); the composition
 (:mod:`lookout.composition`) builds them.
@@ -32,117 +20,66 @@ from __future__ import annotations
 
 import functools
 import importlib
+import importlib.metadata
+import importlib.util
 import inspect
-import math
-import re
+import sys
 import typing
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
-#: role -> kind -> callable ("module:qualname"), or -> {design rule: callable} (first
-#: rule the default). One line per kind: a new component is its file plus its line here.
-KINDS: dict[str, dict[str, Any]] = {
-    "plant": {
-        "dp-vessel": "lookout.models.vessel:VesselPlant",
-        "cybership-ii": "lookout.models.cybership:CybershipPlant",
-        "manipulator": "lookout.models.manipulators:ManipulatorPlant",
-        "furuta": "lookout.models.furuta:FurutaPlant",
-        "scheduled-parameters": "lookout.models.scheduled_parameters:ScheduledParameterPlant",
-    },
-    # parts of plants (and the models of observers and controllers)
-    "vessel": {
-        "northern-clipper": "lookout.models.vessel:northern_clipper",
-        "custom": "lookout.models.vessel:scaled_vessel",
-    },
-    "ship": {
-        "cybership-ii": "lookout.models.cybership:Cybership",
-        "dp-vessel": "lookout.models.cybership:Cybership.from_dp_vessel",
-    },
-    "model": {
-        "two-link-arm": "lookout.models.manipulators:TwoLinkArm",
-        "pendulum": "lookout.models.manipulators:FreePendulum",
-        "cart-pendulum": "lookout.models.manipulators:CartPendulum",
-        "furuta-pendulum": "lookout.models.manipulators:FurutaPendulum",
-        "furuta-constants": "lookout.models.furuta:FurutaConstants",
-        "printed-inertia-arm": "lookout.papers.calugi_2002_backstepping:PrintedInertiaArm",
-    },
-    "bias": {
-        "gauss-markov": "lookout.environment.bias:GaussMarkovBias.from_stationary_std",
-    },
-    "waves": {
-        "linear": "lookout.environment.waves:LinearWaveModel.from_amplitude",
-        "jonswap": "lookout.environment.jonswap:JonswapWaves",
-    },
-    "disturbance": {
-        "body-force": "lookout.environment.disturbance:BodyDisturbance",
-    },
-    "parameters": {
-        "model-fields": "lookout.models.parameters:ModelParameters",
-        "pendulum-inertia": "lookout.models.parameters:PendulumInertia",
-    },
-    "parametrization": {
-        "inertia-entries": "lookout.observers.adaptive_dp:InertiaParametrization",
-    },
-    "sensor": {
-        "position-heading": "lookout.sensors:PositionHeadingSensor",
-        "position-heading-velocity": "lookout.sensors:PositionHeadingVelocitySensor",
-        "joint-encoder": "lookout.sensors:JointEncoder",
-        "joint-state": "lookout.sensors:JointStateSensor",
-    },
-    "observer": {
-        "passive": {
-            "fossen-strand-1999": "lookout.observers.passive:PassiveObserver.design",
-            "gains": "lookout.observers.passive:PassiveObserver",
-        },
-        "sliding-mode": {
-            "kim-2002": "lookout.observers.sliding_mode:SlidingModeObserver.design",
-            "gains": "lookout.observers.sliding_mode:SlidingModeObserver.from_gains",
-        },
-        "earth-fixed": {
-            "gains": "lookout.observers.earth_fixed:EarthFixedObserver",
-            "wondergem-2009": "lookout.observers.earth_fixed:EarthFixedObserver.design",
-        },
-        "velocity": "lookout.observers.velocity:VelocityObserver",
-        "adaptive-dp": "lookout.observers.adaptive_dp:AdaptiveObserver",
-        "adaptive-manipulator": "lookout.observers.adaptive_manipulator:AdaptiveManipulatorObserver",
-        "parameter-estimator": "lookout.observers.parameter_estimator:ParameterEstimator",
-        "ekf": "lookout.observers.ekf:ExtendedKalmanFilter",
-        "ukf": "lookout.observers.ukf:UnscentedKalmanFilter",
-    },
-    "controller": {
-        "none": "lookout.controllers.open_loop:NoControl",
-        "sinusoidal": "lookout.controllers.open_loop:SinusoidalInput",
-        "observer-backstepping": "lookout.controllers.backstepping:ObserverBackstepping.for_observer",
-        "vectorial-backstepping": "lookout.controllers.backstepping:VectorialBackstepping.for_observer",
-        "tracking": {
-            "gains": "lookout.controllers.tracking:TrackingController",
-            "wondergem-2009": "lookout.controllers.tracking:TrackingController.design",
-        },
-        "adaptive-backstepping": "lookout.controllers.adaptive_backstepping:AdaptiveObserverBackstepping",
-        "furuta-backstepping": "lookout.controllers.furuta:FurutaPendulumBackstepping",
-        "pid": {"pole-placement": "lookout.controllers.pid:PidController.design", "gains": "lookout.controllers.pid:PidController"},
-    },
-    "reference": {
-        "none": "lookout.reference:NoReference",
-        "reference-filter": "lookout.reference:ReferenceFilter",
-        "ellipse": "lookout.reference:EllipseReference",
-    },
-    "actuator": {
-        "ideal": "lookout.actuators.limits:IdealActuator",
-        "thrust-limits": "lookout.actuators.limits:SaturatingActuator",
-        "thrusters": "lookout.actuators.thrusters:ThrusterSystem",
-    },
-    "layout": {
-        "supply-vessel": "lookout.actuators.layout:ThrusterLayout.supply_vessel",
-        "cybership-ii": "lookout.actuators.layout:ThrusterLayout.cybership_ii",
-        "custom": "lookout.actuators.layout:ThrusterLayout",
-    },
-}
+from lookout.scenario import declare
+from lookout.scenario.declare import ROLES, Context, Declaration, Part, Range, Value
+
+#: The modules whose declarations are lookout's own kinds, in the order each role's
+#: kinds are listed (the first kind of a role is its default).
+BUILTIN_MODULES = (
+    "lookout.models.vessel",
+    "lookout.models.cybership",
+    "lookout.models.manipulators",
+    "lookout.models.furuta",
+    "lookout.models.scheduled_parameters",
+    "lookout.papers.calugi_2002_backstepping",
+    "lookout.environment.bias",
+    "lookout.environment.waves",
+    "lookout.environment.jonswap",
+    "lookout.environment.disturbance",
+    "lookout.models.parameters",
+    "lookout.sensors",
+    "lookout.observers.passive",
+    "lookout.observers.sliding_mode",
+    "lookout.observers.earth_fixed",
+    "lookout.observers.velocity",
+    "lookout.observers.adaptive_dp",
+    "lookout.observers.adaptive_manipulator",
+    "lookout.observers.parameter_estimator",
+    "lookout.observers.ekf",
+    "lookout.observers.ukf",
+    "lookout.controllers.open_loop",
+    "lookout.controllers.backstepping",
+    "lookout.controllers.tracking",
+    "lookout.controllers.adaptive_backstepping",
+    "lookout.controllers.furuta",
+    "lookout.controllers.pid",
+    "lookout.reference",
+    "lookout.actuators.limits",
+    "lookout.actuators.thrusters",
+    "lookout.actuators.layout",
+)
+#: The entry-point group under which an installed package names modules of its own kinds.
+ENTRY_POINT_GROUP = "lookout.components"
 
 #: The tables of a composition, in the order they are built.
 COMPONENT_ROLES = ("plant", "sensor", "observer", "reference", "controller", "actuator")
 #: The kind a composition takes when it has no table for a role.
 DEFAULT_KINDS = {"controller": "none", "reference": "none", "actuator": "ideal"}
+#: The kind of a part's table that names none, and of a required part found nowhere.
+DEFAULT_PART_KINDS = {
+    "vessel": "northern-clipper", "ship": "cybership-ii", "model": "two-link-arm", "bias": "gauss-markov",
+    "waves": "linear", "disturbance": "body-force", "parameters": "model-fields", "parametrization": "inertia-entries",
+    "layout": "supply-vessel",
+}
 #: Context parameters that are not components: filled by the composition by name.
 CONTEXT_NAMES = {
     "size": "the plant's input size",
@@ -164,11 +101,12 @@ REQUIRED = _NoDefault()
 
 @dataclass(frozen=True)
 class Parameter:
-    """One parameter of a kind, as the file gives it.
+    """One parameter of a kind, as the file gives it: its declaration with the
+    builder's default (and, for a part, the class its annotation names).
 
-    ``sort`` is ``"value"``, ``"part"`` (a nested table of role ``name``) or
-    ``"context"`` (taken from the composition unless given; ``context`` is the class or
-    the name looked for).
+    ``sort`` is ``"value"``, ``"part"`` (a nested table of role ``role``) or
+    ``"context"`` (taken from the composition; ``context`` is the class or the name
+    looked for).
     """
 
     name: str
@@ -177,150 +115,211 @@ class Parameter:
     description: str
     default: Any = REQUIRED
     context: Any = None
-    #: the role of a part (its name, or the role whose kinds build its annotated class)
+    #: the role of a part
     role: str | None = None
+    #: what a value takes: "float", "int", "bool", "str", "array", "strings", "parts"
+    value_type: str = ""
+    #: the values taken, for a value of a few choices
+    choices: tuple | None = None
+    #: (low, high, low included, high included)
+    range: tuple[float, float, bool, bool] | None = None
+    #: a part the composition takes from the components built before when not given
+    declared_from_plant: bool = False
 
     @property
     def from_plant(self) -> bool:
         """A part taken from the components built before when the table does not give
-        it: a required one always, an optional one when its description says so
-        ("the plant's")."""
-        return self.required or "the plant's" in self.description
+        it: a required one always, an optional one when declared so."""
+        return self.required or self.declared_from_plant
 
     @property
     def required(self) -> bool:
         return self.default is REQUIRED
 
-    @property
-    def choices(self) -> tuple | None:
-        """The values taken, for a ``{"a", "b"}`` (or ``{1, -1}``) type."""
-        match = re.match(r"\s*\{(.*)\}", self.type)
-        if not match:
-            return None
-        quoted = re.findall(r"['\"]([^'\"]+)['\"]", match.group(1))
-        return tuple(quoted) if quoted else tuple(int(v) for v in re.findall(r"-?\d+", match.group(1)))
-
-    @property
-    def range(self) -> tuple[float, float, bool, bool] | None:
-        """(low, high, low included, high included) from the type's range words."""
-        text = self.type.lower()
-        match = re.search(r"in\s*([\[(])\s*([^,]+),\s*([^\])]+)([\])])", text)
-        if match:
-            low, high = _number(match.group(2)), _number(match.group(3))
-            return low, high, match.group(1) == "[", match.group(4) == "]"
-        if re.search(r"\bnon-negative\b", text):
-            return 0.0, math.inf, True, False
-        if re.search(r"\bpositive\b", text):
-            return 0.0, math.inf, False, False
-        return None
-
-    @property
-    def value_type(self) -> str:
-        """``"float"``, ``"int"``, ``"bool"``, ``"str"``, ``"array"``, ``"strings"``, or
-        ``"parts"`` (an array, or a table of named arrays: "array_like or table")."""
-        text = self.type.lower()
-        if self.choices is not None:
-            return "str"
-        if re.search(r"\bor table\b", text):
-            return "parts"
-        if re.search(r"(sequence|tuple|list) of str", text):
-            return "strings"
-        if "array" in text or "sequence" in text:
-            return "array"
-        first = re.split(r"[,\s]", text.strip(), maxsplit=1)[0]
-        return {"float": "float", "int": "int", "bool": "bool", "str": "str"}.get(first, "array" if "float" in text else "")
-
-
-def _number(text: str) -> float:
-    text = text.strip()
-    return {"inf": math.inf, "-inf": -math.inf, "pi": math.pi}.get(text, None) or float(text)
-
 
 @dataclass(frozen=True)
 class Kind:
-    """A registered component kind: its role, name, design rules and parameters."""
+    """A registered component kind: its role, name, rules and parameters."""
 
     role: str
     name: str
-    #: design rule -> "module:qualname"; one entry (named "") when the kind has no rules
-    targets: tuple[tuple[str, str], ...]
+    declaration: Declaration
 
     @property
     def designs(self) -> tuple[str, ...]:
         """The design rules' names (empty when the kind has none)."""
-        return tuple(name for name, _ in self.targets if name)
+        return tuple(name for name, _ in self.declaration.rules if name)
 
-    def target(self, design: str | None = None) -> str:
+    def _rule(self, design: str | None):
+        rules = self.declaration.rules
         if design is None:
-            return self.targets[0][1]
-        for name, target in self.targets:
+            return rules[0][1]
+        for name, rule in rules:
             if name == design:
-                return target
+                return rule
         raise KeyError(design)
 
     def callable(self, design: str | None = None):
         """The callable that builds the kind (with ``design``'s rule)."""
-        return _resolve(self.target(design))
+        return _builder(self.declaration.target, self._rule(design).build)
 
     def parameters(self, design: str | None = None) -> tuple[Parameter, ...]:
-        """The kind's parameters, from the callable's signature and numpydoc."""
-        return _parameters(self.target(design))
+        """The kind's parameters: its declarations, with the builder's defaults."""
+        return _kind_parameters(self, design)
 
     @property
     def description(self) -> str:
-        """The first line of the built class's docstring (or the callable's)."""
-        target = self.target()
-        owner = _owner(target)
-        doc = inspect.getdoc(owner) or inspect.getdoc(_resolve(target)) or ""
-        paragraph = " ".join(doc.strip().split("\n\n")[0].split())
-        return _first_sentence(paragraph)
+        """The kind's one-sentence summary, as declared."""
+        return self.declaration.summary
 
     @property
     def component_class(self) -> type:
-        """The class the kind builds (the callable's class, or its return annotation's)."""
-        return _owner(self.target())
+        """The class the kind builds (the declared class, or the function's return annotation's)."""
+        target = self.declaration.target
+        if isinstance(target, type):
+            return target
+        returned = typing.get_type_hints(target).get("return")
+        return returned if isinstance(returned, type) else type(None)
+
+    @property
+    def family(self) -> str | None:
+        """The kind's tuning family, ``"module:attribute"`` (None: not tunable)."""
+        return self.declaration.family
+
+    @property
+    def checks(self) -> str | None:
+        """The function ``lookout design`` calls for the kind's conditions (None: it has none)."""
+        return self.declaration.checks
+
+    @property
+    def module(self) -> str:
+        """The module that declared the kind."""
+        return self.declaration.module
 
 
-def _resolve(target: str):
-    module, _, qualname = target.partition(":")
+@functools.cache
+def _kind_parameters(each: Kind, design: str | None) -> tuple[Parameter, ...]:
+    return _parameters(each.callable(design), each._rule(design).parameters, f"{each.role} {each.name}")
+
+
+def _builder(target, build):
+    if build is None:
+        return target
+    if callable(build):
+        return build
+    if ":" in build:
+        return resolve(build)
+    return getattr(target, build)
+
+
+def resolve(path: str):
+    """The object a ``"module:qualname"`` string names (imported when asked for)."""
+    module, _, qualname = path.partition(":")
     value: Any = importlib.import_module(module)
     for part in qualname.split("."):
         value = getattr(value, part)
     return value
 
 
+_LOADED: dict[str, Any] = {}
+
+
+def _ensure_loaded() -> None:
+    if "builtin" in _LOADED:
+        return
+    _LOADED["builtin"] = True
+    for module in BUILTIN_MODULES:
+        importlib.import_module(module)
+    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            importlib.import_module(entry.value.partition(":")[0])
+        except Exception as error:  # an installed plugin that does not import is named, not fatal to lookout
+            raise ValueError(f"the package entry point {entry.name} = {entry.value!r} (group {ENTRY_POINT_GROUP}) "
+                             f"does not import: {type(error).__name__}: {error}") from None
+
+
+def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
+    """Import the Python file ``path`` (relative to ``base``, a scenario file's folder),
+    so that the kinds it declares are registered; each file is imported once. A dotted
+    name (``my_package.observers``) is imported as a module. Returns the module's name.
+    """
+    text = str(path)
+    if not text.endswith(".py") and "/" not in text and "\\" not in text:
+        if text not in sys.modules:
+            try:
+                importlib.import_module(text)
+            except ImportError as error:
+                raise ValueError(f"plugin {text!r}: no such module ({error})") from None
+        return text
+    file = Path(path) if base is None or Path(path).is_absolute() else Path(base) / path
+    file = file.resolve()
+    if not file.is_file():
+        raise ValueError(f"plugin {text!r}: no such file {file}")
+    name = "lookout_plugin_" + "".join(c if c.isalnum() else "_" for c in str(file))
+    if name in sys.modules:
+        return name
+    _ensure_loaded()
+    spec = importlib.util.spec_from_file_location(name, file)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    before = len(declare.DECLARED)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as error:
+        del sys.modules[name]
+        del declare.DECLARED[before:]
+        raise ValueError(f"plugin {text!r} does not import: {type(error).__name__}: {error}") from None
+    return name
+
+
 @functools.cache
-def _owner(target: str) -> type:
-    module, _, qualname = target.partition(":")
-    parts = qualname.split(".")
-    value: Any = importlib.import_module(module)
-    value = getattr(value, parts[0])
-    if isinstance(value, type):
-        return value
-    hints = typing.get_type_hints(value)
-    returned = hints.get("return")
-    return returned if isinstance(returned, type) else type(None)
+def _index(count: int) -> dict[str, dict[str, Kind]]:
+    order = {module: index for index, module in enumerate(BUILTIN_MODULES)}
+    found: dict[str, dict[str, Kind]] = {role: {} for role in ROLES}
+    ranked = sorted(enumerate(declare.DECLARED[:count]), key=lambda pair: (order.get(pair[1].module, len(order)), pair[0]))
+    for _, each in ranked:
+        known = found[each.role]
+        if each.kind in known:
+            first = known[each.kind].declaration.module
+            raise ValueError(f"{each.role} kind {each.kind!r} is declared twice: by {first} and by {each.module}")
+        known[each.kind] = Kind(each.role, each.kind, each)
+    return found
+
+
+def _kinds() -> dict[str, dict[str, Kind]]:
+    _ensure_loaded()
+    return _index(len(declare.DECLARED))
+
+
+def roles() -> tuple[str, ...]:
+    """Every role, in the order kinds are listed."""
+    return ROLES
+
+
+def names(role: str) -> tuple[str, ...]:
+    """The names of ``role``'s kinds, in the order listed."""
+    return tuple(_kinds()[role])
+
+
+def default_kind(role: str) -> str | None:
+    """The kind a part's table of ``role`` takes when it names none (None: it must name one)."""
+    return DEFAULT_PART_KINDS.get(role)
 
 
 def kinds(role: str | None = None) -> list[Kind]:
-    """The registered kinds (of one role), in :data:`KINDS`'s order."""
-    found = []
-    for each_role, entries in KINDS.items():
-        if role is not None and each_role != role:
-            continue
-        for name, targets in entries.items():
-            pairs = tuple(targets.items()) if isinstance(targets, dict) else (("", targets),)
-            found.append(Kind(each_role, name, pairs))
-    return found
+    """The registered kinds (of one role), role by role."""
+    table = _kinds()
+    return [each for each_role in ROLES if role is None or each_role == role for each in table[each_role].values()]
 
 
 def kind(role: str, name: str) -> Kind:
     """The kind ``name`` of ``role``; a ``ValueError`` lists the known ones."""
-    if role not in KINDS:
-        raise ValueError(f"no role {role!r} (roles: {', '.join(KINDS)})")
-    if name not in KINDS[role]:
-        raise ValueError(f"no {role} kind {name!r} (one of {', '.join(KINDS[role])})")
-    return next(k for k in kinds(role) if k.name == name)
+    if role not in ROLES:
+        raise ValueError(f"no role {role!r} (roles: {', '.join(ROLES)})")
+    table = _kinds()[role]
+    if name not in table:
+        raise ValueError(f"no {role} kind {name!r} (one of {', '.join(table)})")
+    return table[name]
 
 
 def kind_of(component) -> str:
@@ -334,99 +333,78 @@ def kind_of(component) -> str:
     return type(component).__name__
 
 
-def _numpydoc_parameters(doc: str | None) -> dict[str, tuple[str, str]]:
-    """name -> (type, description) from a numpydoc ``Parameters`` section."""
-    if not doc:
-        return {}
-    lines = inspect.cleandoc(doc).splitlines()
-    found: dict[str, tuple[str, str]] = {}
-    inside, names, kind_text, description = False, [], "", []
-
-    def flush():
-        if names:
-            text = " ".join(line.strip() for line in description).strip()
-            for name in names:
-                found[name] = (kind_text, text)
-
-    for index, line in enumerate(lines):
-        if line.strip() == "Parameters" and index + 1 < len(lines) and set(lines[index + 1].strip()) == {"-"}:
-            inside = True
-            continue
-        if not inside:
-            continue
-        if set(line.strip()) == {"-"} and line.strip():
-            continue
-        if line and not line.startswith(" "):
-            if index + 1 < len(lines) and set(lines[index + 1].strip()) == {"-"} and lines[index + 1].strip():
-                flush()
-                names = []
-                inside = False
-                continue
-            flush()
-            head, _, kind_text = line.partition(":")
-            names = [name.strip() for name in head.split(",") if name.strip()]
-            kind_text = kind_text.strip()
-            description = []
-        elif line.strip():
-            description.append(line)
-    if inside:
-        flush()
-    return found
+def _type_text(each, default, annotation_class) -> str:
+    """What ``lookout components`` shows as a parameter's type, from its declaration."""
+    if isinstance(each, Value):
+        if each.choices is not None:
+            text = "{" + ", ".join(repr(c) if isinstance(c, str) else str(c) for c in each.choices) + "}"
+            text = text.replace("'", '"')
+        else:
+            text = {"array": "array_like", "strings": "sequence of str", "parts": "array_like or table"}.get(each.type, each.type)
+        if each.shape:
+            text += f", shape {each.shape}"
+        if each.range is not None:
+            text += f", {each.range.words()}" if each.range.words()[0] != "i" or each.type != "float" else f" {each.range.words()}"
+        return text + (", optional" if default is None else "")
+    if isinstance(each, Part):
+        text = annotation_class.__name__ if isinstance(annotation_class, type) else f"a {each.role or each.name} table"
+        return text + (", optional" if default is None else "")
+    return annotation_class.__name__ if isinstance(annotation_class, type) else "context"
 
 
-def _first_sentence(text: str) -> str:
-    """The first sentence (up to a full stop before a capital letter or the end), with
-    reStructuredText roles and literals as plain text."""
-    text = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text).replace("``", "")
-    match = re.match(r"(.+?\.)(\s+[A-Z]|$)", text)
-    return match.group(1) if match else text
+def _range_tuple(value: Range | None):
+    return None if value is None else (value.low, value.high, value.low_closed, value.high_closed)
 
 
-@functools.cache
-def _parameters(target: str, values_only: bool = False) -> tuple[Parameter, ...]:
-    """The parameters of ``target``; with ``values_only`` every one is a value (a
-    plant's ``state``, an observer's ``guess``: no parts, no context)."""
-    function = _resolve(target)
-    owner = _owner(target)
-    signature = inspect.signature(function)
-    docs = {**_numpydoc_parameters(inspect.getdoc(owner) if isinstance(owner, type) else None), **_numpydoc_parameters(inspect.getdoc(function))}
+def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
+    """The parameters of ``builder`` as ``declared`` (defaults from its signature; the
+    class a part or context accepts from its annotation). A declared name the builder
+    does not take, or a required argument not declared, is an error in the declaration."""
+    signature = inspect.signature(builder)
     try:
-        hints = typing.get_type_hints(function.__init__ if isinstance(function, type) else function)
+        hints = typing.get_type_hints(builder.__init__ if isinstance(builder, type) else builder)
     except Exception:
         hints = {}
+    taken = {name: p for name, p in signature.parameters.items()
+             if name not in ("self", "cls") and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+    names = [each.name for each in declared]
+    unknown = [name for name in names if name not in taken]
+    if unknown:
+        raise ValueError(f"{owner}: declares {', '.join(unknown)}, which its builder does not take")
+    undeclared = [name for name, p in taken.items() if p.default is inspect.Parameter.empty and name not in names]
+    if undeclared:
+        raise ValueError(f"{owner}: its builder requires {', '.join(undeclared)}, which it does not declare")
     parameters = []
-    for name, parameter in signature.parameters.items():
-        if name in ("self", "cls") or parameter.kind in (parameter.VAR_POSITIONAL, parameter.VAR_KEYWORD):
-            continue
-        default = REQUIRED if parameter.default is inspect.Parameter.empty else parameter.default
-        if name not in docs and default is not REQUIRED:
-            continue  # undocumented with a default: internal (a field's static default), not a file key
-        type_text, description = docs.get(name, ("", ""))
-        annotation = hints.get(name)
-        component_type = _component_type(annotation)
-        role = None if values_only else (_role_of_class(component_type) or (name if name in KINDS else None))
-        if values_only:
-            sort = "value"
-        elif role is not None:
-            sort = "part"
-        elif component_type is not None or name in CONTEXT_NAMES:
-            sort = "context"
+    for each in declared:
+        default = taken[each.name].default
+        default = REQUIRED if default is inspect.Parameter.empty else default
+        accepted = _component_type(hints.get(each.name))
+        if isinstance(each, Value):
+            parameters.append(Parameter(each.name, "value", _type_text(each, default, None), each.doc, default,
+                                        value_type=each.type, choices=each.choices, range=_range_tuple(each.range)))
+        elif isinstance(each, Part):
+            parameters.append(Parameter(each.name, "part", _type_text(each, default, accepted), each.doc, default,
+                                        accepted, each.role or each.name, declared_from_plant=each.from_plant))
         else:
-            sort = "value"
-        parameters.append(Parameter(name, sort, type_text, _first_sentence(description), default, component_type or CONTEXT_NAMES.get(name), role))
+            source = each.source if each.source is not None else (accepted or CONTEXT_NAMES.get(each.name))
+            parameters.append(Parameter(each.name, "context", _type_text(each, default, source if isinstance(source, type) else None),
+                                        each.doc, default, source))
     return tuple(parameters)
 
 
-def _role_of_class(cls) -> str | None:
-    """The role whose kinds build instances of ``cls`` (a ManipulatorModel: ``model``)."""
-    if not isinstance(cls, type):
-        return None
-    for role, entries in KINDS.items():
-        for each in kinds(role):
-            built = each.component_class
-            if isinstance(built, type) and issubclass(built, cls):
-                return role
-    return None
+def initial_parameters(method) -> tuple[Parameter, ...]:
+    """The keys a plant's ``state`` or an observer's ``guess`` takes, as declared by
+    :func:`lookout.scenario.declare.initial_values` on it."""
+    function = getattr(method, "__func__", method)
+    declared = getattr(function, "__lookout_initial__", None)
+    if declared is None:
+        raise ValueError(f"{function.__qualname__} declares no initial values (lookout.scenario.declare.initial_values)")
+    return _parameters(function, declared, function.__qualname__)
+
+
+def initial_same_as(method) -> str | None:
+    """The attribute path whose method's keys ``method`` takes (``"model.state"``), if declared."""
+    return getattr(getattr(method, "__func__", method), "__lookout_initial_same_as__", None)
 
 
 def _component_type(annotation) -> type | None:

@@ -19,6 +19,7 @@ from jax import Array
 from typing import final
 
 from lookout import _validation as check
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Value, component
 from lookout._math import ssa
 from lookout.components import EARTH_FIXED, Layout, Outage, Sensor, Signal
 from lookout.models.vessel import EARTH_AXES, VesselState
@@ -49,19 +50,19 @@ def outage_of(layout: Layout, signals, start, duration) -> Outage | None:
     signals) over ``[start, start + duration)``; None without signals."""
     if signals is None or len(signals) == 0:
         if check.is_concrete(duration) and float(np.max(duration)) > 0.0:
-            raise ValueError("outage_duration needs outage_signals: name the measured signals the outage silences")
+            raise check.ParameterError("outage_duration", "outage_duration needs outage_signals: name the measured signals the outage silences")
         return None
     if isinstance(signals, str):
         signals = (signals,)
     names = layout.names
     for name in signals:
         if name not in names:
-            raise ValueError(f"outage_signals: the sensor measures no {name!r} (it measures {', '.join(names)})")
+            raise check.ParameterError("outage_signals", f"outage_signals: the sensor measures no {name!r} (it measures {', '.join(names)})")
     for name, value in (("outage_start", start), ("outage_duration", duration)):
         if check.is_concrete(value):
             number = np.asarray(value, dtype=float)
             if number.shape != () or not (np.isfinite(number) and number >= 0.0):
-                raise ValueError(f"{name} must be a finite number of seconds >= 0; got {value}")
+                raise check.ParameterError(check.key(name), f"{name} must be a finite number of seconds >= 0; got {value}")
     channels = tuple(signal.name in signals for signal in layout.signals for _ in range(signal.size))
     return Outage(jnp.asarray(start, dtype=float), jnp.asarray(duration, dtype=float), channels)
 
@@ -74,6 +75,18 @@ POSITION_HEADING = Layout(
 )
 
 
+@component(
+    "sensor", "position-heading",
+    summary="Position fixes (x, y) and heading, each channel with its own noise and rate.",
+    parameters=(
+        Value("noise_std", "array", "Standard deviation of d per channel (m, m, rad).", shape="(3,)", range=NON_NEGATIVE),
+        Value("sample_period", "array", "Seconds between samples of each channel (s; static: fixes the loop structure).", shape="(3,)", range=POSITIVE),
+        Value("dropout_probability", "float", "Probability that a sample of a channel is missing (1).", range=Range(0.0, 1.0, True, False)),
+        Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
+        Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
+        Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+    ),
+)
 @final
 @with_outage_parameters
 class PositionHeadingSensor(Sensor):
@@ -111,7 +124,7 @@ class PositionHeadingSensor(Sensor):
         if check.is_concrete(self.dropout_probability):
             p = float(self.dropout_probability)
             if not 0.0 <= p < 1.0:
-                raise ValueError(f"sensor dropout_probability must be in [0, 1); got {p}")
+                raise check.ParameterError("sensor", f"sensor dropout_probability must be in [0, 1); got {p}")
 
     def ideal(self, state: VesselState) -> Array:
         """Noise-free measurement eta + eta_w with wrapped heading."""
@@ -141,6 +154,20 @@ class PositionHeadingSensor(Sensor):
 from lookout.models.manipulators import JOINT_MEASUREMENT, JointState, ManipulatorModel, ManipulatorPlant, joint_layout  # noqa: E402
 
 
+@component(
+    "sensor", "joint-encoder",
+    summary="Joint position encoders: q with Gaussian noise, quantization, per-joint rates and dropouts.",
+    parameters=(
+        Part("model", "The manipulator whose joints are measured (names and kinds of the channels)."),
+        Value("sample_period", "array", "Seconds between samples of each joint (static: fixes the loop structure).", shape="(n,)"),
+        Value("noise_std", "array", "Standard deviation of the measurement noise per joint (rad or m), >= 0.", shape="(n,)"),
+        Value("quantization", "array", "Resolution per joint (rad or m), >= 0; 0 means none.", shape="(n,)"),
+        Value("dropout_probability", "float", "Probability that a sample of a channel is missing (0 <= p < 1)."),
+        Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
+        Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
+        Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+    ),
+)
 @final
 @with_outage_parameters
 class JointEncoder(Sensor):
@@ -203,10 +230,10 @@ class JointEncoder(Sensor):
         check.positive("encoder sample_period", np.asarray(self.sample_period))
         if check.is_concrete(self.dropout_probability):
             if np.ndim(self.dropout_probability) != 0:
-                raise ValueError(f"encoder dropout_probability must be a scalar; got shape {np.shape(self.dropout_probability)}")
+                raise check.ParameterError("encoder", f"encoder dropout_probability must be a scalar; got shape {np.shape(self.dropout_probability)}")
             p = float(self.dropout_probability)
             if not 0.0 <= p < 1.0:
-                raise ValueError(f"encoder dropout_probability must be in [0, 1); got {p}")
+                raise check.ParameterError("encoder", f"encoder dropout_probability must be in [0, 1); got {p}")
 
     def ideal(self, state: JointState) -> Array:
         """The joint coordinates q, noise-free, unquantized and never dropped."""
@@ -248,6 +275,18 @@ POSITION_HEADING_VELOCITY = Layout(
 )
 
 
+@component(
+    "sensor", "position-heading-velocity",
+    summary="ORACLE SENSOR, FOR ANALYSIS IN SIMULATION ONLY: measures eta AND the velocity nu.",
+    parameters=(
+        Value("noise_std", "array", "Standard deviation per channel (m, m, rad, m/s, m/s, rad/s), >= 0.", shape="(6,)"),
+        Value("sample_period", "array", "Seconds between samples of each channel (static).", shape="(6,)"),
+        Value("dropout_probability", "float", "Probability that a sample of a channel is missing (0 <= p < 1)."),
+        Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
+        Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
+        Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+    ),
+)
 @final
 @with_outage_parameters
 class PositionHeadingVelocitySensor(Sensor):
@@ -296,7 +335,7 @@ class PositionHeadingVelocitySensor(Sensor):
         if check.is_concrete(self.dropout_probability):
             p = float(self.dropout_probability)
             if not 0.0 <= p < 1.0:
-                raise ValueError(f"oracle sensor dropout_probability must be in [0, 1); got {p}")
+                raise check.ParameterError("oracle", f"oracle sensor dropout_probability must be in [0, 1); got {p}")
 
     def ideal(self, state: VesselState) -> Array:
         """Noise-free [eta + eta_w (heading wrapped), nu]."""
@@ -339,6 +378,19 @@ def joint_state_layout(model: ManipulatorModel) -> Layout:
     return Layout(positions.signals + rates.signals)
 
 
+@component(
+    "sensor", "joint-state",
+    summary="Joint positions and rates y = [q, q'] + noise; NaN marks a dropped channel.",
+    parameters=(
+        Part("model", "The manipulator whose joints are measured (names and kinds of the channels)."),
+        Value("sample_period", "array", "Seconds between samples of each channel (q channels first, then q').", shape="(2n,)"),
+        Value("noise_std", "array", "Standard deviation of the measurement noise per channel (rad or m, then rad/s or m/s), >= 0.", shape="(2n,)"),
+        Value("dropout_probability", "float", "Probability that a sample of a channel is missing (0 <= p < 1)."),
+        Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
+        Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
+        Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+    ),
+)
 @final
 @with_outage_parameters
 class JointStateSensor(Sensor):
@@ -387,10 +439,10 @@ class JointStateSensor(Sensor):
         check.positive("joint state sensor sample_period", np.asarray(self.sample_period))
         if check.is_concrete(self.dropout_probability):
             if np.ndim(self.dropout_probability) != 0:
-                raise ValueError(f"joint state sensor dropout_probability must be a scalar; got shape {np.shape(self.dropout_probability)}")
+                raise check.ParameterError("joint", f"joint state sensor dropout_probability must be a scalar; got shape {np.shape(self.dropout_probability)}")
             p = float(self.dropout_probability)
             if not 0.0 <= p < 1.0:
-                raise ValueError(f"joint state sensor dropout_probability must be in [0, 1); got {p}")
+                raise check.ParameterError("joint", f"joint state sensor dropout_probability must be in [0, 1); got {p}")
 
     def ideal(self, state: JointState) -> Array:
         """``[q, q']``, noise-free and never dropped."""

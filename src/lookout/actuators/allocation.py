@@ -92,6 +92,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from lookout import _validation as check
 from lookout._math import ssa
 from lookout._resources import refuse_unless_it_fits
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
@@ -274,15 +275,15 @@ class Allocator(eqx.Module):
                  solver: Literal["active-set", "qpax"] | None = None, steering_time_constant=None, steering_deadband=None, steering_load=None,
                  steering_bias=None):
         if not isinstance(layout, ThrusterLayout):
-            raise ValueError(f"layout must be a ThrusterLayout; got {type(layout).__name__}")
+            raise check.ParameterError("layout", f"layout must be a ThrusterLayout; got {type(layout).__name__}")
         if method not in ALLOCATION_METHODS:
-            raise ValueError(f"allocation must be one of {', '.join(ALLOCATION_METHODS)}; got {method!r}")
+            raise check.ParameterError("allocation", f"allocation must be one of {', '.join(ALLOCATION_METHODS)}; got {method!r}")
         qp_options = dict(slack_weight=slack_weight, solver=solver, steering_time_constant=steering_time_constant,
                           steering_deadband=steering_deadband, steering_load=steering_load, steering_bias=steering_bias)
         if method != "qp":
             for name, value in qp_options.items():
                 if value is not None:
-                    raise ValueError(f"{name} applies to allocation 'qp' only, and this allocation is {method!r}: leave {name} out, or allocate by 'qp'")
+                    raise check.ParameterError(check.key(name), f"{name} applies to allocation 'qp' only, and this allocation is {method!r}: leave {name} out, or allocate by 'qp'")
         self.method, self.clip_to_reach = method, bool(clip_to_reach)
         variables, rows = len(layout.variables), limit_rows(layout)
         refuse_unless_it_fits(
@@ -304,12 +305,12 @@ class Allocator(eqx.Module):
             return
         solver = "active-set" if solver is None else solver
         if solver not in QP_SOLVERS:
-            raise ValueError(f"solver must be one of {', '.join(QP_SOLVERS)}; got {solver!r}")
+            raise check.ParameterError("solver", f"solver must be one of {', '.join(QP_SOLVERS)}; got {solver!r}")
         if solver == "qpax":
             try:
                 import qpax  # noqa: F401
             except ImportError:
-                raise ValueError("solver 'qpax' needs the qpax package (pip install qpax, or lookout's dev extra)") from None
+                raise check.ParameterError("solver", "solver 'qpax' needs the qpax package (pip install qpax, or lookout's dev extra)") from None
         self.solver = solver
         slack_weight = DEFAULT_SLACK_WEIGHT if slack_weight is None else slack_weight
         try:
@@ -317,7 +318,7 @@ class Allocator(eqx.Module):
         except (TypeError, ValueError):
             slack = np.full(3, np.nan)
         if not np.all(np.isfinite(slack)) or np.any(slack <= 0):
-            raise ValueError(f"slack_weight must be a positive number or three of them (surge, sway, yaw); got {_brief(slack_weight)}")
+            raise check.ParameterError("slack_weight", f"slack_weight must be a positive number or three of them (surge, sway, yaw); got {_brief(slack_weight)}")
         self.slack_weights = slack
         # (u - u_b)^T W (u - u_b) + (B u - t')^T Q (B u - t') = u^T P u - 2 (W u_b + B^T Q t')^T u + const
         self.P = np.diag(self.weights) + self.B.T @ np.diag(slack) @ self.B
@@ -556,10 +557,10 @@ def _option(name: str, value, default: float, low: float, high: float, high_incl
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number; got {_brief(value)}") from None
+        raise check.ParameterError(check.key(name), f"{name} must be a number; got {_brief(value)}") from None
     if not (low <= number and (number <= high if high_included else number < high)) or math.isnan(number):
         interval = f"[{low:g}, {'pi' if high == math.pi else f'{high:g}'}{']' if high_included else ')'}"
-        raise ValueError(f"{name} must be in {interval}; got {number:g}")
+        raise check.ParameterError(check.key(name), f"{name} must be in {interval}; got {number:g}")
     return np.asarray(number)
 
 

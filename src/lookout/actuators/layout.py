@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from lookout import _validation as check
+from lookout.scenario.declare import Value, register
 
 #: The kinds of thruster.
 THRUSTER_KINDS = ("tunnel", "azimuth", "main")
@@ -140,22 +141,22 @@ class ThrusterLayout(eqx.Module):
         thrust_rate = math.inf if thrust_rate is None else thrust_rate
         turn_rate = math.inf if turn_rate is None else turn_rate
         if isinstance(names, str) or isinstance(kinds, str):
-            raise ValueError("names and kinds must be lists of strings, one per thruster")
+            raise check.ParameterError("names", "names and kinds must be lists of strings, one per thruster")
         self.names = tuple(str(n) for n in names)
         self.kinds = tuple(str(k) for k in kinds)
         count = len(self.names)
         if count == 0:
-            raise ValueError("names must name at least one thruster")
+            raise check.ParameterError("names", "names must name at least one thruster")
         if len(self.kinds) != count:
-            raise ValueError(f"kinds must have one entry per thruster ({count}); got {len(self.kinds)}")
+            raise check.ParameterError("kinds", f"kinds must have one entry per thruster ({count}); got {len(self.kinds)}")
         unknown = [kind for kind in dict.fromkeys(self.kinds) if kind not in THRUSTER_KINDS]
         if unknown:
-            raise ValueError(f"kinds must be among {', '.join(THRUSTER_KINDS)}; got {_listed([repr(_short(k)) for k in unknown])}")
+            raise check.ParameterError("kinds", f"kinds must be among {', '.join(THRUSTER_KINDS)}; got {_listed([repr(_short(k)) for k in unknown])}")
         seen: dict[str, int] = {}
         for name in self.names:
             seen[name] = seen.get(name, 0) + 1
             if seen[name] == 2:
-                raise ValueError(f"names must be distinct; {_short(name)!r} is given more than once")
+                raise check.ParameterError("names", f"names must be distinct; {_short(name)!r} is given more than once")
         columns = dict(
             x=x, y=y, direction=direction, max_thrust=max_thrust, min_thrust=min_thrust, thrust_rate=thrust_rate,
             time_constant=time_constant, turn_rate=turn_rate, max_rudder=max_rudder, rudder_lift=rudder_lift, weight=weight,
@@ -192,7 +193,7 @@ class ThrusterLayout(eqx.Module):
         where = np.flatnonzero(bad)
         shown = ", ".join(f"{values[i]:g} for {_short(self.names[i])!r}" for i in where[:3])
         more = f" and {where.size - 3} more" if where.size > 3 else ""
-        raise ValueError(f"{name} {condition}; got {shown}{more}")
+        raise check.ParameterError(check.key(name), f"{name} {condition}; got {shown}{more}")
 
     def _check(self):
         for name in ("x", "y", "direction", "max_thrust", "min_thrust", "max_rudder", "rudder_lift", "weight"):
@@ -210,8 +211,8 @@ class ThrusterLayout(eqx.Module):
         self._refuse("rudder_lift", self.rudder_lift < 0, self.rudder_lift, "must be non-negative")
         rank = np.linalg.matrix_rank(self.B)
         if rank < 3:
-            raise ValueError(
-                f"the thrusters ({_listed([repr(_short(n)) for n in self.names])}) span only {rank} of surge, sway and yaw: "
+            raise check.ParameterError(
+                "the", f"the thrusters ({_listed([repr(_short(n)) for n in self.names])}) span only {rank} of surge, sway and yaw: "
                 "a layout must be able to push in every direction and turn (check x, y, direction and rudder_lift)"
             )
 
@@ -344,3 +345,44 @@ class ThrusterLayout(eqx.Module):
             max_thrust=(1.3e5, 1.3e5, 3.0e5, 3.0e5), min_thrust=(-1.3e5, -1.3e5, 0.0, 0.0),
             thrust_rate=(4.0e4, 4.0e4, 6.0e4, 6.0e4), time_constant=time_constant, turn_rate=math.radians(10.0),
         )
+
+
+register(
+    "layout", "supply-vessel", ThrusterLayout,
+    summary="A vessel's thrusters: one entry per thruster in every column.",
+    build="supply_vessel",
+    parameters=(
+        Value("time_constant", "float", "Thrust response time constant of every thruster (s); non-negative."),
+    ),
+)
+
+
+register(
+    "layout", "cybership-ii", ThrusterLayout,
+    summary="A vessel's thrusters: one entry per thruster in every column.",
+    build="cybership_ii",
+    parameters=(
+        Value("time_constant", "float", "Thrust response time constant of every thruster (s); non-negative."),
+    ),
+)
+
+
+register(
+    "layout", "custom", ThrusterLayout,
+    summary="A vessel's thrusters: one entry per thruster in every column.",
+    parameters=(
+        Value("names", "strings", "A distinct name per thruster (the labels of its records)."),
+        Value("kinds", "strings", "\"tunnel\", \"azimuth\" or \"main\" (a main propeller with a rudder)."),
+        Value("x", "array", "Position of each thruster, body-fixed, forward and starboard of the origin (m)."),
+        Value("y", "array", "Position of each thruster, body-fixed, forward and starboard of the origin (m)."),
+        Value("direction", "array", "A tunnel's thrust direction and a main propeller's (rad from the bow, clockwise seen from above; pi/2 pushes to starboard); an azimuth's bias direction, where it points when idle (azimuths pointing against each other bias each other; lookout.actuators.allocation)."),
+        Value("max_thrust", "array", "Largest thrust (N); positive."),
+        Value("min_thrust", "array", "Smallest thrust (N, negative: astern or to port) of a tunnel or a main propeller; between -max_thrust and 0."),
+        Value("thrust_rate", "array", "Largest change of thrust per second (N/s); positive."),
+        Value("time_constant", "array", "Time constant of the first-order response of thrust to its command (s); non-negative, 0 for an instant response."),
+        Value("turn_rate", "array", "Largest turning rate of an azimuth or a rudder (rad/s); positive."),
+        Value("max_rudder", "array", "A main propeller's largest rudder angle (rad); positive, below pi/2."),
+        Value("rudder_lift", "array", "A main propeller's rudder lift per radian of rudder angle per newton of thrust (1/rad); non-negative."),
+        Value("weight", "array", "Allocation weight of each thruster's squared thrust relative to its largest (1); positive."),
+    ),
+)

@@ -10,8 +10,15 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import StatelessActuator
+from lookout.scenario.declare import Context, Value, component
 
 
+@component(
+    "actuator", "ideal",
+    summary="The plant receives the commanded input unchanged (no limits).",
+    parameters=(
+    ),
+)
 @final
 class IdealActuator(StatelessActuator):
     """The plant receives the commanded input unchanged (no limits)."""
@@ -29,14 +36,22 @@ def _limit_vector(limit, size: int | None):
         array = jnp.asarray(limit, dtype=float)
     if array.ndim == 0:
         if size is None:
-            raise ValueError("limit is a scalar: give size, the number of input entries")
+            raise check.ParameterError("limit", "limit is a scalar: give size, the number of input entries")
         return jnp.broadcast_to(jnp.asarray(array), (size,))
     if array.ndim != 1 or array.shape[0] == 0 or (size is not None and array.shape != (size,)):
         expected = f"({size},)" if size is not None else "(n,) with n >= 1"
-        raise ValueError(f"limit must be a scalar or have shape {expected}; got shape {array.shape}")
+        raise check.ParameterError("limit", f"limit must be a scalar or have shape {expected}; got shape {array.shape}")
     return jnp.asarray(array)
 
 
+@component(
+    "actuator", "thrust-limits",
+    summary="Symmetric magnitude saturation per input entry: applied = clip(u, -limit, limit).",
+    parameters=(
+        Value("limit", "array", "Largest magnitude of each entry, in the units of the plant's input; > 0, inf for an unlimited entry; NaN is rejected.", shape="(n,) or scalar"),
+        Context("size", "n, when limit is a scalar."),
+    ),
+)
 @final
 class SaturatingActuator(StatelessActuator):
     """Symmetric magnitude saturation per input entry: applied = clip(u, -limit, limit).
@@ -67,7 +82,7 @@ class SaturatingActuator(StatelessActuator):
             return
         array = np.asarray(self.limit, dtype=float)
         if np.any(np.isnan(array)) or np.any(array <= 0):
-            raise ValueError(f"limit must be positive (inf for no limit); got {check._fmt(array)}")
+            raise check.ParameterError("limit", f"limit must be positive (inf for no limit); got {check._fmt(array)}")
 
     def _check_shape(self, u: Array) -> None:
         if jnp.shape(u)[-1:] != self.limit.shape:

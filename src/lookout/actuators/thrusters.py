@@ -7,10 +7,13 @@ from typing import Literal, final
 import jax.numpy as jnp
 from jax import Array
 
+from lookout import _validation as check
 from lookout._math import ssa
 from lookout.actuators.allocation import IDLE, Allocator
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.components import Actuator, Layout, Signal
+import math
+from lookout.scenario.declare import NON_NEGATIVE, Part, Range, Value, component
 
 
 def _thruster_signal(name: str, units: str, long_name: str, labels, angle: bool = False) -> Signal:
@@ -41,6 +44,21 @@ def describe_input(layout: Layout) -> str:
     return ", ".join(parts) + more if parts else "no input"
 
 
+@component(
+    "actuator", "thrusters",
+    summary="A vessel's thrusters between the controller's generalized force and the hull.",
+    parameters=(
+        Part("layout", "The thrusters."),
+        Value("allocation", "str", "Allocation method (lookout.actuators.allocation).", choices=('qp', 'pseudo-inverse')),
+        Value("slack_weight", "array", "\"qp\" only: the QP's weight of the unproduced force (surge, sway, yaw) against thrust; positive (default 1e6)."),
+        Value("clip_to_reach", "bool", "Clip each axis of the command to what the thrusters reach on it alone before allocating (lookout.actuators.allocation.Allocator)."),
+        Value("solver", "str", "\"qp\" only: the QP's solver (default \"active-set\"; lookout.actuators.allocation.Allocator).", choices=('active-set', 'qpax')),
+        Value("steering_time_constant", "float", "\"qp\" only: time constant of the low-pass filter on the command whose allocation the azimuths turn toward (s; default 10 s, longer than a DP sea's wave periods; 0 for none).", range=NON_NEGATIVE),
+        Value("steering_deadband", "float", "\"qp\" only: how far an azimuth may point from its filtered direction before it turns (rad; default 10 deg, where it still gives 98.5 % of its thrust along it).", range=Range(0.0, math.pi, True, True)),
+        Value("steering_load", "float", "\"qp\" only: the filtered load (fraction of its largest thrust) below which an azimuth holds its angle (default 0.05).", range=Range(0.0, 1.0, True, True)),
+        Value("steering_bias", "float", "\"qp\" only: thrust (fraction of its largest) each azimuth puts along its layout direction, of which the part that produces no force is kept as a bias: azimuths pointing against each other then answer a small force of either sign with thrust, not a turn (default 0.2; 0 for none).", range=Range(0.0, 1.0, True, False)),
+    ),
+)
 @final
 class ThrusterSystem(Actuator):
     """A vessel's thrusters between the controller's generalized force and the hull.
@@ -105,7 +123,7 @@ class ThrusterSystem(Actuator):
                  solver: Literal["active-set", "qpax"] | None = None, steering_time_constant=None, steering_deadband=None, steering_load=None,
                  steering_bias=None):
         if not isinstance(layout, ThrusterLayout):
-            raise ValueError(f"layout must be a ThrusterLayout; got {type(layout).__name__}")
+            raise check.ParameterError("layout", f"layout must be a ThrusterLayout; got {type(layout).__name__}")
         self.layout = layout
         self.allocator = Allocator(layout, allocation, slack_weight, clip_to_reach, solver, steering_time_constant, steering_deadband, steering_load,
                                    steering_bias)
@@ -211,7 +229,7 @@ class ThrusterSystem(Actuator):
     def step(self, state, t, u: Array, dt):
         """Allocate ``u`` = (X, Y, N), move the thrusters over ``dt``; see the class docstring."""
         if jnp.shape(u) != (3,):
-            raise ValueError(f"thrusters take a 3-DOF vessel's force (surge, sway) and moment (yaw), 3 entries; got an input of shape {jnp.shape(u)}")
+            raise check.ParameterError("thrusters", f"thrusters take a 3-DOF vessel's force (surge, sway) and moment (yaw), 3 entries; got an input of shape {jnp.shape(u)}")
         thrust, angle, previous, working, demand, turning = state
         steered = angle
         if self.allocator.method == "qp":

@@ -76,6 +76,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
+from lookout import _validation as check
 from lookout._json import json_safe as _json_safe
 from lookout.analysis.conditions import TOLERANCE, Condition, Inequality, Report, Verdict, number, numbers
 from lookout.models.vessel import DPVessel
@@ -102,9 +103,9 @@ def _gain_matrix(name: str, value) -> np.ndarray:
     if array.shape == (3,):
         array = np.diag(array)
     if array.shape != (3, 3):
-        raise ValueError(f"{name} must be a scalar, a 3-vector (diagonal) or a 3x3 matrix; got shape {array.shape}")
+        raise check.ParameterError(check.key(name), f"{name} must be a scalar, a 3-vector (diagonal) or a 3x3 matrix; got shape {array.shape}")
     if not np.isfinite(array).all():
-        raise ValueError(f"{name} must be finite; got {array.tolist()}")
+        raise check.ParameterError(check.key(name), f"{name} must be finite; got {array.tolist()}")
     return array
 
 
@@ -122,7 +123,7 @@ def _weights(value) -> np.ndarray:
         d = np.full(6, float(d))
     if d.shape != (6,) or not np.isfinite(d).all() or np.any(d <= 0):
         shown = d.tolist() if d.size <= 6 else f"shape {d.shape}"
-        raise ValueError(f"d must be 6 positive finite values d1..d6 (s); got {shown}")
+        raise check.ParameterError("d", f"d must be 6 positive finite values d1..d6 (s); got {shown}")
     return d
 
 
@@ -131,7 +132,7 @@ def _positive3(name: str, value) -> np.ndarray:
     if array.ndim == 0:
         array = np.full(3, float(array))
     if array.shape != (3,) or not np.isfinite(array).all() or np.any(array <= 0):
-        raise ValueError(f"{name} must be a positive scalar or 3 positive values; got {np.ravel(array).tolist()}")
+        raise check.ParameterError(check.key(name), f"{name} must be a positive scalar or 3 positive values; got {np.ravel(array).tolist()}")
     return array
 
 
@@ -142,16 +143,16 @@ def _unknown(unknown) -> tuple[tuple[str, int, int], ...]:
             name, i, j = item
             i, j = int(i), int(j)
         except (TypeError, ValueError):
-            raise ValueError(f"unknown must be entries (matrix, row, column); got {item!r}") from None
+            raise check.ParameterError("unknown", f"unknown must be entries (matrix, row, column); got {item!r}") from None
         if name not in ("M", "D", "K") or not (0 <= i < 3 and 0 <= j < 3):
-            raise ValueError(f"unknown entries must be ('M'|'D'|'K', row 0..2, column 0..2); got {item!r}")
+            raise check.ParameterError("unknown", f"unknown entries must be ('M'|'D'|'K', row 0..2, column 0..2); got {item!r}")
         out.append((name, i, j))
     return tuple(out)
 
 
 def _model(vessel: DPVessel) -> dict[str, np.ndarray]:
     if not isinstance(vessel, DPVessel):
-        raise ValueError(f"vessel must be a DPVessel; got {type(vessel).__name__}")
+        raise check.ParameterError("vessel", f"vessel must be a DPVessel; got {type(vessel).__name__}")
     return {
         "M": np.array(vessel.mass_matrix, dtype=float),
         "D": np.array(vessel.damping_matrix, dtype=float),
@@ -182,16 +183,16 @@ def _vertices(vessel: DPVessel, theta_bounds, unknown) -> tuple[list[tuple[np.nd
     if box.shape == (2,) and len(unknown) == 1:
         box = box[None, :]
     if box.shape != (len(unknown), 2) or not np.isfinite(box).all() or np.any(box[:, 0] > box[:, 1]):
-        raise ValueError(
-            f"theta_bounds must be [lower, upper] per unknown entry ({len(unknown)}), finite, "
+        raise check.ParameterError(
+            "theta_bounds", f"theta_bounds must be [lower, upper] per unknown entry ({len(unknown)}), finite, "
             f"lower <= upper; got {np.asarray(theta_bounds).tolist()}"
         )
     outside = [(_entry_name(e), t) for e, t, (lo, hi) in zip(unknown, true, box) if not lo <= t <= hi]
     if outside:
         names = ", ".join(f"{n} = {t:.6g}" for n, t in outside)
-        raise ValueError(f"theta_bounds must contain the vessel's (true) value: {names} is outside")
+        raise check.ParameterError("theta_bounds", f"theta_bounds must contain the vessel's (true) value: {names} is outside")
     if len(unknown) > 12:
-        raise ValueError(f"theta_bounds: at most 12 unknown entries (2^n vertices); got {len(unknown)}")
+        raise check.ParameterError("theta_bounds", f"theta_bounds: at most 12 unknown entries (2^n vertices); got {len(unknown)}")
     out = []
     for corner in itertools.product(*box):
         theta = np.array(corner, dtype=float)
@@ -200,8 +201,8 @@ def _vertices(vessel: DPVessel, theta_bounds, unknown) -> tuple[list[tuple[np.nd
             _set(matrices, entry, value)
         smallest = float(np.linalg.eigvalsh(_sym(matrices["M"]))[0])
         if not smallest > 0:
-            raise ValueError(
-                f"theta_bounds: M is not positive definite at theta = {theta.tolist()} "
+            raise check.ParameterError(
+                "theta_bounds", f"theta_bounds: M is not positive definite at theta = {theta.tolist()} "
                 f"(lambda_min {smallest:.3g}); narrow the bounds"
             )
         out.append((theta, matrices))
@@ -348,8 +349,8 @@ def _observer_quantities(vessel, K2, theta_bounds, unknown, d_min) -> dict[str, 
     if d_min is not None:
         d_min = float(d_min)
         if not (math.isfinite(d_min) and d_min <= damping + TOLERANCE * abs(damping)):
-            raise ValueError(
-                f"d_min must be finite and <= lambda_min(sym D) = {damping:.6g} kg/s (the proof "
+            raise check.ParameterError(
+                "d_min", f"d_min must be finite and <= lambda_min(sym D) = {damping:.6g} kg/s (the proof "
                 f"uses nu~'D nu~ >= D_min |nu~|^2); got {d_min!r}"
             )
         damping = d_min
@@ -523,9 +524,9 @@ def noise_drift_rate(*, K1, K2, d, gamma: float, noise_std: float, interval: flo
     C1, C2 = _positive3("C1", C1), _positive3("C2", C2)
     for name, value in (("gamma", gamma), ("noise_std", noise_std)):
         if not (math.isfinite(value) and value >= 0):
-            raise ValueError(f"{name} must be finite and >= 0; got {value!r}")
+            raise check.ParameterError(check.key(name), f"{name} must be finite and >= 0; got {value!r}")
     if not (math.isfinite(interval) and interval > 0):
-        raise ValueError(f"interval must be finite and > 0 (s); got {interval!r}")
+        raise check.ParameterError("interval", f"interval must be finite and > 0 (s); got {interval!r}")
     D1 = d[:3] * np.sum(K1**2, axis=1)
     omega1_u = np.sum(((C1 + D1)[0] * K1[0]) ** 2)
     D2_u = d[3] * (omega1_u + np.sum(K2[0] ** 2))  # row 1 of Omega2 = J (T(0) + K2) at psi = 0, rest
@@ -647,7 +648,7 @@ def loop_rates(K1, K2, d, *, C1=0.1, C2=0.1, coupling_gain=1.0, speed=0.5) -> di
     C1, C2 = _positive3("C1", C1), _positive3("C2", C2)
     P1 = _positive3("coupling_gain", coupling_gain)
     if not (math.isfinite(speed) and speed >= 0):
-        raise ValueError(f"speed must be finite and >= 0 (m/s); got {speed!r}")
+        raise check.ParameterError("speed", f"speed must be finite and >= 0 (m/s); got {speed!r}")
     return _rates(K1, K2, d, C1, C2, P1, float(speed))
 
 
@@ -856,11 +857,11 @@ def satisfying_gains(
     P1 = _positive3("coupling_gain", coupling_gain)
     for name, value in (("step", step), ("max_step_gain", max_step_gain)):
         if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be positive and finite; got {value!r}")
+            raise check.ParameterError(check.key(name), f"{name} must be positive and finite; got {value!r}")
     if not (math.isfinite(speed) and speed >= 0):
-        raise ValueError(f"speed must be finite and >= 0 (m/s); got {speed!r}")
+        raise check.ParameterError("speed", f"speed must be finite and >= 0 (m/s); got {speed!r}")
     if not (math.isfinite(margin) and margin >= 1):
-        raise ValueError(f"margin must be >= 1; got {margin!r}")
+        raise check.ParameterError("margin", f"margin must be >= 1; got {margin!r}")
     q = _observer_quantities(vessel, K2m, theta_bounds, unknown, None)
     sigma1_0 = float(np.linalg.eigvalsh(_sym(K1m))[0])
     k = (1.0 + q["stiffness_max"]) ** 2 / 4.0
@@ -1002,7 +1003,7 @@ def satisfying_gains(
         chosen = min(satisfied, key=lambda r: r.step_gain)
         reason = f"no route is usable at {speed:g} m/s; {chosen.name} has the smallest step x rate ({chosen.step_gain:.3g})"
     else:
-        raise ValueError("no gain route satisfies (57)-(58) for this vessel and K2 (check (22) and (58))")
+        raise check.ParameterError("no", "no gain route satisfies (57)-(58) for this vessel and K2 (check (22) and (58))")
     report = check(chosen.K1, chosen.d)
     return GainProposal(chosen.K1, K2m, chosen.d, chosen.name, reason, report, [given] + routes, design)
 

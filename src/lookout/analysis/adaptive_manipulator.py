@@ -88,7 +88,7 @@ def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_s
         x_error, theta_error = initial_error
         norm = float(np.linalg.norm(np.concatenate([np.atleast_1d(np.asarray(x_error, dtype=float)), np.atleast_1d(np.asarray(theta_error, dtype=float))])))
         if not math.isfinite(norm):
-            raise ValueError(f"initial_error must be finite; got {initial_error!r}")
+            raise check.ParameterError("initial_error", f"initial_error must be finite; got {initial_error!r}")
         inequalities.append(Inequality.check("(4.b)", "sqrt(p_l/p_u) ((sigma - beta)/C_M - w_max) > ||e(0)||", radius, ">", norm,
                                              units="mixed", source=source))
         quantities["initial_error_norm"] = norm
@@ -110,7 +110,7 @@ def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: f
     check.positive("max_speed", max_speed, allow_zero=True)
     error = float(np.linalg.norm(np.atleast_1d(np.asarray(initial_error, dtype=float))))
     if not math.isfinite(error):
-        raise ValueError(f"initial_error must be finite; got {initial_error!r}")
+        raise check.ParameterError("initial_error", f"initial_error must be finite; got {initial_error!r}")
     sigma = injection_bound(parameters, gain)
     c_m = configuration_bounds(model).coriolis_bound
     p = float(np.sum(1.0 / d))

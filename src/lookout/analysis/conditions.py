@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lookout import _validation as check
 from lookout._json import json_safe
 
 #: Relative tolerance within which the two sides of an inequality count as equal.
@@ -171,7 +172,7 @@ class Inequality:
         for a test whose failure does not disprove the condition (a certificate search).
         """
         if comparison not in COMPARISONS:
-            raise ValueError(f"comparison must be one of {', '.join(COMPARISONS)}; got {comparison!r}")
+            raise check.ParameterError("comparison", f"comparison must be one of {', '.join(COMPARISONS)}; got {comparison!r}")
         left, right = float(left), float(right)
         big, small = (left, right) if comparison in (">", ">=") else (right, left)
         with np.errstate(invalid="ignore"):
@@ -278,7 +279,7 @@ class Condition:
         if not self.reason:
             object.__setattr__(self, "reason", _reason(self.verdict, self.inequalities))
         if "\n" in self.reason:
-            raise ValueError(f"a condition's reason is one line; got {self.reason!r}")
+            raise check.ParameterError("a", f"a condition's reason is one line; got {self.reason!r}")
 
     @property
     def verdict(self) -> Verdict:
@@ -345,10 +346,10 @@ class Report:
         object.__setattr__(self, "notes", tuple(self.notes))
         keys = [condition.key for condition in self.conditions]
         if len(set(keys)) != len(keys):
-            raise ValueError(f"condition keys must be unique; got {keys}")
+            raise check.ParameterError("condition", f"condition keys must be unique; got {keys}")
         clash = sorted(set(keys) & RESERVED_KEYS)
         if clash:
-            raise ValueError(f"condition keys must not be a report key ({', '.join(sorted(RESERVED_KEYS))}); got {clash}")
+            raise check.ParameterError("condition", f"condition keys must not be a report key ({', '.join(sorted(RESERVED_KEYS))}); got {clash}")
 
     @property
     def verdict(self) -> Verdict:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from lookout import _validation as check
 from lookout._math import ssa
 
 def estimation_errors(ds: xr.Dataset) -> xr.Dataset:
@@ -96,17 +97,17 @@ def fit_decay_rate(time, magnitude, *, upper: float = 1e-1, lower: float = 1e-9)
     magnitude = np.asarray(magnitude, dtype=float)
     initial = magnitude[0]
     if not initial > 0:
-        raise ValueError("magnitude must start positive to fit a decay rate")
+        raise check.ParameterError("magnitude", "magnitude must start positive to fit a decay rate")
     relative = magnitude / initial
     below_upper = np.nonzero(relative < upper)[0]
     if below_upper.size == 0:
-        raise ValueError(f"magnitude never falls below {upper:g} of its initial value; cannot fit a decay")
+        raise check.ParameterError("magnitude", f"magnitude never falls below {upper:g} of its initial value; cannot fit a decay")
     first = below_upper[0]
     below_lower = np.nonzero(relative < lower)[0]
     last = below_lower[0] if below_lower.size else relative.size
     t, y = time[first:last], np.log(relative[first:last])
     if t.size < 3:
-        raise ValueError("too few samples between the fit bounds to fit a decay rate")
+        raise check.ParameterError("too", "too few samples between the fit bounds to fit a decay rate")
     slope, intercept = np.polyfit(t, y, 1)
     fitted = slope * t + intercept
     r_squared = 1.0 - np.sum((y - fitted) ** 2) / np.sum((y - y.mean()) ** 2)

@@ -25,6 +25,7 @@ import numpy as np
 import scipy.linalg
 import xarray as xr
 
+from lookout import _validation as check
 from lookout.analysis.conditions import Condition, Inequality, Report, Verdict
 from lookout.models.vessel import DOF
 from lookout.observers.passive import PassiveObserver
@@ -166,7 +167,7 @@ def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Datase
         frequencies = default_frequencies(observer, points=2000)
     frequencies = np.asarray(frequencies, dtype=float)
     if frequencies.ndim != 1 or np.any(~np.isfinite(frequencies)) or np.any(frequencies <= 0):
-        raise ValueError("frequencies must be a 1-D array of positive finite values (rad/s)")
+        raise check.ParameterError("frequencies", "frequencies must be a 1-D array of positive finite values (rad/s)")
     responses = transfer_functions(observer, frequencies)
     translation = [index for index, dof in enumerate(DOF) if dof not in ROTATION_DOF]
     (yaw,) = [index for index, dof in enumerate(DOF) if dof in ROTATION_DOF]
@@ -233,7 +234,7 @@ def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10
         ``tuning_rule_48``: three inequalities per DOF (rad/s), named by the DOF.
     """
     if not much_less_factor >= 1:
-        raise ValueError(f"much_less_factor must be >= 1; got {much_less_factor}")
+        raise check.ParameterError("much_less_factor", f"much_less_factor must be >= 1; got {much_less_factor}")
     g = _gains(observer)
     inequalities = []
     much_less = (f"1/T << lambda/kappa, read as {much_less_factor:g}/T <= lambda/kappa", "<=") if much_less_factor > 1 else ("1/T < lambda/kappa", "<")

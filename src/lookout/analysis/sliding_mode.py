@@ -90,7 +90,7 @@ def _parts(observer) -> tuple[PassiveObserver, np.ndarray, np.ndarray]:
         return observer.passive, np.asarray(observer.switching_gain, float), np.asarray(observer.boundary_layer, float)
     if isinstance(observer, PassiveObserver):
         return observer, np.zeros(3), np.ones(3)
-    raise ValueError(f"observer must be a SlidingModeObserver or a PassiveObserver; got {type(observer).__name__}")
+    raise check.ParameterError("observer", f"observer must be a SlidingModeObserver or a PassiveObserver; got {type(observer).__name__}")
 
 
 def _rotation(heading: float) -> np.ndarray:
@@ -102,16 +102,16 @@ def _model(passive: PassiveObserver, vessel: DPVessel) -> tuple[np.ndarray, np.n
     """M, D of ``vessel``, which must be the observer's model (F&S A1–A4)."""
     M, D = np.asarray(vessel.mass_matrix, float), np.asarray(vessel.damping_matrix, float)
     if np.any(np.asarray(vessel.stiffness_matrix) != 0):
-        raise ValueError(
-            "the vessel has a mooring stiffness K, which the observer's model lacks: the error "
+        raise check.ParameterError(
+            "the", "the vessel has a mooring stiffness K, which the observer's model lacks: the error "
             "dynamics are then not a linear system in the error alone"
         )
     if not (
         np.allclose(M, np.asarray(passive.mass_matrix), rtol=1e-12, atol=0.0)
         and np.allclose(D, np.asarray(passive.damping_matrix), rtol=1e-12, atol=1e-12 * np.abs(D).max())
     ):
-        raise ValueError(
-            "the observer's model M, D differs from the vessel's: the error dynamics are then not "
+        raise check.ParameterError(
+            "the", "the observer's model M, D differs from the vessel's: the error dynamics are then not "
             "a linear system in the error alone (they depend on the true state); build the observer "
             "for this vessel"
         )
@@ -273,7 +273,7 @@ def eigenvalue_report(matrix, *, heading: float = 0.0, relative_tolerance: float
     matrix = np.asarray(matrix, float)
     n = matrix.shape[0]
     if matrix.shape != (n, n) or not np.isfinite(matrix).all():
-        raise ValueError(f"matrix must be square and finite; got shape {matrix.shape}")
+        raise check.ParameterError("matrix", f"matrix must be square and finite; got shape {matrix.shape}")
     scale = _axis_scaling(matrix)
     scaled = matrix / scale[None, :] * scale[:, None]
     if n == 15:
@@ -392,11 +392,12 @@ def _loop_numbers(passive: PassiveObserver) -> tuple:
 _REFUSALS: dict[tuple, str] = {}
 
 
-def _refusal(passive: PassiveObserver) -> str:
-    """The one-line refusal of :func:`require_kyp_14` for these gains ("" when (14) holds)."""
+def _refusal(passive: PassiveObserver) -> tuple[str, str]:
+    """The parameter to change and the one-line refusal of :func:`require_kyp_14` for
+    these gains (("", "") when (14) holds)."""
     condition = kyp_14(passive)
     if condition.holds:
-        return ""
+        return "", ""
     per_dof = condition.quantities["per_dof"]
     dof, numbers_of_dof = next((d, q) for d, q in per_dof.items() if q["verdict"] != Verdict.HOLDS)
     index = DOF.index(dof)
@@ -416,7 +417,7 @@ def _refusal(passive: PassiveObserver) -> str:
         lag_filter = float(np.degrees(np.angle(response["h0"][0, index])))
         parameter, advice = ("bias_injection_gain", "smaller") if lag_bias < lag_filter else ("cutoff_frequency", "larger")
         why = f"at w = {number(w, 4)} rad/s hB lags {lag_bias:.1f} deg and h0 {lag_filter:.1f} deg"
-    return f"{parameter} must be {advice}: the gains violate Kim (2002)'s (14) ({dof}: {numbers_of_dof['reason']}; {why})"
+    return parameter, f"{parameter} must be {advice}: the gains violate Kim (2002)'s (14) ({dof}: {numbers_of_dof['reason']}; {why})"
 
 
 def require_kyp_14(observer) -> None:
@@ -437,7 +438,7 @@ def require_kyp_14(observer) -> None:
 
     passive = observer.passive if _is_sliding_mode(observer) else observer
     if not isinstance(passive, PassiveObserver):
-        raise ValueError(f"observer must be a SlidingModeObserver or a PassiveObserver; got {type(observer).__name__}")
+        raise check.ParameterError("observer", f"observer must be a SlidingModeObserver or a PassiveObserver; got {type(observer).__name__}")
     if not all(check.is_concrete(leaf) for leaf in jax.tree_util.tree_leaves(passive)):
         return  # built under jit or vmap: checked where the gains are concrete
     key = _loop_numbers(passive)
@@ -445,9 +446,9 @@ def require_kyp_14(observer) -> None:
         if len(_REFUSALS) >= 256:
             _REFUSALS.clear()
         _REFUSALS[key] = _refusal(passive)
-    refusal = _REFUSALS[key]
+    parameter, refusal = _REFUSALS[key]
     if refusal:
-        raise ValueError(refusal)
+        raise check.ParameterError(parameter, refusal)
 
 
 # -- (17): the switching gain a bounded disturbance requires ------------------------
@@ -532,7 +533,7 @@ def peak_to_peak_gains(
             start = step @ block[-1]
         return total * dt  # the end point's weight is below e^-decay_lengths
     if method != "quad":
-        raise ValueError(f"method must be 'quad' or 'sum'; got {method!r}")
+        raise check.ParameterError("method", f"method must be 'quad' or 'sum'; got {method!r}")
     grid = np.concatenate([[0.0], np.geomspace(1e-3 / fast, horizon, 4000)])
     values = g(grid)
     negligible = 1e-13 * np.abs(values).max()
@@ -632,7 +633,7 @@ def switching_gain_required(vessel: DPVessel, disturbance_bound, *, observer=Non
     if bound.shape == ():
         bound = np.full(3, float(bound))
     if bound.shape != (3,) or not np.isfinite(bound).all() or np.any(bound < 0):
-        raise ValueError(f"disturbance_bound must be 3 finite values >= 0 (N, N, N m); got {disturbance_bound!r}")
+        raise check.ParameterError("disturbance_bound", f"disturbance_bound must be 3 finite values >= 0 (N, N, N m); got {disturbance_bound!r}")
     gains = peak_to_peak_gains(vessel.mass_matrix, vessel.damping_matrix)
     velocity, required = _required(gains, bound)
     quantities = {

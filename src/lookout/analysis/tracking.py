@@ -135,7 +135,7 @@ def _controller(constants: dict, natural_frequency, damping_ratio) -> dict:
     w = np.asarray(natural_frequency, dtype=float) * np.ones(3)
     lam = np.asarray(damping_ratio, dtype=float) * np.ones(3)
     if not (np.all(np.isfinite(w)) and np.all(w > 0) and np.all(np.isfinite(lam)) and np.all(lam > 0)):
-        raise ValueError(f"natural_frequency and damping_ratio must be finite and positive; got {w.tolist()}, {lam.tolist()}")
+        raise check.ParameterError("natural_frequency", f"natural_frequency and damping_ratio must be finite and positive; got {w.tolist()}, {lam.tolist()}")
     P = controller_p_matrix(w, lam)
     eigenvalues = np.linalg.eigvalsh(P)
     M, D = constants["M"], constants["D"]
@@ -249,15 +249,15 @@ def check_wondergem_2009(
     for name, value in (("yaw_rate_max", yaw_rate_max), ("velocity_bound", velocity_bound),
                         ("reference_speed_max", reference_speed_max), ("reference_acceleration_max", reference_acceleration_max)):
         if value is not None and not (math.isfinite(value) and value >= 0):
-            raise ValueError(f"{name} must be finite and >= 0; got {value!r}")
+            raise check.ParameterError(check.key(name), f"{name} must be finite and >= 0; got {value!r}")
     if (reference_speed_max is None) != (reference_acceleration_max is None):
-        raise ValueError("reference_speed_max and reference_acceleration_max must be given together (Prop. 3.3 needs both)")
+        raise check.ParameterError("reference_speed_max", "reference_speed_max and reference_acceleration_max must be given together (Prop. 3.3 needs both)")
     if epsilon3 is not None and not (math.isfinite(epsilon3) and epsilon3 > 0):
-        raise ValueError(f"epsilon3 must be finite and positive; got {epsilon3!r}")
+        raise check.ParameterError("epsilon3", f"epsilon3 must be finite and positive; got {epsilon3!r}")
     L1 = np.asarray(observer_gains[0], dtype=float) * np.ones(3)
     L2 = np.asarray(observer_gains[1], dtype=float) * np.ones(3)
     if np.any(L1 <= 0) or np.any(L2 <= 0) or not np.all(np.isfinite(np.concatenate([L1, L2]))):
-        raise ValueError(f"observer_gains must be finite and positive; got L1 = {L1.tolist()}, L2 = {L2.tolist()}")
+        raise check.ParameterError("observer_gains", f"observer_gains must be finite and positive; got L1 = {L1.tolist()}, L2 = {L2.tolist()}")
     constants = _constants(ship)
     controller = _controller(constants, natural_frequency, damping_ratio)
     start = _start(eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_velocity0)
@@ -415,13 +415,13 @@ def propose_wondergem_2009(
     or grow past 1e12 / ``max_iterations`` (not found). With eta_hat0 = eta0 (eta is
     measured) the second pass confirms the first."""
     if not (math.isfinite(margin) and margin > 1.0):
-        raise ValueError(f"margin must be finite and > 1; got {margin!r}")
+        raise check.ParameterError("margin", f"margin must be finite and > 1; got {margin!r}")
     for name, value in (("yaw_rate_max", yaw_rate_max), ("reference_speed_max", reference_speed_max),
                         ("reference_acceleration_max", reference_acceleration_max), ("velocity_bound", velocity_bound)):
         if not (math.isfinite(value) and value >= 0):
-            raise ValueError(f"{name} must be finite and >= 0; got {value!r}")
+            raise check.ParameterError(check.key(name), f"{name} must be finite and >= 0; got {value!r}")
     if not (math.isfinite(damping_ratio) and damping_ratio > 0):
-        raise ValueError(f"damping_ratio must be finite and positive; got {damping_ratio!r}")
+        raise check.ParameterError("damping_ratio", f"damping_ratio must be finite and positive; got {damping_ratio!r}")
     constants = _constants(ship)
     start = _start(eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_velocity0)
     grid = np.geomspace(0.05, 100.0, 765)  # 1 % steps
@@ -474,7 +474,7 @@ def _bound(name: str, value, *, low: float = 0.0, strict: bool = False) -> float
     """``value`` as a finite float >= ``low`` (> ``low`` with ``strict``), or a ValueError naming ``name``."""
     number = float(value)
     if not (math.isfinite(number) and (number > low if strict else number >= low)):
-        raise ValueError(f"{name} must be finite and {'>' if strict else '>='} {low:g}; got {value!r}")
+        raise check.ParameterError(check.key(name), f"{name} must be finite and {'>' if strict else '>='} {low:g}; got {value!r}")
     return number
 
 
@@ -583,12 +583,12 @@ def wondergem_2009_gains(
     estimate_error = math.sqrt(_start(*start)["eta_tilde0_sq"])
     if estimate_error > 0:
         L1, L2 = proposal.observer_gains
-        raise ValueError(
-            f"estimate_position is too far from the measurement for {PAPER}'s procedure: with ||eta_hat(0) - eta(0)|| = "
+        raise check.ParameterError(
+            "estimate_position", f"estimate_position is too far from the measurement for {PAPER}'s procedure: with ||eta_hat(0) - eta(0)|| = "
             f"{estimate_error:.3g} (m and rad in one norm) V0 (28) grows with L1 and L2 and their fixed point runs away "
             f"(L1 = {L1:.3g}, L2 = {L2:.3g} after {proposal.iterations} iterations); leave it out to start the estimate at the measurement"
         )
-    raise ValueError(f"start_position is too far from the reference for {PAPER}'s procedure: {proposal.reason}")
+    raise check.ParameterError("start_position", f"start_position is too far from the reference for {PAPER}'s procedure: {proposal.reason}")
 
 
 __all__ = [

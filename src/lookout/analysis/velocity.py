@@ -94,9 +94,9 @@ def configuration_angles(model: ManipulatorModel) -> tuple[int, ...]:
 def _grid(model: ManipulatorModel, angles: tuple[int, ...], grid_points: int) -> np.ndarray:
     """Configurations: the given angles on a grid over [-pi, pi), the others 0."""
     if not (isinstance(grid_points, int) and grid_points >= 2):
-        raise ValueError(f"grid_points must be an integer >= 2; got {grid_points!r}")
+        raise check.ParameterError("grid_points", f"grid_points must be an integer >= 2; got {grid_points!r}")
     if grid_points ** len(angles) > 2_000_000:
-        raise ValueError(f"a grid of {grid_points}^{len(angles)} configurations is too large; lower grid_points")
+        raise check.ParameterError("a", f"a grid of {grid_points}^{len(angles)} configurations is too large; lower grid_points")
     axis = -np.pi + 2.0 * np.pi * np.arange(grid_points) / grid_points
     mesh = np.meshgrid(*([axis] * len(angles)), indexing="ij")
     q = np.zeros((grid_points ** len(angles), model.size))

@@ -36,8 +36,20 @@ from lookout.components import Controller, Layout
 from lookout.models.manipulators import JOINT_POSITION, joint_layout
 from lookout.models.parameters import AffineParameters
 from lookout.observers.adaptive_manipulator import estimate_names, read_estimate
+from lookout.scenario.declare import POSITIVE, Part, Value, component
 
 
+@component(
+    "controller", "adaptive-backstepping",
+    summary="Calugi (2002) ch. 5: the control law (5.9) on the adaptive observer's estimates.",
+    parameters=(
+        Part("parameters", "The model and its unknowns, as the observer's."),
+        Value("observer_gain", "array", "K of the observer (1/s), for Omega (5.11).", shape="(n,)", range=POSITIVE),
+        Value("position_gain", "array", "C1 of (5.9) (1/s).", shape="(n,)", range=POSITIVE),
+        Value("velocity_gain", "array", "C2 of (5.9) (1/s).", shape="(n,)", range=POSITIVE),
+        Value("damping_weights", "array", "d_1..d_2n: D1 = diag(d_1..d_n) (1/s) and D2 = diag(d_{n+i} |omega_i|^2) of (5.12).", shape="(2n,)", range=POSITIVE),
+    ),
+)
 @final
 class AdaptiveObserverBackstepping(Controller):
     """Calugi (2002) ch. 5: the control law (5.9) on the adaptive observer's estimates.
@@ -71,7 +83,7 @@ class AdaptiveObserverBackstepping(Controller):
 
     def __init__(self, parameters: AffineParameters, observer_gain, position_gain, velocity_gain, damping_weights):
         if not isinstance(parameters, AffineParameters):
-            raise ValueError(f"parameters must be an AffineParameters; got {type(parameters).__name__}")
+            raise check.ParameterError("parameters", f"parameters must be an AffineParameters; got {type(parameters).__name__}")
         model = parameters.model(parameters.reference)
         n = model.size
         self.parameters = parameters

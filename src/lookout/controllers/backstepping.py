@@ -75,6 +75,7 @@ from lookout._math import rotate, rotate_transpose, rotation, ssa
 from lookout.components import Controller
 from lookout.observers.adaptive_dp import AdaptiveObserver
 from lookout.observers.wave_filtering import WaveFilteringObserver
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component
 
 #: The estimate a DP controller reads: eta_hat and nu_hat.
 VESSEL_ESTIMATE = ("position", "heading", "velocity", "yaw_rate")
@@ -88,6 +89,19 @@ def _vector(estimate: dict, name: str) -> Array:
     return jnp.concatenate([jnp.asarray(estimate[first]), jnp.asarray(estimate[second])[None]])
 
 
+@component(
+    "controller", "observer-backstepping",
+    summary="Kim (2002) observer backstepping with integral action, eqs. (18)–(26).",
+    build="for_observer",
+    parameters=(
+        Part("observer", "The observer whose estimate the controller uses (in a composition, its observer)."),
+        Value("integral_gain", "array", "K_I (1/s).", shape="(3,)", range=NON_NEGATIVE),
+        Value("position_gain", "array", "C1 (1/s).", shape="(3,)", range=POSITIVE),
+        Value("velocity_gain", "array", "C2 (1/s).", shape="(3,)", range=POSITIVE),
+        Value("damping_weights", "array", "d1..d6 of the nonlinear damping D1 (d1..d3) and D2 (d4..d6) (s).", shape="(6,)", range=NON_NEGATIVE),
+        Value("coupling_gain", "array", "P1 (1/s^2), the weight of z1 in V_con; 1 is Kim's law as printed.", shape="(3,)", range=POSITIVE),
+    ),
+)
 @final
 class ObserverBackstepping(Controller):
     """Kim (2002) observer backstepping with integral action, eqs. (18)–(26).
@@ -192,7 +206,7 @@ class ObserverBackstepping(Controller):
             P1 (1/s^2), the weight of z1 in V_con; 1 is Kim's law as printed.
         """
         if not isinstance(observer, WaveFilteringObserver):
-            raise ValueError(f"observer must be a wave-filtering observer (passive, sliding-mode); got {type(observer).__name__}")
+            raise check.ParameterError("observer", f"observer must be a wave-filtering observer (passive, sliding-mode); got {type(observer).__name__}")
         gains = observer.wave_filter_gains()
         return cls(
             gains.mass_matrix,
@@ -298,6 +312,18 @@ class ObserverBackstepping(Controller):
         }
 
 
+@component(
+    "controller", "vectorial-backstepping",
+    summary="Calugi, Robertsson & Johansson (2003) vectorial observer backstepping, eqs. (24)–(40), with M_hat, D_hat, K_hat from the current parameter estimate theta_hat (Remark 3).",
+    build="for_observer",
+    parameters=(
+        Part("observer", "The observer whose estimate (and theta_hat) the controller uses."),
+        Value("position_gain", "array", "C1 (1/s).", shape="(3,)", range=POSITIVE),
+        Value("velocity_gain", "array", "C2 (1/s).", shape="(3,)", range=POSITIVE),
+        Value("damping_weights", "array", "d1..d6 (s).", shape="(6,)", range=POSITIVE),
+        Value("coupling_gain", "array", "P1 (1/s^2), 1 as printed.", shape="(3,)", range=POSITIVE),
+    ),
+)
 @final
 class VectorialBackstepping(Controller):
     """Calugi, Robertsson & Johansson (2003) vectorial observer backstepping, eqs. (24)–(40),
@@ -387,7 +413,7 @@ class VectorialBackstepping(Controller):
             P1 (1/s^2), 1 as printed.
         """
         if not isinstance(observer, AdaptiveObserver):
-            raise ValueError(f"observer must be an AdaptiveObserver; got {type(observer).__name__}")
+            raise check.ParameterError("observer", f"observer must be an AdaptiveObserver; got {type(observer).__name__}")
         return cls(
             observer.parametrization,
             observer_position_gain=observer.position_gain,

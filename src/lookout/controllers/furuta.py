@@ -41,6 +41,7 @@ from lookout._math import matvec
 from lookout.components import Controller
 from lookout.models.parameters import AffineParameters
 from lookout.observers.adaptive_manipulator import estimate_names, read_estimate
+from lookout.scenario.declare import POSITIVE, Part, Value, component
 
 #: The reference signal the controller reads: ``<name>_desired`` (rad), ``_rate``, ``_acceleration``.
 PENDULUM_REFERENCE = "pendulum_angle"
@@ -49,10 +50,21 @@ PENDULUM_REFERENCE = "pendulum_angle"
 def _gain(name: str, value) -> Array:
     array = jnp.asarray(value, dtype=float)
     if array.ndim != 0:
-        raise ValueError(f"{name} must be a scalar; got shape {array.shape}")
+        raise check.ParameterError(check.key(name), f"{name} must be a scalar; got shape {array.shape}")
     return array
 
 
+@component(
+    "controller", "furuta-backstepping",
+    summary="Calugi (2002) ch. 6: the pendulum-angle law (6.9)–(6.11) on the observer's estimates.",
+    parameters=(
+        Part("parameters", "The model (a lookout.models.furuta.FurutaConstants) and its unknowns, as the observer's."),
+        Value("position_gain", "float", "c1 of (6.6) (1/s); the thesis's 10.", range=POSITIVE),
+        Value("position_damping", "float", "d1 of (6.6) (1/s); the thesis's 1.", range=POSITIVE),
+        Value("velocity_gain", "float", "c2 of (6.9)–(6.11) (1/s); the thesis's 10.", range=POSITIVE),
+        Value("velocity_damping", "float", "d2 of (6.9)–(6.11) (1/s); the thesis's 2 in experiment I, 1 in II–IV.", range=POSITIVE),
+    ),
+)
 @final
 class FurutaPendulumBackstepping(Controller):
     """Calugi (2002) ch. 6: the pendulum-angle law (6.9)–(6.11) on the observer's estimates.
@@ -88,10 +100,10 @@ class FurutaPendulumBackstepping(Controller):
 
     def __init__(self, parameters: AffineParameters, position_gain, position_damping, velocity_gain, velocity_damping):
         if not isinstance(parameters, AffineParameters):
-            raise ValueError(f"parameters must be an AffineParameters; got {type(parameters).__name__}")
+            raise check.ParameterError("parameters", f"parameters must be an AffineParameters; got {type(parameters).__name__}")
         model = parameters.model(parameters.reference)
         if model.size != 2:
-            raise ValueError(f"parameters must describe a two-joint (arm, pendulum) model; got {model.size} joints")
+            raise check.ParameterError("parameters", f"parameters must describe a two-joint (arm, pendulum) model; got {model.size} joints")
         self.parameters = parameters
         self.position_gain = _gain("position_gain c1", position_gain)
         self.position_damping = _gain("position_damping d1", position_damping)

@@ -10,8 +10,20 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import Controller
+from lookout.scenario.declare import Context, Value, component
 
 
+@component(
+    "controller", "sinusoidal",
+    summary="u_i(t) = offset_i + amplitude_i sin(frequency_i t + phase_i), held over each sample.",
+    parameters=(
+        Value("amplitude", "array", "In the units of the plant's input.", shape="(n,) or scalar"),
+        Value("frequency", "array", "rad/s, >= 0; broadcast to n."),
+        Value("phase", "array", "rad; broadcast to n."),
+        Value("offset", "array", "Constant part; broadcast to n."),
+        Context("size", "n, when every argument is a scalar (default: the longest argument's length)."),
+    ),
+)
 @final
 class SinusoidalInput(Controller):
     """u_i(t) = offset_i + amplitude_i sin(frequency_i t + phase_i), held over each sample.
@@ -72,6 +84,13 @@ class SinusoidalInput(Controller):
         return control_state, self.offset + self.amplitude * jnp.sin(self.frequency * t + self.phase)
 
 
+@component(
+    "controller", "none",
+    summary="A zero input of size entries: the plant runs unforced.",
+    parameters=(
+        Context("size", "Length of the plant's input vector."),
+    ),
+)
 @final
 class NoControl(Controller):
     """A zero input of ``size`` entries: the plant runs unforced.

@@ -13,8 +13,18 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Value, component
 
 
+@component(
+    "bias", "gauss-markov",
+    summary="Earth-fixed bias forces and moment b = [X, Y, N] driven by white noise.",
+    build="from_stationary_std",
+    parameters=(
+        Value("time_constant", "array", "Time constants T_i (s) of eq. (7).", shape="(3,)", range=POSITIVE),
+        Value("std", "array", "Stationary standard deviation (N, N, N m).", shape="(3,)", range=NON_NEGATIVE),
+    ),
+)
 class GaussMarkovBias(eqx.Module):
     """Earth-fixed bias forces and moment b = [X, Y, N] driven by white noise.
 

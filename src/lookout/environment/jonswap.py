@@ -129,6 +129,7 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout._math import sincos
+from lookout.scenario.declare import NON_NEGATIVE, Value, component
 
 #: T1 / Tp (Fossen 2011, eq. 8.58): T1 is the mean period of the gamma = 3.3 spectrum; the
 #: period parameter puts the peak at wp = 2 pi 0.834 / T1 for every gamma.
@@ -237,7 +238,7 @@ def spectral_moment(n, significant_height, mean_period, peak_enhancement=3.3):
     from scipy.integrate import quad
 
     if not n < 4:
-        raise ValueError(f"spectral_moment n must be < 4 (m_n diverges for n >= 4); got {n}")
+        raise check.ParameterError("spectral_moment", f"spectral_moment n must be < 4 (m_n diverges for n >= 4); got {n}")
     hs, t1, gamma = float(significant_height), float(mean_period), float(peak_enhancement)
     wp = peak_frequency(t1)
 
@@ -256,24 +257,24 @@ def _scalar(name: str, value) -> Array:
     if check.is_concrete(value):
         array = np.asarray(value, dtype=float)
         if array.ndim != 0:
-            raise ValueError(f"{name} must be a scalar; got shape {array.shape}")
+            raise check.ParameterError(check.key(name), f"{name} must be a scalar; got shape {array.shape}")
         check.finite(name, array)
     else:
         array = jnp.asarray(value, dtype=float)
         if array.ndim != 0:
-            raise ValueError(f"{name} must be a scalar; got shape {array.shape}")
+            raise check.ParameterError(check.key(name), f"{name} must be a scalar; got shape {array.shape}")
     return array
 
 
 def _components(value) -> int:
     if isinstance(value, bool):
-        raise ValueError(f"jonswap components must be an integer >= 1; got {value!r}")
+        raise check.ParameterError("jonswap", f"jonswap components must be an integer >= 1; got {value!r}")
     try:
         count = operator.index(value)
     except TypeError:
-        raise ValueError(f"jonswap components must be an integer >= 1; got {value!r}") from None
+        raise check.ParameterError("jonswap", f"jonswap components must be an integer >= 1; got {value!r}") from None
     if count < 1:
-        raise ValueError(f"jonswap components must be an integer >= 1; got {count}")
+        raise check.ParameterError("jonswap", f"jonswap components must be an integer >= 1; got {count}")
     return count
 
 
@@ -297,6 +298,21 @@ def _components_at(xp, frequencies, significant_height, mean_period, peak_enhanc
     return frequencies, amplitudes, wavenumbers, hull_gains
 
 
+@component(
+    "waves", "jonswap",
+    summary="Long-crested JONSWAP waves: surface elevation and first-order motion of a small hull.",
+    parameters=(
+        Value("significant_height", "float", "Hs (m), >= 0 (0: no waves)."),
+        Value("mean_period", "float", "T1 (s), > 0, the spectrum's period parameter: the peak period is T1 / 0.834 for every gamma; T1 is the mean period 2 pi m0 / m1 near gamma = 3.3 only (module docstring)."),
+        Value("peak_enhancement", "float", "gamma, >= 1."),
+        Value("direction", "float", "chi (rad): the waves travel along (cos chi, sin chi) in the Earth frame (x north, y east)."),
+        Value("components", "int", "Number of frequency components N (static), >= 1."),
+        Value("band", "array", "(w_lo, w_hi) in rad/s, 0 < w_lo < w_hi; default (0.5 wp, 3 wp).", shape="(2,)"),
+        Value("hull_length", "float", "L (m), the length of the hull the waves move, for the averaging gain |sinc(k L / 2)| (0: no averaging); no default, since it is the vessel's (Cybership II's is 1.255 m, lookout.models.cybership.CYBERSHIP_LENGTH).", range=NON_NEGATIVE),
+        Value("yaw_gain", "float", "Yaw motion per unit hull-averaged wave slope (rad), >= 0."),
+        Value("gravity", "float", "g (m/s^2), > 0."),
+    ),
+)
 @final
 class JonswapWaves(eqx.Module):
     """Long-crested JONSWAP waves: surface elevation and first-order motion of a small hull.
@@ -375,7 +391,7 @@ class JonswapWaves(eqx.Module):
         check.positive("jonswap significant_height", hs, allow_zero=True)
         check.positive("jonswap mean_period", t1)
         if check.is_concrete(gamma) and not float(gamma) >= 1.0:
-            raise ValueError(f"jonswap peak_enhancement must be >= 1; got {float(gamma)}")
+            raise check.ParameterError("jonswap", f"jonswap peak_enhancement must be >= 1; got {float(gamma)}")
         check.positive("jonswap hull_length", length, allow_zero=True)
         check.positive("jonswap yaw_gain", gain, allow_zero=True)
         check.positive("jonswap gravity", g)
@@ -386,14 +402,14 @@ class JonswapWaves(eqx.Module):
         if check.is_concrete(band):
             band = np.asarray(band, dtype=float)
             if band.shape != (2,):
-                raise ValueError(f"jonswap band must be a pair (low, high) in rad/s; got shape {band.shape}")
+                raise check.ParameterError("jonswap", f"jonswap band must be a pair (low, high) in rad/s; got shape {band.shape}")
             check.finite("jonswap band", band)
             if not 0.0 < band[0] < band[1]:
-                raise ValueError(f"jonswap band must satisfy 0 < low < high; got {band.tolist()}")
+                raise check.ParameterError("jonswap", f"jonswap band must satisfy 0 < low < high; got {band.tolist()}")
         else:
             band = jnp.asarray(band, dtype=float)  # a traced band, or a default built from a traced T1
             if band.shape != (2,):
-                raise ValueError(f"jonswap band must be a pair (low, high) in rad/s; got shape {band.shape}")
+                raise check.ParameterError("jonswap", f"jonswap band must be a pair (low, high) in rad/s; got shape {band.shape}")
 
         # concrete parameters (the usual case): the unrealized components in NumPy, which
         # costs no XLA compilation; traced ones (built inside jit or vmap): in jax.numpy
@@ -401,7 +417,7 @@ class JonswapWaves(eqx.Module):
         xp = np if concrete else jnp
         centres = _bin_frequencies(xp, band, self.components, 0.5)
         if concrete and not np.sum(jonswap_spectrum(centres, 1.0, t1, gamma)) > 0:
-            raise ValueError(f"jonswap band holds no wave energy (S underflows on it); got {band.tolist()}")
+            raise check.ParameterError("jonswap", f"jonswap band holds no wave energy (S underflows on it); got {band.tolist()}")
         fields = _components_at(xp, centres, hs, t1, gamma, g, length)
         self.frequencies, self.amplitudes, self.wavenumbers, self.hull_gains = (jnp.asarray(f, dtype=float) for f in fields)
         self.phases = jnp.zeros(self.components)

@@ -13,6 +13,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Value, component
 
 
 def stationary_std_per_intensity(peak_frequency, damping_ratio):
@@ -24,6 +25,17 @@ def stationary_std_per_intensity(peak_frequency, damping_ratio):
     return 1.0 / np.sqrt(4.0 * np.asarray(damping_ratio) * np.asarray(peak_frequency))
 
 
+@component(
+    "waves", "linear",
+    summary="Linear second-order wave model in surge, sway and yaw.",
+    build="from_amplitude",
+    parameters=(
+        Value("peak_frequency", "array", "Dominating wave frequency w0_i (rad/s).", shape="(3,)", range=POSITIVE),
+        Value("damping_ratio", "array", "Relative damping zeta_i (1).", shape="(3,)", range=POSITIVE),
+        Value("amplitude", "array", "Amplitude of the wave motion (m, m, rad), sigmas standard deviations.", shape="(3,)", range=NON_NEGATIVE),
+        Value("sigmas", "float", "Standard deviations the amplitude stands for (1).", range=POSITIVE),
+    ),
+)
 class LinearWaveModel(eqx.Module):
     """Linear second-order wave model in surge, sway and yaw.
 
@@ -85,7 +97,7 @@ class LinearWaveModel(eqx.Module):
             Standard deviations the amplitude stands for (1).
         """
         if not sigmas > 0:
-            raise ValueError(f"sigmas must be positive; got {sigmas}")
+            raise check.ParameterError("sigmas", f"sigmas must be positive; got {sigmas}")
         amplitude = check.vector("wave amplitude", amplitude)
         return cls.from_std(peak_frequency, damping_ratio, amplitude / sigmas)
 

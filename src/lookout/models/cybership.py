@@ -48,6 +48,7 @@ from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, rotation, ssa
 from lookout.components import Layout, Plant, Signal
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
+from lookout.scenario.declare import Part, Value, component, initial_values, register
 
 #: Wondergem et al. (2009), eq. (39).
 CYBERSHIP_M = np.array([[25.8, 0.0, 0.0], [0.0, 33.8, 1.0115], [0.0, 1.0115, 2.76]])
@@ -95,7 +96,7 @@ class Cybership(eqx.Module):
         if check.is_concrete(mass_matrix):
             mass = np.asarray(mass_matrix, dtype=float)
             if mass[0, 1] != 0 or mass[0, 2] != 0:
-                raise ValueError(f"mass_matrix must have m12 = m13 = 0 (surge decoupled, as C(nu) of (39) assumes); got m12 = {mass[0, 1]:g}, m13 = {mass[0, 2]:g}")
+                raise check.ParameterError("mass_matrix", f"mass_matrix must have m12 = m13 = 0 (surge decoupled, as C(nu) of (39) assumes); got m12 = {mass[0, 1]:g}, m13 = {mass[0, 2]:g}")
         check.square("damping_matrix", damping_matrix)
         check.finite("quadratic_damping", quadratic_damping)
         self.mass_matrix = jnp.asarray(mass_matrix, dtype=float)
@@ -123,7 +124,7 @@ class Cybership(eqx.Module):
         """
         if check.is_concrete(vessel.stiffness_matrix) and np.any(np.asarray(vessel.stiffness_matrix) != 0):
             stiffness = np.asarray(vessel.stiffness_matrix).tolist()
-            raise ValueError(f"vessel has a mooring stiffness K (the ship model (16) has none); got K = {stiffness}")
+            raise check.ParameterError("vessel", f"vessel has a mooring stiffness K (the ship model (16) has none); got K = {stiffness}")
         return cls(vessel.mass_matrix, vessel.damping_matrix, np.zeros(3))
 
     def linear(self) -> "Cybership":
@@ -191,6 +192,27 @@ class Cybership(eqx.Module):
         return 0.5 * J @ (a[2] * K + jnp.outer(Ka, e3) - jnp.outer(e3, Ka)) @ J.T
 
 
+register(
+    "ship", "cybership-ii", Cybership,
+    summary="A ship model (16): M, C(nu) of M, linear D and D_n(nu); by default Cybership II's (39).",
+    parameters=(
+        Value("mass_matrix", "array", "M (rigid body plus added mass); symmetric positive definite, with m12 = m13 = 0 (the structure C(nu) assumes).", shape="(3, 3)"),
+        Value("damping_matrix", "array", "The linear damping D = D(0).", shape="(3, 3)"),
+        Value("quadratic_damping", "array", "[X, Y, N] of D_n(nu) = [X |u| u, Y |v| v, N |v| v]; zeros for a model with linear damping only (the basin scheme of Section 5).", shape="(3,)"),
+    ),
+)
+
+
+register(
+    "ship", "dp-vessel", Cybership,
+    summary="A ship model (16): M, C(nu) of M, linear D and D_n(nu); by default Cybership II's (39).",
+    build="from_dp_vessel",
+    parameters=(
+        Part("vessel", "The vessel (in a composition, the plant's): M with m12 = m13 = 0 (surge decoupled from sway and yaw, as C(nu) assumes), and no mooring stiffness K (the model (16) has none)."),
+    ),
+)
+
+
 def cybership2() -> Cybership:
     """Cybership II with (39) as printed."""
     return Cybership()
@@ -235,6 +257,15 @@ class CybershipState(eqx.Module):
         }
 
 
+@component(
+    "plant", "cybership-ii",
+    summary="Cybership II (16) with optional first-order wave motion.",
+    parameters=(
+        Part("ship", "The true ship (the plant may have D_n where the scheme's model has none)."),
+        Part("waves", "A wave realization with rate(t, position, velocity), motion(t, position) and realize(key) (lookout.environment.JonswapWaves); None for calm water."),
+        Value("wave_ramp", "float", "Seconds over which the waves rise, 1/2 (1 - cos(pi t / wave_ramp)); > 0."),
+    ),
+)
 @final
 class CybershipPlant(Plant):
     """Cybership II (16) with optional first-order wave motion.
@@ -266,7 +297,7 @@ class CybershipPlant(Plant):
 
     def __init__(self, ship: Cybership, waves=None, wave_ramp: float = 10.0):
         if not isinstance(ship, Cybership):
-            raise ValueError(f"ship must be a Cybership; got {type(ship).__name__}")
+            raise check.ParameterError("ship", f"ship must be a Cybership; got {type(ship).__name__}")
         self.ship = ship
         self.waves = waves
         check.positive("wave_ramp", wave_ramp)
@@ -289,6 +320,11 @@ class CybershipPlant(Plant):
             wave_rate = ramp * self.waves.rate(t, position, eta_rate[:2]) + ramp_rate * self.waves.motion(t, position)
         return CybershipState(eta=eta_rate, nu=self.ship.acceleration(state.nu, tau), wave=wave_rate)
 
+    @initial_values(
+        Value("eta", "array", "Position north, east (m) and heading (rad), Earth-fixed (zeros when not given; an observer's guess takes it from the first measurement).", shape="(3,)"),
+        Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.", shape="(3,)"),
+        Value("wave", "array", "Wave-induced motion eta_w (m, m, rad).", shape="(3,)"),
+    )
     def state(self, eta=None, nu=0.0, wave=0.0) -> CybershipState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 

@@ -69,6 +69,7 @@ from lookout.models.manipulators import (
     _scalar,
     joint_layout,
 )
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 
 #: The printed constants of Calugi (2002), Section 6.1 (from Åström's Furuta model):
 #: alpha, beta, gamma (kg m^2), delta (N m).
@@ -77,6 +78,18 @@ PRINTED_CONSTANTS = (0.00354, 0.00384, 0.00258, 0.103)
 PRINTED_COULOMB_FRICTION = 0.028
 
 
+@component(
+    "model", "furuta-constants",
+    summary="The Furuta pendulum of Calugi (2002), Section 6.1, eqs. (6.1)–(6.2), in its constants.",
+    parameters=(
+        Value("alpha", "float", "alpha (kg m^2), above gamma^2/beta so that M is positive definite at every theta; Section 6.1: 0.00354."),
+        Value("beta", "float", "beta (kg m^2); Section 6.1: 0.00384.", range=POSITIVE),
+        Value("gamma", "float", "gamma (kg m^2); Section 6.1: 0.00258."),
+        Value("delta", "float", "delta (N m), the pendulum's gravity torque coefficient; Section 6.1: 0.103.", range=NON_NEGATIVE),
+        Value("coulomb_friction", "array", "tau_C per joint (N m) of (6.4); Section 6.1: (0.028, 0), on the arm only.", shape="(2,)", range=NON_NEGATIVE),
+        Value("friction", "array", "Viscous friction per joint (N m s/rad); none in the thesis.", shape="(2,)", range=NON_NEGATIVE),
+    ),
+)
 @final
 class FurutaConstants(ManipulatorModel):
     """The Furuta pendulum of Calugi (2002), Section 6.1, eqs. (6.1)–(6.2), in its constants.
@@ -130,7 +143,7 @@ class FurutaConstants(ManipulatorModel):
         if check.is_concrete(self.alpha) and check.is_concrete(self.gamma) and check.is_concrete(self.beta):
             floor = float(self.gamma) ** 2 / float(self.beta)
             if not float(self.alpha) > floor:
-                raise ValueError(f"alpha must exceed gamma^2/beta = {floor:.4g} kg m^2 so that M is positive definite at every theta "
+                raise check.ParameterError("alpha", f"alpha must exceed gamma^2/beta = {floor:.4g} kg m^2 so that M is positive definite at every theta "
                                  f"(Property 2.1); got {float(self.alpha):.4g}")
         check.positive("delta", self.delta, allow_zero=True)
         check.positive("coulomb_friction", self.coulomb_friction, allow_zero=True)
@@ -179,6 +192,15 @@ class FurutaState(eqx.Module):
     stuck_time: Array
 
 
+@component(
+    "plant", "furuta",
+    summary="The Furuta pendulum with stick-slip Coulomb friction on the arm (Calugi 2002, (6.1)–(6.4)).",
+    parameters=(
+        Part("model", "The true pendulum in its constants, Coulomb friction included."),
+        Value("stick_band", "float", "|phi'| (rad/s) below which the arm may stick; default 0.02.", range=POSITIVE),
+        Value("stick_relaxation", "float", "Time constant (s) by which a sticking arm's residual speed goes to zero; default 1 ms (keep it >= 2 plant steps for RK4).", range=POSITIVE),
+    ),
+)
 @final
 class FurutaPlant(Plant):
     """The Furuta pendulum with stick-slip Coulomb friction on the arm (Calugi 2002, (6.1)–(6.4)).
@@ -210,7 +232,7 @@ class FurutaPlant(Plant):
 
     def __init__(self, model: FurutaConstants, stick_band=0.02, stick_relaxation=1e-3):
         if not isinstance(model, FurutaConstants):
-            raise ValueError(f"model must be a FurutaConstants; got {type(model).__name__}")
+            raise check.ParameterError("model", f"model must be a FurutaConstants; got {type(model).__name__}")
         names, kinds = model.joint_names, model.joint_kinds
         self.model = model
         self.stick_band = _scalar("stick_band", stick_band)
@@ -262,6 +284,10 @@ class FurutaPlant(Plant):
         accel = jnp.array([mass[1, 1] * force[0] - mass[0, 1] * force[1], mass[0, 0] * force[1] - mass[1, 0] * force[0]]) / det
         return FurutaState(x.qdot, accel, sticking.astype(float))
 
+    @initial_values(
+        Value("q", "array", "(phi, theta): arm and pendulum angles (rad; zeros when not given; an observer's guess takes it from the first measurement).", shape="(2,)"),
+        Value("qdot", "array", "Their rates (rad/s).", shape="(2,)"),
+    )
     def state(self, q=None, qdot=0.0) -> FurutaState:
         """A state of this plant, not sticking (zeros where not given): a composition's ``[plant.initial]``.
 

@@ -60,6 +60,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import JOINT_SPACE, Layout, Plant, Signal
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 
 #: Standard gravity (m/s^2), the thesis's ``n``.
 STANDARD_GRAVITY = 9.81
@@ -96,19 +97,19 @@ def joint_groups(joint_names: tuple[str, ...], joint_kinds: tuple[str, ...]) -> 
     """
     joint_names, joint_kinds = tuple(joint_names), tuple(joint_kinds)
     if len(joint_names) != len(joint_kinds) or not joint_names:
-        raise ValueError(f"joint_names and joint_kinds must be non-empty and of one length; got {joint_names} and {joint_kinds}")
+        raise check.ParameterError("joint_names", f"joint_names and joint_kinds must be non-empty and of one length; got {joint_names} and {joint_kinds}")
     if len(set(joint_names)) != len(joint_names):
-        raise ValueError(f"joint_names must be distinct; got {joint_names}")
+        raise check.ParameterError("joint_names", f"joint_names must be distinct; got {joint_names}")
     unknown = [kind for kind in joint_kinds if kind not in JOINT_DIMS]
     if unknown:
-        raise ValueError(f"joint_kinds must be {REVOLUTE!r} or {PRISMATIC!r}; got {unknown}")
+        raise check.ParameterError("joint_kinds", f"joint_kinds must be {REVOLUTE!r} or {PRISMATIC!r}; got {unknown}")
     groups: list[tuple[str, list[str]]] = []
     for name, kind in zip(joint_names, joint_kinds):
         if groups and groups[-1][0] == kind:
             groups[-1][1].append(name)
         elif any(kind == seen for seen, _ in groups):
-            raise ValueError(
-                f"the {kind} joints must be contiguous (a Layout lays one signal per joint kind end to end); "
+            raise check.ParameterError(
+                "the", f"the {kind} joints must be contiguous (a Layout lays one signal per joint kind end to end); "
                 f"got joint_kinds {joint_kinds}: reorder the joints"
             )
         else:
@@ -146,10 +147,10 @@ def joint_layout(joint_names: tuple[str, ...], joint_kinds: tuple[str, ...], qua
 def _scalar(name: str, value) -> Array:
     """A float scalar parameter, or a ValueError naming it."""
     if check.is_concrete(value) and np.ndim(value) != 0:
-        raise ValueError(f"{name} must be a scalar; got shape {np.shape(value)}")
+        raise check.ParameterError(check.key(name), f"{name} must be a scalar; got shape {np.shape(value)}")
     array = jnp.asarray(value, dtype=float)
     if array.ndim != 0:
-        raise ValueError(f"{name} must be a scalar; got shape {array.shape}")
+        raise check.ParameterError(check.key(name), f"{name} must be a scalar; got shape {array.shape}")
     return array
 
 
@@ -236,6 +237,16 @@ class ManipulatorModel(eqx.Module):
         return self.kinetic_energy(q, v) + self.potential_energy(q)
 
 
+@component(
+    "model", "pendulum",
+    summary="Free pendulum of Calugi (2002), Section 2.3: M = m l^2, G = m g l sin q.",
+    parameters=(
+        Value("mass", "float", "m, the point mass at the pendulum's end (kg); Section 2.3: 0.5.", range=POSITIVE),
+        Value("length", "float", "l, the distance of the mass from the pivot (m); Section 2.3: 0.5.", range=POSITIVE),
+        Value("friction", "float", "c, the viscous friction at the pivot (N m s/rad); Section 2.3: 0.1.", range=NON_NEGATIVE),
+        Value("gravity_acceleration", "float", "g (m/s^2); 9.81, the thesis's n.", range=NON_NEGATIVE),
+    ),
+)
 @final
 class FreePendulum(ManipulatorModel):
     """Free pendulum of Calugi (2002), Section 2.3: M = m l^2, G = m g l sin q.
@@ -289,6 +300,16 @@ class FreePendulum(ManipulatorModel):
         return self.mass * self.gravity_acceleration * self.length * (1.0 - jnp.cos(q[0]))
 
 
+@component(
+    "model", "two-link-arm",
+    summary="Two-link planar arm of Calugi (2002), Section 2.3, with point masses at the link ends.",
+    parameters=(
+        Value("masses", "array", "m1, m2: the point masses at the ends of links 1 and 2 (kg); Section 2.3: (0.5, 0.7).", shape="(2,)", range=POSITIVE),
+        Value("lengths", "array", "l1, l2: the links' lengths (m); Section 2.3: (1, 1.5).", shape="(2,)", range=POSITIVE),
+        Value("friction", "array", "c1, c2: the viscous friction at the joints (N m s/rad); Section 2.3: (0.5, 0.1).", shape="(2,)", range=NON_NEGATIVE),
+        Value("gravity_acceleration", "float", "g (m/s^2); 9.81, the thesis's n.", range=NON_NEGATIVE),
+    ),
+)
 @final
 class TwoLinkArm(ManipulatorModel):
     """Two-link planar arm of Calugi (2002), Section 2.3, with point masses at the link ends.
@@ -355,6 +376,17 @@ class TwoLinkArm(ManipulatorModel):
         return self.gravity_acceleration * (m1 * elbow_height + m2 * tip_height)
 
 
+@component(
+    "model", "cart-pendulum",
+    summary="Inverted pendulum on a cart (\"pendulum-on-the-coach\"), Calugi (2002), Section 2.3.",
+    parameters=(
+        Value("cart_mass", "float", "m1, the cart's mass (kg); Section 2.3: 2.", range=POSITIVE),
+        Value("pendulum_mass", "float", "m2, the point mass at the pendulum's end (kg); Section 2.3: 0.2.", range=POSITIVE),
+        Value("pendulum_length", "float", "l, the distance of m2 from the pivot on the cart (m); Section 2.3: 0.5.", range=POSITIVE),
+        Value("friction", "array", "c1 (N s/m), the cart's viscous friction, and c2 (N m s/rad), the pivot's; Section 2.3: (0.4, 0.1).", shape="(2,)", range=NON_NEGATIVE),
+        Value("gravity_acceleration", "float", "g (m/s^2); 9.81, the thesis's n.", range=NON_NEGATIVE),
+    ),
+)
 @final
 class CartPendulum(ManipulatorModel):
     """Inverted pendulum on a cart ("pendulum-on-the-coach"), Calugi (2002), Section 2.3.
@@ -418,6 +450,20 @@ class CartPendulum(ManipulatorModel):
         return self.pendulum_mass * self.gravity_acceleration * self.pendulum_length * jnp.cos(q[1])
 
 
+@component(
+    "model", "furuta-pendulum",
+    summary="Furuta (rotary) pendulum of Calugi (2002), Section 2.3.",
+    parameters=(
+        Value("pillar_inertia", "float", "J, the pillar's moment of inertia about its axis (kg m^2); Section 2.3: 1.", range=POSITIVE),
+        Value("arm_mass", "float", "m1, the horizontal arm's mass, a uniform rod (kg); Section 2.3: 0.4.", range=POSITIVE),
+        Value("pendulum_mass", "float", "m2, the pendulum's mass, a uniform rod (kg); Section 2.3: 0.1.", range=POSITIVE),
+        Value("tip_mass", "float", "m3, the point mass at the pendulum's tip (kg); Section 2.3: 0.5.", range=NON_NEGATIVE),
+        Value("arm_length", "float", "l1, the arm's length (m); Section 2.3: 0.7.", range=POSITIVE),
+        Value("pendulum_length", "float", "l2, the pendulum's length (m); Section 2.3: 0.5.", range=POSITIVE),
+        Value("friction", "array", "c1, c2: the viscous friction of the arm and the pendulum (N m s/rad); Section 2.3: (0.4, 0.2).", shape="(2,)", range=NON_NEGATIVE),
+        Value("gravity_acceleration", "float", "g (m/s^2); 9.81, the thesis's n.", range=NON_NEGATIVE),
+    ),
+)
 @final
 class FurutaPendulum(ManipulatorModel):
     """Furuta (rotary) pendulum of Calugi (2002), Section 2.3.
@@ -535,6 +581,14 @@ class JointState(eqx.Module):
     qdot: Array
 
 
+@component(
+    "plant", "manipulator",
+    summary="A ManipulatorModel as a continuous-time plant with state JointState.",
+    parameters=(
+        Part("model", "The true manipulator (it may differ from the observer's and controller's model)."),
+        Value("force_noise", "array", "Standard deviation of the white force disturbance per joint (N m sqrt(s) or N sqrt(s)); default 0, none.", shape="(n,)", range=NON_NEGATIVE),
+    ),
+)
 @final
 class ManipulatorPlant(Plant):
     """A :class:`ManipulatorModel` as a continuous-time plant with state :class:`JointState`.
@@ -575,7 +629,7 @@ class ManipulatorPlant(Plant):
 
     def __init__(self, model: ManipulatorModel, force_noise=0.0):
         if not isinstance(model, ManipulatorModel):
-            raise ValueError(f"model must be a ManipulatorModel; got {type(model).__name__}")
+            raise check.ParameterError("model", f"model must be a ManipulatorModel; got {type(model).__name__}")
         n = model.size
         names, kinds = model.joint_names, model.joint_kinds
         self.model = model
@@ -595,6 +649,10 @@ class ManipulatorPlant(Plant):
         tau = u + self.force_noise * w
         return JointState(x.qdot, self.model.acceleration(x.q, x.qdot, tau))
 
+    @initial_values(
+        Value("q", "array", "Joint coordinates in joint order (rad, m; zeros when not given; an observer's guess takes it from the first measurement).", shape="(n,)"),
+        Value("qdot", "array", "Their rates (rad/s, m/s).", shape="(n,)"),
+    )
     def state(self, q=None, qdot=0.0) -> JointState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 

@@ -46,6 +46,7 @@ from lookout import _validation as check
 from lookout._math import matvec
 from lookout.components import Signal
 from lookout.models.manipulators import FreePendulum, ManipulatorModel
+from lookout.scenario.declare import Part, Value, component
 
 #: Relative residual above which a parameter set is not affine (random points, float64).
 AFFINE_TOLERANCE = 1e-9
@@ -99,8 +100,8 @@ class AffineParameters(eqx.Module):
         if check.is_concrete(self.reference):
             residual = self.affine_residual()
             if not residual <= AFFINE_TOLERANCE:
-                raise ValueError(
-                    f"parameters {', '.join(self.names)} must enter the dynamics affinely (Property 4.2); "
+                raise check.ParameterError(
+                    "parameters", f"parameters {', '.join(self.names)} must enter the dynamics affinely (Property 4.2); "
                     f"the split misses the dynamics by {residual:.2g} (relative) at random points"
                 )
 
@@ -149,10 +150,19 @@ _FIELD = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
 def _parse_field(entry: str) -> tuple[str, int | None]:
     match = _FIELD.match(entry)
     if match is None:
-        raise ValueError(f"parameter fields must look like 'mass' or 'masses[1]'; got {entry!r}")
+        raise check.ParameterError("parameter", f"parameter fields must look like 'mass' or 'masses[1]'; got {entry!r}")
     return match.group(1), None if match.group(2) is None else int(match.group(2))
 
 
+@component(
+    "parameters", "model-fields",
+    summary="Fields of a model as the unknown parameters theta of Property 4.2.",
+    parameters=(
+        Part("base", role="model", doc="The model (in a composition, the plant's unless given)."),
+        Value("fields", "strings", "The unknown parameters: scalar fields (\"mass\") or elements (\"masses[1]\")."),
+        Value("units", "strings", "One UDUNITS unit per field (\"kg\"), for the records of theta_hat."),
+    ),
+)
 @final
 class ModelParameters(AffineParameters):
     """Fields of a model as the unknown parameters theta of Property 4.2.
@@ -179,10 +189,10 @@ class ModelParameters(AffineParameters):
 
     def __init__(self, base: ManipulatorModel, fields, units=None):
         if not isinstance(base, ManipulatorModel):
-            raise ValueError(f"base must be a ManipulatorModel; got {type(base).__name__}")
+            raise check.ParameterError("base", f"base must be a ManipulatorModel; got {type(base).__name__}")
         fields = (fields,) if isinstance(fields, str) else tuple(fields)
         if not fields or len(set(fields)) != len(fields):
-            raise ValueError(f"fields must be distinct field names; got {fields}")
+            raise check.ParameterError("fields", f"fields must be distinct field names; got {fields}")
         values = []
         for entry in fields:
             name, index = _parse_field(entry)
@@ -190,16 +200,16 @@ class ModelParameters(AffineParameters):
                 raise ValueError(f"{type(base).__name__} has no parameter field {name!r}")
             value = jnp.asarray(getattr(base, name))
             if index is None and value.ndim != 0:
-                raise ValueError(f"field {name!r} of {type(base).__name__} is a vector: name one element, like '{name}[0]'")
+                raise check.ParameterError("field", f"field {name!r} of {type(base).__name__} is a vector: name one element, like '{name}[0]'")
             if index is not None and not (value.ndim == 1 and index < value.shape[0]):
-                raise ValueError(f"field {entry!r}: {name} has shape {value.shape}, so index {index} is out of range")
+                raise check.ParameterError("field", f"field {entry!r}: {name} has shape {value.shape}, so index {index} is out of range")
             values.append(value if index is None else value[index])
         self.base = base
         self.reference = jnp.stack(values).astype(float)
         self.names = fields
         self.units = tuple(units) if units is not None else ("",) * len(fields)
         if len(self.units) != len(fields):
-            raise ValueError(f"units must give one unit per field; got {len(self.units)} for {len(fields)}")
+            raise check.ParameterError("units", f"units must give one unit per field; got {len(self.units)} for {len(fields)}")
 
     def __check_init__(self):
         self._check_affine()
@@ -215,6 +225,13 @@ class ModelParameters(AffineParameters):
         return model
 
 
+@component(
+    "parameters", "pendulum-inertia",
+    summary="The free pendulum in theta = (m l^2, m l) (kg m^2, kg m): M = theta_1, G = theta_2 g sin q, F as given.",
+    parameters=(
+        Part("base", role="model", doc="The pendulum whose m l^2 and m l are the unknowns (in a composition, the plant's unless given)."),
+    ),
+)
 @final
 class PendulumInertia(AffineParameters):
     """The free pendulum in theta = (m l^2, m l) (kg m^2, kg m): M = theta_1,
@@ -234,7 +251,7 @@ class PendulumInertia(AffineParameters):
 
     def __init__(self, base: FreePendulum):
         if not isinstance(base, FreePendulum):
-            raise ValueError(f"base must be a FreePendulum; got {type(base).__name__}")
+            raise check.ParameterError("base", f"base must be a FreePendulum; got {type(base).__name__}")
         self.base = base
         self.reference = jnp.stack([base.mass * base.length**2, base.mass * base.length])
 

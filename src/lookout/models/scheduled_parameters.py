@@ -28,8 +28,19 @@ from lookout import _validation as check
 from lookout.components import Layout, Plant, Signal
 from lookout.models.manipulators import JOINT_INPUT, JOINT_POSITION, JOINT_VELOCITY, JointState, joint_layout
 from lookout.models.parameters import AffineParameters, parameter_signals
+from lookout.scenario.declare import NON_NEGATIVE, Part, Value, component, initial_values
 
 
+@component(
+    "plant", "scheduled-parameters",
+    summary="A manipulator with piecewise-constant parameters theta(t), as a plant with state JointState.",
+    parameters=(
+        Part("parameters", "Which parameters change, and the model they build (its other parameters fixed)."),
+        Value("values", "array", "theta on each interval, finite, in the parameters' units; one row means constant parameters.", shape="(K + 1, p) or (p,)"),
+        Value("switch_times", "array", "Strictly increasing, finite times (s) at which theta jumps to the next row.", shape="(K,)"),
+        Value("force_noise", "array", "Standard deviation of a white force disturbance per joint (N m sqrt(s) or N sqrt(s)); default 0, none.", shape="(n,)", range=NON_NEGATIVE),
+    ),
+)
 @final
 class ScheduledParameterPlant(Plant):
     """A manipulator with piecewise-constant parameters theta(t), as a plant with state :class:`JointState`.
@@ -63,16 +74,16 @@ class ScheduledParameterPlant(Plant):
 
     def __init__(self, parameters: AffineParameters, values, switch_times=(), force_noise=0.0):
         if not isinstance(parameters, AffineParameters):
-            raise ValueError(f"parameters must be AffineParameters; got {type(parameters).__name__}")
+            raise check.ParameterError("parameters", f"parameters must be AffineParameters; got {type(parameters).__name__}")
         p = parameters.size
         values = jnp.asarray(values, dtype=float)
         if values.ndim == 1:
             values = values[None, :]
         if values.ndim != 2 or values.shape[1] != p:
-            raise ValueError(f"values must have shape (intervals, {p}) (one row of the {p} parameters per interval); got shape {values.shape}")
+            raise check.ParameterError("values", f"values must have shape (intervals, {p}) (one row of the {p} parameters per interval); got shape {values.shape}")
         switch_times = jnp.asarray(switch_times, dtype=float).reshape(-1)
         if switch_times.shape[0] != values.shape[0] - 1:
-            raise ValueError(f"switch_times must have one entry fewer than values has rows ({values.shape[0] - 1}); got {switch_times.shape[0]}")
+            raise check.ParameterError("switch_times", f"switch_times must have one entry fewer than values has rows ({values.shape[0] - 1}); got {switch_times.shape[0]}")
         model = parameters.model(parameters.reference)
         names, kinds = model.joint_names, model.joint_kinds
         self.parameters = parameters
@@ -93,12 +104,16 @@ class ScheduledParameterPlant(Plant):
             times = np.asarray(self.switch_times)
             check.finite("switch_times", times)
             if np.any(np.diff(times) <= 0):
-                raise ValueError(f"switch_times must be strictly increasing; got {times.tolist()}")
+                raise check.ParameterError("switch_times", f"switch_times must be strictly increasing; got {times.tolist()}")
 
     def theta(self, t) -> Array:
         """theta(t): the row of :attr:`values` whose interval holds t (right-continuous)."""
         return self.values[jnp.searchsorted(self.switch_times, t, side="right")]
 
+    @initial_values(
+        Value("q", "array", "Joint coordinates in joint order (rad, m; zeros when not given; an observer's guess takes it from the first measurement).", shape="(n,)"),
+        Value("qdot", "array", "Their rates (rad/s, m/s).", shape="(n,)"),
+    )
     def state(self, q=None, qdot=0.0) -> JointState:
         """A :class:`JointState` from scalars or sequences, checked for size n (zeros where
         not given): a composition's ``[plant.initial]``.

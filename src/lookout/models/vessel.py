@@ -23,6 +23,7 @@ from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.components import BODY_FIXED, EARTH_FIXED, Layout, Plant, Signal
 from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveModel
+from lookout.scenario.declare import NON_NEGATIVE, Part, Value, component, initial_values
 
 DOF = ("surge", "sway", "yaw")
 #: Labels of the horizontal axes: Earth-fixed (position, bias, waves) and body-fixed (velocity, thrust).
@@ -181,7 +182,7 @@ class DPVessel(eqx.Module):
         damping_scale = np.broadcast_to(np.asarray(damping_scale, dtype=float), (3, 3))
         for name, scale in (("mass_scale", mass_scale), ("damping_scale", damping_scale)):
             if not np.all(np.isfinite(scale)) or np.any(scale < 0):
-                raise ValueError(f"{name} must be finite and non-negative; got {scale.tolist()}")
+                raise check.ParameterError(check.key(name), f"{name} must be finite and non-negative; got {scale.tolist()}")
         return DPVessel(np.asarray(self.mass_matrix) * mass_scale, np.asarray(self.damping_matrix) * damping_scale, self.stiffness_matrix)
 
     def acceleration(self, eta: Array, nu: Array, tau: Array, bias: Array) -> Array:
@@ -192,6 +193,14 @@ class DPVessel(eqx.Module):
         return matvec(self.mass_inverse, force)
 
 
+@component(
+    "vessel", "northern-clipper",
+    summary="Linear low-frequency 3-DOF vessel model M nu' + D nu + K eta = tau + J^T b.",
+    parameters=(
+        Value("mass_scale", "float", "M multiplied entry by entry (1.2: a vessel 20 % heavier than the paper's, a model error) (1).", range=NON_NEGATIVE),
+        Value("damping_scale", "float", "D multiplied entry by entry (1).", range=NON_NEGATIVE),
+    ),
+)
 def northern_clipper(mass_scale=1.0, damping_scale=1.0) -> DPVessel:
     """The supply vessel Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57).
 
@@ -205,6 +214,17 @@ def northern_clipper(mass_scale=1.0, damping_scale=1.0) -> DPVessel:
     return scaled_vessel(NORTHERN_CLIPPER_M, NORTHERN_CLIPPER_D, None, mass_scale, damping_scale)
 
 
+@component(
+    "vessel", "custom",
+    summary="Linear low-frequency 3-DOF vessel model M nu' + D nu + K eta = tau + J^T b.",
+    parameters=(
+        Value("mass_matrix", "array", "M including added mass (kg, kg m, kg m^2); symmetric positive definite (assumption A1).", shape="(3, 3)"),
+        Value("damping_matrix", "array", "Linear damping D (kg/s, kg m/s, kg m^2/s); its symmetric part positive semi-definite.", shape="(3, 3)"),
+        Value("stiffness_matrix", "array", "Mooring stiffness K (N/m, N/rad, N m/rad); zero for a free-floating DP vessel.", shape="(3, 3)"),
+        Value("mass_scale", "float", "M multiplied entry by entry (1).", range=NON_NEGATIVE),
+        Value("damping_scale", "float", "D multiplied entry by entry (1).", range=NON_NEGATIVE),
+    ),
+)
 def scaled_vessel(mass_matrix, damping_matrix, stiffness_matrix=None, mass_scale=1.0, damping_scale=1.0) -> DPVessel:
     """A DP vessel of M, D (and K), its M and D scaled entry by entry (a model error).
 
@@ -225,6 +245,16 @@ def scaled_vessel(mass_matrix, damping_matrix, stiffness_matrix=None, mass_scale
     return vessel if (mass_scale, damping_scale) == (1.0, 1.0) else vessel.scaled(mass_scale, damping_scale)
 
 
+@component(
+    "plant", "dp-vessel",
+    summary="Vessel, bias and wave model integrated together as one continuous-time plant.",
+    parameters=(
+        Part("vessel", "The true vessel (it may differ from the observer's and controller's model: that difference is the model error)."),
+        Part("bias", "The slowly varying environmental forces b (currents, mean wave drift, wind)."),
+        Part("waves", "The first-order wave-frequency motion eta_w added to the measured position."),
+        Part("disturbance", "An unmodelled body-fixed force (Kim's E_nu w_nu); its white part adds three noise channels after the six of bias and waves."),
+    ),
+)
 @final
 class VesselPlant(Plant):
     """Vessel, bias and wave model integrated together as one continuous-time plant.
@@ -273,6 +303,12 @@ class VesselPlant(Plant):
             wave_state=self.waves.derivative(state.wave_state, noise[3:6]),
         )
 
+    @initial_values(
+        Value("eta", "array", "Position north, east (m) and heading (rad), Earth-fixed (zeros when not given; an observer's guess takes it from the first measurement).", shape="(3,)"),
+        Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.", shape="(3,)"),
+        Value("bias", "array", "Bias forces and moment (N, N, N m), Earth-fixed.", shape="(3,)"),
+        Value("wave_state", "array", "Wave-model state [xi1, xi2] of eq. (11) (m s, m s, rad s, m, m, rad).", shape="(6,)"),
+    )
     def state(self, eta=None, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 

@@ -115,6 +115,7 @@ from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
 from lookout.observers.start import from_first_measurement
 from lookout.sensors import POSITION_HEADING, POSITION_HEADING_VELOCITY
 from lookout.sim.integrators import rk4_step
+from lookout.scenario.declare import Part, Value, component, initial_values
 
 #: Kinds of unknown model entries and the letter of their names (m11, d23, k33).
 KINDS = {"mass": "m", "damping": "d", "stiffness": "k"}
@@ -146,21 +147,31 @@ def _parse_unknown(entry) -> tuple[str, int, int]:
     if isinstance(entry, str):
         match = _NAME.match(entry)
         if match is None:
-            raise ValueError(f"unknowns: a name must read like 'm11', 'd23' or 'k33' (1-based, as in the paper); got {entry!r}")
+            raise check.ParameterError("unknowns", f"unknowns: a name must read like 'm11', 'd23' or 'k33' (1-based, as in the paper); got {entry!r}")
         kind = {letter: name for name, letter in KINDS.items()}[match.group(1)]
         row, col = int(match.group(2)) - 1, int(match.group(3)) - 1
     else:
         if not (isinstance(entry, (tuple, list)) and len(entry) == 3):
-            raise ValueError(f"unknowns: each entry must be (kind, row, col) or a name like 'm11'; got {entry!r}")
+            raise check.ParameterError("unknowns", f"unknowns: each entry must be (kind, row, col) or a name like 'm11'; got {entry!r}")
         kind, row, col = entry
         if kind not in KINDS:
-            raise ValueError(f"unknowns: kind must be one of {', '.join(map(repr, KINDS))}; got {kind!r}")
+            raise check.ParameterError("unknowns", f"unknowns: kind must be one of {', '.join(map(repr, KINDS))}; got {kind!r}")
         for index in (row, col):
             if not (isinstance(index, (int, np.integer)) and not isinstance(index, bool) and 0 <= index <= 2):
-                raise ValueError(f"unknowns: row and col must be integers 0, 1 or 2 (0-based); got {entry!r}")
+                raise check.ParameterError("unknowns", f"unknowns: row and col must be integers 0, 1 or 2 (0-based); got {entry!r}")
     return kind, min(int(row), int(col)), max(int(row), int(col))
 
 
+@component(
+    "parametrization", "inertia-entries",
+    summary="The observer's model with some entries of M, D, K unknown: theta of eq. (8).",
+    parameters=(
+        Part("model", role="vessel", doc="The known model (M, D, K)."),
+        Value("unknowns", "strings", "The unknown entries, each (kind, row, col) with kind \"mass\", \"damping\" or \"stiffness\" and **0-based** row, col, or a paper-style name (\"m11\" = (\"mass\", 0, 0), 1-based)."),
+        Value("lower", "array", "Bounds of theta (the paper's (9)–(11)), in the SI units of units.", shape="(p,)"),
+        Value("upper", "array", "Bounds of theta (the paper's (9)–(11)), in the SI units of units.", shape="(p,)"),
+    ),
+)
 @final
 class InertiaParametrization(eqx.Module):
     """The observer's model with some entries of M, D, K unknown: theta of eq. (8).
@@ -195,16 +206,16 @@ class InertiaParametrization(eqx.Module):
 
     def __init__(self, model: DPVessel, unknowns, lower, upper):
         if not isinstance(model, DPVessel):
-            raise ValueError(f"model must be a DPVessel; got {type(model).__name__}")
+            raise check.ParameterError("model", f"model must be a DPVessel; got {type(model).__name__}")
         if isinstance(unknowns, (str, tuple)) and len(unknowns) == 3 and unknowns and unknowns[0] in KINDS:
             unknowns = (unknowns,)  # one entry given bare
         if isinstance(unknowns, str):
             unknowns = (unknowns,)
         parsed = tuple(_parse_unknown(entry) for entry in unknowns)
         if not parsed:
-            raise ValueError("unknowns must name at least one entry of M, D or K")
+            raise check.ParameterError("unknowns", "unknowns must name at least one entry of M, D or K")
         if len(set(parsed)) != len(parsed):
-            raise ValueError(f"unknowns must be distinct (an off-diagonal entry counts for its symmetric pair); got {list(parsed)}")
+            raise check.ParameterError("unknowns", f"unknowns must be distinct (an off-diagonal entry counts for its symmetric pair); got {list(parsed)}")
         self.model = model
         self.unknowns = parsed
         p = len(parsed)
@@ -219,10 +230,10 @@ class InertiaParametrization(eqx.Module):
         lower, upper = np.asarray(self.lower), np.asarray(self.upper)
         for name, lo, hi in zip(self.names, lower, upper):
             if not lo < hi:
-                raise ValueError(f"theta bounds of {name}: lower must be below upper; got lower {lo:.6g}, upper {hi:.6g}")
+                raise check.ParameterError("theta", f"theta bounds of {name}: lower must be below upper; got lower {lo:.6g}, upper {hi:.6g}")
         for (kind, row, col), name, lo in zip(self.unknowns, self.names, lower):
             if kind == "mass" and row == col and not lo > 0:
-                raise ValueError(f"theta lower bound of {name} must be positive (a diagonal mass entry); got {lo:.6g}")
+                raise check.ParameterError("theta", f"theta lower bound of {name} must be positive (a diagonal mass entry); got {lo:.6g}")
         if not check.is_concrete(self.model.mass_matrix):
             return
         mass = [k for k, (kind, _, _) in enumerate(self.unknowns) if kind == "mass"]
@@ -234,7 +245,7 @@ class InertiaParametrization(eqx.Module):
             smallest = np.linalg.eigvalsh(0.5 * (m_hat + m_hat.T)).min()
             if not smallest > 0:
                 where = ", ".join(f"{self.names[k]} = {theta[k]:.6g}" for k in mass)
-                raise ValueError(f"theta bounds: M_hat must be positive definite in the whole box; at {where} its smallest eigenvalue is {smallest:.3g}")
+                raise check.ParameterError("theta", f"theta bounds: M_hat must be positive definite in the whole box; at {where} its smallest eigenvalue is {smallest:.3g}")
 
     @property
     def size(self) -> int:
@@ -350,6 +361,19 @@ def _angle_difference(a: Array, b: Array) -> Array:
     return d.at[2].set(ssa(d[2]))
 
 
+@component(
+    "observer", "adaptive-dp",
+    summary="Adaptive observer of Calugi, Robertsson & Johansson (2003), eqs. (13)–(15) and (65)–(67).",
+    parameters=(
+        Part("parametrization", "The known model, the unknown entries and their bounds."),
+        Value("position_gain", "array", "Diagonal of K1 (1/s), > 0.", shape="(3,)"),
+        Value("velocity_gain", "array", "Diagonal of K2 (1/s), > 0.", shape="(3,)"),
+        Value("adaptation_gain", "array", "Gamma: a scalar (Gamma I), a diagonal, or a symmetric matrix; positive definite as in the paper, or 0 (semidefinite allowed) to switch adaptation off.", shape="(p,) or (p, p)"),
+        Value("form", "str", "(65)–(67) at the engine's sample period, or (13)–(15).", choices=('discrete', 'continuous')),
+        Value("initial_theta", "array", "theta_hat(0) used by guess when no theta is given; by default the midpoint of the bounds.", shape="(p,)"),
+        Value("steps_per_sample", "int", "RK4 steps of the continuous form's predict per sample period."),
+    ),
+)
 @final
 class AdaptiveObserver(ContinuousObserver):
     """Adaptive observer of Calugi, Robertsson & Johansson (2003), eqs. (13)–(15) and (65)–(67).
@@ -413,11 +437,11 @@ class AdaptiveObserver(ContinuousObserver):
         steps_per_sample: int = 1,
     ):
         if not isinstance(parametrization, InertiaParametrization):
-            raise ValueError(f"parametrization must be an InertiaParametrization; got {type(parametrization).__name__}")
+            raise check.ParameterError("parametrization", f"parametrization must be an InertiaParametrization; got {type(parametrization).__name__}")
         if form not in FORMS:
-            raise ValueError(f"form must be one of {', '.join(map(repr, FORMS))}; got {form!r}")
+            raise check.ParameterError("form", f"form must be one of {', '.join(map(repr, FORMS))}; got {form!r}")
         if not (isinstance(steps_per_sample, int) and steps_per_sample >= 1):
-            raise ValueError(f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
+            raise check.ParameterError("steps_per_sample", f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
         p = parametrization.size
         self.parametrization = parametrization
         self.position_gain = jnp.asarray(check.vector("position_gain (K1)", position_gain))
@@ -428,7 +452,7 @@ class AdaptiveObserver(ContinuousObserver):
         elif gamma.shape == (p,):
             gamma = jnp.diag(gamma)
         elif gamma.shape != (p, p):
-            raise ValueError(f"adaptation_gain (Gamma) must be a scalar, a diagonal of {p} or a {p}x{p} matrix; got shape {gamma.shape}")
+            raise check.ParameterError("adaptation_gain", f"adaptation_gain (Gamma) must be a scalar, a diagonal of {p} or a {p}x{p} matrix; got shape {gamma.shape}")
         self.adaptation_gain = gamma
         if initial_theta is None:
             initial_theta = 0.5 * (parametrization.lower + parametrization.upper)
@@ -447,16 +471,16 @@ class AdaptiveObserver(ContinuousObserver):
             gamma = np.asarray(self.adaptation_gain, dtype=float)
             check.finite("adaptation_gain (Gamma)", gamma)
             if np.abs(gamma - gamma.T).max() > 1e-12 * max(np.abs(gamma).max(), 1e-300):
-                raise ValueError("adaptation_gain (Gamma) must be symmetric")
+                raise check.ParameterError("adaptation_gain", "adaptation_gain (Gamma) must be symmetric")
             smallest = np.linalg.eigvalsh(gamma).min()
             if smallest < -1e-12 * max(np.abs(gamma).max(), 1e-300):
-                raise ValueError(f"adaptation_gain (Gamma) must be positive definite (or semidefinite, 0 = no adaptation); its smallest eigenvalue is {smallest:.3g}")
+                raise check.ParameterError("adaptation_gain", f"adaptation_gain (Gamma) must be positive definite (or semidefinite, 0 = no adaptation); its smallest eigenvalue is {smallest:.3g}")
         if check.is_concrete(self.initial_theta) and check.is_concrete(self.parametrization.lower):
             theta = np.asarray(self.initial_theta)
             lower, upper = np.asarray(self.parametrization.lower), np.asarray(self.parametrization.upper)
             check.finite("initial_theta", theta)
             if np.any(theta < lower) or np.any(theta > upper):
-                raise ValueError(f"initial_theta must lie in the theta bounds [{check._fmt(lower)}, {check._fmt(upper)}]; got {check._fmt(theta)}")
+                raise check.ParameterError("initial_theta", f"initial_theta must lie in the theta bounds [{check._fmt(lower)}, {check._fmt(upper)}]; got {check._fmt(theta)}")
 
     @classmethod
     def calugi_2003(cls, vessel: DPVessel, theta_bounds=None, initial_theta=None, **options) -> "AdaptiveObserver":
@@ -481,6 +505,11 @@ class AdaptiveObserver(ContinuousObserver):
     def discrete(self) -> bool:
         return self.form == "discrete"
 
+    @initial_values(
+        Value("eta", "array", "Position north, east (m) and heading (rad); default the first measurement.", shape="(3,)"),
+        Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s).", shape="(3,)"),
+        Value("theta", "array", "theta_hat(0) (SI); default the observer's initial_theta.", shape="(p,)"),
+    )
     def guess(self, eta=None, nu=0.0, theta=None) -> AdaptiveEstimate:
         """An initial estimate (eta the first measurement unless given; nu zero unless
         given; theta :attr:`initial_theta` unless given), to pass to :meth:`init` through
@@ -525,7 +554,7 @@ class AdaptiveObserver(ContinuousObserver):
         (:mod:`lookout.observers.start`); eta(0) = y0 is stored as the base of the first
         difference (a NaN channel of y0 is replaced by eta_hat(0))."""
         if not isinstance(guess, AdaptiveEstimate):
-            raise ValueError(f"the initial estimate of an AdaptiveObserver must be an AdaptiveEstimate (observer.guess(...)); got {type(guess).__name__}")
+            raise check.ParameterError("the", f"the initial estimate of an AdaptiveObserver must be an AdaptiveEstimate (observer.guess(...)); got {type(guess).__name__}")
         y = jnp.asarray(y0, dtype=float)[:3]
         eta = from_first_measurement(jnp.asarray(guess.eta, dtype=float), y, angles=(2,))
         measured = jnp.where(jnp.isfinite(y), y, eta)

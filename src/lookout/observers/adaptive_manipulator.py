@@ -60,6 +60,7 @@ from lookout._math import matvec, solve
 from lookout.components import Layout, Observer, Signal
 from lookout.models.manipulators import JOINT_INPUT, JOINT_MEASUREMENT, JOINT_POSITION, JOINT_VELOCITY, joint_layout
 from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 
 
 def theta_signal_name(name: str) -> str:
@@ -155,6 +156,21 @@ def _smallest_inertia(parameters: AffineParameters, vertices: Array, q_grid: Arr
     return jnp.min(jax.vmap(lambda theta: jax.vmap(lambda q: smallest(theta, q))(q_grid))(vertices))
 
 
+@component(
+    "observer", "adaptive-manipulator",
+    summary="Calugi (2002) ch. 4: the discrete adaptive observer (4.34)–(4.35) with resetting (4.45).",
+    parameters=(
+        Part("parameters", "The model and which of its parameters are unknown; the observer's model is parameters.model(theta_hat)."),
+        Value("gain", "array", "Diagonal of K (1/s), with |1 - Delta K| < 1.", shape="(n,)", range=POSITIVE),
+        Value("adaptation_gain", "array", "Diagonal of Gamma; 0 freezes that parameter (with all of Gamma 0 this is the chapter-2 velocity observer in the discrete form (4.34), as Calugi's experiment I runs it).", shape="(p,)", range=NON_NEGATIVE),
+        Value("sample_period", "float", "Delta (s): the engine's sample period, fixed here because (4.34) is written for it.", range=POSITIVE),
+        Value("lower", "array", "Lower bounds l of the resetting (4.45), below upper; default none (-inf).", shape="(p,)"),
+        Value("upper", "array", "Upper bounds h of the resetting (4.45), above lower; default none (inf).", shape="(p,)"),
+        Value("margin", "array", "mu of (4.45): M(q; theta_hat) must stay positive definite on [l - mu, h + mu].", shape="(p,)", range=NON_NEGATIVE),
+        Part("regressor", role="parameters", doc="Whose regressor phi (4.7) uses; default parameters."),
+        Value("check_bounds", "bool", "Refuse bounds and a margin that let M(q; theta_hat) lose positive definiteness on [lower - mu, upper + mu] (default true); false only to reproduce a printed setting that fails (Calugi 2002, experiment III)."),
+    ),
+)
 @final
 class AdaptiveManipulatorObserver(Observer):
     """Calugi (2002) ch. 4: the discrete adaptive observer (4.34)–(4.35) with resetting (4.45).
@@ -210,9 +226,9 @@ class AdaptiveManipulatorObserver(Observer):
     def __init__(self, parameters: AffineParameters, gain, adaptation_gain, *, sample_period: float,
                  lower=None, upper=None, margin=0.0, regressor: AffineParameters | None = None, check_bounds: bool = True):
         if not isinstance(parameters, AffineParameters):
-            raise ValueError(f"parameters must be an AffineParameters; got {type(parameters).__name__}")
+            raise check.ParameterError("parameters", f"parameters must be an AffineParameters; got {type(parameters).__name__}")
         if regressor is not None and not (isinstance(regressor, AffineParameters) and regressor.names == parameters.names):
-            raise ValueError("regressor must be an AffineParameters with the same unknowns as parameters")
+            raise check.ParameterError("regressor", "regressor must be an AffineParameters with the same unknowns as parameters")
         model = parameters.model(parameters.reference)
         p = parameters.size
         self.parameters = parameters
@@ -223,10 +239,10 @@ class AdaptiveManipulatorObserver(Observer):
         self.upper = jnp.asarray(check.vector("upper", np.inf if upper is None else upper, p))
         self.margin = jnp.asarray(check.vector("margin mu", margin, p))
         if not (isinstance(sample_period, (int, float)) and np.isfinite(sample_period) and sample_period > 0):
-            raise ValueError(f"sample_period must be finite and positive (s); got {sample_period!r}")
+            raise check.ParameterError("sample_period", f"sample_period must be finite and positive (s); got {sample_period!r}")
         self.sample_period = float(sample_period)
         if not isinstance(check_bounds, bool):
-            raise ValueError(f"check_bounds must be true or false; got {check_bounds!r}")
+            raise check.ParameterError("check_bounds", f"check_bounds must be true or false; got {check_bounds!r}")
         self.check_bounds = check_bounds
         self.measurement_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_MEASUREMENT)
         self.input_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_INPUT)
@@ -243,20 +259,24 @@ class AdaptiveManipulatorObserver(Observer):
         if check.is_concrete(self.gain):
             step = np.abs(1.0 - self.sample_period * np.asarray(self.gain))
             if np.any(step >= 1.0):
-                raise ValueError(f"observer gain K must satisfy |1 - Delta K| < 1 for (4.34); got Delta K = {self.sample_period * np.asarray(self.gain)}")
+                raise check.ParameterError("observer", f"observer gain K must satisfy |1 - Delta K| < 1 for (4.34); got Delta K = {self.sample_period * np.asarray(self.gain)}")
         if check.is_concrete(self.lower) and check.is_concrete(self.upper):
             lower, upper = np.asarray(self.lower), np.asarray(self.upper)
             if np.any(np.isnan(lower)) or np.any(np.isnan(upper)) or np.any(lower >= upper):
-                raise ValueError(f"lower must be below upper for every parameter; got {lower.tolist()}, {upper.tolist()}")
+                raise check.ParameterError("lower", f"lower must be below upper for every parameter; got {lower.tolist()}, {upper.tolist()}")
             if self.check_bounds and np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)):
                 low, high = lower - np.asarray(self.margin), upper + np.asarray(self.margin)
                 smallest = mass_matrix_margin(self.parameters, low, high)
                 if not smallest > 0:
-                    raise ValueError(
-                        f"margin mu and the bounds must keep M(q; theta_hat) positive definite on [lower - mu, upper + mu] "
+                    raise check.ParameterError(
+                        "margin", f"margin mu and the bounds must keep M(q; theta_hat) positive definite on [lower - mu, upper + mu] "
                         f"= [{low.tolist()}, {high.tolist()}]; its smallest eigenvalue there is {smallest:.3g}"
                     )
 
+    @initial_values(
+        Value("velocity", "array", "x1_hat(0), the joints' velocity estimate (rad/s, m/s).", shape="(n,)"),
+        Value("theta", "array", "theta_hat(0), in the parameters' units; default their reference values.", shape="(p,)"),
+    )
     def guess(self, velocity=0.0, theta=None) -> AdaptiveGuess:
         """Initial estimates; theta_hat(0) defaults to the parameters' reference (the truth).
 
@@ -328,7 +348,7 @@ class AdaptiveManipulatorObserver(Observer):
         del t, y  # q(i-1) is the state's position
         h = self.sample_period
         if isinstance(dt, (int, float)) and abs(dt - h) > 1e-12 * h:
-            raise ValueError(f"the engine's sample period {dt!r} s must equal the observer's sample_period {h!r} s (4.34)")
+            raise check.ParameterError("the", f"the engine's sample period {dt!r} s must equal the observer's sample_period {h!r} s (4.34)")
         q, velocity, theta = state.position, state.velocity, state.theta
         psi = self.model_acceleration(theta, q, velocity, u)
         regressor = self.regressor_source.regressor(q, velocity, psi)

@@ -63,6 +63,8 @@ from lookout.models.vessel import VESSEL_INPUT
 from lookout.observers.start import from_first_measurement
 from lookout.sensors import POSITION_HEADING
 from lookout.sim.integrators import rk4_step
+import math
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Rule, Value, component, initial_values
 
 METHODS = ("rk4", "euler")
 INITIAL_VELOCITY = ("estimate", "state")
@@ -99,11 +101,43 @@ def _gain(name: str, value) -> Array:
     array = np.asarray(value, dtype=float) if check.is_concrete(value) else value
     if check.is_concrete(value) and array.ndim == 2:
         if array.shape != (3, 3) or np.any(array != np.diag(np.diag(array))):
-            raise ValueError(f"{name} must be a scalar, 3 diagonal entries or a diagonal 3x3 matrix; got {array.tolist()}")
+            raise check.ParameterError(check.key(name), f"{name} must be a scalar, 3 diagonal entries or a diagonal 3x3 matrix; got {array.tolist()}")
         array = np.diag(array)
     return jnp.asarray(check.vector(name, array))
 
 
+@component(
+    "observer", "earth-fixed",
+    summary="The observer (6) of Wondergem et al. (2009) for a Cybership model.",
+    rules={
+        "gains": Rule(None, (
+            Part("ship", "The observer's model (it may differ from the plant: linear damping only in the basin scheme); in a composition, the plant's unless given."),
+            Value("position_gain", "array", "L1 (1/s) of (6a), positive: a scalar, its diagonal (3,) or a diagonal 3x3 matrix."),
+            Value("velocity_gain", "array", "L2 (1/s^2) of (6b), positive: a scalar, its diagonal (3,) or a diagonal 3x3 matrix."),
+            Value("steps_per_sample", "int", "Integration steps of predict per sample."),
+            Value("method", "str", "How predict integrates (6) between samples.", choices=('rk4', 'euler')),
+            Value("initial_velocity", "str", "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).", choices=('estimate', 'state')),
+        )),
+        "wondergem-2009": Rule("design", (
+            Part("ship", "The observer's model (M, D and D_n); in a composition, the plant's unless given."),
+            Value("reference_position", "array", "eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.", shape="(3,)"),
+            Value("reference_velocity", "array", "nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.", shape="(3,)"),
+            Value("reference_yaw_rate_max", "float", "r_ref^max, the largest |r_ref| of the reference (rad/s).", range=NON_NEGATIVE),
+            Value("reference_speed_max", "float", "sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).", range=NON_NEGATIVE),
+            Value("reference_acceleration_max", "float", "sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.", range=NON_NEGATIVE),
+            Value("start_position", "array", "eta(0): the ship's initial position north, east (m) and heading (rad).", shape="(3,)"),
+            Value("start_velocity", "array", "nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).", shape="(3,)"),
+            Value("estimate_position", "array", "eta_hat(0), the observer's initial position estimate (m, m, rad); default start_position, the estimate started at the measurement.", shape="(3,)"),
+            Value("estimate_velocity", "array", "v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).", shape="(3,)"),
+            Value("damping_ratio", "float", "lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).", range=POSITIVE),
+            Value("velocity_bound", "float", "V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).", range=NON_NEGATIVE),
+            Value("margin", "float", "Factor by which L1 and L2 exceed their largest lower bound (1).", range=Range(1.0, math.inf, False, False)),
+            Value("steps_per_sample", "int", "Integration steps of predict per sample."),
+            Value("method", "str", "How predict integrates (6) between samples.", choices=('rk4', 'euler')),
+            Value("initial_velocity", "str", "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).", choices=('estimate', 'state')),
+        )),
+    },
+)
 @final
 class EarthFixedObserver(ContinuousObserver):
     """The observer (6) of Wondergem et al. (2009) for a :class:`Cybership` model.
@@ -140,16 +174,16 @@ class EarthFixedObserver(ContinuousObserver):
 
     def __init__(self, ship: Cybership, position_gain, velocity_gain, *, steps_per_sample=1, method="rk4", initial_velocity="estimate"):
         if not isinstance(ship, Cybership):
-            raise ValueError(f"ship must be a Cybership; got {type(ship).__name__}")
+            raise check.ParameterError("ship", f"ship must be a Cybership; got {type(ship).__name__}")
         self.ship = ship
         self.position_gain = _gain("position_gain (L1)", position_gain)
         self.velocity_gain = _gain("velocity_gain (L2)", velocity_gain)
         if not (isinstance(steps_per_sample, int) and not isinstance(steps_per_sample, bool) and steps_per_sample >= 1):
-            raise ValueError(f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
+            raise check.ParameterError("steps_per_sample", f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
         if method not in METHODS:
-            raise ValueError(f"method must be one of {', '.join(map(repr, METHODS))}; got {method!r}")
+            raise check.ParameterError("method", f"method must be one of {', '.join(map(repr, METHODS))}; got {method!r}")
         if initial_velocity not in INITIAL_VELOCITY:
-            raise ValueError(f"initial_velocity must be one of {', '.join(map(repr, INITIAL_VELOCITY))}; got {initial_velocity!r}")
+            raise check.ParameterError("initial_velocity", f"initial_velocity must be one of {', '.join(map(repr, INITIAL_VELOCITY))}; got {initial_velocity!r}")
         self.steps_per_sample = steps_per_sample
         self.method = method
         self.velocity_is_state = jnp.asarray(initial_velocity == "state")
@@ -225,6 +259,10 @@ class EarthFixedObserver(ContinuousObserver):
         position_gain, velocity_gain = proposal.observer_gains
         return cls(ship, position_gain, velocity_gain, steps_per_sample=steps_per_sample, method=method, initial_velocity=initial_velocity)
 
+    @initial_values(
+        Value("eta", "array", "eta_hat(0): position north, east (m) and heading (rad); default the first measurement.", shape="(3,)"),
+        Value("velocity", "array", "The Earth-frame velocity (m/s, m/s, rad/s) of v_hat(0) or zeta(0) (initial_velocity).", shape="(3,)"),
+    )
     def guess(self, eta=None, velocity=0.0) -> EarthFixedGuess:
         """An initial estimate: eta_hat(0) = ``eta`` (the first measurement unless given)
         and the Earth-frame ``velocity``.

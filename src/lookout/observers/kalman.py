@@ -75,6 +75,7 @@ from lookout._math import ssa, unmarked
 from lookout._resources import refuse_unless_it_fits
 from lookout.components import Layout, Observer, Plant, Sensor, Signal
 from lookout.sim.integrators import INTEGRATORS
+from lookout.scenario.declare import initial_values
 
 
 class KalmanState(eqx.Module):
@@ -173,9 +174,9 @@ def _state_vector(model: Plant, value, name: str, disturbance_size: int = 0, def
         vector = np.asarray(value, dtype=float)
         if vector.shape != (size,):
             what = f"state entry ({size}: the plant's and the input disturbance's)" if disturbance_size else f"state entry ({size})"
-            raise ValueError(f"{name} must have one entry per {what}, or be a table of the plant's state parts; got shape {vector.shape}")
+            raise check.ParameterError(check.key(name), f"{name} must have one entry per {what}, or be a table of the plant's state parts; got shape {vector.shape}")
     if not (np.all(np.isfinite(vector)) and np.all(vector >= 0)):
-        raise ValueError(f"{name} must be finite and >= 0; got {vector.tolist()}")
+        raise check.ParameterError(check.key(name), f"{name} must be finite and >= 0; got {vector.tolist()}")
     return vector
 
 
@@ -287,7 +288,7 @@ class KalmanFilter(Observer):
             return max(1, round(self.filter_period / self.plant_step))
         count = round(float(dt) / self.plant_step)
         if count < 1 or abs(count * self.plant_step - float(dt)) > 1e-9 * max(1.0, float(dt)):
-            raise ValueError(f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)")
+            raise check.ParameterError("the", f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)")
         return count
 
     def substep(self, dt):
@@ -352,6 +353,7 @@ class KalmanFilter(Observer):
         gates a live reading on it."""
 
     # ------------------------------------------------------------------ Observer
+    @initial_values(same_as="model.state")
     def guess(self, **parts):
         """The model plant's state from its named parts (the keywords of the plant's
         ``state``; zeros where not given, except the parts a plant leaves to a
@@ -359,8 +361,6 @@ class KalmanFilter(Observer):
         first measurement sets them, :meth:`init`)."""
         unset = {name: math.nan for name in _measured_parts(self.model) if parts.get(name) is None}
         return self.model.state(**{**{name: value for name, value in parts.items() if value is not None}, **unset})
-
-    guess.parameters_from = "model.state"  # the composition's [observer.initial] takes the plant's parts
 
     def init(self, y0: Array, guess) -> KalmanState:
         """x_0 from the guess, its NaN entries (the states left to the first measurement,
@@ -403,13 +403,13 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
     the defaults of the module docstring (the steady state from the extended filter's
     linearization, for either filter)."""
     if not isinstance(plant, Plant):
-        raise ValueError(f"plant must be a Plant; got {type(plant).__name__}")
+        raise check.ParameterError("plant", f"plant must be a Plant; got {type(plant).__name__}")
     if not isinstance(sensor, Sensor):
-        raise ValueError(f"sensor must be a Sensor; got {type(sensor).__name__}")
+        raise check.ParameterError("sensor", f"sensor must be a Sensor; got {type(sensor).__name__}")
     check.positive("plant_step", plant_step)
     check.positive("filter_period", sample_period)
     if integrator not in INTEGRATORS:
-        raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
+        raise check.ParameterError("integrator", f"integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
     zero, _ = ravel_pytree(plant.state())
     n, m, size = zero.size, sensor.measurement_layout.size, plant.noise_size
     inputs = plant.input_layout.size
@@ -418,13 +418,13 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
     else:
         disturbance = np.broadcast_to(np.asarray(input_disturbance, dtype=float), np.shape(input_disturbance) or (inputs,))
         if disturbance.shape != (inputs,) or not (np.all(np.isfinite(disturbance)) and np.all(disturbance >= 0)):
-            raise ValueError(
-                f"input_disturbance must be {inputs} finite intensities >= 0 (one per input entry of the plant, units^2/s); got {np.asarray(input_disturbance).tolist()}"
+            raise check.ParameterError(
+                "input_disturbance", f"input_disturbance must be {inputs} finite intensities >= 0 (one per input entry of the plant, units^2/s); got {np.asarray(input_disturbance).tolist()}"
             )
     d = disturbance.size
     substeps = max(1, round(float(sample_period) / float(plant_step)))
     if substeps > MAX_PROPAGATION_STEPS:  # the linearization runs through every one, at a cost in their square
-        raise ValueError(f"plant_step ({float(plant_step):g} s) makes {substeps} propagation steps per sample of {float(sample_period):g} s, and a "
+        raise check.ParameterError("plant_step", f"plant_step ({float(plant_step):g} s) makes {substeps} propagation steps per sample of {float(sample_period):g} s, and a "
                          f"Kalman filter linearizes through each (its work grows with their square): at most {MAX_PROPAGATION_STEPS}; give the filter "
                          f"a plant_step of its own of at least {float(sample_period) / MAX_PROPAGATION_STEPS:.3g} s")
     refuse_unless_it_fits(working_nbytes(n + d, substeps, size),
@@ -437,7 +437,7 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
     else:
         q = np.asarray(process_noise, dtype=float)
         if q.shape != (size,) or not (np.all(np.isfinite(q)) and np.all(q >= 0)):
-            raise ValueError(f"process_noise must be {size} finite intensities >= 0 (one per noise input of the plant); got {q.tolist()}")
+            raise check.ParameterError("process_noise", f"process_noise must be {size} finite intensities >= 0 (one per noise input of the plant); got {q.tolist()}")
     s = _state_vector(plant, state_noise, "state_noise", d, default_disturbance=0.0)
     s = np.zeros(n + d) if s is None else s
     s = np.concatenate([s[:n], s[n:] + disturbance])  # the disturbance's random walk
@@ -446,14 +446,14 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
         eigenvalues = np.linalg.eigvalsh(r)
         if eigenvalues.min() <= 1e-300:
             silent = [signal for signal, value in zip(_channel_names(sensor.measurement_layout), np.diag(r)) if value <= 0]
-            raise ValueError(
-                f"measurement_noise: the sensor's own noise is zero on {', '.join(silent) or 'a combination of channels'}; "
+            raise check.ParameterError(
+                "measurement_noise", f"measurement_noise: the sensor's own noise is zero on {', '.join(silent) or 'a combination of channels'}; "
                 "give measurement_noise (a standard deviation per channel)"
             )
     else:
         std = np.asarray(measurement_noise, dtype=float)
         if std.shape != (m,) or not (np.all(np.isfinite(std)) and np.all(std > 0)):
-            raise ValueError(f"measurement_noise must be {m} finite standard deviations > 0 (one per measured channel); got {std.tolist()}")
+            raise check.ParameterError("measurement_noise", f"measurement_noise must be {m} finite standard deviations > 0 (one per measured channel); got {std.tolist()}")
         r = np.diag(std**2)
     fields = {
         "model": plant, "sensor": sensor, "process_noise": jnp.asarray(q), "state_noise": jnp.asarray(s),
@@ -489,15 +489,15 @@ def _steady_state(fields: dict, sample_period: float) -> np.ndarray:
         solution = solve_discrete_are(transition.T, observation.T, noise, np.asarray(fields["measurement_covariance"]))
     except (np.linalg.LinAlgError, ValueError) as error:
         reason = str(error).split("\n")[0]
-        raise ValueError(
-            f"initial_std: the model's steady-state covariance does not exist ({reason}: its own noise does not reach every state); "
+        raise check.ParameterError(
+            "initial_std", f"initial_std: the model's steady-state covariance does not exist ({reason}: its own noise does not reach every state); "
             "give initial_std (a table of the plant's state parts, or one standard deviation per state entry)"
         ) from None
     solution = 0.5 * (solution + solution.T)
     scale = np.sqrt(np.abs(np.diag(solution)))
     # positive definite, judged on the correlation matrix (the states' units differ by 1e10)
     if not np.all(np.isfinite(solution)) or np.any(scale <= 0) or np.linalg.eigvalsh(solution / np.outer(scale, scale)).min() <= 1e-12:
-        raise ValueError("initial_std: the model's steady-state covariance is not positive definite; give initial_std")
+        raise check.ParameterError("initial_std", "initial_std: the model's steady-state covariance is not positive definite; give initial_std")
     return np.asarray(solution)
 
 

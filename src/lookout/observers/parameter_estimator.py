@@ -78,6 +78,7 @@ from lookout.models.parameters import AffineParameters
 from lookout.models.parameters import parameter_signal_name, parameter_signals
 from lookout.sensors import joint_state_layout
 from lookout.sim.integrators import rk4_step
+from lookout.scenario.declare import POSITIVE, Part, Value, component, initial_values
 
 #: Units of the generalized force per joint kind (the prediction error, tau_f).
 FORCE_UNITS = {REVOLUTE: "N m", PRISMATIC: "N"}
@@ -115,6 +116,16 @@ class ParameterEstimatorState(eqx.Module):
     held: Array
 
 
+@component(
+    "observer", "parameter-estimator",
+    summary="Middleton–Goodwin filtered-regressor estimator, Calugi (2002), eqs. (3.9), (3.13)–(3.16).",
+    parameters=(
+        Part("parameters", "The unknown parameters and the model they build; every parameter needs a unit."),
+        Value("gain", "array", "h of (3.9): a scalar, or the diagonal of a positive diagonal matrix.", shape="(p,)", range=POSITIVE),
+        Value("filter_pole", "float", "a of the filter 1/(s + a) (rad/s); the thesis's 1.", range=POSITIVE),
+        Value("steps_per_sample", "int", "RK4 steps of predict per sample period (sampled mode).", range=POSITIVE),
+    ),
+)
 @final
 class ParameterEstimator(ContinuousObserver):
     """Middleton–Goodwin filtered-regressor estimator, Calugi (2002), eqs. (3.9), (3.13)–(3.16).
@@ -159,16 +170,16 @@ class ParameterEstimator(ContinuousObserver):
 
     def __init__(self, parameters: AffineParameters, gain, filter_pole=1.0, steps_per_sample: int = 1):
         if not isinstance(parameters, AffineParameters):
-            raise ValueError(f"parameters must be AffineParameters (lookout.models.parameters); got {type(parameters).__name__}")
+            raise check.ParameterError("parameters", f"parameters must be AffineParameters (lookout.models.parameters); got {type(parameters).__name__}")
         model = parameters.model(parameters.reference)
         names, kinds = model.joint_names, model.joint_kinds
         self.parameters = parameters
         self.gain = jnp.asarray(check.vector("parameter estimator gain", gain, parameters.size))
         if check.is_concrete(filter_pole) and np.ndim(filter_pole) != 0:
-            raise ValueError(f"filter_pole must be a scalar; got shape {np.shape(filter_pole)}")
+            raise check.ParameterError("filter_pole", f"filter_pole must be a scalar; got shape {np.shape(filter_pole)}")
         self.filter_pole = jnp.asarray(filter_pole, dtype=float)
         if not (isinstance(steps_per_sample, int) and steps_per_sample >= 1):
-            raise ValueError(f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
+            raise check.ParameterError("steps_per_sample", f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
         self.steps_per_sample = steps_per_sample
         self.parameter_layout = Layout(parameter_signals(parameters, "_hat", "estimated "))
         force = {kind: FORCE_UNITS[kind] for kind in (REVOLUTE, PRISMATIC)}
@@ -250,6 +261,9 @@ class ParameterEstimator(ContinuousObserver):
 
     # --- the observer contract -------------------------------------------------------
 
+    @initial_values(
+        Value("theta", "array", "theta_hat(0), in the parameters' units; default their reference values.", shape="(p,)"),
+    )
     def guess(self, theta=None) -> Array:
         """An initial parameter estimate theta_hat(0): ``theta``, by default the
         parameters' reference values (as :class:`AdaptiveManipulatorObserver` starts).
@@ -276,7 +290,7 @@ class ParameterEstimator(ContinuousObserver):
         n, p = self.size, self.parameters.size
         theta = jnp.asarray(guess, dtype=held.dtype)
         if theta.shape not in ((), (p,)):
-            raise ValueError(f"the initial estimate theta_hat(0) must be a scalar or have {p} entries ({', '.join(self.parameters.names)}); got shape {theta.shape}")
+            raise check.ParameterError("the", f"the initial estimate theta_hat(0) must be a scalar or have {p} entries ({', '.join(self.parameters.names)}); got shape {theta.shape}")
         theta = jnp.broadcast_to(theta, (p,))
         inertial_term, _, _ = self.regressor_pieces(held[:n], held[n:])
         zeros = jnp.zeros((n, p + 1), held.dtype)
@@ -373,15 +387,15 @@ def windowed_excitation(time, regressor, window: float) -> tuple[np.ndarray, np.
     time = np.asarray(time, dtype=float)
     phi = np.asarray(regressor, dtype=float)
     if time.ndim != 1 or time.size < 2 or phi.ndim != 3 or phi.shape[0] != time.size:
-        raise ValueError(f"regressor must have shape (len(time), n, p) with at least two times; got time {time.shape} and regressor {phi.shape}")
+        raise check.ParameterError("regressor", f"regressor must have shape (len(time), n, p) with at least two times; got time {time.shape} and regressor {phi.shape}")
     step = float(time[1] - time[0])
     if not (step > 0 and np.allclose(np.diff(time), step, rtol=1e-9, atol=0.0)):
-        raise ValueError("time must be uniformly spaced and increasing")
+        raise check.ParameterError("time", "time must be uniformly spaced and increasing")
     count = int(round(window / step)) if np.isfinite(window) and window > 0 else 0
     if count < 1 or abs(count * step - window) > 1e-9 * max(window, 1.0):
-        raise ValueError(f"window must be a positive whole number of sample intervals ({step:g} s); got {window:g}")
+        raise check.ParameterError("window", f"window must be a positive whole number of sample intervals ({step:g} s); got {window:g}")
     if count >= time.size:
-        raise ValueError(f"window must be at most the span of the records ({time[-1] - time[0]:g} s); got {window:g}")
+        raise check.ParameterError("window", f"window must be at most the span of the records ({time[-1] - time[0]:g} s); got {window:g}")
     gram = np.einsum("kia,kib->kab", phi, phi)
     cumulative = np.concatenate([np.zeros((1,) + gram.shape[1:]), np.cumsum(0.5 * (gram[1:] + gram[:-1]) * step, axis=0)])
     integral = cumulative[count:] - cumulative[:-count]

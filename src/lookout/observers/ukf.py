@@ -33,9 +33,11 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
+from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import Plant, Sensor
 from lookout.observers.kalman import PARAMETERS, KalmanFilter, KalmanState, _symmetric, kalman_fields, masked, masked_noise
+from lookout.scenario.declare import Context, NON_NEGATIVE, POSITIVE, Part, Range, Value, component
 
 
 def _wrapped(deviations: Array, angles: tuple[bool, ...]) -> Array:
@@ -64,6 +66,25 @@ def _mean(points: Array, weights: Array, angles: tuple[bool, ...]) -> Array:
     return points[0] + weights @ deviations
 
 
+@component(
+    "observer", "ukf",
+    summary="Continuous-discrete unscented Kalman filter on the plant's own model (lookout.observers.ukf): the extended filter's propagation and masking, with sigma points in place of Jacobians for the mean and the measurement.",
+    parameters=(
+        Part("plant", "The filter's model of the plant (default: the composition's plant; give a [observer.plant] table for a model that differs from the truth)."),
+        Part("sensor", "The filter's model of the sensor (default: the composition's sensor)."),
+        Value("process_noise", "array", "Intensity of each of the model's unit white noise inputs (1: the model's own; default all 1).", shape="(noise_size,)", range=NON_NEGATIVE),
+        Value("state_noise", "parts", "Continuous-time process noise intensity added per state entry (units^2/s): one per raveled state entry, or a table of the plant's state parts as [plant.initial] takes them (default 0).", range=NON_NEGATIVE),
+        Value("measurement_noise", "array", "Standard deviation of each measured channel, R = diag(std^2) (default: the sensor's own noise).", shape="(m,)", range=POSITIVE),
+        Value("initial_std", "parts", "Standard deviation of the initial guess per state entry, or a table of the plant's state parts and input_disturbance (default: the steady-state filter's, from the Riccati equation).", range=NON_NEGATIVE),
+        Value("input_disturbance", "array", "Estimate an unknown disturbance added to the plant's input, a random walk of this intensity per input entry (units^2/s; 0: a constant, and with an initial std of 0 none on that entry): the usual DP bias state, for a model without one (default none).", range=NON_NEGATIVE),
+        Value("alpha", "float", "Spread of the sigma points around the mean (Wan & van der Merwe's alpha).", range=Range(0.0, 1.0, False, True)),
+        Value("beta", "float", "Prior knowledge of the distribution (2 for a Gaussian).", range=NON_NEGATIVE),
+        Value("kappa", "float", "Secondary scaling; n + kappa must be positive."),
+        Context("plant_step", "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization."),
+        Context("filter_period", "The filter's sample period (s), for the steady-state P_0; default the composition's simulation.sample_period."),
+        Context("integrator", "rk4 or euler; default the composition's simulation.integrator."),
+    ),
+)
 @final
 class UnscentedKalmanFilter(KalmanFilter):
     __doc__ = """Continuous-discrete unscented Kalman filter on the plant's own model
@@ -93,11 +114,11 @@ class UnscentedKalmanFilter(KalmanFilter):
             setattr(self, name, value)
         n = fields["initial_covariance"].shape[0]
         if not 0.0 < float(alpha) <= 1.0:
-            raise ValueError(f"alpha must be in (0, 1]; got {alpha}")
+            raise check.ParameterError("alpha", f"alpha must be in (0, 1]; got {alpha}")
         if not float(beta) >= 0.0:
-            raise ValueError(f"beta must be >= 0; got {beta}")
+            raise check.ParameterError("beta", f"beta must be >= 0; got {beta}")
         if not n + float(kappa) > 0.0:
-            raise ValueError(f"kappa must exceed -n = {-n} (the state has {n} entries); got {kappa}")
+            raise check.ParameterError("kappa", f"kappa must exceed -n = {-n} (the state has {n} entries); got {kappa}")
         self.alpha, self.beta, self.kappa = float(alpha), float(beta), float(kappa)
 
     def _weights(self, n: int) -> tuple[Array, Array, float]:

@@ -45,6 +45,7 @@ from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
 from lookout.models.manipulators import JOINT_INPUT, JOINT_MEASUREMENT, JOINT_VELOCITY, ManipulatorModel, joint_layout
 from lookout.sim.integrators import rk4_step
+from lookout.scenario.declare import POSITIVE, Part, Value, component, initial_values
 
 
 class VelocityObserverState(eqx.Module):
@@ -64,6 +65,15 @@ class VelocityObserverState(eqx.Module):
     position: Array
 
 
+@component(
+    "observer", "velocity",
+    summary="Reduced-order velocity observer of Calugi (2002), eqs. (2.6)–(2.7).",
+    parameters=(
+        Part("model", "The observer's own model M, C, F, G (it may differ from the plant's)."),
+        Value("gain", "array", "Diagonal of K (1/s).", shape="(n,)", range=POSITIVE),
+        Value("steps_per_sample", "int", "RK4 steps of predict per sample period (sampled mode).", range=POSITIVE),
+    ),
+)
 @final
 class VelocityObserver(ContinuousObserver):
     """Reduced-order velocity observer of Calugi (2002), eqs. (2.6)–(2.7).
@@ -97,11 +107,11 @@ class VelocityObserver(ContinuousObserver):
 
     def __init__(self, model: ManipulatorModel, gain, steps_per_sample: int = 1):
         if not isinstance(model, ManipulatorModel):
-            raise ValueError(f"model must be a ManipulatorModel; got {type(model).__name__}")
+            raise check.ParameterError("model", f"model must be a ManipulatorModel; got {type(model).__name__}")
         self.model = model
         self.gain = jnp.asarray(check.vector("velocity observer gain", gain, model.size))
         if not (isinstance(steps_per_sample, int) and steps_per_sample >= 1):
-            raise ValueError(f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
+            raise check.ParameterError("steps_per_sample", f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
         self.steps_per_sample = steps_per_sample
         self.estimate_signals = joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals
         self.extra_signals = ()  # the reduced-order observer outputs only its velocity estimate
@@ -120,6 +130,9 @@ class VelocityObserver(ContinuousObserver):
         """x1_hat = z + K q (eq. 2.7), q_hat standing in for missing channels."""
         return state.z + self.gain * self._positions(state, y)
 
+    @initial_values(
+        Value("velocity", "array", "x1_hat(0), the joints' velocity estimate (rad/s, m/s).", shape="(n,)"),
+    )
     def guess(self, velocity=0.0) -> Array:
         """An initial velocity estimate x1_hat(0) (rad/s, m/s): ``velocity`` per joint (zero by default).
 

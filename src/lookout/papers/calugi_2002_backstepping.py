@@ -47,6 +47,7 @@ from lookout.papers._report import Table, save_figures, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
 from lookout.reference import ReferenceFilter
 from lookout.sim import Scenario, seed_keys, simulate
+from lookout.scenario.declare import Value, component
 
 NAME = "calugi-2002-backstepping"
 TITLE = CATALOG[NAME].title
@@ -56,6 +57,17 @@ PLANT_STEP = 0.001
 VARIANTS = ("corrected", "printed")
 
 
+@component(
+    "model", "printed-inertia-arm",
+    summary="The two-link arm with (5.37)'s M_22 as printed: m2_true l2^2, whatever the mass parameter.",
+    parameters=(
+        Value("masses", "array", "m1, m2 (kg) of M_11, M_12 and G; m2 is the unknown theta of the observer.", shape="(2,)"),
+        Value("lengths", "array", "l1, l2 (m).", shape="(2,)"),
+        Value("friction", "array", "c1, c2 (N m s/rad); none in Section 5.3.", shape="(2,)"),
+        Value("gravity_acceleration", "float", "g (m/s^2)."),
+        Value("printed_mass", "float", "The m2 of the printed M_22 = m2 l2^2 (kg): the true 1.5 kg, whatever masses[1] is."),
+    ),
+)
 @final
 class PrintedInertiaArm(ManipulatorModel):
     """The two-link arm with (5.37)'s M_22 as printed: m2_true l2^2, whatever the mass parameter.

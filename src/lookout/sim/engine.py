@@ -48,7 +48,7 @@ from jax import Array
 from jax.flatten_util import ravel_pytree
 
 from lookout._math import computed_once
-from lookout._validation import is_concrete
+from lookout._validation import FitError, ParameterError, is_concrete, key
 from lookout._random import MAX_COUNT, standard_normal
 from lookout._resources import format_bytes, refuse_unless_it_fits
 from lookout.actuators import IdealActuator
@@ -68,10 +68,10 @@ def integer_ratio(value: float, base: float) -> int | None:
     return steps
 
 
-def _ratio(name: str, period: float, base_name: str, base: float) -> int:
+def _ratio(name: str, period: float, base_name: str, base: float, location: tuple = ()) -> int:
     steps = integer_ratio(period, base)
     if steps is None:
-        raise ValueError(
+        raise ParameterError(location or (key(name),),
             f"{name} ({period:g} s) must be an integer multiple of {base_name} ({base:g} s)"
         )
     return steps
@@ -149,39 +149,39 @@ class Scenario(eqx.Module):
             if not isinstance(value, kind):
                 raise ValueError(f"{name} must be a lookout {kind.__name__}; got {type(value).__name__}")
         if not (math.isfinite(self.plant_step) and self.plant_step > 0):
-            raise ValueError(f"plant_step must be positive; got {self.plant_step}")
+            raise ParameterError("plant_step", f"plant_step must be positive; got {self.plant_step}")
         if not (math.isfinite(self.sample_period) and self.sample_period > 0):
-            raise ValueError(f"sample_period must be positive; got {self.sample_period}")
+            raise ParameterError("sample_period", f"sample_period must be positive; got {self.sample_period}")
         if not (math.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"duration must be positive; got {self.duration}")
+            raise ParameterError("duration", f"duration must be positive; got {self.duration}")
         if not (isinstance(self.record_every, int) and self.record_every >= 1):
-            raise ValueError(f"record_every must be a positive integer; got {self.record_every}")
+            raise ParameterError("record_every", f"record_every must be a positive integer; got {self.record_every}")
         if self.integrator not in INTEGRATORS:
-            raise ValueError(f"integrator must be one of {sorted(INTEGRATORS)}; got {self.integrator!r}")
+            raise ParameterError("integrator", f"integrator must be one of {sorted(INTEGRATORS)}; got {self.integrator!r}")
         if self.observer_mode not in ("sampled", "continuous"):
-            raise ValueError(f"observer_mode must be 'sampled' or 'continuous'; got {self.observer_mode!r}")
+            raise ParameterError("observer_mode", f"observer_mode must be 'sampled' or 'continuous'; got {self.observer_mode!r}")
         if self.observer_mode == "continuous" and not isinstance(self.observer, ContinuousObserver):
-            raise ValueError(f"observer_mode 'continuous' needs a ContinuousObserver; observer {kind_of(self.observer)} is not one")
+            raise ParameterError("observer_mode", f"observer_mode 'continuous' needs a ContinuousObserver; observer {kind_of(self.observer)} is not one")
         substeps = _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
         if substeps * self.plant.noise_size > MAX_COUNT:  # the process noise of a sample is one draw
             most = MAX_COUNT // max(1, self.plant.noise_size)
-            raise ValueError(f"plant_step ({self.plant_step:g} s) makes {substeps} plant steps per sample of {self.sample_period:g} s; at most {most} "
+            raise ParameterError("plant_step", f"plant_step ({self.plant_step:g} s) makes {substeps} plant steps per sample of {self.sample_period:g} s; at most {most} "
                              f"({self.plant.noise_size} process noise inputs each): a plant_step of at least {self.sample_period / most:.3g} s")
         if len(self.sensor.sample_period) != self.sensor.measurement_layout.size:
             raise ValueError(
                 f"sensor has {len(self.sensor.sample_period)} sample periods for {self.sensor.measurement_layout.size} channels"
             )
         for channel, period in enumerate(self.sensor.sample_period):
-            _ratio(f"sensor sample_period[{channel}]", period, "sample_period", self.sample_period)
+            _ratio(f"sensor sample_period[{channel}]", period, "sample_period", self.sample_period, ("sensor", "sample_period"))
         outage = getattr(self.sensor, "outage", None)
         if outage is not None and is_concrete(outage.start) and is_concrete(outage.duration):
             start, length = np.asarray(outage.start, dtype=float), np.asarray(outage.duration, dtype=float)
             if np.any((length > 0) & (start >= self.duration)):  # it would silence nothing
-                raise ValueError(f"sensor outage_start ({float(np.max(start)):g} s) must be before the run's end (duration {self.duration:g} s) for an outage to happen")
+                raise ParameterError(("sensor", "outage_start"), f"sensor outage_start ({float(np.max(start)):g} s) must be before the run's end (duration {self.duration:g} s) for an outage to happen")
         _ratio("duration", self.duration, "sample_period * record_every", self.sample_period * self.record_every)
         if self.duration / self.sample_period >= 2**32:
-            raise ValueError(
-                f"duration / sample_period must be below 2**32 samples (noise counters); got {self.duration / self.sample_period:.3g}"
+            raise ParameterError(
+                "duration", f"duration / sample_period must be below 2**32 samples (noise counters); got {self.duration / self.sample_period:.3g}"
             )
         check_fit(self)
 
@@ -223,19 +223,19 @@ def _compare(part: str, other: str, what: str, got: dict, signals: tuple[Signal,
     """Fail unless ``got`` (name -> shape) has exactly the names and shapes of ``signals``."""
     expected = {s.name: s.shape for s in signals}
     if set(got) != set(expected):
-        raise ValueError(f"{part} and {other} disagree: {what} gives {sorted(got)}, its signals declare {sorted(expected)}")
+        raise FitError((part, other), f"{part} and {other} disagree: {what} gives {sorted(got)}, its signals declare {sorted(expected)}")
     for name, shape in expected.items():
         if tuple(got[name]) != shape:
-            raise ValueError(f"{part} and {other} disagree: {what} {name!r} has shape {tuple(got[name])}, its signal says {shape}")
+            raise FitError((part, other), f"{part} and {other} disagree: {what} {name!r} has shape {tuple(got[name])}, its signal says {shape}")
 
 
-def _evaluate(parts: str, function: Callable, *args):
+def _evaluate(parts: tuple[str, str], function: Callable, *args):
     """``jax.eval_shape(function, *args)``; any failure deep in the trace becomes one
     line that names the two parts."""
     try:
         return jax.eval_shape(function, *args)
     except Exception as error:
-        raise ValueError(f"{parts} do not fit: {_first_line(error)}") from None
+        raise FitError(parts, f"{parts[0]} and {parts[1]} do not fit: {_first_line(error)}") from None
 
 
 #: Scenarios that fit, by :func:`structure_key`: the points of a sweep (the same
@@ -281,23 +281,23 @@ def _check_fit(scenario: Scenario) -> None:
     u0 = jnp.zeros(layout.size)
     w0 = jnp.zeros(plant.noise_size)
 
-    truth = _evaluate("plant and initial_state", plant.variables, x0)
+    truth = _evaluate(("plant", "initial_state"), plant.variables, x0)
     _compare("plant", "initial_state", "plant.variables(initial_state)", {k: _shape_of(v) for k, v in truth.items()}, plant.variable_signals)
-    derivative = _evaluate("plant and initial_state", lambda x: plant.vector_field(0.0, x, u0, w0), x0)
+    derivative = _evaluate(("plant", "initial_state"), lambda x: plant.vector_field(0.0, x, u0, w0), x0)
     if jax.tree.structure(derivative) != jax.tree.structure(x0) or [_shape_of(a) for a in jax.tree.leaves(derivative)] != [_shape_of(a) for a in jax.tree.leaves(x0)]:
-        raise ValueError("plant and initial_state disagree: plant.vector_field returns a state shaped unlike initial_state")
+        raise FitError(("plant", "initial_state"), "plant and initial_state disagree: plant.vector_field returns a state shaped unlike initial_state")
 
-    y = _evaluate("sensor and plant", lambda x: sensor.measure(x, jnp.zeros(sensor.noise_size)), x0)
+    y = _evaluate(("sensor", "plant"), lambda x: sensor.measure(x, jnp.zeros(sensor.noise_size)), x0)
     if _shape_of(y) != (sensor.measurement_layout.size,):
-        raise ValueError(
+        raise FitError(("sensor", "plant"),
             f"sensor and plant disagree: the measurement has shape {_shape_of(y)}, the sensor's layout says ({sensor.measurement_layout.size},)"
         )
     y = jnp.zeros(sensor.measurement_layout.size)
     measured = set(sensor.measurement_layout.names)
     for name in observer.measurement_layout.names:
         if name not in measured:
-            raise ValueError(
-                f"observer {kind_of(observer)} needs measurement {name}, which sensor {kind_of(sensor)} does not measure (it measures {', '.join(sensor.measurement_layout.names)})"
+            raise ParameterError(
+                "observer", f"observer {kind_of(observer)} needs measurement {name}, which sensor {kind_of(sensor)} does not measure (it measures {', '.join(sensor.measurement_layout.names)})"
             )
     if observer.measurement_layout.names != sensor.measurement_layout.names:  # observers read y by position
         raise ValueError(
@@ -305,8 +305,8 @@ def _check_fit(scenario: Scenario) -> None:
             f"and sensor {kind_of(sensor)} gives ({', '.join(sensor.measurement_layout.names)}): a sensor of exactly these channels is needed"
         )
 
-    state = _evaluate("observer and initial_estimate", observer.init, y, scenario.initial_estimate)
-    estimate = _evaluate("observer and sensor", lambda s: observer.output(observer.update(s, 0.0, y), y), state)
+    state = _evaluate(("observer", "initial_estimate"), observer.init, y, scenario.initial_estimate)
+    estimate = _evaluate(("observer", "sensor"), lambda s: observer.output(observer.update(s, 0.0, y), y), state)
     outputs = tuple(observer.estimate_signals) + tuple(observer.extra_signals)
     _compare("observer", "its signals", "observer.output", {k: _shape_of(v) for k, v in estimate.items()}, outputs)
     plant_signals = {s.name: s for s in plant.variable_signals}
@@ -317,22 +317,22 @@ def _check_fit(scenario: Scenario) -> None:
             # bias): recorded as an estimate without a truth, and no error is taken of it
             continue
         if (truth_signal.shape, truth_signal.units, truth_signal.labels) != (signal.shape, signal.units, signal.labels):
-            raise ValueError(
+            raise FitError(("observer", "plant"),
                 f"observer and plant disagree: the estimate {signal.name!r} is {signal.shape} in {signal.units} over {signal.labels}, "
                 f"the plant's is {truth_signal.shape} in {truth_signal.units} over {truth_signal.labels}"
             )
     inputs = set(layout.names)
     for name in observer.input_layout.names:
         if name not in inputs:
-            raise ValueError(f"observer {kind_of(observer)} needs input {name}, which plant {kind_of(plant)} does not take (it takes {', '.join(layout.names)})")
-    predicted = _evaluate("observer and plant", lambda s: observer.predict(s, 0.0, y, u0, scenario.sample_period), state)
+            raise ParameterError("observer", f"observer {kind_of(observer)} needs input {name}, which plant {kind_of(plant)} does not take (it takes {', '.join(layout.names)})")
+    predicted = _evaluate(("observer", "plant"), lambda s: observer.predict(s, 0.0, y, u0, scenario.sample_period), state)
     if scenario.observer_mode == "continuous":
-        _evaluate("observer and observer_mode 'continuous'", lambda s: observer.vector_field(0.0, s, y, u0), state)
+        _evaluate(("observer", "observer_mode 'continuous'"), lambda s: observer.vector_field(0.0, s, y, u0), state)
     if jax.tree.structure(predicted) != jax.tree.structure(state):
-        raise ValueError("observer and plant disagree: observer.predict returns a state shaped unlike observer.init's")
+        raise FitError(("observer", "plant"), "observer and plant disagree: observer.predict returns a state shaped unlike observer.init's")
 
     reference = scenario.reference
-    _, sample = _evaluate("reference and scenario", lambda: reference.step(reference.init(), 0.0, scenario.sample_period, jnp.zeros(reference.noise_size)))
+    _, sample = _evaluate(("reference", "scenario"), lambda: reference.step(reference.init(), 0.0, scenario.sample_period, jnp.zeros(reference.noise_size)))
     _compare("reference", "its signals", "reference.step", {k: _shape_of(v) for k, v in sample.items()}, reference.reference_signals)
     sample = {s.name: jnp.zeros(s.shape) for s in reference.reference_signals}
 
@@ -342,15 +342,15 @@ def _check_fit(scenario: Scenario) -> None:
     _check_needs(controller, "reference", controller.reference_needs, set(sample), ("reference", reference, "does not provide"))
     outputs = {k: jnp.zeros(_shape_of(v)) for k, v in estimate.items()}
     _, u = _evaluate(
-        "controller and plant", lambda: controller.step(controller.init(), 0.0, y, outputs, sample, scenario.sample_period)
+        ("controller", "plant"), lambda: controller.step(controller.init(), 0.0, y, outputs, sample, scenario.sample_period)
     )
     if _shape_of(u) != (layout.size,):
-        raise ValueError(f"controller and plant disagree: the controller's input has shape {_shape_of(u)}, the plant takes ({layout.size},)")
+        raise FitError(("controller", "plant"), f"controller and plant disagree: the controller's input has shape {_shape_of(u)}, the plant takes ({layout.size},)")
     actuator = scenario.actuator
-    _, applied, outputs = _evaluate("actuator and plant", lambda: actuator.step(actuator.init(), 0.0, u0, scenario.sample_period))
+    _, applied, outputs = _evaluate(("actuator", "plant"), lambda: actuator.step(actuator.init(), 0.0, u0, scenario.sample_period))
     _compare("actuator", "its signals", "actuator.step", {k: _shape_of(v) for k, v in outputs.items()}, actuator.output_signals)
     if _shape_of(applied) != (layout.size,):
-        raise ValueError(f"actuator and plant disagree: the applied input has shape {_shape_of(applied)}, the plant takes ({layout.size},)")
+        raise FitError(("actuator", "plant"), f"actuator and plant disagree: the applied input has shape {_shape_of(applied)}, the plant takes ({layout.size},)")
 
 
 def kind_of(component) -> str:
@@ -368,7 +368,7 @@ def _check_needs(controller, what: str, needs, provided: set, provider: tuple) -
         if name not in provided:
             role, component, verb = provider
             given = ", ".join(sorted(provided)) or "nothing"
-            raise ValueError(f"controller {kind_of(controller)} needs {what} {name}, which {role} {kind_of(component)} {verb} (it gives {given})")
+            raise ParameterError("controller", f"controller {kind_of(controller)} needs {what} {name}, which {role} {kind_of(component)} {verb} (it gives {given})")
 
 
 #: Static loops up to this length are unrolled in Python instead of a lax.scan

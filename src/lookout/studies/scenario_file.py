@@ -103,7 +103,7 @@ def _table_comments(role: str, table: dict, prefix: str, comments: dict) -> None
     except (ValueError, KeyError):
         return
     comments[prefix] = f"{role}: {kind.description}"
-    comments[f"{prefix}.kind"] = f"one of {', '.join(registry.KINDS[role])} (`lookout components {role}`)"
+    comments[f"{prefix}.kind"] = f"one of {', '.join(registry.names(role))} (`lookout components {role}`)"
     if kind.designs:
         comments[f"{prefix}.design"] = f"gain-synthesis rule: one of {', '.join(kind.designs)}"
     parameters = kind.parameters(table.get("design"))

@@ -1,0 +1,209 @@
+"""How a component declares itself to lookout: its role, kind name, parameters, rules.
+
+A component is registered once, next to its class, by :func:`component` (a class
+decorator) or :func:`register` (a statement, for a kind built by a function or a
+classmethod of a class declared elsewhere). A declaration carries everything a scenario
+file needs to build the kind and everything ``lookout components`` shows of it:
+
+* :class:`Value`: a key of the kind's table (a number, an array, a string, a flag),
+  with its type, shape, range, choices and a one-sentence description with its units;
+* :class:`Part`: a nested table with its own ``kind`` (a vessel, a sea, a layout), of a
+  role; ``from_plant`` says whether the composition takes it from the components built
+  before when the table does not give it;
+* :class:`Context`: taken from the composition (the plant's input size, the simulation's
+  step, the plant's variables by name), never given in the file;
+* a kind's gain-synthesis **rules** (``design = "..."`` in a file), each with its own
+  parameters; its tuning **family** and its **checks** (the conditions ``lookout
+  design`` verifies), as ``"module:attribute"`` strings resolved only when used, so a
+  component never imports the design code that checks it.
+
+Defaults come from the callable's signature; parts' accepted classes from its
+annotations. This module imports nothing of lookout: any component module may import it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Literal
+
+#: The roles of a composition's tables and of the parts inside them, in the order
+#: ``lookout components`` lists them.
+ROLES = (
+    "plant", "vessel", "ship", "model", "bias", "waves", "disturbance", "parameters", "parametrization",
+    "sensor", "observer", "controller", "reference", "actuator", "layout",
+)
+
+ValueType = Literal["float", "int", "bool", "str", "array", "strings", "parts"]
+
+
+@dataclass(frozen=True)
+class Range:
+    """An interval a number (every entry of an array) must lie in."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_closed: bool = True
+    high_closed: bool = True
+
+    def words(self) -> str:
+        """``"positive"``, ``"non-negative"`` or ``"in [a, b)"``."""
+        if (self.low, self.high, self.high_closed) == (0.0, math.inf, False):
+            return "non-negative" if self.low_closed else "positive"
+        return f"in {'[' if self.low_closed else '('}{_number(self.low)}, {_number(self.high)}{']' if self.high_closed else ')'}"
+
+
+def _number(value: float) -> str:
+    if value == math.pi:
+        return "pi"
+    if value == -math.pi:
+        return "-pi"
+    return f"{value:g}"
+
+
+#: x > 0 (and finite).
+POSITIVE = Range(0.0, math.inf, False, False)
+#: x >= 0 (and finite).
+NON_NEGATIVE = Range(0.0, math.inf, True, False)
+
+
+@dataclass(frozen=True)
+class Value:
+    """A value parameter: a key of the kind's table.
+
+    ``type`` is what the file gives: ``"float"``, ``"int"``, ``"bool"``, ``"str"``,
+    ``"array"`` (a number or an array), ``"strings"`` (an array of strings) or
+    ``"parts"`` (an array, or a table of named arrays). ``shape`` is shown, not checked
+    here (the component checks shapes against its model); ``choices`` and ``range`` are
+    checked when the file is read.
+    """
+
+    name: str
+    type: ValueType
+    doc: str = ""
+    shape: str | None = None
+    choices: tuple | None = None
+    range: Range | None = None
+
+    sort = "value"
+
+
+@dataclass(frozen=True)
+class Part:
+    """A part: a nested table of ``role`` (the parameter's name unless given) with its
+    own ``kind``; with ``from_plant``, a table the file leaves out is taken from the
+    components built before (the plant's vessel, its sea), else it is required or
+    absent."""
+
+    name: str
+    doc: str = ""
+    role: str | None = None
+    from_plant: bool = False
+
+    sort = "part"
+
+
+@dataclass(frozen=True)
+class Context:
+    """A parameter the composition fills, never the file: ``source`` is one of
+    ``size``, ``plant_step``, ``filter_period``, ``integrator``, ``signals`` (see
+    :data:`lookout.scenario.registry.CONTEXT_NAMES`), or a class of component found
+    among those built before."""
+
+    name: str
+    doc: str = ""
+    source: Any = None
+
+    sort = "context"
+
+
+Declared = Value | Part | Context
+
+
+@dataclass(frozen=True)
+class Rule:
+    """How a kind is built: ``build`` names the classmethod of the declared class
+    (``None``: the class itself), or is a ``"module:function"`` string or a callable;
+    ``parameters`` are the file's keys for it."""
+
+    build: str | Callable | None
+    parameters: tuple[Declared, ...] = ()
+
+
+@dataclass(frozen=True)
+class Declaration:
+    """One registered kind."""
+
+    role: str
+    kind: str
+    target: Any  # the declared class or function
+    rules: tuple[tuple[str, Rule], ...]  # (rule name, rule); one ("", rule) for a kind without rules
+    summary: str
+    family: str | None = None
+    checks: str | None = None
+    module: str = field(default="")
+
+
+#: Every declaration made so far, in the order made.
+DECLARED: list[Declaration] = []
+
+
+def register(role: str, kind: str, target: Any, *, summary: str, parameters: tuple[Declared, ...] | None = None,
+             build: str | Callable | None = None, rules: dict[str, Rule] | None = None,
+             family: str | None = None, checks: str | None = None) -> Declaration:
+    """Register the kind ``kind`` of ``role``, built by ``target`` (a class, with
+    ``build`` one of its classmethods, or a function).
+
+    Give either ``parameters`` (and ``build``) for a kind with one way to build it, or
+    ``rules``: rule name -> :class:`Rule`, the first the default. ``summary`` is the
+    one sentence ``lookout components`` shows; ``family`` (``"module:Family"``) makes
+    the kind tunable by ``lookout tune``; ``checks`` (``"module:function"``) is what
+    ``lookout design`` calls with the built composition.
+    """
+    if role not in ROLES:
+        raise ValueError(f"role must be one of {', '.join(ROLES)}; got {role!r}")
+    if not isinstance(kind, str) or not kind or kind != kind.strip():
+        raise ValueError(f"kind must be a non-empty name; got {kind!r}")
+    if (rules is None) == (parameters is None):
+        raise ValueError(f"{role} {kind}: give either parameters or rules")
+    if rules is not None:
+        if build is not None:
+            raise ValueError(f"{role} {kind}: build goes inside each Rule when rules are given")
+        if not rules or not all(isinstance(r, Rule) for r in rules.values()):
+            raise ValueError(f"{role} {kind}: rules must map each rule's name to a Rule")
+        pairs = tuple(rules.items())
+    else:
+        pairs = (("", Rule(build, tuple(parameters))),)
+    for _, rule in pairs:
+        for each in rule.parameters:
+            if not isinstance(each, (Value, Part, Context)):
+                raise ValueError(f"{role} {kind}: parameters must be Value, Part or Context; got {each!r}")
+    declaration = Declaration(role, kind, target, pairs, " ".join(summary.split()), family, checks,
+                              getattr(target, "__module__", ""))
+    DECLARED.append(declaration)
+    return declaration
+
+
+def component(role: str, kind: str, **details) -> Callable:
+    """Class (or function) decorator: :func:`register` the decorated object as the kind
+    ``kind`` of ``role``; it is returned unchanged."""
+
+    def decorate(target):
+        register(role, kind, target, **details)
+        return target
+
+    return decorate
+
+
+def initial_values(*values: Value, same_as: str | None = None) -> Callable:
+    """Method decorator for a plant's ``state`` or an observer's ``guess``: the keys of
+    the file's ``[... .initial]`` table it takes (``values``), or, with ``same_as``
+    (``"model.state"``), those of the method of that attribute path of the same object
+    (a Kalman filter's guess takes its model plant's state keys)."""
+
+    def decorate(function):
+        function.__lookout_initial__ = tuple(values)
+        function.__lookout_initial_same_as__ = same_as
+        return function
+
+    return decorate
