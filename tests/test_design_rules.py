@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lookout import registry
-from lookout.analysis.sliding_mode import kyp_14, sigma2
+from lookout.analysis.sliding_mode import kim_2002_observer, kyp_14, sigma2
 from lookout.analysis.tracking import check_wondergem_2009, propose_wondergem_2009
 from lookout.composition import CompositionError, compose, simulate
 from lookout.models.cybership import cybership2
@@ -132,7 +132,7 @@ def test_the_kim_rule_gains_satisfy_14_on_the_northern_clipper():
     """H1, H2 by (45)-(47), H3, H4 inside (48): (14) holds with P, Q checked here again on
     the full Sigma_2 of (9)-(10)."""
     vessel = northern_clipper()
-    observer = SlidingModeObserver.design(vessel, **KIM_WAVES, switching_gain=[10.0, 10.0, 0.01], boundary_layer=[5.0, 5.0, 0.02])
+    observer = kim_2002_observer(vessel, **KIM_WAVES, switching_gain=[10.0, 10.0, 0.01], boundary_layer=[5.0, 5.0, 0.02])
     condition = kyp_14(observer)
     assert condition.verdict == "holds"
     A, B_, C = sigma2(observer)
@@ -168,7 +168,7 @@ def test_a_bias_gain_above_the_wave_frequency_violates_14_and_is_refused():
     assert np.degrees(np.angle(hB[0])) == pytest.approx(-88.85, abs=0.01)
     assert np.all((hB * h0).real < 0) and np.all(np.degrees(np.angle(hB * h0)) < -90.0)
     with pytest.raises(ValueError) as raised:
-        SlidingModeObserver.design(vessel, **KIM_WAVES, bias_injection_gain=lam)
+        kim_2002_observer(vessel, **KIM_WAVES, bias_injection_gain=lam)
     message = str(raised.value)
     assert message.startswith("bias_injection_gain must be smaller: the gains violate Kim (2002)'s (14) (surge: Re h(jw) = ")
     assert "(48) fails: lambda/kappa < w_o: 10 < 0.8976 rad/s" in message and "\n" not in message
@@ -185,4 +185,4 @@ def test_a_short_bias_time_constant_violates_14_and_is_refused():
     """T = 10 s: the rule's H3/H4 = sqrt(w_o / T) = 0.30 1/s sits within a factor 3 of
     1/T, so hB's lag reaches the band where h0 lags (48's 1/T << H3/H4 fails)."""
     with pytest.raises(ValueError, match=r"^bias_time_constant must be larger: the gains violate Kim \(2002\)'s \(14\) \(surge: Re h\(jw\) = -"):
-        SlidingModeObserver.design(northern_clipper(), **KIM_WAVES, bias_time_constant=10.0)
+        kim_2002_observer(northern_clipper(), **KIM_WAVES, bias_time_constant=10.0)

@@ -7,7 +7,6 @@ gyro compass reports it.
 
 from __future__ import annotations
 
-import re
 
 import equinox as eqx
 import jax
@@ -23,26 +22,6 @@ from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Value,
 from lookout._math import ssa
 from lookout.components import EARTH_FIXED, Layout, Outage, Sensor, Signal
 from lookout.models.vessel import EARTH_AXES, VesselState
-
-#: The parameters of an outage, which every sensor takes (numpydoc; the registry reads them).
-OUTAGE_PARAMETERS = """    outage_signals : sequence of str, optional
-        Measured signals that an outage silences (``measured_position``: a position
-        reference that loses its fix); default none, and no outage.
-    outage_start : float, non-negative
-        When the outage begins (s).
-    outage_duration : float, non-negative
-        How long it lasts (s); 0 is none (the sensor keeps an outage's structure).
-"""
-
-
-def with_outage_parameters(cls):
-    """Add :data:`OUTAGE_PARAMETERS` at the end of the class's numpydoc Parameters section."""
-    doc = cls.__doc__
-    start = doc.index("Parameters\n")
-    following = re.search(r"\n\n    [A-Z][a-z]+\n    -+\n", doc[start:])
-    end = start + following.start() + 1 if following else len(doc.rstrip()) + 1
-    cls.__doc__ = doc[:end].rstrip("\n ") + "\n" + OUTAGE_PARAMETERS + doc[end:]
-    return cls
 
 
 def outage_of(layout: Layout, signals, start, duration) -> Outage | None:
@@ -88,7 +67,6 @@ POSITION_HEADING = Layout(
     ),
 )
 @final
-@with_outage_parameters
 class PositionHeadingSensor(Sensor):
     """Position fixes (x, y) and heading, each channel with its own noise and rate.
 
@@ -104,6 +82,13 @@ class PositionHeadingSensor(Sensor):
         Seconds between samples of each channel (s; static: fixes the loop structure).
     dropout_probability : float in [0, 1)
         Probability that a sample of a channel is missing (1).
+    outage_signals : sequence of str, optional
+        Measured signals that an outage silences (``measured_position``: a position
+        reference that loses its fix); default none, and no outage.
+    outage_start : float, non-negative
+        When the outage begins (s).
+    outage_duration : float, non-negative
+        How long it lasts (s); 0 is none (the sensor keeps an outage's structure).
     """
 
     noise_std: Array
@@ -169,7 +154,6 @@ from lookout.models.manipulators import JOINT_MEASUREMENT, JointState, Manipulat
     ),
 )
 @final
-@with_outage_parameters
 class JointEncoder(Sensor):
     """Joint position encoders: q with Gaussian noise, quantization, per-joint rates and dropouts.
 
@@ -192,6 +176,13 @@ class JointEncoder(Sensor):
         Resolution per joint (rad or m), >= 0; 0 means none.
     dropout_probability : float
         Probability that a sample of a channel is missing (0 <= p < 1).
+    outage_signals : sequence of str, optional
+        Measured signals that an outage silences (``measured_position``: a position
+        reference that loses its fix); default none, and no outage.
+    outage_start : float, non-negative
+        When the outage begins (s).
+    outage_duration : float, non-negative
+        How long it lasts (s); 0 is none (the sensor keeps an outage's structure).
 
     Attributes
     ----------
@@ -288,7 +279,6 @@ POSITION_HEADING_VELOCITY = Layout(
     ),
 )
 @final
-@with_outage_parameters
 class PositionHeadingVelocitySensor(Sensor):
     """ORACLE SENSOR, FOR ANALYSIS IN SIMULATION ONLY: measures eta AND the velocity nu.
 
@@ -315,6 +305,13 @@ class PositionHeadingVelocitySensor(Sensor):
         Seconds between samples of each channel (static).
     dropout_probability : float
         Probability that a sample of a channel is missing (0 <= p < 1).
+    outage_signals : sequence of str, optional
+        Measured signals that an outage silences (``measured_position``: a position
+        reference that loses its fix); default none, and no outage.
+    outage_start : float, non-negative
+        When the outage begins (s).
+    outage_duration : float, non-negative
+        How long it lasts (s); 0 is none (the sensor keeps an outage's structure).
     """
 
     noise_std: Array
@@ -392,7 +389,6 @@ def joint_state_layout(model: ManipulatorModel) -> Layout:
     ),
 )
 @final
-@with_outage_parameters
 class JointStateSensor(Sensor):
     """Joint positions and rates ``y = [q, q'] + noise``; NaN marks a dropped channel.
 
@@ -407,6 +403,13 @@ class JointStateSensor(Sensor):
         rad/s or m/s), >= 0.
     dropout_probability : float
         Probability that a sample of a channel is missing (0 <= p < 1).
+    outage_signals : sequence of str, optional
+        Measured signals that an outage silences (``measured_position``: a position
+        reference that loses its fix); default none, and no outage.
+    outage_start : float, non-negative
+        When the outage begins (s).
+    outage_duration : float, non-negative
+        How long it lasts (s); 0 is none (the sensor keeps an outage's structure).
 
     Attributes
     ----------

@@ -1003,7 +1003,7 @@ def satisfying_gains(
         chosen = min(satisfied, key=lambda r: r.step_gain)
         reason = f"no route is usable at {speed:g} m/s; {chosen.name} has the smallest step x rate ({chosen.step_gain:.3g})"
     else:
-        raise check.ParameterError("no", "no gain route satisfies (57)-(58) for this vessel and K2 (check (22) and (58))")
+        raise ValueError("no gain route satisfies (57)-(58) for this vessel and K2 (check (22) and (58))")
     report = check(chosen.K1, chosen.d)
     return GainProposal(chosen.K1, K2m, chosen.d, chosen.name, reason, report, [given] + routes, design)
 

@@ -30,7 +30,8 @@ import numpy as np
 
 from lookout import _validation as check
 from lookout.analysis.conditions import Condition, Inequality, Report
-from lookout.analysis.velocity import _grid, configuration_angles, configuration_bounds
+from lookout.analysis.velocity import configuration_bounds
+from lookout.models.manipulators import configuration_angles, configuration_grid
 from lookout.models.parameters import AffineParameters
 
 PAPER = "Calugi (2002)"
@@ -43,7 +44,7 @@ def injection_bound(parameters: AffineParameters, gain, *, grid_points: int = 64
     the angles M depends on (M is smooth in q; the grid has 64 points per angle)."""
     model = parameters.model(parameters.reference)
     K = jnp.diag(jnp.asarray(check.vector("observer gain K", gain, model.size), dtype=float))
-    q_grid = jnp.asarray(_grid(model, configuration_angles(model), grid_points))
+    q_grid = jnp.asarray(configuration_grid(model, configuration_angles(model), grid_points))
 
     def smallest(q):
         M = model.mass_matrix(q)

@@ -279,7 +279,7 @@ class Condition:
         if not self.reason:
             object.__setattr__(self, "reason", _reason(self.verdict, self.inequalities))
         if "\n" in self.reason:
-            raise check.ParameterError("a", f"a condition's reason is one line; got {self.reason!r}")
+            raise ValueError(f"a condition's reason is one line; got {self.reason!r}")
 
     @property
     def verdict(self) -> Verdict:

@@ -57,6 +57,7 @@ from lookout.analysis.conditions import Condition, Inequality, Report, Verdict, 
 from lookout.analysis.passive import _normalized_min_eig, check_spr, check_tuning_rule, transfer_functions
 from lookout.models.vessel import DOF, DPVessel
 from lookout.observers.passive import PassiveObserver
+from lookout.observers.sliding_mode import DEFAULT_BOUNDARY_LAYER, SlidingModeObserver
 
 #: Names of the 15 error states, in the order of :func:`error_system`.
 ERROR_STATES = (
@@ -78,10 +79,8 @@ SOURCE_17 = "Kim (2002), eqs. (15)-(17), corrected (derivations K2)"
 
 
 def _is_sliding_mode(observer) -> bool:
-    """A sliding-mode observer (:class:`lookout.observers.SlidingModeObserver`): a passive
-    part and a switching term. Recognized by its parts, not its class, because that
-    class's design rule imports this module's check of (14)."""
-    return isinstance(getattr(observer, "passive", None), PassiveObserver) and hasattr(observer, "switching_gain")
+    """A sliding-mode observer (:class:`lookout.observers.SlidingModeObserver`)."""
+    return isinstance(observer, SlidingModeObserver)
 
 
 def _parts(observer) -> tuple[PassiveObserver, np.ndarray, np.ndarray]:
@@ -745,3 +744,86 @@ def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, headin
         "kbar_coverage": {"force_bound": coverage, "units": list(FORCE_UNITS), "limited_by": limited_by},
     }
     return Report("Kim (2002) sliding-mode observer: conditions of Section 3.2", conditions, quantities, summary, notes)
+
+
+def kim_2002_observer(
+    vessel: DPVessel,
+    *,
+    waves=None,
+    wave_frequency=None,
+    wave_damping=0.1,
+    notch_damping=1.0,
+    cutoff_frequency=None,
+    velocity_injection_gain=None,
+    bias_injection_gain=None,
+    bias_time_constant=1000.0,
+    velocity_bandwidth=None,
+    switching_gain=0.0,
+    boundary_layer=DEFAULT_BOUNDARY_LAYER,
+    steps_per_sample=1,
+    hold="measurement",
+) -> SlidingModeObserver:
+    """The sliding-mode observer for ``vessel`` by Kim (2002)'s procedure (the rule
+    ``kim-2002`` of the kind ``sliding-mode``): H1, H2 from Fossen & Strand's
+    (45)–(47) (Kim's (A.3)), H4 = ``velocity_injection_gain`` and H3 =
+    ``bias_injection_gain`` (SI; unless given, inside the tuning rule (48),
+    :func:`lookout.observers.passive.tuning_rule_gains`), verified against (14).
+
+    Kim's (14), P A + A^T P = -Q, B^T P = C with P, Q > 0 for Sigma_2 of (9)–(10), is
+    what his Lyapunov argument (15)–(17) presupposes. With diagonal gains it holds if
+    and only if each DOF's loop h = hB h0 is strictly positive real (Khalil 1996,
+    Lemma 6.3), checked with a verified certificate by
+    :func:`kyp_14`; gains for which it does not hold
+    are refused (:func:`require_kyp_14`), in a
+    ``ValueError`` that names the parameter to change.
+
+    (14) is not guaranteed by construction. Re h(jw) > 0 needs the phases of
+    hB(jw) = H4 + H3 / (jw + 1/T) and of h0(jw) of (42) to add up to more than
+    -90 deg at every w. hB lags by up to 90 deg between its pole 1/T and its zero
+    1/T + H3/H4, and below the notch h0 lags by about w (1/w_c + 2 (zeta_n - zeta) / w_o)
+    (its first-order expansion at w << w_o with (45)–(47)): the sum stays above
+    -90 deg only while hB's lag has died out before h0's builds up, which the rule
+    (48), 1/T << H3/H4 < w_o < w_c, asks for without ensuring it. Kim's printed (A.4)
+    (H3/H4 = 10 1/s > w_o) give -104.55 deg at 0.094 rad/s on the Northern Clipper;
+    the default H3/H4 = sqrt(w_o / T) with T = 10 s gives -104.4 deg at 0.55 rad/s.
+
+    Parameters
+    ----------
+    vessel : DPVessel
+        The observer's vessel model (M, D); in a composition, the plant's unless given.
+    waves : LinearWaveModel or JonswapWaves, optional
+        The sea to tune for when wave_frequency is not given (in a composition, the plant's).
+    wave_frequency : array_like, shape (3,), positive, optional
+        The observer's wave frequencies w_oi (rad/s); default the dominating frequency of ``waves``.
+    wave_damping : array_like, shape (3,), positive
+        The observer's wave damping ratios zeta_i (1).
+    notch_damping : array_like, shape (3,), positive
+        zeta_ni of the notch filter, Fossen & Strand (45) (1).
+    cutoff_frequency : array_like, shape (3,), positive, optional
+        w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's.
+    velocity_injection_gain : array_like, shape (3,), positive, optional
+        Diagonal of H4 (N/m, N/m, N m/rad); default from the tuning rule (48) of the passive observer.
+    bias_injection_gain : array_like, shape (3,), positive, optional
+        Diagonal of H3 (N/(m s), N/(m s), N m/(rad s)); default from the tuning rule (48).
+    bias_time_constant : array_like, shape (3,), positive
+        The observer's bias time constants T (s).
+    velocity_bandwidth : array_like, shape (3,), positive, optional
+        sqrt(H4_i / M_ii) of the default H4 (rad/s); default 0.1 w_o.
+    switching_gain : array_like, shape (3,), non-negative
+        Kbar = diag(rho_i) (m/s, m/s, rad/s); zero gives the passive observer.
+    boundary_layer : array_like, shape (3,), positive
+        eps_i (m, m, rad), the width of the saturation's linear zone; default 1 m, 1 m, 0.02 rad.
+    steps_per_sample : int, positive
+        RK4 steps of predict per sample period.
+    hold : {"measurement", "innovation"}
+        What predict holds over a sample (as the passive observer's).
+    """
+    passive = PassiveObserver.design(
+        vessel, waves=waves, velocity_bandwidth=velocity_bandwidth, wave_frequency=wave_frequency, wave_damping=wave_damping,
+        notch_damping=notch_damping, cutoff_frequency=cutoff_frequency, velocity_injection_gain=velocity_injection_gain,
+        bias_injection_gain=bias_injection_gain, bias_time_constant=bias_time_constant, lyapunov_weight=1.0,
+        steps_per_sample=steps_per_sample, hold=hold,
+    )
+    observer = SlidingModeObserver(passive, switching_gain, boundary_layer)
+    require_kyp_14(observer)
+    return observer

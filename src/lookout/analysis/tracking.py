@@ -79,6 +79,8 @@ from lookout import _validation as check
 from lookout._json import json_safe
 from lookout._math import rotate, rotate_transpose, ssa
 from lookout.analysis.conditions import Condition, Inequality, Report
+from lookout.models.cybership import Cybership
+from lookout.observers.earth_fixed import EarthFixedObserver
 
 PAPER = "Wondergem et al. (2009)"
 
@@ -483,7 +485,6 @@ def _cached_proposal(ship_numbers: tuple, start: tuple, bounds: tuple, damping_r
                      margin: float) -> GainProposal:
     """:func:`propose_wondergem_2009` once per ship and inputs: the observer's rule and the
     controller's rule of one composition ask for the same proposal."""
-    from lookout.models.cybership import Cybership
 
     mass, damping, quadratic = (np.asarray(part) for part in ship_numbers)
     eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_velocity0 = start
@@ -496,33 +497,6 @@ def _cached_proposal(ship_numbers: tuple, start: tuple, bounds: tuple, damping_r
     )
 
 
-#: The parameters of the ``wondergem-2009`` design rules of the Earth-fixed observer and
-#: the tracking controller (numpydoc; both rules take the same reference and start).
-RULE_PARAMETERS = """        reference_position : array_like, shape (3,)
-            eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.
-        reference_velocity : array_like, shape (3,)
-            nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.
-        reference_yaw_rate_max : float, non-negative
-            r_ref^max, the largest |r_ref| of the reference (rad/s).
-        reference_speed_max : float, non-negative
-            sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).
-        reference_acceleration_max : float, non-negative
-            sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.
-        start_position : array_like, shape (3,)
-            eta(0): the ship's initial position north, east (m) and heading (rad).
-        start_velocity : array_like, shape (3,)
-            nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).
-        estimate_position : array_like, shape (3,), optional
-            eta_hat(0), the observer's initial position estimate (m, m, rad); default
-            ``start_position``, the estimate started at the measurement.
-        estimate_velocity : array_like, shape (3,)
-            v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).
-        damping_ratio : float, positive
-            lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).
-        velocity_bound : float, non-negative
-            V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).
-        margin : float, in (1, inf)
-            Factor by which L1 and L2 exceed their largest lower bound (1)."""
 
 
 def wondergem_2009_gains(
@@ -543,7 +517,7 @@ def wondergem_2009_gains(
 ) -> GainProposal:
     """The gains of Wondergem et al. (2009)'s tuning procedure (steps 1–7 after Prop. 3.3)
     for ``ship``, a start and a reference: the design rule ``wondergem-2009`` of the
-    observer (6) (:meth:`lookout.observers.EarthFixedObserver.design`) and of the tracking
+    observer (6) (:func:`wondergem_2009_observer`) and of the tracking
     scheme (23) (:meth:`lookout.controllers.TrackingController.design`), which take one
     proposal between them, L1, L2 and Omega, Lambda being chosen together.
 
@@ -591,6 +565,93 @@ def wondergem_2009_gains(
     raise check.ParameterError("start_position", f"start_position is too far from the reference for {PAPER}'s procedure: {proposal.reason}")
 
 
+
+def wondergem_2009_observer(
+    ship: Cybership,
+    *,
+    reference_position,
+    reference_velocity,
+    reference_yaw_rate_max,
+    reference_speed_max,
+    reference_acceleration_max,
+    start_position,
+    start_velocity=0.0,
+    estimate_position=None,
+    estimate_velocity=0.0,
+    damping_ratio=1.0,
+    velocity_bound=0.3,
+    margin=1.1,
+    steps_per_sample=1,
+    method="rk4",
+    initial_velocity="estimate",
+) -> EarthFixedObserver:
+    """The Earth-fixed observer (6) for ``ship`` (the rule ``wondergem-2009`` of the kind
+    ``earth-fixed``) with L1 = l1 I, L2 = l2 I from Wondergem et al.
+    (2009)'s gain tuning procedure (steps 1–7 after Prop. 3.3).
+
+    The procedure chooses the controller's Omega, Lambda (24)–(26) and the observer's
+    L1, L2 together: Omega = omega I on a 1 % grid where an eps3 satisfies (27) (which
+    implies (25)), then L2 above (10b), (11), (30) and L1 above (10a), (13), (32) by
+    ``margin``, isotropic so that (31) holds and (14), (33) reduce to (13), (32), with V0
+    of (28) iterated to a fixed point
+    (:func:`lookout.analysis.tracking.propose_wondergem_2009`). The gains satisfy (25),
+    Prop. 3.1 ((10)–(15)) and Prop. 3.3 ((27)–(37)) at the given start; the tracking
+    controller's rule of the same name, given the same reference and start, takes the
+    Omega and Lambda of the same proposal
+    (:func:`lookout.analysis.tracking.wondergem_2009_gains`).
+
+    The conditions are sufficient and conservative: on Cybership II around the
+    reproduction's ellipse L1 is about 2.5e5 1/s, so the observer's fastest pole
+    -L1 needs an integration step below about 1e-5 s (forward Euler 2 / L1, RK4
+    2.8 / L1).
+
+    Parameters
+    ----------
+    ship : Cybership
+        The observer's model (M, D and D_n); in a composition, the plant's unless given.
+    reference_position : array_like, shape (3,)
+        eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.
+    reference_velocity : array_like, shape (3,)
+        nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.
+    reference_yaw_rate_max : float, non-negative
+        r_ref^max, the largest |r_ref| of the reference (rad/s).
+    reference_speed_max : float, non-negative
+        sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).
+    reference_acceleration_max : float, non-negative
+        sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.
+    start_position : array_like, shape (3,)
+        eta(0): the ship's initial position north, east (m) and heading (rad).
+    start_velocity : array_like, shape (3,)
+        nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).
+    estimate_position : array_like, shape (3,), optional
+        eta_hat(0), the observer's initial position estimate (m, m, rad); default
+        ``start_position``, the estimate started at the measurement.
+    estimate_velocity : array_like, shape (3,)
+        v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).
+    damping_ratio : float, positive
+        lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).
+    velocity_bound : float, non-negative
+        V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).
+    margin : float, in (1, inf)
+        Factor by which L1 and L2 exceed their largest lower bound (1).
+    steps_per_sample : int
+        Integration steps of the observer's ``predict`` per sample.
+    method : {"rk4", "euler"}
+        How the observer's ``predict`` integrates (6) between samples.
+    initial_velocity : {"estimate", "state"}
+        Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).
+    """
+    proposal = wondergem_2009_gains(
+        ship, reference_position=reference_position, reference_velocity=reference_velocity,
+        reference_yaw_rate_max=reference_yaw_rate_max, reference_speed_max=reference_speed_max,
+        reference_acceleration_max=reference_acceleration_max, start_position=start_position, start_velocity=start_velocity,
+        estimate_position=estimate_position, estimate_velocity=estimate_velocity, damping_ratio=damping_ratio,
+        velocity_bound=velocity_bound, margin=margin,
+    )
+    position_gain, velocity_gain = proposal.observer_gains
+    return EarthFixedObserver(ship, position_gain, velocity_gain, steps_per_sample=steps_per_sample, method=method, initial_velocity=initial_velocity)
+
+
 __all__ = [
-    "GainProposal", "check_wondergem_2009", "christoffel_bound", "controller_p_matrix", "propose_wondergem_2009", "wondergem_2009_gains",
+    "GainProposal", "check_wondergem_2009", "wondergem_2009_observer", "christoffel_bound", "controller_p_matrix", "propose_wondergem_2009", "wondergem_2009_gains",
 ]

@@ -46,7 +46,6 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, rotate_transpose, ssa
 from lookout.components import Controller
-from lookout.analysis.tracking import RULE_PARAMETERS
 from lookout.models.cybership import Cybership, skew
 import math
 from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Rule, Value, component
@@ -167,7 +166,31 @@ class TrackingController(Controller):
         ship : Cybership
             The controller's model (M, C, D, D_n); in a composition, the plant's ship model
             (else the observer's) unless given.
-{rule_parameters}
+        reference_position : array_like, shape (3,)
+            eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.
+        reference_velocity : array_like, shape (3,)
+            nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.
+        reference_yaw_rate_max : float, non-negative
+            r_ref^max, the largest |r_ref| of the reference (rad/s).
+        reference_speed_max : float, non-negative
+            sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).
+        reference_acceleration_max : float, non-negative
+            sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.
+        start_position : array_like, shape (3,)
+            eta(0): the ship's initial position north, east (m) and heading (rad).
+        start_velocity : array_like, shape (3,)
+            nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).
+        estimate_position : array_like, shape (3,), optional
+            eta_hat(0), the observer's initial position estimate (m, m, rad); default
+            ``start_position``, the estimate started at the measurement.
+        estimate_velocity : array_like, shape (3,)
+            v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).
+        damping_ratio : float, positive
+            lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).
+        velocity_bound : float, non-negative
+            V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).
+        margin : float, in (1, inf)
+            Factor by which L1 and L2 exceed their largest lower bound (1).
         """
         from lookout.analysis.tracking import wondergem_2009_gains
 
@@ -224,8 +247,6 @@ class TrackingController(Controller):
         return {"Kp": np.asarray(self.stiffness_gain), "Kd": np.asarray(self.damping_gain)}
 
 
-# the rule's parameters are the Earth-fixed observer's and the tracking controller's alike
-TrackingController.design.__func__.__doc__ = TrackingController.design.__func__.__doc__.replace("{rule_parameters}", RULE_PARAMETERS)
 
 
 __all__ = ["TrackingController", "reference_velocity"]

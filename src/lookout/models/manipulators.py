@@ -682,3 +682,53 @@ class ManipulatorPlant(Plant):
         """No per-run randomness beyond the white noise: the plant itself."""
         del key
         return self
+
+
+# ---------------------------------------------------------------- configurations
+
+#: Random configurations at which the dependence of M on each coordinate is probed.
+PROBE_CONFIGURATIONS = 16
+
+
+def configuration_angles(model: ManipulatorModel) -> tuple[int, ...]:
+    """Indices of the revolute joints whose angle M(q) depends on.
+
+    Probed at :data:`PROBE_CONFIGURATIONS` fixed pseudo-random configurations (angles
+    in [-pi, pi), prismatic coordinates in [-10, 10]).
+
+    Raises
+    ------
+    ValueError
+        When M(q) depends on a prismatic coordinate (its range is unbounded, so the
+        bounds of Properties 2.1 and 2.3 are not defined over it).
+    """
+    rng = np.random.default_rng(20020)
+    n = model.size
+    scale = np.where(np.array(model.revolute), np.pi, 10.0)
+    q = rng.uniform(-1.0, 1.0, size=(PROBE_CONFIGURATIONS, n)) * scale
+    probe = jax.jit(jax.vmap(lambda c: (model.mass_matrix(c), jax.jacfwd(model.mass_matrix)(c))))
+    inertia, derivative = (np.asarray(a) for a in probe(jnp.asarray(q)))  # derivative[probe, k, j, i]
+    sensitivity = np.abs(derivative).max(axis=(0, 1, 2))
+    scale_of_m = max(float(np.abs(inertia).max()), np.finfo(float).tiny)
+    depends = sensitivity > 1e-12 * scale_of_m
+    for i, kind in enumerate(model.joint_kinds):
+        if kind == PRISMATIC and depends[i]:
+            raise ValueError(
+                f"M(q) depends on the prismatic coordinate of joint {model.joint_names[i]!r}: "
+                "the bounds M_m, C_M over an unbounded coordinate are not defined"
+            )
+    return tuple(i for i, kind in enumerate(model.joint_kinds) if kind == REVOLUTE and depends[i])
+
+
+def configuration_grid(model: ManipulatorModel, angles: tuple[int, ...], grid_points: int) -> np.ndarray:
+    """Configurations: the given angles on a grid over [-pi, pi), the others 0."""
+    if not (isinstance(grid_points, int) and grid_points >= 2):
+        raise check.ParameterError("grid_points", f"grid_points must be an integer >= 2; got {grid_points!r}")
+    if grid_points ** len(angles) > 2_000_000:
+        raise check.ParameterError("grid_points", f"a grid of {grid_points}^{len(angles)} configurations is too large; lower grid_points")
+    axis = -np.pi + 2.0 * np.pi * np.arange(grid_points) / grid_points
+    mesh = np.meshgrid(*([axis] * len(angles)), indexing="ij")
+    q = np.zeros((grid_points ** len(angles), model.size))
+    for column, index in enumerate(angles):
+        q[:, index] = mesh[column].ravel()
+    return q

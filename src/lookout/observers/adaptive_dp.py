@@ -554,7 +554,7 @@ class AdaptiveObserver(ContinuousObserver):
         (:mod:`lookout.observers.start`); eta(0) = y0 is stored as the base of the first
         difference (a NaN channel of y0 is replaced by eta_hat(0))."""
         if not isinstance(guess, AdaptiveEstimate):
-            raise check.ParameterError("the", f"the initial estimate of an AdaptiveObserver must be an AdaptiveEstimate (observer.guess(...)); got {type(guess).__name__}")
+            raise ValueError(f"the initial estimate of an AdaptiveObserver must be an AdaptiveEstimate (observer.guess(...)); got {type(guess).__name__}")
         y = jnp.asarray(y0, dtype=float)[:3]
         eta = from_first_measurement(jnp.asarray(guess.eta, dtype=float), y, angles=(2,))
         measured = jnp.where(jnp.isfinite(y), y, eta)

@@ -58,6 +58,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import Layout, Observer, Signal
+from lookout.models.manipulators import configuration_angles, configuration_grid
 from lookout.models.manipulators import JOINT_INPUT, JOINT_MEASUREMENT, JOINT_POSITION, JOINT_VELOCITY, joint_layout
 from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
 from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
@@ -136,11 +137,9 @@ def mass_matrix_margin(parameters: AffineParameters, lower, upper, *, grid_point
     """min over q and theta in the box [lower, upper] of lambda_min(M(q; theta)): positive
     when M_hat stays positive definite. M is affine in theta, so the minimum over the box
     is at a vertex (lambda_min is concave); q runs over a grid of the angles M depends on."""
-    from lookout.analysis.velocity import _grid, configuration_angles
-
     model = parameters.model(parameters.reference)
     angles = configuration_angles(model)
-    q_grid = jnp.asarray(_grid(model, angles, grid_points))
+    q_grid = jnp.asarray(configuration_grid(model, angles, grid_points))
     vertices = jnp.asarray(_box_vertices(np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)))
     return float(_smallest_inertia(parameters, vertices, q_grid))
 
@@ -348,7 +347,7 @@ class AdaptiveManipulatorObserver(Observer):
         del t, y  # q(i-1) is the state's position
         h = self.sample_period
         if isinstance(dt, (int, float)) and abs(dt - h) > 1e-12 * h:
-            raise check.ParameterError("the", f"the engine's sample period {dt!r} s must equal the observer's sample_period {h!r} s (4.34)")
+            raise check.ParameterError("sample_period", f"the engine's sample period {dt!r} s must equal the observer's sample_period {h!r} s (4.34)")
         q, velocity, theta = state.position, state.velocity, state.theta
         psi = self.model_acceleration(theta, q, velocity, u)
         regressor = self.regressor_source.regressor(q, velocity, psi)

@@ -57,7 +57,6 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import rotate_transpose, ssa
 from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
-from lookout.analysis.tracking import RULE_PARAMETERS
 from lookout.models.cybership import CYBERSHIP_SIGNALS, Cybership
 from lookout.models.vessel import VESSEL_INPUT
 from lookout.observers.start import from_first_measurement
@@ -118,7 +117,7 @@ def _gain(name: str, value) -> Array:
             Value("method", "str", "How predict integrates (6) between samples.", choices=('rk4', 'euler')),
             Value("initial_velocity", "str", "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).", choices=('estimate', 'state')),
         )),
-        "wondergem-2009": Rule("design", (
+        "wondergem-2009": Rule("lookout.analysis.tracking:wondergem_2009_observer", (
             Part("ship", "The observer's model (M, D and D_n); in a composition, the plant's unless given."),
             Value("reference_position", "array", "eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.", shape="(3,)"),
             Value("reference_velocity", "array", "nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.", shape="(3,)"),
@@ -194,70 +193,6 @@ class EarthFixedObserver(ContinuousObserver):
     def __check_init__(self):
         check.positive("position_gain (L1)", self.position_gain)
         check.positive("velocity_gain (L2)", self.velocity_gain)
-
-    @classmethod
-    def design(
-        cls,
-        ship: Cybership,
-        *,
-        reference_position,
-        reference_velocity,
-        reference_yaw_rate_max,
-        reference_speed_max,
-        reference_acceleration_max,
-        start_position,
-        start_velocity=0.0,
-        estimate_position=None,
-        estimate_velocity=0.0,
-        damping_ratio=1.0,
-        velocity_bound=0.3,
-        margin=1.1,
-        steps_per_sample=1,
-        method="rk4",
-        initial_velocity="estimate",
-    ) -> "EarthFixedObserver":
-        """The observer (6) for ``ship`` with L1 = l1 I, L2 = l2 I from Wondergem et al.
-        (2009)'s gain tuning procedure (steps 1–7 after Prop. 3.3).
-
-        The procedure chooses the controller's Omega, Lambda (24)–(26) and the observer's
-        L1, L2 together: Omega = omega I on a 1 % grid where an eps3 satisfies (27) (which
-        implies (25)), then L2 above (10b), (11), (30) and L1 above (10a), (13), (32) by
-        ``margin``, isotropic so that (31) holds and (14), (33) reduce to (13), (32), with V0
-        of (28) iterated to a fixed point
-        (:func:`lookout.analysis.tracking.propose_wondergem_2009`). The gains satisfy (25),
-        Prop. 3.1 ((10)–(15)) and Prop. 3.3 ((27)–(37)) at the given start; the tracking
-        controller's rule of the same name, given the same reference and start, takes the
-        Omega and Lambda of the same proposal
-        (:func:`lookout.analysis.tracking.wondergem_2009_gains`).
-
-        The conditions are sufficient and conservative: on Cybership II around the
-        reproduction's ellipse L1 is about 2.5e5 1/s, so the observer's fastest pole
-        -L1 needs an integration step below about 1e-5 s (forward Euler 2 / L1, RK4
-        2.8 / L1).
-
-        Parameters
-        ----------
-        ship : Cybership
-            The observer's model (M, D and D_n); in a composition, the plant's unless given.
-{rule_parameters}
-        steps_per_sample : int
-            Integration steps of :meth:`predict` per sample.
-        method : {"rk4", "euler"}
-            How :meth:`predict` integrates (6) between samples.
-        initial_velocity : {"estimate", "state"}
-            Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).
-        """
-        from lookout.analysis.tracking import wondergem_2009_gains
-
-        proposal = wondergem_2009_gains(
-            ship, reference_position=reference_position, reference_velocity=reference_velocity,
-            reference_yaw_rate_max=reference_yaw_rate_max, reference_speed_max=reference_speed_max,
-            reference_acceleration_max=reference_acceleration_max, start_position=start_position, start_velocity=start_velocity,
-            estimate_position=estimate_position, estimate_velocity=estimate_velocity, damping_ratio=damping_ratio,
-            velocity_bound=velocity_bound, margin=margin,
-        )
-        position_gain, velocity_gain = proposal.observer_gains
-        return cls(ship, position_gain, velocity_gain, steps_per_sample=steps_per_sample, method=method, initial_velocity=initial_velocity)
 
     @initial_values(
         Value("eta", "array", "eta_hat(0): position north, east (m) and heading (rad); default the first measurement.", shape="(3,)"),
@@ -354,8 +289,6 @@ class EarthFixedObserver(ContinuousObserver):
         }
 
 
-# the rule's parameters are the Earth-fixed observer's and the tracking controller's alike
-EarthFixedObserver.design.__func__.__doc__ = EarthFixedObserver.design.__func__.__doc__.replace("{rule_parameters}", RULE_PARAMETERS)
 
 
 __all__ = ["EarthFixedEstimate", "EarthFixedGuess", "EarthFixedObserver"]

@@ -288,7 +288,7 @@ class KalmanFilter(Observer):
             return max(1, round(self.filter_period / self.plant_step))
         count = round(float(dt) / self.plant_step)
         if count < 1 or abs(count * self.plant_step - float(dt)) > 1e-9 * max(1.0, float(dt)):
-            raise check.ParameterError("the", f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)")
+            raise check.ParameterError("plant_step", f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)")
         return count
 
     def substep(self, dt):

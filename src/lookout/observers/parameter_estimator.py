@@ -290,7 +290,7 @@ class ParameterEstimator(ContinuousObserver):
         n, p = self.size, self.parameters.size
         theta = jnp.asarray(guess, dtype=held.dtype)
         if theta.shape not in ((), (p,)):
-            raise check.ParameterError("the", f"the initial estimate theta_hat(0) must be a scalar or have {p} entries ({', '.join(self.parameters.names)}); got shape {theta.shape}")
+            raise ValueError(f"the initial estimate theta_hat(0) must be a scalar or have {p} entries ({', '.join(self.parameters.names)}); got shape {theta.shape}")
         theta = jnp.broadcast_to(theta, (p,))
         inertial_term, _, _ = self.regressor_pieces(held[:n], held[n:])
         zeros = jnp.zeros((n, p + 1), held.dtype)
