@@ -132,7 +132,8 @@ def test_an_observer_without_a_family_is_refused(tmp_path, capsys, monkeypatch):
     from lookout.studies._toml import write
     from lookout.tuning import families
 
-    monkeypatch.setattr(families, "OBSERVER_FAMILIES", {k: v for k, v in families.OBSERVER_FAMILIES.items() if k != "passive"})
+    declared = families.families
+    monkeypatch.setattr(families, "families", lambda role: {k: v for k, v in declared(role).items() if k != "passive"})
     document = _scenario(100.0)
     source = tmp_path / "dp.toml"
     write(source, document)

@@ -4,6 +4,7 @@ each needs and provides (registered by :mod:`lookout.cli`)."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
@@ -13,7 +14,7 @@ from rich.table import Table
 
 from lookout._commandline import console
 from lookout._json import json_safe
-from lookout._validation import InputError
+from lookout._validation import InputError, one_line
 
 
 def example(each):
@@ -103,7 +104,7 @@ def _plant_part_default(role: str) -> str:
     with that kind's defaults, where the kind has a default for every value."""
     from lookout import registry
 
-    first = registry.kinds(role)[0]
+    first = registry.kind(role, registry.default_kind(role))
     missing = [p.name for p in first.parameters() if p.sort == "value" and p.required]
     if missing:
         return f"required: a {role} table ({first.name} needs {', '.join(missing)})"
@@ -113,13 +114,23 @@ def _plant_part_default(role: str) -> str:
 def components(
     kind: Annotated[Optional[str], typer.Argument(metavar="[KIND]", help="A role (observer, plant, ...) or a kind (passive, dp-vessel, ...).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
+    plugin: Annotated[Optional[list[str]], typer.Option("--plugin", metavar="FILE", help="A Python file (or module) that registers kinds of its own, listed with lookout's; repeat for several.")] = None,
 ) -> None:
     """List the registered components: kinds by role, or one kind's parameters (name,
     default, type and range, description with units) and what it needs and provides.
 
     A scenario file has one table per component ([plant], [sensor], [observer],
-    [controller], [reference], [actuator]) with `kind` and these parameters.
+    [controller], [reference], [actuator]) with `kind` and these parameters; its
+    `plugins` (and --plugin here) add kinds of your own, as do installed packages
+    under the entry-point group lookout.components.
     """
+    from lookout import registry
+
+    for each in plugin or []:
+        try:
+            registry.load_plugin(each, Path.cwd())
+        except ValueError as error:
+            raise InputError(f"--plugin {each}: {one_line(error)}") from None
     found = _matching(kind)
     detail = kind is not None and all(each.name == kind for each in found)
     if as_json:

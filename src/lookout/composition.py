@@ -61,7 +61,7 @@ from lookout._validation import FitError, ParameterError, one_line, short
 from lookout.settings import RunsConfig, Settings, explain, finite_positive, validate_strictly
 
 #: The top-level keys of a composition.
-TOP_KEYS = ("preset", "simulation", *registry.COMPONENT_ROLES)
+TOP_KEYS = ("plugins", "preset", "simulation", *registry.COMPONENT_ROLES)
 #: Components of which another component may hold a model of its own (a Kalman filter's
 #: ``[observer.plant]``): by default the composition's, else built from the table given.
 MODEL_ROLES = ("plant", "sensor")
@@ -514,6 +514,22 @@ def merge(preset: dict, document: dict) -> dict:
     return merged
 
 
+def load_plugins(plugins, location: tuple = ("plugins",)) -> list[str]:
+    """Import a document's ``plugins`` (Python files, absolute or relative to the working
+    folder, or modules by dotted name), whose declarations register kinds of their own
+    (:func:`lookout.registry.load_plugin`); a :class:`CompositionError` names the entry."""
+    if plugins is None:
+        return []
+    if not isinstance(plugins, list) or not all(isinstance(each, str) and each for each in plugins):
+        raise CompositionError(location, f"must be an array of Python files or module names; got {short(plugins)}")
+    for index, each in enumerate(plugins):
+        try:
+            registry.load_plugin(each)
+        except ValueError as error:
+            raise CompositionError(location + (index,), one_line(error)) from None
+    return plugins
+
+
 def compose(document: dict) -> Composition:
     """Validate ``document`` and build its scenario; a :class:`CompositionError` names the key."""
     from lookout.sim import Scenario
@@ -523,6 +539,7 @@ def compose(document: dict) -> Composition:
     for key in document:
         if key not in TOP_KEYS:
             raise CompositionError((key,), f"unknown key (a composition has {', '.join(TOP_KEYS)})")
+    plugins = load_plugins(document.get("plugins"))
     if "preset" in document:
         document = merge(preset_document(document["preset"]), document)
     simulation_table = document.get("simulation", {})
@@ -535,6 +552,8 @@ def compose(document: dict) -> Composition:
 
     context = _Context([], simulation=simulation)
     built, normal, kinds = {}, {"simulation": simulation.model_dump(mode="json")}, {}
+    if plugins:
+        normal["plugins"] = list(plugins)
     for role in registry.COMPONENT_ROLES:
         table = _table(document, role)
         built[role], normal[role] = build_part(role, table, (role,), context, defaults=role == "plant")

@@ -230,10 +230,21 @@ def _ensure_loaded() -> None:
     _LOADED["builtin"] = True
     for module in BUILTIN_MODULES:
         importlib.import_module(module)
+    load_entry_points()
+
+
+def load_entry_points() -> None:
+    """Import the modules installed packages name under :data:`ENTRY_POINT_GROUP` (each
+    once), so that their declarations are registered."""
     for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        module = entry.value.partition(":")[0]
+        if module in sys.modules:
+            continue
+        before = len(declare.DECLARED)
         try:
-            importlib.import_module(entry.value.partition(":")[0])
-        except Exception as error:  # an installed plugin that does not import is named, not fatal to lookout
+            importlib.import_module(module)
+        except Exception as error:
+            del declare.DECLARED[before:]
             raise ValueError(f"the package entry point {entry.name} = {entry.value!r} (group {ENTRY_POINT_GROUP}) "
                              f"does not import: {type(error).__name__}: {error}") from None
 
@@ -254,7 +265,7 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     file = Path(path) if base is None or Path(path).is_absolute() else Path(base) / path
     file = file.resolve()
     if not file.is_file():
-        raise ValueError(f"plugin {text!r}: no such file {file}")
+        raise ValueError(f"plugin {text!r}: no such file" + ("" if str(file) == text else f" (looked for {file})"))
     name = "lookout_plugin_" + "".join(c if c.isalnum() else "_" for c in str(file))
     if name in sys.modules:
         return name
@@ -265,10 +276,12 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     before = len(declare.DECLARED)
     try:
         spec.loader.exec_module(module)
+        _index(len(declare.DECLARED))  # a kind declared twice is refused here
     except Exception as error:
         del sys.modules[name]
         del declare.DECLARED[before:]
-        raise ValueError(f"plugin {text!r} does not import: {type(error).__name__}: {error}") from None
+        reason = str(error) if isinstance(error, ValueError) and "declared twice" in str(error) else f"does not import: {type(error).__name__}: {error}"
+        raise ValueError(f"plugin {text!r}: {reason}" if "declared twice" in reason else f"plugin {text!r} {reason}") from None
     return name
 
 
@@ -280,10 +293,16 @@ def _index(count: int) -> dict[str, dict[str, Kind]]:
     for _, each in ranked:
         known = found[each.role]
         if each.kind in known:
-            first = known[each.kind].declaration.module
-            raise ValueError(f"{each.role} kind {each.kind!r} is declared twice: by {first} and by {each.module}")
+            first = _where(known[each.kind].declaration.module)
+            raise ValueError(f"{each.role} kind {each.kind!r} is declared twice: by {first} and by {_where(each.module)}")
         known[each.kind] = Kind(each.role, each.kind, each)
     return found
+
+
+def _where(module: str) -> str:
+    """A module by name, a plugin file by its path."""
+    loaded = sys.modules.get(module)
+    return str(getattr(loaded, "__file__", module)) if module.startswith("lookout_plugin_") else module
 
 
 def _kinds() -> dict[str, dict[str, Kind]]:

@@ -92,6 +92,7 @@ def _vector(estimate: dict, name: str) -> Array:
 @component(
     "controller", "observer-backstepping",
     summary="Kim (2002) observer backstepping with integral action, eqs. (18)–(26).",
+    family="lookout.tuning.families.positive:ObserverBacksteppingFamily",
     build="for_observer",
     parameters=(
         Part("observer", "The observer whose estimate the controller uses (in a composition, its observer)."),
@@ -315,6 +316,7 @@ class ObserverBackstepping(Controller):
 @component(
     "controller", "vectorial-backstepping",
     summary="Calugi, Robertsson & Johansson (2003) vectorial observer backstepping, eqs. (24)–(40), with M_hat, D_hat, K_hat from the current parameter estimate theta_hat (Remark 3).",
+    family="lookout.tuning.families.adaptive_dp:VectorialBacksteppingFamily",
     build="for_observer",
     parameters=(
         Part("observer", "The observer whose estimate (and theta_hat) the controller uses."),

@@ -121,6 +121,7 @@ def _integral_limit(value) -> Array:
 @component(
     "controller", "pid",
     summary="Nonlinear PID for dynamic positioning on an observer's estimates, with reference and optional bias feed-forward.",
+    family="lookout.tuning.families.pid:PidFamily",
     rules={
         "pole-placement": Rule("design", (
             Part("vessel", "The controller's model M, D; in a composition, the plant's unless given."),

@@ -74,6 +74,7 @@ def reference_velocity(reference: dict) -> tuple[Array, Array, Array]:
 @component(
     "controller", "tracking",
     summary="The tracking law (18), evaluated on the estimate as the scheme (23) does.",
+    family="lookout.tuning.families.tracking:TrackingFamily",
     rules={
         "gains": Rule(None, (
             Part("ship", "The controller's model (M, C, D, D_n); linear damping only in the basin scheme."),

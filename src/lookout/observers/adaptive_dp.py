@@ -364,6 +364,7 @@ def _angle_difference(a: Array, b: Array) -> Array:
 @component(
     "observer", "adaptive-dp",
     summary="Adaptive observer of Calugi, Robertsson & Johansson (2003), eqs. (13)–(15) and (65)–(67).",
+    family="lookout.tuning.families.adaptive_dp:AdaptiveDPFamily",
     parameters=(
         Part("parametrization", "The known model, the unknown entries and their bounds."),
         Value("position_gain", "array", "Diagonal of K1 (1/s), > 0.", shape="(3,)"),

@@ -158,6 +158,7 @@ def _smallest_inertia(parameters: AffineParameters, vertices: Array, q_grid: Arr
 @component(
     "observer", "adaptive-manipulator",
     summary="Calugi (2002) ch. 4: the discrete adaptive observer (4.34)–(4.35) with resetting (4.45).",
+    family="lookout.tuning.families.adaptive_manipulator:AdaptiveManipulatorFamily",
     parameters=(
         Part("parameters", "The model and which of its parameters are unknown; the observer's model is parameters.model(theta_hat)."),
         Value("gain", "array", "Diagonal of K (1/s), with |1 - Delta K| < 1.", shape="(n,)", range=POSITIVE),

@@ -108,6 +108,7 @@ def _gain(name: str, value) -> Array:
 @component(
     "observer", "earth-fixed",
     summary="The observer (6) of Wondergem et al. (2009) for a Cybership model.",
+    family="lookout.tuning.families.tracking:EarthFixedFamily",
     rules={
         "gains": Rule(None, (
             Part("ship", "The observer's model (it may differ from the plant: linear damping only in the basin scheme); in a composition, the plant's unless given."),
@@ -131,8 +132,8 @@ def _gain(name: str, value) -> Array:
             Value("damping_ratio", "float", "lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).", range=POSITIVE),
             Value("velocity_bound", "float", "V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).", range=NON_NEGATIVE),
             Value("margin", "float", "Factor by which L1 and L2 exceed their largest lower bound (1).", range=Range(1.0, math.inf, False, False)),
-            Value("steps_per_sample", "int", "Integration steps of predict per sample."),
-            Value("method", "str", "How predict integrates (6) between samples.", choices=('rk4', 'euler')),
+            Value("steps_per_sample", "int", "Integration steps of the observer's predict per sample."),
+            Value("method", "str", "How the observer's predict integrates (6) between samples.", choices=('rk4', 'euler')),
             Value("initial_velocity", "str", "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).", choices=('estimate', 'state')),
         )),
     },

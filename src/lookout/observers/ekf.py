@@ -32,6 +32,7 @@ from lookout.scenario.declare import Context, NON_NEGATIVE, POSITIVE, Part, Valu
 @component(
     "observer", "ekf",
     summary="Continuous-discrete extended Kalman filter on the plant's own model (lookout.observers.ekf).",
+    family="lookout.tuning.families.kalman:KalmanFamily",
     parameters=(
         Part("plant", "The filter's model of the plant (default: the composition's plant; give a [observer.plant] table for a model that differs from the truth)."),
         Part("sensor", "The filter's model of the sensor (default: the composition's sensor)."),

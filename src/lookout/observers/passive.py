@@ -238,6 +238,7 @@ def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, g
 @component(
     "observer", "passive",
     summary="Fossen & Strand (1999) passive observer, eqs. (22)–(26), gains in SI.",
+    family="lookout.tuning.families.passive:PassiveFamily",
     rules={
         "fossen-strand-1999": Rule("design", (
             Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),

@@ -74,6 +74,7 @@ def saturation(x, width=1.0):
 @component(
     "observer", "sliding-mode",
     summary="Kim (2002) sliding-mode observer, eqs. (6)–(7): a passive observer plus Kbar sat(y~/eps).",
+    family="lookout.tuning.families.sliding_mode:SlidingModeFamily",
     rules={
         "kim-2002": Rule("lookout.analysis.sliding_mode:kim_2002_observer", (
             Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),

@@ -69,6 +69,7 @@ def _mean(points: Array, weights: Array, angles: tuple[bool, ...]) -> Array:
 @component(
     "observer", "ukf",
     summary="Continuous-discrete unscented Kalman filter on the plant's own model (lookout.observers.ukf): the extended filter's propagation and masking, with sigma points in place of Jacobians for the mean and the measurement.",
+    family="lookout.tuning.families.kalman:KalmanFamily",
     parameters=(
         Part("plant", "The filter's model of the plant (default: the composition's plant; give a [observer.plant] table for a model that differs from the truth)."),
         Part("sensor", "The filter's model of the sensor (default: the composition's sensor)."),

@@ -68,6 +68,7 @@ class VelocityObserverState(eqx.Module):
 @component(
     "observer", "velocity",
     summary="Reduced-order velocity observer of Calugi (2002), eqs. (2.6)–(2.7).",
+    family="lookout.tuning.families.velocity:VelocityFamily",
     parameters=(
         Part("model", "The observer's own model M, C, F, G (it may differ from the plant's)."),
         Value("gain", "array", "Diagonal of K (1/s).", shape="(n,)", range=POSITIVE),

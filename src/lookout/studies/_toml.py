@@ -98,9 +98,19 @@ def read(path: str | Path) -> tuple[dict, str]:
     except (OSError, UnicodeDecodeError) as error:
         raise FileError(f"{path}: cannot be read ({error})") from None
     try:
-        return tomllib.loads(text), text
+        document = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise FileError(f"{path}: not valid TOML: {error}") from None
+    return _with_plugins_resolved(document, path.parent), text
+
+
+def _with_plugins_resolved(document: dict, folder: Path) -> dict:
+    """The document with its ``plugins`` file paths made absolute (they are relative to
+    the file that names them); a module's dotted name stays as it is."""
+    plugins = document.get("plugins")
+    if isinstance(plugins, list):
+        document["plugins"] = [str((folder / each).resolve()) if isinstance(each, str) and each.endswith(".py") else each for each in plugins]
+    return document
 
 
 def key_line(text: str, location: tuple) -> int | None:

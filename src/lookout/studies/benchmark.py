@@ -61,7 +61,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from lookout import registry
-from lookout.composition import MODEL_ROLES, TOP_KEYS, CompositionError, SimulationSettings, compose, get_path, key_text, merge, preset_document, set_path
+from lookout.composition import MODEL_ROLES, TOP_KEYS, CompositionError, SimulationSettings, compose, get_path, key_text, load_plugins, merge, preset_document, set_path
 from lookout.settings import PositiveCount, PositiveFloat, validate_strictly
 from lookout.studies._toml import FileError, read
 from lookout.studies.campaign import Campaign, Divergence, campaign_from_document
@@ -154,6 +154,7 @@ class BenchmarkSpec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     title: str
+    plugins: tuple[str, ...] = Field((), description="Python files (relative to the spec) or modules that register kinds of their own")
     scenario: str | dict = Field(description="a scenario file (relative to the spec) or an inline composition (may hold a preset)")
     seed: int = 0
     metrics: tuple[str, ...]
@@ -244,7 +245,7 @@ def file_form(document: dict) -> str:
     (a scenario file) or ``"campaign"`` (a campaign spec); a FileError-worthy
     ValueError when it mixes a spec's keys with a scenario's tables, or is neither."""
     keys = set(document)
-    spec, scenario, campaign = keys & SPEC_ONLY, keys & set(TOP_KEYS), keys & CAMPAIGN_ONLY
+    spec, scenario, campaign = keys & SPEC_ONLY, keys & (set(TOP_KEYS) - {"plugins"}), keys & CAMPAIGN_ONLY
     if spec and scenario:
         raise ValueError(f"mixes a benchmark spec's keys ({', '.join(sorted(spec))}) with a scenario's tables ({', '.join(sorted(scenario))}): "
                          "put the scenario under [scenario], or give the scenario file alone")
@@ -277,6 +278,10 @@ def load_benchmark(path: str | Path) -> Benchmark:
     except ValidationError as error:
         raise FileError(describe(error, str(path), text)) from None
     source = str(path)
+    try:
+        load_plugins(list(spec.plugins))
+    except CompositionError as error:
+        raise located(source, text, error.location, error.reason) from None
     scenario = spec.scenario
     notes: list[str] = []
     if isinstance(scenario, str):
@@ -293,6 +298,8 @@ def load_benchmark(path: str | Path) -> Benchmark:
     except CompositionError as error:
         raise located(source, text, ("scenario",) + error.location, error.reason) from None
     base.pop("observer", None)
+    if spec.plugins:
+        base["plugins"] = list(dict.fromkeys([*spec.plugins, *base.get("plugins", [])]))
     benchmark = Benchmark(spec, path.stem, source, text, base, tuple(notes))
     check_spec(benchmark)
     return benchmark

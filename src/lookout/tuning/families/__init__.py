@@ -10,8 +10,8 @@ backtracks until they hold.
 
 A family acts on a whole scenario (:meth:`Family.apply`): some conditions couple the
 observer and the controller (Wondergem et al. 2009), others need the observer's
-vessel model (Kim 2002). The families, one file each, are registered by component
-kind in :data:`OBSERVER_FAMILIES` and :data:`CONTROLLER_FAMILIES`; a scenario whose
+vessel model (Kim 2002). The families, one file each, are named by the component
+kinds' declarations (``family=``, :func:`families`); a scenario whose
 observer and controller both have one is tuned over both (:class:`Joint`).
 """
 
@@ -23,23 +23,12 @@ import importlib
 import numpy as np
 
 #: observer kind -> "module:class" of its family (the class's ``of(scenario)`` builds it).
-OBSERVER_FAMILIES = {
-    "passive": "lookout.tuning.families.passive:PassiveFamily",
-    "ekf": "lookout.tuning.families.kalman:KalmanFamily",
-    "ukf": "lookout.tuning.families.kalman:KalmanFamily",
-    "sliding-mode": "lookout.tuning.families.sliding_mode:SlidingModeFamily",
-    "earth-fixed": "lookout.tuning.families.tracking:EarthFixedFamily",
-    "velocity": "lookout.tuning.families.velocity:VelocityFamily",
-    "adaptive-manipulator": "lookout.tuning.families.adaptive_manipulator:AdaptiveManipulatorFamily",
-    "adaptive-dp": "lookout.tuning.families.adaptive_dp:AdaptiveDPFamily",
-}
-#: controller kind -> "module:class" of its family.
-CONTROLLER_FAMILIES = {
-    "observer-backstepping": "lookout.tuning.families.positive:ObserverBacksteppingFamily",
-    "tracking": "lookout.tuning.families.tracking:TrackingFamily",
-    "vectorial-backstepping": "lookout.tuning.families.adaptive_dp:VectorialBacksteppingFamily",
-    "pid": "lookout.tuning.families.pid:PidFamily",
-}
+def families(role: str) -> dict[str, str]:
+    """kind -> ``"module:Family"`` of the registered kinds of ``role`` (``"observer"`` or
+    ``"controller"``) that declare a tuning family (``family=`` in their declaration)."""
+    from lookout.registry import kinds
+
+    return {each.name: each.family for each in kinds(role) if each.family}
 
 
 class Family(abc.ABC):
@@ -181,7 +170,7 @@ def family_of(scenario, components: tuple[str, ...] | None = None) -> tuple[Fami
     (ValueError). A ValueError lists the kinds that have a family when none is left."""
     from lookout.registry import kind_of
 
-    kinds = {"observer": (kind_of(scenario.observer), OBSERVER_FAMILIES), "controller": (kind_of(scenario.controller), CONTROLLER_FAMILIES)}
+    kinds = {"observer": (kind_of(scenario.observer), families("observer")), "controller": (kind_of(scenario.controller), families("controller"))}
     asked = components is not None
     for name in components or ():
         if name not in COMPONENTS:
@@ -210,10 +199,10 @@ def family_of(scenario, components: tuple[str, ...] | None = None) -> tuple[Fami
         if errors:
             raise ValueError(errors[0])
         raise ValueError(f"neither observer {kinds['observer'][0]} nor controller {kinds['controller'][0]} has a tunable family yet (tunable "
-                         f"observers: {', '.join(OBSERVER_FAMILIES)}; controllers: {', '.join(CONTROLLER_FAMILIES) or 'none'})")
+                         f"observers: {', '.join(kinds['observer'][1])}; controllers: {', '.join(kinds['controller'][1]) or 'none'})")
     if len(parts) == 1:
         return parts[0], starts[0], notes
     return Joint(parts, starts), tuple(g for gains in starts for g in gains), notes
 
 
-__all__ = ["COMPONENTS", "CONTROLLER_FAMILIES", "OBSERVER_FAMILIES", "Family", "Joint", "build", "family_of", "start"]
+__all__ = ["COMPONENTS", "Family", "Joint", "build", "families", "family_of", "start"]
