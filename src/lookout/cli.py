@@ -37,7 +37,7 @@ app = typer.Typer(
 design_app = typer.Typer(
     no_args_is_help=True,
     rich_markup_mode=None,
-    help="Design an observer and check its stability conditions. Exit code 0: the design passes; 1: a verdict fails; 2: bad input.",
+    help="Check the stability conditions of a scenario file's components (lookout design FILE), or design one paper's observer. Exit code 0: the design passes; 1: a verdict fails; 2: bad input.",
 )
 app.add_typer(design_app, name="design")
 #: zeta_n of Fossen & Strand (1999), eq. (59), the default of --notch-damping.
@@ -691,6 +691,10 @@ from lookout.live.cli import register as _register_live  # noqa: E402
 
 _register_live(app)
 
+from lookout.cli_design import register as _register_design  # noqa: E402
+
+_register_design(design_app)
+
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning every input error into one line and exit code 2."""
@@ -704,6 +708,9 @@ def main(argv: list[str] | None = None) -> int:
     console.width = PIPE_WIDTH if not console.is_terminal and "COLUMNS" not in os.environ else None
 
     command = typer.main.get_command(app)
+    from lookout.cli_design import route
+
+    argv = route(list(sys.argv[1:] if argv is None else argv), set(typer.main.get_command(design_app).commands))
     try:
         # without standalone mode, click returns the code of a typer.Exit raised by a command
         code = command.main(args=argv, prog_name="lookout", standalone_mode=False)

@@ -1,0 +1,71 @@
+"""``lookout design FILE``: the conditions of every component of a scenario file that has
+any (:mod:`lookout.design`), with the verdicts and JSON of the other ``design`` commands."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from lookout._commandline import console
+from lookout._json import json_safe
+from lookout._validation import InputError
+
+
+def design_scenario(
+    scenario: Annotated[Path, typer.Argument(metavar="FILE", help="A scenario file (lookout run FILE runs it).")],
+    propose: Annotated[bool, typer.Option("--propose", help="Propose gains inside the conditions (the file's own when they hold), as file keys, and check them.")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
+) -> None:
+    """The conditions of each component of a scenario file that has any, for the file's
+    own plant, gains and sea: the observer's and the controller's (lookout components
+    KIND says which kinds have them).
+
+    Exit code 0 when every condition holds, 1 when one fails (the report or JSON is
+    still printed), 2 for bad input.
+    """
+    from lookout.cli import DESIGN_VERDICTS
+    from lookout.design import combined, component_designs
+    from lookout.studies._toml import FileError
+    from lookout.studies.scenario_file import load
+
+    try:
+        spec = load(scenario, runs=1)
+    except FileError as error:
+        raise InputError(str(error)) from None
+    composition = spec.composition
+    try:
+        designs = component_designs(composition, propose=propose)
+    except ValueError as error:
+        raise InputError(f"{scenario}: {error}") from None
+    report = combined(designs, str(scenario))
+    inputs = {
+        "scenario": str(scenario), "propose": propose,
+        "components": [{"role": d.role, "kind": d.kind, **({"proposed": d.proposed} if d.proposed is not None else {})} for d in designs],
+    }
+    if as_json:
+        print(json.dumps(json_safe({"design": "scenario", "inputs": inputs, **report.to_dict()}), allow_nan=False))
+    else:
+        for line in report.lines():
+            console.print(line, highlight=False, markup=False)
+        if not designs:
+            console.print(f"{scenario}: none of its components ({', '.join(f'{r} {k}' for r, k in composition.kinds.items())}) declares conditions",
+                          highlight=False, markup=False)
+        console.print(f"verdict: {DESIGN_VERDICTS[report.verdict]} (exit code {0 if report.holds else 1})", highlight=False, markup=False)
+    if not report.holds:
+        raise typer.Exit(code=1)
+
+
+def register(design_app: typer.Typer) -> None:
+    """Add ``scenario`` to the ``design`` commands (``lookout design FILE`` runs it)."""
+    design_app.command("scenario")(design_scenario)
+
+
+def route(argv: list[str], commands: set[str]) -> list[str]:
+    """``design FILE ...`` as ``design scenario FILE ...``: a first argument that is not one
+    of the ``design`` commands (nor an option) is a scenario file."""
+    if len(argv) >= 2 and argv[0] == "design" and argv[1] not in commands and not argv[1].startswith("-"):
+        return ["design", "scenario", *argv[1:]]
+    return argv

@@ -1,0 +1,93 @@
+"""Design from a scenario: the conditions of every component in a scenario file that has
+any, checked for the file's own plant, gains and sea (``lookout design FILE``), and gains
+proposed inside them (``--propose``).
+
+A kind's conditions are what its declaration names: ``checks`` (``"module:function"``,
+called with the built :class:`~lookout.composition.Composition`, returning a
+:class:`~lookout.analysis.conditions.Report`), else its tuning ``family``'s
+:meth:`~lookout.tuning.families.Family.check` (the conditions ``lookout tune`` keeps).
+The family's gains nearest the file's own that satisfy them are the proposal
+(:func:`lookout.tuning.families.start`). Observers do not import this module, nor the
+analysis it calls.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lookout import registry
+from lookout.analysis.conditions import Report
+from lookout.composition import Composition
+
+#: The roles whose kinds may declare conditions, in the order they are checked.
+CHECKED_ROLES = ("observer", "controller")
+
+
+@dataclass(frozen=True)
+class ComponentDesign:
+    """One component's conditions: its role and kind, the report, and (with a proposal)
+    the gains proposed, file key -> value."""
+
+    role: str
+    kind: str
+    report: Report
+    proposed: dict | None = None
+
+
+def component_designs(composition: Composition, *, propose: bool = False) -> list[ComponentDesign]:
+    """The conditions of each component of ``composition`` whose kind declares any (see
+    the module docstring); with ``propose``, the gains a family proposes and the
+    conditions at them. A component whose family has no gains inside its conditions is
+    reported with the reason as a note."""
+    from lookout.tuning.families import build, start
+
+    scenario = composition.scenario
+    found = []
+    for role in CHECKED_ROLES:
+        kind = registry.kind(role, composition.kinds[role])
+        if kind.checks is not None:
+            found.append(ComponentDesign(role, kind.name, registry.resolve(kind.checks)(composition)))
+            continue
+        if kind.family is None:
+            continue
+        family = registry.resolve(kind.family).of(scenario)
+        if not propose:
+            found.append(ComponentDesign(role, kind.name, family.check(build(family, scenario, family.current(scenario)))))
+            continue
+        try:
+            gains = start(family, scenario)
+        except ValueError as error:
+            report = family.check(build(family, scenario, family.current(scenario)))
+            found.append(ComponentDesign(role, kind.name, report.extended(notes=[f"no gains proposed: {error}"]), {}))
+            continue
+        proposed = {key: _plain(value) for key, value in zip(family.keys, gains)}
+        found.append(ComponentDesign(role, kind.name, family.check(build(family, scenario, gains)), proposed))
+    return found
+
+
+def combined(designs: list[ComponentDesign], source: str) -> Report:
+    """The designs as one report (each condition keyed by its component), for one verdict."""
+    if not designs:
+        return Report(f"{source}: no component with conditions", [])
+    conditions, quantities, summary, notes = [], {}, [], []
+    for each in designs:
+        summary.append(f"{each.role} {each.kind}: {each.report.title}")
+        conditions.extend(each.report.conditions)
+        quantities[each.role] = each.report.quantities
+        summary.extend(each.report.summary)
+        notes.extend(each.report.notes)
+        if each.proposed:
+            notes.append(f"{each.role} {each.kind} proposed: " + "; ".join(f"{key} = {value}" for key, value in each.proposed.items()))
+    return Report("; ".join(f"{each.role} {each.kind}" for each in designs) + f" in {source}", conditions, quantities, summary, notes)
+
+
+def _plain(value):
+    """A gain as file data, to 12 significant digits (what a file written by hand holds)."""
+    array = np.asarray(value, dtype=float)
+    rounded = np.vectorize(lambda x: float(f"{x:.12g}"), otypes=[float])(array) if array.size else array
+    return float(rounded) if array.ndim == 0 else rounded.tolist()
+
+
+__all__ = ["CHECKED_ROLES", "ComponentDesign", "combined", "component_designs"]
