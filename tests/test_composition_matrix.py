@@ -1,4 +1,5 @@
-"""The composition matrix: every registered observer on every registered plant.
+"""The composition matrix: every registered observer (the example plugin's too) on every
+registered plant.
 
 Each plant is taken in the first reproduction case that has it (its sea, its sensor,
 its time grid), or in the observer's own first case when that case has this plant, and
@@ -28,6 +29,7 @@ from lookout.composition import CompositionError, compose
 from lookout.sim import simulate
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
+EXAMPLE_PLUGIN = Path(__file__).resolve().parents[1] / "examples" / "plugins" / "luenberger.py"
 BEGIN, END = "<!-- composition matrix: begin -->", "<!-- composition matrix: end -->"
 DURATION = 20.0
 
@@ -59,12 +61,16 @@ def open_loop(document: dict) -> dict:
 
 
 def plant_bases() -> dict[str, dict]:
-    """Each plant kind's base composition: its first case, open loop."""
-    bases = {}
+    """Each plant kind's base composition: its first case, open loop. A registered plant
+    that no reproduction case uses has no base: the test fails naming it."""
+    bases, missing = {}, []
     for each in registry.kinds("plant"):
         document = _first_table("plant", each.name)
-        if document is not None:
+        if document is None:
+            missing.append(each.name)
+        else:
             bases[each.name] = open_loop(document)
+    assert not missing, f"plants without a base composition (no reproduction case uses them): {', '.join(missing)}"
     return bases
 
 
@@ -128,7 +134,9 @@ def off_the_first_measurement(scenario, trajectory) -> str:
 def test_every_pair_runs_or_is_refused_every_kind_is_in_and_the_docs_hold_the_matrix():
     """One test computes the matrix once (38 s) and checks it three ways: each pair runs
     or is refused in one line naming the observer; every kind is in it; and
-    docs/architecture.md holds it."""
+    docs/architecture.md holds it. The example plugin's observer is registered first:
+    a kind of one's own is in the matrix as lookout's are."""
+    registry.load_plugin(EXAMPLE_PLUGIN)
     bases = plant_bases()
     matrix = {(observer.name, plant): outcome(plant, base, observer.name) for observer in registry.kinds("observer") for plant, base in bases.items()}
     check_runs_or_refused(matrix)
@@ -160,7 +168,7 @@ def check_runs_or_refused(matrix):
 
 
 def check_every_kind(matrix):
-    assert {plant for _, plant in matrix} == {k.name for k in registry.kinds("plant") if _first_table("plant", k.name) is not None}
+    assert {plant for _, plant in matrix} == {k.name for k in registry.kinds("plant")}
     assert {observer for observer, _ in matrix} == {k.name for k in registry.kinds("observer")}
     # each observer runs on at least one plant: no kind is registered that nothing can use
     for observer in {observer for observer, _ in matrix}:

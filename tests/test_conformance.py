@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import sys
+from pathlib import Path
 from dataclasses import dataclass
 from typing import Callable
 
@@ -326,6 +328,35 @@ def _kalman_pid(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30
     )
 
 
+EXAMPLE_PLUGIN = Path(__file__).resolve().parent.parent / "examples" / "plugins" / "luenberger.py"
+
+
+def _luenberger(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0) -> Scenario:
+    """The example plugin's Luenberger observer (examples/plugins/luenberger.py) on the
+    Fossen & Strand vessel, built from a scenario document as a user's file would be;
+    ``gain`` scales L1, L2 and L3. Its model has no wave filter and its bias no decay: the
+    noise-free perfect start is exact with no sea and no bias."""
+    from lookout.composition import compose
+
+    quiet = {} if noise else {"noise_std": [0.0, 0.0, 0.0]}
+    plant = {} if noise else {"bias": {"kind": "gauss-markov", "time_constant": 1000.0, "std": [0.0, 0.0, 0.0]},
+                              "waves": {"kind": "linear", "peak_frequency": 0.8976, "damping_ratio": 0.1, "amplitude": [0.0, 0.0, 0.0]},
+                              "initial": {"bias": 0.0}}
+    document = {
+        "plugins": [str(EXAMPLE_PLUGIN)], "preset": "fossen-strand-1999:paper",
+        "simulation": {"duration": duration, "runs": 1},
+        "plant": plant,
+        "sensor": {**quiet, "sample_period": 0.1 if perfect else 1.0, "dropout_probability": dropout},
+        "observer": {"kind": "luenberger", "design": "poles", "bandwidth": [0.05, 0.05, 0.05],
+                     **({"initial": {"eta": 0.0, "nu": 0.0, "bias": 0.0}} if perfect else {})},
+    }
+    scenario = compose(document).scenario
+    observer = scenario.observer
+    scaled = eqx.tree_at(lambda o: (o.position_gain, o.velocity_gain, o.bias_gain), observer,
+                         (gain * observer.position_gain, gain * observer.velocity_gain, gain * observer.bias_gain))
+    return eqx.tree_at(lambda s: s.observer, scenario, scaled)
+
+
 CASES = [
     Case(
         "passive observer (Fossen & Strand 1999)", _passive,
@@ -381,6 +412,8 @@ CASES = [
         # reference switch (0.62 s), where the arm must reverse; 20 % rides through
         dropout=0.2,
     ),
+    # a kind of one's own, from the example plugin: it joins by this case, as any kind does
+    Case("Luenberger observer of the example plugin", _luenberger, exact=(("continuous", {}),), error_variable="velocity"),
 ]
 
 
@@ -393,6 +426,26 @@ def case(request) -> Case:
     """Each case's tests run on one worker (make test: --dist loadgroup), which reuses the
     programs one test compiled in the next (the single run of 10 s, for instance)."""
     return request.param
+
+
+def test_every_registered_observer_and_controller_kind_has_a_case():
+    """A registered kind with no case fails here (lookout's own kinds, and the example
+    plugin's, which the Luenberger case registers)."""
+    from lookout import registry
+
+    registry.load_plugin(EXAMPLE_PLUGIN)
+    built = [c.build(1.0, noise=False, perfect=True, duration=1.0) for c in CASES]
+    covered = {(role, registry.kind_of(getattr(s, role))) for s in built for role in ("observer", "controller")}
+    for role in ("observer", "controller"):
+        registered = {k.name for k in registry.kinds(role) if k.module.startswith("lookout.") or k.module.startswith("lookout_plugin_")}
+        plugins_of_tests = {k.name for k in registry.kinds(role) if k.module.startswith("lookout_plugin_") and Path(sys.modules[k.module].__file__) != EXAMPLE_PLUGIN}
+        missing = sorted(registered - plugins_of_tests - {kind for r, kind in covered if r == role} - UNCASED[role])
+        assert missing == [], f"{role} kinds without a conformance case: {missing}"
+
+
+#: Kinds that run no observer or controller of their own: nothing to check in the engine
+#: beyond what every case runs (open loop).
+UNCASED = {"observer": set(), "controller": {"none", "sinusoidal"}}
 
 
 def test_the_observer_declares_what_its_scenario_feeds_it(case):

@@ -276,7 +276,7 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     before = len(declare.DECLARED)
     try:
         spec.loader.exec_module(module)
-        _index(len(declare.DECLARED))  # a kind declared twice is refused here
+        _index(len(declare.DECLARED), id(declare.DECLARED[-1]))  # a kind declared twice is refused here
     except Exception as error:
         del sys.modules[name]
         del declare.DECLARED[before:]
@@ -285,8 +285,10 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     return name
 
 
-@functools.cache
-def _index(count: int) -> dict[str, dict[str, Kind]]:
+@functools.lru_cache(maxsize=8)
+def _index(count: int, last: int = 0) -> dict[str, dict[str, Kind]]:
+    """The kinds of the first ``count`` declarations (``last``: the id of the last one, so
+    that declarations dropped and others made do not find a stale index)."""
     order = {module: index for index, module in enumerate(BUILTIN_MODULES)}
     found: dict[str, dict[str, Kind]] = {role: {} for role in ROLES}
     ranked = sorted(enumerate(declare.DECLARED[:count]), key=lambda pair: (order.get(pair[1].module, len(order)), pair[0]))
@@ -307,7 +309,7 @@ def _where(module: str) -> str:
 
 def _kinds() -> dict[str, dict[str, Kind]]:
     _ensure_loaded()
-    return _index(len(declare.DECLARED))
+    return _index(len(declare.DECLARED), id(declare.DECLARED[-1]) if declare.DECLARED else 0)
 
 
 def roles() -> tuple[str, ...]:
