@@ -1,5 +1,5 @@
 """Compositions (lookout.composition) and the component registry (lookout.registry):
-schemas from the components' own docstrings, presets with parts replaced, parts that do
+schemas from the components' declarations, presets with parts replaced, parts that do
 not fit refused in one line naming both, a model-based part taking the plant's model."""
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ SHORT = {"simulation": {"duration": 20.0}}
 
 
 def test_every_kind_documents_every_parameter_it_takes():
-    """The schema is the docstring: each parameter a file may give has a type and a
-    description there (else `lookout components` could not say what it is)."""
+    """Each parameter a file may give has a type and a description in its declaration
+    (else `lookout components` could not say what it is)."""
     missing = []
     for each in registry.kinds():
         assert each.description, (each.role, each.name)
@@ -37,7 +37,7 @@ def test_every_component_kind_builds_a_component_of_its_role():
             assert issubclass(each.component_class, base), (role, each.name, each.component_class)
 
 
-def test_a_range_in_the_docstring_is_checked_under_the_files_key():
+def test_a_declared_range_is_checked_under_the_files_key():
     (probability,) = [p for p in registry.kind("sensor", "position-heading").parameters() if p.name == "dropout_probability"]
     assert probability.range == (0.0, 1.0, True, False)
     with pytest.raises(CompositionError) as raised:

@@ -4,7 +4,9 @@ against the builders' signatures and their docstrings, and what a declaration re
 from __future__ import annotations
 
 import inspect
+import os
 import re
+from pathlib import Path
 
 import pytest
 
@@ -126,3 +128,29 @@ def test_range_words_are_what_components_shows():
     assert POSITIVE.words() == "positive" and declare.NON_NEGATIVE.words() == "non-negative"
     assert Range(0.0, 1.0, True, False).words() == "in [0, 1)"
     assert Part("vessel").sort == "part" and Value("x", "float").sort == "value"
+
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
+BEGIN, END = "<!-- kinds: begin -->", "<!-- kinds: end -->"
+
+
+def kinds_table() -> str:
+    """The registered kinds of lookout's own modules, as docs/architecture.md shows them."""
+    lines = ["| role | kind | rules | tuning family | declared in |", "|---|---|---|---|---|"]
+    for each in registry.kinds():
+        if not each.module.startswith("lookout."):
+            continue
+        family = each.family.rpartition(":")[2] if each.family else ""
+        lines.append(f"| {each.role} | `{each.name}` | {', '.join(f'`{r}`' for r in each.designs)} | {family} | `{each.module}` |")
+    return "\n".join(lines)
+
+
+def test_the_docs_hold_the_kinds_as_declared():
+    table, text = kinds_table(), DOCS.read_text()
+    if os.environ.get("LOOKOUT_WRITE_KINDS"):
+        before, _, rest = text.partition(BEGIN)
+        _, _, after = rest.partition(END)
+        DOCS.write_text(f"{before}{BEGIN}\n{table}\n{END}{after}")
+        text = DOCS.read_text()
+    found = re.search(re.escape(BEGIN) + r"\n(.*?)\n" + re.escape(END), text, re.DOTALL)
+    assert found and found.group(1) == table, "docs/architecture.md's kinds table differs from the registry's: rerun with LOOKOUT_WRITE_KINDS=1"
