@@ -34,7 +34,7 @@ jax.config.update("jax_cpu_enable_async_dispatch", False)  # as lookout live set
 
 import numpy as np  # noqa: E402
 
-from lookout.composition import compose, simulate  # noqa: E402
+from lookout.scenario.composition import compose, simulate  # noqa: E402
 from lookout.io.geodesy import LocalFrame  # noqa: E402
 from lookout.io.simulated_log import gga, ths, write_simulated_log  # noqa: E402
 from lookout.live.output import Publisher  # noqa: E402

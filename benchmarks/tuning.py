@@ -24,8 +24,8 @@ lookout.configure_cpu()  # before JAX computes anything
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
-from lookout.composition import compose  # noqa: E402
-from lookout.registry import preset  # noqa: E402
+from lookout.scenario.composition import compose  # noqa: E402
+from lookout.scenario.registry import preset  # noqa: E402
 from lookout.sim import keys_of_seeds  # noqa: E402
 from lookout.tuning.families import family_of  # noqa: E402
 from lookout.tuning.tune import _objective_function, parse_objective, tune  # noqa: E402
@@ -48,7 +48,7 @@ DURATIONS = {"passive": 1500.0, "ekf": 600.0, "kim": 700.0, "wondergem": 120.0, 
 
 def _case(name: str) -> tuple[dict, str]:
     """(scenario document, objective) of a case."""
-    from lookout.studies._toml import read
+    from lookout.scenario._toml import read
 
     if name in ("passive", "ekf"):
         document = preset("fossen-strand-1999", "paper")

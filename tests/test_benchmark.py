@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from lookout.cli import main
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.studies import benchmark as bench
 from lookout.studies.campaign import campaign_from_document, compute_chunk
 
@@ -414,7 +414,7 @@ def test_a_scenario_file_is_benchmarked_with_every_observer_that_composes_on_it(
     drive Kim's controller are skipped; runs open loop otherwise."""
     import tomllib
 
-    from lookout import registry
+    from lookout.scenario import registry
 
     benchmark = bench.load_benchmark(EXAMPLES / "sliding-mode-own-vessel.toml")
     spec = benchmark.spec

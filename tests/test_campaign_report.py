@@ -234,7 +234,7 @@ def html_escape(text: str) -> str:
 
 
 def description(key: str) -> str:
-    from lookout.studies.scenario_file import composition_comments
+    from lookout.scenario.file import composition_comments
 
     return composition_comments(campaign_from_document(json.loads(json.dumps(DOCUMENT)), "<test>").base.document())[key]
 

@@ -1,4 +1,4 @@
-"""Compositions (lookout.composition) and the component registry (lookout.registry):
+"""Compositions (lookout.scenario.composition) and the component registry (lookout.scenario.registry):
 schemas from the components' declarations, presets with parts replaced, parts that do
 not fit refused in one line naming both, a model-based part taking the plant's model."""
 
@@ -8,9 +8,9 @@ import jax
 import numpy as np
 import pytest
 
-from lookout import registry
+from lookout.scenario import registry
 from lookout.components import Actuator, Controller, Observer, Plant, Reference, Sensor
-from lookout.composition import CompositionError, compose
+from lookout.scenario.composition import CompositionError, compose
 from lookout.papers import fossen_strand_1999 as fs
 from lookout.sim import simulate
 

@@ -24,8 +24,8 @@ import jax
 import numpy as np
 import pytest
 
-from lookout import registry
-from lookout.composition import CompositionError, compose
+from lookout.scenario import registry
+from lookout.scenario.composition import CompositionError, compose
 from lookout.sim import simulate
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"

@@ -336,7 +336,7 @@ def _luenberger(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30
     Fossen & Strand vessel, built from a scenario document as a user's file would be;
     ``gain`` scales L1, L2 and L3. Its model has no wave filter and its bias no decay: the
     noise-free perfect start is exact with no sea and no bias."""
-    from lookout.composition import compose
+    from lookout.scenario.composition import compose
 
     quiet = {} if noise else {"noise_std": [0.0, 0.0, 0.0]}
     plant = {} if noise else {"bias": {"kind": "gauss-markov", "time_constant": 1000.0, "std": [0.0, 0.0, 0.0]},
@@ -431,7 +431,7 @@ def case(request) -> Case:
 def test_every_registered_observer_and_controller_kind_has_a_case():
     """A registered kind with no case fails here (lookout's own kinds, and the example
     plugin's, which the Luenberger case registers)."""
-    from lookout import registry
+    from lookout.scenario import registry
 
     registry.load_plugin(EXAMPLE_PLUGIN)
     built = [c.build(1.0, noise=False, perfect=True, duration=1.0) for c in CASES]

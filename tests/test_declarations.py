@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from lookout import registry
+from lookout.scenario import registry
 from lookout.scenario import declare
 from lookout.scenario.declare import POSITIVE, Part, Range, Rule, Value
 

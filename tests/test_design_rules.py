@@ -8,10 +8,10 @@ import jax
 import numpy as np
 import pytest
 
-from lookout import registry
+from lookout.scenario import registry
 from lookout.analysis.sliding_mode import kim_2002_observer, kyp_14, sigma2
 from lookout.analysis.tracking import check_wondergem_2009, propose_wondergem_2009
-from lookout.composition import CompositionError, compose, simulate
+from lookout.scenario.composition import CompositionError, compose, simulate
 from lookout.models.cybership import cybership2
 from lookout.models.vessel import northern_clipper
 from lookout.observers import SlidingModeObserver, notch_filter_gains

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from lookout.cli import main
-from lookout.composition import set_path
+from lookout.scenario.composition import set_path
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -52,7 +52,7 @@ def test_kims_printed_gains_fail_14_and_the_proposed_gains_pass_when_written_int
 
 
 def _toml(document: dict) -> str:
-    from lookout.studies._toml import dumps
+    from lookout.scenario._toml import dumps
 
     return dumps(document, {}, "")
 

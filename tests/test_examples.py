@@ -11,7 +11,7 @@ import jax
 import numpy as np
 import pytest
 
-from lookout.composition import compose, simulate
+from lookout.scenario.composition import compose, simulate
 from lookout.studies.campaign import load_campaign
 
 EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))

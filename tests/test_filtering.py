@@ -223,8 +223,8 @@ def test_a_kalman_filter_on_a_log_gives_the_simulation_estimates():
     """The EKF steps a log whose time steps are known only when it runs (its propagation
     splits each step into the substeps of its filter period): the simulation's
     estimates, to rounding."""
-    from lookout.composition import compose
-    from lookout.registry import preset
+    from lookout.scenario.composition import compose
+    from lookout.scenario.registry import preset
 
     document = preset("fossen-strand-1999", "paper")
     document["simulation"]["duration"] = 60.0

@@ -349,7 +349,7 @@ def test_rejects_bad_parameters(kwargs, message):
 
 def test_the_hull_length_is_the_vessels_and_a_file_must_give_it():
     """No vessel's length is a default of the generic sea: a composition states it."""
-    from lookout.composition import CompositionError, compose
+    from lookout.scenario.composition import CompositionError, compose
 
     with pytest.raises(TypeError, match="hull_length"):
         JonswapWaves(HS, T1)

@@ -19,7 +19,7 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
-from lookout.composition import compose, simulate
+from lookout.scenario.composition import compose, simulate
 from lookout.io.geodesy import LocalFrame
 from lookout.io.nmea import Reading
 from lookout.io.simulated_log import EPOCH, write_simulated_log

@@ -305,7 +305,7 @@ def test_the_kalman_filters_hold_the_northern_clipper_in_waves(kind):
     fixes) with each filter, seeds 0 and 1, 900 s: from 300 s on the vessel stays within
     1.5 m and 0.5 deg of the reference, through the move at 600 s (measured: 0.71 m and
     0.15 deg at most, both filters)."""
-    from lookout.composition import compose, simulate as run
+    from lookout.scenario.composition import compose, simulate as run
 
     document = tomllib.loads(EXAMPLE.read_text())
     document["simulation"].update(duration=900.0, runs=2)
@@ -324,7 +324,7 @@ def test_the_kalman_filters_hold_the_northern_clipper_in_waves(kind):
 def test_kind_pid_alone_composes_on_both_vessel_plants():
     """Its pole-placement defaults for the plant's own M and D (Cybership II's as a DP
     vessel): stable, the sampled loop too, at each plant's sample period."""
-    from lookout.composition import compose
+    from lookout.scenario.composition import compose
 
     reference = {"kind": "reference-filter", "signals": ["position", "heading"], "bandwidth": 0.1, "schedule_times": [0.0], "setpoints": [[0.0, 0.0, 0.0]]}
     for document in ({"preset": "fossen-strand-1999:paper"}, {"preset": "wondergem-2009"}):
@@ -340,7 +340,7 @@ def test_every_observer_of_the_shipped_benchmarks_drives_it(plant):
     """The closed-loop condition of each shipped benchmark composes with each of its
     observers (passive, sliding-mode, adaptive-dp, earth-fixed, ekf, ukf on the DP vessel):
     each gives the estimate the PID reads, checked by the scenario's fit check."""
-    from lookout.composition import compose
+    from lookout.scenario.composition import compose
     from lookout.studies import benchmark as bench
 
     loaded = bench.load_benchmark(bench.shipped_spec(plant))
@@ -356,7 +356,7 @@ def test_every_observer_of_the_shipped_benchmarks_drives_it(plant):
 def test_tuned_gains_written_to_a_pole_placement_table_are_the_gains_built():
     """lookout tune writes controller.proportional_gain etc. into the file's table, whose
     design rule is pole-placement: given gains win over the rule's."""
-    from lookout.composition import compose
+    from lookout.scenario.composition import compose
 
     document = tomllib.loads(EXAMPLE.read_text())
     gains = {"proportional_gain": [6.0e4, 9.0e4, 4.0e7], "derivative_gain": [1.1e6, 1.5e6, 3.5e8], "integral_gain": [500.0, 800.0, 3.0e5]}
@@ -415,7 +415,7 @@ def test_the_tuning_gradient_matches_central_differences():
 
 
 def _write(tmp_path, change) -> Path:
-    from lookout.studies._toml import write
+    from lookout.scenario._toml import write
 
     document = tomllib.loads(EXAMPLE.read_text())
     document["simulation"]["duration"] = 20.0

@@ -12,12 +12,12 @@ import jax
 import numpy as np
 import pytest
 
-from lookout import registry
+from lookout.scenario import registry
 from lookout.cli import main
-from lookout.composition import CompositionError, compose
+from lookout.scenario.composition import CompositionError, compose
 from lookout.models.vessel import DPVessel, northern_clipper
 from lookout.sim import simulate
-from lookout.studies.scenario_file import load
+from lookout.scenario.file import load
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 

@@ -10,7 +10,7 @@ import pytest
 from lookout._math import ssa
 from lookout.analysis import settling_time
 from lookout.sim import keys_of_seeds, simulate_batch
-from lookout.studies import metrics as metric_module
+from lookout.scenario import metrics as metric_module
 from lookout.papers import kim_2002
 
 NAMES = [
@@ -92,8 +92,8 @@ def test_an_outage_silences_its_channels_and_its_metrics_equal_numpy():
     """A 60 s position outage (the sensor's outage_*): the position fixes are NaN from its
     start until its end, the heading is not; outage_drift and recovery_time equal NumPy's
     reading of the recorded runs, and are NaN without an outage."""
-    from lookout.composition import compose
-    from lookout.registry import preset
+    from lookout.scenario.composition import compose
+    from lookout.scenario.registry import preset
 
     document = preset("fossen-strand-1999", "paper")
     document["simulation"]["duration"] = 300.0

@@ -18,7 +18,7 @@ from lookout.actuators import Allocator, ThrusterLayout, ThrusterSystem
 from lookout.actuators.allocation import SATURATED, working_nbytes
 from lookout.actuators.qp import active_set
 from lookout.actuators.thrusters import at_limit, relative_power
-from lookout.studies.metrics import reduce, resolve, summarize
+from lookout.scenario.metrics import reduce, resolve, summarize
 
 LAYOUTS = {"supply-vessel": ThrusterLayout.supply_vessel, "cybership-ii": ThrusterLayout.cybership_ii}
 DT = 0.1
@@ -708,10 +708,10 @@ def test_thrusters_refuse_a_plant_that_is_not_a_vessel(tmp_path, capsys):
     """Thrusters produce a vessel's force (surge, sway) and moment (yaw): a manipulator is
     refused in one line naming both parts, at the composition, from Python, and at the
     command line (exit 2, nothing written), never with JAX's broadcasting message."""
-    from lookout import composition
+    from lookout.scenario import composition
     from lookout.cli import main
     from lookout.sim import Scenario
-    from lookout.studies import _toml
+    from lookout.scenario import _toml
 
     with pytest.raises(composition.CompositionError) as refusal:
         composition.compose(_arm_with_thrusters())
@@ -758,7 +758,7 @@ def test_each_layout_key_with_a_bad_value_is_refused_at_the_command_line(key, tm
     from pathlib import Path
 
     from lookout.cli import main
-    from lookout.studies import _toml
+    from lookout.scenario import _toml
 
     document = tomllib.loads((Path(__file__).resolve().parents[1] / "examples" / "thrusters-dp.toml").read_text())
     value, message = BAD_LAYOUT_KEYS[key]

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from lookout.cli import main
-from lookout.composition import compose
-from lookout.registry import preset
+from lookout.scenario.composition import compose
+from lookout.scenario.registry import preset
 from lookout.sim import keys_of_seeds
 from lookout.tuning.families import family_of
 from lookout.tuning.families.passive import PassiveFamily
@@ -63,7 +63,7 @@ def test_lookout_tune_improves_held_out_seeds_and_stays_inside_every_condition(t
     observer, built again from it through the composition, satisfies (48) and SPR as the
     design command checks them, and the held-out seeds' median improves."""
     from lookout.analysis import check_passive_observer
-    from lookout.studies._toml import read, write
+    from lookout.scenario._toml import read, write
 
     source = tmp_path / "dp.toml"
     write(source, _scenario(300.0))
@@ -105,7 +105,7 @@ def test_lookout_tune_improves_held_out_seeds_and_stays_inside_every_condition(t
     ],
 )
 def test_bad_options_are_one_line(tmp_path, capsys, arguments, message):
-    from lookout.studies._toml import write
+    from lookout.scenario._toml import write
 
     source = tmp_path / "dp.toml"
     write(source, _scenario(100.0))
@@ -118,7 +118,7 @@ def test_bad_options_are_one_line(tmp_path, capsys, arguments, message):
 def test_a_scenario_whose_conditions_cannot_be_met_is_refused_naming_the_condition(tmp_path, capsys):
     """Bias time constants of 5 s: 10/T = 2 rad/s is above w_o, so no Kappa, Lambda
     satisfies (48)."""
-    from lookout.studies._toml import write
+    from lookout.scenario._toml import write
 
     source = tmp_path / "dp.toml"
     write(source, _scenario(100.0, bias_time_constant=[5.0, 5.0, 5.0]))
@@ -129,7 +129,7 @@ def test_a_scenario_whose_conditions_cannot_be_met_is_refused_naming_the_conditi
 
 def test_an_observer_without_a_family_is_refused(tmp_path, capsys, monkeypatch):
     """(The registry without the passive family: every shipped observer has one.)"""
-    from lookout.studies._toml import write
+    from lookout.scenario._toml import write
     from lookout.tuning import families
 
     declared = families.families
@@ -153,7 +153,7 @@ def test_a_gradient_that_would_not_fit_in_memory_is_refused_before_it_runs(tmp_p
     """The compiled program's own memory analysis (the test's program is the CLI test's:
     the compilation cache serves it), against 100 MB available."""
     from lookout import _resources
-    from lookout.studies._toml import write
+    from lookout.scenario._toml import write
 
     monkeypatch.setattr(_resources, "available_memory", lambda: 100e6)
     source = tmp_path / "dp.toml"

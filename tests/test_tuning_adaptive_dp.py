@@ -14,11 +14,11 @@ import pytest
 
 from lookout.analysis.adaptive_dp import check_calugi_2003, observer_condition_22
 from lookout.cli import main
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.papers.calugi_2003.config import m11, paper_vessel
-from lookout.registry import preset
+from lookout.scenario.registry import preset
 from lookout.sim import keys_of_seeds
-from lookout.studies._toml import read, write
+from lookout.scenario._toml import read, write
 from lookout.tuning.families import Joint, build, family_of
 from lookout.tuning.families.adaptive_dp import AdaptiveDPFamily, VectorialBacksteppingFamily
 from lookout.tuning.tune import _objective_function, parse_objective

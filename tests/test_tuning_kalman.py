@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from lookout.cli import main
-from lookout.composition import compose
-from lookout.registry import preset
+from lookout.scenario.composition import compose
+from lookout.scenario.registry import preset
 from lookout.sim import keys_of_seeds
 from lookout.tuning.families import family_of
 from lookout.tuning.families.kalman import KalmanFamily, check_kalman_filter
@@ -117,7 +117,7 @@ def test_lookout_tune_improves_a_mistuned_ekf_and_the_tuned_file_is_the_tuned_fi
     file composes into a filter with the tuned q and R whose conditions hold, and the
     held-out seeds' median improves. (At the true Q and R, the benchmark's EKF, the
     tuner finds nothing that holds on held-out seeds: see the family's report.)"""
-    from lookout.studies._toml import read, write
+    from lookout.scenario._toml import read, write
 
     source = tmp_path / "dp.toml"
     write(source, _scenario(100.0, **MISTUNED))

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from lookout.cli import main
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.sim import keys_of_seeds
-from lookout.studies._toml import read, write
+from lookout.scenario._toml import read, write
 from lookout.tuning.families import Joint, build, family_of
 from lookout.tuning.families.positive import ObserverBacksteppingFamily
 from lookout.tuning.families.sliding_mode import SlidingModeFamily

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from lookout.cli import main
-from lookout.composition import compose
-from lookout.registry import preset
+from lookout.scenario.composition import compose
+from lookout.scenario.registry import preset
 from lookout.sim import keys_of_seeds
 from lookout.tuning.families import family_of
 from lookout.tuning.families.adaptive_manipulator import AdaptiveManipulatorFamily
@@ -31,9 +31,9 @@ OBJECTIVE = "rms_error:joint_rate"
 def _arm(duration: float = 1.5) -> dict:
     """examples/velocity-two-link-arm.toml, shortened. The observer starts 0.05 rad/s off
     the arm's rest: with the error exactly 0 at t = 0 the metrics' norm sqrt(0) makes the
-    gradient NaN under the CLI's XLA options (lookout.studies.metrics._norm), although the
+    gradient NaN under the CLI's XLA options (lookout.scenario.metrics._norm), although the
     record is outside the window."""
-    from lookout.studies._toml import read
+    from lookout.scenario._toml import read
 
     document, _ = read("examples/velocity-two-link-arm.toml")
     document["simulation"]["duration"] = duration
@@ -127,7 +127,7 @@ def test_adaptive_parametrization_round_trips_and_stays_inside_theorem_4_1_and_5
 
 
 def _tune(tmp_path, document, *options) -> dict:
-    from lookout.studies._toml import write
+    from lookout.scenario._toml import write
 
     source = tmp_path / "scenario.toml"
     write(source, document)
@@ -141,7 +141,7 @@ def _tune(tmp_path, document, *options) -> dict:
 
 
 def _tuned_scenario(tmp_path):
-    from lookout.studies._toml import read
+    from lookout.scenario._toml import read
 
     document, _ = read(tmp_path / "tuned" / "tuned.toml")
     return compose(document).scenario
@@ -190,7 +190,7 @@ def test_adaptive_backstepping_whose_conditions_cannot_be_met_is_refused(tmp_pat
     need sigma(K) > 119, i.e. K >= 662 1/s along K = I, above (4.34)'s 2/Delta = 200 1/s;
     refused before any simulation. (The velocity observer has no such case: its condition
     is a lower bound on K alone.)"""
-    from lookout.studies._toml import write
+    from lookout.scenario._toml import write
 
     source = tmp_path / "arm.toml"
     write(source, _two_link(velocity=[5.0, 5.0]))

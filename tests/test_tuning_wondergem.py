@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from lookout.cli import main
-from lookout.composition import compose
-from lookout.registry import preset
+from lookout.scenario.composition import compose
+from lookout.scenario.registry import preset
 from lookout.sim import keys_of_seeds
-from lookout.studies._toml import read, write
+from lookout.scenario._toml import read, write
 from lookout.tuning.families import Joint, build, family_of
 from lookout.tuning.families.tracking import EarthFixedFamily, TrackingFamily
 from lookout.tuning.tune import _objective_function, parse_objective

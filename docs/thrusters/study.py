@@ -10,7 +10,7 @@ closed-loop observer ranking, rerun with thrusters instead of generalized forces
 For each loop, each observer that fits it, and each actuation (the ideal actuator;
 per-axis saturation at the layout's reach; the thrusters with the weighted
 pseudo-inverse and with the QP), the same seeds are run and their metrics
-accumulated in the simulation (lookout.studies.metrics.summarize). Writes
+accumulated in the simulation (lookout.scenario.metrics.summarize). Writes
 docs/thrusters/study.csv (every run), docs/thrusters/table.md (medians and the
 rankings) and docs/thrusters/kim-2002.png (Kim's loop with the passive observer, seed
 0, each actuation: the position tracking error and the yaw moment).
@@ -32,12 +32,12 @@ jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
 
-from lookout import composition  # noqa: E402
+from lookout.scenario import composition  # noqa: E402
 from lookout.actuators import Allocator, ThrusterLayout  # noqa: E402
-from lookout.registry import preset  # noqa: E402
+from lookout.scenario.registry import preset  # noqa: E402
 from lookout.sim import keys_of_seeds  # noqa: E402
 from lookout.studies.benchmark import shipped_spec  # noqa: E402
-from lookout.studies.metrics import resolve, summarize  # noqa: E402
+from lookout.scenario.metrics import resolve, summarize  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -243,7 +243,7 @@ def example(options: list[str]) -> None:
     with open(ROOT / "examples" / "thrusters-dp.toml", "rb") as handle:
         document = tomllib.load(handle)
     document["actuator"].update(_options(options))
-    from lookout.studies import _toml
+    from lookout.scenario import _toml
 
     with tempfile.TemporaryDirectory() as folder:
         scenario = _toml.write(Path(folder) / "scenario-in.toml", document)
@@ -256,7 +256,7 @@ def example(options: list[str]) -> None:
 def _layout_of(scenario: Path) -> ThrusterLayout:
     """The thruster layout of a scenario file (``lookout run`` writes one next to run.nc),
     built from its [actuator.layout] table alone."""
-    from lookout import registry
+    from lookout.scenario import registry
 
     with open(scenario, "rb") as handle:
         table = dict(tomllib.load(handle)["actuator"]["layout"])

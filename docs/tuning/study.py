@@ -34,7 +34,7 @@ SEAS = {"calm": (1.2, [2.0, 2.0, 0.0034906585039886592]), "paper": (0.8976, [10.
 
 
 def _dp(sea: str, observer: dict | None = None) -> dict:
-    from lookout.registry import preset
+    from lookout.scenario.registry import preset
 
     document = preset("fossen-strand-1999", "paper")
     document["simulation"]["duration"] = 1200.0
@@ -48,7 +48,7 @@ def _dp(sea: str, observer: dict | None = None) -> dict:
 
 
 def _kim() -> dict:
-    from lookout.studies._toml import read
+    from lookout.scenario._toml import read
 
     document, _ = read(ROOT / "examples" / "kim-closed-loop.toml")
     document["simulation"]["duration"] = 700.0
@@ -57,7 +57,7 @@ def _kim() -> dict:
 
 
 def _wondergem() -> dict:
-    from lookout.registry import preset
+    from lookout.scenario.registry import preset
 
     document = preset("wondergem-2009", "basin-waves")
     document["simulation"]["duration"] = 120.0
@@ -77,7 +77,7 @@ CASES = {
 
 
 def run(case: str) -> None:
-    from lookout.studies._toml import write
+    from lookout.scenario._toml import write
 
     make, options = CASES[case]
     folder = HERE / case

@@ -21,6 +21,7 @@ from rich.table import Table
 
 from lookout._commandline import PIPE_WIDTH, check_memory, console, created_folder, image_file, simulating, writable_folder
 from lookout._validation import InputError, one_line
+from lookout.cli_design import DESIGN_VERDICTS
 from lookout._json import json_safe
 
 try:  # typer >= 0.29 vendors click
@@ -119,8 +120,6 @@ def _within_range(option: str, values, *, allow_zero: bool = False) -> None:
         raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
 
 
-#: The last line of a design command's text, per verdict of its report.
-DESIGN_VERDICTS = {"holds": "passes", "fails": "FAILS", "unverified": "NOT ESTABLISHED"}
 
 
 def _finish_design(design: str, report, inputs: dict, as_json: bool) -> None:
@@ -252,9 +251,9 @@ def reproduce(
 
 
 def _write_scenario(name: str, config, text: str) -> None:
-    from lookout.composition import compose
+    from lookout.scenario.composition import compose
     from lookout.papers import REPRODUCTIONS
-    from lookout.studies.scenario_file import CompositionSpec, save
+    from lookout.scenario.file import CompositionSpec, save
 
     if not text.strip():
         raise InputError("--write-scenario must name a file; got an empty path")

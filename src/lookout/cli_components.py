@@ -21,8 +21,8 @@ def example(each):
     """A built composition with a component of kind ``each`` in it: the first
     reproduction case that uses the kind, else the first case in which the kind, put in
     place of that case's component with its defaults, composes. None if there is none."""
-    from lookout import registry
-    from lookout.composition import CompositionError, compose
+    from lookout.scenario import registry
+    from lookout.scenario.composition import CompositionError, compose
 
     documents = [registry.preset(name, case) for name, case in registry.presets()]
     for document in documents:
@@ -75,7 +75,7 @@ def signals_of(role: str, component) -> dict[str, list[str]]:
 
 
 def _matching(name: str | None):
-    from lookout import registry
+    from lookout.scenario import registry
 
     if name is None:
         return registry.kinds()
@@ -89,7 +89,7 @@ def _matching(name: str | None):
 
 
 def _describe(each, design) -> dict:
-    from lookout import registry
+    from lookout.scenario import registry
 
     entry = registry.describe_kind(each, design)
     composition = example(each) if each.role in registry.COMPONENT_ROLES else None
@@ -102,7 +102,7 @@ def _describe(each, design) -> dict:
 def _plant_part_default(role: str) -> str:
     """What a plant takes for a required part its file leaves out: its role's first kind
     with that kind's defaults, where the kind has a default for every value."""
-    from lookout import registry
+    from lookout.scenario import registry
 
     first = registry.kind(role, registry.default_kind(role))
     missing = [p.name for p in first.parameters() if p.sort == "value" and p.required]
@@ -124,7 +124,7 @@ def components(
     `plugins` (and --plugin here) add kinds of your own, as do installed packages
     under the entry-point group lookout.components.
     """
-    from lookout import registry
+    from lookout.scenario import registry
 
     for each in plugin or []:
         try:

@@ -13,6 +13,9 @@ from lookout._commandline import console
 from lookout._json import json_safe
 from lookout._validation import InputError
 
+#: How a design command prints a report's verdict.
+DESIGN_VERDICTS = {"holds": "passes", "fails": "FAILS", "unverified": "NOT ESTABLISHED"}
+
 
 def design_scenario(
     scenario: Annotated[Path, typer.Argument(metavar="FILE", help="A scenario file (lookout run FILE runs it).")],
@@ -26,10 +29,9 @@ def design_scenario(
     Exit code 0 when every condition holds, 1 when one fails (the report or JSON is
     still printed), 2 for bad input.
     """
-    from lookout.cli import DESIGN_VERDICTS
     from lookout.design import combined, component_designs
-    from lookout.studies._toml import FileError
-    from lookout.studies.scenario_file import load
+    from lookout.scenario._toml import FileError
+    from lookout.scenario.file import load
 
     try:
         spec = load(scenario, runs=1)

@@ -3,7 +3,7 @@ any, checked for the file's own plant, gains and sea (``lookout design FILE``), 
 proposed inside them (``--propose``).
 
 A kind's conditions are what its declaration names: ``checks`` (``"module:function"``,
-called with the built :class:`~lookout.composition.Composition`, returning a
+called with the built :class:`~lookout.scenario.composition.Composition`, returning a
 :class:`~lookout.analysis.conditions.Report`), else its tuning ``family``'s
 :meth:`~lookout.tuning.families.Family.check` (the conditions ``lookout tune`` keeps).
 The family's gains nearest the file's own that satisfy them are the proposal
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lookout import registry
+from lookout.scenario import registry
 from lookout.analysis.conditions import Report
-from lookout.composition import Composition
+from lookout.scenario.composition import Composition
 
 #: The roles whose kinds may declare conditions, in the order they are checked.
 CHECKED_ROLES = ("observer", "controller")

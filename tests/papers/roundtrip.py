@@ -9,8 +9,8 @@ import numpy as np
 import xarray as xr
 
 from lookout.cli import main
-from lookout.composition import compose
-from lookout.studies.scenario_file import CompositionSpec, save
+from lookout.scenario.composition import compose
+from lookout.scenario.file import CompositionSpec, save
 
 
 def run_written_case(reproduction, config, case: str, folder: Path) -> xr.Dataset:

@@ -7,9 +7,9 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.papers import calugi_2002_parameter_estimation as ch3
-from lookout.studies.scenario_file import CompositionSpec, save
+from lookout.scenario.file import CompositionSpec, save
 from .roundtrip import segmented_progress
 
 #: one worker runs these tests (make test: --dist loadgroup), and the session fixture computes the reproduction once there

@@ -153,7 +153,7 @@ class ThrusterSystem(Actuator):
         given = tuple((s.name, s.units, tuple(s.labels)) for s in plant_input.signals)
         if given == VESSEL_INPUT_SIGNALS:
             return None
-        from lookout.registry import kind_of
+        from lookout.scenario.registry import kind_of
 
         return f"actuator {kind_of(self)} needs a 3-DOF vessel plant (force surge, sway; moment yaw); plant {plant_kind} takes {describe_input(plant_input)}"
 

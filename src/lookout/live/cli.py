@@ -519,7 +519,7 @@ def write_log_command(
         raise InputError(f"--outage {outage} ends at {window[0] + window[1]:g} s, after the run's end: its duration is {scenario.duration:g} s "
                          f"(give START + LENGTH <= {scenario.duration:g}, or none)")
     from lookout._commandline import check_memory
-    from lookout.composition import simulate
+    from lookout.scenario.composition import simulate
 
     check_memory([(scenario, 1)], "simulation.runs", "simulation.duration", where=scenario_file)
     with simulating() as progress:

@@ -2,7 +2,7 @@
 
 Every module defines its pydantic ``Config`` (seed, runs, duration and the paper's
 settings), ``composition(config, case)`` (each case as a composition of registered
-components, :mod:`lookout.composition`), ``run(config, out, progress=None) -> summary``
+components, :mod:`lookout.scenario.composition`), ``run(config, out, progress=None) -> summary``
 (simulates, writes NetCDF, figures and summary.json), ``tables(summary)`` (the summary
 for the terminal), and ``REPRODUCTION``: its :class:`~lookout.papers._reproduction.Reproduction`.
 Importing this package enables float64 (via :mod:`lookout`).

@@ -1,4 +1,4 @@
-"""The settings the reproductions' Configs share beyond :mod:`lookout.settings`: a DP vessel
+"""The settings the reproductions' Configs share beyond :mod:`lookout.scenario.settings`: a DP vessel
 by name or by its matrices."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 from pydantic import Field, field_validator, model_validator
 
 from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
-from lookout.settings import PositiveFloat, Settings
+from lookout.scenario.settings import PositiveFloat, Settings
 
 Row3 = tuple[float, float, float]
 #: A 3x3 matrix as three rows (a TOML array of three arrays of three numbers).

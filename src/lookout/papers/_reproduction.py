@@ -2,7 +2,7 @@
 components) plus checks (what it simulates, its metrics, figures and summary).
 
 A paper module defines its pydantic ``Config``, ``composition(config, case)`` (the case
-as a composition, :mod:`lookout.composition`), ``run(config, out, *, progress=None)``
+as a composition, :mod:`lookout.scenario.composition`), ``run(config, out, *, progress=None)``
 (simulates and writes its results, returns the summary) and ``tables(summary)`` (the
 summary for the terminal), and names them in one :class:`Reproduction`,
 ``REPRODUCTION``, which :data:`lookout.papers.REPRODUCTIONS` gives by name. The scenario
@@ -57,7 +57,7 @@ class Reproduction:
 
     def scenario(self, config, case: str | None = None):
         """The :class:`~lookout.sim.Scenario` of ``case`` (the first when None)."""
-        from lookout.composition import compose
+        from lookout.scenario.composition import compose
 
         return compose(self.composition(config, self.cases[0] if case is None else case)).scenario
 
@@ -71,14 +71,14 @@ class Reproduction:
 
 def simulate_cases(reproduction: Reproduction, config, cases, coordinate: str, *, progress: Callable | None = None, parts: int | None = None):
     """Each case's runs over the seeds of ``config``, simulated as ``lookout run`` simulates
-    the case's file (:func:`lookout.composition.simulate`), one case after another, and
+    the case's file (:func:`lookout.scenario.composition.simulate`), one case after another, and
     concatenated along ``run`` with the case in the coordinate ``coordinate`` and the
     seeds in ``seed``; ``progress(done, total)`` covers the cases as the first
     ``len(cases)`` of ``parts``."""
     import numpy as np
     import xarray as xr
 
-    from lookout.composition import compose, simulate
+    from lookout.scenario.composition import compose, simulate
 
     parts = len(cases) if parts is None else parts
     datasets = []

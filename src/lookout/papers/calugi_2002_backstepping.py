@@ -38,10 +38,10 @@ from pydantic import Field, field_validator
 from lookout import _validation as check
 from lookout.analysis.adaptive_manipulator import check_5_28
 from lookout.analysis.conditions import inequalities_in
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.models.manipulators import REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, TwoLinkArm
 from lookout.models.parameters import ModelParameters
-from lookout.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
+from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
@@ -165,7 +165,7 @@ def reference_table(config: Config) -> dict:
 
 
 def composition(config: Config, case: str) -> dict:
-    """The closed loop of Section 5.3 as a composition (:mod:`lookout.composition`), with
+    """The closed loop of Section 5.3 as a composition (:mod:`lookout.scenario.composition`), with
     (5.37) ``case`` "corrected" (M_hat = M(q; theta_hat)) or "printed" (M_hat_22 = m2 l2^2
     at the true m2, in psi and tau): the arm, the encoder of q, the observer (4.34)–(4.35)
     and the law (5.9) on the same model, tracking :func:`reference_table`. The printed run

@@ -30,9 +30,9 @@ from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import fit_decay_rate
 from lookout.analysis.velocity import configuration_bounds, velocity_observer_condition
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.models.manipulators import ManipulatorModel
-from lookout.settings import NoiseFreeConfig, PositiveFloat, whole_samples
+from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, significant, summary_header, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
@@ -46,7 +46,7 @@ TITLE = CATALOG[NAME].title
 class System:
     """One simulation of Section 2.3: model, gain, initial conditions, input, figures.
 
-    ``model`` and ``input`` are composition tables (:mod:`lookout.composition`): the
+    ``model`` and ``input`` are composition tables (:mod:`lookout.scenario.composition`): the
     manipulator (a ``model`` kind) and the open-loop input (a ``controller`` kind).
     """
 
@@ -120,7 +120,7 @@ CASES: tuple[str, ...] = tuple(SYSTEMS)
 
 
 def composition(config: Config, case: str) -> dict:
-    """System ``case`` (a key of :data:`SYSTEMS`) as a composition (:mod:`lookout.composition`):
+    """System ``case`` (a key of :data:`SYSTEMS`) as a composition (:mod:`lookout.scenario.composition`):
     the manipulator (2.1) with the encoder of q and the observer (2.6)–(2.7) on the plant's
     own model, integrated jointly with the plant on the exact q (``observer_mode = "continuous"``)."""
     system = SYSTEMS[case]

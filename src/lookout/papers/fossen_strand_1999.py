@@ -27,13 +27,13 @@ from pydantic import Field, ValidationInfo, field_validator
 from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, settling_time
 from lookout.observers import injection_gains_from_normalized
 from lookout.papers._config import VesselSettings
-from lookout.settings import PositiveFloat, RunsConfig, whole_samples
+from lookout.scenario.settings import PositiveFloat, RunsConfig, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._reproduction import Reproduction
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
 from lookout.results import write_netcdf
 from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 
 NAME = "fossen-strand-1999"
 TITLE = CATALOG[NAME].title
@@ -104,7 +104,7 @@ INPUT_FREQUENCIES = (0.05, 0.1, 0.07)
 
 
 def composition(config: Config, case: str = "paper") -> dict:
-    """The scenario of Section 6.1 for ``config`` as a composition (:mod:`lookout.composition`):
+    """The scenario of Section 6.1 for ``config`` as a composition (:mod:`lookout.scenario.composition`):
     the normalized gains of (60) in SI, the bias of (7) and (58), the waves of (11) and (59)."""
     del case
     velocity_gain, bias_gain = injection_gains_from_normalized(

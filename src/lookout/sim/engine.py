@@ -354,8 +354,8 @@ def _check_fit(scenario: Scenario) -> None:
 
 
 def kind_of(component) -> str:
-    """The registered kind of a component (:mod:`lookout.registry`), for messages."""
-    from lookout.registry import kind_of as registered
+    """The registered kind of a component (:mod:`lookout.scenario.registry`), for messages."""
+    from lookout.scenario.registry import kind_of as registered
 
     return registered(component)
 

@@ -12,7 +12,7 @@ shipped ones are in ``lookout/studies/benchmarks/``, one per plant) names
   from the plant are told; a whole table, such as ``controller = { kind = "pid" }`` with
   a ``reference`` table, closes the loop), ``truth_only`` reaches the plant alone (a
   model error: the observers keep the nominal model);
-- the metrics (those of :mod:`lookout.studies.metrics`; each observer is measured on
+- the metrics (those of :mod:`lookout.scenario.metrics`; each observer is measured on
   the signals it estimates, a tracking metric where the condition has a reference), a
   divergence rule, and two sizes, ``full`` and ``quick`` (duration, seeds, when the
   outage starts);
@@ -60,12 +60,12 @@ from typing import Any, Callable
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from lookout import registry
-from lookout.composition import MODEL_ROLES, TOP_KEYS, CompositionError, SimulationSettings, compose, get_path, key_text, load_plugins, merge, preset_document, set_path
-from lookout.settings import PositiveCount, PositiveFloat, validate_strictly
-from lookout.studies._toml import FileError, read
+from lookout.scenario import registry
+from lookout.scenario.composition import MODEL_ROLES, TOP_KEYS, CompositionError, SimulationSettings, compose, get_path, key_text, load_plugins, merge, preset_document, set_path
+from lookout.scenario.settings import PositiveCount, PositiveFloat, validate_strictly
+from lookout.scenario._toml import FileError, read
 from lookout.studies.campaign import Campaign, Divergence, campaign_from_document
-from lookout.studies.scenario_file import describe, located
+from lookout.scenario.file import describe, located
 
 #: The folder of the shipped benchmark specs (``<plant>.toml``).
 SHIPPED = "benchmarks"
@@ -336,7 +336,7 @@ def check_spec(benchmark: Benchmark) -> None:
     ``after`` or ``outage_start`` outside its run, an outage start without an outage, an
     outage that no condition has, ``recommend_by`` outside the metrics. The outages'
     timing against the sensor is checked per observer (:func:`check_outages`)."""
-    from lookout.settings import seed_for_runs
+    from lookout.scenario.settings import seed_for_runs
 
     spec = benchmark.spec
     try:
@@ -789,7 +789,7 @@ def describe_condition(condition: Condition) -> str:
 def metric_fit(names, scenario) -> tuple[list[str], dict[str, str]]:
     """The metrics of ``names`` that apply to ``scenario`` (its observer estimates the
     signal, its reference tracks it, ...), and for each other one, why not."""
-    from lookout.studies import metrics as metric_module
+    from lookout.scenario import metrics as metric_module
 
     applies, reasons = [], {}
     for name in names:
@@ -865,7 +865,7 @@ def _path_error(error: CompositionError, case: dict) -> str:
 
 
 def _starts_with(path: str, location: tuple) -> bool:
-    from lookout.composition import path_parts
+    from lookout.scenario.composition import path_parts
 
     try:
         return tuple(path_parts(path))[: len(location)] == tuple(location)

@@ -64,11 +64,11 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from lookout.settings import positive_count
-from lookout.studies._toml import FileError, read
-from lookout.composition import get_path
-from lookout.settings import validate_strictly
-from lookout.studies.scenario_file import CompositionSpec, describe, from_document, located, read_spec
+from lookout.scenario.settings import positive_count
+from lookout.scenario._toml import FileError, read
+from lookout.scenario.composition import get_path
+from lookout.scenario.settings import validate_strictly
+from lookout.scenario.file import CompositionSpec, describe, from_document, located, read_spec
 
 #: The largest batch a chunk defaults to.
 DEFAULT_CHUNK_RUNS = 64
@@ -256,7 +256,7 @@ class CampaignSettings(BaseModel):
     @field_validator("seed")
     @classmethod
     def _seed(cls, value, info):
-        from lookout.settings import seed_for_runs
+        from lookout.scenario.settings import seed_for_runs
 
         return seed_for_runs(value, info.data.get("seeds_per_point", 1))
 
@@ -413,7 +413,7 @@ def _latin_hypercube(axes: tuple[Axis, ...], points: int, seed: int) -> list[dic
 def campaign_from_document(document: dict, source: str, text: str | None = None, folder: Path | None = None) -> Campaign:
     """Validate a parsed campaign spec: its keys, its scenario, that every swept field
     exists and takes the axis's values, and that every metric applies."""
-    from lookout.studies import metrics as metric_module
+    from lookout.scenario import metrics as metric_module
 
     if "scenario" not in document and ({"preset", "plant", "observer"} & set(document)):
         name = Path(source).name
@@ -482,7 +482,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
             _check_window(settings, built, source, text, where, value)
     names = settings.metrics or ()
     if not names:
-        raise located(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.studies.metrics)")
+        raise located(source, text, ("metrics",), "name at least one metric (KIND:SIGNAL, see lookout.scenario.metrics)")
     try:
         for built in variants:  # every metric applies to every swept component
             metric_module.resolve(list(names), built)
@@ -600,7 +600,7 @@ _COMPUTED: set[tuple] = set()
 
 def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[str, np.ndarray]:
     """Simulate one chunk as a vmapped batch and reduce it to its metrics: in the
-    engine's scan (:func:`lookout.studies.metrics.summarize`), or from the recorded
+    engine's scan (:func:`lookout.scenario.metrics.summarize`), or from the recorded
     batch when trajectories are kept.
 
     Returns metric variable -> ``(runs,)`` array, ``diverged``, and ``trajectory__NAME``
@@ -613,7 +613,7 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
 
     from lookout.sim import keys_of_seeds, simulate_batch
     from lookout.sim.engine import structure_key
-    from lookout.studies import metrics as metric_module
+    from lookout.scenario import metrics as metric_module
 
     start = time.perf_counter()
     campaign = _campaign(canonical)

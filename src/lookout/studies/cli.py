@@ -14,7 +14,7 @@ from rich.table import Table
 from lookout._commandline import check_memory, console, created_folder, output_folder, progress_bar, simulating, writable_folder
 from lookout._validation import InputError
 from lookout._json import json_safe
-from lookout.studies._toml import FileError
+from lookout.scenario._toml import FileError
 
 #: What ``lookout run`` writes into its folder, always.
 RUN_FILES = ("run.nc", "scenario.toml", "summary.json")
@@ -52,8 +52,8 @@ campaign_app = typer.Typer(
 
 
 def _scenario(path: str, runs: int | None, seed: int | None):
-    from lookout.settings import positive_count, seed_for_runs
-    from lookout.studies.scenario_file import read_spec
+    from lookout.scenario.settings import positive_count, seed_for_runs
+    from lookout.scenario.file import read_spec
 
     try:
         if runs is not None:
@@ -121,8 +121,8 @@ def run(
     left from an earlier run into the folder is removed).
     """
     from lookout.results import write_netcdf
-    from lookout.studies import metrics as metric_module
-    from lookout.studies.scenario_file import save, simulate_trajectory, to_dataset
+    from lookout.scenario import metrics as metric_module
+    from lookout.scenario.file import save, simulate_trajectory, to_dataset
 
     for name in RUN_FILES + RUN_FIGURES:  # a folder in the way of an output is found before simulating
         if (Path(out) / name).is_dir():

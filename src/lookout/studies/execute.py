@@ -76,7 +76,7 @@ def record_bytes(campaign: Campaign, scenario) -> int:
     from lookout.sim import record_nbytes
 
     if campaign.settings.trajectories is None:
-        from lookout.studies.metrics import SERIES_KINDS
+        from lookout.scenario.metrics import SERIES_KINDS
 
         return sum(1 for name in campaign.metric_names if name.partition(":")[0] in SERIES_KINDS) * jnp.zeros(()).dtype.itemsize
     return record_nbytes(scenario)

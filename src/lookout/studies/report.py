@@ -160,7 +160,7 @@ def _setting_units(document: dict | None, fields: list[str]) -> str | None:
     if not document or not fields:
         return None
     try:
-        from lookout.studies.scenario_file import composition_comments
+        from lookout.scenario.file import composition_comments
 
         description = composition_comments(document["scenario"]).get(re.sub(r"\[.*?\]", "", fields[0]), "")
     except Exception:  # best effort: a label without units is still a label
@@ -550,8 +550,8 @@ def _spec_html(document: dict | None, metrics: list[_Metric], n_points: int, chu
 def _composition_html(scenario: dict) -> list[str]:
     """The base scenario of a composition: its components, then every key with its
     description (the keys that differ from their kind's default first)."""
-    from lookout import registry
-    from lookout.studies.scenario_file import composition_comments
+    from lookout.scenario import registry
+    from lookout.scenario.file import composition_comments
 
     components = [(role, f"{scenario[role].get('kind', '?')}" + (f" (design {scenario[role]['design']})" if "design" in scenario[role] else ""))
                   for role in registry.COMPONENT_ROLES if isinstance(scenario.get(role), dict)]
@@ -582,13 +582,13 @@ _NO_DEFAULT = object()
 
 def _kind_default(scenario: dict, key: str):
     """The default of a component's parameter at the dotted ``key`` (or _NO_DEFAULT)."""
-    from lookout import registry
-    from lookout.composition import plain
+    from lookout.scenario import registry
+    from lookout.scenario.composition import plain
 
     parts = key.split(".")
     role, table = parts[0], scenario.get(parts[0])
     if role == "simulation":
-        from lookout.composition import SimulationSettings
+        from lookout.scenario.composition import SimulationSettings
 
         field = SimulationSettings.model_fields.get(parts[-1])
         return _NO_DEFAULT if field is None else field.default

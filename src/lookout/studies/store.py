@@ -120,7 +120,7 @@ class CampaignStore:
         import dask.array as da
         import xarray as xr
 
-        from lookout.studies import metrics as metric_module
+        from lookout.scenario import metrics as metric_module
 
         scenario = campaign.base.build()
         metrics = metric_module.resolve(list(campaign.metric_names), scenario)

@@ -27,7 +27,7 @@ def tune_command(
     import math
 
     from lookout._commandline import console, output_folder
-    from lookout.settings import positive_count
+    from lookout.scenario.settings import positive_count
     from lookout.studies.cli import _scenario, console_print
     from lookout.tuning.tune import tune, write_results
 
@@ -73,7 +73,7 @@ def tune_command(
 def _refuse_a_study(path: str) -> None:
     """A campaign's study file (``scenario = "..."`` and a sweep) is not a scenario: say
     which scenario to tune instead of reporting its keys as unknown."""
-    from lookout.studies._toml import read
+    from lookout.scenario._toml import read
 
     try:
         document, _ = read(path)

@@ -1,7 +1,7 @@
 """Gains that perform and stay proven: tuning by gradient through the simulation.
 
 The objective is the mean, over training seeds, of a weighted sum of campaign metrics
-(:mod:`lookout.studies.metrics`) that are differentiable in the gains: RMS estimation,
+(:mod:`lookout.scenario.metrics`) that are differentiable in the gains: RMS estimation,
 tracking or input values (``rms_error:position + 0.01*rms_input:force``). It is computed
 by the engine's own batch (:func:`lookout.sim.summarize_batch`, the metrics accumulated
 in the scan), and ``jax.value_and_grad`` differentiates it through the whole simulation
@@ -54,7 +54,7 @@ def parse_objective(text: str, scenario) -> tuple[Objective, list]:
     """``"rms_error:position + 0.01*rms_error:velocity"`` for ``scenario``: the objective
     and its resolved metrics; a ValueError names a term that is not a differentiable
     metric of the scenario."""
-    from lookout.studies import metrics as metric_module
+    from lookout.scenario import metrics as metric_module
 
     terms = []
     for part in (p.strip() for p in text.split("+")):
@@ -79,7 +79,7 @@ def _objective_function(scenario, family: Family | None, objective: Objective, m
     """gains, keys -> (objective, per-run values of each metric); with ``family`` None,
     scenario, keys -> the same."""
     from lookout.sim import summarize_batch
-    from lookout.studies import metrics as metric_module
+    from lookout.scenario import metrics as metric_module
 
     time_grid = np.asarray(scenario.record_times)
     plan = metric_module.summary(scenario.record_signals, time_grid, metrics, after=after)
@@ -257,8 +257,8 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
     from matplotlib.ticker import MaxNLocator
 
     from lookout._json import json_safe
-    from lookout.composition import compose, set_path
-    from lookout.studies.scenario_file import CompositionSpec, save
+    from lookout.scenario.composition import compose, set_path
+    from lookout.scenario.file import CompositionSpec, save
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

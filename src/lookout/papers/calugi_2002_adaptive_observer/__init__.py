@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from lookout.analysis.adaptive_manipulator import check_theorem_4_1
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.papers._report import write_summary
 from lookout.papers._reproduction import Reproduction
 from lookout.results import write_netcdf

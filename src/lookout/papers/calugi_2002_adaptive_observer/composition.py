@@ -1,4 +1,4 @@
-"""Section 4.8's closed loop as compositions (:mod:`lookout.composition`): the cases, the
+"""Section 4.8's closed loop as compositions (:mod:`lookout.scenario.composition`): the cases, the
 order study's and the stress run's, and their simulation."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from typing import Callable
 
 import xarray as xr
 
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.sim import Scenario, seed_keys, simulate
 
 from .config import CASES, LENGTH, MASS, NAME, ORDER_DURATION, ORDER_PERIODS, SAMPLE_PERIODS, STRESS, TITLE, Config
@@ -16,7 +16,7 @@ from .config import CASES, LENGTH, MASS, NAME, ORDER_DURATION, ORDER_PERIODS, SA
 
 def closed_loop(config: Config, sample_period: float) -> dict:
     """The closed loop of Section 4.8 at Delta = ``sample_period`` as a composition
-    (:mod:`lookout.composition`): the frictionless pendulum, the encoder of q, the observer
+    (:mod:`lookout.scenario.composition`): the frictionless pendulum, the encoder of q, the observer
     (4.34)–(4.35) with resetting (4.45) on the plant's pendulum with m unknown, and
     tau = A sin(w t); the plant by RK4 at the largest step <= 1 ms that divides Delta,
     recorded every 0.1 s."""

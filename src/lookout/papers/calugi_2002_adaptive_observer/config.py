@@ -9,7 +9,7 @@ from pydantic import Field, field_validator
 from lookout.models.manipulators import FreePendulum
 from lookout.models.parameters import ModelParameters
 from lookout.papers import CATALOG
-from lookout.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
+from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
 
 NAME = "calugi-2002-adaptive-observer"
 TITLE = CATALOG[NAME].title

@@ -1,4 +1,4 @@
-"""The experiments of chapter 6 as compositions (:mod:`lookout.composition`), and their simulation."""
+"""The experiments of chapter 6 as compositions (:mod:`lookout.scenario.composition`), and their simulation."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Callable
 import xarray as xr
 
 from lookout.components import JOINT_SPACE, Signal
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.controllers.furuta import PENDULUM_REFERENCE
 from lookout.models.furuta import PRINTED_CONSTANTS, PRINTED_COULOMB_FRICTION, FurutaConstants
 from lookout.models.parameters import ModelParameters

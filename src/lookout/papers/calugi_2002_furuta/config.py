@@ -10,7 +10,7 @@ from pydantic import Field, field_validator
 
 from lookout.models.furuta import PRINTED_CONSTANTS, PRINTED_COULOMB_FRICTION
 from lookout.papers import CATALOG
-from lookout.settings import NoiseFreeConfig, finite_positive, whole_samples
+from lookout.scenario.settings import NoiseFreeConfig, finite_positive, whole_samples
 from lookout.sim import integer_ratio
 
 NAME = "calugi-2002-furuta"

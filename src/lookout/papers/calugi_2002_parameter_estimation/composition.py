@@ -1,4 +1,4 @@
-"""The runs of chapter 3 as compositions (:mod:`lookout.composition`), and their simulation."""
+"""The runs of chapter 3 as compositions (:mod:`lookout.scenario.composition`), and their simulation."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import Callable
 
 import xarray as xr
 
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.sim import Scenario, seed_keys, simulate
 
 from .config import NAME, SIMULATIONS, TITLE, Config

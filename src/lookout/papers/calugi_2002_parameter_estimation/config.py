@@ -9,7 +9,7 @@ import numpy as np
 from pydantic import ConfigDict, Field, ValidationInfo, field_validator
 
 from lookout.papers import CATALOG
-from lookout.settings import NoiseFreeConfig, PositiveFloat, whole_samples
+from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, whole_samples
 
 NAME = "calugi-2002-parameter-estimation"
 TITLE = CATALOG[NAME].title

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.papers.calugi_2003.config import GAIN_SETS, PLANT_STEP, WAYPOINTS, Config, gains, m11, paper_vessel
 from lookout.sim import Scenario
 

@@ -12,7 +12,7 @@ from pydantic import Field, ValidationInfo, field_validator
 from lookout.analysis.adaptive_dp import satisfying_gains
 from lookout.models.vessel import DPVessel
 from lookout.papers import CATALOG
-from lookout.settings import PositiveCount, PositiveFloat, RunsConfig, finite_positive, whole_samples
+from lookout.scenario.settings import PositiveCount, PositiveFloat, RunsConfig, finite_positive, whole_samples
 from lookout.sim import integer_ratio
 
 

@@ -13,7 +13,7 @@ from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.papers import CATALOG
 from lookout.papers._config import VesselSettings
-from lookout.settings import PositiveCount, PositiveFloat, RunsConfig, Settings, finite_positive, whole_samples
+from lookout.scenario.settings import PositiveCount, PositiveFloat, RunsConfig, Settings, finite_positive, whole_samples
 
 NAME = "kim-2002"
 TITLE = CATALOG[NAME].title

@@ -1,11 +1,11 @@
-"""The three conditions of Section 5 as compositions (:mod:`lookout.composition`), and
+"""The three conditions of Section 5 as compositions (:mod:`lookout.scenario.composition`), and
 compositions changed key by key for the studies."""
 
 from __future__ import annotations
 
 import copy
 
-from lookout.composition import compose, set_path
+from lookout.scenario.composition import compose, set_path
 from lookout.models.cybership import CYBERSHIP_LENGTH, CYBERSHIP_THRUST_LIMIT
 from lookout.papers.wondergem_2009.config import (
     BASIN_MEASUREMENT_PERIOD,

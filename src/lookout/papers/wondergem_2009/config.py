@@ -8,7 +8,7 @@ import numpy as np
 from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.papers import CATALOG
-from lookout.settings import RunsConfig
+from lookout.scenario.settings import RunsConfig
 
 NAME = "wondergem-2009"
 TITLE = CATALOG[NAME].title

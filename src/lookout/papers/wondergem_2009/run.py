@@ -7,7 +7,7 @@ from typing import Callable
 
 import xarray as xr
 
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.papers._report import write_summary
 from lookout.papers.wondergem_2009.analysis import gain_study, lap_times, loop_metrics
 from lookout.papers.wondergem_2009.composition import composition
@@ -21,7 +21,7 @@ from lookout.results import write_netcdf
 def simulate_condition(config: Config, condition: str) -> xr.Dataset:
     """The runs of ``condition`` (seeds ``config.seeds``), simulated as ``lookout run``
     simulates the condition's composition written as a scenario file."""
-    from lookout.studies.scenario_file import CompositionSpec, simulate_trajectory
+    from lookout.scenario.file import CompositionSpec, simulate_trajectory
 
     ds = simulate_trajectory(CompositionSpec(compose(composition(config, condition)))).to_xarray()
     ds.attrs.update({"reproduction": NAME, "title": TITLE, "condition": condition, "config": config.model_dump_json()})

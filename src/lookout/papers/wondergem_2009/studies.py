@@ -10,7 +10,7 @@ import jax
 import numpy as np
 import xarray as xr
 
-from lookout.composition import compose
+from lookout.scenario.composition import compose
 from lookout.papers.wondergem_2009.analysis import lap_times, loop_metrics, tracking_errors
 from lookout.papers.wondergem_2009.composition import NO_LIMITS, THRUST_LIMITS, changed, composition
 from lookout.papers.wondergem_2009.config import BASIN_MEASUREMENT_PERIOD, BASIN_PERIOD, NAME, Config

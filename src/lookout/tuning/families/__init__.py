@@ -26,7 +26,7 @@ import numpy as np
 def families(role: str) -> dict[str, str]:
     """kind -> ``"module:Family"`` of the registered kinds of ``role`` (``"observer"`` or
     ``"controller"``) that declare a tuning family (``family=`` in their declaration)."""
-    from lookout.registry import kinds
+    from lookout.scenario.registry import kinds
 
     return {each.name: each.family for each in kinds(role) if each.family}
 
@@ -168,7 +168,7 @@ def family_of(scenario, components: tuple[str, ...] | None = None) -> tuple[Fami
     controller. A component chosen by default whose conditions cannot be met at its
     start is left as it is, with a note saying why; one asked for by name is refused
     (ValueError). A ValueError lists the kinds that have a family when none is left."""
-    from lookout.registry import kind_of
+    from lookout.scenario.registry import kind_of
 
     kinds = {"observer": (kind_of(scenario.observer), families("observer")), "controller": (kind_of(scenario.controller), families("controller"))}
     asked = components is not None

@@ -29,7 +29,7 @@ per component and a ``[simulation]`` table::
     [controller]                 # optional, as [reference] and [actuator]
     kind = "sinusoidal"
 
-Each table's keys are its kind's parameters (:mod:`lookout.registry`: names, types,
+Each table's keys are its kind's parameters (:mod:`lookout.scenario.registry`: names, types,
 ranges and defaults from the component's own signature and docstring); a key left
 out takes its default, and a part an observer or a controller needs from the plant
 (the vessel model of a model-based observer) is the plant's unless the table gives
@@ -56,9 +56,9 @@ from pydantic import Field, ValidationError, create_model, field_validator
 from pydantic.functional_validators import AfterValidator
 from typing_extensions import Annotated
 
-from lookout import registry
+from lookout.scenario import registry
 from lookout._validation import FitError, ParameterError, one_line, short
-from lookout.settings import RunsConfig, Settings, explain, finite_positive, validate_strictly
+from lookout.scenario.settings import RunsConfig, Settings, explain, finite_positive, validate_strictly
 
 #: The top-level keys of a composition.
 TOP_KEYS = ("plugins", "preset", "simulation", *registry.COMPONENT_ROLES)
@@ -517,7 +517,7 @@ def merge(preset: dict, document: dict) -> dict:
 def load_plugins(plugins, location: tuple = ("plugins",)) -> list[str]:
     """Import a document's ``plugins`` (Python files, absolute or relative to the working
     folder, or modules by dotted name), whose declarations register kinds of their own
-    (:func:`lookout.registry.load_plugin`); a :class:`CompositionError` names the entry."""
+    (:func:`lookout.scenario.registry.load_plugin`); a :class:`CompositionError` names the entry."""
     if plugins is None:
         return []
     if not isinstance(plugins, list) or not all(isinstance(each, str) and each for each in plugins):

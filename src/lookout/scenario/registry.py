@@ -13,7 +13,7 @@ come from the builder's signature and the classes a part accepts from its annota
 nothing is read from a docstring.
 
 ``lookout components`` lists the kinds (:func:`describe_kind`); the composition
-(:mod:`lookout.composition`) builds them.
+(:mod:`lookout.scenario.composition`) builds them.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Scenario files: everything one simulation needs, in a TOML file a user can edit.
 
-A scenario file is a composition (:mod:`lookout.composition`): one table per component
+A scenario file is a composition (:mod:`lookout.scenario.composition`): one table per component
 (``[plant]``, ``[sensor]``, ``[observer]``, ``[controller]``, ``[reference]``,
 ``[actuator]``), each with ``kind`` and its parameters, nested tables for parts, and
 ``[simulation]``; ``preset = "NAME:CASE"`` starts from a reproduction's case::
@@ -34,15 +34,15 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from lookout import registry
-from lookout.composition import Composition, CompositionError, SimulationSettings, compose, key_text, state_parameters
-from lookout.settings import explain
-from lookout.studies._toml import FileError, key_line, read, write
+from lookout.scenario import registry
+from lookout.scenario.composition import Composition, CompositionError, SimulationSettings, compose, key_text, state_parameters
+from lookout.scenario.settings import explain
+from lookout.scenario._toml import FileError, key_line, read, write
 
 
 @dataclass(frozen=True)
 class CompositionSpec:
-    """A scenario file that is a composition (:mod:`lookout.composition`): its tables
+    """A scenario file that is a composition (:mod:`lookout.scenario.composition`): its tables
     validated and built."""
 
     composition: Composition
@@ -170,8 +170,8 @@ def describe(error: ValidationError, source: str, text: str | None, prefix: tupl
 
 def simulate_trajectory(spec: CompositionSpec, *, progress=None):
     """Simulate the scenario for its seeds: a :class:`~lookout.Trajectory`, batched as
-    :func:`lookout.composition.simulate` batches it (run i uses ``jax.random.key(seed + i)``)."""
-    from lookout.composition import simulate
+    :func:`lookout.scenario.composition.simulate` batches it (run i uses ``jax.random.key(seed + i)``)."""
+    from lookout.scenario.composition import simulate
 
     return simulate(spec.composition, progress=progress)
 
