@@ -120,8 +120,6 @@ def _within_range(option: str, values, *, allow_zero: bool = False) -> None:
         raise InputError(f"{option} must lie within 1e-12..1e12; got {', '.join(f'{v:g}' for v in values)}")
 
 
-
-
 def _finish_design(design: str, report, inputs: dict, as_json: bool) -> None:
     """The end of every ``design`` command: the report (a :class:`lookout.analysis.Report`)
     as one JSON object (``design``, ``inputs``, then the report's own layout, whose
