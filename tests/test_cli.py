@@ -452,3 +452,121 @@ def test_components_lists_the_design_rules_of_each_kind(capsys):
     assert [entry["design"] for entry in entries] == ["gains", "wondergem-2009"]
     keys = [{p["name"] for p in entry["parameters"]} for entry in entries]
     assert keys[0] == {"ship", "natural_frequency", "damping_ratio"} and {"reference_speed_max", "start_position", "margin"} <= keys[1]
+
+
+# ----------------------------------------------------------------------------------
+# the command's start: --version and --help without JAX, and the compilation cache
+
+HEAVY_MODULES = ("jax", "jaxlib", "numpy", "xarray", "equinox", "scipy", "matplotlib")
+
+
+@pytest.mark.parametrize("argv", [["--version"], ["--help"], [], ["run", "--help"], ["replay", "--help"], ["design", "passive-observer", "--help"], ["campaign", "run", "--help"]])
+def test_version_and_help_answer_without_importing_jax_or_numpy(argv):
+    """The command's start (lookout.cli, what it registers, lookout's __init__) imports
+    nothing that computes; each command imports that when it runs."""
+    script = (
+        "import sys, io, contextlib; from lookout.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out: code = main(sys.argv[1:])\n"
+        f"print(code, out.getvalue().startswith(('lookout ', 'Usage: lookout')), sorted(set({HEAVY_MODULES!r}) & set(sys.modules)))"
+    )
+    result = subprocess.run([sys.executable, "-c", script, *argv], capture_output=True, text=True)
+    assert result.stdout.strip() == f"{2 if argv == [] else 0} True []", result.stdout + result.stderr
+
+
+def _scenario_of_seconds(folder, seconds: float):
+    """examples/dp-observer.toml with a shorter duration."""
+    text = open(os.path.join(os.path.dirname(__file__), "..", "examples", "dp-observer.toml")).read()
+    assert "duration = 1500.0\n" in text
+    path = folder / "short.toml"
+    path.write_text(text.replace("duration = 1500.0\n", f"duration = {seconds}\n"))
+    return path
+
+
+def _command_environment(cache_home, **variables):
+    """This process's environment without its JAX cache settings (the tests' conftest sets
+    its own), the user's cache folder in ``cache_home``, and ``variables``."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_COMPILATION_CACHE", "JAX_PERSISTENT_CACHE", "LOOKOUT_"))}
+    return env | {"XDG_CACHE_HOME": str(cache_home)} | variables
+
+
+def test_a_second_run_of_a_file_loads_the_programs_the_first_compiled_and_the_switch_turns_it_off(tmp_path):
+    scenario = _scenario_of_seconds(tmp_path, 20.0)
+    cache = tmp_path / "cache" / "lookout" / "jax"
+    # every program is cached whatever its compile time here (the command's own
+    # threshold is a setting, not what this checks); the second run logs its cache hits
+    env = _command_environment(tmp_path / "cache", JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0")
+    first = subprocess.run([sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "one")], capture_output=True, text=True, env=env)
+    assert first.returncode == 0, first.stderr
+    entries = sorted(path.name for path in cache.iterdir())
+    assert entries and all(name.endswith("-cache") for name in entries), entries
+    second = subprocess.run(
+        [sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "two")], capture_output=True, text=True, env=env | {"JAX_LOG_COMPILES": "1"}
+    )
+    assert second.returncode == 0, second.stderr
+    hits = second.stderr.count("Persistent compilation cache hit")
+    assert hits >= 1 and "PERSISTENT COMPILATION CACHE MISS" not in second.stderr, second.stderr[-2000:]
+    assert xr.open_dataset(tmp_path / "one" / "run.nc").equals(xr.open_dataset(tmp_path / "two" / "run.nc"))
+
+    off = tmp_path / "off"
+    env = _command_environment(off, JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0", LOOKOUT_COMPILATION_CACHE="0")
+    result = subprocess.run([sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "three")], capture_output=True, text=True, env=env)
+    assert result.returncode == 0, result.stderr
+    assert not (off / "lookout").exists()  # (matplotlib keeps its own cache there too)
+
+
+@pytest.mark.parametrize("value", ["maybe", "2", "off please"])
+def test_a_compilation_cache_switch_that_is_neither_on_nor_off_is_refused_in_one_line(value, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("LOOKOUT_COMPILATION_CACHE", value)
+    assert main(["run", str(tmp_path / "x.toml"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: LOOKOUT_COMPILATION_CACHE must be 0") and repr(value) in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_compilation_cache_folder_follows_the_xdg_rule_and_the_switch(tmp_path, monkeypatch):
+    folder = lookout._commandline.compilation_cache_folder
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    for on in ("1", "on", "yes", "true", ""):
+        monkeypatch.setenv("LOOKOUT_COMPILATION_CACHE", on)
+        assert folder() == tmp_path / "xdg" / "lookout" / "jax"
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative/cache")  # not absolute: ignored, as the XDG rule says
+    assert folder() == tmp_path / "home" / ".cache" / "lookout" / "jax"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    assert folder() == tmp_path / "home" / ".cache" / "lookout" / "jax"
+    for off in ("0", "off", "OFF", "no", "false"):
+        monkeypatch.setenv("LOOKOUT_COMPILATION_CACHE", off)
+        assert folder() is None
+
+
+def test_a_cache_folder_jax_was_given_wins_over_the_commands(tmp_path, monkeypatch):
+    """The tests' conftest (like a user) gives JAX its own folder: the command leaves it."""
+    import jax
+
+    given = jax.config.jax_compilation_cache_dir
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.delenv("LOOKOUT_COMPILATION_CACHE", raising=False)
+    assert given is not None and lookout._commandline.use_compilation_cache() is None
+    assert jax.config.jax_compilation_cache_dir == given and not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_trimming_the_cache_removes_the_least_recently_used_files_until_the_bound_holds(seed, tmp_path):
+    rng = np.random.default_rng(seed)
+    count = int(rng.integers(1, 12))
+    sizes = [int(s) for s in rng.integers(0, 5000, count)]
+    used = rng.permutation(count) * 1000.0 + 1e9  # distinct times of last use
+    for i, (size, time) in enumerate(zip(sizes, used)):
+        (tmp_path / f"entry{i}-cache").write_bytes(b"x" * size)
+        os.utime(tmp_path / f"entry{i}-cache", (time, time - 500.0 * (i % 2)))  # (access, modification)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "kept").write_bytes(b"x" * 10_000)  # a subfolder is not the cache's
+    bound = int(rng.integers(0, sum(sizes) + 2))
+    lookout._commandline.trim_folder(tmp_path, bound)
+    # expected: the fewest least recently used files whose removal leaves at most the bound
+    by_use = sorted(range(count), key=lambda i: used[i])
+    removed = next(k for k in range(count + 1) if sum(sizes[i] for i in by_use[k:]) <= bound)
+    expected = {f"entry{i}-cache" for i in by_use[removed:]}
+    assert {path.name for path in tmp_path.iterdir() if path.is_file()} == expected
+    assert (tmp_path / "sub" / "kept").exists()
+    lookout._commandline.trim_folder(tmp_path / "missing", 0)  # no folder yet: nothing to do

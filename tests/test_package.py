@@ -1,11 +1,17 @@
 """What importing lookout does to the process, and what configure_cpu does."""
 
+import os
 import subprocess
 import sys
 
+import pytest
+
 
 def _run(code: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={"PATH": "/usr/bin:/bin"})
+    """``code`` in a fresh Python with no environment but PATH (and PYTHONPATH, where the
+    sources under test are found through it)."""
+    env = {"PATH": "/usr/bin:/bin"} | ({"PYTHONPATH": os.environ["PYTHONPATH"]} if "PYTHONPATH" in os.environ else {})
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
 
 
 def test_importing_lookout_changes_no_environment_variable_and_enables_float64():
@@ -66,3 +72,36 @@ def test_the_studies_commands_do_not_import_the_main_command():
         "assert 'lookout.cli' not in sys.modules, 'lookout.cli imported'; print('ok')"
     )
     assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr
+
+
+@pytest.mark.parametrize(
+    "imports",
+    [
+        "import lookout; import jax.numpy as jnp",
+        "import lookout; from jax import numpy as jnp",
+        "import lookout, importlib; jnp = importlib.import_module('jax.numpy')",
+        "import jax; import lookout; import jax.numpy as jnp",
+        "from lookout.models.vessel import northern_clipper; import jax.numpy as jnp",
+        "import lookout; lookout.simulate; import jax.numpy as jnp",
+    ],
+)
+def test_jax_computes_in_float64_whichever_of_lookout_and_jax_is_imported_first(imports):
+    """Importing lookout does not import JAX; float64 is on as soon as JAX is imported,
+    by whoever imports it, and JAX's package loads as it would (its resources found)."""
+    result = _run(
+        imports + "; import jax, importlib.resources; assert importlib.resources.files(jax).joinpath('__init__.py').is_file(); "
+        "print(jnp.zeros(()).dtype, jnp.asarray(0.1).dtype, jnp.arange(3.0).dtype, jax.config.jax_enable_x64)"
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["float64"] * 3 + ["True"]
+
+
+def test_importing_lookout_imports_neither_jax_nor_numpy_and_leaves_no_hook_once_jax_is_in():
+    result = _run(
+        "import sys; import lookout; "
+        "assert not {'jax', 'numpy'} & set(sys.modules), sorted({'jax', 'numpy'} & set(sys.modules)); "
+        "hooks = lambda: [type(f).__name__ for f in sys.meta_path if type(f).__module__ == 'lookout']; "
+        "assert len(hooks()) == 1, hooks(); import importlib; importlib.reload(lookout); assert len(hooks()) == 1, hooks(); "
+        "import jax; assert hooks() == [], hooks(); print(lookout.__version__)"
+    )
+    assert result.returncode == 0 and result.stdout.strip(), result.stderr

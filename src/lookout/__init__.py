@@ -3,7 +3,10 @@
 Importing lookout does one thing to the process: it enables JAX's float64
 (``jax_enable_x64``), because ship models span 1e-4 to 1e10 (M33 of a supply vessel
 is 3.7e9) and float32 loses the small terms. Use float32 only as an explicit opt-in.
-It sets no environment variable.
+It sets no environment variable. Importing lookout does not import JAX (so that
+``lookout --version`` and ``--help`` answer at once): when JAX is imported already,
+float64 is enabled there and then; otherwise as soon as JAX's own import finishes,
+whoever imports it, and so before anything computes.
 
 :func:`configure_cpu`, called before JAX computes anything (the ``lookout`` command,
 the benchmarks and the tests do), sets two XLA:CPU options through ``XLA_FLAGS``:
@@ -21,12 +24,53 @@ process; that is why they are an explicit call and not a side effect of importin
 """
 
 import os as _os
-from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
-from importlib.metadata import version as _metadata_version
+import sys as _sys
 
-import jax as _jax
 
-_jax.config.update("jax_enable_x64", True)
+def _enable_float64(jax) -> None:
+    jax.config.update("jax_enable_x64", True)
+
+
+class _Float64OnImport:
+    """Finds the ``jax`` package as the other finders do, with a loader that enables
+    float64 as soon as JAX's import has run; the finder then leaves ``sys.meta_path``."""
+
+    def find_spec(self, name, path, target=None):
+        if name != "jax":
+            return None
+        for finder in _sys.meta_path:
+            spec = None if finder is self else getattr(finder, "find_spec", lambda *_: None)(name, path, target)
+            if spec is not None:
+                if spec.loader is not None:
+                    spec.loader = _EnablingLoader(spec.loader, self)
+                return spec
+        return None
+
+
+class _EnablingLoader:
+    """``loader``, which enables float64 once it has executed the module."""
+
+    def __init__(self, loader, finder: _Float64OnImport):
+        self._loader = loader
+        self._finder = finder
+
+    def create_module(self, spec):
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module):
+        self._loader.exec_module(module)
+        _enable_float64(module)
+        if self._finder in _sys.meta_path:
+            _sys.meta_path.remove(self._finder)
+
+    def __getattr__(self, name):  # get_resource_reader, is_package, ...: the original loader's
+        return getattr(self._loader, name)
+
+
+if "jax" in _sys.modules:
+    _enable_float64(_sys.modules["jax"])
+elif not any(type(finder).__qualname__ == "_Float64OnImport" for finder in _sys.meta_path):  # one, even if lookout is reloaded
+    _sys.meta_path.insert(0, _Float64OnImport())
 
 #: Per-iteration byte threshold below which XLA:CPU compiles a while loop as one
 #: function (set by :func:`configure_cpu`).
@@ -71,6 +115,8 @@ def configure_cpu(devices: int | None = None) -> None:
 def _backend_started() -> bool:
     """Whether JAX has started a backend (then XLA_FLAGS is read already). JAX has no
     public call for this; when its private one is missing, say no."""
+    if "jax" not in _sys.modules:
+        return False
     try:
         from jax._src import xla_bridge
 
@@ -80,8 +126,8 @@ def _backend_started() -> bool:
 
 
 #: The public API, name -> the module that defines it. A name is imported when it is
-#: first used (PEP 562), so ``import lookout`` costs JAX's import and little more, and
-#: ``lookout --version`` does not load the models, observers and xarray.
+#: first used (PEP 562), so ``import lookout`` imports neither JAX nor the models,
+#: observers and xarray, and ``lookout --version`` answers at once.
 _PUBLIC = {
     "rotation": "._math",
     "ssa": "._math",
@@ -132,20 +178,28 @@ __all__ = ["SMALL_LOOP_BYTES", "configure_cpu", "__version__", *_PUBLIC]
 
 
 def __getattr__(name: str):
-    if name not in _PUBLIC:
-        raise AttributeError(f"module 'lookout' has no attribute {name!r}")
-    import importlib
+    if name == "__version__":
+        value = _installed_version()
+    elif name in _PUBLIC:
+        import importlib
 
-    value = getattr(importlib.import_module(_PUBLIC[name], __name__), name)
+        value = getattr(importlib.import_module(_PUBLIC[name], __name__), name)
+    else:
+        raise AttributeError(f"module 'lookout' has no attribute {name!r}")
     globals()[name] = value
     return value
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_PUBLIC))
+    return sorted(set(globals()) | set(__all__))
 
 
-try:
-    __version__ = _metadata_version("lookout")
-except _PackageNotFoundError:  # pragma: no cover - running from a source tree that is not installed
-    __version__ = "0+unknown"
+def _installed_version() -> str:
+    """The installed distribution's version (importlib.metadata is read on first use)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("lookout")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree that is not installed
+        return "0+unknown"
+

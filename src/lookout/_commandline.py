@@ -1,20 +1,24 @@
 """What the command's subcommands share: the console, checks of output paths, the
-memory check before simulating, and the progress bar (used by :mod:`lookout.cli` and
-:mod:`lookout.studies.cli`, which do not import each other's helpers).
+memory check before simulating, the progress bar (used by :mod:`lookout.cli` and
+:mod:`lookout.studies.cli`, which do not import each other's helpers), and the
+command's compilation cache.
 
 Each check raises :class:`~lookout._validation.InputError` with one line that names the
 option and the condition; the CLI prints it and exits with code 2.
+
+This module imports neither NumPy nor JAX (nor ``rich.progress``) at its top: the
+command imports it before answering ``--version`` and ``--help``.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import tempfile
 from pathlib import Path
 
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from lookout._resources import PEAK_MEMORY_PER_RECORD_BYTE, available_memory, format_bytes, nearest_existing
 from lookout._validation import InputError
@@ -22,6 +26,18 @@ from lookout._validation import InputError
 console = Console(soft_wrap=True)
 #: The width tables may take when the output is not a terminal (lookout.cli.main).
 PIPE_WIDTH = 1000
+
+#: The environment variable that switches the command's compilation cache off (``0``).
+COMPILATION_CACHE_SWITCH = "LOOKOUT_COMPILATION_CACHE"
+#: The compilation cache keeps at most this many bytes: each command starts by removing
+#: the least recently used programs beyond it. (JAX's own bound,
+#: ``jax_compilation_cache_max_size``, needs the filelock package, which lookout does
+#: not depend on.)
+COMPILATION_CACHE_MAX_BYTES = 1_000_000_000
+#: Programs that compile faster than this (s) are not cached. JAX's default is 1 s; the
+#: command keeps every program, since on the CPU it compiles dozens of small ones that add
+#: up, and they take a few kB each (docs/benchmarks.md, "Time to first result").
+COMPILATION_CACHE_MIN_COMPILE_SECONDS = 0.0
 
 
 def writable_folder(option: str, folder: Path, what: str) -> None:
@@ -73,6 +89,8 @@ def created_folder(option: str, text: str) -> Path:
 def progress_bar(*columns) -> Progress:
     """A transient progress bar on stderr, shown only where someone watches (a terminal):
     a log or a pipe gets none."""
+    from rich.progress import Progress
+
     stderr = Console(stderr=True)
     return Progress(*columns, console=stderr, transient=True, disable=not stderr.is_terminal)
 
@@ -80,6 +98,8 @@ def progress_bar(*columns) -> Progress:
 @contextlib.contextmanager
 def simulating():
     """A progress bar on stderr while simulating; yields the engine's ``progress(done, total)``."""
+    from rich.progress import BarColumn, TextColumn, TimeRemainingColumn
+
     with progress_bar(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn()) as bar:
         task = bar.add_task("run", total=1.0)
         yield lambda done, total: bar.update(task, completed=done / total)
@@ -133,3 +153,74 @@ def check_memory(batches, runs_option: str = "--runs", duration_option: str = "-
         )
 
 
+def compilation_cache_folder() -> Path | None:
+    """Where the command keeps the programs it compiled: ``$XDG_CACHE_HOME/lookout/jax``,
+    or ``~/.cache/lookout/jax`` (the XDG base directory rule: a relative
+    ``XDG_CACHE_HOME`` is ignored). None when ``LOOKOUT_COMPILATION_CACHE=0`` switches
+    the cache off, or when there is no home folder."""
+    switch = os.environ.get(COMPILATION_CACHE_SWITCH, "1").strip().lower()
+    if switch not in ("0", "1", "off", "on", "false", "true", "no", "yes", ""):
+        raise InputError(f"{COMPILATION_CACHE_SWITCH} must be 0 (the compilation cache off) or 1 (on); got {switch[:40]!r}")
+    if switch in ("0", "off", "false", "no"):
+        return None
+    base = os.environ.get("XDG_CACHE_HOME", "")
+    if not os.path.isabs(base):
+        try:
+            base = os.path.join(Path.home(), ".cache")
+        except RuntimeError:  # no home folder to be found
+            return None
+    return Path(base) / "lookout" / "jax"
+
+
+def use_compilation_cache() -> Path | None:
+    """Let JAX keep the programs the command compiles, so that running the same file
+    again loads them instead of compiling them (JAX's persistent compilation cache).
+
+    The folder is :func:`compilation_cache_folder`'s; returns it, or None when the cache
+    is off, when its folder cannot be written (the command then compiles as without
+    it), or when JAX is given a cache folder already (``JAX_COMPILATION_CACHE_DIR``, as
+    the tests do): JAX's own setting wins. Only what took
+    :data:`COMPILATION_CACHE_MIN_COMPILE_SECONDS` or more to compile is kept, and the
+    folder is first trimmed to :data:`COMPILATION_CACHE_MAX_BYTES`. JAX is not imported
+    here: before JAX is imported, the settings go through JAX's environment variables
+    (which the command's worker processes inherit).
+    """
+    folder = compilation_cache_folder()
+    jax = sys.modules.get("jax")
+    if folder is None or "JAX_COMPILATION_CACHE_DIR" in os.environ or (jax is not None and jax.config.jax_compilation_cache_dir is not None):
+        return None
+    existing = nearest_existing(folder)
+    if not (existing.is_dir() and os.access(existing, os.W_OK | os.X_OK)):
+        return None
+    trim_folder(folder, COMPILATION_CACHE_MAX_BYTES)
+    settings = {"jax_compilation_cache_dir": str(folder), "jax_persistent_cache_min_compile_time_secs": COMPILATION_CACHE_MIN_COMPILE_SECONDS}
+    for name, value in settings.items():
+        if jax is None:
+            os.environ.setdefault(name.upper(), str(value))
+        else:
+            jax.config.update(name, value)
+    return folder
+
+
+def trim_folder(folder: Path, max_bytes: int) -> None:
+    """Remove the least recently used files of ``folder`` (its own, not those of its
+    subfolders) until they hold at most ``max_bytes``. Use is the later of a file's
+    access and modification times (where the file system records no access, the oldest
+    go first). A file another process removed meanwhile is passed over."""
+    entries = []
+    try:
+        with os.scandir(folder) as scan:
+            for entry in scan:
+                with contextlib.suppress(OSError):
+                    if entry.is_file(follow_symlinks=False):
+                        stat = entry.stat(follow_symlinks=False)
+                        entries.append((max(stat.st_atime, stat.st_mtime), stat.st_size, entry.path))
+    except OSError:  # no folder yet
+        return
+    total = sum(size for _, size, _ in entries)
+    for _, size, path in sorted(entries):
+        if total <= max_bytes:
+            break
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+        total -= size

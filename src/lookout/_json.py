@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 
 def finite_or_none(value):
     """``float(value)``, or None when it is not finite (NaN and Infinity are not JSON)."""
@@ -16,6 +14,8 @@ def finite_or_none(value):
 def json_safe(value):
     """``value`` with NumPy arrays and scalars made plain, non-finite floats None, and a
     complex number as ``{"real": ..., "imag": ...}``."""
+    import numpy as np  # here, not at the top: the command's modules import this one, and `lookout --help` needs no NumPy
+
     if isinstance(value, dict):
         return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 from typing import Any
 
-import jax.numpy as jnp
-import numpy as np
+# numpy is imported inside each check: the command's modules import InputError from
+# here, and `lookout --help` needs neither NumPy nor JAX
 
 
 def is_concrete(value: Any) -> bool:
     """True when ``value`` can be converted to NumPy (it is not a JAX tracer)."""
+    import numpy as np
+
     try:
         np.asarray(value)
     except Exception:  # jax tracers raise TracerArrayConversionError (a TypeError subclass)
@@ -29,7 +31,11 @@ def vector(name: str, value: Any, size: int = 3):
     Returns a NumPy array for concrete values, and a JAX array for tracers (a
     component built inside ``jit`` or ``vmap``); the shape is checked either way.
     """
+    import numpy as np
+
     if not is_concrete(value):
+        import jax.numpy as jnp  # a tracer: JAX is imported already
+
         array = jnp.asarray(value, dtype=float)
         if array.ndim == 0:
             array = jnp.broadcast_to(array, (size,))
@@ -46,12 +52,16 @@ def vector(name: str, value: Any, size: int = 3):
 
 def finite(name: str, value: Any) -> None:
     """Fail unless every entry of ``value`` is finite."""
+    import numpy as np
+
     if is_concrete(value) and not np.all(np.isfinite(np.asarray(value, dtype=float))):
         raise ParameterError(key(name), f"{name} must be finite; got {np.asarray(value).tolist()}")
 
 
 def positive(name: str, value: Any, *, allow_zero: bool = False) -> None:
     """Fail unless every entry of ``value`` is > 0 (or >= 0 with ``allow_zero``)."""
+    import numpy as np
+
     if not is_concrete(value):
         return
     finite(name, value)
@@ -64,6 +74,8 @@ def positive(name: str, value: Any, *, allow_zero: bool = False) -> None:
 
 def symmetric_positive_definite(name: str, matrix: Any, *, size: int | None = None) -> None:
     """Fail unless ``matrix`` is a symmetric positive-definite (``size`` x ``size``) matrix."""
+    import numpy as np
+
     if not is_concrete(matrix):
         return
     finite(name, matrix)
@@ -85,6 +97,8 @@ def symmetric_positive_definite(name: str, matrix: Any, *, size: int | None = No
 def dissipative(name: str, matrix: Any) -> None:
     """Fail unless the symmetric part of the square ``matrix`` is positive semi-definite
     (a damping matrix D that dissipates energy: nu^T D nu >= 0 for every nu)."""
+    import numpy as np
+
     if not is_concrete(matrix):
         return
     array = np.asarray(matrix, dtype=float)
@@ -98,6 +112,8 @@ def dissipative(name: str, matrix: Any) -> None:
 
 def square(name: str, matrix: Any, *, size: int = 3) -> None:
     """Fail unless ``matrix`` is a finite ``size`` x ``size`` matrix."""
+    import numpy as np
+
     if not is_concrete(matrix):
         return
     finite(name, matrix)
@@ -107,6 +123,8 @@ def square(name: str, matrix: Any, *, size: int = 3) -> None:
 
 
 def _fmt(array: np.ndarray) -> str:
+    import numpy as np
+
     return np.array2string(np.atleast_1d(array), precision=4, separator=", ", threshold=SHOWN_ENTRIES, edgeitems=SHOWN_ENTRIES // 2)
 
 
@@ -118,6 +136,8 @@ SHOWN_ENTRIES = 8
 def short(value) -> str:
     """``value`` as a message shows it: its repr, or for a sequence of more than
     :data:`SHOWN_ENTRIES` numbers its first and last few and its size."""
+    import numpy as np
+
     if isinstance(value, (list, tuple, np.ndarray)):
         try:
             array = np.asarray(value, dtype=float)

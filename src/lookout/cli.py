@@ -15,11 +15,10 @@ from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
-from pydantic import ValidationError
 from rich import box
 from rich.table import Table
 
-from lookout._commandline import PIPE_WIDTH, check_memory, console, created_folder, image_file, simulating, writable_folder
+from lookout._commandline import PIPE_WIDTH, check_memory, console, created_folder, image_file, simulating, use_compilation_cache, writable_folder
 from lookout._validation import InputError, one_line
 from lookout.cli_design import DESIGN_VERDICTS
 from lookout._json import json_safe
@@ -137,6 +136,8 @@ def _finish_design(design: str, report, inputs: dict, as_json: bool) -> None:
 
 def _config(reproduction, options: dict):
     """A reproduction's Config from the CLI options, pydantic's error turned into one line."""
+    from pydantic import ValidationError
+
     try:
         return reproduction.Config(**{key: value for key, value in options.items() if value is not None})
     except ValidationError as error:
@@ -694,7 +695,11 @@ _register_design(design_app)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: run the CLI, turning every input error into one line and exit code 2."""
+    """Entry point: run the CLI, turning every input error into one line and exit code 2.
+
+    ``lookout --version`` and ``--help`` import neither JAX nor NumPy (tests/test_cli.py
+    checks); the commands that compute import them when they run.
+    """
     import lookout  # enables float64 before any computation
 
     # first of all: XLA reads these options when its backend starts, and nothing this
@@ -709,6 +714,7 @@ def main(argv: list[str] | None = None) -> int:
 
     argv = route(list(sys.argv[1:] if argv is None else argv), set(typer.main.get_command(design_app).commands))
     try:
+        use_compilation_cache()  # a second run of the same file loads what the first compiled
         # without standalone mode, click returns the code of a typer.Exit raised by a command
         code = command.main(args=argv, prog_name="lookout", standalone_mode=False)
     except typer.Exit as done:

@@ -4,16 +4,13 @@ from __future__ import annotations
 
 import math
 import sys
-
-import numpy as np
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 
 from lookout._validation import InputError
-from lookout.live.run import MAX_GAP  # the default of --max-gap
-from lookout.live.session import Gates  # the defaults of the gate options
+from lookout.live.options import MAX_GAP, Gates  # the defaults of --max-gap and of the gate options
 
 #: Steps per compiled scan in a fast replay.
 REPLAY_BATCH = 4096
@@ -30,8 +27,6 @@ _GATES = {
 
 
 def _gate_values(gates: dict):
-    from lookout.live.session import Gates
-
     try:
         return Gates(**gates)
     except ValueError as error:
@@ -141,6 +136,8 @@ def _outputs(session, out: Optional[str], publish: Optional[str], scenario_file:
 
 
 def _status_line(session, parser, outcome, final: bool = False) -> str:
+    import numpy as np
+
     span = (outcome.last_time - outcome.first_time) if outcome.first_time is not None else 0.0
     rates = []
     for kind, channel in session.channels.items():

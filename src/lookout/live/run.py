@@ -28,12 +28,10 @@ import numpy as np
 
 from lookout.io.logs import CsvLog, LogScan, log_format, nmea_log, scan_log
 from lookout.io.nmea import LineSplitter, NmeaParser, Reading
+from lookout.live.options import MAX_GAP
 from lookout.live.session import Session
 from lookout.sim.filtering import check_step_length
 
-#: The longest silence of a log (s) a replay dead-reckons through unless told more:
-#: docs/live.md, "Why 60 s for --max-gap", gives the reason.
-MAX_GAP = 60.0
 #: The share of a log's lines that may be stamped before a line above them (reordered
 #: by the logger; each is dropped as late); more (and more than one line) is a log out
 #: of order.
