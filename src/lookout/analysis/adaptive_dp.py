@@ -868,13 +868,13 @@ def satisfying_gains(
     c0, sigma2, dmin = q["sigma2"] + q["damping_min"], q["sigma2"], q["damping_min"]
     design = {"step": float(step), "speed": float(speed), "max_step_gain": float(max_step_gain), "margin": float(margin)}
 
-    def check(K1x, dx) -> Report:
+    def conditions_at(K1x, dx) -> Report:
         return check_calugi_2003(
             vessel, K1=K1x, K2=K2m, d=dx, theta_bounds=theta_bounds, unknown=unknown, coupling_gain=P1
         )
 
     def route(name: str, K1x, dx, note: str, feasible: bool = True) -> GainRoute:
-        report = check(K1x, dx)
+        report = conditions_at(K1x, dx)
         rates = loop_rates(K1x, K2m, dx, C1=C1v, C2=C2v, coupling_gain=P1, speed=speed)
         fastest = float(max(rates["loop"].max(), np.linalg.norm(K1x, 2), np.linalg.norm(K2m, 2)))
         return GainRoute(
@@ -934,7 +934,7 @@ def satisfying_gains(
     routes: list[GainRoute] = []
     given = route("given", K1m, d0, "the gains as given")
     if given.verdicts["closed_loop_57"] == Verdict.HOLDS and given.verdicts["closed_loop_58"] == Verdict.HOLDS and given.factor_57 >= margin:
-        report = check(K1m, d0)
+        report = conditions_at(K1m, d0)
         return GainProposal(K1m, K2m, d0, "given", "the given gains already satisfy (57)-(58)", report, [given], design)
 
     # d_uniform: all six equal, K1 kept; x = 3/(4 d) gives g1/4 = 2x (times p for d1..3), g2/4 = x
@@ -959,7 +959,7 @@ def satisfying_gains(
     else:
         routes.append(route("d_split", K1m, d_split, "d1..3 and d4..6 raised, K1 kept"))
 
-    start = check(K1m, d0)
+    start = conditions_at(K1m, d0)
     needed = float(start["closed_loop_57"].inequalities[0].right)
     c58 = start["closed_loop_58"].inequalities[0]
     if math.isfinite(needed) and c58.factor >= margin:
@@ -1004,7 +1004,7 @@ def satisfying_gains(
         reason = f"no route is usable at {speed:g} m/s; {chosen.name} has the smallest step x rate ({chosen.step_gain:.3g})"
     else:
         raise ValueError("no gain route satisfies (57)-(58) for this vessel and K2 (check (22) and (58))")
-    report = check(chosen.K1, chosen.d)
+    report = conditions_at(chosen.K1, chosen.d)
     return GainProposal(chosen.K1, K2m, chosen.d, chosen.name, reason, report, [given] + routes, design)
 
 
