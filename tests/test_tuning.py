@@ -163,3 +163,26 @@ def test_a_gradient_that_would_not_fit_in_memory_is_refused_before_it_runs(tmp_p
     error = capsys.readouterr().err.strip()
     assert "--train-seeds: a gradient over 4 runs would need about" in error and "use fewer training seeds or a shorter duration" in error, error
     assert "\n" not in error and not (tmp_path / "out").exists()
+
+
+def test_the_tuner_runs_the_program_whose_gradient_the_checks_compare_with_central_differences(monkeypatch):
+    """``tune`` builds its gradient with ``value_and_gradient``, the function whose program
+    tests/tuning_checks.py compares with central differences: the checks test the
+    tuner's own program (and a tune test of the same scenario loads it from the cache)."""
+    import tuning_checks
+    from lookout.tuning import tune as tune_module
+
+    assert tuning_checks.value_and_gradient is tune_module.value_and_gradient
+    built = []
+
+    class Built(Exception):
+        pass
+
+    def recording(value, family):
+        built.append(family)
+        raise Built
+
+    monkeypatch.setattr(tune_module, "value_and_gradient", recording)
+    with pytest.raises(Built):
+        tune_module.tune(compose(_scenario(100.0)).scenario, "rms_error:position", train_seeds=[0], test_seeds=[1], say=lambda _: None)
+    assert len(built) == 1 and isinstance(built[0], PassiveFamily)

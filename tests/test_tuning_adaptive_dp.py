@@ -26,6 +26,9 @@ from tuning_checks import gradient_and_central_differences
 
 pytestmark = pytest.mark.xdist_group("tuning-adaptive-dp")
 
+#: The horizon of the gradient check and of the short ``lookout tune``: the same program.
+TUNED_DURATION = 20.0
+
 OBJECTIVE = "rms_tracking:position + rms_error:position"
 #: the reproduction's box for m11, as ``lookout design adaptive-observer`` takes it (--theta-bounds 0.5,2)
 BOUNDS = [0.5 * m11(), 2.0 * m11()]
@@ -82,9 +85,10 @@ def test_the_printed_gains_start_from_the_satisfying_set_and_far_out_theta_keep_
 
 
 def test_the_gradient_matches_central_differences_for_observer_and_controller():
-    """Through 10 s of the closed loop (the observer's K1, K2, Gamma, the controller's d,
-    P1, C1, C2: 22 parameters); measured agreement about 1e-9 of the largest component."""
-    scenario = compose(_document("satisfying", 10.0)).scenario
+    """Through 20 s of the closed loop (the observer's K1, K2, Gamma, the controller's d,
+    P1, C1, C2: 22 parameters), the scenario, objective and number of training seeds of
+    test_lookout_tune_keeps_22_57_58_and_lowers_the_objective: one compiled program for both."""
+    scenario = compose(_document("satisfying", TUNED_DURATION)).scenario
     family, start, _ = family_of(scenario)
     objective, metrics = parse_objective(OBJECTIVE, scenario)
     value = _objective_function(scenario, family, objective, metrics, None)
@@ -101,7 +105,7 @@ def test_the_gradient_matches_central_differences_for_observer_and_controller():
 def test_lookout_tune_keeps_22_57_58_and_lowers_the_objective(tmp_path):
     """Short: 20 s of the satisfying preset, one training and one held-out seed, 3 steps."""
     source = tmp_path / "calugi.toml"
-    write(source, _document("satisfying", 20.0))
+    write(source, _document("satisfying", TUNED_DURATION))
     out = tmp_path / "tuned"
     assert main(["tune", str(source), "--out", str(out), "--objective", OBJECTIVE, "--train-seeds", "1", "--test-seeds", "1", "--steps", "3"]) == 0
     document, _ = read(out / "tuned.toml")

@@ -44,9 +44,9 @@ def _with(document, family, gains):
 
 
 def test_the_gradient_matches_central_differences_at_the_starting_q_and_r():
-    """process_noise and measurement_noise of the EKF through 50 s of two runs, P_0 (the
+    """process_noise and measurement_noise of the EKF through 20 s of two runs, P_0 (the
     file gives no initial_std) following them through the Riccati equation."""
-    scenario = compose(_scenario(50.0, **MISTUNED)).scenario
+    scenario = compose(_scenario(20.0, **MISTUNED)).scenario
     family = family_of(scenario)[0]
     assert isinstance(family, KalmanFamily) and family.steady is not None
     objective, metrics = parse_objective("rms_error:position + 100*rms_error:velocity", scenario)

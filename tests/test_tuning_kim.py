@@ -56,8 +56,9 @@ def test_the_printed_gains_are_moved_inside_the_conditions_and_the_controller_fo
 
 
 def test_the_gradient_matches_central_differences_for_the_observer_and_the_controller():
-    """Through 150 s of two closed-loop runs, with the switching term sat (Lipschitz)."""
-    scenario = compose(_document(150.0)).scenario
+    """Through 50 s of two closed-loop runs, with the switching term sat (Lipschitz): 36
+    parameters, so 73 calls of the gradient's program, each a simulation of the horizon."""
+    scenario = compose(_document(50.0)).scenario
     family, start, _ = family_of(scenario)
     objective, metrics = parse_objective("rms_tracking:position + rms_error:position", scenario)
     value = _objective_function(scenario, family, objective, metrics, None)

@@ -23,6 +23,9 @@ from tuning_checks import gradient_and_central_differences
 
 pytestmark = pytest.mark.xdist_group("tuning-wondergem")
 
+#: The horizon of the gradient check and of the short ``lookout tune``: the same program.
+TUNED_DURATION = 8.0
+
 
 def _document(duration: float, *, on_reference: bool = False) -> dict:
     """Cybership II around the reproduction's ellipse in its basin's waves and sensor noise
@@ -58,7 +61,9 @@ def test_the_observer_is_tuned_and_the_controller_left_as_it_is_when_25_cannot_h
 
 
 def test_the_gradient_matches_central_differences_for_observer_and_controller():
-    scenario = compose(_document(5.0, on_reference=True)).scenario
+    """Through the 8 s of one run that test_lookout_tune_keeps_proposition_3_1_and_25 tunes
+    over (its scenario, objective and number of training seeds: one compiled program for both)."""
+    scenario = compose(_document(TUNED_DURATION, on_reference=True)).scenario
     family, start, notes = family_of(scenario)
     assert isinstance(family, Joint) and [type(p) for p in family.parts] == [EarthFixedFamily, TrackingFamily]
     assert not any("left as it is" in note for note in notes), notes
@@ -78,7 +83,7 @@ def test_lookout_tune_keeps_proposition_3_1_and_25(tmp_path):
     from lookout.analysis.tracking import check_wondergem_2009
 
     source = tmp_path / "cs2.toml"
-    write(source, _document(8.0, on_reference=True))
+    write(source, _document(TUNED_DURATION, on_reference=True))
     out = tmp_path / "tuned"
     assert main(["tune", str(source), "--out", str(out), "--objective", "rms_tracking:position + rms_error:velocity", "--train-seeds", "1",
                  "--test-seeds", "1", "--steps", "3"]) == 0

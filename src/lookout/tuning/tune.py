@@ -150,8 +150,7 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     value = _objective_function(scenario, family, objective, metrics, after)
     train = keys_of_seeds(list(train_seeds))
     theta = jnp.asarray(family.theta(start))
-    with_runs = compile_within_memory(eqx.filter_jit(jax.value_and_grad(lambda theta, keys: value(family.gains(theta), keys), has_aux=True)),
-                                      theta, train)
+    with_runs = compile_within_memory(value_and_gradient(value, family), theta, train)
 
     def value_and_grad(theta, keys):
         (total, _), gradient = with_runs(theta, keys)
@@ -220,6 +219,14 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
             result.held_out[name] = {"given": np.asarray(given_runs[name]).tolist(), **result.held_out[name]}
     result.seconds = time.perf_counter() - started
     return result
+
+
+def value_and_gradient(value, family: Family):
+    """``theta, keys -> ((objective, per-run metrics), gradient in theta)`` of an objective
+    ``value`` (:func:`_objective_function`), under ``eqx.filter_jit``: the program
+    :func:`tune` compiles. Built here once, so that a check of the gradient compiles the
+    very program the tuner runs (the persistent compilation cache then holds one copy)."""
+    return eqx.filter_jit(jax.value_and_grad(lambda theta, keys: value(family.gains(theta), keys), has_aux=True))
 
 
 def compile_within_memory(function, theta, keys, *, available: float | None = None):
