@@ -11,6 +11,7 @@ import jax
 import numpy as np
 import pytest
 
+from lookout.scenario._toml import read
 from lookout.scenario.composition import compose, simulate
 from lookout.studies.campaign import load_campaign
 
@@ -25,7 +26,7 @@ def test_there_are_examples_of_each_kind():
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda path: path.name)
 def test_each_example_runs_as_its_header_says(path):
-    document = tomllib.loads(path.read_text())
+    document, _ = read(path)  # as lookout reads it: plugin files relative to the example
     header = path.read_text().split("\n\n", 1)[0]
     if "scenario" in document:
         assert "lookout campaign run examples/" + path.name in header

@@ -169,16 +169,16 @@ class ThrusterLayout(eqx.Module):
             if kinds_it_applies_to is not None:
                 other = ~np.isin(kind_array, kinds_it_applies_to)
                 if np.all(other) and np.ndim(value) == 0 and float(value) != DEFAULTS[name]:
-                    raise ValueError(
-                        f"{name} applies to {' and '.join(KIND_PLURALS[k] for k in kinds_it_applies_to)} only, and this layout has none: "
+                    raise check.ParameterError(
+                        name, f"{name} applies to {' and '.join(KIND_PLURALS[k] for k in kinds_it_applies_to)} only, and this layout has none: "
                         f"leave {name} out; got {float(value):g}"
                     )
                 if np.ndim(value) > 0:  # given per thruster: the others' entries say "none"
                     wrong = other & (array != 0)
                     if np.any(wrong):
                         first = int(np.argmax(wrong))
-                        raise ValueError(
-                            f"{name} of {self.kinds[first]} {_short(self.names[first])!r} must be 0: {NOT_APPLICABLE[name]} "
+                        raise check.ParameterError(
+                            name, f"{name} of {self.kinds[first]} {_short(self.names[first])!r} must be 0: {NOT_APPLICABLE[name]} "
                             f"(give 0 for each {' and '.join(sorted(set(kind_array[other])))}, or one number for the {' and '.join(KIND_PLURALS[k] for k in kinds_it_applies_to)}); "
                             f"got {array[first]:g}"
                         )
@@ -211,8 +211,8 @@ class ThrusterLayout(eqx.Module):
         self._refuse("rudder_lift", self.rudder_lift < 0, self.rudder_lift, "must be non-negative")
         rank = np.linalg.matrix_rank(self.B)
         if rank < 3:
-            raise check.ParameterError(
-                "the", f"the thrusters ({_listed([repr(_short(n)) for n in self.names])}) span only {rank} of surge, sway and yaw: "
+            raise ValueError(
+                f"the thrusters ({_listed([repr(_short(n)) for n in self.names])}) span only {rank} of surge, sway and yaw: "
                 "a layout must be able to push in every direction and turn (check x, y, direction and rudder_lift)"
             )
 

@@ -101,16 +101,16 @@ def _model(passive: PassiveObserver, vessel: DPVessel) -> tuple[np.ndarray, np.n
     """M, D of ``vessel``, which must be the observer's model (F&S A1–A4)."""
     M, D = np.asarray(vessel.mass_matrix, float), np.asarray(vessel.damping_matrix, float)
     if np.any(np.asarray(vessel.stiffness_matrix) != 0):
-        raise check.ParameterError(
-            "the", "the vessel has a mooring stiffness K, which the observer's model lacks: the error "
+        raise ValueError(
+            "the vessel has a mooring stiffness K, which the observer's model lacks: the error "
             "dynamics are then not a linear system in the error alone"
         )
     if not (
         np.allclose(M, np.asarray(passive.mass_matrix), rtol=1e-12, atol=0.0)
         and np.allclose(D, np.asarray(passive.damping_matrix), rtol=1e-12, atol=1e-12 * np.abs(D).max())
     ):
-        raise check.ParameterError(
-            "the", "the observer's model M, D differs from the vessel's: the error dynamics are then not "
+        raise ValueError(
+            "the observer's model M, D differs from the vessel's: the error dynamics are then not "
             "a linear system in the error alone (they depend on the true state); build the observer "
             "for this vessel"
         )

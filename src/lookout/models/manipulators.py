@@ -108,8 +108,8 @@ def joint_groups(joint_names: tuple[str, ...], joint_kinds: tuple[str, ...]) -> 
         if groups and groups[-1][0] == kind:
             groups[-1][1].append(name)
         elif any(kind == seen for seen, _ in groups):
-            raise check.ParameterError(
-                "the", f"the {kind} joints must be contiguous (a Layout lays one signal per joint kind end to end); "
+            raise ValueError(
+                f"the {kind} joints must be contiguous (a Layout lays one signal per joint kind end to end); "
                 f"got joint_kinds {joint_kinds}: reorder the joints"
             )
         else:

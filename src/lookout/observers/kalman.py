@@ -152,24 +152,24 @@ def _state_vector(model: Plant, value, name: str, disturbance_size: int = 0, def
         parts = dict(value)
         extra = parts.pop(DISTURBANCE, None)
         if extra is not None and not disturbance_size:
-            raise ValueError(f"{name}: {DISTURBANCE} is for a filter with input_disturbance; this one estimates none")
+            raise check.ParameterError(check.key(name), f"{name}: {DISTURBANCE} is for a filter with input_disturbance; this one estimates none")
         if extra is None:
             if disturbance_size and default_disturbance is None:
-                raise ValueError(f"{name}: give {DISTURBANCE} too (one entry per input entry: {disturbance_size})")
+                raise check.ParameterError(check.key(name), f"{name}: give {DISTURBANCE} too (one entry per input entry: {disturbance_size})")
             extra = np.full(disturbance_size, default_disturbance if disturbance_size else 0.0)
         extra = np.asarray(extra, dtype=float)
         if disturbance_size and extra.shape not in ((), (disturbance_size,)):
-            raise ValueError(f"{name}: {DISTURBANCE} must have one entry per input entry ({disturbance_size}); got shape {extra.shape}")
+            raise check.ParameterError(check.key(name), f"{name}: {DISTURBANCE} must have one entry per input entry ({disturbance_size}); got shape {extra.shape}")
         extra = np.broadcast_to(extra, (disturbance_size,)) if disturbance_size else np.zeros(0)
         known = [key for key in inspect.signature(model.state).parameters]
         unknown = [key for key in parts if key not in known]
         if unknown:
-            raise ValueError(f"{name}: the plant's state has no part {unknown[0]!r} (its parts: {', '.join(known)}"
+            raise check.ParameterError(check.key(name), f"{name}: the plant's state has no part {unknown[0]!r} (its parts: {', '.join(known)}"
                              + (f", and {DISTURBANCE}" if disturbance_size else "") + ")")
         try:
             vector = np.concatenate([np.asarray(ravel_pytree(model.state(**parts))[0], dtype=float), extra])
         except (TypeError, ValueError) as error:
-            raise ValueError(f"{name}: {error}") from None
+            raise check.ParameterError(check.key(name), f"{name}: {error}") from None
     else:
         vector = np.asarray(value, dtype=float)
         if vector.shape != (size,):

@@ -266,7 +266,7 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     file = file.resolve()
     if not file.is_file():
         raise ValueError(f"plugin {text!r}: no such file" + ("" if str(file) == text else f" (looked for {file})"))
-    name = "lookout_plugin_" + "".join(c if c.isalnum() else "_" for c in str(file))
+    name = _plugin_module_name(file)
     if name in sys.modules:
         return name
     _ensure_loaded()
@@ -327,10 +327,21 @@ def default_kind(role: str) -> str | None:
     return DEFAULT_PART_KINDS.get(role)
 
 
-def kinds(role: str | None = None) -> list[Kind]:
-    """The registered kinds (of one role), role by role."""
+def kinds(role: str | None = None, *, plugins=None) -> list[Kind]:
+    """The registered kinds (of one role), role by role; with ``plugins`` (files or
+    modules, as a scenario's ``plugins`` gives them), of the plugin files only those
+    named (the kinds of lookout and of installed packages always)."""
     table = _kinds()
-    return [each for each_role in ROLES if role is None or each_role == role for each in table[each_role].values()]
+    found = [each for each_role in ROLES if role is None or each_role == role for each in table[each_role].values()]
+    if plugins is None:
+        return found
+    named = {_plugin_module_name(Path(p).resolve()) for p in plugins if str(p).endswith(".py")}
+    return [each for each in found if not each.module.startswith("lookout_plugin_") or each.module in named]
+
+
+def _plugin_module_name(file: Path) -> str:
+    """The module name a plugin file is imported under."""
+    return "lookout_plugin_" + "".join(c if c.isalnum() else "_" for c in str(file))
 
 
 def kind(role: str, name: str) -> Kind:

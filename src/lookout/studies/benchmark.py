@@ -528,12 +528,13 @@ def scenario_benchmark(path: Path, document: dict, text: str | None) -> Benchmar
     probe = Benchmark(BenchmarkSpec.model_construct(seed=simulation.seed, outage_signals=()), path.stem, source, text, base, (), True)
 
     # ---- the observers: every registered kind that composes on the file's plant and sensor
+    # (of plugin files, those the file names)
     same_model = False
     if shipped is not None:
         shipped_first = next(iter(shipped.spec.observers.values()))
         shipped_plant = compose(base_document(shipped, shipped.spec.quick, shipped_first)).document["plant"]
     tables: dict[str, dict] = {}
-    for each in registry.kinds("observer"):
+    for each in registry.kinds("observer", plugins=base.get("plugins", [])):
         given = next((t for t in shipped.spec.observers.values() if t["kind"] == each.name), None) if shipped is not None else None
         tables[each.name] = required_table(each.name, given)
 
