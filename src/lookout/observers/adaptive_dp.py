@@ -114,7 +114,7 @@ from lookout.components import ContinuousObserver, Layout, Signal
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
 from lookout.observers.start import from_first_measurement
 from lookout.sensors import POSITION_HEADING, POSITION_HEADING_VELOCITY
-from lookout.sim.integrators import rk4_step
+from lookout.sim.integrators import integrate_sample
 from lookout.scenario.declare import Part, Value, component, initial_values
 
 #: Kinds of unknown model entries and the letter of their names (m11, d23, k33).
@@ -628,14 +628,8 @@ class AdaptiveObserver(ContinuousObserver):
         """
         self._check_measurement(y)
         if not self.discrete:
-            h = dt / self.steps_per_sample
-
-            def field(time, s):
-                return self.vector_field(time, s, y, u)
-
-            for i in range(self.steps_per_sample):
-                state = self.normalize(rk4_step(field, t + i * h, state, h))
-            return state
+            field = lambda time, s: self.vector_field(time, s, y, u)
+            return integrate_sample(field, t, state, dt, self.steps_per_sample, normalize=self.normalize, normalize_each_step=True)
         valid = jnp.isfinite(y[:3])
         eta_prev = state.measured  # eta(i-1), a stand-in on missing channels
         psi = eta_prev[2]

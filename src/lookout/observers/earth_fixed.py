@@ -49,7 +49,6 @@ from __future__ import annotations
 from typing import final
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -61,7 +60,7 @@ from lookout.models.cybership import CYBERSHIP_SIGNALS, Cybership
 from lookout.models.vessel import VESSEL_INPUT
 from lookout.observers.start import from_first_measurement
 from lookout.sensors import POSITION_HEADING
-from lookout.sim.integrators import rk4_step
+from lookout.sim.integrators import integrate_sample
 import math
 from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Rule, Value, component, initial_values
 
@@ -250,24 +249,15 @@ class EarthFixedObserver(ContinuousObserver):
     def predict(self, estimate: EarthFixedEstimate, t, measurement: Array, tau: Array, dt) -> EarthFixedEstimate:
         """Advance over one sample with the measurement and tau held: ``steps_per_sample``
         RK4 or forward-Euler steps of (6); the heading of the result wrapped."""
-        steps = self.steps_per_sample
-        h = dt / steps
         heading = self.heading(estimate, measurement)
 
         def field(time, x):
             del time
             return self.rates(x, self.innovation(x, measurement), heading, tau)
 
-        def advance(i, state):
-            if self.method == "euler":
-                rate = field(t + i * h, state)
-                return EarthFixedEstimate(state.eta + h * rate.eta, state.zeta + h * rate.zeta)
-            return rk4_step(field, t + i * h, state, h)
-
-        # one step inline; more as a loop, so that the program (and its gradient, which
-        # tuning compiles) does not grow with steps_per_sample
-        state = advance(0, estimate) if steps == 1 else jax.lax.fori_loop(0, steps, advance, estimate)
-        return self.normalize(state)
+        # one step inline; more as a loop (unroll_limit=1), so that the program (and its
+        # gradient, which tuning compiles) does not grow with steps_per_sample
+        return integrate_sample(field, t, estimate, dt, self.steps_per_sample, method=self.method, normalize=self.normalize, unroll_limit=1)
 
     def normalize(self, estimate: EarthFixedEstimate) -> EarthFixedEstimate:
         """Heading of eta_hat wrapped to [-pi, pi)."""

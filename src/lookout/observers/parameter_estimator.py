@@ -77,7 +77,7 @@ from lookout.models.manipulators import JOINT_INPUT, PRISMATIC, REVOLUTE, joint_
 from lookout.models.parameters import AffineParameters
 from lookout.models.parameters import parameter_signal_name, parameter_signals
 from lookout.sensors import joint_state_layout
-from lookout.sim.integrators import rk4_step
+from lookout.sim.integrators import integrate_sample
 from lookout.scenario.declare import POSITIVE, Part, Value, component, initial_values
 
 #: Units of the generalized force per joint kind (the prediction error, tau_f).
@@ -337,15 +337,8 @@ class ParameterEstimator(ContinuousObserver):
     def predict(self, state: ParameterEstimatorState, t, y: Array, u: Array, dt) -> ParameterEstimatorState:
         """From t to t + dt with y and u held: ``steps_per_sample`` RK4 steps of :meth:`vector_field`."""
         state = self.update(state, t, y)
-        steps = self.steps_per_sample
-        h = dt / steps
-
-        def field(time, s):
-            return self.vector_field(time, s, y, u)
-
-        for i in range(steps):
-            state = rk4_step(field, t + i * h, state, h)
-        return state
+        field = lambda time, s: self.vector_field(time, s, y, u)
+        return integrate_sample(field, t, state, dt, self.steps_per_sample)
 
     # --- reading the results ---------------------------------------------------------
 

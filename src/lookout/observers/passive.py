@@ -46,7 +46,7 @@ from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, Vessel
 from lookout.sensors import POSITION_HEADING
 from lookout.observers.start import from_first_measurement
 from lookout.observers.wave_filtering import WaveFilterGains, WaveFilteringObserver
-from lookout.sim.integrators import rk4_step
+from lookout.sim.integrators import integrate_sample
 from lookout.scenario.declare import POSITIVE, Part, Rule, Value, component, initial_values
 
 #: The innovation y~ = y - y_hat (eq. 26), an extra output of the observer.
@@ -592,8 +592,6 @@ def predict_sample(observer, rates, estimate: VesselState, t, measurement: Array
     Shared by the passive observer and the sliding-mode observer of Kim (2002), which
     adds its switching term to the passive observer's rates.
     """
-    steps = observer.steps_per_sample
-    h = dt / steps
     if observer.hold == "innovation":
         y_tilde = observer.innovation(estimate, measurement)
 
@@ -611,7 +609,4 @@ def predict_sample(observer, rates, estimate: VesselState, t, measurement: Array
             del time
             return rates(x, observer.innovation(x, measurement), heading, tau)
 
-    state = estimate
-    for i in range(steps):
-        state = rk4_step(field, t + i * h, state, h)
-    return state.wrapped()
+    return integrate_sample(field, t, estimate, dt, observer.steps_per_sample, normalize=observer.normalize)

@@ -44,7 +44,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
 from lookout.models.manipulators import JOINT_INPUT, JOINT_MEASUREMENT, JOINT_VELOCITY, ManipulatorModel, joint_layout
-from lookout.sim.integrators import rk4_step
+from lookout.sim.integrators import integrate_sample
 from lookout.scenario.declare import POSITIVE, Part, Value, component, initial_values
 
 
@@ -187,12 +187,5 @@ class VelocityObserver(ContinuousObserver):
         continues from the last valid sample integrated by x1_hat.
         """
         state = VelocityObserverState(state.z, self._positions(state, y))
-        steps = self.steps_per_sample
-        h = dt / steps
-
-        def field(time, s):
-            return self.vector_field(time, s, y, u)
-
-        for i in range(steps):
-            state = rk4_step(field, t + i * h, state, h)
-        return state
+        field = lambda time, s: self.vector_field(time, s, y, u)
+        return integrate_sample(field, t, state, dt, self.steps_per_sample)
