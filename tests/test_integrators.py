@@ -139,8 +139,9 @@ def _observer_cases():
     from lookout.models.manipulators import FreePendulum, TwoLinkArm
     from lookout.models.parameters import ModelParameters
     from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper
-    from lookout.observers import (AdaptiveObserver, EarthFixedObserver, InertiaParametrization, PassiveObserver, SlidingModeObserver,
+    from lookout.observers import (AdaptiveObserver, EarthFixedObserver, InertiaParametrization, PassiveObserver,
                                    VelocityObserver, injection_gains_from_normalized)
+    from lookout.analysis.sliding_mode import kim_2002_observer
     from lookout.observers.parameter_estimator import ParameterEstimator
 
     vessel = northern_clipper()
@@ -156,7 +157,7 @@ def _observer_cases():
                                                         bias_time_constant=1000.0, steps_per_sample=n, hold=hold),
             vessel_guess, _vessel_measurements(count), tau, 0.25)
         cases[f"sliding mode, hold {hold}"] = (
-            lambda n, hold=hold: SlidingModeObserver.design(vessel, **waves, switching_gain=[10.0, 10.0, 0.01], boundary_layer=[5.0, 5.0, 0.02],
+            lambda n, hold=hold: kim_2002_observer(vessel, **waves, switching_gain=[10.0, 10.0, 0.01], boundary_layer=[5.0, 5.0, 0.02],
                                                             steps_per_sample=n, hold=hold),
             vessel_guess, _vessel_measurements(count), tau, 0.25)
     parametrization = InertiaParametrization(vessel, ("m11",), [0.5 * m11], [2.0 * m11])
