@@ -39,7 +39,7 @@ from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
 from lookout.observers.start import from_first_measurement
 from lookout.scenario.declare import POSITIVE, Part, Rule, Value, component, initial_values
 from lookout.sensors import POSITION_HEADING
-from lookout.sim.integrators import rk4_step
+from lookout.sim.integrators import integrate_sample
 
 
 class LuenbergerEstimate(eqx.Module):
@@ -187,10 +187,8 @@ class LuenbergerObserver(ContinuousObserver):
 
     def predict(self, estimate: LuenbergerEstimate, t, measurement: Array, tau: Array, dt) -> LuenbergerEstimate:
         """``steps_per_sample`` RK4 steps over the sample, measurement and tau held."""
-        h = dt / self.steps_per_sample
-        for step in range(self.steps_per_sample):
-            estimate = rk4_step(lambda time, x: self.vector_field(time, x, measurement, tau), t + step * h, estimate, h)
-        return self.normalize(estimate)
+        field = lambda time, x: self.vector_field(time, x, measurement, tau)  # noqa: E731
+        return integrate_sample(field, t, estimate, dt, self.steps_per_sample, normalize=self.normalize)
 
     def output(self, estimate: LuenbergerEstimate, measurement: Array) -> dict[str, Array]:
         """The estimates by name."""
