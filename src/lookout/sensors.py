@@ -24,6 +24,14 @@ from lookout.components import EARTH_FIXED, Layout, Outage, Sensor, Signal
 from lookout.models.vessel import EARTH_AXES, VesselState
 
 
+#: The keys of a sensor's outage, the same for every sensor.
+OUTAGE_VALUES = (
+    Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
+    Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
+    Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+)
+
+
 def outage_of(layout: Layout, signals, start, duration) -> Outage | None:
     """The :class:`~lookout.components.Outage` of ``signals`` (names of ``layout``'s
     signals) over ``[start, start + duration)``; None without signals."""
@@ -61,9 +69,7 @@ POSITION_HEADING = Layout(
         Value("noise_std", "array", "Standard deviation of d per channel (m, m, rad).", shape="(3,)", range=NON_NEGATIVE),
         Value("sample_period", "array", "Seconds between samples of each channel (s; static: fixes the loop structure).", shape="(3,)", range=POSITIVE),
         Value("dropout_probability", "float", "Probability that a sample of a channel is missing (1).", range=Range(0.0, 1.0, True, False)),
-        Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
-        Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
-        Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+        *OUTAGE_VALUES,
     ),
 )
 @final
@@ -148,9 +154,7 @@ from lookout.models.manipulators import JOINT_MEASUREMENT, JointState, Manipulat
         Value("noise_std", "array", "Standard deviation of the measurement noise per joint (rad or m), >= 0.", shape="(n,)"),
         Value("quantization", "array", "Resolution per joint (rad or m), >= 0; 0 means none.", shape="(n,)"),
         Value("dropout_probability", "float", "Probability that a sample of a channel is missing (0 <= p < 1)."),
-        Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
-        Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
-        Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+        *OUTAGE_VALUES,
     ),
 )
 @final
@@ -273,9 +277,7 @@ POSITION_HEADING_VELOCITY = Layout(
         Value("noise_std", "array", "Standard deviation per channel (m, m, rad, m/s, m/s, rad/s), >= 0.", shape="(6,)"),
         Value("sample_period", "array", "Seconds between samples of each channel (static).", shape="(6,)"),
         Value("dropout_probability", "float", "Probability that a sample of a channel is missing (0 <= p < 1)."),
-        Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
-        Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
-        Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+        *OUTAGE_VALUES,
     ),
 )
 @final
@@ -383,9 +385,7 @@ def joint_state_layout(model: ManipulatorModel) -> Layout:
         Value("sample_period", "array", "Seconds between samples of each channel (q channels first, then q').", shape="(2n,)"),
         Value("noise_std", "array", "Standard deviation of the measurement noise per channel (rad or m, then rad/s or m/s), >= 0.", shape="(2n,)"),
         Value("dropout_probability", "float", "Probability that a sample of a channel is missing (0 <= p < 1)."),
-        Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
-        Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
-        Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
+        *OUTAGE_VALUES,
     ),
 )
 @final

@@ -47,8 +47,8 @@ from lookout import _validation as check
 from lookout._math import matvec, rotate_transpose, ssa
 from lookout.components import Controller
 from lookout.models.cybership import Cybership, skew
-import math
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Rule, Value, component
+from lookout.observers.earth_fixed import WONDERGEM_RULE_VALUES
+from lookout.scenario.declare import POSITIVE, Part, Rule, Value, component
 
 
 def _vector(values: dict, first: str, second: str) -> Array:
@@ -83,18 +83,7 @@ def reference_velocity(reference: dict) -> tuple[Array, Array, Array]:
         )),
         "wondergem-2009": Rule("design", (
             Part("ship", "The controller's model (M, C, D, D_n); in a composition, the plant's ship model (else the observer's) unless given."),
-            Value("reference_position", "array", "eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.", shape="(3,)"),
-            Value("reference_velocity", "array", "nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.", shape="(3,)"),
-            Value("reference_yaw_rate_max", "float", "r_ref^max, the largest |r_ref| of the reference (rad/s).", range=NON_NEGATIVE),
-            Value("reference_speed_max", "float", "sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).", range=NON_NEGATIVE),
-            Value("reference_acceleration_max", "float", "sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.", range=NON_NEGATIVE),
-            Value("start_position", "array", "eta(0): the ship's initial position north, east (m) and heading (rad).", shape="(3,)"),
-            Value("start_velocity", "array", "nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).", shape="(3,)"),
-            Value("estimate_position", "array", "eta_hat(0), the observer's initial position estimate (m, m, rad); default start_position, the estimate started at the measurement.", shape="(3,)"),
-            Value("estimate_velocity", "array", "v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).", shape="(3,)"),
-            Value("damping_ratio", "float", "lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).", range=POSITIVE),
-            Value("velocity_bound", "float", "V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).", range=NON_NEGATIVE),
-            Value("margin", "float", "Factor by which L1 and L2 exceed their largest lower bound (1).", range=Range(1.0, math.inf, False, False)),
+            *WONDERGEM_RULE_VALUES,
         )),
     },
 )

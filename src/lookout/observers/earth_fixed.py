@@ -104,6 +104,24 @@ def _gain(name: str, value) -> Array:
     return jnp.asarray(check.vector(name, array))
 
 
+#: The keys of the ``wondergem-2009`` rules of the Earth-fixed observer and the tracking
+#: controller: both take the same reference and start (the observer is built before the reference).
+WONDERGEM_RULE_VALUES = (
+    Value("reference_position", "array", "eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.", shape="(3,)"),
+    Value("reference_velocity", "array", "nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.", shape="(3,)"),
+    Value("reference_yaw_rate_max", "float", "r_ref^max, the largest |r_ref| of the reference (rad/s).", range=NON_NEGATIVE),
+    Value("reference_speed_max", "float", "sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).", range=NON_NEGATIVE),
+    Value("reference_acceleration_max", "float", "sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.", range=NON_NEGATIVE),
+    Value("start_position", "array", "eta(0): the ship's initial position north, east (m) and heading (rad).", shape="(3,)"),
+    Value("start_velocity", "array", "nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).", shape="(3,)"),
+    Value("estimate_position", "array", "eta_hat(0), the observer's initial position estimate (m, m, rad); default start_position, the estimate started at the measurement.", shape="(3,)"),
+    Value("estimate_velocity", "array", "v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).", shape="(3,)"),
+    Value("damping_ratio", "float", "lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).", range=POSITIVE),
+    Value("velocity_bound", "float", "V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).", range=NON_NEGATIVE),
+    Value("margin", "float", "Factor by which L1 and L2 exceed their largest lower bound (1).", range=Range(1.0, math.inf, False, False)),
+)
+
+
 @component(
     "observer", "earth-fixed",
     summary="The observer (6) of Wondergem et al. (2009) for a Cybership model.",
@@ -119,18 +137,7 @@ def _gain(name: str, value) -> Array:
         )),
         "wondergem-2009": Rule("lookout.analysis.tracking:wondergem_2009_observer", (
             Part("ship", "The observer's model (M, D and D_n); in a composition, the plant's unless given."),
-            Value("reference_position", "array", "eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.", shape="(3,)"),
-            Value("reference_velocity", "array", "nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.", shape="(3,)"),
-            Value("reference_yaw_rate_max", "float", "r_ref^max, the largest |r_ref| of the reference (rad/s).", range=NON_NEGATIVE),
-            Value("reference_speed_max", "float", "sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).", range=NON_NEGATIVE),
-            Value("reference_acceleration_max", "float", "sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.", range=NON_NEGATIVE),
-            Value("start_position", "array", "eta(0): the ship's initial position north, east (m) and heading (rad).", shape="(3,)"),
-            Value("start_velocity", "array", "nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).", shape="(3,)"),
-            Value("estimate_position", "array", "eta_hat(0), the observer's initial position estimate (m, m, rad); default start_position, the estimate started at the measurement.", shape="(3,)"),
-            Value("estimate_velocity", "array", "v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).", shape="(3,)"),
-            Value("damping_ratio", "float", "lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).", range=POSITIVE),
-            Value("velocity_bound", "float", "V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).", range=NON_NEGATIVE),
-            Value("margin", "float", "Factor by which L1 and L2 exceed their largest lower bound (1).", range=Range(1.0, math.inf, False, False)),
+            *WONDERGEM_RULE_VALUES,
             Value("steps_per_sample", "int", "Integration steps of the observer's predict per sample."),
             Value("method", "str", "How the observer's predict integrates (6) between samples.", choices=('rk4', 'euler')),
             Value("initial_velocity", "str", "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).", choices=('estimate', 'state')),

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from lookout.scenario import declare
-from lookout.scenario.declare import ROLES, Context, Declaration, Part, Range, Value
+from lookout.scenario.declare import ROLES, Declaration, Part, Range, Value
 
 #: The modules whose declarations are lookout's own kinds, in the order each role's
 #: kinds are listed (the first kind of a role is its default).
