@@ -93,6 +93,14 @@ def test_a_plugin_that_redeclares_a_kind_a_file_that_fails_and_a_missing_file_ar
         compose({"plugins": [str(broken)], "preset": "fossen-strand-1999"})
     with pytest.raises(CompositionError, match=r"plugins\[0\]: plugin 'nowhere.py': no such file"):
         compose({"plugins": ["nowhere.py"], "preset": "fossen-strand-1999"})
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not python")
+    with pytest.raises(CompositionError, match=r"plugins\[0\]: plugin '.*notes.txt': must be a Python file \(.py\) or a module's dotted name; got a .txt"):
+        compose({"plugins": [str(notes)], "preset": "fossen-strand-1999"})
+    with pytest.raises(CompositionError, match=r"plugins\[0\]: plugin 'no such module': must be a Python file \(.py\) or a module's dotted name"):
+        compose({"plugins": ["no such module"], "preset": "fossen-strand-1999"})
+    with pytest.raises(CompositionError, match=r"plugins\[0\]: plugin 'no_such_package.observers': no such module"):
+        compose({"plugins": ["no_such_package.observers"], "preset": "fossen-strand-1999"})
     with pytest.raises(CompositionError, match="plugins: must be an array of Python files or module names"):
         compose({"plugins": "luenberger.py", "preset": "fossen-strand-1999"})
 

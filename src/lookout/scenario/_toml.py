@@ -109,7 +109,8 @@ def _with_plugins_resolved(document: dict, folder: Path) -> dict:
     the file that names them); a module's dotted name stays as it is."""
     plugins = document.get("plugins")
     if isinstance(plugins, list):
-        document["plugins"] = [str((folder / each).resolve()) if isinstance(each, str) and each.endswith(".py") else each for each in plugins]
+        document["plugins"] = [str((folder / each).resolve()) if isinstance(each, str) and (each.endswith(".py") or "/" in each or (folder / each).exists())
+                               else each for each in plugins]
     return document
 
 

@@ -255,17 +255,30 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     name (``my_package.observers``) is imported as a module. Returns the module's name.
     """
     text = str(path)
-    if not text.endswith(".py") and "/" not in text and "\\" not in text:
+    file = Path(text) if base is None or Path(text).is_absolute() else Path(base) / text
+    if not (text.endswith(".py") or "/" in text or "\\" in text or file.exists()):
+        if not all(part.isidentifier() for part in text.split(".")):
+            raise ValueError(f"plugin {text!r}: must be a Python file (.py) or a module's dotted name")
         if text not in sys.modules:
+            _ensure_loaded()
+            before = len(declare.DECLARED)
             try:
                 importlib.import_module(text)
-            except ImportError as error:
+                _index(len(declare.DECLARED), id(declare.DECLARED[-1]))  # a kind declared twice is refused here
+            except ModuleNotFoundError as error:
+                del declare.DECLARED[before:]
                 raise ValueError(f"plugin {text!r}: no such module ({error})") from None
+            except Exception as error:
+                del declare.DECLARED[before:]
+                sys.modules.pop(text, None)
+                reason = str(error) if "declared twice" in str(error) else f"does not import: {type(error).__name__}: {error}"
+                raise ValueError(f"plugin {text!r}: {reason}") from None
         return text
-    file = Path(path) if base is None or Path(path).is_absolute() else Path(base) / path
     file = file.resolve()
     if not file.is_file():
         raise ValueError(f"plugin {text!r}: no such file" + ("" if str(file) == text else f" (looked for {file})"))
+    if file.suffix != ".py":
+        raise ValueError(f"plugin {text!r}: must be a Python file (.py) or a module's dotted name; got a {file.suffix or 'file without a suffix'}")
     name = _plugin_module_name(file)
     if name in sys.modules:
         return name
