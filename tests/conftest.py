@@ -1,4 +1,5 @@
 import os
+import sys
 
 # Tests compile far more than they run: LLVM at -O0 compiles XLA:CPU programs faster,
 # and the whole suite went from 9 min 34 s to 7 min 15 s on 2 cores (every test passes
@@ -47,6 +48,20 @@ def paper_observer():
         bias_injection_gain=lam,
         bias_time_constant=1000.0,
     )
+
+
+@pytest.fixture(autouse=True)
+def _registry_as_it_was():
+    """The kinds a test registers (a plugin it loads) are unregistered after it, with the
+    modules that declared them: the other tests on this worker enumerate the kinds."""
+    from lookout.scenario import declare, registry
+
+    registry.kinds()  # lookout's own kinds, once
+    count = len(declare.DECLARED)
+    yield
+    for each in declare.DECLARED[count:]:
+        sys.modules.pop(each.module, None)
+    del declare.DECLARED[count:]
 
 
 @pytest.fixture

@@ -22,21 +22,6 @@ from lookout.scenario.file import load
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
-@pytest.fixture(autouse=True)
-def _registry_as_it_was():
-    """Each test's plugins leave the registry as they found it (other tests on this
-    worker enumerate the registered kinds)."""
-    import sys
-
-    from lookout.scenario import declare
-
-    registry.kinds()
-    count, modules = len(declare.DECLARED), set(sys.modules)
-    yield
-    del declare.DECLARED[count:]
-    for name in set(sys.modules) - modules:
-        if name.startswith("lookout_plugin_") or name == "vendor_observers":
-            del sys.modules[name]
 PLUGIN = EXAMPLES / "plugins" / "luenberger.py"
 
 

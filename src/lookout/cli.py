@@ -712,7 +712,7 @@ def main(argv: list[str] | None = None) -> int:
     command = typer.main.get_command(app)
     from lookout.cli_design import route
 
-    argv = route(list(sys.argv[1:] if argv is None else argv), set(typer.main.get_command(design_app).commands))
+    argv = route(list(sys.argv[1:] if argv is None else argv), set(command.commands["design"].commands))
     try:
         use_compilation_cache()  # a second run of the same file loads what the first compiled
         # without standalone mode, click returns the code of a typer.Exit raised by a command

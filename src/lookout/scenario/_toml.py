@@ -107,10 +107,11 @@ def read(path: str | Path) -> tuple[dict, str]:
 def _with_plugins_resolved(document: dict, folder: Path) -> dict:
     """The document with its ``plugins`` file paths made absolute (they are relative to
     the file that names them); a module's dotted name stays as it is."""
+    from lookout.scenario.registry import plugin_file
+
     plugins = document.get("plugins")
     if isinstance(plugins, list):
-        document["plugins"] = [str((folder / each).resolve()) if isinstance(each, str) and (each.endswith(".py") or "/" in each or (folder / each).exists())
-                               else each for each in plugins]
+        document["plugins"] = [str(file) if isinstance(each, str) and (file := plugin_file(each, folder)) is not None else each for each in plugins]
     return document
 
 

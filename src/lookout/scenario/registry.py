@@ -233,20 +233,42 @@ def _ensure_loaded() -> None:
     load_entry_points()
 
 
+class DuplicateKindError(ValueError):
+    """Two declarations of one kind of one role."""
+
+
+def _import_declaring(load, what: str, module: str) -> None:
+    """``load()`` (an import that may declare kinds), kept only when it imports and
+    declares no kind twice; else its declarations and ``module`` are dropped and a
+    ValueError says why, beginning with ``what``."""
+    before = len(declare.DECLARED)
+    try:
+        load()
+        if len(declare.DECLARED) > before:
+            _index(len(declare.DECLARED), id(declare.DECLARED[-1]))
+    except Exception as error:
+        del declare.DECLARED[before:]
+        sys.modules.pop(module, None)
+        reason = f": {error}" if isinstance(error, DuplicateKindError) else f" does not import: {type(error).__name__}: {error}"
+        raise ValueError(what + reason) from None
+
+
 def load_entry_points() -> None:
     """Import the modules installed packages name under :data:`ENTRY_POINT_GROUP` (each
     once), so that their declarations are registered."""
     for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
         module = entry.value.partition(":")[0]
-        if module in sys.modules:
-            continue
-        before = len(declare.DECLARED)
-        try:
-            importlib.import_module(module)
-        except Exception as error:
-            del declare.DECLARED[before:]
-            raise ValueError(f"the package entry point {entry.name} = {entry.value!r} (group {ENTRY_POINT_GROUP}) "
-                             f"does not import: {type(error).__name__}: {error}") from None
+        if module not in sys.modules:
+            _import_declaring(lambda: importlib.import_module(module), f"the package entry point {entry.name} = {entry.value!r} "
+                              f"(group {ENTRY_POINT_GROUP})", module)
+
+
+def plugin_file(text: str, base: str | Path | None = None) -> Path | None:
+    """The file a plugin entry names (relative to ``base``), or None for a module's dotted
+    name: an entry is a file when it ends in ``.py``, holds a path separator, or names a
+    file that exists."""
+    file = Path(text) if base is None or Path(text).is_absolute() else Path(base) / text
+    return file.resolve() if text.endswith(".py") or "/" in text or "\\" in text or file.exists() else None
 
 
 def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
@@ -255,46 +277,34 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     name (``my_package.observers``) is imported as a module. Returns the module's name.
     """
     text = str(path)
-    file = Path(text) if base is None or Path(text).is_absolute() else Path(base) / text
-    if not (text.endswith(".py") or "/" in text or "\\" in text or file.exists()):
+    file = plugin_file(text, base)
+    _ensure_loaded()
+    if file is None:
         if not all(part.isidentifier() for part in text.split(".")):
             raise ValueError(f"plugin {text!r}: must be a Python file (.py) or a module's dotted name")
         if text not in sys.modules:
-            _ensure_loaded()
-            before = len(declare.DECLARED)
             try:
-                importlib.import_module(text)
-                _index(len(declare.DECLARED), id(declare.DECLARED[-1]))  # a kind declared twice is refused here
-            except ModuleNotFoundError as error:
-                del declare.DECLARED[before:]
-                raise ValueError(f"plugin {text!r}: no such module ({error})") from None
-            except Exception as error:
-                del declare.DECLARED[before:]
-                sys.modules.pop(text, None)
-                reason = str(error) if "declared twice" in str(error) else f"does not import: {type(error).__name__}: {error}"
-                raise ValueError(f"plugin {text!r}: {reason}") from None
+                found = importlib.util.find_spec(text) is not None
+            except ModuleNotFoundError:
+                found = False
+            if not found:
+                raise ValueError(f"plugin {text!r}: no such module")
+            _import_declaring(lambda: importlib.import_module(text), f"plugin {text!r}", text)
         return text
-    file = file.resolve()
     if not file.is_file():
         raise ValueError(f"plugin {text!r}: no such file" + ("" if str(file) == text else f" (looked for {file})"))
     if file.suffix != ".py":
         raise ValueError(f"plugin {text!r}: must be a Python file (.py) or a module's dotted name; got a {file.suffix or 'file without a suffix'}")
     name = _plugin_module_name(file)
-    if name in sys.modules:
-        return name
-    _ensure_loaded()
-    spec = importlib.util.spec_from_file_location(name, file)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    before = len(declare.DECLARED)
-    try:
-        spec.loader.exec_module(module)
-        _index(len(declare.DECLARED), id(declare.DECLARED[-1]))  # a kind declared twice is refused here
-    except Exception as error:
-        del sys.modules[name]
-        del declare.DECLARED[before:]
-        reason = str(error) if isinstance(error, ValueError) and "declared twice" in str(error) else f"does not import: {type(error).__name__}: {error}"
-        raise ValueError(f"plugin {text!r}: {reason}" if "declared twice" in reason else f"plugin {text!r} {reason}") from None
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, file)
+        module = importlib.util.module_from_spec(spec)
+
+        def load():
+            sys.modules[name] = module
+            spec.loader.exec_module(module)
+
+        _import_declaring(load, f"plugin {text!r}", name)
     return name
 
 
@@ -309,7 +319,7 @@ def _index(count: int, last: int = 0) -> dict[str, dict[str, Kind]]:
         known = found[each.role]
         if each.kind in known:
             first = _where(known[each.kind].declaration.module)
-            raise ValueError(f"{each.role} kind {each.kind!r} is declared twice: by {first} and by {_where(each.module)}")
+            raise DuplicateKindError(f"{each.role} kind {each.kind!r} is declared twice: by {first} and by {_where(each.module)}")
         known[each.kind] = Kind(each.role, each.kind, each)
     return found
 
@@ -348,7 +358,7 @@ def kinds(role: str | None = None, *, plugins=None) -> list[Kind]:
     found = [each for each_role in ROLES if role is None or each_role == role for each in table[each_role].values()]
     if plugins is None:
         return found
-    named = {_plugin_module_name(Path(p).resolve()) for p in plugins if str(p).endswith(".py")}
+    named = {_plugin_module_name(file) for each in plugins if (file := plugin_file(str(each))) is not None}
     return [each for each in found if not each.module.startswith("lookout_plugin_") or each.module in named]
 
 
@@ -388,8 +398,9 @@ def _type_text(each, default, annotation_class) -> str:
             text = {"array": "array_like", "strings": "sequence of str", "parts": "array_like or table"}.get(each.type, each.type)
         if each.shape:
             text += f", shape {each.shape}"
-        if each.range is not None:
-            text += f", {each.range.words()}" if each.range.words()[0] != "i" or each.type != "float" else f" {each.range.words()}"
+        if each.range is not None:  # "float in [0, 1)", "array_like, shape (3,), positive"
+            words = each.range.words()
+            text += f" {words}" if each.type == "float" and words.startswith("in ") else f", {words}"
         return text + (", optional" if default is None else "")
     if isinstance(each, Part):
         text = annotation_class.__name__ if isinstance(annotation_class, type) else f"a {each.role or each.name} table"
