@@ -550,16 +550,20 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
             accumulated, series = summary.update(accumulated, index, record)
             return (carry, accumulated), series
         # one flat vector per record: a single write per record instead of one per leaf
-        return carry, ravel_pytree(record)[0]
+        flat, unravel = ravel_pytree(record)
+        unravels.append(unravel)
+        return carry, flat
 
-    template = jax.eval_shape(lambda c: one(c, jnp.asarray(0))[1], carry)
     indices = first_record + jnp.arange(n_records)
     if summary is not None:
+        template = jax.eval_shape(lambda c: one(c, jnp.asarray(0))[1], carry)
         (carry, accumulated), series = jax.lax.scan(group, (carry, summary.init(template)), indices)
         return carry, (accumulated, series)
-    unravel = ravel_pytree(jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), template))[1]
+    # the record's structure comes out of the scan body's one trace (an unravel holds
+    # shapes and dtypes, no tracer): a sample is traced once, not again for its shapes
+    unravels: list = []
     carry, flat = jax.lax.scan(group, carry, indices)
-    return carry, jax.vmap(unravel)(flat)
+    return carry, jax.vmap(unravels[-1])(flat)
 
 
 _segment_jit = eqx.filter_jit(_segment)
