@@ -39,16 +39,26 @@ def test_the_scenario_of_the_papers_observer_gives_the_passive_observer_commands
 def test_kims_printed_gains_fail_14_and_the_proposed_gains_pass_when_written_into_the_file(capsys, tmp_path):
     code, report = _design(capsys, EXAMPLES / "kim-closed-loop.toml", "--json")
     assert code == 1 and report["verdicts"]["kyp_14"] != "holds"
-    code, proposal = _design(capsys, EXAMPLES / "kim-closed-loop.toml", "--propose", "--json")
-    assert code == 0 and proposal["holds"]
+    code, proposed_json = _design(capsys, EXAMPLES / "kim-closed-loop.toml", "--propose", "--json")
+    # the verdict and exit code are the file's; the proposal's are apart
+    assert code == 1 and not proposed_json["holds"] and proposed_json["verdicts"] == report["verdicts"]
+    proposal = proposed_json["proposal"]
+    assert proposal["holds"]
     document = tomllib.loads((EXAMPLES / "kim-closed-loop.toml").read_text())
-    for component in proposal["inputs"]["components"]:
+    for component in proposed_json["inputs"]["components"]:
         for key, value in component["proposed"].items():
             set_path(document, key, value)
     proposed = tmp_path / "proposed.toml"
     proposed.write_text(_toml(document))
     code, again = _design(capsys, proposed, "--json")
     assert code == 0 and again["verdicts"] == proposal["verdicts"]
+
+
+def test_propose_on_a_failing_file_prints_the_files_verdict_first_and_exits_1(capsys):
+    code, text = _design(capsys, EXAMPLES / "kim-closed-loop.toml", "--propose")
+    file_verdict = text.index("verdict of ")
+    proposal_verdict = text.index("verdict with the proposed gains: passes")
+    assert code == 1 and "FAILS (exit code 1)" in text[file_verdict:proposal_verdict] and file_verdict < proposal_verdict
 
 
 def _toml(document: dict) -> str:

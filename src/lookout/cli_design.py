@@ -26,10 +26,12 @@ def design_scenario(
     own plant, gains and sea: the observer's and the controller's (lookout components
     KIND says which kinds have them).
 
-    Exit code 0 when every condition holds, 1 when one fails (the report or JSON is
-    still printed), 2 for bad input.
+    With --propose, the proposed gains and their conditions follow the file's, apart
+    (JSON: under "proposal"). Exit code, always the file's own gains': 0 when every
+    condition holds, 1 when one fails (the report or JSON is still printed), 2 for bad
+    input.
     """
-    from lookout.design import combined, component_designs
+    from lookout.design import combined, combined_proposal, component_designs
     from lookout.scenario._toml import FileError
     from lookout.scenario.file import load
 
@@ -43,21 +45,32 @@ def design_scenario(
     except ValueError as error:
         raise InputError(f"{scenario}: {error}") from None
     report = combined(designs, str(scenario))
+    proposal = combined_proposal(designs, str(scenario))
+    code = 0 if report.holds else 1
     inputs = {
         "scenario": str(scenario), "propose": propose,
         "components": [{"role": d.role, "kind": d.kind, **({"proposed": d.proposed} if d.proposed is not None else {})} for d in designs],
     }
     if as_json:
-        print(json.dumps(json_safe({"design": "scenario", "inputs": inputs, **report.to_dict()}), allow_nan=False))
+        document = {"design": "scenario", "inputs": inputs, **report.to_dict()}
+        if proposal is not None:
+            document["proposal"] = proposal.to_dict()
+        print(json.dumps(json_safe(document), allow_nan=False))
     else:
         for line in report.lines():
             console.print(line, highlight=False, markup=False)
         if not designs:
             console.print(f"{scenario}: none of its components ({', '.join(f'{r} {k}' for r, k in composition.kinds.items())}) declares conditions",
                           highlight=False, markup=False)
-        console.print(f"verdict: {DESIGN_VERDICTS[report.verdict]} (exit code {0 if report.holds else 1})", highlight=False, markup=False)
-    if not report.holds:
-        raise typer.Exit(code=1)
+        console.print(f"verdict of {scenario}: {DESIGN_VERDICTS[report.verdict]} (exit code {code})", highlight=False, markup=False)
+        if proposal is not None:
+            console.print("", highlight=False)
+            for line in proposal.lines():
+                console.print(line, highlight=False, markup=False)
+            console.print(f"verdict with the proposed gains: {DESIGN_VERDICTS[proposal.verdict]} (write them into {scenario} to use them; "
+                          f"the exit code is the file's)", highlight=False, markup=False)
+    if code:
+        raise typer.Exit(code=code)
 
 
 def register(design_app: typer.Typer) -> None:

@@ -27,20 +27,23 @@ CHECKED_ROLES = ("observer", "controller")
 
 @dataclass(frozen=True)
 class ComponentDesign:
-    """One component's conditions: its role and kind, the report, and (with a proposal)
-    the gains proposed, file key -> value."""
+    """One component's conditions: its role and kind, the report at the file's own
+    gains, and (with a proposal) the gains proposed, file key -> value, with the report
+    at those gains (``proposal``)."""
 
     role: str
     kind: str
     report: Report
     proposed: dict | None = None
+    proposal: Report | None = None
 
 
 def component_designs(composition: Composition, *, propose: bool = False) -> list[ComponentDesign]:
     """The conditions of each component of ``composition`` whose kind declares any (see
     the module docstring); with ``propose``, the gains a family proposes and the
     conditions at them. A component whose family has no gains inside its conditions is
-    reported with the reason as a note."""
+    reported with the reason as a note. ``report`` is always the file's own gains';
+    the proposal's conditions are ``proposal``, apart."""
     from lookout.tuning.families import build, start
 
     scenario = composition.scenario
@@ -53,34 +56,48 @@ def component_designs(composition: Composition, *, propose: bool = False) -> lis
         if kind.family is None:
             continue
         family = registry.resolve(kind.family).of(scenario)
+        report = family.check(build(family, scenario, family.current(scenario)))
         if not propose:
-            found.append(ComponentDesign(role, kind.name, family.check(build(family, scenario, family.current(scenario)))))
+            found.append(ComponentDesign(role, kind.name, report))
             continue
         try:
             gains = start(family, scenario)
         except ValueError as error:
-            report = family.check(build(family, scenario, family.current(scenario)))
             found.append(ComponentDesign(role, kind.name, report.extended(notes=[f"no gains proposed: {error}"]), {}))
             continue
         proposed = {key: _plain(value) for key, value in zip(family.keys, gains)}
-        found.append(ComponentDesign(role, kind.name, family.check(build(family, scenario, gains)), proposed))
+        found.append(ComponentDesign(role, kind.name, report, proposed, family.check(build(family, scenario, gains))))
     return found
 
 
 def combined(designs: list[ComponentDesign], source: str) -> Report:
-    """The designs as one report (each condition keyed by its component), for one verdict."""
+    """The designs at the file's own gains as one report (each condition keyed by its
+    component), for the file's verdict."""
     if not designs:
         return Report(f"{source}: no component with conditions", [])
+    return _joined([(each, each.report) for each in designs], f" in {source}")
+
+
+def combined_proposal(designs: list[ComponentDesign], source: str) -> Report | None:
+    """The conditions with the proposed gains in place of the file's (a component without
+    a proposal keeps its file's report) as one report, or None when nothing was proposed."""
+    if not any(each.proposed for each in designs):
+        return None
+    report = _joined([(each, each.proposal if each.proposed else each.report) for each in designs], f" in {source} with the proposed gains")
+    notes = [f"{each.role} {each.kind} proposed: " + "; ".join(f"{key} = {value}" for key, value in each.proposed.items())
+             for each in designs if each.proposed]
+    return report.extended(notes=notes)
+
+
+def _joined(reports: list[tuple[ComponentDesign, Report]], where: str) -> Report:
     conditions, quantities, summary, notes = [], {}, [], []
-    for each in designs:
-        summary.append(f"{each.role} {each.kind}: {each.report.title}")
-        conditions.extend(each.report.conditions)
-        quantities[each.role] = each.report.quantities
-        summary.extend(each.report.summary)
-        notes.extend(each.report.notes)
-        if each.proposed:
-            notes.append(f"{each.role} {each.kind} proposed: " + "; ".join(f"{key} = {value}" for key, value in each.proposed.items()))
-    return Report("; ".join(f"{each.role} {each.kind}" for each in designs) + f" in {source}", conditions, quantities, summary, notes)
+    for each, report in reports:
+        summary.append(f"{each.role} {each.kind}: {report.title}")
+        conditions.extend(report.conditions)
+        quantities[each.role] = report.quantities
+        summary.extend(report.summary)
+        notes.extend(report.notes)
+    return Report("; ".join(f"{each.role} {each.kind}" for each, _ in reports) + where, conditions, quantities, summary, notes)
 
 
 def _plain(value):
@@ -90,4 +107,4 @@ def _plain(value):
     return float(rounded) if array.ndim == 0 else rounded.tolist()
 
 
-__all__ = ["CHECKED_ROLES", "ComponentDesign", "combined", "component_designs"]
+__all__ = ["CHECKED_ROLES", "ComponentDesign", "combined", "combined_proposal", "component_designs"]
