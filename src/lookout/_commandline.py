@@ -40,6 +40,12 @@ COMPILATION_CACHE_MAX_BYTES = 1_000_000_000
 COMPILATION_CACHE_MIN_COMPILE_SECONDS = 0.0
 
 
+#: The exit code of ``lookout run``, ``reproduce``, ``replay`` and ``live`` when a run
+#: failed (status ``diverged``: a non-finite estimate or truth, or an error beyond the
+#: divergence limit); 1 is a condition that fails (``lookout design``) or a failed write,
+#: 2 bad input.
+DIVERGED_EXIT_CODE = 3
+
 def writable_folder(option: str, folder: Path, what: str) -> None:
     """Fail unless ``folder`` can be written into: it exists and is writable, or its
     nearest existing ancestor is a writable folder (every output's missing parent

@@ -34,7 +34,7 @@ At sample k, time t_k::
 # refuses them as strings (a stringified one would silently become an ordinary field)
 import abc
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar, NamedTuple
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -148,14 +148,27 @@ class Layout:
         return Layout(tuple(s.renamed(f"{prefix}{s.name}{suffix}", f"{long_prefix}{s.long_name}") for s in self.signals))
 
 
+class DivergenceBound(NamedTuple):
+    """When a run has failed: the estimation or tracking error of the plant variable
+    ``signal`` beyond ``limit`` (in the signal's units) at any record. A non-finite truth
+    or estimate is a failed run whatever the bound."""
+
+    signal: str
+    limit: float
+
+
 class Plant(eqx.Module):
     """A continuous-time plant ``dx/dt = f(t, x, u, w)``.
 
     ``x`` is any PyTree, ``u`` a flat input vector laid out as :attr:`input_layout`,
     ``w`` unit white noise of size :attr:`noise_size` (held over an integration step;
     the engine scales it by ``1/sqrt(step)``).
+
+    :attr:`divergence` is the plant kind's :class:`DivergenceBound`, the default of
+    ``[simulation] divergence`` (None: only a non-finite truth or estimate is a failed run).
     """
 
+    divergence: ClassVar[DivergenceBound | None] = None
     input_layout: eqx.AbstractVar[Layout]
     noise_size: eqx.AbstractVar[int]
     variable_signals: eqx.AbstractVar[tuple[Signal, ...]]

@@ -34,6 +34,7 @@ from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.ticker import NullLocator  # noqa: E402
 
 from lookout._math import ssa  # noqa: E402
+from lookout.results import limited as limited_input  # noqa: E402
 
 # --------------------------------------------------------------------------- estimates
 
@@ -911,10 +912,7 @@ def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: 
         panels = []
         for label in _labels(ds[commanded]):
             wanted, got = _run_values(ds[commanded], label, run), _run_values(ds[applied], label, run)
-            finite = np.isfinite(wanted) & np.isfinite(got)
-            size = np.max(np.abs(wanted[finite]), initial=0.0)
-            limited = np.zeros(wanted.shape, dtype=bool)
-            limited[finite] = np.abs(wanted[finite] - got[finite]) > 1e-9 * size
+            limited, finite = limited_input(wanted, got)
             panel = _make_panel(ds[applied].attrs, _quantity(base, label), got, wanted, marked=limited)
             if limited.any():
                 any_limited = True

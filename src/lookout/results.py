@@ -171,6 +171,47 @@ class Trajectory(eqx.Module):
         return write_netcdf(self.to_xarray(), path)
 
 
+def limited(commanded: np.ndarray, applied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where an actuator changed a command, and where both are finite: ``(limited,
+    finite)``, boolean like ``commanded`` (applied differs from commanded by more than
+    1e-9 of the largest command)."""
+    commanded, applied = np.asarray(commanded, dtype=float), np.asarray(applied, dtype=float)
+    finite = np.isfinite(commanded) & np.isfinite(applied)
+    size = np.max(np.abs(commanded[finite]), initial=0.0)
+    changed = np.zeros(commanded.shape, dtype=bool)
+    changed[finite] = np.abs(commanded[finite] - applied[finite]) > 1e-9 * size
+    return changed, finite
+
+
+def limited_fraction(ds: xr.Dataset) -> dict[str, tuple[float, int]]:
+    """For each input component of a run's Dataset (``force (surge)``, ...) and a
+    thruster allocation's shortfall (``allocation``): the largest fraction of a run's
+    records the actuator limited it, and that run."""
+    out: dict[str, tuple[float, int]] = {}
+    runs = ds.sizes.get("run", 1)
+    for name in ds.data_vars:
+        base = name[: -len("_commanded")]
+        if not name.endswith("_commanded") or f"{base}_applied" not in ds:
+            continue
+        commanded, applied = ds[name], ds[f"{base}_applied"]
+        extra = [dim for dim in commanded.dims if dim not in ("run", "time")]
+        labels = [None] if not extra else list(ds[extra[0]].values)
+        for label in labels:
+            wanted = commanded if label is None else commanded.sel({extra[0]: label})
+            got = applied if label is None else applied.sel({extra[0]: label})
+            fractions = []
+            for run in range(runs):
+                changed, finite = limited(wanted.values[run], got.values[run])
+                fractions.append(changed.sum() / max(int(finite.sum()), 1))
+            key = base + ("" if label is None else f" ({label})")
+            out[key] = (float(max(fractions)), int(np.argmax(fractions)))
+    if "allocation_saturated" in ds:
+        values = np.asarray(ds["allocation_saturated"].values, dtype=float).reshape(runs, -1)
+        fractions = np.nanmean(values, axis=1)
+        out["force (allocation short of it)"] = (float(np.max(fractions)), int(np.argmax(fractions)))
+    return out
+
+
 def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written", unlimited_dims: tuple[str, ...] = ()) -> Path:
     """Write ``ds`` as compressed NetCDF-4 with a CF ``history`` line; return the path.
 

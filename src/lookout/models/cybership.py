@@ -37,7 +37,7 @@ for the C* above; both give the same C*(psi, x) x (see :meth:`Cybership.christof
 
 from __future__ import annotations
 
-from typing import final
+from typing import ClassVar, final
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -46,7 +46,7 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, rotation, ssa
-from lookout.components import Layout, Plant, Signal
+from lookout.components import DivergenceBound, Layout, Plant, Signal
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
 from lookout.scenario.declare import Part, Value, component, initial_values, register
 
@@ -287,6 +287,9 @@ class CybershipPlant(Plant):
     wave_ramp : float
         Seconds over which the waves rise, 1/2 (1 - cos(pi t / wave_ramp)); > 0.
     """
+
+    #: a failed run: a position error of 5 m, four lengths of the 1.255 m model ship: beyond the basin's working area
+    divergence: ClassVar[DivergenceBound] = DivergenceBound("position", 5.0)
 
     ship: Cybership
     waves: eqx.Module | None

@@ -59,7 +59,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout.components import Layout, Plant, Signal
+from lookout.components import DivergenceBound, Layout, Plant, Signal
 from lookout.models.manipulators import (
     JOINT_INPUT,
     JOINT_POSITION,
@@ -220,6 +220,9 @@ class FurutaPlant(Plant):
         Time constant (s) by which a sticking arm's residual speed goes to zero; default
         1 ms (keep it >= 2 plant steps for RK4).
     """
+
+    #: a failed run: a joint-rate error of 100 rad/s (about 950 rpm): beyond the pendulum's motion
+    divergence: ClassVar[DivergenceBound] = DivergenceBound("joint_rate", 100.0)
 
     model: FurutaConstants
     stick_band: Array

@@ -59,7 +59,7 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout._math import matvec, solve
-from lookout.components import JOINT_SPACE, Layout, Plant, Signal
+from lookout.components import JOINT_SPACE, DivergenceBound, Layout, Plant, Signal
 from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 
 #: Standard gravity (m/s^2), the thesis's ``n``.
@@ -618,6 +618,9 @@ class ManipulatorPlant(Plant):
     ValueError
         When the joints of one kind are not contiguous (see :func:`joint_groups`).
     """
+
+    #: a failed run: a joint-rate error of 100 rad/s (about 950 rpm): beyond any arm's motion
+    divergence: ClassVar[DivergenceBound] = DivergenceBound("joint_rate", 100.0)
 
     model: ManipulatorModel
     force_noise: Array

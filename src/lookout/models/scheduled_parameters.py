@@ -17,7 +17,7 @@ that they can be put next to an estimator's ``<name>_hat``.
 
 from __future__ import annotations
 
-from typing import final
+from typing import ClassVar, final
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -25,7 +25,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout.components import Layout, Plant, Signal
+from lookout.components import DivergenceBound, Layout, Plant, Signal
 from lookout.models.manipulators import JOINT_INPUT, JOINT_POSITION, JOINT_VELOCITY, JointState, joint_layout
 from lookout.models.parameters import AffineParameters, parameter_signals
 from lookout.scenario.declare import NON_NEGATIVE, Part, Value, component, initial_values
@@ -60,6 +60,9 @@ class ScheduledParameterPlant(Plant):
         Standard deviation of a white force disturbance per joint (N m sqrt(s) or N sqrt(s));
         default 0, none.
     """
+
+    #: a failed run: a joint-rate error of 100 rad/s (about 950 rpm): beyond any arm's motion
+    divergence: ClassVar[DivergenceBound] = DivergenceBound("joint_rate", 100.0)
 
     parameters: AffineParameters
     values: Array

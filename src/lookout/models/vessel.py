@@ -17,11 +17,11 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from typing import final
+from typing import ClassVar, final
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
-from lookout.components import BODY_FIXED, EARTH_FIXED, Layout, Plant, Signal
+from lookout.components import BODY_FIXED, EARTH_FIXED, DivergenceBound, Layout, Plant, Signal
 from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveModel
 from lookout.scenario.declare import NON_NEGATIVE, Part, Value, component, initial_values
 
@@ -276,6 +276,9 @@ class VesselPlant(Plant):
         An unmodelled body-fixed force (Kim's E_nu w_nu); its white part adds three
         noise channels after the six of bias and waves.
     """
+
+    #: a failed run: a position estimation or tracking error of 100 m, a DP vessel's length: no DP observer or loop that works is that far off
+    divergence: ClassVar[DivergenceBound] = DivergenceBound("position", 100.0)
 
     vessel: DPVessel
     bias: GaussMarkovBias

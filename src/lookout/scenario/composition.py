@@ -85,6 +85,19 @@ def key_text(location: tuple) -> str:
     return text
 
 
+class DivergenceSettings(Settings):
+    """``[simulation] divergence``: when a run has failed (see
+    :class:`lookout.components.DivergenceBound`)."""
+
+    signal: str = Field(description="a plant variable whose estimation or tracking error is bounded")
+    limit: float = Field(description="the bound, in the signal's units")
+
+    @field_validator("limit")
+    @classmethod
+    def _finite_positive(cls, value):
+        return finite_positive(value)
+
+
 class SimulationSettings(RunsConfig):
     """The ``[simulation]`` table: the time grid, the integrator, runs and seeds."""
 
@@ -100,6 +113,14 @@ class SimulationSettings(RunsConfig):
     )
     batch: Literal["shared", "stacked"] = Field(
         "shared", description="runs vmapped over one shared scenario, or over a copy per run ('stacked'; equal to rounding)"
+    )
+    conditions: Literal["warn", "require", "ignore"] = Field(
+        "warn", description="the design conditions of the observer and controller (lookout design FILE) at lookout run: "
+                            "'warn' when one fails, 'require' them (refuse the run), or 'ignore' them"
+    )
+    divergence: DivergenceSettings | None = Field(
+        None, description="a run has failed (status 'diverged') when the estimation or tracking error of signal exceeds limit, "
+                          "or a truth or estimate is not finite (default: the plant kind's)"
     )
 
     @field_validator("plant_step", "sample_period", "duration")
@@ -468,6 +489,16 @@ class Composition:
     def seeds(self) -> list[int]:
         return self.simulation.seeds
 
+    @property
+    def divergence(self):
+        """When a run of this composition has failed: a
+        :class:`~lookout.components.DivergenceBound` (``[simulation] divergence``, else the
+        plant kind's), or None (a non-finite truth or estimate only)."""
+        from lookout.components import DivergenceBound
+
+        bound = self.document["simulation"].get("divergence")
+        return None if bound is None else DivergenceBound(bound["signal"], float(bound["limit"]))
+
     def with_changes(self, changes: dict[str, Any]) -> "Composition":
         """This composition with ``changes`` (dotted paths from the document's root, e.g.
         ``observer.velocity_injection_gain[2]``) applied, validated and built again."""
@@ -587,7 +618,25 @@ def compose(document: dict) -> Composition:
         )
     except ValueError as error:
         raise _scenario_error(error, kinds) from None
+    bound = _divergence(simulation, built["plant"], kinds["plant"])
+    if bound is None:
+        normal["simulation"].pop("divergence", None)
+    else:
+        normal["simulation"]["divergence"] = {"signal": bound.signal, "limit": bound.limit}
     return Composition(normal, simulation, scenario, kinds)
+
+
+def _divergence(simulation: SimulationSettings, plant, kind: str):
+    """The composition's divergence bound: the file's, else the plant kind's (or None)."""
+    from lookout.components import DivergenceBound
+
+    given = simulation.divergence
+    if given is None:
+        return type(plant).divergence
+    names = [signal.name for signal in plant.variable_signals]
+    if given.signal not in names:
+        raise CompositionError(("simulation", "divergence", "signal"), f"must be a variable of plant {kind} ({', '.join(names)}); got {given.signal!r}")
+    return DivergenceBound(given.signal, given.limit)
 
 
 #: The Scenario's own settings, which a file gives in [simulation].

@@ -55,7 +55,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jax import Array
+
 from lookout._math import ssa
+from lookout._validation import ParameterError
 from lookout.results import RecordSignals
 from lookout.sim import Summary, summarize_batch
 
@@ -211,6 +214,22 @@ class _Plan:
     metrics: tuple[tuple[str, str, str, bool, bool], ...]  # (variable, kind, signal, vector, angle)
     divergence: tuple[str, float, bool, bool] | None       # (signal, limit, vector, angle)
     thrust_limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (largest, smallest)
+    #: the names of the recorded truths and estimates, sorted: the causes of a failed run
+    #: are their non-finite values, in this order, then the divergence limit's errors
+    truths: tuple[str, ...] = ()
+    estimates: tuple[str, ...] = ()
+    #: the divergence limit's errors checked: "estimation" and/or "tracking"
+    limit_errors: tuple[str, ...] = ()
+    limit_units: str = ""
+
+    @property
+    def causes(self) -> tuple[str, ...]:
+        """Why a run failed, in words, one per cause index (:func:`diverged_where`)."""
+        words = [f"{name} is not finite" for name in self.truths] + [f"{name}_hat is not finite" for name in self.estimates]
+        if self.divergence is not None:
+            name, limit = self.divergence[:2]
+            words += [f"the {which} error of {name} is beyond the divergence limit {limit:g} {self.limit_units}".rstrip() for which in self.limit_errors]
+        return tuple(words)
 
 
 class MetricSummary(Summary):
@@ -289,14 +308,22 @@ class MetricSummary(Summary):
                 peak[variable] = norm
             else:
                 peak[variable] = jnp.where(window, norm, -jnp.inf)
-        finite = jnp.all(jnp.asarray([jnp.isfinite(leaf).all() for leaf in jax.tree.leaves((truth, estimate))]))
-        beyond = jnp.asarray(False)
-        if self.plan.divergence is not None:
-            name, limit, vector, angle = self.plan.divergence
-            norms = ([error(name, vector, angle)] if name in estimate else []) + ([tracking(name, vector, angle)] if f"{name}_desired" in reference else [])
-            for norm in norms:
-                beyond |= jnp.where(jnp.isfinite(norm), norm, jnp.inf) > limit
-        return {"power": power, "peak": peak, "final": final, "finite": finite, "beyond": beyond}, series
+        return {"power": power, "peak": peak, "final": final, "failed": self.failures(truth, estimate, reference)}, series
+
+    def failures(self, truth, estimate, reference) -> Array:
+        """One record's causes of a failed run, a bool per :attr:`_Plan.causes`: each
+        truth and estimate not finite, then each error of the divergence limit's signal
+        beyond the limit."""
+        plan = self.plan
+        flags = [~jnp.all(jnp.isfinite(jnp.asarray(truth[name]))) for name in plan.truths]
+        flags += [~jnp.all(jnp.isfinite(jnp.asarray(estimate[name]))) for name in plan.estimates]
+        if plan.divergence is not None:
+            name, limit, vector, angle = plan.divergence
+            for which in plan.limit_errors:
+                base = estimate[name] if which == "estimation" else reference[f"{name}_desired"]
+                norm = _norm(_difference(truth[name], base, angle), vector)
+                flags.append(jnp.where(jnp.isfinite(norm), norm, jnp.inf) > limit)
+        return jnp.asarray(flags, dtype=bool).reshape(len(plan.causes)) if flags else jnp.zeros((0,), dtype=bool)
 
     # the engine's Summary interface
     def init(self, record):
@@ -307,26 +334,29 @@ class MetricSummary(Summary):
             "power": {v: jnp.zeros(()) for v in terms["power"]},
             "peak": {v: jnp.asarray(-jnp.inf) for v in terms["peak"]},
             "final": {v: jnp.zeros(()) for v in terms["final"]},
-            "finite": jnp.asarray(True),
-            "beyond": jnp.asarray(False),
+            "failed_at": jnp.asarray(-1),
+            "cause": jnp.asarray(-1),
             "origin": {n: zeros(truth[n]) for n in self._origins()},
         }
 
     def update(self, accumulated, index, record):
         origin = {n: jnp.where(index == 0, record[0][n], accumulated["origin"][n]) for n in self._origins()}
         terms, series = self.terms(index, record, origin)
+        first = (accumulated["failed_at"] < 0) & jnp.any(terms["failed"])
         return {
             "power": {v: accumulated["power"][v] + terms["power"][v] for v in terms["power"]},
             "peak": {v: jnp.maximum(accumulated["peak"][v], terms["peak"][v]) for v in terms["peak"]},
             "final": terms["final"],
-            "finite": accumulated["finite"] & terms["finite"],
-            "beyond": accumulated["beyond"] | terms["beyond"],
+            "failed_at": jnp.where(first, index, accumulated["failed_at"]),
+            "cause": jnp.where(first, _first_cause(terms["failed"]), accumulated["cause"]),
             "origin": origin,
         }, series
 
-    def finish(self, accumulated, series, time) -> dict:
+    def finish(self, accumulated, series, time, *, where: bool = False) -> dict:
         """Each metric per run and ``diverged``, from a batch's accumulation and series
-        (leading run axis); a diverged run's metrics are NaN."""
+        (leading run axis); a diverged run's metrics are NaN. With ``where``, also
+        ``diverged_at`` (the first failed record, -1 for none) and ``diverged_cause``
+        (its index into :attr:`causes`, the first cause of that record; -1 for none)."""
         count = self.n_records - self.first
         out = {}
         for variable, kind, _, _, _ in self.plan.metrics:
@@ -344,10 +374,18 @@ class MetricSummary(Summary):
                 out[variable] = jnp.where(jnp.isfinite(drift), drift, jnp.nan)
             else:
                 out[variable] = accumulated["peak"][variable]
-        diverged = ~accumulated["finite"] | accumulated["beyond"]
+        diverged = accumulated["failed_at"] >= 0
         out = {variable: jnp.where(diverged, jnp.nan, value) for variable, value in out.items()}
         out["diverged"] = diverged
+        if where:
+            out["diverged_at"] = accumulated["failed_at"]
+            out["diverged_cause"] = accumulated["cause"]
         return out
+
+    @property
+    def causes(self) -> tuple[str, ...]:
+        """Why a run failed, in words, by ``diverged_cause``."""
+        return self.plan.causes
 
 
 def outage_of(scenario) -> tuple[float, float] | None:
@@ -372,23 +410,37 @@ def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, a
     rows = tuple((m.variable, m.kind, m.signal, bool(shapes[m.signal].labels), bool(shapes[m.signal].angle)) for m in metrics)
     thrust_limits = next((m.thrust_limits for m in metrics if m.thrust_limits is not None), None)
     limit = None
+    limit_errors: tuple[str, ...] = ()
     if divergence is not None:
+        if divergence[0] not in {s.name for s in record.truth}:
+            raise ParameterError("divergence.signal", f"the divergence limit's signal must be a plant variable ({', '.join(s.name for s in record.truth)}); "
+                                 f"got {divergence[0]!r}")
         signal = shapes[divergence[0]]
         limit = (divergence[0], float(divergence[1]), bool(signal.labels), bool(signal.angle))
+        limit_errors = tuple(which for which, present in (("estimation", divergence[0] in {s.name for s in record.estimate}),
+                                                            ("tracking", f"{divergence[0]}_desired" in {s.name for s in record.reference}))
+                             if present)
     windows = (0, 0, 0)
     if outage is not None:
         start, duration = outage
         windows = tuple(int(np.searchsorted(time, edge - 1e-9 * max(1.0, abs(edge)))) for edge in (start - duration, start, start + duration))
-    return MetricSummary(_Plan(rows, limit, thrust_limits), record.input, int(np.argmax(window)), len(time), tuple(jnp.asarray(i) for i in windows))
+    plan = _Plan(rows, limit, thrust_limits, tuple(sorted(s.name for s in record.truth)), tuple(sorted(s.name for s in record.estimate)), limit_errors,
+                 shapes[divergence[0]].units if divergence is not None else "")
+    return MetricSummary(plan, record.input, int(np.argmax(window)), len(time), tuple(jnp.asarray(i) for i in windows))
+
+
+def _first_cause(failed: Array) -> Array:
+    """The index of the first true flag of one record's causes (-1 when there are none)."""
+    return jnp.argmax(failed) if failed.shape[-1] else jnp.asarray(-1)
 
 
 @eqx.filter_jit
-def _finish(summary: MetricSummary, accumulated, series, time):
-    return summary.finish(accumulated, series, time)
+def _finish(summary: MetricSummary, accumulated, series, time, where: bool = False):
+    return summary.finish(accumulated, series, time, where=where)
 
 
 @eqx.filter_jit
-def _reduce_records(summary: MetricSummary, records, time):
+def _reduce_records(summary: MetricSummary, records, time, where: bool = False):
     """The terms of every record of a batch ``(run, time, ...)``, reduced over time."""
     n_time = time.shape[0]
     origin = {n: records[0][n][:, 0] for n in summary._origins()}
@@ -398,37 +450,72 @@ def _reduce_records(summary: MetricSummary, records, time):
         "power": {v: a.sum(axis=1) for v, a in terms["power"].items()},
         "peak": {v: a.max(axis=1) for v, a in terms["peak"].items()},
         "final": {v: a[:, -1] for v, a in terms["final"].items()},
-        "finite": terms["finite"].all(axis=1),
-        "beyond": terms["beyond"].any(axis=1),
     }
-    return summary.finish(accumulated, series, time)
+    failed = terms["failed"]                        # (run, time, cause)
+    any_failed = failed.any(axis=2)
+    first = jnp.argmax(any_failed, axis=1)
+    accumulated["failed_at"] = jnp.where(any_failed.any(axis=1), first, -1)
+    accumulated["cause"] = jnp.where(any_failed.any(axis=1), jax.vmap(_first_cause)(jnp.take_along_axis(failed, first[:, None, None], axis=1)[:, 0]), -1)
+    return summary.finish(accumulated, series, time, where=where)
 
 
 def summarize(scenario, keys, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None,
-              outage: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
+              outage: tuple[float, float] | None = None, where: bool = False) -> dict[str, np.ndarray]:
     """Simulate the runs of ``keys`` and return each metric per run (shape ``(runs,)``)
     and ``diverged``, without holding their records: the metrics accumulate in the
     engine's scan (:func:`lookout.sim.summarize_batch`). Equals :func:`reduce` of
     ``simulate_batch(scenario, keys)`` to rounding (sums taken in another order).
-    ``outage`` defaults to the scenario's sensor's (:func:`outage_of`)."""
+    ``outage`` defaults to the scenario's sensor's (:func:`outage_of`); ``where``: see
+    :meth:`MetricSummary.finish`."""
     time = scenario.record_times
     outage = outage_of(scenario) if outage is None else outage
     plan = summary(scenario.record_signals, time, metrics, after=after, divergence=divergence, outage=outage)
     accumulated, series = summarize_batch(scenario, keys, plan)
-    result = _finish(plan, accumulated, series, jnp.asarray(time))
+    result = _finish(plan, accumulated, series, jnp.asarray(time), where)
     return {name: np.asarray(value) for name, value in result.items()}
 
 
 def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None,
-           outage: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
+           outage: tuple[float, float] | None = None, where: bool = False) -> dict[str, np.ndarray]:
     """Each metric per run (shape ``(runs,)``) and ``diverged`` (bool), from a batched
     :class:`~lookout.Trajectory`, in one jitted program on the device that holds the
     runs (only these numbers are copied back). The same terms as :func:`summarize`;
-    ``outage = (start, duration)`` is the sensor's outage, for the outage metrics.
+    ``outage = (start, duration)`` is the sensor's outage, for the outage metrics;
+    ``where``: see :meth:`MetricSummary.finish`.
     """
     time = np.asarray(trajectory.time)
     plan = summary(trajectory.signals, time, metrics, after=after, divergence=divergence, outage=outage)
+    return _reduced(plan, trajectory, where)
+
+
+def _reduced(plan: MetricSummary, trajectory, where: bool) -> dict[str, np.ndarray]:
     records = (trajectory.truth, trajectory.estimate, trajectory.measurement, trajectory.reference, trajectory.command, trajectory.applied,
                trajectory.actuation)
-    result = _reduce_records(plan, records, jnp.asarray(time))
+    result = _reduce_records(plan, records, jnp.asarray(np.asarray(trajectory.time)), where)
     return {name: np.asarray(value) for name, value in result.items()}
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Why and where a run failed: its first failed record, that record's time (s) and
+    the first cause found there (a non-finite truth or estimate, or an error beyond the
+    divergence limit)."""
+
+    record: int
+    time: float
+    cause: str
+
+    def __str__(self) -> str:
+        return f"at t = {self.time:g} s (record {self.record}): {self.cause}"
+
+
+def failures(trajectory, divergence: tuple[str, float] | None = None) -> list[Failure | None]:
+    """Per run of a batched :class:`~lookout.Trajectory`, its :class:`Failure` or None:
+    the one rule of a failed run that ``lookout run``, campaigns and the benchmark share
+    (a non-finite truth or estimate at any record, or with ``divergence = (signal,
+    limit)`` the estimation or tracking error of ``signal`` beyond ``limit``)."""
+    time = np.asarray(trajectory.time)
+    plan = summary(trajectory.signals, time, [], divergence=divergence)
+    values = _reduced(plan, trajectory, where=True)
+    return [None if at < 0 else Failure(int(at), float(time[at]), plan.causes[int(cause)])
+            for at, cause in zip(values["diverged_at"], values["diverged_cause"])]

@@ -10,8 +10,8 @@ A campaign spec is a TOML file::
     after = 1500.0                    # metrics over t >= after (default: half the run)
 
     [divergence]                      # optional: a run whose error of `signal` exceeds
-    signal = "position"               # `limit` at any time counts as diverged
-    limit = 50.0
+    signal = "position"               # `limit` at any time counts as diverged (default:
+    limit = 50.0                      # the scenario's [simulation] divergence)
 
     [sweep]
     kind = "grid"                     # or "latin-hypercube" (then `points` and `seed`)
@@ -314,6 +314,15 @@ class Campaign:
     @property
     def seeds(self) -> tuple[int, ...]:
         return tuple(range(self.settings.seed, self.settings.seed + self.settings.seeds_per_point))
+
+    def divergence_at(self, point: int) -> tuple[str, float] | None:
+        """When a run at ``point`` has failed (signal, limit): the spec's
+        ``[divergence]``, else its scenario's (``[simulation] divergence``, else the plant
+        kind's: :attr:`lookout.scenario.composition.Composition.divergence`)."""
+        if self.settings.divergence is not None:
+            return (self.settings.divergence.signal, self.settings.divergence.limit)
+        bound = self.point_spec(point).composition.divergence
+        return None if bound is None else (bound.signal, bound.limit)
 
     @property
     def blocks(self) -> int:
@@ -622,8 +631,7 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
     compiled = shape in _COMPUTED
     keys = keys_of_seeds(list(seeds))
     metrics = metric_module.resolve(list(campaign.metric_names), scenario)
-    divergence = campaign.settings.divergence
-    options = {"after": campaign.settings.after, "divergence": None if divergence is None else (divergence.signal, divergence.limit),
+    options = {"after": campaign.settings.after, "divergence": campaign.divergence_at(point),
                "outage": metric_module.outage_of(scenario)}
     kept = campaign.settings.trajectories
     if kept is None:  # the metrics accumulate as the runs go; no records are held

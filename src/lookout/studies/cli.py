@@ -11,7 +11,7 @@ import typer
 from rich import box
 from rich.table import Table
 
-from lookout._commandline import check_memory, console, created_folder, output_folder, progress_bar, simulating, writable_folder
+from lookout._commandline import DIVERGED_EXIT_CODE, check_memory, console, created_folder, output_folder, progress_bar, simulating, writable_folder
 from lookout._validation import InputError
 from lookout._json import json_safe
 from lookout.scenario._toml import FileError
@@ -130,10 +130,14 @@ def run(
     spec, scenario = _scenario(scenario_file, runs, seed)
     # the count, not the seeds: nothing that grows with the runs is made before the check
     check_memory([(scenario, spec.runs)], "--runs" if runs is not None else spec.runs_key, spec.runs_key.replace("runs", "duration"), where=scenario_file)
+    _check_conditions(spec, scenario_file)
     folder = created_folder("--out", out)
     with simulating() as progress:
         trajectory = simulate_trajectory(spec, progress=progress)
     ds = to_dataset(spec, trajectory)
+    bound = spec.composition.divergence
+    failed = metric_module.failures(_batched(trajectory), bound)
+    ds = with_status(ds, failed, bound)
     write_netcdf(ds, folder / "run.nc", history=f"lookout run {scenario_file} (seeds {spec.seeds[0]}..{spec.seeds[-1]})")
     save(spec, folder / "scenario.toml", header=f"lookout scenario, as run into this folder from {scenario_file}.\nRun it again with: lookout run scenario.toml --out DIR")
     figures = _write_figures(ds, folder, spec.title)
@@ -144,6 +148,8 @@ def run(
         "scenario": spec.title,
         "seeds": spec.seeds,
         "status": ds.status.values.tolist(),
+        "failures": [None if failure is None else {"time": failure.time, "record": failure.record, "cause": failure.cause} for failure in failed],
+        "divergence": None if bound is None else {"signal": bound.signal, "limit": bound.limit},
         "metrics": {m.name: {"units": m.units, "description": m.description + " (t >= half the run)", "per_run": values[m.variable].tolist()} for m in metrics},
         "files": list(RUN_FILES) + figures,
     }
@@ -156,8 +162,90 @@ def run(
     for metric in metrics:
         table.add_row(metric.name, metric.units, f"{float(values[metric.variable].mean()):.4g}")
     console.print(table)
+    warn_limited(ds)
+    report_failures(failed, spec.seeds, bound)
     finite = summary["status"].count("finite")
     console_print(f"{finite}/{len(summary['status'])} runs finite; written to the folder {folder}: {', '.join(summary['files'])}")
+    if finite < len(summary["status"]):
+        raise typer.Exit(code=DIVERGED_EXIT_CODE)
+
+
+#: ``lookout run`` warns when an actuator limited a command for longer than this fraction
+#: of a run (a loop that asks for more than the actuator gives is not the loop designed).
+LIMITED_WARNING_FRACTION = 0.10
+
+
+def _check_conditions(spec, scenario_file: str) -> None:
+    """The design conditions of the file's observer and controller (``lookout design
+    FILE``), by ``[simulation] conditions``: a warning line on standard error when one
+    fails ('warn'), a refusal ('require'), or nothing ('ignore')."""
+    import sys
+
+    from lookout.design import component_designs
+
+    mode = spec.composition.simulation.conditions
+    if mode == "ignore":
+        return
+    try:
+        designs = component_designs(spec.composition)
+    except ValueError as error:  # conditions that cannot be evaluated for this file
+        if mode == "require":
+            raise InputError(f"{scenario_file}: simulation.conditions is 'require', and the conditions cannot be checked: {error}") from None
+        print(f"warning: the design conditions of {scenario_file} were not checked: {error}", file=sys.stderr)
+        return
+    failing = [f"{d.role} {d.kind}: {c.name} (" + ", ".join(f"{i.relation}: {i.left:.4g} {i.comparison} {i.right:.4g} {i.units}".rstrip() + " fails"
+                                                   for i in c.inequalities if i.verdict == "fails") + ")"
+               for d in designs for c in d.report.conditions if c.verdict == "fails"]
+    if not failing:
+        return
+    text = "; ".join(failing)
+    if mode == "require":
+        raise InputError(f"{scenario_file}: simulation.conditions is 'require', and {len(failing)} design condition(s) fail: {text}; "
+                         f"lookout design {scenario_file} --propose gives gains that meet them")
+    print(f"warning: {len(failing)} design condition(s) of {scenario_file} fail: {text} (lookout design {scenario_file} shows them; "
+          f"[simulation] conditions = \"require\" refuses such a run)", file=sys.stderr)
+
+
+def warn_limited(ds) -> None:
+    """A warning line on standard error for each input an actuator limited for more than
+    :data:`LIMITED_WARNING_FRACTION` of a run (the worst run), and for a thruster
+    allocation short of its command as long (``allocation_saturated``)."""
+    import sys
+
+    from lookout.results import limited_fraction
+
+    over = [f"{name} {fraction:.0%} (run {run})" for name, (fraction, run) in limited_fraction(ds).items() if fraction > LIMITED_WARNING_FRACTION]
+    if over:
+        print(f"warning: the actuator limited the command longer than {LIMITED_WARNING_FRACTION:.0%} of the time: {', '.join(over)}; "
+              f"the loop asks for more than the actuator gives, so it is not the loop designed: lower the controller's gains "
+              f"or the reference's demands (input.png shows where)", file=sys.stderr)
+
+
+def with_status(ds, failed: list, bound):
+    """``ds`` with ``status`` per run from ``failed`` (:func:`lookout.scenario.metrics.failures`)
+    and ``failure``, why and where each failed run failed ("" for a finite run)."""
+    import numpy as np
+
+    ds = ds.copy()
+    ds["status"] = ("run", np.asarray(["finite" if f is None else "diverged" for f in failed], dtype=object), ds["status"].attrs)
+    rule = "a non-finite truth or estimate" + ("" if bound is None else f", or the estimation or tracking error of {bound.signal} beyond {bound.limit:g}")
+    ds["status"].attrs["comment"] = f"diverged: {rule}"
+    ds["failure"] = ("run", np.asarray(["" if f is None else str(f) for f in failed], dtype=object), {"long_name": "why and where the run failed"})
+    return ds
+
+
+def report_failures(failed: list, seeds, bound) -> None:
+    """One line per failed run on standard error: why and where it failed."""
+    import sys
+
+    shown = [(run, failure) for run, failure in enumerate(failed) if failure is not None]
+    for run, failure in shown[:5]:
+        print(f"diverged: run {run} (seed {seeds[run]}) {failure}", file=sys.stderr)
+    if len(shown) > 5:
+        print(f"diverged: {len(shown) - 5} more runs (run.nc's failure variable says why and where each failed)", file=sys.stderr)
+    if shown:
+        limit = "" if bound is None else f"; the divergence limit is {bound.limit:g} on the error of {bound.signal} ([simulation] divergence sets it)"
+        print(f"diverged: {len(shown)} of {len(failed)} runs failed{limit}; exit code {DIVERGED_EXIT_CODE}", file=sys.stderr)
 
 
 def _write_figures(ds, folder: Path, title: str) -> list[str]:
