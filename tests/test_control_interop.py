@@ -330,12 +330,54 @@ def test_a_plant_with_randomness_that_cannot_be_set_to_zero_is_refused_in_one_li
         (0.0, [0.0, 0.0, np.inf, 0.0, 0.0, 0.0], "u0 must be finite; entry 2 (measured_heading)"),
         ("calm", 0.0, "x0 must be an array of 15 numbers"),
         (ManipulatorPlant(FreePendulum()).state(q=0.1), 0.0, "x0: state must be a state of PassiveObserver (parts eta, nu, bias, wave_state); got a JointState"),
+        (None, 0.0, "x0 must be an array of 15 numbers or a state of the component; got None"),
+        ([0.0] * 14 + [None], 0.0, "x0 must be an array of 15 numbers or a state of the component; entry 14 is None"),
+        (0.0, None, "u0 must be an array of 6 numbers; got None"),
+        (np.full(15, 1j), 0.0, "x0 must be real; got complex values"),
+        (0.0, [0.0, 0.0, 0.1 + 0.0j, 0.0, 0.0, 0.0], "u0 must be real; got complex values"),
     ],
 )
 def test_a_bad_operating_point_is_refused_in_one_line_naming_the_argument(paper_observer, x0, u0, expected):
     system = cs.observer_system(paper_observer)
     message = _refusal(lambda: cs.linearize_exact(system, x0, u0))
     assert expected in message, message
+
+
+@pytest.mark.parametrize("t", [None, 1j, float("nan"), "0"])
+def test_a_time_that_is_not_a_finite_real_number_is_refused_naming_t(paper_observer, t):
+    system = cs.observer_system(paper_observer)
+    assert _refusal(lambda: cs.linearize_exact(system, 0.0, 0.0, t)) == f"t must be a finite real number; got {t!r}"
+
+
+def test_a_complex_state_is_refused_not_cast(paper_observer):
+    system = cs.observer_system(paper_observer)
+    guess = paper_observer.guess(eta=[0.0, 0.0, 0.0])
+    complex_guess = jax.tree.map(lambda leaf: np.asarray(leaf) + 1j, guess)
+    assert _refusal(lambda: cs.linearize_exact(system, complex_guess, 0.0)) == "x0: state must be real; got a VesselState with complex entries"
+
+
+def test_the_observers_default_guess_starts_from_the_measurement_of_the_operating_point(paper_observer):
+    """The docs' call: ``linearize_exact(system, observer.guess(), 0)``. The default
+    guess leaves the position to the first measurement; it starts from the measurement
+    in u0, as a run starts (observer.init), so it equals the guess given that position."""
+    system = cs.observer_system(paper_observer)
+    default = cs.linearize_exact(system, paper_observer.guess(), 0)
+    given = cs.linearize_exact(system, paper_observer.guess(eta=[0.0, 0.0, 0.0]), 0)
+    assert np.array_equal(default.A, given.A) and np.array_equal(default.C, given.C)
+    heading = 0.4
+    u0 = np.zeros(system.ninputs)
+    u0[system.input_labels.index("measured_heading")] = heading
+    x0, _ = _operating_point(system, heading)
+    assert np.array_equal(system.state_vector(paper_observer.guess(), u0[:3]), x0)
+    assert np.array_equal(cs.linearize_exact(system, paper_observer.guess(), u0).A, cs.linearize_exact(system, x0, u0).A)
+
+
+def test_a_sensor_that_does_not_measure_the_plant_is_refused_naming_both():
+    from lookout.sensors import JointEncoder
+
+    encoder = JointEncoder(FreePendulum(), sample_period=0.01)
+    message = _refusal(lambda: cs.plant_system(_vessel_plant(), sensor=encoder))
+    assert message == "sensor joint-encoder and plant dp-vessel do not fit: 'VesselState' object has no attribute 'q'"
 
 
 def test_linearize_exact_refuses_a_system_it_did_not_build(paper_observer):

@@ -22,7 +22,9 @@ estimates: pick a bandwidth well below the wave frequency (waves at 0.9 rad/s: 0
 
 A scenario names this file (``plugins = ["plugins/luenberger.py"]``, relative to the
 scenario) and uses ``kind = "luenberger"``; ``lookout components --plugin`` lists it. See
-examples/luenberger-dp.toml.
+examples/luenberger-dp.toml. It imports what a plugin needs of lookout from the public
+modules: the declarations, checks, kinematics and the sampled integration from
+:mod:`lookout.plugin`, the contract from :mod:`lookout.components`.
 """
 
 from __future__ import annotations
@@ -32,14 +34,25 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from lookout import _validation as check
-from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.components import ContinuousObserver, Layout
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
-from lookout.observers.start import from_first_measurement
-from lookout.scenario.declare import POSITIVE, Part, Rule, Value, component, initial_values
+from lookout.plugin import (
+    POSITIVE,
+    ParameterError,
+    Part,
+    Rule,
+    Value,
+    check,
+    component,
+    from_first_measurement,
+    initial_values,
+    integrate_sample,
+    matvec,
+    rotate,
+    rotate_transpose,
+    ssa,
+)
 from lookout.sensors import POSITION_HEADING
-from lookout.sim.integrators import integrate_sample
 
 
 class LuenbergerEstimate(eqx.Module):
@@ -108,7 +121,7 @@ class LuenbergerObserver(ContinuousObserver):
         check.positive("position_gain", self.position_gain)
         check.positive("bias_gain", self.bias_gain)
         if not (isinstance(steps_per_sample, int) and steps_per_sample >= 1):
-            raise check.ParameterError("steps_per_sample", f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
+            raise ParameterError("steps_per_sample", f"steps_per_sample must be a positive integer; got {steps_per_sample!r}")
         self.steps_per_sample = steps_per_sample
         self.estimate_signals = VESSEL_SIGNALS[:6]  # position, heading, velocity, yaw rate, bias force and moment
         self.extra_signals = ()
@@ -134,7 +147,7 @@ class LuenbergerObserver(ContinuousObserver):
         m, d = np.diag(np.asarray(vessel.mass_matrix)), np.diag(np.asarray(vessel.damping_matrix))
         l1 = 3.0 * w - d / m
         if np.any(l1 <= 0):
-            raise check.ParameterError("bandwidth", f"bandwidth must exceed d/(3 m) = {np.round(d / (3 * m), 6).tolist()} rad/s in each DOF "
+            raise ParameterError("bandwidth", f"bandwidth must exceed d/(3 m) = {np.round(d / (3 * m), 6).tolist()} rad/s in each DOF "
                                                     f"(the vessel's own damping is faster); got {w.tolist()}")
         l2 = 3.0 * m * w**2 - l1 * d
         l3 = m * w**3

@@ -122,7 +122,8 @@ def components(
     A scenario file has one table per component ([plant], [sensor], [observer],
     [controller], [reference], [actuator]) with `kind` and these parameters; its
     `plugins` (and --plugin here) add kinds of your own, as do installed packages
-    under the entry-point group lookout.components.
+    under the entry-point group lookout.components (LOOKOUT_ENTRY_POINTS=0 leaves
+    those out).
     """
     from lookout.scenario import registry
 
@@ -131,6 +132,10 @@ def components(
             registry.load_plugin(each, Path.cwd())
         except ValueError as error:
             raise InputError(f"--plugin {each}: {one_line(error)}") from None
+    try:
+        registry.load_entry_points()  # a listing shows installed packages' kinds too
+    except ValueError as error:
+        raise InputError(one_line(error)) from None
     found = _matching(kind)
     detail = kind is not None and all(each.name == kind for each in found)
     if as_json:

@@ -34,9 +34,17 @@ python-control's ``params`` are not used: build a new system for new gains.
 
 Refused, each in one line naming the component: an observer that is not a
 continuous-time vector field (a discrete-time observer, a Kalman filter, an observer
-in its discrete form) and a plant that draws randomness per run that cannot be set to
-zero (JONSWAP wave phases drawn by ``realize``); a plant's white process noise is set
+in its discrete form), a plant that draws randomness per run that cannot be set to
+zero (JONSWAP wave phases drawn by ``realize``) and a sensor that does not measure the
+plant (the fit check of a scenario, naming both); a plant's white process noise is set
 to zero.
+
+An observer's state given as a state PyTree (``observer.guess()``) starts as the
+observer starts a run: a guess that leaves entries to the first measurement (NaN, the
+default position of most guesses) goes through ``observer.init(y, guess)`` with the
+measurement ``y`` of the operating point (the first inputs of ``u0``), so
+``linearize_exact(system, observer.guess(), 0)`` linearizes at the guess started from
+a zero measurement.
 """
 
 from __future__ import annotations
@@ -314,10 +322,33 @@ class ComponentSystem(control.NonlinearIOSystem if control is not None else obje
             dt=0,
         )
 
-    def state_vector(self, state) -> np.ndarray:
+    def state_vector(self, state, measurement=None) -> np.ndarray:
         """A state of the component (a PyTree, e.g. ``plant.state(eta=[0, 0, 0.5])``) as
-        this system's flat state vector, in the order of ``state_labels``."""
+        this system's flat state vector, in the order of ``state_labels``.
+
+        Parameters
+        ----------
+        state : PyTree
+            A state of the component; of an observer, also a guess (``observer.guess()``).
+        measurement : array_like, optional
+            Of an observer's system only: the measurement it starts from. A guess that is
+            not a state, or that leaves entries to the first measurement (NaN), becomes
+            ``observer.init(measurement, state)``, as at the start of a run.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``nstates`` numbers.
+        """
         component = type(self.component).__name__
+        leaves = jax.tree_util.tree_leaves(state)
+        if any(np.iscomplexobj(leaf) for leaf in leaves):
+            raise ValueError(f"state must be real; got a {type(state).__name__} with complex entries")
+        if measurement is not None and isinstance(self.component, Observer):
+            structure = jax.tree_util.tree_structure(state)
+            started = structure == self.state_layout.treedef and all(np.all(np.isfinite(np.asarray(leaf))) for leaf in leaves)
+            if not started and structure == jax.tree_util.tree_structure(self.component.guess()):  # a guess: start it
+                state = self.component.init(jnp.asarray(measurement, dtype=float), state)
         if jax.tree_util.tree_structure(state) != self.state_layout.treedef:
             raise ValueError(f"state must be a state of {component} (parts {', '.join(self.state_layout.paths)}); got a {type(state).__name__}")
         shapes = tuple(tuple(np.shape(leaf)) for leaf in jax.tree_util.tree_leaves(state))
@@ -337,6 +368,24 @@ def _check_deterministic(plant: Plant) -> None:
             )
 
 
+def _check_sensor_fit(plant: Plant, sensor: Sensor, template) -> None:
+    """Refuse a sensor that does not measure the plant, naming both (the fit check of a
+    scenario, :func:`lookout.sim.engine.check_sensor_fit`)."""
+    from lookout._validation import FitError
+    from lookout.scenario.registry import plugin_frame
+    from lookout.sim.engine import check_sensor_fit
+
+    try:
+        check_sensor_fit(sensor, template)
+    except FitError as error:
+        raised = error.__context__
+        frame = plugin_frame(raised) if raised is not None else None
+        if frame is not None:  # the plugin's own code failed, not the fit
+            raise ValueError(f"sensor {_kind(sensor)} on plant {_kind(plant)}: {frame.describe(raised)}") from None
+        detail = str(error).split(": ", 1)[-1]
+        raise ValueError(f"sensor {_kind(sensor)} and plant {_kind(plant)} do not fit: {detail}") from None
+
+
 def plant_system(plant: Plant, *, sensor: Sensor | None = None, name: str = "plant") -> ComponentSystem:
     """The plant as a continuous-time ``control.NonlinearIOSystem`` with named signals.
 
@@ -348,7 +397,9 @@ def plant_system(plant: Plant, *, sensor: Sensor | None = None, name: str = "pla
     sensor : Sensor, optional
         When given, its noise-free measurement ``sensor.ideal(x)`` is appended to the
         outputs under the sensor's channel names (what an observer reads), so that
-        ``control.interconnect`` connects the plant to an observer by name.
+        ``control.interconnect`` connects the plant to an observer by name. A sensor
+        that does not measure the plant (a joint encoder on a vessel) is refused,
+        naming both.
     name : str
         The system's name.
 
@@ -379,6 +430,8 @@ def plant_system(plant: Plant, *, sensor: Sensor | None = None, name: str = "pla
     _check_deterministic(plant)
     template = jax.eval_shape(plant.state)
     layout = StateLayout.of(template, "plant", plant)
+    if sensor is not None:
+        _check_sensor_fit(plant, sensor, template)
 
     rates = _bind(_plant_rates, (plant, None), layout)
     outputs = _bind(_plant_outputs, (plant, sensor), layout)
@@ -460,18 +513,27 @@ def observer_system(observer: ContinuousObserver, *, name: str = "observer") -> 
     return ComponentSystem(observer, layout, rates, outputs, inputs=input_names, output_names=output_names, states=states, name=name)
 
 
-def _operating_vector(argument: str, value, size: int, system: ComponentSystem, state: bool) -> np.ndarray:
-    """``value`` as a finite float vector of ``size`` entries (a scalar broadcast; for a
-    state, a state PyTree of the component too), or a one-line refusal naming ``argument``."""
+def _operating_vector(argument: str, value, size: int, system: ComponentSystem, state: bool, measurement=None) -> np.ndarray:
+    """``value`` as a finite real vector of ``size`` entries (a scalar broadcast; for a
+    state, a state PyTree of the component too, an observer's guess started from
+    ``measurement``), or a one-line refusal naming ``argument``."""
+    what = f"an array of {size} numbers" + (" or a state of the component" if state else "")
+    if value is None:
+        raise ValueError(f"{argument} must be {what}; got None")
     if state and (isinstance(value, eqx.Module) or jax.tree_util.tree_structure(value) == system.state_layout.treedef):
         try:
-            value = system.state_vector(value)
+            value = system.state_vector(value, measurement)
         except ValueError as error:
             raise ValueError(f"{argument}: {error}") from None
+    if np.iscomplexobj(value):
+        raise ValueError(f"{argument} must be real; got complex values")
+    raw = np.asarray(value, dtype=object)
+    if raw.ndim and any(entry is None for entry in raw.ravel()):  # NumPy would read None as NaN
+        raise ValueError(f"{argument} must be {what}; entry {next(i for i, e in enumerate(raw.ravel()) if e is None)} is None")
     try:
         vector = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"{argument} must be an array of {size} numbers; got {type(value).__name__}") from None
+        raise ValueError(f"{argument} must be {what}; got {type(value).__name__}") from None
     if vector.ndim == 0:
         vector = np.full(size, float(vector))
     if vector.shape != (size,):
@@ -498,9 +560,12 @@ def linearize_exact(system: ComponentSystem, x0, u0=0.0, t: float = 0.0, *, name
     x0 : array_like or state PyTree
         The state (``system.nstates`` numbers in the order of ``system.state_labels``,
         a scalar for all of them, or a state of the component, e.g.
-        ``plant.state(eta=[0, 0, 0.5])``).
+        ``plant.state(eta=[0, 0, 0.5])``). Of an observer, a guess too
+        (``observer.guess()``): one that leaves entries to the first measurement starts
+        from the measurement in ``u0``, as :meth:`ComponentSystem.state_vector` says.
     u0 : array_like
-        The input (``system.ninputs`` numbers, or a scalar for all of them).
+        The input (``system.ninputs`` numbers, or a scalar for all of them); of an
+        observer, the measurement then the applied input.
     t : float
         The time (for a time-varying component).
     name : str, optional
@@ -517,10 +582,13 @@ def linearize_exact(system: ComponentSystem, x0, u0=0.0, t: float = 0.0, *, name
             f"system must be built by lookout.control_systems.plant_system or observer_system; got {type(system).__name__} "
             "(for an interconnection use control.linearize)"
         )
-    if not np.isfinite(t):
-        raise ValueError(f"t must be finite; got {t}")
-    x = jnp.asarray(_operating_vector("x0", x0, system.nstates, system, state=True))
-    u = jnp.asarray(_operating_vector("u0", u0, system.ninputs, system, state=False))
+    if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not np.isfinite(t):
+        raise ValueError(f"t must be a finite real number; got {t!r}")
+    t = float(t)
+    u = _operating_vector("u0", u0, system.ninputs, system, state=False)
+    measurement = u[: system.component.measurement_layout.size] if isinstance(system.component, Observer) else None
+    x = jnp.asarray(_operating_vector("x0", x0, system.nstates, system, state=True, measurement=measurement))
+    u = jnp.asarray(u)
     rates, outputs = system._jax_rates, system._jax_outputs
     A, B = (np.asarray(m) for m in jax.jacfwd(lambda x, u: rates(t, x, u), argnums=(0, 1))(x, u))
     C, D = (np.asarray(m) for m in jax.jacfwd(lambda x, u: outputs(t, x, u), argnums=(0, 1))(x, u))

@@ -307,9 +307,12 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
     name = table.get("kind", registry.default_kind(role))
     if name is None:
         raise CompositionError(location + ("kind",), f"missing key (one of {', '.join(known)}; `lookout components {role}` lists them)")
-    if not isinstance(name, str) or name not in known:
+    if not isinstance(name, str):
         raise CompositionError(location + ("kind",), f"no {role} kind {name!r} (one of {', '.join(known)})")
-    kind = registry.kind(role, name)
+    try:
+        kind = registry.kind(role, name)  # a name lookout and the plugins do not declare: installed packages' too
+    except ValueError as error:
+        raise CompositionError(location + ("kind",), one_line(error)) from None
     design = table.get("design")
     if design is not None and design not in kind.designs:
         rules = f"one of {', '.join(kind.designs)}" if kind.designs else f"{role} {name} has no design rules"
@@ -551,7 +554,7 @@ def load_plugins(plugins, location: tuple = ("plugins",)) -> list[str]:
     (:func:`lookout.scenario.registry.load_plugin`); a :class:`CompositionError` names the entry."""
     if plugins is None:
         return []
-    if not isinstance(plugins, list) or not all(isinstance(each, str) and each for each in plugins):
+    if not isinstance(plugins, list) or not all(isinstance(each, str) for each in plugins):
         raise CompositionError(location, f"must be an array of Python files or module names; got {short(plugins)}")
     for index, each in enumerate(plugins):
         try:
@@ -647,6 +650,13 @@ def _scenario_error(error: ValueError, kinds: dict) -> CompositionError:
     """The Scenario's refusal at the file's key: a setting's under [simulation], a
     part's at its table; two parts that do not fit, named with their kinds."""
     reason = one_line(error)
+    raised = error.__context__ if isinstance(error, FitError) else None  # what the fit check traced
+    frame = registry.plugin_frame(raised) if raised is not None else None
+    if frame is not None:  # a plugin's own code failed: the plugin's error, not a misfit of parts
+        role = next((role for role, name in kinds.items() if registry.kind(role, name).module == frame.module), error.parts[0])
+        where = (role,) if role in kinds else ()
+        owner = f"{role} {kinds[role]}" if role in kinds else f"the plugin {frame.module}"
+        return CompositionError(where, f"{owner} (a plugin): {frame.describe(raised)}")
     if isinstance(error, ParameterError) and error.location:
         first = error.location[0]
         return CompositionError(("simulation", *error.location) if first in SIMULATION_KEYS else error.location, reason)

@@ -6,9 +6,12 @@ A kind is declared once, next to the class that builds it, with
 its parameters as typed declarations (values with their types, shapes, ranges and
 choices; parts and whether the plant may give them; context the composition fills),
 its gain-synthesis rules, tuning family and condition checks. This module collects
-the declarations of lookout's own modules (:data:`BUILTIN_MODULES`), of installed
-packages (the entry-point group ``lookout.components``: each entry point names a
-module to import) and of plugin files a scenario names (:func:`load_plugin`). Defaults
+the declarations of lookout's own modules (:data:`BUILTIN_MODULES`), of plugin files a
+scenario names (:func:`load_plugin`) and of installed packages (the entry-point group
+``lookout.components``: each entry point names a module to import). Installed packages
+are imported only when they are needed: when a file names a kind that neither lookout
+nor its plugins declare (:func:`kind`), and when ``lookout components`` lists every
+kind; ``LOOKOUT_ENTRY_POINTS=0`` leaves them out (:data:`ENTRY_POINTS_SWITCH`). Defaults
 come from the builder's signature and the classes a part accepts from its annotations;
 nothing is read from a docstring.
 
@@ -23,6 +26,7 @@ import importlib
 import importlib.metadata
 import importlib.util
 import inspect
+import os
 import sys
 import typing
 from dataclasses import dataclass
@@ -69,6 +73,9 @@ BUILTIN_MODULES = (
 )
 #: The entry-point group under which an installed package names modules of its own kinds.
 ENTRY_POINT_GROUP = "lookout.components"
+#: The environment variable that, set to 0, leaves installed packages' kinds out (1 or
+#: unset: they are imported when needed).
+ENTRY_POINTS_SWITCH = "LOOKOUT_ENTRY_POINTS"
 
 #: The tables of a composition, in the order they are built.
 COMPONENT_ROLES = ("plant", "sensor", "observer", "reference", "controller", "actuator")
@@ -230,7 +237,6 @@ def _ensure_loaded() -> None:
     _LOADED["builtin"] = True
     for module in BUILTIN_MODULES:
         importlib.import_module(module)
-    load_entry_points()
 
 
 class DuplicateKindError(ValueError):
@@ -238,35 +244,76 @@ class DuplicateKindError(ValueError):
 
 
 def _import_declaring(load, what: str, module: str) -> None:
-    """``load()`` (an import that may declare kinds), kept only when it imports and
-    declares no kind twice; else its declarations and ``module`` are dropped and a
-    ValueError says why, beginning with ``what``."""
+    """``load()`` (an import that must declare kinds), kept only when it imports, declares
+    at least one kind and declares no kind twice; else its declarations and ``module`` are
+    dropped and a ValueError says why, beginning with ``what``. Whatever the import raises
+    is caught (``sys.exit`` included), except a KeyboardInterrupt."""
     before = len(declare.DECLARED)
     try:
         load()
-        if len(declare.DECLARED) > before:
-            _index(len(declare.DECLARED), id(declare.DECLARED[-1]))
-    except Exception as error:
+        if len(declare.DECLARED) == before:
+            raise _DeclaresNothing()
+        _index(len(declare.DECLARED), id(declare.DECLARED[-1]))
+    except KeyboardInterrupt:
         del declare.DECLARED[before:]
         sys.modules.pop(module, None)
-        reason = f": {error}" if isinstance(error, DuplicateKindError) else f" does not import: {type(error).__name__}: {error}"
-        raise ValueError(what + reason) from None
+        raise
+    except BaseException as error:
+        del declare.DECLARED[before:]
+        sys.modules.pop(module, None)
+        raise ValueError(what + _import_failure(error)) from None
+
+
+class _DeclaresNothing(Exception):
+    """A plugin that imports and registers no kind."""
+
+
+def _import_failure(error: BaseException) -> str:
+    """Why a plugin's import is refused, as the end of a sentence that names the plugin."""
+    if isinstance(error, DuplicateKindError):
+        return f": {error}"
+    if isinstance(error, _DeclaresNothing):
+        return " declares no kind: decorate a class with @component(...) (lookout.plugin)"
+    if isinstance(error, SystemExit):
+        return f" exited (SystemExit {error.code}) while being imported"
+    message = " ".join(str(error).split())
+    return f" does not import: {type(error).__name__}" + (f": {message}" if message else "")
+
+
+def entry_points_enabled() -> bool:
+    """Whether installed packages' kinds are imported when needed: :data:`ENTRY_POINTS_SWITCH`
+    unset or ``1`` (``0`` leaves them out); any other value is a ValueError naming it."""
+    value = os.environ.get(ENTRY_POINTS_SWITCH, "1").strip()
+    if value not in ("0", "1"):
+        raise ValueError(f"{ENTRY_POINTS_SWITCH} must be 0 (leave installed packages' kinds out) or 1; got {value!r}")
+    return value == "1"
 
 
 def load_entry_points() -> None:
     """Import the modules installed packages name under :data:`ENTRY_POINT_GROUP` (each
-    once), so that their declarations are registered."""
+    once), so that their declarations are registered; nothing with
+    ``LOOKOUT_ENTRY_POINTS=0``. One that does not import (or declares nothing, or a kind
+    twice) is a ValueError naming the entry point and its package."""
+    if "entry_points" in _LOADED or not entry_points_enabled():
+        return
+    _ensure_loaded()
     for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
         module = entry.value.partition(":")[0]
         if module not in sys.modules:
-            _import_declaring(lambda: importlib.import_module(module), f"the package entry point {entry.name} = {entry.value!r} "
-                              f"(group {ENTRY_POINT_GROUP})", module)
+            package = getattr(getattr(entry, "dist", None), "name", None)
+            _import_declaring(lambda: importlib.import_module(module),
+                              f"the entry point {entry.name} = {entry.value!r} (group {ENTRY_POINT_GROUP}"
+                              + (f", package {package}" if package else "") + f"; {ENTRY_POINTS_SWITCH}=0 leaves installed packages' kinds out)",
+                              module)
+    _LOADED["entry_points"] = True
 
 
 def plugin_file(text: str, base: str | Path | None = None) -> Path | None:
     """The file a plugin entry names (relative to ``base``), or None for a module's dotted
-    name: an entry is a file when it ends in ``.py``, holds a path separator, or names a
-    file that exists."""
+    name (and for an empty entry): an entry is a file when it ends in ``.py``, holds a
+    path separator, or names a file or a folder that exists."""
+    if not text.strip():
+        return None
     file = Path(text) if base is None or Path(text).is_absolute() else Path(base) / text
     return file.resolve() if text.endswith(".py") or "/" in text or "\\" in text or file.exists() else None
 
@@ -277,6 +324,8 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     name (``my_package.observers``) is imported as a module. Returns the module's name.
     """
     text = str(path)
+    if not text.strip():
+        raise ValueError(f"plugin {text!r}: an empty entry; give a Python file (.py) or a module's dotted name")
     file = plugin_file(text, base)
     _ensure_loaded()
     if file is None:
@@ -291,6 +340,8 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
                 raise ValueError(f"plugin {text!r}: no such module")
             _import_declaring(lambda: importlib.import_module(text), f"plugin {text!r}", text)
         return text
+    if file.is_dir():
+        raise ValueError(f"plugin {text!r}: is a folder, not a Python file" + ("" if str(file) == text else f" ({file})"))
     if not file.is_file():
         raise ValueError(f"plugin {text!r}: no such file" + ("" if str(file) == text else f" (looked for {file})"))
     if file.suffix != ".py":
@@ -330,6 +381,40 @@ def _where(module: str) -> str:
     return str(getattr(loaded, "__file__", module)) if module.startswith("lookout_plugin_") else module
 
 
+@dataclass(frozen=True)
+class PluginFrame:
+    """Where in a plugin's code an exception was raised: the plugin's module, its file,
+    the line and the function (``LuenbergerObserver.update``)."""
+
+    module: str
+    file: str
+    line: int
+    function: str
+
+    def describe(self, error: BaseException) -> str:
+        """``"LuenbergerObserver.update raised RuntimeError: ... (file, line 169)"``."""
+        message = " ".join(str(error).split())
+        return f"{self.function} raised {type(error).__name__}" + (f": {message}" if message else "") + f" ({self.file}, line {self.line})"
+
+
+def plugin_frame(error: BaseException) -> PluginFrame | None:
+    """The innermost frame of a plugin's code (a module outside lookout that declared
+    kinds: a plugin file, a plugin module, an installed package's) that ``error``'s
+    traceback passes through; None when it passes through none (the error is lookout's,
+    or a misfit of parts)."""
+    modules = {each.module for each in declare.DECLARED if each.module != "lookout" and not each.module.startswith("lookout.")}
+    found = None
+    trace = error.__traceback__
+    while trace is not None:
+        frame = trace.tb_frame
+        module = frame.f_globals.get("__name__")
+        if module in modules:
+            code = frame.f_code
+            found = PluginFrame(module, code.co_filename, trace.tb_lineno, code.co_qualname)
+        trace = trace.tb_next
+    return found
+
+
 def _kinds() -> dict[str, dict[str, Kind]]:
     _ensure_loaded()
     return _index(len(declare.DECLARED), id(declare.DECLARED[-1]) if declare.DECLARED else 0)
@@ -351,9 +436,10 @@ def default_kind(role: str) -> str | None:
 
 
 def kinds(role: str | None = None, *, plugins=None) -> list[Kind]:
-    """The registered kinds (of one role), role by role; with ``plugins`` (files or
-    modules, as a scenario's ``plugins`` gives them), of the plugin files only those
-    named (the kinds of lookout and of installed packages always)."""
+    """The registered kinds (of one role), role by role: lookout's, the plugins' loaded
+    and installed packages' once imported (:func:`load_entry_points`); with ``plugins``
+    (files or modules, as a scenario's ``plugins`` gives them), of the plugin files only
+    those named."""
     table = _kinds()
     found = [each for each_role in ROLES if role is None or each_role == role for each in table[each_role].values()]
     if plugins is None:
@@ -368,10 +454,18 @@ def _plugin_module_name(file: Path) -> str:
 
 
 def kind(role: str, name: str) -> Kind:
-    """The kind ``name`` of ``role``; a ``ValueError`` lists the known ones."""
+    """The kind ``name`` of ``role``; a ``ValueError`` lists the known ones. A name that
+    neither lookout nor a plugin loaded declares is looked for among installed packages'
+    kinds (:func:`load_entry_points`), whose import errors are then this call's."""
     if role not in ROLES:
         raise ValueError(f"no role {role!r} (roles: {', '.join(ROLES)})")
     table = _kinds()[role]
+    if name not in table and "entry_points" not in _LOADED:
+        try:
+            load_entry_points()
+        except ValueError as error:
+            raise ValueError(f"no {role} kind {name!r} among lookout's and the plugins' kinds, and {error}") from None
+        table = _kinds()[role]
     if name not in table:
         raise ValueError(f"no {role} kind {name!r} (one of {', '.join(table)})")
     return table[name]

@@ -287,11 +287,7 @@ def _check_fit(scenario: Scenario) -> None:
     if jax.tree.structure(derivative) != jax.tree.structure(x0) or [_shape_of(a) for a in jax.tree.leaves(derivative)] != [_shape_of(a) for a in jax.tree.leaves(x0)]:
         raise FitError(("plant", "initial_state"), "plant and initial_state disagree: plant.vector_field returns a state shaped unlike initial_state")
 
-    y = _evaluate(("sensor", "plant"), lambda x: sensor.measure(x, jnp.zeros(sensor.noise_size)), x0)
-    if _shape_of(y) != (sensor.measurement_layout.size,):
-        raise FitError(("sensor", "plant"),
-            f"sensor and plant disagree: the measurement has shape {_shape_of(y)}, the sensor's layout says ({sensor.measurement_layout.size},)"
-        )
+    check_sensor_fit(sensor, x0)
     y = jnp.zeros(sensor.measurement_layout.size)
     measured = set(sensor.measurement_layout.names)
     for name in observer.measurement_layout.names:
@@ -351,6 +347,17 @@ def _check_fit(scenario: Scenario) -> None:
     _compare("actuator", "its signals", "actuator.step", {k: _shape_of(v) for k, v in outputs.items()}, actuator.output_signals)
     if _shape_of(applied) != (layout.size,):
         raise FitError(("actuator", "plant"), f"actuator and plant disagree: the applied input has shape {_shape_of(applied)}, the plant takes ({layout.size},)")
+
+
+def check_sensor_fit(sensor, state) -> None:
+    """Check with ``jax.eval_shape`` that ``sensor`` measures a plant whose state is
+    ``state`` (a state or its ``jax.eval_shape``): a :class:`FitError` of the sensor
+    and the plant otherwise (the check :func:`check_fit` makes of a scenario's)."""
+    y = _evaluate(("sensor", "plant"), lambda x: sensor.measure(x, jnp.zeros(sensor.noise_size)), state)
+    if _shape_of(y) != (sensor.measurement_layout.size,):
+        raise FitError(("sensor", "plant"),
+            f"sensor and plant disagree: the measurement has shape {_shape_of(y)}, the sensor's layout says ({sensor.measurement_layout.size},)"
+        )
 
 
 def kind_of(component) -> str:
