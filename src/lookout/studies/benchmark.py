@@ -534,6 +534,7 @@ def scenario_benchmark(path: Path, document: dict, text: str | None) -> Benchmar
         shipped_first = next(iter(shipped.spec.observers.values()))
         shipped_plant = compose(base_document(shipped, shipped.spec.quick, shipped_first)).document["plant"]
     tables: dict[str, dict] = {}
+    registry.load_entry_points()  # every observer kind means installed packages' too (a listing)
     for each in registry.kinds("observer", plugins=base.get("plugins", [])):
         given = next((t for t in shipped.spec.observers.values() if t["kind"] == each.name), None) if shipped is not None else None
         tables[each.name] = required_table(each.name, given)
