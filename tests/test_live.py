@@ -288,7 +288,7 @@ def test_fix_quality_hdop_and_a_second_receiver():
     np.testing.assert_allclose(block.measurement[0], [0.0, 0.0, math.radians(10.0)], atol=1e-12)
     # a is silent past the timeout: b takes over
     session.feed(Reading(3.0, "GP@b", "position", (lat + 1e-5, lon, 2.0, 0.8), "GGA"))
-    assert session.channels["position"].source == "GP@b"
+    assert session.channels["position"].source == "GNSS@b"  # GP, GN, ... of one sender: one GNSS receiver
     late = session.late
     assert session.feed(Reading(2.5, "HE", "heading", (11.0,), "THS")) == []  # before the reading before it
     assert session.late == late + 1
