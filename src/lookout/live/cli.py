@@ -267,7 +267,7 @@ def _check_truth_range(truth: str, log: str, scan, sample_period: float) -> None
     steps_to = (math.ceil(scan.newest / sample_period - 1e-9) - first_step) * sample_period  # the session's last step time
     if start <= sample_period and end + sample_period >= steps_to - 1e-9 * max(1.0, steps_to):
         return
-    clock = f", {scan.first - epoch:.6g} to {scan.newest - epoch:.6g} s on the truth's clock" if epoch is not None else ""
+    clock = f", {scan.first - epoch:.3f} to {scan.newest - epoch:.3f} s on the truth's clock" if epoch is not None else ""
     raise InputError(
         f"--truth {truth} covers {start:g} to {end:g} s (every {step:g} s); LOG {log} runs from {scan.first:.6f} to {scan.newest:.6f} s{clock}, "
         f"steps 0 to {steps_to:g} s of a session: give the truth of the run behind this log (lookout write-log's NAME-truth.nc)"
