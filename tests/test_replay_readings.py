@@ -293,3 +293,21 @@ def test_the_progress_line_shows_on_a_terminal_only(monkeypatch):
     with live_cli._replay_progress(progress_bar) as progress:
         progress(30.0, 120.0)
     assert piped.getvalue() == ""
+
+
+def test_lookout_live_stops_at_a_first_fix_far_from_its_origin(tmp_path, capsys, monkeypatch):
+    """lookout live --origin 0,0 on a stream at 63 N: one line, exit 2, at its first fix;
+    no step was taken and --out is not created."""
+    import io
+    import os
+    import sys
+
+    read, write = os.pipe()
+    os.write(write, "".join(f"{text}\r\n" for _, text in _rows(2.0)).encode())
+    os.close(write)
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(os.fdopen(read, "rb")))
+    out = tmp_path / "new" / "live.nc"
+    code, err = _cli(["live", SCENARIO, "--nmea", "-", "--origin", "0,0", "--out", out, "--quiet"], capsys, monkeypatch)
+    assert code == 2 and "\n" not in err
+    assert re.fullmatch(r"error: --origin 0,0 lies 7106 km from the first fix, 63.43999\d,10.40000\d \(degrees\), more than 100 km: .*", err), err
+    assert not out.parent.exists()

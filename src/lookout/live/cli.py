@@ -566,7 +566,6 @@ def live_command(
             outcome = live(session, source, thrust=thrust_source, emit=emit, parser=parser, duration=duration, idle=idle,
                            status=lambda o: say(_status_line(session, parser, o)))
     except OriginError as error:  # at the first fix: no step was taken (a step needs a fix)
-        close()
         remove()
         raise InputError(error.message("--origin")) from None
     finally:  # what was computed is written, whatever stopped the session

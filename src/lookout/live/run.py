@@ -391,7 +391,14 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
     """Step ``session`` on a live source (from :func:`open_source`) until ``duration``
     seconds have passed, nothing arrived for ``idle`` seconds, the stream ends, or
     Ctrl-C. ``thrust`` is a second source of ``surge,sway,yaw`` lines. ``clock``
-    (seconds) stamps each reading's arrival; default :func:`unix_clock`."""
+    (seconds) stamps each reading's arrival; default :func:`unix_clock`.
+
+    Raises
+    ------
+    lookout.live.session.OriginError
+        At the first fix, when the session's given frame has its origin farther than
+        :data:`~lookout.live.options.MAX_ORIGIN_DISTANCE` from it (no step taken yet).
+    """
     clock = clock or unix_clock()
     parser = parser or NmeaParser()
     kind, handle, where = source
