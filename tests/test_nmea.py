@@ -62,9 +62,9 @@ def test_the_seven_sentences():
         (sentence("HE", "THS", ["12.0", "M"]), "no_fix"),  # manual input: not a measurement
         (sentence("TI", "ROT", ["1.0", "V"]), "no_fix"),
         (sentence("GP", "GGA", ["1200"]), "malformed"),  # truncated before the position
-        (sentence("GP", "GGA", ["120000", "9107.0", "N", "01131.0", "E", 1, "08", "0.9", "", "", "", "", "", ""]), "malformed"),
+        (sentence("GP", "GGA", ["120000", "9107.0", "N", "01131.0", "E", 1, "08", "0.9", "", "", "", "", "", ""]), "out_of_range"),
         (sentence("HE", "HDT", ["abc", "T"]), "malformed"),
-        (sentence("HE", "THS", ["400.0", "A"]), "malformed"),
+        (sentence("HE", "THS", ["400.0", "A"]), "out_of_range"),
         (sentence("II", "XDR", ["A", "1.0", "D", "PITCH"]), "unsupported"),
         ("garbage", "malformed"),
         ("", "empty"),
@@ -173,7 +173,7 @@ def test_framing_alone_agrees_with_the_full_parse(line):
     full.line(line, 1.0)
     (counted,) = [name for name, n in full.counts.items() if n]
     if cause == "accepted":
-        assert counted in ("accepted", "no_fix", "malformed") and formatter
+        assert counted in ("accepted", "no_fix", "malformed", "out_of_range") and formatter
     else:
         assert counted == cause and formatter == ""
 

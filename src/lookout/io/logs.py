@@ -35,6 +35,30 @@ CSV_HEADERS = {
 
 #: Bytes read to tell a log's format, and to tell text from binary data.
 HEAD_BYTES = 4096
+#: The UTF-8 byte-order mark some editors write at a text file's start (Excel's
+#: "CSV UTF-8", Windows Notepad): it is skipped, and :func:`has_bom` says it was there.
+UTF8_BOM = b"\xef\xbb\xbf"
+#: What a command says, once, about a log that starts with :data:`UTF8_BOM`.
+BOM_NOTE = "a UTF-8 byte-order mark at the start was skipped"
+
+
+def has_bom(path: str | Path) -> bool:
+    """Whether the file starts with a UTF-8 byte-order mark (False when it cannot be read)."""
+    try:
+        with Path(path).open("rb") as handle:
+            return handle.read(len(UTF8_BOM)) == UTF8_BOM
+    except OSError:
+        return False
+
+
+def open_log(path: str | Path):
+    """The log opened for reading bytes, after a UTF-8 byte-order mark if it starts with
+    one: every reader of a log (its format, its scan, its readings) sees its first line
+    as written, not with the mark glued to its time or its header."""
+    handle = Path(path).open("rb")
+    if handle.read(len(UTF8_BOM)) != UTF8_BOM:
+        handle.seek(0)
+    return handle
 
 
 def _is_binary(head: bytes) -> bool:
@@ -68,7 +92,7 @@ def log_format(path: str | Path, option: str = "log") -> str:
     """
     path = Path(path)
     try:
-        with path.open("rb") as handle:
+        with open_log(path) as handle:
             head = handle.read(HEAD_BYTES)
     except OSError as error:
         raise ValueError(f"{option} {path}: cannot be read ({error.strerror or error})") from None
@@ -89,7 +113,7 @@ def log_format(path: str | Path, option: str = "log") -> str:
 
 def nmea_log(path: str | Path, parser: NmeaParser):
     """The readings of an NMEA log, in file order; unreadable lines go to ``parser.counts``."""
-    with Path(path).open("rb") as handle:
+    with open_log(path) as handle:
         for raw in handle:
             yield from nmea_log_line(raw, parser)
 
@@ -133,7 +157,7 @@ class CsvLog:
         self.counts: Counter = Counter({"accepted": 0, "malformed": 0, **({"missing": 0} if self.kind == "thrust" else {})})
 
     def __iter__(self):
-        with self.path.open("rb") as handle:
+        with open_log(self.path) as handle:
             handle.readline()
             for raw in handle:
                 yield from self.row(raw)
@@ -211,6 +235,8 @@ class LogScan:
     longest_gap, gap_line, gap_start : float, int, float
         The longest step forward between timed lines (s), the line after it and the
         time it starts from.
+    bom : bool
+        Whether the file starts with a UTF-8 byte-order mark (skipped by every reader).
     usable : collections.Counter
         Lines by what they can give: ``position``, ``heading``, ``thrust``, ``other``
         (a supported sentence of neither), or the cause they cannot (the NMEA parser's
@@ -233,6 +259,7 @@ class LogScan:
     longest_gap: float = 0.0
     gap_line: int = 0
     gap_start: float = math.nan
+    bom: bool = False
     usable: Counter = field(default_factory=Counter)
     _steps: list = field(default_factory=lambda: [0] * (_BINS_PER_DECADE * _DECADES), repr=False)
 
@@ -299,7 +326,8 @@ def scan_log(path: str | Path, option: str = "log") -> LogScan:
     scan = LogScan(Path(path), option, kind)
     parser = NmeaParser()
     csv = CsvLog(path, option=option) if kind.startswith("csv-") else None
-    with Path(path).open("rb") as handle:
+    scan.bom = has_bom(path)
+    with open_log(path) as handle:
         for number, raw in enumerate(handle, start=1):
             line = raw.strip()
             if not line or line.startswith(b"#") or (csv is not None and number == 1):

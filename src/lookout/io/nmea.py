@@ -32,8 +32,52 @@ SUPPORTED = POSITION_SENTENCES + HEADING_SENTENCES + ("ROT", "GST")
 #: and a 61162-450 header make it longer). Longer lines are dropped as ``too_long``.
 MAX_LINE = 1024
 #: The causes under which :class:`NmeaParser` counts a line (each line exactly one).
-CAUSES = ("accepted", "no_fix", "checksum", "malformed", "unsupported", "too_long", "empty")
+CAUSES = ("accepted", "no_fix", "checksum", "malformed", "out_of_range", "unsupported", "too_long", "empty")
 _HEADER = b"UdPbC\x00"
+
+#: Talker IDs that one device speaks under, by the device they name: a
+#: multi-constellation receiver's GGA comes as GP, GN, GL, ... as its solution changes,
+#: and a heading source's THS or HDT as HE, HC, HN or TI. A session treats the talkers
+#: of one family from one place as one source (:func:`receiver`).
+TALKER_FAMILIES = {
+    "GNSS": ("GP", "GN", "GL", "GA", "GB", "BD", "GQ", "GI"),
+    "heading": ("HE", "HC", "HN", "TI"),
+}
+_FAMILY_OF = {talker: family for family, talkers in TALKER_FAMILIES.items() for talker in talkers}
+
+
+def receiver(source: str, bindings=None) -> str:
+    """The device a reading's ``source`` (``TALKER`` or ``TALKER@WHERE``) comes from: the
+    one place where a talker and its sender are bound to a source.
+
+    Parameters
+    ----------
+    source : str
+        A :class:`Reading`'s source.
+    bindings : mapping of str to str, optional
+        Names the user gives: a key is a source (``GN@10.0.0.5``) or a talker alone
+        (``GN``, from any sender), its value the source's name. An exact source wins
+        over a talker.
+
+    Returns
+    -------
+    str
+        The bound name if ``bindings`` names the source; else the talker's family from
+        :data:`TALKER_FAMILIES` in its place (``GN@10.0.0.5`` is ``GNSS@10.0.0.5``,
+        ``HC`` is ``heading``); else ``source`` itself.
+    """
+    talker, at, where = source.partition("@")
+    if bindings:
+        if source in bindings:
+            return bindings[source]
+        if talker in bindings:
+            return bindings[talker]
+    family = _FAMILY_OF.get(talker)
+    return source if family is None else family + at + where
+
+
+class _OutOfRange(ValueError):
+    """A field read as a number that cannot be what it measures (latitude 91)."""
 
 
 @dataclass(frozen=True)
@@ -128,7 +172,8 @@ class NmeaParser:
     counts : collections.Counter
         Lines by cause (:data:`CAUSES`): ``accepted`` (a reading), ``no_fix`` (valid, but
         says it has no fix: GGA quality 0, status V, empty fields), ``checksum``,
-        ``malformed``, ``unsupported`` (a sentence this module does not use),
+        ``malformed``, ``out_of_range`` (a latitude, longitude or heading outside its
+        range), ``unsupported`` (a sentence this module does not use),
         ``too_long``, ``empty``.
     sources : collections.Counter
         Readings by ``(source, kind)``.
@@ -216,6 +261,8 @@ class NmeaParser:
         try:
             message = NMEAReader.parse(line, validate=VALNONE)
             kind, values = _values(formatter, message)
+        except _OutOfRange:
+            return "out_of_range", None
         except Exception:  # noqa: BLE001 - a line never raises: pynmeagps raises several types on bad fields
             return "malformed", None
         if kind is None:
@@ -240,7 +287,7 @@ def _values(formatter: str, message):
             quality, hdop = 1, math.nan
         lat, lon = float(message.lat), float(message.lon)
         if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-            raise ValueError("position out of range")
+            raise _OutOfRange("position out of range")
         return "position", (lat, lon, float(quality), hdop)
     if formatter in HEADING_SENTENCES:
         if formatter == "THS":
@@ -253,7 +300,7 @@ def _values(formatter: str, message):
                 return None, ()
             heading = float(message.headingT)
         if not (math.isfinite(heading) and 0.0 <= heading <= 360.0):
-            raise ValueError("heading out of range")
+            raise _OutOfRange("heading out of range")
         return "heading", (heading,)
     if formatter == "ROT":
         if message.valid != "A" or message.rot == "":

@@ -31,6 +31,8 @@ from lookout.io.nmea import sentence
 
 #: 2026-12-01T00:00:00Z: the Unix time of the example log's step 0.
 EPOCH = 1796083200.0
+#: The outage a log has unless told otherwise: (start, length) in seconds of run time.
+DEFAULT_OUTAGE = (300.0, 30.0)
 
 
 def _minutes(value: float, degree_digits: int, hemispheres: str) -> tuple[str, str]:
@@ -60,7 +62,7 @@ def ths(heading_degrees: float) -> str:
 
 
 def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFrame | None = None, epoch: float = EPOCH,
-                        outage: tuple[float, float] | None = (300.0, 30.0), corrupted: int = 6, wild_points: int = 2, seed: int = 0) -> dict:
+                        outage: tuple[float, float] | None = DEFAULT_OUTAGE, corrupted: int = 6, wild_points: int = 2, seed: int = 0) -> dict:
     """Write the NMEA log, the CSV logs and the truth of one simulated run.
 
     Parameters
@@ -78,7 +80,8 @@ def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFram
         Unix time of the run's t = 0.
     outage : (start, length), optional
         Seconds of run time without fixes: finite, ``length`` positive, and within the
-        run (``start + length`` at most its duration).
+        run (``start + length`` at most its duration); default :data:`DEFAULT_OUTAGE`,
+        None for no outage.
     corrupted, wild_points : int
         Corrupted copies of sentences, and fixes 60 m off, added to the log.
     seed : int
@@ -101,6 +104,7 @@ def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFram
     folder = Path(folder)
     ds = ds.isel(run=0) if "run" in ds.dims else ds
     step = float(ds.attrs["sample_period_s"])
+    default = outage is DEFAULT_OUTAGE  # not chosen by the caller: a refusal says so
     if outage is not None:
         try:
             start, length = (float(value) for value in outage)
@@ -110,7 +114,8 @@ def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFram
         if not (math.isfinite(start) and math.isfinite(length) and start >= 0 and length > 0):
             raise ValueError(f"outage must be (start, length) with start >= 0 and length > 0 (s); got ({start:g}, {length:g})")
         if start + length > end + 1e-9 * end:
-            raise ValueError(f"outage ({start:g}, {length:g}) ends at {start + length:g} s, after the run's end: its duration is {end:g} s")
+            raise ValueError(f"outage ({start:g}, {length:g}){' (the default)' if default else ''} ends at {start + length:g} s, after the run's end: "
+                             f"its duration is {end:g} s" + ("; give an outage within the run, or None" if default else ""))
         outage = (start, length)
     folder.mkdir(parents=True, exist_ok=True)
     periods = [float(p) for p in str(ds.attrs["sensor_sample_period_s"]).strip("[]").split(",")]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 from pathlib import Path
@@ -14,6 +15,8 @@ from lookout.live.options import MAX_GAP, Gates  # the defaults of --max-gap and
 
 #: Steps per compiled scan in a fast replay.
 REPLAY_BATCH = 4096
+#: write-log's outage when --outage is not given (START,LENGTH in seconds of run time).
+DEFAULT_OUTAGE_TEXT = "300,30"
 
 _GATES = {
     "min_quality": ("--min-quality", "Lowest GGA fix quality used (1 GPS, 2 DGPS, 4 RTK)."),
@@ -26,7 +29,13 @@ _GATES = {
 }
 
 
+#: The gate options that only some observers' tests use: option name -> (the channel
+#: it is for, None for every channel; the test, lookout.live.gate.gate_tests, that uses it).
+_GATE_TESTS = {"gate_probability": (None, "nis"), "position_gate": ("position", "innovation"), "heading_gate": ("heading", "innovation")}
+
+
 def _gate_values(gates: dict):
+    gates = {name: value for name, value in gates.items() if value is not None}  # an option not given takes its default
     try:
         return Gates(**gates)
     except ValueError as error:
@@ -68,7 +77,32 @@ def _session(scenario_file: str, origin: Optional[str], gates: dict, on_event, s
         raise InputError(f"{scenario_file}: {error}") from None
     for warning in caught:
         say(f"warning: {warning.message}")
+    _check_gate_options(session, gates, scenario_file)
     return session
+
+
+def _check_gate_options(session, gates: dict, scenario_file: str) -> None:
+    """Refuse a gate option given for an observer whose gate does not use it (a chi-square
+    probability for an observer without an innovation covariance, a gate in metres or
+    degrees for a Kalman filter)."""
+    from lookout.scenario.registry import kind_of, kinds
+
+    used = {(kind, test) for kind, test in session.gate_tests.items()}
+    observer = kind_of(session.observer)
+    for name, (channel, test) in _GATE_TESTS.items():
+        if gates.get(name) is None or any(test == t and channel in (None, kind) for kind, t in used):
+            continue
+        option = _GATES[name][0]
+        tests = sorted({t for _, t in used})
+        by = {"nis": "its normalized innovation squared (--gate-probability)", "innovation": "its innovations' length (--position-gate, --heading-gate)",
+              "none": "nothing: it gives no innovation"}
+        if test == "nis":
+            filters = [each.name for each in kinds("observer") if callable(getattr(each.component_class, "innovation_statistics", None))]
+            applies = f"observers with an innovation covariance ({', '.join(filters)})"
+        else:
+            applies = f"observers gated on the length of their innovation_{channel} output"
+        gated_by = " and ".join(by[t] for t in tests)
+        raise InputError(f"{option} applies to {applies}; the observer of {scenario_file}, {observer}, is gated on {gated_by}: leave {option} out")
 
 
 def _check_out(out: Optional[str]) -> None:
@@ -136,15 +170,16 @@ def _outputs(session, out: Optional[str], publish: Optional[str], scenario_file:
 
 
 def _status_line(session, parser, outcome, final: bool = False) -> str:
+    """The session in one line: steps, readings and rates, every line or reading not used
+    by its cause (:meth:`lookout.live.run.Outcome.unused`), the gate's rule, outages,
+    gaps, and the latency or the cost of a step."""
     import numpy as np
 
     span = (outcome.last_time - outcome.first_time) if outcome.first_time is not None else 0.0
     rates = []
     for kind, channel in session.channels.items():
         rates.append(f"{kind} {channel.counts['accepted'] / span:.2f}/s" if span > 0 else f"{kind} -")
-    rejected = outcome.rejected
-    gated = sum(channel.counts["gated"] for channel in session.channels.values())
-    quality = sum(channel.counts["quality"] + channel.counts["hdop"] for channel in session.channels.values())
+    unused = outcome.unused(session)
     if outcome.latency.percentiles():
         which, lat = "latency", " ".join(f"p{p} {v * 1e3:.2f} ms" for p, v in outcome.latency.percentiles().items())
     elif session.batch > 1:  # a fast replay: blocks of steps in one scan; the first compiles
@@ -159,8 +194,8 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
         thrust = (f"; thrust rejected {sum(bad.values())} ({', '.join(f'{k} {v}' for k, v in bad.items())}: the previous thrust held)" if bad
                   else "; thrust rejected 0")
     return (f"{'done' if final else 'status'}: {outcome.steps} steps, {outcome.readings} readings; " + ", ".join(rates)
-            + f"; rejected {sum(rejected.values())} ({', '.join(f'{k} {v}' for k, v in rejected.items()) or 'none'})" + thrust
-            + f"; quality/HDOP {quality}; gated {gated} ({session.gate_rule}); outages {outages}; gaps {session.gaps}; late {session.late}; {which} {lat or '-'}")
+            + f"; not used {sum(unused.values())}" + (f" ({', '.join(f'{k} {v}' for k, v in unused.items())})" if unused else "") + thrust
+            + f"; gate {session.gate_rule}; outages {outages}; gaps {session.gaps}; {which} {lat or '-'}")
 
 
 def _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout, gate_probability) -> dict:
@@ -216,6 +251,29 @@ def _check_truth_period(truth: str, sample_period: float) -> None:
         raise InputError(f"--truth {truth} is recorded every {step:g} s; the scenario's observer steps every {sample_period:g} s: give the truth of this scenario's run")
 
 
+def _check_truth_range(truth: str, log: str, scan, sample_period: float) -> None:
+    """Refuse, before any step, a --truth whose time range does not cover the session's
+    steps: the figure compares the session's time since its first step with the
+    truth's run time, and the log's span says how far the steps go (a truth short by
+    less than a step is found when the figure is drawn)."""
+    import xarray as xr
+
+    with xr.open_dataset(truth) as ds:
+        times = ds["time"].values.astype(float)
+        epoch = ds.attrs.get("log_epoch_unix_s")
+    start, end = float(times[0]), float(times[-1])
+    step = float(times[1] - times[0])
+    first_step = math.ceil(scan.first / sample_period - 1e-9)
+    steps_to = (math.ceil(scan.newest / sample_period - 1e-9) - first_step) * sample_period  # the session's last step time
+    if start <= sample_period and end + sample_period >= steps_to - 1e-9 * max(1.0, steps_to):
+        return
+    clock = f", {scan.first - epoch:.3f} to {scan.newest - epoch:.3f} s on the truth's clock" if epoch is not None else ""
+    raise InputError(
+        f"--truth {truth} covers {start:g} to {end:g} s (every {step:g} s); LOG {log} runs from {scan.first:.6f} to {scan.newest:.6f} s{clock}, "
+        f"steps 0 to {steps_to:g} s of a session: give the truth of the run behind this log (lookout write-log's NAME-truth.nc)"
+    )
+
+
 def _say(quiet: bool):
     def say(text: str) -> None:
         if not quiet:
@@ -239,11 +297,11 @@ Origin = Annotated[Optional[str], typer.Option(metavar="LAT,LON", help="Origin o
 Publish = Annotated[Optional[str], typer.Option(metavar="udp://HOST:PORT | -", help="Send each estimate as a JSON line (- for stdout).")]
 MinQuality = Annotated[int, typer.Option("--min-quality", help=_GATES["min_quality"][1])]
 MaxHdop = Annotated[float, typer.Option("--max-hdop", help=_GATES["max_hdop"][1])]
-PositionGate = Annotated[float, typer.Option("--position-gate", help=_GATES["position_gate"][1])]
-HeadingGate = Annotated[float, typer.Option("--heading-gate", help=_GATES["heading_gate"][1])]
+PositionGate = Annotated[Optional[float], typer.Option("--position-gate", help=_GATES["position_gate"][1], show_default=f"{Gates.position_gate:g}")]
+HeadingGate = Annotated[Optional[float], typer.Option("--heading-gate", help=_GATES["heading_gate"][1], show_default=f"{Gates.heading_gate:g}")]
 PositionTimeout = Annotated[float, typer.Option("--position-timeout", help=_GATES["position_timeout"][1])]
 HeadingTimeout = Annotated[float, typer.Option("--heading-timeout", help=_GATES["heading_timeout"][1])]
-GateProbability = Annotated[float, typer.Option("--gate-probability", help=_GATES["gate_probability"][1])]
+GateProbability = Annotated[Optional[float], typer.Option("--gate-probability", help=_GATES["gate_probability"][1], show_default=str(Gates.gate_probability))]
 FlushEvery = Annotated[int, typer.Option(metavar="STEPS", help="Steps between writes of --out (a killed session loses at most these).")]
 MaxGap = Annotated[float, typer.Option("--max-gap", metavar="SECONDS",
                                        help="The longest silence of the log (no line at all) accepted; a longer one is refused (docs/live.md: why 60 s).")]
@@ -260,11 +318,11 @@ def replay_command(
     origin: Origin = None,
     min_quality: MinQuality = Gates.min_quality,
     max_hdop: MaxHdop = Gates.max_hdop,
-    position_gate: PositionGate = Gates.position_gate,
-    heading_gate: HeadingGate = Gates.heading_gate,
+    position_gate: PositionGate = None,
+    heading_gate: HeadingGate = None,
     position_timeout: PositionTimeout = Gates.position_timeout,
     heading_timeout: HeadingTimeout = Gates.heading_timeout,
-    gate_probability: GateProbability = Gates.gate_probability,
+    gate_probability: GateProbability = None,
     max_gap: MaxGap = MAX_GAP,
     flush_every: FlushEvery = 1000,
     truth: Annotated[Optional[str], typer.Option(metavar="TRUTH.nc", help="The run behind a simulated log (lookout write-log), for --figure.")] = None,
@@ -272,8 +330,11 @@ def replay_command(
     quiet: Quiet = False,
 ) -> None:
     """Run a scenario's observer over a recorded log, as it would have run live."""
+    from lookout._commandline import progress_bar
+    from lookout.io.logs import BOM_NOTE
     from lookout.io.nmea import NmeaParser
     from lookout.live.run import check_replay, replay
+    from lookout.live.session import OriginError
 
     # what the user typed, then the files, then the scenario: each refused before any work
     if speed is not None and fast:
@@ -324,8 +385,15 @@ def replay_command(
         _check_truth_period(truth, session.sample_period)
     try:  # the logs' times, order and lines, before any step
         check = check_replay(session, log, thrust, max_gap)
+    except OriginError as error:
+        raise InputError(error.message("--origin")) from None
     except ValueError as error:
         raise InputError(str(error).replace("max_gap", "--max-gap")) from None
+    if truth is not None:
+        _check_truth_range(truth, log, check.log, session.sample_period)
+    for option, path, scanned in (("LOG", log, check.log), ("--thrust", thrust, check.thrust)):
+        if scanned is not None and scanned.bom:
+            say(f"{option} {path}: {BOM_NOTE}")
     write, close, remove = _outputs(session, out, publish, scenario_file, f"replay of {log}", flush_every)
 
     def emit(block) -> None:
@@ -346,10 +414,12 @@ def replay_command(
             f"{min(check.thrust.newest, check.log.newest) - check.log.first:.1f} s of the log's {check.log.span:.1f} s: zero input before, the last thrust held after")
     refused = None
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _replay_progress(progress_bar) as progress:
             warnings.simplefilter("ignore", RuntimeWarning)
             outcome = replay(session, log, thrust=thrust, speed=speed, emit=emit, parser=parser, max_gap=max_gap, check=check,
-                             status=lambda o: say(_status_line(session, parser, o)))
+                             status=lambda o: say(_status_line(session, parser, o)), progress=progress)
+    except OriginError as error:
+        refused = error.message("--origin")
     except ValueError as error:  # the log's check (before any step) or a refusal on the way
         refused = str(error).replace("max_gap", "--max-gap")
     finally:  # what was computed is written, whatever stopped the replay (Ctrl-C keeps it)
@@ -369,6 +439,30 @@ def replay_command(
         except InputError:
             remove()  # a refused command leaves nothing: the session's file goes with it
             raise
+
+
+#: Wall seconds a replay runs before its progress line shows (a shorter one shows none).
+PROGRESS_AFTER = 2.0
+
+
+@contextlib.contextmanager
+def _replay_progress(progress_bar):
+    """A replay's progress line on stderr: the share of the log replayed and the time
+    left, shown once the replay has run :data:`PROGRESS_AFTER` seconds, and only on a
+    terminal (a pipe or a log sees nothing); yields the replay's ``progress(done, total)``."""
+    import time
+
+    from rich.progress import BarColumn, TextColumn, TimeRemainingColumn
+
+    started = time.perf_counter()
+    with progress_bar(TextColumn("replaying"), BarColumn(), TextColumn("{task.percentage:>5.1f}% of the log"), TimeRemainingColumn()) as bar:
+        task = bar.add_task("replay", total=1.0, visible=False)
+
+        def progress(done: float, total: float) -> None:
+            shown = time.perf_counter() - started > PROGRESS_AFTER
+            bar.update(task, completed=done / total if total > 0 else 1.0, visible=shown)
+
+        yield progress
 
 
 def _figure(out: str, truth: Optional[str], path: Path, log: str) -> None:
@@ -406,11 +500,11 @@ def live_command(
     origin: Origin = None,
     min_quality: MinQuality = Gates.min_quality,
     max_hdop: MaxHdop = Gates.max_hdop,
-    position_gate: PositionGate = Gates.position_gate,
-    heading_gate: HeadingGate = Gates.heading_gate,
+    position_gate: PositionGate = None,
+    heading_gate: HeadingGate = None,
     position_timeout: PositionTimeout = Gates.position_timeout,
     heading_timeout: HeadingTimeout = Gates.heading_timeout,
-    gate_probability: GateProbability = Gates.gate_probability,
+    gate_probability: GateProbability = None,
     flush_every: FlushEvery = 100,
     quiet: Quiet = False,
 ) -> None:
@@ -456,7 +550,7 @@ def live_command(
         if source[1] is not sys.stdin.buffer:
             source[1].close()
         raise InputError(str(error)) from None
-    emit, close, _ = _outputs(session, out, publish, scenario_file, f"live from {nmea}", flush_every)
+    emit, close, remove = _outputs(session, out, publish, scenario_file, f"live from {nmea}", flush_every)
     if thrust_source is None:
         say("no --thrust: the observer predicts with zero input")
     parser = NmeaParser()
@@ -464,11 +558,16 @@ def live_command(
     say(f"listening on {source[2]} (Ctrl-C stops)")
     import warnings
 
+    from lookout.live.session import OriginError
+
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             outcome = live(session, source, thrust=thrust_source, emit=emit, parser=parser, duration=duration, idle=idle,
                            status=lambda o: say(_status_line(session, parser, o)))
+    except OriginError as error:  # at the first fix: no step was taken (a step needs a fix)
+        remove()
+        raise InputError(error.message("--origin")) from None
     finally:  # what was computed is written, whatever stopped the session
         close()
     say(_status_line(session, parser, outcome, final=True) + (f"; written to {out}" if out and outcome.steps else ""))
@@ -479,7 +578,8 @@ def write_log_command(
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Where NAME.nmea, NAME.csv, NAME-thrust.csv and NAME-truth.nc go.")] = "out/log",
     name: Annotated[str, typer.Option(metavar="NAME", help="The files' stem.")] = "dp-vessel",
     origin: Annotated[str, typer.Option(metavar="LAT,LON", help="Where north = east = 0 lies (degrees).")] = "63.44,10.40",
-    outage: Annotated[Optional[str], typer.Option(metavar="START,LENGTH", help="Seconds of run time without fixes, within the run (none: no outage).")] = "300,30",
+    outage: Annotated[Optional[str], typer.Option(metavar="START,LENGTH", help="Seconds of run time without fixes, within the run (none: no outage).",
+                                                  show_default=DEFAULT_OUTAGE_TEXT)] = None,
     seed: Annotated[int, typer.Option(help="Seed of the arrival jitter and the corruptions (the run's own is the file's).")] = 0,
 ) -> None:
     """Simulate a scenario once and write what a bridge computer would have logged: GGA
@@ -495,7 +595,9 @@ def write_log_command(
         raise InputError(f"--name must be a file stem of letters, digits, '.', '_' or '-'; got {name!r}")
     frame = _frame(origin)
     window = None
-    if outage is not None and outage.lower() != "none":
+    given = outage is not None
+    outage = DEFAULT_OUTAGE_TEXT if outage is None else outage
+    if outage.lower() != "none":
         try:
             window = tuple(float(part) for part in outage.split(","))
             if len(window) != 2 or not all(math.isfinite(v) and v >= 0 for v in window):
@@ -513,6 +615,9 @@ def write_log_command(
         raise InputError(f"{scenario_file}: the sensor must measure position and heading (kind position-heading); it measures "
                          f"{', '.join(scenario.sensor.measurement_layout.names)}")
     if window is not None and window[0] + window[1] > scenario.duration:
+        if not given:  # the default's window, which the user did not choose: name the run they gave
+            raise InputError(f"{scenario_file}: its run lasts {scenario.duration:g} s (simulation.duration), shorter than the default outage, "
+                             f"{DEFAULT_OUTAGE_TEXT} (from {window[0]:g} to {window[0] + window[1]:g} s): give --outage START,LENGTH within the run, or --outage none")
         raise InputError(f"--outage {outage} ends at {window[0] + window[1]:g} s, after the run's end: its duration is {scenario.duration:g} s "
                          f"(give START + LENGTH <= {scenario.duration:g}, or none)")
     from lookout._commandline import check_memory
@@ -542,7 +647,7 @@ def play_command(
     import socket
     import time
 
-    from lookout.io.logs import scan_log
+    from lookout.io.logs import BOM_NOTE, open_log, scan_log
     from lookout.live.output import parse_udp
     from lookout.live.run import check_log_order
 
@@ -572,12 +677,14 @@ def play_command(
     if scan.longest_gap > max_gap:
         raise InputError(f"LOG {log}: no line for {scan.longest_gap:.6g} s before line {scan.gap_line} ({scan.gap_start - scan.first:.6g} s into the log), "
                          f"longer than --max-gap {max_gap:g} s, which play would wait; allow it with a longer --max-gap, or split the log there")
+    if scan.bom:
+        print(f"LOG {log}: {BOM_NOTE}", file=sys.stderr)
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sent = skipped = failed = 0
     first = None
     started = time.perf_counter()
     try:
-        with open(log, "rb") as handle:
+        with open_log(log) as handle:
             for raw in handle:
                 stamp, _, sentence = raw.strip().partition(b" ")
                 try:

@@ -14,6 +14,13 @@ from dataclasses import dataclass
 #: docs/live.md, "Why 60 s for --max-gap", gives the reason.
 MAX_GAP = 60.0
 
+#: The farthest (m) a given origin may lie from the first fix. The frame is flat, the
+#: tangent plane at the origin: a fix d east of it sees the frame's north turned from
+#: its own true north (the gyro's) by about (d / R) tan(latitude) <= (d / R) / cos(latitude),
+#: at 100 km 0.9 deg / cos(latitude), about a gyrocompass's allowed error (IMO A.424:
+#: 0.75 deg / cos(latitude)); docs/live.md, "Why 100 km for an origin".
+MAX_ORIGIN_DISTANCE = 100e3
+
 
 def _positive(name: str, value) -> None:
     import numpy as np  # here, not at the top: `lookout --help` needs no NumPy

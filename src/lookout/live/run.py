@@ -29,13 +29,15 @@ import numpy as np
 from lookout.io.logs import CsvLog, LogScan, log_format, nmea_log, scan_log
 from lookout.io.nmea import LineSplitter, NmeaParser, Reading
 from lookout.live.options import MAX_GAP
-from lookout.live.session import Session
+from lookout.live.session import Session, check_origin, fix_refusal
 from lookout.sim.filtering import check_step_length
 
 #: The share of a log's lines that may be stamped before a line above them (reordered
 #: by the logger; each is dropped as late); more (and more than one line) is a log out
 #: of order.
 MAX_LATE_SHARE = 0.01
+#: Wall seconds between calls of a replay's ``progress``.
+PROGRESS_EVERY = 0.2
 
 
 class Latencies:
@@ -81,6 +83,13 @@ class Outcome:
     def rejected(self) -> dict:
         """The lines that gave no reading, by cause (zeros left out)."""
         return {cause: n for cause, n in self.counts.items() if cause != "accepted" and n}
+
+    def unused(self, session: Session) -> dict:
+        """Every line and reading that ``session`` did not use, by cause: the lines that
+        gave no reading (:attr:`rejected`), then the readings the session left
+        (:attr:`Session.unused`); zeros left out, thrust apart
+        (:attr:`thrust_rejected`)."""
+        return {**self.rejected, **session.unused}
 
     @property
     def thrust_rejected(self) -> dict:
@@ -144,7 +153,11 @@ def check_replay(session: Session, log: str | Path, thrust: str | Path | None = 
     - a silence longer than ``max_gap`` seconds: the session would dead-reckon
       through it, step by step, with nothing to correct it;
     - the thrust log is out of order, has no row with a thrust, or does not overlap
-      the log's time span (another clock, or milliseconds).
+      the log's time span (another clock, or milliseconds);
+    - the session's frame was given and its origin lies farther than
+      :data:`~lookout.live.options.MAX_ORIGIN_DISTANCE` from the log's first fix (an
+      NMEA log; :class:`~lookout.live.session.OriginError`, which the session would
+      raise at that fix).
 
     Parameters
     ----------
@@ -173,6 +186,10 @@ def check_replay(session: Session, log: str | Path, thrust: str | Path | None = 
             f"LOG {log}: no line for {scan.longest_gap:.6g} s before line {scan.gap_line} ({scan.gap_start - scan.first:.6g} s into the log), "
             f"longer than max_gap {max_gap:g} s{hint}; a replay would dead-reckon through it with nothing to correct it: give a longer max_gap to replay it anyway, or split the log there"
         )
+    if session.frame is not None and scan.format == "nmea":
+        fix = first_fix(log, session)
+        if fix is not None:
+            check_origin(session.frame, *fix, where="the log's first fix")
     check = ReplayCheck(scan)
     if thrust is not None:
         thrust_scan = scan_log(thrust, "--thrust")
@@ -188,6 +205,15 @@ def check_replay(session: Session, log: str | Path, thrust: str | Path | None = 
             )
         check.thrust = thrust_scan
     return check
+
+
+def first_fix(log: str | Path, session: Session) -> tuple[float, float] | None:
+    """(latitude, longitude) of the first fix of an NMEA log that ``session``'s gates
+    pass (None without one); the log is read up to it."""
+    for reading in nmea_log(log, NmeaParser()):
+        if reading.kind == "position" and fix_refusal(reading.values, session.gates) is None:
+            return reading.values[0], reading.values[1]
+    return None
 
 
 def _thrust_line(line: bytes, time: float, counts: Counter | None = None) -> Reading | None:
@@ -222,7 +248,7 @@ def log_readings(path: str | Path, parser: NmeaParser):
 
 def replay(session: Session, log: str | Path, *, thrust: str | Path | None = None, speed: float | None = None,
            emit=None, parser: NmeaParser | None = None, status=None, status_every: float = 5.0, max_gap: float = MAX_GAP,
-           check: ReplayCheck | None = None) -> Outcome:
+           check: ReplayCheck | None = None, progress=None) -> Outcome:
     """Step ``session`` through a log; ``emit(record)`` for each step.
 
     The logs are checked first (:func:`check_replay`); thrust rows after the log's
@@ -240,6 +266,10 @@ def replay(session: Session, log: str | Path, *, thrust: str | Path | None = Non
     check : ReplayCheck, optional
         What :func:`check_replay` gave for these logs and ``session``, when the caller
         has checked them already (they are not read twice).
+    progress : callable, optional
+        Called with ``(done, total)``, the log's seconds replayed and its span, about
+        every :data:`PROGRESS_EVERY` wall seconds and once at the end (``done ==
+        total``).
 
     Raises
     ------
@@ -254,7 +284,8 @@ def replay(session: Session, log: str | Path, *, thrust: str | Path | None = Non
         thrust_log = CsvLog(thrust, source="thrust", option="--thrust")
     outcome = Outcome(counts=counts, thrust_counts=thrust_log.counts if thrust_log is not None else {}, check=check)
     started = _time.perf_counter()
-    last_status = started
+    last_status = last_progress = started
+    span = check.log.span
     for reading in _merged(readings, iter(thrust_log) if thrust_log is not None else None):
         if outcome.first_time is None:
             outcome.first_time = reading.time
@@ -270,11 +301,16 @@ def replay(session: Session, log: str | Path, *, thrust: str | Path | None = Non
             last_status = _time.perf_counter()
             outcome.wall_seconds = last_status - started
             status(outcome)
+        if progress is not None and _time.perf_counter() - last_progress > PROGRESS_EVERY:
+            last_progress = _time.perf_counter()
+            progress(min(max(reading.time - check.log.first, 0.0), span), span)
     if outcome.last_time is not None:  # through the step that uses the last reading
         last_step = session.time_of(math.ceil(outcome.last_time / session.sample_period - 1e-9))
         _emit(session.advance(math.nextafter(last_step, math.inf)), emit, outcome)
     _emit(session.finish(), emit, outcome)
     outcome.wall_seconds = _time.perf_counter() - started
+    if progress is not None:
+        progress(span, span)
     return outcome
 
 
@@ -355,7 +391,14 @@ def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser
     """Step ``session`` on a live source (from :func:`open_source`) until ``duration``
     seconds have passed, nothing arrived for ``idle`` seconds, the stream ends, or
     Ctrl-C. ``thrust`` is a second source of ``surge,sway,yaw`` lines. ``clock``
-    (seconds) stamps each reading's arrival; default :func:`unix_clock`."""
+    (seconds) stamps each reading's arrival; default :func:`unix_clock`.
+
+    Raises
+    ------
+    lookout.live.session.OriginError
+        At the first fix, when the session's given frame has its origin farther than
+        :data:`~lookout.live.options.MAX_ORIGIN_DISTANCE` from it (no step taken yet).
+    """
     clock = clock or unix_clock()
     parser = parser or NmeaParser()
     kind, handle, where = source

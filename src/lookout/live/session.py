@@ -10,7 +10,12 @@ period) with :meth:`Session.advance`: each step on the readings that had arrived
   :class:`~lookout.io.LocalFrame` (the first fix's, unless one is given);
 - a heading is wrapped to [-pi, pi), as a simulated heading sensor's;
 - of several sources of one kind (two DGNSS receivers), the one in use stays in use
-  until it has been silent for the channel's timeout; then the next that speaks;
+  until it has been silent for the channel's timeout; then the next that speaks. A
+  source is a device, not a talker ID: a multi-constellation receiver's GP and GN
+  fixes, or a gyro's HE and HC headings, from one sender are one source
+  (:func:`lookout.io.nmea.receiver`, where ``sources`` binds others by name);
+- a fix farther than :data:`~lookout.live.options.MAX_ORIGIN_DISTANCE` from a given
+  frame's origin is refused (:class:`OriginError`, before the session uses it);
 - the newest reading of each channel since the last step goes into the step. Hold,
   timeout and the wild-point gate are :class:`~lookout.live.gate.GatedObserver`'s,
   inside the compiled step: a Kalman filter's readings are gated on their normalized
@@ -23,7 +28,8 @@ period) with :meth:`Session.advance`: each step on the readings that had arrived
 
 A step's results come out as a :class:`Block` (one step live; many in a fast replay,
 which runs ``batch`` steps in one compiled scan). Events (outage, recovered, gated,
-source, frame, gap, refused) go to ``on_event``.
+source, frame, gap, refused) go to ``on_event``. Every reading the session does not
+use is counted by its reason (:attr:`Session.unused`).
 """
 
 from __future__ import annotations
@@ -36,14 +42,86 @@ from dataclasses import dataclass
 import numpy as np
 
 from lookout.io.geodesy import LocalFrame
-from lookout.io.nmea import Reading
+from lookout.io.nmea import Reading, receiver
 from lookout.live.gate import GatedObserver, gate_tests
-from lookout.live.options import Gates, _positive
+from lookout.live.options import MAX_ORIGIN_DISTANCE, Gates, _positive
 from lookout.sim.filtering import Stepper
 
 #: The measurement signals a live observer's layout may name, and the reading kind
 #: that fills each.
 CHANNELS = {"measured_position": "position", "measured_heading": "heading"}
+
+#: The reasons a session does not use a reading, in the order a status line lists them:
+#: ``late`` (stamped before the reading before it), ``not_read`` (a kind the observer
+#: does not read: rate of turn, the error ellipse, a channel it does not measure),
+#: ``quality`` and ``hdop`` (a fix below ``min_quality`` or above ``max_hdop``),
+#: ``other_source`` (a second source while the one in use speaks), ``superseded`` (a
+#: newer reading of its channel came before the step) and ``gated`` (a wild point).
+UNUSED_REASONS = ("late", "not_read", "quality", "hdop", "other_source", "superseded", "gated")
+#: Mean radius of the Earth (m, IUGG), for the distance of a fix from an origin.
+EARTH_RADIUS = 6_371_008.8
+
+
+def distance(latitude_a: float, longitude_a: float, latitude_b: float, longitude_b: float) -> float:
+    """Great-circle distance (m) between two points given in degrees (haversine on a
+    sphere of :data:`EARTH_RADIUS`: to 0.5 %, enough to tell near from far)."""
+    phi_a, phi_b = math.radians(latitude_a), math.radians(latitude_b)
+    half = math.sin((phi_b - phi_a) / 2) ** 2 + math.cos(phi_a) * math.cos(phi_b) * math.sin(math.radians(longitude_b - longitude_a) / 2) ** 2
+    return 2 * EARTH_RADIUS * math.asin(min(1.0, math.sqrt(half)))
+
+
+class OriginError(ValueError):
+    """A fix too far from the frame's origin for a flat local frame.
+
+    Attributes
+    ----------
+    frame : LocalFrame
+    latitude, longitude : float
+        The fix (degrees).
+    meters : float
+        Its distance from the origin.
+    where : str
+        Which fix (``the first fix``, ``the log's first fix``).
+    """
+
+    def __init__(self, frame: LocalFrame, latitude: float, longitude: float, meters: float, where: str = "the first fix"):
+        self.frame, self.latitude, self.longitude, self.meters, self.where = frame, latitude, longitude, meters, where
+        super().__init__(self.message("frame"))
+
+    def message(self, option: str) -> str:
+        """The refusal in one line, naming the origin as ``option`` (``--origin`` at the command line)."""
+        limit = MAX_ORIGIN_DISTANCE / 1e3
+        return (f"{option} {self.frame.latitude:g},{self.frame.longitude:g} lies {self.meters / 1e3:.0f} km from {self.where}, "
+                f"{self.latitude:.6f},{self.longitude:.6f} (degrees), more than {limit:g} km: a flat north/east frame so far from its origin "
+                f"turns and bends the readings; omit {option} to take the first fix as the origin, or give one within {limit:g} km of it")
+
+
+def check_origin(frame: LocalFrame, latitude: float, longitude: float, where: str = "the first fix") -> None:
+    """Refuse (:class:`OriginError`) a fix farther than
+    :data:`~lookout.live.options.MAX_ORIGIN_DISTANCE` from ``frame``'s origin."""
+    meters = distance(frame.latitude, frame.longitude, latitude, longitude)
+    if not meters <= MAX_ORIGIN_DISTANCE:
+        raise OriginError(frame, latitude, longitude, meters, where)
+
+
+def fix_refusal(values, gates: Gates) -> str | None:
+    """Why a position reading's fix is not used (``quality``, ``hdop``), None if it passes."""
+    _, _, quality, hdop = values
+    # 6 estimated (the receiver's own dead reckoning), 7 manual, 8 simulator: never a fix
+    if quality < gates.min_quality or quality in (6.0, 7.0, 8.0):
+        return "quality"
+    if hdop > gates.max_hdop:  # an HDOP the sentence leaves empty (NaN) passes
+        return "hdop"
+    return None
+
+
+def percent(probability: float) -> str:
+    """``probability`` in percent, every digit it was given with (0.999999: ``99.9999``;
+    a rounded label could read 100 %)."""
+    from decimal import Decimal
+
+    text = format((Decimal(repr(float(probability))) * 100).normalize(), "f")
+    return text
 
 
 @dataclass
@@ -94,7 +172,7 @@ class _Channel:
     outage_since: float = math.nan
 
     def __post_init__(self):
-        self.counts = {"accepted": 0, "gated": 0, "quality": 0, "hdop": 0, "other_source": 0}
+        self.counts = {"accepted": 0, "gated": 0, "quality": 0, "hdop": 0, "other_source": 0, "superseded": 0}
 
 
 class Session:
@@ -111,6 +189,9 @@ class Session:
         The observer's initial guess (default ``observer.guess()``).
     frame : LocalFrame, optional
         The local north-east frame of position fixes; default the first accepted fix.
+        A given frame's origin must lie within
+        :data:`~lookout.live.options.MAX_ORIGIN_DISTANCE` of the first accepted fix
+        (else :meth:`feed` raises :class:`OriginError`).
     gates : Gates, optional
     on_event : callable, optional
         Called with a dict for each event (frame, source, gated, outage, recovered,
@@ -123,10 +204,14 @@ class Session:
         step's time (default heading, the fastest of a DP vessel's: its estimate
         leaves as soon as its sentence came); the others' readings go into the next
         step taken. None: steps at their times only.
+    sources : mapping of str to str, optional
+        Sources bound to names by the user (:func:`lookout.io.nmea.receiver`): e.g.
+        ``{"GP": "dgps", "GN": "rtk"}`` keeps two receivers' GP and GN fixes apart,
+        which are otherwise one GNSS receiver's.
     """
 
     def __init__(self, observer, sample_period: float, *, guess=None, frame: LocalFrame | None = None, gates: Gates | None = None,
-                 on_event=None, batch: int = 1, step_on: str | None = "heading"):
+                 on_event=None, batch: int = 1, step_on: str | None = "heading", sources=None):
         _positive("sample_period", sample_period)
         if frame is not None and not isinstance(frame, LocalFrame):
             raise ValueError(f"frame must be a lookout.io.LocalFrame; got {type(frame).__name__}")
@@ -146,6 +231,10 @@ class Session:
             raise ValueError(f"sample_period must be the observer's own {period:g} s (a discrete-time observer); got {sample_period:g} s")
         if step_on not in (None, "heading", "position"):
             raise ValueError(f"step_on must be 'heading', 'position' or None; got {step_on!r}")
+        if sources is not None and not (hasattr(sources, "items") and all(isinstance(k, str) and isinstance(v, str) and k and v for k, v in sources.items())):
+            raise ValueError(f"sources must map sources or talkers (str) to names (str); got {sources!r}")
+        self.sources = dict(sources or {})
+        self._origin_checked = frame is None  # a given origin is checked against the first fix
         self.observer = observer
         self.step_on = step_on if step_on in {CHANNELS[name] for name in names if name in CHANNELS} else None
         self.sample_period = float(sample_period)
@@ -192,6 +281,7 @@ class Session:
         self.start_index: int | None = None
         self.steps = 0
         self.late = 0
+        self.not_read = 0
         self.refused = 0
         self.events: list[dict] = []
         self.event_counts = {"outage": 0, "recovered": 0, "gated": 0, "source": 0, "refused": 0, "gap": 0}
@@ -207,12 +297,13 @@ class Session:
 
     @property
     def gate_rule(self) -> str:
-        """The gate in words, for a status line: ``NIS > chi-square 99.99 %``,
+        """The gate in words, for a status line: ``NIS > chi-square 99.99 %`` (the
+        probability to every digit given),
         ``position innovation > 30 m, heading innovation > 15 deg``, or ``off``."""
         words = {}
         for kind, test in self.gate_tests.items():
             if test == "nis":
-                words[kind] = f"NIS > chi-square {100 * self.gates.gate_probability:g} %"
+                words[kind] = f"NIS > chi-square {percent(self.gates.gate_probability)} %"
             elif test == "innovation":
                 words[kind] = f"innovation > {self.gates.position_gate:g} m" if kind == "position" else f"innovation > {self.gates.heading_gate:g} deg"
             else:
@@ -220,6 +311,15 @@ class Session:
         if len(set(words.values())) == 1 and "innovation" not in next(iter(words.values())):
             return next(iter(words.values()))
         return ", ".join(f"{kind} {rule}" for kind, rule in words.items())
+
+    @property
+    def unused(self) -> dict:
+        """The readings the session did not use, by reason (:data:`UNUSED_REASONS`, in
+        that order; zeros left out). Lines that gave no reading are the parser's."""
+        totals = {"late": self.late, "not_read": self.not_read}
+        for reason in UNUSED_REASONS[2:]:
+            totals[reason] = sum(channel.counts[reason] for channel in self.channels.values())
+        return {reason: totals[reason] for reason in UNUSED_REASONS if totals[reason]}
 
     # ----------------------------------------------------------------- readings
     def feed(self, reading: Reading) -> list[Block]:
@@ -253,16 +353,17 @@ class Session:
         kind = {"local_position": "position", "position": "position", "heading": "heading"}.get(reading.kind)
         channel = self.channels.get(kind)
         if channel is None:
-            return False  # rate of turn and the error ellipse are counted by the parser, not used
+            self.not_read += 1  # rate of turn, the error ellipse, a channel the observer does not measure
+            return False
         if reading.kind == "position":
-            latitude, longitude, quality, hdop = reading.values
-            # 6 estimated (the receiver's own dead reckoning), 7 manual, 8 simulator: never a fix
-            if quality < self.gates.min_quality or quality in (6.0, 7.0, 8.0):
-                channel.counts["quality"] += 1
+            latitude, longitude = reading.values[:2]
+            refusal = fix_refusal(reading.values, self.gates)
+            if refusal is not None:
+                channel.counts[refusal] += 1
                 return False
-            if hdop > self.gates.max_hdop:  # an HDOP the sentence leaves empty (NaN) passes
-                channel.counts["hdop"] += 1
-                return False
+            if not self._origin_checked:
+                check_origin(self.frame, latitude, longitude)
+                self._origin_checked = True
             if self.frame is None:
                 self.frame = LocalFrame(latitude, longitude)
                 self._event("frame", reading.time, latitude=latitude, longitude=longitude)
@@ -274,13 +375,16 @@ class Session:
             # wrapped to [-pi, pi) as a simulated heading sensor's (lookout.sensors)
             angle = math.radians(reading.values[0])
             value = (angle - 2 * math.pi * math.floor((angle + math.pi) / (2 * math.pi)),)
-        if channel.source is not None and reading.source != channel.source and reading.time - channel.source_time <= channel.timeout:
+        source = receiver(reading.source, self.sources)
+        if channel.source is not None and source != channel.source and reading.time - channel.source_time <= channel.timeout:
             channel.counts["other_source"] += 1
             return False
-        if reading.source != channel.source:
-            self._event("source", reading.time, channel=channel.name, source=reading.source, previous=channel.source)
-            channel.source = reading.source
+        if source != channel.source:
+            self._event("source", reading.time, channel=channel.name, source=source, previous=channel.source)
+            channel.source = source
         channel.source_time = reading.time
+        if channel.new is not None:
+            channel.counts["superseded"] += 1  # the step takes the newest reading of its channel
         channel.new, channel.new_time = value, reading.time
         channel.counts["accepted"] += 1
         return True
