@@ -523,6 +523,26 @@ def test_a_compilation_cache_switch_that_is_neither_on_nor_off_is_refused_in_one
     assert not (tmp_path / "out").exists()
 
 
+def test_version_and_help_answer_whatever_the_compilation_cache_switch_says(capsys, monkeypatch):
+    monkeypatch.setenv("LOOKOUT_COMPILATION_CACHE", "maybe")
+    assert main(["--version"]) == 0 and main(["--help"]) == 0
+    assert "LOOKOUT_COMPILATION_CACHE" not in capsys.readouterr().err
+
+
+def test_a_cache_folder_that_cannot_be_read_and_written_is_named_in_one_line_and_left_out(tmp_path, monkeypatch, capsys):
+    import sys
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.delenv("LOOKOUT_COMPILATION_CACHE", raising=False)
+    monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR", raising=False)
+    monkeypatch.delitem(sys.modules, "jax")  # as before a command imports JAX
+    monkeypatch.setattr(lookout._commandline.os, "access", lambda path, mode: False)
+    assert lookout._commandline.use_compilation_cache() is None
+    err = capsys.readouterr().err
+    assert err.startswith(f"note: the compilation cache folder {tmp_path / 'lookout' / 'jax'} cannot be read and written") and err.count("\n") == 1
+    assert "JAX_COMPILATION_CACHE_DIR" not in os.environ
+
+
 def test_the_compilation_cache_folder_follows_the_xdg_rule_and_the_switch(tmp_path, monkeypatch):
     folder = lookout._commandline.compilation_cache_folder
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
@@ -570,3 +590,13 @@ def test_trimming_the_cache_removes_the_least_recently_used_files_until_the_boun
     assert {path.name for path in tmp_path.iterdir() if path.is_file()} == expected
     assert (tmp_path / "sub" / "kept").exists()
     lookout._commandline.trim_folder(tmp_path / "missing", 0)  # no folder yet: nothing to do
+
+
+def test_a_long_simulation_says_its_time_left_after_the_segment_that_compiles():
+    from lookout._commandline import LONG_RUN_SECONDS, time_left
+
+    # 100 s compiling the first 5 % of the records, then 5 % more in 10 s: 18 segments of 10 s left
+    line = time_left([(100.0, 50.0), (110.0, 100.0)], 1000.0, 0.0)
+    assert line == "simulating: about 3 min 00 s left (10% of the records in 1 min 50 s, compilation included; the pace is that of the last 50 records)"
+    assert time_left([(100.0, 50.0), (100.0 + LONG_RUN_SECONDS / 20, 100.0)], 1000.0, 0.0) is None  # 18 x 1.5 s: under the bound
+    assert time_left([(100.0, 500.0), (110.0, 1000.0)], 1000.0, 0.0) is None  # done

@@ -110,3 +110,22 @@ def test_every_plant_kind_states_a_divergence_limit_on_one_of_its_variables():
     for name in registry.names("plant"):
         cls = registry.kind("plant", name).component_class
         assert cls.divergence is not None and cls.divergence.limit > 0, name
+
+
+def test_a_replay_whose_estimates_go_non_finite_exits_3_naming_the_step(tmp_path, capsys):
+    """A replay has no truth: its run fails where an estimate is not finite. 29 rad/s poles
+    pass the replay's step check (one step amplifies an error by less than 2) and still
+    diverge."""
+    shutil.copytree(EXAMPLES / "plugins", tmp_path / "plugins")
+    scenario = tmp_path / "unstable.toml"
+    scenario.write_text('plugins = ["plugins/luenberger.py"]\n' + (EXAMPLES / "live-dp.toml").read_text()
+                        + '\n[observer]\nkind = "luenberger"\ndesign = "poles"\nbandwidth = [29.0, 29.0, 29.0]\n')
+    out = tmp_path / "replay.nc"
+    code = main(["replay", str(EXAMPLES / "logs" / "dp-vessel.csv"), "--scenario", str(scenario), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == DIVERGED_EXIT_CODE
+    with xr.open_dataset(out) as ds:
+        estimates = [ds[name].values.reshape(ds.sizes["time"], -1) for name in ds.data_vars if name.endswith("_hat")]
+        bad = ~np.isfinite(np.concatenate(estimates, axis=1)).all(axis=1)
+        first = int(np.argmax(bad))
+    assert bad.any() and f"(step {first}):" in err and "_hat is not finite; exit code 3" in err

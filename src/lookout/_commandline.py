@@ -101,14 +101,59 @@ def progress_bar(*columns) -> Progress:
     return Progress(*columns, console=stderr, transient=True, disable=not stderr.is_terminal)
 
 
+#: A simulation whose time left is estimated above this (s) says so in one line on stderr,
+#: terminal or not, so that a long run is never silent.
+LONG_RUN_SECONDS = 30.0
+
+
 @contextlib.contextmanager
 def simulating():
-    """A progress bar on stderr while simulating; yields the engine's ``progress(done, total)``."""
+    """A progress bar on stderr while simulating; yields the engine's ``progress(done, total)``.
+
+    After the second segment (the first one compiles), a run whose time left is
+    estimated above :data:`LONG_RUN_SECONDS` says so in one line (:func:`time_left`)."""
+    import time
+
     from rich.progress import BarColumn, TextColumn, TimeRemainingColumn
+
+    start = time.perf_counter()
+    seen: list[tuple[float, float]] = []
 
     with progress_bar(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeRemainingColumn()) as bar:
         task = bar.add_task("run", total=1.0)
-        yield lambda done, total: bar.update(task, completed=done / total)
+
+        def progress(done, total) -> None:
+            bar.update(task, completed=done / total)
+            seen.append((time.perf_counter(), done))
+            if len(seen) == 2:
+                line = time_left(seen, total, start)
+                if line is not None:
+                    print(line, file=sys.stderr, flush=True)
+
+        yield progress
+
+
+def time_left(seen: list[tuple[float, float]], total: float, start: float) -> str | None:
+    """The line a long simulation prints: its time left from the pace between the first
+    two segments ``seen`` (clock, records done), or None when under :data:`LONG_RUN_SECONDS`."""
+    (first, done_first), (second, done_second) = seen[:2]
+    if done_second <= done_first or done_second >= total:
+        return None
+    left = (second - first) / (done_second - done_first) * (total - done_second)
+    if left <= LONG_RUN_SECONDS:
+        return None
+    return (f"simulating: about {_clock(left)} left ({done_second / total:.0%} of the records in {_clock(second - start)}, "
+            f"compilation included; the pace is that of the last {done_second - done_first:g} records)")
+
+
+def _clock(seconds: float) -> str:
+    """``45 s``, ``4 min 10 s``, ``2 h 05 min``."""
+    seconds = int(round(seconds))
+    if seconds < 60:
+        return f"{seconds} s"
+    if seconds < 3600:
+        return f"{seconds // 60} min {seconds % 60:02d} s"
+    return f"{seconds // 3600} h {seconds % 3600 // 60:02d} min"
 
 
 def image_file(option: str, text: str) -> Path:
@@ -196,7 +241,9 @@ def use_compilation_cache() -> Path | None:
     if folder is None or "JAX_COMPILATION_CACHE_DIR" in os.environ or (jax is not None and jax.config.jax_compilation_cache_dir is not None):
         return None
     existing = nearest_existing(folder)
-    if not (existing.is_dir() and os.access(existing, os.W_OK | os.X_OK)):
+    if not (existing.is_dir() and os.access(existing, os.R_OK | os.W_OK | os.X_OK)):
+        print(f"note: the compilation cache folder {folder} cannot be read and written ({existing} is not a folder this user may "
+              f"read and write): compiling without it; {COMPILATION_CACHE_SWITCH}=0 leaves the cache out", file=sys.stderr)
         return None
     trim_folder(folder, COMPILATION_CACHE_MAX_BYTES)
     settings = {"jax_compilation_cache_dir": str(folder), "jax_persistent_cache_min_compile_time_secs": COMPILATION_CACHE_MIN_COMPILE_SECONDS}

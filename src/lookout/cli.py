@@ -694,6 +694,10 @@ from lookout.cli_design import register as _register_design  # noqa: E402
 _register_design(design_app)
 
 
+#: Options that only print what lookout is (and compile nothing).
+INFORMATION_OPTIONS = frozenset({"--version", "--help", "-h"})
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning every input error into one line and exit code 2.
 
@@ -714,7 +718,8 @@ def main(argv: list[str] | None = None) -> int:
 
     argv = route(list(sys.argv[1:] if argv is None else argv), set(command.commands["design"].commands))
     try:
-        use_compilation_cache()  # a second run of the same file loads what the first compiled
+        if not INFORMATION_OPTIONS & set(argv) and argv:  # --version and --help compile nothing
+            use_compilation_cache()  # a second run of the same file loads what the first compiled
         # without standalone mode, click returns the code of a typer.Exit raised by a command
         code = command.main(args=argv, prog_name="lookout", standalone_mode=False)
     except typer.Exit as done:

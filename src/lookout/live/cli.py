@@ -439,6 +439,17 @@ def replay_command(
         except InputError:
             remove()  # a refused command leaves nothing: the session's file goes with it
             raise
+    _exit_if_failed(outcome)
+
+
+def _exit_if_failed(outcome) -> None:
+    """A session whose estimates went non-finite: why and where on stderr (even with
+    --quiet), and the exit code of a failed run."""
+    from lookout._commandline import DIVERGED_EXIT_CODE
+
+    if outcome.failure is not None:
+        print(f"diverged: the observer's estimates failed {outcome.failure}; exit code {DIVERGED_EXIT_CODE}", file=sys.stderr, flush=True)
+        raise typer.Exit(code=DIVERGED_EXIT_CODE)
 
 
 #: Wall seconds a replay runs before its progress line shows (a shorter one shows none).
@@ -571,6 +582,7 @@ def live_command(
     finally:  # what was computed is written, whatever stopped the session
         close()
     say(_status_line(session, parser, outcome, final=True) + (f"; written to {out}" if out and outcome.steps else ""))
+    _exit_if_failed(outcome)
 
 
 def write_log_command(

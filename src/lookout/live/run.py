@@ -78,6 +78,10 @@ class Outcome:
     counts: dict = field(default_factory=dict)  # lines by cause (the parser's, or a CSV log's rows)
     thrust_counts: dict = field(default_factory=dict)  # thrust rows or lines by cause (empty without thrust)
     check: ReplayCheck | None = None  # a replay's: what check_replay found
+    #: why and where the session failed (its first non-finite estimate), or None: a
+    #: replay or live session has no truth, so the rule of a failed run there is the
+    #: non-finite half of :func:`lookout.scenario.metrics.failures`
+    failure: str | None = None
 
     @property
     def rejected(self) -> dict:
@@ -328,6 +332,23 @@ def _merged(readings, thrust):
         yield reading
 
 
+def _first_non_finite(block: Block, steps_before: int) -> str | None:
+    """``at t = ... s into the session (step k): NAME_hat is not finite`` for the first
+    non-finite estimate of ``block`` (its gate and outage flags aside), or None."""
+    first = None
+    for name, values in block.estimate.items():
+        values = np.asarray(values)
+        if name.startswith(("gated_", "outage_")) or values.dtype.kind not in "fc":
+            continue
+        bad = ~np.isfinite(values.reshape(len(block), -1)).all(axis=1)
+        if bad.any() and (first is None or int(np.argmax(bad)) < first[0]):
+            first = (int(np.argmax(bad)), name)
+    if first is None:
+        return None
+    row, name = first
+    return f"at t = {float(block.session_time[row]):g} s into the session (step {steps_before + row}): {name}_hat is not finite"
+
+
 def _emit(blocks, emit, outcome: Outcome, arrivals: deque | None = None, clock=None) -> None:
     """Hand each block to ``emit`` and count it; live (``arrivals`` of the readings not yet
     in a step, and the ``clock``), the latency from the newest reading a step used to its
@@ -335,6 +356,8 @@ def _emit(blocks, emit, outcome: Outcome, arrivals: deque | None = None, clock=N
     for block in blocks:
         if emit is not None:
             emit(block)
+        if outcome.failure is None:
+            outcome.failure = _first_non_finite(block, outcome.steps)
         if arrivals is not None:
             left = clock()
             newest = None
