@@ -27,21 +27,28 @@ def design_scenario(
     KIND says which kinds have them).
 
     Exit code 0 when every condition holds, 1 when one fails (the report or JSON is
-    still printed), 2 for bad input.
+    still printed), 2 for bad input (with ``--json``, an object whose ``error`` is the
+    message, on stdout; the message on stderr too).
     """
     from lookout.design import combined, component_designs
     from lookout.scenario._toml import FileError
     from lookout.scenario.file import load
 
+    def refuse(message: str):
+        """Bad input: with --json, one JSON object on stdout as well (exit code 2 either way)."""
+        if as_json:
+            print(json.dumps({"design": "scenario", "inputs": {"scenario": str(scenario), "propose": propose}, "error": message}))
+        return InputError(message)
+
     try:
         spec = load(scenario, runs=1)
     except FileError as error:
-        raise InputError(str(error)) from None
+        raise refuse(str(error)) from None
     composition = spec.composition
     try:
         designs = component_designs(composition, propose=propose)
     except ValueError as error:
-        raise InputError(f"{scenario}: {error}") from None
+        raise refuse(f"{scenario}: {error}") from None
     report = combined(designs, str(scenario))
     inputs = {
         "scenario": str(scenario), "propose": propose,
