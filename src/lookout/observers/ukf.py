@@ -81,9 +81,9 @@ def _mean(points: Array, weights: Array, angles: tuple[bool, ...]) -> Array:
         Value("alpha", "float", "Spread of the sigma points around the mean (Wan & van der Merwe's alpha).", range=Range(0.0, 1.0, False, True)),
         Value("beta", "float", "Prior knowledge of the distribution (2 for a Gaussian).", range=NON_NEGATIVE),
         Value("kappa", "float", "Secondary scaling; n + kappa must be positive."),
-        Context("plant_step", "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization."),
+        Context("plant_step", "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization.", own=True),
         Context("filter_period", "The filter's sample period (s), for the steady-state P_0; default the composition's simulation.sample_period."),
-        Context("integrator", "rk4 or euler; default the composition's simulation.integrator."),
+        Context("integrator", "rk4 or euler; default the composition's simulation.integrator.", own=True),
     ),
 )
 @final

@@ -342,6 +342,8 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                     location, f"{role} {name} needs a {p.name} ({wanted}), and plant {context.kinds.get('plant')} has none; give [{key_text(location + (p.name,))}]"
                 )
         elif p.sort == "context":
+            if p.name in table and p.name != "signals" and not p.own:  # signals: names the file gives, resolved here
+                raise CompositionError(location + (p.name,), f"set by lookout from {registry.context_origin(p)}, never by the file; remove it")
             if p.name in SIMULATION_CONTEXT:
                 arguments[p.name] = table.get(p.name, getattr(context.simulation, SIMULATION_CONTEXT[p.name]))
                 if p.name in table:
@@ -351,8 +353,6 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                     arguments["size"] = context.plant.input_layout.size
             elif p.name == "signals":
                 arguments["signals"], normal["signals"] = _signals(table.get("signals"), location + ("signals",), context, p)
-            elif p.name in table:
-                raise CompositionError(location + (p.name,), f"is taken from the composition ({p.description or p.type}), not given")
             else:
                 found = context.find(p.context) if isinstance(p.context, type) else None
                 if found is None and p.required:

@@ -108,11 +108,14 @@ class Context:
     """A parameter the composition fills, never the file: ``source`` is one of
     ``size``, ``plant_step``, ``filter_period``, ``integrator``, ``signals`` (see
     :data:`lookout.scenario.registry.CONTEXT_NAMES`), or a class of component found
-    among those built before."""
+    among those built before. A file that gives it is refused at the key, unless
+    ``own``: a value of the component's own that defaults to the composition's (a
+    Kalman filter's propagation step, which may be coarser than the plant's)."""
 
     name: str
     doc: str = ""
     source: Any = None
+    own: bool = False
 
     sort = "context"
 

@@ -88,6 +88,21 @@ CONTEXT_NAMES = {
     "integrator": "the composition's simulation.integrator",
     "signals": "the plant's variables of these names, or tables {name, units, long_name, frame} of signals of their own",
 }
+#: Where the composition takes each context value from, as a refusal of the file's value says it.
+CONTEXT_ORIGINS = {
+    "size": "the plant (its input size)",
+    "plant_step": "[simulation] (the plant's integration step)",
+    "filter_period": "[simulation] (the loop's sample period)",
+    "integrator": "[simulation] (the plant's integrator)",
+}
+
+
+def context_origin(parameter: "Parameter") -> str:
+    """Where the composition takes the context ``parameter`` from, in words."""
+    if parameter.name in CONTEXT_ORIGINS:
+        return CONTEXT_ORIGINS[parameter.name]
+    source = parameter.context
+    return f"the {source.__name__} built before it" if isinstance(source, type) else f"the composition ({source or parameter.name})"
 
 
 class _NoDefault:
@@ -125,6 +140,8 @@ class Parameter:
     range: tuple[float, float, bool, bool] | None = None
     #: a part the composition takes from the components built before when not given
     declared_from_plant: bool = False
+    #: a context value the file may give in place of the composition's (declare.Context.own)
+    own: bool = False
 
     @property
     def from_plant(self) -> bool:
@@ -444,7 +461,7 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
         else:
             source = each.source if each.source is not None else (accepted or CONTEXT_NAMES.get(each.name))
             parameters.append(Parameter(each.name, "context", _type_text(each, default, source if isinstance(source, type) else None),
-                                        each.doc, default, source))
+                                        each.doc, default, source, own=each.own))
     return tuple(parameters)
 
 
