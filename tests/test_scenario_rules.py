@@ -110,3 +110,83 @@ def test_a_discrete_observers_sample_period_in_a_file_must_be_the_loops(tmp_path
     path = write(tmp_path / "arm.toml", document)
     with pytest.raises(FileError, match=r"observer.sample_period \(line \d+\): observer sample_period \(0.02 s\) must equal the loop's sample_period \(0.01 s\)"):
         load(path)
+
+
+# ------------------------------------------------------------ declared shapes and broadcasting
+
+PASSIVE = '''preset = "fossen-strand-1999:paper"
+
+[simulation]
+duration = 20.0
+
+[observer]
+kind = "passive"
+
+[observer.initial]
+eta = {eta}
+'''
+
+
+@pytest.mark.parametrize("eta, message", [
+    ("[1.0, 2.0]", "must have 3 entries; got 2"),
+    ("[[1.0, 2.0, 0.1]]", "must be an array of shape (3,) or one number; got an array of shape (1, 3)"),
+])
+def test_an_initial_value_of_another_shape_is_refused_at_its_key(tmp_path, eta, message):
+    path = _scenario(tmp_path, PASSIVE.format(eta=eta))
+    with pytest.raises(FileError) as caught:
+        load(path)
+    assert str(caught.value) == f"{path}: observer.initial.eta (line 10): {message}"
+
+
+def test_a_parameter_of_another_declared_shape_is_refused_at_its_key(tmp_path):
+    path = _scenario(tmp_path, PASSIVE.format(eta="[0.0, 0.0, 0.0]").replace('kind = "passive"', 'kind = "passive"\nwave_frequency = [0.8, 0.9]'))
+    with pytest.raises(FileError, match=r"observer.wave_frequency \(line 8\): must have 3 entries; got 2$"):
+        load(path)
+
+
+LAYOUT = '''preset = "fossen-strand-1999:paper"
+
+[simulation]
+duration = 20.0
+
+[observer]
+kind = "passive"
+
+[actuator]
+kind = "thrusters"
+
+[actuator.layout]
+kind = "custom"
+names = ["bow", "port", "starboard"]
+kinds = ["tunnel", "azimuth", "azimuth"]
+x = {x}
+y = [0.0, -6.0, 6.0]
+direction = [1.5708, 0.0, 0.0]
+max_thrust = [1.3e5, 3.0e5, 3.0e5]
+min_thrust = -1.3e5
+'''
+
+
+def test_one_number_for_the_thrusters_positions_is_refused_where_the_declaration_does_not_broadcast(tmp_path):
+    path = _scenario(tmp_path, LAYOUT.format(x="30.0"))
+    with pytest.raises(FileError) as caught:
+        load(path)
+    assert str(caught.value) == (f"{path}: actuator.layout.x (line 16): must be an array, shape (n,): one number does not stand for "
+                                 "every entry here; got 30.0")
+    from lookout.actuators.layout import ThrusterLayout
+
+    with pytest.raises(ValueError, match=r"^x must have one entry per thruster \(3\), not one number for all; got one number$"):
+        ThrusterLayout(names=["a", "b", "c"], kinds=["tunnel", "azimuth", "azimuth"], x=30.0, y=[0.0, -6.0, 6.0], direction=0.0, max_thrust=1e5)
+    # a key that does broadcast takes one number for every thruster
+    assert load(_scenario(tmp_path, LAYOUT.format(x="[30.0, -33.0, -33.0]"))).build().actuator.layout.min_thrust.tolist() == [-1.3e5, 0.0, 0.0]
+
+
+def test_one_process_noise_intensity_is_every_inputs_as_its_siblings_take_one_number(tmp_path):
+    """process_noise = 0 is one intensity (zero) for every noise input, not a refusal of 0."""
+    spec = load(_scenario(tmp_path, EKF + "process_noise = 0.0\ninitial_std = { eta = 1.0, nu = 0.1, bias = 1e4, wave_state = 0.01 }\n"))
+    assert spec.build().observer.process_noise.tolist() == [0.0] * spec.build().plant.noise_size
+    with pytest.raises(FileError, match=r"observer.process_noise \(line 8\): must be non-negative; got -1"):
+        load(_scenario(tmp_path, EKF + "process_noise = -1.0\n"))
+    # a state's entries have units of their own (m, m/s, N): one number is refused at the key, as declared
+    with pytest.raises(FileError, match=r"observer.state_noise \(line 8\): must be an array, one entry each: one number does not stand for every entry here; got 0.5$"):
+        load(_scenario(tmp_path, EKF + "state_noise = 0.5\n"))

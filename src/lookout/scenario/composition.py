@@ -135,6 +135,18 @@ def _in_range(parameter: registry.Parameter):
     return check
 
 
+def _shaped(parameter: registry.Parameter):
+    """The check of a value's declared shape and broadcasting (registry.Parameter.shape_refusal)."""
+
+    def check(value):
+        reason = parameter.shape_refusal(value)
+        if reason is not None:
+            raise ValueError(reason)
+        return value
+
+    return check
+
+
 _ARRAY = float | tuple[float, ...] | tuple[tuple[float, ...], ...]
 
 
@@ -145,6 +157,8 @@ def _annotation(parameter: registry.Parameter):
     else:
         annotation = {"float": float, "int": int, "bool": bool, "str": str, "strings": tuple[str, ...], "array": _ARRAY,
                       "parts": _ARRAY | dict[str, float | list[float]]}.get(sort, _ARRAY)
+    if sort in ("array", "parts") and (parameter.shape is not None or not parameter.broadcast):
+        annotation = Annotated[annotation, AfterValidator(_shaped(parameter))]
     if parameter.range is not None and sort in ("float", "int", "array", "parts"):
         annotation = Annotated[annotation, AfterValidator(_in_range(parameter))]
     if parameter.default is None:

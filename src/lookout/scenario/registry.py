@@ -142,6 +142,13 @@ class Parameter:
     declared_from_plant: bool = False
     #: a context value the file may give in place of the composition's (declare.Context.own)
     own: bool = False
+    #: a value's declared shape (``"(3,)"``), and whether one number stands for every entry
+    shape: str | None = None
+    broadcast: bool = True
+
+    def shape_refusal(self, value) -> str | None:
+        """Why ``value`` does not have the declared shape (None: it has it, or none is declared)."""
+        return declare.shape_refusal(value, self.shape, self.broadcast)
 
     @property
     def from_plant(self) -> bool:
@@ -414,7 +421,7 @@ def _type_text(each, default, annotation_class) -> str:
         else:
             text = {"array": "array_like", "strings": "sequence of str", "parts": "array_like or table"}.get(each.type, each.type)
         if each.shape:
-            text += f", shape {each.shape}"
+            text += f", shape {each.shape}" + ("" if each.broadcast else ", not one number")
         if each.range is not None:  # "float in [0, 1)", "array_like, shape (3,), positive"
             words = each.range.words()
             text += f" {words}" if each.type == "float" and words.startswith("in ") else f", {words}"
@@ -454,7 +461,8 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
         accepted = _component_type(hints.get(each.name))
         if isinstance(each, Value):
             parameters.append(Parameter(each.name, "value", _type_text(each, default, None), each.doc, default,
-                                        value_type=each.type, choices=each.choices, range=_range_tuple(each.range)))
+                                        value_type=each.type, choices=each.choices, range=_range_tuple(each.range),
+                                        shape=each.shape, broadcast=each.broadcast))
         elif isinstance(each, Part):
             parameters.append(Parameter(each.name, "part", _type_text(each, default, accepted), each.doc, default,
                                         accepted, each.role or each.name, declared_from_plant=each.from_plant))
