@@ -181,7 +181,7 @@ def test_a_held_sample_is_not_a_new_measurement():
     "changes, message",
     [
         ({"measurement_noise": [0.0]}, "measurement_noise must be 1 finite standard deviations > 0"),
-        ({"process_noise": [1.0, 2.0]}, "process_noise must be 1 finite intensities >= 0"),
+        ({"process_noise": [1.0, 2.0]}, "process_noise must have 1 entries (one per noise input of the plant), or be one number for all; got 2"),
         ({"initial_std": [1.0]}, "initial_std must have one entry per state entry (2)"),
         ({"initial_std": {"position": 1.0, "speed": 2.0}}, "initial_std: the plant's state has no part 'speed' (its parts: position, rate)"),
         ({"state_noise": [-1.0, 0.0]}, "state_noise must be finite and >= 0"),

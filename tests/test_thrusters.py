@@ -291,7 +291,7 @@ def test_thrusters_are_recorded_with_units_and_a_thruster_dimension(tmp_path):
         ({"x": [1.0, math.inf, 0.0]}, "x must be finite; got inf for 'port'"),
         ({"weight": [1.0, 1.0, 0.0]}, "weight must be positive; got 0 for 'starboard'"),
         ({"turn_rate": 0.0}, "turn_rate must be positive for an azimuth or a rudder"),
-        ({"y": [0.0, 1.0]}, "y must be a scalar or have 3 entries"),
+        ({"y": [0.0, 1.0]}, r"y must have one entry per thruster \(3\); got shape \(2,\)"),
         # a key that does not apply to a thruster's kind: its entry in a list must say "none"
         ({"min_thrust": [-1.0, -0.5, 0.0]}, "min_thrust of azimuth 'port' must be 0: an azimuth pushes one way"),
         ({"turn_rate": [0.2, 0.2, 0.2]}, "turn_rate of tunnel 'bow' must be 0: a tunnel does not turn"),
@@ -344,7 +344,7 @@ def _huge_layout(count: int, **changes) -> dict:
         ({"max_thrust": np.where(np.arange(100_000) % 3, 1e4, 0.0)}, "max_thrust must be positive; got 0 for 'azimuth-0', 0 for 'azimuth-3', 0 for 'azimuth-6' and 33331 more"),
         ({"kinds": [f"pod-{i}" for i in range(100_000)]}, "kinds must be among tunnel, azimuth, main; got 'pod-0', 'pod-1', 'pod-2' and 99997 more"),
         ({"names": ["x" * 10_000 + str(i) for i in range(100_000)], "min_thrust": np.full(100_000, -1.0)}, "min_thrust of azimuth 'xxx"),
-        ({"x": np.zeros(99_999)}, "x must be a scalar or have 100000 entries; got shape (99999,)"),
+        ({"x": np.zeros(99_999)}, "x must have one entry per thruster (100000); got shape (99999,)"),
     ],
 )
 def test_a_refused_layout_of_any_size_says_so_in_one_short_line(changes, message):
@@ -736,7 +736,7 @@ def test_thrusters_refuse_a_plant_that_is_not_a_vessel(tmp_path, capsys):
 BAD_LAYOUT_KEYS = {
     "names": (["a", "b", "a", "d"], "names must be distinct"),
     "kinds": (["tunnel", "tunnel", "azimuth", "pod"], "kinds must be among"),
-    "x": ([30.0, 27.0, -33.0], "x must be a scalar or have 4 entries"),
+    "x": ([30.0, 27.0, -33.0], "x must have one entry per thruster (4); got shape (3,)"),
     "y": ([0.0, 0.0, "six", 6.0], "must be a number"),
     "direction": ([1.57, 1.57, math.inf, 0.0], "must be finite"),
     "max_thrust": ([1.3e5, 1.3e5, 3.0e5, -1.0], "max_thrust must be positive"),

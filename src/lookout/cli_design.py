@@ -29,21 +29,28 @@ def design_scenario(
     With --propose, the proposed gains and their conditions follow the file's, apart
     (JSON: under "proposal"). Exit code, always the file's own gains': 0 when every
     condition holds, 1 when one fails (the report or JSON is still printed), 2 for bad
-    input.
+    input (with ``--json``, an object whose ``error`` is the message, on stdout; the
+    message on stderr too).
     """
     from lookout.design import combined, combined_proposal, component_designs
     from lookout.scenario._toml import FileError
     from lookout.scenario.file import load
 
+    def refuse(message: str):
+        """Bad input: with --json, one JSON object on stdout as well (exit code 2 either way)."""
+        if as_json:
+            print(json.dumps({"design": "scenario", "inputs": {"scenario": str(scenario), "propose": propose}, "error": message}))
+        return InputError(message)
+
     try:
         spec = load(scenario, runs=1)
     except FileError as error:
-        raise InputError(str(error)) from None
+        raise refuse(str(error)) from None
     composition = spec.composition
     try:
         designs = component_designs(composition, propose=propose)
     except ValueError as error:
-        raise InputError(f"{scenario}: {error}") from None
+        raise refuse(f"{scenario}: {error}") from None
     report = combined(designs, str(scenario))
     proposal = combined_proposal(designs, str(scenario))
     code = 0 if report.holds else 1

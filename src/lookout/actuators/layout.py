@@ -46,6 +46,9 @@ KIND_PLURALS = {"tunnel": "tunnels", "azimuth": "azimuths", "main": "main propel
 APPLIES_TO = {"min_thrust": ("tunnel", "main"), "turn_rate": ("azimuth", "main"), "max_rudder": ("main",), "rudder_lift": ("main",)}
 #: Their defaults (the value of a layout that does not give them).
 DEFAULTS = {"min_thrust": 0.0, "turn_rate": math.inf, "max_rudder": 0.6, "rudder_lift": 0.0}
+#: The columns one number cannot stand for: every thruster has a position of its own
+#: (one x for all would put them on one line across the hull).
+PER_THRUSTER = ("x", "y")
 NOT_APPLICABLE = {
     "min_thrust": "an azimuth pushes one way and turns to push the other",
     "turn_rate": "a tunnel does not turn",
@@ -86,8 +89,9 @@ class ThrusterLayout(eqx.Module):
         A distinct name per thruster (the labels of its records).
     kinds : sequence of str
         ``"tunnel"``, ``"azimuth"`` or ``"main"`` (a main propeller with a rudder).
-    x, y : array_like
+    x, y : array_like, shape (n,)
         Position of each thruster, body-fixed, forward and starboard of the origin (m).
+        One entry per thruster (n of them): one number is not spread over them.
     direction : array_like
         A tunnel's thrust direction and a main propeller's (rad from the bow,
         clockwise seen from above; pi/2 pushes to starboard); an azimuth's bias
@@ -163,6 +167,9 @@ class ThrusterLayout(eqx.Module):
         )
         kind_array = np.asarray(self.kinds)
         for name, value in columns.items():
+            if name in PER_THRUSTER and check.is_concrete(value) and np.shape(value) != (count,):
+                got = ", not one number for all; got one number" if np.ndim(value) == 0 else f"; got shape {np.shape(value)}"
+                raise check.ParameterError(name, f"{name} must have one entry per thruster ({count}){got}")
             array = check.vector(name, value, count)
             self._refuse(name, np.isnan(array), array, "must not be NaN")
             kinds_it_applies_to = APPLIES_TO.get(name)
@@ -373,8 +380,8 @@ register(
     parameters=(
         Value("names", "strings", "A distinct name per thruster (the labels of its records)."),
         Value("kinds", "strings", "\"tunnel\", \"azimuth\" or \"main\" (a main propeller with a rudder)."),
-        Value("x", "array", "Position of each thruster, body-fixed, forward and starboard of the origin (m)."),
-        Value("y", "array", "Position of each thruster, body-fixed, forward and starboard of the origin (m)."),
+        Value("x", "array", "Position of each thruster, body-fixed, forward and starboard of the origin (m).", shape="(n,)", broadcast="x" not in PER_THRUSTER),
+        Value("y", "array", "Position of each thruster, body-fixed, forward and starboard of the origin (m).", shape="(n,)", broadcast="y" not in PER_THRUSTER),
         Value("direction", "array", "A tunnel's thrust direction and a main propeller's (rad from the bow, clockwise seen from above; pi/2 pushes to starboard); an azimuth's bias direction, where it points when idle (azimuths pointing against each other bias each other; lookout.actuators.allocation)."),
         Value("max_thrust", "array", "Largest thrust (N); positive."),
         Value("min_thrust", "array", "Smallest thrust (N, negative: astern or to port) of a tunnel or a main propeller; between -max_thrust and 0."),

@@ -37,13 +37,13 @@ from lookout.scenario.declare import Context, NON_NEGATIVE, POSITIVE, Part, Valu
         Part("plant", "The filter's model of the plant (default: the composition's plant; give a [observer.plant] table for a model that differs from the truth)."),
         Part("sensor", "The filter's model of the sensor (default: the composition's sensor)."),
         Value("process_noise", "array", "Intensity of each of the model's unit white noise inputs (1: the model's own; default all 1).", shape="(noise_size,)", range=NON_NEGATIVE),
-        Value("state_noise", "parts", "Continuous-time process noise intensity added per state entry (units^2/s): one per raveled state entry, or a table of the plant's state parts as [plant.initial] takes them (default 0).", range=NON_NEGATIVE),
+        Value("state_noise", "parts", "Continuous-time process noise intensity added per state entry (units^2/s): one per raveled state entry, or a table of the plant's state parts as [plant.initial] takes them (default 0).", range=NON_NEGATIVE, broadcast=False),
         Value("measurement_noise", "array", "Standard deviation of each measured channel, R = diag(std^2) (default: the sensor's own noise).", shape="(m,)", range=POSITIVE),
-        Value("initial_std", "parts", "Standard deviation of the initial guess per state entry, or a table of the plant's state parts and input_disturbance (default: the steady-state filter's, from the Riccati equation).", range=NON_NEGATIVE),
+        Value("initial_std", "parts", "Standard deviation of the initial guess per state entry, or a table of the plant's state parts and input_disturbance (default: the steady-state filter's, from the Riccati equation).", range=NON_NEGATIVE, broadcast=False),
         Value("input_disturbance", "array", "Estimate an unknown disturbance added to the plant's input, a random walk of this intensity per input entry (units^2/s; 0: a constant, and with an initial std of 0 none on that entry): the usual DP bias state, for a model without one (default none).", range=NON_NEGATIVE),
-        Context("plant_step", "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization."),
+        Context("plant_step", "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization.", own=True),
         Context("filter_period", "The filter's sample period (s), for the steady-state P_0; default the composition's simulation.sample_period."),
-        Context("integrator", "rk4 or euler; default the composition's simulation.integrator."),
+        Context("integrator", "rk4 or euler; default the composition's simulation.integrator.", own=True),
     ),
 )
 @final

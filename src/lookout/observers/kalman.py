@@ -436,8 +436,12 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
         q = jnp.broadcast_to(jnp.asarray(process_noise, dtype=float), (size,))
     else:
         q = np.asarray(process_noise, dtype=float)
-        if q.shape != (size,) or not (np.all(np.isfinite(q)) and np.all(q >= 0)):
-            raise check.ParameterError("process_noise", f"process_noise must be {size} finite intensities >= 0 (one per noise input of the plant); got {q.tolist()}")
+        if q.ndim == 0:  # one intensity for every noise input, as state_noise and initial_std take one number
+            q = np.full(size, float(q))
+        if q.shape != (size,):
+            raise check.ParameterError("process_noise", f"process_noise must have {size} entries (one per noise input of the plant), or be one number for all; got {q.size}")
+        if not (np.all(np.isfinite(q)) and np.all(q >= 0)):
+            raise check.ParameterError("process_noise", f"process_noise must be finite and non-negative; got {check._fmt(q)}")
     s = _state_vector(plant, state_noise, "state_noise", d, default_disturbance=0.0)
     s = np.zeros(n + d) if s is None else s
     s = np.concatenate([s[:n], s[n:] + disturbance])  # the disturbance's random walk
@@ -531,7 +535,7 @@ PARAMETERS = """
         The filter's model of the sensor (default: the composition's sensor).
     process_noise : array_like, shape (noise_size,), non-negative, optional
         Intensity of each of the model's unit white noise inputs (1: the model's own;
-        default all 1).
+        default all 1). One number is every input's.
     state_noise : array_like or table, non-negative, optional
         Continuous-time process noise intensity added per state entry (units^2/s): one
         per raveled state entry, or a table of the plant's state parts as

@@ -156,6 +156,18 @@ def _in_range(parameter: registry.Parameter):
     return check
 
 
+def _shaped(parameter: registry.Parameter):
+    """The check of a value's declared shape and broadcasting (registry.Parameter.shape_refusal)."""
+
+    def check(value):
+        reason = parameter.shape_refusal(value)
+        if reason is not None:
+            raise ValueError(reason)
+        return value
+
+    return check
+
+
 _ARRAY = float | tuple[float, ...] | tuple[tuple[float, ...], ...]
 
 
@@ -166,6 +178,8 @@ def _annotation(parameter: registry.Parameter):
     else:
         annotation = {"float": float, "int": int, "bool": bool, "str": str, "strings": tuple[str, ...], "array": _ARRAY,
                       "parts": _ARRAY | dict[str, float | list[float]]}.get(sort, _ARRAY)
+    if sort in ("array", "parts") and (parameter.shape is not None or not parameter.broadcast):
+        annotation = Annotated[annotation, AfterValidator(_shaped(parameter))]
     if parameter.range is not None and sort in ("float", "int", "array", "parts"):
         annotation = Annotated[annotation, AfterValidator(_in_range(parameter))]
     if parameter.default is None:
@@ -366,6 +380,8 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                     location, f"{role} {name} needs a {p.name} ({wanted}), and plant {context.kinds.get('plant')} has none; give [{key_text(location + (p.name,))}]"
                 )
         elif p.sort == "context":
+            if p.name in table and p.name != "signals" and not p.own:  # signals: names the file gives, resolved here
+                raise CompositionError(location + (p.name,), f"set by lookout from {registry.context_origin(p)}, never by the file; remove it")
             if p.name in SIMULATION_CONTEXT:
                 arguments[p.name] = table.get(p.name, getattr(context.simulation, SIMULATION_CONTEXT[p.name]))
                 if p.name in table:
@@ -375,8 +391,6 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                     arguments["size"] = context.plant.input_layout.size
             elif p.name == "signals":
                 arguments["signals"], normal["signals"] = _signals(table.get("signals"), location + ("signals",), context, p)
-            elif p.name in table:
-                raise CompositionError(location + (p.name,), f"is taken from the composition ({p.description or p.type}), not given")
             else:
                 found = context.find(p.context) if isinstance(p.context, type) else None
                 if found is None and p.required:

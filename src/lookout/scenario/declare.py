@@ -73,9 +73,13 @@ class Value:
 
     ``type`` is what the file gives: ``"float"``, ``"int"``, ``"bool"``, ``"str"``,
     ``"array"`` (a number or an array), ``"strings"`` (an array of strings) or
-    ``"parts"`` (an array, or a table of named arrays). ``shape`` is shown, not checked
-    here (the component checks shapes against its model); ``choices`` and ``range`` are
-    checked when the file is read.
+    ``"parts"`` (an array, or a table of named arrays). ``shape`` is checked when the
+    file is read where its sizes are numbers (``"(3,)"``, ``"(3, 3)"``); sizes named by a
+    letter (``"(n,)"``, the plant's) the component checks against its model.
+    ``broadcast``: one number stands for every entry (a gain per axis); without it an
+    array-valued key takes an array only (a thruster's position: one number would put
+    every thruster at one place). ``choices`` and ``range`` are checked when the file
+    is read.
     """
 
     name: str
@@ -84,8 +88,55 @@ class Value:
     shape: str | None = None
     choices: tuple | None = None
     range: Range | None = None
+    broadcast: bool = True
 
     sort = "value"
+
+    def shape_refusal(self, value) -> str | None:
+        """Why ``value`` (as a file gives it: a number, or nested lists or tuples of
+        numbers) does not have the declared shape, or None when it has it (or the shape
+        is not one of numbers)."""
+        return shape_refusal(value, self.shape, self.broadcast)
+
+
+def fixed_shape(shape: str | None) -> tuple[int, ...] | None:
+    """The sizes of a shape text of numbers (``"(3,)"`` -> ``(3,)``); None for one with
+    a size named by a letter, or with alternatives (``"(n,) or scalar"``)."""
+    if shape is None:
+        return None
+    text = shape.strip()
+    if not (text.startswith("(") and text.endswith(")")):
+        return None
+    parts = [part.strip() for part in text[1:-1].split(",") if part.strip()]
+    return tuple(int(part) for part in parts) if parts and all(part.isdigit() for part in parts) else None
+
+
+def _array_shape(value) -> tuple[int, ...] | None:
+    """The shape of nested lists or tuples of equal lengths; None when ragged."""
+    if not isinstance(value, (list, tuple)):
+        return ()
+    inner = [_array_shape(item) for item in value]
+    if any(each is None for each in inner) or len(set(inner)) > 1:
+        return None
+    return (len(value),) + (inner[0] if inner else ())
+
+
+def shape_refusal(value, shape: str | None, broadcast: bool = True) -> str | None:
+    """Why ``value`` does not fit the declared ``shape`` (see :meth:`Value.shape_refusal`)."""
+    if isinstance(value, dict) or isinstance(value, (str, bool)):
+        return None
+    given = _array_shape(value)
+    if given == ():
+        if broadcast:
+            return None
+        return f"must be an array, {f'shape {shape}' if shape else 'one entry each'}: one number does not stand for every entry here; got {value!r}"
+    sizes = fixed_shape(shape)
+    if sizes is None or given == sizes:
+        return None
+    if len(sizes) == 1 and given is not None and len(given) == 1:
+        return f"must have {sizes[0]} entries; got {given[0]}"
+    found = "a ragged array" if given is None else f"an array of shape {given}"
+    return f"must be an array of shape {shape}" + (" or one number" if broadcast else "") + f"; got {found}"
 
 
 @dataclass(frozen=True)
@@ -108,11 +159,14 @@ class Context:
     """A parameter the composition fills, never the file: ``source`` is one of
     ``size``, ``plant_step``, ``filter_period``, ``integrator``, ``signals`` (see
     :data:`lookout.scenario.registry.CONTEXT_NAMES`), or a class of component found
-    among those built before."""
+    among those built before. A file that gives it is refused at the key, unless
+    ``own``: a value of the component's own that defaults to the composition's (a
+    Kalman filter's propagation step, which may be coarser than the plant's)."""
 
     name: str
     doc: str = ""
     source: Any = None
+    own: bool = False
 
     sort = "context"
 

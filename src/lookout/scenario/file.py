@@ -35,7 +35,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from lookout.scenario import registry
-from lookout.scenario.composition import Composition, CompositionError, SimulationSettings, compose, key_text, state_parameters
+from lookout.scenario.composition import TOP_KEYS, Composition, CompositionError, SimulationSettings, compose, key_text, state_parameters
 from lookout.scenario.settings import explain
 from lookout.scenario._toml import FileError, key_line, read, write
 
@@ -122,10 +122,36 @@ def _table_comments(role: str, table: dict, prefix: str, comments: dict) -> None
                     comments[f"{prefix}.initial.{p.name}"] = p.description
 
 
+#: Keys only a campaign spec has (``lookout campaign run``), and keys only a benchmark
+#: spec has (``lookout benchmark observers --spec``); a scenario file has neither.
+CAMPAIGN_ONLY = frozenset({"seeds_per_point", "sweep", "chunk_runs", "trajectories", "after"})
+SPEC_ONLY = frozenset({"title", "observers", "conditions", "full", "quick", "outage_signals", "recommend_by"})
+
+
+def other_form(document: dict, source: str) -> str | None:
+    """Why ``document`` is not a scenario file when it is a campaign spec or a benchmark
+    spec (it has no table of a scenario, and a spec's keys), with the command that
+    runs it; None otherwise."""
+    keys = set(document)
+    if keys & (set(TOP_KEYS) - {"plugins"}):
+        return None
+    scenario = document.get("scenario")
+    named = f" (its scenario is {scenario})" if isinstance(scenario, str) else ""
+    if keys & SPEC_ONLY:
+        return f"a benchmark spec, not a scenario file: run it with lookout benchmark observers --spec {source}{named}"
+    if keys & CAMPAIGN_ONLY or "scenario" in keys:
+        return f"a campaign spec, not a scenario file: run it with lookout campaign run {source}{named}"
+    return None
+
+
 def from_document(document: dict, source: str = "<scenario>", text: str | None = None) -> CompositionSpec:
-    """Validate and build a parsed scenario file (see the module docstring)."""
+    """Validate and build a parsed scenario file (see the module docstring); a campaign
+    spec or a benchmark spec is refused in one line that names the command for it."""
     if not isinstance(document, dict):
         raise FileError(f"{source}: a scenario file is a table of tables")
+    other = other_form(document, source)
+    if other is not None:
+        raise FileError(f"{source}: {other}")
     try:
         return CompositionSpec(compose(document), source)
     except CompositionError as error:
@@ -135,6 +161,9 @@ def from_document(document: dict, source: str = "<scenario>", text: str | None =
 def read_spec(path: str | Path, *, runs: int | None = None, seed: int | None = None) -> tuple[CompositionSpec, str]:
     """:func:`load`, and the file's text."""
     document, text = read(path)
+    other = other_form(document, str(path))
+    if other is not None:  # before runs and seed add a [simulation] table of their own
+        raise FileError(f"{path}: {other}")
     simulation = document.get("simulation", {})
     if isinstance(simulation, dict) and (runs is not None or seed is not None):
         given = {"runs": runs, "seed": seed}

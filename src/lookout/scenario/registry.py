@@ -95,6 +95,21 @@ CONTEXT_NAMES = {
     "integrator": "the composition's simulation.integrator",
     "signals": "the plant's variables of these names, or tables {name, units, long_name, frame} of signals of their own",
 }
+#: Where the composition takes each context value from, as a refusal of the file's value says it.
+CONTEXT_ORIGINS = {
+    "size": "the plant (its input size)",
+    "plant_step": "[simulation] (the plant's integration step)",
+    "filter_period": "[simulation] (the loop's sample period)",
+    "integrator": "[simulation] (the plant's integrator)",
+}
+
+
+def context_origin(parameter: "Parameter") -> str:
+    """Where the composition takes the context ``parameter`` from, in words."""
+    if parameter.name in CONTEXT_ORIGINS:
+        return CONTEXT_ORIGINS[parameter.name]
+    source = parameter.context
+    return f"the {source.__name__} built before it" if isinstance(source, type) else f"the composition ({source or parameter.name})"
 
 
 class _NoDefault:
@@ -132,6 +147,15 @@ class Parameter:
     range: tuple[float, float, bool, bool] | None = None
     #: a part the composition takes from the components built before when not given
     declared_from_plant: bool = False
+    #: a context value the file may give in place of the composition's (declare.Context.own)
+    own: bool = False
+    #: a value's declared shape (``"(3,)"``), and whether one number stands for every entry
+    shape: str | None = None
+    broadcast: bool = True
+
+    def shape_refusal(self, value) -> str | None:
+        """Why ``value`` does not have the declared shape (None: it has it, or none is declared)."""
+        return declare.shape_refusal(value, self.shape, self.broadcast)
 
     @property
     def from_plant(self) -> bool:
@@ -491,7 +515,7 @@ def _type_text(each, default, annotation_class) -> str:
         else:
             text = {"array": "array_like", "strings": "sequence of str", "parts": "array_like or table"}.get(each.type, each.type)
         if each.shape:
-            text += f", shape {each.shape}"
+            text += f", shape {each.shape}" + ("" if each.broadcast else ", not one number")
         if each.range is not None:  # "float in [0, 1)", "array_like, shape (3,), positive"
             words = each.range.words()
             text += f" {words}" if each.type == "float" and words.startswith("in ") else f", {words}"
@@ -531,14 +555,15 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
         accepted = _component_type(hints.get(each.name))
         if isinstance(each, Value):
             parameters.append(Parameter(each.name, "value", _type_text(each, default, None), each.doc, default,
-                                        value_type=each.type, choices=each.choices, range=_range_tuple(each.range)))
+                                        value_type=each.type, choices=each.choices, range=_range_tuple(each.range),
+                                        shape=each.shape, broadcast=each.broadcast))
         elif isinstance(each, Part):
             parameters.append(Parameter(each.name, "part", _type_text(each, default, accepted), each.doc, default,
                                         accepted, each.role or each.name, declared_from_plant=each.from_plant))
         else:
             source = each.source if each.source is not None else (accepted or CONTEXT_NAMES.get(each.name))
             parameters.append(Parameter(each.name, "context", _type_text(each, default, source if isinstance(source, type) else None),
-                                        each.doc, default, source))
+                                        each.doc, default, source, own=each.own))
     return tuple(parameters)
 
 

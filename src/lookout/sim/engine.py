@@ -77,6 +77,21 @@ def _ratio(name: str, period: float, base_name: str, base: float, location: tupl
     return steps
 
 
+#: The fields in which a component carries the loop's sample period it was built for: a
+#: discrete-time observer's ``sample_period`` (the Observer contract), a Kalman filter's
+#: ``filter_period`` (the composition's context of that name).
+OWN_PERIODS = ("sample_period", "filter_period")
+
+
+def _same_period(role: str, component, sample_period: float) -> None:
+    """Refuse a component built for another loop period than the scenario's."""
+    for name in OWN_PERIODS:
+        period = getattr(component, name, None)
+        if isinstance(period, (int, float)) and not isinstance(period, bool) and abs(period - sample_period) > 1e-9 * sample_period:
+            raise ParameterError((role, name), f"{role} {name} ({period:g} s) must equal the loop's sample_period ({sample_period:g} s): "
+                                 f"the {role} is built for one sample period; build it for {sample_period:g} s, or run the loop at {period:g} s")
+
+
 def _first_line(error: Exception) -> str:
     text = str(error).strip().splitlines()
     return text[0] if text else type(error).__name__
@@ -167,6 +182,8 @@ class Scenario(eqx.Module):
             most = MAX_COUNT // max(1, self.plant.noise_size)
             raise ParameterError("plant_step", f"plant_step ({self.plant_step:g} s) makes {substeps} plant steps per sample of {self.sample_period:g} s; at most {most} "
                              f"({self.plant.noise_size} process noise inputs each): a plant_step of at least {self.sample_period / most:.3g} s")
+        for role in ("observer", "controller"):
+            _same_period(role, getattr(self, role), self.sample_period)
         if len(self.sensor.sample_period) != self.sensor.measurement_layout.size:
             raise ValueError(
                 f"sensor has {len(self.sensor.sample_period)} sample periods for {self.sensor.measurement_layout.size} channels"

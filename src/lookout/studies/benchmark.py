@@ -65,7 +65,7 @@ from lookout.scenario.composition import MODEL_ROLES, TOP_KEYS, CompositionError
 from lookout.scenario.settings import PositiveCount, PositiveFloat, validate_strictly
 from lookout.scenario._toml import FileError, read
 from lookout.studies.campaign import Campaign, Divergence, campaign_from_document
-from lookout.scenario.file import describe, located
+from lookout.scenario.file import CAMPAIGN_ONLY, SPEC_ONLY, describe, located  # the keys only a campaign spec, or a benchmark spec, has
 
 #: The folder of the shipped benchmark specs (``<plant>.toml``).
 SHIPPED = "benchmarks"
@@ -235,9 +235,6 @@ class Benchmark:
         return located(self.source, self.text, location, message)
 
 
-#: Keys only a benchmark spec has, and keys only a campaign spec has.
-SPEC_ONLY = frozenset({"title", "observers", "conditions", "full", "quick", "outage_signals", "recommend_by"})
-CAMPAIGN_ONLY = frozenset({"seeds_per_point", "sweep", "chunk_runs", "trajectories", "after"})
 
 
 def file_form(document: dict) -> str:
