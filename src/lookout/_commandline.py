@@ -40,7 +40,7 @@ COMPILATION_CACHE_MAX_BYTES = 1_000_000_000
 COMPILATION_CACHE_MIN_COMPILE_SECONDS = 0.0
 
 
-#: The exit code of ``lookout run``, ``reproduce``, ``replay`` and ``live`` when a run
+#: The exit code of ``lookout run``, ``replay`` and ``live`` when a run
 #: failed (status ``diverged``: a non-finite estimate or truth, or an error beyond the
 #: divergence limit); 1 is a condition that fails (``lookout design``) or a failed write,
 #: 2 bad input.

@@ -1,5 +1,5 @@
 """The component contract: what every plant, sensor, observer, reference, controller
-and actuator provides, and the labelled signals they exchange (DESIGN.md, Interfaces).
+and actuator provides, and the labelled signals they exchange.
 
 Every component is an ``equinox.Module``: a frozen dataclass and a JAX PyTree whose
 arrays (parameters, gains) can be vmapped and differentiated, and whose static

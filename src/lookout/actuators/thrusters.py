@@ -80,7 +80,7 @@ class ThrusterSystem(Actuator):
     sample ``allocation_shortfall`` (the largest part of tau the allocation left
     unproduced, |tau - B u| on an axis as a fraction of that axis's reach; 0 when tau
     is produced) and ``allocation_saturated`` (1 when the shortfall is above
-    :data:`~lookout.actuators.allocation.SATURATED`, 0.1 % of the reach: the limits kept
+    :data:`~lookout.actuators.allocation.SATURATED`, 1 % of the reach: the limits kept
     the allocation from producing tau). An infeasible tau is a shortfall, never a NaN;
     a NaN command (a failed controller) gives NaN thrust, so the run is seen to fail.
 
@@ -136,7 +136,7 @@ class ThrusterSystem(Actuator):
             _thruster_signal("thrust_commanded", "N", "commanded thrust", names),
             _thruster_signal("thruster_angle", "rad", "thruster angle (azimuth or rudder)", names, angle=True),
             _thruster_signal("thruster_angle_commanded", "rad", "commanded thruster angle (azimuth or rudder)", names, angle=True),
-            Signal("allocation_saturated", "1", "allocation short of the commanded force by more than 0.1 % of the reach (1) or not (0)"),
+            Signal("allocation_saturated", "1", "allocation short of the commanded force by more than 1 % of the reach (1) or not (0)"),
             Signal("allocation_shortfall", "1", "largest unproduced part of the commanded force, as a fraction of the thrusters' reach on its axis"),
         )
 

@@ -6,8 +6,8 @@ thrusters act, fed by a wave filter. The form is the MIMO nonlinear PID of Fosse
 (2011), *Handbook of Marine Craft Hydrodynamics and Motion Control*, Wiley, Section 12.2
 (PID control), also the horizontal-plane positioning law surveyed by
 Sørensen (2011), "A survey of dynamic positioning control systems", Annual Reviews in
-Control 35, 123–136 (its horizontal-plane positioning PID). Neither text is in
-shared/papers, so no equation number of theirs is quoted here: the law is written out
+Control 35, 123–136 (its horizontal-plane positioning PID). Neither text is among the
+five publications lookout reproduces, so no equation number of theirs is quoted here: the law is written out
 below, and every property claimed is derived and tested (tests/test_pid.py).
 
 The law

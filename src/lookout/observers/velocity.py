@@ -22,7 +22,7 @@ Choices made where the thesis is silent (see docs/reproductions.md):
   position estimate q_hat, which integrates ``q_hat' = x1_hat`` and is reset to y
   whenever y is valid. On a dropped channel (2.7) then gives
   ``x1_hat' = z' + K q_hat' = M^-1[...]``: the observer predicts with its model and
-  no velocity injection (as DESIGN.md asks), and stays finite. When the channel
+  no velocity injection (a dropout is not a crash), and stays finite. When the channel
   returns, x1_hat moves by K (y - q_hat), the injection of the position drift.
   A first sample y_0 that is NaN starts q_hat at 0 on that channel.
 * Sampled operation. :meth:`predict` integrates (2.6) by RK4 with y and tau held
