@@ -1,7 +1,7 @@
 """The scenario file layer enforces its declarations' own rules: a context value is the
 composition's, not the file's; a component's own sample period is the loop's; declared
-shapes and broadcasting are checked at the key; a thruster layout fits its vessel and a
-setpoint falls inside the run; a campaign or benchmark spec is named as such."""
+shapes and broadcasting are checked at the key; a thruster layout fits its vessel; a
+campaign or benchmark spec is named as such."""
 
 from __future__ import annotations
 
@@ -151,6 +151,7 @@ duration = 20.0
 
 [observer]
 kind = "passive"
+wave_frequency = 0.8
 
 [actuator]
 kind = "thrusters"
@@ -171,7 +172,7 @@ def test_one_number_for_the_thrusters_positions_is_refused_where_the_declaration
     path = _scenario(tmp_path, LAYOUT.format(x="30.0"))
     with pytest.raises(FileError) as caught:
         load(path)
-    assert str(caught.value) == (f"{path}: actuator.layout.x (line 16): must be an array, shape (n,): one number does not stand for "
+    assert str(caught.value) == (f"{path}: actuator.layout.x (line 17): must be an array, shape (n,): one number does not stand for "
                                  "every entry here; got 30.0")
     from lookout.actuators.layout import ThrusterLayout
 
@@ -190,3 +191,47 @@ def test_one_process_noise_intensity_is_every_inputs_as_its_siblings_take_one_nu
     # a state's entries have units of their own (m, m/s, N): one number is refused at the key, as declared
     with pytest.raises(FileError, match=r"observer.state_noise \(line 8\): must be an array, one entry each: one number does not stand for every entry here; got 0.5$"):
         load(_scenario(tmp_path, EKF + "state_noise = 0.5\n"))
+
+
+# ------------------------------------------------------------ a layout of another vessel
+
+CYBERSHIP = '''[simulation]
+duration = 20.0
+plant_step = 0.01
+sample_period = 0.1
+
+[plant]
+kind = "cybership-ii"
+
+[sensor]
+kind = "position-heading"
+
+[observer]
+kind = "passive"
+wave_frequency = 0.8
+
+[actuator]
+kind = "thrusters"
+
+[actuator.layout]
+kind = "{layout}"
+'''
+
+
+def test_a_layout_far_larger_than_the_vessel_is_refused_naming_both(tmp_path):
+    """The 76 m supply vessel's thrusters on the 1.26 m Cybership II: they lie 33.5 m from
+    its origin, and a hull of its 25.8 kg is about 1.4 m long."""
+    path = _scenario(tmp_path, CYBERSHIP.format(layout="supply-vessel"))
+    with pytest.raises(FileError) as caught:
+        load(path)
+    assert str(caught.value) == (f"{path}: actuator.layout (line 19): layout supply-vessel does not fit plant cybership-ii: its thrusters reach 33.5 m "
+                                 "from the origin, and a vessel of 25.8 kg is a hull of about 1.4 m: the layout is another vessel's; "
+                                 "give [actuator.layout] this vessel's thrusters")
+    assert load(_scenario(tmp_path, CYBERSHIP.format(layout="cybership-ii"))).build().actuator.layout.size == 3
+
+
+def test_the_lengths_of_the_shipped_vessels_from_their_mass():
+    from lookout.actuators.layout import hull_length
+
+    assert 70.0 < hull_length(5.3e6) < 90.0        # Northern Clipper, 76 m
+    assert 1.1 < hull_length(25.8) < 1.5           # Cybership II, 1.255 m

@@ -79,6 +79,19 @@ def direction_of(x, y, fallback):
     return jnp.where(zero, fallback, jnp.arctan2(jnp.where(zero, 0.0, y), jnp.where(zero, 1.0, x)))
 
 
+#: Sea water's density (kg/m^3), and a hull's displaced volume as a fraction of its
+#: length cubed: 0.7 (block coefficient) x 1/5 (beam) x 1/14 (draught), the proportions
+#: of a supply vessel (the Northern Clipper: 5.3e6 kg in surge, about 80 m by this rule).
+SEA_WATER_DENSITY = 1025.0
+HULL_VOLUME_RATIO = 0.7 / 5 / 14
+
+
+def hull_length(mass: float) -> float:
+    """The length (m) of a hull of the proportions of :data:`HULL_VOLUME_RATIO` that
+    displaces ``mass`` (kg) of sea water: a vessel's size from its mass alone."""
+    return (mass / SEA_WATER_DENSITY / HULL_VOLUME_RATIO) ** (1 / 3)
+
+
 @final
 class ThrusterLayout(eqx.Module):
     """A vessel's thrusters: one entry per thruster in every column.
@@ -222,6 +235,20 @@ class ThrusterLayout(eqx.Module):
                 f"the thrusters ({_listed([repr(_short(n)) for n in self.names])}) span only {rank} of surge, sway and yaw: "
                 "a layout must be able to push in every direction and turn (check x, y, direction and rudder_lift)"
             )
+
+    def hull_refusal(self, mass: float) -> str | None:
+        """Why these thrusters cannot be those of a vessel of ``mass`` (kg, its surge
+        mass), or None when they can: a thruster farther from the origin than a hull of
+        that mass is long (:func:`hull_length`) lies outside the vessel, so the layout
+        is another vessel's (a 76 m supply vessel's on a 1.3 m model ship)."""
+        if not (math.isfinite(mass) and mass > 0):
+            return None
+        reach = float(np.max(np.hypot(self.x, self.y)))
+        length = hull_length(mass)
+        if reach <= length:
+            return None
+        return (f"its thrusters reach {reach:.3g} m from the origin, and a vessel of {mass:.3g} kg is a hull of about {length:.2g} m: "
+                "the layout is another vessel's; give [actuator.layout] this vessel's thrusters")
 
     # -- structure -------------------------------------------------------------------------
 

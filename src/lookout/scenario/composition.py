@@ -616,6 +616,12 @@ def compose(document: dict) -> Composition:
     reason = refusal(built["plant"].input_layout, kinds["plant"]) if refusal is not None else None
     if reason is not None:
         raise CompositionError(("actuator",), reason)
+    hull = getattr(getattr(built["actuator"], "layout", None), "hull_refusal", None)  # thrusters: they must lie on the vessel
+    mass = next((float(np.asarray(m.mass_matrix)[0, 0]) for m in getattr(built["plant"], "models", tuple)() if hasattr(m, "mass_matrix")), None) if hull else None
+    reason = hull(mass) if mass is not None else None
+    if reason is not None:
+        layout = normal["actuator"].get("layout", {}).get("kind", "given")
+        raise CompositionError(("actuator", "layout"), f"layout {layout} does not fit plant {kinds['plant']}: {reason}")
     try:
         scenario = Scenario(
             plant=built["plant"],
