@@ -128,7 +128,7 @@ eta = {eta}
 
 
 @pytest.mark.parametrize("eta, message", [
-    ("[1.0, 2.0]", "must have 3 entries; got 2"),
+    ("[1.0, 2.0]", "must be one number or have 3 entries; got 2 entries"),
     ("[[1.0, 2.0, 0.1]]", "must be an array of shape (3,) or one number; got an array of shape (1, 3)"),
 ])
 def test_an_initial_value_of_another_shape_is_refused_at_its_key(tmp_path, eta, message):
@@ -140,7 +140,7 @@ def test_an_initial_value_of_another_shape_is_refused_at_its_key(tmp_path, eta, 
 
 def test_a_parameter_of_another_declared_shape_is_refused_at_its_key(tmp_path):
     path = _scenario(tmp_path, PASSIVE.format(eta="[0.0, 0.0, 0.0]").replace('kind = "passive"', 'kind = "passive"\nwave_frequency = [0.8, 0.9]'))
-    with pytest.raises(FileError, match=r"observer.wave_frequency \(line 8\): must have 3 entries; got 2$"):
+    with pytest.raises(FileError, match=r"observer.wave_frequency \(line 8\): must be one number or have 3 entries; got 2 entries$"):
         load(path)
 
 

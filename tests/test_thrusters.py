@@ -274,6 +274,10 @@ def test_thrusters_are_recorded_with_units_and_a_thruster_dimension(tmp_path):
     figure = plot_run_thrusters(ds)
     lines = [line for axis in figure.axes for line in axis.get_lines()]
     assert len(lines) >= 2 * 4 * 2  # delivered and commanded thrust of 4 thrusters, whole run and zoom
+    # a 10 s run: the zoom is its last fifth (records from 7.92 s on), not the whole run again
+    zoomed = figure.axes[1].get_lines()[0].get_xdata()
+    time = ds.time.values
+    assert zoomed[0] == time[time >= time[-1] - (time[-1] - time[0]) / 5][0] == pytest.approx(8.0) and zoomed[-1] == time[-1]
     assert plot_run_thrusters(ds.drop_vars(["thrust"])) is None
 
 

@@ -944,7 +944,8 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
     """Each thruster's thrust and angle, commanded and delivered, and the allocation's
     shortfall (``thrusters.png`` of ``lookout run`` with a thruster actuator).
 
-    Left the whole run, right a zoom on its last ``zoom`` seconds. Top: thrust per
+    Left the whole run, right a zoom on its last ``zoom`` seconds (on a run shorter than
+    five times that, its last fifth: :func:`zoom_window`). Top: thrust per
     thruster, the delivered thrust solid over the commanded one dotted, in the same
     colour. Middle: the angle of each azimuth and rudder (deg), delivered solid,
     commanded dotted (tunnels have none). Bottom: the largest part of the commanded
@@ -966,7 +967,7 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
     turning = [i for i, name in enumerate(names) if np.ptp(ds["thruster_angle"].isel(run=run, thruster=i).values) > 0
                or np.ptp(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values) > 0]
     figure, axes = plt.subplots(3, 2, figsize=(12, 8.5), sharex="col", gridspec_kw={"width_ratios": (2, 1)}, layout="constrained")
-    start = max(time[0], time[-1] - zoom)
+    start = zoom_window(time, zoom)[0]  # the estimates' rule: on a short run the last fifth, never the whole run again
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     saturated = ds["allocation_saturated"].isel(run=run).values > 0.5
     for column, (low, high) in enumerate(((time[0], time[-1]), (start, time[-1]))):

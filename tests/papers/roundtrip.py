@@ -15,12 +15,17 @@ from lookout.scenario.file import CompositionSpec, save
 
 def run_written_case(reproduction, config, case: str, folder: Path) -> xr.Dataset:
     """``case`` of ``reproduction`` with ``config``, saved as a scenario file in ``folder``
-    and run by ``lookout run``: the run.nc it writes, loaded."""
+    and run by ``lookout run``: the run.nc it writes, loaded. The exit code is 0, or 3
+    where a run failed (a case that diverges, as its paper says), and run.nc says which."""
+    from lookout._commandline import DIVERGED_EXIT_CODE
+
     path = save(CompositionSpec(compose(reproduction.composition(config, case))), folder / f"{case}.toml")
     out = folder / f"{case}-run"
-    assert main(["run", str(path), "--out", str(out)]) == 0
+    code = main(["run", str(path), "--out", str(out)])
     with xr.open_dataset(out / "run.nc") as ran:
-        return ran.load()
+        ran = ran.load()
+    assert code == (DIVERGED_EXIT_CODE if "diverged" in list(ran.status.values) else 0), (case, code)
+    return ran
 
 
 def assert_same_floats(ran: xr.Dataset, reproduced: xr.Dataset, label: str = "") -> list[str]:

@@ -134,7 +134,7 @@ def shape_refusal(value, shape: str | None, broadcast: bool = True) -> str | Non
     if sizes is None or given == sizes:
         return None
     if len(sizes) == 1 and given is not None and len(given) == 1:
-        return f"must have {sizes[0]} entries; got {given[0]}"
+        return ("must be one number or have" if broadcast else "must have") + f" {sizes[0]} entries; got {given[0]} entries"
     found = "a ragged array" if given is None else f"an array of shape {given}"
     return f"must be an array of shape {shape}" + (" or one number" if broadcast else "") + f"; got {found}"
 

@@ -131,6 +131,7 @@ def run(
     # the count, not the seeds: nothing that grows with the runs is made before the check
     check_memory([(scenario, spec.runs)], "--runs" if runs is not None else spec.runs_key, spec.runs_key.replace("runs", "duration"), where=scenario_file)
     _check_conditions(spec, scenario_file)
+    _warn_late_schedule(spec, scenario_file)
     folder = created_folder("--out", out)
     with simulating() as progress:
         trajectory = simulate_trajectory(spec, progress=progress)
@@ -204,6 +205,26 @@ def _check_conditions(spec, scenario_file: str) -> None:
                          f"lookout design {scenario_file} --propose gives gains that meet them")
     print(f"warning: {len(failing)} design condition(s) of {scenario_file} fail: {text} (lookout design {scenario_file} shows them; "
           f"[simulation] conditions = \"require\" refuses such a run)", file=sys.stderr)
+
+
+def _warn_late_schedule(spec, scenario_file: str) -> None:
+    """A warning line for setpoints scheduled after the run's end (they never take
+    effect). A warning, not a refusal: a reproduction's case written with a shorter
+    duration keeps its paper's schedule."""
+    import sys
+
+    import numpy as np
+
+    times = getattr(spec.composition.scenario.reference, "schedule_times", None)
+    duration = spec.composition.simulation.duration
+    if times is None:
+        return
+    late = [(i, float(t)) for i, t in enumerate(np.asarray(times, dtype=float)) if t >= duration]
+    if late:
+        shown = ", ".join(f"reference.schedule_times[{i}] = {t:g} s" for i, t in late[:3]) + (f" and {len(late) - 3} more" if len(late) > 3 else "")
+        print(f"warning: {scenario_file}: {shown} at or after the run's end (simulation.duration {duration:g} s): "
+              f"{'that setpoint is' if len(late) == 1 else 'those setpoints are'} never reached; lengthen the run or drop "
+              f"{'it' if len(late) == 1 else 'them'}", file=sys.stderr)
 
 
 def warn_limited(ds) -> None:
