@@ -32,8 +32,8 @@ lookout.configure_cpu()  # before JAX computes anything
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from lookout.scenario import composition  # noqa: E402
 from lookout.actuators import Allocator, ThrusterLayout  # noqa: E402
+from lookout.scenario import composition  # noqa: E402
 from lookout.sim import seed_keys, simulate_batch  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -33,8 +33,8 @@ lookout.configure_cpu()  # before JAX computes anything
 def main() -> None:
     import jax
 
-    from lookout.sim import keys_of_seeds, simulate_batch
     from lookout.scenario import metrics as metric_module
+    from lookout.sim import keys_of_seeds, simulate_batch
     from lookout.studies.campaign import _point_scenario, campaign_from_document, compute_chunk
     from lookout.studies.execute import run_campaign
 

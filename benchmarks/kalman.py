@@ -27,9 +27,9 @@ lookout.configure_cpu()  # before JAX computes anything
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
+from lookout.scenario._toml import read  # noqa: E402
 from lookout.scenario.composition import compose  # noqa: E402
 from lookout.sim import keys_of_seeds, simulate, simulate_batch  # noqa: E402
-from lookout.scenario._toml import read  # noqa: E402
 
 
 def scenario(kind: str, duration: float):

@@ -16,7 +16,6 @@ docs/benchmarks.md by hand.
 from __future__ import annotations
 
 import argparse
-import math
 import socket
 import tempfile
 import threading
@@ -34,12 +33,12 @@ jax.config.update("jax_cpu_enable_async_dispatch", False)  # as lookout live set
 
 import numpy as np  # noqa: E402
 
-from lookout.scenario.composition import compose, simulate  # noqa: E402
 from lookout.io.geodesy import LocalFrame  # noqa: E402
 from lookout.io.simulated_log import gga, ths, write_simulated_log  # noqa: E402
 from lookout.live.output import Publisher  # noqa: E402
 from lookout.live.run import live, open_source, replay  # noqa: E402
 from lookout.live.session import Session  # noqa: E402
+from lookout.scenario.composition import compose, simulate  # noqa: E402
 
 ROOT = Path(__file__).parents[1]
 ORIGIN = LocalFrame(63.44, 10.40)
@@ -61,7 +60,6 @@ def latency(seconds: float) -> dict:
     sink.bind(("127.0.0.1", 0))
     publisher = Publisher(f"udp://127.0.0.1:{sink.getsockname()[1]}", frame_of=lambda: session.frame)
     rng = np.random.default_rng(0)
-    heading_arrivals, all_arrivals = [], []
 
     def send():
         sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

@@ -27,8 +27,8 @@ lookout.configure_cpu()  # before JAX computes anything
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from lookout.papers import fossen_strand_1999 as fs
-from lookout.papers import kim_2002
+from lookout.papers import fossen_strand_1999 as fs  # noqa: E402
+from lookout.papers import kim_2002  # noqa: E402
 from lookout.sim import simulate, simulate_batch  # noqa: E402
 
 

@@ -20,16 +20,16 @@ os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
 import lookout  # noqa: E402  (enables float64 before any test builds arrays)
 
 lookout.configure_cpu(devices=2)  # the CLI's XLA:CPU options, and two devices: batches take the sharded path
-import numpy as np
-import pytest
-from hypothesis import settings
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from hypothesis import settings  # noqa: E402
 
 # no wall-clock limits in tests: a first call compiles, and CI machines vary
 settings.register_profile("lookout", deadline=None)
 settings.load_profile("lookout")
 
-from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper
-from lookout.observers import PassiveObserver, injection_gains_from_normalized
+from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper  # noqa: E402
+from lookout.observers import PassiveObserver, injection_gains_from_normalized  # noqa: E402
 
 
 @pytest.fixture(scope="session")

@@ -14,9 +14,9 @@ from lookout.analysis.adaptive_dp import (
     satisfying_gains,
     z_weight_bound,
 )
+from lookout.models.vessel import NORTHERN_CLIPPER_D, DPVessel
 from lookout.papers.calugi_2003 import CALUGI_2003_D, CALUGI_2003_M, PRINTED_GAINS
 from lookout.papers.calugi_2003 import paper_vessel as calugi_2003_vessel
-from lookout.models.vessel import NORTHERN_CLIPPER_D, DPVessel
 
 VESSEL = calugi_2003_vessel()
 M, D = CALUGI_2003_M, CALUGI_2003_D

@@ -84,8 +84,9 @@ def test_theorem_4_1_constants():
 
 
 def test_reproduce_calugi_2002_adaptive_observer_writes_its_outputs(tmp_path, capsys):
-    from lookout.cli import main
     import json
+
+    from lookout.cli import main
 
     out = tmp_path / "ch4"
     assert main(["reproduce", "calugi-2002-adaptive-observer", "--out", str(out), "--duration", "20", "--no-sweep"]) == 0

@@ -28,7 +28,8 @@ from lookout.environment import GaussMarkovBias, LinearWaveModel
 from lookout.models.vessel import VesselPlant, VesselState, northern_clipper
 from lookout.observers.adaptive_dp import AdaptiveEstimate, AdaptiveObserver, AdaptiveObserverState, InertiaParametrization
 from lookout.sensors import PositionHeadingSensor, PositionHeadingVelocitySensor
-from lookout.sim import Scenario, filter as run_filter, simulate
+from lookout.sim import Scenario, simulate
+from lookout.sim import filter as run_filter
 
 VESSEL = northern_clipper()
 M11 = float(np.asarray(VESSEL.mass_matrix)[0, 0])
@@ -52,7 +53,7 @@ def _observer(form="discrete", gamma=0.0, theta0=M11) -> AdaptiveObserver:
     return AdaptiveObserver(_parametrization(), GAIN, GAIN, gamma, form=form, initial_theta=theta0)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _scenario(form: str, mode: str | None = None) -> Scenario:
     """The shared structure: the discrete form in sampled mode, or the continuous form on
     the oracle sensor, integrated with the plant (observer_mode="continuous", the

@@ -13,8 +13,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from lookout.studies.campaign import campaign_from_document
 from lookout.studies import report as report_module
+from lookout.studies.campaign import campaign_from_document
 from lookout.studies.report import report_figures, write_report
 from lookout.studies.store import CampaignStore
 

@@ -8,10 +8,10 @@ import jax
 import numpy as np
 import pytest
 
-from lookout.scenario import registry
 from lookout.components import Actuator, Controller, Observer, Plant, Reference, Sensor
-from lookout.scenario.composition import CompositionError, compose
 from lookout.papers import fossen_strand_1999 as fs
+from lookout.scenario import registry
+from lookout.scenario.composition import CompositionError, compose
 from lookout.sim import simulate
 
 ROLES = {"plant": Plant, "sensor": Sensor, "observer": Observer, "controller": Controller, "reference": Reference, "actuator": Actuator}

@@ -23,9 +23,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import sys
-from pathlib import Path
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
+from pathlib import Path
 
 import equinox as eqx
 import jax

@@ -10,8 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from lookout.scenario import registry
-from lookout.scenario import declare
+from lookout.scenario import declare, registry
 from lookout.scenario.declare import POSITIVE, Part, Range, Rule, Value
 
 

@@ -8,15 +8,15 @@ import jax
 import numpy as np
 import pytest
 
-from lookout.scenario import registry
 from lookout.analysis.sliding_mode import kim_2002_observer, kyp_14, sigma2
 from lookout.analysis.tracking import check_wondergem_2009, propose_wondergem_2009
-from lookout.scenario.composition import CompositionError, compose, simulate
 from lookout.models.cybership import cybership2
 from lookout.models.vessel import northern_clipper
 from lookout.observers import SlidingModeObserver, notch_filter_gains
 from lookout.observers.passive import tuning_rule_gains
 from lookout.papers.wondergem_2009.config import INITIAL_ETA, INITIAL_ETA_HAT
+from lookout.scenario import registry
+from lookout.scenario.composition import CompositionError, compose, simulate
 
 # -- Wondergem et al. (2009): one proposal for the observer (6) and the scheme (23) ----------
 

@@ -16,7 +16,6 @@ import scipy.signal
 import xarray as xr
 
 import lookout
-
 from lookout import DPVessel, GaussMarkovBias, LinearWaveModel, PositionHeadingSensor, SinusoidalInput, VesselPlant, VesselState
 from lookout.components import Controller
 from lookout.papers import fossen_strand_1999 as fs
@@ -341,8 +340,8 @@ def test_the_memory_check_counts_what_a_run_holds_while_it_takes_a_sample():
     """An EKF linearizes through every plant step of a sample: 64 of them on the DP vessel
     hold a Jacobian over 402 columns. The batch check adds that to the records, and a
     filter with more steps than it takes is refused naming plant_step."""
-    from lookout.scenario.composition import CompositionError, compose
     from lookout.observers.kalman import working_nbytes as kalman_bytes
+    from lookout.scenario.composition import CompositionError, compose
     from lookout.scenario.registry import preset
     from lookout.sim import check_batch_memory, record_nbytes, working_nbytes
 

@@ -7,12 +7,12 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from lookout.scenario.composition import compose, set_path
 from lookout.environment.jonswap import peak_frequency
 from lookout.models.cybership import Cybership
 from lookout.models.vessel import NORTHERN_CLIPPER_D, NORTHERN_CLIPPER_M
-from lookout.sim import simulate
+from lookout.scenario.composition import compose, set_path
 from lookout.scenario.file import load
+from lookout.sim import simulate
 
 EXAMPLES = Path(__file__).parents[1] / "examples"
 

@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 
 import lookout
+from lookout.models.vessel import VESSEL_INPUT
 from lookout.papers import fossen_strand_1999 as fs
 from lookout.sensors import POSITION_HEADING
-from lookout.models.vessel import VESSEL_INPUT
 from lookout.sim import simulate
-
 
 #: one worker computes the module's fixture once (make test runs pytest --dist loadgroup)
 pytestmark = pytest.mark.xdist_group("filtering")

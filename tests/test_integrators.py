@@ -135,13 +135,19 @@ def _joint_measurements(count):
 
 def _observer_cases():
     """name -> (build(steps_per_sample), guess(observer), measurements, input, sample period)."""
+    from lookout.analysis.sliding_mode import kim_2002_observer
     from lookout.models.cybership import cybership2
     from lookout.models.manipulators import FreePendulum, TwoLinkArm
     from lookout.models.parameters import ModelParameters
     from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, northern_clipper
-    from lookout.observers import (AdaptiveObserver, EarthFixedObserver, InertiaParametrization, PassiveObserver,
-                                   VelocityObserver, injection_gains_from_normalized)
-    from lookout.analysis.sliding_mode import kim_2002_observer
+    from lookout.observers import (
+        AdaptiveObserver,
+        EarthFixedObserver,
+        InertiaParametrization,
+        PassiveObserver,
+        VelocityObserver,
+        injection_gains_from_normalized,
+    )
     from lookout.observers.parameter_estimator import ParameterEstimator
 
     vessel = northern_clipper()

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from lookout.components import Layout, Plant, Sensor, Signal
-from lookout.scenario.composition import compose
 from lookout.observers.ekf import ExtendedKalmanFilter
 from lookout.observers.ukf import UnscentedKalmanFilter
+from lookout.scenario.composition import compose
 
 # ------------------------------------------------------------------ a linear plant
 
@@ -313,8 +313,8 @@ def test_the_ukf_follows_a_heading_through_plus_minus_pi_without_a_jump():
 
 
 def test_a_composition_gives_the_filter_its_plant_steps_and_a_table_of_state_parts():
-    from lookout.scenario.composition import CompositionError
     from lookout.scenario._toml import read
+    from lookout.scenario.composition import CompositionError
 
     document, _ = read("examples/dp-observer.toml")
     std = {"eta": [5.0, 5.0, 0.05], "nu": [0.5, 0.5, 0.005], "bias": [5e3, 5e3, 1e5], "wave_state": [1.0, 1.0, 0.01, 1.0, 1.0, 0.01]}
@@ -389,8 +389,8 @@ def test_bad_disturbance_arguments_are_one_line_naming_them(changes, message):
 def test_a_filter_may_have_a_plant_model_of_its_own():
     """``[observer.plant]``: the filter's model differs from the truth (a model error),
     built from its table alone; the composition's plant is unchanged."""
-    from lookout.scenario.composition import CompositionError
     from lookout.scenario._toml import read
+    from lookout.scenario.composition import CompositionError
 
     document, _ = read("examples/dp-observer.toml")
     model = copy.deepcopy(document["plant"])

@@ -19,13 +19,12 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
-from lookout.scenario.composition import compose, simulate
 from lookout.io.geodesy import LocalFrame
 from lookout.io.nmea import Reading
 from lookout.io.simulated_log import EPOCH, write_simulated_log
 from lookout.live.run import Latencies, live, open_source, replay
 from lookout.live.session import Gates, Session
-
+from lookout.scenario.composition import compose, simulate
 
 EXAMPLE = Path(__file__).parents[1] / "examples"
 LOGS = EXAMPLE / "logs"

@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lookout.models.manipulators import (
+    JOINT_POSITION,
     CartPendulum,
     FreePendulum,
     FurutaPendulum,
@@ -21,7 +22,6 @@ from lookout.models.manipulators import (
     ManipulatorPlant,
     TwoLinkArm,
     joint_layout,
-    JOINT_POSITION,
 )
 from lookout.sensors import JointEncoder
 from lookout.sim.integrators import rk4_step

@@ -8,11 +8,10 @@ import math
 import tracemalloc
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-import numpy as np
 
 from lookout.io.logs import CsvLog, log_format, nmea_log, nmea_log_line, scan_log
 from lookout.io.nmea import CAUSES, MAX_LINE, LineSplitter, NmeaParser, checksum, sentence

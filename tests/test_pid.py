@@ -305,7 +305,8 @@ def test_the_kalman_filters_hold_the_northern_clipper_in_waves(kind):
     fixes) with each filter, seeds 0 and 1, 900 s: from 300 s on the vessel stays within
     1.5 m and 0.5 deg of the reference, through the move at 600 s (measured: 0.71 m and
     0.15 deg at most, both filters)."""
-    from lookout.scenario.composition import compose, simulate as run
+    from lookout.scenario.composition import compose
+    from lookout.scenario.composition import simulate as run
 
     document = tomllib.loads(EXAMPLE.read_text())
     document["simulation"].update(duration=900.0, runs=2)
@@ -399,10 +400,11 @@ def test_the_tuning_family_round_trips_stays_inside_routh_hurwitz_and_is_checked
 
 def test_the_tuning_gradient_matches_central_differences():
     """Through 200 s of the loop with perfect estimates, a slow sinusoidal force and a move."""
+    from tuning_checks import gradient_and_central_differences
+
     from lookout.sim import keys_of_seeds
     from lookout.tuning.families import family_of
     from lookout.tuning.tune import _objective_function, parse_objective
-    from tuning_checks import gradient_and_central_differences
 
     scenario = _family_scenario()
     family, start, _ = family_of(scenario)

@@ -12,12 +12,12 @@ import jax
 import numpy as np
 import pytest
 
-from lookout.scenario import registry
 from lookout.cli import main
-from lookout.scenario.composition import CompositionError, compose
 from lookout.models.vessel import DPVessel, northern_clipper
-from lookout.sim import simulate
+from lookout.scenario import registry
+from lookout.scenario.composition import CompositionError, compose
 from lookout.scenario.file import load
+from lookout.sim import simulate
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 

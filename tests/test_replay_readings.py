@@ -48,8 +48,9 @@ def _write(path: Path, rows, prefix: bytes = b"") -> Path:
 
 
 def _session(**options):
-    from lookout.scenario.composition import compose
     import tomllib
+
+    from lookout.scenario.composition import compose
 
     scenario = compose(tomllib.loads(SCENARIO.read_text())).scenario
     return Session(scenario.observer, scenario.sample_period, guess=scenario.initial_estimate, batch=4096, **options)

@@ -101,8 +101,8 @@ def test_an_observer_built_for_another_sample_period_is_refused_with_both_period
 
 def test_a_discrete_observers_sample_period_in_a_file_must_be_the_loops(tmp_path):
     """The adaptive manipulator observer's Delta is a file key: another loop period is refused at it."""
-    from lookout.scenario.registry import preset
     from lookout.scenario._toml import write
+    from lookout.scenario.registry import preset
 
     document = preset("calugi-2002-backstepping")
     document["simulation"].update(duration=0.1)

@@ -12,9 +12,10 @@ from hypothesis import strategies as st
 
 from lookout.models.vessel import northern_clipper
 from lookout.observers import PassiveObserver, saturation
-from lookout.papers.kim_2002 import BIAS_GAIN as KIM_2002_BIAS_GAIN, VELOCITY_GAIN as KIM_2002_VELOCITY_GAIN
 from lookout.papers import fossen_strand_1999 as fs
 from lookout.papers import kim_2002
+from lookout.papers.kim_2002 import BIAS_GAIN as KIM_2002_BIAS_GAIN
+from lookout.papers.kim_2002 import VELOCITY_GAIN as KIM_2002_VELOCITY_GAIN
 from lookout.sim import simulate
 
 finite = st.floats(-1e6, 1e6, allow_nan=False)

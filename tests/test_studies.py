@@ -18,14 +18,14 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
-from lookout.scenario.composition import compose, set_path
-from lookout.sim import keys_of_seeds, simulate_batch
-from lookout.scenario import metrics as metric_module
 from lookout.papers import REPRODUCTIONS, fossen_strand_1999
 from lookout.scenario import _toml
+from lookout.scenario import metrics as metric_module
+from lookout.scenario.composition import compose, set_path
+from lookout.scenario.file import CompositionSpec, load, save
+from lookout.sim import keys_of_seeds, simulate_batch
 from lookout.studies.campaign import campaign_from_document, load_campaign
 from lookout.studies.execute import run_campaign
-from lookout.scenario.file import CompositionSpec, load, save
 from lookout.studies.store import CampaignStore
 
 # no xdist group: the tests spread over the workers (each builds the session fixtures it needs)

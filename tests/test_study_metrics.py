@@ -9,9 +9,9 @@ import pytest
 
 from lookout._math import ssa
 from lookout.analysis import settling_time
-from lookout.sim import keys_of_seeds, simulate_batch
-from lookout.scenario import metrics as metric_module
 from lookout.papers import kim_2002
+from lookout.scenario import metrics as metric_module
+from lookout.sim import keys_of_seeds, simulate_batch
 
 NAMES = [
     "rms_error:position", "rms_error:heading", "max_error:heading", "settling_time:position",

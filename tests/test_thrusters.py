@@ -250,9 +250,8 @@ def test_thrusters_are_recorded_with_units_and_a_thruster_dimension(tmp_path):
     import sys
 
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
-    from test_conformance import _sliding_mode_loop
-
     import xarray as xr
+    from test_conformance import _sliding_mode_loop
 
     from lookout.sim import simulate
 
@@ -712,10 +711,9 @@ def test_thrusters_refuse_a_plant_that_is_not_a_vessel(tmp_path, capsys):
     """Thrusters produce a vessel's force (surge, sway) and moment (yaw): a manipulator is
     refused in one line naming both parts, at the composition, from Python, and at the
     command line (exit 2, nothing written), never with JAX's broadcasting message."""
-    from lookout.scenario import composition
     from lookout.cli import main
+    from lookout.scenario import _toml, composition
     from lookout.sim import Scenario
-    from lookout.scenario import _toml
 
     with pytest.raises(composition.CompositionError) as refusal:
         composition.compose(_arm_with_thrusters())

@@ -7,10 +7,10 @@ from __future__ import annotations
 import json
 import re
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from tuning_checks import gradient_and_central_differences
 
 from lookout.cli import main
 from lookout.scenario.composition import compose
@@ -19,7 +19,6 @@ from lookout.sim import keys_of_seeds
 from lookout.tuning.families import family_of
 from lookout.tuning.families.passive import PassiveFamily
 from lookout.tuning.tune import _objective_function, parse_objective
-from tuning_checks import gradient_and_central_differences
 
 pytestmark = pytest.mark.xdist_group("tuning")
 
@@ -170,6 +169,7 @@ def test_the_tuner_runs_the_program_whose_gradient_the_checks_compare_with_centr
     tests/tuning_checks.py compares with central differences: the checks test the
     tuner's own program (and a tune test of the same scenario loads it from the cache)."""
     import tuning_checks
+
     from lookout.tuning import tune as tune_module
 
     assert tuning_checks.value_and_gradient is tune_module.value_and_gradient

@@ -11,18 +11,18 @@ import json
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from tuning_checks import gradient_and_central_differences
 
 from lookout.analysis.adaptive_dp import check_calugi_2003, observer_condition_22
 from lookout.cli import main
-from lookout.scenario.composition import compose
 from lookout.papers.calugi_2003.config import m11, paper_vessel
+from lookout.scenario._toml import read, write
+from lookout.scenario.composition import compose
 from lookout.scenario.registry import preset
 from lookout.sim import keys_of_seeds
-from lookout.scenario._toml import read, write
 from lookout.tuning.families import Joint, build, family_of
 from lookout.tuning.families.adaptive_dp import AdaptiveDPFamily, VectorialBacksteppingFamily
 from lookout.tuning.tune import _objective_function, parse_objective
-from tuning_checks import gradient_and_central_differences
 
 pytestmark = pytest.mark.xdist_group("tuning-adaptive-dp")
 

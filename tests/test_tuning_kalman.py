@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import json
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from tuning_checks import gradient_and_central_differences
 
 from lookout.cli import main
 from lookout.scenario.composition import compose
@@ -19,7 +19,6 @@ from lookout.sim import keys_of_seeds
 from lookout.tuning.families import family_of
 from lookout.tuning.families.kalman import KalmanFamily, check_kalman_filter
 from lookout.tuning.tune import _objective_function, parse_objective
-from tuning_checks import gradient_and_central_differences
 
 pytestmark = pytest.mark.xdist_group("tuning-kalman")
 

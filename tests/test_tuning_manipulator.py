@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import json
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from tuning_checks import gradient_and_central_differences
 
 from lookout.cli import main
 from lookout.scenario.composition import compose
@@ -21,7 +21,6 @@ from lookout.tuning.families import family_of
 from lookout.tuning.families.adaptive_manipulator import AdaptiveManipulatorFamily
 from lookout.tuning.families.velocity import VelocityFamily
 from lookout.tuning.tune import _objective_function, parse_objective
-from tuning_checks import gradient_and_central_differences
 
 pytestmark = pytest.mark.xdist_group("tuning-manipulator")
 

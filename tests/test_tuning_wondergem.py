@@ -6,20 +6,19 @@ from __future__ import annotations
 
 import json
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from tuning_checks import gradient_and_central_differences
 
 from lookout.cli import main
+from lookout.scenario._toml import read, write
 from lookout.scenario.composition import compose
 from lookout.scenario.registry import preset
 from lookout.sim import keys_of_seeds
-from lookout.scenario._toml import read, write
 from lookout.tuning.families import Joint, build, family_of
 from lookout.tuning.families.tracking import EarthFixedFamily, TrackingFamily
 from lookout.tuning.tune import _objective_function, parse_objective
-from tuning_checks import gradient_and_central_differences
 
 pytestmark = pytest.mark.xdist_group("tuning-wondergem")
 

@@ -52,7 +52,7 @@ def _velocities(trajectory, observer):
     return truth, estimate
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _simulated(name, gain=None):
     """(scenario, trajectory) of a continuous-time run; a second gain reuses the compiled loop."""
     scenario = _scenario(name, gain)
@@ -65,7 +65,7 @@ def _run(name, gain=None):
     return trajectory.time, truth, estimate
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _bounds(name):
     return configuration_bounds(SYSTEMS[name][0])
 

@@ -32,12 +32,12 @@ jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
 
-from lookout.scenario import composition  # noqa: E402
 from lookout.actuators import Allocator, ThrusterLayout  # noqa: E402
+from lookout.scenario import composition  # noqa: E402
+from lookout.scenario.metrics import resolve, summarize  # noqa: E402
 from lookout.scenario.registry import preset  # noqa: E402
 from lookout.sim import keys_of_seeds  # noqa: E402
 from lookout.studies.benchmark import shipped_spec  # noqa: E402
-from lookout.scenario.metrics import resolve, summarize  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]

@@ -128,7 +128,7 @@ class LuenbergerObserver(ContinuousObserver):
         self.measurement_layout, self.input_layout, self.sample_period = POSITION_HEADING, VESSEL_INPUT, None
 
     @classmethod
-    def design(cls, vessel: DPVessel, bandwidth=(0.05, 0.05, 0.05), steps_per_sample: int = 1) -> "LuenbergerObserver":
+    def design(cls, vessel: DPVessel, bandwidth=(0.05, 0.05, 0.05), steps_per_sample: int = 1) -> LuenbergerObserver:
         """The observer whose error has its three poles per DOF at -``bandwidth``
         (module docstring: l1 = 3 w - d/m, l2 = 3 m w^2 - l1 d, l3 = m w^3), from the
         diagonals of the vessel's M and D.

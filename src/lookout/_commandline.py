@@ -17,11 +17,15 @@ import os
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 
 from lookout._resources import PEAK_MEMORY_PER_RECORD_BYTE, available_memory, format_bytes, nearest_existing
 from lookout._validation import InputError
+
+if TYPE_CHECKING:
+    from rich.progress import Progress
 
 console = Console(soft_wrap=True)
 #: The width tables may take when the output is not a terminal (lookout.cli.main).

@@ -12,7 +12,6 @@ import os
 import shutil
 from pathlib import Path
 
-
 #: The peak memory of a study is about this many times its records: the simulated
 #: segments and their concatenation, the xarray copy, NetCDF and metric buffers.
 #: Measured 3.6x (40 runs x 3000 s of fossen-strand-1999: 346 MB of records, 1.23 GB

@@ -8,7 +8,10 @@ concrete object was built).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import numpy as np
 
 # numpy is imported inside each check: the command's modules import InputError from
 # here, and `lookout --help` needs neither NumPy nor JAX

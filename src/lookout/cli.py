@@ -12,16 +12,16 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich import box
 from rich.table import Table
 
 from lookout._commandline import PIPE_WIDTH, check_memory, console, created_folder, image_file, simulating, use_compilation_cache, writable_folder
+from lookout._json import json_safe
 from lookout._validation import InputError, one_line
 from lookout.cli_design import DESIGN_VERDICTS
-from lookout._json import json_safe
 
 try:  # typer >= 0.29 vendors click
     from typer._click import exceptions as click_exceptions
@@ -186,14 +186,14 @@ def list_reproductions() -> None:
 @app.command()
 def reproduce(
     name: Annotated[str, typer.Argument(metavar="NAME", help="Reproduction, e.g. fossen-strand-1999 (see `lookout list`).")],
-    out: Annotated[Optional[str], typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.", show_default="out/NAME")] = None,
+    out: Annotated[str | None, typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.", show_default="out/NAME")] = None,
     seed: Annotated[int, typer.Option(metavar="INT", help="Seed of run 0; run i uses seed + i.")] = 0,
     runs: Annotated[int, typer.Option(metavar="N", help="Monte Carlo runs over seeds (vmapped); the summary gives mean ± std.")] = 1,
     duration: Annotated[
-        Optional[float], typer.Option(metavar="SECONDS", help="Simulated time.", show_default="the reproduction's own (its --write-scenario file shows it)")
+        float | None, typer.Option(metavar="SECONDS", help="Simulated time.", show_default="the reproduction's own (its --write-scenario file shows it)")
     ] = None,
     model_error: Annotated[
-        Optional[str],
+        str | None,
         typer.Option(
             metavar="KEY=VALUE,...",
             help="kim-2002: how the vessel differs from the model: mass and damping (relative, M_true = (1 + mass) M), "
@@ -202,20 +202,20 @@ def reproduce(
         ),
     ] = None,
     gains: Annotated[
-        Optional[str], typer.Option(metavar="SET", help="kim-2002: observer H3, H4: printed (A.4) or kyp (satisfy (14)).", show_default="printed")
+        str | None, typer.Option(metavar="SET", help="kim-2002: observer H3, H4: printed (A.4) or kyp (satisfy (14)).", show_default="printed")
     ] = None,
     sweep: Annotated[
-        Optional[bool], typer.Option("--sweep/--no-sweep", help="Run the sweeps and studies of the reproductions that have them (see lookout list).", show_default="--sweep")
+        bool | None, typer.Option("--sweep/--no-sweep", help="Run the sweeps and studies of the reproductions that have them (see lookout list).", show_default="--sweep")
     ] = None,
     sample_interval: Annotated[
-        Optional[float], typer.Option(metavar="SECONDS", help="calugi-2003: observer and controller sample interval Delta.", show_default="0.1")
+        float | None, typer.Option(metavar="SECONDS", help="calugi-2003: observer and controller sample interval Delta.", show_default="0.1")
     ] = None,
     condition: Annotated[
-        Optional[str],
+        str | None,
         typer.Option(metavar="NAME[,NAME]", help="wondergem-2009: simulation, basin-calm, basin-waves (comma-separated).", show_default="all three"),
     ] = None,
     write_scenario: Annotated[
-        Optional[str],
+        str | None,
         typer.Option(metavar="FILE", help="Write the reproduction's scenario (its first case, with these settings) as a scenario file for `lookout run`, and stop."),
     ] = None,
 ) -> None:
@@ -250,8 +250,8 @@ def reproduce(
 
 
 def _write_scenario(name: str, config, text: str) -> None:
-    from lookout.scenario.composition import compose
     from lookout.papers import REPRODUCTIONS
+    from lookout.scenario.composition import compose
     from lookout.scenario.file import CompositionSpec, save
 
     if not text.strip():
@@ -284,24 +284,24 @@ def _print_summary(summary: dict, tables, out: Path) -> None:
 
 @design_app.command("passive-observer")
 def design_passive_observer(
-    wave_frequency: Annotated[Optional[float], typer.Option(metavar="RAD_PER_S", help="Dominating wave frequency w_o.")] = None,
-    wave_period: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Wave period, instead of --wave-frequency (w_o = 2 pi / period).")] = None,
+    wave_frequency: Annotated[float | None, typer.Option(metavar="RAD_PER_S", help="Dominating wave frequency w_o.")] = None,
+    wave_period: Annotated[float | None, typer.Option(metavar="SECONDS", help="Wave period, instead of --wave-frequency (w_o = 2 pi / period).")] = None,
     wave_damping: Annotated[float, typer.Option(metavar="ZETA", help="Wave model damping zeta.")] = 0.1,
-    notch_damping: Annotated[Optional[float], typer.Option(metavar="ZETA_N", help="Notch damping zeta_n > zeta.", show_default="1.0")] = None,
+    notch_damping: Annotated[float | None, typer.Option(metavar="ZETA_N", help="Notch damping zeta_n > zeta.", show_default="1.0")] = None,
     cutoff_frequency: Annotated[
-        Optional[float], typer.Option(metavar="RAD_PER_S", help="Filter cut-off w_c > w_o.", show_default="max(1.1, 1.2255 w_o), the paper's (59)")
+        float | None, typer.Option(metavar="RAD_PER_S", help="Filter cut-off w_c > w_o.", show_default="max(1.1, 1.2255 w_o), the paper's (59)")
     ] = None,
     bias_time_constant: Annotated[str, typer.Option(metavar="T[,T,T]", help="Bias time constants T (s): one value or three.")] = "1000",
     velocity_gain: Annotated[
-        Optional[str], typer.Option(metavar="K[,K,K]", help="Kappa diagonal, SI (N/m, N/m, N m/rad).", show_default="the paper's (60) converted to SI")
+        str | None, typer.Option(metavar="K[,K,K]", help="Kappa diagonal, SI (N/m, N/m, N m/rad).", show_default="the paper's (60) converted to SI")
     ] = None,
     bias_gain: Annotated[
-        Optional[str], typer.Option(metavar="L[,L,L]", help="Lambda diagonal, SI (Kappa's units per second).", show_default="the paper's (60) converted to SI")
+        str | None, typer.Option(metavar="L[,L,L]", help="Lambda diagonal, SI (Kappa's units per second).", show_default="the paper's (60) converted to SI")
     ] = None,
     normalized: Annotated[bool, typer.Option("--normalized", help="Read --velocity-gain and --bias-gain as normalized (bis) gains of Northern Clipper.")] = False,
     lyapunov_weight: Annotated[float, typer.Option(metavar="GAMMA", help="Lyapunov weight gamma > 0.")] = 1.0,
-    frequency: Annotated[Optional[list[float]], typer.Option(metavar="RAD_PER_S", help="Report h0(jw) at this frequency; repeatable.")] = None,
-    bode: Annotated[Optional[str], typer.Option(metavar="FILE", help="Write a Bode plot of h0, hB, h (.png, .pdf, .svg, ...).")] = None,
+    frequency: Annotated[list[float] | None, typer.Option(metavar="RAD_PER_S", help="Report h0(jw) at this frequency; repeatable.")] = None,
+    bode: Annotated[str | None, typer.Option(metavar="FILE", help="Write a Bode plot of h0, hB, h (.png, .pdf, .svg, ...).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
 ) -> None:
     """Fossen & Strand (1999) passive observer: gains, tuning rule, SPR.
@@ -429,12 +429,12 @@ def _non_negative_numbers(option: str, text: str) -> list[float]:
 @design_app.command("sliding-mode-observer")
 def design_sliding_mode_observer(
     gains: Annotated[str, typer.Option(metavar="SET", help="H3, H4: printed (Kim's A.4) or kyp (Fossen & Strand (60) in SI, satisfy (14)).")] = "printed",
-    velocity_gain: Annotated[Optional[str], typer.Option(metavar="H4[,H4,H4]", help="H4 diagonal, SI (N/m, N/m, N m/rad); overrides --gains.")] = None,
-    bias_gain: Annotated[Optional[str], typer.Option(metavar="H3[,H3,H3]", help="H3 diagonal, SI (H4's units per second); overrides --gains.")] = None,
+    velocity_gain: Annotated[str | None, typer.Option(metavar="H4[,H4,H4]", help="H4 diagonal, SI (N/m, N/m, N m/rad); overrides --gains.")] = None,
+    bias_gain: Annotated[str | None, typer.Option(metavar="H3[,H3,H3]", help="H3 diagonal, SI (H4's units per second); overrides --gains.")] = None,
     switching_gain: Annotated[str, typer.Option(metavar="K[,K,K]", help="Kbar diagonal (m/s, m/s, rad/s); 0 for the passive observer.")] = "10,10,0.01",
     boundary_layer: Annotated[str, typer.Option(metavar="EPS[,EPS,EPS]", help="Boundary layer eps of sat(y~/eps) (m, m, rad).")] = "5,5,0.01745",
     disturbance: Annotated[
-        Optional[str], typer.Option(metavar="F[,F,F]", help="Bound on the unmodelled body-fixed force (N, N, N m): checks the switching gain (17).")
+        str | None, typer.Option(metavar="F[,F,F]", help="Bound on the unmodelled body-fixed force (N, N, N m): checks the switching gain (17).")
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
 ) -> None:
@@ -518,13 +518,13 @@ def design_adaptive_observer(
 @design_app.command("adaptive-arm")
 def design_adaptive_arm(
     arm: Annotated[str, typer.Option(metavar="ARM", help="pendulum (Section 4.8: m = 1 kg, l = 1.5 m, theta = m) or two-link (Section 5.3: m1 = 1, m2 = 1.5 kg, l = 1 m, theta = m2).")] = "two-link",
-    gain: Annotated[Optional[str], typer.Option("--k", metavar="K[,K]", help="Observer gain K diagonal (1/s); default the thesis's (20 pendulum, 5 two-link).")] = None,
-    adaptation_gain: Annotated[Optional[float], typer.Option("--gamma", metavar="G", help="Adaptation gain Gamma; default the thesis's (10 pendulum, 0.1 two-link).")] = None,
+    gain: Annotated[str | None, typer.Option("--k", metavar="K[,K]", help="Observer gain K diagonal (1/s); default the thesis's (20 pendulum, 5 two-link).")] = None,
+    adaptation_gain: Annotated[float | None, typer.Option("--gamma", metavar="G", help="Adaptation gain Gamma; default the thesis's (10 pendulum, 0.1 two-link).")] = None,
     max_speed: Annotated[float, typer.Option(metavar="W", help="Bound w_max on ||q'|| (rad/s).")] = 1.0,
     margin: Annotated[float, typer.Option(metavar="BETA", help="Margin beta >= 0 of Theorem 4.1.")] = 0.0,
-    velocity_error: Annotated[Optional[str], typer.Option(metavar="E[,E]", help="Initial velocity error x1~(0) (rad/s); default q'(0) - x1_hat(0) of the thesis's example.")] = None,
-    theta_error: Annotated[Optional[float], typer.Option(metavar="E", help="Initial parameter error theta~(0) (kg); default the thesis's example.")] = None,
-    damping_weights: Annotated[Optional[str], typer.Option("--d", metavar="D[,...]", help="Backstepping weights d_1..d_2n (s): also checks (5.28); default 1 for two-link.")] = None,
+    velocity_error: Annotated[str | None, typer.Option(metavar="E[,E]", help="Initial velocity error x1~(0) (rad/s); default q'(0) - x1_hat(0) of the thesis's example.")] = None,
+    theta_error: Annotated[float | None, typer.Option(metavar="E", help="Initial parameter error theta~(0) (kg); default the thesis's example.")] = None,
+    damping_weights: Annotated[str | None, typer.Option("--d", metavar="D[,...]", help="Backstepping weights d_1..d_2n (s): also checks (5.28); default 1 for two-link.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
 ) -> None:
     """Calugi (2002), Theorem 4.1 (adaptive observer) and (5.28) (observer backstepping).
@@ -600,23 +600,23 @@ def design_adaptive_arm(
 
 @design_app.command("tracking-gains")
 def design_tracking_gains(
-    position_gain: Annotated[Optional[str], typer.Option("--l1", metavar="L1[,L1,L1]", help="Observer gain L1 diagonal (1/s).", show_default="Section 5's")] = None,
-    velocity_gain: Annotated[Optional[str], typer.Option("--l2", metavar="L2[,L2,L2]", help="Observer gain L2 diagonal (1/s2).", show_default="Section 5's")] = None,
+    position_gain: Annotated[str | None, typer.Option("--l1", metavar="L1[,L1,L1]", help="Observer gain L1 diagonal (1/s).", show_default="Section 5's")] = None,
+    velocity_gain: Annotated[str | None, typer.Option("--l2", metavar="L2[,L2,L2]", help="Observer gain L2 diagonal (1/s2).", show_default="Section 5's")] = None,
     omega: Annotated[
-        Optional[str], typer.Option("--omega", metavar="W[,W,W]", help="Omega diagonal (rad/s), natural frequencies of the error dynamics (20).", show_default="Section 5's")
+        str | None, typer.Option("--omega", metavar="W[,W,W]", help="Omega diagonal (rad/s), natural frequencies of the error dynamics (20).", show_default="Section 5's")
     ] = None,
     damping_ratio: Annotated[
-        Optional[str], typer.Option("--lambda", metavar="Z[,Z,Z]", help="Lambda diagonal, relative damping of the error dynamics (20).", show_default="Section 5's")
+        str | None, typer.Option("--lambda", metavar="Z[,Z,Z]", help="Lambda diagonal, relative damping of the error dynamics (20).", show_default="Section 5's")
     ] = None,
     start: Annotated[str, typer.Option(metavar="ESTIMATE", help="Initial estimate: printed (Section 5's eta_hat0 and velocity estimate) or measured (eta_hat0 = eta0, v_hat0 = 0).")] = "printed",
     velocity_bound: Annotated[
-        Optional[float], typer.Option(metavar="V_M", help="Bound on the ship's speed ||eta'|| (m/s) for Proposition 3.1.", show_default="the reproduction's")
+        float | None, typer.Option(metavar="V_M", help="Bound on the ship's speed ||eta'|| (m/s) for Proposition 3.1.", show_default="the reproduction's")
     ] = None,
-    epsilon3: Annotated[Optional[float], typer.Option(metavar="EPS", help="eps3 of Proposition 3.3; default the largest that (27) admits.")] = None,
+    epsilon3: Annotated[float | None, typer.Option(metavar="EPS", help="eps3 of Proposition 3.3; default the largest that (27) admits.")] = None,
     start_angle: Annotated[
-        Optional[float], typer.Option(metavar="RAD", help="Start of the reference on the ellipse, theta_0 (rad).", show_default="the reproduction's")
+        float | None, typer.Option(metavar="RAD", help="Start of the reference on the ellipse, theta_0 (rad).", show_default="the reproduction's")
     ] = None,
-    direction: Annotated[Optional[int], typer.Option(metavar="1|-1", help="1: yaw rate positive, -1: negative.", show_default="the reproduction's")] = None,
+    direction: Annotated[int | None, typer.Option(metavar="1|-1", help="1: yaw rate positive, -1: negative.", show_default="the reproduction's")] = None,
     propose: Annotated[bool, typer.Option("--propose", help="Search for gains that satisfy every condition (uses --lambda, --start, --velocity-bound; ignores --l1, --l2, --omega).")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
 ) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich import box
@@ -112,9 +112,9 @@ def _plant_part_default(role: str) -> str:
 
 
 def components(
-    kind: Annotated[Optional[str], typer.Argument(metavar="[KIND]", help="A role (observer, plant, ...) or a kind (passive, dp-vessel, ...).")] = None,
+    kind: Annotated[str | None, typer.Argument(metavar="[KIND]", help="A role (observer, plant, ...) or a kind (passive, dp-vessel, ...).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
-    plugin: Annotated[Optional[list[str]], typer.Option("--plugin", metavar="FILE", help="A Python file (or module) that registers kinds of its own, listed with lookout's; repeat for several.")] = None,
+    plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="FILE", help="A Python file (or module) that registers kinds of its own, listed with lookout's; repeat for several.")] = None,
 ) -> None:
     """List the registered components: kinds by role, or one kind's parameters (name,
     default, type and range, description with units) and what it needs and provides.

@@ -57,7 +57,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lookout.components import ContinuousObserver, Layout, Observer, Plant, Sensor, Signal
+from lookout.components import ContinuousObserver, Layout, Observer, Plant, Sensor
 
 try:  # python-control is optional: only this module needs it
     import control
@@ -146,7 +146,7 @@ class StateLayout:
     paths: tuple[str, ...]
 
     @classmethod
-    def of(cls, template, role: str, component) -> "StateLayout":
+    def of(cls, template, role: str, component) -> StateLayout:
         """The layout of ``template`` (a state or its ``jax.eval_shape``) of ``component``
         (a ``role``); refused when a leaf is not floating point (a counter or a flag has no
         linearization)."""

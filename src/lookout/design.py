@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lookout.scenario import registry
 from lookout.analysis.conditions import Report
+from lookout.scenario import registry
 from lookout.scenario.composition import Composition
 
 #: The roles whose kinds may declare conditions, in the order they are checked.

@@ -19,7 +19,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import Layout, Reference, Signal
-from lookout.scenario.declare import Context, POSITIVE, Value, component
+from lookout.scenario.declare import POSITIVE, Context, Value, component
 
 #: A switch time counts as reached at sample time t when ``time <= t + SWITCH_TOLERANCE * max(1, |t|)``:
 #: a sample time that rounds a hair below a switch time does not postpone the switch by a sample.
@@ -208,7 +208,7 @@ class ReferenceFilter(Reference):
         check.finite("initial", self.initial)
 
     @classmethod
-    def vessel(cls, bandwidth, schedule_times, setpoints, initial=None) -> "ReferenceFilter":
+    def vessel(cls, bandwidth, schedule_times, setpoints, initial=None) -> ReferenceFilter:
         """The DP vessel's reference: setpoint [north (m), east (m), heading (rad)].
 
         Uses the ``position`` and ``heading`` signals of

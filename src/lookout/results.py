@@ -221,7 +221,7 @@ def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written", 
     """
     path = Path(path)
     ds = ds.copy()
-    stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    stamp = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
     line = f"{stamp}: lookout {_version()}: {history}"
     previous = ds.attrs.get("history")
     ds.attrs["history"] = f"{previous}\n{line}" if previous else line

@@ -7,22 +7,20 @@ gyro compass reports it.
 
 from __future__ import annotations
 
+from typing import final
 
 import equinox as eqx
 import jax
-import jax.scipy.special
 import jax.numpy as jnp
+import jax.scipy.special
 import numpy as np
 from jax import Array
 
-from typing import final
-
 from lookout import _validation as check
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Value, component
 from lookout._math import ssa
 from lookout.components import EARTH_FIXED, Layout, Outage, Sensor, Signal
 from lookout.models.vessel import EARTH_AXES, VesselState
-
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Value, component
 
 #: The keys of a sensor's outage, the same for every sensor.
 OUTAGE_VALUES = (
@@ -257,8 +255,8 @@ class JointEncoder(Sensor):
 
 # Position, heading AND velocity: an oracle for analysis in simulation only (appended;
 # the sensors above are unchanged).
-from lookout.models.vessel import BODY_AXES  # noqa: E402
 from lookout.components import BODY_FIXED  # noqa: E402
+from lookout.models.vessel import BODY_AXES  # noqa: E402
 
 #: POSITION_HEADING followed by the body-fixed velocity nu = [u, v, r] (oracle channels).
 POSITION_HEADING_VELOCITY = Layout(

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from lookout.papers import calugi_2002_backstepping as ch5
+
 from .roundtrip import assert_same_floats, run_written_case, segmented_progress
 
 pytestmark = pytest.mark.xdist_group("calugi_2002_backstepping")

@@ -6,9 +6,10 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
-from lookout.scenario.composition import compose
 from lookout.papers import calugi_2002_furuta as ch6
+from lookout.scenario.composition import compose
 from lookout.scenario.file import CompositionSpec, save
+
 from .roundtrip import segmented_progress
 
 pytestmark = pytest.mark.xdist_group("calugi_2002_furuta")

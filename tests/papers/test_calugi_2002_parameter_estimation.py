@@ -7,9 +7,10 @@ import pytest
 import xarray as xr
 
 from lookout.cli import main
-from lookout.scenario.composition import compose
 from lookout.papers import calugi_2002_parameter_estimation as ch3
+from lookout.scenario.composition import compose
 from lookout.scenario.file import CompositionSpec, save
+
 from .roundtrip import segmented_progress
 
 #: one worker runs these tests (make test: --dist loadgroup), and the session fixture computes the reproduction once there

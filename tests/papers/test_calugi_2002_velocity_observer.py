@@ -4,6 +4,7 @@
 import pytest
 
 from lookout.papers import calugi_2002_velocity_observer as ch2
+
 from .roundtrip import assert_same_floats, run_written_case, segmented_progress
 
 pytestmark = pytest.mark.xdist_group("calugi_2002_velocity_observer")

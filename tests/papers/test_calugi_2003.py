@@ -12,6 +12,7 @@ from lookout.analysis import estimation_errors
 from lookout.cli import main
 from lookout.papers import calugi_2003
 from lookout.sim import simulate
+
 from .roundtrip import assert_same_floats, run_written_case
 
 

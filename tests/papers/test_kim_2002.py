@@ -14,6 +14,7 @@ import xarray as xr
 
 from lookout.cli import main
 from lookout.papers import kim_2002
+
 from .roundtrip import assert_same_floats, run_written_case
 
 SEEDS = (0, 1)

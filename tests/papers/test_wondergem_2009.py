@@ -8,6 +8,7 @@ import pytest
 from lookout.cli import main
 from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT
 from lookout.papers import wondergem_2009 as w
+
 from .roundtrip import assert_same_floats, run_written_case
 
 

@@ -327,7 +327,7 @@ class ThrusterLayout(eqx.Module):
     # -- shipped layouts --------------------------------------------------------------------
 
     @classmethod
-    def cybership_ii(cls, time_constant: float = 0.2) -> "ThrusterLayout":
+    def cybership_ii(cls, time_constant: float = 0.2) -> ThrusterLayout:
         """Cybership II, the 1:70 model supply ship of Wondergem et al. (2009), Section 5:
         two screw-rudder pairs at the stern and a tunnel thruster in the bow.
 
@@ -354,7 +354,7 @@ class ThrusterLayout(eqx.Module):
         )
 
     @classmethod
-    def supply_vessel(cls, time_constant: float = 2.0) -> "ThrusterLayout":
+    def supply_vessel(cls, time_constant: float = 2.0) -> ThrusterLayout:
         """A 76 m platform supply vessel the size of the Northern Clipper of Fossen &
         Strand (1999): two bow tunnel thrusters and two azimuth thrusters aft.
 

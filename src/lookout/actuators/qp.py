@@ -31,7 +31,6 @@ EMPTY = -1
 def _system(P, G, working):
     """The KKT matrix [[P, G_W^T], [G_W, I_free]] of the working set (free slots get an
     identity row, so their multipliers are 0)."""
-    n = P.shape[0]
     on = working >= 0
     rows = jnp.where(on[:, None], G[jnp.maximum(working, 0)], 0.0)
     top = jnp.concatenate([P, rows.T], axis=1)

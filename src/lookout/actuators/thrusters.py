@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Literal, final
 
 import jax.numpy as jnp
@@ -12,7 +13,6 @@ from lookout._math import ssa
 from lookout.actuators.allocation import IDLE, Allocator
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.components import Actuator, Layout, Signal
-import math
 from lookout.scenario.declare import NON_NEGATIVE, Part, Range, Value, component
 
 

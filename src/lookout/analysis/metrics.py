@@ -8,6 +8,7 @@ import xarray as xr
 from lookout import _validation as check
 from lookout._math import ssa
 
+
 def estimation_errors(ds: xr.Dataset) -> xr.Dataset:
     """Truth minus estimate for every variable ``v`` that has an estimate ``v_hat``.
 

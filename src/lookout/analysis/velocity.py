@@ -55,8 +55,7 @@ import scipy.optimize
 
 from lookout import _validation as check
 from lookout.analysis.conditions import Condition, Inequality, Report
-from lookout.models.manipulators import PRISMATIC, PROBE_CONFIGURATIONS, REVOLUTE, ManipulatorModel, configuration_angles, configuration_grid
-
+from lookout.models.manipulators import ManipulatorModel, configuration_angles, configuration_grid
 
 
 def _directions(n: int, direction_points: int) -> np.ndarray:

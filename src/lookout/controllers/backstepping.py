@@ -187,7 +187,7 @@ class ObserverBackstepping(Controller):
     @classmethod
     def for_observer(
         cls, observer: WaveFilteringObserver, *, integral_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0
-    ) -> "ObserverBackstepping":
+    ) -> ObserverBackstepping:
         """The controller for a wave-filtering observer (passive, sliding-mode): M, D,
         H2, H4, Kbar and the wave model are taken from ``observer``.
 
@@ -224,7 +224,7 @@ class ObserverBackstepping(Controller):
             wave_damping=gains.wave_damping,
         )
 
-    def follow(self, observer) -> "ObserverBackstepping":
+    def follow(self, observer) -> ObserverBackstepping:
         """H2, H4, Kbar and the wave model taken again from ``observer`` (traceable)."""
         gains = observer.wave_filter_gains()
         return eqx.tree_at(
@@ -397,7 +397,7 @@ class VectorialBackstepping(Controller):
         check.positive("coupling_gain (P1)", self.coupling_gain)
 
     @classmethod
-    def for_observer(cls, observer: AdaptiveObserver, *, position_gain, velocity_gain, damping_weights, coupling_gain=1.0) -> "VectorialBackstepping":
+    def for_observer(cls, observer: AdaptiveObserver, *, position_gain, velocity_gain, damping_weights, coupling_gain=1.0) -> VectorialBackstepping:
         """The controller for an :class:`~lookout.observers.AdaptiveObserver`: its
         parametrization and K1, K2 are taken from ``observer``.
 
@@ -426,7 +426,7 @@ class VectorialBackstepping(Controller):
             coupling_gain=coupling_gain,
         )
 
-    def follow(self, observer) -> "VectorialBackstepping":
+    def follow(self, observer) -> VectorialBackstepping:
         """K1, K2 taken again from ``observer`` (traceable)."""
         return eqx.tree_at(lambda c: (c.observer_position_gain, c.observer_velocity_gain), self,
                            (jnp.broadcast_to(jnp.asarray(observer.position_gain, dtype=float), self.observer_position_gain.shape),

@@ -66,7 +66,7 @@ class SinusoidalInput(Controller):
         check.finite("input offset", self.offset)
 
     @classmethod
-    def constant(cls, value) -> "SinusoidalInput":
+    def constant(cls, value) -> SinusoidalInput:
         """The constant input ``value``."""
         value = jnp.atleast_1d(jnp.asarray(value, dtype=float))
         return cls(0.0, 0.0, offset=value, size=value.shape[0])

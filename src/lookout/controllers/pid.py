@@ -226,7 +226,7 @@ class PidController(Controller):
         integral_gain=None,
         integral_limit=None,
         bias_feedforward="none",
-    ) -> "PidController":
+    ) -> PidController:
         """The PID with the gains of Fossen's (2011, Section 12.2) pole placement per DOF:
         kp = m w_n^2, kd = 2 zeta w_n m - d, ki = r w_n kp, from the diagonals of ``vessel``'s
         M and D, each unless given.

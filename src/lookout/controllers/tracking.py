@@ -138,7 +138,7 @@ class TrackingController(Controller):
         damping_ratio=1.0,
         velocity_bound=0.3,
         margin=1.1,
-    ) -> "TrackingController":
+    ) -> TrackingController:
         """The scheme (23) for ``ship`` with Omega = omega I and Lambda = ``damping_ratio`` I
         from Wondergem et al. (2009)'s gain tuning procedure (steps 1–7 after Prop. 3.3),
         Kp = M Omega^2 and Kd = 2 M Lambda Omega - D by (24).

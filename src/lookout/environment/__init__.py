@@ -3,12 +3,12 @@ second-order model, or long-crested JONSWAP waves), and unmodelled body-fixed fo
 (model error)."""
 
 from .bias import GaussMarkovBias as GaussMarkovBias
-from .waves import LinearWaveModel as LinearWaveModel
 from .disturbance import BodyDisturbance as BodyDisturbance
 from .jonswap import JonswapWaves as JonswapWaves
 from .jonswap import jonswap_spectrum as jonswap_spectrum
 from .jonswap import peak_frequency as peak_frequency
 from .jonswap import spectral_moment as spectral_moment
+from .waves import LinearWaveModel as LinearWaveModel
 
 __all__ = [
     "BodyDisturbance",

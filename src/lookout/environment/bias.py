@@ -51,7 +51,7 @@ class GaussMarkovBias(eqx.Module):
         check.positive("bias noise_gain", self.noise_gain, allow_zero=True)
 
     @classmethod
-    def from_stationary_std(cls, time_constant, std) -> "GaussMarkovBias":
+    def from_stationary_std(cls, time_constant, std) -> GaussMarkovBias:
         """Build the process whose stationary standard deviation is ``std``.
 
         Parameters

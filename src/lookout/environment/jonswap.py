@@ -430,7 +430,7 @@ class JonswapWaves(eqx.Module):
         self.yaw_gain = jnp.asarray(gain)
         self.gravity = jnp.asarray(g)
 
-    def realize(self, key: Array) -> "JonswapWaves":
+    def realize(self, key: Array) -> JonswapWaves:
         """A realization drawn from ``key``: frequencies jittered within their bins, random phases.
 
         Same key, same realization bit for bit; works under ``jit`` and ``vmap``.

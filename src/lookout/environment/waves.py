@@ -66,7 +66,7 @@ class LinearWaveModel(eqx.Module):
         check.positive("wave intensity", self.intensity, allow_zero=True)
 
     @classmethod
-    def from_std(cls, peak_frequency, damping_ratio, std) -> "LinearWaveModel":
+    def from_std(cls, peak_frequency, damping_ratio, std) -> LinearWaveModel:
         """Model whose wave-induced motion has stationary standard deviation ``std``."""
         peak_frequency = check.vector("wave peak_frequency", peak_frequency)
         damping_ratio = check.vector("wave damping_ratio", damping_ratio)

@@ -156,7 +156,7 @@ def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFram
         nmea.append((epoch + t + 0.5 * periods[0] - step * 0.5, gga(epoch + t, float(latitude), float(longitude))))
     nmea.sort(key=lambda row: row[0])
     paths = {"nmea": folder / f"{name}.nmea", "csv": folder / f"{name}.csv", "thrust": folder / f"{name}-thrust.csv", "truth": folder / f"{name}-truth.nc"}
-    start = datetime.datetime.fromtimestamp(epoch, datetime.timezone.utc).isoformat()
+    start = datetime.datetime.fromtimestamp(epoch, datetime.UTC).isoformat()
     header = (f"# lookout simulated log: {ds.attrs.get('scenario', 'a simulated run')}; t = 0 at {start} (Unix {epoch:.1f} s)\n"
               f"# origin of north/east: {frame.latitude} N, {frame.longitude} E; TIME is the Unix time each sentence arrived\n")
     paths["nmea"].write_text(header + "".join(f"{arrival:.6f} {text}\n" for arrival, text in nmea))

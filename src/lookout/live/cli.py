@@ -6,7 +6,7 @@ import contextlib
 import math
 import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -44,7 +44,7 @@ def _gate_values(gates: dict):
         raise InputError(f"{option}{str(error)[len(name):]}") from None
 
 
-def _frame(origin: Optional[str]):
+def _frame(origin: str | None):
     from lookout.io.geodesy import LocalFrame
 
     if origin is None:
@@ -57,7 +57,7 @@ def _frame(origin: Optional[str]):
         raise InputError(f"--origin must be LAT,LON in degrees ({detail}); got {origin!r}") from None
 
 
-def _session(scenario_file: str, origin: Optional[str], gates: dict, on_event, say, batch: int = 1):
+def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say, batch: int = 1):
     """The scenario's observer in a :class:`~lookout.live.Session`; a warning of the
     session (a channel its observer cannot gate) said in one line."""
     import warnings
@@ -105,7 +105,7 @@ def _check_gate_options(session, gates: dict, scenario_file: str) -> None:
         raise InputError(f"{option} applies to {applies}; the observer of {scenario_file}, {observer}, is gated on {gated_by}: leave {option} out")
 
 
-def _check_out(out: Optional[str]) -> None:
+def _check_out(out: str | None) -> None:
     """Refuse a bad --out before any work; nothing is created (the writer makes the file
     and its folders at its first write)."""
     if out is None:
@@ -122,7 +122,7 @@ def _check_out(out: Optional[str]) -> None:
     writable_folder("--out", path.absolute().parent, out)
 
 
-def _check_publish(publish: Optional[str]) -> None:
+def _check_publish(publish: str | None) -> None:
     if publish is not None and publish != "-":
         from lookout.live.output import parse_udp
 
@@ -132,7 +132,7 @@ def _check_publish(publish: Optional[str]) -> None:
             raise InputError(str(error)) from None
 
 
-def _outputs(session, out: Optional[str], publish: Optional[str], scenario_file: str, source: str, flush_every: int):
+def _outputs(session, out: str | None, publish: str | None, scenario_file: str, source: str, flush_every: int):
     """``(emit, close, remove)``: each step to the writer and the publisher; ``close``
     writes what is kept; ``remove`` takes back what the writer created (a command refused
     after it wrote)."""
@@ -203,12 +203,12 @@ def _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout,
             "position_timeout": position_timeout, "heading_timeout": heading_timeout, "gate_probability": gate_probability}
 
 
-def _positive_seconds(option: str, value: Optional[float]) -> None:
+def _positive_seconds(option: str, value: float | None) -> None:
     if value is not None and not (math.isfinite(value) and value > 0):
         raise InputError(f"{option} must be a finite positive number of seconds; got {value:g}")
 
 
-def _existing_file(option: str, path: Optional[str]) -> None:
+def _existing_file(option: str, path: str | None) -> None:
     if path is not None and not Path(path).is_file():
         raise InputError(f"{option} must be an existing file; got {path}" + (" (a folder)" if Path(path).is_dir() else ""))
 
@@ -293,15 +293,15 @@ def _on_event(say):
 
 
 Quiet = Annotated[bool, typer.Option("--quiet", help="No status lines or events on stderr.")]
-Origin = Annotated[Optional[str], typer.Option(metavar="LAT,LON", help="Origin of the local north/east frame (degrees).", show_default="the first fix")]
-Publish = Annotated[Optional[str], typer.Option(metavar="udp://HOST:PORT | -", help="Send each estimate as a JSON line (- for stdout).")]
+Origin = Annotated[str | None, typer.Option(metavar="LAT,LON", help="Origin of the local north/east frame (degrees).", show_default="the first fix")]
+Publish = Annotated[str | None, typer.Option(metavar="udp://HOST:PORT | -", help="Send each estimate as a JSON line (- for stdout).")]
 MinQuality = Annotated[int, typer.Option("--min-quality", help=_GATES["min_quality"][1])]
 MaxHdop = Annotated[float, typer.Option("--max-hdop", help=_GATES["max_hdop"][1])]
-PositionGate = Annotated[Optional[float], typer.Option("--position-gate", help=_GATES["position_gate"][1], show_default=f"{Gates.position_gate:g}")]
-HeadingGate = Annotated[Optional[float], typer.Option("--heading-gate", help=_GATES["heading_gate"][1], show_default=f"{Gates.heading_gate:g}")]
+PositionGate = Annotated[float | None, typer.Option("--position-gate", help=_GATES["position_gate"][1], show_default=f"{Gates.position_gate:g}")]
+HeadingGate = Annotated[float | None, typer.Option("--heading-gate", help=_GATES["heading_gate"][1], show_default=f"{Gates.heading_gate:g}")]
 PositionTimeout = Annotated[float, typer.Option("--position-timeout", help=_GATES["position_timeout"][1])]
 HeadingTimeout = Annotated[float, typer.Option("--heading-timeout", help=_GATES["heading_timeout"][1])]
-GateProbability = Annotated[Optional[float], typer.Option("--gate-probability", help=_GATES["gate_probability"][1], show_default=str(Gates.gate_probability))]
+GateProbability = Annotated[float | None, typer.Option("--gate-probability", help=_GATES["gate_probability"][1], show_default=str(Gates.gate_probability))]
 FlushEvery = Annotated[int, typer.Option(metavar="STEPS", help="Steps between writes of --out (a killed session loses at most these).")]
 MaxGap = Annotated[float, typer.Option("--max-gap", metavar="SECONDS",
                                        help="The longest silence of the log (no line at all) accepted; a longer one is refused (docs/live.md: why 60 s).")]
@@ -310,9 +310,9 @@ MaxGap = Annotated[float, typer.Option("--max-gap", metavar="SECONDS",
 def replay_command(
     log: Annotated[str, typer.Argument(metavar="LOG", help="An NMEA log (TIME SENTENCE lines) or a CSV log (time,north,east,heading).")],
     scenario_file: Annotated[str, typer.Option("--scenario", metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")],
-    out: Annotated[Optional[str], typer.Option(metavar="FILE.nc", help="The session's estimates as NetCDF (a simulation's layout).")] = None,
-    thrust: Annotated[Optional[str], typer.Option(metavar="THRUST.csv", help="Thrust feedback, time,surge,sway,yaw (N, N, N m).", show_default="zero, with a warning")] = None,
-    speed: Annotated[Optional[float], typer.Option(metavar="FACTOR", help="Log seconds per wall-clock second.", show_default="--fast")] = None,
+    out: Annotated[str | None, typer.Option(metavar="FILE.nc", help="The session's estimates as NetCDF (a simulation's layout).")] = None,
+    thrust: Annotated[str | None, typer.Option(metavar="THRUST.csv", help="Thrust feedback, time,surge,sway,yaw (N, N, N m).", show_default="zero, with a warning")] = None,
+    speed: Annotated[float | None, typer.Option(metavar="FACTOR", help="Log seconds per wall-clock second.", show_default="--fast")] = None,
     fast: Annotated[bool, typer.Option("--fast", help="As fast as it goes (the default).")] = False,
     publish: Publish = None,
     origin: Origin = None,
@@ -325,8 +325,8 @@ def replay_command(
     gate_probability: GateProbability = None,
     max_gap: MaxGap = MAX_GAP,
     flush_every: FlushEvery = 1000,
-    truth: Annotated[Optional[str], typer.Option(metavar="TRUTH.nc", help="The run behind a simulated log (lookout write-log), for --figure.")] = None,
-    figure: Annotated[Optional[str], typer.Option(metavar="FILE.png", help="Draw the estimates (against --truth if given) from --out.")] = None,
+    truth: Annotated[str | None, typer.Option(metavar="TRUTH.nc", help="The run behind a simulated log (lookout write-log), for --figure.")] = None,
+    figure: Annotated[str | None, typer.Option(metavar="FILE.png", help="Draw the estimates (against --truth if given) from --out.")] = None,
     quiet: Quiet = False,
 ) -> None:
     """Run a scenario's observer over a recorded log, as it would have run live."""
@@ -476,7 +476,7 @@ def _replay_progress(progress_bar):
         yield progress
 
 
-def _figure(out: str, truth: Optional[str], path: Path, log: str) -> None:
+def _figure(out: str, truth: str | None, path: Path, log: str) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -503,11 +503,11 @@ def _figure(out: str, truth: Optional[str], path: Path, log: str) -> None:
 def live_command(
     scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")],
     nmea: Annotated[str, typer.Option(metavar="SOURCE", help="udp://HOST:PORT (bound; HOST default 127.0.0.1), - (stdin) or a serial device or FIFO.")] = "udp://127.0.0.1:10110",
-    out: Annotated[Optional[str], typer.Option(metavar="FILE.nc", help="The session's estimates as NetCDF (a simulation's layout).")] = None,
+    out: Annotated[str | None, typer.Option(metavar="FILE.nc", help="The session's estimates as NetCDF (a simulation's layout).")] = None,
     publish: Publish = None,
-    thrust: Annotated[Optional[str], typer.Option(metavar="SOURCE", help="Thrust feedback lines surge,sway,yaw (N, N, N m): udp://HOST:PORT, - (stdin) or a device or FIFO.", show_default="zero, with a warning")] = None,
-    duration: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop after this long.")] = None,
-    idle: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long (counted from the first data).")] = None,
+    thrust: Annotated[str | None, typer.Option(metavar="SOURCE", help="Thrust feedback lines surge,sway,yaw (N, N, N m): udp://HOST:PORT, - (stdin) or a device or FIFO.", show_default="zero, with a warning")] = None,
+    duration: Annotated[float | None, typer.Option(metavar="SECONDS", help="Stop after this long.")] = None,
+    idle: Annotated[float | None, typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long (counted from the first data).")] = None,
     origin: Origin = None,
     min_quality: MinQuality = Gates.min_quality,
     max_hdop: MaxHdop = Gates.max_hdop,
@@ -590,7 +590,7 @@ def write_log_command(
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Where NAME.nmea, NAME.csv, NAME-thrust.csv and NAME-truth.nc go.")] = "out/log",
     name: Annotated[str, typer.Option(metavar="NAME", help="The files' stem.")] = "dp-vessel",
     origin: Annotated[str, typer.Option(metavar="LAT,LON", help="Where north = east = 0 lies (degrees).")] = "63.44,10.40",
-    outage: Annotated[Optional[str], typer.Option(metavar="START,LENGTH", help="Seconds of run time without fixes, within the run (none: no outage).",
+    outage: Annotated[str | None, typer.Option(metavar="START,LENGTH", help="Seconds of run time without fixes, within the run (none: no outage).",
                                                   show_default=DEFAULT_OUTAGE_TEXT)] = None,
     seed: Annotated[int, typer.Option(help="Seed of the arrival jitter and the corruptions (the run's own is the file's).")] = 0,
 ) -> None:
@@ -651,7 +651,7 @@ def play_command(
     log: Annotated[str, typer.Argument(metavar="LOG", help="An NMEA log (TIME SENTENCE lines).")],
     to: Annotated[str, typer.Option(metavar="udp://HOST:PORT", help="Where the sentences go.")] = "udp://127.0.0.1:10110",
     speed: Annotated[float, typer.Option(metavar="FACTOR", help="Log seconds per wall-clock second (1: as recorded, what a live observer needs).")] = 1.0,
-    duration: Annotated[Optional[float], typer.Option(metavar="SECONDS", help="Stop after this many seconds of log.")] = None,
+    duration: Annotated[float | None, typer.Option(metavar="SECONDS", help="Stop after this many seconds of log.")] = None,
     max_gap: MaxGap = MAX_GAP,
 ) -> None:
     """Send an NMEA log's sentences over UDP at the pace they were recorded: a stand-in

@@ -35,8 +35,8 @@ step that is not finite leaves the state as it was.
 from __future__ import annotations
 
 import equinox as eqx
-import jax.numpy as jnp
 import jax
+import jax.numpy as jnp
 
 from lookout.components import Layout, Observer, Signal
 

@@ -29,7 +29,7 @@ import numpy as np
 from lookout.io.logs import CsvLog, LogScan, log_format, nmea_log, scan_log
 from lookout.io.nmea import LineSplitter, NmeaParser, Reading
 from lookout.live.options import MAX_GAP
-from lookout.live.session import Session, check_origin, fix_refusal
+from lookout.live.session import Block, Session, check_origin, fix_refusal
 from lookout.sim.filtering import check_step_length
 
 #: The share of a log's lines that may be stamped before a line above them (reordered

@@ -105,7 +105,7 @@ class Cybership(eqx.Module):
         self.mass_inverse = jnp.linalg.inv(self.mass_matrix)
 
     @classmethod
-    def from_dp_vessel(cls, vessel: DPVessel) -> "Cybership":
+    def from_dp_vessel(cls, vessel: DPVessel) -> Cybership:
         """A DP vessel in the form (16): its M and linear D, the C(nu) of that M, no D_n.
 
         So that the observer (6) and the tracking scheme (23), which take a ship model
@@ -127,7 +127,7 @@ class Cybership(eqx.Module):
             raise check.ParameterError("vessel", f"vessel has a mooring stiffness K (the ship model (16) has none); got K = {stiffness}")
         return cls(vessel.mass_matrix, vessel.damping_matrix, np.zeros(3))
 
-    def linear(self) -> "Cybership":
+    def linear(self) -> Cybership:
         """The same ship with D_n = 0 (the model of the basin scheme, Section 5)."""
         return Cybership(self.mass_matrix, self.damping_matrix, jnp.zeros(3))
 
@@ -237,11 +237,11 @@ class CybershipState(eqx.Module):
     wave: Array
 
     @classmethod
-    def build(cls, eta=0.0, nu=0.0, wave=0.0) -> "CybershipState":
+    def build(cls, eta=0.0, nu=0.0, wave=0.0) -> CybershipState:
         """State from scalars or sequences, validated and broadcast."""
         return cls(jnp.asarray(check.vector("eta", eta)), jnp.asarray(check.vector("nu", nu)), jnp.asarray(check.vector("wave", wave)))
 
-    def wrapped(self) -> "CybershipState":
+    def wrapped(self) -> CybershipState:
         """The same state with heading wrapped to [-pi, pi)."""
         return eqx.tree_at(lambda s: s.eta, self, self.eta.at[2].set(ssa(self.eta[2])))
 
@@ -357,7 +357,7 @@ class CybershipPlant(Plant):
 
         return (self.ship, DPVessel(self.ship.mass_matrix, self.ship.damping_matrix))
 
-    def realize(self, key: Array) -> "CybershipPlant":
+    def realize(self, key: Array) -> CybershipPlant:
         """The waves' random phases drawn from ``key`` (calm water: the plant itself)."""
         if self.waves is None:
             return self

@@ -316,7 +316,7 @@ class FurutaPlant(Plant):
         """``joint_angle``, ``joint_rate`` (over arm, pendulum) and ``arm_stuck_time``."""
         return {**self.position_layout.split(x.q), **self.velocity_layout.split(x.qdot), "arm_stuck_time": x.stuck_time}
 
-    def realize(self, key: Array) -> "FurutaPlant":
+    def realize(self, key: Array) -> FurutaPlant:
         """No randomness: the plant itself."""
         del key
         return self

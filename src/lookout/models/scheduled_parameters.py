@@ -159,7 +159,7 @@ class ScheduledParameterPlant(Plant):
         """The model with the first interval's parameters, and the parameters' description."""
         return (self.parameters.model(self.values[0]), self.parameters)
 
-    def realize(self, key: Array) -> "ScheduledParameterPlant":
+    def realize(self, key: Array) -> ScheduledParameterPlant:
         """No per-run randomness beyond the white noise: the plant itself."""
         del key
         return self

@@ -12,12 +12,12 @@ measured output is ``y = eta + eta_w + d`` (eq. 12), see :mod:`lookout.sensors`.
 
 from __future__ import annotations
 
+from typing import ClassVar, final
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
-
-from typing import ClassVar, final
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
@@ -105,12 +105,12 @@ class VesselState(eqx.Module):
         return self.wave_state[..., 3:]
 
     @classmethod
-    def zeros(cls) -> "VesselState":
+    def zeros(cls) -> VesselState:
         """All-zero state."""
         return cls(jnp.zeros(3), jnp.zeros(3), jnp.zeros(3), jnp.zeros(6))
 
     @classmethod
-    def build(cls, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> "VesselState":
+    def build(cls, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
         """State from scalars or sequences, validated and broadcast."""
         return cls(
             jnp.asarray(check.vector("eta", eta)),
@@ -119,7 +119,7 @@ class VesselState(eqx.Module):
             jnp.asarray(check.vector("wave_state", wave_state, 6)),
         )
 
-    def wrapped(self) -> "VesselState":
+    def wrapped(self) -> VesselState:
         """The same state with heading wrapped to [-pi, pi)."""
         return eqx.tree_at(lambda s: s.eta, self, self.eta.at[2].set(ssa(self.eta[2])))
 
@@ -171,7 +171,7 @@ class DPVessel(eqx.Module):
         self.stiffness_matrix = jnp.asarray(stiffness_matrix, dtype=float)
         self.mass_inverse = jnp.linalg.inv(self.mass_matrix)
 
-    def scaled(self, mass_scale=1.0, damping_scale=1.0) -> "DPVessel":
+    def scaled(self, mass_scale=1.0, damping_scale=1.0) -> DPVessel:
         """This vessel with M and D multiplied entry by entry (a model error).
 
         ``mass_scale`` and ``damping_scale`` are scalars or 3x3 arrays of factors
@@ -340,7 +340,7 @@ class VesselPlant(Plant):
         """The true vessel (M, D, K)."""
         return (self.vessel,)
 
-    def realize(self, key: Array) -> "VesselPlant":
+    def realize(self, key: Array) -> VesselPlant:
         """No per-run randomness beyond the white noise: the plant itself."""
         del key
         return self

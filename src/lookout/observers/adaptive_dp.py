@@ -113,9 +113,9 @@ from lookout._math import matvec, rotate, rotate_transpose, solve, ssa
 from lookout.components import ContinuousObserver, Layout, Signal
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
 from lookout.observers.start import from_first_measurement
+from lookout.scenario.declare import Part, Value, component, initial_values
 from lookout.sensors import POSITION_HEADING, POSITION_HEADING_VELOCITY
 from lookout.sim.integrators import integrate_sample
-from lookout.scenario.declare import Part, Value, component, initial_values
 
 #: Kinds of unknown model entries and the letter of their names (m11, d23, k33).
 KINDS = {"mass": "m", "damping": "d", "stiffness": "k"}
@@ -484,7 +484,7 @@ class AdaptiveObserver(ContinuousObserver):
                 raise check.ParameterError("initial_theta", f"initial_theta must lie in the theta bounds [{check._fmt(lower)}, {check._fmt(upper)}]; got {check._fmt(theta)}")
 
     @classmethod
-    def calugi_2003(cls, vessel: DPVessel, theta_bounds=None, initial_theta=None, **options) -> "AdaptiveObserver":
+    def calugi_2003(cls, vessel: DPVessel, theta_bounds=None, initial_theta=None, **options) -> AdaptiveObserver:
         """The printed setting of Section V: theta = m11, K1 = K2 = 1e-3 I (1/s), Gamma = 1e3.
 
         The paper gives neither bounds nor a starting value for theta_hat. Chosen

@@ -58,8 +58,15 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import Layout, Observer, Signal
-from lookout.models.manipulators import configuration_angles, configuration_grid
-from lookout.models.manipulators import JOINT_INPUT, JOINT_MEASUREMENT, JOINT_POSITION, JOINT_VELOCITY, joint_layout
+from lookout.models.manipulators import (
+    JOINT_INPUT,
+    JOINT_MEASUREMENT,
+    JOINT_POSITION,
+    JOINT_VELOCITY,
+    configuration_angles,
+    configuration_grid,
+    joint_layout,
+)
 from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
 from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 

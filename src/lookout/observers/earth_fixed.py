@@ -46,6 +46,7 @@ Choices
 
 from __future__ import annotations
 
+import math
 from typing import final
 
 import equinox as eqx
@@ -59,10 +60,9 @@ from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
 from lookout.models.cybership import CYBERSHIP_SIGNALS, Cybership
 from lookout.models.vessel import VESSEL_INPUT
 from lookout.observers.start import from_first_measurement
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Rule, Value, component, initial_values
 from lookout.sensors import POSITION_HEADING
 from lookout.sim.integrators import integrate_sample
-import math
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Rule, Value, component, initial_values
 
 METHODS = ("rk4", "euler")
 INITIAL_VELOCITY = ("estimate", "state")

@@ -26,7 +26,7 @@ from jax import Array
 
 from lookout.components import Plant, Sensor
 from lookout.observers.kalman import PARAMETERS, KalmanFilter, KalmanState, _symmetric, kalman_fields, masked, masked_noise
-from lookout.scenario.declare import Context, NON_NEGATIVE, POSITIVE, Part, Value, component
+from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Context, Part, Value, component
 
 
 @component(

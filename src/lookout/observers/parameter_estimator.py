@@ -74,11 +74,10 @@ from jax import Array
 from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
 from lookout.models.manipulators import JOINT_INPUT, PRISMATIC, REVOLUTE, joint_layout
-from lookout.models.parameters import AffineParameters
-from lookout.models.parameters import parameter_signal_name, parameter_signals
+from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
+from lookout.scenario.declare import POSITIVE, Part, Value, component, initial_values
 from lookout.sensors import joint_state_layout
 from lookout.sim.integrators import integrate_sample
-from lookout.scenario.declare import POSITIVE, Part, Value, component, initial_values
 
 #: Units of the generalized force per joint kind (the prediction error, tau_f).
 FORCE_UNITS = {REVOLUTE: "N m", PRISMATIC: "N"}

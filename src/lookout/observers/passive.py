@@ -32,22 +32,22 @@ Choices made where the paper is silent or garbled (see docs/reproductions.md):
 
 from __future__ import annotations
 
+from typing import final
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from typing import final
-
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.components import EARTH_FIXED, Layout, Signal
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
-from lookout.sensors import POSITION_HEADING
 from lookout.observers.start import from_first_measurement
 from lookout.observers.wave_filtering import WaveFilterGains, WaveFilteringObserver
-from lookout.sim.integrators import integrate_sample
 from lookout.scenario.declare import POSITIVE, Part, Rule, Value, component, initial_values
+from lookout.sensors import POSITION_HEADING
+from lookout.sim.integrators import integrate_sample
 
 #: The innovation y~ = y - y_hat (eq. 26), an extra output of the observer.
 INNOVATION_SIGNALS = tuple(
@@ -393,7 +393,7 @@ class PassiveObserver(WaveFilteringObserver):
         lyapunov_weight=1.0,
         steps_per_sample=1,
         hold="measurement",
-    ) -> "PassiveObserver":
+    ) -> PassiveObserver:
         """Observer for ``vessel`` with K1, K2 from eqs. (45)–(47) and, unless given,
         Kappa and Lambda inside the tuning rule (48) (:func:`tuning_rule_gains`).
 

@@ -49,8 +49,8 @@ from lookout.components import EARTH_FIXED, Layout, Signal
 from lookout.models.vessel import EARTH_AXES, VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
 from lookout.observers.passive import WAVE_FILTER_EXTRAS, PassiveObserver, predict_sample
 from lookout.observers.wave_filtering import WaveFilterGains, WaveFilteringObserver
-from lookout.sensors import POSITION_HEADING
 from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Rule, Value, component, initial_values
+from lookout.sensors import POSITION_HEADING
 
 #: The switching term Kbar sat(y~ / eps) of eq. (6), an extra output.
 SWITCHING_SIGNALS = (
@@ -171,7 +171,7 @@ class SlidingModeObserver(WaveFilteringObserver):
         boundary_layer=DEFAULT_BOUNDARY_LAYER,
         steps_per_sample=1,
         hold="measurement",
-    ) -> "SlidingModeObserver":
+    ) -> SlidingModeObserver:
         """Observer for ``vessel`` with the given H4 and H3 (SI) and H1, H2 from Fossen &
         Strand's (45)–(47), as (6)–(7) with gains that (14) is not asked of: Kim's
         printed (A.4), which violate it (:func:`lookout.analysis.sliding_mode.kim_2002_observer` refuses them), run as printed.

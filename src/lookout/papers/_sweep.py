@@ -11,8 +11,8 @@ and resumed like any campaign's.
 from __future__ import annotations
 
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 
 def whole_run_campaign(scenario: dict, *, seeds: int, seed: int, metrics: list[str], divergence: tuple[str, float], axes: dict[str, dict]) -> dict:

@@ -25,8 +25,9 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, ClassVar, final
+from typing import ClassVar, final
 
 import jax
 import jax.numpy as jnp
@@ -38,16 +39,16 @@ from pydantic import Field, field_validator
 from lookout import _validation as check
 from lookout.analysis.adaptive_manipulator import check_5_28
 from lookout.analysis.conditions import inequalities_in
-from lookout.scenario.composition import compose
 from lookout.models.manipulators import REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, TwoLinkArm
 from lookout.models.parameters import ModelParameters
-from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
 from lookout.reference import ReferenceFilter
-from lookout.sim import Scenario, seed_keys, simulate
+from lookout.scenario.composition import compose
 from lookout.scenario.declare import Value, component
+from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
+from lookout.sim import Scenario, seed_keys, simulate
 
 NAME = "calugi-2002-backstepping"
 TITLE = CATALOG[NAME].title

@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import xarray as xr
@@ -30,12 +30,12 @@ from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import fit_decay_rate
 from lookout.analysis.velocity import configuration_bounds, velocity_observer_condition
-from lookout.scenario.composition import compose
 from lookout.models.manipulators import ManipulatorModel
-from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, whole_samples
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, significant, summary_header, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
+from lookout.scenario.composition import compose
+from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, whole_samples
 from lookout.sim import Scenario, seed_keys, simulate
 
 NAME = "calugi-2002-velocity-observer"

@@ -17,8 +17,8 @@ starts at rest at the origin and the observer at zero.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import xarray as xr
@@ -26,14 +26,14 @@ from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, settling_time
 from lookout.observers import injection_gains_from_normalized
-from lookout.papers._config import VesselSettings
-from lookout.scenario.settings import PositiveFloat, RunsConfig, whole_samples
 from lookout.papers import CATALOG
-from lookout.papers._reproduction import Reproduction
+from lookout.papers._config import VesselSettings
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
+from lookout.papers._reproduction import Reproduction
 from lookout.results import write_netcdf
-from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
 from lookout.scenario.composition import compose
+from lookout.scenario.settings import PositiveFloat, RunsConfig, whole_samples
+from lookout.sim import Scenario, seed_keys, simulate, simulate_batch
 
 NAME = "fossen-strand-1999"
 TITLE = CATALOG[NAME].title

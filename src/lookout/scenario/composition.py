@@ -45,19 +45,18 @@ from __future__ import annotations
 
 import copy
 import functools
-import operator
 import math
+import operator
 import re
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field, ValidationError, create_model, field_validator
 from pydantic.functional_validators import AfterValidator
-from typing_extensions import Annotated
 
-from lookout.scenario import registry
 from lookout._validation import FitError, ParameterError, one_line, short
+from lookout.scenario import registry
 from lookout.scenario.settings import RunsConfig, Settings, explain, finite_positive, validate_strictly
 
 #: The top-level keys of a composition.
@@ -516,7 +515,7 @@ class Composition:
         bound = self.document["simulation"].get("divergence")
         return None if bound is None else DivergenceBound(bound["signal"], float(bound["limit"]))
 
-    def with_changes(self, changes: dict[str, Any]) -> "Composition":
+    def with_changes(self, changes: dict[str, Any]) -> Composition:
         """This composition with ``changes`` (dotted paths from the document's root, e.g.
         ``observer.velocity_injection_gain[2]``) applied, validated and built again."""
         document = copy.deepcopy(self.document)
@@ -530,9 +529,8 @@ def simulate(composition: Composition, *, progress=None):
     vmapped over one shared scenario or, with ``simulation.batch = "stacked"``, over a
     copy per run. ``lookout run``, the campaigns' base and the reproductions simulate a
     composition through this one function, so the three agree to the bit."""
-    from lookout.sim import keys_of_seeds
+    from lookout.sim import keys_of_seeds, simulate_batch, stack_scenarios
     from lookout.sim import simulate as simulate_one
-    from lookout.sim import simulate_batch, stack_scenarios
 
     scenario, seeds = composition.scenario, composition.seeds
     if len(seeds) == 1:

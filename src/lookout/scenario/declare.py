@@ -24,8 +24,9 @@ annotations. This module imports nothing of lookout: any component module may im
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Literal
+from typing import Any, Literal
 
 #: The roles of a composition's tables and of the parts inside them, in the order
 #: ``lookout components`` lists them.

@@ -35,9 +35,9 @@ import numpy as np
 from pydantic import ValidationError
 
 from lookout.scenario import registry
+from lookout.scenario._toml import FileError, key_line, read, write
 from lookout.scenario.composition import TOP_KEYS, Composition, CompositionError, SimulationSettings, compose, key_text, state_parameters
 from lookout.scenario.settings import explain
-from lookout.scenario._toml import FileError, key_line, read, write
 
 
 @dataclass(frozen=True)
@@ -77,7 +77,7 @@ class CompositionSpec:
         """The full composition: every key spelled out."""
         return self.composition.document
 
-    def with_settings(self, changes: dict[str, Any], source: str | None = None) -> "CompositionSpec":
+    def with_settings(self, changes: dict[str, Any], source: str | None = None) -> CompositionSpec:
         """This composition with ``changes`` (key paths from the file's root) applied."""
         try:
             return CompositionSpec(self.composition.with_changes(changes), source or self.source)

@@ -54,7 +54,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-
 from jax import Array
 
 from lookout._math import ssa

@@ -104,7 +104,7 @@ CONTEXT_ORIGINS = {
 }
 
 
-def context_origin(parameter: "Parameter") -> str:
+def context_origin(parameter: Parameter) -> str:
     """Where the composition takes the context ``parameter`` from, in words."""
     if parameter.name in CONTEXT_ORIGINS:
         return CONTEXT_ORIGINS[parameter.name]

@@ -19,7 +19,6 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 from lookout._validation import short
 from lookout.sim import MAX_SEED, integer_ratio
 
-
 #: Samples a run may have (the noise counters are 32-bit; lookout.sim.Scenario).
 MAX_SAMPLES = 2**32
 

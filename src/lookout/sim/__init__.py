@@ -15,18 +15,18 @@ recorded log in the same order, :class:`Stepper` one sample at a time.
 
 from .engine import MAX_SEED as MAX_SEED
 from .engine import Scenario as Scenario
+from .engine import Summary as Summary
 from .engine import check_batch_memory as check_batch_memory
 from .engine import check_fit as check_fit
 from .engine import integer_ratio as integer_ratio
-from .engine import record_nbytes as record_nbytes
-from .engine import working_nbytes as working_nbytes
 from .engine import keys_of_seeds as keys_of_seeds
+from .engine import record_nbytes as record_nbytes
 from .engine import seed_keys as seed_keys
-from .engine import stack_scenarios as stack_scenarios
 from .engine import simulate as simulate
 from .engine import simulate_batch as simulate_batch
-from .engine import Summary as Summary
+from .engine import stack_scenarios as stack_scenarios
 from .engine import summarize_batch as summarize_batch
+from .engine import working_nbytes as working_nbytes
 from .filtering import Stepper as Stepper
 from .filtering import filter as filter  # noqa: A004
 from .integrators import euler_step as euler_step

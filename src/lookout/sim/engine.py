@@ -38,7 +38,8 @@ in the scenario), with the run axis sharded across devices when there are severa
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Literal
+from collections.abc import Callable
+from typing import Any, Literal
 
 import equinox as eqx
 import jax
@@ -48,15 +49,14 @@ from jax import Array
 from jax.flatten_util import ravel_pytree
 
 from lookout._math import computed_once
-from lookout._validation import FitError, ParameterError, is_concrete, key
 from lookout._random import MAX_COUNT, standard_normal
 from lookout._resources import format_bytes, refuse_unless_it_fits
+from lookout._validation import FitError, ParameterError, is_concrete, key
 from lookout.actuators import IdealActuator
 from lookout.components import Actuator, ContinuousObserver, Controller, Observer, Plant, Reference, Sensor, Signal
 from lookout.reference import NoReference
 from lookout.results import RecordSignals, Trajectory
 from lookout.sim.integrators import INTEGRATORS
-
 
 
 def integer_ratio(value: float, base: float) -> int | None:

@@ -28,7 +28,6 @@ from jax.flatten_util import ravel_pytree
 from lookout.components import Layout, Observer
 from lookout.results import RecordSignals, Trajectory
 
-
 #: A prediction step whose linearization multiplies a small state error by more than
 #: this (spectral radius) makes the estimates diverge at that step: the step is
 #: refused. A stable observer at a usable step gives at most about 1; explicit

@@ -52,20 +52,33 @@ import json
 import math
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from lookout.scenario import registry
-from lookout.scenario.composition import MODEL_ROLES, TOP_KEYS, CompositionError, SimulationSettings, compose, get_path, key_text, load_plugins, merge, preset_document, set_path
-from lookout.scenario.settings import PositiveCount, PositiveFloat, validate_strictly
 from lookout.scenario._toml import FileError, read
-from lookout.studies.campaign import Campaign, Divergence, campaign_from_document
+from lookout.scenario.composition import (
+    MODEL_ROLES,
+    TOP_KEYS,
+    CompositionError,
+    SimulationSettings,
+    compose,
+    get_path,
+    key_text,
+    load_plugins,
+    merge,
+    preset_document,
+    set_path,
+)
 from lookout.scenario.file import CAMPAIGN_ONLY, SPEC_ONLY, describe, located  # the keys only a campaign spec, or a benchmark spec, has
+from lookout.scenario.settings import PositiveCount, PositiveFloat, validate_strictly
+from lookout.studies.campaign import Campaign, Divergence, campaign_from_document
 
 #: The folder of the shipped benchmark specs (``<plant>.toml``).
 SHIPPED = "benchmarks"

@@ -343,7 +343,7 @@ def cell_table(ds, name: str) -> tuple[list[str], list[list[str]]]:
     header = ["observer"] + [str(c) for c in ds.condition.values]
     medians = np.full((ds.sizes["observer"], ds.sizes["condition"]), np.nan)
     cells = []
-    for i, observer in enumerate(ds.observer.values):
+    for i in range(ds.sizes["observer"]):
         row = []
         for j in range(ds.sizes["condition"]):
             median, _, _, bad, runs = _statistics(ds[name].values[i, j], ds["diverged"].values[i, j])

@@ -64,11 +64,10 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from lookout.scenario.settings import positive_count
 from lookout.scenario._toml import FileError, read
 from lookout.scenario.composition import get_path
-from lookout.scenario.settings import validate_strictly
 from lookout.scenario.file import CompositionSpec, describe, from_document, located, read_spec
+from lookout.scenario.settings import positive_count, validate_strictly
 
 #: The largest batch a chunk defaults to.
 DEFAULT_CHUNK_RUNS = 64
@@ -620,9 +619,9 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
     """
     import time
 
+    from lookout.scenario import metrics as metric_module
     from lookout.sim import keys_of_seeds, simulate_batch
     from lookout.sim.engine import structure_key
-    from lookout.scenario import metrics as metric_module
 
     start = time.perf_counter()
     campaign = _campaign(canonical)

@@ -5,15 +5,15 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich import box
 from rich.table import Table
 
 from lookout._commandline import DIVERGED_EXIT_CODE, check_memory, console, created_folder, output_folder, progress_bar, simulating, writable_folder
-from lookout._validation import InputError
 from lookout._json import json_safe
+from lookout._validation import InputError
 from lookout.scenario._toml import FileError
 
 #: What ``lookout run`` writes into its folder, always.
@@ -52,8 +52,8 @@ campaign_app = typer.Typer(
 
 
 def _scenario(path: str, runs: int | None, seed: int | None):
-    from lookout.scenario.settings import positive_count, seed_for_runs
     from lookout.scenario.file import read_spec
+    from lookout.scenario.settings import positive_count, seed_for_runs
 
     try:
         if runs is not None:
@@ -104,8 +104,8 @@ def _batched(trajectory):
 def run(
     scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file (see examples/ and `lookout reproduce NAME --write-scenario FILE`).")],
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.")] = "out/run",
-    runs: Annotated[Optional[int], typer.Option(metavar="N", help="Runs over seeds (vmapped), instead of the file's own runs.")] = None,
-    seed: Annotated[Optional[int], typer.Option(metavar="INT", help="Seed of run 0, instead of the file's own seed.")] = None,
+    runs: Annotated[int | None, typer.Option(metavar="N", help="Runs over seeds (vmapped), instead of the file's own runs.")] = None,
+    seed: Annotated[int | None, typer.Option(metavar="INT", help="Seed of run 0, instead of the file's own seed.")] = None,
 ) -> None:
     """Simulate a scenario file.
 
@@ -322,9 +322,9 @@ def campaign_run(
     spec: Annotated[str, typer.Argument(metavar="SPEC.toml", help="A campaign spec (see examples/).")],
     out: Annotated[str, typer.Option(metavar="STORE", help="The Zarr store; an existing store of the same spec is resumed.")] = "out/campaign.zarr",
     workers: Annotated[
-        Optional[int], typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
+        int | None, typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
     ] = None,
-    scheduler: Annotated[Optional[str], typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")] = None,
+    scheduler: Annotated[str | None, typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")] = None,
 ) -> None:
     """Run (or resume) a campaign: each chunk of the sweep is one vmapped batch and one
     dask task; the metrics go to the store as chunks finish."""
@@ -375,8 +375,8 @@ def campaign_status(
 @campaign_app.command("report")
 def campaign_report(
     store: Annotated[str, typer.Argument(metavar="STORE", help="A campaign store.")],
-    out: Annotated[Optional[str], typer.Option(metavar="FILE", help="The HTML file.", show_default="STORE's name + -report.html, beside it")] = None,
-    figures: Annotated[Optional[str], typer.Option(metavar="FOLDER", help="Also save each figure as a PNG in this folder.")] = None,
+    out: Annotated[str | None, typer.Option(metavar="FILE", help="The HTML file.", show_default="STORE's name + -report.html, beside it")] = None,
+    figures: Annotated[str | None, typer.Option(metavar="FOLDER", help="Also save each figure as a PNG in this folder.")] = None,
 ) -> None:
     """Write a static HTML report of a campaign store (opens in a browser without network)."""
     from lookout.studies.report import write_report
@@ -406,17 +406,17 @@ benchmark_app = typer.Typer(
 @benchmark_app.command("observers")
 def benchmark_observers(
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder: one subfolder per plant, with its stores, tables, figures and report.")] = "out/benchmark",
-    plant: Annotated[Optional[str], typer.Option(metavar="KIND", help="Only this plant's benchmark (dp-vessel, cybership-ii, manipulator).", show_default="every shipped one")] = None,
+    plant: Annotated[str | None, typer.Option(metavar="KIND", help="Only this plant's benchmark (dp-vessel, cybership-ii, manipulator).", show_default="every shipped one")] = None,
     spec: Annotated[
-        Optional[str],
+        str | None,
         typer.Option(metavar="FILE.toml", help="Your own benchmark spec (see lookout/studies/benchmarks/), or a scenario file: its plant, sensor and sea, "
                                                "every observer that composes on them, its own observer as given, the plant kind's conditions."),
     ] = None,
     quick: Annotated[bool, typer.Option("--quick", help="The specs' quick size: shorter runs, fewer seeds.")] = False,
     workers: Annotated[
-        Optional[int], typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
+        int | None, typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
     ] = None,
-    scheduler: Annotated[Optional[str], typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")] = None,
+    scheduler: Annotated[str | None, typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")] = None,
 ) -> None:
     """Run every observer of a benchmark spec on identical scenarios and write, per
     plant, the metrics' tables (table.md, table.csv), figures, benchmark.nc, an HTML

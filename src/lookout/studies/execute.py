@@ -21,9 +21,9 @@ from __future__ import annotations
 import os
 import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 from lookout import _resources
 from lookout._resources import PEAK_MEMORY_PER_RECORD_BYTE, format_bytes
@@ -101,11 +101,9 @@ def check_memory(campaign: Campaign, available: float | None, workers: int) -> f
     """Refuse (ValueError, with the numbers) a chunk that will not fit a worker."""
     need = chunk_memory(campaign)
     if available is not None and need > available:
-        from lookout.studies.campaign import _point_scenario
-
-        from lookout.sim.engine import RECORD_OVERHEAD_BYTES
-
         from lookout.sim import working_nbytes
+        from lookout.sim.engine import RECORD_OVERHEAD_BYTES
+        from lookout.studies.campaign import _point_scenario
 
         scenario = _point_scenario(campaign.canonical(), 0)
         records = max(campaign.records, scenario.n_records)

@@ -815,7 +815,7 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
         provenance.append(("chunks finished", f"{finished[0]} to {finished[-1]}"))
     from lookout.studies.store import _version
 
-    provenance.append(("report written", f"{datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')} "
+    provenance.append(("report written", f"{datetime.datetime.now(datetime.UTC).isoformat(timespec='seconds')} "
                                          f"by lookout {_version()}"))
     parts += ['<section id="provenance">', "<h2>Provenance</h2>", _definition_table(provenance), "</section>"]
 

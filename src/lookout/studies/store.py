@@ -108,7 +108,7 @@ class CampaignStore:
         return True
 
     @classmethod
-    def open_or_create(cls, path: str | Path, campaign: Campaign) -> "CampaignStore":
+    def open_or_create(cls, path: str | Path, campaign: Campaign) -> CampaignStore:
         """The store at ``path`` for ``campaign``: created if missing; refused (ValueError)
         if it holds another campaign or is not a campaign store."""
         store = cls(path)
@@ -153,7 +153,7 @@ class CampaignStore:
             "title": f"lookout campaign over {campaign.base.title}",
             "lookout_version": _version(),
             "campaign_fingerprint": campaign.fingerprint(),
-            "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             "chunk_runs": size,
             "sweep_kind": campaign.settings.sweep.kind,
             "axes": json.dumps([variable_name(axis.label) for axis in campaign.axes]),
@@ -270,7 +270,7 @@ class CampaignStore:
             "seconds": float(result.get("seconds", np.nan)),
             "compiled": bool(result.get("compiled", True)),
             "worker": worker,
-            "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "finished": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         }
         self._atomic_write(record_path, json.dumps(record))
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -17,7 +17,7 @@ def tune_command(
     test_seeds: Annotated[int, typer.Option(metavar="M", help="Held-out runs: the M seeds after the training seeds.")] = 16,
     steps: Annotated[int, typer.Option(metavar="N", help="Optimizer steps (Adam).")] = 30,
     learning_rate: Annotated[float, typer.Option(metavar="RATE", help="Adam's step in the gains' parameters (log-scale for positive gains).")] = 0.1,
-    tune_components: Annotated[Optional[str], typer.Option("--tune", metavar="observer,controller", help="The components to tune.",
+    tune_components: Annotated[str | None, typer.Option("--tune", metavar="observer,controller", help="The components to tune.",
                                                            show_default="each that has a family and whose conditions can hold")] = None,
 ) -> None:
     """Tune the gains of a scenario's observer and controller by gradient through the

@@ -23,8 +23,8 @@ from __future__ import annotations
 import math
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import equinox as eqx
 import jax
@@ -78,8 +78,8 @@ def parse_objective(text: str, scenario) -> tuple[Objective, list]:
 def _objective_function(scenario, family: Family | None, objective: Objective, metrics, after: float | None):
     """gains, keys -> (objective, per-run values of each metric); with ``family`` None,
     scenario, keys -> the same."""
-    from lookout.sim import summarize_batch
     from lookout.scenario import metrics as metric_module
+    from lookout.sim import summarize_batch
 
     time_grid = np.asarray(scenario.record_times)
     plan = metric_module.summary(scenario.record_signals, time_grid, metrics, after=after)
@@ -256,9 +256,8 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
     before and after, held-out values), ``training.png`` and ``held_out.png``."""
     import copy
     import json
-    from pathlib import Path
-
     import textwrap
+    from pathlib import Path
 
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MaxNLocator

@@ -27,22 +27,21 @@ tables), :mod:`.figures`; here, :func:`run` and the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from lookout.analysis.adaptive_manipulator import check_theorem_4_1
-from lookout.scenario.composition import compose
 from lookout.papers._report import write_summary
 from lookout.papers._reproduction import Reproduction
 from lookout.results import write_netcdf
+from lookout.scenario.composition import compose
 
 from . import composition as _composition
 from .analysis import continuous_reference, max_speed, order_study, summarize, tables
 from .composition import build, closed_loop, order_composition, simulate_case, simulate_document, stress_composition, study_compositions
-from .config import (CASES, LENGTH, MASS, NAME, ORDER_DURATION, ORDER_PERIODS, REPORT_TIMES, SAMPLE_PERIODS, STRESS, TITLE, Config,
-                     parameters)
+from .config import CASES, LENGTH, MASS, NAME, ORDER_DURATION, ORDER_PERIODS, REPORT_TIMES, SAMPLE_PERIODS, STRESS, TITLE, Config, parameters
 from .figures import save_paper_figures
 
 

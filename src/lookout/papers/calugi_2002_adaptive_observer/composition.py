@@ -4,7 +4,7 @@ order study's and the stress run's, and their simulation."""
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import xarray as xr
 

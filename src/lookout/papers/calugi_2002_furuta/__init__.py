@@ -50,8 +50,8 @@ the table), :mod:`.figures`; here, :func:`run` and the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from lookout.papers._report import write_summary
 from lookout.papers._reproduction import Reproduction
@@ -60,8 +60,7 @@ from lookout.results import write_netcdf
 from . import composition as _composition
 from .analysis import summarize, tables
 from .composition import build, parameters, reference, simulate_case
-from .config import (ALPHA_MINIMUM, CASES, EXPERIMENTS, NAME, QUANTIZATION, SAMPLE_PERIOD, TITLE, Config, Experiment,
-                     experiment_duration)
+from .config import ALPHA_MINIMUM, CASES, EXPERIMENTS, NAME, QUANTIZATION, SAMPLE_PERIOD, TITLE, Config, Experiment, experiment_duration
 from .figures import save_experiment_figures
 
 

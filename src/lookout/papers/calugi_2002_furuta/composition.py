@@ -5,20 +5,37 @@ from __future__ import annotations
 import copy
 import functools
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import xarray as xr
 
 from lookout.components import JOINT_SPACE, Signal
-from lookout.scenario.composition import compose
 from lookout.controllers.furuta import PENDULUM_REFERENCE
 from lookout.models.furuta import PRINTED_CONSTANTS, PRINTED_COULOMB_FRICTION, FurutaConstants
 from lookout.models.parameters import ModelParameters
 from lookout.reference import ReferenceFilter
+from lookout.scenario.composition import compose
 from lookout.sim import Scenario, seed_keys, simulate
 
-from .config import (AMPLITUDE, EXPERIMENTS, FILTER_BANDWIDTH, NAME, OBSERVER_GAIN, PERIOD, POSITION_DAMPING, POSITION_GAIN, QUANTIZATION,
-                     SAMPLE_PERIOD, TITLE, UNITS, UPRIGHT_START, VELOCITY_GAIN, Config, Experiment, experiment_duration)
+from .config import (
+    AMPLITUDE,
+    EXPERIMENTS,
+    FILTER_BANDWIDTH,
+    NAME,
+    OBSERVER_GAIN,
+    PERIOD,
+    POSITION_DAMPING,
+    POSITION_GAIN,
+    QUANTIZATION,
+    SAMPLE_PERIOD,
+    TITLE,
+    UNITS,
+    UPRIGHT_START,
+    VELOCITY_GAIN,
+    Config,
+    Experiment,
+    experiment_duration,
+)
 
 #: The pendulum of (6.1)–(6.4) with the printed constants and tau_C (a ``model`` table).
 PENDULUM = {
@@ -30,7 +47,7 @@ PENDULUM = {
 PENDULUM_ANGLE = {"name": PENDULUM_REFERENCE, "units": "rad", "long_name": "pendulum angle from the upward vertical", "frame": JOINT_SPACE}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def parameters(unknowns: tuple[str, ...]) -> ModelParameters:
     """The unknowns of the printed model (the truth is the reference); cached, since the
     affinity check of the construction costs about 0.6 s."""

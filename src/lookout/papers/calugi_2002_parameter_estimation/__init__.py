@@ -33,8 +33,8 @@ tables), :mod:`.figures`; here, :func:`run` and the :class:`~lookout.papers._rep
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from lookout.papers._report import save_figures, summary_header, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
@@ -42,8 +42,7 @@ from lookout.papers._reproduction import Reproduction, simulate_each
 from . import composition as _composition
 from .analysis import settle_time, summarize, tables
 from .composition import build, simulate_run
-from .config import (CASES, LENGTH, NAME, REPORT_DELAYS, SETTLE_BAND, SIM1_MASSES, SIM1_SWITCH_TIMES, SIM2_MASS, SIMULATIONS, TITLE,
-                     Config, Simulation)
+from .config import CASES, LENGTH, NAME, REPORT_DELAYS, SETTLE_BAND, SIM1_MASSES, SIM1_SWITCH_TIMES, SIM2_MASS, SIMULATIONS, TITLE, Config, Simulation
 from .figures import input_text, paper_figures
 
 

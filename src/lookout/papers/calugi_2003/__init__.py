@@ -24,8 +24,8 @@ the discretization order, the noise drift), :mod:`.figures` and :mod:`.tables`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -35,12 +35,31 @@ from lookout.papers._reproduction import Reproduction, simulate_cases
 from lookout.papers.calugi_2003.analysis import loop_metrics
 from lookout.papers.calugi_2003.composition import CASES, build, composition
 from lookout.papers.calugi_2003.config import (
-    CALUGI_2003_D, CALUGI_2003_M, DESIGN_SPEED, DIVERGED_DISTANCE, GAIN_SETS, INTERVALS, NAME, NOISE_LEVELS, PLANT_STEP, PRINTED_GAINS,
-    TITLE, WAYPOINTS, Config, gains, m11, paper_vessel,
+    CALUGI_2003_D,
+    CALUGI_2003_M,
+    DESIGN_SPEED,
+    DIVERGED_DISTANCE,
+    GAIN_SETS,
+    INTERVALS,
+    NAME,
+    NOISE_LEVELS,
+    PLANT_STEP,
+    PRINTED_GAINS,
+    TITLE,
+    WAYPOINTS,
+    Config,
+    gains,
+    m11,
+    paper_vessel,
 )
 from lookout.papers.calugi_2003.figures import _figures, _forces_and_theta_figure
 from lookout.papers.calugi_2003.studies import (
-    _convergence_summary, _drift_summary, _order_summary, convergence_study, discretization_order, noise_drift,
+    _convergence_summary,
+    _drift_summary,
+    _order_summary,
+    convergence_study,
+    discretization_order,
+    noise_drift,
 )
 from lookout.papers.calugi_2003.sweep import STORE, interval_document, interval_sweep, sweep_record_every, sweep_summary
 from lookout.papers.calugi_2003.tables import tables

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from lookout.scenario.composition import compose
 from lookout.papers.calugi_2003.config import GAIN_SETS, PLANT_STEP, WAYPOINTS, Config, gains, m11, paper_vessel
+from lookout.scenario.composition import compose
 from lookout.sim import Scenario
 
 

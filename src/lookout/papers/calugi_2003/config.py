@@ -15,7 +15,6 @@ from lookout.papers import CATALOG
 from lookout.scenario.settings import PositiveCount, PositiveFloat, RunsConfig, finite_positive, whole_samples
 from lookout.sim import integer_ratio
 
-
 NAME = "calugi-2003"
 TITLE = CATALOG[NAME].title
 

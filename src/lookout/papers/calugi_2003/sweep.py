@@ -13,8 +13,8 @@ is not finite or when the vessel or its estimate is more than
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import xarray as xr

@@ -40,8 +40,8 @@ the bias estimate stands for), :mod:`.sweep` (the model-error sweep, a campaign)
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -51,8 +51,20 @@ from lookout.papers._reproduction import Reproduction, simulate_cases
 from lookout.papers.kim_2002.analysis import _aggregate, bias_with_model_error, closed_loop_metrics, diverged_at
 from lookout.papers.kim_2002.composition import CASES, build, composition
 from lookout.papers.kim_2002.config import (
-    BIAS_GAIN, BIAS_TIME_CONSTANT, DIVERGED_DISTANCE, NAME, OBSERVERS, SWITCHING_GAIN, TITLE, VELOCITY_GAIN, WAVE, WAYPOINTS,
-    Config, ModelError, gain_sets, printed_observer,
+    BIAS_GAIN,
+    BIAS_TIME_CONSTANT,
+    DIVERGED_DISTANCE,
+    NAME,
+    OBSERVERS,
+    SWITCHING_GAIN,
+    TITLE,
+    VELOCITY_GAIN,
+    WAVE,
+    WAYPOINTS,
+    Config,
+    ModelError,
+    gain_sets,
+    printed_observer,
 )
 from lookout.papers.kim_2002.figures import _figures, _track_figure
 from lookout.papers.kim_2002.sweep import GAIN_SETS, STORE, SWEEP_RECORD_EVERY, run_sweep, sweep_document, sweep_points, sweep_summary

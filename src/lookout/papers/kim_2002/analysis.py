@@ -8,8 +8,8 @@ import math
 import numpy as np
 import xarray as xr
 
-from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT
 from lookout.analysis import estimation_errors
+from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT
 from lookout.papers._report import significant
 from lookout.papers.kim_2002.composition import build
 from lookout.papers.kim_2002.config import DIVERGED_DISTANCE, Config, gain_sets

@@ -6,10 +6,18 @@ from __future__ import annotations
 import numpy as np
 
 from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT
-from lookout.scenario.composition import compose
 from lookout.papers.kim_2002.config import (
-    BIAS_TIME_CONSTANT, FORCE_LEVER_ARM, OBSERVERS, SWITCHING_GAIN, WAVE, WAYPOINTS, Config, ModelError, gain_sets,
+    BIAS_TIME_CONSTANT,
+    FORCE_LEVER_ARM,
+    OBSERVERS,
+    SWITCHING_GAIN,
+    WAVE,
+    WAYPOINTS,
+    Config,
+    ModelError,
+    gain_sets,
 )
+from lookout.scenario.composition import compose
 from lookout.sim import Scenario
 
 

@@ -14,13 +14,14 @@ divergence limit on ``position``, which tests both), as the closed-loop table co
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import xarray as xr
 
-from lookout.papers._sweep import run_sweep as run_campaign_sweep, whole_run_campaign
+from lookout.papers._sweep import run_sweep as run_campaign_sweep
+from lookout.papers._sweep import whole_run_campaign
 from lookout.papers.kim_2002.composition import composition
 from lookout.papers.kim_2002.config import DIVERGED_DISTANCE, FORCE_LEVER_ARM, NAME, OBSERVERS, SWITCHING_GAIN, Config, ModelError, gain_sets
 

@@ -33,7 +33,6 @@ the gain conditions), :mod:`.studies` (the choice sweep and the hold study),
 
 from __future__ import annotations
 
-
 from lookout.papers._reproduction import Reproduction
 from lookout.papers.wondergem_2009.analysis import (
     error_index,

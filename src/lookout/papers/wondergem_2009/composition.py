@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import copy
 
-from lookout.scenario.composition import compose, set_path
 from lookout.models.cybership import CYBERSHIP_LENGTH, CYBERSHIP_THRUST_LIMIT
 from lookout.papers.wondergem_2009.config import (
     BASIN_MEASUREMENT_PERIOD,
@@ -22,6 +21,7 @@ from lookout.papers.wondergem_2009.config import (
     PLANT_STEP,
     Config,
 )
+from lookout.scenario.composition import compose, set_path
 
 #: The scheme's model in the basin: Cybership II of (39) with linear damping only.
 LINEAR_SHIP = {"kind": "cybership-ii", "quadratic_damping": [0.0, 0.0, 0.0]}

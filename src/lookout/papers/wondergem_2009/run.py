@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import xarray as xr
 
-from lookout.scenario.composition import compose
 from lookout.papers._report import write_summary
 from lookout.papers.wondergem_2009.analysis import gain_study, lap_times, loop_metrics
 from lookout.papers.wondergem_2009.composition import composition
@@ -16,6 +15,7 @@ from lookout.papers.wondergem_2009.figures import figures
 from lookout.papers.wondergem_2009.studies import choice_sweep, hold_study
 from lookout.reference import EllipseReference
 from lookout.results import write_netcdf
+from lookout.scenario.composition import compose
 
 
 def simulate_condition(config: Config, condition: str) -> xr.Dataset:

@@ -10,10 +10,10 @@ import jax
 import numpy as np
 import xarray as xr
 
-from lookout.scenario.composition import compose
 from lookout.papers.wondergem_2009.analysis import lap_times, loop_metrics, tracking_errors
 from lookout.papers.wondergem_2009.composition import NO_LIMITS, THRUST_LIMITS, changed, composition
 from lookout.papers.wondergem_2009.config import BASIN_MEASUREMENT_PERIOD, BASIN_PERIOD, NAME, Config
+from lookout.scenario.composition import compose
 from lookout.sim import keys_of_seeds, simulate_batch, stack_scenarios
 
 #: The starts on the ellipse theta_0 (rad) the choice sweep tries.

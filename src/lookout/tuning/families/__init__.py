@@ -22,6 +22,7 @@ import importlib
 
 import numpy as np
 
+
 #: observer kind -> "module:class" of its family (the class's ``of(scenario)`` builds it).
 def families(role: str) -> dict[str, str]:
     """kind -> ``"module:Family"`` of the registered kinds of ``role`` (``"observer"`` or

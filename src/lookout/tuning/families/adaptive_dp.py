@@ -111,7 +111,7 @@ class AdaptiveDPFamily(Family):
     keys: tuple[str, ...] = ("observer.position_gain", "observer.velocity_gain", "observer.adaptation_gain")
 
     @classmethod
-    def of(cls, scenario) -> "AdaptiveDPFamily":
+    def of(cls, scenario) -> AdaptiveDPFamily:
         """The family of ``scenario``'s adaptive observer; a ValueError names (10) when
         D_min <= 0 (then no K1 satisfies (22) for every positive K2)."""
         from lookout.analysis.adaptive_dp import model_bounds

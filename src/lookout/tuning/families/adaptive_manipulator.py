@@ -90,7 +90,7 @@ class AdaptiveManipulatorFamily(Family):
     keys: tuple[str, ...] = ("observer.gain", "observer.adaptation_gain")
 
     @classmethod
-    def of(cls, scenario) -> "AdaptiveManipulatorFamily":
+    def of(cls, scenario) -> AdaptiveManipulatorFamily:
         """The family of ``scenario``'s adaptive observer; a ValueError names the condition
         when none of its gains can satisfy it: Gamma = 0 (Theorem 4.1 needs Gamma > 0), a
         direction of K with sigma <= 0, the controller's K differing from the observer's

@@ -49,7 +49,7 @@ class PassiveFamily(Family):
     keys: tuple[str, ...] = ("observer.velocity_injection_gain", "observer.bias_injection_gain", "observer.cutoff_frequency", "observer.notch_damping")
 
     @classmethod
-    def of(cls, scenario) -> "PassiveFamily":
+    def of(cls, scenario) -> PassiveFamily:
         """The family of ``scenario``'s observer; a ValueError names (48) when no Kappa,
         Lambda can satisfy it (10/T not below w_o in some DOF)."""
         return cls(*cls.chain(cls.passive(scenario)))

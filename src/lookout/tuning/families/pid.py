@@ -48,7 +48,7 @@ class PidFamily(Family):
         self.sample_period = float(scenario.sample_period)
 
     @classmethod
-    def of(cls, scenario) -> "PidFamily":
+    def of(cls, scenario) -> PidFamily:
         return cls(scenario)
 
     def gains(self, theta):

@@ -43,7 +43,7 @@ class SlidingModeFamily(PassiveFamily):
     keys: tuple[str, ...] = PassiveFamily.keys + ("observer.switching_gain", "observer.boundary_layer")
 
     @classmethod
-    def of(cls, scenario) -> "SlidingModeFamily":
+    def of(cls, scenario) -> SlidingModeFamily:
         kbar = np.asarray(scenario.observer.switching_gain, dtype=float) * np.ones(3)
         return cls(*cls.chain(cls.passive(scenario)), switching=kbar > 0, fixed_switching=np.where(kbar > 0, 0.0, kbar))
 

@@ -139,7 +139,7 @@ class EarthFixedFamily(_Wondergem):
         return Report(report.title, [*report.conditions, integration], report.quantities, report.summary, report.notes)
 
     @classmethod
-    def of(cls, scenario) -> "EarthFixedFamily":
+    def of(cls, scenario) -> EarthFixedFamily:
         return cls(scenario)
 
     def gains(self, theta):
@@ -176,7 +176,7 @@ class TrackingFamily(_Wondergem):
     condition = "controller_25"
 
     @classmethod
-    def of(cls, scenario) -> "TrackingFamily":
+    def of(cls, scenario) -> TrackingFamily:
         return cls(scenario)
 
     def gains(self, theta):

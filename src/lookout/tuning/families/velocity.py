@@ -132,7 +132,7 @@ class VelocityFamily(Family):
     keys: tuple[str, ...] = ("observer.gain",)
 
     @classmethod
-    def of(cls, scenario) -> "VelocityFamily":
+    def of(cls, scenario) -> VelocityFamily:
         """The family of ``scenario``'s velocity observer; a ValueError names Theorem 2.1
         when its bounds are not defined (M depends on a prismatic coordinate) or the
         runs' speed is not finite."""
