@@ -49,7 +49,8 @@ def main() -> None:
     values = [0.4 + 0.6 * i / max(1, args.points - 1) for i in range(args.points)]
     document = {
         "scenario": {"template": "fossen-strand-1999", "case": "paper", "settings": {"duration": args.duration}},
-        "seeds_per_point": args.seeds, "chunk_runs": args.chunk_runs,
+        "seeds_per_point": args.seeds,
+        "chunk_runs": args.chunk_runs,
         "metrics": ["rms_error:position", "rms_error:velocity", "max_excursion:position", "settling_time:bias_force", "rms_input:force"],
         "sweep": {"kind": "grid", "axes": [{"field": "wave_frequency", "values": values}]},
     }
@@ -88,7 +89,9 @@ def main() -> None:
     for repeat in range(3):
         rows.append((bare(), summarized(), in_process(f"in-process-{repeat}.zarr")))
     for a, a2, b in rows:
-        print(f"(a) bare {a:7.2f} s   (a2) bare summarized {a2:7.2f} s   (b) campaign in process {b:7.2f} s   overhead vs (a) {b / a - 1:+.1%}, vs (a2) {b / a2 - 1:+.1%}")
+        print(
+            f"(a) bare {a:7.2f} s   (a2) bare summarized {a2:7.2f} s   (b) campaign in process {b:7.2f} s   overhead vs (a) {b / a - 1:+.1%}, vs (a2) {b / a2 - 1:+.1%}"
+        )
     best_a, best_a2, best_b = (min(r[i] for r in rows) for i in range(3))
     print(
         f"best: (a) {best_a:.2f} s, {runs / best_a:.0f} runs/s, {simulated / best_a:.3g} simulated s / s; (a2) {best_a2:.2f} s; "
@@ -101,7 +104,9 @@ def main() -> None:
             run_campaign(campaign, folder / f"dask-{workers}.zarr", workers=workers, say=messages.append)
             wall = time.perf_counter() - start
             calibration = next((m for m in messages if m.startswith("calibration")), "")
-            print(f"({'c' if workers == 1 else 'd'}) {workers} dask worker(s), cold: {wall:7.2f} s, {runs / wall:.0f} runs/s, {simulated / wall:.3g} simulated s / s  [{calibration}]")
+            print(
+                f"({'c' if workers == 1 else 'd'}) {workers} dask worker(s), cold: {wall:7.2f} s, {runs / wall:.0f} runs/s, {simulated / wall:.3g} simulated s / s  [{calibration}]"
+            )
     shutil.rmtree(folder, ignore_errors=True)
 
 

@@ -42,7 +42,12 @@ def arm_numpy(duration: float, step: float = 1e-3) -> float:
 
     def accel(q, v):
         c2_, s2 = math.cos(q[1]), math.sin(q[1])
-        M = np.array([[m2 * l2**2 + 2 * m2 * l1 * l2 * c2_ + (m1 + m2) * l1**2, m2 * l2**2 + m2 * l1 * l2 * c2_], [m2 * l2**2 + m2 * l1 * l2 * c2_, m2 * l2**2]])
+        M = np.array(
+            [
+                [m2 * l2**2 + 2 * m2 * l1 * l2 * c2_ + (m1 + m2) * l1**2, m2 * l2**2 + m2 * l1 * l2 * c2_],
+                [m2 * l2**2 + m2 * l1 * l2 * c2_, m2 * l2**2],
+            ]
+        )
         C = np.array([[c1 - 2 * m2 * l1 * l2 * s2 * v[1], -m2 * l1 * l2 * s2 * v[1]], [m2 * l1 * l2 * s2 * v[0], c2]])
         G = np.array([m2 * l2 * g * math.cos(q[0] + q[1]) + (m1 + m2) * l1 * g * math.cos(q[0]), m2 * l2 * g * math.cos(q[0] + q[1])])
         return np.linalg.solve(M, tau - C @ v - G)
@@ -56,7 +61,10 @@ def arm_numpy(duration: float, step: float = 1e-3) -> float:
     steps = int(round(duration / step))
     start = time.perf_counter()
     for _ in range(steps):
-        k1 = field(x); k2 = field(x + 0.5 * step * k1); k3 = field(x + 0.5 * step * k2); k4 = field(x + step * k3)
+        k1 = field(x)
+        k2 = field(x + 0.5 * step * k1)
+        k3 = field(x + 0.5 * step * k2)
+        k4 = field(x + step * k3)
         x = x + step / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return duration / (time.perf_counter() - start)
 
@@ -79,7 +87,10 @@ def passive_numpy_step(observer):
     """One 0.1 s RK4 step of the passive observer, eqs. (22)-(25), in NumPy."""
     oM_inv, oD = np.asarray(observer.mass_inverse), np.asarray(observer.damping_matrix)
     w0, zeta, k = np.asarray(observer.wave_frequency), np.asarray(observer.wave_damping), np.asarray(observer.wave_injection_gain)
-    k3, kap, lam, T = (np.asarray(a) for a in (observer.position_injection_gain, observer.velocity_injection_gain, observer.bias_injection_gain, observer.bias_time_constant))
+    k3, kap, lam, T = (
+        np.asarray(a)
+        for a in (observer.position_injection_gain, observer.velocity_injection_gain, observer.bias_injection_gain, observer.bias_time_constant)
+    )
 
     def field(z, y, tau):
         eta, nu, b, xi = z[:3], z[3:6], z[6:9], z[9:]
@@ -87,10 +98,21 @@ def passive_numpy_step(observer):
         e[2] = (e[2] + np.pi) % (2 * np.pi) - np.pi
         c, s = math.cos(y[2]), math.sin(y[2])
         R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return np.concatenate([R @ nu + k3 * e, oM_inv @ (-oD @ nu + R.T @ (b + kap * e) + tau), -b / T + lam * e, xi[3:] + k[:3] * e, -(w0**2) * xi[:3] - 2 * zeta * w0 * xi[3:] + k[3:] * e])
+        return np.concatenate(
+            [
+                R @ nu + k3 * e,
+                oM_inv @ (-oD @ nu + R.T @ (b + kap * e) + tau),
+                -b / T + lam * e,
+                xi[3:] + k[:3] * e,
+                -(w0**2) * xi[:3] - 2 * zeta * w0 * xi[3:] + k[3:] * e,
+            ]
+        )
 
     def step(z, y, tau, h):
-        k1 = field(z, y, tau); k2 = field(z + 0.5 * h * k1, y, tau); k3_ = field(z + 0.5 * h * k2, y, tau); k4 = field(z + h * k3_, y, tau)
+        k1 = field(z, y, tau)
+        k2 = field(z + 0.5 * h * k1, y, tau)
+        k3_ = field(z + 0.5 * h * k2, y, tau)
+        k4 = field(z + h * k3_, y, tau)
         return z + h / 6 * (k1 + 2 * k2 + 2 * k3_ + k4)
 
     return step

@@ -174,7 +174,9 @@ def main() -> int:
     estimate = stepper(times[-1] + DT, ys[-1], us[-1], DT)
     assert np.all(np.isfinite(estimate["position"])) and np.all(np.isfinite(peer.eta)), "an estimate is not finite"
     peer_median = statistics.median(timings["MCSimPython NonlinObs3dof.update"])
-    print(f"devices: {len(jax.devices())} x {jax.devices()[0].platform}, {os.cpu_count()} cores, JAX {jax.__version__}, NumPy {np.__version__}, float64")
+    print(
+        f"devices: {len(jax.devices())} x {jax.devices()[0].platform}, {os.cpu_count()} cores, JAX {jax.__version__}, NumPy {np.__version__}, float64"
+    )
     print(f"passive observer, Fossen & Strand 1999, Northern Clipper, one {DT:g} s sample per call; {args.repeats} x {args.calls} calls each")
     for name, values in timings.items():
         median = statistics.median(values)

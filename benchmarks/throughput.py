@@ -45,7 +45,10 @@ def wrap(angle):
 
 def rk4(f, x, h, *args):
     """One classical Runge-Kutta step of dx/dt = f(x, *args)."""
-    k1 = f(x, *args); k2 = f(x + 0.5 * h * k1, *args); k3 = f(x + 0.5 * h * k2, *args); k4 = f(x + h * k3, *args)
+    k1 = f(x, *args)
+    k2 = f(x + 0.5 * h * k1, *args)
+    k3 = f(x + 0.5 * h * k2, *args)
+    k4 = f(x + h * k3, *args)
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
@@ -59,26 +62,43 @@ def numpy_loop(scenario, duration: float, seed: int = 0) -> float:
     w0, zeta, sigma = (np.asarray(a) for a in (plant.waves.peak_frequency, plant.waves.damping_ratio, plant.waves.intensity))
     oM_inv, oD = np.asarray(obs.mass_inverse), np.asarray(obs.damping_matrix)
     ow0, ozeta, k = np.asarray(obs.wave_frequency), np.asarray(obs.wave_damping), np.asarray(obs.wave_injection_gain)
-    k3, kap, lam, oT = (np.asarray(a) for a in (obs.position_injection_gain, obs.velocity_injection_gain, obs.bias_injection_gain, obs.bias_time_constant))
+    k3, kap, lam, oT = (
+        np.asarray(a) for a in (obs.position_injection_gain, obs.velocity_injection_gain, obs.bias_injection_gain, obs.bias_time_constant)
+    )
     noise_std = np.asarray(sensor.noise_std)
     rng = np.random.default_rng(seed)
     h = scenario.plant_step
 
-
     def plant_f(x, tau, noise):
         eta, nu, b, xi = x[:3], x[3:6], x[6:9], x[9:]
         R = J(eta[2])
-        return np.concatenate([R @ nu, M_inv @ (tau + R.T @ b - D @ nu), -b / T_b + psi_gain * noise[:3], xi[3:], -(w0**2) * xi[:3] - 2 * zeta * w0 * xi[3:] + sigma * noise[3:]])
+        return np.concatenate(
+            [
+                R @ nu,
+                M_inv @ (tau + R.T @ b - D @ nu),
+                -b / T_b + psi_gain * noise[:3],
+                xi[3:],
+                -(w0**2) * xi[:3] - 2 * zeta * w0 * xi[3:] + sigma * noise[3:],
+            ]
+        )
 
     def obs_f(z, y, tau):
         eta, nu, b, xi = z[:3], z[3:6], z[6:9], z[9:]
         e = y - (eta + xi[3:])
         e[2] = wrap(e[2])
         R = J(y[2])
-        return np.concatenate([R @ nu + k3 * e, oM_inv @ (-oD @ nu + R.T @ (b + kap * e) + tau), -b / oT + lam * e, xi[3:] + k[:3] * e, -(ow0**2) * xi[:3] - 2 * ozeta * ow0 * xi[3:] + k[3:] * e])
+        return np.concatenate(
+            [
+                R @ nu + k3 * e,
+                oM_inv @ (-oD @ nu + R.T @ (b + kap * e) + tau),
+                -b / oT + lam * e,
+                xi[3:] + k[:3] * e,
+                -(ow0**2) * xi[:3] - 2 * ozeta * ow0 * xi[3:] + k[3:] * e,
+            ]
+        )
 
-
-    x = np.zeros(15); x[6:9] = [1e4, 5e3, 1e5]
+    x = np.zeros(15)
+    x[6:9] = [1e4, 5e3, 1e5]
     z = np.zeros(15)
     y = np.zeros(3)
     steps = int(round(duration / h))
@@ -106,9 +126,13 @@ def numpy_closed_loop(scenario, duration: float, seed: int = 0) -> float:
     f_const, f_amp, f_period = np.asarray(dist.constant), np.asarray(dist.amplitude), float(dist.period)
     oM, oM_inv, oD = np.asarray(obs.mass_matrix), np.asarray(obs.mass_inverse), np.asarray(obs.damping_matrix)
     ow0, ozeta, k = np.asarray(obs.wave_frequency), np.asarray(obs.wave_damping), np.asarray(obs.wave_injection_gain)
-    k3, kap, lam, oT = (np.asarray(a) for a in (obs.position_injection_gain, obs.velocity_injection_gain, obs.bias_injection_gain, obs.bias_time_constant))
+    k3, kap, lam, oT = (
+        np.asarray(a) for a in (obs.position_injection_gain, obs.velocity_injection_gain, obs.bias_injection_gain, obs.bias_time_constant)
+    )
     kbar, eps = np.asarray(sliding.switching_gain), np.asarray(sliding.boundary_layer)
-    k_i, c1, c2, p1, d = (np.asarray(a) for a in (control.integral_gain, control.position_gain, control.velocity_gain, control.coupling_gain, control.damping_weights))
+    k_i, c1, c2, p1, d = (
+        np.asarray(a) for a in (control.integral_gain, control.position_gain, control.velocity_gain, control.coupling_gain, control.damping_weights)
+    )
     limit = np.asarray(scenario.actuator.limit)
     noise_std = np.asarray(sensor.noise_std)
     bandwidth = np.asarray(ref.bandwidth)
@@ -116,13 +140,19 @@ def numpy_closed_loop(scenario, duration: float, seed: int = 0) -> float:
     rng = np.random.default_rng(seed)
     h = scenario.plant_step
 
-
-
     def plant_f(x, tau, noise, t):
         eta, nu, b, xi = x[:3], x[3:6], x[6:9], x[9:]
         R = J(eta[2])
         force = tau + f_const + f_amp * np.sin(2 * np.pi * t / f_period)
-        return np.concatenate([R @ nu, M_inv @ (force + R.T @ b - D @ nu), -b / T_b + psi_gain * noise[:3], xi[3:], -(w0**2) * xi[:3] - 2 * zeta * w0 * xi[3:] + sigma * noise[3:]])
+        return np.concatenate(
+            [
+                R @ nu,
+                M_inv @ (force + R.T @ b - D @ nu),
+                -b / T_b + psi_gain * noise[:3],
+                xi[3:],
+                -(w0**2) * xi[:3] - 2 * zeta * w0 * xi[3:] + sigma * noise[3:],
+            ]
+        )
 
     def obs_f(z, y, tau):
         eta, nu, b, xi = z[:3], z[3:6], z[6:9], z[9:]
@@ -130,8 +160,15 @@ def numpy_closed_loop(scenario, duration: float, seed: int = 0) -> float:
         e[2] = wrap(e[2])
         R = J(y[2])
         switching = kbar * np.clip(e / eps, -1.0, 1.0)
-        return np.concatenate([R @ nu + k3 * e + switching, oM_inv @ (-oD @ nu + R.T @ (b + kap * e) + tau), -b / oT + lam * e, xi[3:] + k[:3] * e, -(ow0**2) * xi[:3] - 2 * ozeta * ow0 * xi[3:] + k[3:] * e])
-
+        return np.concatenate(
+            [
+                R @ nu + k3 * e + switching,
+                oM_inv @ (-oD @ nu + R.T @ (b + kap * e) + tau),
+                -b / oT + lam * e,
+                xi[3:] + k[:3] * e,
+                -(ow0**2) * xi[:3] - 2 * ozeta * ow0 * xi[3:] + k[3:] * e,
+            ]
+        )
 
     # reference filter: exact discretization of the third-order critically damped model
     A = np.zeros((3, 3, 3))
@@ -140,9 +177,11 @@ def numpy_closed_loop(scenario, duration: float, seed: int = 0) -> float:
     from scipy.linalg import expm
 
     Phi = np.stack([expm(A[i] * h) for i in range(3)])
-    r_state = np.zeros((3, 3)); r_state[:, 0] = setpoints[0]
+    r_state = np.zeros((3, 3))
+    r_state[:, 0] = setpoints[0]
 
-    x = np.zeros(15); x[6:9] = [1e4, 5e3, 1e5]
+    x = np.zeros(15)
+    x[6:9] = [1e4, 5e3, 1e5]
     z = np.zeros(15)
     y = np.zeros(3)
     integral = np.zeros(3)
@@ -161,7 +200,9 @@ def numpy_closed_loop(scenario, duration: float, seed: int = 0) -> float:
         error = setpoint - r_state[:, 0]
         error[2] = wrap(error[2])
         target = r_state[:, 0] + error
-        r_state = np.einsum("ijk,ik->ij", Phi, r_state - np.stack([target, np.zeros(3), np.zeros(3)], axis=1)) + np.stack([target, np.zeros(3), np.zeros(3)], axis=1)
+        r_state = np.einsum("ijk,ik->ij", Phi, r_state - np.stack([target, np.zeros(3), np.zeros(3)], axis=1)) + np.stack(
+            [target, np.zeros(3), np.zeros(3)], axis=1
+        )
         r_state[2, 0] = wrap(r_state[2, 0])
         # observer backstepping (Kim 2002, (25) as in lookout.controllers.backstepping)
         eta_hat, nu_hat, b_hat = z[:3], z[3:6], z[6:9]

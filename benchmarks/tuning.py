@@ -94,8 +94,15 @@ def main() -> None:
     if options.no_tune:
         return
     started = time.perf_counter()
-    result = tune(scenario, objective_text, train_seeds=list(range(options.seeds)), test_seeds=list(range(options.seeds, 2 * options.seeds)),
-                  steps=options.steps, learning_rate=0.2, say=lambda text: None)
+    result = tune(
+        scenario,
+        objective_text,
+        train_seeds=list(range(options.seeds)),
+        test_seeds=list(range(options.seeds, 2 * options.seeds)),
+        steps=options.steps,
+        learning_rate=0.2,
+        say=lambda text: None,
+    )
     wall = time.perf_counter() - started
     print(f"time to tune ({len(result.steps) - 1} steps, {result.stopped or 'all steps'}; compile and held-out runs included): {wall:.1f} s")
 

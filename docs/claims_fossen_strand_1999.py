@@ -49,7 +49,10 @@ def main() -> None:
     naive = np.sqrt((naive_error[:, late[::FIX_EVERY][:-1]] ** 2).mean(axis=1))
     print(f"velocity, observer / differenced fixes, Earth frame (surge, sway): at most {np.max(observer / naive):.4f}")
     own_std = ds.nu.sel(time=late).std("time")
-    print("velocity, error RMS / velocity std (surge, sway, yaw), mean over runs:", np.array2string((errors["nu"] / own_std).mean("run").values, precision=3, separator=", "))
+    print(
+        "velocity, error RMS / velocity std (surge, sway, yaw), mean over runs:",
+        np.array2string((errors["nu"] / own_std).mean("run").values, precision=3, separator=", "),
+    )
 
     prior = errors["bias"].mean("run").values / np.asarray(config.bias_std)
     print("bias, mean error RMS / stationary std (surge, sway, yaw):", np.array2string(prior, precision=3, separator=", "))

@@ -78,7 +78,7 @@ def excerpt(text: str, start: str, lines: int) -> str:
     """``lines`` lines of a command's output from the first that contains ``start``."""
     body = text.split("\n")
     index = next(i for i, line in enumerate(body) if start in line)
-    return "\n".join(body[index: index + lines])
+    return "\n".join(body[index : index + lines])
 
 
 def main() -> None:
@@ -92,7 +92,7 @@ def main() -> None:
     refused = run(folder, "run", "bad-vessel.toml", "--out", "out/bad")
     ran = run(folder, "run", "my-vessel.toml", "--out", "out/my-vessel")
     written = (folder / "out" / "my-vessel" / "scenario.toml").read_text()
-    observer_table = written[written.index("# observer:"): written.index("# reference:")].rstrip()
+    observer_table = written[written.index("# observer:") : written.index("# reference:")].rstrip()
     campaign = run(folder, "campaign", "run", "my-study.toml", "--out", "out/my-study.zarr", "--workers", "0")
     campaign = re.sub(r"\b\d+(\.\d+)? s\b", "N s", campaign)  # times vary from run to run
     status = run(folder, "campaign", "status", "out/my-study.zarr")

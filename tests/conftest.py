@@ -35,9 +35,7 @@ from lookout.observers import PassiveObserver, injection_gains_from_normalized  
 @pytest.fixture(scope="session")
 def paper_observer():
     """The observer of Fossen & Strand (1999), eqs. (58)–(60), gains converted to SI."""
-    kappa, lam = injection_gains_from_normalized(
-        [0.1, 0.1, 0.01], [0.01, 0.01, 0.001], mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH
-    )
+    kappa, lam = injection_gains_from_normalized([0.1, 0.1, 0.01], [0.01, 0.01, 0.001], mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH)
     return PassiveObserver.design(
         northern_clipper(),
         wave_frequency=0.8976,

@@ -103,8 +103,16 @@ def _fossen_strand(actuator, duration=20.0):
     config = fs.Config(duration=duration)
     base = fs.build(config)
     return Scenario(
-        base.plant, base.sensor, base.observer, base.controller, base.initial_state, base.initial_estimate,
-        plant_step=config.plant_step, sample_period=config.sample_period, duration=config.duration, actuator=actuator,
+        base.plant,
+        base.sensor,
+        base.observer,
+        base.controller,
+        base.initial_state,
+        base.initial_estimate,
+        plant_step=config.plant_step,
+        sample_period=config.sample_period,
+        duration=config.duration,
+        actuator=actuator,
     )
 
 

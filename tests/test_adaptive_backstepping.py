@@ -22,12 +22,15 @@ def test_the_observer_sees_psi_equal_to_minus_v():
     for _ in range(4):
         q, velocity = jnp.asarray(rng.normal(size=2)), jnp.asarray(rng.normal(size=2))
         theta = jnp.asarray([rng.uniform(0.5, 3.0)])
-        reference = {"joint_angle_desired": jnp.asarray(rng.normal(size=2)), "joint_angle_desired_rate": jnp.asarray(rng.normal(size=2)),
-                     "joint_angle_desired_acceleration": jnp.asarray(rng.normal(size=2))}
+        reference = {
+            "joint_angle_desired": jnp.asarray(rng.normal(size=2)),
+            "joint_angle_desired_rate": jnp.asarray(rng.normal(size=2)),
+            "joint_angle_desired_acceleration": jnp.asarray(rng.normal(size=2)),
+        }
         tau = controller.law(q, velocity, theta, reference)
         z1, z2, q_d_accel = controller.errors(q, velocity, reference)
         first, second = controller.gains()
-        v = -first**2 * z1 + first * z2 - q_d_accel + second * z2 + z1
+        v = -(first**2) * z1 + first * z2 - q_d_accel + second * z2 + z1
         np.testing.assert_allclose(observer.model_acceleration(theta, q, velocity, tau), -v, rtol=1e-10, atol=1e-10)
     # D2 = diag(d_{n+i} |omega_i|^2), Omega = C1 + D1 + K: 2 + 1 + 5 = 8 -> 2 + 64 for the printed gains
     np.testing.assert_allclose(ch5.build(ch5.Config()).controller.gains()[1], [66.0, 66.0])

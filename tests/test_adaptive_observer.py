@@ -63,8 +63,16 @@ def _scenario(form: str, mode: str | None = None) -> Scenario:
     mode = mode or ("sampled" if form == "discrete" else "continuous")
     start = VesselState.build()
     return Scenario(
-        _plant(), sensor, observer, EXCITING, start, observer.guess(theta=0.7 * M11),
-        plant_step=SAMPLE, sample_period=SAMPLE, duration=DURATION, observer_mode=mode,
+        _plant(),
+        sensor,
+        observer,
+        EXCITING,
+        start,
+        observer.guess(theta=0.7 * M11),
+        plant_step=SAMPLE,
+        sample_period=SAMPLE,
+        duration=DURATION,
+        observer_mode=mode,
     )
 
 
@@ -95,8 +103,12 @@ def test_the_printed_setting():
 
 
 def test_names_units_and_true_values():
-    par = InertiaParametrization(VESSEL, ("m11", ("mass", 2, 2), ("mass", 2, 1), "d23", ("damping", 0, 0), ("stiffness", 0, 2), "k22"),
-                                 [1e6, 1e9, -1e6, -1e7, 1e4, -1.0, 0.0], [1e7, 1e10, 1e6, 0.0, 1e5, 1.0, 1.0])
+    par = InertiaParametrization(
+        VESSEL,
+        ("m11", ("mass", 2, 2), ("mass", 2, 1), "d23", ("damping", 0, 0), ("stiffness", 0, 2), "k22"),
+        [1e6, 1e9, -1e6, -1e7, 1e4, -1.0, 0.0],
+        [1e7, 1e10, 1e6, 0.0, 1e5, 1.0, 1.0],
+    )
     assert par.names == ("m11", "m33", "m23", "d23", "d11", "k13", "k22")
     assert par.units == ("kg", "kg m2", "kg m", "kg m s-1", "kg s-1", "kg m s-2", "kg s-2")
     assert [s.name for s in par.signals] == [f"theta_{n}" for n in par.names]
@@ -107,7 +119,9 @@ def test_the_regressor_is_linear_in_the_parameter_error():
     """M~ xi + D~ nu_hat + K~ eta_hat = phi theta~ (eq. 8, derivations C1), off-diagonal pairs included."""
     rng = np.random.default_rng(0)
     vessel = type(VESSEL)(VESSEL.mass_matrix, VESSEL.damping_matrix, np.diag([1e4, 2e4, 3e6]))
-    par = InertiaParametrization(vessel, ("m11", "m23", "d22", "d23", "k33", "k12"), [1e6, -1e6, 1e5, -1e7, 0.0, -1e3], [1e7, 1e6, 1e6, 0.0, 1e7, 1e3])
+    par = InertiaParametrization(
+        vessel, ("m11", "m23", "d22", "d23", "k33", "k12"), [1e6, -1e6, 1e5, -1e7, 0.0, -1e3], [1e7, 1e6, 1e6, 0.0, 1e7, 1e3]
+    )
     for _ in range(5):
         theta = jnp.asarray(rng.uniform(par.lower, par.upper))
         theta_hat = jnp.asarray(rng.uniform(par.lower, par.upper))
@@ -153,8 +167,17 @@ def test_bad_inputs_fail_with_one_line_naming_the_parameter(build, message):
 def test_the_continuous_form_needs_the_oracle_velocity():
     observer = _observer("continuous")
     with pytest.raises(ValueError, match="observer adaptive-dp needs measurement measured_velocity, which sensor position-heading does not measure"):
-        Scenario(_plant(), PositionHeadingSensor(0.0, SAMPLE), observer, EXCITING, VesselState.build(), observer.guess(),
-                 plant_step=SAMPLE, sample_period=SAMPLE, duration=1.0)
+        Scenario(
+            _plant(),
+            PositionHeadingSensor(0.0, SAMPLE),
+            observer,
+            EXCITING,
+            VesselState.build(),
+            observer.guess(),
+            plant_step=SAMPLE,
+            sample_period=SAMPLE,
+            duration=1.0,
+        )
     with pytest.raises(ValueError, match="no vector field"):
         _observer("discrete").vector_field(0.0, None, jnp.zeros(6), jnp.zeros(3))
 
@@ -180,7 +203,9 @@ def test_first_update_is_the_identity_and_missing_samples_predict_with_the_model
     np.testing.assert_allclose(missing.nu, same.nu + dt * xi, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(missing.theta, same.theta, rtol=1e-12)
     # the stand-in eta(i-1) + Delta J nu_hat becomes the base of the next difference
-    np.testing.assert_allclose(missing.measured[:2], y0[:2] + dt * np.array([np.cos(3.1) * 0.4 + np.sin(3.1) * 0.1, np.sin(3.1) * 0.4 - np.cos(3.1) * 0.1]), rtol=1e-12)
+    np.testing.assert_allclose(
+        missing.measured[:2], y0[:2] + dt * np.array([np.cos(3.1) * 0.4 + np.sin(3.1) * 0.1, np.sin(3.1) * 0.4 - np.cos(3.1) * 0.1]), rtol=1e-12
+    )
 
 
 def test_continuous_projection_stops_outward_rates_at_a_bound():
@@ -213,8 +238,16 @@ def test_discrete_form_converges_to_the_continuous_form_at_first_order():
     start = VesselState.build(eta=[10.0, -5.0, 3.0], nu=[0.5, 0.1, 0.01])
     guess = continuous.guess(eta=np.asarray(start.eta) + [5.0, -3.0, 0.1], nu=np.asarray(start.nu) + [-0.2, 0.1, -0.005], theta=M11)
     scenario = Scenario(
-        _plant(), PositionHeadingVelocitySensor(0.0, fine), continuous, SinusoidalInput.constant([2e5, 1e5, 2e7]), start, guess,
-        plant_step=fine / 2, sample_period=fine, duration=horizon + fine, observer_mode="continuous",
+        _plant(),
+        PositionHeadingVelocitySensor(0.0, fine),
+        continuous,
+        SinusoidalInput.constant([2e5, 1e5, 2e7]),
+        start,
+        guess,
+        plant_step=fine / 2,
+        sample_period=fine,
+        duration=horizon + fine,
+        observer_mode="continuous",
     )
     reference = simulate(scenario, jax.random.key(0))
     y, u, t = np.asarray(reference.measurement), np.asarray(reference.applied), np.asarray(reference.time)

@@ -18,8 +18,14 @@ from lookout.analysis import (
 
 def _observer(kappa, lam, T=1000.0):
     return PassiveObserver.design(
-        northern_clipper(), wave_frequency=0.8976, wave_damping=0.1, notch_damping=1.0, cutoff_frequency=1.1,
-        velocity_injection_gain=kappa, bias_injection_gain=lam, bias_time_constant=T,
+        northern_clipper(),
+        wave_frequency=0.8976,
+        wave_damping=0.1,
+        notch_damping=1.0,
+        cutoff_frequency=1.1,
+        velocity_injection_gain=kappa,
+        bias_injection_gain=lam,
+        bias_time_constant=T,
     )
 
 
@@ -98,7 +104,9 @@ def test_frequency_response_dataset(paper_observer):
     np.testing.assert_allclose(ds.bias_filter_frequency, 1e-3)
     np.testing.assert_allclose(ds.wave_frequency, 0.8976)
     np.testing.assert_allclose(ds.cutoff_frequency, 1.1)
-    np.testing.assert_allclose(ds.bias_gain_ratio, np.asarray(paper_observer.bias_injection_gain) / np.asarray(paper_observer.velocity_injection_gain))
+    np.testing.assert_allclose(
+        ds.bias_gain_ratio, np.asarray(paper_observer.bias_injection_gain) / np.asarray(paper_observer.velocity_injection_gain)
+    )
     # the default grid spans two decades either side of the loop's time scales
     default = frequency_response(paper_observer).frequency.values
     assert default[0] == pytest.approx(1e-5) and 100 < default[-1] < 200
@@ -140,8 +148,14 @@ def test_spr_is_not_claimed_without_a_verified_certificate():
     """A stiff loop (w_c = 1e6 rad/s) passes the frequency test, but no certificate is
     verified: the verdict is "unverified" with the reason, never "holds"."""
     observer = PassiveObserver.design(
-        northern_clipper(), wave_frequency=0.8976, wave_damping=0.1, notch_damping=1.0, cutoff_frequency=1e6,
-        velocity_injection_gain=5.91e4, bias_injection_gain=2121.0, bias_time_constant=1000.0,
+        northern_clipper(),
+        wave_frequency=0.8976,
+        wave_damping=0.1,
+        notch_damping=1.0,
+        cutoff_frequency=1e6,
+        velocity_injection_gain=5.91e4,
+        bias_injection_gain=2121.0,
+        bias_time_constant=1000.0,
     )
     for report in check_spr(observer):
         assert report.quantities["frequency_test"] and report.quantities["min_real_part"] > 0
@@ -156,7 +170,11 @@ def test_spr_is_not_claimed_without_a_verified_certificate():
 def test_passive_observer_report_has_the_tuning_rule_and_spr_per_dof(paper_observer):
     report = check_passive_observer(paper_observer)
     assert list(report.verdicts) == ["tuning_rule_48", "spr_surge", "spr_sway", "spr_yaw"]
-    assert report.holds and [{item.name for item in report[key].inequalities} for key in ("spr_surge", "spr_sway", "spr_yaw")] == [{"surge"}, {"sway"}, {"yaw"}]
+    assert report.holds and [{item.name for item in report[key].inequalities} for key in ("spr_surge", "spr_sway", "spr_yaw")] == [
+        {"surge"},
+        {"sway"},
+        {"yaw"},
+    ]
     assert np.asarray(report.quantities["K2"]).diagonal() == pytest.approx([1.1] * 3)
     assert any(line.startswith("K1 = [diag(-2.206") for line in report.summary)
 

@@ -89,6 +89,9 @@ def test_the_cycle_finder_finds_a_cycle():
 
 def test_no_observer_imports_the_design_and_analysis_code():
     edges = _edges(_modules())
-    importing = {name: sorted(t for t in targets if t.startswith("lookout.analysis"))
-                 for name, targets in edges.items() if name.startswith("lookout.observers")}
+    importing = {
+        name: sorted(t for t in targets if t.startswith("lookout.analysis"))
+        for name, targets in edges.items()
+        if name.startswith("lookout.observers")
+    }
     assert {name: targets for name, targets in importing.items() if targets} == {}

@@ -32,8 +32,15 @@ def _noise_free_loop(observer, duration=800.0, coupling_gain=0.01):
     start = VesselState.build(eta=[5.0, -3.0, 0.05], bias=BIAS)
     controller = ObserverBackstepping.for_observer(observer, **{**GAINS, "coupling_gain": coupling_gain})
     return Scenario(
-        plant, PositionHeadingSensor(0.0, 0.1), observer, controller, start, start,
-        plant_step=0.1, sample_period=0.1, duration=duration,
+        plant,
+        PositionHeadingSensor(0.0, 0.1),
+        observer,
+        controller,
+        start,
+        start,
+        plant_step=0.1,
+        sample_period=0.1,
+        duration=duration,
         reference=ReferenceFilter.vessel(0.05, [0.0, 10.0], [[0.0, 0.0, 0.0], [10.0, 5.0, 0.1]]),
     )
 
@@ -122,7 +129,17 @@ def test_an_unmodelled_constant_surge_force_gives_the_open_loop_terminal_speed_f
     observer = _observer()
     from lookout.controllers import NoControl
 
-    scenario = Scenario(plant, PositionHeadingSensor(0.5, 1.0), observer, NoControl(3), VesselState.build(), observer.guess(), plant_step=0.1, sample_period=0.1, duration=300.0)
+    scenario = Scenario(
+        plant,
+        PositionHeadingSensor(0.5, 1.0),
+        observer,
+        NoControl(3),
+        VesselState.build(),
+        observer.guess(),
+        plant_step=0.1,
+        sample_period=0.1,
+        duration=300.0,
+    )
     ds = simulate(scenario, jax.random.key(0)).to_xarray().isel(run=0)
     m, d = float(vessel.mass_matrix[0, 0]), float(vessel.damping_matrix[0, 0])
     t = ds.time.values

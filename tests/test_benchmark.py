@@ -93,8 +93,13 @@ def test_a_derived_model_cannot_be_pinned_and_the_spec_says_so():
     benchmark = _small("cybership-ii")
     observers = copy.deepcopy(benchmark.spec.observers)
     observers["passive"].pop("vessel")
-    changed = bench.Benchmark(benchmark.spec.model_copy(update={"observers": observers}), benchmark.name, benchmark.source, benchmark.text, benchmark.base)
-    with pytest.raises(Exception, match=r"conditions\[6\].*mass \+25 % \(observer passive\): observer.vessel: the observer takes its vessel from plant cybership-ii, which derives it"):
+    changed = bench.Benchmark(
+        benchmark.spec.model_copy(update={"observers": observers}), benchmark.name, benchmark.source, benchmark.text, benchmark.base
+    )
+    with pytest.raises(
+        Exception,
+        match=r"conditions\[6\].*mass \+25 % \(observer passive\): observer.vessel: the observer takes its vessel from plant cybership-ii, which derives it",
+    ):
         bench.observer_campaign(changed, "quick", "passive")
 
 
@@ -186,12 +191,28 @@ def test_the_command_writes_tables_figures_reports_and_which_observer_to_pick(tm
     assert main(["benchmark", "observers", "--spec", str(spec), "--out", str(out), "--quick", "--workers", "0"]) == 0
     printed = capsys.readouterr().out
     folder = out / "tiny"
-    for name in ("benchmark.nc", "table.md", "table.csv", "report.html", "summary.json", "figures/cost.png", "figures/rms_error__position.png",
-                 "figures/rms_tracking__position.png", "figures/outage.png", "reports/passive.html", "reports/passive.closed-loop.html",
-                 "passive.zarr", "passive.closed-loop.zarr", "adaptive-dp.zarr"):
+    for name in (
+        "benchmark.nc",
+        "table.md",
+        "table.csv",
+        "report.html",
+        "summary.json",
+        "figures/cost.png",
+        "figures/rms_error__position.png",
+        "figures/rms_tracking__position.png",
+        "figures/outage.png",
+        "reports/passive.html",
+        "reports/passive.closed-loop.html",
+        "passive.zarr",
+        "passive.closed-loop.zarr",
+        "adaptive-dp.zarr",
+    ):
         assert (folder / name).exists(), name
     assert not (folder / "adaptive-dp.closed-loop.zarr").exists()
-    assert "  adaptive-dp not run at 'closed loop': controller: controller observer-backstepping needs an observer that is a WaveFilteringObserver" in printed
+    assert (
+        "  adaptive-dp not run at 'closed loop': controller: controller observer-backstepping needs an observer that is a WaveFilteringObserver"
+        in printed
+    )
     table = (folder / "table.md").read_text()
     assert "| adaptive-dp |" in table and "| observer | baseline | outage | mass +25 % | closed loop |" in table
     assert "rms error of bias force" in table and "| adaptive-dp | — | — | — | — |" in table  # it estimates no bias
@@ -206,7 +227,11 @@ def test_the_command_writes_tables_figures_reports_and_which_observer_to_pick(tm
     assert np.isnan(ds.diverged.values[1, 3]).all()  # adaptive-dp: not run in the closed loop
     recommendations = benchmark_report.recommend(ds)
     assert [r.condition for r in recommendations] == ["baseline", "outage", "mass +25 %", "closed loop"]
-    assert recommendations[3].metric == "rms_tracking__position" and recommendations[3].observer == "passive" and recommendations[0].metric == "rms_error__position"
+    assert (
+        recommendations[3].metric == "rms_tracking__position"
+        and recommendations[3].observer == "passive"
+        and recommendations[0].metric == "rms_error__position"
+    )
     for recommendation in recommendations:
         _check_against_the_rule(ds, recommendation)
         assert f"  {recommendation.text()}\n" in printed and f"- {recommendation.text()}\n" in table
@@ -221,7 +246,11 @@ def test_the_command_writes_tables_figures_reports_and_which_observer_to_pick(tm
     capsys.readouterr()
     assert main(["benchmark", "observers", "--spec", str(spec), "--out", str(out), "--workers", "0"]) == 2
     error = capsys.readouterr().err.strip()
-    assert error.startswith("error: --out: ") and "passive.zarr holds observer passive's benchmark with other settings (outage_start: 60.0 -> 100.0; duration: 100.0 -> 200.0)" in error and "\n" not in error, error
+    assert (
+        error.startswith("error: --out: ")
+        and "passive.zarr holds observer passive's benchmark with other settings (outage_start: 60.0 -> 100.0; duration: 100.0 -> 200.0)" in error
+        and "\n" not in error
+    ), error
 
 
 # ------------------------------------------------------------------ which observer to pick
@@ -297,8 +326,11 @@ def _table(columns: dict[str, dict[str, np.ndarray]], costs: dict[str, float], d
     metrics = ["rms_error:position"] + (["rms_tracking:position"] if tracking is not None else [])
     from lookout.studies.benchmark_report import lead_metrics
 
-    return xr.Dataset(data, coords={"observer": observers, "condition": conditions, "seed": np.arange(seeds)},
-                      attrs={"recommend_by": json.dumps(lead_metrics(metrics)), "skipped": "[]"})
+    return xr.Dataset(
+        data,
+        coords={"observer": observers, "condition": conditions, "seed": np.arange(seeds)},
+        attrs={"recommend_by": json.dumps(lead_metrics(metrics)), "skipped": "[]"},
+    )
 
 
 def test_the_recommendation_of_a_table_whose_answer_is_known():
@@ -325,9 +357,11 @@ def test_the_recommendation_of_a_table_whose_answer_is_known():
     assert (rough.observer, rough.tied, rough.next) == ("ekf", ("ukf",), "passive")
     assert rough.ratio == pytest.approx(0.75 / 0.4) and rough.value == pytest.approx(0.4 * np.median(sea))
     assert rough.excluded == ("adaptive-dp (2 of 16 runs diverged)",)  # the lowest values, but it diverged
-    assert rough.text() == (f"rough sea: ekf (tied with ukf; as cheap (within 10%), the lower median), RMS position error {rough.value:.3g} m, "
-                            "1.9x better than passive (next), "
-                            "at 18.4 us per sample against 0.13 us; not considered: adaptive-dp (2 of 16 runs diverged)")
+    assert rough.text() == (
+        f"rough sea: ekf (tied with ukf; as cheap (within 10%), the lower median), RMS position error {rough.value:.3g} m, "
+        "1.9x better than passive (next), "
+        "at 18.4 us per sample against 0.13 us; not considered: adaptive-dp (2 of 16 runs diverged)"
+    )
     # the passive observer is 2 % worse on every seed: within the margin, a tie, and the cheapest of the three
     assert (calm.observer, set(calm.tied), calm.next) == ("passive", {"ekf", "ukf"}, "adaptive-dp")
     # the EKF's median is 14 % lower, but it is lower on 8 seeds of 16 only: a tie, and the cheaper wins
@@ -337,15 +371,20 @@ def test_the_recommendation_of_a_table_whose_answer_is_known():
         _check_against_the_rule(ds, recommendation)
 
     # four seeds separate when the best wins all four; three never do (provisional: the lowest median)
-    four = recommend(_table({"c": {"ekf": np.array([1.0, 1.1, 0.9, 1.2]), "passive": np.array([1.5, 1.6, 1.4, 1.7])}}, {"ekf": 10.0, "passive": 1.0}))[0]
+    four = recommend(
+        _table({"c": {"ekf": np.array([1.0, 1.1, 0.9, 1.2]), "passive": np.array([1.5, 1.6, 1.4, 1.7])}}, {"ekf": 10.0, "passive": 1.0})
+    )[0]
     assert (four.observer, four.next, four.provisional) == ("ekf", "passive", False)
     three = recommend(_table({"c": {"ekf": np.array([1.0, 1.1, 0.9]), "passive": np.array([1.5, 1.6, 1.4])}}, {"ekf": 10.0, "passive": 1.0}))[0]
     assert (three.observer, three.next, three.provisional) == ("ekf", "passive", True)
     assert "provisional: 3 seeds cannot separate observers (a sign test at 10% needs 4)" in three.text()
 
     # a closed loop is led by its tracking error, the open-loop conditions by the estimation error
-    ds = _table({"open": {"ekf": 0.2 * sea, "passive": 0.5 * sea}, "closed": {"ekf": 0.2 * sea, "passive": 0.5 * sea}}, {"ekf": 18.0, "passive": 0.1},
-                tracking={("ekf", "closed"): 3.0 * sea, ("passive", "closed"): 1.0 * sea})
+    ds = _table(
+        {"open": {"ekf": 0.2 * sea, "passive": 0.5 * sea}, "closed": {"ekf": 0.2 * sea, "passive": 0.5 * sea}},
+        {"ekf": 18.0, "passive": 0.1},
+        tracking={("ekf", "closed"): 3.0 * sea, ("passive", "closed"): 1.0 * sea},
+    )
     open_loop, closed = recommend(ds)
     assert (open_loop.metric, open_loop.observer) == ("rms_error__position", "ekf")
     assert (closed.metric, closed.observer, closed.label) == ("rms_tracking__position", "passive", "RMS position tracking error")
@@ -361,8 +400,14 @@ def test_the_recommendation_follows_the_rule_on_random_tables():
         seeds = int(rng.integers(2, 20))
         observers = [f"o{i}" for i in range(int(rng.integers(1, 6)))]
         common = rng.lognormal(0.0, 0.5, seeds)
-        columns = {f"c{j}": {o: rng.lognormal(rng.normal(0.0, 0.3), 0.1, 1) * common * rng.lognormal(0.0, rng.uniform(0.0, 0.5), seeds)
-                             for o in observers if rng.random() > 0.1} for j in range(3)}
+        columns = {
+            f"c{j}": {
+                o: rng.lognormal(rng.normal(0.0, 0.3), 0.1, 1) * common * rng.lognormal(0.0, rng.uniform(0.0, 0.5), seeds)
+                for o in observers
+                if rng.random() > 0.1
+            }
+            for j in range(3)
+        }
         columns = {c: v for c, v in columns.items() if v} or {"c0": {observers[0]: common}}
         costs = {o: float(rng.choice([0.1, 1.0, 10.0])) for o in observers}
         diverged = {(o, c): [int(rng.integers(0, seeds))] for c in columns for o in columns[c] if rng.random() < 0.15}
@@ -400,9 +445,14 @@ def test_every_example_is_read_as_what_it_is():
     assert {name for name, form in forms.items() if form == "campaign"} == {"dp-study.toml", "kim-model-error.toml", "own-vessel-study.toml"}
     assert all(form == "scenario" for name, form in forms.items() if name not in {"dp-study.toml", "kim-model-error.toml", "own-vessel-study.toml"})
     for name in ("dp-study.toml",):
-        with pytest.raises(bench.FileError, match=rf"{name}: is a campaign spec \(.*\): run it with lookout campaign run .*{name}; --spec takes a benchmark spec or a scenario file"):
+        with pytest.raises(
+            bench.FileError,
+            match=rf"{name}: is a campaign spec \(.*\): run it with lookout campaign run .*{name}; --spec takes a benchmark spec or a scenario file",
+        ):
             bench.load_benchmark(EXAMPLES / name)
-    with pytest.raises(ValueError, match=r"mixes a benchmark spec's keys \(title\) with a scenario's tables \(plant\): put the scenario under \[scenario\]"):
+    with pytest.raises(
+        ValueError, match=r"mixes a benchmark spec's keys \(title\) with a scenario's tables \(plant\): put the scenario under \[scenario\]"
+    ):
         bench.file_form({"title": "x", "plant": {"kind": "dp-vessel"}})
 
 
@@ -425,7 +475,9 @@ def test_a_scenario_file_is_benchmarked_with_every_observer_that_composes_on_it(
     assert spec.observers["passive"] == {"kind": "passive", "design": "fossen-strand-1999"}
     assert spec.observers["earth-fixed"] == {"kind": "earth-fixed", "position_gain": 0.4, "velocity_gain": 0.04, "ship": {"kind": "dp-vessel"}}
     skipped = [note for note in benchmark.notes if note.startswith("skipped ")]
-    assert {note.split(":")[0] for note in skipped} == {f"skipped {k.name}" for k in registry.kinds("observer")} - {f"skipped {n}" for n in spec.observers}
+    assert {note.split(":")[0] for note in skipped} == {f"skipped {k.name}" for k in registry.kinds("observer")} - {
+        f"skipped {n}" for n in spec.observers
+    }
     assert all("\n" not in note and len(note) < 300 for note in benchmark.notes)
     assert benchmark.base["plant"] == file["plant"] and benchmark.base["sensor"] == file["sensor"]
     assert benchmark.base["controller"]["kind"] == "sinusoidal" and benchmark.base["reference"] == {"kind": "none"}  # open loop
@@ -438,10 +490,14 @@ def test_a_scenario_file_is_benchmarked_with_every_observer_that_composes_on_it(
     loop = "closed loop (observer-backstepping)"
     assert {name for name, condition in runs if condition == loop} == {"sliding-mode-as-given", "passive"}
     assert {name for name, condition in runs if condition == "baseline"} == {"sliding-mode-as-given", "passive", "ekf"}
-    assert planned.skipped == [f"ekf not run at '{loop}': controller: controller observer-backstepping needs an observer that is a "
-                               "WaveFilteringObserver; observer ekf is not one"]
-    assert {each.store for each in planned.campaigns if each.conditions == (loop,)} == {"passive.closed-loop-observer-backstepping",
-                                                                                        "sliding-mode-as-given.closed-loop-observer-backstepping"}
+    assert planned.skipped == [
+        f"ekf not run at '{loop}': controller: controller observer-backstepping needs an observer that is a "
+        "WaveFilteringObserver; observer ekf is not one"
+    ]
+    assert {each.store for each in planned.campaigns if each.conditions == (loop,)} == {
+        "passive.closed-loop-observer-backstepping",
+        "sliding-mode-as-given.closed-loop-observer-backstepping",
+    }
 
 
 def test_a_scenario_files_model_errors_are_relative_to_its_own_model():
@@ -449,8 +505,12 @@ def test_a_scenario_files_model_errors_are_relative_to_its_own_model():
     with 50 % more damping: "mass +25 %" is 25 % on its own mass."""
     spec = bench.load_benchmark(EXAMPLES / "kim-closed-loop.toml").spec
     errors = {c.name: c.truth_only for c in spec.conditions if c.truth_only}
-    assert errors == {"mass +25 %": {"plant.vessel.mass_scale": 1.5}, "mass -25 %": {"plant.vessel.mass_scale": 0.9},
-                      "damping +25 %": {"plant.vessel.damping_scale": 1.875}, "damping -25 %": {"plant.vessel.damping_scale": 1.125}}
+    assert errors == {
+        "mass +25 %": {"plant.vessel.mass_scale": 1.5},
+        "mass -25 %": {"plant.vessel.mass_scale": 0.9},
+        "damping +25 %": {"plant.vessel.damping_scale": 1.875},
+        "damping -25 %": {"plant.vessel.damping_scale": 1.125},
+    }
 
 
 FURUTA = """
@@ -472,8 +532,14 @@ def test_a_scenario_file_of_a_plant_without_a_shipped_benchmark_runs_generic_con
     scenario = tmp_path / "furuta.toml"
     scenario.write_text(FURUTA)
     benchmark = bench.load_benchmark(scenario)
-    assert [c.name for c in benchmark.spec.conditions] == ["baseline", "10 % lost samples", "50 % lost samples", "0.03 s joint angle outage",
-                                                           "coulomb friction +25 %", "coulomb friction -25 %"]
+    assert [c.name for c in benchmark.spec.conditions] == [
+        "baseline",
+        "10 % lost samples",
+        "50 % lost samples",
+        "0.03 s joint angle outage",
+        "coulomb friction +25 %",
+        "coulomb friction -25 %",
+    ]
     assert list(benchmark.spec.observers) == ["adaptive-manipulator-as-given", "velocity"]
     assert 0 < benchmark.spec.quick.outage_start and benchmark.spec.quick.outage_start + 0.03 < benchmark.spec.quick.duration
     out = tmp_path / "out"
@@ -517,43 +583,114 @@ def _replace(old: str, new: str):
         ([], "", lambda text: text.replace('title = "tiny: two observers on the DP vessel"', ""), "title: missing key"),
         ([], "", lambda text: 'title = "x"\n[plant]\nkind = "dp-vessel"\n', "mixes a benchmark spec's keys (title) with a scenario's tables (plant)"),
         # spec keys
-        ([], "[observers.ekf]\nkind = \"ekf\"\nmeasurement_noise = [0.0, 1.0, 1.0]\n", None, "observers.ekf.measurement_noise"),
-        ([], "[observers.nope]\nkind = \"kalman\"\n", None, "observers.nope.kind"),
+        ([], '[observers.ekf]\nkind = "ekf"\nmeasurement_noise = [0.0, 1.0, 1.0]\n', None, "observers.ekf.measurement_noise"),
+        ([], '[observers.nope]\nkind = "kalman"\n', None, "observers.nope.kind"),
         ([], "initial_theta = [1.0, 2.0]\n", None, "observers.adaptive-dp"),
         ([], "", _replace('title = "tiny: two observers on the DP vessel"', 'title = " "'), "title (line 2): must not be empty"),
-        ([], "", _replace('metrics = [', 'seedx = 1\nmetrics = ['), "seedx (line 4): unknown key"),
-        ([], "", _replace('metrics = [', 'seed = -1\nmetrics = ['), "seed (line 4): must be an integer from 0 to"),
+        ([], "", _replace("metrics = [", "seedx = 1\nmetrics = ["), "seedx (line 4): unknown key"),
+        ([], "", _replace("metrics = [", "seed = -1\nmetrics = ["), "seed (line 4): must be an integer from 0 to"),
         ([], "", _replace("outage_start = 60.0", "outage_start = 150.0"), "quick.outage_start (line 17): must be in [0, duration = 100 s); got 150"),
-        ([], "", _replace('outage_signals = ["measured_position"]', 'outage_signals = []'), "full.outage_start (line 12): no outage starts: outage_signals names none"),
-        ([], "", _replace('changes = {{ "sensor.outage_duration" = 20.0 }}'.replace("{{", "{").replace("}}", "}"), ""),
-         "outage_signals (line 7): no condition has an outage (changes with \"sensor.outage_duration\" > 0): the outage would measure nothing"),
-        ([], "", _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_start" = 30.0'), "conditions[1]: outage: sets sensor.outage_start, but the condition has no outage"),
-        ([], "", _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 0.5, "sensor.outage_start" = 60.2'),
-         "conditions[1]: outage: the outage of 0.5 s from 60.2 s silences no sample of a signal sampled every 1 s: it would measure nothing"),
-        ([], "", _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 50.0'), "conditions[1]: outage: the outage ends at 110 s, not before the quick run"),
-        ([], "", _replace("outage_start = 60.0", "outage_start = 60.0\nafter = 100.0"), "quick.after (line 18): must be in [0, duration = 100 s): the metrics need records after it; got 100"),
-        ([], "", _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 20.0, "simulation.seed" = 3'),
-         "conditions[1].changes: 'simulation.seed': the benchmark sets it (the spec's seed); a condition cannot change it"),
-        ([], "", _replace('"plant.vessel.mass_scale" = 1.25', '"sensor.noise_std" = 1.0'), "'sensor.noise_std': a model error changes the plant (keys plant.*)"),
-        ([], "", _replace('scenario = {{ preset = "fossen-strand-1999:paper" }}'.replace("{{", "{").replace("}}", "}"),
-                          'scenario = { preset = "fossen-strand-1999:paper", simulation = { duration = 50.0 } }'),
-         "scenario.simulation.duration (line 3): the benchmark sets it (full.duration and quick.duration); drop it here"),
-        ([], "", _replace('scenario = {{ preset = "fossen-strand-1999:paper" }}'.replace("{{", "{").replace("}}", "}"),
-                          'scenario = { preset = "fossen-strand-1999:paper", observer = { kind = "ekf" } }'),
-         "scenario.observer (line 3): the benchmark sets it (the [observers.NAME] tables); drop it here"),
-        ([], "", _replace('scenario = {{ preset = "fossen-strand-1999:paper" }}'.replace("{{", "{").replace("}}", "}"), 'scenario = "nowhere.toml"'),
-         "scenario (line 3): "),
-        ([], "", _replace('metrics = [', 'recommend_by = ["rms_error:velocity"]\nmetrics = ['), "recommend_by (line 4): 'rms_error:velocity' is not one of the metrics"),
+        (
+            [],
+            "",
+            _replace('outage_signals = ["measured_position"]', "outage_signals = []"),
+            "full.outage_start (line 12): no outage starts: outage_signals names none",
+        ),
+        (
+            [],
+            "",
+            _replace('changes = {{ "sensor.outage_duration" = 20.0 }}'.replace("{{", "{").replace("}}", "}"), ""),
+            'outage_signals (line 7): no condition has an outage (changes with "sensor.outage_duration" > 0): the outage would measure nothing',
+        ),
+        (
+            [],
+            "",
+            _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_start" = 30.0'),
+            "conditions[1]: outage: sets sensor.outage_start, but the condition has no outage",
+        ),
+        (
+            [],
+            "",
+            _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 0.5, "sensor.outage_start" = 60.2'),
+            "conditions[1]: outage: the outage of 0.5 s from 60.2 s silences no sample of a signal sampled every 1 s: it would measure nothing",
+        ),
+        (
+            [],
+            "",
+            _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 50.0'),
+            "conditions[1]: outage: the outage ends at 110 s, not before the quick run",
+        ),
+        (
+            [],
+            "",
+            _replace("outage_start = 60.0", "outage_start = 60.0\nafter = 100.0"),
+            "quick.after (line 18): must be in [0, duration = 100 s): the metrics need records after it; got 100",
+        ),
+        (
+            [],
+            "",
+            _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 20.0, "simulation.seed" = 3'),
+            "conditions[1].changes: 'simulation.seed': the benchmark sets it (the spec's seed); a condition cannot change it",
+        ),
+        (
+            [],
+            "",
+            _replace('"plant.vessel.mass_scale" = 1.25', '"sensor.noise_std" = 1.0'),
+            "'sensor.noise_std': a model error changes the plant (keys plant.*)",
+        ),
+        (
+            [],
+            "",
+            _replace(
+                'scenario = {{ preset = "fossen-strand-1999:paper" }}'.replace("{{", "{").replace("}}", "}"),
+                'scenario = { preset = "fossen-strand-1999:paper", simulation = { duration = 50.0 } }',
+            ),
+            "scenario.simulation.duration (line 3): the benchmark sets it (full.duration and quick.duration); drop it here",
+        ),
+        (
+            [],
+            "",
+            _replace(
+                'scenario = {{ preset = "fossen-strand-1999:paper" }}'.replace("{{", "{").replace("}}", "}"),
+                'scenario = { preset = "fossen-strand-1999:paper", observer = { kind = "ekf" } }',
+            ),
+            "scenario.observer (line 3): the benchmark sets it (the [observers.NAME] tables); drop it here",
+        ),
+        (
+            [],
+            "",
+            _replace('scenario = {{ preset = "fossen-strand-1999:paper" }}'.replace("{{", "{").replace("}}", "}"), 'scenario = "nowhere.toml"'),
+            "scenario (line 3): ",
+        ),
+        (
+            [],
+            "",
+            _replace("metrics = [", 'recommend_by = ["rms_error:velocity"]\nmetrics = ['),
+            "recommend_by (line 4): 'rms_error:velocity' is not one of the metrics",
+        ),
         ([], "", _replace('"rms_tracking:position"]', '"rms_tracking:velocity"]'), "'rms_tracking:velocity' applies to no observer at any condition"),
         ([], "", _replace('"rms_error:bias_force"', '"rms_error:bias_forse"'), "'rms_error:bias_forse' applies to no observer at any condition"),
-        ([], "", _replace('signal = "position", limit = 100.0', 'signal = "positon", limit = 100.0'), "divergence.signal (line 6): the plant has no variable 'positon' (it has position, heading,"),
+        (
+            [],
+            "",
+            _replace('signal = "position", limit = 100.0', 'signal = "positon", limit = 100.0'),
+            "divergence.signal (line 6): the plant has no variable 'positon' (it has position, heading,",
+        ),
         ([], "", _replace('signal = "position", limit = 100.0', 'signal = "position", limit = -1.0'), "divergence.limit"),
         ([], "", _replace("seeds = 4\noutage_start = 60.0", "seeds = 0\noutage_start = 60.0"), "quick.seeds"),
         ([], "", _replace("duration = 100.0", "duration = -100.0"), "quick.duration"),
-        ([], "", _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 20.0, "sensor.dropout_probabilty" = 0.1'),
-         "conditions[1]: outage (observer passive): the scenario has no setting 'sensor.dropout_probabilty' (sensor has "),
-        ([], "", _replace("kind = \"observer-backstepping\"", "kind = \"observer-backstepping\"\nbogus = 1"),
-         "conditions[3]: closed loop (observer passive): controller.bogus: unknown key"),
+        (
+            [],
+            "",
+            _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 20.0, "sensor.dropout_probabilty" = 0.1'),
+            "conditions[1]: outage (observer passive): the scenario has no setting 'sensor.dropout_probabilty' (sensor has ",
+        ),
+        (
+            [],
+            "",
+            _replace('kind = "observer-backstepping"', 'kind = "observer-backstepping"\nbogus = 1'),
+            "conditions[3]: closed loop (observer passive): controller.bogus: unknown key",
+        ),
         ([], "", _replace('name = "outage"', 'name = "baseline"'), "condition names repeat"),
     ],
 )
@@ -582,7 +719,11 @@ def test_what_the_machine_cannot_hold_or_reach_is_refused_before_anything_is_wri
     cases = [
         (["--scheduler", "tcp://127.0.0.1:1"], {}, "--scheduler tcp://127.0.0.1:1: cannot reach the scheduler ("),
         (["--workers", "0"], {"free_disk": lambda path: 1000}, f"--out {out}: the benchmark's stores in {out} would need about"),
-        (["--workers", "0"], {"available_memory": lambda: 1000}, "quick.seeds (line 16): (observer passive) 3 point(s) x 4 seeds in 3 chunks would need about"),
+        (
+            ["--workers", "0"],
+            {"available_memory": lambda: 1000},
+            "quick.seeds (line 16): (observer passive) 3 point(s) x 4 seeds in 3 chunks would need about",
+        ),
         (["--workers", "0"], {"available_memory": lambda: 1e6}, "quick.seeds = 4: a chunk (the 4 runs of a condition, 100 s each) needs about"),
     ]
     for arguments, patches, message in cases:

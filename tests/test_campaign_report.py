@@ -187,8 +187,14 @@ def test_spec_is_a_readable_table(report):
     # what was run comes before what came out
     assert page.index('<section id="spec">') < page.index('<section id="summary">')
     scenario = dict(_rows(spec, "spec-scenario"))
-    assert scenario == {"plant": "dp-vessel", "sensor": "position-heading", "observer": "passive (design fossen-strand-1999)",
-                        "reference": "none", "controller": "sinusoidal", "actuator": "ideal"}
+    assert scenario == {
+        "plant": "dp-vessel",
+        "sensor": "position-heading",
+        "observer": "passive (design fossen-strand-1999)",
+        "reference": "none",
+        "controller": "sinusoidal",
+        "actuator": "ideal",
+    }
     # the keys that differ from their kind's default, value and default: the duration among them
     changed = {row[0]: row[1:] for row in _rows(spec, "spec-changed")}
     assert changed["key"] == ["value", "default", "description"]
@@ -201,15 +207,19 @@ def test_spec_is_a_readable_table(report):
     campaign = dict((row[0], row[1]) for row in _rows(spec, "spec-campaign"))
     assert campaign["seeds"] == "4 per point: seeds 0 to 3, the same at every point"
     assert campaign["chunks"] == "2 runs per chunk: 12 chunks (6 points × 2 blocks of seeds)"
-    assert campaign["metrics"].split("<br>") == ["rms_error:position: RMS estimation error of low-frequency position (m)",
-                                                 "max_excursion:position: largest excursion of low-frequency position (m)"]
+    assert campaign["metrics"].split("<br>") == [
+        "rms_error:position: RMS estimation error of low-frequency position (m)",
+        "max_excursion:position: largest excursion of low-frequency position (m)",
+    ]
     assert campaign["metric window"] == "t ≥ 10 s (after = 10)"
     assert campaign["diverged"] == "the position error beyond 50 m at any record, or a truth or estimate that is not finite"
     assert campaign["trajectories kept"] == "none"
     assert "grid: 6 points, every combination of the axes" in spec
-    assert _rows(spec, "spec-axes") == [["axis", "field", "values", "applied"],
-                                        ["wave_frequency", "plant.waves.peak_frequency, observer.wave_frequency", "0.6, 0.8, 1 (rad/s)", "sets the value"],
-                                        ["dropout_probability", "sensor.dropout_probability", "0, 0.1", "sets the value"]]
+    assert _rows(spec, "spec-axes") == [
+        ["axis", "field", "values", "applied"],
+        ["wave_frequency", "plant.waves.peak_frequency, observer.wave_frequency", "0.6, 0.8, 1 (rad/s)", "sets the value"],
+        ["dropout_probability", "sensor.dropout_probability", "0, 0.1", "sets the value"],
+    ]
     # the raw JSON only collapsed, after the tables
     assert spec.count("<pre>") == 1 and spec.index('id="spec-axes"') < spec.rindex("<details>") < spec.index("<pre>")
 
@@ -217,14 +227,23 @@ def test_spec_is_a_readable_table(report):
 def test_spec_defaults_window_and_divergence_rule():
     document = {key: value for key, value in json.loads(json.dumps(DOCUMENT)).items() if key not in ("after", "divergence")}
     document["scenario"] = campaign_from_document(json.loads(json.dumps(DOCUMENT)), "<test>").base.document()
-    document["sweep"]["axes"][1] = {"name": "noise", "field": ["sensor.noise_std[0]", "sensor.noise_std[1]"], "range": [0.5, 2.0], "steps": 4,
-                                    "scale": True}
+    document["sweep"]["axes"][1] = {
+        "name": "noise",
+        "field": ["sensor.noise_std[0]", "sensor.noise_std[1]"],
+        "range": [0.5, 2.0],
+        "steps": 4,
+        "scale": True,
+    }
     spec = report_module._spec_html(document, [], 6, 2, 12)
     campaign = dict((row[0], row[1]) for row in _rows(spec, "spec-campaign"))
     assert campaign["metric window"] == "t ≥ 10 s: the second half of the run (the default)"
     assert campaign["diverged"] == "a truth or estimate that is not finite at any record (no divergence limit)"
-    assert _rows(spec, "spec-axes")[2] == ["noise", "sensor.noise_std[0], sensor.noise_std[1]", "4 steps over [0.5, 2]: 0.5, 1, 1.5, 2",
-                                           "× base value"]
+    assert _rows(spec, "spec-axes")[2] == [
+        "noise",
+        "sensor.noise_std[0], sensor.noise_std[1]",
+        "4 steps over [0.5, 2]: 0.5, 1, 1.5, 2",
+        "× base value",
+    ]
 
 
 def html_escape(text: str) -> str:
@@ -286,9 +305,13 @@ def test_latin_hypercube_and_three_axis_grid_figures():
         data = rng.lognormal(size=(points, seeds)) * np.logspace(0, 4, points)[:, None]
         data[2] = np.nan  # a point not computed yet
         return xr.Dataset(
-            {"final__x": (("point", "seed"), data, {"units": "m", "long_name": "final value of x", "metric": "final:x"}),
-             "diverged": (("point", "seed"), np.where(np.isnan(data), np.nan, 0.0))},
-            coords=coords, attrs={"sweep_kind": kind, "axes": json.dumps(list(axes))})
+            {
+                "final__x": (("point", "seed"), data, {"units": "m", "long_name": "final value of x", "metric": "final:x"}),
+                "diverged": (("point", "seed"), np.where(np.isnan(data), np.nan, 0.0)),
+            },
+            coords=coords,
+            attrs={"sweep_kind": kind, "axes": json.dumps(list(axes))},
+        )
 
     latin = report_figures(dataset("latin-hypercube", {"a": rng.random(points), "b": rng.random(points)}), None)
     assert sorted(latin) == ["final__x-vs-a.png", "final__x-vs-b.png"]  # no run diverged: no divergence figures
@@ -322,8 +345,17 @@ def _browser():
 
 
 def _chromium(browser, tmp_path, name, url, *arguments):
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-             "--disable-component-update", "--disable-sync", f"--user-data-dir={tmp_path / f'profile-{name}'}"]
+    flags = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp_path / f'profile-{name}'}",
+    ]
     return subprocess.run([browser, *flags, *arguments, url], capture_output=True, text=True, timeout=60)
 
 
@@ -372,8 +404,9 @@ def test_figures_in_two_columns_in_headless_browser(report, tmp_path):
     probe.write_text(report[0].read_text().replace("</body>", _LAYOUT_PROBE, 1))
 
     def layout(width):
-        dom = _chromium(browser, tmp_path, f"layout-{width}", probe.resolve().as_uri(), f"--window-size={width},2000",
-                        "--virtual-time-budget=5000", "--dump-dom")
+        dom = _chromium(
+            browser, tmp_path, f"layout-{width}", probe.resolve().as_uri(), f"--window-size={width},2000", "--virtual-time-budget=5000", "--dump-dom"
+        )
         found = re.search(r'data-layout="([^"]*)"', dom.stdout)
         assert found, dom.stderr[-2000:]
         return json.loads(html.unescape(found.group(1)))

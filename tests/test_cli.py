@@ -180,7 +180,11 @@ BAD_INPUTS = [
     ([*DESIGN, "--wave-period", "nan"], "--wave-period", "must be a finite positive number; got nan"),
     ([*DESIGN], "--wave-frequency", "give exactly one of --wave-frequency and --wave-period"),
     ([*DESIGN, "--wave-frequency", "1", "--wave-period", "6"], "--wave-period", "give exactly one"),
-    ([*DESIGN, "--wave-period", "5", "--cutoff-frequency", "1.1"], "--cutoff-frequency", "must exceed the wave frequency w_o = 1.257 rad/s (from --wave-period 5); got 1.1: raise it, or leave it out for max(1.1, 1.2255 w_o)"),
+    (
+        [*DESIGN, "--wave-period", "5", "--cutoff-frequency", "1.1"],
+        "--cutoff-frequency",
+        "must exceed the wave frequency w_o = 1.257 rad/s (from --wave-period 5); got 1.1: raise it, or leave it out for max(1.1, 1.2255 w_o)",
+    ),
     ([*DESIGN, "--wave-frequency", "0.9", "--velocity-gain", "-1"], "--velocity-gain", "got -1"),
     ([*DESIGN, "--wave-frequency", "0.9", "--velocity-gain", "1,2"], "--velocity-gain", "three separated by commas"),
     ([*DESIGN, "--wave-frequency", "0.9", "--bias-gain", "x"], "--bias-gain", "got x"),
@@ -334,7 +338,13 @@ def test_monte_carlo_run_0_is_the_single_run_to_the_last_bit_and_reports_spread(
 
 @pytest.mark.parametrize(
     "mean, spread, text",
-    [(1453.0, 100.0, "1450 ± 100"), (1507.0, 39.0, "1507 ± 39"), (0.662, 0.013, "0.662 ± 0.013"), (1.19e-4, 6.6e-6, "(1.190 ± 0.066)e-4"), (25745.0, 2051.0, "25700 ± 2100")],
+    [
+        (1453.0, 100.0, "1450 ± 100"),
+        (1507.0, 39.0, "1507 ± 39"),
+        (0.662, 0.013, "0.662 ± 0.013"),
+        (1.19e-4, 6.6e-6, "(1.190 ± 0.066)e-4"),
+        (25745.0, 2051.0, "25700 ± 2100"),
+    ],
 )
 def test_mean_and_spread_share_one_decimal_place(mean, spread, text):
     assert mean_and_spread(mean, spread) == text
@@ -460,7 +470,10 @@ def test_components_lists_the_design_rules_of_each_kind(capsys):
 HEAVY_MODULES = ("jax", "jaxlib", "numpy", "xarray", "equinox", "scipy", "matplotlib")
 
 
-@pytest.mark.parametrize("argv", [["--version"], ["--help"], [], ["run", "--help"], ["replay", "--help"], ["design", "passive-observer", "--help"], ["campaign", "run", "--help"]])
+@pytest.mark.parametrize(
+    "argv",
+    [["--version"], ["--help"], [], ["run", "--help"], ["replay", "--help"], ["design", "passive-observer", "--help"], ["campaign", "run", "--help"]],
+)
 def test_version_and_help_answer_without_importing_jax_or_numpy(argv):
     """The command's start (lookout.cli, what it registers, lookout's __init__) imports
     nothing that computes; each command imports that when it runs."""
@@ -495,12 +508,17 @@ def test_a_second_run_of_a_file_loads_the_programs_the_first_compiled_and_the_sw
     # every program is cached whatever its compile time here (the command's own
     # threshold is a setting, not what this checks); the second run logs its cache hits
     env = _command_environment(tmp_path / "cache", JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0")
-    first = subprocess.run([sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "one")], capture_output=True, text=True, env=env)
+    first = subprocess.run(
+        [sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "one")], capture_output=True, text=True, env=env
+    )
     assert first.returncode == 0, first.stderr
     entries = sorted(path.name for path in cache.iterdir())
     assert entries and all(name.endswith("-cache") for name in entries), entries
     second = subprocess.run(
-        [sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "two")], capture_output=True, text=True, env=env | {"JAX_LOG_COMPILES": "1"}
+        [sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "two")],
+        capture_output=True,
+        text=True,
+        env=env | {"JAX_LOG_COMPILES": "1"},
     )
     assert second.returncode == 0, second.stderr
     hits = second.stderr.count("Persistent compilation cache hit")
@@ -509,7 +527,9 @@ def test_a_second_run_of_a_file_loads_the_programs_the_first_compiled_and_the_sw
 
     off = tmp_path / "off"
     env = _command_environment(off, JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0", LOOKOUT_COMPILATION_CACHE="0")
-    result = subprocess.run([sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "three")], capture_output=True, text=True, env=env)
+    result = subprocess.run(
+        [sys.executable, "-m", "lookout.cli", "run", str(scenario), "--out", str(tmp_path / "three")], capture_output=True, text=True, env=env
+    )
     assert result.returncode == 0, result.stderr
     assert not (off / "lookout").exists()  # (matplotlib keeps its own cache there too)
 
@@ -597,6 +617,8 @@ def test_a_long_simulation_says_its_time_left_after_the_segment_that_compiles():
 
     # 100 s compiling the first 5 % of the records, then 5 % more in 10 s: 18 segments of 10 s left
     line = time_left([(100.0, 50.0), (110.0, 100.0)], 1000.0, 0.0)
-    assert line == "simulating: about 3 min 00 s left (10% of the records in 1 min 50 s, compilation included; the pace is that of the last 50 records)"
+    assert (
+        line == "simulating: about 3 min 00 s left (10% of the records in 1 min 50 s, compilation included; the pace is that of the last 50 records)"
+    )
     assert time_left([(100.0, 50.0), (100.0 + LONG_RUN_SECONDS / 20, 100.0)], 1000.0, 0.0) is None  # 18 x 1.5 s: under the bound
     assert time_left([(100.0, 500.0), (110.0, 1000.0)], 1000.0, 0.0) is None  # done

@@ -71,7 +71,9 @@ def test_the_observers_model_is_the_plants_unless_its_table_gives_one():
     plain = compose({"preset": "fossen-strand-1999"}).scenario
     heavier = (1.2 * np.asarray(plain.plant.vessel.mass_matrix)).tolist()
     damping = np.asarray(plain.plant.vessel.damping_matrix).tolist()
-    erred = compose({"preset": "fossen-strand-1999", "observer": {"vessel": {"kind": "custom", "mass_matrix": heavier, "damping_matrix": damping}}}).scenario
+    erred = compose(
+        {"preset": "fossen-strand-1999", "observer": {"vessel": {"kind": "custom", "mass_matrix": heavier, "damping_matrix": damping}}}
+    ).scenario
     np.testing.assert_array_equal(erred.plant.vessel.mass_matrix, plain.plant.vessel.mass_matrix)
     np.testing.assert_allclose(erred.observer.mass_matrix, heavier, rtol=1e-15)
 
@@ -80,17 +82,43 @@ def test_the_observers_model_is_the_plants_unless_its_table_gives_one():
     "change, location, message",
     [
         # a controller for another ship: the plant has no model of that kind
-        ({"controller": {"kind": "tracking"}}, ("controller",), "controller tracking needs a ship (Cybership), and plant dp-vessel has none; give [controller.ship]"),
+        (
+            {"controller": {"kind": "tracking"}},
+            ("controller",),
+            "controller tracking needs a ship (Cybership), and plant dp-vessel has none; give [controller.ship]",
+        ),
         # a tracking law without a reference: the missing signal and both parts
-        ({"controller": {"kind": "observer-backstepping", "integral_gain": 0.0, "position_gain": 0.1, "velocity_gain": 0.1, "damping_weights": 0.0}},
-         ("controller",), "controller observer-backstepping needs reference position_desired, which reference none does not provide (it gives nothing)"),
+        (
+            {
+                "controller": {
+                    "kind": "observer-backstepping",
+                    "integral_gain": 0.0,
+                    "position_gain": 0.1,
+                    "velocity_gain": 0.1,
+                    "damping_weights": 0.0,
+                }
+            },
+            ("controller",),
+            "controller observer-backstepping needs reference position_desired, which reference none does not provide (it gives nothing)",
+        ),
         # an observer of a manipulator on a vessel: it reads what the sensor does not measure
-        ({"observer": {"kind": "velocity", "model": {"kind": "pendulum"}, "gain": 1.0}}, ("observer",),
-         "observer velocity needs measurement measured_joint_angle, which sensor position-heading does not measure (it measures measured_position, measured_heading)"),
+        (
+            {"observer": {"kind": "velocity", "model": {"kind": "pendulum"}, "gain": 1.0}},
+            ("observer",),
+            "observer velocity needs measurement measured_joint_angle, which sensor position-heading does not measure (it measures measured_position, measured_heading)",
+        ),
         ({"sensor": {"kind": "joint-encoder", "sample_period": 1.0}}, ("sensor",), "sensor joint-encoder needs a model ("),
         ({"observer": {"kind": "nope"}}, ("observer", "kind"), "observer.kind: no observer kind 'nope' (one of passive, "),
-        ({"observer": {"kind": "passive", "gain": 1.0}}, ("observer", "gain"), "observer.gain: unknown key (observer passive takes: vessel, waves, wave_frequency"),
-        ({"controller": {"kind": "sinusoidal", "amplitude": 1.0, "frequency": 0.1, "observer": {}}}, ("controller", "observer"), "controller.observer: unknown key"),
+        (
+            {"observer": {"kind": "passive", "gain": 1.0}},
+            ("observer", "gain"),
+            "observer.gain: unknown key (observer passive takes: vessel, waves, wave_frequency",
+        ),
+        (
+            {"controller": {"kind": "sinusoidal", "amplitude": 1.0, "frequency": 0.1, "observer": {}}},
+            ("controller", "observer"),
+            "controller.observer: unknown key",
+        ),
     ],
 )
 def test_a_replaced_component_that_does_not_fit_is_refused_in_one_line_naming_it(change, location, message):
@@ -110,15 +138,25 @@ def test_a_component_needing_another_of_a_type_names_both():
         "reference": {"kind": "ellipse", "semi_axes": [2.0, 1.0], "lap_speeds": [0.05]},
         "controller": {"kind": "observer-backstepping", "integral_gain": 0.0, "position_gain": 0.1, "velocity_gain": 0.1, "damping_weights": 0.0},
     }
-    with pytest.raises(CompositionError, match=r"^controller: controller observer-backstepping needs an observer that is a WaveFilteringObserver; observer earth-fixed is not one$"):
+    with pytest.raises(
+        CompositionError,
+        match=r"^controller: controller observer-backstepping needs an observer that is a WaveFilteringObserver; observer earth-fixed is not one$",
+    ):
         compose(document)
 
 
 def test_an_estimate_the_plant_does_not_model_is_recorded_without_a_truth():
     """The passive observer estimates a bias; Cybership II has none: the estimate is
     kept, and no error is taken of it."""
-    composition = compose({"preset": "fossen-strand-1999", **SHORT, "plant": {"kind": "cybership-ii"},
-                           "controller": {"kind": "sinusoidal", "amplitude": 0.1, "frequency": 0.1}, "observer": {"kind": "passive", "wave_frequency": 5.0, "cutoff_frequency": 6.0}})
+    composition = compose(
+        {
+            "preset": "fossen-strand-1999",
+            **SHORT,
+            "plant": {"kind": "cybership-ii"},
+            "controller": {"kind": "sinusoidal", "amplitude": 0.1, "frequency": 0.1},
+            "observer": {"kind": "passive", "wave_frequency": 5.0, "cutoff_frequency": 6.0},
+        }
+    )
     ds = simulate(composition.scenario, jax.random.key(0)).to_xarray()
     assert "bias_force_hat" in ds and "bias_force" not in ds
     assert np.isfinite(ds.position_hat).all()
@@ -126,4 +164,11 @@ def test_an_estimate_the_plant_does_not_model_is_recorded_without_a_truth():
 
 def test_the_kinds_name_the_classes_they_build():
     scenario = compose({"preset": "fossen-strand-1999"}).scenario
-    assert [registry.kind_of(getattr(scenario, role)) for role in ROLES] == ["dp-vessel", "position-heading", "passive", "sinusoidal", "none", "ideal"]
+    assert [registry.kind_of(getattr(scenario, role)) for role in ROLES] == [
+        "dp-vessel",
+        "position-heading",
+        "passive",
+        "sinusoidal",
+        "none",
+        "ideal",
+    ]

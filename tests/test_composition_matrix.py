@@ -154,7 +154,9 @@ def render(matrix: dict[tuple[str, str], str]) -> str:
             result = matrix[(observer, plant)]
             cells.append("runs" if result == "runs" else ("**diverges**" if result == "diverges" else "refused"))
         lines.append(f"| {observer} | " + " | ".join(cells) + " |")
-    reasons = [f"- {observer} on {plant}: {result[len('refused: '):]}" for (observer, plant), result in matrix.items() if result.startswith("refused")]
+    reasons = [
+        f"- {observer} on {plant}: {result[len('refused: ') :]}" for (observer, plant), result in matrix.items() if result.startswith("refused")
+    ]
     return "\n".join(lines) + "\n\nWhy each refused pair is refused (the message `Scenario` or the composition gives):\n\n" + "\n".join(reasons)
 
 
@@ -163,7 +165,7 @@ def check_runs_or_refused(matrix):
         assert result != "diverges", f"observer {observer} on plant {plant} composes but its estimates are not finite after {DURATION:g} s"
         assert not result.startswith("starts off"), f"observer {observer} on plant {plant} {result}"
         if result.startswith("refused"):
-            message = result[len("refused: "):]
+            message = result[len("refused: ") :]
             assert "\n" not in message and f"observer {observer}" in message or message.startswith("observer"), (observer, plant, message)
 
 

@@ -77,17 +77,32 @@ def _passive(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0,
     quiet = {} if noise else {"noise_std": (0, 0, 0), "bias_std": (0, 0, 0), "wave_amplitude": (0, 0, 0)}
     config = fs.Config(duration=duration, measurement_period=0.1 if perfect else 1.0, **quiet)
     base = fs.build(config)
-    kappa, lam = injection_gains_from_normalized(config.velocity_gain_normalized, config.bias_gain_normalized, mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH)
+    kappa, lam = injection_gains_from_normalized(
+        config.velocity_gain_normalized, config.bias_gain_normalized, mass=NORTHERN_CLIPPER_MASS, length=NORTHERN_CLIPPER_LENGTH
+    )
     observer = PassiveObserver.design(
-        northern_clipper(), wave_frequency=config.wave_frequency, wave_damping=config.wave_damping, notch_damping=config.notch_damping,
-        cutoff_frequency=config.cutoff_frequency, velocity_injection_gain=gain * jnp.asarray(kappa), bias_injection_gain=gain * jnp.asarray(lam),
-        bias_time_constant=config.bias_time_constant, hold=hold,
+        northern_clipper(),
+        wave_frequency=config.wave_frequency,
+        wave_damping=config.wave_damping,
+        notch_damping=config.notch_damping,
+        cutoff_frequency=config.cutoff_frequency,
+        velocity_injection_gain=gain * jnp.asarray(kappa),
+        bias_injection_gain=gain * jnp.asarray(lam),
+        bias_time_constant=config.bias_time_constant,
+        hold=hold,
     )
     sensor = PositionHeadingSensor(config.noise_std, config.measurement_period, dropout_probability=dropout)
     guess = base.initial_state if perfect else observer.guess()
     return Scenario(
-        base.plant, sensor, observer, base.controller, base.initial_state, guess,
-        plant_step=config.plant_step, sample_period=config.sample_period, duration=config.duration,
+        base.plant,
+        sensor,
+        observer,
+        base.controller,
+        base.initial_state,
+        guess,
+        plant_step=config.plant_step,
+        sample_period=config.sample_period,
+        duration=config.duration,
     )
 
 
@@ -105,8 +120,15 @@ def _velocity(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0
     start = plant.state(q=[-np.pi / 4, -np.pi / 4], qdot=[0.0, 0.0])
     guess = start.qdot if perfect else jnp.asarray([-4.0, -4.0])
     return Scenario(
-        plant, sensor, observer, SinusoidalInput.constant([2.0, 1.0]), start, guess,
-        plant_step=0.005, sample_period=0.01, duration=duration,
+        plant,
+        sensor,
+        observer,
+        SinusoidalInput.constant([2.0, 1.0]),
+        start,
+        guess,
+        plant_step=0.005,
+        sample_period=0.01,
+        duration=duration,
     )
 
 
@@ -127,8 +149,12 @@ def _sliding_mode_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, dura
     base = fs.build(config)
     gains = kim_2002.gain_sets()["kyp"]
     observer = kim_2002.printed_observer(
-        northern_clipper(), boundary_layer=(5.0, 5.0, 0.02), switching_gain=gain * jnp.asarray([10.0, 10.0, 0.01]), hold=hold,
-        velocity_injection_gain=gain * jnp.asarray(gains["velocity_injection_gain"]), bias_injection_gain=gain * jnp.asarray(gains["bias_injection_gain"]),
+        northern_clipper(),
+        boundary_layer=(5.0, 5.0, 0.02),
+        switching_gain=gain * jnp.asarray([10.0, 10.0, 0.01]),
+        hold=hold,
+        velocity_injection_gain=gain * jnp.asarray(gains["velocity_injection_gain"]),
+        bias_injection_gain=gain * jnp.asarray(gains["bias_injection_gain"]),
         bias_time_constant=config.bias_time_constant,
     )
     controller = ObserverBackstepping.for_observer(
@@ -137,8 +163,15 @@ def _sliding_mode_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, dura
     sensor = PositionHeadingSensor(config.noise_std, config.measurement_period, dropout_probability=dropout)
     start = VesselState.build(eta=[3.0, -2.0, 0.05], bias=config.bias_initial)
     return Scenario(
-        base.plant, sensor, observer, controller, start, start if perfect else observer.guess(),
-        plant_step=config.plant_step, sample_period=config.sample_period, duration=config.duration,
+        base.plant,
+        sensor,
+        observer,
+        controller,
+        start,
+        start if perfect else observer.guess(),
+        plant_step=config.plant_step,
+        sample_period=config.sample_period,
+        duration=config.duration,
         reference=ReferenceFilter.vessel(0.05, [0.0, 5.0], [[0.0, 0.0, 0.0], [10.0, 5.0, 0.1]]),
         actuator=ThrusterSystem(ThrusterLayout.supply_vessel()) if thrusters else SaturatingActuator(NORTHERN_CLIPPER_THRUST_LIMIT),
     )
@@ -168,7 +201,15 @@ def _adaptive_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration
     start = VesselState.build(eta=[3.0, -2.0, 0.05], nu=[0.1, 0.0, 0.0])
     guess = observer.guess(start.eta, start.nu, m11) if perfect else observer.guess()
     return Scenario(
-        plant, sensor, observer, controller, start, guess, plant_step=0.1, sample_period=0.1, duration=duration,
+        plant,
+        sensor,
+        observer,
+        controller,
+        start,
+        guess,
+        plant_step=0.1,
+        sample_period=0.1,
+        duration=duration,
         reference=ReferenceFilter.vessel(0.1, [0.0, 5.0], [[0.0, 0.0, 0.0], [10.0, 5.0, 0.1]]),
     )
 
@@ -193,8 +234,17 @@ def _tracking_loop(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration
     start = CybershipState.build(eta=[3.8, -1.2, 0.5 * np.pi], nu=[0.05, 0.0, 0.01])
     guess = observer.guess(start.eta, rotate(start.eta[2], start.nu)) if perfect else observer.guess([4.0, -1.0, 2.94], [0.5, 0.5, -0.5])
     return Scenario(
-        plant, sensor, observer, controller, start, guess, plant_step=plant_step, sample_period=0.05, duration=duration,
-        reference=EllipseReference((3.5, 1.823), (0.2,)), actuator=SaturatingActuator(CYBERSHIP_THRUST_LIMIT),
+        plant,
+        sensor,
+        observer,
+        controller,
+        start,
+        guess,
+        plant_step=plant_step,
+        sample_period=0.05,
+        duration=duration,
+        reference=EllipseReference((3.5, 1.823), (0.2,)),
+        actuator=SaturatingActuator(CYBERSHIP_THRUST_LIMIT),
     )
 
 
@@ -219,8 +269,16 @@ def _adaptive_arm(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=
     start = plant.state([0.2, -0.3], [0.1, 0.0])
     guess = observer.guess([0.1, 0.0], 1.5) if perfect else observer.guess(0.0, 1.0)
     return Scenario(
-        plant, JointEncoder(arm, sample_period=0.01, noise_std=1e-4 if noise else 0.0, dropout_probability=dropout), observer,
-        controller, start, guess, plant_step=0.005, sample_period=0.01, duration=duration, reference=reference(Config(duration=max(duration, 11.0))),
+        plant,
+        JointEncoder(arm, sample_period=0.01, noise_std=1e-4 if noise else 0.0, dropout_probability=dropout),
+        observer,
+        controller,
+        start,
+        guess,
+        plant_step=0.005,
+        sample_period=0.01,
+        duration=duration,
+        reference=reference(Config(duration=max(duration, 11.0))),
     )
 
 
@@ -239,8 +297,15 @@ def _parameter_estimator(gain=1.0, *, noise=True, perfect=False, dropout=0.0, du
     plant = ManipulatorPlant(pendulum, force_noise=0.05 if noise else 0.0)
     sensor = JointStateSensor(pendulum, sample_period=0.01, noise_std=[1e-3, 1e-2] if noise else 0.0, dropout_probability=dropout)
     return Scenario(
-        plant, sensor, observer, SinusoidalInput(5.0, 1.0, size=1), plant.state(0.5, 0.0),
-        jnp.asarray([1.0, 0.1]) if perfect else jnp.asarray([0.5, 0.3]), plant_step=0.001, sample_period=0.01, duration=duration,
+        plant,
+        sensor,
+        observer,
+        SinusoidalInput(5.0, 1.0, size=1),
+        plant.state(0.5, 0.0),
+        jnp.asarray([1.0, 0.1]) if perfect else jnp.asarray([0.5, 0.3]),
+        plant_step=0.001,
+        sample_period=0.01,
+        duration=duration,
     )
 
 
@@ -260,12 +325,20 @@ def _furuta(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0) 
     observer = AdaptiveManipulatorObserver(unknowns, gain * 5.0, gain * 0.01, sample_period=ch6.SAMPLE_PERIOD, lower=0.001, upper=0.04, margin=1e-4)
     controller = FurutaPendulumBackstepping(unknowns, 10.0, 1.0, 10.0, 1.0)
     plant = FurutaPlant(truth)
-    encoder = JointEncoder(truth, sample_period=ch6.SAMPLE_PERIOD, quantization=ch6.QUANTIZATION,
-                           noise_std=[2e-3, 2e-4] if noise else 0.0, dropout_probability=dropout)
+    encoder = JointEncoder(
+        truth, sample_period=ch6.SAMPLE_PERIOD, quantization=ch6.QUANTIZATION, noise_std=[2e-3, 2e-4] if noise else 0.0, dropout_probability=dropout
+    )
     guess = observer.guess(0.0, 0.028 if perfect else 0.001)
     return Scenario(
-        plant, encoder, observer, controller, plant.state([0.0, np.pi], [0.0, 0.0]), guess, plant_step=0.0025 / 4,
-        sample_period=ch6.SAMPLE_PERIOD, duration=round(duration / ch6.SAMPLE_PERIOD) * ch6.SAMPLE_PERIOD,
+        plant,
+        encoder,
+        observer,
+        controller,
+        plant.state([0.0, np.pi], [0.0, 0.0]),
+        guess,
+        plant_step=0.0025 / 4,
+        sample_period=ch6.SAMPLE_PERIOD,
+        duration=round(duration / ch6.SAMPLE_PERIOD) * ch6.SAMPLE_PERIOD,
         reference=ch6.reference(ch6.EXPERIMENTS["II"], duration),
     )
 
@@ -285,13 +358,25 @@ def _kalman(kind, gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=
     std = {"eta": [5.0, 5.0, 0.05], "nu": [0.5, 0.5, 0.005], "bias": [5e3, 5e3, 1e5], "wave_state": [1.0, 1.0, 0.01, 1.0, 1.0, 0.01]}
     filter_class = {"ekf": ExtendedKalmanFilter, "ukf": UnscentedKalmanFilter}[kind]
     observer = filter_class(
-        base.plant, sensor, process_noise=gain * jnp.ones(base.plant.noise_size), measurement_noise=[0.5, 0.5, 0.0017], initial_std=std,
-        plant_step=config.plant_step, filter_period=config.sample_period,
+        base.plant,
+        sensor,
+        process_noise=gain * jnp.ones(base.plant.noise_size),
+        measurement_noise=[0.5, 0.5, 0.0017],
+        initial_std=std,
+        plant_step=config.plant_step,
+        filter_period=config.sample_period,
     )
     guess = base.initial_state if perfect else observer.guess()
     return Scenario(
-        base.plant, sensor, observer, base.controller, base.initial_state, guess,
-        plant_step=config.plant_step, sample_period=config.sample_period, duration=config.duration,
+        base.plant,
+        sensor,
+        observer,
+        base.controller,
+        base.initial_state,
+        guess,
+        plant_step=config.plant_step,
+        sample_period=config.sample_period,
+        duration=config.duration,
     )
 
 
@@ -313,16 +398,33 @@ def _kalman_pid(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30
     sensor = PositionHeadingSensor(config.noise_std, config.measurement_period, dropout_probability=dropout)
     std = {"eta": [5.0, 5.0, 0.05], "nu": [0.5, 0.5, 0.005], "bias": [5e3, 5e3, 1e5], "wave_state": [1.0, 1.0, 0.01, 1.0, 1.0, 0.01]}
     observer = ExtendedKalmanFilter(
-        base.plant, sensor, process_noise=gain * jnp.ones(base.plant.noise_size), measurement_noise=[0.5, 0.5, 0.0017], initial_std=std,
-        plant_step=config.plant_step, filter_period=config.sample_period,
+        base.plant,
+        sensor,
+        process_noise=gain * jnp.ones(base.plant.noise_size),
+        measurement_noise=[0.5, 0.5, 0.0017],
+        initial_std=std,
+        plant_step=config.plant_step,
+        filter_period=config.sample_period,
     )
     design = PidController.design(northern_clipper(), integral_limit=NORTHERN_CLIPPER_THRUST_LIMIT)
-    controller = PidController(design.vessel, gain * design.proportional_gain, gain * design.derivative_gain, gain * design.integral_gain,
-                               integral_limit=NORTHERN_CLIPPER_THRUST_LIMIT)
+    controller = PidController(
+        design.vessel,
+        gain * design.proportional_gain,
+        gain * design.derivative_gain,
+        gain * design.integral_gain,
+        integral_limit=NORTHERN_CLIPPER_THRUST_LIMIT,
+    )
     start = VesselState.build(eta=[3.0, -2.0, 0.05], bias=config.bias_initial)
     return Scenario(
-        base.plant, sensor, observer, controller, start, start if perfect else observer.guess(),
-        plant_step=config.plant_step, sample_period=config.sample_period, duration=config.duration,
+        base.plant,
+        sensor,
+        observer,
+        controller,
+        start,
+        start if perfect else observer.guess(),
+        plant_step=config.plant_step,
+        sample_period=config.sample_period,
+        duration=config.duration,
         reference=ReferenceFilter.vessel(0.05, [0.0, 5.0], [[0.0, 0.0, 0.0], [10.0, 5.0, 0.1]]),
         actuator=SaturatingActuator(NORTHERN_CLIPPER_THRUST_LIMIT),
     )
@@ -339,28 +441,44 @@ def _luenberger(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30
     from lookout.scenario.composition import compose
 
     quiet = {} if noise else {"noise_std": [0.0, 0.0, 0.0]}
-    plant = {} if noise else {"bias": {"kind": "gauss-markov", "time_constant": 1000.0, "std": [0.0, 0.0, 0.0]},
-                              "waves": {"kind": "linear", "peak_frequency": 0.8976, "damping_ratio": 0.1, "amplitude": [0.0, 0.0, 0.0]},
-                              "initial": {"bias": 0.0}}
+    plant = (
+        {}
+        if noise
+        else {
+            "bias": {"kind": "gauss-markov", "time_constant": 1000.0, "std": [0.0, 0.0, 0.0]},
+            "waves": {"kind": "linear", "peak_frequency": 0.8976, "damping_ratio": 0.1, "amplitude": [0.0, 0.0, 0.0]},
+            "initial": {"bias": 0.0},
+        }
+    )
     document = {
-        "plugins": [str(EXAMPLE_PLUGIN)], "preset": "fossen-strand-1999:paper",
+        "plugins": [str(EXAMPLE_PLUGIN)],
+        "preset": "fossen-strand-1999:paper",
         "simulation": {"duration": duration, "runs": 1},
         "plant": plant,
         "sensor": {**quiet, "sample_period": 0.1 if perfect else 1.0, "dropout_probability": dropout},
-        "observer": {"kind": "luenberger", "design": "poles", "bandwidth": [0.05, 0.05, 0.05],
-                     **({"initial": {"eta": 0.0, "nu": 0.0, "bias": 0.0}} if perfect else {})},
+        "observer": {
+            "kind": "luenberger",
+            "design": "poles",
+            "bandwidth": [0.05, 0.05, 0.05],
+            **({"initial": {"eta": 0.0, "nu": 0.0, "bias": 0.0}} if perfect else {}),
+        },
     }
     scenario = compose(document).scenario
     observer = scenario.observer
-    scaled = eqx.tree_at(lambda o: (o.position_gain, o.velocity_gain, o.bias_gain), observer,
-                         (gain * observer.position_gain, gain * observer.velocity_gain, gain * observer.bias_gain))
+    scaled = eqx.tree_at(
+        lambda o: (o.position_gain, o.velocity_gain, o.bias_gain),
+        observer,
+        (gain * observer.position_gain, gain * observer.velocity_gain, gain * observer.bias_gain),
+    )
     return eqx.tree_at(lambda s: s.observer, scenario, scaled)
 
 
 CASES = [
     Case(
-        "passive observer (Fossen & Strand 1999)", _passive,
-        exact=(("continuous", {}), ("sampled", {"hold": "innovation"})), error_variable="velocity",
+        "passive observer (Fossen & Strand 1999)",
+        _passive,
+        exact=(("continuous", {}), ("sampled", {"hold": "innovation"})),
+        error_variable="velocity",
     ),
     Case("velocity observer (Calugi 2002, ch. 2)", _velocity, exact=(("continuous", {}),), error_variable="joint_rate"),
     # propagated by the plant's own discretization: from a perfect start, noise-free, the
@@ -374,37 +492,57 @@ CASES = [
     # the applied input, still follows it to the bit
     Case("extended Kalman filter and nonlinear PID", _kalman_pid, exact=(("sampled", {}),), error_variable="velocity", gradient="forward"),
     Case(
-        "sliding-mode observer and backstepping (Kim 2002)", _sliding_mode_loop,
-        exact=(("continuous", {}), ("sampled", {"hold": "innovation"})), error_variable="velocity", gradient="forward",
+        "sliding-mode observer and backstepping (Kim 2002)",
+        _sliding_mode_loop,
+        exact=(("continuous", {}), ("sampled", {"hold": "innovation"})),
+        error_variable="velocity",
+        gradient="forward",
     ),
     # the same loop through thrusters: rate limits and QP allocation bind from the first sample
     Case(
-        "sliding-mode observer and backstepping through thrusters (Kim 2002)", functools.partial(_sliding_mode_loop, thrusters=True),
-        exact=(("sampled", {"hold": "innovation"}),), error_variable="velocity", gradient="forward",
+        "sliding-mode observer and backstepping through thrusters (Kim 2002)",
+        functools.partial(_sliding_mode_loop, thrusters=True),
+        exact=(("sampled", {"hold": "innovation"}),),
+        error_variable="velocity",
+        gradient="forward",
     ),
     Case(
-        "adaptive observer and vectorial backstepping (Calugi et al. 2003)", _adaptive_loop,
-        exact=(("continuous", {"form": "continuous"}),), error_variable="velocity", gradient="forward",
+        "adaptive observer and vectorial backstepping (Calugi et al. 2003)",
+        _adaptive_loop,
+        exact=(("continuous", {"form": "continuous"}),),
+        error_variable="velocity",
+        gradient="forward",
     ),
     Case(
-        "Earth-fixed observer and tracking scheme (Wondergem et al. 2009)", _tracking_loop,
-        exact=(("continuous", {"plant_step": 0.01}),), error_variable="velocity", gradient="forward",
+        "Earth-fixed observer and tracking scheme (Wondergem et al. 2009)",
+        _tracking_loop,
+        exact=(("continuous", {"plant_step": 0.01}),),
+        error_variable="velocity",
+        gradient="forward",
         # the plant integrates (16) in the body frame, the observer (6) in the Earth frame:
         # RK4 of the two coordinate forms of one ODE agree to O(h^4), not to rounding
         # (velocity 4.5e-7 m/s over 60 s at h = 0.05 s; a wrong observer errs by mm/s)
         exact_tolerance=1e-8,
     ),
     Case(
-        "parameter estimator (Calugi 2002, ch. 3)", _parameter_estimator, exact=(("continuous", {}),), error_variable="mass_hat",
+        "parameter estimator (Calugi 2002, ch. 3)",
+        _parameter_estimator,
+        exact=(("continuous", {}),),
+        error_variable="mass_hat",
         parameter_truth=(("mass_hat", 1.0), ("friction_0_hat", 0.1)),
     ),
     Case(
-        "adaptive observer with resetting and observer backstepping (Calugi 2002, ch. 4-5)", _adaptive_arm,
-        exact=(), error_variable="joint_rate", gradient="forward",
+        "adaptive observer with resetting and observer backstepping (Calugi 2002, ch. 4-5)",
+        _adaptive_arm,
+        exact=(),
+        error_variable="joint_rate",
+        gradient="forward",
     ),
     Case(
-        "adaptive observer and pendulum backstepping on the Furuta pendulum (Calugi 2002, ch. 6)", _furuta,
-        exact=(), error_variable="joint_rate",
+        "adaptive observer and pendulum backstepping on the Furuta pendulum (Calugi 2002, ch. 6)",
+        _furuta,
+        exact=(),
+        error_variable="joint_rate",
         # quantized encoders and stick-slip friction make the RMS error piecewise constant and
         # discontinuous in the gain: jax.jacfwd gave -0.60 where central differences gave 36.6
         gradient=None,
@@ -438,7 +576,9 @@ def test_every_registered_observer_and_controller_kind_has_a_case():
     covered = {(role, registry.kind_of(getattr(s, role))) for s in built for role in ("observer", "controller")}
     for role in ("observer", "controller"):
         registered = {k.name for k in registry.kinds(role) if k.module.startswith("lookout.") or k.module.startswith("lookout_plugin_")}
-        plugins_of_tests = {k.name for k in registry.kinds(role) if k.module.startswith("lookout_plugin_") and Path(sys.modules[k.module].__file__) != EXAMPLE_PLUGIN}
+        plugins_of_tests = {
+            k.name for k in registry.kinds(role) if k.module.startswith("lookout_plugin_") and Path(sys.modules[k.module].__file__) != EXAMPLE_PLUGIN
+        }
         missing = sorted(registered - plugins_of_tests - {kind for r, kind in covered if r == role} - UNCASED[role])
         assert missing == [], f"{role} kinds without a conformance case: {missing}"
 
@@ -568,14 +708,24 @@ def test_decimated_records_are_every_nth_sample_of_the_full_run(case):
     np.testing.assert_allclose(np.asarray(b.measurement), np.asarray(a.measurement)[::every], rtol=1e-12, atol=1e-15)
 
 
-GRADIENT_CASES = [c for c in CASES if c.gradient is not None and c.name.split(" (")[0] in (
-    "passive observer", "parameter estimator", "sliding-mode observer and backstepping",
-    "sliding-mode observer and backstepping through thrusters", "adaptive observer with resetting and observer backstepping",
-)]
+GRADIENT_CASES = [
+    c
+    for c in CASES
+    if c.gradient is not None
+    and c.name.split(" (")[0]
+    in (
+        "passive observer",
+        "parameter estimator",
+        "sliding-mode observer and backstepping",
+        "sliding-mode observer and backstepping through thrusters",
+        "adaptive observer with resetting and observer backstepping",
+    )
+]
 
 
-@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xdist_group(f"conformance {CASES.index(c)}")) for c in GRADIENT_CASES],
-                         ids=lambda case: case.name)
+@pytest.mark.parametrize(
+    "case", [pytest.param(c, marks=pytest.mark.xdist_group(f"conformance {CASES.index(c)}")) for c in GRADIENT_CASES], ids=lambda case: case.name
+)
 def test_a_scenario_built_inside_vmap_simulates_like_one_built_alone(case):
     """On the four cases of the gradient check (each compiles a program over a batched
     scenario): observers, controllers, plants and references whose constructors run
@@ -589,8 +739,9 @@ def test_a_scenario_built_inside_vmap_simulates_like_one_built_alone(case):
         assert _max_difference(jax.tree.map(lambda a: a[i], batch.estimate), single.estimate) < 1e-10
 
 
-@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xdist_group(f"conformance {CASES.index(c)}")) for c in GRADIENT_CASES],
-                         ids=lambda case: case.name)
+@pytest.mark.parametrize(
+    "case", [pytest.param(c, marks=pytest.mark.xdist_group(f"conformance {CASES.index(c)}")) for c in GRADIENT_CASES], ids=lambda case: case.name
+)
 def test_gradient_of_an_rms_error_through_simulate_matches_central_differences(case):
     """On four cases, not all (each costs two compiles of a derivative program): reverse mode
     on two open loops (a plant variable, a parameter estimate) and forward mode on two closed

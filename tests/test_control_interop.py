@@ -63,8 +63,12 @@ THRUST = ["force[surge]", "force[sway]", "moment"]
 def _distinct_observer() -> PassiveObserver:
     """Other gains in every DOF, so that a channel mixed up with another shows."""
     return PassiveObserver.design(
-        northern_clipper(), wave_frequency=[0.6, 0.9, 1.2], wave_damping=[0.05, 0.1, 0.15], notch_damping=[0.8, 1.0, 1.2],
-        cutoff_frequency=[1.0, 1.3, 1.6], bias_time_constant=[500.0, 1000.0, 2000.0],
+        northern_clipper(),
+        wave_frequency=[0.6, 0.9, 1.2],
+        wave_damping=[0.05, 0.1, 0.15],
+        notch_damping=[0.8, 1.0, 1.2],
+        cutoff_frequency=[1.0, 1.3, 1.6],
+        bias_time_constant=[500.0, 1000.0, 2000.0],
     )
 
 
@@ -126,7 +130,9 @@ def test_the_loop_block_of_the_linearization_is_the_notch_shape_44(paper_observe
     system = cs.observer_system(observer)
     linear = cs.linearize_exact(system, *_operating_point(system, 0.0))
     zeta_n = {"paper": np.full(3, 1.0), "distinct": np.array([0.8, 1.0, 1.2])}[gains]
-    w_o, zeta, w_c = (np.broadcast_to(np.asarray(v, dtype=float), (3,)) for v in (observer.wave_frequency, observer.wave_damping, observer.position_injection_gain))
+    w_o, zeta, w_c = (
+        np.broadcast_to(np.asarray(v, dtype=float), (3,)) for v in (observer.wave_frequency, observer.wave_damping, observer.position_injection_gain)
+    )
     for dof in DOF:
         low, wave, velocity, innovation, i = LOOP_STATES[dof]
         states = [linear.state_labels.index(name) for name in (f"wave_state[{i}]", wave, low)]
@@ -136,7 +142,7 @@ def test_the_loop_block_of_the_linearization_is_the_notch_shape_44(paper_observe
         h0 = control.ss2tf(control.ss(A, B, C, 0.0))
         numerator, denominator = np.ravel(h0.num[0][0]), np.ravel(h0.den[0][0])
         numerator, denominator = numerator / denominator[0], denominator / denominator[0]
-        numerator = numerator[np.argmax(np.abs(numerator) > 1e-12 * np.abs(numerator).max()):]
+        numerator = numerator[np.argmax(np.abs(numerator) > 1e-12 * np.abs(numerator).max()) :]
         expected_numerator = [1.0, 2.0 * zeta[i] * w_o[i], w_o[i] ** 2]
         expected_denominator = np.polymul([1.0, 2.0 * zeta_n[i] * w_o[i], w_o[i] ** 2], [1.0, w_c[i]])
         np.testing.assert_allclose(numerator, expected_numerator, rtol=1e-10, err_msg=dof)
@@ -177,7 +183,9 @@ def test_python_controls_linearize_and_the_jax_jacobians_agree_away_from_equilib
     _assert_same_linearization(plant_sys, x0, u0, 1e-6)
 
     observer_sys = cs.observer_system(paper_observer)
-    guess = paper_observer.guess(eta=[118.0, -41.0, 2.15], nu=[1.4, -0.2, 0.012], bias=[1.5e4, -8e3, 2e5], wave_state=[0.2, -0.1, 0.0, 0.8, 0.4, 0.01])
+    guess = paper_observer.guess(
+        eta=[118.0, -41.0, 2.15], nu=[1.4, -0.2, 0.012], bias=[1.5e4, -8e3, 2e5], wave_state=[0.2, -0.1, 0.0, 0.8, 0.4, 0.01]
+    )
     x0 = observer_sys.state_vector(guess)
     u0 = np.concatenate([[121.0, -39.5, 2.23], [3e4, -1e4, 2e6]])
     _assert_same_linearization(observer_sys, x0, u0, 1e-6)
@@ -243,8 +251,9 @@ def test_plant_and_observer_connect_by_name_and_the_error_stays_zero_from_a_perf
     observer_sys = cs.observer_system(paper_observer)
     truths = cs.signal_names(plant.variable_signals)
     estimates = cs.signal_names(paper_observer.estimate_signals, "_hat")
-    loop = control.interconnect([plant_sys, observer_sys], inplist=THRUST, outlist=truths + estimates,
-                                ignore_outputs=cs.signal_names(paper_observer.extra_signals))
+    loop = control.interconnect(
+        [plant_sys, observer_sys], inplist=THRUST, outlist=truths + estimates, ignore_outputs=cs.signal_names(paper_observer.extra_signals)
+    )
     start = plant.state(eta=[10.0, -5.0, 0.4], nu=[0.5, 0.1, 0.001], bias=[1e4, 5e3, 1e5], wave_state=[0.1, 0.1, 0.0, 0.5, 0.3, 0.0])
     x0 = np.concatenate([plant_sys.state_vector(start), observer_sys.state_vector(start)])
     times = np.linspace(0.0, 20.0, 21)
@@ -304,7 +313,9 @@ def test_a_kalman_filter_is_refused_in_one_line():
 
     plant = _vessel_plant()
     std = {"eta": [5.0, 5.0, 0.05], "nu": [0.5, 0.5, 0.005], "bias": [5e3, 5e3, 1e5], "wave_state": [1.0, 1.0, 0.01, 1.0, 1.0, 0.01]}
-    observer = ExtendedKalmanFilter(plant, PositionHeadingSensor(), measurement_noise=[0.5, 0.5, 0.002], initial_std=std, plant_step=0.1, filter_period=0.1)
+    observer = ExtendedKalmanFilter(
+        plant, PositionHeadingSensor(), measurement_noise=[0.5, 0.5, 0.002], initial_std=std, plant_step=0.1, filter_period=0.1
+    )
     message = _refusal(lambda: cs.observer_system(observer))
     assert "ekf" in message and "not a continuous-time observer" in message
 
@@ -329,7 +340,11 @@ def test_a_plant_with_randomness_that_cannot_be_set_to_zero_is_refused_in_one_li
         (0.0, np.zeros(100_000), "u0 must have shape (6,)"),
         (0.0, [0.0, 0.0, np.inf, 0.0, 0.0, 0.0], "u0 must be finite; entry 2 (measured_heading)"),
         ("calm", 0.0, "x0 must be an array of 15 numbers"),
-        (ManipulatorPlant(FreePendulum()).state(q=0.1), 0.0, "x0: state must be a state of PassiveObserver (parts eta, nu, bias, wave_state); got a JointState"),
+        (
+            ManipulatorPlant(FreePendulum()).state(q=0.1),
+            0.0,
+            "x0: state must be a state of PassiveObserver (parts eta, nu, bias, wave_state); got a JointState",
+        ),
         (None, 0.0, "x0 must be an array of 15 numbers or a state of the component; got None"),
         ([0.0] * 14 + [None], 0.0, "x0 must be an array of 15 numbers or a state of the component; entry 14 is None"),
         (0.0, None, "u0 must be an array of 6 numbers; got None"),

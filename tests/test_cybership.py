@@ -108,8 +108,12 @@ def test_ellipse_reference_derivatives_speed_and_heading(direction):
     reference = EllipseReference((3.5, 1.823), (0.05, 0.1, 0.15, 0.2), centre=(0.5, -0.2), start_angle=0.3, direction=direction)
     for theta in (0.4, 2.0, 3.5, 5.9, 7.0, 13.0, 20.0):
         theta = jnp.asarray(theta)
-        for name, of in (("position_desired_rate", "position_desired"), ("heading_desired_rate", "heading_desired"),
-                         ("position_desired_acceleration", "position_desired_rate"), ("heading_desired_acceleration", "heading_desired_rate")):
+        for name, of in (
+            ("position_desired_rate", "position_desired"),
+            ("heading_desired_rate", "heading_desired"),
+            ("position_desired_acceleration", "position_desired_rate"),
+            ("heading_desired_acceleration", "heading_desired_rate"),
+        ):
             derivative, value = _reference_derivative(reference, theta, name, of)
             np.testing.assert_allclose(value, derivative, rtol=1e-10, atol=1e-14)
         sample = reference.sample(theta)
@@ -172,10 +176,16 @@ def test_matched_scheme_converges_and_tracks_to_the_sampling_error():
     config = w.Config(duration=80.0, sweep=False)
     tails = []
     for period in (0.01, 0.002):
-        scenario = w.scenario(config, "simulation", {
-            "reference.lap_speeds": [0.1], "simulation.sample_period": period, "simulation.plant_step": period,
-            "simulation.record_every": int(round(0.1 / period)),
-        })
+        scenario = w.scenario(
+            config,
+            "simulation",
+            {
+                "reference.lap_speeds": [0.1],
+                "simulation.sample_period": period,
+                "simulation.plant_step": period,
+                "simulation.record_every": int(round(0.1 / period)),
+            },
+        )
         ds = simulate(scenario, jax.random.key(0)).to_xarray().isel(run=0)
         observer_error = np.hypot(*(ds.position - ds.position_hat).values.T)
         if period == 0.01:

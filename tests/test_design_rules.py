@@ -23,8 +23,10 @@ from lookout.scenario.composition import CompositionError, compose, simulate
 A, B = 3.5, 1.823  # the reproduction's ellipse; its start, yaw rate and speed bounds in closed form
 #: the reference's data at the start of the ellipse and its bounds (as tests/test_tracking_conditions.py)
 REFERENCE = {
-    "reference_position": [A, 0.0, np.pi / 2], "reference_velocity": [0.05, 0.0, 0.05 * A / B**2],
-    "reference_yaw_rate_max": 0.2 * A / B**2, "reference_speed_max": 0.2 * np.hypot(1.0, A / B**2),
+    "reference_position": [A, 0.0, np.pi / 2],
+    "reference_velocity": [0.05, 0.0, 0.05 * A / B**2],
+    "reference_yaw_rate_max": 0.2 * A / B**2,
+    "reference_speed_max": 0.2 * np.hypot(1.0, A / B**2),
     "reference_acceleration_max": 0.03,
 }
 #: the rule's keys: Section 5's start, the estimate started at the measurement and at rest
@@ -46,9 +48,15 @@ def _wondergem_document(**observer) -> dict:
 def _procedure(ship, **start):
     """propose_wondergem_2009 on the same numbers, under its own names."""
     return propose_wondergem_2009(
-        ship, eta0=INITIAL_ETA, nu0=(0.0, 0.0, 0.0), eta_hat0=start.get("eta_hat0", INITIAL_ETA), velocity_hat0=(0.0, 0.0, 0.0),
-        reference_position0=REFERENCE["reference_position"], reference_velocity0=REFERENCE["reference_velocity"],
-        yaw_rate_max=REFERENCE["reference_yaw_rate_max"], reference_speed_max=REFERENCE["reference_speed_max"],
+        ship,
+        eta0=INITIAL_ETA,
+        nu0=(0.0, 0.0, 0.0),
+        eta_hat0=start.get("eta_hat0", INITIAL_ETA),
+        velocity_hat0=(0.0, 0.0, 0.0),
+        reference_position0=REFERENCE["reference_position"],
+        reference_velocity0=REFERENCE["reference_velocity"],
+        yaw_rate_max=REFERENCE["reference_yaw_rate_max"],
+        reference_speed_max=REFERENCE["reference_speed_max"],
         reference_acceleration_max=REFERENCE["reference_acceleration_max"],
     )
 
@@ -68,12 +76,20 @@ def test_the_wondergem_rule_gives_the_procedures_gains_for_the_plants_ship_and_r
     np.testing.assert_array_equal(controller.damping_ratio, np.full(3, 1.0))
     # what the procedure claims: (25), Prop. 3.1 and Prop. 3.3 at its eps3, on the built gains
     report = check_wondergem_2009(
-        ship, observer_gains=(float(observer.position_gain[0]), float(observer.velocity_gain[0])),
-        natural_frequency=np.asarray(controller.natural_frequency), damping_ratio=np.asarray(controller.damping_ratio),
-        eta0=INITIAL_ETA, nu0=(0.0, 0.0, 0.0), eta_hat0=INITIAL_ETA, velocity_hat0=(0.0, 0.0, 0.0),
-        reference_position0=REFERENCE["reference_position"], reference_velocity0=REFERENCE["reference_velocity"],
-        yaw_rate_max=REFERENCE["reference_yaw_rate_max"], reference_speed_max=REFERENCE["reference_speed_max"],
-        reference_acceleration_max=REFERENCE["reference_acceleration_max"], epsilon3=proposal.epsilon3,
+        ship,
+        observer_gains=(float(observer.position_gain[0]), float(observer.velocity_gain[0])),
+        natural_frequency=np.asarray(controller.natural_frequency),
+        damping_ratio=np.asarray(controller.damping_ratio),
+        eta0=INITIAL_ETA,
+        nu0=(0.0, 0.0, 0.0),
+        eta_hat0=INITIAL_ETA,
+        velocity_hat0=(0.0, 0.0, 0.0),
+        reference_position0=REFERENCE["reference_position"],
+        reference_velocity0=REFERENCE["reference_velocity"],
+        yaw_rate_max=REFERENCE["reference_yaw_rate_max"],
+        reference_speed_max=REFERENCE["reference_speed_max"],
+        reference_acceleration_max=REFERENCE["reference_acceleration_max"],
+        epsilon3=proposal.epsilon3,
     )
     assert report.verdicts == {"controller_25": "holds", "observer_3_1": "holds", "combined_3_3": "holds"}
     assert {item.name for item in report["combined_3_3"].inequalities} == {"(27)", "(30)", "(32)"}
@@ -103,8 +119,10 @@ def test_the_wondergem_rule_refuses_a_start_the_procedure_has_no_gains_for():
         compose(_wondergem_document(estimate_position=list(INITIAL_ETA_HAT)))
     assert raised.value.location == ("observer", "estimate_position") and "\n" not in str(raised.value)
     # ||eta~0|| = ||(-0.2, -0.2, 1.369 rad)|| = 1.398
-    assert str(raised.value).startswith("observer.estimate_position: estimate_position is too far from the measurement for "
-                                        "Wondergem et al. (2009)'s procedure: with ||eta_hat(0) - eta(0)|| = 1.4 (m and rad in one norm)")
+    assert str(raised.value).startswith(
+        "observer.estimate_position: estimate_position is too far from the measurement for "
+        "Wondergem et al. (2009)'s procedure: with ||eta_hat(0) - eta(0)|| = 1.4 (m and rad in one norm)"
+    )
     with pytest.raises(CompositionError) as raised:
         compose(_wondergem_document(margin=1.0))
     assert str(raised.value) == "observer.margin: must be in (1, inf); got 1.0"
@@ -112,6 +130,7 @@ def test_the_wondergem_rule_refuses_a_start_the_procedure_has_no_gains_for():
 
 def test_the_observer_and_controller_rules_take_the_same_keys_the_same_way():
     """One proposal between them: the shared keys have one type and one description."""
+
     def schema(role, name):
         return {p.name: (p.type, p.description, p.default) for p in registry.kind(role, name).parameters("wondergem-2009")}
 
@@ -163,7 +182,9 @@ def test_a_bias_gain_above_the_wave_frequency_violates_14_and_is_refused():
     k1, k2, k3 = notch_filter_gains(np.full(3, w_o), np.full(3, 0.1), np.full(3, 1.0), np.full(3, 1.1))
     w = np.sqrt(1.0 / T * (1.0 / T + 10.0))
     s = 1j * w
-    h0 = (s**2 + 2 * 0.1 * w_o * s + w_o**2) / (s**3 + (k2 + k3 + 2 * 0.1 * w_o) * s**2 + (w_o**2 + 2 * 0.1 * w_o * k3 - k1 * w_o**2) * s + w_o**2 * k3)
+    h0 = (s**2 + 2 * 0.1 * w_o * s + w_o**2) / (
+        s**3 + (k2 + k3 + 2 * 0.1 * w_o) * s**2 + (w_o**2 + 2 * 0.1 * w_o * k3 - k1 * w_o**2) * s + w_o**2 * k3
+    )
     hB = kappa + lam / (s + 1.0 / T)
     assert np.degrees(np.angle(hB[0])) == pytest.approx(-88.85, abs=0.01)
     assert np.all((hB * h0).real < 0) and np.all(np.degrees(np.angle(hB * h0)) < -90.0)

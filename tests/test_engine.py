@@ -42,8 +42,12 @@ def test_integrators_converge_with_their_order_against_expm(integrator, order, s
 def quiet_scenario(**overrides) -> Scenario:
     """Paper scenario with no noise, no waves and no bias unless overridden."""
     config = fs.Config(
-        duration=overrides.pop("duration", 20.0), noise_std=(0, 0, 0), bias_std=(0, 0, 0), wave_amplitude=(0, 0, 0),
-        bias_initial=(0, 0, 0), measurement_period=overrides.pop("measurement_period", 0.1),
+        duration=overrides.pop("duration", 20.0),
+        noise_std=(0, 0, 0),
+        bias_std=(0, 0, 0),
+        wave_amplitude=(0, 0, 0),
+        bias_initial=(0, 0, 0),
+        measurement_period=overrides.pop("measurement_period", 0.1),
     )
     scenario = fs.build(config)
     for name, value in overrides.items():
@@ -60,8 +64,16 @@ def test_one_sample_of_a_linear_plant_equals_zero_order_hold_discretization(inte
     observer = quiet_scenario().observer
     step = 0.1 if integrator == "rk4" else 1e-4
     scenario = Scenario(
-        plant, PositionHeadingSensor(0.0, 1.0), observer, SinusoidalInput.constant(tau), x0, observer.guess(),
-        plant_step=step, sample_period=1.0, duration=2.0, integrator=integrator,
+        plant,
+        PositionHeadingSensor(0.0, 1.0),
+        observer,
+        SinusoidalInput.constant(tau),
+        x0,
+        observer.guess(),
+        plant_step=step,
+        sample_period=1.0,
+        duration=2.0,
+        integrator=integrator,
     )
     trajectory = simulate(scenario, jax.random.key(0))
     for axis in (0, 1):
@@ -183,16 +195,27 @@ def _rebuild(base: Scenario, **changes) -> Scenario:
 @pytest.mark.parametrize(
     "changes, message",
     [
-        ({"plant_step": 0.1, "sample_period": 0.15, "duration": 3.0}, r"sample_period \(0.15 s\) must be an integer multiple of plant_step \(0.1 s\)"),
+        (
+            {"plant_step": 0.1, "sample_period": 0.15, "duration": 3.0},
+            r"sample_period \(0.15 s\) must be an integer multiple of plant_step \(0.1 s\)",
+        ),
         ({"plant_step": 0.1, "sample_period": 0.1, "duration": 3.05}, r"duration \(3.05 s\) must be an integer multiple"),
         ({"plant_step": -0.1}, "plant_step must be positive"),
         ({"integrator": "midpoint"}, r"integrator must be one of \['euler', 'rk4'\]; got 'midpoint'"),
-        ({"sensor": PositionHeadingSensor(0.0, [0.25, 1.0, 1.0])}, r"sensor sample_period\[0\] \(0.25 s\) must be an integer multiple of sample_period"),
+        (
+            {"sensor": PositionHeadingSensor(0.0, [0.25, 1.0, 1.0])},
+            r"sensor sample_period\[0\] \(0.25 s\) must be an integer multiple of sample_period",
+        ),
         # the process noise of a sample is one draw of at most 65536 numbers: a step so short it cannot be is refused, not run for days
-        ({"plant_step": 1e-9}, r"^plant_step \(1e-09 s\) makes 100000000 plant steps per sample of 0.1 s; at most 10922 \(6 process noise inputs each\): a plant_step of at least 9.16e-06 s$"),
+        (
+            {"plant_step": 1e-9},
+            r"^plant_step \(1e-09 s\) makes 100000000 plant steps per sample of 0.1 s; at most 10922 \(6 process noise inputs each\): a plant_step of at least 9.16e-06 s$",
+        ),
         # an outage that would silence nothing is no outage
-        ({"sensor": PositionHeadingSensor(0.0, 1.0, outage_signals=["measured_position"], outage_start=10.0, outage_duration=5.0)},
-         r"^sensor outage_start \(10 s\) must be before the run's end \(duration 10 s\)"),
+        (
+            {"sensor": PositionHeadingSensor(0.0, 1.0, outage_signals=["measured_position"], outage_start=10.0, outage_duration=5.0)},
+            r"^sensor outage_start \(10 s\) must be before the run's end \(duration 10 s\)",
+        ),
     ],
 )
 def test_scenario_rejects_inconsistent_rates(changes, message):
@@ -205,8 +228,14 @@ def test_scenario_names_the_two_parts_that_do_not_fit():
     base = fs.build(fs.Config(duration=10.0))
     cases = [
         ({"plant": "not a plant"}, "^plant must be a lookout Plant; got str$"),
-        ({"controller": SinusoidalInput(1.0, 0.1, size=2)}, r"^controller and plant disagree: the controller's input has shape \(2,\), the plant takes \(3,\)$"),
-        ({"initial_state": VesselState.build().__class__(jnp.zeros(2), jnp.zeros(3), jnp.zeros(3), jnp.zeros(6))}, "^plant and initial_state do not fit: "),
+        (
+            {"controller": SinusoidalInput(1.0, 0.1, size=2)},
+            r"^controller and plant disagree: the controller's input has shape \(2,\), the plant takes \(3,\)$",
+        ),
+        (
+            {"initial_state": VesselState.build().__class__(jnp.zeros(2), jnp.zeros(3), jnp.zeros(3), jnp.zeros(6))},
+            "^plant and initial_state do not fit: ",
+        ),
         ({"initial_estimate": jnp.zeros(4)}, "^observer and (initial_estimate|sensor) do not fit: "),
     ]
     for changes, message in cases:
@@ -257,8 +286,18 @@ def test_netcdf_is_cf_compressed_and_round_trips(tmp_path):
     assert loaded.attrs["Conventions"] == "CF-1.10" and "lookout" in loaded.attrs["history"] and loaded.attrs["lookout_version"]
     assert {"run", "time", "earth_axis", "body_axis"} <= set(loaded.dims)
     assert loaded.earth_axis.values.tolist() == ["north", "east"] and loaded.body_axis.values.tolist() == ["surge", "sway"]
-    units = {name: loaded[name].attrs["units"] for name in ("position", "heading", "velocity", "yaw_rate", "bias_force", "bias_moment", "force_applied")}
-    assert units == {"position": "m", "heading": "rad", "velocity": "m/s", "yaw_rate": "rad/s", "bias_force": "N", "bias_moment": "N m", "force_applied": "N"}
+    units = {
+        name: loaded[name].attrs["units"] for name in ("position", "heading", "velocity", "yaw_rate", "bias_force", "bias_moment", "force_applied")
+    }
+    assert units == {
+        "position": "m",
+        "heading": "rad",
+        "velocity": "m/s",
+        "yaw_rate": "rad/s",
+        "bias_force": "N",
+        "bias_moment": "N m",
+        "force_applied": "N",
+    }
     assert loaded.position.attrs["frame"] == "Earth-fixed" and loaded.velocity.attrs["frame"] == "body-fixed"
     assert loaded.heading.attrs["angle"] == 1 and loaded.position.attrs["angle"] == 0
     with xr.open_dataset(path, engine="netcdf4") as raw:
@@ -287,12 +326,20 @@ def test_a_manipulator_scenario_refuses_an_observer_or_sensor_of_another_arm():
     arm, pendulum = TwoLinkArm(), FreePendulum()
     plant = ManipulatorPlant(arm)
     parts = dict(
-        plant=plant, sensor=JointEncoder(arm, sample_period=0.01), observer=VelocityObserver(arm, 5.0),
-        controller=SinusoidalInput.constant([2.0, 1.0]), initial_state=plant.state([0.1, 0.2]), initial_estimate=jnp.zeros(2),
-        plant_step=0.01, sample_period=0.01, duration=1.0,
+        plant=plant,
+        sensor=JointEncoder(arm, sample_period=0.01),
+        observer=VelocityObserver(arm, 5.0),
+        controller=SinusoidalInput.constant([2.0, 1.0]),
+        initial_state=plant.state([0.1, 0.2]),
+        initial_estimate=jnp.zeros(2),
+        plant_step=0.01,
+        sample_period=0.01,
+        duration=1.0,
     )
     Scenario(**parts)  # the arm's own parts fit
-    with pytest.raises(ValueError, match=r"^observer and plant disagree: the estimate 'joint_rate' is \(1,\) in rad/s over \('pendulum',\), the plant's is \(2,\)") as raised:
+    with pytest.raises(
+        ValueError, match=r"^observer and plant disagree: the estimate 'joint_rate' is \(1,\) in rad/s over \('pendulum',\), the plant's is \(2,\)"
+    ) as raised:
         Scenario(**parts | {"observer": VelocityObserver(pendulum, 1.2), "initial_estimate": jnp.zeros(1)})
     assert "\n" not in str(raised.value)
     with pytest.raises(ValueError, match=r"^sensor and plant do not fit: ") as raised:
@@ -318,19 +365,30 @@ def test_sizes_from_the_caller_are_checked_against_memory_before_anything_is_all
     from lookout import _resources
     from lookout.sim import check_batch_memory, keys_of_seeds, seed_keys, simulate_batch, stack_scenarios
 
-    with pytest.raises(ValueError, match=r"^runs: 1000000000000 keys x 16 B would need about 16 TB of memory, and .* are available: make fewer keys at a time$"):
+    with pytest.raises(
+        ValueError, match=r"^runs: 1000000000000 keys x 16 B would need about 16 TB of memory, and .* are available: make fewer keys at a time$"
+    ):
         seed_keys(0, 10**12)
     with pytest.raises(ValueError, match=r"^seeds: 1000000000000 keys x 52 B would need about 52 TB of memory"):
         keys_of_seeds(range(10**12))
     scenario = fs.build(fs.Config(duration=100.0))
     # 1000 records x (1000 runs x 296 B, twice, + 32 B): 592 MB
-    with pytest.raises(ValueError, match=r"^keys: 1000 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 592 MB of memory, and 100 MB are available"):
+    with pytest.raises(
+        ValueError,
+        match=r"^keys: 1000 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 592 MB of memory, and 100 MB are available",
+    ):
         check_batch_memory(scenario, 1000, available=100e6)
     monkeypatch.setattr(_resources, "available_memory", lambda: 1_000_000)
-    with pytest.raises(ValueError, match=r"^keys: 4 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 2.4 MB of memory, and 1 MB are available"):
+    with pytest.raises(
+        ValueError,
+        match=r"^keys: 4 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 2.4 MB of memory, and 1 MB are available",
+    ):
         simulate_batch(scenario, jax.random.split(jax.random.key(0), 4))
     monkeypatch.setattr(_resources, "available_memory", lambda: 500_000)
-    with pytest.raises(ValueError, match=r"^scenario: 1 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 624 kB of memory, and 500 kB are available"):
+    with pytest.raises(
+        ValueError,
+        match=r"^scenario: 1 run\(s\) x 1000 records x 296 B \(x2 at the peak, \+ 32 B per record\) would need about 624 kB of memory, and 500 kB are available",
+    ):
         simulate(scenario, jax.random.key(0))
     with pytest.raises(ValueError, match=r"^scenarios: 10000 stacked x \d+ B of arrays would need about"):
         stack_scenarios([scenario] * 10000)
@@ -354,26 +412,45 @@ def test_the_memory_check_counts_what_a_run_holds_while_it_takes_a_sample():
     runs = 1000
     records = scenario.n_records * (2 * runs * record_nbytes(scenario) + 32)
     check_batch_memory(scenario, runs, available=records + 1.01 * runs * working)
-    with pytest.raises(ValueError, match=r"^keys: 1000 run\(s\) x 100 records x \d+ B \(x2 at the peak, \+ 32 B per record\) \+ 1000 x [\d.]+ MB while a sample is taken would need"):
+    with pytest.raises(
+        ValueError,
+        match=r"^keys: 1000 run\(s\) x 100 records x \d+ B \(x2 at the peak, \+ 32 B per record\) \+ 1000 x [\d.]+ MB while a sample is taken would need",
+    ):
         check_batch_memory(scenario, runs, available=records + 0.99 * runs * working)
     document["simulation"]["plant_step"] = 0.1 / 128
-    with pytest.raises(CompositionError, match=r"plant_step \(0.00078125 s\) makes 128 propagation steps per sample of 0.1 s, .*: at most 64; give the filter a plant_step of its own of at least 0.00156 s"):
+    with pytest.raises(
+        CompositionError,
+        match=r"plant_step \(0.00078125 s\) makes 128 propagation steps per sample of 0.1 s, .*: at most 64; give the filter a plant_step of its own of at least 0.00156 s",
+    ):
         compose(document)
 
 
 @pytest.mark.parametrize(
     "call, message",
     [
-        (lambda sc: simulate(sc, lookout.seed_keys(0, 1)), r"^key must be one JAX PRNG key .*got an array of shape \(1,\) and dtype key<fry>: a batch of keys goes to simulate_batch$"),
+        (
+            lambda sc: simulate(sc, lookout.seed_keys(0, 1)),
+            r"^key must be one JAX PRNG key .*got an array of shape \(1,\) and dtype key<fry>: a batch of keys goes to simulate_batch$",
+        ),
         (lambda sc: simulate(sc, 0), r"^key must be one JAX PRNG key .*got int$"),
         (lambda sc: simulate(None, jax.random.key(0)), r"^scenario must be a lookout Scenario .*got NoneType$"),
-        (lambda sc: lookout.simulate_batch(sc, lookout.seed_keys(0, 1)[0]), r"^keys must be a 1-D batch of JAX PRNG keys, one per run .*got an array of shape \(\)"),
+        (
+            lambda sc: lookout.simulate_batch(sc, lookout.seed_keys(0, 1)[0]),
+            r"^keys must be a 1-D batch of JAX PRNG keys, one per run .*got an array of shape \(\)",
+        ),
         (lambda sc: lookout.simulate_batch(sc, [0, 1, 2]), r"^keys must be a 1-D batch .*got list$"),
-        (lambda sc: lookout.simulate_batch(lookout.stack_scenarios([sc] * 4), lookout.seed_keys(0, 3), batched_scenario=True),
-         r"^scenario: with batched_scenario=True every array of the scenario needs a leading run axis of 3 \(one per key\); its arrays lead with 4$"),
-        (lambda sc: lookout.simulate_batch(lookout.stack_scenarios([sc] * 5), lookout.seed_keys(0, 5)),
-         r"^scenario: plant and initial_state disagree: .*; a scenario stacked per run \(stack_scenarios\) needs batched_scenario=True$"),
-        (lambda sc: lookout.stack_scenarios([sc, fs.build(fs.Config(duration=30.0))]), r"^scenarios\[1\] differs from scenarios\[0\] in its structure"),
+        (
+            lambda sc: lookout.simulate_batch(lookout.stack_scenarios([sc] * 4), lookout.seed_keys(0, 3), batched_scenario=True),
+            r"^scenario: with batched_scenario=True every array of the scenario needs a leading run axis of 3 \(one per key\); its arrays lead with 4$",
+        ),
+        (
+            lambda sc: lookout.simulate_batch(lookout.stack_scenarios([sc] * 5), lookout.seed_keys(0, 5)),
+            r"^scenario: plant and initial_state disagree: .*; a scenario stacked per run \(stack_scenarios\) needs batched_scenario=True$",
+        ),
+        (
+            lambda sc: lookout.stack_scenarios([sc, fs.build(fs.Config(duration=30.0))]),
+            r"^scenarios\[1\] differs from scenarios\[0\] in its structure",
+        ),
         (lambda sc: lookout.stack_scenarios([]), r"^scenarios must be a non-empty list of Scenarios; got \[\]$"),
         (lambda sc: lookout.stack_scenarios([sc, "x"]), r"^scenarios\[1\] must be a lookout Scenario; got str$"),
         (lambda sc: lookout.seed_keys(0, True), r"^runs must be a positive integer; got True$"),

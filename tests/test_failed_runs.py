@@ -117,8 +117,11 @@ def test_a_replay_whose_estimates_go_non_finite_exits_3_naming_the_step(tmp_path
     diverge."""
     shutil.copytree(EXAMPLES / "plugins", tmp_path / "plugins")
     scenario = tmp_path / "unstable.toml"
-    scenario.write_text('plugins = ["plugins/luenberger.py"]\n' + (EXAMPLES / "live-dp.toml").read_text()
-                        + '\n[observer]\nkind = "luenberger"\ndesign = "poles"\nbandwidth = [29.0, 29.0, 29.0]\n')
+    scenario.write_text(
+        'plugins = ["plugins/luenberger.py"]\n'
+        + (EXAMPLES / "live-dp.toml").read_text()
+        + '\n[observer]\nkind = "luenberger"\ndesign = "poles"\nbandwidth = [29.0, 29.0, 29.0]\n'
+    )
     out = tmp_path / "replay.nc"
     code = main(["replay", str(EXAMPLES / "logs" / "dp-vessel.csv"), "--scenario", str(scenario), "--out", str(out), "--quiet"])
     err = capsys.readouterr().err
@@ -134,14 +137,21 @@ def test_lookout_run_warns_of_failing_conditions_a_limited_actuator_and_a_setpoi
     """The PID at 40 rad/s: its sampled loop fails (spectral radius above 1) and it asks the
     thrusters for far more than they give; the file's second setpoint (600 s) is after a
     60 s run's end. Each is a warning line; conditions = "require" refuses the run."""
-    text = (EXAMPLES / "ekf-pid-dp.toml").read_text().replace("natural_frequency = 0.1 ", "natural_frequency = 40.0").replace("duration = 1800.0", "duration = 60.0")
+    text = (
+        (EXAMPLES / "ekf-pid-dp.toml")
+        .read_text()
+        .replace("natural_frequency = 0.1 ", "natural_frequency = 40.0")
+        .replace("duration = 1800.0", "duration = 60.0")
+    )
     path = tmp_path / "fast-pid.toml"
     path.write_text(text)
     code = main(["run", str(path), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert code in (0, DIVERGED_EXIT_CODE)
     warnings = [line for line in err.splitlines() if line.startswith("warning: ")]
-    assert any("design condition(s) of" in line and "controller pid: sampled loop" in line and "spectral radius" in line for line in warnings), warnings
+    assert any("design condition(s) of" in line and "controller pid: sampled loop" in line and "spectral radius" in line for line in warnings), (
+        warnings
+    )
     assert any("the actuator limited the command longer than 10% of the time: force (surge)" in line for line in warnings), warnings
     assert any("reference.schedule_times[1] = 600 s at or after the run's end (simulation.duration 60 s)" in line for line in warnings), warnings
     required = tmp_path / "required.toml"

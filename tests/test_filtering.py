@@ -27,8 +27,13 @@ def recorded():
 def test_filtering_a_simulation_log_gives_the_simulation_estimates(recorded):
     scenario, trajectory, ds = recorded
     log = lookout.filter(
-        scenario.observer, trajectory.time, trajectory.measurement, trajectory.applied, guess=scenario.initial_estimate,
-        measurement_layout=POSITION_HEADING, input_layout=VESSEL_INPUT,
+        scenario.observer,
+        trajectory.time,
+        trajectory.measurement,
+        trajectory.applied,
+        guess=scenario.initial_estimate,
+        measurement_layout=POSITION_HEADING,
+        input_layout=VESSEL_INPUT,
     )
     assert set(log.data_vars) >= {"position_hat", "heading_hat", "innovation_position", "measured_position", "force_applied"}
     for name in ("position_hat", "heading_hat", "velocity_hat", "bias_force_hat", "wave_position_hat", "innovation_heading"):
@@ -85,19 +90,37 @@ BAD_LOGS = [
     ({"times": [0.0, 0.1, 0.1]}, r"times must be strictly increasing; row 2 \(0.1 s\) does not come after row 1 \(0.1 s\)"),
     ({"times": [0.0, np.nan, 0.2]}, r"times must be finite; row 1 is nan"),
     ({"times": [[0.0, 0.1, 0.2]]}, r"times must be a 1-D array with at least one row; got shape \(1, 3\)"),
-    ({"times": [0.0, 100.0, 200.0]}, r"times: the longest row step \(row 0 to 1\), 100 s is too long for this observer: one prediction step multiplies a state error by .* are the times in seconds\?"),
-    ({"measurements": np.zeros((3, 2))}, r"measurements must have shape \(3, 3\): 3 rows and the 3 columns the observer reads \(measured_position, measured_heading\); got shape \(3, 2\)"),
+    (
+        {"times": [0.0, 100.0, 200.0]},
+        r"times: the longest row step \(row 0 to 1\), 100 s is too long for this observer: one prediction step multiplies a state error by .* are the times in seconds\?",
+    ),
+    (
+        {"measurements": np.zeros((3, 2))},
+        r"measurements must have shape \(3, 3\): 3 rows and the 3 columns the observer reads \(measured_position, measured_heading\); got shape \(3, 2\)",
+    ),
     ({"measurements": np.zeros((2, 3))}, r"measurements must have shape \(3, 3\).*got shape \(2, 3\)"),
     ({"measurements": np.full((3, 3), np.nan)}, r"measurements hold no finite value \(3 rows, all NaN\)"),
     ({"measurements": [[0.0, np.inf, 0.0]] * 3}, r"measurements must be finite or NaN \(a missing channel\); row 0, column 1 is inf"),
-    ({"inputs": np.zeros((3, 2))}, r"inputs must have shape \(3, 3\): 3 rows and the 3 columns the observer's prediction reads \(force, moment\); got shape \(3, 2\)"),
+    (
+        {"inputs": np.zeros((3, 2))},
+        r"inputs must have shape \(3, 3\): 3 rows and the 3 columns the observer's prediction reads \(force, moment\); got shape \(3, 2\)",
+    ),
     ({"inputs": np.full((3, 3), np.nan)}, r"inputs must be finite .*; row 0, column 0 is nan"),
-    ({"guess": {"eta": np.zeros(3)}}, r"guess must be shaped like observer.guess\(\) \(VesselState with eta \(3,\), nu \(3,\), bias \(3,\), wave_state \(6,\)\); got dict"),
+    (
+        {"guess": {"eta": np.zeros(3)}},
+        r"guess must be shaped like observer.guess\(\) \(VesselState with eta \(3,\), nu \(3,\), bias \(3,\), wave_state \(6,\)\); got dict",
+    ),
     ({"guess": "eta"}, r"guess must be shaped like observer.guess\(\)"),
     ({"guess_eta": np.zeros(2)}, r"guess.eta must have shape \(3,\) \(as in observer.guess\(\)\); got shape \(2,\)"),
-    ({"guess_eta": np.array([0.0, 0.0, np.inf])}, r"^guess.eta must be finite \(NaN only where observer.guess\(\) leaves a state to the first measurement\); got \[0.0, 0.0, inf\]$"),
+    (
+        {"guess_eta": np.array([0.0, 0.0, np.inf])},
+        r"^guess.eta must be finite \(NaN only where observer.guess\(\) leaves a state to the first measurement\); got \[0.0, 0.0, inf\]$",
+    ),
     ({"guess_nu": np.full(3, np.nan)}, r"^guess.nu must be finite; got \[nan, nan, nan\]$"),  # NaN only where the first measurement gives the state
-    ({"measurement_layout": POSITION_HEADING.renamed(suffix="_x").__class__(POSITION_HEADING.signals[:1])}, r"measurement_layout must have 3 entries \(the observer reads measured_position, measured_heading\); got 2"),
+    (
+        {"measurement_layout": POSITION_HEADING.renamed(suffix="_x").__class__(POSITION_HEADING.signals[:1])},
+        r"measurement_layout must have 3 entries \(the observer reads measured_position, measured_heading\); got 2",
+    ),
     ({"measurements": np.zeros((3, 3)) + 1j}, r"measurements must hold real numbers; got complex numbers"),
     ({"times": ["0", "0.1", "0.2"]}, r"times must hold real numbers; got text"),
 ]
@@ -126,9 +149,13 @@ def test_filter_names_a_bad_observer_takes_an_integer_guess_and_warns_where_the_
             lookout.filter(bad, [0.0, 0.1], np.zeros((2, 3)))
     times, ys = np.asarray(trajectory.time)[:40], np.asarray(trajectory.measurement)[:40].copy()
     integer = lookout.filter(observer, times, ys, guess=_guess_with(observer, eta=np.zeros(3, dtype=int)))
-    np.testing.assert_array_equal(integer.position_hat.values, lookout.filter(observer, times, ys, guess=_guess_with(observer, eta=np.zeros(3))).position_hat.values)
+    np.testing.assert_array_equal(
+        integer.position_hat.values, lookout.filter(observer, times, ys, guess=_guess_with(observer, eta=np.zeros(3))).position_hat.values
+    )
     ys[10, 0] = 1e306  # one absurd sample: the estimates overflow after it, and the user is told where
-    with pytest.warns(RuntimeWarning, match=r"the estimates are not finite from row 11 \(t = 1.1 s\) on, after row 10's measurement \[ ?1.0000e\+306"):
+    with pytest.warns(
+        RuntimeWarning, match=r"the estimates are not finite from row 11 \(t = 1.1 s\) on, after row 10's measurement \[ ?1.0000e\+306"
+    ):
         log = lookout.filter(observer, times, ys)
     assert log.status.values.tolist() == ["diverged"]
 
@@ -146,8 +173,10 @@ def test_the_step_length_check_is_the_filters_and_a_replays(recorded):
     assert radius == step_amplification(observer, guess, zeros, zeros, 0.1) and radius <= MAX_STEP_AMPLIFICATION
     too_long = step_amplification(observer, guess, zeros, zeros, 100.0)
     assert too_long > MAX_STEP_AMPLIFICATION
-    expected = (f"LOG x: its typical step between lines, 100 s is too long for this observer: one prediction step multiplies a state error by "
-                f"{too_long:.3g} (above 2 the estimates diverge); are the times in seconds?")
+    expected = (
+        f"LOG x: its typical step between lines, 100 s is too long for this observer: one prediction step multiplies a state error by "
+        f"{too_long:.3g} (above 2 the estimates diverge); are the times in seconds?"
+    )
     with pytest.raises(ValueError, match="^" + re.escape(expected)):
         check_step_length(observer, guess, zeros, zeros, 100.0, "LOG x: its typical step between lines,")
 
@@ -158,7 +187,10 @@ def test_a_discrete_time_observer_needs_rows_one_sample_period_apart():
     scenario = ch4.REPRODUCTION.scenario(ch4.Config(), "delta-0.01")
     observer = scenario.observer
     assert observer.sample_period == 0.01
-    with pytest.raises(ValueError, match=r"times must step by the observer's sample_period 0.01 s \(a discrete-time observer\); the step from row 0 to 1 is 10 s; are the times in seconds\?"):
+    with pytest.raises(
+        ValueError,
+        match=r"times must step by the observer's sample_period 0.01 s \(a discrete-time observer\); the step from row 0 to 1 is 10 s; are the times in seconds\?",
+    ):
         lookout.filter(observer, [0.0, 10.0, 20.0], np.zeros((3, 1)))
     stepper = lookout.Stepper(observer, y0=[0.0])
     with pytest.raises(ValueError, match=r"dt must be the observer's sample_period 0.01 s \(a discrete-time observer\); got 0.02 s"):
@@ -195,8 +227,14 @@ BAD_CALLS = [
     ((0.1, [0.0, 0.0, 0.0], [0.0, 0.0], 0.1), r"u must have 3 entries \(force, moment\); got 2"),
     ((0.1, [0.0, np.inf, 0.0], [0.0, 0.0, 0.0], 0.1), r"y must be finite or NaN \(a missing channel\)"),
     ((0.1, [0.0, 0.0], [0.0, 0.0, 0.0], 0.1), r"y must have 3 entries"),
-    ((0.1, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 100.0), r"dt: a step of 100 s is too long for this observer: one prediction step multiplies a state error by"),
-    ((0.1, [1e306, 0.0, 0.0], [0.0, 0.0, 0.0], 0.1), r"the step at t = 0.1 s over dt = 0.1 s gives a non-finite state or estimate; refused, the state is kept as it was"),
+    (
+        (0.1, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 100.0),
+        r"dt: a step of 100 s is too long for this observer: one prediction step multiplies a state error by",
+    ),
+    (
+        (0.1, [1e306, 0.0, 0.0], [0.0, 0.0, 0.0], 0.1),
+        r"the step at t = 0.1 s over dt = 0.1 s gives a non-finite state or estimate; refused, the state is kept as it was",
+    ),
     ((0.1, "abc", [0.0, 0.0, 0.0], 0.1), r"y must hold real numbers; got text"),
     (("0.1", [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 0.1), r"t must hold real numbers"),
 ]
@@ -215,7 +253,9 @@ def test_a_bad_call_raises_and_leaves_the_stepper_as_it_was(recorded, call, mess
     # and the stepper goes on as if the bad call had never come
     reference = lookout.Stepper(observer, y0=[1.0, 2.0, 0.1])
     reference(0.0, [1.0, 2.0, 0.1], [0.0, 0.0, 0.0], 0.1)
-    np.testing.assert_array_equal(stepper(0.1, [1.0, 2.0, np.nan], [1e3, 0.0, 0.0], 0.1)["position"], reference(0.1, [1.0, 2.0, np.nan], [1e3, 0.0, 0.0], 0.1)["position"])
+    np.testing.assert_array_equal(
+        stepper(0.1, [1.0, 2.0, np.nan], [1e3, 0.0, 0.0], 0.1)["position"], reference(0.1, [1.0, 2.0, np.nan], [1e3, 0.0, 0.0], 0.1)["position"]
+    )
 
 
 def test_a_kalman_filter_on_a_log_gives_the_simulation_estimates():
@@ -231,7 +271,14 @@ def test_a_kalman_filter_on_a_log_gives_the_simulation_estimates():
     scenario = compose(document).scenario
     trajectory = simulate(scenario, jax.random.key(0))
     ds = trajectory.to_xarray()
-    log = lookout.filter(scenario.observer, trajectory.time, trajectory.measurement, trajectory.applied, guess=scenario.initial_estimate,
-                         measurement_layout=POSITION_HEADING, input_layout=VESSEL_INPUT)
+    log = lookout.filter(
+        scenario.observer,
+        trajectory.time,
+        trajectory.measurement,
+        trajectory.applied,
+        guess=scenario.initial_estimate,
+        measurement_layout=POSITION_HEADING,
+        input_layout=VESSEL_INPUT,
+    )
     for name in ("position_hat", "heading_hat", "velocity_hat", "bias_force_hat", "wave_position_hat"):
         np.testing.assert_allclose(log[name].values, ds[name].values, rtol=1e-9, atol=1e-9 * float(np.abs(ds[name]).max()))

@@ -96,8 +96,11 @@ def test_with_exact_estimates_the_pendulum_channel_is_z2_dot_equal_minus_c2_d2_z
     for _ in range(5):
         q = jnp.asarray([rng.normal(), rng.choice([0.0, math.pi]) + rng.normal() * 0.5])
         qdot = jnp.asarray(rng.normal(size=2))
-        reference = {"pendulum_angle_desired": q[1] + rng.normal() * 0.2, "pendulum_angle_desired_rate": rng.normal(),
-                     "pendulum_angle_desired_acceleration": rng.normal()}
+        reference = {
+            "pendulum_angle_desired": q[1] + rng.normal() * 0.2,
+            "pendulum_angle_desired_rate": rng.normal(),
+            "pendulum_angle_desired_acceleration": rng.normal(),
+        }
         tau = controller.law(q, qdot, parameters.reference, reference)
         accel = MODEL.acceleration(q, qdot, jnp.array([tau, 0.0]))
         z1, z2 = controller.errors(q, qdot, reference)
@@ -115,8 +118,15 @@ def test_with_exact_estimates_the_pendulum_channel_is_z2_dot_equal_minus_c2_d2_z
 def test_exp_iii_printed_bounds_make_m_hat_indefinite():
     experiment = ch6.EXPERIMENTS["III"]
     with pytest.raises(ValueError, match="positive definite"):
-        AdaptiveManipulatorObserver(ch6.parameters(experiment.unknowns), 5.0, experiment.adaptation_gain, sample_period=ch6.SAMPLE_PERIOD,
-                                    lower=experiment.lower, upper=experiment.upper, margin=experiment.margin)
+        AdaptiveManipulatorObserver(
+            ch6.parameters(experiment.unknowns),
+            5.0,
+            experiment.adaptation_gain,
+            sample_period=ch6.SAMPLE_PERIOD,
+            lower=experiment.lower,
+            upper=experiment.upper,
+            margin=experiment.margin,
+        )
     assert ch6.ALPHA_MINIMUM == pytest.approx(0.00173, abs=1e-5) and experiment.initial[1] < ch6.ALPHA_MINIMUM
 
 

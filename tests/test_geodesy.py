@@ -23,8 +23,7 @@ distances = st.floats(0.0, 10_000.0)
 def nearby(pymap3d, lat0, lon0, h0, bearing, distance):
     """Latitude and longitude of the point ``distance`` m from the reference along ``bearing``
     in its tangent plane."""
-    lat, lon, _ = pymap3d.ned2geodetic(distance * math.cos(bearing), distance * math.sin(bearing), 0.0,
-                                        lat0, lon0, h0)
+    lat, lon, _ = pymap3d.ned2geodetic(distance * math.cos(bearing), distance * math.sin(bearing), 0.0, lat0, lon0, h0)
     return float(lat), float(lon)
 
 
@@ -48,9 +47,17 @@ def test_ned_agrees_with_pymap3d(lat0, lon0, h0, bearing, distance, h):
 
 
 @settings(max_examples=200)
-@given(lat0=latitudes, lon0=st.floats(-180.0, 360.0, exclude_max=True), h0=heights,
-       near=st.booleans(), bearing=bearings, distance=distances,
-       far_lat=latitudes, far_lon=longitudes, h=heights)
+@given(
+    lat0=latitudes,
+    lon0=st.floats(-180.0, 360.0, exclude_max=True),
+    h0=heights,
+    near=st.booleans(),
+    bearing=bearings,
+    distance=distances,
+    far_lat=latitudes,
+    far_lon=longitudes,
+    h=heights,
+)
 def test_geodetic_inverts_ned(lat0, lon0, h0, near, bearing, distance, far_lat, far_lon, h):
     frame = LocalFrame(lat0, lon0, h0)
     if near:
@@ -66,8 +73,14 @@ def test_geodetic_inverts_ned(lat0, lon0, h0, near, bearing, distance, far_lat, 
 
 
 @settings(max_examples=200)
-@given(lat0=latitudes, lon0=longitudes, h0=heights, north=st.floats(-10_000.0, 10_000.0),
-       east=st.floats(-10_000.0, 10_000.0), down=st.floats(-3000.0, 100.0))
+@given(
+    lat0=latitudes,
+    lon0=longitudes,
+    h0=heights,
+    north=st.floats(-10_000.0, 10_000.0),
+    east=st.floats(-10_000.0, 10_000.0),
+    down=st.floats(-3000.0, 100.0),
+)
 def test_ned_inverts_geodetic(lat0, lon0, h0, north, east, down):
     frame = LocalFrame(lat0, lon0, h0)
     again = np.array(frame.ned(*frame.geodetic(north, east, down)))
@@ -83,8 +96,7 @@ def test_reference_point_is_the_origin():
 
 def test_one_arc_minute_north_on_the_equator_is_the_meridional_arc():
     dphi = math.radians(1.0 / 60.0)
-    arc, _ = quad(lambda phi: A * (1.0 - E2) / (1.0 - E2 * math.sin(phi) ** 2) ** 1.5, 0.0, dphi,
-                  epsabs=1e-10, epsrel=1e-13)
+    arc, _ = quad(lambda phi: A * (1.0 - E2) / (1.0 - E2 * math.sin(phi) ** 2) ** 1.5, 0.0, dphi, epsabs=1e-10, epsrel=1e-13)
     assert arc == pytest.approx(1842.9, abs=0.05)
     north, east, down = LocalFrame(0.0, 25.0).ned(1.0 / 60.0, 25.0)
     # The chord's projection on the tangent falls short of the arc by ~arc³ / (6 R²) ~ 3e-5 m.
@@ -111,8 +123,7 @@ def test_antimeridian_and_longitude_conventions():
     assert east_across == pytest.approx(east_here, abs=1e-9) and east_across > 55_000.0
     point = (59.5, -9.7, 40.0)
     np.testing.assert_allclose(LocalFrame(60.0, 350.0).ned(*point), LocalFrame(60.0, -10.0).ned(*point), atol=1e-9)
-    np.testing.assert_allclose(LocalFrame(60.0, -10.0).ned(59.5, 350.3, 40.0),
-                               LocalFrame(60.0, -10.0).ned(59.5, -9.7, 40.0), atol=1e-9)
+    np.testing.assert_allclose(LocalFrame(60.0, -10.0).ned(59.5, 350.3, 40.0), LocalFrame(60.0, -10.0).ned(59.5, -9.7, 40.0), atol=1e-9)
     down = LocalFrame(0.0, 0.0).ned(0.0, 0.5)[2]
     lat, lon, _ = LocalFrame(0.0, 179.75).geodetic(0.0, east_across, down)
     assert abs(lat) < 1e-12 and lon == pytest.approx(-179.75, abs=1e-12)

@@ -68,8 +68,11 @@ def test_the_loop_equals_its_steps_written_out_with_time_and_normalization(metho
             expected = normalize(expected) if each_step else expected
         expected = expected if each_step else normalize(expected)
         for limit in (0, steps):  # scanned, written out
-            result = jax.jit(lambda x: integrate_sample(field, t, x, dt, steps, method=method, normalize=normalize,
-                                                        normalize_each_step=each_step, unroll_limit=limit))(x0)
+            result = jax.jit(
+                lambda x: integrate_sample(
+                    field, t, x, dt, steps, method=method, normalize=normalize, normalize_each_step=each_step, unroll_limit=limit
+                )
+            )(x0)
             for name in x0:
                 assert float(result[name]) == pytest.approx(float(expected[name]), rel=1e-14, abs=1e-15), (name, limit, each_step)
 
@@ -159,26 +162,63 @@ def _observer_cases():
     cases = {}
     for hold in ("measurement", "innovation"):
         cases[f"passive, hold {hold}"] = (
-            lambda n, hold=hold: PassiveObserver.design(vessel, **waves, notch_damping=1.0, velocity_injection_gain=kappa, bias_injection_gain=lam,
-                                                        bias_time_constant=1000.0, steps_per_sample=n, hold=hold),
-            vessel_guess, _vessel_measurements(count), tau, 0.25)
+            lambda n, hold=hold: PassiveObserver.design(
+                vessel,
+                **waves,
+                notch_damping=1.0,
+                velocity_injection_gain=kappa,
+                bias_injection_gain=lam,
+                bias_time_constant=1000.0,
+                steps_per_sample=n,
+                hold=hold,
+            ),
+            vessel_guess,
+            _vessel_measurements(count),
+            tau,
+            0.25,
+        )
         cases[f"sliding mode, hold {hold}"] = (
-            lambda n, hold=hold: kim_2002_observer(vessel, **waves, switching_gain=[10.0, 10.0, 0.01], boundary_layer=[5.0, 5.0, 0.02],
-                                                            steps_per_sample=n, hold=hold),
-            vessel_guess, _vessel_measurements(count), tau, 0.25)
+            lambda n, hold=hold: kim_2002_observer(
+                vessel, **waves, switching_gain=[10.0, 10.0, 0.01], boundary_layer=[5.0, 5.0, 0.02], steps_per_sample=n, hold=hold
+            ),
+            vessel_guess,
+            _vessel_measurements(count),
+            tau,
+            0.25,
+        )
     parametrization = InertiaParametrization(vessel, ("m11",), [0.5 * m11], [2.0 * m11])
     cases["adaptive DP, continuous"] = (
-        lambda n: AdaptiveObserver(parametrization, jnp.full(3, 0.5), jnp.full(3, 0.5), 1e8, form="continuous", initial_theta=0.7 * m11, steps_per_sample=n),
-        vessel_guess, _vessel_measurements(count, velocity=True), 10 * tau, 0.1)
+        lambda n: AdaptiveObserver(
+            parametrization, jnp.full(3, 0.5), jnp.full(3, 0.5), 1e8, form="continuous", initial_theta=0.7 * m11, steps_per_sample=n
+        ),
+        vessel_guess,
+        _vessel_measurements(count, velocity=True),
+        10 * tau,
+        0.1,
+    )
     for method in ("rk4", "euler"):
         cases[f"Earth-fixed, {method}"] = (
             lambda n, method=method: EarthFixedObserver(cybership2(), 15.0, 50.0, steps_per_sample=n, method=method),
-            lambda o: o.guess([0.1, 0.0, 3.0], [0.5, 0.5, -0.5]), _vessel_measurements(count) * [0.1, 0.1, 1.0], np.array([1.0, 0.5, 0.1]), 0.05)
-    cases["velocity"] = (lambda n: VelocityObserver(TwoLinkArm(), jnp.full(2, 5.0), steps_per_sample=n), lambda o: o.guess([0.3, -0.2]),
-                         _joint_measurements(count), np.array([2.0, 1.0]), 0.01)
+            lambda o: o.guess([0.1, 0.0, 3.0], [0.5, 0.5, -0.5]),
+            _vessel_measurements(count) * [0.1, 0.1, 1.0],
+            np.array([1.0, 0.5, 0.1]),
+            0.05,
+        )
+    cases["velocity"] = (
+        lambda n: VelocityObserver(TwoLinkArm(), jnp.full(2, 5.0), steps_per_sample=n),
+        lambda o: o.guess([0.3, -0.2]),
+        _joint_measurements(count),
+        np.array([2.0, 1.0]),
+        0.01,
+    )
     pendulum = ModelParameters(FreePendulum(1.0, 1.5, 0.1), ("mass", "friction[0]"), units=("kg", "N m s/rad"))
-    cases["parameter estimator"] = (lambda n: ParameterEstimator(pendulum, 10.0, steps_per_sample=n), lambda o: o.guess([0.5, 0.3]),
-                                    _joint_measurements(count), np.array([5.0]), 0.01)
+    cases["parameter estimator"] = (
+        lambda n: ParameterEstimator(pendulum, 10.0, steps_per_sample=n),
+        lambda o: o.guess([0.5, 0.3]),
+        _joint_measurements(count),
+        np.array([5.0]),
+        0.01,
+    )
     return cases
 
 

@@ -104,6 +104,7 @@ def test_dnv_factor_normalizes_only_approximately():
 
     edges = np.array([0.2, 0.5, 0.8, 1.0, 1.25, 2.0, 4.0]) * WP
     for gamma, expected in ((1.0, 1.0), (3.3, 1.00242), (5.0, 1.00000), (7.0, 0.98247)):
+
         def integrand(w):
             return float(dnv_jonswap(np.float64(w), HS, WP, gamma))
 

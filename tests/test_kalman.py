@@ -221,10 +221,13 @@ def _vessel(heading=0.0, yaw_rate=0.0):
     """The DP vessel without waves (Northern Clipper, bias, 1 Hz fixes at a 0.5 s observer)."""
     document = {
         "simulation": {"plant_step": 0.25, "sample_period": 0.5, "duration": 60.0},
-        "plant": {"kind": "dp-vessel", "vessel": {"kind": "northern-clipper"},
-                  "bias": {"kind": "gauss-markov", "time_constant": [1000.0, 1000.0, 1000.0], "std": [2000.0, 2000.0, 50000.0]},
-                  "waves": {"kind": "linear", "peak_frequency": 0.8, "damping_ratio": 0.1, "amplitude": [0.0, 0.0, 0.0]},
-                  "initial": {"eta": [0.0, 0.0, heading], "nu": [1.0, 0.2, yaw_rate], "bias": [1e4, 5e3, 1e5]}},
+        "plant": {
+            "kind": "dp-vessel",
+            "vessel": {"kind": "northern-clipper"},
+            "bias": {"kind": "gauss-markov", "time_constant": [1000.0, 1000.0, 1000.0], "std": [2000.0, 2000.0, 50000.0]},
+            "waves": {"kind": "linear", "peak_frequency": 0.8, "damping_ratio": 0.1, "amplitude": [0.0, 0.0, 0.0]},
+            "initial": {"eta": [0.0, 0.0, heading], "nu": [1.0, 0.2, yaw_rate], "bias": [1e4, 5e3, 1e5]},
+        },
         "sensor": {"kind": "position-heading", "noise_std": [0.5, 0.5, 0.002], "sample_period": 1.0},
         "observer": {"kind": "passive"},
     }
@@ -240,13 +243,14 @@ def _vessel_samples(scenario, samples, seed=3):
 
 def test_on_the_vessel_the_ekf_equals_filterpy_driven_with_the_same_model():
     import filterpy.kalman as filterpy  # a test extra (pyproject: dev): the test fails, not skips, without it
+
     scenario = _vessel(heading=0.3, yaw_rate=0.01)
     dt = scenario.sample_period
     std = {"eta": [5.0, 5.0, 0.05], "nu": [0.5, 0.5, 0.005], "bias": [5e3, 5e3, 1e5], "wave_state": [1e-3] * 6}
     ekf = ExtendedKalmanFilter(scenario.plant, scenario.sensor, initial_std=std, plant_step=scenario.plant_step, filter_period=dt)
     ys, us = _vessel_samples(scenario, 50)
-    ys[20:30] = np.nan          # a 5 s outage of every channel
-    ys[41, 2] = np.nan          # one heading fix lost, the position kept
+    ys[20:30] = np.nan  # a 5 s outage of every channel
+    ys[41, 2] = np.nan  # one heading fix lost, the position kept
     guess = ekf.guess(eta=[1.0, -1.0, 0.25])
     means, covariances = _drive(ekf, ys, us, guess, dt)
 
@@ -266,8 +270,13 @@ def test_on_the_vessel_the_ekf_equals_filterpy_driven_with_the_same_model():
         if fresh.any():
             rows = np.flatnonzero(fresh)
             residual = lambda a, b, rows=rows: np.where(rows == 2, (a - b + math.pi) % (2 * math.pi) - math.pi, a - b)
-            reference.update(y[rows], lambda x, rows=rows: np.asarray(measure_jacobian(x))[rows], lambda x, rows=rows: np.asarray(measure(x))[rows],
-                             R=R[np.ix_(rows, rows)], residual=residual)
+            reference.update(
+                y[rows],
+                lambda x, rows=rows: np.asarray(measure_jacobian(x))[rows],
+                lambda x, rows=rows: np.asarray(measure(x))[rows],
+                R=R[np.ix_(rows, rows)],
+                residual=residual,
+            )
             reference.x[2] = (reference.x[2] + math.pi) % (2 * math.pi) - math.pi
         expected.append((reference.x.copy(), reference.P.copy()))
         x = reference.x.copy()
@@ -290,13 +299,24 @@ def test_the_ukf_follows_a_heading_through_plus_minus_pi_without_a_jump():
     scenario = _vessel(heading=math.pi - 0.05, yaw_rate=0.01)
     # a heading guess 0.3 rad off with that uncertainty: the sigma points straddle +-pi
     std = {"eta": [2.0, 2.0, 0.3], "nu": [0.5, 0.5, 0.005], "bias": [5e3, 5e3, 1e5], "wave_state": [1e-3] * 6}
-    ukf = UnscentedKalmanFilter(scenario.plant, scenario.sensor, initial_std=std, plant_step=scenario.plant_step, filter_period=scenario.sample_period)
+    ukf = UnscentedKalmanFilter(
+        scenario.plant, scenario.sensor, initial_std=std, plant_step=scenario.plant_step, filter_period=scenario.sample_period
+    )
     from lookout.sim import Scenario, keys_of_seeds, simulate
 
-    run = Scenario(plant=scenario.plant, sensor=scenario.sensor, observer=ukf, controller=scenario.controller, reference=scenario.reference,
-                   actuator=scenario.actuator, initial_state=scenario.initial_state,
-                   initial_estimate=ukf.guess(eta=[0.0, 0.0, math.pi - 0.35], nu=[1.0, 0.2, 0.01], bias=[1e4, 5e3, 1e5]),
-                   plant_step=scenario.plant_step, sample_period=scenario.sample_period, duration=20.0)
+    run = Scenario(
+        plant=scenario.plant,
+        sensor=scenario.sensor,
+        observer=ukf,
+        controller=scenario.controller,
+        reference=scenario.reference,
+        actuator=scenario.actuator,
+        initial_state=scenario.initial_state,
+        initial_estimate=ukf.guess(eta=[0.0, 0.0, math.pi - 0.35], nu=[1.0, 0.2, 0.01], bias=[1e4, 5e3, 1e5]),
+        plant_step=scenario.plant_step,
+        sample_period=scenario.sample_period,
+        duration=20.0,
+    )
 
     def worst_error(observer):
         ds = simulate(eqx.tree_at(lambda s: s.observer, run, observer), keys_of_seeds([0])[0]).to_xarray()
@@ -325,7 +345,9 @@ def test_a_composition_gives_the_filter_its_plant_steps_and_a_table_of_state_par
     np.testing.assert_allclose(np.sqrt(np.diag(np.asarray(ukf.initial_covariance)))[6:9], std["bias"])
     np.testing.assert_array_equal(np.asarray(composition.scenario.initial_estimate.bias), [1e4, 5e3, 1e5])
     document["observer"]["initial_std"] = {"eta": [5.0, 5.0, 0.05], "speed": [1.0]}
-    with pytest.raises(CompositionError, match=r"observer.initial_std: .*the plant's state has no part 'speed' \(its parts: eta, nu, bias, wave_state\)"):
+    with pytest.raises(
+        CompositionError, match=r"observer.initial_std: .*the plant's state has no part 'speed' \(its parts: eta, nu, bias, wave_state\)"
+    ):
         compose(document)
 
 
@@ -373,8 +395,14 @@ def test_an_input_disturbance_is_the_exact_kalman_filter_of_the_augmented_model(
     [
         ({"input_disturbance": [-1.0]}, "input_disturbance must be 1 finite intensities >= 0"),
         ({"input_disturbance": [1.0, 1.0]}, "input_disturbance must be 1 finite intensities >= 0"),
-        ({"initial_std": {"position": 1.0, "rate": 1.0, "input_disturbance": [1.0, 2.0]}}, "initial_std: input_disturbance must have one entry per input entry (1)"),
-        ({"initial_std": {"position": 1.0, "wave": 1.0, "input_disturbance": 1.0}}, "initial_std: the plant's state has no part 'wave' (its parts: position, rate, and input_disturbance)"),
+        (
+            {"initial_std": {"position": 1.0, "rate": 1.0, "input_disturbance": [1.0, 2.0]}},
+            "initial_std: input_disturbance must have one entry per input entry (1)",
+        ),
+        (
+            {"initial_std": {"position": 1.0, "wave": 1.0, "input_disturbance": 1.0}},
+            "initial_std: the plant's state has no part 'wave' (its parts: position, rate, and input_disturbance)",
+        ),
         ({"initial_std": [1.0, 1.0]}, "initial_std must have one entry per state entry (3: the plant's and the input disturbance's)"),
         ({"initial_std": {"position": 1.0, "rate": 1.0}}, "initial_std: give input_disturbance too"),
     ],

@@ -215,7 +215,8 @@ def test_a_day_of_10_hz_data_in_flat_memory():
         for k in range(24 * 36000):
             t = 1e6 + k * 0.1 - 0.03
             for reading in ([Reading(t, "GP", "local_position", (rng.normal(0, 0.5), rng.normal(0, 0.5)), "CSV")] if k % 10 == 0 else []) + [
-                    Reading(t + 0.01, "HE", "heading", (rng.normal(0, 0.1),), "CSV")]:
+                Reading(t + 0.01, "HE", "heading", (rng.normal(0, 0.1),), "CSV")
+            ]:
                 steps.extend(len(block) for block in session.advance(reading.time))
                 steps.extend(len(block) for block in session.feed(reading))
             if k == 2 * 36000:
@@ -296,8 +297,19 @@ def test_fix_quality_hdop_and_a_second_receiver():
 # ---------------------------------------------------------------- the command line
 def test_replay_cli_writes_the_session(tmp_path, capsys):
     out = tmp_path / "replay.nc"
-    code = main(["replay", str(LOGS / "dp-vessel.csv"), "--scenario", str(EXAMPLE / "live-dp.toml"), "--thrust", str(LOGS / "dp-vessel-thrust.csv"),
-                 "--out", str(out), "--quiet"])
+    code = main(
+        [
+            "replay",
+            str(LOGS / "dp-vessel.csv"),
+            "--scenario",
+            str(EXAMPLE / "live-dp.toml"),
+            "--thrust",
+            str(LOGS / "dp-vessel-thrust.csv"),
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     assert code == 0
     ds = xr.open_dataset(out)
     truth = xr.open_dataset(LOGS / "dp-vessel-truth.nc")
@@ -312,15 +324,36 @@ def test_replay_cli_writes_the_session(tmp_path, capsys):
     "arguments, message",
     [
         (["replay", "missing.nmea", "--scenario", "examples/live-dp.toml"], "LOG must be an existing file; got missing.nmea"),
-        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--speed", "0"], "--speed must be a finite positive factor"),
-        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--speed", "2", "--fast"], "--speed and --fast exclude each other"),
-        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--position-gate", "-1"], "--position-gate must be a finite positive number"),
-        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--origin", "95,10"], "--origin must be LAT,LON in degrees (latitude must be"),
-        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--out", "x.txt"], "--out must name a NetCDF file ending in .nc"),
-        (["replay", "examples/logs/dp-vessel-thrust.csv", "--scenario", "examples/live-dp.toml"], "is a thrust log (time,surge,sway,yaw): give it with --thrust"),
+        (
+            ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--speed", "0"],
+            "--speed must be a finite positive factor",
+        ),
+        (
+            ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--speed", "2", "--fast"],
+            "--speed and --fast exclude each other",
+        ),
+        (
+            ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--position-gate", "-1"],
+            "--position-gate must be a finite positive number",
+        ),
+        (
+            ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--origin", "95,10"],
+            "--origin must be LAT,LON in degrees (latitude must be",
+        ),
+        (
+            ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--out", "x.txt"],
+            "--out must name a NetCDF file ending in .nc",
+        ),
+        (
+            ["replay", "examples/logs/dp-vessel-thrust.csv", "--scenario", "examples/live-dp.toml"],
+            "is a thrust log (time,surge,sway,yaw): give it with --thrust",
+        ),
         (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/velocity-two-link-arm.toml"], "live data fills measured_position"),
         (["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:99999"], "--nmea must be udp://HOST:PORT with a port in 0..65535"),
-        (["live", "examples/live-dp.toml", "--nmea", "/no/such/device"], "--nmea must be udp://HOST:PORT, - (stdin) or an existing serial device or FIFO"),
+        (
+            ["live", "examples/live-dp.toml", "--nmea", "/no/such/device"],
+            "--nmea must be udp://HOST:PORT, - (stdin) or an existing serial device or FIFO",
+        ),
         (["live", "examples/live-dp.toml", "--publish", "tcp://x:1"], "--publish must be udp://HOST:PORT"),
         (["live", "examples/live-dp.toml", "--nmea", "examples/logs/dp-vessel.nmea"], "is a regular file: its lines have no arrival times live"),
         (["live", "examples/live-dp.toml", "--idle", "-2"], "--idle must be a finite positive number of seconds"),
@@ -360,16 +393,26 @@ def _start(rows) -> float:
 #: day, or it has nothing to give (every checksum fails, no fix sentence, empty, comments).
 BAD_LOGS = {
     "reversed": (lambda rows: rows[::-1], r"its times run backwards: line \d+ is stamped 599.9\d* s before line 1 \(more than 2.5 s"),
-    "clock stepped back": (lambda rows: [(t - 60.0 if t - _start(rows) > 300.0 else t, s) for t, s in rows],
-                           r"its times run backwards: line \d+ is stamped 59.\d+ s before line \d+ \(more than 2.5 s: a clock that stepped back"),
-    "shuffled": (lambda rows: [rows[i + 1 - 2 * (i % 2)] if i + 1 - 2 * (i % 2) < len(rows) else rows[i] for i in range(len(rows))],
-                 r"its times run backwards: \d+ of its 6579 timed lines are stamped before a line above them \(up to 1 % are replayed as reordered lines"),
-    "milliseconds": (lambda rows: [(1000.0 * t, s) for t, s in rows],
-                     r"its typical step between lines, 9\d.\d* s is too long for this observer: one prediction step multiplies a state error by .*are the times in seconds\?"),
-    "a day's gap": (lambda rows: [(t + (86400.0 if t - _start(rows) > 100.0 else 0.0), s) for t, s in rows],
-                    r"no line for 86400.\d* s before line 1101 \(99.9\d* s into the log\), longer than max_gap 60 s"),
-    "every checksum fails": (lambda rows: [(t, s[:-2] + ("00" if not s.endswith("00") else "11")) for t, s in rows],
-                             r"no line gives a position reading \(6579 lines: checksum 657\d, malformed \d\); the observer needs position and heading"),
+    "clock stepped back": (
+        lambda rows: [(t - 60.0 if t - _start(rows) > 300.0 else t, s) for t, s in rows],
+        r"its times run backwards: line \d+ is stamped 59.\d+ s before line \d+ \(more than 2.5 s: a clock that stepped back",
+    ),
+    "shuffled": (
+        lambda rows: [rows[i + 1 - 2 * (i % 2)] if i + 1 - 2 * (i % 2) < len(rows) else rows[i] for i in range(len(rows))],
+        r"its times run backwards: \d+ of its 6579 timed lines are stamped before a line above them \(up to 1 % are replayed as reordered lines",
+    ),
+    "milliseconds": (
+        lambda rows: [(1000.0 * t, s) for t, s in rows],
+        r"its typical step between lines, 9\d.\d* s is too long for this observer: one prediction step multiplies a state error by .*are the times in seconds\?",
+    ),
+    "a day's gap": (
+        lambda rows: [(t + (86400.0 if t - _start(rows) > 100.0 else 0.0), s) for t, s in rows],
+        r"no line for 86400.\d* s before line 1101 \(99.9\d* s into the log\), longer than max_gap 60 s",
+    ),
+    "every checksum fails": (
+        lambda rows: [(t, s[:-2] + ("00" if not s.endswith("00") else "11")) for t, s in rows],
+        r"no line gives a position reading \(6579 lines: checksum 657\d, malformed \d\); the observer needs position and heading",
+    ),
     "headings only": (lambda rows: [(t, s) for t, s in rows if "THS" in s], r"no line gives a position reading \(\d+ lines: heading 6000"),
     "comments only": (lambda rows: [], r"no line has a time \(no line but comments\)"),
 }
@@ -420,7 +463,9 @@ def test_the_time_scale_test_is_lookout_filters(tmp_path, live_session_factory):
     with pytest.raises(ValueError, match=re.escape(f"one prediction step multiplies a state error by {radius:.3g} ")):
         check_replay(session, milliseconds)
     # the same observer on a log whose rows are that far apart: lookout.filter's refusal, its words
-    with pytest.raises(ValueError, match=r"too long for this observer: one prediction step multiplies a state error by .* are the times in seconds\?"):
+    with pytest.raises(
+        ValueError, match=r"too long for this observer: one prediction step multiplies a state error by .* are the times in seconds\?"
+    ):
         lookout_filter(observer, [0.0, typical, 2 * typical], np.zeros((3, 3)))
     # a fix a second and a heading a second half a second later, in seconds: replayed
     sparse = _written(tmp_path / "sparse.nmea", [(t, s) for t, s in rows if "GGA" in s or round(10 * (t - _start(rows))) % 10 == 5])
@@ -461,8 +506,22 @@ def test_a_refused_replay_leaves_nothing_behind(tmp_path, capsys, monkeypatch, n
     change, message = BAD_LOGS[name]
     log = _written(tmp_path / "bad.nmea", change(_nmea_rows()))
     results = tmp_path / "results"
-    code, err = _cli(["replay", log, "--scenario", "examples/live-dp.toml", "--thrust", LOGS / "dp-vessel-thrust.csv",
-                      "--out", results / "new" / "r.nc", "--figure", results / "new" / "r.png"], capsys, monkeypatch)
+    code, err = _cli(
+        [
+            "replay",
+            log,
+            "--scenario",
+            "examples/live-dp.toml",
+            "--thrust",
+            LOGS / "dp-vessel-thrust.csv",
+            "--out",
+            results / "new" / "r.nc",
+            "--figure",
+            results / "new" / "r.png",
+        ],
+        capsys,
+        monkeypatch,
+    )
     assert code == 2 and "\n" not in err and "Traceback" not in err
     assert re.search(message.replace("max_gap", "--max-gap"), err), err
     assert not results.exists()
@@ -490,33 +549,66 @@ def _bad_input_files(tmp_path: Path) -> dict:
 
 REFUSED = [
     # (arguments with {name} for the files above, the message)
-    (["replay", "{binary}", "--scenario", "examples/live-dp.toml"], r"^error: LOG .*image.nmea is not a text log: it holds binary data \(a log is text"),
+    (
+        ["replay", "{binary}", "--scenario", "examples/live-dp.toml"],
+        r"^error: LOG .*image.nmea is not a text log: it holds binary data \(a log is text",
+    ),
     (["replay", "{empty}", "--scenario", "examples/live-dp.toml"], r"^error: LOG .*empty.nmea is empty$"),
-    (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--thrust", "{binary}"], r"^error: --thrust .*image.nmea is not a text log"),
-    (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--thrust", "{thrust_ms}"],
-     r"^error: --thrust .*thrust-ms.csv: its times \(1.79608e\+12 to 1.79608e\+12 s\) do not overlap the log's \(1.79608e\+09 to 1.79608e\+09 s\); are both in seconds"),
-    (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--thrust", "{thrust_nan}"],
-     r"^error: --thrust .*thrust-nan.csv: no row gives a thrust \(6000 lines: missing 6000\)"),
-    (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--figure", "{out}.png", "--truth", "{text}"],
-     r"^error: --truth .*truth.nc: not a NetCDF file lookout can read"),
-    (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--figure", "{out}.png", "--truth", "{not_a_run}"],
-     r"^error: --truth .*session.nc has no heading, position, velocity: it must be a run of a vessel scenario"),
-    (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--max-gap", "0"], r"^error: --max-gap must be a finite positive number of seconds; got 0$"),
-    (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--gate-probability", "1"],
-     r"^error: --gate-probability must be a probability strictly between 0 and 1; got 1.0$"),
+    (
+        ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--thrust", "{binary}"],
+        r"^error: --thrust .*image.nmea is not a text log",
+    ),
+    (
+        ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--thrust", "{thrust_ms}"],
+        r"^error: --thrust .*thrust-ms.csv: its times \(1.79608e\+12 to 1.79608e\+12 s\) do not overlap the log's \(1.79608e\+09 to 1.79608e\+09 s\); are both in seconds",
+    ),
+    (
+        ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--thrust", "{thrust_nan}"],
+        r"^error: --thrust .*thrust-nan.csv: no row gives a thrust \(6000 lines: missing 6000\)",
+    ),
+    (
+        ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--figure", "{out}.png", "--truth", "{text}"],
+        r"^error: --truth .*truth.nc: not a NetCDF file lookout can read",
+    ),
+    (
+        ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--figure", "{out}.png", "--truth", "{not_a_run}"],
+        r"^error: --truth .*session.nc has no heading, position, velocity: it must be a run of a vessel scenario",
+    ),
+    (
+        ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--max-gap", "0"],
+        r"^error: --max-gap must be a finite positive number of seconds; got 0$",
+    ),
+    (
+        ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--gate-probability", "1"],
+        r"^error: --gate-probability must be a probability strictly between 0 and 1; got 1.0$",
+    ),
     (["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:99999"], r"^error: --nmea must be udp://HOST:PORT with a port in 0..65535"),
-    (["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:0", "--thrust", "tcp://127.0.0.1:5"], r"^error: --thrust must be udp://HOST:PORT, - \(stdin\) or an existing serial device or FIFO"),
-    (["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:0", "--thrust", "examples/logs/dp-vessel-thrust.csv"], r"^error: --thrust .* is a regular file"),
-    (["live", "examples/live-dp.toml", "--nmea", "examples/logs/dp-vessel.nmea"], r"^error: --nmea .* is a regular file: its lines have no arrival times live"),
+    (
+        ["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:0", "--thrust", "tcp://127.0.0.1:5"],
+        r"^error: --thrust must be udp://HOST:PORT, - \(stdin\) or an existing serial device or FIFO",
+    ),
+    (
+        ["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:0", "--thrust", "examples/logs/dp-vessel-thrust.csv"],
+        r"^error: --thrust .* is a regular file",
+    ),
+    (
+        ["live", "examples/live-dp.toml", "--nmea", "examples/logs/dp-vessel.nmea"],
+        r"^error: --nmea .* is a regular file: its lines have no arrival times live",
+    ),
     (["live", "examples/live-dp.toml", "--nmea", "-", "--thrust", "-"], r"^error: --thrust and --nmea must be two sources; both are -$"),
-    (["write-log", "examples/live-dp.toml", "--outage", "700,30"],
-     r"^error: --outage 700,30 ends at 730 s, after the run's end: its duration is 600 s \(give START \+ LENGTH <= 600, or none\)$"),
+    (
+        ["write-log", "examples/live-dp.toml", "--outage", "700,30"],
+        r"^error: --outage 700,30 ends at 730 s, after the run's end: its duration is 600 s \(give START \+ LENGTH <= 600, or none\)$",
+    ),
     (["write-log", "examples/live-dp.toml", "--outage", "590,30"], r"^error: --outage 590,30 ends at 620 s, after the run's end"),
     (["write-log", "examples/live-dp.toml", "--outage", "100,0"], r"^error: --outage LENGTH must be positive \(none: no outage\)"),
     (["write-log", "examples/live-dp.toml", "--seed", "-1"], r"^error: --seed must be a non-negative integer; got -1$"),
     (["play", "{binary}", "--to", "udp://127.0.0.1:9"], r"^error: LOG .*image.nmea is not a text log"),
     (["play", "examples/logs/dp-vessel.csv", "--to", "udp://127.0.0.1:9"], r"^error: LOG .*dp-vessel.csv is a CSV log: play sends NMEA sentences"),
-    (["play", "examples/logs/dp-vessel.nmea", "--to", "udp://nosuchhost.invalid:9"], r"^error: --to udp://nosuchhost.invalid:9: cannot resolve the host"),
+    (
+        ["play", "examples/logs/dp-vessel.nmea", "--to", "udp://nosuchhost.invalid:9"],
+        r"^error: --to udp://nosuchhost.invalid:9: cannot resolve the host",
+    ),
 ]
 
 
@@ -557,11 +649,17 @@ def test_a_silence_a_missing_thrust_and_reordered_lines(simulated, tmp_path, cap
     thrust = tmp_path / "thrust.csv"
     thrust.write_text("\n".join([thrust_header, *thrust_rows]) + "\n")
     out = tmp_path / "replay.nc"
-    code, err = _cli(["replay", log, "--scenario", "examples/live-dp.toml", "--thrust", thrust, "--out", out, "--origin", "63.44,10.40"], capsys, monkeypatch)
+    code, err = _cli(
+        ["replay", log, "--scenario", "examples/live-dp.toml", "--thrust", thrust, "--out", out, "--origin", "63.44,10.40"], capsys, monkeypatch
+    )
     assert code == 0, err
     assert re.search(r"^gap at 1[12]\d.\d s into the session: no reading for 20.\d s \(every channel dead-reckoned\)$", err, re.M), err
     done = [line for line in err.splitlines() if line.startswith("done:")][0]
-    assert "thrust rejected 100 (missing 100: the previous thrust held)" in done and "; gaps 1;" in done and re.search(r"not used \d+ \(.*\blate 2\b", done), done
+    assert (
+        "thrust rejected 100 (missing 100: the previous thrust held)" in done
+        and "; gaps 1;" in done
+        and re.search(r"not used \d+ \(.*\blate 2\b", done)
+    ), done
     session = xr.open_dataset(out)
     applied = session["force_applied"].values[0]
     np.testing.assert_array_equal(applied[missing.start : missing.stop], np.repeat(applied[missing.start - 1][None], len(missing), axis=0))
@@ -571,7 +669,9 @@ def test_a_silence_a_missing_thrust_and_reordered_lines(simulated, tmp_path, cap
     error = np.linalg.norm(session["position_hat"].values[0] - ds["position"].values[0, : t.size], axis=1)
     silent = (t >= 122.5) & (t < 140.0)  # the fixes held 2.5 s, then nothing
     start = int(np.flatnonzero(silent)[0])
-    bound = _dead_reckoning_bound(composition, ds, session["velocity_hat"].values[0], session["bias_force_hat"].values[0], error, start, 140.0 - t[start])
+    bound = _dead_reckoning_bound(
+        composition, ds, session["velocity_hat"].values[0], session["bias_force_hat"].values[0], error, start, 140.0 - t[start]
+    )
     assert error[silent].max() <= bound, f"drift to {error[silent].max():.2f} m; dead reckoning's bound {bound:.2f} m"
 
 
@@ -719,11 +819,13 @@ def test_an_observer_the_gate_cannot_gate_is_said_so():
 
 def test_write_simulated_log_refuses_an_outage_outside_the_run(simulated, tmp_path):
     _, ds, _ = simulated  # a 240 s run
-    for outage, message in (((300.0, 30.0), r"outage \(300, 30\) ends at 330 s, after the run's end: its duration is 240 s"),
-                            ((230.0, 30.0), r"ends at 260 s, after the run's end"),
-                            ((10.0, 0.0), r"outage must be \(start, length\) with start >= 0 and length > 0"),
-                            ((float("nan"), 5.0), r"outage must be \(start, length\)"),
-                            ((1.0,), r"outage must be \(start, length\) in seconds, or None")):
+    for outage, message in (
+        ((300.0, 30.0), r"outage \(300, 30\) ends at 330 s, after the run's end: its duration is 240 s"),
+        ((230.0, 30.0), r"ends at 260 s, after the run's end"),
+        ((10.0, 0.0), r"outage must be \(start, length\) with start >= 0 and length > 0"),
+        ((float("nan"), 5.0), r"outage must be \(start, length\)"),
+        ((1.0,), r"outage must be \(start, length\) in seconds, or None"),
+    ):
         folder = tmp_path / "new"
         with pytest.raises(ValueError, match=message):
             write_simulated_log(ds, folder, outage=outage)
@@ -749,7 +851,24 @@ def test_a_figure_refused_after_the_replay_takes_the_session_file_back(simulated
     truth = tmp_path / "short-truth.nc"
     ds.isel(time=slice(0, -1)).to_netcdf(truth)
     results = tmp_path / "results"
-    code, err = _cli(["replay", paths["csv"], "--scenario", "examples/live-dp.toml", "--thrust", paths["thrust"], "--out", results / "a" / "r.nc",
-                      "--figure", results / "a" / "r.png", "--truth", truth, "--quiet"], capsys, monkeypatch)
+    code, err = _cli(
+        [
+            "replay",
+            paths["csv"],
+            "--scenario",
+            "examples/live-dp.toml",
+            "--thrust",
+            paths["thrust"],
+            "--out",
+            results / "a" / "r.nc",
+            "--figure",
+            results / "a" / "r.png",
+            "--truth",
+            truth,
+            "--quiet",
+        ],
+        capsys,
+        monkeypatch,
+    )
     assert code == 2 and re.search(r"^error: --truth .*short-truth.nc: truth does not have the session's times", err), err
     assert not results.exists()

@@ -213,7 +213,12 @@ def _energy_drift(model, q0, v0, step, steps, stride):
     return worst
 
 
-ENERGY_START = {"pendulum": ([2.0], [0.5]), "two_link": ([-0.8, 0.6], [1.0, -0.5]), "cart": ([0.0, 2.5], [0.3, -1.0]), "furuta": ([1.0, -1.0], [0.5, 1.0])}
+ENERGY_START = {
+    "pendulum": ([2.0], [0.5]),
+    "two_link": ([-0.8, 0.6], [1.0, -0.5]),
+    "cart": ([0.0, 2.5], [0.3, -1.0]),
+    "furuta": ([1.0, -1.0], [0.5, 1.0]),
+}
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -241,7 +246,9 @@ def test_models_build_under_jit_and_vmap_and_differentiate():
     np.testing.assert_allclose(batch, np.stack(one), rtol=1e-14)
     jitted = jax.jit(lambda l: FurutaPendulum(pendulum_length=l).energy(q, v))
     np.testing.assert_allclose(jitted(0.5), jitted(jnp.asarray(0.5, dtype=float)))
-    np.testing.assert_allclose(jitted(0.5), 0.5 * v @ np.asarray(FurutaPendulum().mass_matrix(q)) @ v + FurutaPendulum().inertia_constants()[3] * np.cos(q[1]))
+    np.testing.assert_allclose(
+        jitted(0.5), 0.5 * v @ np.asarray(FurutaPendulum().mass_matrix(q)) @ v + FurutaPendulum().inertia_constants()[3] * np.cos(q[1])
+    )
     # d(kinetic energy)/d(m2) of the two-link arm: T is linear in the masses
     kinetic = jax.jit(lambda m: TwoLinkArm(masses=m).kinetic_energy(q, v))
     grad = jax.jit(jax.grad(kinetic))(jnp.array([0.5, 0.7]))

@@ -287,7 +287,7 @@ def _log_of(tmp_path, times, lines=None) -> Path:
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.integers(-10**6, 10**6).map(lambda k: k / 100), min_size=1, max_size=60))
+@given(st.lists(st.integers(-(10**6), 10**6).map(lambda k: k / 100), min_size=1, max_size=60))
 def test_the_scan_of_a_logs_times_against_numpy(tmp_path_factory, times):
     """scan_log's order, gaps and typical step, against a direct computation on the times."""
     scan = scan_log(_log_of(tmp_path_factory.mktemp("scan"), times))

@@ -48,10 +48,7 @@ def test_importing_lookout_and_its_command_loads_no_model_and_starts_no_backend(
 
 
 def test_configure_cpu_after_the_backend_started_says_it_is_too_late():
-    result = _run(
-        "import warnings, jax.numpy as jnp, lookout; jnp.zeros(1); "
-        "warnings.simplefilter('error'); lookout.configure_cpu()"
-    )
+    result = _run("import warnings, jax.numpy as jnp, lookout; jnp.zeros(1); warnings.simplefilter('error'); lookout.configure_cpu()")
     assert result.returncode != 0 and "RuntimeWarning: lookout.configure_cpu: JAX's backend has already started" in result.stderr, result.stderr
 
 
@@ -68,8 +65,7 @@ def test_the_studies_commands_do_not_import_the_main_command():
     """lookout.cli registers the studies' commands; they share helpers through
     lookout._commandline, never by importing lookout.cli back (no import cycle)."""
     result = _run(
-        "import sys, lookout.studies.cli, lookout.studies.execute; "
-        "assert 'lookout.cli' not in sys.modules, 'lookout.cli imported'; print('ok')"
+        "import sys, lookout.studies.cli, lookout.studies.execute; assert 'lookout.cli' not in sys.modules, 'lookout.cli imported'; print('ok')"
     )
     assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr
 

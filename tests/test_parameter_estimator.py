@@ -162,7 +162,11 @@ def test_v_decreases_at_rate_h_e_squared_whatever_the_state(seed, gain):
     V = 1/2 |theta~|^2 has V' = -theta~ . theta_hat' = -h |phi_f theta~|^2 <= 0,
     at any measurement and filter state (two-link arm, two masses)."""
     rng = np.random.default_rng(seed)
-    v_rate, bound = _lyapunov_rate(*(jnp.asarray(rng.normal(size=shape)) for shape in ((2,), (2,), (2, 3), (2, 3), (2, 3), (4,))), jnp.asarray(gain), jnp.asarray(rng.uniform(0.3, 3.0, 2)))
+    v_rate, bound = _lyapunov_rate(
+        *(jnp.asarray(rng.normal(size=shape)) for shape in ((2,), (2,), (2, 3), (2, 3), (2, 3), (4,))),
+        jnp.asarray(gain),
+        jnp.asarray(rng.uniform(0.3, 3.0, 2)),
+    )
     assert float(v_rate) <= 0.0
     np.testing.assert_allclose(float(v_rate), -float(bound), rtol=1e-9, atol=1e-12 * float(bound) + 1e-300)
 
@@ -186,8 +190,15 @@ def test_missing_measurements_hold_the_estimate_and_keep_it_finite():
     sensor = JointStateSensor(plant.parameters.model(parameters.reference), sample_period=2e-3, dropout_probability=0.3)
     estimator = ParameterEstimator(parameters, 100.0)
     scenario = Scenario(
-        plant, sensor, estimator, SinusoidalInput(5.0, 1.0), plant.state(0.0, 0.0), jnp.array([4.5, 2.0]),
-        plant_step=2e-3, sample_period=2e-3, duration=10.0,
+        plant,
+        sensor,
+        estimator,
+        SinusoidalInput(5.0, 1.0),
+        plant.state(0.0, 0.0),
+        jnp.array([4.5, 2.0]),
+        plant_step=2e-3,
+        sample_period=2e-3,
+        duration=10.0,
     )
     ds = simulate(scenario, jax.random.key(3)).to_xarray()
     theta = estimator.estimates(ds)

@@ -68,8 +68,16 @@ def _noise_free_run(paper_observer, duration):
     plant = VesselPlant(northern_clipper(), GaussMarkovBias(1000.0, 0.0), LinearWaveModel(0.8976, 0.1, 0.0))
     truth = VesselState.build(eta=[10.0, -5.0, 0.2], nu=[0.2, -0.1, 0.002], bias=[2e4, -1e4, 2e5], wave_state=[1.0, -1.0, 0.01, 0.5, -0.5, 0.005])
     scenario = Scenario(
-        plant, PositionHeadingSensor(0.0, 1.0), paper_observer, SinusoidalInput(fs.INPUT_AMPLITUDE, fs.INPUT_FREQUENCIES), truth, paper_observer.guess(),
-        plant_step=0.1, sample_period=1.0, duration=duration, observer_mode="continuous",
+        plant,
+        PositionHeadingSensor(0.0, 1.0),
+        paper_observer,
+        SinusoidalInput(fs.INPUT_AMPLITUDE, fs.INPUT_FREQUENCIES),
+        truth,
+        paper_observer.guess(),
+        plant_step=0.1,
+        sample_period=1.0,
+        duration=duration,
+        observer_mode="continuous",
     )
     return simulate(scenario, jax.random.key(0))
 

@@ -53,7 +53,9 @@ class _Oracle(Observer):
     """Perfect estimates: position, heading, velocity and yaw rate as the noise-free oracle
     sensor measures them (a plant without waves), so that the loop is the controller's alone."""
 
-    estimate_signals: tuple[Signal, ...] = eqx.field(static=True, default=tuple(s for s in VESSEL_SIGNALS if s.name in ("position", "heading", "velocity", "yaw_rate")))
+    estimate_signals: tuple[Signal, ...] = eqx.field(
+        static=True, default=tuple(s for s in VESSEL_SIGNALS if s.name in ("position", "heading", "velocity", "yaw_rate"))
+    )
     extra_signals: tuple[Signal, ...] = eqx.field(static=True, default=())
     measurement_layout: Layout = eqx.field(static=True, default=POSITION_HEADING_VELOCITY)
     input_layout: Layout = eqx.field(static=True, default=VESSEL_INPUT)
@@ -70,8 +72,12 @@ class _Oracle(Observer):
 
     def output(self, state, y):
         parts = self.measurement_layout.split(state)
-        return {"position": parts["measured_position"], "heading": parts["measured_heading"], "velocity": parts["measured_velocity"],
-                "yaw_rate": parts["measured_yaw_rate"]}
+        return {
+            "position": parts["measured_position"],
+            "heading": parts["measured_heading"],
+            "velocity": parts["measured_velocity"],
+            "yaw_rate": parts["measured_yaw_rate"],
+        }
 
     def predict(self, state, t, y, u, dt):
         return state
@@ -85,9 +91,19 @@ def _oracle_loop(controller, start: VesselState, setpoint, *, duration, disturba
     from lookout.reference import ReferenceFilter
 
     plant = VesselPlant(DPVessel(MASS, DAMPING), GaussMarkovBias(1000.0, 0.0), LinearWaveModel(0.8976, 0.1, 0.0), disturbance)
-    return Scenario(plant, PositionHeadingVelocitySensor(0.0, PERIOD), _Oracle(), controller, start, jnp.zeros(6), plant_step=PERIOD,
-                    sample_period=PERIOD, duration=duration, reference=ReferenceFilter.vessel(bandwidth, list(times), setpoint),
-                    actuator=actuator or IdealActuator())
+    return Scenario(
+        plant,
+        PositionHeadingVelocitySensor(0.0, PERIOD),
+        _Oracle(),
+        controller,
+        start,
+        jnp.zeros(6),
+        plant_step=PERIOD,
+        sample_period=PERIOD,
+        duration=duration,
+        reference=ReferenceFilter.vessel(bandwidth, list(times), setpoint),
+        actuator=actuator or IdealActuator(),
+    )
 
 
 def test_the_loop_linearized_from_the_code_has_the_designed_poles_at_every_heading():
@@ -99,6 +115,7 @@ def test_the_loop_linearized_from_the_code_has_the_designed_poles_at_every_headi
     w, zeta, ratio = np.array([0.08, 0.1, 0.12]), np.array([0.9, 1.0, 1.2]), np.array([0.1, 0.05, 0.2])
     pid = PidController.design(vessel, natural_frequency=w, damping_ratio=zeta, integral_ratio=ratio)
     designed = np.sort_complex(np.concatenate([np.roots([1.0, 2 * zeta[i] * w[i], w[i] ** 2, ratio[i] * w[i] ** 3]) for i in range(3)]))
+
     def field(x, setpoint):
         eta, nu, z = x[:3], x[3:6], x[6:]
         z_next, tau = pid.step(z, 0.0, None, _estimate(eta, nu), _setpoint(setpoint), PERIOD)
@@ -228,8 +245,13 @@ def test_the_reference_feed_forward_is_m_nu_d_rate_plus_d_nu_d():
 
     for t in (0.0, 37.0, 180.0):
         eta, rate, acceleration = trajectory(t)
-        reference = {**_setpoint(eta), "position_desired_rate": jnp.asarray(rate[:2]), "heading_desired_rate": jnp.asarray(rate[2]),
-                     "position_desired_acceleration": jnp.asarray(acceleration[:2]), "heading_desired_acceleration": jnp.asarray(acceleration[2])}
+        reference = {
+            **_setpoint(eta),
+            "position_desired_rate": jnp.asarray(rate[:2]),
+            "heading_desired_rate": jnp.asarray(rate[2]),
+            "position_desired_acceleration": jnp.asarray(acceleration[:2]),
+            "heading_desired_acceleration": jnp.asarray(acceleration[2]),
+        }
         h = 1e-3
         expected = np.asarray(vessel.mass_matrix) @ ((nu_d(t + h) - nu_d(t - h)) / (2 * h)) + np.asarray(vessel.damping_matrix) @ nu_d(t)
         np.testing.assert_allclose(np.asarray(pid.feedforward({}, reference)), expected, rtol=1e-7)
@@ -237,24 +259,41 @@ def test_the_reference_feed_forward_is_m_nu_d_rate_plus_d_nu_d():
         np.testing.assert_allclose(np.asarray(on_reference), expected, rtol=1e-7)
         assert np.abs(expected).max() > 1e3  # a feed-forward to get right
     np.testing.assert_array_equal(np.asarray(pid.feedforward({}, _setpoint(jnp.array([1.0, 2.0, 0.3])))), np.zeros(3))
-    resting = {**_setpoint(jnp.array([1.0, 2.0, 0.3])), "position_desired_rate": jnp.zeros(2), "heading_desired_rate": jnp.asarray(0.0),
-               "position_desired_acceleration": jnp.zeros(2), "heading_desired_acceleration": jnp.asarray(0.0)}
+    resting = {
+        **_setpoint(jnp.array([1.0, 2.0, 0.3])),
+        "position_desired_rate": jnp.zeros(2),
+        "heading_desired_rate": jnp.asarray(0.0),
+        "position_desired_acceleration": jnp.zeros(2),
+        "heading_desired_acceleration": jnp.asarray(0.0),
+    }
     np.testing.assert_array_equal(np.asarray(pid.feedforward({}, resting)), np.zeros(3))
 
 
 def test_the_bias_feed_forward_cancels_the_observers_estimate():
-    """"bias": tau = -R^T(psi_hat) b_hat, the Earth-fixed bias of the DP model rotated to
+    """ "bias": tau = -R^T(psi_hat) b_hat, the Earth-fixed bias of the DP model rotated to
     the body (at heading 90 deg, north becomes -sway); "disturbance": tau = -d_hat, a Kalman
     filter's body-fixed input disturbance. Each reads what it needs, nothing else."""
     vessel = DPVessel(MASS, DAMPING)
-    estimate = {**_estimate(jnp.array([0.0, 0.0, np.pi / 2]), jnp.zeros(3)), "bias_force": jnp.array([1.0e4, 5.0e3]), "bias_moment": jnp.asarray(1.0e5),
-                "disturbance_force": jnp.array([2.0e3, -1.0e3]), "disturbance_moment": jnp.asarray(3.0e4)}
+    estimate = {
+        **_estimate(jnp.array([0.0, 0.0, np.pi / 2]), jnp.zeros(3)),
+        "bias_force": jnp.array([1.0e4, 5.0e3]),
+        "bias_moment": jnp.asarray(1.0e5),
+        "disturbance_force": jnp.array([2.0e3, -1.0e3]),
+        "disturbance_moment": jnp.asarray(3.0e4),
+    }
     setpoint = _setpoint(jnp.array([0.0, 0.0, np.pi / 2]))
     expected = {"none": [0.0, 0.0, 0.0], "bias": [-5.0e3, 1.0e4, -1.0e5], "disturbance": [-2.0e3, 1.0e3, -3.0e4]}
     for setting, force in expected.items():
         pid = PidController.design(vessel, bias_feedforward=setting)
         np.testing.assert_allclose(np.asarray(pid.step(pid.init(), 0.0, None, estimate, setpoint, PERIOD)[1]), force, atol=1e-9)
-    assert PidController.design(vessel, bias_feedforward="bias").estimate_needs == ("position", "heading", "velocity", "yaw_rate", "bias_force", "bias_moment")
+    assert PidController.design(vessel, bias_feedforward="bias").estimate_needs == (
+        "position",
+        "heading",
+        "velocity",
+        "yaw_rate",
+        "bias_force",
+        "bias_moment",
+    )
     assert PidController.design(vessel).estimate_needs == ("position", "heading", "velocity", "yaw_rate")
 
 
@@ -292,8 +331,9 @@ def test_the_anti_windup_cuts_the_overshoot_of_a_move_at_the_thrust_limits():
     overshoot = {}
     for name, limit in (("free", None), ("clamped", limits)):
         pid = PidController.design(vessel, integral_limit=limit)
-        scenario = _oracle_loop(pid, start, [[0.0, 0.0, 0.0], [60.0, 0.0, 0.0]], duration=600.0, times=(0.0, 10.0), bandwidth=1.0,
-                                actuator=SaturatingActuator(limits))
+        scenario = _oracle_loop(
+            pid, start, [[0.0, 0.0, 0.0], [60.0, 0.0, 0.0]], duration=600.0, times=(0.0, 10.0), bandwidth=1.0, actuator=SaturatingActuator(limits)
+        )
         ds = simulate(scenario, jax.random.key(0)).to_xarray()
         overshoot[name] = float(ds.position.values[0, :, 0].max() - 60.0)
     assert overshoot["free"] > 5.0 and overshoot["clamped"] < 0.25 * overshoot["free"], overshoot
@@ -327,7 +367,13 @@ def test_kind_pid_alone_composes_on_both_vessel_plants():
     vessel): stable, the sampled loop too, at each plant's sample period."""
     from lookout.scenario.composition import compose
 
-    reference = {"kind": "reference-filter", "signals": ["position", "heading"], "bandwidth": 0.1, "schedule_times": [0.0], "setpoints": [[0.0, 0.0, 0.0]]}
+    reference = {
+        "kind": "reference-filter",
+        "signals": ["position", "heading"],
+        "bandwidth": 0.1,
+        "schedule_times": [0.0],
+        "setpoints": [[0.0, 0.0, 0.0]],
+    }
     for document in ({"preset": "fossen-strand-1999:paper"}, {"preset": "wondergem-2009"}):
         composed = compose({**document, "controller": {"kind": "pid"}, "reference": reference})
         pid = composed.scenario.controller
@@ -372,8 +418,15 @@ def _family_scenario(duration=200.0):
 
     pid = PidController.design(DPVessel(MASS, DAMPING))
     disturbance = BodyDisturbance(constant=[1.0e4, -5.0e3, 5.0e5], amplitude=[5.0e3, 5.0e3, 2.0e5], period=120.0)
-    return _oracle_loop(pid, VesselState.build(eta=[2.0, -1.0, 0.05]), [[0.0, 0.0, 0.0], [10.0, 5.0, 0.1]], duration=duration, times=(0.0, 50.0),
-                        disturbance=disturbance, bandwidth=0.05)
+    return _oracle_loop(
+        pid,
+        VesselState.build(eta=[2.0, -1.0, 0.05]),
+        [[0.0, 0.0, 0.0], [10.0, 5.0, 0.1]],
+        duration=duration,
+        times=(0.0, 50.0),
+        disturbance=disturbance,
+        bandwidth=0.05,
+    )
 
 
 def test_the_tuning_family_round_trips_stays_inside_routh_hurwitz_and_is_checked():
@@ -430,31 +483,51 @@ def _write(tmp_path, change) -> Path:
 def _set(table: str, **values):
     def change(document):
         document[table] = {**document.get(table, {}), **values}
+
     return change
 
 
 def _replace(table: str, **values):
     def change(document):
         document[table] = dict(values)
+
     return change
 
 
 BAD = [
     # (the change, the key the line names, a fragment of its reason)
     (_set("controller", natural_frequency=-0.1), "controller.natural_frequency", "must be positive; got -0.1"),
-    (_set("controller", natural_frequency=[0.1, 0.1, 0.1, 0.1]), "controller.natural_frequency", "must be one number or have 3 entries; got 4 entries"),
+    (
+        _set("controller", natural_frequency=[0.1, 0.1, 0.1, 0.1]),
+        "controller.natural_frequency",
+        "must be one number or have 3 entries; got 4 entries",
+    ),
     (_set("controller", damping_ratio=0.0), "controller.damping_ratio", "must be positive; got 0.0"),
     (_set("controller", integral_ratio=2.5), "controller.integral_ratio", "integral_ratio must be below 2 damping_ratio"),
     (_set("controller", integral_limit=[0.0, 1.0, 1.0]), "controller.integral_limit", "must be positive"),
     (_set("controller", bias_feedforward="wind"), "controller.bias_feedforward", "'none', 'bias' or 'disturbance'"),
-    (_set("controller", derivative_gain=[-1.0e6, 1.0e6, 1.0e9]), "controller.derivative_gain", "must leave the closed loop's damping d + Kd positive in surge"),
+    (
+        _set("controller", derivative_gain=[-1.0e6, 1.0e6, 1.0e9]),
+        "controller.derivative_gain",
+        "must leave the closed loop's damping d + Kd positive in surge",
+    ),
     (_set("controller", integral_gain=[1.0e5, 800.0, 3.0e5]), "controller.integral_gain", "must be below (d + Kd) Kp / m = 1.062e+04 in surge"),
-    (_replace("controller", kind="pid", design="gains", proportional_gain=[5.0e4, 8.0e4, 4.0e7], derivative_gain=[1.0e6, 1.4e6, 3.3e8]),
-     "controller", "missing key integral_gain"),
-    (_replace("controller", kind="pid", vessel={"kind": "northern-clipper", "mass_scale": -1.0}), "controller.vessel.mass_scale", "must be non-negative"),
+    (
+        _replace("controller", kind="pid", design="gains", proportional_gain=[5.0e4, 8.0e4, 4.0e7], derivative_gain=[1.0e6, 1.4e6, 3.3e8]),
+        "controller",
+        "missing key integral_gain",
+    ),
+    (
+        _replace("controller", kind="pid", vessel={"kind": "northern-clipper", "mass_scale": -1.0}),
+        "controller.vessel.mass_scale",
+        "must be non-negative",
+    ),
     (_replace("reference", kind="none"), "controller", "controller pid needs reference position_desired, which reference none does not provide"),
-    (lambda d: d["controller"].update(bias_feedforward="disturbance"), "controller",
-     "controller pid needs estimate disturbance_force, which observer ekf does not provide"),
+    (
+        lambda d: d["controller"].update(bias_feedforward="disturbance"),
+        "controller",
+        "controller pid needs estimate disturbance_force, which observer ekf does not provide",
+    ),
 ]
 
 

@@ -195,9 +195,7 @@ def assert_truth_above_estimate(ax):
         assert line.get_visible() and line.get_linewidth() > 0 and line.get_alpha() in (None, 1.0)
         assert y.size > 1 and np.isfinite(y).any()
     order = ax.get_children()
-    above = truth.get_zorder() > estimate.get_zorder() or (
-        truth.get_zorder() == estimate.get_zorder() and order.index(truth) > order.index(estimate)
-    )
+    above = truth.get_zorder() > estimate.get_zorder() or (truth.get_zorder() == estimate.get_zorder() and order.index(truth) > order.index(estimate))
     assert above or estimate.get_linestyle() not in ("-", "solid"), f"truth hidden under the estimate: {ax.get_ylabel()!r}"
     assert matplotlib.colors.to_rgb(truth.get_color()) != matplotlib.colors.to_rgb(estimate.get_color())
 
@@ -678,8 +676,14 @@ def test_bode_of_a_failing_design_shades_the_violation_and_keeps_the_note_clear(
 
     wave_frequency = 2 * math.pi / 100
     observer = PassiveObserver.design(
-        northern_clipper(), wave_frequency=wave_frequency, wave_damping=0.1, notch_damping=1.0, cutoff_frequency=1.1,
-        velocity_injection_gain=[5.91e4, 5.91e4, 3.43e7], bias_injection_gain=[2121.0, 2121.0, 1.23e6], bias_time_constant=1000.0,
+        northern_clipper(),
+        wave_frequency=wave_frequency,
+        wave_damping=0.1,
+        notch_damping=1.0,
+        cutoff_frequency=1.1,
+        velocity_injection_gain=[5.91e4, 5.91e4, 3.43e7],
+        bias_injection_gain=[2121.0, 2121.0, 1.23e6],
+        bias_time_constant=1000.0,
     )
     failing = frequency_response(observer)
     fig = plot_bode(failing)

@@ -37,7 +37,10 @@ def test_the_example_plugin_runs_from_its_scenario_and_is_listed(tmp_path, capsy
     assert main(["components", "--plugin", str(PLUGIN), "observer", "--json"]) == 0
     assert "luenberger" in [entry["kind"] for entry in json.loads(capsys.readouterr().out)]
     assert main(["components", "--plugin", "nowhere.py", "observer"]) == 2
-    assert capsys.readouterr().err.strip() == "error: --plugin nowhere.py: plugin 'nowhere.py': no such file (looked for " + str(Path.cwd() / "nowhere.py") + ")"
+    assert (
+        capsys.readouterr().err.strip()
+        == "error: --plugin nowhere.py: plugin 'nowhere.py': no such file (looked for " + str(Path.cwd() / "nowhere.py") + ")"
+    )
 
 
 def test_the_example_plugins_pole_rule_places_each_dofs_error_poles_at_minus_the_bandwidth():
@@ -52,8 +55,13 @@ def test_the_example_plugins_pole_rule_places_each_dofs_error_poles_at_minus_the
     zero = np.zeros(3)
     guess = observer.guess(eta=zero)
 
-    A = np.asarray(jax.jacfwd(lambda x: jax.numpy.concatenate(jax.tree.leaves(observer.vector_field(
-        0.0, type(guess)(x[:3], x[3:6], x[6:]), jax.numpy.zeros(3), jax.numpy.zeros(3)))))(jax.numpy.zeros(9)))
+    A = np.asarray(
+        jax.jacfwd(
+            lambda x: jax.numpy.concatenate(
+                jax.tree.leaves(observer.vector_field(0.0, type(guess)(x[:3], x[3:6], x[6:]), jax.numpy.zeros(3), jax.numpy.zeros(3)))
+            )
+        )(jax.numpy.zeros(9))
+    )
     # leaves are ordered eta, nu, bias: the estimate's dynamics about rest; error = -estimate
     poles = np.sort_complex(np.linalg.eigvals(A))
     expected = np.sort_complex(np.repeat(-w, 3).astype(complex))
@@ -62,11 +70,13 @@ def test_the_example_plugins_pole_rule_places_each_dofs_error_poles_at_minus_the
 
 def test_a_plugin_that_redeclares_a_kind_a_file_that_fails_and_a_missing_file_are_refused_in_one_line(tmp_path):
     twice = tmp_path / "twice.py"
-    twice.write_text(textwrap.dedent('''
+    twice.write_text(
+        textwrap.dedent("""
         from lookout.observers.passive import PassiveObserver
         from lookout.scenario.declare import register
         register("observer", "passive", PassiveObserver, summary="again", parameters=())
-    '''))
+    """)
+    )
     with pytest.raises(CompositionError) as raised:
         compose({"plugins": [str(twice)], "preset": "fossen-strand-1999"})
     assert raised.value.location == ("plugins", 0)
@@ -80,7 +90,9 @@ def test_a_plugin_that_redeclares_a_kind_a_file_that_fails_and_a_missing_file_ar
         compose({"plugins": ["nowhere.py"], "preset": "fossen-strand-1999"})
     notes = tmp_path / "notes.txt"
     notes.write_text("not python")
-    with pytest.raises(CompositionError, match=r"plugins\[0\]: plugin '.*notes.txt': must be a Python file \(.py\) or a module's dotted name; got a .txt"):
+    with pytest.raises(
+        CompositionError, match=r"plugins\[0\]: plugin '.*notes.txt': must be a Python file \(.py\) or a module's dotted name; got a .txt"
+    ):
         compose({"plugins": [str(notes)], "preset": "fossen-strand-1999"})
     with pytest.raises(CompositionError, match=r"plugins\[0\]: plugin 'no such module': must be a Python file \(.py\) or a module's dotted name"):
         compose({"plugins": ["no such module"], "preset": "fossen-strand-1999"})
@@ -165,7 +177,10 @@ def test_a_plugin_that_exits_or_raises_any_base_exception_is_named_in_one_line(t
     scenario.write_text('preset = "fossen-strand-1999"\nplugins = ["exits.py"]\n')
     capsys.readouterr()
     assert main(["run", str(scenario), "--out", str(tmp_path / "out")]) == 2
-    assert capsys.readouterr().err.strip() == f"error: {scenario}: plugins[0] (line 2): plugin '{tmp_path / 'exits.py'}' exited (SystemExit 3) while being imported"
+    assert (
+        capsys.readouterr().err.strip()
+        == f"error: {scenario}: plugins[0] (line 2): plugin '{tmp_path / 'exits.py'}' exited (SystemExit 3) while being imported"
+    )
     assert not (tmp_path / "out").exists()
     (tmp_path / "aborts.py").write_text("class Abort(BaseException):\n    pass\nraise Abort('licence check')\n")
     with pytest.raises(CompositionError, match=r"^plugins\[0\]: plugin '.*aborts.py' does not import: Abort: licence check$"):
@@ -178,7 +193,10 @@ def test_a_plugin_that_exits_or_raises_any_base_exception_is_named_in_one_line(t
 
 def test_a_plugin_that_declares_no_kind_is_refused(tmp_path):
     (tmp_path / "nothing.py").write_text("import lookout.plugin\n\nclass Observer:\n    pass\n")
-    with pytest.raises(CompositionError, match=r"^plugins\[0\]: plugin '.*nothing.py' declares no kind: decorate a class with @component\(\.\.\.\) \(lookout.plugin\)$"):
+    with pytest.raises(
+        CompositionError,
+        match=r"^plugins\[0\]: plugin '.*nothing.py' declares no kind: decorate a class with @component\(\.\.\.\) \(lookout.plugin\)$",
+    ):
         compose({"plugins": [str(tmp_path / "nothing.py")], "preset": "fossen-strand-1999"})
     assert registry._plugin_module_name(tmp_path / "nothing.py") not in __import__("sys").modules
 
@@ -189,8 +207,10 @@ def test_a_folder_and_an_empty_entry_are_refused_as_such(tmp_path, capsys):
         compose({"plugins": [str(tmp_path / "plugins")], "preset": "fossen-strand-1999"})
     with pytest.raises(CompositionError, match=r"^plugins\[0\]: plugin '': an empty entry; give a Python file \(\.py\) or a module's dotted name$"):
         compose({"plugins": [""], "preset": "fossen-strand-1999"})
-    for entry, reason in (("plugins", f"plugin '{tmp_path / 'plugins'}': is a folder, not a Python file"),
-                          ("", "plugin '': an empty entry; give a Python file (.py) or a module's dotted name")):
+    for entry, reason in (
+        ("plugins", f"plugin '{tmp_path / 'plugins'}': is a folder, not a Python file"),
+        ("", "plugin '': an empty entry; give a Python file (.py) or a module's dotted name"),
+    ):
         scenario = tmp_path / "s.toml"
         scenario.write_text(f'preset = "fossen-strand-1999"\nplugins = ["{entry}"]\n')
         capsys.readouterr()
@@ -202,14 +222,20 @@ def test_an_exception_in_a_plugins_method_is_the_plugins_not_a_misfit(tmp_path):
     text = PLUGIN.read_text().replace('"observer", "luenberger"', '"observer", "failing-luenberger"')
     correction = '        """No discrete correction: the measurement enters the vector field."""\n        return estimate'
     assert correction in text
-    text = text.replace(correction, '        """No discrete correction: the measurement enters the vector field."""\n        raise RuntimeError("licence server down")')
+    text = text.replace(
+        correction,
+        '        """No discrete correction: the measurement enters the vector field."""\n        raise RuntimeError("licence server down")',
+    )
     failing = tmp_path / "failing.py"
     failing.write_text(text)
     line = text.splitlines().index('        raise RuntimeError("licence server down")') + 1
     with pytest.raises(CompositionError) as raised:
         compose({"plugins": [str(failing)], "preset": "fossen-strand-1999", "observer": {"kind": "failing-luenberger"}})
     assert raised.value.location == ("observer",)
-    assert raised.value.reason == f"observer failing-luenberger (a plugin): LuenbergerObserver.update raised RuntimeError: licence server down ({failing}, line {line})"
+    assert (
+        raised.value.reason
+        == f"observer failing-luenberger (a plugin): LuenbergerObserver.update raised RuntimeError: licence server down ({failing}, line {line})"
+    )
 
 
 def test_the_example_plugin_imports_only_lookouts_public_names():

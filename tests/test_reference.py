@@ -133,8 +133,12 @@ def test_signals_names_units_and_shapes():
     f = ReferenceFilter.vessel([0.1, 0.1, 0.2], 0.0, [0.0, 0.0, 0.0])
     units = {s.name: s.units for s in f.reference_signals}
     assert units == {
-        "position_desired": "m", "position_desired_rate": "m s-1", "position_desired_acceleration": "m s-2",
-        "heading_desired": "rad", "heading_desired_rate": "rad s-1", "heading_desired_acceleration": "rad s-2",
+        "position_desired": "m",
+        "position_desired_rate": "m s-1",
+        "position_desired_acceleration": "m s-2",
+        "heading_desired": "rad",
+        "heading_desired_rate": "rad s-1",
+        "heading_desired_acceleration": "rad s-2",
     }
     by_name = {s.name: s for s in f.reference_signals}
     assert by_name["position_desired"].labels == ("north", "east") and by_name["position_desired"].dim == "earth_axis"
@@ -197,8 +201,16 @@ def dataset():
     base = fs.build(config)
     reference = ReferenceFilter.vessel([0.1, 0.1, 0.2], [0.0, 5.0], [[0.0, 0.0, 0.0], [10.0, -5.0, 3.1]], initial=[0.0, 0.0, -3.1])
     scenario = Scenario(
-        base.plant, base.sensor, base.observer, base.controller, base.initial_state, base.initial_estimate,
-        plant_step=config.plant_step, sample_period=config.sample_period, duration=config.duration, reference=reference,
+        base.plant,
+        base.sensor,
+        base.observer,
+        base.controller,
+        base.initial_state,
+        base.initial_estimate,
+        plant_step=config.plant_step,
+        sample_period=config.sample_period,
+        duration=config.duration,
+        reference=reference,
     )
     return reference, simulate(scenario, jax.random.key(0)).to_xarray()
 

@@ -144,8 +144,20 @@ def test_every_unused_line_and_reading_is_printed_by_its_cause(tmp_path, capsys,
     assert code == 0, err
     done = next(line for line in err.splitlines() if line.startswith("done:"))
     counts = dict((name, int(n)) for name, n in re.findall(r"(\w+) (\d+)", done.split("not used", 1)[1].split(";", 1)[0]))
-    assert counts == {"checksum": 1, "malformed": 1, "out_of_range": 1, "no_fix": 1, "unsupported": 1, "late": 1, "not_read": 1,
-                      "quality": 1, "hdop": 1, "other_source": 1, "superseded": 1, "gated": 1}, done
+    assert counts == {
+        "checksum": 1,
+        "malformed": 1,
+        "out_of_range": 1,
+        "no_fix": 1,
+        "unsupported": 1,
+        "late": 1,
+        "not_read": 1,
+        "quality": 1,
+        "hdop": 1,
+        "other_source": 1,
+        "superseded": 1,
+        "gated": 1,
+    }, done
     assert f"not used {sum(counts.values())} (" in done
 
 
@@ -180,8 +192,11 @@ def test_an_origin_far_from_the_logs_first_fix_is_refused_before_any_step(tmp_pa
     out = tmp_path / "new" / "r.nc"
     code, err = _cli(["replay", LOGS / "dp-vessel.nmea", "--scenario", SCENARIO, "--origin", "0,0", "--out", out], capsys, monkeypatch)
     assert code == 2 and "\n" not in err
-    assert re.fullmatch(r"error: --origin 0,0 lies 7106 km from the log's first fix, 63.43999\d,10.40000\d \(degrees\), more than 100 km: "
-                        r".*omit --origin to take the first fix as the origin, or give one within 100 km of it", err), err
+    assert re.fullmatch(
+        r"error: --origin 0,0 lies 7106 km from the log's first fix, 63.43999\d,10.40000\d \(degrees\), more than 100 km: "
+        r".*omit --origin to take the first fix as the origin, or give one within 100 km of it",
+        err,
+    ), err
     assert not out.parent.exists()
 
 
@@ -211,8 +226,11 @@ def test_a_gate_option_the_observer_does_not_use_is_refused(tmp_path, capsys, mo
     assert "is gated on its innovations' length (--position-gate, --heading-gate): leave --gate-probability out" in err
     code, err = _cli(["replay", LOGS / "dp-vessel.nmea", "--scenario", _ekf_scenario(tmp_path), "--position-gate", "20"], capsys, monkeypatch)
     assert code == 2 and "\n" not in err
-    assert re.fullmatch(r"error: --position-gate applies to observers gated on the length of their innovation_position output; "
-                        r"the observer of .*ekf.toml, ekf, is gated on its normalized innovation squared \(--gate-probability\): leave --position-gate out", err), err
+    assert re.fullmatch(
+        r"error: --position-gate applies to observers gated on the length of their innovation_position output; "
+        r"the observer of .*ekf.toml, ekf, is gated on its normalized innovation squared \(--gate-probability\): leave --position-gate out",
+        err,
+    ), err
 
 
 def test_the_nis_label_carries_every_digit_of_the_probability():
@@ -233,8 +251,11 @@ def test_write_log_without_outage_names_the_scenario_it_was_given(tmp_path, caps
     short.write_text(SCENARIO.read_text().replace("duration = 600.0", "duration = 100.0"))
     code, err = _cli(["write-log", short, "--out", tmp_path / "log"], capsys, monkeypatch)
     assert code == 2 and "\n" not in err
-    assert re.fullmatch(r"error: .*short.toml: its run lasts 100 s \(simulation.duration\), shorter than the default outage, 300,30 "
-                        r"\(from 300 to 330 s\): give --outage START,LENGTH within the run, or --outage none", err), err
+    assert re.fullmatch(
+        r"error: .*short.toml: its run lasts 100 s \(simulation.duration\), shorter than the default outage, 300,30 "
+        r"\(from 300 to 330 s\): give --outage START,LENGTH within the run, or --outage none",
+        err,
+    ), err
     assert not (tmp_path / "log").exists()
 
 
@@ -245,11 +266,28 @@ def test_a_truth_that_does_not_cover_the_log_is_refused_before_any_step(tmp_path
     truth.to_netcdf(tmp_path / "short-truth.nc")
     monkeypatch.setattr(lookout.live.run, "replay", lambda *a, **k: pytest.fail("the replay started"))
     results = tmp_path / "results"
-    code, err = _cli(["replay", LOGS / "dp-vessel.nmea", "--scenario", SCENARIO, "--out", results / "r.nc", "--figure", results / "r.png",
-                      "--truth", tmp_path / "short-truth.nc"], capsys, monkeypatch)
+    code, err = _cli(
+        [
+            "replay",
+            LOGS / "dp-vessel.nmea",
+            "--scenario",
+            SCENARIO,
+            "--out",
+            results / "r.nc",
+            "--figure",
+            results / "r.png",
+            "--truth",
+            tmp_path / "short-truth.nc",
+        ],
+        capsys,
+        monkeypatch,
+    )
     assert code == 2 and "\n" not in err
-    assert re.fullmatch(r"error: --truth .*short-truth.nc covers 0 to 59.9 s \(every 0.1 s\); LOG .*dp-vessel.nmea runs from 1796083199.928152 "
-                        r"to 1796083799.\d+ s, -0.072 to 599.877 s on the truth's clock, steps 0 to 599.9 s of a session: give the truth of the run behind this log.*", err), err
+    assert re.fullmatch(
+        r"error: --truth .*short-truth.nc covers 0 to 59.9 s \(every 0.1 s\); LOG .*dp-vessel.nmea runs from 1796083199.928152 "
+        r"to 1796083799.\d+ s, -0.072 to 599.877 s on the truth's clock, steps 0 to 599.9 s of a session: give the truth of the run behind this log.*",
+        err,
+    ), err
     assert not results.exists()
 
 

@@ -166,7 +166,9 @@ def test_the_plotted_data_are_the_datasets_values_in_plot_units(ds):
     # the measurement: one dot per new fix, in the zoom only
     dots = lines(zoom)["measured"]
     measured = ds.measured_position.sel(earth_axis="north").isel(run=0)
-    assert set(np.round(dots.get_ydata(), 9)) <= set(np.round(measured.values, 9)) and 0 < len(dots.get_ydata()) < zoom.get_lines()[0].get_xdata().size
+    assert (
+        set(np.round(dots.get_ydata(), 9)) <= set(np.round(measured.values, 9)) and 0 < len(dots.get_ydata()) < zoom.get_lines()[0].get_xdata().size
+    )
     assert "measured" not in lines(full)
     # angles in degrees, unwrapped
     full, _ = found["Earth-fixed\nheading (deg)"]
@@ -230,7 +232,7 @@ def test_a_scalar_reference_follows_the_component_of_a_vector_named_after_it():
         coords={"run": [0], "time": time, "revolute_joint": ["arm", "pendulum"]},
     )
     assert run_references(ds) == [("pendulum_angle_desired", "joint_angle", "pendulum")]
-    (full, _), = panels(plot_run_reference(ds)).values()
+    ((full, _),) = panels(plot_run_reference(ds)).values()
     np.testing.assert_allclose(lines(full)["true"].get_ydata(), np.degrees(np.cos(time)))
     np.testing.assert_allclose(lines(full)["desired"].get_ydata(), np.degrees(np.cos(time) + 0.1))
 
@@ -262,7 +264,10 @@ def test_a_start_spike_is_kept_off_the_scale_and_named(ds):
     spiked = ds.copy()
     applied = spiked.force_applied.values.copy()
     applied[:, 0, 0] = 1e3 * np.abs(applied).max()
-    spiked = spiked.assign(force_applied=(ds.force_applied.dims, applied, ds.force_applied.attrs), force_commanded=(ds.force_applied.dims, applied, ds.force_applied.attrs))
+    spiked = spiked.assign(
+        force_applied=(ds.force_applied.dims, applied, ds.force_applied.attrs),
+        force_commanded=(ds.force_applied.dims, applied, ds.force_applied.attrs),
+    )
     full, _ = panels(plot_run_input(spiked))["body-fixed\nforce surge (kN)"]
     assert full.get_ylim()[1] < applied[0, 0, 0] * 1e-3 / 10
     assert "clipped: the first" in full.get_legend().get_title().get_text()

@@ -25,14 +25,18 @@ def test_a_campaign_spec_read_as_a_scenario_names_the_command_that_runs_it(name,
     path = EXAMPLES / f"{name}.toml"
     with pytest.raises(FileError) as caught:
         load(path)
-    assert str(caught.value) == (f"{path}: a campaign spec, not a scenario file: run it with lookout campaign run {path} "
-                                 f"(its scenario is {scenario})")
+    assert str(caught.value) == (
+        f"{path}: a campaign spec, not a scenario file: run it with lookout campaign run {path} (its scenario is {scenario})"
+    )
 
 
 def test_a_benchmark_spec_read_as_a_scenario_names_the_command_that_runs_it(tmp_path):
     path = tmp_path / "spec.toml"
     path.write_text('title = "mine"\nscenario = "dp.toml"\nobservers = []\n')
-    with pytest.raises(FileError, match=r"spec.toml: a benchmark spec, not a scenario file: run it with lookout benchmark observers --spec .*spec.toml \(its scenario is dp.toml\)$"):
+    with pytest.raises(
+        FileError,
+        match=r"spec.toml: a benchmark spec, not a scenario file: run it with lookout benchmark observers --spec .*spec.toml \(its scenario is dp.toml\)$",
+    ):
         load(path)
 
 
@@ -55,20 +59,23 @@ def _scenario(tmp_path, text: str) -> Path:
     return path
 
 
-EKF = '''preset = "fossen-strand-1999:paper"
+EKF = """preset = "fossen-strand-1999:paper"
 
 [simulation]
 duration = 20.0
 
 [observer]
 kind = "ekf"
-'''
+"""
 
 
-@pytest.mark.parametrize("table, key, line, origin", [
-    ("", "observer.filter_period", 8, "[simulation] (the loop's sample period)"),
-    ('[actuator]\nkind = "thrust-limits"\nlimit = 1e6\n', "actuator.size", 12, "the plant (its input size)"),
-])
+@pytest.mark.parametrize(
+    "table, key, line, origin",
+    [
+        ("", "observer.filter_period", 8, "[simulation] (the loop's sample period)"),
+        ('[actuator]\nkind = "thrust-limits"\nlimit = 1e6\n', "actuator.size", 12, "the plant (its input size)"),
+    ],
+)
 def test_a_context_value_in_the_file_is_refused_at_its_line(tmp_path, table, key, line, origin):
     given = EKF + "filter_period = 0.5\n" if key == "observer.filter_period" else EKF + "\n" + table + "size = 3\n"
     path = _scenario(tmp_path, given)
@@ -91,10 +98,21 @@ def test_an_observer_built_for_another_sample_period_is_refused_with_both_period
     document["simulation"]["duration"] = 20.0
     built = compose(document).scenario
     ekf = ExtendedKalmanFilter(built.plant, built.sensor, plant_step=0.1, filter_period=0.5)
-    parts = dict(plant=built.plant, sensor=built.sensor, observer=ekf, controller=built.controller, initial_state=built.initial_state,
-                 initial_estimate=ekf.guess(), plant_step=0.1, duration=20.0)
-    with pytest.raises(ValueError, match=r"^observer filter_period \(0.5 s\) must equal the loop's sample_period \(0.1 s\): the observer is built "
-                                         r"for one sample period; build it for 0.1 s, or run the loop at 0.5 s$"):
+    parts = dict(
+        plant=built.plant,
+        sensor=built.sensor,
+        observer=ekf,
+        controller=built.controller,
+        initial_state=built.initial_state,
+        initial_estimate=ekf.guess(),
+        plant_step=0.1,
+        duration=20.0,
+    )
+    with pytest.raises(
+        ValueError,
+        match=r"^observer filter_period \(0.5 s\) must equal the loop's sample_period \(0.1 s\): the observer is built "
+        r"for one sample period; build it for 0.1 s, or run the loop at 0.5 s$",
+    ):
         Scenario(**parts, sample_period=0.1)
     assert Scenario(**parts, sample_period=0.5).sample_period == 0.5
 
@@ -108,13 +126,15 @@ def test_a_discrete_observers_sample_period_in_a_file_must_be_the_loops(tmp_path
     document["simulation"].update(duration=0.1)
     document["observer"]["sample_period"] = 2 * document["simulation"]["sample_period"]
     path = write(tmp_path / "arm.toml", document)
-    with pytest.raises(FileError, match=r"observer.sample_period \(line \d+\): observer sample_period \(0.02 s\) must equal the loop's sample_period \(0.01 s\)"):
+    with pytest.raises(
+        FileError, match=r"observer.sample_period \(line \d+\): observer sample_period \(0.02 s\) must equal the loop's sample_period \(0.01 s\)"
+    ):
         load(path)
 
 
 # ------------------------------------------------------------ declared shapes and broadcasting
 
-PASSIVE = '''preset = "fossen-strand-1999:paper"
+PASSIVE = """preset = "fossen-strand-1999:paper"
 
 [simulation]
 duration = 20.0
@@ -124,13 +144,16 @@ kind = "passive"
 
 [observer.initial]
 eta = {eta}
-'''
+"""
 
 
-@pytest.mark.parametrize("eta, message", [
-    ("[1.0, 2.0]", "must be one number or have 3 entries; got 2 entries"),
-    ("[[1.0, 2.0, 0.1]]", "must be an array of shape (3,) or one number; got an array of shape (1, 3)"),
-])
+@pytest.mark.parametrize(
+    "eta, message",
+    [
+        ("[1.0, 2.0]", "must be one number or have 3 entries; got 2 entries"),
+        ("[[1.0, 2.0, 0.1]]", "must be an array of shape (3,) or one number; got an array of shape (1, 3)"),
+    ],
+)
 def test_an_initial_value_of_another_shape_is_refused_at_its_key(tmp_path, eta, message):
     path = _scenario(tmp_path, PASSIVE.format(eta=eta))
     with pytest.raises(FileError) as caught:
@@ -144,7 +167,7 @@ def test_a_parameter_of_another_declared_shape_is_refused_at_its_key(tmp_path):
         load(path)
 
 
-LAYOUT = '''preset = "fossen-strand-1999:paper"
+LAYOUT = """preset = "fossen-strand-1999:paper"
 
 [simulation]
 duration = 20.0
@@ -165,15 +188,16 @@ y = [0.0, -6.0, 6.0]
 direction = [1.5708, 0.0, 0.0]
 max_thrust = [1.3e5, 3.0e5, 3.0e5]
 min_thrust = -1.3e5
-'''
+"""
 
 
 def test_one_number_for_the_thrusters_positions_is_refused_where_the_declaration_does_not_broadcast(tmp_path):
     path = _scenario(tmp_path, LAYOUT.format(x="30.0"))
     with pytest.raises(FileError) as caught:
         load(path)
-    assert str(caught.value) == (f"{path}: actuator.layout.x (line 17): must be an array, shape (n,): one number does not stand for "
-                                 "every entry here; got 30.0")
+    assert str(caught.value) == (
+        f"{path}: actuator.layout.x (line 17): must be an array, shape (n,): one number does not stand for every entry here; got 30.0"
+    )
     from lookout.actuators.layout import ThrusterLayout
 
     with pytest.raises(ValueError, match=r"^x must have one entry per thruster \(3\), not one number for all; got one number$"):
@@ -189,13 +213,16 @@ def test_one_process_noise_intensity_is_every_inputs_as_its_siblings_take_one_nu
     with pytest.raises(FileError, match=r"observer.process_noise \(line 8\): must be non-negative; got -1"):
         load(_scenario(tmp_path, EKF + "process_noise = -1.0\n"))
     # a state's entries have units of their own (m, m/s, N): one number is refused at the key, as declared
-    with pytest.raises(FileError, match=r"observer.state_noise \(line 8\): must be an array, one entry each: one number does not stand for every entry here; got 0.5$"):
+    with pytest.raises(
+        FileError,
+        match=r"observer.state_noise \(line 8\): must be an array, one entry each: one number does not stand for every entry here; got 0.5$",
+    ):
         load(_scenario(tmp_path, EKF + "state_noise = 0.5\n"))
 
 
 # ------------------------------------------------------------ a layout of another vessel
 
-CYBERSHIP = '''[simulation]
+CYBERSHIP = """[simulation]
 duration = 20.0
 plant_step = 0.01
 sample_period = 0.1
@@ -215,7 +242,7 @@ kind = "thrusters"
 
 [actuator.layout]
 kind = "{layout}"
-'''
+"""
 
 
 def test_a_layout_far_larger_than_the_vessel_is_refused_naming_both(tmp_path):
@@ -224,14 +251,16 @@ def test_a_layout_far_larger_than_the_vessel_is_refused_naming_both(tmp_path):
     path = _scenario(tmp_path, CYBERSHIP.format(layout="supply-vessel"))
     with pytest.raises(FileError) as caught:
         load(path)
-    assert str(caught.value) == (f"{path}: actuator.layout (line 19): layout supply-vessel does not fit plant cybership-ii: its thrusters reach 33.5 m "
-                                 "from the origin, and a vessel of 25.8 kg is a hull of about 1.4 m: the layout is another vessel's; "
-                                 "give [actuator.layout] this vessel's thrusters")
+    assert str(caught.value) == (
+        f"{path}: actuator.layout (line 19): layout supply-vessel does not fit plant cybership-ii: its thrusters reach 33.5 m "
+        "from the origin, and a vessel of 25.8 kg is a hull of about 1.4 m: the layout is another vessel's; "
+        "give [actuator.layout] this vessel's thrusters"
+    )
     assert load(_scenario(tmp_path, CYBERSHIP.format(layout="cybership-ii"))).build().actuator.layout.size == 3
 
 
 def test_the_lengths_of_the_shipped_vessels_from_their_mass():
     from lookout.actuators.layout import hull_length
 
-    assert 70.0 < hull_length(5.3e6) < 90.0        # Northern Clipper, 76 m
-    assert 1.1 < hull_length(25.8) < 1.5           # Cybership II, 1.255 m
+    assert 70.0 < hull_length(5.3e6) < 90.0  # Northern Clipper, 76 m
+    assert 1.1 < hull_length(25.8) < 1.5  # Cybership II, 1.255 m

@@ -72,13 +72,11 @@ def _error_rate(observer, truth: VesselState, *, hold_heading: bool):
 
 TRUTHS = {
     "heading 0, psi_w = 0": (
-        VesselState.build(eta=[10.0, -5.0, 0.0], nu=[0.3, -0.1, 0.002], bias=[1e5, 2e4, 1e6],
-                          wave_state=[0.1, -0.2, 0.01, 0.5, 0.3, 0.0]),
+        VesselState.build(eta=[10.0, -5.0, 0.0], nu=[0.3, -0.1, 0.002], bias=[1e5, 2e4, 1e6], wave_state=[0.1, -0.2, 0.01, 0.5, 0.3, 0.0]),
         False,
     ),
     "heading 2.3, J held": (
-        VesselState.build(eta=[-40.0, 25.0, 2.3], nu=[-0.2, 0.4, -0.003], bias=[-3e4, 5e4, -2e6],
-                          wave_state=[0.2, 0.1, -0.004, -0.6, 0.2, 0.01]),
+        VesselState.build(eta=[-40.0, 25.0, 2.3], nu=[-0.2, 0.4, -0.003], bias=[-3e4, 5e4, -2e6], wave_state=[0.2, 0.1, -0.004, -0.6, 0.2, 0.01]),
         True,
     ),
 }
@@ -105,8 +103,7 @@ def test_error_system_is_the_jacobian_of_the_implementation(case):
     passive_only = printed(switching_gain=(0.0, 0.0, 0.0))
     rate = _error_rate(passive_only, truth, hold_heading=hold)
     x_tilde = np.array([0.3, -0.2, 0.01, 0.4, 0.5, -0.02, 2.0, -1.0, 0.05, 3e4, -2e4, 4e5, 0.1, -0.05, 0.001])
-    np.testing.assert_allclose(np.asarray(rate(jnp.asarray(x_tilde))), without @ x_tilde, rtol=1e-9,
-                               atol=1e-12 * np.abs(without @ x_tilde).max())
+    np.testing.assert_allclose(np.asarray(rate(jnp.asarray(x_tilde))), without @ x_tilde, rtol=1e-9, atol=1e-12 * np.abs(without @ x_tilde).max())
 
 
 def test_sigma2_per_dof_is_the_passive_error_loop_and_error_system_has_its_blocks():

@@ -54,8 +54,14 @@ def _printed(switching_gain, boundary_layer=(5.0, 5.0, 0.02), **overrides):
 def test_without_switching_the_sliding_mode_observer_is_the_passive_observer():
     sliding = _printed(0.0)
     passive = PassiveObserver.design(
-        northern_clipper(), wave_frequency=0.8976, wave_damping=0.1, notch_damping=1.0, cutoff_frequency=1.1,
-        velocity_injection_gain=KIM_2002_VELOCITY_GAIN, bias_injection_gain=KIM_2002_BIAS_GAIN, bias_time_constant=(1000.0, 1000.0, 10000.0),
+        northern_clipper(),
+        wave_frequency=0.8976,
+        wave_damping=0.1,
+        notch_damping=1.0,
+        cutoff_frequency=1.1,
+        velocity_injection_gain=KIM_2002_VELOCITY_GAIN,
+        bias_injection_gain=KIM_2002_BIAS_GAIN,
+        bias_time_constant=(1000.0, 1000.0, 10000.0),
     )
     key = jax.random.key(4)
     a = simulate(_scenario(sliding), key)
@@ -63,7 +69,9 @@ def test_without_switching_the_sliding_mode_observer_is_the_passive_observer():
     for name in b.estimate:
         if name.startswith("switching"):
             continue
-        np.testing.assert_allclose(np.asarray(a.estimate[name]), np.asarray(b.estimate[name]), rtol=1e-10, atol=1e-10 * (1 + np.abs(np.asarray(b.estimate[name])).max()))
+        np.testing.assert_allclose(
+            np.asarray(a.estimate[name]), np.asarray(b.estimate[name]), rtol=1e-10, atol=1e-10 * (1 + np.abs(np.asarray(b.estimate[name])).max())
+        )
     assert float(np.abs(np.asarray(a.estimate["switching_position"])).max()) == 0.0
 
 
@@ -78,7 +86,9 @@ def test_inside_the_layer_the_switching_term_is_an_extra_position_gain():
     b = simulate(_scenario(stiffer), key)
     assert float(np.abs(np.asarray(a.estimate["innovation_position"])).max()) < 1e4
     for name in ("position", "velocity", "bias_force", "wave_position", "heading"):
-        np.testing.assert_allclose(np.asarray(a.estimate[name]), np.asarray(b.estimate[name]), rtol=1e-9, atol=1e-9 * (1 + np.abs(np.asarray(b.estimate[name])).max()))
+        np.testing.assert_allclose(
+            np.asarray(a.estimate[name]), np.asarray(b.estimate[name]), rtol=1e-9, atol=1e-9 * (1 + np.abs(np.asarray(b.estimate[name])).max())
+        )
 
 
 def test_outside_the_layer_the_switching_term_injects_kbar_in_eta_hat_dot():

@@ -42,7 +42,7 @@ def _run_cli(args, capsys):
 
 
 def test_toml_writer_round_trips_every_value_to_the_bit(tmp_path):
-    document = {"a": 0.1 + 0.2, "b": [1e-300, -2.5e17, float("inf")], "c": {"d": [[1.0, 2.0], [3.0, 4.0]], "e": "x\"y", "f": True, "g": 3}}
+    document = {"a": 0.1 + 0.2, "b": [1e-300, -2.5e17, float("inf")], "c": {"d": [[1.0, 2.0], [3.0, 4.0]], "e": 'x"y', "f": True, "g": 3}}
     path = _toml.write(tmp_path / "x.toml", document, comments={"c.d": "a matrix"}, header="head")
     parsed, text = _toml.read(path)
     assert parsed == document
@@ -51,7 +51,9 @@ def test_toml_writer_round_trips_every_value_to_the_bit(tmp_path):
 
 def test_a_scenario_file_written_by_the_reproduction_gives_its_numbers_exactly(tmp_path, capsys):
     scenario = tmp_path / "fs.toml"
-    code, out, err = _run_cli(["reproduce", "fossen-strand-1999", "--duration", "20", "--runs", "2", "--seed", "3", "--write-scenario", str(scenario)], capsys)
+    code, out, err = _run_cli(
+        ["reproduce", "fossen-strand-1999", "--duration", "20", "--runs", "2", "--seed", "3", "--write-scenario", str(scenario)], capsys
+    )
     assert code == 0, err
     assert f"scenario written to {scenario}" in out
     assert not (tmp_path / "out").exists()
@@ -120,27 +122,49 @@ CUSTOM_VESSEL = 'kind = "custom"\nmass_matrix = [[5.3e6, 0, 0], [0, 8.3e6, 0], [
         ("duration = 30.0", "duration = true", "simulation.duration (line {line}): must be a number; got true (a boolean)"),
         ("duration = 30.0", 'duration = "100"', 'simulation.duration (line {line}): must be a number; got "100" (a string)'),
         ("runs = 1", "runs = 2.0", "simulation.runs (line {line}): must be an integer (no decimal point); got 2.0 (a number with a decimal point)"),
-        ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, false, 0.1]", "sensor.noise_std[1] (line {line}): must be a number; got false (a boolean)"),
-        ("dropout_probability = 0.0", "dropout_probability = 1979-05-27", "sensor.dropout_probability (line {line}): must be a number; got a TOML date: 1979-05-27"),
+        (
+            "noise_std = [0.5, 0.5, 0.0017453292519943296]",
+            "noise_std = [0.5, false, 0.1]",
+            "sensor.noise_std[1] (line {line}): must be a number; got false (a boolean)",
+        ),
+        (
+            "dropout_probability = 0.0",
+            "dropout_probability = 1979-05-27",
+            "sensor.dropout_probability (line {line}): must be a number; got a TOML date: 1979-05-27",
+        ),
         ("bias = [10000.0, 5000.0, 100000.0]", "bias = [inf, 5000.0, 100000.0]", "plant.initial.bias[0] (line {line}): must be finite; got inf"),
         ("runs = 1", "runs = 99999999999999999999", "simulation.runs (line {line}): must be at most 9223372036854775808"),
         ("sample_period = 1.0", "sample_period = -1.0", "sensor.sample_period (line {line}): must be positive; got -1.0"),
         # damping that feeds energy in is no vessel
-        ('kind = "northern-clipper"', CUSTOM_VESSEL + "[[5.0e4, 0, 0], [0, 2.7e5, -4.4e7], [0, -4.4e7, 4.2e8]]",
-         "plant.vessel.damping_matrix (line {line}): damping_matrix must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); the smallest eigenvalue of (D + D^T)/2 is -4.29e+06"),
+        (
+            'kind = "northern-clipper"',
+            CUSTOM_VESSEL + "[[5.0e4, 0, 0], [0, 2.7e5, -4.4e7], [0, -4.4e7, 4.2e8]]",
+            "plant.vessel.damping_matrix (line {line}): damping_matrix must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); the smallest eigenvalue of (D + D^T)/2 is -4.29e+06",
+        ),
         # the engine's rules under the file's names
-        ("sample_period = 1.0", "sample_period = 0.15", "sensor.sample_period (line {line}): sensor sample_period[0] (0.15 s) must be an integer multiple of sample_period (0.1 s)"),
+        (
+            "sample_period = 1.0",
+            "sample_period = 0.15",
+            "sensor.sample_period (line {line}): sensor sample_period[0] (0.15 s) must be an integer multiple of sample_period (0.1 s)",
+        ),
         ("duration = 30.0", "duration = 1e12", "simulation.duration (line {line}): must be below 4.295e+09 samples of sample_period (0.1 s)"),
         # a value only the component can refuse: the key its message names
         ("cutoff_frequency = 1.1", "cutoff_frequency = 0.5", "observer.cutoff_frequency (line {line}): cutoff_frequency must exceed wave_frequency"),
-        ('kind = "northern-clipper"', 'kind = "custom"\nmass_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, -2.0]]\ndamping_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]',
-         "plant.vessel.mass_matrix (line {line}): mass_matrix must be symmetric positive definite; its smallest eigenvalue is -2"),
+        (
+            'kind = "northern-clipper"',
+            'kind = "custom"\nmass_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, -2.0]]\ndamping_matrix = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]',
+            "plant.vessel.mass_matrix (line {line}): mass_matrix must be symmetric positive definite; its smallest eigenvalue is -2",
+        ),
         ('kind = "northern-clipper"', 'kind = "custom"', "plant.vessel (line {line}): missing key mass_matrix"),  # the table's header line
         ('kind = "dp-vessel"', 'kind = "nope"', "plant.kind (line {line}): no plant kind 'nope' (one of "),
         ('design = "fossen-strand-1999"', 'design = "other"', "observer.design (line {line}): no design 'other' (one of fossen-strand-1999, gains)"),
         ("dropout_probability = 0.0", "dropout_probability = 1.5", "sensor.dropout_probability (line {line}): must be in [0, 1); got 1.5"),
-        ("noise_std = [0.5, 0.5, 0.0017453292519943296]", "noise_std = [0.5, 0.5]", "sensor.noise_std (line {line}): must be one number or have 3 entries; got 2 entries"),
-        ("hold = \"measurement\"", "hold = \"both\"", "observer.hold (line {line}): Input should be 'measurement' or 'innovation'"),
+        (
+            "noise_std = [0.5, 0.5, 0.0017453292519943296]",
+            "noise_std = [0.5, 0.5]",
+            "sensor.noise_std (line {line}): must be one number or have 3 entries; got 2 entries",
+        ),
+        ('hold = "measurement"', 'hold = "both"', "observer.hold (line {line}): Input should be 'measurement' or 'innovation'"),
         ("[simulation]", "[simulation", "not valid TOML"),
     ],
 )
@@ -182,7 +206,9 @@ def test_a_custom_vessel_is_simulated_with_its_own_matrices(name, case, tmp_path
     reproduction = REPRODUCTIONS[name]
     heavier = (NORTHERN_CLIPPER_M * 2.0).tolist()
     extra = {"model_error": {"mass": 0.1, "damping": 0.0}} if name == "kim-2002" else {}
-    config = reproduction.Config(duration=100.0, vessel={"model": "custom", "mass_matrix": heavier, "damping_matrix": NORTHERN_CLIPPER_D.tolist()}, **extra)
+    config = reproduction.Config(
+        duration=100.0, vessel={"model": "custom", "mass_matrix": heavier, "damping_matrix": NORTHERN_CLIPPER_D.tolist()}, **extra
+    )
     path = save(CompositionSpec(compose(reproduction.composition(config, case))), tmp_path / "custom.toml")
     scenario = load(path).build()
     # the plant is the user's vessel (with Kim's model error on top); every model-based part uses its M
@@ -205,11 +231,14 @@ CAMPAIGN = {
     "metrics": ["rms_error:position", "max_excursion:position", "rms_input:force", "settling_time:bias_force"],
     "divergence": {"signal": "position", "limit": 1000.0},
     "trajectories": {"signals": ["position", "position_hat", "measured_heading"], "every": 10},
-    "sweep": {"kind": "grid", "axes": [
-        {"field": ["plant.waves.peak_frequency", "observer.wave_frequency"], "values": [0.7, 1.0], "name": "wave_frequency"},
-        {"field": ["plant.bias.std[0]", "plant.bias.std[1]", "plant.bias.std[2]"], "values": [0.5, 2.0], "scale": True, "name": "bias_scale"},
-        {"field": "sensor.dropout_probability", "values": [0.0, 0.3], "name": "dropout_probability"},
-    ]},
+    "sweep": {
+        "kind": "grid",
+        "axes": [
+            {"field": ["plant.waves.peak_frequency", "observer.wave_frequency"], "values": [0.7, 1.0], "name": "wave_frequency"},
+            {"field": ["plant.bias.std[0]", "plant.bias.std[1]", "plant.bias.std[2]"], "values": [0.5, 2.0], "scale": True, "name": "bias_scale"},
+            {"field": "sensor.dropout_probability", "values": [0.0, 0.3], "name": "dropout_probability"},
+        ],
+    },
 }
 
 
@@ -230,9 +259,23 @@ def test_campaign_points_are_the_grid_and_scale_multiplies_the_base(tmp_path, ca
     assert values["plant"]["bias"]["std"] == (1e3, 1e3, 2.5e4) and values["sensor"]["dropout_probability"] == 0.3
     assert float(campaign.point_spec(5).build().observer.wave_frequency[0]) == 1.0
     # a Latin hypercube: one point per stratum of each axis
-    lhs = campaign_from_document({"scenario": campaign.base.document(), "seeds_per_point": 2, "metrics": ["rms_error:position"], "sweep": {
-        "kind": "latin-hypercube", "points": 10, "seed": 3, "axes": [
-            {"field": "observer.wave_frequency", "range": [0.5, 1.0], "name": "wave_frequency"}, {"field": "sensor.dropout_probability", "range": [0.0, 0.5], "name": "dropout_probability"}]}}, "<lhs>")
+    lhs = campaign_from_document(
+        {
+            "scenario": campaign.base.document(),
+            "seeds_per_point": 2,
+            "metrics": ["rms_error:position"],
+            "sweep": {
+                "kind": "latin-hypercube",
+                "points": 10,
+                "seed": 3,
+                "axes": [
+                    {"field": "observer.wave_frequency", "range": [0.5, 1.0], "name": "wave_frequency"},
+                    {"field": "sensor.dropout_probability", "range": [0.0, 0.5], "name": "dropout_probability"},
+                ],
+            },
+        },
+        "<lhs>",
+    )
     for label, (low, high) in (("wave_frequency", (0.5, 1.0)), ("dropout_probability", (0.0, 0.5))):
         strata = np.floor((np.array([p[label] for p in lhs.points]) - low) / (high - low) * 10).astype(int)
         assert sorted(strata) == list(range(10))
@@ -245,9 +288,16 @@ def test_an_axis_may_replace_a_component_and_sweep_a_model_error(tmp_path):
     base = compose({"preset": "kim-2002", "simulation": {"duration": 100.0}}).document
     conventional = {**base["observer"], "switching_gain": [0.0, 0.0, 0.0]}
     document = {
-        "scenario": base, "seeds_per_point": 2, "chunk_runs": 2, "metrics": ["rms_tracking:position"],
-        "sweep": {"axes": [{"field": "observer", "values": [base["observer"], conventional], "name": "observer"},
-                           {"field": "plant.vessel.mass_scale", "values": [1.0, 1.2]}]},
+        "scenario": base,
+        "seeds_per_point": 2,
+        "chunk_runs": 2,
+        "metrics": ["rms_tracking:position"],
+        "sweep": {
+            "axes": [
+                {"field": "observer", "values": [base["observer"], conventional], "name": "observer"},
+                {"field": "plant.vessel.mass_scale", "values": [1.0, 1.2]},
+            ]
+        },
     }
     campaign = campaign_from_document(document, "<kim>")
     scenarios = [campaign.point_spec(point).build() for point in range(len(campaign.points))]
@@ -272,12 +322,17 @@ def test_a_cases_axis_sets_several_keys_per_value(tmp_path):
     base = compose({"preset": "kim-2002", "simulation": {"duration": 50.0, "record_every": 10}}).document
     low = {"observer.bias_injection_gain": [1e4, 1e4, 1e7], "observer.velocity_injection_gain": [1e3, 1e3, 1e6]}
     document = {
-        "scenario": base, "seeds_per_point": 2, "metrics": ["rms_tracking:position"], "after": 0.0,
+        "scenario": base,
+        "seeds_per_point": 2,
+        "metrics": ["rms_tracking:position"],
+        "after": 0.0,
         "divergence": {"signal": "position", "limit": 100.0},
-        "sweep": {"axes": [
-            {"name": "gains", "labels": ["printed", "low"], "cases": [{}, low]},
-            {"name": "model_error", "cases": [{}, {"plant.vessel.mass_scale": 1.25}]},
-        ]},
+        "sweep": {
+            "axes": [
+                {"name": "gains", "labels": ["printed", "low"], "cases": [{}, low]},
+                {"name": "model_error", "cases": [{}, {"plant.vessel.mass_scale": 1.25}]},
+            ]
+        },
     }
     campaign = campaign_from_document(document, "<cases>")
     assert len(campaign.points) == 4
@@ -286,7 +341,9 @@ def test_a_cases_axis_sets_several_keys_per_value(tmp_path):
     assert changes == {**low, "plant.vessel.mass_scale": 1.25}
     scenario = campaign.point_spec(3).build()
     np.testing.assert_array_equal(np.asarray(scenario.observer.passive.bias_injection_gain), low["observer.bias_injection_gain"])
-    assert float(scenario.plant.vessel.mass_matrix[0, 0]) == pytest.approx(1.25 / 1.2 * float(campaign.point_spec(0).build().plant.vessel.mass_matrix[0, 0]))
+    assert float(scenario.plant.vessel.mass_matrix[0, 0]) == pytest.approx(
+        1.25 / 1.2 * float(campaign.point_spec(0).build().plant.vessel.mass_matrix[0, 0])
+    )
     store = tmp_path / "cases.zarr"
     run_campaign(campaign, store, workers=0, say=lambda text: None)
     ds = CampaignStore(store).open().load()
@@ -304,40 +361,92 @@ def test_a_cases_axis_sets_several_keys_per_value(tmp_path):
 @pytest.mark.parametrize(
     "changes, expected",
     [
-        ({"sweep": {"axes": [{"field": "observer.wave_freqency", "values": [1.0]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'observer.wave_freqency'"),
-        ({"sweep": {"axes": [{"field": "sensor.noise_std[3]", "values": [1.0]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'sensor.noise_std[3]'"),
-        ({"sweep": {"axes": [{"field": "sensor.dropout_probability", "values": [0.1, 1.5]}]}}, "sweep.axes[0].values (line {line}): value 1.5: sensor.dropout_probability: must be in [0, 1); got 1.5"),
+        (
+            {"sweep": {"axes": [{"field": "observer.wave_freqency", "values": [1.0]}]}},
+            "sweep.axes[0].field (line {line}): the scenario has no setting 'observer.wave_freqency'",
+        ),
+        (
+            {"sweep": {"axes": [{"field": "sensor.noise_std[3]", "values": [1.0]}]}},
+            "sweep.axes[0].field (line {line}): the scenario has no setting 'sensor.noise_std[3]'",
+        ),
+        (
+            {"sweep": {"axes": [{"field": "sensor.dropout_probability", "values": [0.1, 1.5]}]}},
+            "sweep.axes[0].values (line {line}): value 1.5: sensor.dropout_probability: must be in [0, 1); got 1.5",
+        ),
         ({"metrics": ["rms_tracking:position"]}, "metrics (line {line}): 'rms_tracking:position': the reference gives no desired 'position'"),
         ({"seeds_per_point": 4, "chunk_runs": 3}, "chunk_runs (line {line}): must be a positive divisor of seeds_per_point (4)"),
         ({"seed_per_point": 4}, "seed_per_point (line {line}): unknown key"),
-        ({"sweep": {"kind": "latin-hypercube", "axes": [{"field": "observer.wave_frequency", "range": [0.5, 1.0]}]}}, "sweep (line {line}): a latin-hypercube needs points >= 1"),
-        ({"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.5, 1.1]}]}}, "sweep.axes[0].values (line {line}): value 1.1: observer.cutoff_frequency: cutoff_frequency must exceed wave_frequency"),
-        ({"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}}, "sweep.axes[0].field (line {line}): the scenario has no setting 'case'"),
+        (
+            {"sweep": {"kind": "latin-hypercube", "axes": [{"field": "observer.wave_frequency", "range": [0.5, 1.0]}]}},
+            "sweep (line {line}): a latin-hypercube needs points >= 1",
+        ),
+        (
+            {"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.5, 1.1]}]}},
+            "sweep.axes[0].values (line {line}): value 1.1: observer.cutoff_frequency: cutoff_frequency must exceed wave_frequency",
+        ),
+        (
+            {"sweep": {"axes": [{"field": "case", "values": ["paper", "papers"]}]}},
+            "sweep.axes[0].field (line {line}): the scenario has no setting 'case'",
+        ),
         # a cases axis
-        ({"sweep": {"axes": [{"name": "gains", "cases": [{"observer.wave_freqency": 1.0}]}]}}, "sweep.axes[0].cases (line {line}): the scenario has no setting 'observer.wave_freqency'"),
-        ({"sweep": {"axes": [{"name": "gains", "cases": [{}, {"sensor.dropout_probability": 1.5}]}]}},
-         "sweep.axes[0].cases (line {line}): case 'sensor.dropout_probability=1.5': sensor.dropout_probability: must be in [0, 1); got 1.5"),
+        (
+            {"sweep": {"axes": [{"name": "gains", "cases": [{"observer.wave_freqency": 1.0}]}]}},
+            "sweep.axes[0].cases (line {line}): the scenario has no setting 'observer.wave_freqency'",
+        ),
+        (
+            {"sweep": {"axes": [{"name": "gains", "cases": [{}, {"sensor.dropout_probability": 1.5}]}]}},
+            "sweep.axes[0].cases (line {line}): case 'sensor.dropout_probability=1.5': sensor.dropout_probability: must be in [0, 1); got 1.5",
+        ),
         ({"sweep": {"axes": [{"cases": [{}]}]}}, "sweep.axes[0] (line {line}): an axis with cases needs a name"),
-        ({"sweep": {"axes": [{"name": "g", "field": "sensor.dropout_probability", "cases": [{}]}]}}, "sweep.axes[0] (line {line}): an axis with cases sets its keys per case: drop field"),
-        ({"sweep": {"axes": [{"name": "g", "labels": ["a"], "cases": [{}, {"sensor.dropout_probability": 0.1}]}]}},
-         "sweep.axes[0] (line {line}): labels must name each of the 2 cases; got 1 label(s)"),
-        ({"sweep": {"kind": "latin-hypercube", "points": 3, "axes": [{"name": "g", "cases": [{}]}]}}, "sweep (line {line}): axes[0]: cases are for a grid"),
+        (
+            {"sweep": {"axes": [{"name": "g", "field": "sensor.dropout_probability", "cases": [{}]}]}},
+            "sweep.axes[0] (line {line}): an axis with cases sets its keys per case: drop field",
+        ),
+        (
+            {"sweep": {"axes": [{"name": "g", "labels": ["a"], "cases": [{}, {"sensor.dropout_probability": 0.1}]}]}},
+            "sweep.axes[0] (line {line}): labels must name each of the 2 cases; got 1 label(s)",
+        ),
+        (
+            {"sweep": {"kind": "latin-hypercube", "points": 3, "axes": [{"name": "g", "cases": [{}]}]}},
+            "sweep (line {line}): axes[0]: cases are for a grid",
+        ),
         # a whole component replaced by a table that is none
-        ({"sweep": {"axes": [{"field": "observer", "values": [{"kind": "passive"}, {"kind": "nope"}]}]}},
-         "sweep.axes[0].values (line {line}): value {{'kind': 'nope'}}: observer.kind: no observer kind 'nope'"),
+        (
+            {"sweep": {"axes": [{"field": "observer", "values": [{"kind": "passive"}, {"kind": "nope"}]}]}},
+            "sweep.axes[0].values (line {line}): value {{'kind': 'nope'}}: observer.kind: no observer kind 'nope'",
+        ),
         ({"seeds_per_point": "8"}, 'seeds_per_point (line {line}): must be an integer (no decimal point); got "8" (a string)'),
         ({"scenario": 5}, "scenario (line {line}): must be a string (in quotes); got 5"),
-        ({"sweep": {"axes": [{"field": "seed", "values": [1, 2]}]}}, "sweep (line {line}): axes[0]: a campaign runs seeds_per_point seeds from seed at every point; 'seed' cannot be swept"),
-        ({"sweep": {"points": 5, "axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8]}]}}, "sweep (line {line}): points is for a latin-hypercube"),
-        ({"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8], "name": "point"}]}}, "sweep (line {line}): axis name 'point' is taken by the store"),
-        ({"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8], "name": "rms_error__position"}]}}, "sweep (line {line}): axis name 'rms_error__position' is taken by the store"),
+        (
+            {"sweep": {"axes": [{"field": "seed", "values": [1, 2]}]}},
+            "sweep (line {line}): axes[0]: a campaign runs seeds_per_point seeds from seed at every point; 'seed' cannot be swept",
+        ),
+        (
+            {"sweep": {"points": 5, "axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8]}]}},
+            "sweep (line {line}): points is for a latin-hypercube",
+        ),
+        (
+            {"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8], "name": "point"}]}},
+            "sweep (line {line}): axis name 'point' is taken by the store",
+        ),
+        (
+            {"sweep": {"axes": [{"field": "observer.wave_frequency", "values": [0.6, 0.8], "name": "rms_error__position"}]}},
+            "sweep (line {line}): axis name 'rms_error__position' is taken by the store",
+        ),
         ({"after": 100.0}, "after (line {line}): 100 s is past the end of the run (29.9 s): the metrics would have no record"),
-        ({"sweep": {"axes": [{"field": "simulation.duration", "values": [200.0, 20.0]}]}, "after": 25.0},
-         "sweep.axes[0].values (line {line}): value 20.0: after (25 s) is past the end of that run (19.9 s)"),
+        (
+            {"sweep": {"axes": [{"field": "simulation.duration", "values": [200.0, 20.0]}]}, "after": 25.0},
+            "sweep.axes[0].values (line {line}): value 20.0: after (25 s) is past the end of that run (19.9 s)",
+        ),
         # sizes before allocation: neither the seeds nor the points are made
-        ({"seeds_per_point": 10**12, "chunk_runs": 4}, "seeds_per_point (line {line}): 8 point(s) x 1000000000000 seeds in 2000000000000 chunks would need about"),
-        ({"sweep": {"kind": "latin-hypercube", "points": 10**12, "axes": [{"field": "observer.wave_frequency", "range": [0.5, 1.0]}]}},
-         "sweep (line {line}): 1000000000000 point(s) x 6 seeds in 2000000000000 chunks would need about"),
+        (
+            {"seeds_per_point": 10**12, "chunk_runs": 4},
+            "seeds_per_point (line {line}): 8 point(s) x 1000000000000 seeds in 2000000000000 chunks would need about",
+        ),
+        (
+            {"sweep": {"kind": "latin-hypercube", "points": 10**12, "axes": [{"field": "observer.wave_frequency", "range": [0.5, 1.0]}]}},
+            "sweep (line {line}): 1000000000000 point(s) x 6 seeds in 2000000000000 chunks would need about",
+        ),
     ],
 )
 def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp_path, capsys):
@@ -355,15 +464,23 @@ def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp
     "table, expected",
     [
         # a value the file's schema refuses
-        ('[observer]\nswitching_gain = [{many}, -1.0]\n', "observer.switching_gain (line 5): must be one number or have 3 entries; got 100000 entries"),
+        (
+            "[observer]\nswitching_gain = [{many}, -1.0]\n",
+            "observer.switching_gain (line 5): must be one number or have 3 entries; got 100000 entries",
+        ),
         # a value only the component can refuse
-        ('[reference]\nkind = "reference-filter"\nsignals = ["position", "heading"]\nschedule_times = [{many}, 0.0]\nsetpoints = [{setpoints}]\n',
-         "reference.schedule_times (line 7): schedule_times must be strictly increasing; got [1., 1., 1., 1., ..., 1., 1., 1., 0.]"),
+        (
+            '[reference]\nkind = "reference-filter"\nsignals = ["position", "heading"]\nschedule_times = [{many}, 0.0]\nsetpoints = [{setpoints}]\n',
+            "reference.schedule_times (line 7): schedule_times must be strictly increasing; got [1., 1., 1., 1., ..., 1., 1., 1., 0.]",
+        ),
     ],
 )
 def test_a_refused_array_of_any_size_is_one_short_line(table, expected, tmp_path, capsys):
     path = tmp_path / "big.toml"
-    path.write_text('preset = "kim-2002"\n[simulation]\nduration = 60.0\n' + table.format(many=", ".join(["1.0"] * 99999), setpoints=", ".join(["[0.0, 0.0, 0.0]"] * 100000)))
+    path.write_text(
+        'preset = "kim-2002"\n[simulation]\nduration = 60.0\n'
+        + table.format(many=", ".join(["1.0"] * 99999), setpoints=", ".join(["[0.0, 0.0, 0.0]"] * 100000))
+    )
     code, _, err = _run_cli(["run", str(path), "--out", str(tmp_path / "x")], capsys)
     assert code == 2 and err.count("\n") == 1 and expected in err, err[:500]
     assert len(err) < 400, len(err)
@@ -458,8 +575,21 @@ def test_a_campaign_killed_mid_way_resumes_to_the_uninterrupted_store(reference_
     folder, spec = campaign_files
     store = tmp_path / "killed.zarr"
     process = subprocess.Popen(
-        [sys.executable, "-c", "import sys; from lookout.cli import main; sys.exit(main(sys.argv[1:]))", "campaign", "run", str(spec), "--out", str(store), "--workers", "0"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env={**os.environ},
+        [
+            sys.executable,
+            "-c",
+            "import sys; from lookout.cli import main; sys.exit(main(sys.argv[1:]))",
+            "campaign",
+            "run",
+            str(spec),
+            "--out",
+            str(store),
+            "--workers",
+            "0",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        env={**os.environ},
     )
     records = store / "_lookout" / "chunks"
     deadline = time.monotonic() + 240
@@ -546,7 +676,10 @@ def test_two_local_workers_give_the_one_process_store_even_when_a_worker_is_kill
 def test_a_chunk_that_does_not_fit_a_worker_is_refused_with_the_numbers(campaign_files, tmp_path):
     folder, spec = campaign_files
     campaign = load_campaign(spec)
-    with pytest.raises(ValueError, match=r"chunk_runs 3 needs about .* per chunk \(300 records x \(3 runs x 296 B x 4 \+ 32 B\), \+ 600 MB runtime\), and a worker has 100 MB"):
+    with pytest.raises(
+        ValueError,
+        match=r"chunk_runs 3 needs about .* per chunk \(300 records x \(3 runs x 296 B x 4 \+ 32 B\), \+ 600 MB runtime\), and a worker has 100 MB",
+    ):
         run_campaign(campaign, tmp_path / "small.zarr", workers=0, say=lambda text: None, available_memory=lambda: 100e6)
 
 
@@ -596,7 +729,11 @@ def test_a_folder_in_the_way_of_an_output_is_found_before_simulating(tmp_path, c
     scenario.write_text(_scenario_text(tmp_path, capsys))
     (tmp_path / "out" / "summary.json").mkdir(parents=True)
     code, _, err = _run_cli(["run", str(scenario), "--out", str(tmp_path / "out")], capsys)
-    assert code == 2 and err == f"error: --out: {tmp_path / 'out' / 'summary.json'} is a folder, and lookout run writes the file summary.json there; give another --out\n", err
+    assert (
+        code == 2
+        and err
+        == f"error: --out: {tmp_path / 'out' / 'summary.json'} is a folder, and lookout run writes the file summary.json there; give another --out\n"
+    ), err
     assert _tree_of(tmp_path / "out") == ["summary.json"]
 
 
@@ -624,7 +761,9 @@ def test_an_unreachable_scheduler_blames_the_option_and_leaves_no_store(campaign
 
 def test_a_store_that_does_not_fit_the_disk_is_refused_before_it_exists(campaign_files, tmp_path):
     folder, spec = campaign_files
-    with pytest.raises(ValueError, match=r"the store .*s.zarr \(16 chunks x 3 runs\) would need about .* of disk space, and 1 kB are available: free some space"):
+    with pytest.raises(
+        ValueError, match=r"the store .*s.zarr \(16 chunks x 3 runs\) would need about .* of disk space, and 1 kB are available: free some space"
+    ):
         run_campaign(load_campaign(spec), tmp_path / "s.zarr", workers=0, say=lambda text: None, free_disk=lambda path: 1000)
     assert not (tmp_path / "s.zarr").exists()
 
@@ -653,8 +792,11 @@ def test_a_changed_spec_is_refused_naming_the_keys_that_differ(campaign_files, t
     document["seeds_per_point"], document["chunk_runs"] = 9, 3
     document["scenario"]["simulation"]["duration"] = 20.0
     changed = campaign_from_document(document, "<changed>")
-    with pytest.raises(ValueError, match=r"holds another campaign \(fingerprint \w+, this spec's is \w+\): "
-                       r"scenario.simulation.duration: 30.0 -> 20.0; seeds_per_point: 6 -> 9; resume it with its own spec"):
+    with pytest.raises(
+        ValueError,
+        match=r"holds another campaign \(fingerprint \w+, this spec's is \w+\): "
+        r"scenario.simulation.duration: 30.0 -> 20.0; seeds_per_point: 6 -> 9; resume it with its own spec",
+    ):
         CampaignStore.open_or_create(store, changed)
 
 

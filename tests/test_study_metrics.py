@@ -14,9 +14,18 @@ from lookout.scenario import metrics as metric_module
 from lookout.sim import keys_of_seeds, simulate_batch
 
 NAMES = [
-    "rms_error:position", "rms_error:heading", "max_error:heading", "settling_time:position",
-    "rms_tracking:position", "max_tracking:heading", "max_excursion:position", "max_excursion:velocity",
-    "rms_input:force", "max_input:moment", "final:position", "final:bias_force",
+    "rms_error:position",
+    "rms_error:heading",
+    "max_error:heading",
+    "settling_time:position",
+    "rms_tracking:position",
+    "max_tracking:heading",
+    "max_excursion:position",
+    "max_excursion:velocity",
+    "rms_input:force",
+    "max_input:moment",
+    "final:position",
+    "final:bias_force",
 ]
 AFTER = 40.0
 
@@ -65,10 +74,12 @@ def test_metrics_equal_numpy_on_the_recorded_runs(kim, path):
     scenario, keys, trajectory = kim
     metrics = metric_module.resolve(NAMES, scenario)
     # a limit between the runs' largest position errors: some runs diverge, some do not
-    largest = np.sort(np.maximum(
-        _norm(np.asarray(trajectory.truth["position"]) - np.asarray(trajectory.estimate["position"]), True).max(-1),
-        _norm(np.asarray(trajectory.truth["position"]) - np.asarray(trajectory.reference["position_desired"]), True).max(-1),
-    ))
+    largest = np.sort(
+        np.maximum(
+            _norm(np.asarray(trajectory.truth["position"]) - np.asarray(trajectory.estimate["position"]), True).max(-1),
+            _norm(np.asarray(trajectory.truth["position"]) - np.asarray(trajectory.reference["position_desired"]), True).max(-1),
+        )
+    )
     limit = float(largest[1:3].mean())
     expected, diverged = _expected(trajectory, limit)
     assert 0 < diverged.sum() < len(diverged)
@@ -114,7 +125,7 @@ def test_an_outage_silences_its_channels_and_its_metrics_equal_numpy():
     level = np.sqrt((error[:, (time >= 60.0) & (time < 120.0)] ** 2).mean(axis=1))
     expected = []
     for run in range(3):
-        back = [t - 180.0 for i, t in enumerate(time) if t >= 180.0 and np.sqrt((error[run, i: i + 600] ** 2).mean()) <= 1.25 * level[run]]
+        back = [t - 180.0 for i, t in enumerate(time) if t >= 180.0 and np.sqrt((error[run, i : i + 600] ** 2).mean()) <= 1.25 * level[run]]
         expected.append(back[0] if back else np.nan)
     np.testing.assert_allclose(summarized["recovery_time__position"], expected, rtol=1e-12, atol=1e-9)
     reduced = metric_module.reduce(trajectory, metrics, outage=metric_module.outage_of(scenario))

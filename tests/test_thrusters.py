@@ -26,14 +26,24 @@ DT = 0.1
 
 def _four_azimuths() -> ThrusterLayout:
     """Two pairs of azimuths, fore and aft, each pair pushing against each other when idle."""
-    return ThrusterLayout(names=("fore-port", "fore-starboard", "aft-port", "aft-starboard"), kinds=("azimuth",) * 4, x=(30.0, 30.0, -30.0, -30.0),
-                          y=(-5.0, 5.0, -5.0, 5.0), direction=(0.0, math.pi, 0.0, math.pi), max_thrust=2e5, thrust_rate=5e4, time_constant=1.0,
-                          turn_rate=math.radians(10.0))
+    return ThrusterLayout(
+        names=("fore-port", "fore-starboard", "aft-port", "aft-starboard"),
+        kinds=("azimuth",) * 4,
+        x=(30.0, 30.0, -30.0, -30.0),
+        y=(-5.0, 5.0, -5.0, 5.0),
+        direction=(0.0, math.pi, 0.0, math.pi),
+        max_thrust=2e5,
+        thrust_rate=5e4,
+        time_constant=1.0,
+        turn_rate=math.radians(10.0),
+    )
 
 
 def _largest(layout: ThrusterLayout) -> np.ndarray:
     """Each extended variable's largest magnitude (N), from the layout alone."""
-    return np.array([layout.max_thrust[i] * (layout.rudder_lift[i] * layout.max_rudder[i] if part == "lift" else 1.0) for i, part in layout.variables])
+    return np.array(
+        [layout.max_thrust[i] * (layout.rudder_lift[i] * layout.max_rudder[i] if part == "lift" else 1.0) for i, part in layout.variables]
+    )
 
 
 def _biased_least_squares(layout: ThrusterLayout, tau, bias: float) -> np.ndarray:
@@ -145,9 +155,13 @@ def test_saturated_allocation_meets_every_limit_and_minimizes_the_weighted_slack
         hessian = np.diag(allocator.weights) + allocator.B.T @ np.diag(allocator.slack_weights) @ allocator.B
         bias = np.asarray(allocator.weights) * np.asarray(allocator.bias)
         reference = minimize(
-            lambda x: _objective(allocator, G, h, tau, x), np.asarray(start), method="trust-constr",
-            jac=lambda x: hessian @ x - allocator.B.T @ (allocator.slack_weights * target) - bias, hess=lambda x: hessian,
-            constraints=[LinearConstraint(G[finite], -np.inf, h[finite])], options={"gtol": 1e-12, "xtol": 1e-14, "maxiter": 5000},
+            lambda x: _objective(allocator, G, h, tau, x),
+            np.asarray(start),
+            method="trust-constr",
+            jac=lambda x: hessian @ x - allocator.B.T @ (allocator.slack_weights * target) - bias,
+            hess=lambda x: hessian,
+            constraints=[LinearConstraint(G[finite], -np.inf, h[finite])],
+            options={"gtol": 1e-12, "xtol": 1e-14, "maxiter": 5000},
         )
         assert np.all(G @ reference.x <= h + 1e-7)
         assert ours <= reference.fun + 1e-9 * max(1.0, abs(reference.fun)), (trial, ours, reference.fun)
@@ -168,8 +182,14 @@ def test_the_qp_solver_agrees_with_scipy_on_random_problems():
         h = G @ x0 + rng.uniform(0, 1, m)  # x0 strictly feasible
         x, working, iterations, converged = solve(P, q, G, h, x0)
         assert bool(converged)
-        reference = minimize(lambda z: 0.5 * z @ P @ z + q @ z, x0, jac=lambda z: P @ z + q, method="SLSQP",
-                             constraints=[{"type": "ineq", "fun": lambda z: h - G @ z, "jac": lambda z: -G}], options={"ftol": 1e-15})
+        reference = minimize(
+            lambda z: 0.5 * z @ P @ z + q @ z,
+            x0,
+            jac=lambda z: P @ z + q,
+            method="SLSQP",
+            constraints=[{"type": "ineq", "fun": lambda z: h - G @ z, "jac": lambda z: -G}],
+            options={"ftol": 1e-15},
+        )
         np.testing.assert_allclose(np.asarray(x), reference.x, atol=1e-6)
 
 
@@ -303,8 +323,14 @@ def test_thrusters_are_recorded_with_units_and_a_thruster_dimension(tmp_path):
     ],
 )
 def test_a_bad_layout_is_refused_naming_the_parameter(arguments, message):
-    base = dict(names=["bow", "port", "starboard"], kinds=["tunnel", "azimuth", "azimuth"], x=[1.0, -1.0, -1.0], y=[0.0, -0.2, 0.2],
-                direction=[math.pi / 2, 0.0, 0.0], max_thrust=[1.0, 1.0, 1.0])
+    base = dict(
+        names=["bow", "port", "starboard"],
+        kinds=["tunnel", "azimuth", "azimuth"],
+        x=[1.0, -1.0, -1.0],
+        y=[0.0, -0.2, 0.2],
+        direction=[math.pi / 2, 0.0, 0.0],
+        max_thrust=[1.0, 1.0, 1.0],
+    )
     with pytest.raises(ValueError, match=message):
         ThrusterLayout(**{**base, **arguments})
 
@@ -312,22 +338,45 @@ def test_a_bad_layout_is_refused_naming_the_parameter(arguments, message):
 def test_a_key_that_does_not_apply_to_a_kind_is_theirs_as_one_number_and_zero_in_a_list():
     """One number is the value of the kinds a key applies to (the azimuths' min_thrust 0,
     the tunnels' turn_rate 0); a list with 0 for the others is the same layout."""
-    base = dict(names=["bow", "port", "starboard"], kinds=["tunnel", "azimuth", "main"], x=[1.0, -1.0, -1.0], y=[0.0, -0.2, 0.2],
-                direction=[math.pi / 2, 0.0, 0.0], max_thrust=[1.0, 1.0, 1.0], rudder_lift=0.5)
+    base = dict(
+        names=["bow", "port", "starboard"],
+        kinds=["tunnel", "azimuth", "main"],
+        x=[1.0, -1.0, -1.0],
+        y=[0.0, -0.2, 0.2],
+        direction=[math.pi / 2, 0.0, 0.0],
+        max_thrust=[1.0, 1.0, 1.0],
+        rudder_lift=0.5,
+    )
     one = ThrusterLayout(**base, min_thrust=-0.5, turn_rate=0.3, max_rudder=0.5)
-    listed = ThrusterLayout(**{**base, "rudder_lift": [0.0, 0.0, 0.5]}, min_thrust=[-0.5, 0.0, -0.5], turn_rate=[0.0, 0.3, 0.3], max_rudder=[0.0, 0.0, 0.5])
+    listed = ThrusterLayout(
+        **{**base, "rudder_lift": [0.0, 0.0, 0.5]}, min_thrust=[-0.5, 0.0, -0.5], turn_rate=[0.0, 0.3, 0.3], max_rudder=[0.0, 0.0, 0.5]
+    )
     for name in ("min_thrust", "turn_rate", "max_rudder", "rudder_lift"):
         np.testing.assert_array_equal(getattr(one, name), getattr(listed, name))
     np.testing.assert_array_equal(one.min_thrust, [-0.5, 0.0, -0.5])
     np.testing.assert_array_equal(one.turn_rate, [0.0, 0.3, 0.3])
 
 
-@pytest.mark.parametrize(("name", "value", "kind"), [("rudder_lift", 0.6, "main propellers"), ("max_rudder", 0.5, "main propellers"),
-                                                    ("turn_rate", 0.2, "azimuths and main propellers"), ("min_thrust", -1.0, "tunnels and main propellers")])
+@pytest.mark.parametrize(
+    ("name", "value", "kind"),
+    [
+        ("rudder_lift", 0.6, "main propellers"),
+        ("max_rudder", 0.5, "main propellers"),
+        ("turn_rate", 0.2, "azimuths and main propellers"),
+        ("min_thrust", -1.0, "tunnels and main propellers"),
+    ],
+)
 def test_a_key_given_for_a_kind_the_layout_lacks_is_refused(name, value, kind):
     """One number for a kind the layout has none of would be ignored: refused."""
-    tunnels = dict(names=["a", "b", "c"], kinds=["tunnel"] * 3, x=[1.0, -1.0, 0.0], y=[0.0, 0.0, 1.0], direction=[math.pi / 2, math.pi / 2, 0.0],
-                   max_thrust=1.0, min_thrust=-1.0)
+    tunnels = dict(
+        names=["a", "b", "c"],
+        kinds=["tunnel"] * 3,
+        x=[1.0, -1.0, 0.0],
+        y=[0.0, 0.0, 1.0],
+        direction=[math.pi / 2, math.pi / 2, 0.0],
+        max_thrust=1.0,
+        min_thrust=-1.0,
+    )
     azimuths = dict(names=["a", "b"], kinds=["azimuth"] * 2, x=[1.0, -1.0], y=[0.0, 0.0], direction=0.0, max_thrust=1.0)
     base = azimuths if name == "min_thrust" else tunnels
     with pytest.raises(ValueError, match=f"{name} applies to {kind} only, and this layout has none"):
@@ -336,15 +385,27 @@ def test_a_key_given_for_a_kind_the_layout_lacks_is_refused(name, value, kind):
 
 def _huge_layout(count: int, **changes) -> dict:
     names = [f"azimuth-{i}" for i in range(count)]
-    return dict(names=names, kinds=["azimuth"] * count, x=np.linspace(-30.0, 30.0, count), y=np.where(np.arange(count) % 2, 5.0, -5.0),
-                direction=0.0, max_thrust=1e4) | changes
+    return (
+        dict(
+            names=names,
+            kinds=["azimuth"] * count,
+            x=np.linspace(-30.0, 30.0, count),
+            y=np.where(np.arange(count) % 2, 5.0, -5.0),
+            direction=0.0,
+            max_thrust=1e4,
+        )
+        | changes
+    )
 
 
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
         ({"names": ["azimuth-0"] * 100_000}, "names must be distinct; 'azimuth-0' is given more than once"),
-        ({"max_thrust": np.where(np.arange(100_000) % 3, 1e4, 0.0)}, "max_thrust must be positive; got 0 for 'azimuth-0', 0 for 'azimuth-3', 0 for 'azimuth-6' and 33331 more"),
+        (
+            {"max_thrust": np.where(np.arange(100_000) % 3, 1e4, 0.0)},
+            "max_thrust must be positive; got 0 for 'azimuth-0', 0 for 'azimuth-3', 0 for 'azimuth-6' and 33331 more",
+        ),
         ({"kinds": [f"pod-{i}" for i in range(100_000)]}, "kinds must be among tunnel, azimuth, main; got 'pod-0', 'pod-1', 'pod-2' and 99997 more"),
         ({"names": ["x" * 10_000 + str(i) for i in range(100_000)], "min_thrust": np.full(100_000, -1.0)}, "min_thrust of azimuth 'xxx"),
         ({"x": np.zeros(99_999)}, "x must have one entry per thruster (100000); got shape (99999,)"),
@@ -361,15 +422,21 @@ def test_a_refused_layout_of_any_size_says_so_in_one_short_line(changes, message
 
 @pytest.mark.parametrize(
     ("arguments", "message"),
-    [({"allocation": "lp"}, "allocation must be one of"), ({"slack_weight": 0.0}, "slack_weight must be"),
-     ({"slack_weight": [1.0, 2.0]}, "slack_weight must be"), ({"solver": "osqp"}, "solver must be one of"),
-     ({"steering_time_constant": -1.0}, r"steering_time_constant must be in \[0, inf\]"),
-     ({"steering_deadband": 4.0}, r"steering_deadband must be in \[0, pi\]"), ({"steering_load": 1.5}, r"steering_load must be in \[0, 1\]"),
-     ({"steering_bias": 1.0}, r"steering_bias must be in \[0, 1\)"), ({"steering_bias": "a"}, "steering_bias must be a number"),
-     # the QP's options mean nothing to the pseudo-inverse: refused, never ignored
-     ({"allocation": "pseudo-inverse", "slack_weight": 1e6}, "slack_weight applies to allocation 'qp' only"),
-     ({"allocation": "pseudo-inverse", "solver": "active-set"}, "solver applies to allocation 'qp' only"),
-     ({"allocation": "pseudo-inverse", "steering_bias": 0.0}, "steering_bias applies to allocation 'qp' only")],
+    [
+        ({"allocation": "lp"}, "allocation must be one of"),
+        ({"slack_weight": 0.0}, "slack_weight must be"),
+        ({"slack_weight": [1.0, 2.0]}, "slack_weight must be"),
+        ({"solver": "osqp"}, "solver must be one of"),
+        ({"steering_time_constant": -1.0}, r"steering_time_constant must be in \[0, inf\]"),
+        ({"steering_deadband": 4.0}, r"steering_deadband must be in \[0, pi\]"),
+        ({"steering_load": 1.5}, r"steering_load must be in \[0, 1\]"),
+        ({"steering_bias": 1.0}, r"steering_bias must be in \[0, 1\)"),
+        ({"steering_bias": "a"}, "steering_bias must be a number"),
+        # the QP's options mean nothing to the pseudo-inverse: refused, never ignored
+        ({"allocation": "pseudo-inverse", "slack_weight": 1e6}, "slack_weight applies to allocation 'qp' only"),
+        ({"allocation": "pseudo-inverse", "solver": "active-set"}, "solver applies to allocation 'qp' only"),
+        ({"allocation": "pseudo-inverse", "steering_bias": 0.0}, "steering_bias applies to allocation 'qp' only"),
+    ],
 )
 def test_bad_allocation_options_are_refused_naming_the_parameter(arguments, message):
     with pytest.raises(ValueError, match=message):
@@ -498,9 +565,16 @@ def test_the_steering_rules_deadband_hysteresis_and_load():
     """One azimuth, its demand's direction set by hand: within the deadband it holds; beyond
     it, it turns at its turning rate, on past the deadband until it points along the
     demand (hysteresis), landing on it exactly; below steering_load it holds."""
-    layout = ThrusterLayout(names=("bow", "stern-port", "stern-starboard", "azimuth"), kinds=("tunnel", "tunnel", "tunnel", "azimuth"),
-                            x=(20.0, -20.0, -20.0, 0.0), y=(0.0, -3.0, 3.0, 0.0), direction=(math.pi / 2, 0.0, 0.0, 0.0),
-                            max_thrust=1e5, min_thrust=(-1e5, -1e5, -1e5, 0.0), turn_rate=(0.0, 0.0, 0.0, math.radians(10.0)))
+    layout = ThrusterLayout(
+        names=("bow", "stern-port", "stern-starboard", "azimuth"),
+        kinds=("tunnel", "tunnel", "tunnel", "azimuth"),
+        x=(20.0, -20.0, -20.0, 0.0),
+        y=(0.0, -3.0, 3.0, 0.0),
+        direction=(math.pi / 2, 0.0, 0.0, 0.0),
+        max_thrust=1e5,
+        min_thrust=(-1e5, -1e5, -1e5, 0.0),
+        turn_rate=(0.0, 0.0, 0.0, math.radians(10.0)),
+    )
     allocator = Allocator(layout, steering_time_constant=0.0, steering_bias=0.0, steering_deadband=math.radians(10.0), steering_load=0.05)
     index = allocator.indices
     steer = jax.jit(lambda d, a, t, tau: allocator.steer(d, a, t, tau, DT))
@@ -617,10 +691,15 @@ def test_the_reach_is_the_linear_program_of_each_axis_alone():
         kinds = ["tunnel", "azimuth", "main", "azimuth", "tunnel", "main"][: 3 + trial % 4]
         count = len(kinds)
         layout = ThrusterLayout(
-            names=[f"t{i}" for i in range(count)], kinds=kinds, x=rng.uniform(-40, 40, count), y=rng.uniform(-8, 8, count),
+            names=[f"t{i}" for i in range(count)],
+            kinds=kinds,
+            x=rng.uniform(-40, 40, count),
+            y=rng.uniform(-8, 8, count),
             direction=[rng.uniform(-math.pi, math.pi) if kind != "main" else rng.choice([0.0, math.pi / 2]) for kind in kinds],
-            max_thrust=rng.uniform(1e4, 3e5, count), min_thrust=[-rng.uniform(0, 1) * 1e4 if kind != "azimuth" else 0.0 for kind in kinds],
-            max_rudder=0.6, rudder_lift=0.8,
+            max_thrust=rng.uniform(1e4, 3e5, count),
+            min_thrust=[-rng.uniform(0, 1) * 1e4 if kind != "azimuth" else 0.0 for kind in kinds],
+            max_rudder=0.6,
+            rudder_lift=0.8,
         )
         allocator = Allocator(layout)
         mains = [i for i, kind in enumerate(kinds) if kind == "main"]
@@ -653,8 +732,13 @@ def test_the_reach_is_the_linear_program_of_each_axis_alone():
                                 g[jx], g[jy] = math.cos(2 * math.pi * side_k / sides), math.sin(2 * math.pi * side_k / sides)
                                 rows.append(g)
                                 bounds.append(layout.max_thrust[i] / math.cos(math.pi / sides))  # circumscribed: contains the circle
-                    result = linprog(sign * layout.B[axis], A_ub=np.asarray(rows) if rows else None, b_ub=np.asarray(bounds) if rows else None,
-                                     bounds=limits, method="highs")
+                    result = linprog(
+                        sign * layout.B[axis],
+                        A_ub=np.asarray(rows) if rows else None,
+                        b_ub=np.asarray(bounds) if rows else None,
+                        bounds=limits,
+                        method="highs",
+                    )
                     assert result.status == 0
                     best = min(best, result.fun)
                 ours = float(allocator.reach[side, axis] * allocator.force_scale[axis])
@@ -718,16 +802,31 @@ def test_thrusters_refuse_a_plant_that_is_not_a_vessel(tmp_path, capsys):
     with pytest.raises(composition.CompositionError) as refusal:
         composition.compose(_arm_with_thrusters())
     text = str(refusal.value)
-    assert ("actuator thrusters needs a 3-DOF vessel plant (force surge, sway; moment yaw); plant manipulator takes joint_torque (N m: shoulder, elbow)"
-            in text), text
+    assert (
+        "actuator thrusters needs a 3-DOF vessel plant (force surge, sway; moment yaw); plant manipulator takes joint_torque (N m: shoulder, elbow)"
+        in text
+    ), text
     document = _arm_with_thrusters()
     document["actuator"] = {"kind": "ideal"}
     arm = composition.compose(document).scenario
     with pytest.raises(ValueError) as refusal:
-        Scenario(arm.plant, arm.sensor, arm.observer, arm.controller, arm.initial_state, arm.initial_estimate, plant_step=0.01, sample_period=0.01,
-                 duration=1.0, actuator=ThrusterSystem(ThrusterLayout.supply_vessel()))
+        Scenario(
+            arm.plant,
+            arm.sensor,
+            arm.observer,
+            arm.controller,
+            arm.initial_state,
+            arm.initial_estimate,
+            plant_step=0.01,
+            sample_period=0.01,
+            duration=1.0,
+            actuator=ThrusterSystem(ThrusterLayout.supply_vessel()),
+        )
     text = str(refusal.value)
-    assert "thrusters take a 3-DOF vessel's force (surge, sway) and moment (yaw), 3 entries; got an input of shape (2,)" in text and "broadcast" not in text
+    assert (
+        "thrusters take a 3-DOF vessel's force (surge, sway) and moment (yaw), 3 entries; got an input of shape (2,)" in text
+        and "broadcast" not in text
+    )
     path = _toml.write(tmp_path / "arm.toml", _arm_with_thrusters())
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
     error = capsys.readouterr().err.strip()

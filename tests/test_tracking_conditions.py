@@ -11,8 +11,13 @@ A, B = 3.5, 1.823  # the reproduction's ellipse: curvature a / b^2 at the start 
 #: the printed gains of the observer (6) and the controller (20), the reproduction's
 GAINS = dict(observer_gains=(OBSERVER_POSITION_GAIN, OBSERVER_VELOCITY_GAIN), natural_frequency=NATURAL_FREQUENCY)
 PRINTED = dict(
-    eta0=(3.8, -1.2, np.pi / 2), nu0=(0.0, 0.0, 0.0), eta_hat0=(4.0, -1.0, 2.94), velocity_hat0=(0.5, 0.5, -0.5),
-    reference_position0=(A, 0.0, np.pi / 2), reference_velocity0=(0.05, 0.0, 0.05 * A / B**2), yaw_rate_max=0.2 * A / B**2,
+    eta0=(3.8, -1.2, np.pi / 2),
+    nu0=(0.0, 0.0, 0.0),
+    eta_hat0=(4.0, -1.0, 2.94),
+    velocity_hat0=(0.5, 0.5, -0.5),
+    reference_position0=(A, 0.0, np.pi / 2),
+    reference_velocity0=(0.05, 0.0, 0.05 * A / B**2),
+    yaw_rate_max=0.2 * A / B**2,
 )
 
 
@@ -120,7 +125,11 @@ def test_the_search_proposes_gains_that_meet_every_condition_and_no_less():
     L1, L2 = proposal.observer_gains
     # the margin is 1.1 on the binding bound: 20 % less L1 fails (32)
     tighter = check_wondergem_2009(
-        cybership2(), **MEASURED, **BOUNDS, observer_gains=(0.8 * L1, L2), natural_frequency=proposal.natural_frequency,
+        cybership2(),
+        **MEASURED,
+        **BOUNDS,
+        observer_gains=(0.8 * L1, L2),
+        natural_frequency=proposal.natural_frequency,
         epsilon3=proposal.epsilon3,
     )
     assert _side(tighter, "(32)").verdict == "fails"

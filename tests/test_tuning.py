@@ -67,8 +67,27 @@ def test_lookout_tune_improves_held_out_seeds_and_stays_inside_every_condition(t
     source = tmp_path / "dp.toml"
     write(source, _scenario(300.0))
     out = tmp_path / "tuned"
-    assert main(["tune", str(source), "--out", str(out), "--objective", "rms_error:bias_force", "--train-seeds", "4", "--test-seeds", "4",
-                 "--steps", "6", "--learning-rate", "0.2"]) == 0
+    assert (
+        main(
+            [
+                "tune",
+                str(source),
+                "--out",
+                str(out),
+                "--objective",
+                "rms_error:bias_force",
+                "--train-seeds",
+                "4",
+                "--test-seeds",
+                "4",
+                "--steps",
+                "6",
+                "--learning-rate",
+                "0.2",
+            ]
+        )
+        == 0
+    )
     for name in ("tuned.toml", "tuning.json", "training.png", "held_out.png"):
         assert (out / name).exists(), name
     document, _ = read(out / "tuned.toml")
@@ -77,7 +96,9 @@ def test_lookout_tune_improves_held_out_seeds_and_stays_inside_every_condition(t
     assert report.holds, report.verdicts
     summary = json.loads((out / "tuning.json").read_text())
     assert summary["conditions_after"]["holds"] and summary["conditions_before"]["holds"]
-    np.testing.assert_allclose(np.asarray(observer.velocity_injection_gain), summary["gains"]["observer.velocity_injection_gain"]["tuned"], rtol=1e-12)
+    np.testing.assert_allclose(
+        np.asarray(observer.velocity_injection_gain), summary["gains"]["observer.velocity_injection_gain"]["tuned"], rtol=1e-12
+    )
     medians = summary["held_out_median"]["rms_error:bias_force"]
     # measured: 2402 -> 2303 N (-4.1 %) on seeds 4..7, the tuner stopping at SPR's boundary after 5 steps
     assert medians["tuned"] <= 0.98 * medians["start"], medians
@@ -157,8 +178,27 @@ def test_a_gradient_that_would_not_fit_in_memory_is_refused_before_it_runs(tmp_p
     monkeypatch.setattr(_resources, "available_memory", lambda: 100e6)
     source = tmp_path / "dp.toml"
     write(source, _scenario(300.0))
-    assert main(["tune", str(source), "--out", str(tmp_path / "out"), "--objective", "rms_error:bias_force", "--train-seeds", "4",
-                 "--test-seeds", "4", "--steps", "6", "--learning-rate", "0.2"]) == 2
+    assert (
+        main(
+            [
+                "tune",
+                str(source),
+                "--out",
+                str(tmp_path / "out"),
+                "--objective",
+                "rms_error:bias_force",
+                "--train-seeds",
+                "4",
+                "--test-seeds",
+                "4",
+                "--steps",
+                "6",
+                "--learning-rate",
+                "0.2",
+            ]
+        )
+        == 2
+    )
     error = capsys.readouterr().err.strip()
     assert "--train-seeds: a gradient over 4 runs would need about" in error and "use fewer training seeds or a shorter duration" in error, error
     assert "\n" not in error and not (tmp_path / "out").exists()

@@ -44,8 +44,14 @@ def _document(case: str, duration: float, sample_period: float | None = None) ->
 
 def _calugi(scenario):
     observer, controller = scenario.observer, scenario.controller
-    return check_calugi_2003(paper_vessel(), K1=np.asarray(observer.position_gain), K2=np.asarray(observer.velocity_gain),
-                             d=np.asarray(controller.damping_weights), theta_bounds=BOUNDS, coupling_gain=np.asarray(controller.coupling_gain))
+    return check_calugi_2003(
+        paper_vessel(),
+        K1=np.asarray(observer.position_gain),
+        K2=np.asarray(observer.velocity_gain),
+        d=np.asarray(controller.damping_weights),
+        theta_bounds=BOUNDS,
+        coupling_gain=np.asarray(controller.coupling_gain),
+    )
 
 
 def test_the_printed_gains_start_from_the_satisfying_set_and_far_out_theta_keep_22_57_58():
@@ -128,6 +134,8 @@ def test_the_printed_gains_at_a_slower_sample_are_refused_in_one_line(tmp_path, 
     write(source, _document("printed", 20.0, sample_period=0.2))
     assert main(["tune", str(source), "--out", str(tmp_path / "out")]) == 2
     error = capsys.readouterr().err.strip()
-    assert ("observer adaptive-dp: the starting gains do not satisfy closed_loop_57 (lookout design adaptive-observer shows why), and no nearby "
-            "gains inside the parametrized conditions satisfy them") in error and "\n" not in error, error
+    assert (
+        "observer adaptive-dp: the starting gains do not satisfy closed_loop_57 (lookout design adaptive-observer shows why), and no nearby "
+        "gains inside the parametrized conditions satisfy them"
+    ) in error and "\n" not in error, error
     assert not (tmp_path / "out").exists()

@@ -80,13 +80,26 @@ def test_the_parametrization_round_trips_and_keeps_r_positive_and_q_non_negative
         family.theta((start[0], np.ones(15), start[2]))
 
 
-@pytest.mark.parametrize("observer", [
-    pytest.param({}, id="steady-state P_0"),
-    pytest.param({"input_disturbance": [1e6, 0.0, 1e9], "state_noise": {"bias": [10.0, 10.0, 1e4], "input_disturbance": [5e5, 0.0, 0.0]},
-                  "initial_std": {"eta": [1.0, 1.0, 0.01], "nu": [0.1, 0.1, 0.001], "bias": [1e4, 1e4, 1e5],
-                                  "wave_state": [1.0, 1.0, 0.01, 1.0, 1.0, 0.01], "input_disturbance": [1e4, 0.0, 1e5]}},
-                 id="input disturbance, P_0 given"),
-])
+@pytest.mark.parametrize(
+    "observer",
+    [
+        pytest.param({}, id="steady-state P_0"),
+        pytest.param(
+            {
+                "input_disturbance": [1e6, 0.0, 1e9],
+                "state_noise": {"bias": [10.0, 10.0, 1e4], "input_disturbance": [5e5, 0.0, 0.0]},
+                "initial_std": {
+                    "eta": [1.0, 1.0, 0.01],
+                    "nu": [0.1, 0.1, 0.001],
+                    "bias": [1e4, 1e4, 1e5],
+                    "wave_state": [1.0, 1.0, 0.01, 1.0, 1.0, 0.01],
+                    "input_disturbance": [1e4, 0.0, 1e5],
+                },
+            },
+            id="input disturbance, P_0 given",
+        ),
+    ],
+)
 def test_the_tuned_file_composes_back_into_the_tuned_filter(observer):
     """Gains away from the start, written under the family's keys: the file composes into
     the filter the tuner simulated (R, q, S exactly, P_0 to the Riccati solver's rounding)."""
@@ -121,8 +134,27 @@ def test_lookout_tune_improves_a_mistuned_ekf_and_the_tuned_file_is_the_tuned_fi
     source = tmp_path / "dp.toml"
     write(source, _scenario(100.0, **MISTUNED))
     out = tmp_path / "tuned"
-    assert main(["tune", str(source), "--out", str(out), "--objective", "rms_error:position", "--train-seeds", "2", "--test-seeds", "2",
-                 "--steps", "3", "--learning-rate", "0.3"]) == 0
+    assert (
+        main(
+            [
+                "tune",
+                str(source),
+                "--out",
+                str(out),
+                "--objective",
+                "rms_error:position",
+                "--train-seeds",
+                "2",
+                "--test-seeds",
+                "2",
+                "--steps",
+                "3",
+                "--learning-rate",
+                "0.3",
+            ]
+        )
+        == 0
+    )
     summary = json.loads((out / "tuning.json").read_text())
     assert summary["conditions_before"]["holds"] and summary["conditions_after"]["holds"]
     document, _ = read(out / "tuned.toml")

@@ -89,8 +89,25 @@ def test_lookout_tune_on_kims_loop_writes_a_file_that_satisfies_every_condition(
     source = tmp_path / "kim.toml"
     write(source, _document(200.0))
     out = tmp_path / "tuned"
-    assert main(["tune", str(source), "--out", str(out), "--objective", "rms_tracking:position + rms_error:position", "--train-seeds", "3",
-                 "--test-seeds", "3", "--steps", "3"]) == 0
+    assert (
+        main(
+            [
+                "tune",
+                str(source),
+                "--out",
+                str(out),
+                "--objective",
+                "rms_tracking:position + rms_error:position",
+                "--train-seeds",
+                "3",
+                "--test-seeds",
+                "3",
+                "--steps",
+                "3",
+            ]
+        )
+        == 0
+    )
     document, _ = read(out / "tuned.toml")
     scenario = compose(document).scenario
     passive = scenario.observer.passive

@@ -49,13 +49,20 @@ def test_the_observer_is_tuned_and_the_controller_left_as_it_is_when_25_cannot_h
     scenario = compose(_document(4.0)).scenario
     family, start, notes = family_of(scenario)
     assert isinstance(family, EarthFixedFamily)
-    assert notes == ["controller tracking left as it is: the starting gains do not satisfy controller_25 (lookout design tracking-gains shows "
-                     "why), and no nearby gains inside the parametrized conditions satisfy them; start from gains that do"]
+    assert notes == [
+        "controller tracking left as it is: the starting gains do not satisfy controller_25 (lookout design tracking-gains shows "
+        "why), and no nearby gains inside the parametrized conditions satisfy them; start from gains that do"
+    ]
     rng = np.random.default_rng(2)
     for theta in rng.normal(scale=5.0, size=(10, 6)):  # every theta: Prop. 3.1 as the design command's analysis checks it
         l1, l2 = (np.asarray(g) for g in family.gains(jnp.asarray(theta)))
-        report = check_wondergem_2009(scenario.observer.ship, observer_gains=(l1, l2), natural_frequency=np.asarray(scenario.controller.natural_frequency),
-                                      velocity_bound=0.3, **family.context)
+        report = check_wondergem_2009(
+            scenario.observer.ship,
+            observer_gains=(l1, l2),
+            natural_frequency=np.asarray(scenario.controller.natural_frequency),
+            velocity_bound=0.3,
+            **family.context,
+        )
         assert report["observer_3_1"].holds, report["observer_3_1"].reason
 
 
@@ -84,14 +91,36 @@ def test_lookout_tune_keeps_proposition_3_1_and_25(tmp_path):
     source = tmp_path / "cs2.toml"
     write(source, _document(TUNED_DURATION, on_reference=True))
     out = tmp_path / "tuned"
-    assert main(["tune", str(source), "--out", str(out), "--objective", "rms_tracking:position + rms_error:velocity", "--train-seeds", "1",
-                 "--test-seeds", "1", "--steps", "3"]) == 0
+    assert (
+        main(
+            [
+                "tune",
+                str(source),
+                "--out",
+                str(out),
+                "--objective",
+                "rms_tracking:position + rms_error:velocity",
+                "--train-seeds",
+                "1",
+                "--test-seeds",
+                "1",
+                "--steps",
+                "3",
+            ]
+        )
+        == 0
+    )
     document, _ = read(out / "tuned.toml")
     scenario = compose(document).scenario
     context = EarthFixedFamily.of(scenario).context
-    report = check_wondergem_2009(scenario.observer.ship, observer_gains=(np.asarray(scenario.observer.position_gain), np.asarray(scenario.observer.velocity_gain)),
-                                  natural_frequency=np.asarray(scenario.controller.natural_frequency),
-                                  damping_ratio=np.asarray(scenario.controller.damping_ratio), velocity_bound=0.3, **context)
+    report = check_wondergem_2009(
+        scenario.observer.ship,
+        observer_gains=(np.asarray(scenario.observer.position_gain), np.asarray(scenario.observer.velocity_gain)),
+        natural_frequency=np.asarray(scenario.controller.natural_frequency),
+        damping_ratio=np.asarray(scenario.controller.damping_ratio),
+        velocity_bound=0.3,
+        **context,
+    )
     assert report["observer_3_1"].holds and report["controller_25"].holds, report.verdicts
     summary = json.loads((out / "tuning.json").read_text())
     assert summary["steps"][-1]["objective"] < summary["steps"][0]["objective"]
@@ -109,6 +138,8 @@ def test_a_bound_the_integration_cannot_follow_is_refused_naming_the_step(tmp_pa
     write(source, document)
     assert main(["tune", str(source), "--out", str(tmp_path / "out")]) == 2
     error = capsys.readouterr().err.strip()
-    assert ("Proposition 3.1 needs L1 > 119.1 1/s (its (13)), which rk4 at 1 step(s) per 0.1 s sample integrates only below 27.85 1/s; "
-            "set observer.steps_per_sample to at least 7") in error and "\n" not in error, error
+    assert (
+        "Proposition 3.1 needs L1 > 119.1 1/s (its (13)), which rk4 at 1 step(s) per 0.1 s sample integrates only below 27.85 1/s; "
+        "set observer.steps_per_sample to at least 7"
+    ) in error and "\n" not in error, error
     assert not (tmp_path / "out").exists()

@@ -27,7 +27,14 @@ SAMPLE_PERIOD = 1e-2
 # Section 2.3: model, K, q(0), q'(0), x1_hat(0), input (cart and Furuta: chosen, see above),
 # from the reproduction's scenario of each system
 SYSTEMS = {
-    name: (scenario.plant.model, system.gain, list(system.initial_position), list(system.initial_velocity), list(system.initial_estimate), scenario.controller)
+    name: (
+        scenario.plant.model,
+        system.gain,
+        list(system.initial_position),
+        list(system.initial_velocity),
+        list(system.initial_estimate),
+        scenario.controller,
+    )
     for name, system in calugi.SYSTEMS.items()
     for scenario in [calugi.REPRODUCTION.scenario(calugi.Config(), name)]
 }
@@ -40,8 +47,16 @@ def _scenario(name, gain=None, mode="continuous", sensor=None, sample_period=SAM
     observer = VelocityObserver(model, printed_gain if gain is None else gain)
     sensor = sensor or JointEncoder(model, sample_period=sample_period)
     return Scenario(
-        plant, sensor, observer, controller, plant.state(q0, v0), jnp.asarray(printed_guess if guess is None else guess, dtype=float),
-        plant_step=PLANT_STEP, sample_period=sample_period, duration=duration or DURATION[name], observer_mode=mode,
+        plant,
+        sensor,
+        observer,
+        controller,
+        plant.state(q0, v0),
+        jnp.asarray(printed_guess if guess is None else guess, dtype=float),
+        plant_step=PLANT_STEP,
+        sample_period=sample_period,
+        duration=duration or DURATION[name],
+        observer_mode=mode,
     )
 
 
@@ -247,7 +262,10 @@ def test_a_nan_channel_predicts_with_the_model_and_no_injection():
 
 def test_estimate_is_named_as_the_plant_velocity_and_paired_with_the_truth():
     observer = VelocityObserver(CartPendulum(), [5.0, 4.0])
-    assert [(s.name, s.units, s.labels) for s in observer.estimate_signals] == [("joint_speed", "m/s", ("cart",)), ("joint_rate", "rad/s", ("pendulum",))]
+    assert [(s.name, s.units, s.labels) for s in observer.estimate_signals] == [
+        ("joint_speed", "m/s", ("cart",)),
+        ("joint_rate", "rad/s", ("pendulum",)),
+    ]
     dataset = _simulated("cart")[1].to_xarray()
     assert {"joint_speed_hat", "joint_rate_hat", "joint_speed", "joint_rate", "joint_angle", "joint_position"} <= set(dataset.data_vars)
     assert dataset["joint_rate_hat"].attrs["units"] == "rad/s"

@@ -129,14 +129,29 @@ def main(argv=None) -> int:
     parser.add_argument("--full", action="store_true", help="every loop over its paper's whole duration")
     parser.add_argument("--loops", nargs="*", default=list(LOOPS))
     parser.add_argument("--figure-only", action="store_true", help="draw kim-2002.png alone")
-    parser.add_argument("--one-limit-at-a-time", action="store_true",
-                        help="Calugi et al. (2003)'s loop, 400 s, seed 0, through the supply vessel with one of its limits at a time")
-    parser.add_argument("--turning", nargs="+", metavar="RUN_NC",
-                        help="for each run.nc of `lookout run` with thrusters: degrees each azimuth turned, mean power, saturation, tracking")
-    parser.add_argument("--qp", nargs="+", metavar="KEY=VALUE",
-                        help="only the QP's cells, with these [actuator] options (TOML values); printed, not written to the table")
-    parser.add_argument("--example", nargs="*", metavar="KEY=VALUE",
-                        help="run examples/thrusters-dp.toml with these [actuator] options and measure it as --turning does")
+    parser.add_argument(
+        "--one-limit-at-a-time",
+        action="store_true",
+        help="Calugi et al. (2003)'s loop, 400 s, seed 0, through the supply vessel with one of its limits at a time",
+    )
+    parser.add_argument(
+        "--turning",
+        nargs="+",
+        metavar="RUN_NC",
+        help="for each run.nc of `lookout run` with thrusters: degrees each azimuth turned, mean power, saturation, tracking",
+    )
+    parser.add_argument(
+        "--qp",
+        nargs="+",
+        metavar="KEY=VALUE",
+        help="only the QP's cells, with these [actuator] options (TOML values); printed, not written to the table",
+    )
+    parser.add_argument(
+        "--example",
+        nargs="*",
+        metavar="KEY=VALUE",
+        help="run examples/thrusters-dp.toml with these [actuator] options and measure it as --turning does",
+    )
     args = parser.parse_args(argv)
     if args.example is not None:
         example(args.example)
@@ -179,8 +194,10 @@ def main(argv=None) -> int:
                 row.update({name: float(np.asarray(value)[seed]) for name, value in result.items()})
                 rows.append(row)
             medians = {k: float(np.nanmedian(v)) for k, v in result.items() if k != "diverged"}
-            print(f"{loop_name} / {observer_name} / {actuation_name}: {seconds:.0f} s, "
-                  + ", ".join(f"{k} {v:.4g}" for k, v in medians.items()), flush=True)
+            print(
+                f"{loop_name} / {observer_name} / {actuation_name}: {seconds:.0f} s, " + ", ".join(f"{k} {v:.4g}" for k, v in medians.items()),
+                flush=True,
+            )
     if args.qp:
         return 0
     write(rows, used, args)
@@ -227,10 +244,13 @@ def turning(path: Path) -> None:
     slow = spectrum[(frequency > 0) & (frequency < 0.4)].sum() / spectrum[frequency > 0].sum()
     names = [str(name) for name in run.thruster.values]
     azimuths = ", ".join(f"{name} {value:.0f} deg" for name, value, kind in zip(names, turned, layout.kinds) if kind == "azimuth")
-    print(f"{path}: {run.time.values[-1]:g} s; turned: {azimuths}; mean power {power:.4f} of the installed power; "
-          f"saturated in {run.allocation_saturated.values.mean():.4f} of the samples; a thruster at a limit in {limit:.4f}; "
-          f"largest shortfall {run.allocation_shortfall.values.max():.3f}; RMS position tracking {np.sqrt(np.mean(error**2)):.3f} m; "
-          f"commanded surge force: standard deviation {surge.std() / 1e3:.0f} kN, {100 * slow:.0f} % of its variance below 0.4 rad/s", flush=True)
+    print(
+        f"{path}: {run.time.values[-1]:g} s; turned: {azimuths}; mean power {power:.4f} of the installed power; "
+        f"saturated in {run.allocation_saturated.values.mean():.4f} of the samples; a thruster at a limit in {limit:.4f}; "
+        f"largest shortfall {run.allocation_shortfall.values.max():.3f}; RMS position tracking {np.sqrt(np.mean(error**2)):.3f} m; "
+        f"commanded surge force: standard deviation {surge.std() / 1e3:.0f} kN, {100 * slow:.0f} % of its variance below 0.4 rad/s",
+        flush=True,
+    )
 
 
 def example(options: list[str]) -> None:
@@ -322,8 +342,10 @@ def figure() -> None:
     for axis in axes:
         axis.grid(alpha=0.3)
     axes[0].legend(ncols=2, loc="upper right")
-    fig.suptitle("Kim (2002) observer backstepping with the passive observer, Northern Clipper, seed 0:\n"
-                 "ideal and per-axis saturation overlap (dashed); through the supply vessel's thrusters (solid)")
+    fig.suptitle(
+        "Kim (2002) observer backstepping with the passive observer, Northern Clipper, seed 0:\n"
+        "ideal and per-axis saturation overlap (dashed); through the supply vessel's thrusters (solid)"
+    )
     fig.savefig(HERE / "kim-2002.png", dpi=110)
 
 
@@ -333,8 +355,11 @@ def write(rows: list[dict], used: dict, args) -> None:
     frame = pd.DataFrame(rows)
     suffix = "-quick" if args.quick else ""
     frame.to_csv(HERE / f"study{suffix}.csv", index=False)
-    lines = [f"Made by `python docs/thrusters/study.py{' --quick' if args.quick else ''}`; each cell the median over the seeds "
-             f"({', '.join(f'{name}: {count}' for name, count in used.items())} per cell), metrics over the whole run.", ""]
+    lines = [
+        f"Made by `python docs/thrusters/study.py{' --quick' if args.quick else ''}`; each cell the median over the seeds "
+        f"({', '.join(f'{name}: {count}' for name, count in used.items())} per cell), metrics over the whole run.",
+        "",
+    ]
     for loop_name in args.loops:
         part = frame[frame.loop == loop_name]
         if part.empty:
@@ -356,8 +381,11 @@ def write(rows: list[dict], used: dict, args) -> None:
             for actuation, cell in part.groupby("actuation", sort=False):
                 order = cell.groupby("observer")["rms_tracking__position"].median().sort_values()
                 tau = kendalltau(medians["ideal"], medians[actuation]).statistic
-                lines.append(f"- {actuation}: " + " < ".join(f"{name} ({value:.3g})" for name, value in order.items())
-                             + f"; Kendall's tau-b against the ideal ranking {tau:.2f}")
+                lines.append(
+                    f"- {actuation}: "
+                    + " < ".join(f"{name} ({value:.3g})" for name, value in order.items())
+                    + f"; Kendall's tau-b against the ideal ranking {tau:.2f}"
+                )
         lines.append("")
     (HERE / f"table{suffix}.md").write_text("\n".join(lines))
 

@@ -29,8 +29,11 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 DP = "rms_error:position + 10*rms_error:velocity"
-SEAS = {"calm": (1.2, [2.0, 2.0, 0.0034906585039886592]), "paper": (0.8976, [10.0, 10.0, 0.017453292519943295]),
-        "rough": (0.6, [20.0, 20.0, 0.03490658503988659])}
+SEAS = {
+    "calm": (1.2, [2.0, 2.0, 0.0034906585039886592]),
+    "paper": (0.8976, [10.0, 10.0, 0.017453292519943295]),
+    "rough": (0.6, [20.0, 20.0, 0.03490658503988659]),
+}
 
 
 def _dp(sea: str, observer: dict | None = None) -> dict:
@@ -67,12 +70,25 @@ def _wondergem() -> dict:
 
 #: case -> (scenario document, lookout tune options)
 CASES = {
-    **{f"passive-{sea}": (lambda sea=sea: _dp(sea), ["--objective", DP, "--train-seeds", "8", "--test-seeds", "16", "--steps", "15", "--learning-rate", "0.1"])
-       for sea in SEAS},
-    "ekf-paper": (lambda: _dp("paper", {"kind": "ekf"}), ["--objective", DP, "--train-seeds", "8", "--test-seeds", "16", "--steps", "8", "--learning-rate", "0.3"]),
-    "kim-mass-plus-25": (_kim, ["--objective", "rms_tracking:position + rms_error:position", "--train-seeds", "4", "--test-seeds", "8", "--steps", "8"]),
-    "wondergem-cybership": (_wondergem, ["--objective", "rms_tracking:position + rms_error:velocity", "--train-seeds", "4", "--test-seeds", "8",
-                                         "--steps", "8"]),
+    **{
+        f"passive-{sea}": (
+            lambda sea=sea: _dp(sea),
+            ["--objective", DP, "--train-seeds", "8", "--test-seeds", "16", "--steps", "15", "--learning-rate", "0.1"],
+        )
+        for sea in SEAS
+    },
+    "ekf-paper": (
+        lambda: _dp("paper", {"kind": "ekf"}),
+        ["--objective", DP, "--train-seeds", "8", "--test-seeds", "16", "--steps", "8", "--learning-rate", "0.3"],
+    ),
+    "kim-mass-plus-25": (
+        _kim,
+        ["--objective", "rms_tracking:position + rms_error:position", "--train-seeds", "4", "--test-seeds", "8", "--steps", "8"],
+    ),
+    "wondergem-cybership": (
+        _wondergem,
+        ["--objective", "rms_tracking:position + rms_error:velocity", "--train-seeds", "4", "--test-seeds", "8", "--steps", "8"],
+    ),
 }
 
 
@@ -83,15 +99,23 @@ def run(case: str) -> None:
     folder = HERE / case
     folder.mkdir(parents=True, exist_ok=True)
     write(folder / "scenario.toml", make())
-    command = [str(Path(sys.executable).parent / "lookout"), "tune", str((folder / "scenario.toml").relative_to(ROOT)), "--out",
-               str(folder.relative_to(ROOT)), *options]
+    command = [
+        str(Path(sys.executable).parent / "lookout"),
+        "tune",
+        str((folder / "scenario.toml").relative_to(ROOT)),
+        "--out",
+        str(folder.relative_to(ROOT)),
+        *options,
+    ]
     print("lookout " + " ".join(command[1:]), flush=True)
     subprocess.run(command, cwd=ROOT, check=True)
 
 
 def table() -> str:
-    lines = ["| case | gains tuned | metric (held-out median) | file's gains (outside) | start | tuned | change | steps, stop | s |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| case | gains tuned | metric (held-out median) | file's gains (outside) | start | tuned | change | steps, stop | s |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for case in CASES:
         path = HERE / case / "tuning.json"
         if not path.exists():
@@ -100,8 +124,10 @@ def table() -> str:
         for name, medians in summary["held_out_median"].items():
             given = f"{medians['given']:.4g}" if "given" in medians else "—"
             change = (medians["tuned"] - medians["start"]) / medians["start"]
-            lines.append(f"| {case} | {', '.join(k.split('.')[-1] for k in summary['gains'])} | {name} | {given} | {medians['start']:.4g} | "
-                         f"{medians['tuned']:.4g} | {change:+.1%} | {len(summary['steps']) - 1}, {summary['stopped']} | {summary['seconds']:.0f} |")
+            lines.append(
+                f"| {case} | {', '.join(k.split('.')[-1] for k in summary['gains'])} | {name} | {given} | {medians['start']:.4g} | "
+                f"{medians['tuned']:.4g} | {change:+.1%} | {len(summary['steps']) - 1}, {summary['stopped']} | {summary['seconds']:.0f} |"
+            )
     return "\n".join(lines) + "\n"
 
 

@@ -64,21 +64,28 @@ class LuenbergerEstimate(eqx.Module):
 
 
 @component(
-    "observer", "luenberger",
+    "observer",
+    "luenberger",
     summary="Luenberger observer of the vessel's low-frequency model: position, velocity and bias, no wave filter.",
     rules={
-        "poles": Rule("design", (
-            Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
-            Value("bandwidth", "array", "The observer's poles per DOF, all three at -bandwidth (rad/s).", shape="(3,)", range=POSITIVE),
-            Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
-        )),
-        "gains": Rule(None, (
-            Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
-            Value("position_gain", "array", "Diagonal of L1 (1/s).", shape="(3,)", range=POSITIVE),
-            Value("velocity_gain", "array", "Diagonal of L2 (N/m, N/m, N m/rad).", shape="(3,)"),
-            Value("bias_gain", "array", "Diagonal of L3 (N/(m s), N/(m s), N m/(rad s)).", shape="(3,)", range=POSITIVE),
-            Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
-        )),
+        "poles": Rule(
+            "design",
+            (
+                Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
+                Value("bandwidth", "array", "The observer's poles per DOF, all three at -bandwidth (rad/s).", shape="(3,)", range=POSITIVE),
+                Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
+            ),
+        ),
+        "gains": Rule(
+            None,
+            (
+                Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
+                Value("position_gain", "array", "Diagonal of L1 (1/s).", shape="(3,)", range=POSITIVE),
+                Value("velocity_gain", "array", "Diagonal of L2 (N/m, N/m, N m/rad).", shape="(3,)"),
+                Value("bias_gain", "array", "Diagonal of L3 (N/(m s), N/(m s), N m/(rad s)).", shape="(3,)", range=POSITIVE),
+                Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
+            ),
+        ),
     },
 )
 class LuenbergerObserver(ContinuousObserver):
@@ -147,8 +154,11 @@ class LuenbergerObserver(ContinuousObserver):
         m, d = np.diag(np.asarray(vessel.mass_matrix)), np.diag(np.asarray(vessel.damping_matrix))
         l1 = 3.0 * w - d / m
         if np.any(l1 <= 0):
-            raise ParameterError("bandwidth", f"bandwidth must exceed d/(3 m) = {np.round(d / (3 * m), 6).tolist()} rad/s in each DOF "
-                                                    f"(the vessel's own damping is faster); got {w.tolist()}")
+            raise ParameterError(
+                "bandwidth",
+                f"bandwidth must exceed d/(3 m) = {np.round(d / (3 * m), 6).tolist()} rad/s in each DOF "
+                f"(the vessel's own damping is faster); got {w.tolist()}",
+            )
         l2 = 3.0 * m * w**2 - l1 * d
         l3 = m * w**3
         return cls(vessel, l1, l2, l3, steps_per_sample)
@@ -206,6 +216,10 @@ class LuenbergerObserver(ContinuousObserver):
     def output(self, estimate: LuenbergerEstimate, measurement: Array) -> dict[str, Array]:
         """The estimates by name."""
         return {
-            "position": estimate.eta[:2], "heading": estimate.eta[2], "velocity": estimate.nu[:2], "yaw_rate": estimate.nu[2],
-            "bias_force": estimate.bias[:2], "bias_moment": estimate.bias[2],
+            "position": estimate.eta[:2],
+            "heading": estimate.eta[2],
+            "velocity": estimate.nu[:2],
+            "yaw_rate": estimate.nu[2],
+            "bias_force": estimate.bias[:2],
+            "bias_moment": estimate.bias[2],
         }

@@ -202,4 +202,3 @@ def _installed_version() -> str:
         return version("lookout")
     except PackageNotFoundError:  # pragma: no cover - running from a source tree that is not installed
         return "0+unknown"
-

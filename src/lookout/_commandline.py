@@ -50,6 +50,7 @@ COMPILATION_CACHE_MIN_COMPILE_SECONDS = 0.0
 #: 2 bad input.
 DIVERGED_EXIT_CODE = 3
 
+
 def writable_folder(option: str, folder: Path, what: str) -> None:
     """Fail unless ``folder`` can be written into: it exists and is writable, or its
     nearest existing ancestor is a writable folder (every output's missing parent
@@ -146,8 +147,10 @@ def time_left(seen: list[tuple[float, float]], total: float, start: float) -> st
     left = (second - first) / (done_second - done_first) * (total - done_second)
     if left <= LONG_RUN_SECONDS:
         return None
-    return (f"simulating: about {_clock(left)} left ({done_second / total:.0%} of the records in {_clock(second - start)}, "
-            f"compilation included; the pace is that of the last {done_second - done_first:g} records)")
+    return (
+        f"simulating: about {_clock(left)} left ({done_second / total:.0%} of the records in {_clock(second - start)}, "
+        f"compilation included; the pace is that of the last {done_second - done_first:g} records)"
+    )
 
 
 def _clock(seconds: float) -> str:
@@ -178,7 +181,9 @@ def image_file(option: str, text: str) -> Path:
     return path
 
 
-def check_memory(batches, runs_option: str = "--runs", duration_option: str = "--duration", runs: int | None = None, where: str | None = None) -> None:
+def check_memory(
+    batches, runs_option: str = "--runs", duration_option: str = "--duration", runs: int | None = None, where: str | None = None
+) -> None:
     """Refuse a study whose records and working memory would not fit, before simulating.
 
     ``batches`` are (scenario, runs) simulated one after another, so the largest
@@ -191,7 +196,9 @@ def check_memory(batches, runs_option: str = "--runs", duration_option: str = "-
 
     def need_of(pair):
         scenario, count = pair
-        return scenario.n_records * (PEAK_MEMORY_PER_RECORD_BYTE * count * record_nbytes(scenario) + RECORD_OVERHEAD_BYTES) + count * working_nbytes(scenario)
+        return scenario.n_records * (PEAK_MEMORY_PER_RECORD_BYTE * count * record_nbytes(scenario) + RECORD_OVERHEAD_BYTES) + count * working_nbytes(
+            scenario
+        )
 
     scenario, batch = max(batches, key=need_of)
     need = need_of((scenario, batch))
@@ -204,7 +211,8 @@ def check_memory(batches, runs_option: str = "--runs", duration_option: str = "-
         raise InputError(
             f"{where + ': ' if where else ''}{runs_option} {runs} over {duration_option} {scenario.duration:g} would need about {format_bytes(need)} of memory "
             f"({largest}{batch} run(s) x {scenario.n_records} records x {record_nbytes(scenario)} B, x{PEAK_MEMORY_PER_RECORD_BYTE} while writing results{steps}), "
-            f"and {format_bytes(available)} are available: " + (f"use fewer {runs_option} or a shorter {duration_option}" if runs > 1 else f"use a shorter {duration_option}")
+            f"and {format_bytes(available)} are available: "
+            + (f"use fewer {runs_option} or a shorter {duration_option}" if runs > 1 else f"use a shorter {duration_option}")
         )
 
 
@@ -246,8 +254,11 @@ def use_compilation_cache() -> Path | None:
         return None
     existing = nearest_existing(folder)
     if not (existing.is_dir() and os.access(existing, os.R_OK | os.W_OK | os.X_OK)):
-        print(f"note: the compilation cache folder {folder} cannot be read and written ({existing} is not a folder this user may "
-              f"read and write): compiling without it; {COMPILATION_CACHE_SWITCH}=0 leaves the cache out", file=sys.stderr)
+        print(
+            f"note: the compilation cache folder {folder} cannot be read and written ({existing} is not a folder this user may "
+            f"read and write): compiling without it; {COMPILATION_CACHE_SWITCH}=0 leaves the cache out",
+            file=sys.stderr,
+        )
         return None
     trim_folder(folder, COMPILATION_CACHE_MAX_BYTES)
     settings = {"jax_compilation_cache_dir": str(folder), "jax_persistent_cache_min_compile_time_secs": COMPILATION_CACHE_MIN_COMPILE_SECONDS}

@@ -46,6 +46,7 @@ def _split_half_pi() -> tuple[float, float, float]:
     ``n * hi`` and ``n * mid`` are then exact in float64 for ``|n| < 2**20``, so the
     argument reduction below loses no accuracy for ``|angle| < 1.6e6`` rad.
     """
+
     def top_bits(value: Decimal) -> float:
         bits = struct.unpack("<q", struct.pack("<d", float(value)))[0]
         bits &= ~((1 << 20) - 1)  # keep 1 + 32 of the 52 stored mantissa bits
@@ -250,9 +251,7 @@ def rotation(psi: Array) -> Array:
     """
     s, c = _heading_terms(psi)
     zero, one = jnp.zeros_like(c), jnp.ones_like(c)
-    return jnp.stack(
-        [jnp.stack([c, -s, zero]), jnp.stack([s, c, zero]), jnp.stack([zero, zero, one])]
-    )
+    return jnp.stack([jnp.stack([c, -s, zero]), jnp.stack([s, c, zero]), jnp.stack([zero, zero, one])])
 
 
 def rotate(psi: Array, vector: Array) -> Array:

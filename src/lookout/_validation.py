@@ -92,9 +92,7 @@ def symmetric_positive_definite(name: str, matrix: Any, *, size: int | None = No
         raise ParameterError(key(name), f"{name} must be symmetric; max |{name} - {name}^T| is {asymmetry:.3g}")
     smallest = np.linalg.eigvalsh(array).min()
     if smallest <= 0:
-        raise ParameterError(key(name),
-            f"{name} must be symmetric positive definite; its smallest eigenvalue is {smallest:.3g}"
-        )
+        raise ParameterError(key(name), f"{name} must be symmetric positive definite; its smallest eigenvalue is {smallest:.3g}")
 
 
 def dissipative(name: str, matrix: Any) -> None:
@@ -107,9 +105,10 @@ def dissipative(name: str, matrix: Any) -> None:
     array = np.asarray(matrix, dtype=float)
     smallest = float(np.linalg.eigvalsh(0.5 * (array + array.T)).min())
     if smallest < -1e-12 * max(np.abs(array).max(), np.finfo(float).tiny):
-        raise ParameterError(key(name),
+        raise ParameterError(
+            key(name),
             f"{name} must have a positive semi-definite symmetric part (damping dissipates energy: nu^T D nu >= 0); "
-            f"the smallest eigenvalue of (D + D^T)/2 is {smallest:.3g}"
+            f"the smallest eigenvalue of (D + D^T)/2 is {smallest:.3g}",
         )
 
 

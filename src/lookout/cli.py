@@ -105,8 +105,7 @@ def _analysable(option: str, symbol: str, value: float, unit: str) -> None:
     unit = f" {unit}" if unit else ""
     if not low <= value <= high:
         raise InputError(
-            f"{option}: {symbol} = {value:.3g}{unit} is outside {low:g} to {high:g}{unit}, "
-            "the range in which the loop analysis is finite in float64"
+            f"{option}: {symbol} = {value:.3g}{unit} is outside {low:g} to {high:g}{unit}, the range in which the loop analysis is finite in float64"
         )
 
 
@@ -186,11 +185,14 @@ def list_reproductions() -> None:
 @app.command()
 def reproduce(
     name: Annotated[str, typer.Argument(metavar="NAME", help="Reproduction, e.g. fossen-strand-1999 (see `lookout list`).")],
-    out: Annotated[str | None, typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.", show_default="out/NAME")] = None,
+    out: Annotated[
+        str | None, typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.", show_default="out/NAME")
+    ] = None,
     seed: Annotated[int, typer.Option(metavar="INT", help="Seed of run 0; run i uses seed + i.")] = 0,
     runs: Annotated[int, typer.Option(metavar="N", help="Monte Carlo runs over seeds (vmapped); the summary gives mean ± std.")] = 1,
     duration: Annotated[
-        float | None, typer.Option(metavar="SECONDS", help="Simulated time.", show_default="the reproduction's own (its --write-scenario file shows it)")
+        float | None,
+        typer.Option(metavar="SECONDS", help="Simulated time.", show_default="the reproduction's own (its --write-scenario file shows it)"),
     ] = None,
     model_error: Annotated[
         str | None,
@@ -205,7 +207,10 @@ def reproduce(
         str | None, typer.Option(metavar="SET", help="kim-2002: observer H3, H4: printed (A.4) or kyp (satisfy (14)).", show_default="printed")
     ] = None,
     sweep: Annotated[
-        bool | None, typer.Option("--sweep/--no-sweep", help="Run the sweeps and studies of the reproductions that have them (see lookout list).", show_default="--sweep")
+        bool | None,
+        typer.Option(
+            "--sweep/--no-sweep", help="Run the sweeps and studies of the reproductions that have them (see lookout list).", show_default="--sweep"
+        ),
     ] = None,
     sample_interval: Annotated[
         float | None, typer.Option(metavar="SECONDS", help="calugi-2003: observer and controller sample interval Delta.", show_default="0.1")
@@ -216,7 +221,10 @@ def reproduce(
     ] = None,
     write_scenario: Annotated[
         str | None,
-        typer.Option(metavar="FILE", help="Write the reproduction's scenario (its first case, with these settings) as a scenario file for `lookout run`, and stop."),
+        typer.Option(
+            metavar="FILE",
+            help="Write the reproduction's scenario (its first case, with these settings) as a scenario file for `lookout run`, and stop.",
+        ),
     ] = None,
 ) -> None:
     """Run a paper's simulation study.
@@ -231,7 +239,10 @@ def reproduce(
         raise InputError(f"unknown reproduction {name!r}; available: {', '.join(REPRODUCTIONS)}")
     reproduction = REPRODUCTIONS[name]
     extra = {
-        "model_error": None if model_error is None else _model_error(model_error), "gains": gains, "sweep": sweep, "sample_interval": sample_interval,
+        "model_error": None if model_error is None else _model_error(model_error),
+        "gains": gains,
+        "sweep": sweep,
+        "sample_interval": sample_interval,
         "conditions": None if condition is None else tuple(part.strip() for part in condition.split(",")),
     }
     for field, value in extra.items():
@@ -264,10 +275,15 @@ def _write_scenario(name: str, config, text: str) -> None:
     writable_folder("--write-scenario", path.absolute().parent, text)
     reproduction = REPRODUCTIONS[name]
     cases = reproduction.cases
-    save(CompositionSpec(compose(reproduction.composition(config, cases[0]))), path,
-         header=f"lookout scenario: {reproduction.title}, case {cases[0]!r} (preset \"{name}:{cases[0]}\"), as a composition.\n"
-                f"Run it with: lookout run {path.name} --out DIR")
-    console.print(f"scenario written to {path} (case {cases[0]!r}; cases: {', '.join(cases)}); run it with: lookout run {path} --out FOLDER", highlight=False)
+    save(
+        CompositionSpec(compose(reproduction.composition(config, cases[0]))),
+        path,
+        header=f'lookout scenario: {reproduction.title}, case {cases[0]!r} (preset "{name}:{cases[0]}"), as a composition.\n'
+        f"Run it with: lookout run {path.name} --out DIR",
+    )
+    console.print(
+        f"scenario written to {path} (case {cases[0]!r}; cases: {', '.join(cases)}); run it with: lookout run {path} --out FOLDER", highlight=False
+    )
 
 
 def _print_summary(summary: dict, tables, out: Path) -> None:
@@ -285,7 +301,9 @@ def _print_summary(summary: dict, tables, out: Path) -> None:
 @design_app.command("passive-observer")
 def design_passive_observer(
     wave_frequency: Annotated[float | None, typer.Option(metavar="RAD_PER_S", help="Dominating wave frequency w_o.")] = None,
-    wave_period: Annotated[float | None, typer.Option(metavar="SECONDS", help="Wave period, instead of --wave-frequency (w_o = 2 pi / period).")] = None,
+    wave_period: Annotated[
+        float | None, typer.Option(metavar="SECONDS", help="Wave period, instead of --wave-frequency (w_o = 2 pi / period).")
+    ] = None,
     wave_damping: Annotated[float, typer.Option(metavar="ZETA", help="Wave model damping zeta.")] = 0.1,
     notch_damping: Annotated[float | None, typer.Option(metavar="ZETA_N", help="Notch damping zeta_n > zeta.", show_default="1.0")] = None,
     cutoff_frequency: Annotated[
@@ -296,9 +314,12 @@ def design_passive_observer(
         str | None, typer.Option(metavar="K[,K,K]", help="Kappa diagonal, SI (N/m, N/m, N m/rad).", show_default="the paper's (60) converted to SI")
     ] = None,
     bias_gain: Annotated[
-        str | None, typer.Option(metavar="L[,L,L]", help="Lambda diagonal, SI (Kappa's units per second).", show_default="the paper's (60) converted to SI")
+        str | None,
+        typer.Option(metavar="L[,L,L]", help="Lambda diagonal, SI (Kappa's units per second).", show_default="the paper's (60) converted to SI"),
     ] = None,
-    normalized: Annotated[bool, typer.Option("--normalized", help="Read --velocity-gain and --bias-gain as normalized (bis) gains of Northern Clipper.")] = False,
+    normalized: Annotated[
+        bool, typer.Option("--normalized", help="Read --velocity-gain and --bias-gain as normalized (bis) gains of Northern Clipper.")
+    ] = False,
     lyapunov_weight: Annotated[float, typer.Option(metavar="GAMMA", help="Lyapunov weight gamma > 0.")] = 1.0,
     frequency: Annotated[list[float] | None, typer.Option(metavar="RAD_PER_S", help="Report h0(jw) at this frequency; repeatable.")] = None,
     bode: Annotated[str | None, typer.Option(metavar="FILE", help="Write a Bode plot of h0, hB, h (.png, .pdf, .svg, ...).")] = None,
@@ -331,7 +352,9 @@ def design_passive_observer(
     if notch_damping is None:
         notch_damping = DEFAULT_NOTCH_DAMPING
         if notch_damping <= wave_damping:
-            raise InputError(f"--wave-damping must be below --notch-damping ({notch_damping:g}, its default); got {wave_damping:g}: lower it or raise --notch-damping")
+            raise InputError(
+                f"--wave-damping must be below --notch-damping ({notch_damping:g}, its default); got {wave_damping:g}: lower it or raise --notch-damping"
+            )
     elif not (math.isfinite(notch_damping) and notch_damping > wave_damping):
         raise InputError(f"--notch-damping must exceed --wave-damping ({wave_damping:g}); got {notch_damping:g}")
     if cutoff_frequency is None:
@@ -407,10 +430,17 @@ def design_passive_observer(
         quantities={"frequency_response": response},
     )
     inputs = {
-        "wave_frequency": wave_frequency, "wave_damping": wave_damping, "notch_damping": notch_damping,
-        "cutoff_frequency": cutoff_frequency, "cutoff_rule": cutoff_rule, "bias_time_constant": time_constants,
-        "velocity_injection_gain": np.asarray(kappa_si).tolist(), "bias_injection_gain": np.asarray(lambda_si).tolist(),
-        "lyapunov_weight": lyapunov_weight, "frequency": frequencies, "bode": None if bode_path is None else str(bode_path),
+        "wave_frequency": wave_frequency,
+        "wave_damping": wave_damping,
+        "notch_damping": notch_damping,
+        "cutoff_frequency": cutoff_frequency,
+        "cutoff_rule": cutoff_rule,
+        "bias_time_constant": time_constants,
+        "velocity_injection_gain": np.asarray(kappa_si).tolist(),
+        "bias_injection_gain": np.asarray(lambda_si).tolist(),
+        "lyapunov_weight": lyapunov_weight,
+        "frequency": frequencies,
+        "bode": None if bode_path is None else str(bode_path),
     }
     _finish_design("passive-observer", report, inputs, as_json)
 
@@ -428,10 +458,14 @@ def _non_negative_numbers(option: str, text: str) -> list[float]:
 
 @design_app.command("sliding-mode-observer")
 def design_sliding_mode_observer(
-    gains: Annotated[str, typer.Option(metavar="SET", help="H3, H4: printed (Kim's A.4) or kyp (Fossen & Strand (60) in SI, satisfy (14)).")] = "printed",
+    gains: Annotated[
+        str, typer.Option(metavar="SET", help="H3, H4: printed (Kim's A.4) or kyp (Fossen & Strand (60) in SI, satisfy (14)).")
+    ] = "printed",
     velocity_gain: Annotated[str | None, typer.Option(metavar="H4[,H4,H4]", help="H4 diagonal, SI (N/m, N/m, N m/rad); overrides --gains.")] = None,
     bias_gain: Annotated[str | None, typer.Option(metavar="H3[,H3,H3]", help="H3 diagonal, SI (H4's units per second); overrides --gains.")] = None,
-    switching_gain: Annotated[str, typer.Option(metavar="K[,K,K]", help="Kbar diagonal (m/s, m/s, rad/s); 0 for the passive observer.")] = "10,10,0.01",
+    switching_gain: Annotated[
+        str, typer.Option(metavar="K[,K,K]", help="Kbar diagonal (m/s, m/s, rad/s); 0 for the passive observer.")
+    ] = "10,10,0.01",
     boundary_layer: Annotated[str, typer.Option(metavar="EPS[,EPS,EPS]", help="Boundary layer eps of sat(y~/eps) (m, m, rad).")] = "5,5,0.01745",
     disturbance: Annotated[
         str | None, typer.Option(metavar="F[,F,F]", help="Bound on the unmodelled body-fixed force (N, N, N m): checks the switching gain (17).")
@@ -462,13 +496,22 @@ def design_sliding_mode_observer(
     kbar = _non_negative_numbers("--switching-gain", switching_gain)
     eps = _positive_numbers("--boundary-layer", boundary_layer)
     bound = _non_negative_numbers("--disturbance", disturbance) if disturbance is not None else None
-    for option, values in (("--velocity-gain", chosen["velocity_injection_gain"]), ("--bias-gain", chosen["bias_injection_gain"]), ("--switching-gain", kbar), ("--boundary-layer", eps)):
+    for option, values in (
+        ("--velocity-gain", chosen["velocity_injection_gain"]),
+        ("--bias-gain", chosen["bias_injection_gain"]),
+        ("--switching-gain", kbar),
+        ("--boundary-layer", eps),
+    ):
         _within_range(option, values, allow_zero=True)
     model = northern_clipper()
     observer = kim_2002.printed_observer(model, boundary_layer=eps, switching_gain=kbar, **chosen)
     inputs = {
-        "gain_set": gains, "velocity_injection_gain": list(chosen["velocity_injection_gain"]), "bias_injection_gain": list(chosen["bias_injection_gain"]),
-        "switching_gain": kbar, "boundary_layer": eps, "disturbance": bound,
+        "gain_set": gains,
+        "velocity_injection_gain": list(chosen["velocity_injection_gain"]),
+        "bias_injection_gain": list(chosen["bias_injection_gain"]),
+        "switching_gain": kbar,
+        "boundary_layer": eps,
+        "disturbance": bound,
     }
     _finish_design("sliding-mode-observer", check_kim_2002(observer, model, disturbance_bound=bound), inputs, as_json)
 
@@ -517,14 +560,30 @@ def design_adaptive_observer(
 
 @design_app.command("adaptive-arm")
 def design_adaptive_arm(
-    arm: Annotated[str, typer.Option(metavar="ARM", help="pendulum (Section 4.8: m = 1 kg, l = 1.5 m, theta = m) or two-link (Section 5.3: m1 = 1, m2 = 1.5 kg, l = 1 m, theta = m2).")] = "two-link",
-    gain: Annotated[str | None, typer.Option("--k", metavar="K[,K]", help="Observer gain K diagonal (1/s); default the thesis's (20 pendulum, 5 two-link).")] = None,
-    adaptation_gain: Annotated[float | None, typer.Option("--gamma", metavar="G", help="Adaptation gain Gamma; default the thesis's (10 pendulum, 0.1 two-link).")] = None,
+    arm: Annotated[
+        str,
+        typer.Option(
+            metavar="ARM",
+            help="pendulum (Section 4.8: m = 1 kg, l = 1.5 m, theta = m) or two-link (Section 5.3: m1 = 1, m2 = 1.5 kg, l = 1 m, theta = m2).",
+        ),
+    ] = "two-link",
+    gain: Annotated[
+        str | None, typer.Option("--k", metavar="K[,K]", help="Observer gain K diagonal (1/s); default the thesis's (20 pendulum, 5 two-link).")
+    ] = None,
+    adaptation_gain: Annotated[
+        float | None, typer.Option("--gamma", metavar="G", help="Adaptation gain Gamma; default the thesis's (10 pendulum, 0.1 two-link).")
+    ] = None,
     max_speed: Annotated[float, typer.Option(metavar="W", help="Bound w_max on ||q'|| (rad/s).")] = 1.0,
     margin: Annotated[float, typer.Option(metavar="BETA", help="Margin beta >= 0 of Theorem 4.1.")] = 0.0,
-    velocity_error: Annotated[str | None, typer.Option(metavar="E[,E]", help="Initial velocity error x1~(0) (rad/s); default q'(0) - x1_hat(0) of the thesis's example.")] = None,
-    theta_error: Annotated[float | None, typer.Option(metavar="E", help="Initial parameter error theta~(0) (kg); default the thesis's example.")] = None,
-    damping_weights: Annotated[str | None, typer.Option("--d", metavar="D[,...]", help="Backstepping weights d_1..d_2n (s): also checks (5.28); default 1 for two-link.")] = None,
+    velocity_error: Annotated[
+        str | None, typer.Option(metavar="E[,E]", help="Initial velocity error x1~(0) (rad/s); default q'(0) - x1_hat(0) of the thesis's example.")
+    ] = None,
+    theta_error: Annotated[
+        float | None, typer.Option(metavar="E", help="Initial parameter error theta~(0) (kg); default the thesis's example.")
+    ] = None,
+    damping_weights: Annotated[
+        str | None, typer.Option("--d", metavar="D[,...]", help="Backstepping weights d_1..d_2n (s): also checks (5.28); default 1 for two-link.")
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
 ) -> None:
     """Calugi (2002), Theorem 4.1 (adaptive observer) and (5.28) (observer backstepping).
@@ -600,24 +659,46 @@ def design_adaptive_arm(
 
 @design_app.command("tracking-gains")
 def design_tracking_gains(
-    position_gain: Annotated[str | None, typer.Option("--l1", metavar="L1[,L1,L1]", help="Observer gain L1 diagonal (1/s).", show_default="Section 5's")] = None,
-    velocity_gain: Annotated[str | None, typer.Option("--l2", metavar="L2[,L2,L2]", help="Observer gain L2 diagonal (1/s2).", show_default="Section 5's")] = None,
+    position_gain: Annotated[
+        str | None, typer.Option("--l1", metavar="L1[,L1,L1]", help="Observer gain L1 diagonal (1/s).", show_default="Section 5's")
+    ] = None,
+    velocity_gain: Annotated[
+        str | None, typer.Option("--l2", metavar="L2[,L2,L2]", help="Observer gain L2 diagonal (1/s2).", show_default="Section 5's")
+    ] = None,
     omega: Annotated[
-        str | None, typer.Option("--omega", metavar="W[,W,W]", help="Omega diagonal (rad/s), natural frequencies of the error dynamics (20).", show_default="Section 5's")
+        str | None,
+        typer.Option(
+            "--omega", metavar="W[,W,W]", help="Omega diagonal (rad/s), natural frequencies of the error dynamics (20).", show_default="Section 5's"
+        ),
     ] = None,
     damping_ratio: Annotated[
-        str | None, typer.Option("--lambda", metavar="Z[,Z,Z]", help="Lambda diagonal, relative damping of the error dynamics (20).", show_default="Section 5's")
+        str | None,
+        typer.Option("--lambda", metavar="Z[,Z,Z]", help="Lambda diagonal, relative damping of the error dynamics (20).", show_default="Section 5's"),
     ] = None,
-    start: Annotated[str, typer.Option(metavar="ESTIMATE", help="Initial estimate: printed (Section 5's eta_hat0 and velocity estimate) or measured (eta_hat0 = eta0, v_hat0 = 0).")] = "printed",
+    start: Annotated[
+        str,
+        typer.Option(
+            metavar="ESTIMATE",
+            help="Initial estimate: printed (Section 5's eta_hat0 and velocity estimate) or measured (eta_hat0 = eta0, v_hat0 = 0).",
+        ),
+    ] = "printed",
     velocity_bound: Annotated[
-        float | None, typer.Option(metavar="V_M", help="Bound on the ship's speed ||eta'|| (m/s) for Proposition 3.1.", show_default="the reproduction's")
+        float | None,
+        typer.Option(metavar="V_M", help="Bound on the ship's speed ||eta'|| (m/s) for Proposition 3.1.", show_default="the reproduction's"),
     ] = None,
     epsilon3: Annotated[float | None, typer.Option(metavar="EPS", help="eps3 of Proposition 3.3; default the largest that (27) admits.")] = None,
     start_angle: Annotated[
         float | None, typer.Option(metavar="RAD", help="Start of the reference on the ellipse, theta_0 (rad).", show_default="the reproduction's")
     ] = None,
-    direction: Annotated[int | None, typer.Option(metavar="1|-1", help="1: yaw rate positive, -1: negative.", show_default="the reproduction's")] = None,
-    propose: Annotated[bool, typer.Option("--propose", help="Search for gains that satisfy every condition (uses --lambda, --start, --velocity-bound; ignores --l1, --l2, --omega).")] = False,
+    direction: Annotated[
+        int | None, typer.Option(metavar="1|-1", help="1: yaw rate positive, -1: negative.", show_default="the reproduction's")
+    ] = None,
+    propose: Annotated[
+        bool,
+        typer.Option(
+            "--propose", help="Search for gains that satisfy every condition (uses --lambda, --start, --velocity-bound; ignores --l1, --l2, --omega)."
+        ),
+    ] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
 ) -> None:
     """Wondergem et al. (2009) on Cybership II around the reproduction's ellipse: conditions.
@@ -652,8 +733,10 @@ def design_tracking_gains(
         return _positive_numbers(option, text) if text is not None else [float(v) for v in np.broadcast_to(printed, 3)]
 
     gains = {
-        "L1": chosen("--l1", position_gain, paper.OBSERVER_POSITION_GAIN), "L2": chosen("--l2", velocity_gain, paper.OBSERVER_VELOCITY_GAIN),
-        "natural_frequency": chosen("--omega", omega, paper.NATURAL_FREQUENCY), "damping_ratio": chosen("--lambda", damping_ratio, paper.DAMPING_RATIO),
+        "L1": chosen("--l1", position_gain, paper.OBSERVER_POSITION_GAIN),
+        "L2": chosen("--l2", velocity_gain, paper.OBSERVER_VELOCITY_GAIN),
+        "natural_frequency": chosen("--omega", omega, paper.NATURAL_FREQUENCY),
+        "damping_ratio": chosen("--lambda", damping_ratio, paper.DAMPING_RATIO),
     }
     for option, key in (("--l1", "L1"), ("--l2", "L2"), ("--omega", "natural_frequency"), ("--lambda", "damping_ratio")):
         _within_range(option, gains[key])
@@ -664,7 +747,9 @@ def design_tracking_gains(
         if len(set(gains["damping_ratio"])) != 1:
             raise InputError(f"--lambda must be one number with --propose (Lambda = lambda I); got {damping_ratio}")
         proposal = wondergem_2009.proposed_gains(config, velocity_bound, estimate=start, damping_ratio=gains["damping_ratio"][0])
-        hint = ["--start measured (eta_hat0 = eta0, v_hat0 = 0) removes V0's dependence on L1, L2"] if not proposal.found and start == "printed" else []
+        hint = (
+            ["--start measured (eta_hat0 = eta0, v_hat0 = 0) removes V0's dependence on L1, L2"] if not proposal.found and start == "printed" else []
+        )
         report = proposal.outcome().extended(notes=hint)
         inputs["damping_ratio"] = gains["damping_ratio"][0]
     else:

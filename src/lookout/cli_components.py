@@ -66,7 +66,8 @@ def signals_of(role: str, component) -> dict[str, list[str]]:
     if role == "controller":
         return {
             "provides": ["input"],
-            "needs": [f"estimate {n}" for n in component.estimate_needs] + [f"measurement {n}" for n in component.measurement_needs]
+            "needs": [f"estimate {n}" for n in component.estimate_needs]
+            + [f"measurement {n}" for n in component.measurement_needs]
             + [f"reference {n}" for n in component.reference_needs],
         }
     if role == "reference":
@@ -114,7 +115,12 @@ def _plant_part_default(role: str) -> str:
 def components(
     kind: Annotated[str | None, typer.Argument(metavar="[KIND]", help="A role (observer, plant, ...) or a kind (passive, dp-vessel, ...).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
-    plugin: Annotated[list[str] | None, typer.Option("--plugin", metavar="FILE", help="A Python file (or module) that registers kinds of its own, listed with lookout's; repeat for several.")] = None,
+    plugin: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--plugin", metavar="FILE", help="A Python file (or module) that registers kinds of its own, listed with lookout's; repeat for several."
+        ),
+    ] = None,
 ) -> None:
     """List the registered components: kinds by role, or one kind's parameters (name,
     default, type and range, description with units) and what it needs and provides.
@@ -142,7 +148,11 @@ def components(
         entries = []
         for each in found:
             for design in each.designs or [None]:
-                entry = _describe(each, design) if detail else {"role": each.role, "kind": each.name, "designs": list(each.designs), "description": each.description}
+                entry = (
+                    _describe(each, design)
+                    if detail
+                    else {"role": each.role, "kind": each.name, "designs": list(each.designs), "description": each.description}
+                )
                 entries.append(entry)
                 if not detail:
                     break

@@ -19,7 +19,9 @@ DESIGN_VERDICTS = {"holds": "passes", "fails": "FAILS", "unverified": "NOT ESTAB
 
 def design_scenario(
     scenario: Annotated[Path, typer.Argument(metavar="FILE", help="A scenario file (lookout run FILE runs it).")],
-    propose: Annotated[bool, typer.Option("--propose", help="Propose gains inside the conditions (the file's own when they hold), as file keys, and check them.")] = False,
+    propose: Annotated[
+        bool, typer.Option("--propose", help="Propose gains inside the conditions (the file's own when they hold), as file keys, and check them.")
+    ] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the report.")] = False,
 ) -> None:
     """The conditions of each component of a scenario file that has any, for the file's
@@ -55,7 +57,8 @@ def design_scenario(
     proposal = combined_proposal(designs, str(scenario))
     code = 0 if report.holds else 1
     inputs = {
-        "scenario": str(scenario), "propose": propose,
+        "scenario": str(scenario),
+        "propose": propose,
         "components": [{"role": d.role, "kind": d.kind, **({"proposed": d.proposed} if d.proposed is not None else {})} for d in designs],
     }
     if as_json:
@@ -67,15 +70,22 @@ def design_scenario(
         for line in report.lines():
             console.print(line, highlight=False, markup=False)
         if not designs:
-            console.print(f"{scenario}: none of its components ({', '.join(f'{r} {k}' for r, k in composition.kinds.items())}) declares conditions",
-                          highlight=False, markup=False)
+            console.print(
+                f"{scenario}: none of its components ({', '.join(f'{r} {k}' for r, k in composition.kinds.items())}) declares conditions",
+                highlight=False,
+                markup=False,
+            )
         console.print(f"verdict of {scenario}: {DESIGN_VERDICTS[report.verdict]} (exit code {code})", highlight=False, markup=False)
         if proposal is not None:
             console.print("", highlight=False)
             for line in proposal.lines():
                 console.print(line, highlight=False, markup=False)
-            console.print(f"verdict with the proposed gains: {DESIGN_VERDICTS[proposal.verdict]} (write them into {scenario} to use them; "
-                          f"the exit code is the file's)", highlight=False, markup=False)
+            console.print(
+                f"verdict with the proposed gains: {DESIGN_VERDICTS[proposal.verdict]} (write them into {scenario} to use them; "
+                f"the exit code is the file's)",
+                highlight=False,
+                markup=False,
+            )
     if code:
         raise typer.Exit(code=code)
 

@@ -153,7 +153,9 @@ class StateLayout:
         leaves_with_paths, treedef = jax.tree_util.tree_flatten_with_path(template)
         for path, leaf in leaves_with_paths:
             if not jnp.issubdtype(leaf.dtype, jnp.floating):
-                raise ValueError(f"{role} {_kind(component)}: state entry {_path_name(path)} is {leaf.dtype}, not floating point, so it has no linearization")
+                raise ValueError(
+                    f"{role} {_kind(component)}: state entry {_path_name(path)} is {leaf.dtype}, not floating point, so it has no linearization"
+                )
         return cls(treedef, tuple(tuple(leaf.shape) for _, leaf in leaves_with_paths), tuple(_path_name(path) for path, _ in leaves_with_paths))
 
     @property
@@ -596,8 +598,13 @@ def linearize_exact(system: ComponentSystem, x0, u0=0.0, t: float = 0.0, *, name
         if not np.all(np.isfinite(matrix)):
             raise ValueError(f"x0, u0: the Jacobian {symbol} is not finite at this operating point of {system.name}")
     return control.ss(
-        A, B, C, D,
-        inputs=system.input_labels, outputs=system.output_labels, states=system.state_labels,
+        A,
+        B,
+        C,
+        D,
+        inputs=system.input_labels,
+        outputs=system.output_labels,
+        states=system.state_labels,
         name=name or f"{system.name}$linearized",
         remove_useless_states=False,
     )

@@ -84,8 +84,11 @@ def combined_proposal(designs: list[ComponentDesign], source: str) -> Report | N
     if not any(each.proposed for each in designs):
         return None
     report = _joined([(each, each.proposal if each.proposed else each.report) for each in designs], f" in {source} with the proposed gains")
-    notes = [f"{each.role} {each.kind} proposed: " + "; ".join(f"{key} = {value}" for key, value in each.proposed.items())
-             for each in designs if each.proposed]
+    notes = [
+        f"{each.role} {each.kind} proposed: " + "; ".join(f"{key} = {value}" for key, value in each.proposed.items())
+        for each in designs
+        if each.proposed
+    ]
     return report.extended(notes=notes)
 
 

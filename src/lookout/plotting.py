@@ -298,7 +298,9 @@ def _make_panel(attrs, quantity: str, truth, compared, *, target=None, measured=
     def scaled(values):
         return None if values is None else values * scale
 
-    return _Panel(f"{quantity} ({units})", attrs.get("frame", ""), scaled(truth), scaled(compared), scaled(target), scaled(measured), sampled, note, marked)
+    return _Panel(
+        f"{quantity} ({units})", attrs.get("frame", ""), scaled(truth), scaled(compared), scaled(target), scaled(measured), sampled, note, marked
+    )
 
 
 def _panel_layout(groups: list[int], columns: int) -> list[list[int]]:
@@ -415,8 +417,20 @@ def _start_spike(time: np.ndarray, series) -> float | None:
     return seconds if later_span > 0 and span > SPIKE_RATIO * later_span else None
 
 
-def _draw_panel(full, zoomed, panel: _Panel, time: np.ndarray, windows, parts, *, compared_style, compared_label="estimate",
-                truth_label="true", transient=None, clip_start=False) -> set[str]:
+def _draw_panel(
+    full,
+    zoomed,
+    panel: _Panel,
+    time: np.ndarray,
+    windows,
+    parts,
+    *,
+    compared_style,
+    compared_label="estimate",
+    truth_label="true",
+    transient=None,
+    clip_start=False,
+) -> set[str]:
     """Draw one panel into its full-run axis and zoom axes; return what it holds
     (``dense``, ``measured``, ``target``, ``marked``, ``truth``, ``compared``) for the legend.
 
@@ -487,10 +501,21 @@ def _draw_panel(full, zoomed, panel: _Panel, time: np.ndarray, windows, parts, *
             if everything.size and (everything.min() < low - pad or everything.max() > high + pad):
                 if message is None:  # a spike found here: said in the panel's note, placed clear of the curves
                     extreme = everything.min() if low - everything.min() > everything.max() - high else everything.max()
-                    notes.append(_minus(f"clipped: the first {float(transient):.2g} s reach {extreme:.3g} {panel.quantity.rsplit('(', 1)[-1].rstrip(')')}"))
+                    notes.append(
+                        _minus(f"clipped: the first {float(transient):.2g} s reach {extreme:.3g} {panel.quantity.rsplit('(', 1)[-1].rstrip(')')}")
+                    )
                 else:
-                    full.text(0.01, 0.03, message, transform=full.transAxes, fontsize=7.5, va="bottom", ha="left", gid="transient_note",
-                              bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.8})
+                    full.text(
+                        0.01,
+                        0.03,
+                        message,
+                        transform=full.transAxes,
+                        fontsize=7.5,
+                        va="bottom",
+                        ha="left",
+                        gid="transient_note",
+                        bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.8},
+                    )
             full.set_ylim(low - pad, high + pad)
     if notes:
         # a legend of no entries: matplotlib puts it where it covers the fewest curves
@@ -510,8 +535,9 @@ def _without_zorder(style: dict) -> dict:
     return {k: v for k, v in style.items() if k != "zorder"}
 
 
-def _panel_legend(fig, drawn: set[str], *, compared_style, compared_label="estimate", truth_label="true", target_labels=(),
-                  marked_label="marked") -> None:
+def _panel_legend(
+    fig, drawn: set[str], *, compared_style, compared_label="estimate", truth_label="true", target_labels=(), marked_label="marked"
+) -> None:
     """One legend below the panels for what :func:`_draw_panel` drew."""
     handles = []
     if "truth" in drawn:
@@ -765,8 +791,19 @@ def run_inputs(ds: xr.Dataset) -> list[tuple[str, str]]:
     return found
 
 
-def _run_figure(ds: xr.Dataset, groups: list[list[_Panel]], run: int, heading: str, *, zoom: float, compared_style, compared_label,
-                truth_label, marked_label="marked", columns: int | None = None):
+def _run_figure(
+    ds: xr.Dataset,
+    groups: list[list[_Panel]],
+    run: int,
+    heading: str,
+    *,
+    zoom: float,
+    compared_style,
+    compared_label,
+    truth_label,
+    marked_label="marked",
+    columns: int | None = None,
+):
     """A figure of :func:`lookout run`: the panels of each group (a variable's
     components) in columns of up to :data:`RUN_FIGURE_ROWS` rows, each a full run and
     a zoom on its end, and the run it shows in the title."""
@@ -792,8 +829,18 @@ def _run_figure(ds: xr.Dataset, groups: list[list[_Panel]], run: int, heading: s
     parts = _window_parts(time, windows)
     drawn: set[str] = set()
     for (full, zoomed), panel in zip(cells, [panel for group in groups for panel in group]):
-        drawn |= _draw_panel(full, zoomed, panel, time, windows, parts, compared_style=compared_style, compared_label=compared_label,
-                             truth_label=truth_label, clip_start=True)
+        drawn |= _draw_panel(
+            full,
+            zoomed,
+            panel,
+            time,
+            windows,
+            parts,
+            compared_style=compared_style,
+            compared_label=compared_label,
+            truth_label=truth_label,
+            clip_start=True,
+        )
     _dense_title(tops, drawn, time)
     _panel_legend(fig, drawn, compared_style=compared_style, compared_label=compared_label, truth_label=truth_label, marked_label=marked_label)
     fig.suptitle(heading)
@@ -806,10 +853,14 @@ def _compared_groups(ds: xr.Dataset, run: int, rows) -> list[list[_Panel]]:
     that component of ``truth`` (or ``truth``'s given component, for a scalar)."""
     return [
         [
-            _make_panel(ds[truth if truth is not None else compared].attrs, _quantity(name, label),
-                        _run_values(ds[truth], component if component is not None else label, run) if truth is not None else None,
-                        _run_values(ds[compared], label, run),
-                        measured=_run_values(ds[measured], label, run) if measured is not None else None, note=note)
+            _make_panel(
+                ds[truth if truth is not None else compared].attrs,
+                _quantity(name, label),
+                _run_values(ds[truth], component if component is not None else label, run) if truth is not None else None,
+                _run_values(ds[compared], label, run),
+                measured=_run_values(ds[measured], label, run) if measured is not None else None,
+                note=note,
+            )
             for label in _labels(ds[compared])
         ]
         for compared, truth, component, name, note, measured in rows
@@ -856,14 +907,22 @@ def plot_run_estimates(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
         name = base
         long_name = str(ds[estimate].attrs.get("long_name", ""))
         if truth is None and long_name.startswith("estimated "):
-            name = long_name[len("estimated "):]  # "parameter masses[1]" rather than "masses 1"
+            name = long_name[len("estimated ") :]  # "parameter masses[1]" rather than "masses 1"
         note = None if truth is not None else "estimate only: no true value recorded"
         rows.append((estimate, truth, None, name, note, _matching(ds, f"measured_{base}", estimate)))
     groups = _compared_groups(ds, run, rows)
     if not groups:
         return None
-    return _run_figure(ds, groups, run, _heading(title, "true and estimated: every estimated variable"), zoom=zoom,
-                       compared_style=_ESTIMATE_STYLE, compared_label="estimate", truth_label="true")
+    return _run_figure(
+        ds,
+        groups,
+        run,
+        _heading(title, "true and estimated: every estimated variable"),
+        zoom=zoom,
+        compared_style=_ESTIMATE_STYLE,
+        compared_label="estimate",
+        truth_label="true",
+    )
 
 
 def plot_run_reference(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
@@ -881,13 +940,23 @@ def plot_run_reference(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
         None when the dataset holds no reference.
     """
     run = _check_run(ds, run)
-    rows = [(reference, truth, component, reference[: -len("_desired")], None if truth is not None else "reference only: no true value recorded", None)
-            for reference, truth, component in run_references(ds)]
+    rows = [
+        (reference, truth, component, reference[: -len("_desired")], None if truth is not None else "reference only: no true value recorded", None)
+        for reference, truth, component in run_references(ds)
+    ]
     groups = _compared_groups(ds, run, rows)
     if not groups:
         return None
-    return _run_figure(ds, groups, run, _heading(title, "reference and truth"), zoom=zoom, compared_style=_DESIRED_STYLE,
-                       compared_label="desired", truth_label="true")
+    return _run_figure(
+        ds,
+        groups,
+        run,
+        _heading(title, "reference and truth"),
+        zoom=zoom,
+        compared_style=_DESIRED_STYLE,
+        compared_label="desired",
+        truth_label="true",
+    )
 
 
 def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
@@ -917,19 +986,38 @@ def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: 
             if limited.any():
                 any_limited = True
                 peak = np.max(np.abs(panel.truth[finite]))
-                panel.note = f"limited {limited.sum() / finite.sum():.0%} of the time; applied at most {peak:.3g} {panel.quantity.rsplit('(', 1)[-1][:-1]}"
+                panel.note = (
+                    f"limited {limited.sum() / finite.sum():.0%} of the time; applied at most {peak:.3g} {panel.quantity.rsplit('(', 1)[-1][:-1]}"
+                )
             panels.append(panel)
         groups.append(panels)
     if not groups:
         return None
     if any_limited:
-        return _run_figure(ds, groups, run, _heading(title, "commanded and applied input"), zoom=zoom, compared_style=_DESIRED_STYLE,
-                           compared_label="commanded", truth_label="applied", marked_label="limited: applied ≠ commanded")
+        return _run_figure(
+            ds,
+            groups,
+            run,
+            _heading(title, "commanded and applied input"),
+            zoom=zoom,
+            compared_style=_DESIRED_STYLE,
+            compared_label="commanded",
+            truth_label="applied",
+            marked_label="limited: applied ≠ commanded",
+        )
     # the actuator passed every command on: one curve, and the title says so
     for panel in (panel for group in groups for panel in group):
         panel.compared = None
-    return _run_figure(ds, groups, run, _heading(title, "applied input (= commanded throughout: the actuator limited nothing)"), zoom=zoom,
-                       compared_style=_DESIRED_STYLE, compared_label="commanded", truth_label="applied (= commanded)")
+    return _run_figure(
+        ds,
+        groups,
+        run,
+        _heading(title, "applied input (= commanded throughout: the actuator limited nothing)"),
+        zoom=zoom,
+        compared_style=_DESIRED_STYLE,
+        compared_label="commanded",
+        truth_label="applied (= commanded)",
+    )
 
 
 def _continuous_degrees(angle: np.ndarray) -> np.ndarray:
@@ -964,8 +1052,12 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
         return None
     time = ds["time"].values
     names = [str(n) for n in ds["thruster"].values]
-    turning = [i for i, name in enumerate(names) if np.ptp(ds["thruster_angle"].isel(run=run, thruster=i).values) > 0
-               or np.ptp(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values) > 0]
+    turning = [
+        i
+        for i, name in enumerate(names)
+        if np.ptp(ds["thruster_angle"].isel(run=run, thruster=i).values) > 0
+        or np.ptp(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values) > 0
+    ]
     figure, axes = plt.subplots(3, 2, figsize=(12, 8.5), sharex="col", gridspec_kw={"width_ratios": (2, 1)}, layout="constrained")
     start = zoom_window(time, zoom)[0]  # the estimates' rule: on a short run the last fifth, never the whole run again
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -978,9 +1070,21 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
             thrust_axis.plot(time[window], ds["thrust_commanded"].isel(run=run, thruster=i).values[window] / 1e3, ":", color=colour, lw=1.0)
             thrust_axis.plot(time[window], ds["thrust"].isel(run=run, thruster=i).values[window] / 1e3, "-", color=colour, lw=1.1, label=name)
             if i in turning:
-                angle_axis.plot(time[window], _continuous_degrees(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values)[window], ":", color=colour, lw=1.0)
-                angle_axis.plot(time[window], _continuous_degrees(ds["thruster_angle"].isel(run=run, thruster=i).values)[window], "-", color=colour, lw=1.1,
-                                label=name)
+                angle_axis.plot(
+                    time[window],
+                    _continuous_degrees(ds["thruster_angle_commanded"].isel(run=run, thruster=i).values)[window],
+                    ":",
+                    color=colour,
+                    lw=1.0,
+                )
+                angle_axis.plot(
+                    time[window],
+                    _continuous_degrees(ds["thruster_angle"].isel(run=run, thruster=i).values)[window],
+                    "-",
+                    color=colour,
+                    lw=1.1,
+                    label=name,
+                )
         short_axis.plot(time[window], ds["allocation_shortfall"].isel(run=run).values[window], color="k", lw=1.0, label="shortfall")
         for first, last in _runs(time[window], saturated[window]):
             short_axis.axvspan(first, last, color="tab:red", alpha=0.15, lw=0)
@@ -996,8 +1100,11 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
         for axis in axes[1]:
             axis.text(0.5, 0.5, "no azimuth or rudder", ha="center", va="center", transform=axis.transAxes)
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    handles += [plt.Line2D([], [], color="grey", ls="-"), plt.Line2D([], [], color="grey", ls=":"),
-                plt.matplotlib.patches.Patch(color="tab:red", alpha=0.15)]
+    handles += [
+        plt.Line2D([], [], color="grey", ls="-"),
+        plt.Line2D([], [], color="grey", ls=":"),
+        plt.matplotlib.patches.Patch(color="tab:red", alpha=0.15),
+    ]
     labels += ["delivered", "commanded", "allocation saturated"]
     figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 7), frameon=False)
     figure.suptitle(_heading(title, f"thrusters: thrust, angle and allocation shortfall\nrun {run} of {ds.sizes['run']}"))
@@ -1052,7 +1159,9 @@ def _per_dof(response: xr.Dataset, name: str, dof: str) -> tuple[np.ndarray, str
     elif f"{name}_{dof}" in response.variables:
         variable = response[f"{name}_{dof}"]
     else:
-        raise ValueError(f"response must be a frequency_response() Dataset; it has no {name!r} for the DOF {dof!r} ({name}_translation or {name}_{dof})")
+        raise ValueError(
+            f"response must be a frequency_response() Dataset; it has no {name!r} for the DOF {dof!r} ({name}_translation or {name}_{dof})"
+        )
     return np.asarray(variable.values, dtype=float), str(variable.attrs.get("units", ""))
 
 
@@ -1152,10 +1261,7 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
         ax.axhline(-90.0, **_SPR_STYLE, label="−90° (SPR bound)")
         lowest, where = minimum_phase_of_h(response, dof)
         ax.plot([where], [lowest], "o", color="k", ms=4, zorder=4)
-        text = _minus(
-            f"min phase of h {lowest:.2f}° at {where:.3g} rad/s\n"
-            f"margin {lowest + 90.0:.2f}° to -90° ($\\omega \\leq 10\\,\\omega_c$)"
-        )
+        text = _minus(f"min phase of h {lowest:.2f}° at {where:.3g} rad/s\nmargin {lowest + 90.0:.2f}° to -90° ($\\omega \\leq 10\\,\\omega_c$)")
         ax.text(
             0.98,
             0.97,

@@ -27,10 +27,10 @@ SWITCH_TOLERANCE = 1e-9
 
 
 @component(
-    "reference", "none",
+    "reference",
+    "none",
     summary="No reference: an observer run open loop, or a controller that needs none.",
-    parameters=(
-    ),
+    parameters=(),
 )
 @final
 class NoReference(Reference):
@@ -71,7 +71,9 @@ def reference_filter_signals(setpoint_signals: tuple[Signal, ...]) -> tuple[Sign
         signals += [
             Signal(f"{s.name}_desired", s.units, f"desired {s.long_name}", s.frame, s.labels, s.dim, s.angle),
             Signal(f"{s.name}_desired_rate", _rate_units(s.units, 1), f"rate of change of the desired {s.long_name}", s.frame, s.labels, s.dim),
-            Signal(f"{s.name}_desired_acceleration", _rate_units(s.units, 2), f"second derivative of the desired {s.long_name}", s.frame, s.labels, s.dim),
+            Signal(
+                f"{s.name}_desired_acceleration", _rate_units(s.units, 2), f"second derivative of the desired {s.long_name}", s.frame, s.labels, s.dim
+            ),
         ]
     return tuple(signals)
 
@@ -85,10 +87,14 @@ def _strictly_increasing(name: str, value) -> None:
 
 
 @component(
-    "reference", "reference-filter",
+    "reference",
+    "reference-filter",
     summary="Third-order critically damped reference model per degree of freedom.",
     parameters=(
-        Context("signals", "The setpoint signals, scalars or vectors (e.g. position over north, east in m, and heading in rad with angle=True); the setpoint vector lays them end to end (lookout.components.Layout), n entries."),
+        Context(
+            "signals",
+            "The setpoint signals, scalars or vectors (e.g. position over north, east in m, and heading in rad with angle=True); the setpoint vector lays them end to end (lookout.components.Layout), n entries.",
+        ),
         Value("bandwidth", "array", "w_i (rad/s), > 0; a scalar applies to every DOF.", shape="(n,) or scalar"),
         Value("schedule_times", "array", "Times (s) at which the setpoints take effect; finite, strictly increasing.", shape="(m,)"),
         Value("setpoints", "array", "Setpoint vector from each schedule time on, finite (shape (n,) for m = 1).", shape="(m, n)"),
@@ -194,7 +200,8 @@ class ReferenceFilter(Reference):
             values = values[None]
         if values.shape != (times.shape[0], n):
             raise check.ParameterError(
-                "setpoints", f"setpoints must have shape ({times.shape[0]}, {n}) (one setpoint of {n} entries per schedule time); got shape {values.shape}"
+                "setpoints",
+                f"setpoints must have shape ({times.shape[0]}, {n}) (one setpoint of {n} entries per schedule time); got shape {values.shape}",
             )
         self.schedule_times = times
         self.setpoints = values
@@ -254,9 +261,7 @@ class ReferenceFilter(Reference):
         w = self.bandwidth
         zero, one = jnp.zeros_like(w), jnp.ones_like(w)
         # N = A + w I, A the companion matrix of (s + w)^3; N^3 = 0
-        n = jnp.stack(
-            [jnp.stack([w, one, zero], -1), jnp.stack([zero, w, one], -1), jnp.stack([-(w**3), -3.0 * w**2, -2.0 * w], -1)], -2
-        )
+        n = jnp.stack([jnp.stack([w, one, zero], -1), jnp.stack([zero, w, one], -1), jnp.stack([-(w**3), -3.0 * w**2, -2.0 * w], -1)], -2)
         h = jnp.asarray(dt, dtype=w.dtype)
         eye = jnp.eye(3, dtype=w.dtype)
         phi = jnp.exp(-w * h)[:, None, None] * (eye + n * h + (n @ n) * (0.5 * h * h))
@@ -297,7 +302,8 @@ class ReferenceFilter(Reference):
 
 
 @component(
-    "reference", "ellipse",
+    "reference",
+    "ellipse",
     summary="An ellipse traced at a constant speed per lap, paced by arc length.",
     parameters=(
         Value("semi_axes", "array", "Semi-axes a, b (m) along north and east.", shape="(2,)", range=POSITIVE),

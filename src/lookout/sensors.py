@@ -24,7 +24,11 @@ from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Value,
 
 #: The keys of a sensor's outage, the same for every sensor.
 OUTAGE_VALUES = (
-    Value("outage_signals", "strings", "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage."),
+    Value(
+        "outage_signals",
+        "strings",
+        "Measured signals that an outage silences (measured_position: a position reference that loses its fix); default none, and no outage.",
+    ),
     Value("outage_start", "float", "When the outage begins (s).", range=NON_NEGATIVE),
     Value("outage_duration", "float", "How long it lasts (s); 0 is none (the sensor keeps an outage's structure).", range=NON_NEGATIVE),
 )
@@ -51,6 +55,7 @@ def outage_of(layout: Layout, signals, start, duration) -> Outage | None:
     channels = tuple(signal.name in signals for signal in layout.signals for _ in range(signal.size))
     return Outage(jnp.asarray(start, dtype=float), jnp.asarray(duration, dtype=float), channels)
 
+
 #: What a DGPS and a gyro compass report: y = eta + eta_w + d (eq. 12).
 POSITION_HEADING = Layout(
     (
@@ -61,11 +66,14 @@ POSITION_HEADING = Layout(
 
 
 @component(
-    "sensor", "position-heading",
+    "sensor",
+    "position-heading",
     summary="Position fixes (x, y) and heading, each channel with its own noise and rate.",
     parameters=(
         Value("noise_std", "array", "Standard deviation of d per channel (m, m, rad).", shape="(3,)", range=NON_NEGATIVE),
-        Value("sample_period", "array", "Seconds between samples of each channel (s; static: fixes the loop structure).", shape="(3,)", range=POSITIVE),
+        Value(
+            "sample_period", "array", "Seconds between samples of each channel (s; static: fixes the loop structure).", shape="(3,)", range=POSITIVE
+        ),
         Value("dropout_probability", "float", "Probability that a sample of a channel is missing (1).", range=Range(0.0, 1.0, True, False)),
         *OUTAGE_VALUES,
     ),
@@ -144,7 +152,8 @@ from lookout.models.manipulators import JOINT_MEASUREMENT, JointState, Manipulat
 
 
 @component(
-    "sensor", "joint-encoder",
+    "sensor",
+    "joint-encoder",
     summary="Joint position encoders: q with Gaussian noise, quantization, per-joint rates and dropouts.",
     parameters=(
         Part("model", "The manipulator whose joints are measured (names and kinds of the channels)."),
@@ -202,8 +211,18 @@ class JointEncoder(Sensor):
     noise_size: int = eqx.field(static=True)
     measurement_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, model, *, sample_period, noise_std=0.0, quantization=0.0, dropout_probability=0.0, outage_signals=None, outage_start=0.0,
-                 outage_duration=0.0):
+    def __init__(
+        self,
+        model,
+        *,
+        sample_period,
+        noise_std=0.0,
+        quantization=0.0,
+        dropout_probability=0.0,
+        outage_signals=None,
+        outage_start=0.0,
+        outage_duration=0.0,
+    ):
         if isinstance(model, ManipulatorPlant):
             model = model.model
         if not isinstance(model, ManipulatorModel):
@@ -269,7 +288,8 @@ POSITION_HEADING_VELOCITY = Layout(
 
 
 @component(
-    "sensor", "position-heading-velocity",
+    "sensor",
+    "position-heading-velocity",
     summary="ORACLE SENSOR, FOR ANALYSIS IN SIMULATION ONLY: measures eta AND the velocity nu.",
     parameters=(
         Value("noise_std", "array", "Standard deviation per channel (m, m, rad, m/s, m/s, rad/s), >= 0.", shape="(6,)"),
@@ -354,6 +374,7 @@ class PositionHeadingVelocitySensor(Sensor):
         dropped = noise[6:] < jax.scipy.special.ndtri(self.dropout_probability)
         return jnp.where(dropped, jnp.nan, y)
 
+
 # ---------------------------------------------------------------------------------
 # joint positions and rates: what the on-line parameter estimator of Calugi (2002), ch. 3, reads
 
@@ -376,7 +397,8 @@ def joint_state_layout(model: ManipulatorModel) -> Layout:
 
 
 @component(
-    "sensor", "joint-state",
+    "sensor",
+    "joint-state",
     summary="Joint positions and rates y = [q, q'] + noise; NaN marks a dropped channel.",
     parameters=(
         Part("model", "The manipulator whose joints are measured (names and kinds of the channels)."),
@@ -440,7 +462,9 @@ class JointStateSensor(Sensor):
         check.positive("joint state sensor sample_period", np.asarray(self.sample_period))
         if check.is_concrete(self.dropout_probability):
             if np.ndim(self.dropout_probability) != 0:
-                raise check.ParameterError("joint", f"joint state sensor dropout_probability must be a scalar; got shape {np.shape(self.dropout_probability)}")
+                raise check.ParameterError(
+                    "joint", f"joint state sensor dropout_probability must be a scalar; got shape {np.shape(self.dropout_probability)}"
+                )
             p = float(self.dropout_probability)
             if not 0.0 <= p < 1.0:
                 raise check.ParameterError("joint", f"joint state sensor dropout_probability must be in [0, 1); got {p}")

@@ -61,7 +61,9 @@ def test_reproduce_calugi_2003_writes_its_outputs(tmp_path, capsys):
     assert printed["diverged"] == 0 and 0.5 < printed["final_theta_ratio"][0] < 2.0
     files = sorted(path.name for path in out.iterdir())
     assert files == summary["files"]
-    assert {"fig1_tracking_and_filtering.png", "fig2_errors_and_velocities.png", "fig3_velocity_errors.png", "fig4_forces_and_theta.png"} <= set(files)
+    assert {"fig1_tracking_and_filtering.png", "fig2_errors_and_velocities.png", "fig3_velocity_errors.png", "fig4_forces_and_theta.png"} <= set(
+        files
+    )
     assert "(22)/(57)/(58)" in capsys.readouterr().out
 
 
@@ -91,7 +93,9 @@ def test_fig4_draws_each_thrust_component_in_its_own_panel_and_says_why_theta_ha
     lines = {line.get_label(): line for line in theta_axis.get_lines()}
     printed, satisfying = lines["theta_hat (printed gains)"], lines["theta_hat (satisfying gains)"]
     # the one drawn on top is dashed and thinner, so the other shows under it
-    assert satisfying.get_zorder() > printed.get_zorder() and satisfying.get_linestyle() == "--" and satisfying.get_linewidth() < printed.get_linewidth()
+    assert (
+        satisfying.get_zorder() > printed.get_zorder() and satisfying.get_linestyle() == "--" and satisfying.get_linewidth() < printed.get_linewidth()
+    )
     np.testing.assert_allclose(moved.get_lines()[0].get_ydata(), theta[0] - theta[0, 0])
     notes = [text.get_text() for text in theta_axis.texts if text.get_gid() == "theta_note"]
     assert len(notes) == 1 and "Gamma = 1000" in notes[0] and "in kg" in notes[0] and "kg/s predicted" in notes[0]

@@ -34,7 +34,16 @@ def _rms_errors(ds, name: str):
 
 def test_netcdf_variables_dims_and_units(run, tmp_path):
     _, view, ds = run
-    units = {"position": "m", "heading": "rad", "velocity": "m/s", "yaw_rate": "rad/s", "bias_force": "N", "bias_moment": "N m", "wave_position": "m", "wave_heading": "rad"}
+    units = {
+        "position": "m",
+        "heading": "rad",
+        "velocity": "m/s",
+        "yaw_rate": "rad/s",
+        "bias_force": "N",
+        "bias_moment": "N m",
+        "wave_position": "m",
+        "wave_heading": "rad",
+    }
     for name, unit in units.items():  # one unit per variable, as UDUNITS writes it
         assert ds[name].dims[:2] == ("run", "time") and ds[f"{name}_hat"].dims == ds[name].dims
         assert ds[name].attrs["units"] == ds[f"{name}_hat"].attrs["units"] == unit
@@ -94,7 +103,10 @@ def test_bias_estimate_beats_the_prior(run):
     assert np.all(ratio < 1.0), ratio
 
 
-@pytest.mark.xfail(strict=True, reason="known gap vs the paper: bias error about 0.7 of the bias std in surge and sway: wave leakage past the notch and the bias-loop bandwidth (docs/reproductions.md)")
+@pytest.mark.xfail(
+    strict=True,
+    reason="known gap vs the paper: bias error about 0.7 of the bias std in surge and sway: wave leakage past the notch and the bias-loop bandwidth (docs/reproductions.md)",
+)
 def test_bias_estimate_halves_the_prior_error(run):
     ratio = _bias_error_over_prior(run)
     assert np.all(ratio < 0.5), ratio

@@ -33,7 +33,9 @@ def fig8(tmp_path_factory):
     names = {"rms_tracking__position": "tracking_rms_m", "max_error__position": "estimate_error_max_m", "diverged": "diverged"}
     return {
         (gains, observer, seed): {names[name]: cell[name].sel(gains=gains, observer=observer, seed=seed).item() for name in names}
-        for gains in ("printed", "kyp") for observer in kim_2002.OBSERVERS for seed in SEEDS
+        for gains in ("printed", "kyp")
+        for observer in kim_2002.OBSERVERS
+        for seed in SEEDS
     }
 
 
@@ -81,7 +83,9 @@ def test_reproduce_kim_2002_writes_its_outputs(tmp_path, capsys):
     assert summary["stability"]["kyp"]["verdicts"]["kyp_14"] == "holds"
     files = sorted(path.name for path in out.iterdir())
     assert files == summary["files"]
-    assert {"fig04_x_position.png", "fig05_wave_filtering.png", "fig06_surge_velocity.png", "fig07_surge_bias.png", "fig08_xy_track.png"} <= set(files)
+    assert {"fig04_x_position.png", "fig05_wave_filtering.png", "fig06_surge_velocity.png", "fig07_surge_bias.png", "fig08_xy_track.png"} <= set(
+        files
+    )
     text = capsys.readouterr().out
     assert "sliding-mode" in text and "conventional" in text
     assert "1/2 runs finite" in text  # the CLI's count agrees with the table's "1/1" diverged
@@ -103,7 +107,13 @@ def _track_dataset(time, sliding_offset=0.0, drift=0.0):
             "position_hat": (dims, estimate, {"units": "m"}),
             "position_desired": (dims, np.stack([desired, desired]), {"units": "m"}),
         },
-        coords={"run": [0, 1], "time": time, "earth_axis": ["north", "east"], "observer": ("run", ["sliding-mode", "conventional"]), "seed": ("run", [0, 0])},
+        coords={
+            "run": [0, 1],
+            "time": time,
+            "earth_axis": ["north", "east"],
+            "observer": ("run", ["sliding-mode", "conventional"]),
+            "seed": ("run", [0, 0]),
+        },
     )
 
 

@@ -90,12 +90,17 @@ def test_design_tracking_gains_checks_and_proposes(capsys):
     assert result["holds"] is False and verdicts["(25)"] == "fails" and verdicts["(27)"] == "fails" and verdicts["(11)"] == "holds"
     # the defaults are the paper's printed gains and the reproduction's settings, from the paper's package
     assert result["inputs"]["gains"] == {
-        "L1": [w.config.OBSERVER_POSITION_GAIN] * 3, "L2": [w.config.OBSERVER_VELOCITY_GAIN] * 3,
-        "natural_frequency": list(w.config.NATURAL_FREQUENCY), "damping_ratio": [w.config.DAMPING_RATIO] * 3,
+        "L1": [w.config.OBSERVER_POSITION_GAIN] * 3,
+        "L2": [w.config.OBSERVER_VELOCITY_GAIN] * 3,
+        "natural_frequency": list(w.config.NATURAL_FREQUENCY),
+        "damping_ratio": [w.config.DAMPING_RATIO] * 3,
     }
     config = w.Config()
     assert (result["inputs"]["velocity_bound"], result["inputs"]["start_angle"], result["inputs"]["direction"]) == (
-        w.config.VELOCITY_BOUND, config.start_angle, config.direction)
+        w.config.VELOCITY_BOUND,
+        config.start_angle,
+        config.direction,
+    )
     assert main(["design", "tracking-gains", "--propose", "--start", "measured"]) == 0
     text = capsys.readouterr().out
     assert "proposed: Omega = " in text and "(32)" in text and "verdict: passes (exit code 0)" in text

@@ -135,7 +135,7 @@ DEFAULT_STEERING_BIAS = 0.3
 class _Indices(NamedTuple):
     """Static index arrays of the extended variables, by kind of thruster."""
 
-    tunnel: np.ndarray        # thruster indices
+    tunnel: np.ndarray  # thruster indices
     tunnel_thrust: np.ndarray  # variable indices
     main: np.ndarray
     main_thrust: np.ndarray
@@ -155,8 +155,16 @@ def _indices(layout: ThrusterLayout) -> _Indices:
             return thrusters
         return np.asarray([position[(int(i), part)] for i in thrusters], dtype=int)
 
-    return _Indices(of("tunnel"), of("tunnel", "thrust"), of("main"), of("main", "thrust"), of("main", "lift"),
-                    of("azimuth"), of("azimuth", "x"), of("azimuth", "y"))
+    return _Indices(
+        of("tunnel"),
+        of("tunnel", "thrust"),
+        of("main"),
+        of("main", "thrust"),
+        of("main", "lift"),
+        of("azimuth"),
+        of("azimuth", "x"),
+        of("azimuth", "y"),
+    )
 
 
 def limit_rows(layout: ThrusterLayout) -> int:
@@ -254,12 +262,12 @@ class Allocator(eqx.Module):
     """
 
     layout: ThrusterLayout
-    B: Array          # scaled: tau / force_scale = B (u / scale)
-    scale: Array      # each variable's largest magnitude (N)
+    B: Array  # scaled: tau / force_scale = B (u / scale)
+    scale: Array  # each variable's largest magnitude (N)
     force_scale: Array
     weights: Array
     pseudo_inverse_matrix: Array
-    reach: Array      # (2, 3) scaled: the smallest and largest of each axis alone
+    reach: Array  # (2, 3) scaled: the smallest and largest of each axis alone
     slack_weights: Array | None
     P: Array | None
     target_matrix: Array | None  # the QP's target from the scaled tau (see the module docstring)
@@ -271,23 +279,42 @@ class Allocator(eqx.Module):
     clip_to_reach: bool = eqx.field(static=True)
     solver: str | None = eqx.field(static=True)
 
-    def __init__(self, layout: ThrusterLayout, method: Literal["qp", "pseudo-inverse"] = "qp", slack_weight=None, clip_to_reach: bool = True,
-                 solver: Literal["active-set", "qpax"] | None = None, steering_time_constant=None, steering_deadband=None, steering_load=None,
-                 steering_bias=None):
+    def __init__(
+        self,
+        layout: ThrusterLayout,
+        method: Literal["qp", "pseudo-inverse"] = "qp",
+        slack_weight=None,
+        clip_to_reach: bool = True,
+        solver: Literal["active-set", "qpax"] | None = None,
+        steering_time_constant=None,
+        steering_deadband=None,
+        steering_load=None,
+        steering_bias=None,
+    ):
         if not isinstance(layout, ThrusterLayout):
             raise check.ParameterError("layout", f"layout must be a ThrusterLayout; got {type(layout).__name__}")
         if method not in ALLOCATION_METHODS:
             raise check.ParameterError("allocation", f"allocation must be one of {', '.join(ALLOCATION_METHODS)}; got {method!r}")
-        qp_options = dict(slack_weight=slack_weight, solver=solver, steering_time_constant=steering_time_constant,
-                          steering_deadband=steering_deadband, steering_load=steering_load, steering_bias=steering_bias)
+        qp_options = dict(
+            slack_weight=slack_weight,
+            solver=solver,
+            steering_time_constant=steering_time_constant,
+            steering_deadband=steering_deadband,
+            steering_load=steering_load,
+            steering_bias=steering_bias,
+        )
         if method != "qp":
             for name, value in qp_options.items():
                 if value is not None:
-                    raise check.ParameterError(check.key(name), f"{name} applies to allocation 'qp' only, and this allocation is {method!r}: leave {name} out, or allocate by 'qp'")
+                    raise check.ParameterError(
+                        check.key(name),
+                        f"{name} applies to allocation 'qp' only, and this allocation is {method!r}: leave {name} out, or allocate by 'qp'",
+                    )
         self.method, self.clip_to_reach = method, bool(clip_to_reach)
         variables, rows = len(layout.variables), limit_rows(layout)
         refuse_unless_it_fits(
-            working_nbytes(layout, method), f"the allocation of {layout.size} thrusters ({variables} variables, {rows} limits)",
+            working_nbytes(layout, method),
+            f"the allocation of {layout.size} thrusters ({variables} variables, {rows} limits)",
             "use fewer thrusters (the QP's matrices grow as the square of the variables: one per tunnel, two per azimuth or main propeller)",
         )
         self.layout = layout
@@ -318,7 +345,9 @@ class Allocator(eqx.Module):
         except (TypeError, ValueError):
             slack = np.full(3, np.nan)
         if not np.all(np.isfinite(slack)) or np.any(slack <= 0):
-            raise check.ParameterError("slack_weight", f"slack_weight must be a positive number or three of them (surge, sway, yaw); got {_brief(slack_weight)}")
+            raise check.ParameterError(
+                "slack_weight", f"slack_weight must be a positive number or three of them (surge, sway, yaw); got {_brief(slack_weight)}"
+            )
         self.slack_weights = slack
         # (u - u_b)^T W (u - u_b) + (B u - t')^T Q (B u - t') = u^T P u - 2 (W u_b + B^T Q t')^T u + const
         self.P = np.diag(self.weights) + self.B.T @ np.diag(slack) @ self.B
@@ -514,8 +543,15 @@ class Allocator(eqx.Module):
             converged = converged | ~constrained
         u = jnp.where(jnp.all(jnp.isfinite(target)), u, jnp.nan)
         shortfall = jnp.max(jnp.abs(wanted - self.B @ u) / self.axis_reach)
-        return u, {"unconstrained": unconstrained, "constrained": constrained, "saturated": shortfall > SATURATED, "shortfall": shortfall,
-                   "iterations": iterations, "converged": converged, "working": active}
+        return u, {
+            "unconstrained": unconstrained,
+            "constrained": constrained,
+            "saturated": shortfall > SATURATED,
+            "shortfall": shortfall,
+            "iterations": iterations,
+            "converged": converged,
+            "working": active,
+        }
 
     def _saturate(self, u: Array, previous: Array, dt) -> Array:
         """Each thruster limited on its own: a thrust into its force and rate limits, an

@@ -152,8 +152,20 @@ class ThrusterLayout(eqx.Module):
     weight: np.ndarray
 
     def __init__(
-        self, names, kinds, x, y, direction, max_thrust, min_thrust=0.0, thrust_rate=None,
-        time_constant=0.0, turn_rate=None, max_rudder=0.6, rudder_lift=0.0, weight=1.0,
+        self,
+        names,
+        kinds,
+        x,
+        y,
+        direction,
+        max_thrust,
+        min_thrust=0.0,
+        thrust_rate=None,
+        time_constant=0.0,
+        turn_rate=None,
+        max_rudder=0.6,
+        rudder_lift=0.0,
+        weight=1.0,
     ):
         thrust_rate = math.inf if thrust_rate is None else thrust_rate
         turn_rate = math.inf if turn_rate is None else turn_rate
@@ -175,8 +187,17 @@ class ThrusterLayout(eqx.Module):
             if seen[name] == 2:
                 raise check.ParameterError("names", f"names must be distinct; {_short(name)!r} is given more than once")
         columns = dict(
-            x=x, y=y, direction=direction, max_thrust=max_thrust, min_thrust=min_thrust, thrust_rate=thrust_rate,
-            time_constant=time_constant, turn_rate=turn_rate, max_rudder=max_rudder, rudder_lift=rudder_lift, weight=weight,
+            x=x,
+            y=y,
+            direction=direction,
+            max_thrust=max_thrust,
+            min_thrust=min_thrust,
+            thrust_rate=thrust_rate,
+            time_constant=time_constant,
+            turn_rate=turn_rate,
+            max_rudder=max_rudder,
+            rudder_lift=rudder_lift,
+            weight=weight,
         )
         kind_array = np.asarray(self.kinds)
         for name, value in columns.items():
@@ -190,17 +211,19 @@ class ThrusterLayout(eqx.Module):
                 other = ~np.isin(kind_array, kinds_it_applies_to)
                 if np.all(other) and np.ndim(value) == 0 and float(value) != DEFAULTS[name]:
                     raise check.ParameterError(
-                        name, f"{name} applies to {' and '.join(KIND_PLURALS[k] for k in kinds_it_applies_to)} only, and this layout has none: "
-                        f"leave {name} out; got {float(value):g}"
+                        name,
+                        f"{name} applies to {' and '.join(KIND_PLURALS[k] for k in kinds_it_applies_to)} only, and this layout has none: "
+                        f"leave {name} out; got {float(value):g}",
                     )
                 if np.ndim(value) > 0:  # given per thruster: the others' entries say "none"
                     wrong = other & (array != 0)
                     if np.any(wrong):
                         first = int(np.argmax(wrong))
                         raise check.ParameterError(
-                            name, f"{name} of {self.kinds[first]} {_short(self.names[first])!r} must be 0: {NOT_APPLICABLE[name]} "
+                            name,
+                            f"{name} of {self.kinds[first]} {_short(self.names[first])!r} must be 0: {NOT_APPLICABLE[name]} "
                             f"(give 0 for each {' and '.join(sorted(set(kind_array[other])))}, or one number for the {' and '.join(KIND_PLURALS[k] for k in kinds_it_applies_to)}); "
-                            f"got {array[first]:g}"
+                            f"got {array[first]:g}",
                         )
                 array = np.where(other, 0.0, array)
             setattr(self, name, array)
@@ -226,8 +249,12 @@ class ThrusterLayout(eqx.Module):
         self._refuse("turn_rate", turning & (self.turn_rate <= 0), self.turn_rate, "must be positive for an azimuth or a rudder")
         self._refuse("min_thrust", (self.min_thrust > 0) | (self.min_thrust < -self.max_thrust), self.min_thrust, "must be in [-max_thrust, 0]")
         main = self.is_kind("main")
-        self._refuse("max_rudder", main & ((self.max_rudder <= 0) | (self.max_rudder >= math.pi / 2)), self.max_rudder,
-                     "must be in (0, pi/2) for a main propeller")
+        self._refuse(
+            "max_rudder",
+            main & ((self.max_rudder <= 0) | (self.max_rudder >= math.pi / 2)),
+            self.max_rudder,
+            "must be in (0, pi/2) for a main propeller",
+        )
         self._refuse("rudder_lift", self.rudder_lift < 0, self.rudder_lift, "must be non-negative")
         rank = np.linalg.matrix_rank(self.B)
         if rank < 3:
@@ -247,8 +274,10 @@ class ThrusterLayout(eqx.Module):
         length = hull_length(mass)
         if reach <= length:
             return None
-        return (f"its thrusters reach {reach:.3g} m from the origin, and a vessel of {mass:.3g} kg is a hull of about {length:.2g} m: "
-                "the layout is another vessel's; give [actuator.layout] this vessel's thrusters")
+        return (
+            f"its thrusters reach {reach:.3g} m from the origin, and a vessel of {mass:.3g} kg is a hull of about {length:.2g} m: "
+            "the layout is another vessel's; give [actuator.layout] this vessel's thrusters"
+        )
 
     # -- structure -------------------------------------------------------------------------
 
@@ -348,9 +377,16 @@ class ThrusterLayout(eqx.Module):
         return cls(
             names=("port-main", "starboard-main", "bow-tunnel"),
             kinds=("main", "main", "tunnel"),
-            x=(-0.55, -0.55, 0.47), y=(-0.08, 0.08, 0.0), direction=(0.0, 0.0, math.pi / 2),
-            max_thrust=(1.0, 1.0, 0.75), min_thrust=(-0.5, -0.5, -0.75), thrust_rate=5.0,
-            time_constant=time_constant, turn_rate=1.5, max_rudder=math.radians(35.0), rudder_lift=0.6,
+            x=(-0.55, -0.55, 0.47),
+            y=(-0.08, 0.08, 0.0),
+            direction=(0.0, 0.0, math.pi / 2),
+            max_thrust=(1.0, 1.0, 0.75),
+            min_thrust=(-0.5, -0.5, -0.75),
+            thrust_rate=5.0,
+            time_constant=time_constant,
+            turn_rate=1.5,
+            max_rudder=math.radians(35.0),
+            rudder_lift=0.6,
         )
 
     @classmethod
@@ -375,45 +411,72 @@ class ThrusterLayout(eqx.Module):
         return cls(
             names=("bow-tunnel-1", "bow-tunnel-2", "port-azimuth", "starboard-azimuth"),
             kinds=("tunnel", "tunnel", "azimuth", "azimuth"),
-            x=(30.0, 27.0, -33.0, -33.0), y=(0.0, 0.0, -6.0, 6.0), direction=(math.pi / 2, math.pi / 2, 0.0, math.pi),
-            max_thrust=(1.3e5, 1.3e5, 3.0e5, 3.0e5), min_thrust=(-1.3e5, -1.3e5, 0.0, 0.0),
-            thrust_rate=(4.0e4, 4.0e4, 6.0e4, 6.0e4), time_constant=time_constant, turn_rate=math.radians(10.0),
+            x=(30.0, 27.0, -33.0, -33.0),
+            y=(0.0, 0.0, -6.0, 6.0),
+            direction=(math.pi / 2, math.pi / 2, 0.0, math.pi),
+            max_thrust=(1.3e5, 1.3e5, 3.0e5, 3.0e5),
+            min_thrust=(-1.3e5, -1.3e5, 0.0, 0.0),
+            thrust_rate=(4.0e4, 4.0e4, 6.0e4, 6.0e4),
+            time_constant=time_constant,
+            turn_rate=math.radians(10.0),
         )
 
 
 register(
-    "layout", "supply-vessel", ThrusterLayout,
+    "layout",
+    "supply-vessel",
+    ThrusterLayout,
     summary="A vessel's thrusters: one entry per thruster in every column.",
     build="supply_vessel",
-    parameters=(
-        Value("time_constant", "float", "Thrust response time constant of every thruster (s); non-negative."),
-    ),
+    parameters=(Value("time_constant", "float", "Thrust response time constant of every thruster (s); non-negative."),),
 )
 
 
 register(
-    "layout", "cybership-ii", ThrusterLayout,
+    "layout",
+    "cybership-ii",
+    ThrusterLayout,
     summary="A vessel's thrusters: one entry per thruster in every column.",
     build="cybership_ii",
-    parameters=(
-        Value("time_constant", "float", "Thrust response time constant of every thruster (s); non-negative."),
-    ),
+    parameters=(Value("time_constant", "float", "Thrust response time constant of every thruster (s); non-negative."),),
 )
 
 
 register(
-    "layout", "custom", ThrusterLayout,
+    "layout",
+    "custom",
+    ThrusterLayout,
     summary="A vessel's thrusters: one entry per thruster in every column.",
     parameters=(
         Value("names", "strings", "A distinct name per thruster (the labels of its records)."),
-        Value("kinds", "strings", "\"tunnel\", \"azimuth\" or \"main\" (a main propeller with a rudder)."),
-        Value("x", "array", "Position of each thruster, body-fixed, forward and starboard of the origin (m).", shape="(n,)", broadcast="x" not in PER_THRUSTER),
-        Value("y", "array", "Position of each thruster, body-fixed, forward and starboard of the origin (m).", shape="(n,)", broadcast="y" not in PER_THRUSTER),
-        Value("direction", "array", "A tunnel's thrust direction and a main propeller's (rad from the bow, clockwise seen from above; pi/2 pushes to starboard); an azimuth's bias direction, where it points when idle (azimuths pointing against each other bias each other; lookout.actuators.allocation)."),
+        Value("kinds", "strings", '"tunnel", "azimuth" or "main" (a main propeller with a rudder).'),
+        Value(
+            "x",
+            "array",
+            "Position of each thruster, body-fixed, forward and starboard of the origin (m).",
+            shape="(n,)",
+            broadcast="x" not in PER_THRUSTER,
+        ),
+        Value(
+            "y",
+            "array",
+            "Position of each thruster, body-fixed, forward and starboard of the origin (m).",
+            shape="(n,)",
+            broadcast="y" not in PER_THRUSTER,
+        ),
+        Value(
+            "direction",
+            "array",
+            "A tunnel's thrust direction and a main propeller's (rad from the bow, clockwise seen from above; pi/2 pushes to starboard); an azimuth's bias direction, where it points when idle (azimuths pointing against each other bias each other; lookout.actuators.allocation).",
+        ),
         Value("max_thrust", "array", "Largest thrust (N); positive."),
         Value("min_thrust", "array", "Smallest thrust (N, negative: astern or to port) of a tunnel or a main propeller; between -max_thrust and 0."),
         Value("thrust_rate", "array", "Largest change of thrust per second (N/s); positive."),
-        Value("time_constant", "array", "Time constant of the first-order response of thrust to its command (s); non-negative, 0 for an instant response."),
+        Value(
+            "time_constant",
+            "array",
+            "Time constant of the first-order response of thrust to its command (s); non-negative, 0 for an instant response.",
+        ),
         Value("turn_rate", "array", "Largest turning rate of an azimuth or a rudder (rad/s); positive."),
         Value("max_rudder", "array", "A main propeller's largest rudder angle (rad); positive, below pi/2."),
         Value("rudder_lift", "array", "A main propeller's rudder lift per radian of rudder angle per newton of thrust (1/rad); non-negative."),

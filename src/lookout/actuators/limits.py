@@ -14,10 +14,10 @@ from lookout.scenario.declare import Context, Value, component
 
 
 @component(
-    "actuator", "ideal",
+    "actuator",
+    "ideal",
     summary="The plant receives the commanded input unchanged (no limits).",
-    parameters=(
-    ),
+    parameters=(),
 )
 @final
 class IdealActuator(StatelessActuator):
@@ -45,10 +45,16 @@ def _limit_vector(limit, size: int | None):
 
 
 @component(
-    "actuator", "thrust-limits",
+    "actuator",
+    "thrust-limits",
     summary="Symmetric magnitude saturation per input entry: applied = clip(u, -limit, limit).",
     parameters=(
-        Value("limit", "array", "Largest magnitude of each entry, in the units of the plant's input; > 0, inf for an unlimited entry; NaN is rejected.", shape="(n,) or scalar"),
+        Value(
+            "limit",
+            "array",
+            "Largest magnitude of each entry, in the units of the plant's input; > 0, inf for an unlimited entry; NaN is rejected.",
+            shape="(n,) or scalar",
+        ),
         Context("size", "n, when limit is a scalar."),
     ),
 )

@@ -136,8 +136,12 @@ def active_set(P, q, G, h, x0, *, max_iterations: int, tolerance: float = 1e-10,
     if warm is not None:
         warm = jnp.asarray(warm)
         guess, multipliers = solve_on_working_set(P_, q_, G_, h_, warm)
-        guessed = jnp.all(jnp.isfinite(guess)) & jnp.all(jnp.isfinite(multipliers)) \
-            & jnp.all(G_ @ guess <= h_ + tolerance) & jnp.all(multipliers >= -tolerance)
+        guessed = (
+            jnp.all(jnp.isfinite(guess))
+            & jnp.all(jnp.isfinite(multipliers))
+            & jnp.all(G_ @ guess <= h_ + tolerance)
+            & jnp.all(multipliers >= -tolerance)
+        )
         start_working = jnp.where(guessed, warm, start_working)
         start_x = jnp.where(guessed, guess, start_x)
     start = (start_x, start_working, jnp.asarray(0), skip | guessed)

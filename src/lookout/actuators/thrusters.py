@@ -45,18 +45,50 @@ def describe_input(layout: Layout) -> str:
 
 
 @component(
-    "actuator", "thrusters",
+    "actuator",
+    "thrusters",
     summary="A vessel's thrusters between the controller's generalized force and the hull.",
     parameters=(
         Part("layout", "The thrusters."),
-        Value("allocation", "str", "Allocation method (lookout.actuators.allocation).", choices=('qp', 'pseudo-inverse')),
-        Value("slack_weight", "array", "\"qp\" only: the QP's weight of the unproduced force (surge, sway, yaw) against thrust; positive (default 1e6)."),
-        Value("clip_to_reach", "bool", "Clip each axis of the command to what the thrusters reach on it alone before allocating (lookout.actuators.allocation.Allocator)."),
-        Value("solver", "str", "\"qp\" only: the QP's solver (default \"active-set\"; lookout.actuators.allocation.Allocator).", choices=('active-set', 'qpax')),
-        Value("steering_time_constant", "float", "\"qp\" only: time constant of the low-pass filter on the command whose allocation the azimuths turn toward (s; default 10 s, longer than a DP sea's wave periods; 0 for none).", range=NON_NEGATIVE),
-        Value("steering_deadband", "float", "\"qp\" only: how far an azimuth may point from its filtered direction before it turns (rad; default 10 deg, where it still gives 98.5 % of its thrust along it).", range=Range(0.0, math.pi, True, True)),
-        Value("steering_load", "float", "\"qp\" only: the filtered load (fraction of its largest thrust) below which an azimuth holds its angle (default 0.05).", range=Range(0.0, 1.0, True, True)),
-        Value("steering_bias", "float", "\"qp\" only: thrust (fraction of its largest) each azimuth puts along its layout direction, of which the part that produces no force is kept as a bias: azimuths pointing against each other then answer a small force of either sign with thrust, not a turn (default 0.2; 0 for none).", range=Range(0.0, 1.0, True, False)),
+        Value("allocation", "str", "Allocation method (lookout.actuators.allocation).", choices=("qp", "pseudo-inverse")),
+        Value(
+            "slack_weight", "array", '"qp" only: the QP\'s weight of the unproduced force (surge, sway, yaw) against thrust; positive (default 1e6).'
+        ),
+        Value(
+            "clip_to_reach",
+            "bool",
+            "Clip each axis of the command to what the thrusters reach on it alone before allocating (lookout.actuators.allocation.Allocator).",
+        ),
+        Value(
+            "solver",
+            "str",
+            '"qp" only: the QP\'s solver (default "active-set"; lookout.actuators.allocation.Allocator).',
+            choices=("active-set", "qpax"),
+        ),
+        Value(
+            "steering_time_constant",
+            "float",
+            '"qp" only: time constant of the low-pass filter on the command whose allocation the azimuths turn toward (s; default 10 s, longer than a DP sea\'s wave periods; 0 for none).',
+            range=NON_NEGATIVE,
+        ),
+        Value(
+            "steering_deadband",
+            "float",
+            '"qp" only: how far an azimuth may point from its filtered direction before it turns (rad; default 10 deg, where it still gives 98.5 % of its thrust along it).',
+            range=Range(0.0, math.pi, True, True),
+        ),
+        Value(
+            "steering_load",
+            "float",
+            '"qp" only: the filtered load (fraction of its largest thrust) below which an azimuth holds its angle (default 0.05).',
+            range=Range(0.0, 1.0, True, True),
+        ),
+        Value(
+            "steering_bias",
+            "float",
+            '"qp" only: thrust (fraction of its largest) each azimuth puts along its layout direction, of which the part that produces no force is kept as a bias: azimuths pointing against each other then answer a small force of either sign with thrust, not a turn (default 0.2; 0 for none).',
+            range=Range(0.0, 1.0, True, False),
+        ),
     ),
 )
 @final
@@ -119,14 +151,24 @@ class ThrusterSystem(Actuator):
     layout: ThrusterLayout
     allocator: Allocator
 
-    def __init__(self, layout: ThrusterLayout, allocation: Literal["qp", "pseudo-inverse"] = "qp", slack_weight=None, clip_to_reach: bool = True,
-                 solver: Literal["active-set", "qpax"] | None = None, steering_time_constant=None, steering_deadband=None, steering_load=None,
-                 steering_bias=None):
+    def __init__(
+        self,
+        layout: ThrusterLayout,
+        allocation: Literal["qp", "pseudo-inverse"] = "qp",
+        slack_weight=None,
+        clip_to_reach: bool = True,
+        solver: Literal["active-set", "qpax"] | None = None,
+        steering_time_constant=None,
+        steering_deadband=None,
+        steering_load=None,
+        steering_bias=None,
+    ):
         if not isinstance(layout, ThrusterLayout):
             raise check.ParameterError("layout", f"layout must be a ThrusterLayout; got {type(layout).__name__}")
         self.layout = layout
-        self.allocator = Allocator(layout, allocation, slack_weight, clip_to_reach, solver, steering_time_constant, steering_deadband, steering_load,
-                                   steering_bias)
+        self.allocator = Allocator(
+            layout, allocation, slack_weight, clip_to_reach, solver, steering_time_constant, steering_deadband, steering_load, steering_bias
+        )
 
     @property
     def output_signals(self) -> tuple[Signal, ...]:
@@ -169,8 +211,14 @@ class ThrusterSystem(Actuator):
             bx, by = allocator.bias[index.azimuth_x], allocator.bias[index.azimuth_y]
             biased = magnitude(bx, by) > IDLE
             angle = angle.at[index.azimuth].set(jnp.where(biased, direction_of(bx, by, angle[index.azimuth]), angle[index.azimuth]))
-        return (jnp.zeros(layout.size), angle, jnp.zeros(allocator.size), jnp.full(allocator.size, -1), jnp.zeros(3),
-                jnp.zeros(layout.size, dtype=bool))
+        return (
+            jnp.zeros(layout.size),
+            angle,
+            jnp.zeros(allocator.size),
+            jnp.full(allocator.size, -1),
+            jnp.zeros(3),
+            jnp.zeros(layout.size, dtype=bool),
+        )
 
     def commands(self, u: Array, angle: Array, preferred: Array) -> tuple[Array, Array]:
         """Each thruster's commanded thrust (N) and angle (rad) from the scaled allocation
@@ -200,7 +248,9 @@ class ThrusterSystem(Actuator):
                 largest = jnp.asarray(layout.max_thrust[i])
                 idle = size <= IDLE * largest
                 wanted = magnitude(wx, wy) > IDLE * largest
-                target = target.at[i].set(jnp.where(~idle, direction_of(fx, fy, angle[i]), jnp.where(wanted, direction_of(wx, wy, angle[i]), angle[i])))
+                target = target.at[i].set(
+                    jnp.where(~idle, direction_of(fx, fy, angle[i]), jnp.where(wanted, direction_of(wx, wy, angle[i]), angle[i]))
+                )
         if index.main.size:
             i = index.main
             value, lift = physical[index.main_thrust], physical[index.main_lift]
@@ -229,7 +279,9 @@ class ThrusterSystem(Actuator):
     def step(self, state, t, u: Array, dt):
         """Allocate ``u`` = (X, Y, N), move the thrusters over ``dt``; see the class docstring."""
         if jnp.shape(u) != (3,):
-            raise check.ParameterError("thrusters", f"thrusters take a 3-DOF vessel's force (surge, sway) and moment (yaw), 3 entries; got an input of shape {jnp.shape(u)}")
+            raise check.ParameterError(
+                "thrusters", f"thrusters take a 3-DOF vessel's force (surge, sway) and moment (yaw), 3 entries; got an input of shape {jnp.shape(u)}"
+            )
         thrust, angle, previous, working, demand, turning = state
         steered = angle
         if self.allocator.method == "qp":

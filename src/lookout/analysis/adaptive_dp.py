@@ -184,8 +184,9 @@ def _vertices(vessel: DPVessel, theta_bounds, unknown) -> tuple[list[tuple[np.nd
         box = box[None, :]
     if box.shape != (len(unknown), 2) or not np.isfinite(box).all() or np.any(box[:, 0] > box[:, 1]):
         raise check.ParameterError(
-            "theta_bounds", f"theta_bounds must be [lower, upper] per unknown entry ({len(unknown)}), finite, "
-            f"lower <= upper; got {np.asarray(theta_bounds).tolist()}"
+            "theta_bounds",
+            f"theta_bounds must be [lower, upper] per unknown entry ({len(unknown)}), finite, "
+            f"lower <= upper; got {np.asarray(theta_bounds).tolist()}",
         )
     outside = [(_entry_name(e), t) for e, t, (lo, hi) in zip(unknown, true, box) if not lo <= t <= hi]
     if outside:
@@ -202,8 +203,7 @@ def _vertices(vessel: DPVessel, theta_bounds, unknown) -> tuple[list[tuple[np.nd
         smallest = float(np.linalg.eigvalsh(_sym(matrices["M"]))[0])
         if not smallest > 0:
             raise check.ParameterError(
-                "theta_bounds", f"theta_bounds: M is not positive definite at theta = {theta.tolist()} "
-                f"(lambda_min {smallest:.3g}); narrow the bounds"
+                "theta_bounds", f"theta_bounds: M is not positive definite at theta = {theta.tolist()} (lambda_min {smallest:.3g}); narrow the bounds"
             )
         out.append((theta, matrices))
     return out, box, true
@@ -350,8 +350,8 @@ def _observer_quantities(vessel, K2, theta_bounds, unknown, d_min) -> dict[str, 
         d_min = float(d_min)
         if not (math.isfinite(d_min) and d_min <= damping + TOLERANCE * abs(damping)):
             raise check.ParameterError(
-                "d_min", f"d_min must be finite and <= lambda_min(sym D) = {damping:.6g} kg/s (the proof "
-                f"uses nu~'D nu~ >= D_min |nu~|^2); got {d_min!r}"
+                "d_min",
+                f"d_min must be finite and <= lambda_min(sym D) = {damping:.6g} kg/s (the proof uses nu~'D nu~ >= D_min |nu~|^2); got {d_min!r}",
             )
         damping = d_min
     return {
@@ -407,10 +407,13 @@ def observer_condition_22(vessel: DPVessel, *, K1, K2, theta_bounds=None, unknow
     first = _greater("(22a)", "sigma1 > (1+K_max)^2/(4(sigma2+D_min))", sigma1, right, UNITS_22A, "(22)")
     second = _greater("(22b)", "sigma2 > 0", q["sigma2"], 0.0, UNITS_SIGMA2, "(22)")
     tight_right = coupling / (4.0 * q["combined"]) if q["combined"] > 0 else math.inf
-    tighter = _greater("(22a*)", "sigma1 > (1+K_max)^2/(4 lmin(sym(MK2+D)))", sigma1, tight_right, UNITS_22A, "(22), read with lmin(sym(MK2+D)) for sigma2+D_min")
+    tighter = _greater(
+        "(22a*)", "sigma1 > (1+K_max)^2/(4 lmin(sym(MK2+D)))", sigma1, tight_right, UNITS_22A, "(22), read with lmin(sym(MK2+D)) for sigma2+D_min"
+    )
     quantities = {"sigma1": sigma1} | q
-    return Condition("observer_22", "(22)", "adaptive observer", f"{PAPER}, eq. (22)", [first, second],
-                     informational=[tighter], quantities=quantities)
+    return Condition(
+        "observer_22", "(22)", "adaptive observer", f"{PAPER}, eq. (22)", [first, second], informational=[tighter], quantities=quantities
+    )
 
 
 def _g(d: np.ndarray, coupling_gain: np.ndarray) -> tuple[float, float]:
@@ -456,16 +459,14 @@ def closed_loop_conditions_57_58(
     first = _greater("(57)", "sigma1 > g1/4 + (1+K_max)^2/(4(sigma2+D_min-g2/4))", sigma1, right, UNITS_57, "(57)")
     c_tight = q["combined"] - g2 / 4.0
     tight = g1 / 4.0 + (coupling / (4.0 * c_tight) if c_tight > 0 else math.inf)
-    tighter = _greater("(57*)", "sigma1 > g1/4 + (1+K_max)^2/(4(lmin(..)-g2/4))", sigma1, tight, UNITS_57, "(57), read with lmin(sym(MK2+D)) for sigma2+D_min")
-    quantities = {"sigma1": sigma1, "g1": g1, "g2": g2} | q
-    c57 = Condition("closed_loop_57", "(57)", "closed loop", f"{PAPER}, eq. (57)", [first],
-                    informational=[tighter], quantities=quantities)
-    second = _greater(
-        "(58)", "sigma2 > max(0, g2/4 - D_min)", q["sigma2"], max(0.0, g2 / 4.0 - q["damping_min"]), UNITS_58, "(58)"
+    tighter = _greater(
+        "(57*)", "sigma1 > g1/4 + (1+K_max)^2/(4(lmin(..)-g2/4))", sigma1, tight, UNITS_57, "(57), read with lmin(sym(MK2+D)) for sigma2+D_min"
     )
+    quantities = {"sigma1": sigma1, "g1": g1, "g2": g2} | q
+    c57 = Condition("closed_loop_57", "(57)", "closed loop", f"{PAPER}, eq. (57)", [first], informational=[tighter], quantities=quantities)
+    second = _greater("(58)", "sigma2 > max(0, g2/4 - D_min)", q["sigma2"], max(0.0, g2 / 4.0 - q["damping_min"]), UNITS_58, "(58)")
     tight58 = _greater("(58*)", "lmin(sym(MK2+D)) > g2/4", q["combined"], g2 / 4.0, UNITS_58, "(58), read with lmin(sym(MK2+D)) for sigma2+D_min")
-    c58 = Condition("closed_loop_58", "(58)", "closed loop", f"{PAPER}, eq. (58)", [second],
-                    informational=[tight58], quantities=dict(quantities))
+    c58 = Condition("closed_loop_58", "(58)", "closed loop", f"{PAPER}, eq. (58)", [second], informational=[tight58], quantities=dict(quantities))
     return c57, c58
 
 
@@ -565,9 +566,7 @@ def _calugi_summary(bounds: ModelBounds, gains: dict, quantities: dict) -> list[
     return lines
 
 
-def check_calugi_2003(
-    vessel: DPVessel, *, K1, K2, d, theta_bounds=None, unknown=M11, d_min=None, coupling_gain=1.0
-) -> Report:
+def check_calugi_2003(vessel: DPVessel, *, K1, K2, d, theta_bounds=None, unknown=M11, d_min=None, coupling_gain=1.0) -> Report:
     """Check (22), (57) and (58) of Calugi et al. (2003) for a vessel and gain set.
 
     Parameters
@@ -753,10 +752,7 @@ class GainProposal:
         lines.append(f"  K1 diag {numbers(np.diag(self.K1))} 1/s")
         lines.append(f"  d       {numbers(self.d)} s")
         dz = self.design
-        lines.append(
-            f"Routes (|v| <= {dz['speed']:g} m/s, step {dz['step']:g} s, usable if "
-            f"step x rate <= {dz['max_step_gain']:g}):"
-        )
+        lines.append(f"Routes (|v| <= {dz['speed']:g} m/s, step {dz['step']:g} s, usable if step x rate <= {dz['max_step_gain']:g}):")
         lines.append(f"  {'route':<11}{'K1':>8}{'d1..3':>9}{'d4..6':>9}{'max D2':>9}{'rate':>9}{'(57) x':>9}  usable")
         for r in self.routes:
             if not r.feasible:
@@ -869,18 +865,25 @@ def satisfying_gains(
     design = {"step": float(step), "speed": float(speed), "max_step_gain": float(max_step_gain), "margin": float(margin)}
 
     def conditions_at(K1x, dx) -> Report:
-        return check_calugi_2003(
-            vessel, K1=K1x, K2=K2m, d=dx, theta_bounds=theta_bounds, unknown=unknown, coupling_gain=P1
-        )
+        return check_calugi_2003(vessel, K1=K1x, K2=K2m, d=dx, theta_bounds=theta_bounds, unknown=unknown, coupling_gain=P1)
 
     def route(name: str, K1x, dx, note: str, feasible: bool = True) -> GainRoute:
         report = conditions_at(K1x, dx)
         rates = loop_rates(K1x, K2m, dx, C1=C1v, C2=C2v, coupling_gain=P1, speed=speed)
         fastest = float(max(rates["loop"].max(), np.linalg.norm(K1x, 2), np.linalg.norm(K2m, 2)))
         return GainRoute(
-            name, np.asarray(K1x, float), np.asarray(dx, float), feasible,
-            report["closed_loop_57"].inequalities[0].factor, rates["D1"], rates["D2"], fastest,
-            step * fastest, feasible and step * fastest <= max_step_gain, dict(report.verdicts), note,
+            name,
+            np.asarray(K1x, float),
+            np.asarray(dx, float),
+            feasible,
+            report["closed_loop_57"].inequalities[0].factor,
+            rates["D1"],
+            rates["D2"],
+            fastest,
+            step * fastest,
+            feasible and step * fastest <= max_step_gain,
+            dict(report.verdicts),
+            note,
         )
 
     def x_max(sigma1: float, first: float) -> float:
@@ -988,10 +991,7 @@ def satisfying_gains(
     names = {r.name for r in satisfied}
     if "d_split" in names and by_name["d_split"].usable:
         chosen = by_name["d_split"]
-        reason = (
-            f"K1 kept; d raised: fastest rate {chosen.fastest_rate:.3g} 1/s at {speed:g} m/s "
-            f"(step x rate {chosen.step_gain:.2g})"
-        )
+        reason = f"K1 kept; d raised: fastest rate {chosen.fastest_rate:.3g} 1/s at {speed:g} m/s (step x rate {chosen.step_gain:.2g})"
     elif mixed is not None and "K1_and_d" in names:
         chosen = mixed
         ratio = float(np.linalg.eigvalsh(_sym(chosen.K1))[0]) / sigma1_0

@@ -53,8 +53,7 @@ def injection_bound(parameters: AffineParameters, gain, *, grid_points: int = 64
     return float(jnp.min(jax.jit(jax.vmap(smallest))(q_grid)))
 
 
-def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_speed: float, *, margin: float = 0.0,
-                      initial_error=None) -> Report:
+def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_speed: float, *, margin: float = 0.0, initial_error=None) -> Report:
     """Theorem 4.1 for the arm and unknowns ``parameters`` (true values at its reference),
     K, Gamma (diagonals), w_max >= ||q'||, beta = ``margin`` >= 0 and, optionally, the
     initial errors (x1~(0), theta~(0)) to place in the region (4.b).
@@ -75,23 +74,32 @@ def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_s
     p_l = min(bounds.min_inertia, 1.0 / Gamma.max())
     p_u = max(bounds.max_inertia, 1.0 / Gamma.min())
     source = f"{PAPER}, Theorem 4.1"
-    inequalities = [Inequality.check("(4.a)", "sigma > C_M w_max + beta", sigma, ">", c_m * max_speed + margin,
-                                     units=INJECTION_UNITS, source=source)]
+    inequalities = [Inequality.check("(4.a)", "sigma > C_M w_max + beta", sigma, ">", c_m * max_speed + margin, units=INJECTION_UNITS, source=source)]
     radius = math.inf if c_m == 0 else math.sqrt(p_l / p_u) * ((sigma - margin) / c_m - max_speed)
     quantities = {
-        "sigma": sigma, "C_M": c_m, "M_m": bounds.min_inertia, "M_M": bounds.max_inertia, "p_l": p_l, "p_u": p_u,
-        "max_speed": max_speed, "beta": margin, "radius": radius,
+        "sigma": sigma,
+        "C_M": c_m,
+        "M_m": bounds.min_inertia,
+        "M_M": bounds.max_inertia,
+        "p_l": p_l,
+        "p_u": p_u,
+        "max_speed": max_speed,
+        "beta": margin,
+        "radius": radius,
     }
     notes = []
     if initial_error is not None and c_m == 0:
         notes.append("region (4.b) global: C_M = 0, it holds for every initial error")
     if initial_error is not None and c_m > 0:
         x_error, theta_error = initial_error
-        norm = float(np.linalg.norm(np.concatenate([np.atleast_1d(np.asarray(x_error, dtype=float)), np.atleast_1d(np.asarray(theta_error, dtype=float))])))
+        norm = float(
+            np.linalg.norm(np.concatenate([np.atleast_1d(np.asarray(x_error, dtype=float)), np.atleast_1d(np.asarray(theta_error, dtype=float))]))
+        )
         if not math.isfinite(norm):
             raise check.ParameterError("initial_error", f"initial_error must be finite; got {initial_error!r}")
-        inequalities.append(Inequality.check("(4.b)", "sqrt(p_l/p_u) ((sigma - beta)/C_M - w_max) > ||e(0)||", radius, ">", norm,
-                                             units="mixed", source=source))
+        inequalities.append(
+            Inequality.check("(4.b)", "sqrt(p_l/p_u) ((sigma - beta)/C_M - w_max) > ||e(0)||", radius, ">", norm, units="mixed", source=source)
+        )
         quantities["initial_error_norm"] = norm
     condition = Condition("theorem_4_1", "Theorem 4.1", "adaptive observer: x1~ -> 0, theta~ bounded", source, inequalities)
     return Report(f"{PAPER}, Theorem 4.1: adaptive observer", (condition,), quantities, notes=notes)
@@ -118,12 +126,16 @@ def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: f
     source = f"{PAPER}, eq. (5.28)"
     inequalities = [
         Inequality.check("(5.28) at rest", "sigma > p/4", sigma, ">", p / 4.0, units=INJECTION_UNITS, source=source),
-        Inequality.check("(5.28)", "sigma > C_M w_max + C_M |x1~| + p/4", sigma, ">", c_m * max_speed + c_m * error + p / 4.0,
-                         units=INJECTION_UNITS, source=source),
+        Inequality.check(
+            "(5.28)", "sigma > C_M w_max + C_M |x1~| + p/4", sigma, ">", c_m * max_speed + c_m * error + p / 4.0, units=INJECTION_UNITS, source=source
+        ),
     ]
     condition = Condition("condition_5_28", "(5.28)", "adaptive observer backstepping, closed loop", source, inequalities)
-    return Report(f"{PAPER}, (5.28): adaptive observer backstepping", (condition,),
-                  {"sigma": sigma, "C_M": c_m, "p": p, "max_speed": max_speed, "velocity_error": error})
+    return Report(
+        f"{PAPER}, (5.28): adaptive observer backstepping",
+        (condition,),
+        {"sigma": sigma, "C_M": c_m, "p": p, "max_speed": max_speed, "velocity_error": error},
+    )
 
 
 __all__ = ["check_5_28", "check_theorem_4_1", "injection_bound"]

@@ -422,5 +422,14 @@ def inequalities_in(data: Mapping) -> list[dict]:
 
 
 __all__ = [
-    "COMPARISONS", "RESERVED_KEYS", "TOLERANCE", "Condition", "Inequality", "Report", "Verdict", "inequalities_in", "number", "numbers",
+    "COMPARISONS",
+    "RESERVED_KEYS",
+    "TOLERANCE",
+    "Condition",
+    "Inequality",
+    "Report",
+    "Verdict",
+    "inequalities_in",
+    "number",
+    "numbers",
 ]

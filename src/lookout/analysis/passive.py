@@ -180,9 +180,15 @@ def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Datase
             data["h0_magnitude"] = (("frequency", "dof"), magnitude, {"units": RESPONSE_UNITS["h0"]["translation"], "long_name": long_name})
         else:
             data[f"{name}_magnitude_translation"] = (
-                ("frequency", "translation"), magnitude[:, translation], {"units": RESPONSE_UNITS[name]["translation"], "long_name": f"{long_name}, surge and sway"}
+                ("frequency", "translation"),
+                magnitude[:, translation],
+                {"units": RESPONSE_UNITS[name]["translation"], "long_name": f"{long_name}, surge and sway"},
             )
-            data[f"{name}_magnitude_yaw"] = (("frequency",), magnitude[:, yaw], {"units": RESPONSE_UNITS[name]["yaw"], "long_name": f"{long_name}, yaw"})
+            data[f"{name}_magnitude_yaw"] = (
+                ("frequency",),
+                magnitude[:, yaw],
+                {"units": RESPONSE_UNITS[name]["yaw"], "long_name": f"{long_name}, yaw"},
+            )
         data[f"{name}_phase_deg"] = (("frequency", "dof"), np.degrees(np.angle(value)), {"units": "degree", "long_name": f"phase of {name}(jw)"})
     long_names = {
         "bias_filter_frequency": "1/T, bias model corner",
@@ -193,9 +199,15 @@ def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Datase
     for name, value in characteristic_frequencies(observer).items():
         data[name] = (("dof",), value, {"units": "rad/s", "long_name": long_names[name]})
     data["velocity_injection_gain_translation"] = (
-        ("translation",), kappa[translation], {"units": RESPONSE_UNITS["hB"]["translation"], "long_name": "kappa, high-frequency gain of hB, surge and sway"}
+        ("translation",),
+        kappa[translation],
+        {"units": RESPONSE_UNITS["hB"]["translation"], "long_name": "kappa, high-frequency gain of hB, surge and sway"},
     )
-    data["velocity_injection_gain_yaw"] = ((), kappa[yaw], {"units": RESPONSE_UNITS["hB"]["yaw"], "long_name": "kappa, high-frequency gain of hB, yaw"})
+    data["velocity_injection_gain_yaw"] = (
+        (),
+        kappa[yaw],
+        {"units": RESPONSE_UNITS["hB"]["yaw"], "long_name": "kappa, high-frequency gain of hB, yaw"},
+    )
     coords = {
         "frequency": ("frequency", frequencies, {"units": "rad/s", "long_name": "angular frequency"}),
         "dof": ("dof", list(DOF), {"long_name": "degree of freedom (error loop)"}),
@@ -237,7 +249,9 @@ def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10
         raise check.ParameterError("much_less_factor", f"much_less_factor must be >= 1; got {much_less_factor}")
     g = _gains(observer)
     inequalities = []
-    much_less = (f"1/T << lambda/kappa, read as {much_less_factor:g}/T <= lambda/kappa", "<=") if much_less_factor > 1 else ("1/T < lambda/kappa", "<")
+    much_less = (
+        (f"1/T << lambda/kappa, read as {much_less_factor:g}/T <= lambda/kappa", "<=") if much_less_factor > 1 else ("1/T < lambda/kappa", "<")
+    )
     for i, dof in enumerate(DOF):
         corner = g["lam"][i] / g["kappa"][i]
         chain = [
@@ -248,7 +262,11 @@ def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10
         for relation, comparison, left, right in chain:
             inequalities.append(Inequality.check(dof, relation, left, comparison, right, units="rad/s", source=SOURCE_48))
     return Condition(
-        "tuning_rule_48", "(48)", "tuning rule 1/T << lambda/kappa < w_o < w_c", SOURCE_48, inequalities,
+        "tuning_rule_48",
+        "(48)",
+        "tuning rule 1/T << lambda/kappa < w_o < w_c",
+        SOURCE_48,
+        inequalities,
         quantities={"much_less_factor": much_less_factor},
     )
 
@@ -351,7 +369,10 @@ def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[Condition]
             )
         conditions.append(
             Condition(
-                f"spr_{dof}", "Theorem 1", f"SPR of h = hB h0, {dof}", SOURCE_SPR,
+                f"spr_{dof}",
+                "Theorem 1",
+                f"SPR of h = hB h0, {dof}",
+                SOURCE_SPR,
                 frequency_domain + ([] if certificate is None else _certificate_inequalities(dof, certificate)),
                 reason,
                 informational=(check("phase of h below 10 w_c > -90 deg", in_band_phase, ">", -90.0, units="deg"),),
@@ -438,9 +459,7 @@ def kyp_certificate(observer: PassiveObserver, dof: int) -> dict:
         for feedthrough in (1e-6, 1e-8, 1e-10, 1e-12):
             shifted = As + fraction * margin * np.eye(4)
             try:
-                X = scipy.linalg.solve_continuous_are(
-                    shifted, B, np.zeros((4, 4)), np.array([[-2.0 * feedthrough]]), s=-Cs.T
-                )
+                X = scipy.linalg.solve_continuous_are(shifted, B, np.zeros((4, 4)), np.array([[-2.0 * feedthrough]]), s=-Cs.T)
             except (np.linalg.LinAlgError, ValueError):
                 continue
             Ps = 0.5 * (X + X.T)
@@ -456,9 +475,7 @@ def kyp_certificate(observer: PassiveObserver, dof: int) -> dict:
                 "min_eig_Q": _normalized_min_eig(Q),
                 "residual_output": float(np.abs(B.T @ P - C).max() / np.abs(C).max()),
             }
-            candidate["verified"] = bool(
-                candidate["min_eig_P"] > 0 and candidate["min_eig_Q"] > 0 and candidate["residual_output"] < 1e-8
-            )
+            candidate["verified"] = bool(candidate["min_eig_P"] > 0 and candidate["min_eig_Q"] > 0 and candidate["residual_output"] < 1e-8)
             if best is None or candidate["min_eig_Q"] > best["min_eig_Q"]:
                 best = candidate
             if candidate["verified"]:

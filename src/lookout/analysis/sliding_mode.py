@@ -285,8 +285,14 @@ def eigenvalue_report(matrix, *, heading: float = 0.0, relative_tolerance: float
     values, vectors = values[order], vectors[:, order]
     tolerance = relative_tolerance * max(float(np.abs(values).max()), np.finfo(float).tiny)
     stability = Inequality.check(
-        "max Re lambda", "max Re lambda(A_e) < 0", float(values.real.max()), "<", 0.0, units="1/s",
-        source=SOURCE_ERROR_SYSTEM, tolerance=tolerance,
+        "max Re lambda",
+        "max Re lambda(A_e) < 0",
+        float(values.real.max()),
+        "<",
+        0.0,
+        units="1/s",
+        source=SOURCE_ERROR_SYSTEM,
+        tolerance=tolerance,
     )
 
     def mode(k: int) -> Mode:
@@ -332,14 +338,20 @@ def kyp_14(observer, *, frequencies=None) -> Condition:
     inequalities = [item for r in per_dof for item in r.inequalities]
     informational = [item for r in per_dof for item in r.informational]
     quantities = {
-        "P": None, "Q": None, "residual_lyapunov": None, "residual_output": None,
-        "per_dof": {dof: {k: v for k, v in r.quantities.items() if k != "certificate"} | {"verdict": r.verdict, "reason": r.reason}
-                    for dof, r in zip(DOF, per_dof)},
+        "P": None,
+        "Q": None,
+        "residual_lyapunov": None,
+        "residual_output": None,
+        "per_dof": {
+            dof: {k: v for k, v in r.quantities.items() if k != "certificate"} | {"verdict": r.verdict, "reason": r.reason}
+            for dof, r in zip(DOF, per_dof)
+        },
     }
 
     def condition(reason: str) -> Condition:
-        return Condition("kyp_14", "(14)", "KYP for Sigma_2: P A + A^T P = -Q, B^T P = C, P, Q > 0", SOURCE_14,
-                         inequalities, reason, informational, quantities)
+        return Condition(
+            "kyp_14", "(14)", "KYP for Sigma_2: P A + A^T P = -Q, B^T P = C, P, Q > 0", SOURCE_14, inequalities, reason, informational, quantities
+        )
 
     failing = [(dof, r) for dof, r in zip(DOF, per_dof) if r.verdict == Verdict.FAILS]
     if failing:
@@ -376,14 +388,25 @@ def kyp_14(observer, *, frequencies=None) -> Condition:
 
 #: The parameter of :meth:`~lookout.observers.SlidingModeObserver.design` that each
 #: inequality of the tuning rule (48) asks to change, by its relation's start.
-_RULE_48_PARAMETERS = (("1/T", "bias_time_constant", "larger"), ("lambda/kappa", "bias_injection_gain", "smaller"),
-                       ("w_o", "cutoff_frequency", "larger"))
+_RULE_48_PARAMETERS = (
+    ("1/T", "bias_time_constant", "larger"),
+    ("lambda/kappa", "bias_injection_gain", "smaller"),
+    ("w_o", "cutoff_frequency", "larger"),
+)
 
 
 def _loop_numbers(passive: PassiveObserver) -> tuple:
     """The numbers (14) depends on: the wave model, K1, K2, Kappa, Lambda, T, gamma."""
-    fields = ("wave_frequency", "wave_damping", "wave_injection_gain", "position_injection_gain", "velocity_injection_gain",
-              "bias_injection_gain", "bias_time_constant", "lyapunov_weight")
+    fields = (
+        "wave_frequency",
+        "wave_damping",
+        "wave_injection_gain",
+        "position_injection_gain",
+        "velocity_injection_gain",
+        "bias_injection_gain",
+        "bias_time_constant",
+        "lyapunov_weight",
+    )
     return tuple(tuple(np.ravel(np.asarray(getattr(passive, name), dtype=float)).tolist()) for name in fields)
 
 
@@ -481,9 +504,7 @@ def _impulse_response(mass: np.ndarray, damping: np.ndarray):
     return g, float(rates.min()), float(rates.max())
 
 
-def peak_to_peak_gains(
-    mass, damping, *, method: str = "quad", decay_lengths: float = 60.0, steps_per_time_constant: float = 500.0
-) -> np.ndarray:
+def peak_to_peak_gains(mass, damping, *, method: str = "quad", decay_lengths: float = 60.0, steps_per_time_constant: float = 500.0) -> np.ndarray:
     """||g_jk||_1 = int_0^inf |g_jk(t)| dt for the impulse response g of (M s + D)^-1.
 
     The peak-to-peak (L1) gain: a force bounded componentwise by |f_k(t)| <= F_k
@@ -636,8 +657,12 @@ def switching_gain_required(vessel: DPVessel, disturbance_bound, *, observer=Non
     gains = peak_to_peak_gains(vessel.mass_matrix, vessel.damping_matrix)
     velocity, required = _required(gains, bound)
     quantities = {
-        "disturbance_bound": bound, "disturbance_units": list(FORCE_UNITS), "peak_to_peak_gain": gains,
-        "velocity_bound": velocity, "required_gain": required, "gain_units": list(VELOCITY_UNITS),
+        "disturbance_bound": bound,
+        "disturbance_units": list(FORCE_UNITS),
+        "peak_to_peak_gain": gains,
+        "velocity_bound": velocity,
+        "required_gain": required,
+        "gain_units": list(VELOCITY_UNITS),
     }
     inequalities, reason = [], "no switching gain to compare with rho"
     if observer is not None:
@@ -645,12 +670,12 @@ def switching_gain_required(vessel: DPVessel, disturbance_bound, *, observer=Non
         quantities["switching_gain"] = kbar
         relations = ("Kbar_1 >= rho_1 = sqrt(b_1^2 + b_2^2)", "Kbar_2 >= rho_2 = sqrt(b_1^2 + b_2^2)", "Kbar_3 >= rho_3 = b_3")
         inequalities = [
-            Inequality.check(DOF[i], relations[i], kbar[i], ">=", required[i], units=VELOCITY_UNITS[i], source=SOURCE_17)
-            for i in range(3)
+            Inequality.check(DOF[i], relations[i], kbar[i], ">=", required[i], units=VELOCITY_UNITS[i], source=SOURCE_17) for i in range(3)
         ]
         reason = f"for |f| <= F = ({', '.join(number(v, 3) for v in bound)}) N, N, N m"
-    return Condition("switching_gain_17", "(17)", "switching gain dominates a bounded disturbance", SOURCE_17,
-                     inequalities, reason, quantities=quantities)
+    return Condition(
+        "switching_gain_17", "(17)", "switching gain dominates a bounded disturbance", SOURCE_17, inequalities, reason, quantities=quantities
+    )
 
 
 # -- the whole check -----------------------------------------------------------------
@@ -713,10 +738,16 @@ def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, headin
     conditions = [
         check_tuning_rule(passive),
         kyp,
-        _stability("error_system_stable_without_switching", "error system stable, Kbar = 0",
-                   eigenvalue_report(error_system(observer, vessel, heading=heading), heading=heading)),
-        _stability("error_system_stable_inside_layer", "error system stable inside the layer, H2 + Kbar/eps",
-                   eigenvalue_report(error_system(observer, vessel, heading=heading, inside_layer=True), heading=heading)),
+        _stability(
+            "error_system_stable_without_switching",
+            "error system stable, Kbar = 0",
+            eigenvalue_report(error_system(observer, vessel, heading=heading), heading=heading),
+        ),
+        _stability(
+            "error_system_stable_inside_layer",
+            "error system stable inside the layer, H2 + Kbar/eps",
+            eigenvalue_report(error_system(observer, vessel, heading=heading, inside_layer=True), heading=heading),
+        ),
     ]
     notes = []
     if disturbance_bound is None:
@@ -724,10 +755,7 @@ def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, headin
     else:
         conditions.append(switching_gain_required(vessel, disturbance_bound, observer=observer))
     coverage, limited_by = disturbance_coverage(vessel, kbar)
-    notes += [
-        f"Kbar covers |f_{DOF[k]}| <= {number(coverage[k], 4)} {FORCE_UNITS[k]} alone (limited by the {limited_by[k]} gain)"
-        for k in range(3)
-    ]
+    notes += [f"Kbar covers |f_{DOF[k]}| <= {number(coverage[k], 4)} {FORCE_UNITS[k]} alone (limited by the {limited_by[k]} gain)" for k in range(3)]
     if kyp.verdict != Verdict.HOLDS:
         notes.append("(17) presupposes (14): without P, Q it proves nothing")
     summary = [
@@ -819,10 +847,19 @@ def kim_2002_observer(
         What predict holds over a sample (as the passive observer's).
     """
     passive = PassiveObserver.design(
-        vessel, waves=waves, velocity_bandwidth=velocity_bandwidth, wave_frequency=wave_frequency, wave_damping=wave_damping,
-        notch_damping=notch_damping, cutoff_frequency=cutoff_frequency, velocity_injection_gain=velocity_injection_gain,
-        bias_injection_gain=bias_injection_gain, bias_time_constant=bias_time_constant, lyapunov_weight=1.0,
-        steps_per_sample=steps_per_sample, hold=hold,
+        vessel,
+        waves=waves,
+        velocity_bandwidth=velocity_bandwidth,
+        wave_frequency=wave_frequency,
+        wave_damping=wave_damping,
+        notch_damping=notch_damping,
+        cutoff_frequency=cutoff_frequency,
+        velocity_injection_gain=velocity_injection_gain,
+        bias_injection_gain=bias_injection_gain,
+        bias_time_constant=bias_time_constant,
+        lyapunov_weight=1.0,
+        steps_per_sample=steps_per_sample,
+        hold=hold,
     )
     observer = SlidingModeObserver(passive, switching_gain, boundary_layer)
     require_kyp_14(observer)

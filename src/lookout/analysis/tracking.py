@@ -126,9 +126,12 @@ def _constants(ship) -> dict:
     M = np.asarray(ship.mass_matrix, dtype=float)
     q = np.asarray(ship.quadratic_damping, dtype=float)
     return {
-        "M": M, "D": np.asarray(ship.damping_matrix, dtype=float),
-        "M_M": float(1.0 / np.linalg.eigvalsh(M).min()), "C_M": christoffel_bound(M),
-        "k_n": float(np.hypot(q[1], q[2])), "norm_D": float(np.linalg.norm(np.asarray(ship.damping_matrix, dtype=float), 2)),
+        "M": M,
+        "D": np.asarray(ship.damping_matrix, dtype=float),
+        "M_M": float(1.0 / np.linalg.eigvalsh(M).min()),
+        "C_M": christoffel_bound(M),
+        "k_n": float(np.hypot(q[1], q[2])),
+        "norm_D": float(np.linalg.norm(np.asarray(ship.damping_matrix, dtype=float), 2)),
     }
 
 
@@ -137,15 +140,22 @@ def _controller(constants: dict, natural_frequency, damping_ratio) -> dict:
     w = np.asarray(natural_frequency, dtype=float) * np.ones(3)
     lam = np.asarray(damping_ratio, dtype=float) * np.ones(3)
     if not (np.all(np.isfinite(w)) and np.all(w > 0) and np.all(np.isfinite(lam)) and np.all(lam > 0)):
-        raise check.ParameterError("natural_frequency", f"natural_frequency and damping_ratio must be finite and positive; got {w.tolist()}, {lam.tolist()}")
+        raise check.ParameterError(
+            "natural_frequency", f"natural_frequency and damping_ratio must be finite and positive; got {w.tolist()}, {lam.tolist()}"
+        )
     P = controller_p_matrix(w, lam)
     eigenvalues = np.linalg.eigvalsh(P)
     M, D = constants["M"], constants["D"]
     Kp = M @ np.diag(w**2)
     DKd = 2.0 * M @ np.diag(lam * w)
     return {
-        "P_min": float(eigenvalues.min()), "P_max": float(eigenvalues.max()), "Q_min": float(2.0 * np.min(w**2)),
-        "p11": np.diag(P)[:3], "Kp": float(np.linalg.norm(Kp, 2)), "Kd": float(np.linalg.norm(DKd - D, 2)), "DKd": float(np.linalg.norm(DKd, 2)),
+        "P_min": float(eigenvalues.min()),
+        "P_max": float(eigenvalues.max()),
+        "Q_min": float(2.0 * np.min(w**2)),
+        "p11": np.diag(P)[:3],
+        "Kp": float(np.linalg.norm(Kp, 2)),
+        "Kd": float(np.linalg.norm(DKd - D, 2)),
+        "DKd": float(np.linalg.norm(DKd, 2)),
     }
 
 
@@ -160,7 +170,8 @@ def _start(eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_ve
     eta_tilde_rate0 = np.asarray(rotate(eta0[2], nu0)) - np.asarray(velocity_hat0, dtype=float)
     return {
         "x_e0": float(np.linalg.norm(np.concatenate([e_eta0, nu0 - rotated]))),
-        "eta_tilde0_sq": float(eta_tilde0 @ eta_tilde0), "eta_tilde_rate0_sq": float(eta_tilde_rate0 @ eta_tilde_rate0),
+        "eta_tilde0_sq": float(eta_tilde0 @ eta_tilde0),
+        "eta_tilde_rate0_sq": float(eta_tilde_rate0 @ eta_tilde_rate0),
     }
 
 
@@ -170,8 +181,9 @@ def _l1_bound(alpha11: float, gamma1: float, gamma2: float) -> float:
     return (b + math.sqrt(max(b * b - 4.0 * (alpha11**2 - gamma1), 0.0))) / 2.0
 
 
-def _combined(constants: dict, controller: dict, start: dict, L1_min, L1_max, L2_min, L2_max, yaw_rate_max,
-              speed_max, acceleration_max, epsilon3=None) -> dict:
+def _combined(
+    constants: dict, controller: dict, start: dict, L1_min, L1_max, L2_min, L2_max, yaw_rate_max, speed_max, acceleration_max, epsilon3=None
+) -> dict:
     """The numbers of Prop. 3.3 (module docstring) at eps3 (default: the largest admissible)."""
     M_M, C_M, k_n = constants["M_M"], constants["C_M"], constants["k_n"]
     P_min, P_max = controller["P_min"], controller["P_max"]
@@ -190,9 +202,12 @@ def _combined(constants: dict, controller: dict, start: dict, L1_min, L1_max, L2
     inv = 1.0 / eps_sq
     out["epsilon3"] = math.sqrt(eps_sq)
     out["alpha_bar_1_loss"] = yaw_rate_max + eps_sq * P_max * B + (1.0 + eps_sq * P_max * C) * s
-    out["L2_bound"] = (0.5 * M_M * C_M * speed_max + 0.25 * M_M * d_M1
-                       + 2.0 * inv * P_max * M_M * (controller["Kp"] + controller["Kd"] + 2.0 * controller["DKd"] * speed_max)
-                       + (0.5 * M_M * C_M + 2.0 * inv * P_max * (2.0 * M_M * controller["Kp"] + 2.0 * speed_max + 2.0 * acceleration_max)) * s)
+    out["L2_bound"] = (
+        0.5 * M_M * C_M * speed_max
+        + 0.25 * M_M * d_M1
+        + 2.0 * inv * P_max * M_M * (controller["Kp"] + controller["Kd"] + 2.0 * controller["DKd"] * speed_max)
+        + (0.5 * M_M * C_M + 2.0 * inv * P_max * (2.0 * M_M * controller["Kp"] + 2.0 * speed_max + 2.0 * acceleration_max)) * s
+    )
     alpha11 = 0.5 + 3.0 * M_M * C_M * speed_max + 1.5 * M_M * d_M1 + inv * P_max * (speed_max + 2.0 * C_M * speed_max + d_M3)
     gamma = (2.0 * C_M + 2.0 * P_max * C_M + 2.0 * P_max * k_n) / math.sqrt(P_min) + 3.0 * M_M * (C_M + k_n)
     gamma1 = gamma**2 * (P_max * start["x_e0"] ** 2 + L2_max * start["eta_tilde0_sq"] + start["eta_tilde_rate0_sq"])
@@ -211,8 +226,15 @@ def _observer(constants: dict, start: dict, L2_max, velocity_bound) -> dict:
     gamma = 3.0 * M_M * (C_M + k_n)
     gamma1 = gamma**2 * (L2_max * start["eta_tilde0_sq"] + start["eta_tilde_rate0_sq"])
     gamma2 = gamma**2 * start["eta_tilde0_sq"]
-    return {"d_M1": d_M1, "alpha11": alpha11, "gamma": gamma, "gamma1": gamma1, "gamma2": gamma2,
-            "L2_bound": 0.5 * M_M * C_M * velocity_bound + 0.25 * M_M * d_M1, "L1_bound": _l1_bound(alpha11, gamma1, gamma2)}
+    return {
+        "d_M1": d_M1,
+        "alpha11": alpha11,
+        "gamma": gamma,
+        "gamma1": gamma1,
+        "gamma2": gamma2,
+        "L2_bound": 0.5 * M_M * C_M * velocity_bound + 0.25 * M_M * d_M1,
+        "L1_bound": _l1_bound(alpha11, gamma1, gamma2),
+    }
 
 
 def check_wondergem_2009(
@@ -248,12 +270,18 @@ def check_wondergem_2009(
     (Prop. 3.3: (27) and, when an eps3 satisfies it, (30), (32) and, when gamma2 > 0,
     (33); (29) is (10) and (31) always holds). ``quantities`` holds the model
     constants and the numbers of (15) and (28)-(37)."""
-    for name, value in (("yaw_rate_max", yaw_rate_max), ("velocity_bound", velocity_bound),
-                        ("reference_speed_max", reference_speed_max), ("reference_acceleration_max", reference_acceleration_max)):
+    for name, value in (
+        ("yaw_rate_max", yaw_rate_max),
+        ("velocity_bound", velocity_bound),
+        ("reference_speed_max", reference_speed_max),
+        ("reference_acceleration_max", reference_acceleration_max),
+    ):
         if value is not None and not (math.isfinite(value) and value >= 0):
             raise check.ParameterError(check.key(name), f"{name} must be finite and >= 0; got {value!r}")
     if (reference_speed_max is None) != (reference_acceleration_max is None):
-        raise check.ParameterError("reference_speed_max", "reference_speed_max and reference_acceleration_max must be given together (Prop. 3.3 needs both)")
+        raise check.ParameterError(
+            "reference_speed_max", "reference_speed_max and reference_acceleration_max must be given together (Prop. 3.3 needs both)"
+        )
     if epsilon3 is not None and not (math.isfinite(epsilon3) and epsilon3 > 0):
         raise check.ParameterError("epsilon3", f"epsilon3 must be finite and positive; got {epsilon3!r}")
     L1 = np.asarray(observer_gains[0], dtype=float) * np.ones(3)
@@ -269,8 +297,13 @@ def check_wondergem_2009(
     kappa_r = (dp + math.sqrt(dp * dp + 4.0)) / 2.0 if corrected else 1.0
     ratio = math.sqrt(controller["P_max"] / controller["P_min"])
     controller_25 = [
-        _check("(25)", "lmin(Q) > r_max" + (" kappa_r" if corrected else "") + " + sqrt(lmax(P)/lmin(P)) |x_e0|",
-               controller["Q_min"], kappa_r * yaw_rate_max + ratio * start["x_e0"], "1/s"),
+        _check(
+            "(25)",
+            "lmin(Q) > r_max" + (" kappa_r" if corrected else "") + " + sqrt(lmax(P)/lmin(P)) |x_e0|",
+            controller["Q_min"],
+            kappa_r * yaw_rate_max + ratio * start["x_e0"],
+            "1/s",
+        ),
     ]
 
     # observer, Prop. 3.1
@@ -282,33 +315,68 @@ def check_wondergem_2009(
         _check("(13)", "lmin(L1) > [(2 a11 + g2) + sqrt((2 a11 + g2)^2 - 4 (a11^2 - g1))] / 2", L1.min(), observer["L1_bound"], "1/s"),
     ]
     if observer["gamma2"] > 0:
-        observer_3_1.append(_check("(14)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)",
-                                   ((L1.min() - observer["alpha11"]) ** 2 - observer["gamma1"]) / observer["gamma2"], L1.max(), "1/s", ">="))
+        observer_3_1.append(
+            _check(
+                "(14)",
+                "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)",
+                ((L1.min() - observer["alpha11"]) ** 2 - observer["gamma1"]) / observer["gamma2"],
+                L1.max(),
+                "1/s",
+                ">=",
+            )
+        )
     conditions = [
         Condition("controller_25", "(25)", "controller: alpha_bar > 0", f"{PAPER}, Proposition 3.2, eq. (25)", controller_25),
-        Condition("observer_3_1", "Proposition 3.1", "observer: (10), (11), (13), (14)", f"{PAPER}, Proposition 3.1, eqs. (10)-(15)",
-                  observer_3_1),
+        Condition("observer_3_1", "Proposition 3.1", "observer: (10), (11), (13), (14)", f"{PAPER}, Proposition 3.1, eqs. (10)-(15)", observer_3_1),
     ]
     quantities = {
-        "M_M": constants["M_M"], "C_M_christoffel": constants["C_M"],
+        "M_M": constants["M_M"],
+        "C_M_christoffel": constants["C_M"],
         "C_M_body": float(max(constants["M"][0, 0], math.hypot(constants["M"][1, 1], constants["M"][1, 2]))),
-        "k_n": constants["k_n"], "d_M1": observer["d_M1"], "d_M2": constants["k_n"], "velocity_bound": velocity_bound,
-        "lambda_P": [controller["P_min"], controller["P_max"]], "lambda_min_Q": controller["Q_min"], "x_e0_norm": start["x_e0"],
-        "kappa_r": kappa_r, "alpha11": observer["alpha11"], "gamma": observer["gamma"],
-        "gamma1": float(observer["gamma1"]), "gamma2": float(observer["gamma2"]),
+        "k_n": constants["k_n"],
+        "d_M1": observer["d_M1"],
+        "d_M2": constants["k_n"],
+        "velocity_bound": velocity_bound,
+        "lambda_P": [controller["P_min"], controller["P_max"]],
+        "lambda_min_Q": controller["Q_min"],
+        "x_e0_norm": start["x_e0"],
+        "kappa_r": kappa_r,
+        "alpha11": observer["alpha11"],
+        "gamma": observer["gamma"],
+        "gamma1": float(observer["gamma1"]),
+        "gamma2": float(observer["gamma2"]),
     }
     notes: list[str] = []
 
     # combined scheme, Prop. 3.3
     if reference_speed_max is not None:
-        combined = _combined(constants, controller, start, L1.min(), L1.max(), L2.min(), L2.max(), yaw_rate_max,
-                             reference_speed_max, reference_acceleration_max, epsilon3)
+        combined = _combined(
+            constants,
+            controller,
+            start,
+            L1.min(),
+            L1.max(),
+            L2.min(),
+            L2.max(),
+            yaw_rate_max,
+            reference_speed_max,
+            reference_acceleration_max,
+            epsilon3,
+        )
         if epsilon3 is None:
-            combined_3_3 = [_check("(27)", "eps3 exists: lmin(Q) > r_max + sqrt(V0/lmin(P))",
-                                   controller["Q_min"], yaw_rate_max + combined["s"], "1/s")]
+            combined_3_3 = [
+                _check("(27)", "eps3 exists: lmin(Q) > r_max + sqrt(V0/lmin(P))", controller["Q_min"], yaw_rate_max + combined["s"], "1/s")
+            ]
         else:
-            combined_3_3 = [_check("(27)", "lmin(Q) > r_max + eps3^2 lmax(P) (B + C s) + s, s = sqrt(V0/lmin(P))",
-                                   controller["Q_min"], combined["alpha_bar_1_loss"], "1/s")]
+            combined_3_3 = [
+                _check(
+                    "(27)",
+                    "lmin(Q) > r_max + eps3^2 lmax(P) (B + C s) + s, s = sqrt(V0/lmin(P))",
+                    controller["Q_min"],
+                    combined["alpha_bar_1_loss"],
+                    "1/s",
+                )
+            ]
         if "epsilon3" in combined:
             combined_3_3 += [
                 _check("(30)", "lmin(L2) > ... + 2 eps3^-2 lmax(P) (...) sqrt(V0/lmin(P))", L2.min(), combined["L2_bound"], "1/s2"),
@@ -318,13 +386,27 @@ def check_wondergem_2009(
                 combined_3_3.append(_check("(33)", "[(lmin(L1) - a11)^2 - g1] / g2 >= lmax(L1)", combined["L1_max_bound"], L1.max(), "1/s", ">="))
         else:
             notes.append("(30), (32), (33) need an eps3 that satisfies (27); none exists")
-        conditions.append(Condition("combined_3_3", "Proposition 3.3", "combined scheme: (27), (30), (32), (33)",
-                                    f"{PAPER}, Proposition 3.3, eqs. (27)-(37)", combined_3_3))
+        conditions.append(
+            Condition(
+                "combined_3_3",
+                "Proposition 3.3",
+                "combined scheme: (27), (30), (32), (33)",
+                f"{PAPER}, Proposition 3.3, eqs. (27)-(37)",
+                combined_3_3,
+            )
+        )
         quantities["combined"] = {
-            key: combined[key] for key in ("V0", "epsilon3_max", "epsilon3", "d_M1", "d_M3", "alpha11", "gamma", "gamma1", "gamma2") if key in combined
+            key: combined[key]
+            for key in ("V0", "epsilon3_max", "epsilon3", "d_M1", "d_M3", "alpha11", "gamma", "gamma1", "gamma2")
+            if key in combined
         }
-        quantities["combined"].update(reference_speed_max=reference_speed_max, reference_acceleration_max=reference_acceleration_max,
-                                      Kp_norm=controller["Kp"], Kd_norm=controller["Kd"], D_plus_Kd_norm=controller["DKd"])
+        quantities["combined"].update(
+            reference_speed_max=reference_speed_max,
+            reference_acceleration_max=reference_acceleration_max,
+            Kp_norm=controller["Kp"],
+            Kd_norm=controller["Kd"],
+            D_plus_Kd_norm=controller["DKd"],
+        )
     return Report(f"{PAPER}: gain conditions", conditions, quantities, notes=notes)
 
 
@@ -354,13 +436,19 @@ class GainProposal:
     def search(self) -> dict:
         """The search's result, without the check of the gains: JSON-safe (what
         :meth:`outcome` puts in its ``quantities["proposal"]``)."""
-        return json_safe({
-            "observer_poles": self.observer_poles if self.found else None,
-            "euler_step_max_s": self.euler_step_max if self.found else None,
-            "found": self.found, "natural_frequency": self.natural_frequency, "damping_ratio": self.damping_ratio,
-            "observer_gains": {"L1": self.observer_gains[0], "L2": self.observer_gains[1]}, "epsilon3": self.epsilon3,
-            "iterations": self.iterations, "reason": self.reason,
-        })
+        return json_safe(
+            {
+                "observer_poles": self.observer_poles if self.found else None,
+                "euler_step_max_s": self.euler_step_max if self.found else None,
+                "found": self.found,
+                "natural_frequency": self.natural_frequency,
+                "damping_ratio": self.damping_ratio,
+                "observer_gains": {"L1": self.observer_gains[0], "L2": self.observer_gains[1]},
+                "epsilon3": self.epsilon3,
+                "iterations": self.iterations,
+                "reason": self.reason,
+            }
+        )
 
     def summary(self) -> list[str]:
         """The proposed gains, or why there are none."""
@@ -370,8 +458,7 @@ class GainProposal:
         return [
             f"proposed: Omega = {self.natural_frequency:.4g} I rad/s, Lambda = {self.damping_ratio:g} I, "
             f"L1 = {L1:.4g} I 1/s, L2 = {L2:.4g} I 1/s2, eps3 = {self.epsilon3:.3g} ({self.iterations} iterations)",
-            f"observer poles {', '.join(f'{p:.4g}' for p in self.observer_poles)} 1/s: forward Euler needs a step below "
-            f"{self.euler_step_max:.3g} s",
+            f"observer poles {', '.join(f'{p:.4g}' for p in self.observer_poles)} 1/s: forward Euler needs a step below {self.euler_step_max:.3g} s",
         ]
 
     def outcome(self) -> Report:
@@ -418,8 +505,12 @@ def propose_wondergem_2009(
     measured) the second pass confirms the first."""
     if not (math.isfinite(margin) and margin > 1.0):
         raise check.ParameterError("margin", f"margin must be finite and > 1; got {margin!r}")
-    for name, value in (("yaw_rate_max", yaw_rate_max), ("reference_speed_max", reference_speed_max),
-                        ("reference_acceleration_max", reference_acceleration_max), ("velocity_bound", velocity_bound)):
+    for name, value in (
+        ("yaw_rate_max", yaw_rate_max),
+        ("reference_speed_max", reference_speed_max),
+        ("reference_acceleration_max", reference_acceleration_max),
+        ("velocity_bound", velocity_bound),
+    ):
         if not (math.isfinite(value) and value >= 0):
             raise check.ParameterError(check.key(name), f"{name} must be finite and >= 0; got {value!r}")
     if not (math.isfinite(damping_ratio) and damping_ratio > 0):
@@ -446,23 +537,50 @@ def propose_wondergem_2009(
                 if best is None or need < best[0]:
                     best = (need, w, eps)
         if best is None:
-            return GainProposal(False, math.nan, damping_ratio, (L1, L2), math.nan, iteration, None,
-                                f"no omega up to {grid[-1]:g} rad/s leaves (27) an eps3 with L1 = {L1:.3g}, L2 = {L2:.3g}")
+            return GainProposal(
+                False,
+                math.nan,
+                damping_ratio,
+                (L1, L2),
+                math.nan,
+                iteration,
+                None,
+                f"no omega up to {grid[-1]:g} rad/s leaves (27) an eps3 with L1 = {L1:.3g}, L2 = {L2:.3g}",
+            )
         (need1, need2), omega, eps3 = best
         if need1 < L1 and need2 < L2:
             report = check_wondergem_2009(
-                ship, observer_gains=(L1, L2), natural_frequency=omega, damping_ratio=damping_ratio, eta0=eta0, nu0=nu0,
-                eta_hat0=eta_hat0, velocity_hat0=velocity_hat0, reference_position0=reference_position0,
-                reference_velocity0=reference_velocity0, yaw_rate_max=yaw_rate_max, velocity_bound=velocity_bound,
-                reference_speed_max=reference_speed_max, reference_acceleration_max=reference_acceleration_max, epsilon3=eps3,
+                ship,
+                observer_gains=(L1, L2),
+                natural_frequency=omega,
+                damping_ratio=damping_ratio,
+                eta0=eta0,
+                nu0=nu0,
+                eta_hat0=eta_hat0,
+                velocity_hat0=velocity_hat0,
+                reference_position0=reference_position0,
+                reference_velocity0=reference_velocity0,
+                yaw_rate_max=yaw_rate_max,
+                velocity_bound=velocity_bound,
+                reference_speed_max=reference_speed_max,
+                reference_acceleration_max=reference_acceleration_max,
+                epsilon3=eps3,
             )
             return GainProposal(True, float(omega), damping_ratio, (float(L1), float(L2)), float(eps3), iteration, report)
         L1, L2 = max(L1, margin * need1), max(L2, margin * need2)
         if max(L1, L2) > 1e12:
             break
-    return GainProposal(False, float(omega), damping_ratio, (float(L1), float(L2)), float(eps3), iteration, None,
-                        f"L1, L2 keep growing with V0 (L1 = {L1:.3g}, L2 = {L2:.3g}): the initial estimate error ||eta~0|| = "
-                        f"{math.sqrt(start['eta_tilde0_sq']):.3g} makes the procedure's fixed point run away; start the estimate at the measurement")
+    return GainProposal(
+        False,
+        float(omega),
+        damping_ratio,
+        (float(L1), float(L2)),
+        float(eps3),
+        iteration,
+        None,
+        f"L1, L2 keep growing with V0 (L1 = {L1:.3g}, L2 = {L2:.3g}): the initial estimate error ||eta~0|| = "
+        f"{math.sqrt(start['eta_tilde0_sq']):.3g} makes the procedure's fixed point run away; start the estimate at the measurement",
+    )
 
 
 def _vector(name: str, value) -> tuple[float, ...]:
@@ -481,8 +599,7 @@ def _bound(name: str, value, *, low: float = 0.0, strict: bool = False) -> float
 
 
 @functools.lru_cache(maxsize=32)
-def _cached_proposal(ship_numbers: tuple, start: tuple, bounds: tuple, damping_ratio: float, velocity_bound: float,
-                     margin: float) -> GainProposal:
+def _cached_proposal(ship_numbers: tuple, start: tuple, bounds: tuple, damping_ratio: float, velocity_bound: float, margin: float) -> GainProposal:
     """:func:`propose_wondergem_2009` once per ship and inputs: the observer's rule and the
     controller's rule of one composition ask for the same proposal."""
 
@@ -490,13 +607,20 @@ def _cached_proposal(ship_numbers: tuple, start: tuple, bounds: tuple, damping_r
     eta0, nu0, eta_hat0, velocity_hat0, reference_position0, reference_velocity0 = start
     yaw_rate_max, speed_max, acceleration_max = bounds
     return propose_wondergem_2009(
-        Cybership(mass.reshape(3, 3), damping.reshape(3, 3), quadratic), damping_ratio=damping_ratio, eta0=eta0, nu0=nu0,
-        eta_hat0=eta_hat0, velocity_hat0=velocity_hat0, reference_position0=reference_position0,
-        reference_velocity0=reference_velocity0, yaw_rate_max=yaw_rate_max, reference_speed_max=speed_max,
-        reference_acceleration_max=acceleration_max, velocity_bound=velocity_bound, margin=margin,
+        Cybership(mass.reshape(3, 3), damping.reshape(3, 3), quadratic),
+        damping_ratio=damping_ratio,
+        eta0=eta0,
+        nu0=nu0,
+        eta_hat0=eta_hat0,
+        velocity_hat0=velocity_hat0,
+        reference_position0=reference_position0,
+        reference_velocity0=reference_velocity0,
+        yaw_rate_max=yaw_rate_max,
+        reference_speed_max=speed_max,
+        reference_acceleration_max=acceleration_max,
+        velocity_bound=velocity_bound,
+        margin=margin,
     )
-
-
 
 
 def wondergem_2009_gains(
@@ -537,17 +661,23 @@ def wondergem_2009_gains(
         the initial tracking error ||x_e0|| must leave (27) an eps3 for some
         omega <= 100 rad/s (``start_position``).
     """
-    ship_numbers = tuple(tuple(np.asarray(getattr(ship, name), dtype=float).ravel().tolist())
-                         for name in ("mass_matrix", "damping_matrix", "quadratic_damping"))
+    ship_numbers = tuple(
+        tuple(np.asarray(getattr(ship, name), dtype=float).ravel().tolist()) for name in ("mass_matrix", "damping_matrix", "quadratic_damping")
+    )
     position = _vector("start_position", start_position)
     start = (
-        position, _vector("start_velocity", start_velocity),
+        position,
+        _vector("start_velocity", start_velocity),
         position if estimate_position is None else _vector("estimate_position", estimate_position),
-        _vector("estimate_velocity", estimate_velocity), _vector("reference_position", reference_position),
+        _vector("estimate_velocity", estimate_velocity),
+        _vector("reference_position", reference_position),
         _vector("reference_velocity", reference_velocity),
     )
-    bounds = (_bound("reference_yaw_rate_max", reference_yaw_rate_max), _bound("reference_speed_max", reference_speed_max),
-              _bound("reference_acceleration_max", reference_acceleration_max))
+    bounds = (
+        _bound("reference_yaw_rate_max", reference_yaw_rate_max),
+        _bound("reference_speed_max", reference_speed_max),
+        _bound("reference_acceleration_max", reference_acceleration_max),
+    )
     ratio = _bound("damping_ratio", damping_ratio, strict=True)
     speed = _bound("velocity_bound", velocity_bound)
     factor = _bound("margin", margin, low=1.0, strict=True)
@@ -558,12 +688,12 @@ def wondergem_2009_gains(
     if estimate_error > 0:
         L1, L2 = proposal.observer_gains
         raise check.ParameterError(
-            "estimate_position", f"estimate_position is too far from the measurement for {PAPER}'s procedure: with ||eta_hat(0) - eta(0)|| = "
+            "estimate_position",
+            f"estimate_position is too far from the measurement for {PAPER}'s procedure: with ||eta_hat(0) - eta(0)|| = "
             f"{estimate_error:.3g} (m and rad in one norm) V0 (28) grows with L1 and L2 and their fixed point runs away "
-            f"(L1 = {L1:.3g}, L2 = {L2:.3g} after {proposal.iterations} iterations); leave it out to start the estimate at the measurement"
+            f"(L1 = {L1:.3g}, L2 = {L2:.3g} after {proposal.iterations} iterations); leave it out to start the estimate at the measurement",
         )
     raise check.ParameterError("start_position", f"start_position is too far from the reference for {PAPER}'s procedure: {proposal.reason}")
-
 
 
 def wondergem_2009_observer(
@@ -642,16 +772,30 @@ def wondergem_2009_observer(
         Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).
     """
     proposal = wondergem_2009_gains(
-        ship, reference_position=reference_position, reference_velocity=reference_velocity,
-        reference_yaw_rate_max=reference_yaw_rate_max, reference_speed_max=reference_speed_max,
-        reference_acceleration_max=reference_acceleration_max, start_position=start_position, start_velocity=start_velocity,
-        estimate_position=estimate_position, estimate_velocity=estimate_velocity, damping_ratio=damping_ratio,
-        velocity_bound=velocity_bound, margin=margin,
+        ship,
+        reference_position=reference_position,
+        reference_velocity=reference_velocity,
+        reference_yaw_rate_max=reference_yaw_rate_max,
+        reference_speed_max=reference_speed_max,
+        reference_acceleration_max=reference_acceleration_max,
+        start_position=start_position,
+        start_velocity=start_velocity,
+        estimate_position=estimate_position,
+        estimate_velocity=estimate_velocity,
+        damping_ratio=damping_ratio,
+        velocity_bound=velocity_bound,
+        margin=margin,
     )
     position_gain, velocity_gain = proposal.observer_gains
     return EarthFixedObserver(ship, position_gain, velocity_gain, steps_per_sample=steps_per_sample, method=method, initial_velocity=initial_velocity)
 
 
 __all__ = [
-    "GainProposal", "check_wondergem_2009", "wondergem_2009_observer", "christoffel_bound", "controller_p_matrix", "propose_wondergem_2009", "wondergem_2009_gains",
+    "GainProposal",
+    "check_wondergem_2009",
+    "wondergem_2009_observer",
+    "christoffel_bound",
+    "controller_p_matrix",
+    "propose_wondergem_2009",
+    "wondergem_2009_gains",
 ]

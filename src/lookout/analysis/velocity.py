@@ -78,7 +78,9 @@ def _maximize(objective, grid: np.ndarray, values: np.ndarray, refine: bool) -> 
     if not refine or grid.shape[1] == 0:
         return value
     result = scipy.optimize.minimize(
-        lambda p: -objective(p), grid[best], method="Nelder-Mead",
+        lambda p: -objective(p),
+        grid[best],
+        method="Nelder-Mead",
         options={"xatol": 1e-10, "fatol": 1e-15, "maxiter": 4000},
     )
     return max(value, -float(result.fun))
@@ -138,9 +140,7 @@ class ConfigurationBounds:
         return asdict(self) | {"angles": list(self.angles)}
 
 
-def configuration_bounds(
-    model: ManipulatorModel, *, grid_points: int = 64, direction_points: int = 64, refine: bool = True
-) -> ConfigurationBounds:
+def configuration_bounds(model: ManipulatorModel, *, grid_points: int = 64, direction_points: int = 64, refine: bool = True) -> ConfigurationBounds:
     """M_m, M_M (Property 2.1), C_M (Property 2.3) and phi of ``model``, to reuse across
     gains and speed bounds.
 
@@ -155,10 +155,7 @@ def configuration_bounds(
     q_grid = configuration_grid(model, angles, grid_points)[:, list(angles)]
     inertia_and_friction, coriolis_norm = _configuration_functions(model, angles)
     table = np.asarray(jax.jit(jax.vmap(inertia_and_friction))(jnp.asarray(q_grid)))
-    extremes = [
-        _maximize(lambda p, i=i: float(np.asarray(inertia_and_friction(jnp.asarray(p)))[i]), q_grid, table[:, i], refine)
-        for i in range(3)
-    ]
+    extremes = [_maximize(lambda p, i=i: float(np.asarray(inertia_and_friction(jnp.asarray(p)))[i]), q_grid, table[:, i], refine) for i in range(3)]
     directions = _directions(model.size, direction_points)
     pairs = np.concatenate([np.repeat(q_grid, len(directions), axis=0), np.tile(directions, (len(q_grid), 1))], axis=1)
     norms = np.asarray(jax.jit(jax.vmap(coriolis_norm))(jnp.asarray(pairs)))
@@ -294,18 +291,41 @@ def velocity_observer_condition(
     radius = math.inf if c_max == 0.0 else low * effective / c_max - 2.0 * w_max
     error = None if initial_error is None else float(initial_error)
     numbers = {
-        "gain_bound": sigma, "friction_bound": phi, "effective_gain": effective, "min_inertia": low, "max_inertia": high,
-        "coriolis_bound": c_max, "max_speed": w_max, "threshold": threshold, "radius": radius, "initial_error": error,
+        "gain_bound": sigma,
+        "friction_bound": phi,
+        "effective_gain": effective,
+        "min_inertia": low,
+        "max_inertia": high,
+        "coriolis_bound": c_max,
+        "max_speed": w_max,
+        "threshold": threshold,
+        "radius": radius,
+        "initial_error": error,
     }
     source = "Calugi (2002), Theorem 2.1, eq. (2.11)"
     conditions = [
-        Condition("theorem_2_1", "Theorem 2.1", "velocity observer: x1~ -> 0 exponentially", source,
-                  [Inequality.check("sigma_eff", "sigma + min(phi, 0) > 3 C_M w_max / M_m", effective, ">", threshold, units="1/s", source=source)]),
+        Condition(
+            "theorem_2_1",
+            "Theorem 2.1",
+            "velocity observer: x1~ -> 0 exponentially",
+            source,
+            [Inequality.check("sigma_eff", "sigma + min(phi, 0) > 3 C_M w_max / M_m", effective, ">", threshold, units="1/s", source=source)],
+        ),
     ]
     if error is not None:
         region = "Calugi (2002), Remark 2.1, region (2.13)"
-        conditions.append(Condition("region_2_13", "(2.13)", "the initial error inside the region", region,
-                                    [Inequality.check("||x1~(0)||", "M_m sigma_eff / C_M - 2 w_max > ||x1~(0)||", radius, ">", error,
-                                                      units="joint-space norm of q'", source=region)]))
+        conditions.append(
+            Condition(
+                "region_2_13",
+                "(2.13)",
+                "the initial error inside the region",
+                region,
+                [
+                    Inequality.check(
+                        "||x1~(0)||", "M_m sigma_eff / C_M - 2 w_max > ||x1~(0)||", radius, ">", error, units="joint-space norm of q'", source=region
+                    )
+                ],
+            )
+        )
     report = Report("Calugi (2002), Theorem 2.1: velocity observer", conditions, numbers)
     return VelocityObserverCondition(**numbers, report=report)

@@ -40,14 +40,21 @@ from lookout.scenario.declare import POSITIVE, Part, Value, component
 
 
 @component(
-    "controller", "adaptive-backstepping",
+    "controller",
+    "adaptive-backstepping",
     summary="Calugi (2002) ch. 5: the control law (5.9) on the adaptive observer's estimates.",
     parameters=(
         Part("parameters", "The model and its unknowns, as the observer's."),
         Value("observer_gain", "array", "K of the observer (1/s), for Omega (5.11).", shape="(n,)", range=POSITIVE),
         Value("position_gain", "array", "C1 of (5.9) (1/s).", shape="(n,)", range=POSITIVE),
         Value("velocity_gain", "array", "C2 of (5.9) (1/s).", shape="(n,)", range=POSITIVE),
-        Value("damping_weights", "array", "d_1..d_2n: D1 = diag(d_1..d_n) (1/s) and D2 = diag(d_{n+i} |omega_i|^2) of (5.12).", shape="(2n,)", range=POSITIVE),
+        Value(
+            "damping_weights",
+            "array",
+            "d_1..d_2n: D1 = diag(d_1..d_n) (1/s) and D2 = diag(d_{n+i} |omega_i|^2) of (5.12).",
+            shape="(2n,)",
+            range=POSITIVE,
+        ),
     ),
 )
 @final
@@ -94,8 +101,12 @@ class AdaptiveObserverBackstepping(Controller):
         self.position_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION)
 
     def __check_init__(self):
-        for name, value in (("observer gain K", self.observer_gain), ("position_gain C1", self.position_gain),
-                            ("velocity_gain C2", self.velocity_gain), ("damping_weights d", self.damping_weights)):
+        for name, value in (
+            ("observer gain K", self.observer_gain),
+            ("position_gain C1", self.position_gain),
+            ("velocity_gain C2", self.velocity_gain),
+            ("damping_weights d", self.damping_weights),
+        ):
             check.positive(name, value)
 
     #: what (5.9) reads: q, x1_hat and theta_hat, and the joints' reference with two derivatives
@@ -130,7 +141,7 @@ class AdaptiveObserverBackstepping(Controller):
         """tau of (5.9)."""
         z1, z2, q_d_accel = self.errors(q, velocity, reference)
         first, second = self.gains()
-        v = -first**2 * z1 + first * z2 - q_d_accel + second * z2 + z1
+        v = -(first**2) * z1 + first * z2 - q_d_accel + second * z2 + z1
         model = self.parameters.model(theta)
         return -matvec(model.mass_matrix(q), v) + model.coriolis_force(q, velocity) + model.friction_force(velocity) + model.gravity(q)
 

@@ -90,7 +90,8 @@ def _vector(estimate: dict, name: str) -> Array:
 
 
 @component(
-    "controller", "observer-backstepping",
+    "controller",
+    "observer-backstepping",
     summary="Kim (2002) observer backstepping with integral action, eqs. (18)–(26).",
     family="lookout.tuning.families.positive:ObserverBacksteppingFamily",
     build="for_observer",
@@ -207,7 +208,9 @@ class ObserverBackstepping(Controller):
             P1 (1/s^2), the weight of z1 in V_con; 1 is Kim's law as printed.
         """
         if not isinstance(observer, WaveFilteringObserver):
-            raise check.ParameterError("observer", f"observer must be a wave-filtering observer (passive, sliding-mode); got {type(observer).__name__}")
+            raise check.ParameterError(
+                "observer", f"observer must be a wave-filtering observer (passive, sliding-mode); got {type(observer).__name__}"
+            )
         gains = observer.wave_filter_gains()
         return cls(
             gains.mass_matrix,
@@ -228,9 +231,18 @@ class ObserverBackstepping(Controller):
         """H2, H4, Kbar and the wave model taken again from ``observer`` (traceable)."""
         gains = observer.wave_filter_gains()
         return eqx.tree_at(
-            lambda c: (c.position_injection_gain, c.velocity_injection_gain, c.switching_gain, c.wave_frequency, c.wave_damping), self,
-            tuple(jnp.broadcast_to(jnp.asarray(v, dtype=float), (3,)) for v in (gains.position_injection_gain, gains.velocity_injection_gain,
-                                                                               gains.switching_gain, gains.wave_frequency, gains.wave_damping)),
+            lambda c: (c.position_injection_gain, c.velocity_injection_gain, c.switching_gain, c.wave_frequency, c.wave_damping),
+            self,
+            tuple(
+                jnp.broadcast_to(jnp.asarray(v, dtype=float), (3,))
+                for v in (
+                    gains.position_injection_gain,
+                    gains.velocity_injection_gain,
+                    gains.switching_gain,
+                    gains.wave_frequency,
+                    gains.wave_damping,
+                )
+            ),
         )
 
     #: what the law reads (eqs. 18–26): the estimate with its wave motion, the measured
@@ -272,7 +284,9 @@ class ObserverBackstepping(Controller):
         """V_con = 1/2 (z1^T P1 z1 + |z2|^2) + e_I^T K_I C1 P1 e_I of eq. (29) (P1 = 1 as printed)."""
         err = self.errors(integral, y, estimate, reference)
         p1 = self.coupling_gain
-        return 0.5 * (jnp.sum(p1 * err["z1"] ** 2) + jnp.sum(err["z2"] ** 2)) + jnp.sum(integral * self.integral_gain * self.position_gain * p1 * integral)
+        return 0.5 * (jnp.sum(p1 * err["z1"] ** 2) + jnp.sum(err["z2"] ** 2)) + jnp.sum(
+            integral * self.integral_gain * self.position_gain * p1 * integral
+        )
 
     def step(self, integral, t, y, estimate, reference, dt):
         """``(e_I(k+1), tau_k)``: the control law (25) at t_k."""
@@ -314,7 +328,8 @@ class ObserverBackstepping(Controller):
 
 
 @component(
-    "controller", "vectorial-backstepping",
+    "controller",
+    "vectorial-backstepping",
     summary="Calugi, Robertsson & Johansson (2003) vectorial observer backstepping, eqs. (24)–(40), with M_hat, D_hat, K_hat from the current parameter estimate theta_hat (Remark 3).",
     family="lookout.tuning.families.adaptive_dp:VectorialBacksteppingFamily",
     build="for_observer",
@@ -379,7 +394,9 @@ class VectorialBackstepping(Controller):
     damping_weights: Array
     coupling_gain: Array
 
-    def __init__(self, parametrization, *, observer_position_gain, observer_velocity_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0):
+    def __init__(
+        self, parametrization, *, observer_position_gain, observer_velocity_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0
+    ):
         self.parametrization = parametrization
         self.observer_position_gain = jnp.asarray(check.vector("observer_position_gain (K1)", observer_position_gain))
         self.observer_velocity_gain = jnp.asarray(check.vector("observer_velocity_gain (K2)", observer_velocity_gain))
@@ -428,9 +445,14 @@ class VectorialBackstepping(Controller):
 
     def follow(self, observer) -> VectorialBackstepping:
         """K1, K2 taken again from ``observer`` (traceable)."""
-        return eqx.tree_at(lambda c: (c.observer_position_gain, c.observer_velocity_gain), self,
-                           (jnp.broadcast_to(jnp.asarray(observer.position_gain, dtype=float), self.observer_position_gain.shape),
-                            jnp.broadcast_to(jnp.asarray(observer.velocity_gain, dtype=float), self.observer_velocity_gain.shape)))
+        return eqx.tree_at(
+            lambda c: (c.observer_position_gain, c.observer_velocity_gain),
+            self,
+            (
+                jnp.broadcast_to(jnp.asarray(observer.position_gain, dtype=float), self.observer_position_gain.shape),
+                jnp.broadcast_to(jnp.asarray(observer.velocity_gain, dtype=float), self.observer_velocity_gain.shape),
+            ),
+        )
 
     #: what the law (36) reads: the estimate and theta_hat, the measured heading, the reference
     estimate_needs = property(lambda self: VESSEL_ESTIMATE + tuple(f"theta_{name}" for name in self.parametrization.names))

@@ -55,7 +55,8 @@ def _gain(name: str, value) -> Array:
 
 
 @component(
-    "controller", "furuta-backstepping",
+    "controller",
+    "furuta-backstepping",
     summary="Calugi (2002) ch. 6: the pendulum-angle law (6.9)–(6.11) on the observer's estimates.",
     parameters=(
         Part("parameters", "The model (a lookout.models.furuta.FurutaConstants) and its unknowns, as the observer's."),
@@ -111,8 +112,12 @@ class FurutaPendulumBackstepping(Controller):
         self.velocity_damping = _gain("velocity_damping d2", velocity_damping)
 
     def __check_init__(self):
-        for name, value in (("position_gain c1", self.position_gain), ("position_damping d1", self.position_damping),
-                            ("velocity_gain c2", self.velocity_gain), ("velocity_damping d2", self.velocity_damping)):
+        for name, value in (
+            ("position_gain c1", self.position_gain),
+            ("position_damping d1", self.position_damping),
+            ("velocity_gain c2", self.velocity_gain),
+            ("velocity_damping d2", self.velocity_damping),
+        ):
             check.positive(name, value)
 
     #: what (6.9)–(6.11) read: the estimate's q, x1_hat and theta_hat, the pendulum's reference

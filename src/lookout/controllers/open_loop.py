@@ -14,7 +14,8 @@ from lookout.scenario.declare import Context, Value, component
 
 
 @component(
-    "controller", "sinusoidal",
+    "controller",
+    "sinusoidal",
     summary="u_i(t) = offset_i + amplitude_i sin(frequency_i t + phase_i), held over each sample.",
     parameters=(
         Value("amplitude", "array", "In the units of the plant's input.", shape="(n,) or scalar"),
@@ -85,11 +86,10 @@ class SinusoidalInput(Controller):
 
 
 @component(
-    "controller", "none",
+    "controller",
+    "none",
     summary="A zero input of size entries: the plant runs unforced.",
-    parameters=(
-        Context("size", "Length of the plant's input vector."),
-    ),
+    parameters=(Context("size", "Length of the plant's input vector."),),
 )
 @final
 class NoControl(Controller):

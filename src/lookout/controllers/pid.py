@@ -119,29 +119,81 @@ def _integral_limit(value) -> Array:
 
 
 @component(
-    "controller", "pid",
+    "controller",
+    "pid",
     summary="Nonlinear PID for dynamic positioning on an observer's estimates, with reference and optional bias feed-forward.",
     family="lookout.tuning.families.pid:PidFamily",
     rules={
-        "pole-placement": Rule("design", (
-            Part("vessel", "The controller's model M, D; in a composition, the plant's unless given."),
-            Value("natural_frequency", "array", "w_n (rad/s) per DOF: the bandwidth of the position loop, well below the waves' (0.1 rad/s: a 63 s period).", shape="(3,)", range=POSITIVE),
-            Value("damping_ratio", "array", "zeta (1) per DOF; 1 is critically damped.", shape="(3,)", range=POSITIVE),
-            Value("integral_ratio", "array", "r = ki / (w_n kp) (1), below 2 damping_ratio; Fossen's 0.1 puts the integrator ten times slower than w_n.", shape="(3,)", range=NON_NEGATIVE),
-            Value("proportional_gain", "array", "Kp (N/m, N/m, N m/rad); default m w_n^2.", shape="(3,)", range=POSITIVE),
-            Value("derivative_gain", "array", "Kd (N s/m, N s/m, N m s/rad); default 2 zeta w_n m - d.", shape="(3,)"),
-            Value("integral_gain", "array", "Ki (N/(m s), N/(m s), N m/(rad s)); default r w_n Kp.", shape="(3,)", range=NON_NEGATIVE),
-            Value("integral_limit", "array", "Largest integral force and moment in the body frame (N, N, N m), as the actuator's limits; default none.", shape="(3,)", range=POSITIVE),
-            Value("bias_feedforward", "str", "Also cancel the observer's Earth-fixed bias estimate (\"bias\") or a Kalman filter's input disturbance (\"disturbance\").", choices=('none', 'bias', 'disturbance')),
-        )),
-        "gains": Rule(None, (
-            Part("vessel", "The controller's model M, D for the feed-forward and the design; in a composition, the plant's unless given."),
-            Value("proportional_gain", "array", "Kp (N/m, N/m, N m/rad), surge, sway, yaw.", shape="(3,)", range=POSITIVE),
-            Value("derivative_gain", "array", "Kd (N s/m, N s/m, N m s/rad); negative where it removes part of the vessel's own damping (d + Kd must stay positive).", shape="(3,)"),
-            Value("integral_gain", "array", "Ki (N/(m s), N/(m s), N m/(rad s)); zero switches the integral off in that DOF.", shape="(3,)", range=NON_NEGATIVE),
-            Value("integral_limit", "array", "Largest integral force and moment in the body frame (N, N, N m), as the actuator's limits; default none.", shape="(3,)", range=POSITIVE),
-            Value("bias_feedforward", "str", "Also cancel the observer's Earth-fixed bias estimate (\"bias\": bias_force, bias_moment) or a Kalman filter's input disturbance (\"disturbance\").", choices=('none', 'bias', 'disturbance')),
-        )),
+        "pole-placement": Rule(
+            "design",
+            (
+                Part("vessel", "The controller's model M, D; in a composition, the plant's unless given."),
+                Value(
+                    "natural_frequency",
+                    "array",
+                    "w_n (rad/s) per DOF: the bandwidth of the position loop, well below the waves' (0.1 rad/s: a 63 s period).",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value("damping_ratio", "array", "zeta (1) per DOF; 1 is critically damped.", shape="(3,)", range=POSITIVE),
+                Value(
+                    "integral_ratio",
+                    "array",
+                    "r = ki / (w_n kp) (1), below 2 damping_ratio; Fossen's 0.1 puts the integrator ten times slower than w_n.",
+                    shape="(3,)",
+                    range=NON_NEGATIVE,
+                ),
+                Value("proportional_gain", "array", "Kp (N/m, N/m, N m/rad); default m w_n^2.", shape="(3,)", range=POSITIVE),
+                Value("derivative_gain", "array", "Kd (N s/m, N s/m, N m s/rad); default 2 zeta w_n m - d.", shape="(3,)"),
+                Value("integral_gain", "array", "Ki (N/(m s), N/(m s), N m/(rad s)); default r w_n Kp.", shape="(3,)", range=NON_NEGATIVE),
+                Value(
+                    "integral_limit",
+                    "array",
+                    "Largest integral force and moment in the body frame (N, N, N m), as the actuator's limits; default none.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value(
+                    "bias_feedforward",
+                    "str",
+                    'Also cancel the observer\'s Earth-fixed bias estimate ("bias") or a Kalman filter\'s input disturbance ("disturbance").',
+                    choices=("none", "bias", "disturbance"),
+                ),
+            ),
+        ),
+        "gains": Rule(
+            None,
+            (
+                Part("vessel", "The controller's model M, D for the feed-forward and the design; in a composition, the plant's unless given."),
+                Value("proportional_gain", "array", "Kp (N/m, N/m, N m/rad), surge, sway, yaw.", shape="(3,)", range=POSITIVE),
+                Value(
+                    "derivative_gain",
+                    "array",
+                    "Kd (N s/m, N s/m, N m s/rad); negative where it removes part of the vessel's own damping (d + Kd must stay positive).",
+                    shape="(3,)",
+                ),
+                Value(
+                    "integral_gain",
+                    "array",
+                    "Ki (N/(m s), N/(m s), N m/(rad s)); zero switches the integral off in that DOF.",
+                    shape="(3,)",
+                    range=NON_NEGATIVE,
+                ),
+                Value(
+                    "integral_limit",
+                    "array",
+                    "Largest integral force and moment in the body frame (N, N, N m), as the actuator's limits; default none.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value(
+                    "bias_feedforward",
+                    "str",
+                    'Also cancel the observer\'s Earth-fixed bias estimate ("bias": bias_force, bias_moment) or a Kalman filter\'s input disturbance ("disturbance").',
+                    choices=("none", "bias", "disturbance"),
+                ),
+            ),
+        ),
     },
 )
 @final
@@ -179,7 +231,9 @@ class PidController(Controller):
         if not isinstance(vessel, DPVessel):
             raise check.ParameterError("vessel", f"vessel must be a DPVessel (M, D); got {type(vessel).__name__}")
         if bias_feedforward not in FEEDFORWARD_ESTIMATE:
-            raise check.ParameterError("bias_feedforward", f"bias_feedforward must be one of {', '.join(repr(k) for k in FEEDFORWARD_ESTIMATE)}; got {bias_feedforward!r}")
+            raise check.ParameterError(
+                "bias_feedforward", f"bias_feedforward must be one of {', '.join(repr(k) for k in FEEDFORWARD_ESTIMATE)}; got {bias_feedforward!r}"
+            )
         self.vessel = vessel
         self.proportional_gain = jnp.asarray(check.vector("proportional_gain", proportional_gain))
         self.derivative_gain = jnp.asarray(check.vector("derivative_gain", derivative_gain))
@@ -203,15 +257,23 @@ class PidController(Controller):
         damping = d + kd
         for i, name in enumerate(DOF):
             if damping[i] <= 0:
-                raise check.ParameterError("derivative_gain", f"derivative_gain must leave the closed loop's damping d + Kd positive in {name}; "
-                                 f"got d = {d[i]:.4g}, Kd = {kd[i]:.4g} (N s/m, or N m s/rad in yaw)")
+                raise check.ParameterError(
+                    "derivative_gain",
+                    f"derivative_gain must leave the closed loop's damping d + Kd positive in {name}; "
+                    f"got d = {d[i]:.4g}, Kd = {kd[i]:.4g} (N s/m, or N m s/rad in yaw)",
+                )
             if ki[i] >= damping[i] * kp[i] / m[i]:
-                raise check.ParameterError("integral_gain", f"integral_gain must be below (d + Kd) Kp / m = {damping[i] * kp[i] / m[i]:.4g} in {name} "
-                                 f"(Routh-Hurwitz: above it the loop linearized about a setpoint is unstable); got {ki[i]:.4g}")
+                raise check.ParameterError(
+                    "integral_gain",
+                    f"integral_gain must be below (d + Kd) Kp / m = {damping[i] * kp[i] / m[i]:.4g} in {name} "
+                    f"(Routh-Hurwitz: above it the loop linearized about a setpoint is unstable); got {ki[i]:.4g}",
+                )
         largest = float(np.max(self.closed_loop_poles().real))
         if largest >= 0:
-            raise ValueError(f"proportional_gain, derivative_gain and integral_gain give an unstable loop (linearized about a setpoint with "
-                             f"the controller's M and D, coupled): a pole at real part {largest:.3g} 1/s")
+            raise ValueError(
+                f"proportional_gain, derivative_gain and integral_gain give an unstable loop (linearized about a setpoint with "
+                f"the controller's M and D, coupled): a pole at real part {largest:.3g} 1/s"
+            )
 
     @classmethod
     def design(
@@ -265,8 +327,11 @@ class PidController(Controller):
         check.positive("damping_ratio", zeta)
         check.positive("integral_ratio", ratio, allow_zero=True)
         if all(check.is_concrete(v) for v in (ratio, zeta)) and np.any(np.asarray(ratio) >= 2.0 * np.asarray(zeta)):
-            raise check.ParameterError("integral_ratio", f"integral_ratio must be below 2 damping_ratio (Routh-Hurwitz of s^3 + 2 zeta w s^2 + w^2 s + r w^3); "
-                             f"got {check._fmt(np.asarray(ratio))} against 2 zeta = {check._fmt(2.0 * np.asarray(zeta))}")
+            raise check.ParameterError(
+                "integral_ratio",
+                f"integral_ratio must be below 2 damping_ratio (Routh-Hurwitz of s^3 + 2 zeta w s^2 + w^2 s + r w^3); "
+                f"got {check._fmt(np.asarray(ratio))} against 2 zeta = {check._fmt(2.0 * np.asarray(zeta))}",
+            )
         m = jnp.diag(vessel.mass_matrix)
         d = jnp.diag(vessel.damping_matrix)
         w, zeta, ratio = (jnp.asarray(v) for v in (w, zeta, ratio))
@@ -406,8 +471,12 @@ class PidController(Controller):
 
     def gains_table(self) -> dict[str, np.ndarray]:
         """Kp, Kd, Ki and the integral limit as arrays (for reports)."""
-        return {"Kp": np.asarray(self.proportional_gain), "Kd": np.asarray(self.derivative_gain), "Ki": np.asarray(self.integral_gain),
-                "integral_limit": np.asarray(self.integral_limit)}
+        return {
+            "Kp": np.asarray(self.proportional_gain),
+            "Kd": np.asarray(self.derivative_gain),
+            "Ki": np.asarray(self.integral_gain),
+            "integral_limit": np.asarray(self.integral_limit),
+        }
 
 
 __all__ = ["PidController"]

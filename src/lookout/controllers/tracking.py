@@ -72,19 +72,38 @@ def reference_velocity(reference: dict) -> tuple[Array, Array, Array]:
 
 
 @component(
-    "controller", "tracking",
+    "controller",
+    "tracking",
     summary="The tracking law (18), evaluated on the estimate as the scheme (23) does.",
     family="lookout.tuning.families.tracking:TrackingFamily",
     rules={
-        "gains": Rule(None, (
-            Part("ship", "The controller's model (M, C, D, D_n); linear damping only in the basin scheme."),
-            Value("natural_frequency", "array", "Omega (rad/s) of (20): the natural frequencies of the error dynamics (19).", shape="(3,)", range=POSITIVE),
-            Value("damping_ratio", "array", "Lambda of (20): the relative damping of the error dynamics (19) (1: critically damped).", shape="(3,)", range=POSITIVE),
-        )),
-        "wondergem-2009": Rule("design", (
-            Part("ship", "The controller's model (M, C, D, D_n); in a composition, the plant's ship model (else the observer's) unless given."),
-            *WONDERGEM_RULE_VALUES,
-        )),
+        "gains": Rule(
+            None,
+            (
+                Part("ship", "The controller's model (M, C, D, D_n); linear damping only in the basin scheme."),
+                Value(
+                    "natural_frequency",
+                    "array",
+                    "Omega (rad/s) of (20): the natural frequencies of the error dynamics (19).",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value(
+                    "damping_ratio",
+                    "array",
+                    "Lambda of (20): the relative damping of the error dynamics (19) (1: critically damped).",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+            ),
+        ),
+        "wondergem-2009": Rule(
+            "design",
+            (
+                Part("ship", "The controller's model (M, C, D, D_n); in a composition, the plant's ship model (else the observer's) unless given."),
+                *WONDERGEM_RULE_VALUES,
+            ),
+        ),
     },
 )
 @final
@@ -185,11 +204,19 @@ class TrackingController(Controller):
         from lookout.analysis.tracking import wondergem_2009_gains
 
         proposal = wondergem_2009_gains(
-            ship, reference_position=reference_position, reference_velocity=reference_velocity,
-            reference_yaw_rate_max=reference_yaw_rate_max, reference_speed_max=reference_speed_max,
-            reference_acceleration_max=reference_acceleration_max, start_position=start_position, start_velocity=start_velocity,
-            estimate_position=estimate_position, estimate_velocity=estimate_velocity, damping_ratio=damping_ratio,
-            velocity_bound=velocity_bound, margin=margin,
+            ship,
+            reference_position=reference_position,
+            reference_velocity=reference_velocity,
+            reference_yaw_rate_max=reference_yaw_rate_max,
+            reference_speed_max=reference_speed_max,
+            reference_acceleration_max=reference_acceleration_max,
+            start_position=start_position,
+            start_velocity=start_velocity,
+            estimate_position=estimate_position,
+            estimate_velocity=estimate_velocity,
+            damping_ratio=damping_ratio,
+            velocity_bound=velocity_bound,
+            margin=margin,
         )
         return cls(ship, proposal.natural_frequency, proposal.damping_ratio)
 
@@ -219,8 +246,15 @@ class TrackingController(Controller):
         nu = _vector(estimate, "velocity", "yaw_rate")
         e_eta = (eta - eta_ref).at[2].set(ssa(eta[2] - eta_ref[2]))
         R_nu_ref = rotate_transpose(e_eta[2], nu_ref)
-        return {"e_eta": e_eta, "e_nu": nu - R_nu_ref, "e_r": nu[2] - nu_ref[2], "eta": eta, "nu": nu,
-                "R_nu_ref": R_nu_ref, "R_nu_ref_rate": rotate_transpose(e_eta[2], nu_ref_rate)}
+        return {
+            "e_eta": e_eta,
+            "e_nu": nu - R_nu_ref,
+            "e_r": nu[2] - nu_ref[2],
+            "eta": eta,
+            "nu": nu,
+            "R_nu_ref": R_nu_ref,
+            "R_nu_ref_rate": rotate_transpose(e_eta[2], nu_ref_rate),
+        }
 
     def step(self, state, t, y, estimate, reference, dt):
         """``((), tau_k)``: (23) at t_k."""
@@ -235,8 +269,6 @@ class TrackingController(Controller):
     def gains_table(self) -> dict[str, np.ndarray]:
         """Kp and Kd of (20) as NumPy arrays."""
         return {"Kp": np.asarray(self.stiffness_gain), "Kd": np.asarray(self.damping_gain)}
-
-
 
 
 __all__ = ["TrackingController", "reference_velocity"]

@@ -17,7 +17,8 @@ from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Value, component
 
 
 @component(
-    "bias", "gauss-markov",
+    "bias",
+    "gauss-markov",
     summary="Earth-fixed bias forces and moment b = [X, Y, N] driven by white noise.",
     build="from_stationary_std",
     parameters=(

@@ -27,13 +27,19 @@ from lookout.scenario.declare import Value, component
 
 
 @component(
-    "disturbance", "body-force",
+    "disturbance",
+    "body-force",
     summary="A body-fixed force and moment [X, Y, N] (N, N, N m) added to the vessel's dynamics.",
     parameters=(
         Value("constant", "array", "Constant part (N, N, N m).", shape="(3,)"),
         Value("amplitude", "array", "Amplitude of the sinusoid (N, N, N m), >= 0.", shape="(3,)"),
         Value("period", "float", "Period of the sinusoid (s), > 0."),
-        Value("white_std", "array", "Intensity of the white part E_nu (N sqrt(s), N sqrt(s), N m sqrt(s)), >= 0; non-zero adds three noise channels to the plant.", shape="(3,)"),
+        Value(
+            "white_std",
+            "array",
+            "Intensity of the white part E_nu (N sqrt(s), N sqrt(s), N m sqrt(s)), >= 0; non-zero adds three noise channels to the plant.",
+            shape="(3,)",
+        ),
     ),
 )
 class BodyDisturbance(eqx.Module):
@@ -93,4 +99,3 @@ class BodyDisturbance(eqx.Module):
             "period": float(self.period),
             "white_std": [float(v) for v in self.white_std],
         }
-

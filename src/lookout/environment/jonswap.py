@@ -299,16 +299,26 @@ def _components_at(xp, frequencies, significant_height, mean_period, peak_enhanc
 
 
 @component(
-    "waves", "jonswap",
+    "waves",
+    "jonswap",
     summary="Long-crested JONSWAP waves: surface elevation and first-order motion of a small hull.",
     parameters=(
         Value("significant_height", "float", "Hs (m), >= 0 (0: no waves)."),
-        Value("mean_period", "float", "T1 (s), > 0, the spectrum's period parameter: the peak period is T1 / 0.834 for every gamma; T1 is the mean period 2 pi m0 / m1 near gamma = 3.3 only (module docstring)."),
+        Value(
+            "mean_period",
+            "float",
+            "T1 (s), > 0, the spectrum's period parameter: the peak period is T1 / 0.834 for every gamma; T1 is the mean period 2 pi m0 / m1 near gamma = 3.3 only (module docstring).",
+        ),
         Value("peak_enhancement", "float", "gamma, >= 1."),
         Value("direction", "float", "chi (rad): the waves travel along (cos chi, sin chi) in the Earth frame (x north, y east)."),
         Value("components", "int", "Number of frequency components N (static), >= 1."),
         Value("band", "array", "(w_lo, w_hi) in rad/s, 0 < w_lo < w_hi; default (0.5 wp, 3 wp).", shape="(2,)"),
-        Value("hull_length", "float", "L (m), the length of the hull the waves move, for the averaging gain |sinc(k L / 2)| (0: no averaging); no default, since it is the vessel's (Cybership II's is 1.255 m, lookout.models.cybership.CYBERSHIP_LENGTH).", range=NON_NEGATIVE),
+        Value(
+            "hull_length",
+            "float",
+            "L (m), the length of the hull the waves move, for the averaging gain |sinc(k L / 2)| (0: no averaging); no default, since it is the vessel's (Cybership II's is 1.255 m, lookout.models.cybership.CYBERSHIP_LENGTH).",
+            range=NON_NEGATIVE,
+        ),
         Value("yaw_gain", "float", "Yaw motion per unit hull-averaged wave slope (rad), >= 0."),
         Value("gravity", "float", "g (m/s^2), > 0."),
     ),
@@ -450,12 +460,15 @@ class JonswapWaves(eqx.Module):
         phases = jax.random.uniform(phase_key, (self.components,), dtype=float, minval=0.0, maxval=2.0 * jnp.pi)
         frequencies = _bin_frequencies(jnp, self.band, self.components, jitter)
         fields = _components_at(
-            jnp, frequencies, self.significant_height, self.mean_period,
-            self.peak_enhancement, self.gravity, self.hull_length,
+            jnp,
+            frequencies,
+            self.significant_height,
+            self.mean_period,
+            self.peak_enhancement,
+            self.gravity,
+            self.hull_length,
         )
-        return eqx.tree_at(
-            lambda w: (w.frequencies, w.amplitudes, w.wavenumbers, w.hull_gains, w.phases), self, (*fields, phases)
-        )
+        return eqx.tree_at(lambda w: (w.frequencies, w.amplitudes, w.wavenumbers, w.hull_gains, w.phases), self, (*fields, phases))
 
     # -- derived quantities -----------------------------------------------------------
 
@@ -477,9 +490,7 @@ class JonswapWaves(eqx.Module):
         position = jnp.asarray(position, dtype=float)
         e = jnp.stack([jnp.cos(self.direction), jnp.sin(self.direction)])
         along = position @ e
-        theta = (
-            self.frequencies * t[..., None] - self.wavenumbers * jnp.asarray(along)[..., None] + self.phases
-        )
+        theta = self.frequencies * t[..., None] - self.wavenumbers * jnp.asarray(along)[..., None] + self.phases
         return theta, e
 
     def elevation(self, t, position) -> Array:

@@ -26,7 +26,8 @@ def stationary_std_per_intensity(peak_frequency, damping_ratio):
 
 
 @component(
-    "waves", "linear",
+    "waves",
+    "linear",
     summary="Linear second-order wave model in surge, sway and yaw.",
     build="from_amplitude",
     parameters=(

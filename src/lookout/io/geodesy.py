@@ -57,8 +57,7 @@ _BOWRING_TOLERANCE = 1e-15
 _BOWRING_MAX_STEPS = 10
 
 
-def _checked(name: str, value, low: float | None = None, high: float | None = None,
-             high_open: bool = False, unit: str = "") -> np.ndarray:
+def _checked(name: str, value, low: float | None = None, high: float | None = None, high_open: bool = False, unit: str = "") -> np.ndarray:
     """``value`` as a float64 array, or a one-line ValueError naming ``name``.
 
     Without bounds the entries must be finite; with them they must also lie in
@@ -177,15 +176,12 @@ def geodetic_to_ecef(lat_deg, lon_deg, height_m=0.0):
     >>> [float(c) for c in geodetic_to_ecef(0.0, 0.0)]
     [6378137.0, 0.0, 0.0]
     """
-    lat, lon, h = np.broadcast_arrays(
-        _latitude("lat_deg", lat_deg), _longitude("lon_deg", lon_deg), _checked("height_m", height_m)
-    )
+    lat, lon, h = np.broadcast_arrays(_latitude("lat_deg", lat_deg), _longitude("lon_deg", lon_deg), _checked("height_m", height_m))
     lam = np.radians(lon)
     sin_phi, cos_phi = _sin_cos_degrees(lat)
     _, n = _prime_vertical_terms(sin_phi)
     p = (n + h) * cos_phi
-    return (np.asarray(p * np.cos(lam)), np.asarray(p * np.sin(lam)),
-            np.asarray((n * (1.0 - _E2) + h) * sin_phi))
+    return (np.asarray(p * np.cos(lam)), np.asarray(p * np.sin(lam)), np.asarray((n * (1.0 - _E2) + h) * sin_phi))
 
 
 def _ecef_to_latitude_height(p, z):
@@ -302,9 +298,7 @@ class LocalFrame:
         ``N - N₀ = a e² (sin²φ - sin²φ₀) / (w w₀ (w + w₀))``, ...), so no two ~6.4e6 m
         numbers are subtracted and the rounding error is relative to the offset.
         """
-        lat, lon, h = np.broadcast_arrays(
-            _latitude("lat_deg", lat_deg), _longitude("lon_deg", lon_deg), _checked("height_m", height_m)
-        )
+        lat, lon, h = np.broadcast_arrays(_latitude("lat_deg", lat_deg), _longitude("lon_deg", lon_deg), _checked("height_m", height_m))
         north, east, down = self._ned(lat, lon, h)
         return np.asarray(north), np.asarray(east), np.asarray(down)
 
@@ -367,9 +361,7 @@ class LocalFrame:
         rounding of the result in degrees (~1e-9 m in latitude and longitude, ~1e-12 m
         in height).
         """
-        n_, e_, d_ = np.broadcast_arrays(
-            _checked("north", north), _checked("east", east), _checked("down", down)
-        )
+        n_, e_, d_ = np.broadcast_arrays(_checked("north", north), _checked("east", east), _checked("down", down))
         sin0, cos0, _, _, p0, z0 = self._reference()
         # ECEF in axes turned by the reference longitude (as in :meth:`_ned`).
         x = p0 + (-sin0 * n_ - cos0 * d_)

@@ -141,7 +141,7 @@ def _tag_block(line: bytes):
     end = line.find(b"\\", 1)
     if end < 0:
         return "bad", line
-    block = line[: end]  # "\" + "s:..,c:..*hh"
+    block = line[:end]  # "\" + "s:..,c:..*hh"
     body = _verified(block)
     if body is None:
         return "bad", line

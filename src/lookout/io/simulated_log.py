@@ -52,8 +52,26 @@ def gga(time_of_day: float, latitude: float, longitude: float, quality: int = 2,
     minutes, seconds = divmod(rest, 60.0)
     lat, ns = _minutes(latitude, 2, "NS")
     lon, ew = _minutes(longitude, 3, "EW")
-    return sentence("GP", "GGA", [f"{int(hours):02d}{int(minutes):02d}{seconds:05.2f}", lat, ns, lon, ew, quality, f"{satellites:02d}",
-                                  f"{hdop:.1f}", "0.0", "M", "40.0", "M", "1.0", "0001"])
+    return sentence(
+        "GP",
+        "GGA",
+        [
+            f"{int(hours):02d}{int(minutes):02d}{seconds:05.2f}",
+            lat,
+            ns,
+            lon,
+            ew,
+            quality,
+            f"{satellites:02d}",
+            f"{hdop:.1f}",
+            "0.0",
+            "M",
+            "40.0",
+            "M",
+            "1.0",
+            "0001",
+        ],
+    )
 
 
 def ths(heading_degrees: float) -> str:
@@ -61,8 +79,18 @@ def ths(heading_degrees: float) -> str:
     return sentence("HE", "THS", [f"{heading_degrees % 360.0:.5f}", "A"])
 
 
-def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFrame | None = None, epoch: float = EPOCH,
-                        outage: tuple[float, float] | None = DEFAULT_OUTAGE, corrupted: int = 6, wild_points: int = 2, seed: int = 0) -> dict:
+def write_simulated_log(
+    ds,
+    folder,
+    *,
+    name: str = "dp-vessel",
+    frame: LocalFrame | None = None,
+    epoch: float = EPOCH,
+    outage: tuple[float, float] | None = DEFAULT_OUTAGE,
+    corrupted: int = 6,
+    wild_points: int = 2,
+    seed: int = 0,
+) -> dict:
     """Write the NMEA log, the CSV logs and the truth of one simulated run.
 
     Parameters
@@ -114,8 +142,10 @@ def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFram
         if not (math.isfinite(start) and math.isfinite(length) and start >= 0 and length > 0):
             raise ValueError(f"outage must be (start, length) with start >= 0 and length > 0 (s); got ({start:g}, {length:g})")
         if start + length > end + 1e-9 * end:
-            raise ValueError(f"outage ({start:g}, {length:g}){' (the default)' if default else ''} ends at {start + length:g} s, after the run's end: "
-                             f"its duration is {end:g} s" + ("; give an outage within the run, or None" if default else ""))
+            raise ValueError(
+                f"outage ({start:g}, {length:g}){' (the default)' if default else ''} ends at {start + length:g} s, after the run's end: "
+                f"its duration is {end:g} s" + ("; give an outage within the run, or None" if default else "")
+            )
         outage = (start, length)
     folder.mkdir(parents=True, exist_ok=True)
     periods = [float(p) for p in str(ds.attrs["sensor_sample_period_s"]).strip("[]").split(",")]
@@ -155,10 +185,17 @@ def write_simulated_log(ds, folder, *, name: str = "dp-vessel", frame: LocalFram
         latitude, longitude, _ = frame.geodetic(position[k, 0] + 60.0, position[k, 1] - 20.0, 0.0)
         nmea.append((epoch + t + 0.5 * periods[0] - step * 0.5, gga(epoch + t, float(latitude), float(longitude))))
     nmea.sort(key=lambda row: row[0])
-    paths = {"nmea": folder / f"{name}.nmea", "csv": folder / f"{name}.csv", "thrust": folder / f"{name}-thrust.csv", "truth": folder / f"{name}-truth.nc"}
+    paths = {
+        "nmea": folder / f"{name}.nmea",
+        "csv": folder / f"{name}.csv",
+        "thrust": folder / f"{name}-thrust.csv",
+        "truth": folder / f"{name}-truth.nc",
+    }
     start = datetime.datetime.fromtimestamp(epoch, datetime.UTC).isoformat()
-    header = (f"# lookout simulated log: {ds.attrs.get('scenario', 'a simulated run')}; t = 0 at {start} (Unix {epoch:.1f} s)\n"
-              f"# origin of north/east: {frame.latitude} N, {frame.longitude} E; TIME is the Unix time each sentence arrived\n")
+    header = (
+        f"# lookout simulated log: {ds.attrs.get('scenario', 'a simulated run')}; t = 0 at {start} (Unix {epoch:.1f} s)\n"
+        f"# origin of north/east: {frame.latitude} N, {frame.longitude} E; TIME is the Unix time each sentence arrived\n"
+    )
     paths["nmea"].write_text(header + "".join(f"{arrival:.6f} {text}\n" for arrival, text in nmea))
     paths["csv"].write_text("time,north,east,heading\n" + "\n".join(csv) + "\n")
     paths["thrust"].write_text("time,surge,sway,yaw\n" + "\n".join(thrust_rows) + "\n")

@@ -25,7 +25,10 @@ _GATES = {
     "heading_gate": ("--heading-gate", "Largest heading innovation used (degrees)."),
     "position_timeout": ("--position-timeout", "Seconds after which the last fix is not used (dead reckoning)."),
     "heading_timeout": ("--heading-timeout", "Seconds after which the last heading is not used."),
-    "gate_probability": ("--gate-probability", "A Kalman filter's gate: the probability that a good reading passes (its NIS under the chi-square bound)."),
+    "gate_probability": (
+        "--gate-probability",
+        "A Kalman filter's gate: the probability that a good reading passes (its NIS under the chi-square bound).",
+    ),
 }
 
 
@@ -41,7 +44,7 @@ def _gate_values(gates: dict):
     except ValueError as error:
         name = str(error).split(" ", 1)[0]
         option = _GATES.get(name, (name,))[0]
-        raise InputError(f"{option}{str(error)[len(name):]}") from None
+        raise InputError(f"{option}{str(error)[len(name) :]}") from None
 
 
 def _frame(origin: str | None):
@@ -71,8 +74,15 @@ def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say,
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UserWarning)
-            session = Session(scenario.observer, scenario.sample_period, guess=scenario.initial_estimate, frame=frame, gates=gate_values,
-                              on_event=on_event, batch=batch)
+            session = Session(
+                scenario.observer,
+                scenario.sample_period,
+                guess=scenario.initial_estimate,
+                frame=frame,
+                gates=gate_values,
+                on_event=on_event,
+                batch=batch,
+            )
     except ValueError as error:
         raise InputError(f"{scenario_file}: {error}") from None
     for warning in caught:
@@ -94,8 +104,11 @@ def _check_gate_options(session, gates: dict, scenario_file: str) -> None:
             continue
         option = _GATES[name][0]
         tests = sorted({t for _, t in used})
-        by = {"nis": "its normalized innovation squared (--gate-probability)", "innovation": "its innovations' length (--position-gate, --heading-gate)",
-              "none": "nothing: it gives no innovation"}
+        by = {
+            "nis": "its normalized innovation squared (--gate-probability)",
+            "innovation": "its innovations' length (--position-gate, --heading-gate)",
+            "none": "nothing: it gives no innovation",
+        }
         if test == "nis":
             filters = [each.name for each in kinds("observer") if callable(getattr(each.component_class, "innovation_statistics", None))]
             applies = f"observers with an innovation covariance ({', '.join(filters)})"
@@ -141,9 +154,15 @@ def _outputs(session, out: str | None, publish: str | None, scenario_file: str, 
     emitters, closers = [], []
     writer = None
     if out is not None:
-        writer = SessionWriter(Path(out), session.observer, {"scenario": scenario_file, "source_of_data": source}, flush_every=flush_every,
-                               attrs_of=lambda: {} if session.frame is None else {"origin_latitude": session.frame.latitude,
-                                                                                 "origin_longitude": session.frame.longitude})
+        writer = SessionWriter(
+            Path(out),
+            session.observer,
+            {"scenario": scenario_file, "source_of_data": source},
+            flush_every=flush_every,
+            attrs_of=lambda: (
+                {} if session.frame is None else {"origin_latitude": session.frame.latitude, "origin_longitude": session.frame.longitude}
+            ),
+        )
         emitters.append(writer.add)
         closers.append(writer.close)
     if publish is not None:
@@ -191,16 +210,31 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
     thrust = ""
     if outcome.thrust_counts:
         bad = outcome.thrust_rejected
-        thrust = (f"; thrust rejected {sum(bad.values())} ({', '.join(f'{k} {v}' for k, v in bad.items())}: the previous thrust held)" if bad
-                  else "; thrust rejected 0")
-    return (f"{'done' if final else 'status'}: {outcome.steps} steps, {outcome.readings} readings; " + ", ".join(rates)
-            + f"; not used {sum(unused.values())}" + (f" ({', '.join(f'{k} {v}' for k, v in unused.items())})" if unused else "") + thrust
-            + f"; gate {session.gate_rule}; outages {outages}; gaps {session.gaps}; {which} {lat or '-'}")
+        thrust = (
+            f"; thrust rejected {sum(bad.values())} ({', '.join(f'{k} {v}' for k, v in bad.items())}: the previous thrust held)"
+            if bad
+            else "; thrust rejected 0"
+        )
+    return (
+        f"{'done' if final else 'status'}: {outcome.steps} steps, {outcome.readings} readings; "
+        + ", ".join(rates)
+        + f"; not used {sum(unused.values())}"
+        + (f" ({', '.join(f'{k} {v}' for k, v in unused.items())})" if unused else "")
+        + thrust
+        + f"; gate {session.gate_rule}; outages {outages}; gaps {session.gaps}; {which} {lat or '-'}"
+    )
 
 
 def _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout, gate_probability) -> dict:
-    return {"min_quality": min_quality, "max_hdop": max_hdop, "position_gate": position_gate, "heading_gate": heading_gate,
-            "position_timeout": position_timeout, "heading_timeout": heading_timeout, "gate_probability": gate_probability}
+    return {
+        "min_quality": min_quality,
+        "max_hdop": max_hdop,
+        "position_gate": position_gate,
+        "heading_gate": heading_gate,
+        "position_timeout": position_timeout,
+        "heading_timeout": heading_timeout,
+        "gate_probability": gate_probability,
+    }
 
 
 def _positive_seconds(option: str, value: float | None) -> None:
@@ -232,11 +266,15 @@ def _check_truth(truth: str) -> None:
     try:
         ds = xr.open_dataset(truth)
     except Exception:  # noqa: BLE001 - xarray raises several types for a file it has no engine for
-        raise InputError(f"--truth {truth}: not a NetCDF file lookout can read (it takes a run's NetCDF, e.g. NAME-truth.nc of lookout write-log)") from None
+        raise InputError(
+            f"--truth {truth}: not a NetCDF file lookout can read (it takes a run's NetCDF, e.g. NAME-truth.nc of lookout write-log)"
+        ) from None
     with ds:
         missing = sorted({name for name, _ in PANELS if name not in ds})
         if missing:
-            raise InputError(f"--truth {truth} has no {', '.join(missing)}: it must be a run of a vessel scenario (e.g. NAME-truth.nc of lookout write-log)")
+            raise InputError(
+                f"--truth {truth} has no {', '.join(missing)}: it must be a run of a vessel scenario (e.g. NAME-truth.nc of lookout write-log)"
+            )
         if "run" not in ds.dims or "time" not in ds.coords or ds.sizes["time"] < 2:
             raise InputError(f"--truth {truth} must have a run dimension and a time axis of at least two records (a run written by lookout)")
 
@@ -248,7 +286,9 @@ def _check_truth_period(truth: str, sample_period: float) -> None:
     with xr.open_dataset(truth) as ds:
         step = float(ds["time"].values[1] - ds["time"].values[0])
     if abs(step - sample_period) > 1e-9 * sample_period:
-        raise InputError(f"--truth {truth} is recorded every {step:g} s; the scenario's observer steps every {sample_period:g} s: give the truth of this scenario's run")
+        raise InputError(
+            f"--truth {truth} is recorded every {step:g} s; the scenario's observer steps every {sample_period:g} s: give the truth of this scenario's run"
+        )
 
 
 def _check_truth_range(truth: str, log: str, scan, sample_period: float) -> None:
@@ -278,6 +318,7 @@ def _say(quiet: bool):
     def say(text: str) -> None:
         if not quiet:
             print(text, file=sys.stderr, flush=True)
+
     return say
 
 
@@ -287,8 +328,11 @@ def _on_event(say):
         if event["event"] == "gap":
             say(f"gap at {when}: no reading for {event['length']:.1f} s (every channel dead-reckoned)")
         elif event["event"] in ("outage", "recovered", "source", "reopened"):
-            details = ", ".join(f"{k} {v:.6g} s" if isinstance(v, float) else f"{k} {v}" for k, v in event.items() if k not in ("event", "time", "session_time"))
+            details = ", ".join(
+                f"{k} {v:.6g} s" if isinstance(v, float) else f"{k} {v}" for k, v in event.items() if k not in ("event", "time", "session_time")
+            )
             say(f"{event['event']} at {when}: {details}")
+
     return on_event
 
 
@@ -301,17 +345,29 @@ PositionGate = Annotated[float | None, typer.Option("--position-gate", help=_GAT
 HeadingGate = Annotated[float | None, typer.Option("--heading-gate", help=_GATES["heading_gate"][1], show_default=f"{Gates.heading_gate:g}")]
 PositionTimeout = Annotated[float, typer.Option("--position-timeout", help=_GATES["position_timeout"][1])]
 HeadingTimeout = Annotated[float, typer.Option("--heading-timeout", help=_GATES["heading_timeout"][1])]
-GateProbability = Annotated[float | None, typer.Option("--gate-probability", help=_GATES["gate_probability"][1], show_default=str(Gates.gate_probability))]
+GateProbability = Annotated[
+    float | None, typer.Option("--gate-probability", help=_GATES["gate_probability"][1], show_default=str(Gates.gate_probability))
+]
 FlushEvery = Annotated[int, typer.Option(metavar="STEPS", help="Steps between writes of --out (a killed session loses at most these).")]
-MaxGap = Annotated[float, typer.Option("--max-gap", metavar="SECONDS",
-                                       help="The longest silence of the log (no line at all) accepted; a longer one is refused (docs/live.md: why 60 s).")]
+MaxGap = Annotated[
+    float,
+    typer.Option(
+        "--max-gap",
+        metavar="SECONDS",
+        help="The longest silence of the log (no line at all) accepted; a longer one is refused (docs/live.md: why 60 s).",
+    ),
+]
 
 
 def replay_command(
     log: Annotated[str, typer.Argument(metavar="LOG", help="An NMEA log (TIME SENTENCE lines) or a CSV log (time,north,east,heading).")],
-    scenario_file: Annotated[str, typer.Option("--scenario", metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")],
+    scenario_file: Annotated[
+        str, typer.Option("--scenario", metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")
+    ],
     out: Annotated[str | None, typer.Option(metavar="FILE.nc", help="The session's estimates as NetCDF (a simulation's layout).")] = None,
-    thrust: Annotated[str | None, typer.Option(metavar="THRUST.csv", help="Thrust feedback, time,surge,sway,yaw (N, N, N m).", show_default="zero, with a warning")] = None,
+    thrust: Annotated[
+        str | None, typer.Option(metavar="THRUST.csv", help="Thrust feedback, time,surge,sway,yaw (N, N, N m).", show_default="zero, with a warning")
+    ] = None,
     speed: Annotated[float | None, typer.Option(metavar="FACTOR", help="Log seconds per wall-clock second.", show_default="--fast")] = None,
     fast: Annotated[bool, typer.Option("--fast", help="As fast as it goes (the default).")] = False,
     publish: Publish = None,
@@ -410,14 +466,26 @@ def replay_command(
     if thrust is None:
         say("no --thrust: the observer predicts with zero input")
     elif max(check.thrust.first - check.log.first, check.log.newest - check.thrust.newest) > session.gap_after:  # more than a silence
-        say(f"--thrust covers {max(check.thrust.first, check.log.first) - check.log.first:.1f} to "
-            f"{min(check.thrust.newest, check.log.newest) - check.log.first:.1f} s of the log's {check.log.span:.1f} s: zero input before, the last thrust held after")
+        say(
+            f"--thrust covers {max(check.thrust.first, check.log.first) - check.log.first:.1f} to "
+            f"{min(check.thrust.newest, check.log.newest) - check.log.first:.1f} s of the log's {check.log.span:.1f} s: zero input before, the last thrust held after"
+        )
     refused = None
     try:
         with warnings.catch_warnings(), _replay_progress(progress_bar) as progress:
             warnings.simplefilter("ignore", RuntimeWarning)
-            outcome = replay(session, log, thrust=thrust, speed=speed, emit=emit, parser=parser, max_gap=max_gap, check=check,
-                             status=lambda o: say(_status_line(session, parser, o)), progress=progress)
+            outcome = replay(
+                session,
+                log,
+                thrust=thrust,
+                speed=speed,
+                emit=emit,
+                parser=parser,
+                max_gap=max_gap,
+                check=check,
+                status=lambda o: say(_status_line(session, parser, o)),
+                progress=progress,
+            )
     except OriginError as error:
         refused = error.message("--origin")
     except ValueError as error:  # the log's check (before any step) or a refusal on the way
@@ -429,10 +497,14 @@ def replay_command(
         raise InputError(refused)
     if outcome.steps == 0:
         remove()
-        raise InputError(f"{log}: no step was taken: the log never had both a usable position and a heading ({_status_line(session, parser, outcome, True)})")
+        raise InputError(
+            f"{log}: no step was taken: the log never had both a usable position and a heading ({_status_line(session, parser, outcome, True)})"
+        )
     span = outcome.last_time - outcome.first_time
     say(_status_line(session, parser, outcome, final=True))
-    say(f"{span:.1f} s of log in {outcome.wall_seconds:.2f} s ({span / outcome.wall_seconds:.0f}x real time)" + (f"; written to {out}" if out else ""))
+    say(
+        f"{span:.1f} s of log in {outcome.wall_seconds:.2f} s ({span / outcome.wall_seconds:.0f}x real time)" + (f"; written to {out}" if out else "")
+    )
     if figure_path is not None:
         try:
             _figure(out, truth, figure_path, log)
@@ -501,13 +573,26 @@ def _figure(out: str, truth: str | None, path: Path, log: str) -> None:
 
 
 def live_command(
-    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")],
-    nmea: Annotated[str, typer.Option(metavar="SOURCE", help="udp://HOST:PORT (bound; HOST default 127.0.0.1), - (stdin) or a serial device or FIFO.")] = "udp://127.0.0.1:10110",
+    scenario_file: Annotated[
+        str, typer.Argument(metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")
+    ],
+    nmea: Annotated[
+        str, typer.Option(metavar="SOURCE", help="udp://HOST:PORT (bound; HOST default 127.0.0.1), - (stdin) or a serial device or FIFO.")
+    ] = "udp://127.0.0.1:10110",
     out: Annotated[str | None, typer.Option(metavar="FILE.nc", help="The session's estimates as NetCDF (a simulation's layout).")] = None,
     publish: Publish = None,
-    thrust: Annotated[str | None, typer.Option(metavar="SOURCE", help="Thrust feedback lines surge,sway,yaw (N, N, N m): udp://HOST:PORT, - (stdin) or a device or FIFO.", show_default="zero, with a warning")] = None,
+    thrust: Annotated[
+        str | None,
+        typer.Option(
+            metavar="SOURCE",
+            help="Thrust feedback lines surge,sway,yaw (N, N, N m): udp://HOST:PORT, - (stdin) or a device or FIFO.",
+            show_default="zero, with a warning",
+        ),
+    ] = None,
     duration: Annotated[float | None, typer.Option(metavar="SECONDS", help="Stop after this long.")] = None,
-    idle: Annotated[float | None, typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long (counted from the first data).")] = None,
+    idle: Annotated[
+        float | None, typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long (counted from the first data).")
+    ] = None,
     origin: Origin = None,
     min_quality: MinQuality = Gates.min_quality,
     max_hdop: MaxHdop = Gates.max_hdop,
@@ -574,8 +659,16 @@ def live_command(
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            outcome = live(session, source, thrust=thrust_source, emit=emit, parser=parser, duration=duration, idle=idle,
-                           status=lambda o: say(_status_line(session, parser, o)))
+            outcome = live(
+                session,
+                source,
+                thrust=thrust_source,
+                emit=emit,
+                parser=parser,
+                duration=duration,
+                idle=idle,
+                status=lambda o: say(_status_line(session, parser, o)),
+            )
     except OriginError as error:  # at the first fix: no step was taken (a step needs a fix)
         remove()
         raise InputError(error.message("--origin")) from None
@@ -590,8 +683,12 @@ def write_log_command(
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Where NAME.nmea, NAME.csv, NAME-thrust.csv and NAME-truth.nc go.")] = "out/log",
     name: Annotated[str, typer.Option(metavar="NAME", help="The files' stem.")] = "dp-vessel",
     origin: Annotated[str, typer.Option(metavar="LAT,LON", help="Where north = east = 0 lies (degrees).")] = "63.44,10.40",
-    outage: Annotated[str | None, typer.Option(metavar="START,LENGTH", help="Seconds of run time without fixes, within the run (none: no outage).",
-                                                  show_default=DEFAULT_OUTAGE_TEXT)] = None,
+    outage: Annotated[
+        str | None,
+        typer.Option(
+            metavar="START,LENGTH", help="Seconds of run time without fixes, within the run (none: no outage).", show_default=DEFAULT_OUTAGE_TEXT
+        ),
+    ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the arrival jitter and the corruptions (the run's own is the file's).")] = 0,
 ) -> None:
     """Simulate a scenario once and write what a bridge computer would have logged: GGA
@@ -624,14 +721,20 @@ def write_log_command(
     spec, scenario = _scenario(scenario_file, 1, None)
     wanted = {"measured_position", "measured_heading"}
     if not wanted <= set(scenario.sensor.measurement_layout.names):
-        raise InputError(f"{scenario_file}: the sensor must measure position and heading (kind position-heading); it measures "
-                         f"{', '.join(scenario.sensor.measurement_layout.names)}")
+        raise InputError(
+            f"{scenario_file}: the sensor must measure position and heading (kind position-heading); it measures "
+            f"{', '.join(scenario.sensor.measurement_layout.names)}"
+        )
     if window is not None and window[0] + window[1] > scenario.duration:
         if not given:  # the default's window, which the user did not choose: name the run they gave
-            raise InputError(f"{scenario_file}: its run lasts {scenario.duration:g} s (simulation.duration), shorter than the default outage, "
-                             f"{DEFAULT_OUTAGE_TEXT} (from {window[0]:g} to {window[0] + window[1]:g} s): give --outage START,LENGTH within the run, or --outage none")
-        raise InputError(f"--outage {outage} ends at {window[0] + window[1]:g} s, after the run's end: its duration is {scenario.duration:g} s "
-                         f"(give START + LENGTH <= {scenario.duration:g}, or none)")
+            raise InputError(
+                f"{scenario_file}: its run lasts {scenario.duration:g} s (simulation.duration), shorter than the default outage, "
+                f"{DEFAULT_OUTAGE_TEXT} (from {window[0]:g} to {window[0] + window[1]:g} s): give --outage START,LENGTH within the run, or --outage none"
+            )
+        raise InputError(
+            f"--outage {outage} ends at {window[0] + window[1]:g} s, after the run's end: its duration is {scenario.duration:g} s "
+            f"(give START + LENGTH <= {scenario.duration:g}, or none)"
+        )
     from lookout._commandline import check_memory
     from lookout.scenario.composition import simulate
 
@@ -650,7 +753,9 @@ def write_log_command(
 def play_command(
     log: Annotated[str, typer.Argument(metavar="LOG", help="An NMEA log (TIME SENTENCE lines).")],
     to: Annotated[str, typer.Option(metavar="udp://HOST:PORT", help="Where the sentences go.")] = "udp://127.0.0.1:10110",
-    speed: Annotated[float, typer.Option(metavar="FACTOR", help="Log seconds per wall-clock second (1: as recorded, what a live observer needs).")] = 1.0,
+    speed: Annotated[
+        float, typer.Option(metavar="FACTOR", help="Log seconds per wall-clock second (1: as recorded, what a live observer needs).")
+    ] = 1.0,
     duration: Annotated[float | None, typer.Option(metavar="SECONDS", help="Stop after this many seconds of log.")] = None,
     max_gap: MaxGap = MAX_GAP,
 ) -> None:
@@ -683,12 +788,18 @@ def play_command(
     except ValueError as error:
         raise InputError(str(error)) from None
     if not (scan.usable["position"] or scan.usable["heading"] or scan.usable["other"]):
-        raise InputError(f"LOG {log}: no line is a supported sentence with a valid checksum ({', '.join(f'{k} {v}' for k, v in scan.usable.items())})")
+        raise InputError(
+            f"LOG {log}: no line is a supported sentence with a valid checksum ({', '.join(f'{k} {v}' for k, v in scan.usable.items())})"
+        )
     if scan.typical_step > max_gap:
-        raise InputError(f"LOG {log}: its lines are typically {scan.typical_step:.3g} s apart, more than --max-gap {max_gap:g} s: are the times in seconds?")
+        raise InputError(
+            f"LOG {log}: its lines are typically {scan.typical_step:.3g} s apart, more than --max-gap {max_gap:g} s: are the times in seconds?"
+        )
     if scan.longest_gap > max_gap:
-        raise InputError(f"LOG {log}: no line for {scan.longest_gap:.6g} s before line {scan.gap_line} ({scan.gap_start - scan.first:.6g} s into the log), "
-                         f"longer than --max-gap {max_gap:g} s, which play would wait; allow it with a longer --max-gap, or split the log there")
+        raise InputError(
+            f"LOG {log}: no line for {scan.longest_gap:.6g} s before line {scan.gap_line} ({scan.gap_start - scan.first:.6g} s into the log), "
+            f"longer than --max-gap {max_gap:g} s, which play would wait; allow it with a longer --max-gap, or split the log there"
+        )
     if scan.bom:
         print(f"LOG {log}: {BOM_NOTE}", file=sys.stderr)
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -722,8 +833,12 @@ def play_command(
         pass
     finally:
         sender.close()
-    print(f"sent {sent} sentences to {address[0]}:{address[1]} in {time.perf_counter() - started:.1f} s ({skipped} lines without a time skipped"
-          + (f", {failed} refused by the network" if failed else "") + ")", file=sys.stderr)
+    print(
+        f"sent {sent} sentences to {address[0]}:{address[1]} in {time.perf_counter() - started:.1f} s ({skipped} lines without a time skipped"
+        + (f", {failed} refused by the network" if failed else "")
+        + ")",
+        file=sys.stderr,
+    )
 
 
 def register(app: typer.Typer) -> None:

@@ -131,8 +131,10 @@ class GatedObserver(Observer):
 
     @property
     def measurement_layout(self) -> Layout:
-        arrivals = tuple(Signal(f"arrival_{name.removeprefix('measured_')}", "s", f"arrival of the new {name.removeprefix('measured_')} reading (NaN: none)")
-                         for name in self.channels)
+        arrivals = tuple(
+            Signal(f"arrival_{name.removeprefix('measured_')}", "s", f"arrival of the new {name.removeprefix('measured_')} reading (NaN: none)")
+            for name in self.channels
+        )
         return Layout(self.inner.measurement_layout.signals + arrivals)
 
     @property

@@ -118,8 +118,12 @@ class SessionWriter:
     def __init__(self, path, observer, attrs: dict, flush_every: int = 100, attrs_of=None):
         self.path = Path(path)
         self.signals = RecordSignals(
-            truth=(), estimate=tuple(observer.estimate_signals), extra=tuple(observer.extra_signals),
-            measurement=observer.measurement_layout, reference=(), input=observer.input_layout,
+            truth=(),
+            estimate=tuple(observer.estimate_signals),
+            extra=tuple(observer.extra_signals),
+            measurement=observer.measurement_layout,
+            reference=(),
+            input=observer.input_layout,
         )
         self.attrs = dict(attrs)
         self.attrs_of = attrs_of or dict  # attributes known only once data came (the frame's origin)
@@ -143,17 +147,35 @@ class SessionWriter:
         flags = {name: estimates.pop(name) for name in names if name.startswith(("gated_", "outage_"))}
         inputs = np.concatenate([b.input for b in blocks])
         trajectory = Trajectory(
-            np.concatenate([b.session_time for b in blocks]), {}, estimates, np.concatenate([b.measurement for b in blocks]), {},
-            inputs, inputs, signals=self.signals, batched=False, attrs=self.attrs,
+            np.concatenate([b.session_time for b in blocks]),
+            {},
+            estimates,
+            np.concatenate([b.measurement for b in blocks]),
+            {},
+            inputs,
+            inputs,
+            signals=self.signals,
+            batched=False,
+            attrs=self.attrs,
         )
         ds = trajectory.to_xarray()
         for name, values in flags.items():
             what = "rejected as a wild point" if name.startswith("gated_") else "older than its timeout: dead reckoning"
-            ds[name] = (("run", "time"), np.nan_to_num(values[None], nan=-1).astype("i1"), {"long_name": f"{name.split('_', 1)[1]} reading {what} (-1: a refused step)", "units": "1"})
-        ds["step_seconds"] = (("run", "time"), np.concatenate([b.step_seconds for b in blocks])[None],
-                              {"long_name": "wall-clock time to compute the step", "units": "s"})
-        ds["clock_time"] = (("time",), np.concatenate([b.time for b in blocks]),
-                            {"long_name": "time of the step on the stream's clock", "units": "s"})
+            ds[name] = (
+                ("run", "time"),
+                np.nan_to_num(values[None], nan=-1).astype("i1"),
+                {"long_name": f"{name.split('_', 1)[1]} reading {what} (-1: a refused step)", "units": "1"},
+            )
+        ds["step_seconds"] = (
+            ("run", "time"),
+            np.concatenate([b.step_seconds for b in blocks])[None],
+            {"long_name": "wall-clock time to compute the step", "units": "s"},
+        )
+        ds["clock_time"] = (
+            ("time",),
+            np.concatenate([b.time for b in blocks]),
+            {"long_name": "time of the step on the stream's clock", "units": "s"},
+        )
         return ds
 
     def flush(self) -> None:

@@ -182,8 +182,9 @@ def check_replay(session: Session, log: str | Path, thrust: str | Path | None = 
     if typical > tolerance and session.observer.sample_period is None:
         observer = session.observer
         zeros = np.zeros(observer.measurement_layout.size), np.zeros(observer.input_layout.size)
-        check_step_length(observer, session.guess if session.guess is not None else observer.guess(), *zeros, typical,
-                          f"LOG {log}: its typical step between lines,")
+        check_step_length(
+            observer, session.guess if session.guess is not None else observer.guess(), *zeros, typical, f"LOG {log}: its typical step between lines,"
+        )
     if scan.longest_gap > max_gap:
         hint = " (are the times in seconds?)" if typical > max_gap else ""
         raise ValueError(
@@ -250,9 +251,20 @@ def log_readings(path: str | Path, parser: NmeaParser):
     return iter(log), log.counts
 
 
-def replay(session: Session, log: str | Path, *, thrust: str | Path | None = None, speed: float | None = None,
-           emit=None, parser: NmeaParser | None = None, status=None, status_every: float = 5.0, max_gap: float = MAX_GAP,
-           check: ReplayCheck | None = None, progress=None) -> Outcome:
+def replay(
+    session: Session,
+    log: str | Path,
+    *,
+    thrust: str | Path | None = None,
+    speed: float | None = None,
+    emit=None,
+    parser: NmeaParser | None = None,
+    status=None,
+    status_every: float = 5.0,
+    max_gap: float = MAX_GAP,
+    check: ReplayCheck | None = None,
+    progress=None,
+) -> Outcome:
     """Step ``session`` through a log; ``emit(record)`` for each step.
 
     The logs are checked first (:func:`check_replay`); thrust rows after the log's
@@ -391,7 +403,9 @@ def open_source(text: str, option: str = "--nmea"):
     if not path.exists():
         raise ValueError(f"{option} must be udp://HOST:PORT, - (stdin) or an existing serial device or FIFO; {text} does not exist")
     if path.is_file():
-        raise ValueError(f"{option} {text} is a regular file: its lines have no arrival times live; replay a log with lookout replay, or give a stream (udp://, -, a device or a FIFO)")
+        raise ValueError(
+            f"{option} {text} is a regular file: its lines have no arrival times live; replay a log with lookout replay, or give a stream (udp://, -, a device or a FIFO)"
+        )
     if path.is_dir():
         raise ValueError(f"{option} {text} is a folder; give udp://HOST:PORT, - (stdin), a serial device or a FIFO")
     try:
@@ -409,8 +423,19 @@ def unix_clock():
     return lambda: origin + (_time.monotonic() - start)
 
 
-def live(session: Session, source, *, thrust=None, emit=None, parser: NmeaParser | None = None, duration: float | None = None,
-         idle: float | None = None, status=None, status_every: float = 5.0, clock=None) -> Outcome:
+def live(
+    session: Session,
+    source,
+    *,
+    thrust=None,
+    emit=None,
+    parser: NmeaParser | None = None,
+    duration: float | None = None,
+    idle: float | None = None,
+    status=None,
+    status_every: float = 5.0,
+    clock=None,
+) -> Outcome:
     """Step ``session`` on a live source (from :func:`open_source`) until ``duration``
     seconds have passed, nothing arrived for ``idle`` seconds, the stream ends, or
     Ctrl-C. ``thrust`` is a second source of ``surge,sway,yaw`` lines. ``clock``

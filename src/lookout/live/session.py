@@ -91,9 +91,11 @@ class OriginError(ValueError):
     def message(self, option: str) -> str:
         """The refusal in one line, naming the origin as ``option`` (``--origin`` at the command line)."""
         limit = MAX_ORIGIN_DISTANCE / 1e3
-        return (f"{option} {self.frame.latitude:g},{self.frame.longitude:g} lies {self.meters / 1e3:.0f} km from {self.where}, "
-                f"{self.latitude:.6f},{self.longitude:.6f} (degrees), more than {limit:g} km: a flat north/east frame so far from its origin "
-                f"turns and bends the readings; omit {option} to take the first fix as the origin, or give one within {limit:g} km of it")
+        return (
+            f"{option} {self.frame.latitude:g},{self.frame.longitude:g} lies {self.meters / 1e3:.0f} km from {self.where}, "
+            f"{self.latitude:.6f},{self.longitude:.6f} (degrees), more than {limit:g} km: a flat north/east frame so far from its origin "
+            f"turns and bends the readings; omit {option} to take the first fix as the origin, or give one within {limit:g} km of it"
+        )
 
 
 def check_origin(frame: LocalFrame, latitude: float, longitude: float, where: str = "the first fix") -> None:
@@ -155,7 +157,6 @@ class Block:
         return self.time.size
 
 
-
 @dataclass
 class _Channel:
     """What a session knows of one measured signal."""
@@ -210,8 +211,19 @@ class Session:
         which are otherwise one GNSS receiver's.
     """
 
-    def __init__(self, observer, sample_period: float, *, guess=None, frame: LocalFrame | None = None, gates: Gates | None = None,
-                 on_event=None, batch: int = 1, step_on: str | None = "heading", sources=None):
+    def __init__(
+        self,
+        observer,
+        sample_period: float,
+        *,
+        guess=None,
+        frame: LocalFrame | None = None,
+        gates: Gates | None = None,
+        on_event=None,
+        batch: int = 1,
+        step_on: str | None = "heading",
+        sources=None,
+    ):
         _positive("sample_period", sample_period)
         if frame is not None and not isinstance(frame, LocalFrame):
             raise ValueError(f"frame must be a lookout.io.LocalFrame; got {type(frame).__name__}")
@@ -223,7 +235,9 @@ class Session:
         layout = observer.measurement_layout
         names = layout.names
         if not set(names) & set(CHANNELS):
-            raise ValueError(f"observer {type(observer).__name__} measures {', '.join(names)}; live data fills measured_position (north, east) and measured_heading")
+            raise ValueError(
+                f"observer {type(observer).__name__} measures {', '.join(names)}; live data fills measured_position (north, east) and measured_heading"
+            )
         if "measured_position" in names and layout.signals[names.index("measured_position")].labels != ("north", "east"):
             raise ValueError("observer's measured_position must be (north, east) for position fixes")
         period = getattr(observer, "sample_period", None)
@@ -231,7 +245,9 @@ class Session:
             raise ValueError(f"sample_period must be the observer's own {period:g} s (a discrete-time observer); got {sample_period:g} s")
         if step_on not in (None, "heading", "position"):
             raise ValueError(f"step_on must be 'heading', 'position' or None; got {step_on!r}")
-        if sources is not None and not (hasattr(sources, "items") and all(isinstance(k, str) and isinstance(v, str) and k and v for k, v in sources.items())):
+        if sources is not None and not (
+            hasattr(sources, "items") and all(isinstance(k, str) and isinstance(v, str) and k and v for k, v in sources.items())
+        ):
             raise ValueError(f"sources must map sources or talkers (str) to names (str); got {sources!r}")
         self.sources = dict(sources or {})
         self._origin_checked = frame is None  # a given origin is checked against the first fix
@@ -265,10 +281,15 @@ class Session:
         #: The channels no test gates (the observer gives neither innovation statistics nor an innovation output).
         self.ungated = tuple(kind for kind, test in self.gate_tests.items() if test == "none")
         if self.ungated:
-            warnings.warn(f"lookout live: observer {type(observer).__name__} gives no innovation for {', '.join(self.ungated)}: "
-                          "wild points there are not gated", UserWarning, stacklevel=2)
-        self.gated_observer = GatedObserver(observer, names, np.array(bounds), np.array([c.timeout for c in self.channels.values()]),
-                                            gates.reopen_after, tests)
+            warnings.warn(
+                f"lookout live: observer {type(observer).__name__} gives no innovation for {', '.join(self.ungated)}: "
+                "wild points there are not gated",
+                UserWarning,
+                stacklevel=2,
+            )
+        self.gated_observer = GatedObserver(
+            observer, names, np.array(bounds), np.array([c.timeout for c in self.channels.values()]), gates.reopen_after, tests
+        )
         #: A silence of every channel longer than this (s) is a gap: the longest timeout.
         self.gap_after = max(c.timeout for c in self.channels.values())
         self.gaps = 0
@@ -305,7 +326,9 @@ class Session:
             if test == "nis":
                 words[kind] = f"NIS > chi-square {percent(self.gates.gate_probability)} %"
             elif test == "innovation":
-                words[kind] = f"innovation > {self.gates.position_gate:g} m" if kind == "position" else f"innovation > {self.gates.heading_gate:g} deg"
+                words[kind] = (
+                    f"innovation > {self.gates.position_gate:g} m" if kind == "position" else f"innovation > {self.gates.heading_gate:g} deg"
+                )
             else:
                 words[kind] = "off"
         if len(set(words.values())) == 1 and "innovation" not in next(iter(words.values())):
@@ -478,7 +501,9 @@ class Session:
             self._started = True
         if n == 1:
             try:
-                estimates = {name: np.asarray(value)[None] for name, value in self.stepper(session_times[0], raw[0], inputs[0], self.sample_period).items()}
+                estimates = {
+                    name: np.asarray(value)[None] for name, value in self.stepper(session_times[0], raw[0], inputs[0], self.sample_period).items()
+                }
                 healthy = np.ones(1, dtype=bool)
             except ValueError as error:
                 estimates, healthy = None, np.zeros(1, dtype=bool)

@@ -96,7 +96,10 @@ class Cybership(eqx.Module):
         if check.is_concrete(mass_matrix):
             mass = np.asarray(mass_matrix, dtype=float)
             if mass[0, 1] != 0 or mass[0, 2] != 0:
-                raise check.ParameterError("mass_matrix", f"mass_matrix must have m12 = m13 = 0 (surge decoupled, as C(nu) of (39) assumes); got m12 = {mass[0, 1]:g}, m13 = {mass[0, 2]:g}")
+                raise check.ParameterError(
+                    "mass_matrix",
+                    f"mass_matrix must have m12 = m13 = 0 (surge decoupled, as C(nu) of (39) assumes); got m12 = {mass[0, 1]:g}, m13 = {mass[0, 2]:g}",
+                )
         check.square("damping_matrix", damping_matrix)
         check.finite("quadratic_damping", quadratic_damping)
         self.mass_matrix = jnp.asarray(mass_matrix, dtype=float)
@@ -193,22 +196,39 @@ class Cybership(eqx.Module):
 
 
 register(
-    "ship", "cybership-ii", Cybership,
+    "ship",
+    "cybership-ii",
+    Cybership,
     summary="A ship model (16): M, C(nu) of M, linear D and D_n(nu); by default Cybership II's (39).",
     parameters=(
-        Value("mass_matrix", "array", "M (rigid body plus added mass); symmetric positive definite, with m12 = m13 = 0 (the structure C(nu) assumes).", shape="(3, 3)"),
+        Value(
+            "mass_matrix",
+            "array",
+            "M (rigid body plus added mass); symmetric positive definite, with m12 = m13 = 0 (the structure C(nu) assumes).",
+            shape="(3, 3)",
+        ),
         Value("damping_matrix", "array", "The linear damping D = D(0).", shape="(3, 3)"),
-        Value("quadratic_damping", "array", "[X, Y, N] of D_n(nu) = [X |u| u, Y |v| v, N |v| v]; zeros for a model with linear damping only (the basin scheme of Section 5).", shape="(3,)"),
+        Value(
+            "quadratic_damping",
+            "array",
+            "[X, Y, N] of D_n(nu) = [X |u| u, Y |v| v, N |v| v]; zeros for a model with linear damping only (the basin scheme of Section 5).",
+            shape="(3,)",
+        ),
     ),
 )
 
 
 register(
-    "ship", "dp-vessel", Cybership,
+    "ship",
+    "dp-vessel",
+    Cybership,
     summary="A ship model (16): M, C(nu) of M, linear D and D_n(nu); by default Cybership II's (39).",
     build="from_dp_vessel",
     parameters=(
-        Part("vessel", "The vessel (in a composition, the plant's): M with m12 = m13 = 0 (surge decoupled from sway and yaw, as C(nu) assumes), and no mooring stiffness K (the model (16) has none)."),
+        Part(
+            "vessel",
+            "The vessel (in a composition, the plant's): M with m12 = m13 = 0 (surge decoupled from sway and yaw, as C(nu) assumes), and no mooring stiffness K (the model (16) has none).",
+        ),
     ),
 )
 
@@ -258,11 +278,15 @@ class CybershipState(eqx.Module):
 
 
 @component(
-    "plant", "cybership-ii",
+    "plant",
+    "cybership-ii",
     summary="Cybership II (16) with optional first-order wave motion.",
     parameters=(
         Part("ship", "The true ship (the plant may have D_n where the scheme's model has none)."),
-        Part("waves", "A wave realization with rate(t, position, velocity), motion(t, position) and realize(key) (lookout.environment.JonswapWaves); None for calm water."),
+        Part(
+            "waves",
+            "A wave realization with rate(t, position, velocity), motion(t, position) and realize(key) (lookout.environment.JonswapWaves); None for calm water.",
+        ),
         Value("wave_ramp", "float", "Seconds over which the waves rise, 1/2 (1 - cos(pi t / wave_ramp)); > 0."),
     ),
 )
@@ -324,7 +348,12 @@ class CybershipPlant(Plant):
         return CybershipState(eta=eta_rate, nu=self.ship.acceleration(state.nu, tau), wave=wave_rate)
 
     @initial_values(
-        Value("eta", "array", "Position north, east (m) and heading (rad), Earth-fixed (zeros when not given; an observer's guess takes it from the first measurement).", shape="(3,)"),
+        Value(
+            "eta",
+            "array",
+            "Position north, east (m) and heading (rad), Earth-fixed (zeros when not given; an observer's guess takes it from the first measurement).",
+            shape="(3,)",
+        ),
         Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.", shape="(3,)"),
         Value("wave", "array", "Wave-induced motion eta_w (m, m, rad).", shape="(3,)"),
     )

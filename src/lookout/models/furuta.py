@@ -79,14 +79,17 @@ PRINTED_COULOMB_FRICTION = 0.028
 
 
 @component(
-    "model", "furuta-constants",
+    "model",
+    "furuta-constants",
     summary="The Furuta pendulum of Calugi (2002), Section 6.1, eqs. (6.1)–(6.2), in its constants.",
     parameters=(
         Value("alpha", "float", "alpha (kg m^2), above gamma^2/beta so that M is positive definite at every theta; Section 6.1: 0.00354."),
         Value("beta", "float", "beta (kg m^2); Section 6.1: 0.00384.", range=POSITIVE),
         Value("gamma", "float", "gamma (kg m^2); Section 6.1: 0.00258."),
         Value("delta", "float", "delta (N m), the pendulum's gravity torque coefficient; Section 6.1: 0.103.", range=NON_NEGATIVE),
-        Value("coulomb_friction", "array", "tau_C per joint (N m) of (6.4); Section 6.1: (0.028, 0), on the arm only.", shape="(2,)", range=NON_NEGATIVE),
+        Value(
+            "coulomb_friction", "array", "tau_C per joint (N m) of (6.4); Section 6.1: (0.028, 0), on the arm only.", shape="(2,)", range=NON_NEGATIVE
+        ),
         Value("friction", "array", "Viscous friction per joint (N m s/rad); none in the thesis.", shape="(2,)", range=NON_NEGATIVE),
     ),
 )
@@ -127,8 +130,15 @@ class FurutaConstants(ManipulatorModel):
     joint_names: ClassVar[tuple[str, ...]] = ("arm", "pendulum")
     joint_kinds: ClassVar[tuple[str, ...]] = (REVOLUTE, REVOLUTE)
 
-    def __init__(self, alpha=PRINTED_CONSTANTS[0], beta=PRINTED_CONSTANTS[1], gamma=PRINTED_CONSTANTS[2],
-                 delta=PRINTED_CONSTANTS[3], coulomb_friction=(PRINTED_COULOMB_FRICTION, 0.0), friction=(0.0, 0.0)):
+    def __init__(
+        self,
+        alpha=PRINTED_CONSTANTS[0],
+        beta=PRINTED_CONSTANTS[1],
+        gamma=PRINTED_CONSTANTS[2],
+        delta=PRINTED_CONSTANTS[3],
+        coulomb_friction=(PRINTED_COULOMB_FRICTION, 0.0),
+        friction=(0.0, 0.0),
+    ):
         self.alpha = _scalar("alpha", alpha)
         self.beta = _scalar("beta", beta)
         self.gamma = _scalar("gamma", gamma)
@@ -143,8 +153,11 @@ class FurutaConstants(ManipulatorModel):
         if check.is_concrete(self.alpha) and check.is_concrete(self.gamma) and check.is_concrete(self.beta):
             floor = float(self.gamma) ** 2 / float(self.beta)
             if not float(self.alpha) > floor:
-                raise check.ParameterError("alpha", f"alpha must exceed gamma^2/beta = {floor:.4g} kg m^2 so that M is positive definite at every theta "
-                                 f"(Property 2.1); got {float(self.alpha):.4g}")
+                raise check.ParameterError(
+                    "alpha",
+                    f"alpha must exceed gamma^2/beta = {floor:.4g} kg m^2 so that M is positive definite at every theta "
+                    f"(Property 2.1); got {float(self.alpha):.4g}",
+                )
         check.positive("delta", self.delta, allow_zero=True)
         check.positive("coulomb_friction", self.coulomb_friction, allow_zero=True)
         check.positive("Furuta friction", self.friction, allow_zero=True)
@@ -165,8 +178,9 @@ class FurutaConstants(ManipulatorModel):
     def printed_coriolis_matrix(self, q: Array, v: Array) -> Array:
         """C(q, q') as printed in Section 6.1 (to check against the derived Christoffel C)."""
         c, s = jnp.cos(q[1]), jnp.sin(q[1])
-        return jnp.array([[self.beta * c * s * v[1], self.beta * c * s * v[0] - self.gamma * s * v[1]],
-                          [-self.beta * c * s * v[0], jnp.zeros_like(v[0])]])
+        return jnp.array(
+            [[self.beta * c * s * v[1], self.beta * c * s * v[0] - self.gamma * s * v[1]], [-self.beta * c * s * v[0], jnp.zeros_like(v[0])]]
+        )
 
     def determinant(self, q: Array) -> Array:
         """det M(q) = (alpha + beta sin^2 theta) beta - gamma^2 cos^2 theta; positive for all
@@ -193,12 +207,18 @@ class FurutaState(eqx.Module):
 
 
 @component(
-    "plant", "furuta",
+    "plant",
+    "furuta",
     summary="The Furuta pendulum with stick-slip Coulomb friction on the arm (Calugi 2002, (6.1)–(6.4)).",
     parameters=(
         Part("model", "The true pendulum in its constants, Coulomb friction included."),
         Value("stick_band", "float", "|phi'| (rad/s) below which the arm may stick; default 0.02.", range=POSITIVE),
-        Value("stick_relaxation", "float", "Time constant (s) by which a sticking arm's residual speed goes to zero; default 1 ms (keep it >= 2 plant steps for RK4).", range=POSITIVE),
+        Value(
+            "stick_relaxation",
+            "float",
+            "Time constant (s) by which a sticking arm's residual speed goes to zero; default 1 ms (keep it >= 2 plant steps for RK4).",
+            range=POSITIVE,
+        ),
     ),
 )
 @final
@@ -244,8 +264,11 @@ class FurutaPlant(Plant):
         self.input_layout = joint_layout(names, kinds, JOINT_INPUT)
         self.position_layout = joint_layout(names, kinds, JOINT_POSITION)
         self.velocity_layout = joint_layout(names, kinds, JOINT_VELOCITY)
-        self.variable_signals = self.position_layout.signals + self.velocity_layout.signals + (
-            Signal("arm_stuck_time", "s", "time the arm has spent sticking (Coulomb friction)"),)
+        self.variable_signals = (
+            self.position_layout.signals
+            + self.velocity_layout.signals
+            + (Signal("arm_stuck_time", "s", "time the arm has spent sticking (Coulomb friction)"),)
+        )
 
     def __check_init__(self):
         check.positive("stick_band", self.stick_band)
@@ -288,7 +311,12 @@ class FurutaPlant(Plant):
         return FurutaState(x.qdot, accel, sticking.astype(float))
 
     @initial_values(
-        Value("q", "array", "(phi, theta): arm and pendulum angles (rad; zeros when not given; an observer's guess takes it from the first measurement).", shape="(2,)"),
+        Value(
+            "q",
+            "array",
+            "(phi, theta): arm and pendulum angles (rad; zeros when not given; an observer's guess takes it from the first measurement).",
+            shape="(2,)",
+        ),
         Value("qdot", "array", "Their rates (rad/s).", shape="(2,)"),
     )
     def state(self, q=None, qdot=0.0) -> FurutaState:
@@ -301,8 +329,11 @@ class FurutaPlant(Plant):
         qdot : array_like, shape (2,)
             Their rates (rad/s).
         """
-        return FurutaState(jnp.asarray(check.vector("q", 0.0 if q is None else q, 2), dtype=float), jnp.asarray(check.vector("qdot", qdot, 2), dtype=float),
-                           jnp.asarray(0.0))
+        return FurutaState(
+            jnp.asarray(check.vector("q", 0.0 if q is None else q, 2), dtype=float),
+            jnp.asarray(check.vector("qdot", qdot, 2), dtype=float),
+            jnp.asarray(0.0),
+        )
 
     def models(self) -> tuple:
         """The model in its constants (friction included)."""

@@ -97,7 +97,9 @@ def joint_groups(joint_names: tuple[str, ...], joint_kinds: tuple[str, ...]) -> 
     """
     joint_names, joint_kinds = tuple(joint_names), tuple(joint_kinds)
     if len(joint_names) != len(joint_kinds) or not joint_names:
-        raise check.ParameterError("joint_names", f"joint_names and joint_kinds must be non-empty and of one length; got {joint_names} and {joint_kinds}")
+        raise check.ParameterError(
+            "joint_names", f"joint_names and joint_kinds must be non-empty and of one length; got {joint_names} and {joint_kinds}"
+        )
     if len(set(joint_names)) != len(joint_names):
         raise check.ParameterError("joint_names", f"joint_names must be distinct; got {joint_names}")
     unknown = [kind for kind in joint_kinds if kind not in JOINT_DIMS]
@@ -238,7 +240,8 @@ class ManipulatorModel(eqx.Module):
 
 
 @component(
-    "model", "pendulum",
+    "model",
+    "pendulum",
     summary="Free pendulum of Calugi (2002), Section 2.3: M = m l^2, G = m g l sin q.",
     parameters=(
         Value("mass", "float", "m, the point mass at the pendulum's end (kg); Section 2.3: 0.5.", range=POSITIVE),
@@ -301,12 +304,17 @@ class FreePendulum(ManipulatorModel):
 
 
 @component(
-    "model", "two-link-arm",
+    "model",
+    "two-link-arm",
     summary="Two-link planar arm of Calugi (2002), Section 2.3, with point masses at the link ends.",
     parameters=(
-        Value("masses", "array", "m1, m2: the point masses at the ends of links 1 and 2 (kg); Section 2.3: (0.5, 0.7).", shape="(2,)", range=POSITIVE),
+        Value(
+            "masses", "array", "m1, m2: the point masses at the ends of links 1 and 2 (kg); Section 2.3: (0.5, 0.7).", shape="(2,)", range=POSITIVE
+        ),
         Value("lengths", "array", "l1, l2: the links' lengths (m); Section 2.3: (1, 1.5).", shape="(2,)", range=POSITIVE),
-        Value("friction", "array", "c1, c2: the viscous friction at the joints (N m s/rad); Section 2.3: (0.5, 0.1).", shape="(2,)", range=NON_NEGATIVE),
+        Value(
+            "friction", "array", "c1, c2: the viscous friction at the joints (N m s/rad); Section 2.3: (0.5, 0.1).", shape="(2,)", range=NON_NEGATIVE
+        ),
         Value("gravity_acceleration", "float", "g (m/s^2); 9.81, the thesis's n.", range=NON_NEGATIVE),
     ),
 )
@@ -377,13 +385,20 @@ class TwoLinkArm(ManipulatorModel):
 
 
 @component(
-    "model", "cart-pendulum",
-    summary="Inverted pendulum on a cart (\"pendulum-on-the-coach\"), Calugi (2002), Section 2.3.",
+    "model",
+    "cart-pendulum",
+    summary='Inverted pendulum on a cart ("pendulum-on-the-coach"), Calugi (2002), Section 2.3.',
     parameters=(
         Value("cart_mass", "float", "m1, the cart's mass (kg); Section 2.3: 2.", range=POSITIVE),
         Value("pendulum_mass", "float", "m2, the point mass at the pendulum's end (kg); Section 2.3: 0.2.", range=POSITIVE),
         Value("pendulum_length", "float", "l, the distance of m2 from the pivot on the cart (m); Section 2.3: 0.5.", range=POSITIVE),
-        Value("friction", "array", "c1 (N s/m), the cart's viscous friction, and c2 (N m s/rad), the pivot's; Section 2.3: (0.4, 0.1).", shape="(2,)", range=NON_NEGATIVE),
+        Value(
+            "friction",
+            "array",
+            "c1 (N s/m), the cart's viscous friction, and c2 (N m s/rad), the pivot's; Section 2.3: (0.4, 0.1).",
+            shape="(2,)",
+            range=NON_NEGATIVE,
+        ),
         Value("gravity_acceleration", "float", "g (m/s^2); 9.81, the thesis's n.", range=NON_NEGATIVE),
     ),
 )
@@ -451,7 +466,8 @@ class CartPendulum(ManipulatorModel):
 
 
 @component(
-    "model", "furuta-pendulum",
+    "model",
+    "furuta-pendulum",
     summary="Furuta (rotary) pendulum of Calugi (2002), Section 2.3.",
     parameters=(
         Value("pillar_inertia", "float", "J, the pillar's moment of inertia about its axis (kg m^2); Section 2.3: 1.", range=POSITIVE),
@@ -460,7 +476,13 @@ class CartPendulum(ManipulatorModel):
         Value("tip_mass", "float", "m3, the point mass at the pendulum's tip (kg); Section 2.3: 0.5.", range=NON_NEGATIVE),
         Value("arm_length", "float", "l1, the arm's length (m); Section 2.3: 0.7.", range=POSITIVE),
         Value("pendulum_length", "float", "l2, the pendulum's length (m); Section 2.3: 0.5.", range=POSITIVE),
-        Value("friction", "array", "c1, c2: the viscous friction of the arm and the pendulum (N m s/rad); Section 2.3: (0.4, 0.2).", shape="(2,)", range=NON_NEGATIVE),
+        Value(
+            "friction",
+            "array",
+            "c1, c2: the viscous friction of the arm and the pendulum (N m s/rad); Section 2.3: (0.4, 0.2).",
+            shape="(2,)",
+            range=NON_NEGATIVE,
+        ),
         Value("gravity_acceleration", "float", "g (m/s^2); 9.81, the thesis's n.", range=NON_NEGATIVE),
     ),
 )
@@ -582,11 +604,18 @@ class JointState(eqx.Module):
 
 
 @component(
-    "plant", "manipulator",
+    "plant",
+    "manipulator",
     summary="A ManipulatorModel as a continuous-time plant with state JointState.",
     parameters=(
         Part("model", "The true manipulator (it may differ from the observer's and controller's model)."),
-        Value("force_noise", "array", "Standard deviation of the white force disturbance per joint (N m sqrt(s) or N sqrt(s)); default 0, none.", shape="(n,)", range=NON_NEGATIVE),
+        Value(
+            "force_noise",
+            "array",
+            "Standard deviation of the white force disturbance per joint (N m sqrt(s) or N sqrt(s)); default 0, none.",
+            shape="(n,)",
+            range=NON_NEGATIVE,
+        ),
     ),
 )
 @final
@@ -653,7 +682,12 @@ class ManipulatorPlant(Plant):
         return JointState(x.qdot, self.model.acceleration(x.q, x.qdot, tau))
 
     @initial_values(
-        Value("q", "array", "Joint coordinates in joint order (rad, m; zeros when not given; an observer's guess takes it from the first measurement).", shape="(n,)"),
+        Value(
+            "q",
+            "array",
+            "Joint coordinates in joint order (rad, m; zeros when not given; an observer's guess takes it from the first measurement).",
+            shape="(n,)",
+        ),
         Value("qdot", "array", "Their rates (rad/s, m/s).", shape="(n,)"),
     )
     def state(self, q=None, qdot=0.0) -> JointState:

@@ -101,8 +101,9 @@ class AffineParameters(eqx.Module):
             residual = self.affine_residual()
             if not residual <= AFFINE_TOLERANCE:
                 raise check.ParameterError(
-                    "parameters", f"parameters {', '.join(self.names)} must enter the dynamics affinely (Property 4.2); "
-                    f"the split misses the dynamics by {residual:.2g} (relative) at random points"
+                    "parameters",
+                    f"parameters {', '.join(self.names)} must enter the dynamics affinely (Property 4.2); "
+                    f"the split misses the dynamics by {residual:.2g} (relative) at random points",
                 )
 
 
@@ -123,8 +124,7 @@ def parameter_signals(parameters: AffineParameters, suffix: str = "", long_prefi
     for name, unit in zip(parameters.names, parameters.units):
         if not unit:
             raise ValueError(
-                f"parameters.units must give every parameter's unit (UDUNITS, e.g. 'kg'); {name!r} has none: "
-                "build the parameters with units=(...)"
+                f"parameters.units must give every parameter's unit (UDUNITS, e.g. 'kg'); {name!r} has none: build the parameters with units=(...)"
             )
         signals.append(Signal(f"{parameter_signal_name(name)}{suffix}", unit, f"{long_prefix}parameter {name}"))
     return tuple(signals)
@@ -155,12 +155,13 @@ def _parse_field(entry: str) -> tuple[str, int | None]:
 
 
 @component(
-    "parameters", "model-fields",
+    "parameters",
+    "model-fields",
     summary="Fields of a model as the unknown parameters theta of Property 4.2.",
     parameters=(
         Part("base", role="model", doc="The model (in a composition, the plant's unless given)."),
-        Value("fields", "strings", "The unknown parameters: scalar fields (\"mass\") or elements (\"masses[1]\")."),
-        Value("units", "strings", "One UDUNITS unit per field (\"kg\"), for the records of theta_hat."),
+        Value("fields", "strings", 'The unknown parameters: scalar fields ("mass") or elements ("masses[1]").'),
+        Value("units", "strings", 'One UDUNITS unit per field ("kg"), for the records of theta_hat.'),
     ),
 )
 @final
@@ -226,11 +227,10 @@ class ModelParameters(AffineParameters):
 
 
 @component(
-    "parameters", "pendulum-inertia",
+    "parameters",
+    "pendulum-inertia",
     summary="The free pendulum in theta = (m l^2, m l) (kg m^2, kg m): M = theta_1, G = theta_2 g sin q, F as given.",
-    parameters=(
-        Part("base", role="model", doc="The pendulum whose m l^2 and m l are the unknowns (in a composition, the plant's unless given)."),
-    ),
+    parameters=(Part("base", role="model", doc="The pendulum whose m l^2 and m l are the unknowns (in a composition, the plant's unless given)."),),
 )
 @final
 class PendulumInertia(AffineParameters):

@@ -32,13 +32,25 @@ from lookout.scenario.declare import NON_NEGATIVE, Part, Value, component, initi
 
 
 @component(
-    "plant", "scheduled-parameters",
+    "plant",
+    "scheduled-parameters",
     summary="A manipulator with piecewise-constant parameters theta(t), as a plant with state JointState.",
     parameters=(
         Part("parameters", "Which parameters change, and the model they build (its other parameters fixed)."),
-        Value("values", "array", "theta on each interval, finite, in the parameters' units; one row means constant parameters.", shape="(K + 1, p) or (p,)"),
+        Value(
+            "values",
+            "array",
+            "theta on each interval, finite, in the parameters' units; one row means constant parameters.",
+            shape="(K + 1, p) or (p,)",
+        ),
         Value("switch_times", "array", "Strictly increasing, finite times (s) at which theta jumps to the next row.", shape="(K,)"),
-        Value("force_noise", "array", "Standard deviation of a white force disturbance per joint (N m sqrt(s) or N sqrt(s)); default 0, none.", shape="(n,)", range=NON_NEGATIVE),
+        Value(
+            "force_noise",
+            "array",
+            "Standard deviation of a white force disturbance per joint (N m sqrt(s) or N sqrt(s)); default 0, none.",
+            shape="(n,)",
+            range=NON_NEGATIVE,
+        ),
     ),
 )
 @final
@@ -83,10 +95,14 @@ class ScheduledParameterPlant(Plant):
         if values.ndim == 1:
             values = values[None, :]
         if values.ndim != 2 or values.shape[1] != p:
-            raise check.ParameterError("values", f"values must have shape (intervals, {p}) (one row of the {p} parameters per interval); got shape {values.shape}")
+            raise check.ParameterError(
+                "values", f"values must have shape (intervals, {p}) (one row of the {p} parameters per interval); got shape {values.shape}"
+            )
         switch_times = jnp.asarray(switch_times, dtype=float).reshape(-1)
         if switch_times.shape[0] != values.shape[0] - 1:
-            raise check.ParameterError("switch_times", f"switch_times must have one entry fewer than values has rows ({values.shape[0] - 1}); got {switch_times.shape[0]}")
+            raise check.ParameterError(
+                "switch_times", f"switch_times must have one entry fewer than values has rows ({values.shape[0] - 1}); got {switch_times.shape[0]}"
+            )
         model = parameters.model(parameters.reference)
         names, kinds = model.joint_names, model.joint_kinds
         self.parameters = parameters
@@ -114,7 +130,12 @@ class ScheduledParameterPlant(Plant):
         return self.values[jnp.searchsorted(self.switch_times, t, side="right")]
 
     @initial_values(
-        Value("q", "array", "Joint coordinates in joint order (rad, m; zeros when not given; an observer's guess takes it from the first measurement).", shape="(n,)"),
+        Value(
+            "q",
+            "array",
+            "Joint coordinates in joint order (rad, m; zeros when not given; an observer's guess takes it from the first measurement).",
+            shape="(n,)",
+        ),
         Value("qdot", "array", "Their rates (rad/s, m/s).", shape="(n,)"),
     )
     def state(self, q=None, qdot=0.0) -> JointState:

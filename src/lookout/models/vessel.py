@@ -58,9 +58,7 @@ VESSEL_INPUT = Layout((_body("force", "N", "thrust force"), Signal("moment", "N 
 NORTHERN_CLIPPER_MASS = 4.591e6  # kg
 NORTHERN_CLIPPER_LENGTH = 76.2  # m
 NORTHERN_CLIPPER_M = np.diag([5.3122e6, 8.2831e6, 3.7454e9])
-NORTHERN_CLIPPER_D = np.array(
-    [[5.0242e4, 0.0, 0.0], [0.0, 2.7229e5, -4.3933e6], [0.0, -4.3933e6, 4.1894e8]]
-)
+NORTHERN_CLIPPER_D = np.array([[5.0242e4, 0.0, 0.0], [0.0, 2.7229e5, -4.3933e6], [0.0, -4.3933e6, 4.1894e8]])
 #: Thrust limits chosen for the Northern Clipper (surge force N, sway force N, yaw moment
 #: N m; the input layout of :data:`VESSEL_INPUT`), for an actuator ``kind =
 #: "thrust-limits"`` (:class:`lookout.actuators.SaturatingActuator`); Fossen & Strand
@@ -194,10 +192,13 @@ class DPVessel(eqx.Module):
 
 
 @component(
-    "vessel", "northern-clipper",
+    "vessel",
+    "northern-clipper",
     summary="Linear low-frequency 3-DOF vessel model M nu' + D nu + K eta = tau + J^T b.",
     parameters=(
-        Value("mass_scale", "float", "M multiplied entry by entry (1.2: a vessel 20 % heavier than the paper's, a model error) (1).", range=NON_NEGATIVE),
+        Value(
+            "mass_scale", "float", "M multiplied entry by entry (1.2: a vessel 20 % heavier than the paper's, a model error) (1).", range=NON_NEGATIVE
+        ),
         Value("damping_scale", "float", "D multiplied entry by entry (1).", range=NON_NEGATIVE),
     ),
 )
@@ -215,7 +216,8 @@ def northern_clipper(mass_scale=1.0, damping_scale=1.0) -> DPVessel:
 
 
 @component(
-    "vessel", "custom",
+    "vessel",
+    "custom",
     summary="Linear low-frequency 3-DOF vessel model M nu' + D nu + K eta = tau + J^T b.",
     parameters=(
         Value("mass_matrix", "array", "M including added mass (kg, kg m, kg m^2); symmetric positive definite (assumption A1).", shape="(3, 3)"),
@@ -246,13 +248,17 @@ def scaled_vessel(mass_matrix, damping_matrix, stiffness_matrix=None, mass_scale
 
 
 @component(
-    "plant", "dp-vessel",
+    "plant",
+    "dp-vessel",
     summary="Vessel, bias and wave model integrated together as one continuous-time plant.",
     parameters=(
         Part("vessel", "The true vessel (it may differ from the observer's and controller's model: that difference is the model error)."),
         Part("bias", "The slowly varying environmental forces b (currents, mean wave drift, wind)."),
         Part("waves", "The first-order wave-frequency motion eta_w added to the measured position."),
-        Part("disturbance", "An unmodelled body-fixed force (Kim's E_nu w_nu); its white part adds three noise channels after the six of bias and waves."),
+        Part(
+            "disturbance",
+            "An unmodelled body-fixed force (Kim's E_nu w_nu); its white part adds three noise channels after the six of bias and waves.",
+        ),
     ),
 )
 @final
@@ -307,7 +313,12 @@ class VesselPlant(Plant):
         )
 
     @initial_values(
-        Value("eta", "array", "Position north, east (m) and heading (rad), Earth-fixed (zeros when not given; an observer's guess takes it from the first measurement).", shape="(3,)"),
+        Value(
+            "eta",
+            "array",
+            "Position north, east (m) and heading (rad), Earth-fixed (zeros when not given; an observer's guess takes it from the first measurement).",
+            shape="(3,)",
+        ),
         Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.", shape="(3,)"),
         Value("bias", "array", "Bias forces and moment (N, N, N m), Earth-fixed.", shape="(3,)"),
         Value("wave_state", "array", "Wave-model state [xi1, xi2] of eq. (11) (m s, m s, rad s, m, m, rad).", shape="(6,)"),

@@ -163,11 +163,16 @@ def _parse_unknown(entry) -> tuple[str, int, int]:
 
 
 @component(
-    "parametrization", "inertia-entries",
+    "parametrization",
+    "inertia-entries",
     summary="The observer's model with some entries of M, D, K unknown: theta of eq. (8).",
     parameters=(
         Part("model", role="vessel", doc="The known model (M, D, K)."),
-        Value("unknowns", "strings", "The unknown entries, each (kind, row, col) with kind \"mass\", \"damping\" or \"stiffness\" and **0-based** row, col, or a paper-style name (\"m11\" = (\"mass\", 0, 0), 1-based)."),
+        Value(
+            "unknowns",
+            "strings",
+            'The unknown entries, each (kind, row, col) with kind "mass", "damping" or "stiffness" and **0-based** row, col, or a paper-style name ("m11" = ("mass", 0, 0), 1-based).',
+        ),
         Value("lower", "array", "Bounds of theta (the paper's (9)–(11)), in the SI units of units.", shape="(p,)"),
         Value("upper", "array", "Bounds of theta (the paper's (9)–(11)), in the SI units of units.", shape="(p,)"),
     ),
@@ -215,7 +220,9 @@ class InertiaParametrization(eqx.Module):
         if not parsed:
             raise check.ParameterError("unknowns", "unknowns must name at least one entry of M, D or K")
         if len(set(parsed)) != len(parsed):
-            raise check.ParameterError("unknowns", f"unknowns must be distinct (an off-diagonal entry counts for its symmetric pair); got {list(parsed)}")
+            raise check.ParameterError(
+                "unknowns", f"unknowns must be distinct (an off-diagonal entry counts for its symmetric pair); got {list(parsed)}"
+            )
         self.model = model
         self.unknowns = parsed
         p = len(parsed)
@@ -245,7 +252,9 @@ class InertiaParametrization(eqx.Module):
             smallest = np.linalg.eigvalsh(0.5 * (m_hat + m_hat.T)).min()
             if not smallest > 0:
                 where = ", ".join(f"{self.names[k]} = {theta[k]:.6g}" for k in mass)
-                raise check.ParameterError("theta", f"theta bounds: M_hat must be positive definite in the whole box; at {where} its smallest eigenvalue is {smallest:.3g}")
+                raise check.ParameterError(
+                    "theta", f"theta bounds: M_hat must be positive definite in the whole box; at {where} its smallest eigenvalue is {smallest:.3g}"
+                )
 
     @property
     def size(self) -> int:
@@ -362,15 +371,21 @@ def _angle_difference(a: Array, b: Array) -> Array:
 
 
 @component(
-    "observer", "adaptive-dp",
+    "observer",
+    "adaptive-dp",
     summary="Adaptive observer of Calugi, Robertsson & Johansson (2003), eqs. (13)–(15) and (65)–(67).",
     family="lookout.tuning.families.adaptive_dp:AdaptiveDPFamily",
     parameters=(
         Part("parametrization", "The known model, the unknown entries and their bounds."),
         Value("position_gain", "array", "Diagonal of K1 (1/s), > 0.", shape="(3,)"),
         Value("velocity_gain", "array", "Diagonal of K2 (1/s), > 0.", shape="(3,)"),
-        Value("adaptation_gain", "array", "Gamma: a scalar (Gamma I), a diagonal, or a symmetric matrix; positive definite as in the paper, or 0 (semidefinite allowed) to switch adaptation off.", shape="(p,) or (p, p)"),
-        Value("form", "str", "(65)–(67) at the engine's sample period, or (13)–(15).", choices=('discrete', 'continuous')),
+        Value(
+            "adaptation_gain",
+            "array",
+            "Gamma: a scalar (Gamma I), a diagonal, or a symmetric matrix; positive definite as in the paper, or 0 (semidefinite allowed) to switch adaptation off.",
+            shape="(p,) or (p, p)",
+        ),
+        Value("form", "str", "(65)–(67) at the engine's sample period, or (13)–(15).", choices=("discrete", "continuous")),
         Value("initial_theta", "array", "theta_hat(0) used by guess when no theta is given; by default the midpoint of the bounds.", shape="(p,)"),
         Value("steps_per_sample", "int", "RK4 steps of the continuous form's predict per sample period."),
     ),
@@ -453,7 +468,9 @@ class AdaptiveObserver(ContinuousObserver):
         elif gamma.shape == (p,):
             gamma = jnp.diag(gamma)
         elif gamma.shape != (p, p):
-            raise check.ParameterError("adaptation_gain", f"adaptation_gain (Gamma) must be a scalar, a diagonal of {p} or a {p}x{p} matrix; got shape {gamma.shape}")
+            raise check.ParameterError(
+                "adaptation_gain", f"adaptation_gain (Gamma) must be a scalar, a diagonal of {p} or a {p}x{p} matrix; got shape {gamma.shape}"
+            )
         self.adaptation_gain = gamma
         if initial_theta is None:
             initial_theta = 0.5 * (parametrization.lower + parametrization.upper)
@@ -475,13 +492,18 @@ class AdaptiveObserver(ContinuousObserver):
                 raise check.ParameterError("adaptation_gain", "adaptation_gain (Gamma) must be symmetric")
             smallest = np.linalg.eigvalsh(gamma).min()
             if smallest < -1e-12 * max(np.abs(gamma).max(), 1e-300):
-                raise check.ParameterError("adaptation_gain", f"adaptation_gain (Gamma) must be positive definite (or semidefinite, 0 = no adaptation); its smallest eigenvalue is {smallest:.3g}")
+                raise check.ParameterError(
+                    "adaptation_gain",
+                    f"adaptation_gain (Gamma) must be positive definite (or semidefinite, 0 = no adaptation); its smallest eigenvalue is {smallest:.3g}",
+                )
         if check.is_concrete(self.initial_theta) and check.is_concrete(self.parametrization.lower):
             theta = np.asarray(self.initial_theta)
             lower, upper = np.asarray(self.parametrization.lower), np.asarray(self.parametrization.upper)
             check.finite("initial_theta", theta)
             if np.any(theta < lower) or np.any(theta > upper):
-                raise check.ParameterError("initial_theta", f"initial_theta must lie in the theta bounds [{check._fmt(lower)}, {check._fmt(upper)}]; got {check._fmt(theta)}")
+                raise check.ParameterError(
+                    "initial_theta", f"initial_theta must lie in the theta bounds [{check._fmt(lower)}, {check._fmt(upper)}]; got {check._fmt(theta)}"
+                )
 
     @classmethod
     def calugi_2003(cls, vessel: DPVessel, theta_bounds=None, initial_theta=None, **options) -> AdaptiveObserver:
@@ -555,7 +577,9 @@ class AdaptiveObserver(ContinuousObserver):
         (:mod:`lookout.observers.start`); eta(0) = y0 is stored as the base of the first
         difference (a NaN channel of y0 is replaced by eta_hat(0))."""
         if not isinstance(guess, AdaptiveEstimate):
-            raise ValueError(f"the initial estimate of an AdaptiveObserver must be an AdaptiveEstimate (observer.guess(...)); got {type(guess).__name__}")
+            raise ValueError(
+                f"the initial estimate of an AdaptiveObserver must be an AdaptiveEstimate (observer.guess(...)); got {type(guess).__name__}"
+            )
         y = jnp.asarray(y0, dtype=float)[:3]
         eta = from_first_measurement(jnp.asarray(guess.eta, dtype=float), y, angles=(2,))
         measured = jnp.where(jnp.isfinite(y), y, eta)
@@ -662,7 +686,9 @@ class AdaptiveObserver(ContinuousObserver):
         """
         del t
         if self.discrete:
-            raise ValueError("form='discrete' has no vector field: simulate it with observer_mode='sampled', or build the observer with form='continuous'")
+            raise ValueError(
+                "form='discrete' has no vector field: simulate it with observer_mode='sampled', or build the observer with form='continuous'"
+            )
         self._check_measurement(y)
         eta, nu = y[:3], y[3:6]
         eta_tilde = jnp.where(jnp.isfinite(eta), _angle_difference(eta, state.eta), 0.0)
@@ -683,6 +709,4 @@ class AdaptiveObserver(ContinuousObserver):
 
     def normalize(self, state: AdaptiveObserverState) -> AdaptiveObserverState:
         """Heading of eta_hat wrapped to [-pi, pi) and theta_hat clipped to the bounds."""
-        return eqx.tree_at(
-            lambda s: (s.eta, s.theta), state, (state.eta.at[2].set(ssa(state.eta[2])), self.parametrization.project(state.theta))
-        )
+        return eqx.tree_at(lambda s: (s.eta, s.theta), state, (state.eta.at[2].set(ssa(state.eta[2])), self.parametrization.project(state.theta)))

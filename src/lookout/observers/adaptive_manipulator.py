@@ -163,19 +163,30 @@ def _smallest_inertia(parameters: AffineParameters, vertices: Array, q_grid: Arr
 
 
 @component(
-    "observer", "adaptive-manipulator",
+    "observer",
+    "adaptive-manipulator",
     summary="Calugi (2002) ch. 4: the discrete adaptive observer (4.34)–(4.35) with resetting (4.45).",
     family="lookout.tuning.families.adaptive_manipulator:AdaptiveManipulatorFamily",
     parameters=(
         Part("parameters", "The model and which of its parameters are unknown; the observer's model is parameters.model(theta_hat)."),
         Value("gain", "array", "Diagonal of K (1/s), with |1 - Delta K| < 1.", shape="(n,)", range=POSITIVE),
-        Value("adaptation_gain", "array", "Diagonal of Gamma; 0 freezes that parameter (with all of Gamma 0 this is the chapter-2 velocity observer in the discrete form (4.34), as Calugi's experiment I runs it).", shape="(p,)", range=NON_NEGATIVE),
+        Value(
+            "adaptation_gain",
+            "array",
+            "Diagonal of Gamma; 0 freezes that parameter (with all of Gamma 0 this is the chapter-2 velocity observer in the discrete form (4.34), as Calugi's experiment I runs it).",
+            shape="(p,)",
+            range=NON_NEGATIVE,
+        ),
         Value("sample_period", "float", "Delta (s): the engine's sample period, fixed here because (4.34) is written for it.", range=POSITIVE),
         Value("lower", "array", "Lower bounds l of the resetting (4.45), below upper; default none (-inf).", shape="(p,)"),
         Value("upper", "array", "Upper bounds h of the resetting (4.45), above lower; default none (inf).", shape="(p,)"),
         Value("margin", "array", "mu of (4.45): M(q; theta_hat) must stay positive definite on [l - mu, h + mu].", shape="(p,)", range=NON_NEGATIVE),
         Part("regressor", role="parameters", doc="Whose regressor phi (4.7) uses; default parameters."),
-        Value("check_bounds", "bool", "Refuse bounds and a margin that let M(q; theta_hat) lose positive definiteness on [lower - mu, upper + mu] (default true); false only to reproduce a printed setting that fails (Calugi 2002, experiment III)."),
+        Value(
+            "check_bounds",
+            "bool",
+            "Refuse bounds and a margin that let M(q; theta_hat) lose positive definiteness on [lower - mu, upper + mu] (default true); false only to reproduce a printed setting that fails (Calugi 2002, experiment III).",
+        ),
     ),
 )
 @final
@@ -230,8 +241,19 @@ class AdaptiveManipulatorObserver(Observer):
     measurement_layout: Layout = eqx.field(static=True)
     input_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, parameters: AffineParameters, gain, adaptation_gain, *, sample_period: float,
-                 lower=None, upper=None, margin=0.0, regressor: AffineParameters | None = None, check_bounds: bool = True):
+    def __init__(
+        self,
+        parameters: AffineParameters,
+        gain,
+        adaptation_gain,
+        *,
+        sample_period: float,
+        lower=None,
+        upper=None,
+        margin=0.0,
+        regressor: AffineParameters | None = None,
+        check_bounds: bool = True,
+    ):
         if not isinstance(parameters, AffineParameters):
             raise check.ParameterError("parameters", f"parameters must be an AffineParameters; got {type(parameters).__name__}")
         if regressor is not None and not (isinstance(regressor, AffineParameters) and regressor.names == parameters.names):
@@ -253,8 +275,10 @@ class AdaptiveManipulatorObserver(Observer):
         self.check_bounds = check_bounds
         self.measurement_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_MEASUREMENT)
         self.input_layout = joint_layout(model.joint_names, model.joint_kinds, JOINT_INPUT)
-        self.estimate_signals = (joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION).signals
-                                 + joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals)
+        self.estimate_signals = (
+            joint_layout(model.joint_names, model.joint_kinds, JOINT_POSITION).signals
+            + joint_layout(model.joint_names, model.joint_kinds, JOINT_VELOCITY).signals
+        )
         self.extra_signals = parameter_signals(parameters, "_hat", "estimated ") + (
             Signal("resets", "1", "parameter resets (4.45) fired so far, all parameters"),
         )
@@ -266,7 +290,10 @@ class AdaptiveManipulatorObserver(Observer):
         if check.is_concrete(self.gain):
             step = np.abs(1.0 - self.sample_period * np.asarray(self.gain))
             if np.any(step >= 1.0):
-                raise check.ParameterError("observer", f"observer gain K must satisfy |1 - Delta K| < 1 for (4.34); got Delta K = {self.sample_period * np.asarray(self.gain)}")
+                raise check.ParameterError(
+                    "observer",
+                    f"observer gain K must satisfy |1 - Delta K| < 1 for (4.34); got Delta K = {self.sample_period * np.asarray(self.gain)}",
+                )
         if check.is_concrete(self.lower) and check.is_concrete(self.upper):
             lower, upper = np.asarray(self.lower), np.asarray(self.upper)
             if np.any(np.isnan(lower)) or np.any(np.isnan(upper)) or np.any(lower >= upper):
@@ -276,8 +303,9 @@ class AdaptiveManipulatorObserver(Observer):
                 smallest = mass_matrix_margin(self.parameters, low, high)
                 if not smallest > 0:
                     raise check.ParameterError(
-                        "margin", f"margin mu and the bounds must keep M(q; theta_hat) positive definite on [lower - mu, upper + mu] "
-                        f"= [{low.tolist()}, {high.tolist()}]; its smallest eigenvalue there is {smallest:.3g}"
+                        "margin",
+                        f"margin mu and the bounds must keep M(q; theta_hat) positive definite on [lower - mu, upper + mu] "
+                        f"= [{low.tolist()}, {high.tolist()}]; its smallest eigenvalue there is {smallest:.3g}",
                     )
 
     @initial_values(
@@ -296,8 +324,9 @@ class AdaptiveManipulatorObserver(Observer):
         """
         n = self.parameters.model(self.parameters.reference).size
         theta = self.parameters.reference if theta is None else theta
-        return AdaptiveGuess(jnp.broadcast_to(jnp.asarray(velocity, dtype=float), (n,)),
-                             jnp.asarray(check.vector("theta_hat(0)", theta, self.parameters.size)))
+        return AdaptiveGuess(
+            jnp.broadcast_to(jnp.asarray(velocity, dtype=float), (n,)), jnp.asarray(check.vector("theta_hat(0)", theta, self.parameters.size))
+        )
 
     # -- the equations ------------------------------------------------------------
 
@@ -327,8 +356,7 @@ class AdaptiveManipulatorObserver(Observer):
         position = jnp.where(jnp.isfinite(y0), y0, 0.0)
         p, n = self.parameters.size, position.shape[0]
         velocity = jnp.broadcast_to(jnp.asarray(guess.velocity, dtype=float), (n,))
-        return AdaptiveManipulatorState(velocity, jnp.asarray(guess.theta, dtype=float), position, position,
-                                        jnp.zeros((n, p)), jnp.zeros(p))
+        return AdaptiveManipulatorState(velocity, jnp.asarray(guess.theta, dtype=float), position, position, jnp.zeros((n, p)), jnp.zeros(p))
 
     def update(self, state: AdaptiveManipulatorState, t, y: Array) -> AdaptiveManipulatorState:
         """Complete (4.34)–(4.35) with q(i) (its prediction where y is NaN), then reset (4.45)."""
@@ -362,7 +390,10 @@ class AdaptiveManipulatorObserver(Observer):
         return AdaptiveManipulatorState(
             velocity=(1.0 - h * self.gain) * velocity + h * psi,
             theta=theta + self.adaptation_gain * matvec(regressor.T, h * velocity),
-            position=q, predicted=q + h * velocity, regressor=regressor, resets=state.resets,
+            position=q,
+            predicted=q + h * velocity,
+            regressor=regressor,
+            resets=state.resets,
         )
 
 

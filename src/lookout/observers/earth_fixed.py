@@ -108,13 +108,25 @@ def _gain(name: str, value) -> Array:
 #: controller: both take the same reference and start (the observer is built before the reference).
 WONDERGEM_RULE_VALUES = (
     Value("reference_position", "array", "eta_ref(0): the reference's position north, east (m) and heading (rad) at t_0.", shape="(3,)"),
-    Value("reference_velocity", "array", "nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.", shape="(3,)"),
+    Value(
+        "reference_velocity", "array", "nu_ref(0): the reference's body-frame velocity surge, sway (m/s) and yaw rate (rad/s) at t_0.", shape="(3,)"
+    ),
     Value("reference_yaw_rate_max", "float", "r_ref^max, the largest |r_ref| of the reference (rad/s).", range=NON_NEGATIVE),
     Value("reference_speed_max", "float", "sup ||nu_ref|| of the reference (m/s and rad/s in one norm, as the paper's).", range=NON_NEGATIVE),
-    Value("reference_acceleration_max", "float", "sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.", range=NON_NEGATIVE),
+    Value(
+        "reference_acceleration_max",
+        "float",
+        "sup ||nu_ref'|| of the reference (m/s^2 and rad/s^2 in one norm), its smooth part.",
+        range=NON_NEGATIVE,
+    ),
     Value("start_position", "array", "eta(0): the ship's initial position north, east (m) and heading (rad).", shape="(3,)"),
     Value("start_velocity", "array", "nu(0): the ship's initial body-frame velocity (m/s, m/s, rad/s).", shape="(3,)"),
-    Value("estimate_position", "array", "eta_hat(0), the observer's initial position estimate (m, m, rad); default start_position, the estimate started at the measurement.", shape="(3,)"),
+    Value(
+        "estimate_position",
+        "array",
+        "eta_hat(0), the observer's initial position estimate (m, m, rad); default start_position, the estimate started at the measurement.",
+        shape="(3,)",
+    ),
     Value("estimate_velocity", "array", "v_hat(0) = eta_hat'(0), the initial Earth-frame velocity estimate (m/s, m/s, rad/s).", shape="(3,)"),
     Value("damping_ratio", "float", "lambda of Lambda = lambda I, the relative damping of the error dynamics (19) (1).", range=POSITIVE),
     Value("velocity_bound", "float", "V_M of Prop. 3.1, a bound on the ship's speed ||eta'|| (m/s).", range=NON_NEGATIVE),
@@ -123,25 +135,45 @@ WONDERGEM_RULE_VALUES = (
 
 
 @component(
-    "observer", "earth-fixed",
+    "observer",
+    "earth-fixed",
     summary="The observer (6) of Wondergem et al. (2009) for a Cybership model.",
     family="lookout.tuning.families.tracking:EarthFixedFamily",
     rules={
-        "gains": Rule(None, (
-            Part("ship", "The observer's model (it may differ from the plant: linear damping only in the basin scheme); in a composition, the plant's unless given."),
-            Value("position_gain", "array", "L1 (1/s) of (6a), positive: a scalar, its diagonal (3,) or a diagonal 3x3 matrix."),
-            Value("velocity_gain", "array", "L2 (1/s^2) of (6b), positive: a scalar, its diagonal (3,) or a diagonal 3x3 matrix."),
-            Value("steps_per_sample", "int", "Integration steps of predict per sample."),
-            Value("method", "str", "How predict integrates (6) between samples.", choices=('rk4', 'euler')),
-            Value("initial_velocity", "str", "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).", choices=('estimate', 'state')),
-        )),
-        "wondergem-2009": Rule("lookout.analysis.tracking:wondergem_2009_observer", (
-            Part("ship", "The observer's model (M, D and D_n); in a composition, the plant's unless given."),
-            *WONDERGEM_RULE_VALUES,
-            Value("steps_per_sample", "int", "Integration steps of the observer's predict per sample."),
-            Value("method", "str", "How the observer's predict integrates (6) between samples.", choices=('rk4', 'euler')),
-            Value("initial_velocity", "str", "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).", choices=('estimate', 'state')),
-        )),
+        "gains": Rule(
+            None,
+            (
+                Part(
+                    "ship",
+                    "The observer's model (it may differ from the plant: linear damping only in the basin scheme); in a composition, the plant's unless given.",
+                ),
+                Value("position_gain", "array", "L1 (1/s) of (6a), positive: a scalar, its diagonal (3,) or a diagonal 3x3 matrix."),
+                Value("velocity_gain", "array", "L2 (1/s^2) of (6b), positive: a scalar, its diagonal (3,) or a diagonal 3x3 matrix."),
+                Value("steps_per_sample", "int", "Integration steps of predict per sample."),
+                Value("method", "str", "How predict integrates (6) between samples.", choices=("rk4", "euler")),
+                Value(
+                    "initial_velocity",
+                    "str",
+                    "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).",
+                    choices=("estimate", "state"),
+                ),
+            ),
+        ),
+        "wondergem-2009": Rule(
+            "lookout.analysis.tracking:wondergem_2009_observer",
+            (
+                Part("ship", "The observer's model (M, D and D_n); in a composition, the plant's unless given."),
+                *WONDERGEM_RULE_VALUES,
+                Value("steps_per_sample", "int", "Integration steps of the observer's predict per sample."),
+                Value("method", "str", "How the observer's predict integrates (6) between samples.", choices=("rk4", "euler")),
+                Value(
+                    "initial_velocity",
+                    "str",
+                    "Which of v_hat(0) or zeta(0) the guess's velocity is (module docstring).",
+                    choices=("estimate", "state"),
+                ),
+            ),
+        ),
     },
 )
 @final
@@ -189,7 +221,9 @@ class EarthFixedObserver(ContinuousObserver):
         if method not in METHODS:
             raise check.ParameterError("method", f"method must be one of {', '.join(map(repr, METHODS))}; got {method!r}")
         if initial_velocity not in INITIAL_VELOCITY:
-            raise check.ParameterError("initial_velocity", f"initial_velocity must be one of {', '.join(map(repr, INITIAL_VELOCITY))}; got {initial_velocity!r}")
+            raise check.ParameterError(
+                "initial_velocity", f"initial_velocity must be one of {', '.join(map(repr, INITIAL_VELOCITY))}; got {initial_velocity!r}"
+            )
         self.steps_per_sample = steps_per_sample
         self.method = method
         self.velocity_is_state = jnp.asarray(initial_velocity == "state")
@@ -285,8 +319,6 @@ class EarthFixedObserver(ContinuousObserver):
             "position_rate": v_hat[:2],
             "heading_rate": v_hat[2],
         }
-
-
 
 
 __all__ = ["EarthFixedEstimate", "EarthFixedGuess", "EarthFixedObserver"]

@@ -30,37 +30,97 @@ from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Context, Part, Valu
 
 
 @component(
-    "observer", "ekf",
+    "observer",
+    "ekf",
     summary="Continuous-discrete extended Kalman filter on the plant's own model (lookout.observers.ekf).",
     family="lookout.tuning.families.kalman:KalmanFamily",
     parameters=(
-        Part("plant", "The filter's model of the plant (default: the composition's plant; give a [observer.plant] table for a model that differs from the truth)."),
+        Part(
+            "plant",
+            "The filter's model of the plant (default: the composition's plant; give a [observer.plant] table for a model that differs from the truth).",
+        ),
         Part("sensor", "The filter's model of the sensor (default: the composition's sensor)."),
-        Value("process_noise", "array", "Intensity of each of the model's unit white noise inputs (1: the model's own; default all 1).", shape="(noise_size,)", range=NON_NEGATIVE),
-        Value("state_noise", "parts", "Continuous-time process noise intensity added per state entry (units^2/s): one per raveled state entry, or a table of the plant's state parts as [plant.initial] takes them (default 0).", range=NON_NEGATIVE, broadcast=False),
-        Value("measurement_noise", "array", "Standard deviation of each measured channel, R = diag(std^2) (default: the sensor's own noise).", shape="(m,)", range=POSITIVE),
-        Value("initial_std", "parts", "Standard deviation of the initial guess per state entry, or a table of the plant's state parts and input_disturbance (default: the steady-state filter's, from the Riccati equation).", range=NON_NEGATIVE, broadcast=False),
-        Value("input_disturbance", "array", "Estimate an unknown disturbance added to the plant's input, a random walk of this intensity per input entry (units^2/s; 0: a constant, and with an initial std of 0 none on that entry): the usual DP bias state, for a model without one (default none).", range=NON_NEGATIVE),
-        Context("plant_step", "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization.", own=True),
+        Value(
+            "process_noise",
+            "array",
+            "Intensity of each of the model's unit white noise inputs (1: the model's own; default all 1).",
+            shape="(noise_size,)",
+            range=NON_NEGATIVE,
+        ),
+        Value(
+            "state_noise",
+            "parts",
+            "Continuous-time process noise intensity added per state entry (units^2/s): one per raveled state entry, or a table of the plant's state parts as [plant.initial] takes them (default 0).",
+            range=NON_NEGATIVE,
+            broadcast=False,
+        ),
+        Value(
+            "measurement_noise",
+            "array",
+            "Standard deviation of each measured channel, R = diag(std^2) (default: the sensor's own noise).",
+            shape="(m,)",
+            range=POSITIVE,
+        ),
+        Value(
+            "initial_std",
+            "parts",
+            "Standard deviation of the initial guess per state entry, or a table of the plant's state parts and input_disturbance (default: the steady-state filter's, from the Riccati equation).",
+            range=NON_NEGATIVE,
+            broadcast=False,
+        ),
+        Value(
+            "input_disturbance",
+            "array",
+            "Estimate an unknown disturbance added to the plant's input, a random walk of this intensity per input entry (units^2/s; 0: a constant, and with an initial std of 0 none on that entry): the usual DP bias state, for a model without one (default none).",
+            range=NON_NEGATIVE,
+        ),
+        Context(
+            "plant_step",
+            "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization.",
+            own=True,
+        ),
         Context("filter_period", "The filter's sample period (s), for the steady-state P_0; default the composition's simulation.sample_period."),
         Context("integrator", "rk4 or euler; default the composition's simulation.integrator.", own=True),
     ),
 )
 @final
 class ExtendedKalmanFilter(KalmanFilter):
-    __doc__ = """Continuous-discrete extended Kalman filter on the plant's own model
+    __doc__ = (
+        """Continuous-discrete extended Kalman filter on the plant's own model
     (:mod:`lookout.observers.ekf`). Estimates every state of its model: its estimate
     signals are the model plant's variables.
 
     Parameters
-    ----------""" + PARAMETERS
+    ----------"""
+        + PARAMETERS
+    )
 
-    def __init__(self, plant: Plant, sensor: Sensor, process_noise=None, state_noise=None, measurement_noise=None, initial_std=None,
-                 input_disturbance=None, *,
-                 plant_step: float, filter_period: float, integrator: str = "rk4"):
-        fields = kalman_fields(plant, sensor, process_noise=process_noise, state_noise=state_noise, measurement_noise=measurement_noise,
-                               initial_std=initial_std, plant_step=plant_step, sample_period=filter_period, integrator=integrator,
-                               input_disturbance=input_disturbance)
+    def __init__(
+        self,
+        plant: Plant,
+        sensor: Sensor,
+        process_noise=None,
+        state_noise=None,
+        measurement_noise=None,
+        initial_std=None,
+        input_disturbance=None,
+        *,
+        plant_step: float,
+        filter_period: float,
+        integrator: str = "rk4",
+    ):
+        fields = kalman_fields(
+            plant,
+            sensor,
+            process_noise=process_noise,
+            state_noise=state_noise,
+            measurement_noise=measurement_noise,
+            initial_std=initial_std,
+            plant_step=plant_step,
+            sample_period=filter_period,
+            integrator=integrator,
+            input_disturbance=input_disturbance,
+        )
         for name, value in fields.items():
             setattr(self, name, value)
 

@@ -159,13 +159,19 @@ def _state_vector(model: Plant, value, name: str, disturbance_size: int = 0, def
             extra = np.full(disturbance_size, default_disturbance if disturbance_size else 0.0)
         extra = np.asarray(extra, dtype=float)
         if disturbance_size and extra.shape not in ((), (disturbance_size,)):
-            raise check.ParameterError(check.key(name), f"{name}: {DISTURBANCE} must have one entry per input entry ({disturbance_size}); got shape {extra.shape}")
+            raise check.ParameterError(
+                check.key(name), f"{name}: {DISTURBANCE} must have one entry per input entry ({disturbance_size}); got shape {extra.shape}"
+            )
         extra = np.broadcast_to(extra, (disturbance_size,)) if disturbance_size else np.zeros(0)
         known = [key for key in inspect.signature(model.state).parameters]
         unknown = [key for key in parts if key not in known]
         if unknown:
-            raise check.ParameterError(check.key(name), f"{name}: the plant's state has no part {unknown[0]!r} (its parts: {', '.join(known)}"
-                             + (f", and {DISTURBANCE}" if disturbance_size else "") + ")")
+            raise check.ParameterError(
+                check.key(name),
+                f"{name}: the plant's state has no part {unknown[0]!r} (its parts: {', '.join(known)}"
+                + (f", and {DISTURBANCE}" if disturbance_size else "")
+                + ")",
+            )
         try:
             vector = np.concatenate([np.asarray(ravel_pytree(model.state(**parts))[0], dtype=float), extra])
         except (TypeError, ValueError) as error:
@@ -174,7 +180,9 @@ def _state_vector(model: Plant, value, name: str, disturbance_size: int = 0, def
         vector = np.asarray(value, dtype=float)
         if vector.shape != (size,):
             what = f"state entry ({size}: the plant's and the input disturbance's)" if disturbance_size else f"state entry ({size})"
-            raise check.ParameterError(check.key(name), f"{name} must have one entry per {what}, or be a table of the plant's state parts; got shape {vector.shape}")
+            raise check.ParameterError(
+                check.key(name), f"{name} must have one entry per {what}, or be a table of the plant's state parts; got shape {vector.shape}"
+            )
     if not (np.all(np.isfinite(vector)) and np.all(vector >= 0)):
         raise check.ParameterError(check.key(name), f"{name} must be finite and >= 0; got {vector.tolist()}")
     return vector
@@ -220,15 +228,15 @@ class KalmanFilter(Observer):
 
     model: Plant
     sensor: Sensor
-    process_noise: Array        # (noise_size,) intensity of each of the model's noise inputs
-    state_noise: Array          # (n,) continuous intensity added per state entry (the disturbance's last)
-    measurement_covariance: Array   # (m, m) R
-    initial_covariance: Array   # (n, n) P_0
+    process_noise: Array  # (noise_size,) intensity of each of the model's noise inputs
+    state_noise: Array  # (n,) continuous intensity added per state entry (the disturbance's last)
+    measurement_covariance: Array  # (m, m) R
+    initial_covariance: Array  # (n, n) P_0
     plant_step: float = eqx.field(static=True)
     filter_period: float = eqx.field(static=True)
     integrator: str = eqx.field(static=True)
-    state_size: int = eqx.field(static=True)          # entries of the plant's raveled state
-    disturbance_size: int = eqx.field(static=True)    # entries of the input disturbance (0: none)
+    state_size: int = eqx.field(static=True)  # entries of the plant's raveled state
+    disturbance_size: int = eqx.field(static=True)  # entries of the input disturbance (0: none)
     state_angles: tuple[bool, ...] = eqx.field(static=True)
     channel_angles: tuple[bool, ...] = eqx.field(static=True)
     channel_periods: tuple[float, ...] = eqx.field(static=True)
@@ -259,7 +267,7 @@ class KalmanFilter(Observer):
         size = self.model.noise_size
         noise = jnp.zeros((substeps, size)) if noise is None else noise
         integrate = INTEGRATORS[self.integrator]
-        state, disturbance = mean[: self.state_size], mean[self.state_size:]
+        state, disturbance = mean[: self.state_size], mean[self.state_size :]
         driven = u + disturbance if self.disturbance_size else u
 
         def field(s, x, w):
@@ -272,7 +280,9 @@ class KalmanFilter(Observer):
                 for j in range(substeps):
                     state = integrate(lambda s, x, w=noise[j]: field(s, x, w), t + j * h, state, h)
             else:  # many: a loop, whose compilation does not grow with them
-                state, _ = jax.lax.scan(lambda x, j: (integrate(lambda s, y: field(s, y, noise[j]), t + j * h, x, h), None), state, jnp.arange(substeps))
+                state, _ = jax.lax.scan(
+                    lambda x, j: (integrate(lambda s, y: field(s, y, noise[j]), t + j * h, x, h), None), state, jnp.arange(substeps)
+                )
         return jnp.concatenate([state, disturbance])
 
     @property
@@ -288,7 +298,9 @@ class KalmanFilter(Observer):
             return max(1, round(self.filter_period / self.plant_step))
         count = round(float(dt) / self.plant_step)
         if count < 1 or abs(count * self.plant_step - float(dt)) > 1e-9 * max(1.0, float(dt)):
-            raise check.ParameterError("plant_step", f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)")
+            raise check.ParameterError(
+                "plant_step", f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)"
+            )
         return count
 
     def substep(self, dt):
@@ -329,7 +341,7 @@ class KalmanFilter(Observer):
 
     def normalized(self, mean: Array) -> Array:
         """The filter's state with its angles wrapped."""
-        return self.augmented(self.model.normalize(self._unravel(mean)), mean[self.state_size:])
+        return self.augmented(self.model.normalize(self._unravel(mean)), mean[self.state_size :])
 
     # ------------------------------------------------------------------ the filter
     @abc.abstractmethod
@@ -389,7 +401,7 @@ class KalmanFilter(Observer):
     def output(self, state: KalmanState, y: Array) -> dict[str, Array]:
         estimate = dict(self.model.variables(self._unravel(state.mean)))
         if self.disturbance_size:
-            disturbance = self.input_layout.split(state.mean[self.state_size:])
+            disturbance = self.input_layout.split(state.mean[self.state_size :])
             estimate.update({f"disturbance_{name}": value for name, value in disturbance.items()})
         return estimate
 
@@ -397,8 +409,19 @@ class KalmanFilter(Observer):
         return self.propagate(state, t, u, dt)
 
 
-def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, measurement_noise, initial_std, plant_step, sample_period,
-                  integrator, input_disturbance=None) -> dict:
+def kalman_fields(
+    plant: Plant,
+    sensor: Sensor,
+    *,
+    process_noise,
+    state_noise,
+    measurement_noise,
+    initial_std,
+    plant_step,
+    sample_period,
+    integrator,
+    input_disturbance=None,
+) -> dict:
     """The shared fields of a Kalman filter on ``plant`` and ``sensor``, validated, with
     the defaults of the module docstring (the steady state from the extended filter's
     linearization, for either filter)."""
@@ -419,17 +442,24 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
         disturbance = np.broadcast_to(np.asarray(input_disturbance, dtype=float), np.shape(input_disturbance) or (inputs,))
         if disturbance.shape != (inputs,) or not (np.all(np.isfinite(disturbance)) and np.all(disturbance >= 0)):
             raise check.ParameterError(
-                "input_disturbance", f"input_disturbance must be {inputs} finite intensities >= 0 (one per input entry of the plant, units^2/s); got {np.asarray(input_disturbance).tolist()}"
+                "input_disturbance",
+                f"input_disturbance must be {inputs} finite intensities >= 0 (one per input entry of the plant, units^2/s); got {np.asarray(input_disturbance).tolist()}",
             )
     d = disturbance.size
     substeps = max(1, round(float(sample_period) / float(plant_step)))
     if substeps > MAX_PROPAGATION_STEPS:  # the linearization runs through every one, at a cost in their square
-        raise check.ParameterError("plant_step", f"plant_step ({float(plant_step):g} s) makes {substeps} propagation steps per sample of {float(sample_period):g} s, and a "
-                         f"Kalman filter linearizes through each (its work grows with their square): at most {MAX_PROPAGATION_STEPS}; give the filter "
-                         f"a plant_step of its own of at least {float(sample_period) / MAX_PROPAGATION_STEPS:.3g} s")
-    refuse_unless_it_fits(working_nbytes(n + d, substeps, size),
-                          f"plant_step {float(plant_step):g} s ({substeps} propagation steps per sample of {float(sample_period):g} s, "
-                          f"{substeps * size} noise inputs to linearize in)", "give a longer plant_step")
+        raise check.ParameterError(
+            "plant_step",
+            f"plant_step ({float(plant_step):g} s) makes {substeps} propagation steps per sample of {float(sample_period):g} s, and a "
+            f"Kalman filter linearizes through each (its work grows with their square): at most {MAX_PROPAGATION_STEPS}; give the filter "
+            f"a plant_step of its own of at least {float(sample_period) / MAX_PROPAGATION_STEPS:.3g} s",
+        )
+    refuse_unless_it_fits(
+        working_nbytes(n + d, substeps, size),
+        f"plant_step {float(plant_step):g} s ({substeps} propagation steps per sample of {float(sample_period):g} s, "
+        f"{substeps * size} noise inputs to linearize in)",
+        "give a longer plant_step",
+    )
     if process_noise is None:
         q = jnp.ones(size)
     elif not check.is_concrete(process_noise):  # traced (built under vmap or grad): checked where concrete
@@ -439,7 +469,9 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
         if q.ndim == 0:  # one intensity for every noise input, as state_noise and initial_std take one number
             q = np.full(size, float(q))
         if q.shape != (size,):
-            raise check.ParameterError("process_noise", f"process_noise must have {size} entries (one per noise input of the plant), or be one number for all; got {q.size}")
+            raise check.ParameterError(
+                "process_noise", f"process_noise must have {size} entries (one per noise input of the plant), or be one number for all; got {q.size}"
+            )
         if not (np.all(np.isfinite(q)) and np.all(q >= 0)):
             raise check.ParameterError("process_noise", f"process_noise must be finite and non-negative; got {check._fmt(q)}")
     s = _state_vector(plant, state_noise, "state_noise", d, default_disturbance=0.0)
@@ -451,23 +483,36 @@ def kalman_fields(plant: Plant, sensor: Sensor, *, process_noise, state_noise, m
         if eigenvalues.min() <= 1e-300:
             silent = [signal for signal, value in zip(_channel_names(sensor.measurement_layout), np.diag(r)) if value <= 0]
             raise check.ParameterError(
-                "measurement_noise", f"measurement_noise: the sensor's own noise is zero on {', '.join(silent) or 'a combination of channels'}; "
-                "give measurement_noise (a standard deviation per channel)"
+                "measurement_noise",
+                f"measurement_noise: the sensor's own noise is zero on {', '.join(silent) or 'a combination of channels'}; "
+                "give measurement_noise (a standard deviation per channel)",
             )
     else:
         std = np.asarray(measurement_noise, dtype=float)
         if std.shape != (m,) or not (np.all(np.isfinite(std)) and np.all(std > 0)):
-            raise check.ParameterError("measurement_noise", f"measurement_noise must be {m} finite standard deviations > 0 (one per measured channel); got {std.tolist()}")
+            raise check.ParameterError(
+                "measurement_noise", f"measurement_noise must be {m} finite standard deviations > 0 (one per measured channel); got {std.tolist()}"
+            )
         r = np.diag(std**2)
     fields = {
-        "model": plant, "sensor": sensor, "process_noise": jnp.asarray(q), "state_noise": jnp.asarray(s),
-        "measurement_covariance": jnp.asarray(r), "plant_step": float(plant_step), "filter_period": float(sample_period), "integrator": integrator,
-        "state_size": n, "disturbance_size": d, "state_angles": _angle_entries(plant) + (False,) * d,
+        "model": plant,
+        "sensor": sensor,
+        "process_noise": jnp.asarray(q),
+        "state_noise": jnp.asarray(s),
+        "measurement_covariance": jnp.asarray(r),
+        "plant_step": float(plant_step),
+        "filter_period": float(sample_period),
+        "integrator": integrator,
+        "state_size": n,
+        "disturbance_size": d,
+        "state_angles": _angle_entries(plant) + (False,) * d,
         "channel_angles": tuple(bool(signal.angle) for signal in sensor.measurement_layout.signals for _ in range(signal.size)),
         "channel_periods": tuple(float(p) for p in sensor.sample_period),
         "estimate_signals": tuple(plant.variable_signals),
         "extra_signals": tuple(plant.input_layout.renamed(prefix="disturbance_", long_prefix="estimated input disturbance: ").signals) if d else (),
-        "measurement_layout": sensor.measurement_layout, "input_layout": plant.input_layout, "sample_period": None,
+        "measurement_layout": sensor.measurement_layout,
+        "input_layout": plant.input_layout,
+        "sample_period": None,
     }
     std = _state_vector(plant, initial_std, "initial_std", d)
     if std is not None:
@@ -494,8 +539,9 @@ def _steady_state(fields: dict, sample_period: float) -> np.ndarray:
     except (np.linalg.LinAlgError, ValueError) as error:
         reason = str(error).split("\n")[0]
         raise check.ParameterError(
-            "initial_std", f"initial_std: the model's steady-state covariance does not exist ({reason}: its own noise does not reach every state); "
-            "give initial_std (a table of the plant's state parts, or one standard deviation per state entry)"
+            "initial_std",
+            f"initial_std: the model's steady-state covariance does not exist ({reason}: its own noise does not reach every state); "
+            "give initial_std (a table of the plant's state parts, or one standard deviation per state entry)",
         ) from None
     solution = 0.5 * (solution + solution.T)
     scale = np.sqrt(np.abs(np.diag(solution)))

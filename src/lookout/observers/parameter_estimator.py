@@ -116,7 +116,8 @@ class ParameterEstimatorState(eqx.Module):
 
 
 @component(
-    "observer", "parameter-estimator",
+    "observer",
+    "parameter-estimator",
     summary="Middleton–Goodwin filtered-regressor estimator, Calugi (2002), eqs. (3.9), (3.13)–(3.16).",
     parameters=(
         Part("parameters", "The unknown parameters and the model they build; every parameter needs a unit."),
@@ -169,7 +170,9 @@ class ParameterEstimator(ContinuousObserver):
 
     def __init__(self, parameters: AffineParameters, gain, filter_pole=1.0, steps_per_sample: int = 1):
         if not isinstance(parameters, AffineParameters):
-            raise check.ParameterError("parameters", f"parameters must be AffineParameters (lookout.models.parameters); got {type(parameters).__name__}")
+            raise check.ParameterError(
+                "parameters", f"parameters must be AffineParameters (lookout.models.parameters); got {type(parameters).__name__}"
+            )
         model = parameters.model(parameters.reference)
         names, kinds = model.joint_names, model.joint_kinds
         self.parameters = parameters
@@ -183,7 +186,8 @@ class ParameterEstimator(ContinuousObserver):
         self.parameter_layout = Layout(parameter_signals(parameters, "_hat", "estimated "))
         force = {kind: FORCE_UNITS[kind] for kind in (REVOLUTE, PRISMATIC)}
         self.error_layout = joint_layout(
-            names, kinds,
+            names,
+            kinds,
             {
                 REVOLUTE: ("torque_prediction_error", force[REVOLUTE], "prediction error e = tau_f - tau_hat_f, eq. (3.16)"),
                 PRISMATIC: ("force_prediction_error", force[PRISMATIC], "prediction error e = tau_f - tau_hat_f, eq. (3.16)"),
@@ -195,7 +199,8 @@ class ParameterEstimator(ContinuousObserver):
             long_name = f"filtered regressor phi_f, column {name}, eq. (3.14)"
             layouts.append(
                 joint_layout(
-                    names, kinds,
+                    names,
+                    kinds,
                     {
                         REVOLUTE: (f"filtered_regressor_{safe}", _per(force[REVOLUTE], unit), long_name),
                         PRISMATIC: (f"filtered_regressor_{safe}_prismatic", _per(force[PRISMATIC], unit), long_name),
@@ -289,7 +294,9 @@ class ParameterEstimator(ContinuousObserver):
         n, p = self.size, self.parameters.size
         theta = jnp.asarray(guess, dtype=held.dtype)
         if theta.shape not in ((), (p,)):
-            raise ValueError(f"the initial estimate theta_hat(0) must be a scalar or have {p} entries ({', '.join(self.parameters.names)}); got shape {theta.shape}")
+            raise ValueError(
+                f"the initial estimate theta_hat(0) must be a scalar or have {p} entries ({', '.join(self.parameters.names)}); got shape {theta.shape}"
+            )
         theta = jnp.broadcast_to(theta, (p,))
         inertial_term, _, _ = self.regressor_pieces(held[:n], held[n:])
         zeros = jnp.zeros((n, p + 1), held.dtype)
@@ -379,7 +386,9 @@ def windowed_excitation(time, regressor, window: float) -> tuple[np.ndarray, np.
     time = np.asarray(time, dtype=float)
     phi = np.asarray(regressor, dtype=float)
     if time.ndim != 1 or time.size < 2 or phi.ndim != 3 or phi.shape[0] != time.size:
-        raise check.ParameterError("regressor", f"regressor must have shape (len(time), n, p) with at least two times; got time {time.shape} and regressor {phi.shape}")
+        raise check.ParameterError(
+            "regressor", f"regressor must have shape (len(time), n, p) with at least two times; got time {time.shape} and regressor {phi.shape}"
+        )
     step = float(time[1] - time[0])
     if not (step > 0 and np.allclose(np.diff(time), step, rtol=1e-9, atol=0.0)):
         raise check.ParameterError("time", "time must be uniformly spaced and increasing")

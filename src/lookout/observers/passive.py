@@ -104,13 +104,12 @@ def notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequ
     check.positive("cutoff_frequency", cutoff_frequency)
     if np.any(notch_damping <= wave_damping):
         raise check.ParameterError(
-            "notch_damping", f"notch_damping must exceed wave_damping (zeta_n > zeta); got {notch_damping.tolist()} "
-            f"<= {wave_damping.tolist()}"
+            "notch_damping", f"notch_damping must exceed wave_damping (zeta_n > zeta); got {notch_damping.tolist()} <= {wave_damping.tolist()}"
         )
     if np.any(cutoff_frequency <= wave_frequency):
         raise check.ParameterError(
-            "cutoff_frequency", f"cutoff_frequency must exceed wave_frequency (w_c > w_o); got {cutoff_frequency.tolist()} "
-            f"<= {wave_frequency.tolist()} rad/s"
+            "cutoff_frequency",
+            f"cutoff_frequency must exceed wave_frequency (w_c > w_o); got {cutoff_frequency.tolist()} <= {wave_frequency.tolist()} rad/s",
         )
     return notch_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency)
 
@@ -195,7 +194,9 @@ def wave_frequency_of(waves) -> np.ndarray:
         from lookout.environment.jonswap import peak_frequency
 
         return check.vector("wave peak_frequency", float(peak_frequency(waves.mean_period)))
-    raise check.ParameterError("wave_frequency", f"wave_frequency: give it (the wave model {type(waves).__name__} has no dominating frequency to take)")
+    raise check.ParameterError(
+        "wave_frequency", f"wave_frequency: give it (the wave model {type(waves).__name__} has no dominating frequency to take)"
+    )
 
 
 def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, gravity=GRAVITY):
@@ -236,39 +237,72 @@ def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, g
 
 
 @component(
-    "observer", "passive",
+    "observer",
+    "passive",
     summary="Fossen & Strand (1999) passive observer, eqs. (22)–(26), gains in SI.",
     family="lookout.tuning.families.passive:PassiveFamily",
     rules={
-        "fossen-strand-1999": Rule("design", (
-            Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
-            Part("waves", "The sea to tune for when wave_frequency is not given (in a composition, the plant's).", from_plant=True),
-            Value("wave_frequency", "array", "w_o (rad/s); default the dominating frequency of waves.", shape="(3,)", range=POSITIVE),
-            Value("wave_damping", "array", "zeta of the observer's wave model (1); the paper's 0.1.", shape="(3,)", range=POSITIVE),
-            Value("notch_damping", "array", "zeta_ni of the notch filter, eq. (45) (1); the paper's 1.", shape="(3,)", range=POSITIVE),
-            Value("cutoff_frequency", "array", "w_ci of the low-pass filter, eq. (45), above wave_frequency (rad/s); default max(1.1 rad/s, 1.2255 w_o), the paper's ratio.", shape="(3,)", range=POSITIVE),
-            Value("velocity_injection_gain", "array", "Kappa (N/m, N/m, N m/rad); default from the tuning rule (48).", shape="(3,)", range=POSITIVE),
-            Value("bias_injection_gain", "array", "Lambda (N/(m s), N/(m s), N m/(rad s)); default from the tuning rule (48).", shape="(3,)", range=POSITIVE),
-            Value("bias_time_constant", "array", "T, the observer's bias time constants (s); the paper's 1000 s.", shape="(3,)", range=POSITIVE),
-            Value("velocity_bandwidth", "array", "sqrt(Kappa_i / M_ii) of the default Kappa (rad/s); default 0.1 w_o.", shape="(3,)", range=POSITIVE),
-            Value("lyapunov_weight", "float", "gamma, the weight of the kinetic-energy term of the Lyapunov function (49) (1).", range=POSITIVE),
-            Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
-            Value("hold", "str", "What predict holds over a sample: y_k and J(y_k) (default), or the innovation y~_k, with J from the held output y_hat + y~_k at each stage (see the module docstring).", choices=('measurement', 'innovation')),
-        )),
-        "gains": Rule(None, (
-            Value("mass_matrix", "array", "The observer's model M (symmetric positive definite) and D (SI).", shape="(3, 3)"),
-            Value("damping_matrix", "array", "The observer's model M (symmetric positive definite) and D (SI).", shape="(3, 3)"),
-            Value("wave_frequency", "array", "The observer's wave frequencies w_oi of Omega (rad/s).", shape="(3,)", range=POSITIVE),
-            Value("wave_damping", "array", "The observer's wave damping ratios zeta_i of Omega (1).", shape="(3,)", range=POSITIVE),
-            Value("wave_injection_gain", "array", "Diagonals of K1: [k1_1, k1_2, k1_3, k2_1, k2_2, k2_3] (eq. 40; 1, 1/s).", shape="(6,)"),
-            Value("position_injection_gain", "array", "Diagonal of K2 (1/s).", shape="(3,)", range=POSITIVE),
-            Value("velocity_injection_gain", "array", "Diagonal of Kappa = K3 (N/m, N/m, N m/rad).", shape="(3,)", range=POSITIVE),
-            Value("bias_injection_gain", "array", "Diagonal of Lambda = K4 (N/(m s), N/(m s), N m/(rad s)).", shape="(3,)", range=POSITIVE),
-            Value("bias_time_constant", "array", "Diagonal of T, the observer's bias time constants (s).", shape="(3,)", range=POSITIVE),
-            Value("lyapunov_weight", "float", "gamma, the weight of the kinetic-energy term of the Lyapunov function (49) (1).", range=POSITIVE),
-            Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
-            Value("hold", "str", "What predict holds over a sample: y_k and J(y_k) (default), or the innovation y~_k, with J from the held output y_hat + y~_k at each stage (see the module docstring).", choices=('measurement', 'innovation')),
-        )),
+        "fossen-strand-1999": Rule(
+            "design",
+            (
+                Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
+                Part("waves", "The sea to tune for when wave_frequency is not given (in a composition, the plant's).", from_plant=True),
+                Value("wave_frequency", "array", "w_o (rad/s); default the dominating frequency of waves.", shape="(3,)", range=POSITIVE),
+                Value("wave_damping", "array", "zeta of the observer's wave model (1); the paper's 0.1.", shape="(3,)", range=POSITIVE),
+                Value("notch_damping", "array", "zeta_ni of the notch filter, eq. (45) (1); the paper's 1.", shape="(3,)", range=POSITIVE),
+                Value(
+                    "cutoff_frequency",
+                    "array",
+                    "w_ci of the low-pass filter, eq. (45), above wave_frequency (rad/s); default max(1.1 rad/s, 1.2255 w_o), the paper's ratio.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value(
+                    "velocity_injection_gain", "array", "Kappa (N/m, N/m, N m/rad); default from the tuning rule (48).", shape="(3,)", range=POSITIVE
+                ),
+                Value(
+                    "bias_injection_gain",
+                    "array",
+                    "Lambda (N/(m s), N/(m s), N m/(rad s)); default from the tuning rule (48).",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value("bias_time_constant", "array", "T, the observer's bias time constants (s); the paper's 1000 s.", shape="(3,)", range=POSITIVE),
+                Value(
+                    "velocity_bandwidth", "array", "sqrt(Kappa_i / M_ii) of the default Kappa (rad/s); default 0.1 w_o.", shape="(3,)", range=POSITIVE
+                ),
+                Value("lyapunov_weight", "float", "gamma, the weight of the kinetic-energy term of the Lyapunov function (49) (1).", range=POSITIVE),
+                Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
+                Value(
+                    "hold",
+                    "str",
+                    "What predict holds over a sample: y_k and J(y_k) (default), or the innovation y~_k, with J from the held output y_hat + y~_k at each stage (see the module docstring).",
+                    choices=("measurement", "innovation"),
+                ),
+            ),
+        ),
+        "gains": Rule(
+            None,
+            (
+                Value("mass_matrix", "array", "The observer's model M (symmetric positive definite) and D (SI).", shape="(3, 3)"),
+                Value("damping_matrix", "array", "The observer's model M (symmetric positive definite) and D (SI).", shape="(3, 3)"),
+                Value("wave_frequency", "array", "The observer's wave frequencies w_oi of Omega (rad/s).", shape="(3,)", range=POSITIVE),
+                Value("wave_damping", "array", "The observer's wave damping ratios zeta_i of Omega (1).", shape="(3,)", range=POSITIVE),
+                Value("wave_injection_gain", "array", "Diagonals of K1: [k1_1, k1_2, k1_3, k2_1, k2_2, k2_3] (eq. 40; 1, 1/s).", shape="(6,)"),
+                Value("position_injection_gain", "array", "Diagonal of K2 (1/s).", shape="(3,)", range=POSITIVE),
+                Value("velocity_injection_gain", "array", "Diagonal of Kappa = K3 (N/m, N/m, N m/rad).", shape="(3,)", range=POSITIVE),
+                Value("bias_injection_gain", "array", "Diagonal of Lambda = K4 (N/(m s), N/(m s), N m/(rad s)).", shape="(3,)", range=POSITIVE),
+                Value("bias_time_constant", "array", "Diagonal of T, the observer's bias time constants (s).", shape="(3,)", range=POSITIVE),
+                Value("lyapunov_weight", "float", "gamma, the weight of the kinetic-energy term of the Lyapunov function (49) (1).", range=POSITIVE),
+                Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
+                Value(
+                    "hold",
+                    "str",
+                    "What predict holds over a sample: y_k and J(y_k) (default), or the innovation y~_k, with J from the held output y_hat + y~_k at each stage (see the module docstring).",
+                    choices=("measurement", "innovation"),
+                ),
+            ),
+        ),
     },
 )
 @final
@@ -454,8 +488,13 @@ class PassiveObserver(WaveFilteringObserver):
     def wave_filter_gains(self) -> WaveFilterGains:
         """M, D, the wave model, K2 and Kappa / gamma; no switching term."""
         return WaveFilterGains(
-            self.mass_matrix, self.damping_matrix, self.wave_frequency, self.wave_damping,
-            self.position_injection_gain, self.velocity_injection_gain / self.lyapunov_weight, jnp.zeros(3),
+            self.mass_matrix,
+            self.damping_matrix,
+            self.wave_frequency,
+            self.wave_damping,
+            self.position_injection_gain,
+            self.velocity_injection_gain / self.lyapunov_weight,
+            jnp.zeros(3),
         )
 
     def wave_injection_matrix(self) -> np.ndarray:
@@ -468,7 +507,9 @@ class PassiveObserver(WaveFilteringObserver):
         return np.diag(np.asarray(self.position_injection_gain))
 
     @initial_values(
-        Value("eta", "array", "Position north, east (m) and heading (rad); default the first measurement (less the guessed wave motion).", shape="(3,)"),
+        Value(
+            "eta", "array", "Position north, east (m) and heading (rad); default the first measurement (less the guessed wave motion).", shape="(3,)"
+        ),
         Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s).", shape="(3,)"),
         Value("bias", "array", "Bias forces and moment (N, N, N m).", shape="(3,)"),
         Value("wave_state", "array", "Wave-filter state [xi1, xi2] (m s, m s, rad s, m, m, rad).", shape="(6,)"),

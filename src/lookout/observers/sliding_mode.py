@@ -72,41 +72,108 @@ def saturation(x, width=1.0):
 
 
 @component(
-    "observer", "sliding-mode",
+    "observer",
+    "sliding-mode",
     summary="Kim (2002) sliding-mode observer, eqs. (6)–(7): a passive observer plus Kbar sat(y~/eps).",
     family="lookout.tuning.families.sliding_mode:SlidingModeFamily",
     rules={
-        "kim-2002": Rule("lookout.analysis.sliding_mode:kim_2002_observer", (
-            Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
-            Part("waves", "The sea to tune for when wave_frequency is not given (in a composition, the plant's).", from_plant=True),
-            Value("wave_frequency", "array", "The observer's wave frequencies w_oi (rad/s); default the dominating frequency of waves.", shape="(3,)", range=POSITIVE),
-            Value("wave_damping", "array", "The observer's wave damping ratios zeta_i (1).", shape="(3,)", range=POSITIVE),
-            Value("notch_damping", "array", "zeta_ni of the notch filter, Fossen & Strand (45) (1).", shape="(3,)", range=POSITIVE),
-            Value("cutoff_frequency", "array", "w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's.", shape="(3,)", range=POSITIVE),
-            Value("velocity_injection_gain", "array", "Diagonal of H4 (N/m, N/m, N m/rad); default from the tuning rule (48) of the passive observer.", shape="(3,)", range=POSITIVE),
-            Value("bias_injection_gain", "array", "Diagonal of H3 (N/(m s), N/(m s), N m/(rad s)); default from the tuning rule (48).", shape="(3,)", range=POSITIVE),
-            Value("bias_time_constant", "array", "The observer's bias time constants T (s).", shape="(3,)", range=POSITIVE),
-            Value("velocity_bandwidth", "array", "sqrt(H4_i / M_ii) of the default H4 (rad/s); default 0.1 w_o.", shape="(3,)", range=POSITIVE),
-            Value("switching_gain", "array", "Kbar = diag(rho_i) (m/s, m/s, rad/s); zero gives the passive observer.", shape="(3,)", range=NON_NEGATIVE),
-            Value("boundary_layer", "array", "eps_i (m, m, rad), the width of the saturation's linear zone; default 1 m, 1 m, 0.02 rad.", shape="(3,)", range=POSITIVE),
-            Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
-            Value("hold", "str", "What predict holds over a sample (as the passive observer's).", choices=('measurement', 'innovation')),
-        )),
-        "gains": Rule("from_gains", (
-            Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
-            Value("velocity_injection_gain", "array", "Diagonal of H4 (N/m, N/m, N m/rad).", shape="(3,)", range=POSITIVE),
-            Value("bias_injection_gain", "array", "Diagonal of H3 (N/(m s), N/(m s), N m/(rad s)).", shape="(3,)", range=POSITIVE),
-            Part("waves", "The sea to tune for when wave_frequency is not given (in a composition, the plant's).", from_plant=True),
-            Value("wave_frequency", "array", "The observer's wave frequencies w_oi (rad/s); default the dominating frequency of waves.", shape="(3,)", range=POSITIVE),
-            Value("wave_damping", "array", "The observer's wave damping ratios zeta_i (1).", shape="(3,)", range=POSITIVE),
-            Value("notch_damping", "array", "zeta_ni of the notch filter, Fossen & Strand (45) (1).", shape="(3,)", range=POSITIVE),
-            Value("cutoff_frequency", "array", "w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's.", shape="(3,)", range=POSITIVE),
-            Value("bias_time_constant", "array", "The observer's bias time constants T (s).", shape="(3,)", range=POSITIVE),
-            Value("switching_gain", "array", "Kbar = diag(rho_i) (m/s, m/s, rad/s); zero gives the passive observer.", shape="(3,)", range=NON_NEGATIVE),
-            Value("boundary_layer", "array", "eps_i (m, m, rad), the width of the saturation's linear zone; default 1 m, 1 m, 0.02 rad.", shape="(3,)", range=POSITIVE),
-            Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
-            Value("hold", "str", "What predict holds over a sample (as the passive observer's).", choices=('measurement', 'innovation')),
-        )),
+        "kim-2002": Rule(
+            "lookout.analysis.sliding_mode:kim_2002_observer",
+            (
+                Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
+                Part("waves", "The sea to tune for when wave_frequency is not given (in a composition, the plant's).", from_plant=True),
+                Value(
+                    "wave_frequency",
+                    "array",
+                    "The observer's wave frequencies w_oi (rad/s); default the dominating frequency of waves.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value("wave_damping", "array", "The observer's wave damping ratios zeta_i (1).", shape="(3,)", range=POSITIVE),
+                Value("notch_damping", "array", "zeta_ni of the notch filter, Fossen & Strand (45) (1).", shape="(3,)", range=POSITIVE),
+                Value(
+                    "cutoff_frequency",
+                    "array",
+                    "w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value(
+                    "velocity_injection_gain",
+                    "array",
+                    "Diagonal of H4 (N/m, N/m, N m/rad); default from the tuning rule (48) of the passive observer.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value(
+                    "bias_injection_gain",
+                    "array",
+                    "Diagonal of H3 (N/(m s), N/(m s), N m/(rad s)); default from the tuning rule (48).",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value("bias_time_constant", "array", "The observer's bias time constants T (s).", shape="(3,)", range=POSITIVE),
+                Value("velocity_bandwidth", "array", "sqrt(H4_i / M_ii) of the default H4 (rad/s); default 0.1 w_o.", shape="(3,)", range=POSITIVE),
+                Value(
+                    "switching_gain",
+                    "array",
+                    "Kbar = diag(rho_i) (m/s, m/s, rad/s); zero gives the passive observer.",
+                    shape="(3,)",
+                    range=NON_NEGATIVE,
+                ),
+                Value(
+                    "boundary_layer",
+                    "array",
+                    "eps_i (m, m, rad), the width of the saturation's linear zone; default 1 m, 1 m, 0.02 rad.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
+                Value("hold", "str", "What predict holds over a sample (as the passive observer's).", choices=("measurement", "innovation")),
+            ),
+        ),
+        "gains": Rule(
+            "from_gains",
+            (
+                Part("vessel", "The observer's vessel model (M, D); in a composition, the plant's unless given."),
+                Value("velocity_injection_gain", "array", "Diagonal of H4 (N/m, N/m, N m/rad).", shape="(3,)", range=POSITIVE),
+                Value("bias_injection_gain", "array", "Diagonal of H3 (N/(m s), N/(m s), N m/(rad s)).", shape="(3,)", range=POSITIVE),
+                Part("waves", "The sea to tune for when wave_frequency is not given (in a composition, the plant's).", from_plant=True),
+                Value(
+                    "wave_frequency",
+                    "array",
+                    "The observer's wave frequencies w_oi (rad/s); default the dominating frequency of waves.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value("wave_damping", "array", "The observer's wave damping ratios zeta_i (1).", shape="(3,)", range=POSITIVE),
+                Value("notch_damping", "array", "zeta_ni of the notch filter, Fossen & Strand (45) (1).", shape="(3,)", range=POSITIVE),
+                Value(
+                    "cutoff_frequency",
+                    "array",
+                    "w_ci of the low-pass filter (45), above wave_frequency (rad/s); default as the passive observer's.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value("bias_time_constant", "array", "The observer's bias time constants T (s).", shape="(3,)", range=POSITIVE),
+                Value(
+                    "switching_gain",
+                    "array",
+                    "Kbar = diag(rho_i) (m/s, m/s, rad/s); zero gives the passive observer.",
+                    shape="(3,)",
+                    range=NON_NEGATIVE,
+                ),
+                Value(
+                    "boundary_layer",
+                    "array",
+                    "eps_i (m, m, rad), the width of the saturation's linear zone; default 1 m, 1 m, 0.02 rad.",
+                    shape="(3,)",
+                    range=POSITIVE,
+                ),
+                Value("steps_per_sample", "int", "RK4 steps of predict per sample period.", range=POSITIVE),
+                Value("hold", "str", "What predict holds over a sample (as the passive observer's).", choices=("measurement", "innovation")),
+            ),
+        ),
     },
 )
 @final
@@ -206,10 +273,18 @@ class SlidingModeObserver(WaveFilteringObserver):
             What predict holds over a sample (as the passive observer's).
         """
         passive = PassiveObserver.design(
-            vessel, waves=waves, wave_frequency=wave_frequency, wave_damping=wave_damping, notch_damping=notch_damping,
-            cutoff_frequency=cutoff_frequency, velocity_injection_gain=velocity_injection_gain,
-            bias_injection_gain=bias_injection_gain, bias_time_constant=bias_time_constant, lyapunov_weight=1.0,
-            steps_per_sample=steps_per_sample, hold=hold,
+            vessel,
+            waves=waves,
+            wave_frequency=wave_frequency,
+            wave_damping=wave_damping,
+            notch_damping=notch_damping,
+            cutoff_frequency=cutoff_frequency,
+            velocity_injection_gain=velocity_injection_gain,
+            bias_injection_gain=bias_injection_gain,
+            bias_time_constant=bias_time_constant,
+            lyapunov_weight=1.0,
+            steps_per_sample=steps_per_sample,
+            hold=hold,
         )
         return cls(passive, switching_gain, boundary_layer)
 
@@ -238,7 +313,9 @@ class SlidingModeObserver(WaveFilteringObserver):
         return self.passive.hold
 
     @initial_values(
-        Value("eta", "array", "Position north, east (m) and heading (rad); default the first measurement (less the guessed wave motion).", shape="(3,)"),
+        Value(
+            "eta", "array", "Position north, east (m) and heading (rad); default the first measurement (less the guessed wave motion).", shape="(3,)"
+        ),
         Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s).", shape="(3,)"),
         Value("bias", "array", "Bias forces and moment (N, N, N m).", shape="(3,)"),
         Value("wave_state", "array", "Wave-filter state [xi1, xi2] (m s, m s, rad s, m, m, rad).", shape="(6,)"),

@@ -67,50 +67,114 @@ def _mean(points: Array, weights: Array, angles: tuple[bool, ...]) -> Array:
 
 
 @component(
-    "observer", "ukf",
+    "observer",
+    "ukf",
     summary="Continuous-discrete unscented Kalman filter on the plant's own model (lookout.observers.ukf): the extended filter's propagation and masking, with sigma points in place of Jacobians for the mean and the measurement.",
     family="lookout.tuning.families.kalman:KalmanFamily",
     parameters=(
-        Part("plant", "The filter's model of the plant (default: the composition's plant; give a [observer.plant] table for a model that differs from the truth)."),
+        Part(
+            "plant",
+            "The filter's model of the plant (default: the composition's plant; give a [observer.plant] table for a model that differs from the truth).",
+        ),
         Part("sensor", "The filter's model of the sensor (default: the composition's sensor)."),
-        Value("process_noise", "array", "Intensity of each of the model's unit white noise inputs (1: the model's own; default all 1).", shape="(noise_size,)", range=NON_NEGATIVE),
-        Value("state_noise", "parts", "Continuous-time process noise intensity added per state entry (units^2/s): one per raveled state entry, or a table of the plant's state parts as [plant.initial] takes them (default 0).", range=NON_NEGATIVE, broadcast=False),
-        Value("measurement_noise", "array", "Standard deviation of each measured channel, R = diag(std^2) (default: the sensor's own noise).", shape="(m,)", range=POSITIVE),
-        Value("initial_std", "parts", "Standard deviation of the initial guess per state entry, or a table of the plant's state parts and input_disturbance (default: the steady-state filter's, from the Riccati equation).", range=NON_NEGATIVE, broadcast=False),
-        Value("input_disturbance", "array", "Estimate an unknown disturbance added to the plant's input, a random walk of this intensity per input entry (units^2/s; 0: a constant, and with an initial std of 0 none on that entry): the usual DP bias state, for a model without one (default none).", range=NON_NEGATIVE),
+        Value(
+            "process_noise",
+            "array",
+            "Intensity of each of the model's unit white noise inputs (1: the model's own; default all 1).",
+            shape="(noise_size,)",
+            range=NON_NEGATIVE,
+        ),
+        Value(
+            "state_noise",
+            "parts",
+            "Continuous-time process noise intensity added per state entry (units^2/s): one per raveled state entry, or a table of the plant's state parts as [plant.initial] takes them (default 0).",
+            range=NON_NEGATIVE,
+            broadcast=False,
+        ),
+        Value(
+            "measurement_noise",
+            "array",
+            "Standard deviation of each measured channel, R = diag(std^2) (default: the sensor's own noise).",
+            shape="(m,)",
+            range=POSITIVE,
+        ),
+        Value(
+            "initial_std",
+            "parts",
+            "Standard deviation of the initial guess per state entry, or a table of the plant's state parts and input_disturbance (default: the steady-state filter's, from the Riccati equation).",
+            range=NON_NEGATIVE,
+            broadcast=False,
+        ),
+        Value(
+            "input_disturbance",
+            "array",
+            "Estimate an unknown disturbance added to the plant's input, a random walk of this intensity per input entry (units^2/s; 0: a constant, and with an initial std of 0 none on that entry): the usual DP bias state, for a model without one (default none).",
+            range=NON_NEGATIVE,
+        ),
         Value("alpha", "float", "Spread of the sigma points around the mean (Wan & van der Merwe's alpha).", range=Range(0.0, 1.0, False, True)),
         Value("beta", "float", "Prior knowledge of the distribution (2 for a Gaussian).", range=NON_NEGATIVE),
         Value("kappa", "float", "Secondary scaling; n + kappa must be positive."),
-        Context("plant_step", "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization.", own=True),
+        Context(
+            "plant_step",
+            "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization.",
+            own=True,
+        ),
         Context("filter_period", "The filter's sample period (s), for the steady-state P_0; default the composition's simulation.sample_period."),
         Context("integrator", "rk4 or euler; default the composition's simulation.integrator.", own=True),
     ),
 )
 @final
 class UnscentedKalmanFilter(KalmanFilter):
-    __doc__ = """Continuous-discrete unscented Kalman filter on the plant's own model
+    __doc__ = (
+        """Continuous-discrete unscented Kalman filter on the plant's own model
     (:mod:`lookout.observers.ukf`): the extended filter's propagation and masking, with
     sigma points in place of Jacobians for the mean and the measurement.
 
     Parameters
-    ----------""" + PARAMETERS + """
+    ----------"""
+        + PARAMETERS
+        + """
     alpha : float, in (0, 1]
         Spread of the sigma points around the mean (Wan & van der Merwe's alpha).
     beta : float, non-negative
         Prior knowledge of the distribution (2 for a Gaussian).
     kappa : float
         Secondary scaling; n + kappa must be positive."""
+    )
 
     alpha: float = eqx.field(static=True)
     beta: float = eqx.field(static=True)
     kappa: float = eqx.field(static=True)
 
-    def __init__(self, plant: Plant, sensor: Sensor, process_noise=None, state_noise=None, measurement_noise=None, initial_std=None,
-                 input_disturbance=None,
-                 alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0, *, plant_step: float, filter_period: float, integrator: str = "rk4"):
-        fields = kalman_fields(plant, sensor, process_noise=process_noise, state_noise=state_noise, measurement_noise=measurement_noise,
-                               initial_std=initial_std, plant_step=plant_step, sample_period=filter_period, integrator=integrator,
-                               input_disturbance=input_disturbance)
+    def __init__(
+        self,
+        plant: Plant,
+        sensor: Sensor,
+        process_noise=None,
+        state_noise=None,
+        measurement_noise=None,
+        initial_std=None,
+        input_disturbance=None,
+        alpha: float = 1.0,
+        beta: float = 2.0,
+        kappa: float = 0.0,
+        *,
+        plant_step: float,
+        filter_period: float,
+        integrator: str = "rk4",
+    ):
+        fields = kalman_fields(
+            plant,
+            sensor,
+            process_noise=process_noise,
+            state_noise=state_noise,
+            measurement_noise=measurement_noise,
+            initial_std=initial_std,
+            plant_step=plant_step,
+            sample_period=filter_period,
+            integrator=integrator,
+            input_disturbance=input_disturbance,
+        )
         for name, value in fields.items():
             setattr(self, name, value)
         n = fields["initial_covariance"].shape[0]

@@ -66,7 +66,8 @@ class VelocityObserverState(eqx.Module):
 
 
 @component(
-    "observer", "velocity",
+    "observer",
+    "velocity",
     summary="Reduced-order velocity observer of Calugi (2002), eqs. (2.6)–(2.7).",
     family="lookout.tuning.families.velocity:VelocityFamily",
     parameters=(

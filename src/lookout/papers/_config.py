@@ -26,7 +26,9 @@ class VesselSettings(Settings):
     kg/s, ...). ``mass`` and ``length`` scale the normalized ("bis") gains to SI.
     """
 
-    model: str = Field("northern-clipper", description="'northern-clipper' (Fossen & Strand 1999, eqs. 56-57) or 'custom' (give mass_matrix and damping_matrix)")
+    model: str = Field(
+        "northern-clipper", description="'northern-clipper' (Fossen & Strand 1999, eqs. 56-57) or 'custom' (give mass_matrix and damping_matrix)"
+    )
     mass_matrix: Matrix3 | None = Field(None, description="M (3x3, SI, symmetric positive definite), only with model = 'custom'")
     damping_matrix: Matrix3 | None = Field(None, description="D (3x3, SI), only with model = 'custom'")
     mass: PositiveFloat = Field(NORTHERN_CLIPPER_MASS, description="vessel mass m (kg) of the bis normalization")
@@ -64,7 +66,6 @@ class VesselSettings(Settings):
             except ValueError as error:
                 raise ValueError(str(error).replace("D must", "must", 1)) from None
         return value
-
 
     @model_validator(mode="after")
     def _matrices_with_custom(self):

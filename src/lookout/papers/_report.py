@@ -83,8 +83,11 @@ def summary_header(name: str, config, status, *, runs: int | None = None, seeds=
     """The keys every reproduction's summary.json starts with: its name, settings, runs,
     seeds and each run's status (runs and seeds: the config's unless given)."""
     return {
-        "reproduction": name, "config": config.model_dump(), "runs": config.runs if runs is None else runs,
-        "seeds": list(config.seeds if seeds is None else seeds), "status": [str(value) for value in status],
+        "reproduction": name,
+        "config": config.model_dump(),
+        "runs": config.runs if runs is None else runs,
+        "seeds": list(config.seeds if seeds is None else seeds),
+        "status": [str(value) for value in status],
     }
 
 

@@ -89,7 +89,12 @@ def simulate_cases(reproduction: Reproduction, config, cases, coordinate: str, *
     ds = xr.concat(batched, dim="run", data_vars="all", coords="minimal", compat="override", join="override")
     labels = [case for case in cases for _ in range(config.runs)]
     seeds = [seed for _ in cases for seed in config.seeds]
-    return ds.assign_coords({coordinate: ("run", np.asarray(labels, dtype=object)), "seed": ("run", np.asarray(seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"})})
+    return ds.assign_coords(
+        {
+            coordinate: ("run", np.asarray(labels, dtype=object)),
+            "seed": ("run", np.asarray(seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}),
+        }
+    )
 
 
 def simulate_each(cases, simulate_case: Callable, out, filename: str, history: Callable[[str], str], *, progress: Callable | None = None):

@@ -20,7 +20,11 @@ def whole_run_campaign(scenario: dict, *, seeds: int, seed: int, metrics: list[s
     an axis name to its cases (label -> key path -> value); ``divergence`` is
     (signal, limit)."""
     return {
-        "scenario": scenario, "seeds_per_point": seeds, "seed": seed, "metrics": list(metrics), "after": 0.0,
+        "scenario": scenario,
+        "seeds_per_point": seeds,
+        "seed": seed,
+        "metrics": list(metrics),
+        "after": 0.0,
         "divergence": {"signal": divergence[0], "limit": divergence[1]},
         "sweep": {"kind": "grid", "axes": [{"name": name, "labels": list(cases), "cases": list(cases.values())} for name, cases in axes.items()]},
     }

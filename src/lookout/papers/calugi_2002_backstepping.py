@@ -59,7 +59,8 @@ VARIANTS = ("corrected", "printed")
 
 
 @component(
-    "model", "printed-inertia-arm",
+    "model",
+    "printed-inertia-arm",
     summary="The two-link arm with (5.37)'s M_22 as printed: m2_true l2^2, whatever the mass parameter.",
     parameters=(
         Value("masses", "array", "m1, m2 (kg) of M_11, M_12 and G; m2 is the unknown theta of the observer.", shape="(2,)"),
@@ -138,7 +139,6 @@ class Config(NoiseFreeConfig):
         return value
 
 
-
 #: The cases: M_hat as (4.20) needs it, and (5.37) as printed.
 CASES: tuple[str, ...] = VARIANTS
 #: The true arm of Section 5.3 (a ``model`` table): m1 = 1 kg, m2 = 1.5 kg, l1 = l2 = 1 m, no friction.
@@ -159,9 +159,12 @@ def reference_table(config: Config) -> dict:
     half = config.period / 2.0
     switches = int(math.ceil(config.duration / half))
     return {
-        "kind": "reference-filter", "signals": ["joint_angle"], "bandwidth": FILTER_BANDWIDTH,
+        "kind": "reference-filter",
+        "signals": ["joint_angle"],
+        "bandwidth": FILTER_BANDWIDTH,
         "schedule_times": [k * half for k in range(switches)],
-        "setpoints": [[config.amplitude * (1 if k % 2 == 0 else -1)] * 2 for k in range(switches)], "initial": [0.0, 0.0],
+        "setpoints": [[config.amplitude * (1 if k % 2 == 0 else -1)] * 2 for k in range(switches)],
+        "initial": [0.0, 0.0],
     }
 
 
@@ -175,22 +178,37 @@ def composition(config: Config, case: str) -> dict:
     if case not in CASES:
         raise ValueError(f"case must be one of {', '.join(CASES)}; got {case!r}")
     observer = {
-        "kind": "adaptive-manipulator", "parameters": UNKNOWN_MASS if case == "corrected" else {**UNKNOWN_MASS, "base": PRINTED_ARM},
-        "gain": OBSERVER_GAIN, "adaptation_gain": ADAPTATION_GAIN, "sample_period": SAMPLE_PERIOD,
+        "kind": "adaptive-manipulator",
+        "parameters": UNKNOWN_MASS if case == "corrected" else {**UNKNOWN_MASS, "base": PRINTED_ARM},
+        "gain": OBSERVER_GAIN,
+        "adaptation_gain": ADAPTATION_GAIN,
+        "sample_period": SAMPLE_PERIOD,
         "initial": {"velocity": [1.0, 1.0], "theta": [config.initial_theta]},
     }
     if case == "printed":
         observer["regressor"] = UNKNOWN_MASS
-    return copy.deepcopy({  # the document is the caller's: the module's tables stay as they are
-        "simulation": {"runs": config.runs, "seed": config.seed, "plant_step": PLANT_STEP, "sample_period": SAMPLE_PERIOD,
-                       "duration": config.duration},
-        "plant": {"kind": "manipulator", "model": ARM, "initial": {"q": [0.0, 0.0], "qdot": [0.0, 0.0]}},
-        "sensor": {"kind": "joint-encoder", "sample_period": SAMPLE_PERIOD},
-        "observer": observer,
-        "reference": reference_table(config),
-        "controller": {"kind": "adaptive-backstepping", "observer_gain": OBSERVER_GAIN, "position_gain": POSITION_GAIN,
-                       "velocity_gain": VELOCITY_GAIN, "damping_weights": DAMPING_WEIGHT},
-    })
+    return copy.deepcopy(
+        {  # the document is the caller's: the module's tables stay as they are
+            "simulation": {
+                "runs": config.runs,
+                "seed": config.seed,
+                "plant_step": PLANT_STEP,
+                "sample_period": SAMPLE_PERIOD,
+                "duration": config.duration,
+            },
+            "plant": {"kind": "manipulator", "model": ARM, "initial": {"q": [0.0, 0.0], "qdot": [0.0, 0.0]}},
+            "sensor": {"kind": "joint-encoder", "sample_period": SAMPLE_PERIOD},
+            "observer": observer,
+            "reference": reference_table(config),
+            "controller": {
+                "kind": "adaptive-backstepping",
+                "observer_gain": OBSERVER_GAIN,
+                "position_gain": POSITION_GAIN,
+                "velocity_gain": VELOCITY_GAIN,
+                "damping_weights": DAMPING_WEIGHT,
+            },
+        }
+    )
 
 
 def build(config: Config, variant: str = "corrected") -> Scenario:
@@ -234,8 +252,10 @@ def summarize(ds: xr.Dataset, unknowns: ModelParameters) -> dict:
         "status": str(ds.status.values),
         "finite_until_s": float(time[last - 1]) if last > 0 else 0.0,
         "tau_0": tau[0].tolist(),
-        "theta_hat_min": float(ok_theta.min()), "theta_hat_min_time_s": float(time[ok][np.argmin(ok_theta)]),
-        "theta_hat_max": float(ok_theta.max()), "theta_hat_max_time_s": float(time[ok][np.argmax(ok_theta)]),
+        "theta_hat_min": float(ok_theta.min()),
+        "theta_hat_min_time_s": float(time[ok][np.argmin(ok_theta)]),
+        "theta_hat_max": float(ok_theta.max()),
+        "theta_hat_max_time_s": float(time[ok][np.argmax(ok_theta)]),
         "theta_hat_at_5s": float(theta[np.argmin(abs(time - 5.0))]) if last > np.argmin(abs(time - 5.0)) else None,
         "theta_hat_at_10s": float(theta[np.argmin(abs(time - 10.0))]) if last > np.argmin(abs(time - 10.0)) else None,
         "theta_hat_final": float(theta[last - 1]) if last > 0 else None,
@@ -244,8 +264,11 @@ def summarize(ds: xr.Dataset, unknowns: ModelParameters) -> dict:
         "tau_max_after_1s": float(np.abs(tau[(time >= 1.0) & finite]).max()) if ((time >= 1.0) & finite).any() else None,
     }
     # where M_hat(q) first loses positive definiteness (the printed run)
-    eig = np.asarray(jax.jit(jax.vmap(lambda q, th: jnp.linalg.eigvalsh(unknowns.model(jnp.atleast_1d(th)).mass_matrix(q))[0]))(
-        jnp.asarray(np.nan_to_num(angle[ok])), jnp.asarray(ok_theta)))
+    eig = np.asarray(
+        jax.jit(jax.vmap(lambda q, th: jnp.linalg.eigvalsh(unknowns.model(jnp.atleast_1d(th)).mass_matrix(q))[0]))(
+            jnp.asarray(np.nan_to_num(angle[ok])), jnp.asarray(ok_theta)
+        )
+    )
     indefinite = np.flatnonzero(eig <= 0)
     result["m_hat_indefinite_from_s"] = float(time[indefinite[0]]) if indefinite.size else None
     result["m_hat_indefinite_total_s"] = float(indefinite.size * (time[1] - time[0]))
@@ -256,16 +279,27 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate both variants; write NetCDF, figures and summary.json."""
     out.mkdir(parents=True, exist_ok=True)
     results, per_variant, unknowns, files = {}, {}, {}, []
-    each = simulate_each(VARIANTS, lambda variant, progress: simulate_case(config, variant, progress=progress), out, "calugi_2002_backstepping_{case}.nc",
-                         lambda variant: f"lookout reproduce {NAME} ({variant} (5.37))", progress=progress)
+    each = simulate_each(
+        VARIANTS,
+        lambda variant, progress: simulate_case(config, variant, progress=progress),
+        out,
+        "calugi_2002_backstepping_{case}.nc",
+        lambda variant: f"lookout reproduce {NAME} ({variant} (5.37))",
+        progress=progress,
+    )
     for variant, scenario, ds, filename in each:
         files.append(filename)
         results[variant] = ds.isel(run=0)
         unknowns[variant] = scenario.observer.parameters
         per_variant[variant] = summarize(results[variant], unknowns[variant])
     corrected = results["corrected"]
-    condition = check_5_28(unknowns["corrected"], OBSERVER_GAIN, DAMPING_WEIGHT, max_speed=float(np.linalg.norm(corrected.joint_rate.values, axis=1).max()),
-                           initial_error=np.array([1.0, 1.0]))
+    condition = check_5_28(
+        unknowns["corrected"],
+        OBSERVER_GAIN,
+        DAMPING_WEIGHT,
+        max_speed=float(np.linalg.norm(corrected.joint_rate.values, axis=1).max()),
+        initial_error=np.array([1.0, 1.0]),
+    )
     files += _figures(results, out)
     summary = {
         "reproduction": NAME,
@@ -323,10 +357,19 @@ def _value(value, digits: int = 4) -> str:
 def tables(summary: dict) -> list[Table]:
     """Both variants side by side; (5.28)."""
     rows = []
-    keys = (("status", "status"), ("finite until (s)", "finite_until_s"), ("theta_hat at 5 s", "theta_hat_at_5s"),
-            ("theta_hat at 10 s", "theta_hat_at_10s"), ("theta_hat final", "theta_hat_final"), ("theta_hat min (at s)", "min"), ("theta_hat max (at s)", None), ("max |q - q_d| after 10 s (rad)", "tracking_error_max_after_10s"),
-            ("max |tau| after 1 s (N m)", "tau_max_after_1s"), ("M_hat indefinite from (s)", "m_hat_indefinite_from_s"),
-            ("M_hat indefinite, total (s)", "m_hat_indefinite_total_s"))
+    keys = (
+        ("status", "status"),
+        ("finite until (s)", "finite_until_s"),
+        ("theta_hat at 5 s", "theta_hat_at_5s"),
+        ("theta_hat at 10 s", "theta_hat_at_10s"),
+        ("theta_hat final", "theta_hat_final"),
+        ("theta_hat min (at s)", "min"),
+        ("theta_hat max (at s)", None),
+        ("max |q - q_d| after 10 s (rad)", "tracking_error_max_after_10s"),
+        ("max |tau| after 1 s (N m)", "tau_max_after_1s"),
+        ("M_hat indefinite from (s)", "m_hat_indefinite_from_s"),
+        ("M_hat indefinite, total (s)", "m_hat_indefinite_total_s"),
+    )
     variants = summary["variants"]
     for label, key in keys:
         if key is None:
@@ -337,20 +380,47 @@ def tables(summary: dict) -> list[Table]:
             rows.append((label, *(v["status"] for v in variants.values())))
         else:
             rows.append((label, *(_value(v[key]) for v in variants.values())))
-    result = [Table("Section 5.3: m2 = 1.5 kg, theta_hat(0) = 0.7 kg", ("", *(f"(5.37) {v}" for v in variants)), tuple(rows),
-                    "tau(0) = " + str([round(x, 3) for x in variants["corrected"]["tau_0"]]) + " N m (corrected)")]
+    result = [
+        Table(
+            "Section 5.3: m2 = 1.5 kg, theta_hat(0) = 0.7 kg",
+            ("", *(f"(5.37) {v}" for v in variants)),
+            tuple(rows),
+            "tau(0) = " + str([round(x, 3) for x in variants["corrected"]["tau_0"]]) + " N m (corrected)",
+        )
+    ]
     condition = summary["condition_5_28"]
-    result.append(Table(
-        "(5.28) for the printed gains (K = 5, d_i = 1)",
-        ("", "condition", "left", "right", "verdict"),
-        tuple((item["name"], item["relation"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"]) for item in inequalities_in(condition)),
-        f"sigma = inf lambda_min(KM + MK)/2; C_M = {condition['quantities']['C_M']:.3g} (Christoffel); w_max from the corrected run",
-    ))
+    result.append(
+        Table(
+            "(5.28) for the printed gains (K = 5, d_i = 1)",
+            ("", "condition", "left", "right", "verdict"),
+            tuple(
+                (item["name"], item["relation"], f"{item['left']:.4g}", f"{item['right']:.4g}", item["verdict"])
+                for item in inequalities_in(condition)
+            ),
+            f"sigma = inf lambda_min(KM + MK)/2; C_M = {condition['quantities']['C_M']:.3g} (Christoffel); w_max from the corrected run",
+        )
+    )
     return result
 
 
 #: Calugi (2002), Section 5.3: adaptive observer backstepping on the two-link arm, m2 unknown.
 REPRODUCTION = Reproduction(NAME, Config, CASES, composition, run, tables)
 
-__all__ = ["CASES", "Config", "NAME", "PrintedInertiaArm", "REPRODUCTION", "TITLE", "VARIANTS", "build", "composition", "parameters", "reference",
-           "reference_table", "run", "simulate_case", "summarize", "tables"]
+__all__ = [
+    "CASES",
+    "Config",
+    "NAME",
+    "PrintedInertiaArm",
+    "REPRODUCTION",
+    "TITLE",
+    "VARIANTS",
+    "build",
+    "composition",
+    "parameters",
+    "reference",
+    "reference_table",
+    "run",
+    "simulate_case",
+    "summarize",
+    "tables",
+]

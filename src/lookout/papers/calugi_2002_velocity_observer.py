@@ -70,29 +70,61 @@ def _constant_input(value: list[float]) -> dict:
 #: Section 2.3 with its printed parameters; the cart and Furuta inputs are chosen.
 SYSTEMS = {
     "pendulum": System(
-        "free pendulum", {"kind": "pendulum", "mass": 0.5, "length": 0.5, "friction": 0.1},
-        2.0 - 0.1 / (0.5 * 0.5**2), (2.0,), (0.0,), (2.2,),
-        _constant_input([0.0]), "tau = 0 (printed)", None, "2.2",
+        "free pendulum",
+        {"kind": "pendulum", "mass": 0.5, "length": 0.5, "friction": 0.1},
+        2.0 - 0.1 / (0.5 * 0.5**2),
+        (2.0,),
+        (0.0,),
+        (2.2,),
+        _constant_input([0.0]),
+        "tau = 0 (printed)",
+        None,
+        "2.2",
     ),
     "two_link": System(
-        "two-link manipulator", {"kind": "two-link-arm", "masses": [0.5, 0.7], "lengths": [1.0, 1.5], "friction": [0.5, 0.1]},
-        5.0, (-math.pi / 4, -math.pi / 4), (0.0, 0.0), (-4.0, -4.0),
-        _constant_input([2.0, 1.0]), "tau = (2, 1) N m (printed)", "2.3", "2.4",
+        "two-link manipulator",
+        {"kind": "two-link-arm", "masses": [0.5, 0.7], "lengths": [1.0, 1.5], "friction": [0.5, 0.1]},
+        5.0,
+        (-math.pi / 4, -math.pi / 4),
+        (0.0, 0.0),
+        (-4.0, -4.0),
+        _constant_input([2.0, 1.0]),
+        "tau = (2, 1) N m (printed)",
+        "2.3",
+        "2.4",
     ),
     "cart": System(
         "pendulum on the coach",
         {"kind": "cart-pendulum", "cart_mass": 2.0, "pendulum_mass": 0.2, "pendulum_length": 0.5, "friction": [0.4, 0.1]},
-        5.0, (-1.0, 1.0), (0.0, 0.0), (-5.0, 5.0),
+        5.0,
+        (-1.0, 1.0),
+        (0.0, 0.0),
+        (-5.0, 5.0),
         {"kind": "sinusoidal", "amplitude": [2.0, 0.0], "frequency": [2.0, 0.0]},
-        "F(t) = 2 sin(2 t) N on the cart (chosen), tau2 = 0 (printed)", "2.5", "2.6",
+        "F(t) = 2 sin(2 t) N on the cart (chosen), tau2 = 0 (printed)",
+        "2.5",
+        "2.6",
     ),
     "furuta": System(
         "Furuta pendulum",
-        {"kind": "furuta-pendulum", "pillar_inertia": 1.0, "arm_mass": 0.4, "pendulum_mass": 0.1, "tip_mass": 0.5,
-         "arm_length": 0.7, "pendulum_length": 0.5, "friction": [0.4, 0.2]},
-        5.0, (1.0, -1.0), (0.0, 0.0), (-5.0, -5.0),
+        {
+            "kind": "furuta-pendulum",
+            "pillar_inertia": 1.0,
+            "arm_mass": 0.4,
+            "pendulum_mass": 0.1,
+            "tip_mass": 0.5,
+            "arm_length": 0.7,
+            "pendulum_length": 0.5,
+            "friction": [0.4, 0.2],
+        },
+        5.0,
+        (1.0, -1.0),
+        (0.0, 0.0),
+        (-5.0, -5.0),
         {"kind": "sinusoidal", "amplitude": [0.5, 0.0], "frequency": [1.0, 0.0]},
-        "tau(t) = 0.5 sin(t) N m on the arm (chosen), tau2 = 0 (printed)", "2.7", "2.8",
+        "tau(t) = 0.5 sin(t) N m on the arm (chosen), tau2 = 0 (printed)",
+        "2.7",
+        "2.8",
     ),
 }
 
@@ -103,7 +135,6 @@ class Config(NoiseFreeConfig):
     plant_step: PositiveFloat = Field(1e-3, description="RK4 step of plant and observer (s)")
     sample_period: PositiveFloat = Field(1e-2, description="record and input period (s)")
     duration: PositiveFloat = Field(10.0, description="simulated time per system (s)")
-
 
     @field_validator("duration")
     @classmethod
@@ -124,17 +155,26 @@ def composition(config: Config, case: str) -> dict:
     the manipulator (2.1) with the encoder of q and the observer (2.6)–(2.7) on the plant's
     own model, integrated jointly with the plant on the exact q (``observer_mode = "continuous"``)."""
     system = SYSTEMS[case]
-    return copy.deepcopy({  # the document is the caller's: SYSTEMS' tables stay as they are
-        "simulation": {
-            "runs": config.runs, "seed": config.seed, "plant_step": config.plant_step,
-            "sample_period": config.sample_period, "duration": config.duration, "observer_mode": "continuous",
-        },
-        "plant": {"kind": "manipulator", "model": system.model,
-                  "initial": {"q": list(system.initial_position), "qdot": list(system.initial_velocity)}},
-        "sensor": {"kind": "joint-encoder", "sample_period": config.sample_period},
-        "observer": {"kind": "velocity", "gain": system.gain, "initial": {"velocity": list(system.initial_estimate)}},
-        "controller": system.input,
-    })
+    return copy.deepcopy(
+        {  # the document is the caller's: SYSTEMS' tables stay as they are
+            "simulation": {
+                "runs": config.runs,
+                "seed": config.seed,
+                "plant_step": config.plant_step,
+                "sample_period": config.sample_period,
+                "duration": config.duration,
+                "observer_mode": "continuous",
+            },
+            "plant": {
+                "kind": "manipulator",
+                "model": system.model,
+                "initial": {"q": list(system.initial_position), "qdot": list(system.initial_velocity)},
+            },
+            "sensor": {"kind": "joint-encoder", "sample_period": config.sample_period},
+            "observer": {"kind": "velocity", "gain": system.gain, "initial": {"velocity": list(system.initial_estimate)}},
+            "controller": system.input,
+        }
+    )
 
 
 def build(config: Config, name: str) -> Scenario:
@@ -212,21 +252,34 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
 
     out.mkdir(parents=True, exist_ok=True)
     files, systems, status = [], {}, []
-    each = simulate_each(SYSTEMS, lambda name, progress: simulate_system(config, name, progress=progress), out, "calugi_2002_{case}.nc",
-                         lambda name: f"lookout reproduce {NAME}: {SYSTEMS[name].label}", progress=progress)
+    each = simulate_each(
+        SYSTEMS,
+        lambda name, progress: simulate_system(config, name, progress=progress),
+        out,
+        "calugi_2002_{case}.nc",
+        lambda name: f"lookout reproduce {NAME}: {SYSTEMS[name].label}",
+        progress=progress,
+    )
     for name, scenario, ds, filename in each:
         system = SYSTEMS[name]
         files.append(filename)
         status += ds.status.values.tolist()
         velocities = [(variable, label) for variable in _velocity_names(ds) for label in ds[variable][ds[variable].dims[-1]].values.tolist()]
-        positions = [(variable, label) for variable in ("joint_position", "joint_angle") if variable in ds for label in ds[variable][ds[variable].dims[-1]].values.tolist()]
+        positions = [
+            (variable, label)
+            for variable in ("joint_position", "joint_angle")
+            if variable in ds
+            for label in ds[variable][ds[variable].dims[-1]].values.tolist()
+        ]
         figures = {}
         if system.trajectory_figure:
             figures[f"fig{system.trajectory_figure.replace('.', '_')}_{name}_positions.png"] = plot_trajectories(
                 ds, positions, title=f"Calugi (2002), Fig. {system.trajectory_figure}: {system.label}, joint trajectories"
             )
         figures[f"fig{system.velocity_figure.replace('.', '_')}_{name}_velocities.png"] = plot_estimates(
-            ds, velocities, window=(0.0, min(2.0, float(ds.time[-1]))),
+            ds,
+            velocities,
+            window=(0.0, min(2.0, float(ds.time[-1]))),
             title=f"Calugi (2002), Fig. {system.velocity_figure}: {system.label}, true and estimated velocities",
         )
         for filename, figure in figures.items():
@@ -248,7 +301,9 @@ def tables(summary: dict) -> list[Table]:
     for name, system in summary["systems"].items():
         for joint, values in system["joints"].items():
             rate = values["rate"]
-            errors.append((f"{name} {joint}", significant(values["initial_error"]), significant(values["final_error"]), "-" if rate is None else f"{rate:.3f}"))
+            errors.append(
+                (f"{name} {joint}", significant(values["initial_error"]), significant(values["final_error"]), "-" if rate is None else f"{rate:.3f}")
+            )
         report = system["theorem_2_1"]
         numbers = report["quantities"]
         radius = numbers["radius"]

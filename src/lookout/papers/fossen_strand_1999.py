@@ -76,7 +76,6 @@ class Config(RunsConfig):
             raise ValueError(f"must be in [0, 1); got {value:g}")
         return value
 
-
     @field_validator("duration")
     @classmethod
     def _whole_samples_and_enough_fixes(cls, value, info: ValidationInfo):
@@ -97,7 +96,6 @@ class Config(RunsConfig):
         return value
 
 
-
 #: The paper's tau, eq. (61): amplitude (N, N, N m) and frequencies (rad/s) of the sinusoids.
 INPUT_AMPLITUDE = 1000.0
 INPUT_FREQUENCIES = (0.05, 0.1, 0.07)
@@ -112,28 +110,40 @@ def composition(config: Config, case: str = "paper") -> dict:
     )
     return {
         "simulation": {
-            "runs": config.runs, "seed": config.seed, "plant_step": config.plant_step,
-            "sample_period": config.sample_period, "duration": config.duration,
+            "runs": config.runs,
+            "seed": config.seed,
+            "plant_step": config.plant_step,
+            "sample_period": config.sample_period,
+            "duration": config.duration,
         },
         "plant": {
             "kind": "dp-vessel",
             "vessel": config.vessel.composition(),
             "bias": {"kind": "gauss-markov", "time_constant": config.bias_time_constant, "std": config.bias_std},
             "waves": {
-                "kind": "linear", "peak_frequency": config.wave_frequency, "damping_ratio": config.wave_damping,
-                "amplitude": config.wave_amplitude, "sigmas": config.wave_amplitude_sigmas,
+                "kind": "linear",
+                "peak_frequency": config.wave_frequency,
+                "damping_ratio": config.wave_damping,
+                "amplitude": config.wave_amplitude,
+                "sigmas": config.wave_amplitude_sigmas,
             },
             "initial": {"bias": config.bias_initial},
         },
         "sensor": {
-            "kind": "position-heading", "noise_std": config.noise_std, "sample_period": config.measurement_period,
+            "kind": "position-heading",
+            "noise_std": config.noise_std,
+            "sample_period": config.measurement_period,
             "dropout_probability": config.dropout_probability,
         },
         "observer": {
-            "kind": "passive", "design": "fossen-strand-1999",
-            "wave_frequency": config.wave_frequency, "wave_damping": config.wave_damping,
-            "notch_damping": config.notch_damping, "cutoff_frequency": config.cutoff_frequency,
-            "velocity_injection_gain": velocity_gain.tolist(), "bias_injection_gain": bias_gain.tolist(),
+            "kind": "passive",
+            "design": "fossen-strand-1999",
+            "wave_frequency": config.wave_frequency,
+            "wave_damping": config.wave_damping,
+            "notch_damping": config.notch_damping,
+            "cutoff_frequency": config.cutoff_frequency,
+            "velocity_injection_gain": velocity_gain.tolist(),
+            "bias_injection_gain": bias_gain.tolist(),
             "bias_time_constant": config.bias_time_constant,
         },
         "controller": {"kind": "sinusoidal", "amplitude": INPUT_AMPLITUDE, "frequency": INPUT_FREQUENCIES},
@@ -199,7 +209,14 @@ def summarize(ds: xr.Dataset) -> dict:
     errors = estimation_errors(ds)
     half = float(ds.time[-1]) / 2.0
     time = ds.time.values
-    summary: dict = {"runs": int(ds.sizes["run"]), "rms_second_half": {}, "rms_second_half_std": {}, "settling_time": {}, "true_std_second_half": {}, "units": {}}
+    summary: dict = {
+        "runs": int(ds.sizes["run"]),
+        "rms_second_half": {},
+        "rms_second_half_std": {},
+        "settling_time": {},
+        "true_std_second_half": {},
+        "units": {},
+    }
     for name in STATES:
         error = paper_vector(errors, name)
         truth = paper_vector(ds, name)

@@ -114,12 +114,14 @@ class SimulationSettings(RunsConfig):
         "shared", description="runs vmapped over one shared scenario, or over a copy per run ('stacked'; equal to rounding)"
     )
     conditions: Literal["warn", "require", "ignore"] = Field(
-        "warn", description="the design conditions of the observer and controller (lookout design FILE) at lookout run: "
-                            "'warn' when one fails, 'require' them (refuse the run), or 'ignore' them"
+        "warn",
+        description="the design conditions of the observer and controller (lookout design FILE) at lookout run: "
+        "'warn' when one fails, 'require' them (refuse the run), or 'ignore' them",
     )
     divergence: DivergenceSettings | None = Field(
-        None, description="a run has failed (status 'diverged') when the estimation or tracking error of signal exceeds limit, "
-                          "or a truth or estimate is not finite (default: the plant kind's)"
+        None,
+        description="a run has failed (status 'diverged') when the estimation or tracking error of signal exceeds limit, "
+        "or a truth or estimate is not finite (default: the plant kind's)",
     )
 
     @field_validator("plant_step", "sample_period", "duration")
@@ -144,7 +146,9 @@ def _in_range(parameter: registry.Parameter):
     def check(value):
         values = list(value.values()) if isinstance(value, dict) else [value]
         for number in np.concatenate([np.ravel(np.asarray(v, dtype=float)) for v in values] or [np.zeros(0)]):
-            if not ((number >= low if low_in else number > low) and (number <= high if high_in else number < high)) or (np.isinf(number) and high == math.inf):
+            if not ((number >= low if low_in else number > low) and (number <= high if high_in else number < high)) or (
+                np.isinf(number) and high == math.inf
+            ):
                 words = {(0.0, math.inf, False, False): "positive", (0.0, math.inf, True, False): "non-negative"}.get(parameter.range)
                 if words and not np.isfinite(number):
                     words = f"finite and {words}"
@@ -175,8 +179,15 @@ def _annotation(parameter: registry.Parameter):
     if parameter.choices is not None:
         annotation: Any = Literal[parameter.choices]
     else:
-        annotation = {"float": float, "int": int, "bool": bool, "str": str, "strings": tuple[str, ...], "array": _ARRAY,
-                      "parts": _ARRAY | dict[str, float | list[float]]}.get(sort, _ARRAY)
+        annotation = {
+            "float": float,
+            "int": int,
+            "bool": bool,
+            "str": str,
+            "strings": tuple[str, ...],
+            "array": _ARRAY,
+            "parts": _ARRAY | dict[str, float | list[float]],
+        }.get(sort, _ARRAY)
     if sort in ("array", "parts") and (parameter.shape is not None or not parameter.broadcast):
         annotation = Annotated[annotation, AfterValidator(_shaped(parameter))]
     if parameter.range is not None and sort in ("float", "int", "array", "parts"):
@@ -358,8 +369,12 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                 wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.role
                 other = context.kinds.get(p.role)
                 reason = f"{p.role} {other} is not one" if other else f"there is no {p.role} before it"
-                raise CompositionError(location, f"{role} {name} needs an {p.role} that is a {wanted}; {reason}" if p.role[0] in "aeiou"
-                                       else f"{role} {name} needs a {p.role} that is a {wanted}; {reason}")
+                raise CompositionError(
+                    location,
+                    f"{role} {name} needs an {p.role} that is a {wanted}; {reason}"
+                    if p.role[0] in "aeiou"
+                    else f"{role} {name} needs a {p.role} that is a {wanted}; {reason}",
+                )
             arguments[p.name] = found
         elif p.sort == "part":
             if p.name in table:
@@ -371,12 +386,14 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                     arguments[p.name], normal[p.name] = build_part(p.role, {}, location + (p.name,), context, defaults=defaults)
                 except CompositionError as error:  # the file has no such table: blame the table that lacks it
                     first = registry.default_kind(p.role)
-                    raise CompositionError(location, f"{role} {name} needs a {p.name}: give [{key_text(location + (p.name,))}] "
-                                                     f"(kind {first}: {error.reason})") from None
+                    raise CompositionError(
+                        location, f"{role} {name} needs a {p.name}: give [{key_text(location + (p.name,))}] (kind {first}: {error.reason})"
+                    ) from None
             elif p.required:
                 wanted = " or ".join(c.__name__ for c in _part_classes(p)) or p.name
                 raise CompositionError(
-                    location, f"{role} {name} needs a {p.name} ({wanted}), and plant {context.kinds.get('plant')} has none; give [{key_text(location + (p.name,))}]"
+                    location,
+                    f"{role} {name} needs a {p.name} ({wanted}), and plant {context.kinds.get('plant')} has none; give [{key_text(location + (p.name,))}]",
                 )
         elif p.sort == "context":
             if p.name in table and p.name != "signals" and not p.own:  # signals: names the file gives, resolved here
@@ -402,7 +419,9 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                     arguments[p.name] = found
     values = {key: value for key, value in table.items() if key in by_name and by_name[key].sort == "value"}
     validated = _validate(parameter_model(kind, design), values, location)
-    given = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value" and not (p.default is None and getattr(validated, p.name) is None)}
+    given = {
+        p.name: getattr(validated, p.name) for p in parameters if p.sort == "value" and not (p.default is None and getattr(validated, p.name) is None)
+    }
     arguments.update(given)
     normal = {"kind": name, **({"design": design} if kind.designs else {}), **{key: plain(value) for key, value in given.items()}, **parts}
     try:
@@ -433,7 +452,9 @@ def _signals(names, location, context: _Context, parameter):
             raise CompositionError(location, f"missing key (names of the plant's variables: {', '.join(variables)})")
         return parameter.default, None
     if not isinstance(names, (list, tuple)) or not all(isinstance(n, (str, dict)) for n in names):
-        raise CompositionError(location, "must be an array of the plant's variable names (or tables {name, units, long_name, frame} of signals of their own)")
+        raise CompositionError(
+            location, "must be an array of the plant's variable names (or tables {name, units, long_name, frame} of signals of their own)"
+        )
     signals = []
     for index, each in enumerate(names):
         if isinstance(each, dict):
@@ -594,7 +615,9 @@ def compose(document: dict) -> Composition:
     simulation = _validate(SimulationSettings, simulation_table, ("simulation",))
     for role in ("plant", "sensor", "observer"):
         if role not in document:
-            raise CompositionError((role,), f"missing table (a composition needs a plant, a sensor and an observer; `lookout components {role}` lists the kinds)")
+            raise CompositionError(
+                (role,), f"missing table (a composition needs a plant, a sensor and an observer; `lookout components {role}` lists the kinds)"
+            )
 
     context = _Context([], simulation=simulation)
     built, normal, kinds = {}, {"simulation": simulation.model_dump(mode="json")}, {}
@@ -615,7 +638,11 @@ def compose(document: dict) -> Composition:
     if reason is not None:
         raise CompositionError(("actuator",), reason)
     hull = getattr(getattr(built["actuator"], "layout", None), "hull_refusal", None)  # thrusters: they must lie on the vessel
-    mass = next((float(np.asarray(m.mass_matrix)[0, 0]) for m in getattr(built["plant"], "models", tuple)() if hasattr(m, "mass_matrix")), None) if hull else None
+    mass = (
+        next((float(np.asarray(m.mass_matrix)[0, 0]) for m in getattr(built["plant"], "models", tuple)() if hasattr(m, "mass_matrix")), None)
+        if hull
+        else None
+    )
     reason = hull(mass) if mass is not None else None
     if reason is not None:
         layout = normal["actuator"].get("layout", {}).get("kind", "given")
@@ -656,7 +683,9 @@ def _divergence(simulation: SimulationSettings, plant, kind: str):
         return type(plant).divergence
     names = [signal.name for signal in plant.variable_signals]
     if given.signal not in names:
-        raise CompositionError(("simulation", "divergence", "signal"), f"must be a variable of plant {kind} ({', '.join(names)}); got {given.signal!r}")
+        raise CompositionError(
+            ("simulation", "divergence", "signal"), f"must be a variable of plant {kind} ({', '.join(names)}); got {given.signal!r}"
+        )
     return DivergenceBound(given.signal, given.limit)
 
 
@@ -682,7 +711,9 @@ def _scenario_error(error: ValueError, kinds: dict) -> CompositionError:
         first, second = error.parts
         detail = reason.split(": ", 1)[1] if ": " in reason else reason
         if second == "observer_mode 'continuous'":
-            return CompositionError(("simulation", "observer_mode"), f"observer {kinds['observer']} cannot run in observer_mode 'continuous': {detail}")
+            return CompositionError(
+                ("simulation", "observer_mode"), f"observer {kinds['observer']} cannot run in observer_mode 'continuous': {detail}"
+            )
         if first in kinds and second in kinds:
             return CompositionError((), f"{first} {kinds[first]} and {second} {kinds[second]} do not fit: {detail}")
     return CompositionError((), reason)
@@ -725,7 +756,9 @@ def set_path(document: dict, path: str, value: Any) -> None:
         here = tuple(parts[: depth + 1])
         if isinstance(part, int):
             if not isinstance(target, (list, tuple)) or part >= len(target):
-                raise CompositionError(here, f"does not exist ({key_text(here[:-1])} has {len(target) if isinstance(target, (list, tuple)) else 'no'} entries)")
+                raise CompositionError(
+                    here, f"does not exist ({key_text(here[:-1])} has {len(target) if isinstance(target, (list, tuple)) else 'no'} entries)"
+                )
         elif not isinstance(target, dict) or (part not in target and not (depth == len(parts) - 1 and isinstance(value, dict))):
             known = ", ".join(sorted(target)) if isinstance(target, dict) else "none"
             raise CompositionError(here, f"no such key (known here: {known})")

@@ -31,8 +31,21 @@ from typing import Any, Literal
 #: The roles of a composition's tables and of the parts inside them, in the order
 #: ``lookout components`` lists them.
 ROLES = (
-    "plant", "vessel", "ship", "model", "bias", "waves", "disturbance", "parameters", "parametrization",
-    "sensor", "observer", "controller", "reference", "actuator", "layout",
+    "plant",
+    "vessel",
+    "ship",
+    "model",
+    "bias",
+    "waves",
+    "disturbance",
+    "parameters",
+    "parametrization",
+    "sensor",
+    "observer",
+    "controller",
+    "reference",
+    "actuator",
+    "layout",
 )
 
 ValueType = Literal["float", "int", "bool", "str", "array", "strings", "parts"]
@@ -203,9 +216,18 @@ class Declaration:
 DECLARED: list[Declaration] = []
 
 
-def register(role: str, kind: str, target: Any, *, summary: str, parameters: tuple[Declared, ...] | None = None,
-             build: str | Callable | None = None, rules: dict[str, Rule] | None = None,
-             family: str | None = None, checks: str | None = None) -> Declaration:
+def register(
+    role: str,
+    kind: str,
+    target: Any,
+    *,
+    summary: str,
+    parameters: tuple[Declared, ...] | None = None,
+    build: str | Callable | None = None,
+    rules: dict[str, Rule] | None = None,
+    family: str | None = None,
+    checks: str | None = None,
+) -> Declaration:
     """Register the kind ``kind`` of ``role``, built by ``target`` (a class, with
     ``build`` one of its classmethods, or a function).
 
@@ -233,8 +255,7 @@ def register(role: str, kind: str, target: Any, *, summary: str, parameters: tup
         for each in rule.parameters:
             if not isinstance(each, (Value, Part, Context)):
                 raise ValueError(f"{role} {kind}: parameters must be Value, Part or Context; got {each!r}")
-    declaration = Declaration(role, kind, target, pairs, " ".join(summary.split()), family, checks,
-                              getattr(target, "__module__", ""))
+    declaration = Declaration(role, kind, target, pairs, " ".join(summary.split()), family, checks, getattr(target, "__module__", ""))
     DECLARED.append(declaration)
     return declaration
 

@@ -113,7 +113,9 @@ def _table_comments(role: str, table: dict, prefix: str, comments: dict) -> None
         elif p.description:
             comments[f"{prefix}.{p.name}"] = p.description + ("" if p.sort != "part" or p.name in table else " (the plant's, unless given)")
     if isinstance(table.get("initial"), dict):
-        comments[f"{prefix}.initial"] = "the initial state (zeros where left out)" if role == "plant" else "the initial guess (its defaults where left out)"
+        comments[f"{prefix}.initial"] = (
+            "the initial state (zeros where left out)" if role == "plant" else "the initial guess (its defaults where left out)"
+        )
         method = {"plant": "state", "observer": "guess"}.get(role)
         owner = kind.component_class
         if method and hasattr(owner, method):

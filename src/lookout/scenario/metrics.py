@@ -152,13 +152,17 @@ def resolve(names: list[str], scenario) -> list[Metric]:
         elif needs == "thrusters":
             layout = getattr(scenario.actuator, "layout", None)
             if signal != "thrust" or layout is None:
-                raise ValueError(f"{name!r}: write {kind}:thrust, with a thruster actuator ([actuator] kind = \"thrusters\")")
-            metrics.append(Metric(kind, signal, "1", f"{description} (thrusters)", (tuple(map(float, layout.max_thrust)), tuple(map(float, layout.min_thrust)))))
+                raise ValueError(f'{name!r}: write {kind}:thrust, with a thruster actuator ([actuator] kind = "thrusters")')
+            metrics.append(
+                Metric(kind, signal, "1", f"{description} (thrusters)", (tuple(map(float, layout.max_thrust)), tuple(map(float, layout.min_thrust))))
+            )
             continue
         else:
             found = truth or signals["extra"].get(signal)
             if found is None:
-                raise ValueError(f"{name!r}: no recorded {signal!r} (plant variables: {', '.join(signals['truth'])}; observer outputs: {', '.join(signals['extra']) or 'none'})")
+                raise ValueError(
+                    f"{name!r}: no recorded {signal!r} (plant variables: {', '.join(signals['truth'])}; observer outputs: {', '.join(signals['extra']) or 'none'})"
+                )
         units = "s" if kind in ("settling_time", "recovery_time") else found.units
         metrics.append(Metric(kind, signal, units, f"{description} of {found.long_name}"))
     return metrics
@@ -211,7 +215,7 @@ class _Plan:
     """What a :class:`MetricSummary` computes: static, so one compiled program per campaign."""
 
     metrics: tuple[tuple[str, str, str, bool, bool], ...]  # (variable, kind, signal, vector, angle)
-    divergence: tuple[str, float, bool, bool] | None       # (signal, limit, vector, angle)
+    divergence: tuple[str, float, bool, bool] | None  # (signal, limit, vector, angle)
     thrust_limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # (largest, smallest)
     #: the names of the recorded truths and estimates, sorted: the causes of a failed run
     #: are their non-finite values, in this order, then the divergence limit's errors
@@ -227,7 +231,9 @@ class _Plan:
         words = [f"{name} is not finite" for name in self.truths] + [f"{name}_hat is not finite" for name in self.estimates]
         if self.divergence is not None:
             name, limit = self.divergence[:2]
-            words += [f"the {which} error of {name} is beyond the divergence limit {limit:g} {self.limit_units}".rstrip() for which in self.limit_errors]
+            words += [
+                f"the {which} error of {name} is beyond the divergence limit {limit:g} {self.limit_units}".rstrip() for which in self.limit_errors
+            ]
         return tuple(words)
 
 
@@ -245,8 +251,8 @@ class MetricSummary(Summary):
     """
 
     plan: _Plan = eqx.field(static=True)
-    layout: Any = eqx.field(static=True)   # the input layout (to split the applied input)
-    first: int = eqx.field(static=True)    # first record of the window t >= after
+    layout: Any = eqx.field(static=True)  # the input layout (to split the applied input)
+    first: int = eqx.field(static=True)  # first record of the window t >= after
     n_records: int = eqx.field(static=True)
     #: records of the sensor's outage: the window before it starts, its first, and the
     #: first after it (arrays, so that outages of other lengths share one program)
@@ -393,8 +399,15 @@ def outage_of(scenario) -> tuple[float, float] | None:
     return None if outage is None else (float(outage.start), float(outage.duration))
 
 
-def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None,
-            outage: tuple[float, float] | None = None) -> MetricSummary:
+def summary(
+    record: RecordSignals,
+    time: np.ndarray,
+    metrics: list[Metric],
+    *,
+    after: float | None = None,
+    divergence: tuple[str, float] | None = None,
+    outage: tuple[float, float] | None = None,
+) -> MetricSummary:
     """The :class:`MetricSummary` of ``metrics`` for runs recording ``record`` at
     ``time``: the window t >= ``after`` (default half the run), ``divergence =
     (signal, limit)``, which also marks a run diverged when the estimation error or
@@ -404,27 +417,45 @@ def summary(record: RecordSignals, time: np.ndarray, metrics: list[Metric], *, a
     window = time >= after - 1e-9 * max(1.0, abs(after))
     if not window.any():
         raise ValueError(f"after ({after:g} s) is past the end of the run ({time[-1]:g} s)")
-    shapes = {s.name: s for s in record.truth} | {s.name: s for s in record.input.signals} | {s.name: s for s in record.extra} | {
-        s.name: s for s in record.actuation}
+    shapes = (
+        {s.name: s for s in record.truth}
+        | {s.name: s for s in record.input.signals}
+        | {s.name: s for s in record.extra}
+        | {s.name: s for s in record.actuation}
+    )
     rows = tuple((m.variable, m.kind, m.signal, bool(shapes[m.signal].labels), bool(shapes[m.signal].angle)) for m in metrics)
     thrust_limits = next((m.thrust_limits for m in metrics if m.thrust_limits is not None), None)
     limit = None
     limit_errors: tuple[str, ...] = ()
     if divergence is not None:
         if divergence[0] not in {s.name for s in record.truth}:
-            raise ParameterError("divergence.signal", f"the divergence limit's signal must be a plant variable ({', '.join(s.name for s in record.truth)}); "
-                                 f"got {divergence[0]!r}")
+            raise ParameterError(
+                "divergence.signal",
+                f"the divergence limit's signal must be a plant variable ({', '.join(s.name for s in record.truth)}); got {divergence[0]!r}",
+            )
         signal = shapes[divergence[0]]
         limit = (divergence[0], float(divergence[1]), bool(signal.labels), bool(signal.angle))
-        limit_errors = tuple(which for which, present in (("estimation", divergence[0] in {s.name for s in record.estimate}),
-                                                            ("tracking", f"{divergence[0]}_desired" in {s.name for s in record.reference}))
-                             if present)
+        limit_errors = tuple(
+            which
+            for which, present in (
+                ("estimation", divergence[0] in {s.name for s in record.estimate}),
+                ("tracking", f"{divergence[0]}_desired" in {s.name for s in record.reference}),
+            )
+            if present
+        )
     windows = (0, 0, 0)
     if outage is not None:
         start, duration = outage
         windows = tuple(int(np.searchsorted(time, edge - 1e-9 * max(1.0, abs(edge)))) for edge in (start - duration, start, start + duration))
-    plan = _Plan(rows, limit, thrust_limits, tuple(sorted(s.name for s in record.truth)), tuple(sorted(s.name for s in record.estimate)), limit_errors,
-                 shapes[divergence[0]].units if divergence is not None else "")
+    plan = _Plan(
+        rows,
+        limit,
+        thrust_limits,
+        tuple(sorted(s.name for s in record.truth)),
+        tuple(sorted(s.name for s in record.estimate)),
+        limit_errors,
+        shapes[divergence[0]].units if divergence is not None else "",
+    )
     return MetricSummary(plan, record.input, int(np.argmax(window)), len(time), tuple(jnp.asarray(i) for i in windows))
 
 
@@ -450,16 +481,26 @@ def _reduce_records(summary: MetricSummary, records, time, where: bool = False):
         "peak": {v: a.max(axis=1) for v, a in terms["peak"].items()},
         "final": {v: a[:, -1] for v, a in terms["final"].items()},
     }
-    failed = terms["failed"]                        # (run, time, cause)
+    failed = terms["failed"]  # (run, time, cause)
     any_failed = failed.any(axis=2)
     first = jnp.argmax(any_failed, axis=1)
     accumulated["failed_at"] = jnp.where(any_failed.any(axis=1), first, -1)
-    accumulated["cause"] = jnp.where(any_failed.any(axis=1), jax.vmap(_first_cause)(jnp.take_along_axis(failed, first[:, None, None], axis=1)[:, 0]), -1)
+    accumulated["cause"] = jnp.where(
+        any_failed.any(axis=1), jax.vmap(_first_cause)(jnp.take_along_axis(failed, first[:, None, None], axis=1)[:, 0]), -1
+    )
     return summary.finish(accumulated, series, time, where=where)
 
 
-def summarize(scenario, keys, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None,
-              outage: tuple[float, float] | None = None, where: bool = False) -> dict[str, np.ndarray]:
+def summarize(
+    scenario,
+    keys,
+    metrics: list[Metric],
+    *,
+    after: float | None = None,
+    divergence: tuple[str, float] | None = None,
+    outage: tuple[float, float] | None = None,
+    where: bool = False,
+) -> dict[str, np.ndarray]:
     """Simulate the runs of ``keys`` and return each metric per run (shape ``(runs,)``)
     and ``diverged``, without holding their records: the metrics accumulate in the
     engine's scan (:func:`lookout.sim.summarize_batch`). Equals :func:`reduce` of
@@ -474,8 +515,15 @@ def summarize(scenario, keys, metrics: list[Metric], *, after: float | None = No
     return {name: np.asarray(value) for name, value in result.items()}
 
 
-def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, divergence: tuple[str, float] | None = None,
-           outage: tuple[float, float] | None = None, where: bool = False) -> dict[str, np.ndarray]:
+def reduce(
+    trajectory,
+    metrics: list[Metric],
+    *,
+    after: float | None = None,
+    divergence: tuple[str, float] | None = None,
+    outage: tuple[float, float] | None = None,
+    where: bool = False,
+) -> dict[str, np.ndarray]:
     """Each metric per run (shape ``(runs,)``) and ``diverged`` (bool), from a batched
     :class:`~lookout.Trajectory`, in one jitted program on the device that holds the
     runs (only these numbers are copied back). The same terms as :func:`summarize`;
@@ -488,8 +536,15 @@ def reduce(trajectory, metrics: list[Metric], *, after: float | None = None, div
 
 
 def _reduced(plan: MetricSummary, trajectory, where: bool) -> dict[str, np.ndarray]:
-    records = (trajectory.truth, trajectory.estimate, trajectory.measurement, trajectory.reference, trajectory.command, trajectory.applied,
-               trajectory.actuation)
+    records = (
+        trajectory.truth,
+        trajectory.estimate,
+        trajectory.measurement,
+        trajectory.reference,
+        trajectory.command,
+        trajectory.applied,
+        trajectory.actuation,
+    )
     result = _reduce_records(plan, records, jnp.asarray(np.asarray(trajectory.time)), where)
     return {name: np.asarray(value) for name, value in result.items()}
 
@@ -516,5 +571,7 @@ def failures(trajectory, divergence: tuple[str, float] | None = None) -> list[Fa
     time = np.asarray(trajectory.time)
     plan = summary(trajectory.signals, time, [], divergence=divergence)
     values = _reduced(plan, trajectory, where=True)
-    return [None if at < 0 else Failure(int(at), float(time[at]), plan.causes[int(cause)])
-            for at, cause in zip(values["diverged_at"], values["diverged_cause"])]
+    return [
+        None if at < 0 else Failure(int(at), float(time[at]), plan.causes[int(cause)])
+        for at, cause in zip(values["diverged_at"], values["diverged_cause"])
+    ]

@@ -83,8 +83,14 @@ COMPONENT_ROLES = ("plant", "sensor", "observer", "reference", "controller", "ac
 DEFAULT_KINDS = {"controller": "none", "reference": "none", "actuator": "ideal"}
 #: The kind of a part's table that names none, and of a required part found nowhere.
 DEFAULT_PART_KINDS = {
-    "vessel": "northern-clipper", "ship": "cybership-ii", "model": "two-link-arm", "bias": "gauss-markov",
-    "waves": "linear", "disturbance": "body-force", "parameters": "model-fields", "parametrization": "inertia-entries",
+    "vessel": "northern-clipper",
+    "ship": "cybership-ii",
+    "model": "two-link-arm",
+    "bias": "gauss-markov",
+    "waves": "linear",
+    "disturbance": "body-force",
+    "parameters": "model-fields",
+    "parametrization": "inertia-entries",
     "layout": "supply-vessel",
 }
 #: Context parameters that are not components: filled by the composition by name.
@@ -325,10 +331,13 @@ def load_entry_points() -> None:
         module = entry.value.partition(":")[0]
         if module not in sys.modules:
             package = getattr(getattr(entry, "dist", None), "name", None)
-            _import_declaring(lambda: importlib.import_module(module),
-                              f"the entry point {entry.name} = {entry.value!r} (group {ENTRY_POINT_GROUP}"
-                              + (f", package {package}" if package else "") + f"; {ENTRY_POINTS_SWITCH}=0 leaves installed packages' kinds out)",
-                              module)
+            _import_declaring(
+                lambda: importlib.import_module(module),
+                f"the entry point {entry.name} = {entry.value!r} (group {ENTRY_POINT_GROUP}"
+                + (f", package {package}" if package else "")
+                + f"; {ENTRY_POINTS_SWITCH}=0 leaves installed packages' kinds out)",
+                module,
+            )
     _LOADED["entry_points"] = True
 
 
@@ -539,8 +548,7 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
         hints = typing.get_type_hints(builder.__init__ if isinstance(builder, type) else builder)
     except Exception:
         hints = {}
-    taken = {name: p for name, p in signature.parameters.items()
-             if name not in ("self", "cls") and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+    taken = {name: p for name, p in signature.parameters.items() if name not in ("self", "cls") and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
     names = [each.name for each in declared]
     unknown = [name for name in names if name not in taken]
     if unknown:
@@ -554,16 +562,46 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
         default = REQUIRED if default is inspect.Parameter.empty else default
         accepted = _component_type(hints.get(each.name))
         if isinstance(each, Value):
-            parameters.append(Parameter(each.name, "value", _type_text(each, default, None), each.doc, default,
-                                        value_type=each.type, choices=each.choices, range=_range_tuple(each.range),
-                                        shape=each.shape, broadcast=each.broadcast))
+            parameters.append(
+                Parameter(
+                    each.name,
+                    "value",
+                    _type_text(each, default, None),
+                    each.doc,
+                    default,
+                    value_type=each.type,
+                    choices=each.choices,
+                    range=_range_tuple(each.range),
+                    shape=each.shape,
+                    broadcast=each.broadcast,
+                )
+            )
         elif isinstance(each, Part):
-            parameters.append(Parameter(each.name, "part", _type_text(each, default, accepted), each.doc, default,
-                                        accepted, each.role or each.name, declared_from_plant=each.from_plant))
+            parameters.append(
+                Parameter(
+                    each.name,
+                    "part",
+                    _type_text(each, default, accepted),
+                    each.doc,
+                    default,
+                    accepted,
+                    each.role or each.name,
+                    declared_from_plant=each.from_plant,
+                )
+            )
         else:
             source = each.source if each.source is not None else (accepted or CONTEXT_NAMES.get(each.name))
-            parameters.append(Parameter(each.name, "context", _type_text(each, default, source if isinstance(source, type) else None),
-                                        each.doc, default, source, own=each.own))
+            parameters.append(
+                Parameter(
+                    each.name,
+                    "context",
+                    _type_text(each, default, source if isinstance(source, type) else None),
+                    each.doc,
+                    default,
+                    source,
+                    own=each.own,
+                )
+            )
     return tuple(parameters)
 
 
@@ -586,7 +624,11 @@ def _component_type(annotation) -> type | None:
     """The equinox Module class an annotation names (``X`` or ``X | None``), else None."""
     import equinox as eqx
 
-    candidates = typing.get_args(annotation) if typing.get_origin(annotation) in (typing.Union, getattr(__import__("types"), "UnionType", None)) else (annotation,)
+    candidates = (
+        typing.get_args(annotation)
+        if typing.get_origin(annotation) in (typing.Union, getattr(__import__("types"), "UnionType", None))
+        else (annotation,)
+    )
     for candidate in candidates:
         if isinstance(candidate, type) and issubclass(candidate, eqx.Module):
             return candidate

@@ -111,7 +111,9 @@ class Settings(BaseModel):
                 bad = value
                 for index in location[1:]:
                     bad = bad[index]
-                detail = InitErrorDetails(type=PydanticCustomError("not_finite", "must be finite; got {value}", {"value": bad}), loc=location, input=bad)
+                detail = InitErrorDetails(
+                    type=PydanticCustomError("not_finite", "must be finite; got {value}", {"value": bad}), loc=location, input=bad
+                )
                 raise ValidationError.from_exception_data(type(self).__name__, [detail])
         return self
 
@@ -152,7 +154,9 @@ class RunsConfig(Settings):
     def _counted_samples(cls, value, info: ValidationInfo):
         period = info.data.get("sample_period")
         if period is not None and math.isfinite(value) and value / period >= MAX_SAMPLES:
-            raise ValueError(f"must be below {MAX_SAMPLES:.4g} samples of sample_period ({period:g} s), the noise counters' range; got {value / period:.3g} samples")
+            raise ValueError(
+                f"must be below {MAX_SAMPLES:.4g} samples of sample_period ({period:g} s), the noise counters' range; got {value / period:.3g} samples"
+            )
         return value
 
     @property
@@ -216,10 +220,12 @@ def explain(error: ValidationError) -> tuple[tuple, str]:
     # of a union's members (a number or an array), the error that went deepest says most
     first = max((e for e in errors if e["loc"][:1] == errors[0]["loc"][:1]), key=lambda e: len(e["loc"]))
     # pydantic names the member of a union it tried ("scenario.str"): not a key of the file
-    location = tuple(part for part in first["loc"] if not (isinstance(part, str) and (part.startswith("function-") or part in UNION_TAGS or "[" in part)))
+    location = tuple(
+        part for part in first["loc"] if not (isinstance(part, str) and (part.startswith("function-") or part in UNION_TAGS or "[" in part))
+    )
     message = first["msg"]
     if message.startswith("Value error, "):
-        message = message[len("Value error, "):]
+        message = message[len("Value error, ") :]
     if first["type"] == "extra_forbidden":
         message = "unknown key"
     elif first["type"] == "missing" and isinstance(location[-1], int):

@@ -71,9 +71,7 @@ def integer_ratio(value: float, base: float) -> int | None:
 def _ratio(name: str, period: float, base_name: str, base: float, location: tuple = ()) -> int:
     steps = integer_ratio(period, base)
     if steps is None:
-        raise ParameterError(location or (key(name),),
-            f"{name} ({period:g} s) must be an integer multiple of {base_name} ({base:g} s)"
-        )
+        raise ParameterError(location or (key(name),), f"{name} ({period:g} s) must be an integer multiple of {base_name} ({base:g} s)")
     return steps
 
 
@@ -88,8 +86,11 @@ def _same_period(role: str, component, sample_period: float) -> None:
     for name in OWN_PERIODS:
         period = getattr(component, name, None)
         if isinstance(period, (int, float)) and not isinstance(period, bool) and abs(period - sample_period) > 1e-9 * sample_period:
-            raise ParameterError((role, name), f"{role} {name} ({period:g} s) must equal the loop's sample_period ({sample_period:g} s): "
-                                 f"the {role} is built for one sample period; build it for {sample_period:g} s, or run the loop at {period:g} s")
+            raise ParameterError(
+                (role, name),
+                f"{role} {name} ({period:g} s) must equal the loop's sample_period ({sample_period:g} s): "
+                f"the {role} is built for one sample period; build it for {sample_period:g} s, or run the loop at {period:g} s",
+            )
 
 
 def _first_line(error: Exception) -> str:
@@ -158,7 +159,12 @@ class Scenario(eqx.Module):
 
     def __check_init__(self):
         for name, kind in (
-            ("plant", Plant), ("sensor", Sensor), ("observer", Observer), ("controller", Controller), ("reference", Reference), ("actuator", Actuator)
+            ("plant", Plant),
+            ("sensor", Sensor),
+            ("observer", Observer),
+            ("controller", Controller),
+            ("reference", Reference),
+            ("actuator", Actuator),
         ):
             value = getattr(self, name)
             if not isinstance(value, kind):
@@ -176,25 +182,31 @@ class Scenario(eqx.Module):
         if self.observer_mode not in ("sampled", "continuous"):
             raise ParameterError("observer_mode", f"observer_mode must be 'sampled' or 'continuous'; got {self.observer_mode!r}")
         if self.observer_mode == "continuous" and not isinstance(self.observer, ContinuousObserver):
-            raise ParameterError("observer_mode", f"observer_mode 'continuous' needs a ContinuousObserver; observer {kind_of(self.observer)} is not one")
+            raise ParameterError(
+                "observer_mode", f"observer_mode 'continuous' needs a ContinuousObserver; observer {kind_of(self.observer)} is not one"
+            )
         substeps = _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
         if substeps * self.plant.noise_size > MAX_COUNT:  # the process noise of a sample is one draw
             most = MAX_COUNT // max(1, self.plant.noise_size)
-            raise ParameterError("plant_step", f"plant_step ({self.plant_step:g} s) makes {substeps} plant steps per sample of {self.sample_period:g} s; at most {most} "
-                             f"({self.plant.noise_size} process noise inputs each): a plant_step of at least {self.sample_period / most:.3g} s")
+            raise ParameterError(
+                "plant_step",
+                f"plant_step ({self.plant_step:g} s) makes {substeps} plant steps per sample of {self.sample_period:g} s; at most {most} "
+                f"({self.plant.noise_size} process noise inputs each): a plant_step of at least {self.sample_period / most:.3g} s",
+            )
         for role in ("observer", "controller"):
             _same_period(role, getattr(self, role), self.sample_period)
         if len(self.sensor.sample_period) != self.sensor.measurement_layout.size:
-            raise ValueError(
-                f"sensor has {len(self.sensor.sample_period)} sample periods for {self.sensor.measurement_layout.size} channels"
-            )
+            raise ValueError(f"sensor has {len(self.sensor.sample_period)} sample periods for {self.sensor.measurement_layout.size} channels")
         for channel, period in enumerate(self.sensor.sample_period):
             _ratio(f"sensor sample_period[{channel}]", period, "sample_period", self.sample_period, ("sensor", "sample_period"))
         outage = getattr(self.sensor, "outage", None)
         if outage is not None and is_concrete(outage.start) and is_concrete(outage.duration):
             start, length = np.asarray(outage.start, dtype=float), np.asarray(outage.duration, dtype=float)
             if np.any((length > 0) & (start >= self.duration)):  # it would silence nothing
-                raise ParameterError(("sensor", "outage_start"), f"sensor outage_start ({float(np.max(start)):g} s) must be before the run's end (duration {self.duration:g} s) for an outage to happen")
+                raise ParameterError(
+                    ("sensor", "outage_start"),
+                    f"sensor outage_start ({float(np.max(start)):g} s) must be before the run's end (duration {self.duration:g} s) for an outage to happen",
+                )
         _ratio("duration", self.duration, "sample_period * record_every", self.sample_period * self.record_every)
         if self.duration / self.sample_period >= 2**32:
             raise ParameterError(
@@ -301,7 +313,9 @@ def _check_fit(scenario: Scenario) -> None:
     truth = _evaluate(("plant", "initial_state"), plant.variables, x0)
     _compare("plant", "initial_state", "plant.variables(initial_state)", {k: _shape_of(v) for k, v in truth.items()}, plant.variable_signals)
     derivative = _evaluate(("plant", "initial_state"), lambda x: plant.vector_field(0.0, x, u0, w0), x0)
-    if jax.tree.structure(derivative) != jax.tree.structure(x0) or [_shape_of(a) for a in jax.tree.leaves(derivative)] != [_shape_of(a) for a in jax.tree.leaves(x0)]:
+    if jax.tree.structure(derivative) != jax.tree.structure(x0) or [_shape_of(a) for a in jax.tree.leaves(derivative)] != [
+        _shape_of(a) for a in jax.tree.leaves(x0)
+    ]:
         raise FitError(("plant", "initial_state"), "plant and initial_state disagree: plant.vector_field returns a state shaped unlike initial_state")
 
     check_sensor_fit(sensor, x0)
@@ -310,7 +324,8 @@ def _check_fit(scenario: Scenario) -> None:
     for name in observer.measurement_layout.names:
         if name not in measured:
             raise ParameterError(
-                "observer", f"observer {kind_of(observer)} needs measurement {name}, which sensor {kind_of(sensor)} does not measure (it measures {', '.join(sensor.measurement_layout.names)})"
+                "observer",
+                f"observer {kind_of(observer)} needs measurement {name}, which sensor {kind_of(sensor)} does not measure (it measures {', '.join(sensor.measurement_layout.names)})",
             )
     if observer.measurement_layout.names != sensor.measurement_layout.names:  # observers read y by position
         raise ValueError(
@@ -330,14 +345,18 @@ def _check_fit(scenario: Scenario) -> None:
             # bias): recorded as an estimate without a truth, and no error is taken of it
             continue
         if (truth_signal.shape, truth_signal.units, truth_signal.labels) != (signal.shape, signal.units, signal.labels):
-            raise FitError(("observer", "plant"),
+            raise FitError(
+                ("observer", "plant"),
                 f"observer and plant disagree: the estimate {signal.name!r} is {signal.shape} in {signal.units} over {signal.labels}, "
-                f"the plant's is {truth_signal.shape} in {truth_signal.units} over {truth_signal.labels}"
+                f"the plant's is {truth_signal.shape} in {truth_signal.units} over {truth_signal.labels}",
             )
     inputs = set(layout.names)
     for name in observer.input_layout.names:
         if name not in inputs:
-            raise ParameterError("observer", f"observer {kind_of(observer)} needs input {name}, which plant {kind_of(plant)} does not take (it takes {', '.join(layout.names)})")
+            raise ParameterError(
+                "observer",
+                f"observer {kind_of(observer)} needs input {name}, which plant {kind_of(plant)} does not take (it takes {', '.join(layout.names)})",
+            )
     predicted = _evaluate(("observer", "plant"), lambda s: observer.predict(s, 0.0, y, u0, scenario.sample_period), state)
     if scenario.observer_mode == "continuous":
         _evaluate(("observer", "observer_mode 'continuous'"), lambda s: observer.vector_field(0.0, s, y, u0), state)
@@ -345,7 +364,9 @@ def _check_fit(scenario: Scenario) -> None:
         raise FitError(("observer", "plant"), "observer and plant disagree: observer.predict returns a state shaped unlike observer.init's")
 
     reference = scenario.reference
-    _, sample = _evaluate(("reference", "scenario"), lambda: reference.step(reference.init(), 0.0, scenario.sample_period, jnp.zeros(reference.noise_size)))
+    _, sample = _evaluate(
+        ("reference", "scenario"), lambda: reference.step(reference.init(), 0.0, scenario.sample_period, jnp.zeros(reference.noise_size))
+    )
     _compare("reference", "its signals", "reference.step", {k: _shape_of(v) for k, v in sample.items()}, reference.reference_signals)
     sample = {s.name: jnp.zeros(s.shape) for s in reference.reference_signals}
 
@@ -354,16 +375,19 @@ def _check_fit(scenario: Scenario) -> None:
     _check_needs(controller, "measurement", controller.measurement_needs, measured, ("sensor", sensor, "does not measure"))
     _check_needs(controller, "reference", controller.reference_needs, set(sample), ("reference", reference, "does not provide"))
     outputs = {k: jnp.zeros(_shape_of(v)) for k, v in estimate.items()}
-    _, u = _evaluate(
-        ("controller", "plant"), lambda: controller.step(controller.init(), 0.0, y, outputs, sample, scenario.sample_period)
-    )
+    _, u = _evaluate(("controller", "plant"), lambda: controller.step(controller.init(), 0.0, y, outputs, sample, scenario.sample_period))
     if _shape_of(u) != (layout.size,):
-        raise FitError(("controller", "plant"), f"controller and plant disagree: the controller's input has shape {_shape_of(u)}, the plant takes ({layout.size},)")
+        raise FitError(
+            ("controller", "plant"),
+            f"controller and plant disagree: the controller's input has shape {_shape_of(u)}, the plant takes ({layout.size},)",
+        )
     actuator = scenario.actuator
     _, applied, outputs = _evaluate(("actuator", "plant"), lambda: actuator.step(actuator.init(), 0.0, u0, scenario.sample_period))
     _compare("actuator", "its signals", "actuator.step", {k: _shape_of(v) for k, v in outputs.items()}, actuator.output_signals)
     if _shape_of(applied) != (layout.size,):
-        raise FitError(("actuator", "plant"), f"actuator and plant disagree: the applied input has shape {_shape_of(applied)}, the plant takes ({layout.size},)")
+        raise FitError(
+            ("actuator", "plant"), f"actuator and plant disagree: the applied input has shape {_shape_of(applied)}, the plant takes ({layout.size},)"
+        )
 
 
 def check_sensor_fit(sensor, state) -> None:
@@ -372,8 +396,9 @@ def check_sensor_fit(sensor, state) -> None:
     and the plant otherwise (the check :func:`check_fit` makes of a scenario's)."""
     y = _evaluate(("sensor", "plant"), lambda x: sensor.measure(x, jnp.zeros(sensor.noise_size)), state)
     if _shape_of(y) != (sensor.measurement_layout.size,):
-        raise FitError(("sensor", "plant"),
-            f"sensor and plant disagree: the measurement has shape {_shape_of(y)}, the sensor's layout says ({sensor.measurement_layout.size},)"
+        raise FitError(
+            ("sensor", "plant"),
+            f"sensor and plant disagree: the measurement has shape {_shape_of(y)}, the sensor's layout says ({sensor.measurement_layout.size},)",
         )
 
 
@@ -392,7 +417,9 @@ def _check_needs(controller, what: str, needs, provided: set, provider: tuple) -
         if name not in provided:
             role, component, verb = provider
             given = ", ".join(sorted(provided)) or "nothing"
-            raise ParameterError("controller", f"controller {kind_of(controller)} needs {what} {name}, which {role} {kind_of(component)} {verb} (it gives {given})")
+            raise ParameterError(
+                "controller", f"controller {kind_of(controller)} needs {what} {name}, which {role} {kind_of(component)} {verb} (it gives {given})"
+            )
 
 
 #: Static loops up to this length are unrolled in Python instead of a lax.scan
@@ -523,7 +550,12 @@ def _initial_carry(scenario: Scenario, key: Array):
     else:
         y0 = scenario.sensor.ideal(x0)
     carry = (
-        x0, scenario.observer.init(y0, scenario.initial_estimate), y0, scenario.reference.init(), scenario.controller.init(), scenario.actuator.init(),
+        x0,
+        scenario.observer.init(y0, scenario.initial_estimate),
+        y0,
+        scenario.reference.init(),
+        scenario.controller.init(),
+        scenario.actuator.init(),
     )
     return jax.tree.map(lambda leaf: jnp.asarray(leaf, dtype=jnp.result_type(leaf)), carry)
 
@@ -567,9 +599,7 @@ def _segment(scenario: Scenario, key: Array, carry, first_record: Array, n_recor
         first = index * every
         carry, record = one(carry, first)
         if every > 1:
-            carry, _ = _static_scan(
-                lambda c, k: (one(c, k)[0], None), carry, first + 1 + jnp.arange(every - 1), every - 1, RECORD_GROUP_UNROLL_LIMIT
-            )
+            carry, _ = _static_scan(lambda c, k: (one(c, k)[0], None), carry, first + 1 + jnp.arange(every - 1), every - 1, RECORD_GROUP_UNROLL_LIMIT)
         if summary is not None:
             accumulated, series = summary.update(accumulated, index, record)
             return (carry, accumulated), series
@@ -636,8 +666,17 @@ def _run(step: Callable, carry, n_records: int, progress, chunks: int, time_axis
 def _trajectory(scenario: Scenario, records, batched: bool) -> Trajectory:
     truth, estimate, measurement, reference, command, applied, actuation = records
     return Trajectory(
-        scenario.record_times, truth, estimate, measurement, reference, command, applied,
-        signals=scenario.record_signals, batched=batched, attrs=_attrs(scenario), actuation=actuation,
+        scenario.record_times,
+        truth,
+        estimate,
+        measurement,
+        reference,
+        command,
+        applied,
+        signals=scenario.record_signals,
+        batched=batched,
+        attrs=_attrs(scenario),
+        actuation=actuation,
     )
 
 
@@ -685,7 +724,9 @@ def stack_scenarios(scenarios: list[Scenario]) -> Scenario:
             raise ValueError(f"scenarios[{index}] must be a lookout Scenario; got {type(scenario).__name__}")
     first = jax.tree.structure(scenarios[0])
     for index, scenario in enumerate(scenarios[1:], start=1):
-        if jax.tree.structure(scenario) != first or [np.shape(a) for a in jax.tree.leaves(scenario)] != [np.shape(a) for a in jax.tree.leaves(scenarios[0])]:
+        if jax.tree.structure(scenario) != first or [np.shape(a) for a in jax.tree.leaves(scenario)] != [
+            np.shape(a) for a in jax.tree.leaves(scenarios[0])
+        ]:
             raise ValueError(
                 f"scenarios[{index}] differs from scenarios[0] in its structure (periods, durations, component types or sizes): "
                 "stacked scenarios may differ in their numbers only"
@@ -731,7 +772,9 @@ def seed_keys(seed: int, runs: int) -> Array:
     if not (isinstance(runs, int) and not isinstance(runs, bool) and runs >= 1):
         raise ValueError(f"runs must be a positive integer; got {runs!r}")
     if not (isinstance(seed, int) and 0 <= seed <= MAX_SEED - runs + 1):
-        raise ValueError(f"seed must be an integer from 0 to {MAX_SEED - runs + 1} (seeds seed ... seed + runs - 1 must fit a signed 64-bit integer); got {seed!r}")
+        raise ValueError(
+            f"seed must be an integer from 0 to {MAX_SEED - runs + 1} (seeds seed ... seed + runs - 1 must fit a signed 64-bit integer); got {seed!r}"
+        )
     refuse_unless_it_fits(KEY_BYTES * runs, f"runs: {runs} keys x {KEY_BYTES} B", "make fewer keys at a time")
     return jax.vmap(jax.random.key)(jnp.arange(runs, dtype=jnp.int64) + seed)
 
@@ -796,14 +839,18 @@ def _checked_scenario(scenario, keys: Array | None = None, batched_scenario: boo
         runs = int(keys.shape[0])
         if leading != {runs}:
             shown = ", ".join("scalars" if size is None else str(size) for size in sorted(leading, key=lambda size: -1 if size is None else size))
-            raise ValueError(f"scenario: with batched_scenario=True every array of the scenario needs a leading run axis of {runs} (one per key); its arrays lead with {shown}")
+            raise ValueError(
+                f"scenario: with batched_scenario=True every array of the scenario needs a leading run axis of {runs} (one per key); its arrays lead with {shown}"
+            )
         check_fit(jax.tree.map(lambda leaf: leaf[0], scenario))
         return
     try:
         check_fit(scenario)
     except ValueError as error:
         stacked = len(leading) == 1 and None not in leading and len(arrays) > 1
-        raise ValueError(f"scenario: {error}" + ("; a scenario stacked per run (stack_scenarios) needs batched_scenario=True" if stacked else "")) from None
+        raise ValueError(
+            f"scenario: {error}" + ("; a scenario stacked per run (stack_scenarios) needs batched_scenario=True" if stacked else "")
+        ) from None
 
 
 def working_nbytes(scenario: Scenario) -> int:
@@ -873,9 +920,7 @@ def summarize_batch(scenario: Scenario, keys: Array, summary: Summary, *, batche
     return _segment_batch(scenario, keys, carry, jnp.asarray(0), scenario.n_records, batched_scenario, summary)[1]
 
 
-def simulate_batch(
-    scenario: Scenario, keys: Array, *, batched_scenario: bool = False, progress=None, chunks: int = 20
-) -> Trajectory:
+def simulate_batch(scenario: Scenario, keys: Array, *, batched_scenario: bool = False, progress=None, chunks: int = 20) -> Trajectory:
     """Simulate a batch of runs with ``jax.vmap``: one run per key.
 
     Parameters

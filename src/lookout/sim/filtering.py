@@ -88,7 +88,9 @@ def checked_guess(observer: Observer, guess):
 def _columns(name: str, array: np.ndarray, rows: int, layout: Layout, owner: str) -> None:
     if array.ndim != 2 or array.shape != (rows, layout.size):
         names = ", ".join(layout.names) or "none"
-        raise ValueError(f"{name} must have shape ({rows}, {layout.size}): {rows} rows and the {layout.size} columns {owner} reads ({names}); got shape {array.shape}")
+        raise ValueError(
+            f"{name} must have shape ({rows}, {layout.size}): {rows} rows and the {layout.size} columns {owner} reads ({names}); got shape {array.shape}"
+        )
 
 
 def step_amplification(observer: Observer, guess, y, u, dt) -> float:
@@ -265,7 +267,10 @@ def filter(  # noqa: A001 - lookout.filter, as the docs name it
         raise ValueError(f"times must be strictly increasing; row {row + 1} ({times[row + 1]:g} s) does not come after row {row} ({times[row]:g} s)")
     measurement_layout = measurement_layout or observer.measurement_layout
     input_layout = input_layout or observer.input_layout
-    for name, layout, wanted in (("measurement_layout", measurement_layout, observer.measurement_layout), ("input_layout", input_layout, observer.input_layout)):
+    for name, layout, wanted in (
+        ("measurement_layout", measurement_layout, observer.measurement_layout),
+        ("input_layout", input_layout, observer.input_layout),
+    ):
         if layout.size != wanted.size:
             raise ValueError(f"{name} must have {wanted.size} entries (the observer reads {', '.join(wanted.names) or 'none'}); got {layout.size}")
     _columns("measurements", measurements, times.size, observer.measurement_layout, "the observer")
@@ -278,7 +283,9 @@ def filter(  # noqa: A001 - lookout.filter, as the docs name it
         raise ValueError(f"measurements hold no finite value ({measurements.shape[0]} rows, all NaN): the observer would have nothing to correct it")
     if not np.all(np.isfinite(inputs)):
         row, column = np.argwhere(~np.isfinite(inputs))[0]
-        raise ValueError(f"inputs must be finite (a missing input has no meaning for the prediction); row {row}, column {column} is {inputs[row, column]}")
+        raise ValueError(
+            f"inputs must be finite (a missing input has no meaning for the prediction); row {row}, column {column} is {inputs[row, column]}"
+        )
     guess = checked_guess(observer, guess)
     _check_log_fits(observer, guess, measurements.shape[1], inputs.shape[1])
     _check_steps(observer, guess, times, measurements, inputs)
@@ -294,11 +301,23 @@ def filter(  # noqa: A001 - lookout.filter, as the docs name it
             stacklevel=2,
         )
     signals = RecordSignals(
-        truth=(), estimate=tuple(observer.estimate_signals), extra=tuple(observer.extra_signals),
-        measurement=measurement_layout, reference=(), input=input_layout,
+        truth=(),
+        estimate=tuple(observer.estimate_signals),
+        extra=tuple(observer.extra_signals),
+        measurement=measurement_layout,
+        reference=(),
+        input=input_layout,
     )
     trajectory = Trajectory(
-        times, {}, estimates, measurements, {}, inputs, inputs, signals=signals, batched=False,
+        times,
+        {},
+        estimates,
+        measurements,
+        {},
+        inputs,
+        inputs,
+        signals=signals,
+        batched=False,
         attrs={"observer": type(observer).__name__, "source_of_data": "log"},
     )
     return trajectory.to_xarray()
@@ -351,7 +370,9 @@ class Stepper:
         if input_size is None:
             input_size = n_u
         if isinstance(input_size, bool) or not isinstance(input_size, (int, np.integer)) or input_size != n_u:
-            raise ValueError(f"input_size must be {n_u}, the length of the observer's input ({', '.join(observer.input_layout.names) or 'none'}); got {input_size!r}")
+            raise ValueError(
+                f"input_size must be {n_u}, the length of the observer's input ({', '.join(observer.input_layout.names) or 'none'}); got {input_size!r}"
+            )
         guess = checked_guess(observer, guess)
         self.observer = observer
         self._measurement_size = n_y
@@ -528,8 +549,10 @@ class Stepper:
         dt = self._number("dt", dt)
         n = times.size
         if n == 0 or ys.shape != (n, self._measurement_size) or us.shape != (n, self._input_size):
-            raise ValueError(f"times, ys and us must have one row per step ({n}) of 1, {self._measurement_size} and {self._input_size} entries; "
-                             f"got shapes {times.shape}, {ys.shape}, {us.shape}")
+            raise ValueError(
+                f"times, ys and us must have one row per step ({n}) of 1, {self._measurement_size} and {self._input_size} entries; "
+                f"got shapes {times.shape}, {ys.shape}, {us.shape}"
+            )
         if not dt > 0:
             raise ValueError(f"dt must be positive (s, the time to the next sample); got {dt:g}")
         if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0) or (self._last_time is not None and not times[0] > self._last_time):

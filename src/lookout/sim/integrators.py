@@ -55,8 +55,18 @@ INTEGRATORS = {"rk4": rk4_step, "euler": euler_step}
 UNROLL_LIMIT = 4
 
 
-def integrate_sample(field: Callable, t, state, dt, steps: int, *, method: str = "rk4", normalize: Callable | None = None,
-                     normalize_each_step: bool = False, unroll_limit: int | None = None):
+def integrate_sample(
+    field: Callable,
+    t,
+    state,
+    dt,
+    steps: int,
+    *,
+    method: str = "rk4",
+    normalize: Callable | None = None,
+    normalize_each_step: bool = False,
+    unroll_limit: int | None = None,
+):
     """Integrate ``state' = field(t, state)`` over one sample [t, t + dt] in equal steps.
 
     The sampled ``predict`` of every continuous-time observer: ``field`` is its vector

@@ -171,7 +171,9 @@ class BenchmarkSpec(BaseModel):
     scenario: str | dict = Field(description="a scenario file (relative to the spec) or an inline composition (may hold a preset)")
     seed: int = 0
     metrics: tuple[str, ...]
-    recommend_by: tuple[str, ...] = Field((), description="the metrics that lead the recommendation, in order (default: benchmark_report.lead_metrics)")
+    recommend_by: tuple[str, ...] = Field(
+        (), description="the metrics that lead the recommendation, in order (default: benchmark_report.lead_metrics)"
+    )
     divergence: Divergence | None = None
     outage_signals: tuple[str, ...] = Field((), description="the measured signals an outage condition silences")
     full: Size
@@ -248,8 +250,6 @@ class Benchmark:
         return located(self.source, self.text, location, message)
 
 
-
-
 def file_form(document: dict) -> str:
     """What a file given to ``--spec`` is: ``"spec"`` (a benchmark spec), ``"scenario"``
     (a scenario file) or ``"campaign"`` (a campaign spec); a FileError-worthy
@@ -257,16 +257,20 @@ def file_form(document: dict) -> str:
     keys = set(document)
     spec, scenario, campaign = keys & SPEC_ONLY, keys & (set(TOP_KEYS) - {"plugins"}), keys & CAMPAIGN_ONLY
     if spec and scenario:
-        raise ValueError(f"mixes a benchmark spec's keys ({', '.join(sorted(spec))}) with a scenario's tables ({', '.join(sorted(scenario))}): "
-                         "put the scenario under [scenario], or give the scenario file alone")
+        raise ValueError(
+            f"mixes a benchmark spec's keys ({', '.join(sorted(spec))}) with a scenario's tables ({', '.join(sorted(scenario))}): "
+            "put the scenario under [scenario], or give the scenario file alone"
+        )
     if scenario:
         return "scenario"
     if campaign and not spec:
         return "campaign"
     if spec or "scenario" in keys:
         return "spec"
-    raise ValueError("is neither a benchmark spec (title, scenario, observers, conditions, full, quick, metrics) "
-                     "nor a scenario file ([plant], [sensor], [observer], ...)")
+    raise ValueError(
+        "is neither a benchmark spec (title, scenario, observers, conditions, full, quick, metrics) "
+        "nor a scenario file ([plant], [sensor], [observer], ...)"
+    )
 
 
 def load_benchmark(path: str | Path) -> Benchmark:
@@ -279,8 +283,10 @@ def load_benchmark(path: str | Path) -> Benchmark:
     except ValueError as error:
         raise FileError(f"{path}: {error}") from None
     if form == "campaign":
-        raise FileError(f"{path}: is a campaign spec ({', '.join(sorted(set(document) & CAMPAIGN_ONLY))}): run it with lookout campaign run {path}; "
-                        "--spec takes a benchmark spec or a scenario file")
+        raise FileError(
+            f"{path}: is a campaign spec ({', '.join(sorted(set(document) & CAMPAIGN_ONLY))}): run it with lookout campaign run {path}; "
+            "--spec takes a benchmark spec or a scenario file"
+        )
     if form == "scenario":
         return scenario_benchmark(path, document, text)
     try:
@@ -356,23 +362,31 @@ def check_spec(benchmark: Benchmark) -> None:
     for size_name in SIZES:
         size = getattr(spec, size_name)
         if size.after is not None and not (math.isfinite(size.after) and 0.0 <= size.after < size.duration):
-            raise benchmark.located((size_name, "after"), f"must be in [0, duration = {size.duration:g} s): the metrics need records after it; got {size.after:g}")
+            raise benchmark.located(
+                (size_name, "after"), f"must be in [0, duration = {size.duration:g} s): the metrics need records after it; got {size.after:g}"
+            )
         if size.outage_start is None:
             if spec.outage_signals:
                 raise benchmark.located((size_name, "outage_start"), "give it (outage_signals names an outage)")
             continue
         if not spec.outage_signals:
-            raise benchmark.located((size_name, "outage_start"), "no outage starts: outage_signals names none (name the signals an outage silences, or drop outage_start)")
+            raise benchmark.located(
+                (size_name, "outage_start"), "no outage starts: outage_signals names none (name the signals an outage silences, or drop outage_start)"
+            )
         if not (math.isfinite(size.outage_start) and 0.0 <= size.outage_start < size.duration):
             raise benchmark.located((size_name, "outage_start"), f"must be in [0, duration = {size.duration:g} s); got {size.outage_start:g}")
     for index, condition in enumerate(spec.conditions):
         if "sensor.outage_start" in condition.changes and _number(condition.changes.get("sensor.outage_duration", 0.0)) <= 0:
-            raise benchmark.located(("conditions", index), f"{condition.name}: sets sensor.outage_start, but the condition has no outage "
-                                    "(\"sensor.outage_duration\" > 0)")
+            raise benchmark.located(
+                ("conditions", index), f'{condition.name}: sets sensor.outage_start, but the condition has no outage ("sensor.outage_duration" > 0)'
+            )
     outages = [c for c in spec.conditions if _number(c.changes.get("sensor.outage_duration", 0.0)) > 0]
     if spec.outage_signals and not outages:
-        raise benchmark.located(("outage_signals",), "no condition has an outage (changes with \"sensor.outage_duration\" > 0): "
-                                "the outage would measure nothing; add one, or drop outage_signals and outage_start")
+        raise benchmark.located(
+            ("outage_signals",),
+            'no condition has an outage (changes with "sensor.outage_duration" > 0): '
+            "the outage would measure nothing; add one, or drop outage_signals and outage_start",
+        )
     for name in spec.recommend_by:
         if name not in spec.metrics:
             raise benchmark.located(("recommend_by",), f"{name!r} is not one of the metrics ({', '.join(spec.metrics)})")
@@ -525,9 +539,15 @@ def scenario_benchmark(path: Path, document: dict, text: str | None) -> Benchmar
     own_reference = copy.deepcopy(merged.get("reference", {"kind": "none"}))
     if shipped is not None:
         sizes = {name: getattr(shipped.spec, name) for name in SIZES}
-        sizes = {name: size.model_copy(update={"duration": _on_grid(size.duration, period),
-                                               "outage_start": None if size.outage_start is None else _on_grid(size.outage_start, period)})
-                 for name, size in sizes.items()}
+        sizes = {
+            name: size.model_copy(
+                update={
+                    "duration": _on_grid(size.duration, period),
+                    "outage_start": None if size.outage_start is None else _on_grid(size.outage_start, period),
+                }
+            )
+            for name, size in sizes.items()
+        }
     else:
         sizes = {}
         for name, fraction in (("full", 1.0), ("quick", 0.5)):
@@ -603,14 +623,19 @@ def scenario_benchmark(path: Path, document: dict, text: str | None) -> Benchmar
             except CompositionError:
                 continue
             truths = {s.name for s in loop.scenario.record_signals.truth}
-            tracked = [s.name.removesuffix("_desired") for s in loop.scenario.record_signals.reference
-                       if s.name.endswith("_desired") and s.name.removesuffix("_desired") in truths]
+            tracked = [
+                s.name.removesuffix("_desired")
+                for s in loop.scenario.record_signals.reference
+                if s.name.endswith("_desired") and s.name.removesuffix("_desired") in truths
+            ]
             break
         open_input = copy.deepcopy(shipped.base.get("controller", {"kind": "none"})) if shipped is not None else {"kind": "none"}
         base["controller"], base["reference"] = open_input, {"kind": "none"}
-        notes.append(f"your controller ({controller_kind}) reads the observer's estimate: the benchmark runs open loop "
-                     f"({'the shipped ' + plant_kind + ' benchmark input, ' + open_input['kind'] if shipped is not None else 'no input'}), "
-                     f"and your loop is the condition 'closed loop ({controller_kind})'")
+        notes.append(
+            f"your controller ({controller_kind}) reads the observer's estimate: the benchmark runs open loop "
+            f"({'the shipped ' + plant_kind + ' benchmark input, ' + open_input['kind'] if shipped is not None else 'no input'}), "
+            f"and your loop is the condition 'closed loop ({controller_kind})'"
+        )
 
     # ---- the conditions
     user = reference_document
@@ -646,8 +671,12 @@ def scenario_benchmark(path: Path, document: dict, text: str | None) -> Benchmar
         sensor_periods = np.atleast_1d(np.asarray((first or own).scenario.sensor.sample_period, dtype=float))
         length = max(float(sensor_periods.max()), _on_grid(sizes["full"].duration * GENERIC_OUTAGE[1], period))
         if outage_signals:
-            conditions.append(Condition(name=f"{length:g} s {outage_signals[0].removeprefix('measured_').replace('_', ' ')} outage",
-                                        changes={"sensor.outage_duration": length}))
+            conditions.append(
+                Condition(
+                    name=f"{length:g} s {outage_signals[0].removeprefix('measured_').replace('_', ' ')} outage",
+                    changes={"sensor.outage_duration": length},
+                )
+            )
         for part, table in _model_parts(user["plant"]).items():
             for key, value in table.items():
                 try:
@@ -658,8 +687,12 @@ def scenario_benchmark(path: Path, document: dict, text: str | None) -> Benchmar
                     continue
                 for sign in (1, -1):
                     changed = array * (1 + sign * GENERIC_MODEL_ERROR)
-                    conditions.append(Condition(name=f"{key.replace('_', ' ')} {'+' if sign > 0 else '-'}{GENERIC_MODEL_ERROR:.0%}".replace("%", " %"),
-                                                truth_only={f"plant.{part}.{key}": changed.tolist() if changed.ndim else float(changed)}))
+                    conditions.append(
+                        Condition(
+                            name=f"{key.replace('_', ' ')} {'+' if sign > 0 else '-'}{GENERIC_MODEL_ERROR:.0%}".replace("%", " %"),
+                            truth_only={f"plant.{part}.{key}": changed.tolist() if changed.ndim else float(changed)},
+                        )
+                    )
         estimated = {s.name for result in built.values() for s in result.scenario.record_signals.estimate}
         metrics = [f"rms_error:{name}" for name in truths if name in estimated]
         unmeasured = [name for name in truths if name in estimated and f"measured_{name}" not in measured]
@@ -678,19 +711,34 @@ def scenario_benchmark(path: Path, document: dict, text: str | None) -> Benchmar
     # what the file sets that the benchmark sets otherwise (a preset's keys are not the file's)
     benchmark_values = {"duration": sizes["full"].duration, "runs": 1, "seed": simulation.seed, "record_every": 1, "observer_mode": "sampled"}
     own_simulation = document.get("simulation", {}) if isinstance(document.get("simulation"), dict) else {}
-    unused = [f"simulation.{key} = {json.dumps(value)}" for key, value in own_simulation.items()
-              if key in benchmark_values and value != benchmark_values[key]]
+    unused = [
+        f"simulation.{key} = {json.dumps(value)}"
+        for key, value in own_simulation.items()
+        if key in benchmark_values and value != benchmark_values[key]
+    ]
     unused += [f"sensor.{key}" for key in document.get("sensor", {}) if key in BENCHMARK_SENSOR]
     origin = f"the shipped {plant_kind} benchmark's" if shipped is not None else "generic"
-    notes.insert(0, f"{source}: a scenario file: its plant ({plant_kind}), sensor and sea; {len(observers)} observers that compose on them; "
-                    f"{origin} conditions and sizes ({sizes['full'].duration:g} s x {sizes['full'].seeds} seeds, quick {sizes['quick'].duration:g} s x "
-                    f"{sizes['quick'].seeds})" + (f"; not used: {', '.join(unused)}" if unused else ""))
+    notes.insert(
+        0,
+        f"{source}: a scenario file: its plant ({plant_kind}), sensor and sea; {len(observers)} observers that compose on them; "
+        f"{origin} conditions and sizes ({sizes['full'].duration:g} s x {sizes['full'].seeds} seeds, quick {sizes['quick'].duration:g} s x "
+        f"{sizes['quick'].seeds})" + (f"; not used: {', '.join(unused)}" if unused else ""),
+    )
     notes += skipped
-    spec = BenchmarkSpec.model_validate({
-        "title": f"{path.name}: {plant_kind}, every observer that composes on it", "scenario": base, "seed": simulation.seed, "metrics": tuple(metrics),
-        "divergence": divergence, "outage_signals": outage_signals, "full": sizes["full"], "quick": sizes["quick"], "observers": observers,
-        "conditions": tuple(conditions),
-    })
+    spec = BenchmarkSpec.model_validate(
+        {
+            "title": f"{path.name}: {plant_kind}, every observer that composes on it",
+            "scenario": base,
+            "seed": simulation.seed,
+            "metrics": tuple(metrics),
+            "divergence": divergence,
+            "outage_signals": outage_signals,
+            "full": sizes["full"],
+            "quick": sizes["quick"],
+            "observers": observers,
+            "conditions": tuple(conditions),
+        }
+    )
     benchmark = Benchmark(spec, path.stem, source, text, base, tuple(notes), True)
     check_spec(benchmark)
     return benchmark
@@ -709,7 +757,9 @@ def base_document(benchmark: Benchmark, size: Size, observer: dict, *, open_loop
     simulation = document.setdefault("simulation", {})
     simulation.update(duration=size.duration, seed=benchmark.spec.seed, runs=1, record_every=1, observer_mode="sampled")
     if benchmark.spec.outage_signals:
-        document.setdefault("sensor", {}).update(outage_signals=list(benchmark.spec.outage_signals), outage_start=size.outage_start, outage_duration=0.0)
+        document.setdefault("sensor", {}).update(
+            outage_signals=list(benchmark.spec.outage_signals), outage_start=size.outage_start, outage_duration=0.0
+        )
     document["observer"] = copy.deepcopy(observer)
     if open_loop:
         document["controller"], document["reference"] = {"kind": "none"}, {"kind": "none"}
@@ -903,8 +953,10 @@ def _fit(benchmark: Benchmark, size_name: str, name: str) -> _Fit:
         raise benchmark.located(where, error.reason) from None
     full = composition.document
     if spec.divergence is not None and spec.divergence.signal not in {s.name for s in composition.scenario.record_signals.truth}:
-        raise benchmark.located(("divergence", "signal"), f"the plant has no variable {spec.divergence.signal!r} "
-                                f"(it has {', '.join(s.name for s in composition.scenario.record_signals.truth)})")
+        raise benchmark.located(
+            ("divergence", "signal"),
+            f"the plant has no variable {spec.divergence.signal!r} (it has {', '.join(s.name for s in composition.scenario.record_signals.truth)})",
+        )
     fit = _Fit(name, full, {}, {}, {}, {}, tuple(metric_fit(spec.metrics, composition.scenario)[0]))
     for index, condition in enumerate(spec.conditions):
         case: dict = {}
@@ -943,8 +995,11 @@ def check_outages(benchmark: Benchmark, size_name: str, fits: list[_Fit] | None 
         if not (spec.outage_signals and isinstance(length, (int, float)) and length > 0 and isinstance(start, (int, float))):
             continue
         if start + length >= size.duration:
-            raise benchmark.located(("conditions", index), f"{condition.name}: the outage ends at {start + length:g} s, not before the {size_name} run "
-                                    f"does ({size.duration:g} s): the recovery after it cannot be measured; start it earlier ({size_name}.outage_start)")
+            raise benchmark.located(
+                ("conditions", index),
+                f"{condition.name}: the outage ends at {start + length:g} s, not before the {size_name} run "
+                f"does ({size.duration:g} s): the recovery after it cannot be measured; start it earlier ({size_name}.outage_start)",
+            )
         for fit in fits or ():
             if index not in fit.cases:
                 continue
@@ -955,8 +1010,11 @@ def check_outages(benchmark: Benchmark, size_name: str, fits: list[_Fit] | None 
             silenced = periods[np.asarray(sensor.outage.channels)]
             first_sample = np.ceil(start / silenced - 1e-9) * silenced
             if np.any(first_sample >= start + length - 1e-9 * max(1.0, start + length)):
-                raise benchmark.located(("conditions", index), f"{condition.name}: the outage of {length:g} s from {start:g} s silences no sample "
-                                        f"of a signal sampled every {float(silenced.max()):g} s: it would measure nothing; make it longer")
+                raise benchmark.located(
+                    ("conditions", index),
+                    f"{condition.name}: the outage of {length:g} s from {start:g} s silences no sample "
+                    f"of a signal sampled every {float(silenced.max()):g} s: it would measure nothing; make it longer",
+                )
             break
 
 
@@ -1014,8 +1072,10 @@ def plan(benchmark: Benchmark, size_name: str, observers: list[str] | None = Non
     for fit in fits:
         runs = [index for index in range(len(spec.conditions)) if index in fit.cases and index not in dropped and fit.metrics[index]]
         if not runs:
-            reason = next(iter(fit.failures.values()), f"no metric applies to it (it estimates "
-                          f"{', '.join(s.name for s in compose(fit.full).scenario.record_signals.estimate)})")
+            reason = next(
+                iter(fit.failures.values()),
+                f"no metric applies to it (it estimates {', '.join(s.name for s in compose(fit.full).scenario.record_signals.estimate)})",
+            )
             if benchmark.lenient:
                 skipped.append(f"skipped {fit.name}: {reason}")
                 continue
@@ -1053,8 +1113,16 @@ def _campaigns_of(benchmark: Benchmark, size_name: str, fit: _Fit, runs: list[in
             "seed": spec.seed,
             "chunk_runs": size.seeds,
             "metrics": list(fit.metrics[indices[0]]),
-            "sweep": {"kind": "grid", "axes": [{"name": "condition", "labels": [spec.conditions[i].name for i in indices],
-                                                "cases": [{} if own_base else fit.cases[i] for i in indices]}]},
+            "sweep": {
+                "kind": "grid",
+                "axes": [
+                    {
+                        "name": "condition",
+                        "labels": [spec.conditions[i].name for i in indices],
+                        "cases": [{} if own_base else fit.cases[i] for i in indices],
+                    }
+                ],
+            },
         }
         if size.after is not None:
             document["after"] = size.after
@@ -1064,7 +1132,9 @@ def _campaigns_of(benchmark: Benchmark, size_name: str, fit: _Fit, runs: list[in
             campaign = campaign_from_document(document, f"{benchmark.source} [observers.{fit.name}]")
         except FileError as error:
             raise _campaign_error(benchmark, size_name, fit.name, indices, str(error)) from None
-        result.append(ObserverCampaign(fit.name, campaign, told(fit.full, spec.observers[fit.name]), store, tuple(spec.conditions[i].name for i in indices)))
+        result.append(
+            ObserverCampaign(fit.name, campaign, told(fit.full, spec.observers[fit.name]), store, tuple(spec.conditions[i].name for i in indices))
+        )
     return result
 
 
@@ -1084,9 +1154,17 @@ def _campaign_error(benchmark: Benchmark, size_name: str, observer: str, indices
         names = [benchmark.spec.conditions[i].name for i in indices]
         named = re.match(r"case '(.*?)'(?: makes no scenario)?: (.*)", reason)
         index = indices[names.index(named.group(1))] if named and named.group(1) in names else indices[0]
-        return benchmark.located(("conditions", index), f"{benchmark.spec.conditions[index].name} (observer {observer}): {named.group(2) if named else reason}")
-    spec_key = {"seeds_per_point": (size_name, "seeds"), "seed": ("seed",), "after": (size_name, "after"), "metrics": ("metrics",),
-                "divergence.signal": ("divergence", "signal"), "sweep": (size_name, "seeds")}.get(key)
+        return benchmark.located(
+            ("conditions", index), f"{benchmark.spec.conditions[index].name} (observer {observer}): {named.group(2) if named else reason}"
+        )
+    spec_key = {
+        "seeds_per_point": (size_name, "seeds"),
+        "seed": ("seed",),
+        "after": (size_name, "after"),
+        "metrics": ("metrics",),
+        "divergence.signal": ("divergence", "signal"),
+        "sweep": (size_name, "seeds"),
+    }.get(key)
     if spec_key is None or not reason:
         return FileError(message)
     return benchmark.located(spec_key, f"(observer {observer}) {reason}")
@@ -1164,8 +1242,10 @@ def prepare(benchmark: Benchmark, size_name: str, out: Path, observers: list[str
             if held is None:
                 raise ValueError(f"--out: {error}") from None
             changed = [_short(_spec_words(line)) for line in differences(held, each.campaign.document())]
-            raise ValueError(f"--out: {path} holds observer {each.name}'s benchmark with other settings ({'; '.join(changed[:3])}"
-                             f"{f'; and {len(changed) - 3} more' if len(changed) > 3 else ''}): give another --out, or remove {path}") from None
+            raise ValueError(
+                f"--out: {path} holds observer {each.name}'s benchmark with other settings ({'; '.join(changed[:3])}"
+                f"{f'; and {len(changed) - 3} more' if len(changed) > 3 else ''}): give another --out, or remove {path}"
+            ) from None
     return prepared
 
 
@@ -1206,22 +1286,35 @@ def check_resources(prepared: list[Prepared], workers: int | None, scheduler: st
         for campaign in each.campaigns:
             memory = chunk_memory(campaign.campaign)
             if per_worker is not None and memory > per_worker:
-                raise ValueError(f"{each.benchmark.source}: {each.size}.seeds = {size.seeds}: a chunk (the {size.seeds} runs of a condition, "
-                                 f"{size.duration:g} s each) needs about {_resources.format_bytes(memory)}, and a worker has "
-                                 f"{_resources.format_bytes(per_worker)} ({count} worker{'s' * (count != 1)}): use fewer seeds, shorter runs, "
-                                 "or fewer workers")
+                raise ValueError(
+                    f"{each.benchmark.source}: {each.size}.seeds = {size.seeds}: a chunk (the {size.seeds} runs of a condition, "
+                    f"{size.duration:g} s each) needs about {_resources.format_bytes(memory)}, and a worker has "
+                    f"{_resources.format_bytes(per_worker)} ({count} worker{'s' * (count != 1)}): use fewer seeds, shorter runs, "
+                    "or fewer workers"
+                )
             store = CampaignStore(each.store(campaign))
             done = store.done() if store.holds(campaign.campaign) else {}
             pending = len(campaign.campaign.chunks()) - len(done)
             need += store_bytes(campaign.campaign, pending) if pending else 0.0
     if prepared:
-        _resources.refuse_unless_it_fits(need, f"the benchmark's stores in {prepared[0].folder.parent}", "free some space, or give --out on another disk",
-                                         available=_resources.free_disk(prepared[0].folder), resource="disk space")
+        _resources.refuse_unless_it_fits(
+            need,
+            f"the benchmark's stores in {prepared[0].folder.parent}",
+            "free some space, or give --out on another disk",
+            available=_resources.free_disk(prepared[0].folder),
+            resource="disk space",
+        )
 
 
 #: A campaign's keys as a benchmark spec names them.
-_SPEC_WORDS = (("sweep.axes[0].labels", "condition names"), ("sweep.axes[0].cases", "conditions"), ("seeds_per_point", "seeds"),
-               ("scenario.simulation.duration", "duration"), ("scenario.sensor.outage_start", "outage_start"), ("scenario.observer", "observer"))
+_SPEC_WORDS = (
+    ("sweep.axes[0].labels", "condition names"),
+    ("sweep.axes[0].cases", "conditions"),
+    ("seeds_per_point", "seeds"),
+    ("scenario.simulation.duration", "duration"),
+    ("scenario.sensor.outage_start", "outage_start"),
+    ("scenario.observer", "observer"),
+)
 
 
 def _spec_words(text: str) -> str:
@@ -1247,8 +1340,15 @@ class Result:
     recommendations: list = field(default_factory=list)
 
 
-def run_benchmark(prepared: Prepared, *, workers: int | None = None, scheduler: str | None = None,
-                  say: Callable[[str], None] = print, progress: Callable[[str, int, int], None] | None = None, command: str = "") -> Result:
+def run_benchmark(
+    prepared: Prepared,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    say: Callable[[str], None] = print,
+    progress: Callable[[str, int, int], None] | None = None,
+    command: str = "",
+) -> Result:
     """Run a prepared benchmark: its campaigns (into ``<folder>/<store>.zarr``, each
     resumed when its store holds it), then each observer's cost, then the results
     (:func:`lookout.studies.benchmark_report.write_results`, with the recommendation per
@@ -1272,8 +1372,10 @@ def run_benchmark(prepared: Prepared, *, workers: int | None = None, scheduler: 
     try:
         for index, each in enumerate(prepared.campaigns):
             label = each.name if each.store == each.name else f"{each.name} at {', '.join(each.conditions)}"
-            say(f"[{index + 1}/{len(prepared.campaigns)}] {label}: {len(each.campaign.chunks())} chunks "
-                f"({len(each.campaign.points)} condition{'s' * (len(each.campaign.points) != 1)} x {each.campaign.settings.seeds_per_point} seeds)")
+            say(
+                f"[{index + 1}/{len(prepared.campaigns)}] {label}: {len(each.campaign.chunks())} chunks "
+                f"({len(each.campaign.points)} condition{'s' * (len(each.campaign.points) != 1)} x {each.campaign.settings.seeds_per_point} seeds)"
+            )
             path = prepared.store(each)
             report = None if progress is None else (lambda done, total, name=each.store: progress(name, done, total))
             run_campaign(each.campaign, path, workers=0 if address is None else None, scheduler=address, say=lambda text: None, progress=report)
@@ -1290,9 +1392,18 @@ def run_benchmark(prepared: Prepared, *, workers: int | None = None, scheduler: 
         told_by[each.name] = each.told
         say(f"{each.name}: {costs[each.name]:.3g} us per sample (the observer alone, one run)")
     spec = prepared.benchmark.spec
-    ds = benchmark_report.collect(stores, costs, told_by, metrics=list(spec.metrics), title=spec.title, command=command,
-                                  changes={c.name: describe_condition(c) for c in spec.conditions}, conditions=prepared.conditions,
-                                  recommend_by=list(spec.recommend_by) or None, skipped=prepared.skipped)
+    ds = benchmark_report.collect(
+        stores,
+        costs,
+        told_by,
+        metrics=list(spec.metrics),
+        title=spec.title,
+        command=command,
+        changes={c.name: describe_condition(c) for c in spec.conditions},
+        conditions=prepared.conditions,
+        recommend_by=list(spec.recommend_by) or None,
+        skipped=prepared.skipped,
+    )
     reports = {each.store: write_report(prepared.store(each), prepared.folder / "reports" / f"{each.store}.html") for each in prepared.campaigns}
     written = benchmark_report.write_results(ds, prepared.folder, reports)
     recommendations = benchmark_report.recommend(ds)

@@ -82,9 +82,19 @@ def lead_metrics(metrics) -> list[str]:
     return tracking + errors
 
 
-def collect(stores: dict[str, Path | list[Path]], costs: dict[str, float], told: dict[str, str], *, metrics: list[str] = (), title: str = "",
-            command: str = "", changes: dict[str, str] | None = None, conditions: list[str] | None = None, recommend_by: list[str] | None = None,
-            skipped: list[str] = ()):
+def collect(
+    stores: dict[str, Path | list[Path]],
+    costs: dict[str, float],
+    told: dict[str, str],
+    *,
+    metrics: list[str] = (),
+    title: str = "",
+    command: str = "",
+    changes: dict[str, str] | None = None,
+    conditions: list[str] | None = None,
+    recommend_by: list[str] | None = None,
+    skipped: list[str] = (),
+):
     """The benchmark's results as one Dataset over ``(observer, condition, seed)``:
     every metric of any observer (NaN where an observer does not estimate the signal,
     or does not run at the condition), in the order of ``metrics`` (``KIND:SIGNAL``;
@@ -123,8 +133,11 @@ def collect(stores: dict[str, Path | list[Path]], costs: dict[str, float], told:
                     if condition in conditions:
                         values[i, conditions.index(condition)] = grid[name].values[k]
         data[name] = (("observer", "condition", "seed"), values, attrs)
-    data["cost"] = (("observer",), np.asarray([costs[o] for o in observers]),
-                    {"units": "us", "long_name": "cost per sample of the observer alone (one run, compiled)"})
+    data["cost"] = (
+        ("observer",),
+        np.asarray([costs[o] for o in observers]),
+        {"units": "us", "long_name": "cost per sample of the observer alone (one run, compiled)"},
+    )
     ds = xr.Dataset(
         data,
         coords={
@@ -132,11 +145,20 @@ def collect(stores: dict[str, Path | list[Path]], costs: dict[str, float], told:
             "condition": ("condition", np.asarray(conditions, dtype=object), {"long_name": "condition (one change from the baseline)"}),
             "seed": ("seed", seeds, {"long_name": "PRNG seed of the run"}),
             "told": ("observer", np.asarray([told[o] for o in observers], dtype=object), {"long_name": "what the observer is given"}),
-            "changes": ("condition", np.asarray([(changes or {}).get(c, "") for c in conditions], dtype=object),
-                        {"long_name": "what the condition changes from the baseline"}),
+            "changes": (
+                "condition",
+                np.asarray([(changes or {}).get(c, "") for c in conditions], dtype=object),
+                {"long_name": "what the condition changes from the baseline"},
+            ),
         },
-        attrs={"title": title, "Conventions": "CF-1.10", "history": command, "source": "lookout benchmark observers",
-               "recommend_by": json.dumps(list(recommend_by) if recommend_by else lead_metrics(metrics)), "skipped": json.dumps(list(skipped))},
+        attrs={
+            "title": title,
+            "Conventions": "CF-1.10",
+            "history": command,
+            "source": "lookout benchmark observers",
+            "recommend_by": json.dumps(list(recommend_by) if recommend_by else lead_metrics(metrics)),
+            "skipped": json.dumps(list(skipped)),
+        },
     )
     return ds
 
@@ -184,13 +206,18 @@ class Recommendation:
         if self.observer is None:
             line = f"{self.condition}: no observer to recommend ({'every observer diverged' if self.excluded else 'no lead metric has a value'})"
         else:
-            cheaper = f"the {'cheaper' if len(self.tied) == 1 else 'cheapest'}" if self.cheaper else f"as cheap (within {COST_TIE:.0%}), the lower median"
+            cheaper = (
+                f"the {'cheaper' if len(self.tied) == 1 else 'cheapest'}" if self.cheaper else f"as cheap (within {COST_TIE:.0%}), the lower median"
+            )
             pick = self.observer + (f" (tied with {', '.join(self.tied)}; {cheaper})" if self.tied else "")
             units = f" {self.units}" if self.units and self.units != "1" else ""
             line = f"{self.condition}: {pick}, {self.label} {_number(self.value)}{units}"
             if self.next is not None:
-                line += f", {_ratio(self.ratio)} than {self.next} (next)" if self.provisional is False else \
-                        f", {_ratio(self.ratio)} than {self.next} by the medians"
+                line += (
+                    f", {_ratio(self.ratio)} than {self.next} (next)"
+                    if self.provisional is False
+                    else f", {_ratio(self.ratio)} than {self.next} by the medians"
+                )
                 line += f", at {_number(self.cost)} us per sample against {_number(self.next_cost)} us"
             else:
                 line += f", at {_number(self.cost)} us per sample" + (" (the only observer measured)" if not self.tied else "")
@@ -218,9 +245,18 @@ def _ratio(ratio: float) -> str:
     return f"{ratio:.0f}x better" if ratio >= 10 else f"{ratio:.1f}x better" if ratio >= 1.1 else f"{ratio:.2f}x better"
 
 
-_LABELS = {"rms_error": "RMS {} error", "max_error": "largest {} error", "rms_tracking": "RMS {} tracking error",
-           "max_tracking": "largest {} tracking error", "settling_time": "settling time of the {} error", "outage_drift": "{} drift in the outage",
-           "recovery_time": "recovery time of {}", "max_excursion": "largest {} excursion", "rms_input": "RMS {}", "max_input": "largest {}"}
+_LABELS = {
+    "rms_error": "RMS {} error",
+    "max_error": "largest {} error",
+    "rms_tracking": "RMS {} tracking error",
+    "max_tracking": "largest {} tracking error",
+    "settling_time": "settling time of the {} error",
+    "outage_drift": "{} drift in the outage",
+    "recovery_time": "recovery time of {}",
+    "max_excursion": "largest {} excursion",
+    "rms_input": "RMS {}",
+    "max_input": "largest {}",
+}
 
 
 def short_label(name: str) -> str:
@@ -233,8 +269,9 @@ def recommend(ds) -> list[Recommendation]:
     """The recommendation per condition of a benchmark's Dataset (:func:`collect`), by
     the rule of the module docstring."""
     lead = [name.replace(":", "__") for name in json.loads(ds.attrs.get("recommend_by") or "[]")]
-    lead = [name for name in lead if name in ds] or [n for n in (x.replace(":", "__") for x in lead_metrics([v.replace("__", ":") for v in ds.data_vars]))
-                                                     if n in ds]
+    lead = [name for name in lead if name in ds] or [
+        n for n in (x.replace(":", "__") for x in lead_metrics([v.replace("__", ":") for v in ds.data_vars])) if n in ds
+    ]
     observers = [str(o) for o in ds.observer.values]
     cost = np.asarray(ds.cost.values, dtype=float)
     found = []
@@ -277,10 +314,25 @@ def recommend(ds) -> list[Recommendation]:
         pick = min(group, key=lambda i: (cost[i] > (1.0 + COST_TIE) * lowest, median[i]))
         cheaper = all(cost[i] > (1.0 + COST_TIE) * cost[pick] for i in group if i != pick)
         ratio = (median[following] / median[pick] if median[pick] > 0 else math.inf) if following is not None else math.nan
-        found.append(Recommendation(
-            condition, observers[pick], metric, short_label(metric), ds[metric].attrs.get("units", ""), median[pick], float(cost[pick]),
-            tuple(observers[i] for i in group if i != pick), None if following is None else observers[following], ratio,
-            math.nan if following is None else float(cost[following]), seeds, provisional, tuple(excluded), cheaper))
+        found.append(
+            Recommendation(
+                condition,
+                observers[pick],
+                metric,
+                short_label(metric),
+                ds[metric].attrs.get("units", ""),
+                median[pick],
+                float(cost[pick]),
+                tuple(observers[i] for i in group if i != pick),
+                None if following is None else observers[following],
+                ratio,
+                math.nan if following is None else float(cost[following]),
+                seeds,
+                provisional,
+                tuple(excluded),
+                cheaper,
+            )
+        )
     return found
 
 
@@ -291,17 +343,20 @@ def overall(recommendations: list[Recommendation]) -> str:
         if each.observer is not None:
             counts[each.observer] = counts.get(each.observer, 0) + 1
     ranked = sorted(counts.items(), key=lambda item: -item[1])
-    return f"over {len(recommendations)} condition{'s' * (len(recommendations) != 1)}: " + \
-        (", ".join(f"{name} recommended at {count}" for name, count in ranked) or "no recommendation")
+    return f"over {len(recommendations)} condition{'s' * (len(recommendations) != 1)}: " + (
+        ", ".join(f"{name} recommended at {count}" for name, count in ranked) or "no recommendation"
+    )
 
 
 def recommendation_rule() -> str:
     """The rule, in one paragraph (for the tables and the report)."""
-    return (f"Per condition, by {{lead}}: observers with a diverged run are not considered; "
-            f"the others are ranked by their median; an observer is clearly worse than the best when its median is more than {MARGIN:.0%} above "
-            f"and the best is lower on enough of the paired seeds for a one-sided sign test at {SIGN_LEVEL:.0%} ({sign_test_wins(4)} of 4, "
-            f"{sign_test_wins(16)} of 16); the observers ranked above the first clearly worse one tie with the best, and the cheapest of them "
-            f"is recommended (costs within {COST_TIE:.0%} count as equal, and then the lower median).")
+    return (
+        f"Per condition, by {{lead}}: observers with a diverged run are not considered; "
+        f"the others are ranked by their median; an observer is clearly worse than the best when its median is more than {MARGIN:.0%} above "
+        f"and the best is lower on enough of the paired seeds for a one-sided sign test at {SIGN_LEVEL:.0%} ({sign_test_wins(4)} of 4, "
+        f"{sign_test_wins(16)} of 16); the observers ranked above the first clearly worse one tie with the best, and the cheapest of them "
+        f"is recommended (costs within {COST_TIE:.0%} count as equal, and then the lower median)."
+    )
 
 
 def _metric_parts(name: str) -> tuple[str, str]:
@@ -378,7 +433,12 @@ def summary_table(ds, outage: tuple[str, str | None] | None, convergence: str | 
     for i, observer in enumerate(ds.observer.values):
         diverged = ds["diverged"].values[i]
         finished = np.isfinite(diverged)
-        row = [str(observer), str(ds.told.values[i]), _number(float(ds.cost.values[i])), f"{int(np.sum(diverged[finished] > 0.5))} of {int(finished.sum())}"]
+        row = [
+            str(observer),
+            str(ds.told.values[i]),
+            _number(float(ds.cost.values[i])),
+            f"{int(np.sum(diverged[finished] > 0.5))} of {int(finished.sum())}",
+        ]
         if convergence:
             median = _statistics(ds[convergence].values[i, 0], diverged[0])[0] if convergence in ds else np.nan
             row.append(_number(median))
@@ -416,9 +476,12 @@ def markdown(ds) -> str:
     if ds.attrs.get("history"):
         parts += [f"`{ds.attrs['history']}`", ""]
     seeds = ds.sizes["seed"]
-    parts += [f"Each cell: the median over {seeds} seeds (the same seeds for every observer); **bold**: the best of the column and those "
-              f"within {TIE:.0%} of it; —: no value (the observer does not estimate the signal; for the outage, no outage or no recovery "
-              "within the run).", ""]
+    parts += [
+        f"Each cell: the median over {seeds} seeds (the same seeds for every observer); **bold**: the best of the column and those "
+        f"within {TIE:.0%} of it; —: no value (the observer does not estimate the signal; for the outage, no outage or no recovery "
+        "within the run).",
+        "",
+    ]
     recommendations = recommend(ds)
     parts += ["#### Which observer", ""] + [f"- {each.text()}" for each in recommendations] + ["", overall(recommendations) + ".", ""]
     parts += [rule_text(ds), ""]
@@ -435,8 +498,13 @@ def markdown(ds) -> str:
 def rule_text(ds) -> str:
     """The recommendation's rule with this benchmark's lead metrics."""
     lead = [short_label(name.replace(":", "__")) for name in json.loads(ds.attrs.get("recommend_by") or "[]")]
-    words = f"the {lead[0]}" if len(lead) == 1 else f"the one of {', '.join(lead)} that the most observers have there (the first on a tie)" \
-        if lead else "the RMS errors"
+    words = (
+        f"the {lead[0]}"
+        if len(lead) == 1
+        else f"the one of {', '.join(lead)} that the most observers have there (the first on a tie)"
+        if lead
+        else "the RMS errors"
+    )
     return recommendation_rule().format(lead=words)
 
 
@@ -452,8 +520,20 @@ def rows_csv(ds) -> list[dict]:
         for i, observer in enumerate(ds.observer.values):
             for j, condition in enumerate(ds.condition.values):
                 median, low, high, bad, runs = _statistics(ds[name].values[i, j], ds["diverged"].values[i, j])
-                rows.append({"observer": observer, "condition": condition, "metric": name.replace("__", ":"), "units": ds[name].attrs.get("units", ""),
-                             "median": median, f"p{LOW}": low, f"p{HIGH}": high, "runs": runs, "diverged": bad, "cost_us": float(ds.cost.values[i])})
+                rows.append(
+                    {
+                        "observer": observer,
+                        "condition": condition,
+                        "metric": name.replace("__", ":"),
+                        "units": ds[name].attrs.get("units", ""),
+                        "median": median,
+                        f"p{LOW}": low,
+                        f"p{HIGH}": high,
+                        "runs": runs,
+                        "diverged": bad,
+                        "cost_us": float(ds.cost.values[i]),
+                    }
+                )
     return rows
 
 
@@ -484,12 +564,19 @@ def metric_figure(ds, name: str):
             continue
         position = x - 0.4 + width * (i + 0.5)
         # markers, not bars: a bar's length means nothing on a log scale
-        ax.errorbar(position, median, yerr=[median - low, high - median], fmt="o", color=color, markersize=5, elinewidth=1.2, capsize=2.5,
-                    label=str(observer))
+        ax.errorbar(
+            position, median, yerr=[median - low, high - median], fmt="o", color=color, markersize=5, elinewidth=1.2, capsize=2.5, label=str(observer)
+        )
         for j, s in enumerate(stats):
             if s[3]:
-                ax.annotate(f"{s[3]} div.", (position[j], np.nanmax([median[j], 1e-300]) if np.isfinite(median[j]) else 1.0),
-                            fontsize=7, ha="center", va="bottom", rotation=90)
+                ax.annotate(
+                    f"{s[3]} div.",
+                    (position[j], np.nanmax([median[j], 1e-300]) if np.isfinite(median[j]) else 1.0),
+                    fontsize=7,
+                    ha="center",
+                    va="bottom",
+                    rotation=90,
+                )
     _log_axis(ax.yaxis)
     ax.set_xticks(x, conditions, rotation=20, ha="right")
     for edge in x[:-1] + 0.5:
@@ -636,17 +723,32 @@ def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> d
         (figure_folder / name).write_bytes(images[name])
     written["figures"] = figure_folder
     metrics, outage, convergence = _names(ds)
-    parts = ["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
-             f"<title>{html.escape(ds.attrs.get('title', 'benchmark'))}</title>", f"<style>{STYLE}</style>", "</head>", "<body>",
-             f"<h1>{html.escape(ds.attrs.get('title', 'benchmark'))}</h1>"]
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
+        f"<title>{html.escape(ds.attrs.get('title', 'benchmark'))}</title>",
+        f"<style>{STYLE}</style>",
+        "</head>",
+        "<body>",
+        f"<h1>{html.escape(ds.attrs.get('title', 'benchmark'))}</h1>",
+    ]
     if ds.attrs.get("history"):
         parts.append(f"<p>Made by <code>{html.escape(ds.attrs['history'])}</code>.</p>")
-    parts.append(f"<p>Medians over {ds.sizes['seed']} seeds, the same for every observer; the best of each column, and those within "
-                 f"{TIE:.0%} of it, in bold; —: no value (the observer does not estimate the signal; for the outage, no outage or no "
-                 "recovery within the run).</p>")
+    parts.append(
+        f"<p>Medians over {ds.sizes['seed']} seeds, the same for every observer; the best of each column, and those within "
+        f"{TIE:.0%} of it, in bold; —: no value (the observer does not estimate the signal; for the outage, no outage or no "
+        "recovery within the run).</p>"
+    )
     recommendations = recommend(ds)
     items = "".join(f"<li>{html.escape(each.text())}</li>" for each in recommendations)
-    parts += ["<h2>Which observer</h2>", f"<ul>{items}</ul>", f"<p>{html.escape(overall(recommendations))}.</p>", f"<p>{html.escape(rule_text(ds))}</p>"]
+    parts += [
+        "<h2>Which observer</h2>",
+        f"<ul>{items}</ul>",
+        f"<p>{html.escape(overall(recommendations))}.</p>",
+        f"<p>{html.escape(rule_text(ds))}</p>",
+    ]
     parts += ["<h2>The conditions</h2>", _html_table(*conditions_table(ds))]
     parts += ["<h2>The observers</h2>", _html_table(*summary_table(ds, outage, convergence))]
     skipped = json.loads(ds.attrs.get("skipped") or "[]")
@@ -654,10 +756,16 @@ def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> d
         parts += ["<p>Not run:</p>", "<ul>" + "".join(f"<li>{html.escape(line)}</li>" for line in skipped) + "</ul>"]
     parts += [f'<figure><img src="data:image/png;base64,{base64.b64encode(images["cost.png"]).decode()}" alt="cost per sample"></figure>']
     for name in metrics:
-        parts += [f"<h2>{html.escape(metric_label(ds, name))}</h2>", _html_table(*cell_table(ds, name)),
-                  f'<figure><img src="data:image/png;base64,{base64.b64encode(images[name + ".png"]).decode()}" alt="{html.escape(name)}"></figure>']
+        parts += [
+            f"<h2>{html.escape(metric_label(ds, name))}</h2>",
+            _html_table(*cell_table(ds, name)),
+            f'<figure><img src="data:image/png;base64,{base64.b64encode(images[name + ".png"]).decode()}" alt="{html.escape(name)}"></figure>',
+        ]
     if outage:
-        parts += ["<h2>The outage</h2>", f'<figure><img src="data:image/png;base64,{base64.b64encode(images["outage.png"]).decode()}" alt="outage"></figure>']
+        parts += [
+            "<h2>The outage</h2>",
+            f'<figure><img src="data:image/png;base64,{base64.b64encode(images["outage.png"]).decode()}" alt="outage"></figure>',
+        ]
     if reports:
         links = "".join(f'<li><a href="{html.escape(str(path.relative_to(folder)))}">{html.escape(name)}</a></li>' for name, path in reports.items())
         parts += ["<h2>Each observer's campaign</h2>", f"<ul>{links}</ul>"]
@@ -666,7 +774,11 @@ def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> d
     written["report"] = folder / "report.html"
     from lookout._json import json_safe
 
-    summary = {"title": ds.attrs.get("title"), "cost_us": dict(zip(map(str, ds.observer.values), map(float, ds.cost.values))),
-               "recommendations": [each.as_dict() for each in recommendations], "skipped": skipped}
+    summary = {
+        "title": ds.attrs.get("title"),
+        "cost_us": dict(zip(map(str, ds.observer.values), map(float, ds.cost.values))),
+        "recommendations": [each.as_dict() for each in recommendations],
+        "skipped": skipped,
+    }
     (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False) + "\n")
     return written

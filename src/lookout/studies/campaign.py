@@ -78,9 +78,13 @@ class Axis(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    field: str | tuple[str, ...] | None = Field(None, description="key path(s) of the scenario's composition (plant.waves.peak_frequency, observer), set to the same value")
+    field: str | tuple[str, ...] | None = Field(
+        None, description="key path(s) of the scenario's composition (plant.waves.peak_frequency, observer), set to the same value"
+    )
     values: tuple[Any, ...] | None = Field(None, description="the values (grid)")
-    cases: tuple[dict[str, Any], ...] | None = Field(None, description="instead of field and values: per value, key path -> value of the keys it sets (grid)")
+    cases: tuple[dict[str, Any], ...] | None = Field(
+        None, description="instead of field and values: per value, key path -> value of the keys it sets (grid)"
+    )
     labels: tuple[str | float, ...] | None = Field(None, description="the cases' names in the store and report (default: what each case sets)")
     range: tuple[float, float] | None = Field(None, description="[low, high]: steps values (grid) or strata (latin-hypercube)")
     steps: int | None = Field(None, description="number of evenly spaced values over range (grid)")
@@ -202,7 +206,9 @@ class Sweep(BaseModel):
             raise ValueError(f"axis names repeat: {labels}; give each axis a distinct name")
         reserved = sorted({label for label in labels if label in RESERVED_NAMES or "__" in label})
         if reserved:
-            raise ValueError(f"axis name {reserved[0]!r} is taken by the store (point, seed, diverged, and metric names with '__'); give the axis another name")
+            raise ValueError(
+                f"axis name {reserved[0]!r} is taken by the store (point, seed, diverged, and metric names with '__'); give the axis another name"
+            )
         return self
 
 
@@ -330,8 +336,9 @@ class Campaign:
     def chunks(self) -> list[Chunk]:
         size = self.chunk_runs
         return [
-            Chunk(point * self.blocks + block, point, block, self.seeds[block * size: (block + 1) * size])
-            for point in range(len(self.points)) for block in range(self.blocks)
+            Chunk(point * self.blocks + block, point, block, self.seeds[block * size : (block + 1) * size])
+            for point in range(len(self.points))
+            for block in range(self.blocks)
         ]
 
     def document(self) -> dict:
@@ -425,8 +432,10 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
 
     if "scenario" not in document and ({"preset", "plant", "observer"} & set(document)):
         name = Path(source).name
-        raise FileError(f"{source}: a scenario file, not a campaign spec: run it with lookout run {source}, or sweep it from a spec "
-                        f"that names it (scenario = \"{name}\", with [sweep] axes; docs/studies.md)")
+        raise FileError(
+            f"{source}: a scenario file, not a campaign spec: run it with lookout run {source}, or sweep it from a spec "
+            f'that names it (scenario = "{name}", with [sweep] axes; docs/studies.md)'
+        )
     try:
         settings = validate_strictly(CampaignSettings, document)
     except ValidationError as error:
@@ -471,7 +480,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
             except FileError as error:
                 raise located(source, text, location, str(error)) from None
         # every value of the axis must make a valid scenario (checked on the base)
-        for value in (_grid_values(axis) if settings.sweep.kind == "grid" else list(axis.range)):
+        for value in _grid_values(axis) if settings.sweep.kind == "grid" else list(axis.range):
             changes = _axis_changes(axis, base_values, value)
             where = ("sweep", "axes", index, "cases" if axis.cases is not None else "values" if axis.values is not None else "range")
             word = "case" if axis.cases is not None else "value"
@@ -499,7 +508,9 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
             if signal not in {s.name for s in scenario_object.record_signals.truth}:
                 raise ValueError(f"the plant has no variable {signal!r}")
     except ValueError as error:
-        raise located(source, text, ("metrics",) if settings.divergence is None or "variable" not in str(error) else ("divergence", "signal"), str(error)) from None
+        raise located(
+            source, text, ("metrics",) if settings.divergence is None or "variable" not in str(error) else ("divergence", "signal"), str(error)
+        ) from None
     if settings.trajectories is not None:
         recorded = {name for _, name, _ in scenario_object.record_signals.variables()}
         for signal in settings.trajectories.signals:
@@ -517,7 +528,9 @@ def _check_window(settings: CampaignSettings, scenario, source: str, text: str |
     if after > last + 1e-9 * max(1.0, abs(after)):
         if value is None:
             raise located(source, text, ("after",), f"{after:g} s is past the end of the run ({last:g} s): the metrics would have no record")
-        raise located(source, text, where, f"value {value!r}: after ({after:g} s) is past the end of that run ({last:g} s): the metrics would have no record")
+        raise located(
+            source, text, where, f"value {value!r}: after ({after:g} s) is past the end of that run ({last:g} s): the metrics would have no record"
+        )
 
 
 #: What the driver holds per run (the seed as a Python int in the seed tuples, its
@@ -630,8 +643,7 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
     compiled = shape in _COMPUTED
     keys = keys_of_seeds(list(seeds))
     metrics = metric_module.resolve(list(campaign.metric_names), scenario)
-    options = {"after": campaign.settings.after, "divergence": campaign.divergence_at(point),
-               "outage": metric_module.outage_of(scenario)}
+    options = {"after": campaign.settings.after, "divergence": campaign.divergence_at(point), "outage": metric_module.outage_of(scenario)}
     kept = campaign.settings.trajectories
     if kept is None:  # the metrics accumulate as the runs go; no records are held
         out = metric_module.summarize(scenario, keys, metrics, **options)

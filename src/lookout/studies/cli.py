@@ -34,6 +34,7 @@ def console_print(text: str) -> None:
 #: a bracketed IPv6 address) and a port.
 SCHEDULER_ADDRESS = re.compile(r"(?:[a-z][a-z0-9+.-]*://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):[0-9]{1,5}")
 
+
 def _check_cluster_options(workers: int | None, scheduler: str | None) -> None:
     """Refuse (one line) a negative --workers, both options, or a scheduler address without a port."""
     if workers is not None and workers < 0:
@@ -81,8 +82,11 @@ def _default_metrics(scenario) -> list[str]:
     record = scenario.record_signals
     truths = {s.name for s in record.truth}
     names = [f"rms_error:{s.name}" for s in record.estimate if s.name in truths]
-    names += [f"rms_tracking:{s.name.removesuffix('_desired')}" for s in record.reference
-              if s.name.endswith("_desired") and s.name.removesuffix("_desired") in truths]
+    names += [
+        f"rms_tracking:{s.name.removesuffix('_desired')}"
+        for s in record.reference
+        if s.name.endswith("_desired") and s.name.removesuffix("_desired") in truths
+    ]
     if "thrust" in {s.name for s in record.actuation} and getattr(scenario.actuator, "layout", None) is not None:
         names += ["mean_power:thrust", "time_at_limit:thrust"]
     return names
@@ -97,12 +101,25 @@ def _batched(trajectory):
     if trajectory.batched:
         return trajectory
     add = lambda tree: jax.tree.map(lambda a: a[None], tree)  # noqa: E731
-    return Trajectory(trajectory.time, add(trajectory.truth), add(trajectory.estimate), add(trajectory.measurement), add(trajectory.reference),
-                      add(trajectory.command), add(trajectory.applied), trajectory.signals, True, trajectory.attrs, add(trajectory.actuation))
+    return Trajectory(
+        trajectory.time,
+        add(trajectory.truth),
+        add(trajectory.estimate),
+        add(trajectory.measurement),
+        add(trajectory.reference),
+        add(trajectory.command),
+        add(trajectory.applied),
+        trajectory.signals,
+        True,
+        trajectory.attrs,
+        add(trajectory.actuation),
+    )
 
 
 def run(
-    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file (see examples/ and `lookout reproduce NAME --write-scenario FILE`).")],
+    scenario_file: Annotated[
+        str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file (see examples/ and `lookout reproduce NAME --write-scenario FILE`).")
+    ],
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder; created with its missing parents.")] = "out/run",
     runs: Annotated[int | None, typer.Option(metavar="N", help="Runs over seeds (vmapped), instead of the file's own runs.")] = None,
     seed: Annotated[int | None, typer.Option(metavar="INT", help="Seed of run 0, instead of the file's own seed.")] = None,
@@ -129,7 +146,9 @@ def run(
             raise InputError(f"--out: {Path(out) / name} is a folder, and lookout run writes the file {name} there; give another --out")
     spec, scenario = _scenario(scenario_file, runs, seed)
     # the count, not the seeds: nothing that grows with the runs is made before the check
-    check_memory([(scenario, spec.runs)], "--runs" if runs is not None else spec.runs_key, spec.runs_key.replace("runs", "duration"), where=scenario_file)
+    check_memory(
+        [(scenario, spec.runs)], "--runs" if runs is not None else spec.runs_key, spec.runs_key.replace("runs", "duration"), where=scenario_file
+    )
     _check_conditions(spec, scenario_file)
     _warn_late_schedule(spec, scenario_file)
     folder = created_folder("--out", out)
@@ -140,7 +159,11 @@ def run(
     failed = metric_module.failures(_batched(trajectory), bound)
     ds = with_status(ds, failed, bound)
     write_netcdf(ds, folder / "run.nc", history=f"lookout run {scenario_file} (seeds {spec.seeds[0]}..{spec.seeds[-1]})")
-    save(spec, folder / "scenario.toml", header=f"lookout scenario, as run into this folder from {scenario_file}.\nRun it again with: lookout run scenario.toml --out DIR")
+    save(
+        spec,
+        folder / "scenario.toml",
+        header=f"lookout scenario, as run into this folder from {scenario_file}.\nRun it again with: lookout run scenario.toml --out DIR",
+    )
     figures = _write_figures(ds, folder, spec.title)
 
     metrics = metric_module.resolve(_default_metrics(scenario), scenario)
@@ -151,7 +174,9 @@ def run(
         "status": ds.status.values.tolist(),
         "failures": [None if failure is None else {"time": failure.time, "record": failure.record, "cause": failure.cause} for failure in failed],
         "divergence": None if bound is None else {"signal": bound.signal, "limit": bound.limit},
-        "metrics": {m.name: {"units": m.units, "description": m.description + " (t >= half the run)", "per_run": values[m.variable].tolist()} for m in metrics},
+        "metrics": {
+            m.name: {"units": m.units, "description": m.description + " (t >= half the run)", "per_run": values[m.variable].tolist()} for m in metrics
+        },
         "files": list(RUN_FILES) + figures,
     }
     (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2, allow_nan=False) + "\n")
@@ -194,17 +219,29 @@ def _check_conditions(spec, scenario_file: str) -> None:
             raise InputError(f"{scenario_file}: simulation.conditions is 'require', and the conditions cannot be checked: {error}") from None
         print(f"warning: the design conditions of {scenario_file} were not checked: {error}", file=sys.stderr)
         return
-    failing = [f"{d.role} {d.kind}: {c.name} (" + ", ".join(f"{i.relation}: {i.left:.4g} {i.comparison} {i.right:.4g} {i.units}".rstrip() + " fails"
-                                                   for i in c.inequalities if i.verdict == "fails") + ")"
-               for d in designs for c in d.report.conditions if c.verdict == "fails"]
+    failing = [
+        f"{d.role} {d.kind}: {c.name} ("
+        + ", ".join(
+            f"{i.relation}: {i.left:.4g} {i.comparison} {i.right:.4g} {i.units}".rstrip() + " fails" for i in c.inequalities if i.verdict == "fails"
+        )
+        + ")"
+        for d in designs
+        for c in d.report.conditions
+        if c.verdict == "fails"
+    ]
     if not failing:
         return
     text = "; ".join(failing)
     if mode == "require":
-        raise InputError(f"{scenario_file}: simulation.conditions is 'require', and {len(failing)} design condition(s) fail: {text}; "
-                         f"lookout design {scenario_file} --propose gives gains that meet them")
-    print(f"warning: {len(failing)} design condition(s) of {scenario_file} fail: {text} (lookout design {scenario_file} shows them; "
-          f"[simulation] conditions = \"require\" refuses such a run)", file=sys.stderr)
+        raise InputError(
+            f"{scenario_file}: simulation.conditions is 'require', and {len(failing)} design condition(s) fail: {text}; "
+            f"lookout design {scenario_file} --propose gives gains that meet them"
+        )
+    print(
+        f"warning: {len(failing)} design condition(s) of {scenario_file} fail: {text} (lookout design {scenario_file} shows them; "
+        f'[simulation] conditions = "require" refuses such a run)',
+        file=sys.stderr,
+    )
 
 
 def _warn_late_schedule(spec, scenario_file: str) -> None:
@@ -222,9 +259,12 @@ def _warn_late_schedule(spec, scenario_file: str) -> None:
     late = [(i, float(t)) for i, t in enumerate(np.asarray(times, dtype=float)) if t >= duration]
     if late:
         shown = ", ".join(f"reference.schedule_times[{i}] = {t:g} s" for i, t in late[:3]) + (f" and {len(late) - 3} more" if len(late) > 3 else "")
-        print(f"warning: {scenario_file}: {shown} at or after the run's end (simulation.duration {duration:g} s): "
-              f"{'that setpoint is' if len(late) == 1 else 'those setpoints are'} never reached; lengthen the run or drop "
-              f"{'it' if len(late) == 1 else 'them'}", file=sys.stderr)
+        print(
+            f"warning: {scenario_file}: {shown} at or after the run's end (simulation.duration {duration:g} s): "
+            f"{'that setpoint is' if len(late) == 1 else 'those setpoints are'} never reached; lengthen the run or drop "
+            f"{'it' if len(late) == 1 else 'them'}",
+            file=sys.stderr,
+        )
 
 
 def warn_limited(ds) -> None:
@@ -237,9 +277,12 @@ def warn_limited(ds) -> None:
 
     over = [f"{name} {fraction:.0%} (run {run})" for name, (fraction, run) in limited_fraction(ds).items() if fraction > LIMITED_WARNING_FRACTION]
     if over:
-        print(f"warning: the actuator limited the command longer than {LIMITED_WARNING_FRACTION:.0%} of the time: {', '.join(over)}; "
-              f"the loop asks for more than the actuator gives, so it is not the loop designed: lower the controller's gains "
-              f"or the reference's demands (input.png shows where)", file=sys.stderr)
+        print(
+            f"warning: the actuator limited the command longer than {LIMITED_WARNING_FRACTION:.0%} of the time: {', '.join(over)}; "
+            f"the loop asks for more than the actuator gives, so it is not the loop designed: lower the controller's gains "
+            f"or the reference's demands (input.png shows where)",
+            file=sys.stderr,
+        )
 
 
 def with_status(ds, failed: list, bound):
@@ -249,7 +292,9 @@ def with_status(ds, failed: list, bound):
 
     ds = ds.copy()
     ds["status"] = ("run", np.asarray(["finite" if f is None else "diverged" for f in failed], dtype=object), ds["status"].attrs)
-    rule = "a non-finite truth or estimate" + ("" if bound is None else f", or the estimation or tracking error of {bound.signal} beyond {bound.limit:g}")
+    rule = "a non-finite truth or estimate" + (
+        "" if bound is None else f", or the estimation or tracking error of {bound.signal} beyond {bound.limit:g}"
+    )
     ds["status"].attrs["comment"] = f"diverged: {rule}"
     ds["failure"] = ("run", np.asarray(["" if f is None else str(f) for f in failed], dtype=object), {"long_name": "why and where the run failed"})
     return ds
@@ -309,7 +354,9 @@ def _store_path(option: str, text: str, *, must_exist: bool) -> Path:
     path = Path(text)
     if must_exist:
         if not (path / "_lookout" / "campaign.json").exists():
-            raise InputError(f"{option}: {path} is not a campaign store (no {path / '_lookout' / 'campaign.json'}); make one with lookout campaign run SPEC --out {path}")
+            raise InputError(
+                f"{option}: {path} is not a campaign store (no {path / '_lookout' / 'campaign.json'}); make one with lookout campaign run SPEC --out {path}"
+            )
     elif path.exists() and not path.is_dir():
         raise InputError(f"{option} must be a folder; {path} is an existing file")
     elif not path.exists():
@@ -322,9 +369,12 @@ def campaign_run(
     spec: Annotated[str, typer.Argument(metavar="SPEC.toml", help="A campaign spec (see examples/).")],
     out: Annotated[str, typer.Option(metavar="STORE", help="The Zarr store; an existing store of the same spec is resumed.")] = "out/campaign.zarr",
     workers: Annotated[
-        int | None, typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
+        int | None,
+        typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core"),
     ] = None,
-    scheduler: Annotated[str | None, typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")
+    ] = None,
 ) -> None:
     """Run (or resume) a campaign: each chunk of the sweep is one vmapped batch and one
     dask task; the metrics go to the store as chunks finish."""
@@ -340,7 +390,11 @@ def campaign_run(
         task = bar.add_task("chunks", total=len(campaign.chunks()), completed=0)
         try:
             result = run_campaign(
-                campaign, store, workers=workers, scheduler=scheduler, say=say,
+                campaign,
+                store,
+                workers=workers,
+                scheduler=scheduler,
+                say=say,
                 progress=lambda done, total: bar.update(task, completed=done),
             )
         except SchedulerError as error:
@@ -366,8 +420,12 @@ def campaign_status(
         return
     say = console_print
     say(f"{path}: {info['title']}")
-    say(f"chunks: {info['chunks_done']} of {info['chunks']} done ({info['runs_done']} of {info['runs']} runs); {'complete' if info['complete'] else 'incomplete: run lookout campaign run SPEC --out ' + str(path) + ' to resume'}")
-    say(f"points: {info['points']} ({info['sweep_kind']} over {', '.join(info['axes']) or 'no axes'}), seeds per point: {info['seeds_per_point']}, chunk runs: {info['chunk_runs']}")
+    say(
+        f"chunks: {info['chunks_done']} of {info['chunks']} done ({info['runs_done']} of {info['runs']} runs); {'complete' if info['complete'] else 'incomplete: run lookout campaign run SPEC --out ' + str(path) + ' to resume'}"
+    )
+    say(
+        f"points: {info['points']} ({info['sweep_kind']} over {', '.join(info['axes']) or 'no axes'}), seeds per point: {info['seeds_per_point']}, chunk runs: {info['chunk_runs']}"
+    )
     say(f"compute time in finished chunks: {info['chunk_seconds']:.1f} s; diverged runs so far: {info['diverged']}")
     say(f"lookout {info['lookout_version']}, created {info['created']}, fingerprint {info['fingerprint']}")
 
@@ -405,18 +463,29 @@ benchmark_app = typer.Typer(
 
 @benchmark_app.command("observers")
 def benchmark_observers(
-    out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder: one subfolder per plant, with its stores, tables, figures and report.")] = "out/benchmark",
-    plant: Annotated[str | None, typer.Option(metavar="KIND", help="Only this plant's benchmark (dp-vessel, cybership-ii, manipulator).", show_default="every shipped one")] = None,
+    out: Annotated[
+        str, typer.Option(metavar="FOLDER", help="Output folder: one subfolder per plant, with its stores, tables, figures and report.")
+    ] = "out/benchmark",
+    plant: Annotated[
+        str | None,
+        typer.Option(metavar="KIND", help="Only this plant's benchmark (dp-vessel, cybership-ii, manipulator).", show_default="every shipped one"),
+    ] = None,
     spec: Annotated[
         str | None,
-        typer.Option(metavar="FILE.toml", help="Your own benchmark spec (see lookout/studies/benchmarks/), or a scenario file: its plant, sensor and sea, "
-                                               "every observer that composes on them, its own observer as given, the plant kind's conditions."),
+        typer.Option(
+            metavar="FILE.toml",
+            help="Your own benchmark spec (see lookout/studies/benchmarks/), or a scenario file: its plant, sensor and sea, "
+            "every observer that composes on them, its own observer as given, the plant kind's conditions.",
+        ),
     ] = None,
     quick: Annotated[bool, typer.Option("--quick", help="The specs' quick size: shorter runs, fewer seeds.")] = False,
     workers: Annotated[
-        int | None, typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core")
+        int | None,
+        typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core"),
     ] = None,
-    scheduler: Annotated[str | None, typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")
+    ] = None,
 ) -> None:
     """Run every observer of a benchmark spec on identical scenarios and write, per
     plant, the metrics' tables (table.md, table.csv), figures, benchmark.nc, an HTML
@@ -468,8 +537,12 @@ def benchmark_observers(
         raise InputError(f"--out {out}: {error}" if "disk space" in str(error) else str(error)) from None
     created = [each for each in [folder] + [p.folder for p in prepared] if not each.exists()]
     folder.mkdir(parents=True, exist_ok=True)
-    command = " ".join(["lookout benchmark observers", f"--out {out}"] + ([f"--plant {plant}"] if plant else []) + ([f"--spec {spec}"] if spec else [])
-                       + (["--quick"] if quick else []))
+    command = " ".join(
+        ["lookout benchmark observers", f"--out {out}"]
+        + ([f"--plant {plant}"] if plant else [])
+        + ([f"--spec {spec}"] if spec else [])
+        + (["--quick"] if quick else [])
+    )
     cluster = None
     address = scheduler
     try:
@@ -479,8 +552,10 @@ def benchmark_observers(
         for each in prepared:
             observers = list(dict.fromkeys(c.name for c in each.campaigns))
             resumed = sum(each.store(c).exists() for c in each.campaigns)
-            console_print(f"{each.benchmark.name}: {each.benchmark.spec.title} ({size}: {len(observers)} observer{'s' * (len(observers) != 1)}"
-                          + (f"; resuming {resumed} store{'s' * (resumed != 1)} in {each.folder})" if resumed else ")"))
+            console_print(
+                f"{each.benchmark.name}: {each.benchmark.spec.title} ({size}: {len(observers)} observer{'s' * (len(observers) != 1)}"
+                + (f"; resuming {resumed} store{'s' * (resumed != 1)} in {each.folder})" if resumed else ")")
+            )
             for note in each.notes:
                 console_print(f"  {note}")
             with progress_bar(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()) as bar:
@@ -495,7 +570,9 @@ def benchmark_observers(
                     result = bench.run_benchmark(each, workers=workers, scheduler=address, say=console_print, progress=progress, command=command)
                 except SchedulerError as error:
                     raise InputError(f"--scheduler {scheduler}: {error}") from None
-            console_print(f"{each.benchmark.name}: done in {result.seconds:.0f} s; {result.written['report']}, {result.written['table']}, {result.written['figures']}")
+            console_print(
+                f"{each.benchmark.name}: done in {result.seconds:.0f} s; {result.written['report']}, {result.written['table']}, {result.written['figures']}"
+            )
             console_print(f"{each.benchmark.name}: which observer ({benchmark_report.overall(result.recommendations)}):")
             for recommendation in result.recommendations:
                 console_print(f"  {recommendation.text()}")

@@ -138,8 +138,13 @@ def local_cluster(workers: int):
     from dask.distributed import LocalCluster
 
     return LocalCluster(
-        n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
-        env=_local_env(), memory_limit=0,
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+        env=_local_env(),
+        memory_limit=0,
     )
 
 
@@ -170,8 +175,11 @@ def check_disk(campaign: Campaign, path, pending: int, free: float | None = None
     need = store_bytes(campaign, pending)
     free = _resources.free_disk(path) if free is None else free
     _resources.refuse_unless_it_fits(
-        need, f"the store {path} ({pending} chunks x {campaign.chunk_runs} runs)",
-        "free some space, give --out on another disk, or use fewer seeds or points", available=free, resource="disk space",
+        need,
+        f"the store {path} ({pending} chunks x {campaign.chunk_runs} runs)",
+        "free some space, give --out on another disk, or use fewer seeds or points",
+        available=free,
+        resource="disk space",
     )
     return need
 
@@ -273,8 +281,10 @@ def _compute(campaign, store, chunks, pending, done, estimate: Estimate, disk: f
         memory = f"about {format_bytes(estimate.chunk_bytes)} per chunk"
         if estimate.available_bytes is not None:
             memory += f" of {format_bytes(estimate.available_bytes)} a worker has"
-        say(f"{estimate.chunks} chunks of {campaign.chunk_runs} runs ({len(campaign.points)} points x {campaign.settings.seeds_per_point} seeds), "
-            f"{estimate.pending} to compute; {memory}; at most {format_bytes(disk)} on disk")
+        say(
+            f"{estimate.chunks} chunks of {campaign.chunk_runs} runs ({len(campaign.points)} points x {campaign.settings.seeds_per_point} seeds), "
+            f"{estimate.pending} to compute; {memory}; at most {format_bytes(disk)} on disk"
+        )
 
     def calibrate(estimate: Estimate, result: dict) -> None:
         """The first chunk gives the compile time; the estimate of the rest comes from the
@@ -376,5 +386,3 @@ def _worker(client, future) -> str:
         return who[0] if who else "dask"
     except Exception:  # the record is for people: never fail a campaign over it
         return "dask"
-
-

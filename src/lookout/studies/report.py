@@ -199,8 +199,7 @@ def _axes(ds, document: dict | None) -> list[_Axis]:
 
 def _metrics(ds, document: dict | None) -> list[_Metric]:
     candidates = [
-        name for name, variable in ds.data_vars.items()
-        if name != "diverged" and variable.dims == ("point", "seed") and "metric" in variable.attrs
+        name for name, variable in ds.data_vars.items() if name != "diverged" and variable.dims == ("point", "seed") and "metric" in variable.attrs
     ]
     order = [m.replace(":", "__") for m in (document or {}).get("metrics", [])]
     candidates.sort(key=lambda name: order.index(name) if name in order else len(order))
@@ -208,8 +207,15 @@ def _metrics(ds, document: dict | None) -> list[_Metric]:
     for name in candidates:
         variable = ds[name]
         attrs = variable.attrs
-        result.append(_Metric(name, str(attrs.get("metric", name)), str(attrs.get("units", "")), str(attrs.get("long_name", name)),
-                              np.asarray(variable.values, dtype=float)))
+        result.append(
+            _Metric(
+                name,
+                str(attrs.get("metric", name)),
+                str(attrs.get("units", "")),
+                str(attrs.get("long_name", name)),
+                np.asarray(variable.values, dtype=float),
+            )
+        )
     return result
 
 
@@ -264,23 +270,48 @@ def _metric_figure(metric: _Metric, axis: _Axis, axes: list[_Axis], kind: str) -
         if axis.numeric:
             ax.fill_between(x, low, high, alpha=0.25, color="C0", linewidth=0, label=f"{LOW}th–{HIGH}th percentile")
             ax.plot(x, median, "o-", color="C0", label="median")
-            caption = (f"{metric.description} against {axis.name}: the median over {over} (line), "
-                       f"and the {LOW}th–{HIGH}th percentile of the same runs (band).")
+            caption = (
+                f"{metric.description} against {axis.name}: the median over {over} (line), "
+                f"and the {LOW}th–{HIGH}th percentile of the same runs (band)."
+            )
         else:  # choices: nothing lies between them, so no line
-            ax.errorbar(x, median, yerr=[median - low, high - median], fmt="o", color="C0", ecolor="C0", elinewidth=1.5, capsize=4,
-                        label=f"median; bar: {LOW}th–{HIGH}th percentile")
+            ax.errorbar(
+                x,
+                median,
+                yerr=[median - low, high - median],
+                fmt="o",
+                color="C0",
+                ecolor="C0",
+                elinewidth=1.5,
+                capsize=4,
+                label=f"median; bar: {LOW}th–{HIGH}th percentile",
+            )
             ax.set_xlim(x.min() - 0.5, x.max() + 0.5)
-            caption = (f"{metric.description} for each {axis.name}: the median over {over} (marker), "
-                       f"and the {LOW}th–{HIGH}th percentile of the same runs (bar).")
+            caption = (
+                f"{metric.description} for each {axis.name}: the median over {over} (marker), "
+                f"and the {LOW}th–{HIGH}th percentile of the same runs (bar)."
+            )
     else:
         stats = np.asarray([_stats(row) for row in metric.data])
         median, low, high, count = stats.T if len(stats) else np.zeros((4, 0))
         x = axis.point_positions()
-        ax.errorbar(x, median, yerr=[median - low, high - median], fmt="o", color="C0", ecolor="C0", elinewidth=1, capsize=2,
-                    markersize=4, label=f"point median over seeds; bar: {LOW}th–{HIGH}th percentile")
-        caption = (f"{metric.description} against {axis.name}: one marker per Latin-hypercube point, the median over its seeds, "
-                   f"with a bar from the {LOW}th to the {HIGH}th percentile over its seeds"
-                   + (f" (the other axes, {', '.join(others)}, vary between points)." if others else "."))
+        ax.errorbar(
+            x,
+            median,
+            yerr=[median - low, high - median],
+            fmt="o",
+            color="C0",
+            ecolor="C0",
+            elinewidth=1,
+            capsize=2,
+            markersize=4,
+            label=f"point median over seeds; bar: {LOW}th–{HIGH}th percentile",
+        )
+        caption = (
+            f"{metric.description} against {axis.name}: one marker per Latin-hypercube point, the median over its seeds, "
+            f"with a bar from the {LOW}th to the {HIGH}th percentile over its seeds"
+            + (f" (the other axes, {', '.join(others)}, vary between points)." if others else ".")
+        )
     computed = int(np.isfinite(metric.data).sum())
     if computed < metric.data.size:
         caption += f" Based on {computed} of {metric.data.size} runs (the rest not computed yet or diverged)."
@@ -336,9 +367,11 @@ def _heatmap_figure(metric: _Metric, axes: list[_Axis]) -> _Figure:
         _no_data(ax)
     rest = [a.name for a in axes[2:]]
     ax.set_title(f"median {metric.description}")
-    caption = (f"Median of {metric.description} over seeds"
-               + (f" and over the other axes ({', '.join(rest)})" if rest else "")
-               + f" at each ({first.name}, {second.name}) of the grid.")
+    caption = (
+        f"Median of {metric.description} over seeds"
+        + (f" and over the other axes ({', '.join(rest)})" if rest else "")
+        + f" at each ({first.name}, {second.name}) of the grid."
+    )
     if np.isnan(grid).any():
         caption += " Grey cells: no run computed yet (or every run there diverged)."
     return _Figure(f"heatmap-{metric.variable}.png", figure, caption, "heatmap", metric.variable)
@@ -460,6 +493,7 @@ def _table(header: list[str], rows: list[list[str]], attrs: str = "") -> str:
 
 def _definition_table(items: list[tuple[str, str | list[str]]], attrs: str = ' class="provenance"') -> str:
     """A two-column table of names and values; a list value is one line per entry."""
+
     def cell(value):
         return "<br>".join(html.escape(line) for line in value) if isinstance(value, list) else html.escape(value)
 
@@ -525,8 +559,9 @@ def _axis_rows(document: dict, kind: str) -> list[list[str]]:
             values = ", ".join(_spec_value(axis.value_label(v)) for v in axis.values) + suffix
         elif kind == "grid":
             grid = np.linspace(axis.range[0], axis.range[1], axis.steps).tolist()
-            values = (f"{axis.steps} steps over [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}: "
-                      + ", ".join(_spec_value(v) for v in grid))
+            values = f"{axis.steps} steps over [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}: " + ", ".join(
+                _spec_value(v) for v in grid
+            )
         else:
             values = f"range [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}"
         applied = "replaces the component" if tables else ("× base value" if axis.scale else "sets the value")
@@ -553,8 +588,11 @@ def _composition_html(scenario: dict) -> list[str]:
     from lookout.scenario import registry
     from lookout.scenario.file import composition_comments
 
-    components = [(role, f"{scenario[role].get('kind', '?')}" + (f" (design {scenario[role]['design']})" if "design" in scenario[role] else ""))
-                  for role in registry.COMPONENT_ROLES if isinstance(scenario.get(role), dict)]
+    components = [
+        (role, f"{scenario[role].get('kind', '?')}" + (f" (design {scenario[role]['design']})" if "design" in scenario[role] else ""))
+        for role in registry.COMPONENT_ROLES
+        if isinstance(scenario.get(role), dict)
+    ]
     try:
         descriptions = composition_comments(scenario)
     except Exception:  # a store written by another version: the values still show
@@ -570,10 +608,15 @@ def _composition_html(scenario: dict) -> list[str]:
                 changed.append([key, _spec_value(value), _spec_value(default), descriptions.get(key, "")])
     parts = ["<h3>Base scenario</h3>", _definition_table(components, ' class="provenance" id="spec-scenario"')]
     if changed:
-        parts += [f"<p>The keys that differ from their kind's default ({len(changed)}):</p>",
-                  _table(["key", "value", "default", "description"], changed, ' id="spec-changed" class="numbers"')]
-    parts.append(f"<details><summary>all {len(rows)} keys of the base scenario</summary>\n"
-                 + _table(["key", "value", "description"], rows, ' id="spec-settings" class="numbers"') + "\n</details>")
+        parts += [
+            f"<p>The keys that differ from their kind's default ({len(changed)}):</p>",
+            _table(["key", "value", "default", "description"], changed, ' id="spec-changed" class="numbers"'),
+        ]
+    parts.append(
+        f"<details><summary>all {len(rows)} keys of the base scenario</summary>\n"
+        + _table(["key", "value", "description"], rows, ' id="spec-settings" class="numbers"')
+        + "\n</details>"
+    )
     return parts
 
 
@@ -624,17 +667,29 @@ def _campaign_html(document: dict, metrics: list, settings: dict, n_points: int,
     divergence = document.get("divergence")
     if divergence:
         signal, limit = str(divergence.get("signal")), float(divergence.get("limit"))
-        units = next((m.units for m in metrics if m.name.split(":", 1)[-1] == signal and m.name.split(":", 1)[0] in
-                      ("rms_error", "max_error", "rms_tracking", "max_tracking", "max_excursion") and m.units), "")
-        rule = (f"the {signal} error beyond {_spec_value(limit)}{' ' + units if units else ''} at any record, "
-                "or a truth or estimate that is not finite")
+        units = next(
+            (
+                m.units
+                for m in metrics
+                if m.name.split(":", 1)[-1] == signal
+                and m.name.split(":", 1)[0] in ("rms_error", "max_error", "rms_tracking", "max_tracking", "max_excursion")
+                and m.units
+            ),
+            "",
+        )
+        rule = (
+            f"the {signal} error beyond {_spec_value(limit)}{' ' + units if units else ''} at any record, or a truth or estimate that is not finite"
+        )
     else:
         rule = "a truth or estimate that is not finite at any record (no divergence limit)"
     kept = document.get("trajectories")
     items: list[tuple[str, str | list[str]]] = [
         ("seeds", f"{seeds} per point: seeds {first} to {first + seeds - 1}, the same at every point"),
-        ("chunks", f"{chunk_runs} runs per chunk: {total_chunks} chunks ({n_points} point{'s' * (n_points != 1)} × "
-                   f"{blocks} block{'s' * (blocks != 1)} of seeds)"),
+        (
+            "chunks",
+            f"{chunk_runs} runs per chunk: {total_chunks} chunks ({n_points} point{'s' * (n_points != 1)} × "
+            f"{blocks} block{'s' * (blocks != 1)} of seeds)",
+        ),
         ("metrics", metric_lines or ["none"]),
         ("metric window", window),
         ("diverged", rule),
@@ -650,13 +705,14 @@ def _campaign_html(document: dict, metrics: list, settings: dict, n_points: int,
     elif kind == "grid":
         how = f"grid: {n_points} point{'s' * (n_points != 1)}, every combination of the axes' values (the last axis varies fastest)"
     else:
-        how = (f"Latin hypercube: {n_points} points drawn with seed {sweep.get('seed', 0)}, "
-               f"one in each of {n_points} equal strata of every axis")
+        how = f"Latin hypercube: {n_points} points drawn with seed {sweep.get('seed', 0)}, one in each of {n_points} equal strata of every axis"
     parts += ["<h3>Sweep</h3>", f"<p>{html.escape(how)}.</p>"]
     if rows:
         parts.append(_table(["axis", "field", "values", "applied"], rows, ' id="spec-axes" class="numbers"'))
-    parts.append("<details><summary>the spec as JSON, scenario inlined (what a resume compares)</summary>\n"
-                 f"<pre>{html.escape(_pretty_json(document))}</pre>\n</details>")
+    parts.append(
+        "<details><summary>the spec as JSON, scenario inlined (what a resume compares)</summary>\n"
+        f"<pre>{html.escape(_pretty_json(document))}</pre>\n</details>"
+    )
     return parts
 
 
@@ -707,9 +763,11 @@ window.addEventListener("load", function () {
 def _figure_html(figure: _Figure, png: bytes) -> str:
     data = base64.b64encode(png).decode("ascii")
     alt = html.escape(figure.caption, quote=True)
-    return (f'<figure id="{html.escape(figure.key, quote=True)}">'
-            f'<img src="data:image/png;base64,{data}" alt="{alt}">'
-            f"<figcaption>{html.escape(figure.caption)}</figcaption></figure>")
+    return (
+        f'<figure id="{html.escape(figure.key, quote=True)}">'
+        f'<img src="data:image/png;base64,{data}" alt="{alt}">'
+        f"<figcaption>{html.escape(figure.caption)}</figcaption></figure>"
+    )
 
 
 def _figures_html(figures: list[_Figure], images: dict[str, bytes]) -> str:
@@ -749,8 +807,10 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
     started = bool(done)
     complete = len(done) >= total_chunks
     state = "complete" if complete else ("partial" if started else "empty")
-    status = (f"{'complete' if complete else 'partial' if started else 'not started'}: {len(done)} of {total_chunks} chunks done "
-              f"({runs_done} of {total_runs} runs)")
+    status = (
+        f"{'complete' if complete else 'partial' if started else 'not started'}: {len(done)} of {total_chunks} chunks done "
+        f"({runs_done} of {total_runs} runs)"
+    )
     seconds = sum(float(r.get("seconds", 0.0) or 0.0) for r in done.values() if np.isfinite(float(r.get("seconds", np.nan))))
     workers = sorted({str(r.get("worker", "")) for r in done.values()})
     finished = sorted(str(r.get("finished", "")) for r in done.values())
@@ -780,13 +840,17 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
         f'<p><span class="status {state}" id="status">{html.escape(status)}</span></p>',
     ]
     if not started:
-        parts.append(f'<p class="notice" id="not-started">No chunk has finished yet: 0 of {total_chunks} chunks '
-                     f"({total_runs} runs). Run <code>lookout campaign run SPEC --out {html.escape(str(store.path))}</code> "
-                     "with the campaign's spec to compute it, then write the report again; the spec the store holds is below.</p>")
+        parts.append(
+            f'<p class="notice" id="not-started">No chunk has finished yet: 0 of {total_chunks} chunks '
+            f"({total_runs} runs). Run <code>lookout campaign run SPEC --out {html.escape(str(store.path))}</code> "
+            "with the campaign's spec to compute it, then write the report again; the spec the store holds is below.</p>"
+        )
     elif not complete:
-        parts.append(f'<p class="notice">The campaign is not finished: {len(done)} of {total_chunks} chunks done '
-                     f"({runs_done} of {total_runs} runs). Runs not computed yet are left out of every figure and table; "
-                     "resume the campaign and write the report again for the full results.</p>")
+        parts.append(
+            f'<p class="notice">The campaign is not finished: {len(done)} of {total_chunks} chunks done '
+            f"({runs_done} of {total_runs} runs). Runs not computed yet are left out of every figure and table; "
+            "resume the campaign and write the report again for the full results.</p>"
+        )
     parts.append("</header>")
     nav = ['<a href="#provenance">provenance</a>', '<a href="#spec">spec</a>']
     if started:
@@ -804,24 +868,19 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
         ("lookout version (store)", str(attrs.get("lookout_version", "?"))),
         ("created", str(attrs.get("created", "?"))),
         ("campaign fingerprint", str(attrs.get("campaign_fingerprint", "?"))),
-        ("sweep", f"{kind}; {n_points} point{'s' * (n_points != 1)} over "
-                  + (", ".join(a.name for a in axes) or "no axes")),
-        ("seeds per point", f"{seeds_per_point} (seeds {_fmt(ds['seed'].values[0])} to {_fmt(ds['seed'].values[-1])}), "
-                            f"{chunk_runs} per chunk"),
-        ("compute time", f"{seconds:.1f} s over {len(done)} chunk{'s' * (len(done) != 1)}"
-                         + (f" on {', '.join(workers)}" if workers else "")),
+        ("sweep", f"{kind}; {n_points} point{'s' * (n_points != 1)} over " + (", ".join(a.name for a in axes) or "no axes")),
+        ("seeds per point", f"{seeds_per_point} (seeds {_fmt(ds['seed'].values[0])} to {_fmt(ds['seed'].values[-1])}), {chunk_runs} per chunk"),
+        ("compute time", f"{seconds:.1f} s over {len(done)} chunk{'s' * (len(done) != 1)}" + (f" on {', '.join(workers)}" if workers else "")),
     ]
     if finished:
         provenance.append(("chunks finished", f"{finished[0]} to {finished[-1]}"))
     from lookout.studies.store import _version
 
-    provenance.append(("report written", f"{datetime.datetime.now(datetime.UTC).isoformat(timespec='seconds')} "
-                                         f"by lookout {_version()}"))
+    provenance.append(("report written", f"{datetime.datetime.now(datetime.UTC).isoformat(timespec='seconds')} by lookout {_version()}"))
     parts += ['<section id="provenance">', "<h2>Provenance</h2>", _definition_table(provenance), "</section>"]
 
     # spec: what was run, before what came out
-    parts += ['<section id="spec">', "<h2>Campaign spec</h2>",
-              _spec_html(document, metrics, n_points, chunk_runs, total_chunks), "</section>"]
+    parts += ['<section id="spec">', "<h2>Campaign spec</h2>", _spec_html(document, metrics, n_points, chunk_runs, total_chunks), "</section>"]
 
     if started:
         parts += _results_html(ds, axes, metrics, diverged, figures, images)
@@ -833,36 +892,41 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
     return out
 
 
-def _results_html(ds, axes: list[_Axis], metrics: list[_Metric], diverged: np.ndarray, figures: list[_Figure],
-                  images: dict[str, bytes]) -> list[str]:
+def _results_html(ds, axes: list[_Axis], metrics: list[_Metric], diverged: np.ndarray, figures: list[_Figure], images: dict[str, bytes]) -> list[str]:
     """The summary, the figures per metric, the heat maps and the divergence section."""
     parts = []
     rows = []
     for metric in metrics:
         median, low, high, count = _stats(metric.data)
-        rows.append([metric.name, metric.description, metric.units or "1", f"{count} of {metric.data.size}",
-                     _fmt(median), _fmt(low), _fmt(high)])
+        rows.append([metric.name, metric.description, metric.units or "1", f"{count} of {metric.data.size}", _fmt(median), _fmt(low), _fmt(high)])
     known, n_diverged = int((~np.isnan(diverged)).sum()), int((diverged == 1).sum())
-    parts += ['<section id="summary">', "<h2>Summary</h2>",
-              "<p>Each metric over every computed run of every sweep point (runs: those with a value; "
-              "a diverged run has none).</p>",
-              _table(["metric", "description", "units", "runs", "median", f"{LOW}th percentile", f"{HIGH}th percentile"], rows,
-                     ' class="numbers"'),
-              f"<p>Diverged: {n_diverged} of {known} computed run{'s' * (known != 1)}"
-              + (f" ({100 * n_diverged / known:.3g} %)" if n_diverged else "") + '; see <a href="#divergence">divergence</a>.</p>',
-              "</section>"]
+    parts += [
+        '<section id="summary">',
+        "<h2>Summary</h2>",
+        "<p>Each metric over every computed run of every sweep point (runs: those with a value; a diverged run has none).</p>",
+        _table(["metric", "description", "units", "runs", "median", f"{LOW}th percentile", f"{HIGH}th percentile"], rows, ' class="numbers"'),
+        f"<p>Diverged: {n_diverged} of {known} computed run{'s' * (known != 1)}"
+        + (f" ({100 * n_diverged / known:.3g} %)" if n_diverged else "")
+        + '; see <a href="#divergence">divergence</a>.</p>',
+        "</section>",
+    ]
 
     # figures per metric
     for metric in metrics:
         mine = [f for f in figures if f.section == "metric" and f.metric == metric.variable]
-        parts += [f'<section id="metric-{html.escape(metric.variable, quote=True)}">',
-                  f"<h2>{html.escape(metric.name)}: {html.escape(metric.description)}"
-                  + (f" ({html.escape(metric.units)})" if metric.units else "") + "</h2>"]
+        parts += [
+            f'<section id="metric-{html.escape(metric.variable, quote=True)}">',
+            f"<h2>{html.escape(metric.name)}: {html.escape(metric.description)}"
+            + (f" ({html.escape(metric.units)})" if metric.units else "")
+            + "</h2>",
+        ]
         if mine:
             parts.append(_figures_html(mine, images))
         elif not np.isfinite(metric.data).any():
-            parts.append(f"<p>No finished run has a value of {html.escape(metric.name)}: {n_diverged} of the {known} "
-                         "finished runs diverged, and a diverged run's metrics are NaN. Nothing to plot.</p>")
+            parts.append(
+                f"<p>No finished run has a value of {html.escape(metric.name)}: {n_diverged} of the {known} "
+                "finished runs diverged, and a diverged run's metrics are NaN. Nothing to plot.</p>"
+            )
         else:
             parts.append("<p>The campaign sweeps no axis: see the summary.</p>")
         parts.append("</section>")
@@ -883,8 +947,10 @@ def _results_html(ds, axes: list[_Axis], metrics: list[_Metric], diverged: np.nd
             count += f"; the first {MAX_DIVERGED_ROWS} are listed"
         parts.append(f'<p id="diverged-count">{html.escape(count)}.</p>')
         seeds = ds["seed"].values
-        rows = [[str(int(point))] + [_fmt(axis.values[point]) for axis in axes] + [_fmt(seeds[seed])]
-                for point, seed in np.argwhere(diverged == 1)[:MAX_DIVERGED_ROWS]]
+        rows = [
+            [str(int(point))] + [_fmt(axis.values[point]) for axis in axes] + [_fmt(seeds[seed])]
+            for point, seed in np.argwhere(diverged == 1)[:MAX_DIVERGED_ROWS]
+        ]
         parts.append(_table(["point"] + [a.name for a in axes] + ["seed"], rows, ' id="diverged-runs" class="numbers"'))
     parts.append("</section>")
     return parts

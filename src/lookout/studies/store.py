@@ -125,19 +125,33 @@ class CampaignStore:
         scenario = campaign.base.build()
         metrics = metric_module.resolve(list(campaign.metric_names), scenario)
         n_points, n_seeds, size = len(campaign.points), len(campaign.seeds), campaign.chunk_runs
-        data, coords = {}, {"point": np.arange(n_points), "seed": ("seed", np.asarray(campaign.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"})}
+        data, coords = (
+            {},
+            {"point": np.arange(n_points), "seed": ("seed", np.asarray(campaign.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"})},
+        )
 
         def empty(shape, chunks):
             return da.full(shape, np.nan, dtype=np.float64, chunks=chunks)
 
         for metric in metrics:
-            data[metric.variable] = (("point", "seed"), empty((n_points, n_seeds), (1, size)), {"units": metric.units, "long_name": metric.description, "metric": metric.name})
-        data["diverged"] = (("point", "seed"), empty((n_points, n_seeds), (1, size)), {"long_name": "1 if the run diverged, 0 if not", "metric": "diverged"})
+            data[metric.variable] = (
+                ("point", "seed"),
+                empty((n_points, n_seeds), (1, size)),
+                {"units": metric.units, "long_name": metric.description, "metric": metric.name},
+            )
+        data["diverged"] = (
+            ("point", "seed"),
+            empty((n_points, n_seeds), (1, size)),
+            {"long_name": "1 if the run diverged, 0 if not", "metric": "diverged"},
+        )
         for axis in campaign.axes:
             values = [axis.value_label(point[axis.label]) for point in campaign.points]
             # strings as variable-length strings: Zarr v3 has a spec for them, not for fixed-length ones
-            coords[variable_name(axis.label)] = ("point", np.asarray(values, dtype=object if any(isinstance(v, str) for v in values) else None), {
-                "long_name": axis.label, "fields": ", ".join(axis.fields), "scale": int(axis.scale)})
+            coords[variable_name(axis.label)] = (
+                "point",
+                np.asarray(values, dtype=object if any(isinstance(v, str) for v in values) else None),
+                {"long_name": axis.label, "fields": ", ".join(axis.fields), "scale": int(axis.scale)},
+            )
         kept = campaign.settings.trajectories
         if kept is not None:
             signals = {name: signal for _, name, signal in scenario.record_signals.variables()}
@@ -149,15 +163,19 @@ class CampaignStore:
                 if signal.labels:
                     coords[signal.dim] = (signal.dim, np.asarray(signal.labels, dtype=object))  # variable-length strings: Zarr v3 has a spec for them
                 data[f"trajectory__{name}"] = (dims, empty(shape, (1, size) + shape[2:]), {"units": signal.units, "long_name": signal.long_name})
-        ds = xr.Dataset(data, coords=coords, attrs={
-            "title": f"lookout campaign over {campaign.base.title}",
-            "lookout_version": _version(),
-            "campaign_fingerprint": campaign.fingerprint(),
-            "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            "chunk_runs": size,
-            "sweep_kind": campaign.settings.sweep.kind,
-            "axes": json.dumps([variable_name(axis.label) for axis in campaign.axes]),
-        })
+        ds = xr.Dataset(
+            data,
+            coords=coords,
+            attrs={
+                "title": f"lookout campaign over {campaign.base.title}",
+                "lookout_version": _version(),
+                "campaign_fingerprint": campaign.fingerprint(),
+                "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                "chunk_runs": size,
+                "sweep_kind": campaign.settings.sweep.kind,
+                "axes": json.dumps([variable_name(axis.label) for axis in campaign.axes]),
+            },
+        )
         encoding = {name: {"chunks": tuple(array[1].chunksize)} for name, array in data.items()}
         ds.to_zarr(self.path, mode="w-", compute=False, encoding=encoding, consolidated=False)
         import zarr
@@ -303,7 +321,8 @@ def status(path: str | Path) -> dict:
         "lookout_version": ds.attrs.get("lookout_version"),
         "created": ds.attrs.get("created"),
         "fingerprint": ds.attrs.get("campaign_fingerprint"),
-        "scenario": document["scenario"].get("template") or ", ".join(
+        "scenario": document["scenario"].get("template")
+        or ", ".join(
             f"{role} {document['scenario'][role]['kind']}" for role in ("plant", "observer") if isinstance(document["scenario"].get(role), dict)
         ),
     }

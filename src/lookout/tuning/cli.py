@@ -10,15 +10,30 @@ from lookout._validation import InputError
 
 
 def tune_command(
-    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario file whose observer or controller has a tunable family (lookout.tuning.families: observers passive, sliding-mode, earth-fixed, adaptive-dp, ekf, ukf, velocity, adaptive-manipulator; controllers observer-backstepping, vectorial-backstepping, tracking, pid).")],
+    scenario_file: Annotated[
+        str,
+        typer.Argument(
+            metavar="SCENARIO.toml",
+            help="A scenario file whose observer or controller has a tunable family (lookout.tuning.families: observers passive, sliding-mode, earth-fixed, adaptive-dp, ekf, ukf, velocity, adaptive-manipulator; controllers observer-backstepping, vectorial-backstepping, tracking, pid).",
+        ),
+    ],
     out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder: tuned.toml, tuning.json, training.png, held_out.png.")] = "out/tune",
-    objective: Annotated[str, typer.Option(metavar="TERMS", help="KIND:SIGNAL or WEIGHT*KIND:SIGNAL joined by +, KIND one of rms_error, rms_tracking, rms_input.")] = "rms_error:position",
+    objective: Annotated[
+        str, typer.Option(metavar="TERMS", help="KIND:SIGNAL or WEIGHT*KIND:SIGNAL joined by +, KIND one of rms_error, rms_tracking, rms_input.")
+    ] = "rms_error:position",
     train_seeds: Annotated[int, typer.Option(metavar="N", help="Training runs: seeds seed .. seed + N - 1 of the file.")] = 16,
     test_seeds: Annotated[int, typer.Option(metavar="M", help="Held-out runs: the M seeds after the training seeds.")] = 16,
     steps: Annotated[int, typer.Option(metavar="N", help="Optimizer steps (Adam).")] = 30,
     learning_rate: Annotated[float, typer.Option(metavar="RATE", help="Adam's step in the gains' parameters (log-scale for positive gains).")] = 0.1,
-    tune_components: Annotated[str | None, typer.Option("--tune", metavar="observer,controller", help="The components to tune.",
-                                                           show_default="each that has a family and whose conditions can hold")] = None,
+    tune_components: Annotated[
+        str | None,
+        typer.Option(
+            "--tune",
+            metavar="observer,controller",
+            help="The components to tune.",
+            show_default="each that has a family and whose conditions can hold",
+        ),
+    ] = None,
 ) -> None:
     """Tune the gains of a scenario's observer and controller by gradient through the
     simulation, inside their papers' conditions (every returned gain set satisfies them
@@ -44,12 +59,22 @@ def tune_command(
     train = list(range(first, first + train_seeds))
     test = list(range(first + train_seeds, first + train_seeds + test_seeds))
     folder = output_folder("--out", out)  # checked now, made when the results are written
-    command = (f"lookout tune {scenario_file} --objective '{objective}' --train-seeds {train_seeds} --test-seeds {test_seeds} --steps {steps} "
-               f"--learning-rate {learning_rate:g}" + (f" --tune {tune_components}" if tune_components else ""))
+    command = (
+        f"lookout tune {scenario_file} --objective '{objective}' --train-seeds {train_seeds} --test-seeds {test_seeds} --steps {steps} "
+        f"--learning-rate {learning_rate:g}" + (f" --tune {tune_components}" if tune_components else "")
+    )
     try:
         components = None if tune_components is None else tuple(part.strip() for part in tune_components.split(","))
-        result = tune(scenario, objective, train_seeds=train, test_seeds=test, steps=steps, learning_rate=learning_rate, components=components,
-                      say=console_print)
+        result = tune(
+            scenario,
+            objective,
+            train_seeds=train,
+            test_seeds=test,
+            steps=steps,
+            learning_rate=learning_rate,
+            components=components,
+            say=console_print,
+        )
     except ValueError as error:  # the family, the objective, the starting gains: refused before any simulation
         raise InputError(str(error) if str(error).startswith("--") else f"{scenario_file}: {error}") from None
     written = write_results(result, spec.composition, folder, source=scenario_file, command=command)
@@ -67,7 +92,9 @@ def tune_command(
     console.print(table)
     verdicts = ", ".join(f"{key} {verdict}" for key, verdict in result.report_after.verdicts.items())
     console_print(f"conditions of the tuned gains: {verdicts}")
-    console_print(f"{result.stopped or 'all steps taken'}; {result.seconds:.0f} s; written to {folder}: " + ", ".join(p.name for p in written.values()))
+    console_print(
+        f"{result.stopped or 'all steps taken'}; {result.seconds:.0f} s; written to {folder}: " + ", ".join(p.name for p in written.values())
+    )
 
 
 def _refuse_a_study(path: str) -> None:
@@ -80,8 +107,10 @@ def _refuse_a_study(path: str) -> None:
     except Exception:
         return  # the scenario reader says what is wrong with the file
     if isinstance(document.get("scenario"), str) and "simulation" not in document:
-        raise InputError(f"{path} is a campaign's study (a sweep over {document['scenario']}); tune its scenario: lookout tune "
-                         f"{document['scenario']} (relative to the study's folder)")
+        raise InputError(
+            f"{path} is a campaign's study (a sweep over {document['scenario']}); tune its scenario: lookout tune "
+            f"{document['scenario']} (relative to the study's folder)"
+        )
 
 
 def register(app: typer.Typer) -> None:

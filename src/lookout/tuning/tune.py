@@ -121,16 +121,26 @@ class Tuning:
     report_before: object = None
     report_after: object = None
     held_out: dict = field(default_factory=dict)  # metric -> {"start": per run, "tuned": per run}
-    units: dict = field(default_factory=dict)     # metric -> its units
+    units: dict = field(default_factory=dict)  # metric -> its units
     train_seeds: list = field(default_factory=list)
     test_seeds: list = field(default_factory=list)
-    notes: list = field(default_factory=list)     # components left as they are, a start moved inside the conditions
-    given_gains: tuple | None = None              # the scenario's own gains, when outside the conditions
-    report_given: object = None                   # and their conditions
+    notes: list = field(default_factory=list)  # components left as they are, a start moved inside the conditions
+    given_gains: tuple | None = None  # the scenario's own gains, when outside the conditions
+    report_given: object = None  # and their conditions
 
 
-def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: list[int], steps: int = 30, learning_rate: float = 0.1,
-         after: float | None = None, components: tuple[str, ...] | None = None, say: Callable[[str], None] = print) -> Tuning:
+def tune(
+    scenario,
+    objective_text: str,
+    *,
+    train_seeds: list[int],
+    test_seeds: list[int],
+    steps: int = 30,
+    learning_rate: float = 0.1,
+    after: float | None = None,
+    components: tuple[str, ...] | None = None,
+    say: Callable[[str], None] = print,
+) -> Tuning:
     """Tune the gains of ``scenario``'s observer and controller (their family,
     :func:`~lookout.tuning.families.family_of`; ``components`` chooses among them) for the
     objective over ``train_seeds``; measure the scenario's own gains, the start (the
@@ -159,8 +169,17 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
     evaluate = eqx.filter_jit(value)
     optimizer = optax.adam(learning_rate)
     state = optimizer.init(theta)
-    result = Tuning(family, objective, start, start, train_seeds=list(train_seeds), test_seeds=list(test_seeds), report_before=report_before,
-                    units={m.name: m.units for m in metrics}, notes=notes)
+    result = Tuning(
+        family,
+        objective,
+        start,
+        start,
+        train_seeds=list(train_seeds),
+        test_seeds=list(test_seeds),
+        report_before=report_before,
+        units={m.name: m.units for m in metrics},
+        notes=notes,
+    )
     if given is not None:
         result.given_gains = family.current(scenario)
         result.report_given = family.check(scenario)
@@ -185,9 +204,11 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
             halvings += 1
             updates = updates / 2.0
         result.steps.append(Step(step, float(current), [np.asarray(g).tolist() for g in family.gains(theta)], halvings, accepted))
-        say(f"step {step + 1}/{steps}: objective {float(current):.6g}"
+        say(
+            f"step {step + 1}/{steps}: objective {float(current):.6g}"
             + (f" ({halvings} halving{'s' * (halvings != 1)} to stay inside the conditions)" if halvings and accepted else "")
-            + ("" if accepted else f"; neither the step nor its {halvings} halvings kept the conditions"))
+            + ("" if accepted else f"; neither the step nor its {halvings} halvings kept the conditions")
+        )
         if accepted:
             theta, state, current, gradient = candidate, new_state, candidate_value, candidate_gradient
             refused = 0
@@ -212,7 +233,9 @@ def tune(scenario, objective_text: str, *, train_seeds: list[int], test_seeds: l
 
     before_runs = runs_of(jnp.asarray(family.theta(start)))
     after_runs = runs_of(theta)
-    result.held_out = {name: {"start": np.asarray(before_runs[name]).tolist(), "tuned": np.asarray(after_runs[name]).tolist()} for name in before_runs}
+    result.held_out = {
+        name: {"start": np.asarray(before_runs[name]).tolist(), "tuned": np.asarray(after_runs[name]).tolist()} for name in before_runs
+    }
     if given is not None:  # the file's own gains, outside the conditions
         given_runs = eqx.filter_jit(_objective_function(scenario, None, objective, metrics, after))(scenario, test)[1]
         for name in result.held_out:
@@ -245,8 +268,9 @@ def compile_within_memory(function, theta, keys, *, available: float | None = No
     analysis = compiled.compiled.memory_analysis()
     if analysis is not None:
         need = analysis.temp_size_in_bytes + analysis.argument_size_in_bytes + analysis.output_size_in_bytes + WORKER_BASE_BYTES
-        refuse_unless_it_fits(need, f"--train-seeds: a gradient over {int(keys.shape[0])} runs", "use fewer training seeds or a shorter duration",
-                              available=available)
+        refuse_unless_it_fits(
+            need, f"--train-seeds: a gradient over {int(keys.shape[0])} runs", "use fewer training seeds or a shorter duration", available=available
+        )
     return compiled
 
 
@@ -275,8 +299,11 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
     tuned = compose(document)
     if "design" in document["observer"]:
         set_path(document, "observer.design", document["observer"]["design"])
-    scenario_path = save(CompositionSpec(tuned, str(folder / "tuned.toml")), folder / "tuned.toml",
-                         header=f"lookout scenario: {source} with the gains {command} found.\nRun it with: lookout run tuned.toml --out DIR")
+    scenario_path = save(
+        CompositionSpec(tuned, str(folder / "tuned.toml")),
+        folder / "tuned.toml",
+        header=f"lookout scenario: {source} with the gains {command} found.\nRun it with: lookout run tuned.toml --out DIR",
+    )
     medians = {name: {which: float(np.median(v)) for which, v in values.items()} for name, values in result.held_out.items()}
     given = {} if result.given_gains is None else {"given": result.given_gains}
     summary = {
@@ -289,8 +316,14 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
         "stopped": result.stopped or f"after {len(result.steps) - 1} steps",
         "seconds": result.seconds,
         "notes": result.notes,
-        "gains": {key: {**{which: np.asarray(g[i]).tolist() for which, g in given.items()}, "start": np.asarray(a).tolist(), "tuned": np.asarray(b).tolist()}
-                  for i, (key, a, b) in enumerate(zip(result.family.keys, result.start_gains, result.gains))},
+        "gains": {
+            key: {
+                **{which: np.asarray(g[i]).tolist() for which, g in given.items()},
+                "start": np.asarray(a).tolist(),
+                "tuned": np.asarray(b).tolist(),
+            }
+            for i, (key, a, b) in enumerate(zip(result.family.keys, result.start_gains, result.gains))
+        },
         "steps": [{"step": s.step, "objective": s.objective, "halvings": s.halvings, "accepted": s.accepted} for s in result.steps],
         **({} if result.report_given is None else {"conditions_given": result.report_given.to_dict()}),
         "conditions_before": result.report_before.to_dict(),
@@ -304,13 +337,22 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
     ax.plot([s.step for s in result.steps], [s.objective for s in result.steps], "o-", color="tab:blue")
     for s in result.steps:
         if s.halvings or not s.accepted:
-            ax.annotate(f"{s.halvings}" if s.accepted else "refused", (s.step, s.objective), textcoords="offset points", xytext=(0, 6),
-                        ha="center", fontsize=7, color="0.4" if s.accepted else "tab:red")
+            ax.annotate(
+                f"{s.halvings}" if s.accepted else "refused",
+                (s.step, s.objective),
+                textcoords="offset points",
+                xytext=(0, 6),
+                ha="center",
+                fontsize=7,
+                color="0.4" if s.accepted else "tab:red",
+            )
     ax.margins(y=0.12)  # room for the numbers above the points
     ax.set_xlabel("step")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # steps are counted
     ax.set_ylabel("objective\n" + textwrap.fill(result.objective.text, 40), fontsize=8)
-    ax.set_title(f"training: mean over {len(result.train_seeds)} seeds (numbers: halvings to stay inside the conditions; refused: no halving did)", fontsize=9)
+    ax.set_title(
+        f"training: mean over {len(result.train_seeds)} seeds (numbers: halvings to stay inside the conditions; refused: no halving did)", fontsize=9
+    )
     ax.grid(alpha=0.3)
     figure.savefig(folder / "training.png", dpi=150)
     plt.close(figure)

@@ -64,12 +64,16 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         if progress is not None:
             progress(len(SAMPLE_PERIODS) + 1, parts)
         stress = simulate_document(stress_composition(config)).isel(run=0)
-        study["stress"] = {**STRESS, **summarize(stress, config),
-                           "theta_hat_range": [float(stress.mass_hat.min()), float(stress.mass_hat.max())]}
+        study["stress"] = {**STRESS, **summarize(stress, config), "theta_hat_range": [float(stress.mass_hat.min()), float(stress.mass_hat.max())]}
         if progress is not None:
             progress(parts, parts)
-    theorem = check_theorem_4_1(parameters(), config.gain, config.adaptation_gain, max_speed=max_speed(results),
-                                initial_error=(np.array([-1.0]), np.array([MASS - config.initial_mass])))
+    theorem = check_theorem_4_1(
+        parameters(),
+        config.gain,
+        config.adaptation_gain,
+        max_speed=max_speed(results),
+        initial_error=(np.array([-1.0]), np.array([MASS - config.initial_mass])),
+    )
     files += save_paper_figures(results, config, out)
     summary = {
         "reproduction": NAME,
@@ -84,7 +88,6 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     return write_summary(summary, out)
 
 
-
 def batches(config: Config) -> list[tuple]:
     """Each case, and with ``config.sweep`` the order study's and the stress run's scenarios."""
     documents = [_composition.composition(config, case) for case in CASES] + (study_compositions(config) if config.sweep else [])
@@ -94,6 +97,30 @@ def batches(config: Config) -> list[tuple]:
 #: Calugi (2002), Section 4.8: the adaptive observer with resetting on a pendulum of unknown mass.
 REPRODUCTION = Reproduction(NAME, Config, CASES, _composition.composition, run, tables, batches_of=batches)
 
-__all__ = ["CASES", "Config", "LENGTH", "MASS", "NAME", "ORDER_DURATION", "ORDER_PERIODS", "REPORT_TIMES", "REPRODUCTION", "SAMPLE_PERIODS",
-           "STRESS", "TITLE", "build", "closed_loop", "continuous_reference", "order_composition", "order_study", "parameters", "run",
-           "simulate_case", "simulate_document", "stress_composition", "study_compositions", "summarize", "tables"]
+__all__ = [
+    "CASES",
+    "Config",
+    "LENGTH",
+    "MASS",
+    "NAME",
+    "ORDER_DURATION",
+    "ORDER_PERIODS",
+    "REPORT_TIMES",
+    "REPRODUCTION",
+    "SAMPLE_PERIODS",
+    "STRESS",
+    "TITLE",
+    "build",
+    "closed_loop",
+    "continuous_reference",
+    "order_composition",
+    "order_study",
+    "parameters",
+    "run",
+    "simulate_case",
+    "simulate_document",
+    "stress_composition",
+    "study_compositions",
+    "summarize",
+    "tables",
+]

@@ -94,7 +94,6 @@ def max_speed(results: dict) -> float:
     return float(max(np.abs(ds.joint_rate.values).max() for ds in results.values()))
 
 
-
 def _number(value) -> str:
     """A side of an inequality: None in JSON is an unbounded region (C_M = 0)."""
     return "inf" if value is None else f"{value:.4g}"
@@ -105,36 +104,65 @@ def tables(summary: dict) -> list[Table]:
     rows = []
     for period, values in summary["sample_periods"].items():
         at = values["theta_hat_at"]
-        rows.append((f"{float(period) * 1000:g} ms", *(f"{v:.4f}" for v in at.values()),
-                     f"{values['theta_hat_band_late'][0]:.3f}-{values['theta_hat_band_late'][1]:.3f}",
-                     significant(values["velocity_error_rms_after_1s"]), f"{values['resets']:g}"))
-    result = [Table(
-        "Mass estimate theta_hat (kg) at times (s); m = 1 kg, theta_hat(0) = 0.1 kg",
-        ("Delta", *(f"{t:g}" for t in REPORT_TIMES), "band after 100 s", "RMS x1~", "resets"),
-        tuple(rows), "tau = A sin(w t) chosen (the thesis gives none); RMS of the velocity error after 1 s, rad/s",
-    )]
+        rows.append(
+            (
+                f"{float(period) * 1000:g} ms",
+                *(f"{v:.4f}" for v in at.values()),
+                f"{values['theta_hat_band_late'][0]:.3f}-{values['theta_hat_band_late'][1]:.3f}",
+                significant(values["velocity_error_rms_after_1s"]),
+                f"{values['resets']:g}",
+            )
+        )
+    result = [
+        Table(
+            "Mass estimate theta_hat (kg) at times (s); m = 1 kg, theta_hat(0) = 0.1 kg",
+            ("Delta", *(f"{t:g}" for t in REPORT_TIMES), "band after 100 s", "RMS x1~", "resets"),
+            tuple(rows),
+            "tau = A sin(w t) chosen (the thesis gives none); RMS of the velocity error after 1 s, rad/s",
+        )
+    ]
     theorem = summary["theorem_4_1"]
-    result.append(Table(
-        "Theorem 4.1 (C_M = 0 for the pendulum: the region is global)",
-        ("", "condition", "left", "right", "verdict"),
-        tuple((item["name"], item["relation"], _number(item["left"]), _number(item["right"]), item["verdict"]) for item in inequalities_in(theorem)),
-        f"sigma = K m l^2 = {theorem['quantities']['sigma']:.4g}; w_max from the run",
-    ))
+    result.append(
+        Table(
+            "Theorem 4.1 (C_M = 0 for the pendulum: the region is global)",
+            ("", "condition", "left", "right", "verdict"),
+            tuple(
+                (item["name"], item["relation"], _number(item["left"]), _number(item["right"]), item["verdict"]) for item in inequalities_in(theorem)
+            ),
+            f"sigma = K m l^2 = {theorem['quantities']['sigma']:.4g}; w_max from the run",
+        )
+    )
     if summary.get("order"):
         order = summary["order"]
-        result.append(Table(
-            f"(4.34)-(4.35) against the continuous (4.5)-(4.7), max error over {order['duration_s']:g} s",
-            ("Delta (s)", "theta_hat (kg)", "x1_hat (rad/s)"),
-            tuple((f"{p:g}", significant(a), significant(b)) for p, a, b in zip(order["sample_periods"], order["max_error"]["theta"], order["max_error"]["velocity"])),
-            "fitted orders: theta " + ", ".join(f"{v:.2f}" for v in order["order"]["theta"]) + "; x1 " + ", ".join(f"{v:.2f}" for v in order["order"]["velocity"]),
-        ))
+        result.append(
+            Table(
+                f"(4.34)-(4.35) against the continuous (4.5)-(4.7), max error over {order['duration_s']:g} s",
+                ("Delta (s)", "theta_hat (kg)", "x1_hat (rad/s)"),
+                tuple(
+                    (f"{p:g}", significant(a), significant(b))
+                    for p, a, b in zip(order["sample_periods"], order["max_error"]["theta"], order["max_error"]["velocity"])
+                ),
+                "fitted orders: theta "
+                + ", ".join(f"{v:.2f}" for v in order["order"]["theta"])
+                + "; x1 "
+                + ", ".join(f"{v:.2f}" for v in order["order"]["velocity"]),
+            )
+        )
     if summary.get("stress"):
         stress = summary["stress"]
-        result.append(Table(
-            f"Gamma = {stress['adaptation_gain']:g}, bounds {stress['bounds'][0]:g}-{stress['bounds'][1]:g} kg, "
-            f"mu = {stress['margin']:g} kg, Delta = 10 ms: resetting at work",
-            ("resets", "theta_hat range (kg)", "final theta_hat (kg)"),
-            ((f"{stress['resets']:g}", f"{stress['theta_hat_range'][0]:.3f}-{stress['theta_hat_range'][1]:.3f}", f"{stress['theta_hat_final']:.4f}"),),
-            "theta_hat(0) = 0.1 kg lies below l - mu and is reset at t_0",
-        ))
+        result.append(
+            Table(
+                f"Gamma = {stress['adaptation_gain']:g}, bounds {stress['bounds'][0]:g}-{stress['bounds'][1]:g} kg, "
+                f"mu = {stress['margin']:g} kg, Delta = 10 ms: resetting at work",
+                ("resets", "theta_hat range (kg)", "final theta_hat (kg)"),
+                (
+                    (
+                        f"{stress['resets']:g}",
+                        f"{stress['theta_hat_range'][0]:.3f}-{stress['theta_hat_range'][1]:.3f}",
+                        f"{stress['theta_hat_final']:.4f}",
+                    ),
+                ),
+                "theta_hat(0) = 0.1 kg lies below l - mu and is reset at t_0",
+            )
+        )
     return result

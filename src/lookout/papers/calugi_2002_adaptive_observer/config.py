@@ -46,7 +46,6 @@ class Config(NoiseFreeConfig):
             raise ValueError(f"must be at least 20 s (Fig. 4.2's window); got {value:g} s")
         return value
 
-
     @field_validator("input_amplitude", "margin")
     @classmethod
     def _non_negative(cls, value):

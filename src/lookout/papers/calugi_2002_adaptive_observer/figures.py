@@ -28,7 +28,9 @@ def save_paper_figures(results: dict, config: Config, out: Path) -> list[str]:
     axes[1].set_xlabel("time (s)")
     for axis in axes:
         axis.legend(fontsize=8)
-    figure.suptitle(f"Fig. 4.2: velocity and mass estimates (tau = {config.input_amplitude:g} sin({config.input_frequency:g} t), chosen)", fontsize=10)
+    figure.suptitle(
+        f"Fig. 4.2: velocity and mass estimates (tau = {config.input_amplitude:g} sin({config.input_frequency:g} t), chosen)", fontsize=10
+    )
     figure.tight_layout()
     figures["fig_4_2.png"] = figure
 

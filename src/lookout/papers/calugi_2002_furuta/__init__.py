@@ -97,5 +97,23 @@ def batches(config: Config) -> list[tuple]:
 #: Calugi (2002), chapter 6: the Furuta pendulum experiments I–IV in simulation.
 REPRODUCTION = Reproduction(NAME, Config, CASES, _composition.composition, run, tables, batches_of=batches)
 
-__all__ = ["ALPHA_MINIMUM", "CASES", "Config", "EXPERIMENTS", "Experiment", "NAME", "QUANTIZATION", "REPRODUCTION", "SAMPLE_PERIOD", "TITLE",
-           "build", "experiment_duration", "parameters", "reference", "run", "simulate_case", "summarize", "tables"]
+__all__ = [
+    "ALPHA_MINIMUM",
+    "CASES",
+    "Config",
+    "EXPERIMENTS",
+    "Experiment",
+    "NAME",
+    "QUANTIZATION",
+    "REPRODUCTION",
+    "SAMPLE_PERIOD",
+    "TITLE",
+    "build",
+    "experiment_duration",
+    "parameters",
+    "reference",
+    "run",
+    "simulate_case",
+    "summarize",
+    "tables",
+]

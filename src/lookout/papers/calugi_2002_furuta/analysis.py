@@ -86,7 +86,6 @@ def summarize(ds: xr.Dataset, name: str) -> dict:
     return result
 
 
-
 def _value(value, digits: int = 3) -> str:
     if value is None:
         return "-"
@@ -98,11 +97,20 @@ def _value(value, digits: int = 3) -> str:
 def tables(summary: dict) -> list[Table]:
     """One column per experiment."""
     experiments = summary["experiments"]
-    keys = (("status", "status"), ("finite until (s)", "finite_until_s"), ("fell at (s)", "pendulum_left_half_plane_at_s"),
-            ("RMS z1, t>5 s (rad)", "rms_tracking_error_after_5s"), ("max |tau_u| (N m)", "max_abs_tau_u"),
-            ("max |tau_u|, t>1 s", "max_abs_tau_u_after_1s"), ("phi' range (rad/s)", "arm_rate_range"),
-            ("theta' range (rad/s)", "pendulum_rate_range"), ("mean phi' (rad/s)", "arm_mean_rate"),
-            ("arm stuck (s)", "arm_stuck_time_s"), ("det M_hat <= 0 (s)", "det_m_hat_nonpositive_s"), ("resets", "resets"))
+    keys = (
+        ("status", "status"),
+        ("finite until (s)", "finite_until_s"),
+        ("fell at (s)", "pendulum_left_half_plane_at_s"),
+        ("RMS z1, t>5 s (rad)", "rms_tracking_error_after_5s"),
+        ("max |tau_u| (N m)", "max_abs_tau_u"),
+        ("max |tau_u|, t>1 s", "max_abs_tau_u_after_1s"),
+        ("phi' range (rad/s)", "arm_rate_range"),
+        ("theta' range (rad/s)", "pendulum_rate_range"),
+        ("mean phi' (rad/s)", "arm_mean_rate"),
+        ("arm stuck (s)", "arm_stuck_time_s"),
+        ("det M_hat <= 0 (s)", "det_m_hat_nonpositive_s"),
+        ("resets", "resets"),
+    )
     rows = []
     for label, key in keys:
         if key == "status":
@@ -112,10 +120,16 @@ def tables(summary: dict) -> list[Table]:
         else:
             rows.append((label, *(_value(v[key]) for v in experiments.values())))
     for unknown, truth in TRUTH.items():
-        rows.append((f"final {SYMBOLS[unknown]}_hat ({truth:g})",
-                     *(_value(v["final_estimates"].get(unknown), 4) for v in experiments.values())))
-        rows.append((f"{SYMBOLS[unknown]}_hat in 5 % from (s)",
-                     *(_value(v["estimate_within_5pct_from_s"].get(unknown)) for v in experiments.values())))
-    return [Table("Calugi (2002) ch. 6: Furuta pendulum experiments in simulation", ("", *experiments), tuple(rows),
-                  "z1 = theta - theta_d; fell: the pendulum left its half-plane; -fixed: the nearest working setting; M_hat is positive definite for all theta iff alpha_hat > gamma^2/beta = "
-                  f"{summary['alpha_minimum_for_positive_m_hat']:.4g}")]
+        rows.append((f"final {SYMBOLS[unknown]}_hat ({truth:g})", *(_value(v["final_estimates"].get(unknown), 4) for v in experiments.values())))
+        rows.append(
+            (f"{SYMBOLS[unknown]}_hat in 5 % from (s)", *(_value(v["estimate_within_5pct_from_s"].get(unknown)) for v in experiments.values()))
+        )
+    return [
+        Table(
+            "Calugi (2002) ch. 6: Furuta pendulum experiments in simulation",
+            ("", *experiments),
+            tuple(rows),
+            "z1 = theta - theta_d; fell: the pendulum left its half-plane; -fixed: the nearest working setting; M_hat is positive definite for all theta iff alpha_hat > gamma^2/beta = "
+            f"{summary['alpha_minimum_for_positive_m_hat']:.4g}",
+        )
+    ]

@@ -39,8 +39,13 @@ from .config import (
 
 #: The pendulum of (6.1)–(6.4) with the printed constants and tau_C (a ``model`` table).
 PENDULUM = {
-    "kind": "furuta-constants", "alpha": PRINTED_CONSTANTS[0], "beta": PRINTED_CONSTANTS[1], "gamma": PRINTED_CONSTANTS[2],
-    "delta": PRINTED_CONSTANTS[3], "coulomb_friction": [PRINTED_COULOMB_FRICTION, 0.0], "friction": [0.0, 0.0],
+    "kind": "furuta-constants",
+    "alpha": PRINTED_CONSTANTS[0],
+    "beta": PRINTED_CONSTANTS[1],
+    "gamma": PRINTED_CONSTANTS[2],
+    "delta": PRINTED_CONSTANTS[3],
+    "coulomb_friction": [PRINTED_COULOMB_FRICTION, 0.0],
+    "friction": [0.0, 0.0],
 }
 #: The setpoint the controller reads (``pendulum_angle_desired``): a scalar, unwrapped angle,
 #: none of the plant's variables (the hanging reference lives near pi, where a wrapped one would jump).
@@ -58,14 +63,26 @@ def reference_table(experiment: Experiment, duration: float) -> dict:
     """theta_d = 27/(s + 3)^3 r over the unwrapped :data:`PENDULUM_ANGLE` (a ``reference``
     table): hanging, r = pi + 0.6 sgn(cos(2 pi t / 2.5)) from pi; upright, r = 0 from 0.02 rad."""
     if experiment.upright:
-        return {"kind": "reference-filter", "signals": [copy.deepcopy(PENDULUM_ANGLE)], "bandwidth": FILTER_BANDWIDTH,
-                "schedule_times": [0.0], "setpoints": [[0.0]], "initial": [UPRIGHT_START]}
+        return {
+            "kind": "reference-filter",
+            "signals": [copy.deepcopy(PENDULUM_ANGLE)],
+            "bandwidth": FILTER_BANDWIDTH,
+            "schedule_times": [0.0],
+            "setpoints": [[0.0]],
+            "initial": [UPRIGHT_START],
+        }
     quarter, half = PERIOD / 4.0, PERIOD / 2.0
     switches = int(math.ceil((duration - quarter) / half)) + 1
     times = [0.0] + [quarter + k * half for k in range(switches)]
     setpoints = [[math.pi + AMPLITUDE * (1 if k % 2 == 0 else -1)] for k in range(len(times))]
-    return {"kind": "reference-filter", "signals": [copy.deepcopy(PENDULUM_ANGLE)], "bandwidth": FILTER_BANDWIDTH,
-            "schedule_times": times, "setpoints": setpoints, "initial": [math.pi]}
+    return {
+        "kind": "reference-filter",
+        "signals": [copy.deepcopy(PENDULUM_ANGLE)],
+        "bandwidth": FILTER_BANDWIDTH,
+        "schedule_times": times,
+        "setpoints": setpoints,
+        "initial": [math.pi],
+    }
 
 
 def composition(config: Config, case: str) -> dict:
@@ -81,7 +98,10 @@ def composition(config: Config, case: str) -> dict:
     observer = {
         "kind": "adaptive-manipulator",
         "parameters": {"kind": "model-fields", "fields": list(experiment.unknowns), "units": [UNITS[name] for name in experiment.unknowns]},
-        "gain": OBSERVER_GAIN, "adaptation_gain": list(experiment.adaptation_gain), "sample_period": SAMPLE_PERIOD, "margin": experiment.margin,
+        "gain": OBSERVER_GAIN,
+        "adaptation_gain": list(experiment.adaptation_gain),
+        "sample_period": SAMPLE_PERIOD,
+        "margin": experiment.margin,
         "initial": {"velocity": [0.0, 0.0], "theta": list(experiment.initial)},
     }
     if experiment.lower is not None:
@@ -89,15 +109,28 @@ def composition(config: Config, case: str) -> dict:
     if case == "III":
         observer["check_bounds"] = False
     return {
-        "simulation": {"runs": config.runs, "seed": config.seed, "plant_step": config.plant_step, "sample_period": SAMPLE_PERIOD,
-                       "duration": duration},
-        "plant": {"kind": "furuta", "model": copy.deepcopy(PENDULUM),
-                  "initial": {"q": [0.0, UPRIGHT_START if experiment.upright else math.pi], "qdot": [0.0, 0.0]}},
+        "simulation": {
+            "runs": config.runs,
+            "seed": config.seed,
+            "plant_step": config.plant_step,
+            "sample_period": SAMPLE_PERIOD,
+            "duration": duration,
+        },
+        "plant": {
+            "kind": "furuta",
+            "model": copy.deepcopy(PENDULUM),
+            "initial": {"q": [0.0, UPRIGHT_START if experiment.upright else math.pi], "qdot": [0.0, 0.0]},
+        },
         "sensor": {"kind": "joint-encoder", "sample_period": SAMPLE_PERIOD, "quantization": list(QUANTIZATION)},
         "observer": observer,
         "reference": reference_table(experiment, duration),
-        "controller": {"kind": "furuta-backstepping", "position_gain": POSITION_GAIN, "position_damping": POSITION_DAMPING,
-                       "velocity_gain": VELOCITY_GAIN, "velocity_damping": experiment.damping},
+        "controller": {
+            "kind": "furuta-backstepping",
+            "position_gain": POSITION_GAIN,
+            "position_damping": POSITION_DAMPING,
+            "velocity_gain": VELOCITY_GAIN,
+            "velocity_damping": experiment.damping,
+        },
     }
 
 

@@ -50,8 +50,14 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     """Simulate the four runs; write NetCDF, figures and summary.json under ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     results, estimators, files, status = {}, {}, [], []
-    each = simulate_each(SIMULATIONS, lambda name, progress: simulate_run(config, name, progress=progress), out, "calugi_2002_ch3_{case}.nc",
-                         lambda name: f"lookout reproduce {NAME}: {SIMULATIONS[name].label}", progress=progress)
+    each = simulate_each(
+        SIMULATIONS,
+        lambda name, progress: simulate_run(config, name, progress=progress),
+        out,
+        "calugi_2002_ch3_{case}.nc",
+        lambda name: f"lookout reproduce {NAME}: {SIMULATIONS[name].label}",
+        progress=progress,
+    )
     for name, scenario, ds, filename in each:
         files.append(filename)
         status += ds.status.values.tolist()
@@ -69,5 +75,24 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
 #: Calugi (2002), Section 3.2: the Middleton–Goodwin estimator on the pendulum, Sims 1 and 2.
 REPRODUCTION = Reproduction(NAME, Config, CASES, _composition.composition, run, tables)
 
-__all__ = ["CASES", "Config", "LENGTH", "NAME", "REPORT_DELAYS", "REPRODUCTION", "SETTLE_BAND", "SIM1_MASSES", "SIM1_SWITCH_TIMES", "SIM2_MASS",
-           "SIMULATIONS", "Simulation", "TITLE", "build", "run", "settle_time", "simulate_run", "summarize", "tables"]
+__all__ = [
+    "CASES",
+    "Config",
+    "LENGTH",
+    "NAME",
+    "REPORT_DELAYS",
+    "REPRODUCTION",
+    "SETTLE_BAND",
+    "SIM1_MASSES",
+    "SIM1_SWITCH_TIMES",
+    "SIM2_MASS",
+    "SIMULATIONS",
+    "Simulation",
+    "TITLE",
+    "build",
+    "run",
+    "settle_time",
+    "simulate_run",
+    "summarize",
+    "tables",
+]

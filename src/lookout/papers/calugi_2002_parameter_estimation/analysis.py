@@ -101,7 +101,9 @@ def _sim1_summary(ds: xr.Dataset, estimator: ParameterEstimator, sim: Simulation
         "initial_estimate": list(sim.initial_estimate),
         "segments": segments,
         "excitation": _excitation(estimator, ds, config, sim.gain),
-        "lyapunov": _lyapunov(time, estimate[:, None], truth[:, None], until=sim.switch_times[0] - config.sample_period if sim.switch_times else None),
+        "lyapunov": _lyapunov(
+            time, estimate[:, None], truth[:, None], until=sim.switch_times[0] - config.sample_period if sim.switch_times else None
+        ),
         "max_abs_angle": float(np.abs(ds.joint_angle.values).max()),
     }
 
@@ -162,7 +164,6 @@ def summarize(config: Config, results: dict[str, xr.Dataset], estimators: dict[s
     }
 
 
-
 def tables(summary: dict) -> list[Table]:
     """Sim 1 per interval, Sim 2 per parameter, excitation, and the runs without excitation."""
     fmt = lambda value: "-" if value is None else significant(value)  # noqa: E731
@@ -172,16 +173,43 @@ def tables(summary: dict) -> list[Table]:
         sim1.append((f"{segment['from_s']:g}", fmt(segment["mass"]), *after, fmt(segment["settle_1pct_s"])))
     sim2 = []
     for name, p in summary["sim2"]["parameters"].items():
-        sim2.append((f"{name} ({p['unit']})", fmt(p["truth"]), *(fmt(v) for v in p["at_s"].values()), fmt(p["final_estimate"]), f"{p['final_relative_error']:.1e}", fmt(p["settle_1pct_s"])))
+        sim2.append(
+            (
+                f"{name} ({p['unit']})",
+                fmt(p["truth"]),
+                *(fmt(v) for v in p["at_s"].values()),
+                fmt(p["final_estimate"]),
+                f"{p['final_relative_error']:.1e}",
+                fmt(p["settle_1pct_s"]),
+            )
+        )
     excitation = []
     for name in ("sim1", "sim2"):
         e = summary[name]["excitation"]
-        excitation.append((name, fmt(e["lambda_min"]), fmt(e["lambda_min_at_s"]), f"{e['pointwise_lambda_min_max']:.1e}", fmt(e["stiffness_per_s"]), f"{summary[name]['lyapunov']['largest_increase_relative']:.1e}"))
+        excitation.append(
+            (
+                name,
+                fmt(e["lambda_min"]),
+                fmt(e["lambda_min_at_s"]),
+                f"{e['pointwise_lambda_min_max']:.1e}",
+                fmt(e["stiffness_per_s"]),
+                f"{summary[name]['lyapunov']['largest_increase_relative']:.1e}",
+            )
+        )
     still = [(name, f"{s['max_estimate_change']:.1e}", fmt(s["max_abs_angle"])) for name, s in summary["no_excitation"].items()]
     delays = tuple(f"+{d:g} s" for d in REPORT_DELAYS)
     return [
-        Table("Sim 1: m_hat (kg) after the start and after each jump", ("from (s)", "m", *delays, "settle 1 % (s)"), tuple(sim1), "settle: time after the interval's start from which m_hat stays within 1 % of m"),
-        Table("Sim 2: theta_hat", ("parameter", "truth", *(f"{d:g} s" for d in REPORT_DELAYS), "final", "final rel. error", "settle 1 % (s)"), tuple(sim2)),
+        Table(
+            "Sim 1: m_hat (kg) after the start and after each jump",
+            ("from (s)", "m", *delays, "settle 1 % (s)"),
+            tuple(sim1),
+            "settle: time after the interval's start from which m_hat stays within 1 % of m",
+        ),
+        Table(
+            "Sim 2: theta_hat",
+            ("parameter", "truth", *(f"{d:g} s" for d in REPORT_DELAYS), "final", "final rel. error", "settle 1 % (s)"),
+            tuple(sim2),
+        ),
         Table(
             "Excitation: windowed lambda_min(int phi_f^T phi_f) (min over the run)",
             ("run", "lambda_min", "at (s)", "pointwise max", "h lambda_max (1/s)", "max dV / V_max"),

@@ -19,22 +19,33 @@ def composition(config: Config, case: str) -> dict:
     1/(s + a) on the plant's parameters, integrated jointly with the plant on the exact q
     and q' (``observer_mode = "continuous"``), under tau = A sin(w t) (A = 0 without excitation)."""
     sim = SIMULATIONS[case]
-    return copy.deepcopy({  # the document is the caller's: SIMULATIONS' tables stay as they are
-        "simulation": {
-            "runs": config.runs, "seed": config.seed, "plant_step": config.plant_step,
-            "sample_period": config.sample_period, "duration": config.duration, "observer_mode": "continuous",
-        },
-        "plant": {
-            "kind": "scheduled-parameters", "parameters": sim.parameters,
-            "values": [list(row) for row in sim.values], "switch_times": list(sim.switch_times),
-            "initial": {"q": [sim.initial_position], "qdot": [sim.initial_velocity]},
-        },
-        "sensor": {"kind": "joint-state", "sample_period": config.sample_period},
-        "observer": {"kind": "parameter-estimator", "gain": sim.gain, "filter_pole": config.filter_pole,
-                     "initial": {"theta": list(sim.initial_estimate)}},
-        "controller": {"kind": "sinusoidal", "amplitude": config.input_amplitude if sim.excited else 0.0,
-                       "frequency": config.input_frequency},
-    })
+    return copy.deepcopy(
+        {  # the document is the caller's: SIMULATIONS' tables stay as they are
+            "simulation": {
+                "runs": config.runs,
+                "seed": config.seed,
+                "plant_step": config.plant_step,
+                "sample_period": config.sample_period,
+                "duration": config.duration,
+                "observer_mode": "continuous",
+            },
+            "plant": {
+                "kind": "scheduled-parameters",
+                "parameters": sim.parameters,
+                "values": [list(row) for row in sim.values],
+                "switch_times": list(sim.switch_times),
+                "initial": {"q": [sim.initial_position], "qdot": [sim.initial_velocity]},
+            },
+            "sensor": {"kind": "joint-state", "sample_period": config.sample_period},
+            "observer": {
+                "kind": "parameter-estimator",
+                "gain": sim.gain,
+                "filter_pole": config.filter_pole,
+                "initial": {"theta": list(sim.initial_estimate)},
+            },
+            "controller": {"kind": "sinusoidal", "amplitude": config.input_amplitude if sim.excited else 0.0, "frequency": config.input_frequency},
+        }
+    )
 
 
 def build(config: Config, name: str) -> Scenario:
@@ -50,6 +61,12 @@ def simulate_run(config: Config, name: str, *, progress: Callable | None = None)
     plant = scenario.plant
     truth = plant.truth(ds.time.values)
     for signal in plant.parameter_layout.signals:
-        ds[signal.name] = (("run", "time"), truth[signal.name][None, :], {"units": signal.units, "long_name": signal.long_name, "frame": "", "angle": 0})
-    ds.attrs.update({"reproduction": NAME, "simulation": SIMULATIONS[name].label, "title": TITLE, "config": config.model_dump_json(), "seed": config.seed})
+        ds[signal.name] = (
+            ("run", "time"),
+            truth[signal.name][None, :],
+            {"units": signal.units, "long_name": signal.long_name, "frame": "", "angle": 0},
+        )
+    ds.attrs.update(
+        {"reproduction": NAME, "simulation": SIMULATIONS[name].label, "title": TITLE, "config": config.model_dump_json(), "seed": config.seed}
+    )
     return scenario, ds

@@ -58,8 +58,9 @@ _SIM2_VALUES = ((SIM2_MASS * LENGTH**2, SIM2_MASS * LENGTH),)
 SIMULATIONS = {
     "sim1": Simulation("Sim 1: theta = m, piecewise constant", SIM1_PARAMETERS, _SIM1_VALUES, SIM1_SWITCH_TIMES, 10.0, 1.0, 0.0, (1.0,), True),
     "sim2": Simulation("Sim 2: theta = (m l^2, m l)", SIM2_PARAMETERS, _SIM2_VALUES, (), 100.0, 0.0, 0.0, (4.5, 2.0), True),
-    "sim1_free_swing": Simulation("Sim 1 with tau = 0 (free swing from q(0) = 1 rad)", SIM1_PARAMETERS, _SIM1_VALUES, SIM1_SWITCH_TIMES,
-                                  10.0, 1.0, 0.0, (1.0,), False),
+    "sim1_free_swing": Simulation(
+        "Sim 1 with tau = 0 (free swing from q(0) = 1 rad)", SIM1_PARAMETERS, _SIM1_VALUES, SIM1_SWITCH_TIMES, 10.0, 1.0, 0.0, (1.0,), False
+    ),
     "sim2_rest": Simulation("Sim 2 with tau = 0 at rest", SIM2_PARAMETERS, _SIM2_VALUES, (), 100.0, 0.0, 0.0, (4.5, 2.0), False),
 }
 #: The cases, one per run of :data:`SIMULATIONS`; the first is the default.
@@ -79,7 +80,6 @@ class Config(NoiseFreeConfig):
     filter_pole: PositiveFloat = Field(1.0, description="a of the filter 1/(s + a) (rad/s); the thesis's 1")
     pe_window: PositiveFloat = Field(5.0, description="T of the persistence-of-excitation check (s)")
     duration: PositiveFloat = Field(60.0, description="simulated time per run (s)")
-
 
     @field_validator("input_amplitude")
     @classmethod

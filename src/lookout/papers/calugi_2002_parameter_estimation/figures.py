@@ -25,12 +25,16 @@ def paper_figures(results: dict[str, xr.Dataset], estimators: dict[str, Paramete
     jump = next((t for t in SIM1_SWITCH_TIMES if t + 5.0 <= end1), None)
     window = (jump - 1.0, jump + 5.0) if jump is not None else (0.0, min(6.0, end1))
     figures["fig3_2_mass_estimate.png"] = plot_estimates(
-        sim1, [("mass", None)], window=window,
+        sim1,
+        [("mass", None)],
+        window=window,
         title=f"Calugi (2002), Fig. 3.2: pendulum mass, true (stepwise, chosen) and estimated; h = 10, {input_text(config)}",
     )
     end2 = float(sim2.time[-1])
     figures["fig3_3_inertia_moment_estimates.png"] = plot_estimates(
-        sim2, [("inertia", None), ("moment", None)], window=(0.0, min(5.0, end2)),
+        sim2,
+        [("inertia", None), ("moment", None)],
+        window=(0.0, min(5.0, end2)),
         title=f"Calugi (2002), Fig. 3.3: theta = (m l^2, m l), m = {SIM2_MASS:g} kg, l = {LENGTH:g} m (chosen); h = 100, {input_text(config)}",
     )
     figure = plt.figure(figsize=(11, 5.2), layout="constrained")
@@ -46,7 +50,10 @@ def paper_figures(results: dict[str, xr.Dataset], estimators: dict[str, Paramete
     swing_axis.plot(swing.time.values, swing.joint_angle.isel(run=0).values[:, 0], color="0.4", lw=0.8)
     swing_axis.set_ylabel("q (rad)")
     swing_axis.set_title("tau = 0: Sim 1 swinging freely from q(0) = 1 rad (top), Sim 2 at rest", fontsize=10)
-    for name, names in (("sim1_free_swing", ("m_hat, free swing (kg)",)), ("sim2_rest", ("theta_hat_1, at rest (kg m2)", "theta_hat_2, at rest (kg m)"))):
+    for name, names in (
+        ("sim1_free_swing", ("m_hat, free swing (kg)",)),
+        ("sim2_rest", ("theta_hat_1, at rest (kg m2)", "theta_hat_2, at rest (kg m)")),
+    ):
         ds, estimator = results[name], estimators[name]
         for column, label in zip(estimator.estimates(ds).T, names):
             still_axis.plot(ds.time.values, column, label=label)

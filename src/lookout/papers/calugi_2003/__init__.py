@@ -93,7 +93,9 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
         per_set[name] = summary
     sweep = convergence = drift = order = None
     if config.sweep:
-        sweep = interval_sweep(config, out, progress=None if progress is None else (lambda done, total: progress(len(GAIN_SETS) + done / total, parts)))
+        sweep = interval_sweep(
+            config, out, progress=None if progress is None else (lambda done, total: progress(len(GAIN_SETS) + done / total, parts))
+        )
         convergence = convergence_study(config)
         if progress is not None:
             progress(len(GAIN_SETS) + 2.0, parts)
@@ -127,7 +129,14 @@ def batches(config: Config) -> list[tuple[Scenario, int]]:
     result = [(build(config, case), config.runs) for case in CASES]
     if config.sweep:
         interval = min(INTERVALS)
-        result.append((build(config, sample_interval=interval, duration=config.sweep_duration, record_every=sweep_record_every(interval, config.sweep_duration)), config.sweep_seeds))
+        result.append(
+            (
+                build(
+                    config, sample_interval=interval, duration=config.sweep_duration, record_every=sweep_record_every(interval, config.sweep_duration)
+                ),
+                config.sweep_seeds,
+            )
+        )
     return result
 
 
@@ -135,8 +144,38 @@ def batches(config: Config) -> list[tuple[Scenario, int]]:
 REPRODUCTION = Reproduction(NAME, Config, CASES, composition, run, tables, batches_of=batches)
 
 __all__ = [
-    "CALUGI_2003_D", "CALUGI_2003_M", "CASES", "DESIGN_SPEED", "DIVERGED_DISTANCE", "GAIN_SETS", "INTERVALS", "NAME", "NOISE_LEVELS",
-    "PLANT_STEP", "PRINTED_GAINS", "REPRODUCTION", "STORE", "TITLE", "WAYPOINTS", "Config", "batches", "build", "composition",
-    "convergence_study", "discretization_order", "gains", "interval_document", "interval_sweep", "loop_metrics", "m11", "noise_drift",
-    "paper_vessel", "run", "sweep_record_every", "sweep_summary", "tables", "_figures", "_forces_and_theta_figure",
+    "CALUGI_2003_D",
+    "CALUGI_2003_M",
+    "CASES",
+    "DESIGN_SPEED",
+    "DIVERGED_DISTANCE",
+    "GAIN_SETS",
+    "INTERVALS",
+    "NAME",
+    "NOISE_LEVELS",
+    "PLANT_STEP",
+    "PRINTED_GAINS",
+    "REPRODUCTION",
+    "STORE",
+    "TITLE",
+    "WAYPOINTS",
+    "Config",
+    "batches",
+    "build",
+    "composition",
+    "convergence_study",
+    "discretization_order",
+    "gains",
+    "interval_document",
+    "interval_sweep",
+    "loop_metrics",
+    "m11",
+    "noise_drift",
+    "paper_vessel",
+    "run",
+    "sweep_record_every",
+    "sweep_summary",
+    "tables",
+    "_figures",
+    "_forces_and_theta_figure",
 ]

@@ -39,13 +39,21 @@ def composition(
         sensor = {"kind": "position-heading-velocity", "noise_std": [*config.noise_std, 0.0, 0.0, 0.0], "sample_period": interval}
     return {
         "simulation": {
-            "runs": config.runs, "seed": config.seed, "plant_step": plant_step, "sample_period": interval,
-            "duration": config.duration if duration is None else duration, "record_every": record_every, "batch": "stacked",
+            "runs": config.runs,
+            "seed": config.seed,
+            "plant_step": plant_step,
+            "sample_period": interval,
+            "duration": config.duration if duration is None else duration,
+            "record_every": record_every,
+            "batch": "stacked",
             "observer_mode": observer_mode,
         },
         "plant": {
             "kind": "dp-vessel",
-            "vessel": {"kind": "custom", **{name: np.asarray(getattr(vessel, name)).tolist() for name in ("mass_matrix", "damping_matrix", "stiffness_matrix")}},
+            "vessel": {
+                "kind": "custom",
+                **{name: np.asarray(getattr(vessel, name)).tolist() for name in ("mass_matrix", "damping_matrix", "stiffness_matrix")},
+            },
             "bias": {"kind": "gauss-markov", "time_constant": 1000.0, "std": 0.0},
             "waves": {"kind": "linear", "peak_frequency": 0.8976, "damping_ratio": 0.1, "amplitude": 0.0},
         },
@@ -53,18 +61,28 @@ def composition(
         "observer": {
             "kind": "adaptive-dp",
             "parametrization": {"kind": "inertia-entries", "unknowns": ["m11"], "lower": [low * true_m11], "upper": [high * true_m11]},
-            "position_gain": chosen["K1"].tolist(), "velocity_gain": chosen["K2"].tolist(),
+            "position_gain": chosen["K1"].tolist(),
+            "velocity_gain": chosen["K2"].tolist(),
             "adaptation_gain": config.adaptation_gain if adaptation_gain is None else adaptation_gain,
-            "form": form, "initial_theta": [(config.initial_theta if initial_theta is None else initial_theta) * true_m11],
+            "form": form,
+            "initial_theta": [(config.initial_theta if initial_theta is None else initial_theta) * true_m11],
             # eta_hat(0) at the vessel's true start, not its first (noisy) fix: the noise-drift
             # rate of the studies (analysis.adaptive_dp.noise_drift_rate) is derived from that start
             "initial": {"eta": [0.0, 0.0, 0.0]},
         },
         "reference": {
-            "kind": "reference-filter", "signals": ["position", "heading"], "bandwidth": 0.1,
-            "schedule_times": [t for t, _ in waypoints], "setpoints": [list(p) for _, p in waypoints],
+            "kind": "reference-filter",
+            "signals": ["position", "heading"],
+            "bandwidth": 0.1,
+            "schedule_times": [t for t, _ in waypoints],
+            "setpoints": [list(p) for _, p in waypoints],
         },
-        "controller": {"kind": "vectorial-backstepping", "position_gain": chosen["C1"], "velocity_gain": chosen["C2"], "damping_weights": chosen["d"].tolist()},
+        "controller": {
+            "kind": "vectorial-backstepping",
+            "position_gain": chosen["C1"],
+            "velocity_gain": chosen["C2"],
+            "damping_weights": chosen["d"].tolist(),
+        },
     }
 
 

@@ -35,6 +35,7 @@ PRINTED_GAINS = {
     "Gamma": 1e3,
 }
 
+
 def paper_vessel() -> DPVessel:
     """The vessel of (59): :data:`CALUGI_2003_M`, :data:`CALUGI_2003_D`, K = 0."""
     return DPVessel(CALUGI_2003_M, CALUGI_2003_D)
@@ -80,7 +81,6 @@ class Config(RunsConfig):
     sweep_seeds: PositiveCount = Field(2, description="seeds per point of the sweeps")
     sweep_duration: float = Field(600.0, description="simulated time of each sweep run (s)")
 
-
     @field_validator("sample_interval")
     @classmethod
     def _interval(cls, value):
@@ -97,7 +97,6 @@ class Config(RunsConfig):
         if value < 60.0:
             raise ValueError(f"must be at least 60 s; got {value:g} s")
         return value
-
 
     @field_validator("noise_std")
     @classmethod
@@ -119,13 +118,14 @@ class Config(RunsConfig):
         return value
 
 
-
 @functools.cache
 def _satisfying_proposal():
     """satisfying_gains for the paper's vessel and bounds, searched once (0.7 s) rather than
     once per scenario the sweeps build."""
     # designed for 1 m/s, about twice the reference's peak speed (0.027 x 20 m/s)
-    return satisfying_gains(paper_vessel(), theta_bounds=[0.5 * m11(), 2.0 * m11()], speed=DESIGN_SPEED, **{k: PRINTED_GAINS[k] for k in ('K1', 'K2', 'd', 'C1', 'C2')})
+    return satisfying_gains(
+        paper_vessel(), theta_bounds=[0.5 * m11(), 2.0 * m11()], speed=DESIGN_SPEED, **{k: PRINTED_GAINS[k] for k in ("K1", "K2", "d", "C1", "C2")}
+    )
 
 
 def gains(name: str) -> dict:

@@ -61,8 +61,17 @@ def _forces_and_theta_figure(ds: xr.Dataset, config: Config | None = None):
         "theta_hat moves visibly only\nfor Gamma >= 1e8 (theta_convergence.png, docs/reproductions.md)."
     )
     # in the empty band between the lower bound and the start
-    axes[0, 1].text(0.5, 0.26, why, transform=axes[0, 1].transAxes, fontsize=7.5, va="center", ha="center", gid="theta_note",
-                    bbox={"boxstyle": "round,pad=0.3", "facecolor": "white", "edgecolor": "0.7", "alpha": 0.9})
+    axes[0, 1].text(
+        0.5,
+        0.26,
+        why,
+        transform=axes[0, 1].transAxes,
+        fontsize=7.5,
+        va="center",
+        ha="center",
+        gid="theta_note",
+        bbox={"boxstyle": "round,pad=0.3", "facecolor": "white", "edgecolor": "0.7", "alpha": 0.9},
+    )
     for axis in axes[1]:
         axis.set_xlabel("time (s)")
     for axis in axes[:, 1]:
@@ -134,8 +143,16 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset |
             diverged = sweep.diverged.sel(gains=name).astype(bool)
             shown = values.where(~diverged, 1e3)
             for s in range(sweep.sizes["seed"]):
-                axes[0].loglog(sweep.sample_interval, shown.isel(seed=s), "o-" if s == 0 else "x--", color=color, label=name if s == 0 else None, ms=4)
-                axes[1].semilogx(sweep.sample_interval, np.abs(sweep.theta_relative_error.sel(gains=name).isel(seed=s)), "o-" if s == 0 else "x--", color=color, ms=4)
+                axes[0].loglog(
+                    sweep.sample_interval, shown.isel(seed=s), "o-" if s == 0 else "x--", color=color, label=name if s == 0 else None, ms=4
+                )
+                axes[1].semilogx(
+                    sweep.sample_interval,
+                    np.abs(sweep.theta_relative_error.sel(gains=name).isel(seed=s)),
+                    "o-" if s == 0 else "x--",
+                    color=color,
+                    ms=4,
+                )
         axes[0].axhline(DIVERGED_DISTANCE, color="0.5", ls=":")
         axes[0].set_ylabel("RMS tracking error (m); diverged drawn at 1000")
         axes[1].set_ylabel("|theta_hat(T) / m11 - 1|")
@@ -154,8 +171,13 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, convergence: xr.Dataset |
                 axis = axes[row, column]
                 for gamma, color in zip(convergence.gamma.values, colors):
                     for initial in convergence.initial.values:
-                        axis.plot(convergence.time, convergence.theta_ratio.sel(noise=noise, reference=reference, gamma=gamma, initial=initial), color=color, lw=1.0,
-                                  label=f"Gamma = {gamma:g}" if initial == convergence.initial.values[0] else None)
+                        axis.plot(
+                            convergence.time,
+                            convergence.theta_ratio.sel(noise=noise, reference=reference, gamma=gamma, initial=initial),
+                            color=color,
+                            lw=1.0,
+                            label=f"Gamma = {gamma:g}" if initial == convergence.initial.values[0] else None,
+                        )
                 axis.axhline(1.0, color="k", lw=0.8, ls=":")
                 axis.set_title(f"{reference} setpoint, {'noise as in the paper' if noise == 'paper' else 'no noise'}", fontsize=9)
                 axis.grid(True, alpha=0.3)

@@ -26,11 +26,20 @@ def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gamma
     for noise, std in noises.items():
         noisy = config.model_copy(update={"noise_std": std})
         for label, waypoints in setpoints.items():
-            scenario = stack_scenarios([
-                build(noisy, "printed", duration=config.sweep_duration, initial_theta=ratio, adaptation_gain=gamma, waypoints=waypoints,
-                      record_every=sweep_record_every(config.sample_interval, config.sweep_duration))
-                for gamma, ratio in cases
-            ])
+            scenario = stack_scenarios(
+                [
+                    build(
+                        noisy,
+                        "printed",
+                        duration=config.sweep_duration,
+                        initial_theta=ratio,
+                        adaptation_gain=gamma,
+                        waypoints=waypoints,
+                        record_every=sweep_record_every(config.sample_interval, config.sweep_duration),
+                    )
+                    for gamma, ratio in cases
+                ]
+            )
             ds = simulate_batch(scenario, keys_of_seeds([config.seed] * len(cases)), batched_scenario=True).to_xarray()
             results[noise, label] = (ds.theta_m11.values / m11()).reshape(len(gammas), len(ratios), -1)
             time = ds.time.values
@@ -38,12 +47,18 @@ def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gamma
     return xr.Dataset(
         {"theta_ratio": (("noise", "reference", "gamma", "initial", "time"), data)},
         coords={"noise": list(noises), "reference": list(setpoints), "gamma": list(gammas), "initial": list(ratios), "time": time},
-        attrs={"title": f"{NAME}: theta_hat / m11 from several starts (printed gains, discrete law)", "units": "1",
-               "paper_noise_std": list(config.noise_std), "sample_interval_s": config.sample_interval},
+        attrs={
+            "title": f"{NAME}: theta_hat / m11 from several starts (printed gains, discrete law)",
+            "units": "1",
+            "paper_noise_std": list(config.noise_std),
+            "sample_interval_s": config.sample_interval,
+        },
     )
 
 
-def discretization_order(config: Config, intervals=(0.04, 0.02, 0.01), gamma: float = 1e8, duration: float = 200.0, plant_step: float = 0.005) -> xr.Dataset:
+def discretization_order(
+    config: Config, intervals=(0.04, 0.02, 0.01), gamma: float = 1e8, duration: float = 200.0, plant_step: float = 0.005
+) -> xr.Dataset:
     """The discrete loop (65)-(67) against the continuous form (13)-(15) at the same Delta:
     noise-free, both gain sets, theta_hat(0) = 0.8 m11 and ``gamma``. The continuous
     observer (oracle velocity) is integrated with the plant, the controller is sampled at
@@ -55,18 +70,31 @@ def discretization_order(config: Config, intervals=(0.04, 0.02, 0.01), gamma: fl
     for interval in intervals:
         runs = {}
         for form in ("discrete", "continuous"):
-            scenario = stack_scenarios([
-                build(quiet, name, sample_interval=interval, duration=duration, adaptation_gain=gamma, form=form, plant_step=plant_step,
-                      observer_mode="continuous" if form == "continuous" else "sampled", record_every=integer_ratio(intervals[0], interval))
-                for name in GAIN_SETS
-            ])
+            scenario = stack_scenarios(
+                [
+                    build(
+                        quiet,
+                        name,
+                        sample_interval=interval,
+                        duration=duration,
+                        adaptation_gain=gamma,
+                        form=form,
+                        plant_step=plant_step,
+                        observer_mode="continuous" if form == "continuous" else "sampled",
+                        record_every=integer_ratio(intervals[0], interval),
+                    )
+                    for name in GAIN_SETS
+                ]
+            )
             runs[form] = simulate_batch(scenario, keys_of_seeds([config.seed] * len(GAIN_SETS)), batched_scenario=True).to_xarray()
         a, b = runs["discrete"], runs["continuous"]
-        rows.append([
-            np.abs(a.position - b.position).max(("time", "earth_axis")).values,
-            np.abs(a.velocity_hat - b.velocity_hat).max(("time", "body_axis")).values,
-            (np.abs(a.theta_m11 - b.theta_m11).max("time") / m11()).values,
-        ])
+        rows.append(
+            [
+                np.abs(a.position - b.position).max(("time", "earth_axis")).values,
+                np.abs(a.velocity_hat - b.velocity_hat).max(("time", "body_axis")).values,
+                (np.abs(a.theta_m11 - b.theta_m11).max("time") / m11()).values,
+            ]
+        )
     data = np.asarray(rows)  # (interval, quantity, gains)
     names = ("position_difference", "velocity_hat_difference", "theta_ratio_difference")
     units = ("m", "m s-1", "1")
@@ -74,10 +102,20 @@ def discretization_order(config: Config, intervals=(0.04, 0.02, 0.01), gamma: fl
     variables = {}
     for k, (name, unit) in enumerate(zip(names, units)):
         variables[name] = (("sample_interval", "gains"), data[:, k, :], {"units": unit})
-        order = [float(np.polyfit(log_delta, np.log(data[:, k, g]), 1)[0]) if np.all(data[:, k, g] > 0) else float("nan") for g in range(len(GAIN_SETS))]
+        order = [
+            float(np.polyfit(log_delta, np.log(data[:, k, g]), 1)[0]) if np.all(data[:, k, g] > 0) else float("nan") for g in range(len(GAIN_SETS))
+        ]
         variables[name.replace("_difference", "_order")] = (("gains",), order, {"units": "1"})
-    return xr.Dataset(variables, coords={"sample_interval": list(intervals), "gains": list(GAIN_SETS)},
-                      attrs={"title": f"{NAME}: discrete against continuous observer in closed loop", "gamma": gamma, "duration_s": duration, "plant_step_s": plant_step})
+    return xr.Dataset(
+        variables,
+        coords={"sample_interval": list(intervals), "gains": list(GAIN_SETS)},
+        attrs={
+            "title": f"{NAME}: discrete against continuous observer in closed loop",
+            "gamma": gamma,
+            "duration_s": duration,
+            "plant_step_s": plant_step,
+        },
+    )
 
 
 def noise_drift(
@@ -91,20 +129,28 @@ def noise_drift(
     rows = []
     for interval in intervals:
         cases = [(name, level, seed) for name in gain_sets for level in levels for seed in range(config.seed, config.seed + seeds)]
-        scenario = stack_scenarios([
-            build(config.model_copy(update={"noise_std": (level, level, level * float(np.radians(0.1)))}), name,
-                  sample_interval=interval, duration=window, initial_theta=1.0, adaptation_gain=gamma)
-            for name, level, _ in cases
-        ])
+        scenario = stack_scenarios(
+            [
+                build(
+                    config.model_copy(update={"noise_std": (level, level, level * float(np.radians(0.1)))}),
+                    name,
+                    sample_interval=interval,
+                    duration=window,
+                    initial_theta=1.0,
+                    adaptation_gain=gamma,
+                )
+                for name, level, _ in cases
+            ]
+        )
         ds = simulate_batch(scenario, keys_of_seeds([seed for *_, seed in cases]), batched_scenario=True).to_xarray()
         time = ds.time.values
         fitted = time >= 2 * interval
         theta = ds.theta_m11.values[:, fitted]
         slopes = np.polyfit(time[fitted], theta.T, 1)[0].reshape(len(gain_sets), len(levels), seeds)
         loop_gains = {name: {key: gains(name)[key] for key in ("K1", "K2", "d", "C1", "C2")} for name in gain_sets}
-        predicted = np.array([
-            [noise_drift_rate(**loop_gains[name], gamma=gamma, noise_std=level, interval=interval) for level in levels] for name in gain_sets
-        ])
+        predicted = np.array(
+            [[noise_drift_rate(**loop_gains[name], gamma=gamma, noise_std=level, interval=interval) for level in levels] for name in gain_sets]
+        )
         rows.append((slopes.mean(axis=-1), slopes.std(axis=-1, ddof=1) / np.sqrt(seeds), predicted))
     dims = ("sample_interval", "gains", "noise_std")
     return xr.Dataset(
@@ -122,8 +168,13 @@ def _convergence_summary(convergence: xr.Dataset) -> dict:
     final = convergence.theta_ratio.isel(time=-1)
     return {
         noise: {
-            reference: {f"{gamma:g}": {f"{initial:g}": float(final.sel(noise=noise, reference=reference, gamma=gamma, initial=initial)) for initial in convergence.initial.values}
-                        for gamma in convergence.gamma.values}
+            reference: {
+                f"{gamma:g}": {
+                    f"{initial:g}": float(final.sel(noise=noise, reference=reference, gamma=gamma, initial=initial))
+                    for initial in convergence.initial.values
+                }
+                for gamma in convergence.gamma.values
+            }
             for reference in convergence.reference.values.tolist()
         }
         for noise in convergence.noise.values.tolist()
@@ -133,8 +184,13 @@ def _convergence_summary(convergence: xr.Dataset) -> dict:
 def _order_summary(order: xr.Dataset) -> dict:
     return {
         name: {
-            key: {"difference": {f"{interval:g}": float(order[f"{key}_difference"].sel(gains=name, sample_interval=interval)) for interval in order.sample_interval.values},
-                  "order": float(order[f"{key}_order"].sel(gains=name))}
+            key: {
+                "difference": {
+                    f"{interval:g}": float(order[f"{key}_difference"].sel(gains=name, sample_interval=interval))
+                    for interval in order.sample_interval.values
+                },
+                "order": float(order[f"{key}_order"].sel(gains=name)),
+            }
             for key in ("position", "velocity_hat", "theta_ratio")
         }
         for name in order.gains.values.tolist()
@@ -145,7 +201,10 @@ def _drift_summary(drift: xr.Dataset) -> dict:
     return {
         name: {
             f"{interval:g}": {
-                f"{level:g}": {key: float(drift[key].sel(gains=name, sample_interval=interval, noise_std=level)) for key in ("measured_rate", "measured_rate_error", "predicted_rate")}
+                f"{level:g}": {
+                    key: float(drift[key].sel(gains=name, sample_interval=interval, noise_std=level))
+                    for key in ("measured_rate", "measured_rate_error", "predicted_rate")
+                }
                 for level in drift.noise_std.values
             }
             for interval in drift.sample_interval.values

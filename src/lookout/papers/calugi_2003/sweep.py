@@ -42,20 +42,34 @@ def interval_document(config: Config, intervals=INTERVALS) -> dict:
     for interval in intervals:
         if integer_ratio(config.sweep_duration, interval) is None:
             raise ValueError(f"sweep_duration ({config.sweep_duration:g} s) must be a whole multiple of every interval; {interval:g} s is not")
-    base = composition(config, GAIN_SETS[0], duration=config.sweep_duration, record_every=sweep_record_every(config.sample_interval, config.sweep_duration))
-    return whole_run_campaign(base, seeds=config.sweep_seeds, seed=config.seed, metrics=["rms_tracking:position", "final:theta_m11"],
-                              divergence=("position", DIVERGED_DISTANCE), axes={
-        "sample_interval": {
-            float(interval): {"simulation.sample_period": float(interval), "sensor.sample_period": float(interval),
-                              "simulation.record_every": sweep_record_every(interval, config.sweep_duration)}
-            for interval in intervals
+    base = composition(
+        config, GAIN_SETS[0], duration=config.sweep_duration, record_every=sweep_record_every(config.sample_interval, config.sweep_duration)
+    )
+    return whole_run_campaign(
+        base,
+        seeds=config.sweep_seeds,
+        seed=config.seed,
+        metrics=["rms_tracking:position", "final:theta_m11"],
+        divergence=("position", DIVERGED_DISTANCE),
+        axes={
+            "sample_interval": {
+                float(interval): {
+                    "simulation.sample_period": float(interval),
+                    "sensor.sample_period": float(interval),
+                    "simulation.record_every": sweep_record_every(interval, config.sweep_duration),
+                }
+                for interval in intervals
+            },
+            "gains": {
+                name: {
+                    "observer.position_gain": gains(name)["K1"].tolist(),
+                    "observer.velocity_gain": gains(name)["K2"].tolist(),
+                    "controller.damping_weights": gains(name)["d"].tolist(),
+                }
+                for name in GAIN_SETS
+            },
         },
-        "gains": {
-            name: {"observer.position_gain": gains(name)["K1"].tolist(), "observer.velocity_gain": gains(name)["K2"].tolist(),
-                   "controller.damping_weights": gains(name)["d"].tolist()}
-            for name in GAIN_SETS
-        },
-    })
+    )
 
 
 def interval_sweep(config: Config, out: Path, intervals=INTERVALS, progress: Callable | None = None) -> xr.Dataset:

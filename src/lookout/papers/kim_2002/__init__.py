@@ -79,7 +79,15 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     parts = len(OBSERVERS) + (1 if config.sweep else 0)
     # each observer as `lookout run` of its case's file simulates it: the same numbers to the bit
     ds = simulate_cases(REPRODUCTION, config, OBSERVERS, "observer", progress=progress, parts=parts)
-    ds.attrs.update({"reproduction": NAME, "title": TITLE, "config": config.model_dump_json(), "gains": config.gains, "model_error": config.model_error.model_dump_json()})
+    ds.attrs.update(
+        {
+            "reproduction": NAME,
+            "title": TITLE,
+            "config": config.model_dump_json(),
+            "gains": config.gains,
+            "model_error": config.model_error.model_dump_json(),
+        }
+    )
     metrics = closed_loop_metrics(ds)
     # a run counts as diverged as the table counts it: non-finite, or the vessel or its
     # estimate more than DIVERGED_DISTANCE off (thrust limits keep a diverged loop finite)
@@ -125,8 +133,38 @@ def batches(config: Config) -> list[tuple[Scenario, int]]:
 REPRODUCTION = Reproduction(NAME, Config, CASES, composition, run, tables, batches_of=batches)
 
 __all__ = [
-    "BIAS_GAIN", "BIAS_TIME_CONSTANT", "CASES", "DIVERGED_DISTANCE", "GAIN_SETS", "NAME", "OBSERVERS", "REPRODUCTION", "STORE", "SWEEP_RECORD_EVERY",
-    "SWITCHING_GAIN", "TITLE", "VELOCITY_GAIN", "WAVE", "WAYPOINTS", "Config", "ModelError", "batches", "bias_with_model_error", "build",
-    "closed_loop_metrics", "composition", "diverged_at", "gain_sets", "printed_observer", "run", "run_sweep", "sweep_document", "sweep_points",
-    "sweep_summary", "tables", "_aggregate", "_figures", "_track_figure",
+    "BIAS_GAIN",
+    "BIAS_TIME_CONSTANT",
+    "CASES",
+    "DIVERGED_DISTANCE",
+    "GAIN_SETS",
+    "NAME",
+    "OBSERVERS",
+    "REPRODUCTION",
+    "STORE",
+    "SWEEP_RECORD_EVERY",
+    "SWITCHING_GAIN",
+    "TITLE",
+    "VELOCITY_GAIN",
+    "WAVE",
+    "WAYPOINTS",
+    "Config",
+    "ModelError",
+    "batches",
+    "bias_with_model_error",
+    "build",
+    "closed_loop_metrics",
+    "composition",
+    "diverged_at",
+    "gain_sets",
+    "printed_observer",
+    "run",
+    "run_sweep",
+    "sweep_document",
+    "sweep_points",
+    "sweep_summary",
+    "tables",
+    "_aggregate",
+    "_figures",
+    "_track_figure",
 ]

@@ -64,7 +64,11 @@ def _aggregate(metrics: dict[str, np.ndarray], index) -> dict:
             out[name] = int(chosen.sum())
             continue
         kept = chosen[np.isfinite(chosen)]
-        out[name] = {"mean": float(kept.mean()) if kept.size else None, "std": float(kept.std()) if kept.size > 1 else 0.0, "runs": [float(v) for v in chosen]}
+        out[name] = {
+            "mean": float(kept.mean()) if kept.size else None,
+            "std": float(kept.std()) if kept.size > 1 else 0.0,
+            "runs": [float(v) for v in chosen],
+        }
     return out
 
 

@@ -32,8 +32,13 @@ def _vessel(config: Config, model_error: ModelError | None = None) -> dict:
 
 
 def composition(
-    config: Config, case: str = "sliding-mode", *, model_error: ModelError | None = None, gains: str | None = None,
-    duration: float | None = None, record_every: int = 1,
+    config: Config,
+    case: str = "sliding-mode",
+    *,
+    model_error: ModelError | None = None,
+    gains: str | None = None,
+    duration: float | None = None,
+    record_every: int = 1,
 ) -> dict:
     """The closed loop of Section 5 with the observer of ``case`` ("sliding-mode" or
     "conventional", the same observer without its switching term) as a composition."""
@@ -45,30 +50,52 @@ def composition(
     half = 0.5 * model_error.force * np.array([1.0, 1.0, FORCE_LEVER_ARM])
     return {
         "simulation": {
-            "runs": config.runs, "seed": config.seed, "plant_step": config.plant_step, "sample_period": config.sample_period,
-            "duration": config.duration if duration is None else duration, "record_every": record_every, "batch": "stacked",
+            "runs": config.runs,
+            "seed": config.seed,
+            "plant_step": config.plant_step,
+            "sample_period": config.sample_period,
+            "duration": config.duration if duration is None else duration,
+            "record_every": record_every,
+            "batch": "stacked",
         },
         "plant": {
             "kind": "dp-vessel",
             "vessel": _vessel(config, model_error),
             "bias": {"kind": "gauss-markov", "time_constant": BIAS_TIME_CONSTANT, "std": config.bias_std},
-            "waves": {"kind": "linear", "peak_frequency": WAVE["wave_frequency"], "damping_ratio": WAVE["wave_damping"], "amplitude": config.wave_amplitude},
+            "waves": {
+                "kind": "linear",
+                "peak_frequency": WAVE["wave_frequency"],
+                "damping_ratio": WAVE["wave_damping"],
+                "amplitude": config.wave_amplitude,
+            },
             "disturbance": {"kind": "body-force", "constant": half.tolist(), "amplitude": half.tolist(), "period": model_error.force_period},
             "initial": {"bias": config.bias_initial},
         },
         "sensor": {"kind": "position-heading", "noise_std": config.noise_std, "sample_period": config.measurement_period},
         "observer": {
-            "kind": "sliding-mode", "design": "gains", "vessel": _vessel(config), **WAVE,
-            **gain_sets(config.vessel.mass, config.vessel.length)[gains], "bias_time_constant": BIAS_TIME_CONSTANT,
-            "switching_gain": switching.tolist(), "boundary_layer": config.boundary_layer,
+            "kind": "sliding-mode",
+            "design": "gains",
+            "vessel": _vessel(config),
+            **WAVE,
+            **gain_sets(config.vessel.mass, config.vessel.length)[gains],
+            "bias_time_constant": BIAS_TIME_CONSTANT,
+            "switching_gain": switching.tolist(),
+            "boundary_layer": config.boundary_layer,
         },
         "reference": {
-            "kind": "reference-filter", "signals": ["position", "heading"], "bandwidth": config.reference_bandwidth,
-            "schedule_times": [t for t, _ in WAYPOINTS], "setpoints": [list(p) for _, p in WAYPOINTS],
+            "kind": "reference-filter",
+            "signals": ["position", "heading"],
+            "bandwidth": config.reference_bandwidth,
+            "schedule_times": [t for t, _ in WAYPOINTS],
+            "setpoints": [list(p) for _, p in WAYPOINTS],
         },
         "controller": {
-            "kind": "observer-backstepping", "integral_gain": config.integral_gain, "position_gain": config.position_gain,
-            "velocity_gain": config.velocity_gain, "coupling_gain": config.coupling_gain, "damping_weights": config.damping_weights,
+            "kind": "observer-backstepping",
+            "integral_gain": config.integral_gain,
+            "position_gain": config.position_gain,
+            "velocity_gain": config.velocity_gain,
+            "coupling_gain": config.coupling_gain,
+            "damping_weights": config.damping_weights,
         },
         "actuator": {"kind": "thrust-limits", "limit": NORTHERN_CLIPPER_THRUST_LIMIT},
     }
@@ -87,5 +114,3 @@ SWEEP_RECORD_EVERY = 10
 
 #: The cases: one per observer, in closed loop; the first is the default.
 CASES: tuple[str, ...] = OBSERVERS
-
-

@@ -49,8 +49,13 @@ def printed_observer(vessel, *, boundary_layer, **overrides) -> SlidingModeObser
     ``overrides`` replace any of them (keywords of :meth:`SlidingModeObserver.from_gains`).
     The boundary layer eps is not given in the paper: it must be chosen."""
     settings = {
-        **WAVE, "velocity_injection_gain": VELOCITY_GAIN, "bias_injection_gain": BIAS_GAIN, "bias_time_constant": BIAS_TIME_CONSTANT,
-        "switching_gain": SWITCHING_GAIN, "boundary_layer": boundary_layer, **overrides,
+        **WAVE,
+        "velocity_injection_gain": VELOCITY_GAIN,
+        "bias_injection_gain": BIAS_GAIN,
+        "bias_time_constant": BIAS_TIME_CONSTANT,
+        "switching_gain": SWITCHING_GAIN,
+        "boundary_layer": boundary_layer,
+        **overrides,
     }
     return SlidingModeObserver.from_gains(vessel, **settings)
 
@@ -88,7 +93,6 @@ class ModelError(Settings):
             raise ValueError(f"must be a finite number >= 0; got {value:g}")
         return value
 
-
     def disturbance(self) -> BodyDisturbance:
         half = 0.5 * self.force * np.array([1.0, 1.0, FORCE_LEVER_ARM])
         return BodyDisturbance(constant=half, amplitude=half, period=self.force_period)
@@ -124,8 +128,6 @@ class Config(RunsConfig):
     sweep_seeds: PositiveCount = Field(2, description="seeds per point of the sweep")
     sweep_duration: PositiveFloat = Field(1400.0, description="simulated time of each sweep run (s)")
 
-
-
     @field_validator("integral_gain")
     @classmethod
     def _non_negative(cls, value):
@@ -157,5 +159,3 @@ class Config(RunsConfig):
         if value < 100.0:
             raise ValueError(f"must be at least 100 s; got {value:g} s")
         return value
-
-

@@ -16,8 +16,6 @@ def _model_error_text(config: Config) -> str:
     return f"{config.gains} gains; model error M x {1 + error.mass:g}, D x {1 + error.damping:g}, F {error.force / 1e3:g} kN"
 
 
-
-
 def _track_figure(ds: xr.Dataset, config: Config, runs: dict[str, int]):
     """Fig. 8: the X-Y track of the first run of each observer; a track that leaves the
     axes is cut there with a mark, and a diverged run says so in the legend."""
@@ -47,7 +45,18 @@ def _track_figure(ds: xr.Dataset, config: Config, runs: dict[str, int]):
             label += f": diverged at t = {when[run]:.0f} s"
         axis.plot(east[:stop], north[:stop], **styles[observer], label=label, zorder=2)
         if stop < north.size and stop > 0:
-            axis.plot(east[stop - 1], north[stop - 1], marker="X", ms=9, color=styles[observer]["color"], mec="k", mew=0.6, ls="none", zorder=4, gid=f"leaves_{observer}")
+            axis.plot(
+                east[stop - 1],
+                north[stop - 1],
+                marker="X",
+                ms=9,
+                color=styles[observer]["color"],
+                mec="k",
+                mew=0.6,
+                ls="none",
+                zorder=4,
+                gid=f"leaves_{observer}",
+            )
             notes.append((observer, stop, east[stop - 1], north[stop - 1]))
     middle = 0.5 * (low + high)
     for observer, stop, x, y in notes:
@@ -98,8 +107,14 @@ def _figures(ds: xr.Dataset, sweep: xr.Dataset | None, out: Path, config: Config
     truth = sliding.bias_force.sel(earth_axis="north").values
     rms = lambda values: float(np.sqrt(np.nanmean(values**2))) / 1e3  # noqa: E731
     figures = {
-        "fig04_x_position.png": plot_estimates(sliding_runs, [("position", "north")], title=f"Kim (2002), Fig. 4: X (north) position, true and estimated (sliding-mode observer)\n{setting}"),
-        "fig06_surge_velocity.png": plot_estimates(sliding_runs, [("velocity", "surge")], title=f"Kim (2002), Fig. 6: surge velocity, true and estimated (sliding-mode observer)\n{setting}"),
+        "fig04_x_position.png": plot_estimates(
+            sliding_runs,
+            [("position", "north")],
+            title=f"Kim (2002), Fig. 4: X (north) position, true and estimated (sliding-mode observer)\n{setting}",
+        ),
+        "fig06_surge_velocity.png": plot_estimates(
+            sliding_runs, [("velocity", "surge")], title=f"Kim (2002), Fig. 6: surge velocity, true and estimated (sliding-mode observer)\n{setting}"
+        ),
         "fig07_surge_bias.png": plot_estimates(
             with_target,
             [("bias_force", "north")],

@@ -65,15 +65,29 @@ def model_error_changes(error: ModelError) -> dict:
 def sweep_document(config: Config, points: list[tuple[str, ModelError]] | None = None) -> dict:
     """The sweep as a campaign document; ``points`` default to :func:`sweep_points`."""
     points = sweep_points() if points is None else points
-    base = composition(config, OBSERVERS[0], model_error=ModelError(mass=0.0, damping=0.0, force=0.0), duration=config.sweep_duration,
-                       record_every=SWEEP_RECORD_EVERY)
+    base = composition(
+        config,
+        OBSERVERS[0],
+        model_error=ModelError(mass=0.0, damping=0.0, force=0.0),
+        duration=config.sweep_duration,
+        record_every=SWEEP_RECORD_EVERY,
+    )
     gains = gain_sets(config.vessel.mass, config.vessel.length)
-    return whole_run_campaign(base, seeds=config.sweep_seeds, seed=config.seed, metrics=["rms_tracking:position", "max_error:position"],
-                              divergence=("position", DIVERGED_DISTANCE), axes={
-        "gains": {name: {f"observer.{key}": list(value) for key, value in gains[name].items()} for name in GAIN_SETS},
-        "observer": {observer: {"observer.switching_gain": list(SWITCHING_GAIN) if observer == "sliding-mode" else [0.0, 0.0, 0.0]} for observer in OBSERVERS},
-        "model_error": {label: model_error_changes(error) for label, error in points},
-    })
+    return whole_run_campaign(
+        base,
+        seeds=config.sweep_seeds,
+        seed=config.seed,
+        metrics=["rms_tracking:position", "max_error:position"],
+        divergence=("position", DIVERGED_DISTANCE),
+        axes={
+            "gains": {name: {f"observer.{key}": list(value) for key, value in gains[name].items()} for name in GAIN_SETS},
+            "observer": {
+                observer: {"observer.switching_gain": list(SWITCHING_GAIN) if observer == "sliding-mode" else [0.0, 0.0, 0.0]}
+                for observer in OBSERVERS
+            },
+            "model_error": {label: model_error_changes(error) for label, error in points},
+        },
+    )
 
 
 def run_sweep(config: Config, out: Path, progress: Callable | None = None, points: list[tuple[str, ModelError]] | None = None) -> xr.Dataset:
@@ -96,6 +110,10 @@ def sweep_summary(sweep: xr.Dataset) -> dict:
                 cell = sweep.sel(gains=gains, observer=observer, model_error=label)
                 diverged = cell.diverged.values.astype(bool)
                 kept = cell.rms_tracking__position.values[~diverged]
-                rows[label] = {"tracking_rms_m": float(kept.mean()) if kept.size else None, "diverged": int(diverged.sum()), "seeds": int(diverged.size)}
+                rows[label] = {
+                    "tracking_rms_m": float(kept.mean()) if kept.size else None,
+                    "diverged": int(diverged.sum()),
+                    "seeds": int(diverged.size),
+                }
             result[gains][observer] = rows
     return result

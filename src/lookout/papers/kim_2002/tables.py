@@ -9,6 +9,7 @@ def tables(summary: dict) -> list[Table]:
     """Closed-loop metrics per observer; the sweep per gain set."""
     rows = []
     for observer, values in summary["observers"].items():
+
         def cell(name, scale=1.0, digits=3):
             entry = values[name]
             if entry["mean"] is None:
@@ -51,4 +52,3 @@ def tables(summary: dict) -> list[Table]:
                 )
             )
     return result
-

@@ -32,11 +32,13 @@ def tracking_errors(ds: xr.Dataset) -> xr.Dataset:
     dx = ds.position - ds.position_desired
     c, s = np.cos(ds.heading), np.sin(ds.heading)
     north, east = dx.isel(earth_axis=0, drop=True), dx.isel(earth_axis=1, drop=True)
-    return xr.Dataset({
-        "surge_error": c * north + s * east,
-        "sway_error": -s * north + c * east,
-        "heading_error": np.arctan2(np.sin(ds.heading - ds.heading_desired), np.cos(ds.heading - ds.heading_desired)),
-    })
+    return xr.Dataset(
+        {
+            "surge_error": c * north + s * east,
+            "sway_error": -s * north + c * east,
+            "heading_error": np.arctan2(np.sin(ds.heading - ds.heading_desired), np.cos(ds.heading - ds.heading_desired)),
+        }
+    )
 
 
 def error_index(time, surge_error, sway_error, heading_error, start=0.0, end=None) -> np.ndarray:
@@ -117,7 +119,8 @@ def reference_bounds(config: Config) -> dict:
         "yaw_rate_max": float(np.abs(nu_ref[:, 2]).max()),
         "speed_max": float(np.linalg.norm(nu_ref, axis=1).max()),
         "acceleration_max": float(np.linalg.norm(nu_ref_rate, axis=1).max()),
-        "position0": np.asarray(eta_ref0), "velocity0": np.asarray(nu_ref0),
+        "position0": np.asarray(eta_ref0),
+        "velocity0": np.asarray(nu_ref0),
     }
 
 
@@ -163,8 +166,12 @@ def _start(config: Config, estimate: str) -> dict:
     simulated = scenario(config, "simulation")
     y0 = jnp.asarray(INITIAL_ETA)
     start = simulated.observer.output(simulated.observer.init(y0, simulated.initial_estimate), y0)
-    return {"eta0": INITIAL_ETA, "nu0": (0.0, 0.0, 0.0), "eta_hat0": INITIAL_ETA_HAT,
-            "velocity_hat0": np.append(np.asarray(start["position_rate"]), float(start["heading_rate"]))}
+    return {
+        "eta0": INITIAL_ETA,
+        "nu0": (0.0, 0.0, 0.0),
+        "eta_hat0": INITIAL_ETA_HAT,
+        "velocity_hat0": np.append(np.asarray(start["position_rate"]), float(start["heading_rate"])),
+    }
 
 
 def _reference_arguments(config: Config, bounds: dict | None) -> dict:
@@ -172,34 +179,63 @@ def _reference_arguments(config: Config, bounds: dict | None) -> dict:
     (``bounds`` from :func:`reference_bounds`, computed here when not given)."""
     bounds = reference_bounds(config) if bounds is None else bounds
     return {
-        "reference_position0": bounds["position0"], "reference_velocity0": bounds["velocity0"], "yaw_rate_max": bounds["yaw_rate_max"],
-        "reference_speed_max": bounds["speed_max"], "reference_acceleration_max": bounds["acceleration_max"],
+        "reference_position0": bounds["position0"],
+        "reference_velocity0": bounds["velocity0"],
+        "yaw_rate_max": bounds["yaw_rate_max"],
+        "reference_speed_max": bounds["speed_max"],
+        "reference_acceleration_max": bounds["acceleration_max"],
     }
 
 
-def gain_conditions(config: Config, velocity_bound: float = VELOCITY_BOUND, *, estimate: str = "printed", gains: dict | None = None, epsilon3=None,
-                    bounds: dict | None = None):
+def gain_conditions(
+    config: Config,
+    velocity_bound: float = VELOCITY_BOUND,
+    *,
+    estimate: str = "printed",
+    gains: dict | None = None,
+    epsilon3=None,
+    bounds: dict | None = None,
+):
     """Conditions (25), Prop. 3.1 and Prop. 3.3
     (:func:`lookout.analysis.tracking.check_wondergem_2009`) at the configured start, for
     the printed gains or ``gains`` (keys L1, L2, natural_frequency, damping_ratio)."""
     from lookout.analysis.tracking import check_wondergem_2009
 
-    chosen = {"L1": OBSERVER_POSITION_GAIN, "L2": OBSERVER_VELOCITY_GAIN, "natural_frequency": NATURAL_FREQUENCY,
-              "damping_ratio": DAMPING_RATIO, **(gains or {})}
+    chosen = {
+        "L1": OBSERVER_POSITION_GAIN,
+        "L2": OBSERVER_VELOCITY_GAIN,
+        "natural_frequency": NATURAL_FREQUENCY,
+        "damping_ratio": DAMPING_RATIO,
+        **(gains or {}),
+    }
     return check_wondergem_2009(
-        cybership2(), observer_gains=(chosen["L1"], chosen["L2"]),
-        natural_frequency=chosen["natural_frequency"], damping_ratio=chosen["damping_ratio"], **_start(config, estimate),
-        **_reference_arguments(config, bounds), velocity_bound=velocity_bound, epsilon3=epsilon3,
+        cybership2(),
+        observer_gains=(chosen["L1"], chosen["L2"]),
+        natural_frequency=chosen["natural_frequency"],
+        damping_ratio=chosen["damping_ratio"],
+        **_start(config, estimate),
+        **_reference_arguments(config, bounds),
+        velocity_bound=velocity_bound,
+        epsilon3=epsilon3,
     )
 
 
-def proposed_gains(config: Config, velocity_bound: float = VELOCITY_BOUND, *, estimate: str = "measured", damping_ratio: float = DAMPING_RATIO,
-                   bounds: dict | None = None):
+def proposed_gains(
+    config: Config,
+    velocity_bound: float = VELOCITY_BOUND,
+    *,
+    estimate: str = "measured",
+    damping_ratio: float = DAMPING_RATIO,
+    bounds: dict | None = None,
+):
     """:func:`lookout.analysis.tracking.propose_wondergem_2009` at the configured start."""
     from lookout.analysis.tracking import propose_wondergem_2009
 
     return propose_wondergem_2009(
-        cybership2(), damping_ratio=damping_ratio, **_start(config, estimate), **_reference_arguments(config, bounds),
+        cybership2(),
+        damping_ratio=damping_ratio,
+        **_start(config, estimate),
+        **_reference_arguments(config, bounds),
         velocity_bound=velocity_bound,
     )
 

@@ -54,11 +54,17 @@ def composition(config: Config, case: str) -> dict:
     plant = {"kind": "cybership-ii", "ship": {"kind": "cybership-ii"}, "initial": {"eta": list(INITIAL_ETA)}}
     if case == "basin-waves" and config.wave_height > 0:
         plant["waves"] = {
-            "kind": "jonswap", "significant_height": config.wave_height, "mean_period": config.wave_period, "hull_length": CYBERSHIP_LENGTH,
+            "kind": "jonswap",
+            "significant_height": config.wave_height,
+            "mean_period": config.wave_period,
+            "hull_length": CYBERSHIP_LENGTH,
         }
     observer = {
-        "kind": "earth-fixed", "position_gain": OBSERVER_POSITION_GAIN, "velocity_gain": OBSERVER_VELOCITY_GAIN,
-        "method": "euler" if basin else "rk4", "initial_velocity": config.initial_velocity,
+        "kind": "earth-fixed",
+        "position_gain": OBSERVER_POSITION_GAIN,
+        "velocity_gain": OBSERVER_VELOCITY_GAIN,
+        "method": "euler" if basin else "rk4",
+        "initial_velocity": config.initial_velocity,
         "initial": {"eta": list(INITIAL_ETA_HAT), "velocity": list(INITIAL_VELOCITY_HAT)},
     }
     controller = {"kind": "tracking", "natural_frequency": list(NATURAL_FREQUENCY), "damping_ratio": DAMPING_RATIO}
@@ -67,20 +73,29 @@ def composition(config: Config, case: str) -> dict:
         controller["ship"] = dict(LINEAR_SHIP)
     return {
         "simulation": {
-            "runs": config.runs, "seed": config.seed, "batch": "stacked", "plant_step": PLANT_STEP,
-            "sample_period": BASIN_PERIOD if basin else PLANT_STEP, "duration": config.duration,
+            "runs": config.runs,
+            "seed": config.seed,
+            "batch": "stacked",
+            "plant_step": PLANT_STEP,
+            "sample_period": BASIN_PERIOD if basin else PLANT_STEP,
+            "duration": config.duration,
             # basin: every 0.05 s step (the 10 Hz hold makes the thrust alternate at 10 Hz)
-            "record_every": 1 if basin else 10, "observer_mode": "sampled" if basin else "continuous",
+            "record_every": 1 if basin else 10,
+            "observer_mode": "sampled" if basin else "continuous",
         },
         "plant": plant,
         "sensor": {
-            "kind": "position-heading", "noise_std": list(config.noise_std) if basin else [0.0, 0.0, 0.0],
+            "kind": "position-heading",
+            "noise_std": list(config.noise_std) if basin else [0.0, 0.0, 0.0],
             "sample_period": BASIN_MEASUREMENT_PERIOD if basin else PLANT_STEP,
         },
         "observer": observer,
         "reference": {
-            "kind": "ellipse", "semi_axes": list(config.semi_axes), "lap_speeds": list(LAP_SPEEDS),
-            "start_angle": config.start_angle, "direction": config.direction,
+            "kind": "ellipse",
+            "semi_axes": list(config.semi_axes),
+            "lap_speeds": list(LAP_SPEEDS),
+            "start_angle": config.start_angle,
+            "direction": config.direction,
         },
         "controller": controller,
         "actuator": dict(THRUST_LIMITS if basin else NO_LIMITS),

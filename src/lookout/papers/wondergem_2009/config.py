@@ -52,7 +52,10 @@ class Config(RunsConfig):
     noise_std: tuple[float, float, float] = Field((0.002, 0.002, float(np.radians(0.1))), description="basin measurement noise (m, m, rad)")
     wave_height: float = Field(0.01, description="significant wave height Hs (m), basin-waves")
     wave_period: float = Field(0.75, description="JONSWAP mean period T1 (s), basin-waves")
-    sweep: bool = Field(True, description="sweep the choices the paper leaves open (start, direction, initial velocity, saturation) and run the measurement-hold study")
+    sweep: bool = Field(
+        True,
+        description="sweep the choices the paper leaves open (start, direction, initial velocity, saturation) and run the measurement-hold study",
+    )
 
     @field_validator("conditions")
     @classmethod
@@ -102,5 +105,7 @@ class Config(RunsConfig):
     @classmethod
     def _finite(cls, value, info: ValidationInfo):
         if not math.isfinite(value) or (info.field_name != "start_angle" and value < 0) or (info.field_name == "wave_period" and value == 0):
-            raise ValueError(f"must be finite{' and positive' if info.field_name == 'wave_period' else ''}{' and >= 0' if info.field_name == 'wave_height' else ''}; got {value:g}")
+            raise ValueError(
+                f"must be finite{' and positive' if info.field_name == 'wave_period' else ''}{' and >= 0' if info.field_name == 'wave_height' else ''}; got {value:g}"
+            )
         return value

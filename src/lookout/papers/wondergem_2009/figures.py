@@ -96,4 +96,3 @@ def figures(results: dict[str, xr.Dataset], config: Config, out: Path) -> list[s
     figure.tight_layout()
     drawn["thrust.png"] = figure
     return save_figures(drawn, out)
-

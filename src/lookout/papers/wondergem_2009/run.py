@@ -95,6 +95,11 @@ def sweep_summary(sweep: xr.Dataset) -> dict:
             for velocity in sweep.initial_velocity.values:
                 for saturation in sweep.saturation.values:
                     cell = dict(start_angle=start, direction=direction, initial_velocity=velocity, saturation=saturation)
-                    result["runs"].append({**{k: (v.item() if hasattr(v, "item") else v) for k, v in cell.items()},
-                                           "error_index": float(index.sel(**cell)), "time_saturated_s": float(sweep.time_saturated_s.sel(**cell))})
+                    result["runs"].append(
+                        {
+                            **{k: (v.item() if hasattr(v, "item") else v) for k, v in cell.items()},
+                            "error_index": float(index.sel(**cell)),
+                            "time_saturated_s": float(sweep.time_saturated_s.sel(**cell)),
+                        }
+                    )
     return result

@@ -67,10 +67,15 @@ def sweep_documents(config: Config, condition: str = "simulation") -> list[dict]
     """``condition``'s composition for each of :func:`sweep_cases`."""
     base = composition(config, condition)
     return [
-        changed(base, {
-            "reference.start_angle": start, "reference.direction": direction, "observer.initial_velocity": velocity,
-            "actuator": THRUST_LIMITS if saturate else NO_LIMITS,
-        })
+        changed(
+            base,
+            {
+                "reference.start_angle": start,
+                "reference.direction": direction,
+                "observer.initial_velocity": velocity,
+                "actuator": THRUST_LIMITS if saturate else NO_LIMITS,
+            },
+        )
         for start, direction, velocity, saturate in sweep_cases()
     ]
 
@@ -90,7 +95,11 @@ def choice_sweep(config: Config, condition: str = "simulation") -> xr.Dataset:
             "time_saturated_s": (dims, metrics["time_saturated_s"].reshape(shape)),
         },
         coords={"start_angle": list(SWEEP_STARTS), "direction": [1, -1], "initial_velocity": ["estimate", "state"], "saturation": ["off", "on"]},
-        attrs={"title": f"{NAME}: error index (43) over the choices the paper leaves open ({condition})", "condition": condition, "duration_s": config.duration},
+        attrs={
+            "title": f"{NAME}: error index (43) over the choices the paper leaves open ({condition})",
+            "condition": condition,
+            "duration_s": config.duration,
+        },
     )
 
 
@@ -98,10 +107,14 @@ def hold_documents(config: Config) -> list[dict]:
     """basin-calm's composition for each of :data:`HOLD_CASES`."""
     base = composition(config, "basin-calm")
     return [
-        changed(base, {
-            "sensor.sample_period": period, "sensor.noise_std": list(config.noise_std) if noisy else [0.0, 0.0, 0.0],
-            "actuator": THRUST_LIMITS if limited else NO_LIMITS,
-        })
+        changed(
+            base,
+            {
+                "sensor.sample_period": period,
+                "sensor.noise_std": list(config.noise_std) if noisy else [0.0, 0.0, 0.0],
+                "actuator": THRUST_LIMITS if limited else NO_LIMITS,
+            },
+        )
         for _, period, noisy, limited in HOLD_CASES
     ]
 
@@ -121,11 +134,17 @@ def hold_study(config: Config) -> list[dict]:
     rows = []
     for i, (label, period, noisy, limited) in enumerate(HOLD_CASES):
         surge_force = ds.force_commanded.values[i, time > 20.0, 0]
-        rows.append({
-            "case": label, "measurement_period_s": period, "noise": noisy, "thrust_limits": limited,
-            "lap4_surge_error_m": float(errors.surge_error.values[i, lap4].mean()) if lap4.any() else None,
-            "lap4_sway_error_m": float(errors.sway_error.values[i, lap4].mean()) if lap4.any() else None,
-            "surge_command_step_N": float(np.abs(np.diff(surge_force)).mean()),
-            "error_index": float(metrics["error_index"][i]), "time_beyond_limit_s": float(metrics["time_saturated_s"][i]),
-        })
+        rows.append(
+            {
+                "case": label,
+                "measurement_period_s": period,
+                "noise": noisy,
+                "thrust_limits": limited,
+                "lap4_surge_error_m": float(errors.surge_error.values[i, lap4].mean()) if lap4.any() else None,
+                "lap4_sway_error_m": float(errors.sway_error.values[i, lap4].mean()) if lap4.any() else None,
+                "surge_command_step_N": float(np.abs(np.diff(surge_force)).mean()),
+                "error_index": float(metrics["error_index"][i]),
+                "time_beyond_limit_s": float(metrics["time_saturated_s"][i]),
+            }
+        )
     return rows

@@ -90,8 +90,10 @@ def start(family: Family, scenario) -> tuple:
         if family.check(build(family, scenario, gains)).holds:
             return gains
     failing = [key for key, verdict in report.verdicts.items() if verdict != "holds"]
-    raise ValueError(f"the starting gains do not satisfy {', '.join(failing)} ({family.design} shows why), and no nearby gains inside "
-                     "the parametrized conditions satisfy them; start from gains that do")
+    raise ValueError(
+        f"the starting gains do not satisfy {', '.join(failing)} ({family.design} shows why), and no nearby gains inside "
+        "the parametrized conditions satisfy them; start from gains that do"
+    )
 
 
 class Joint(Family):
@@ -108,7 +110,7 @@ class Joint(Family):
     def _split(self, values, counts):
         out, start = [], 0
         for count in counts:
-            out.append(values[start:start + count])
+            out.append(values[start : start + count])
             start += count
         return out
 
@@ -131,9 +133,13 @@ class Joint(Family):
         from lookout.analysis.conditions import Report
 
         reports = [part.check(scenario) for part in self.parts]
-        return Report("; ".join(r.title for r in reports), [c for r in reports for c in r.conditions],
-                      {k: v for r in reports for k, v in r.quantities.items()}, [line for r in reports for line in r.summary],
-                      [note for r in reports for note in r.notes])
+        return Report(
+            "; ".join(r.title for r in reports),
+            [c for r in reports for c in r.conditions],
+            {k: v for r in reports for k, v in r.quantities.items()},
+            [line for r in reports for line in r.summary],
+            [note for r in reports for note in r.notes],
+        )
 
 
 def _load(path: str):
@@ -153,9 +159,13 @@ def integration_stable(step: float, fastest: float, method: str, gains: str, sou
     from lookout.analysis.conditions import Condition, Inequality
 
     bound = STABLE_STEP[method]
-    return Condition("integration_stable", f"h {gains} < x_stable", "the sampled observer integrates the error poles stably", source,
-                     [Inequality.check(f"h max {gains}", f"h max({gains}) < {bound} ({method})", step * fastest, "<", bound, units="1",
-                                       source=source)])
+    return Condition(
+        "integration_stable",
+        f"h {gains} < x_stable",
+        "the sampled observer integrates the error poles stably",
+        source,
+        [Inequality.check(f"h max {gains}", f"h max({gains}) < {bound} ({method})", step * fastest, "<", bound, units="1", source=source)],
+    )
 
 
 #: The components a tuning may change.
@@ -199,8 +209,10 @@ def family_of(scenario, components: tuple[str, ...] | None = None) -> tuple[Fami
     if not parts:
         if errors:
             raise ValueError(errors[0])
-        raise ValueError(f"neither observer {kinds['observer'][0]} nor controller {kinds['controller'][0]} has a tunable family yet (tunable "
-                         f"observers: {', '.join(kinds['observer'][1])}; controllers: {', '.join(kinds['controller'][1]) or 'none'})")
+        raise ValueError(
+            f"neither observer {kinds['observer'][0]} nor controller {kinds['controller'][0]} has a tunable family yet (tunable "
+            f"observers: {', '.join(kinds['observer'][1])}; controllers: {', '.join(kinds['controller'][1]) or 'none'})"
+        )
     if len(parts) == 1:
         return parts[0], starts[0], notes
     return Joint(parts, starts), tuple(g for gains in starts for g in gains), notes

@@ -94,17 +94,17 @@ class AdaptiveDPFamily(Family):
     backstepping controller, its d and P1: (22), (57), (58) by construction (module
     docstring), checked with :func:`~lookout.analysis.adaptive_dp.check_calugi_2003`."""
 
-    vessel: object              # the analysis' DPVessel: the observer's model at theta_ref
-    theta_bounds: list          # [[lower, upper], ...] per unknown
-    unknown: tuple              # (("M", 0, 0),) ...
-    damping_min: float          # D_min (kg/s)
-    coupling: float             # k = (1 + K_max)^2 / 4
-    diagonal_mass: bool         # every vertex M(theta) diagonal: sigma2 > 0 by construction
-    gamma_tuned: np.ndarray     # bool per diagonal entry of Gamma (diagonal Gamma), or None
-    gamma_matrix: np.ndarray    # Gamma of the scenario ((p, p))
-    closed_loop: bool           # the controller is VectorialBackstepping: d, P1 in the family
-    form: str                   # "discrete" or "continuous"
-    step: float                 # the observer's integration step (s)
+    vessel: object  # the analysis' DPVessel: the observer's model at theta_ref
+    theta_bounds: list  # [[lower, upper], ...] per unknown
+    unknown: tuple  # (("M", 0, 0),) ...
+    damping_min: float  # D_min (kg/s)
+    coupling: float  # k = (1 + K_max)^2 / 4
+    diagonal_mass: bool  # every vertex M(theta) diagonal: sigma2 > 0 by construction
+    gamma_tuned: np.ndarray  # bool per diagonal entry of Gamma (diagonal Gamma), or None
+    gamma_matrix: np.ndarray  # Gamma of the scenario ((p, p))
+    closed_loop: bool  # the controller is VectorialBackstepping: d, P1 in the family
+    form: str  # "discrete" or "continuous"
+    step: float  # the observer's integration step (s)
     model_notes: tuple = ()
     name: str = "adaptive DP observer (Calugi et al. 2003): K1 above the floor of (22)/(57), K2, Gamma, d, P1; integration checked"
     design: str = "lookout design adaptive-observer"
@@ -131,20 +131,25 @@ class AdaptiveDPFamily(Family):
             if np.all((lower <= truth) & (truth <= upper)):
                 reference = truth
             else:
-                notes.append(f"the plant's {', '.join(parametrization.names)} = {truth.tolist()} is outside the observer's bounds: the model bounds "
-                             "(9)-(11) are taken over the bounds, with the initial estimate as theta")
+                notes.append(
+                    f"the plant's {', '.join(parametrization.names)} = {truth.tolist()} is outside the observer's bounds: the model bounds "
+                    "(9)-(11) are taken over the bounds, with the initial estimate as theta"
+                )
         matrices = [np.asarray(m, dtype=float) for m in parametrization.matrices(jnp.asarray(reference))]
         vessel = DPVessel(*matrices)
         if isinstance(plant_vessel, DPVessel) and not all(
-                np.allclose(a, np.asarray(b, dtype=float), rtol=1e-12, atol=0.0)
-                for a, b in zip(matrices, (plant_vessel.mass_matrix, plant_vessel.damping_matrix, plant_vessel.stiffness_matrix))):
+            np.allclose(a, np.asarray(b, dtype=float), rtol=1e-12, atol=0.0)
+            for a, b in zip(matrices, (plant_vessel.mass_matrix, plant_vessel.damping_matrix, plant_vessel.stiffness_matrix))
+        ):
             notes.append("the observer's known model differs from the plant's: (22), (57), (58) take the observer's model as the truth")
         unknown = tuple((_LETTERS[kind], row, col) for kind, row, col in parametrization.unknowns)
         box = np.stack([lower, upper], axis=1).tolist()
         bounds = model_bounds(vessel, box, unknown=unknown)
         if not bounds.damping_min > 0:
-            raise ValueError(f"(10): D_min = lambda_min(sym D) = {bounds.damping_min:.4g} kg/s is not positive (over the theta box), so no "
-                             "K1 satisfies (22) for every K2; the family needs a damped model")
+            raise ValueError(
+                f"(10): D_min = lambda_min(sym D) = {bounds.damping_min:.4g} kg/s is not positive (over the theta box), so no "
+                "K1 satisfies (22) for every K2; the family needs a damped model"
+            )
         diagonal = True
         for corner in itertools.product(*box):
             mass = np.asarray(parametrization.matrices(jnp.asarray(corner, dtype=float))[0])
@@ -157,8 +162,21 @@ class AdaptiveDPFamily(Family):
         else:
             step = float(scenario.plant_step) if scenario.observer_mode == "continuous" else float(scenario.sample_period) / observer.steps_per_sample
         keys = cls.keys + (("controller.damping_weights", "controller.coupling_gain") if closed_loop else ())
-        return cls(vessel, box, unknown, float(bounds.damping_min), (1.0 + float(bounds.stiffness_max)) ** 2 / 4.0, diagonal, gamma_tuned,
-                   gamma, closed_loop, observer.form, step, tuple(notes), keys=keys)
+        return cls(
+            vessel,
+            box,
+            unknown,
+            float(bounds.damping_min),
+            (1.0 + float(bounds.stiffness_max)) ** 2 / 4.0,
+            diagonal,
+            gamma_tuned,
+            gamma,
+            closed_loop,
+            observer.form,
+            step,
+            tuple(notes),
+            keys=keys,
+        )
 
     # -- the floor ---------------------------------------------------------------------
 
@@ -191,12 +209,12 @@ class AdaptiveDPFamily(Family):
     def gains(self, theta):
         t, a = theta[:3], theta[3:6]
         count = self._gamma_count
-        gamma = self._gamma(theta[6:6 + count])
+        gamma = self._gamma(theta[6 : 6 + count])
         k2 = jnp.exp(a)
         if not self.closed_loop:
             k1 = self.floor(xp=jnp) * (1.0 + INSIDE) + jnp.exp(t)
             return k1, k2, gamma
-        e, f = theta[6 + count:12 + count], theta[12 + count:15 + count]
+        e, f = theta[6 + count : 12 + count], theta[12 + count : 15 + count]
         d = jnp.concatenate([jnp.exp(e[:3]), self.weight_floor * (1.0 + INSIDE) + jnp.exp(e[3:])])
         p1 = jnp.exp(f)
         k1 = self.floor(d, p1, jnp) * (1.0 + INSIDE) + jnp.exp(t)
@@ -235,23 +253,36 @@ class AdaptiveDPFamily(Family):
     def apply(self, scenario, gains):
         k1, k2, gamma = (jnp.asarray(g, dtype=float) for g in gains[:3])
         gamma = jnp.diag(jnp.broadcast_to(gamma, (self.gamma_matrix.shape[0],))) if gamma.ndim < 2 else gamma
-        scenario = eqx.tree_at(lambda s: (s.observer.position_gain, s.observer.velocity_gain, s.observer.adaptation_gain), scenario,
-                               (jnp.broadcast_to(k1, (3,)), jnp.broadcast_to(k2, (3,)), gamma))
+        scenario = eqx.tree_at(
+            lambda s: (s.observer.position_gain, s.observer.velocity_gain, s.observer.adaptation_gain),
+            scenario,
+            (jnp.broadcast_to(k1, (3,)), jnp.broadcast_to(k2, (3,)), gamma),
+        )
         if self.closed_loop:
             d, p1 = (jnp.asarray(g, dtype=float) for g in gains[3:5])
-            scenario = eqx.tree_at(lambda s: (s.controller.damping_weights, s.controller.coupling_gain), scenario,
-                                   (jnp.broadcast_to(d, (6,)), jnp.broadcast_to(p1, (3,))))
+            scenario = eqx.tree_at(
+                lambda s: (s.controller.damping_weights, s.controller.coupling_gain),
+                scenario,
+                (jnp.broadcast_to(d, (6,)), jnp.broadcast_to(p1, (3,))),
+            )
         return scenario
 
     def current(self, scenario) -> tuple:
         observer = scenario.observer
         gamma = np.asarray(observer.adaptation_gain, dtype=float)
-        own = (np.asarray(observer.position_gain, dtype=float) * np.ones(3), np.asarray(observer.velocity_gain, dtype=float) * np.ones(3),
-               gamma if self.gamma_tuned is None else np.diag(gamma).copy())
+        own = (
+            np.asarray(observer.position_gain, dtype=float) * np.ones(3),
+            np.asarray(observer.velocity_gain, dtype=float) * np.ones(3),
+            gamma if self.gamma_tuned is None else np.diag(gamma).copy(),
+        )
         if not self.closed_loop:
             return own
         controller = scenario.controller
-        return (*own, np.asarray(controller.damping_weights, dtype=float) * np.ones(6), np.asarray(controller.coupling_gain, dtype=float) * np.ones(3))
+        return (
+            *own,
+            np.asarray(controller.damping_weights, dtype=float) * np.ones(6),
+            np.asarray(controller.coupling_gain, dtype=float) * np.ones(3),
+        )
 
     def candidates(self, scenario):
         """Under the backstepping controller: the gains :func:`~lookout.analysis.adaptive_dp.satisfying_gains`
@@ -271,9 +302,19 @@ class AdaptiveDPFamily(Family):
         d, p1 = own[3:]
         controller = scenario.controller
         try:
-            proposal = satisfying_gains(self.vessel, K1=k1, K2=k2, d=d, C1=np.asarray(controller.position_gain, dtype=float),
-                                        C2=np.asarray(controller.velocity_gain, dtype=float), theta_bounds=self.theta_bounds, unknown=self.unknown,
-                                        coupling_gain=p1, step=float(scenario.sample_period), speed=DESIGN_SPEED)
+            proposal = satisfying_gains(
+                self.vessel,
+                K1=k1,
+                K2=k2,
+                d=d,
+                C1=np.asarray(controller.position_gain, dtype=float),
+                C2=np.asarray(controller.velocity_gain, dtype=float),
+                theta_bounds=self.theta_bounds,
+                unknown=self.unknown,
+                coupling_gain=p1,
+                step=float(scenario.sample_period),
+                speed=DESIGN_SPEED,
+            )
         except ValueError:
             return
         chosen = next(route for route in proposal.routes if route.name == proposal.route)
@@ -289,8 +330,13 @@ class AdaptiveDPFamily(Family):
         fastest = float(max(np.max(np.asarray(observer.position_gain)), np.max(np.asarray(observer.velocity_gain))))
         if self.form == "discrete":
             source = f"{PAPER}, eqs. (65)-(66) (|1 - Delta K| < 1)"
-            return Condition("integration_65_66", "(65)-(66)", "the discrete observer's steps (I - Delta K1), (I - Delta K2) contract", source,
-                             [Inequality.check("Delta max K", "Delta max(K1, K2) < 2", self.step * fastest, "<", 2.0, units="1", source=source)])
+            return Condition(
+                "integration_65_66",
+                "(65)-(66)",
+                "the discrete observer's steps (I - Delta K1), (I - Delta K2) contract",
+                source,
+                [Inequality.check("Delta max K", "Delta max(K1, K2) < 2", self.step * fastest, "<", 2.0, units="1", source=source)],
+            )
         return integration_stable(self.step, fastest, "rk4", "K1, K2", f"{PAPER}, eqs. (13)-(14), integrated by RK4 (lookout)")
 
     def check(self, scenario):
@@ -306,10 +352,22 @@ class AdaptiveDPFamily(Family):
             notes.append("M(theta) is not diagonal at every vertex of the box: sigma2 > 0 ((22b), (58)) is checked, not parametrized")
         if self.closed_loop:
             controller = scenario.controller
-            report = check_calugi_2003(self.vessel, K1=k1, K2=k2, d=np.asarray(controller.damping_weights, dtype=float), theta_bounds=self.theta_bounds,
-                                       unknown=self.unknown, coupling_gain=np.asarray(controller.coupling_gain, dtype=float))
-            return Report(report.title + " and the observer's integration", [*report.conditions, self.integration(scenario)], report.quantities,
-                          report.summary, [*report.notes, *notes])
+            report = check_calugi_2003(
+                self.vessel,
+                K1=k1,
+                K2=k2,
+                d=np.asarray(controller.damping_weights, dtype=float),
+                theta_bounds=self.theta_bounds,
+                unknown=self.unknown,
+                coupling_gain=np.asarray(controller.coupling_gain, dtype=float),
+            )
+            return Report(
+                report.title + " and the observer's integration",
+                [*report.conditions, self.integration(scenario)],
+                report.quantities,
+                report.summary,
+                [*report.notes, *notes],
+            )
         c22 = observer_condition_22(self.vessel, K1=k1, K2=k2, theta_bounds=self.theta_bounds, unknown=self.unknown)
         return Report(f"{PAPER}: condition (22) and the observer's integration", [c22, self.integration(scenario)], notes=notes)
 
@@ -337,8 +395,10 @@ class VectorialBacksteppingFamily(PositiveGains):
         report = observer.check(scenario)
         if not report.holds:
             failing = ", ".join(key for key, verdict in report.verdicts.items() if verdict != "holds")
-            raise ValueError(f"C1, C2 are tuned only in a loop that (22), (57), (58) prove, and the scenario's gains fail {failing} "
-                             f"({observer.design} shows why); tune the observer (its family moves K1, K2, d, P1 inside) and start from its result")
+            raise ValueError(
+                f"C1, C2 are tuned only in a loop that (22), (57), (58) prove, and the scenario's gains fail {failing} "
+                f"({observer.design} shows why); tune the observer (its family moves K1, K2, d, P1 inside) and start from its result"
+            )
         return family
 
 

@@ -74,16 +74,16 @@ class AdaptiveManipulatorFamily(Family):
     (per parameter), above the floor of Theorem 4.1 and (5.28) by construction (module
     docstring)."""
 
-    direction: np.ndarray      # u = K / max K of the scenario
-    sigma_unit: float          # sigma(u), by injection_bound
-    coriolis: float            # C_M
-    min_inertia: float         # M_m
-    max_inertia: float         # M_M
-    max_speed: float           # w_max at the start
+    direction: np.ndarray  # u = K / max K of the scenario
+    sigma_unit: float  # sigma(u), by injection_bound
+    coriolis: float  # C_M
+    min_inertia: float  # M_m
+    max_inertia: float  # M_M
+    max_speed: float  # w_max at the start
     velocity_error: np.ndarray  # x1~(0)
-    theta_error: np.ndarray    # theta~(0)
-    sample_period: float       # Delta of (4.34)
-    damping: float | None      # p = sum 1/d_i of the backstepping controller at the start, None without one
+    theta_error: np.ndarray  # theta~(0)
+    sample_period: float  # Delta of (4.34)
+    damping: float | None  # p = sum 1/d_i of the backstepping controller at the start, None without one
     closed_loop: bool
     name: str = "adaptive manipulator (Calugi 2002): K above Theorem 4.1's (and (5.28)'s) floor, Gamma; |1 - Delta K| < 1 checked"
     design: str = "lookout design adaptive-arm --max-speed W, W the runs' largest speed"
@@ -104,8 +104,10 @@ class AdaptiveManipulatorFamily(Family):
         gain = np.asarray(observer.gain, dtype=float)
         adaptation = np.asarray(observer.adaptation_gain, dtype=float)
         if np.any(adaptation <= 0):
-            raise ValueError(f"Theorem 4.1 needs Gamma > 0; got adaptation_gain {adaptation.tolist()} (Gamma = 0 freezes a parameter: "
-                             "the chapter-2 velocity observer, not the adaptive one)")
+            raise ValueError(
+                f"Theorem 4.1 needs Gamma > 0; got adaptation_gain {adaptation.tolist()} (Gamma = 0 freezes a parameter: "
+                "the chapter-2 velocity observer, not the adaptive one)"
+            )
         try:
             bounds = configuration_bounds(parameters.model(parameters.reference))
         except ValueError as error:
@@ -113,8 +115,10 @@ class AdaptiveManipulatorFamily(Family):
         direction = gain / gain.max()
         sigma_unit = injection_bound(parameters, direction)
         if not sigma_unit > 0:
-            raise ValueError(f"Theorem 4.1: sigma = inf_q lambda_min(K M + M K)/2 is {sigma_unit:.4g} <= 0 along K = {gain.tolist()} "
-                             "(K M + M K is indefinite), so no scale of it satisfies (4.a); make K's joints more alike")
+            raise ValueError(
+                f"Theorem 4.1: sigma = inf_q lambda_min(K M + M K)/2 is {sigma_unit:.4g} <= 0 along K = {gain.tolist()} "
+                "(K M + M K is indefinite), so no scale of it satisfies (4.a); make K's joints more alike"
+            )
         backstepping = isinstance(scenario.controller, AdaptiveObserverBackstepping)
         damping = None
         if backstepping:
@@ -126,13 +130,27 @@ class AdaptiveManipulatorFamily(Family):
         velocity_error = np.asarray(scenario.initial_state.qdot, dtype=float) - np.asarray(guess.velocity, dtype=float)
         theta_error = np.asarray(parameters.reference, dtype=float) - np.asarray(guess.theta, dtype=float)
         keys = cls.keys + (("controller.observer_gain",) if backstepping else ())
-        family = cls(direction, float(sigma_unit), bounds.coriolis_bound, bounds.min_inertia, bounds.max_inertia, 0.0, velocity_error,
-                     theta_error, float(observer.sample_period), damping, reads_estimate(scenario), keys=keys)
+        family = cls(
+            direction,
+            float(sigma_unit),
+            bounds.coriolis_bound,
+            bounds.min_inertia,
+            bounds.max_inertia,
+            0.0,
+            velocity_error,
+            theta_error,
+            float(observer.sample_period),
+            damping,
+            reads_estimate(scenario),
+            keys=keys,
+        )
         family.feasible()  # at w_max = 0 first (the floor grows with it): refused before any simulation
         speed = peak_speed(scenario)
         if not math.isfinite(speed):
-            raise ValueError(f"Theorem 4.1: the joint speed of the scenario's runs (seeds {SPEED_SEEDS[0]}..{SPEED_SEEDS[-1]}) is not finite, "
-                             "so no w_max bounds it")
+            raise ValueError(
+                f"Theorem 4.1: the joint speed of the scenario's runs (seeds {SPEED_SEEDS[0]}..{SPEED_SEEDS[-1]}) is not finite, "
+                "so no w_max bounds it"
+            )
         family = dataclasses.replace(family, max_speed=speed)
         family.feasible()
         return family
@@ -195,14 +213,19 @@ class AdaptiveManipulatorFamily(Family):
             raise ValueError(f"Theorem 4.1 needs Gamma > 0; got adaptation_gain {adaptation.tolist()}")
         excess = scale - float(self.floor(adaptation)) * (1.0 + INSIDE) / self.sigma_unit
         if not excess > 0:
-            raise ValueError(f"Theorem 4.1: the observer gain K {gain.tolist()} is below its floor: sigma(K) = {scale * self.sigma_unit:.4g} "
-                             f"must exceed {float(self.floor(adaptation)):.4g}")
+            raise ValueError(
+                f"Theorem 4.1: the observer gain K {gain.tolist()} is below its floor: sigma(K) = {scale * self.sigma_unit:.4g} "
+                f"must exceed {float(self.floor(adaptation)):.4g}"
+            )
         return np.concatenate([[math.log(excess)], np.log(adaptation)])
 
     def apply(self, scenario, gains):
         gain = jnp.asarray(gains[0], dtype=float)
-        scenario = eqx.tree_at(lambda s: (s.observer.gain, s.observer.adaptation_gain), scenario,
-                               (gain, jnp.broadcast_to(jnp.asarray(gains[1], dtype=float), scenario.observer.adaptation_gain.shape)))
+        scenario = eqx.tree_at(
+            lambda s: (s.observer.gain, s.observer.adaptation_gain),
+            scenario,
+            (gain, jnp.broadcast_to(jnp.asarray(gains[1], dtype=float), scenario.observer.adaptation_gain.shape)),
+        )
         if self.backstepping:  # K of Omega (5.11) is the observer's
             scenario = eqx.tree_at(lambda s: s.controller.observer_gain, scenario, gain)
         return scenario
@@ -239,26 +262,48 @@ class AdaptiveManipulatorFamily(Family):
         gain = np.asarray(observer.gain, dtype=float)
         speed = peak_speed(scenario) if self.closed_loop else self.max_speed
         if not math.isfinite(speed):
-            return Report(f"{SOURCE}, Theorem 4.1: adaptive observer", [unbounded_speed(
-                "theorem_4_1", "Theorem 4.1", "adaptive observer: x1~ -> 0, theta~ bounded", f"{SOURCE}, Theorem 4.1")],
-                notes=[speed_source(self.closed_loop)])
-        parts = [check_theorem_4_1(observer.parameters, gain, np.asarray(observer.adaptation_gain, dtype=float), speed, margin=MARGIN,
-                                   initial_error=(self.velocity_error, self.theta_error))]
+            return Report(
+                f"{SOURCE}, Theorem 4.1: adaptive observer",
+                [unbounded_speed("theorem_4_1", "Theorem 4.1", "adaptive observer: x1~ -> 0, theta~ bounded", f"{SOURCE}, Theorem 4.1")],
+                notes=[speed_source(self.closed_loop)],
+            )
+        parts = [
+            check_theorem_4_1(
+                observer.parameters,
+                gain,
+                np.asarray(observer.adaptation_gain, dtype=float),
+                speed,
+                margin=MARGIN,
+                initial_error=(self.velocity_error, self.theta_error),
+            )
+        ]
         if self.backstepping:
-            parts.append(check_5_28(observer.parameters, gain, np.asarray(scenario.controller.damping_weights, dtype=float), speed,
-                                    initial_error=self.velocity_error))
+            parts.append(
+                check_5_28(
+                    observer.parameters, gain, np.asarray(scenario.controller.damping_weights, dtype=float), speed, initial_error=self.velocity_error
+                )
+            )
         source = f"{SOURCE}, eq. (4.34) (derivations-thesis-ch3-6.md, ch. 4)"
         step = self.sample_period * gain
-        discrete = Condition("discrete_4_34", "(4.34)", "the discrete observer's step: |1 - Delta K_i| < 1", source, [
-            Inequality.check("Delta K", "max_i Delta K_i < 2", float(step.max()), "<", 2.0, units="1", source=source),
-            Inequality.check("Delta K > 0", "min_i Delta K_i > 0", float(step.min()), ">", 0.0, units="1", source=source),
-        ])
+        discrete = Condition(
+            "discrete_4_34",
+            "(4.34)",
+            "the discrete observer's step: |1 - Delta K_i| < 1",
+            source,
+            [
+                Inequality.check("Delta K", "max_i Delta K_i < 2", float(step.max()), "<", 2.0, units="1", source=source),
+                Inequality.check("Delta K > 0", "min_i Delta K_i > 0", float(step.min()), ">", 0.0, units="1", source=source),
+            ],
+        )
         notes = [speed_source(self.closed_loop)] + [note for part in parts for note in part.notes]
         if not same_model(scenario, observer.parameters.model(observer.parameters.reference)):
             notes.append("the observer's model at the parameters' reference differs from the plant's: Theorem 4.1 assumes it is the truth")
-        return Report(f"{SOURCE}: " + " and ".join(part.conditions[0].name for part in parts) + " and (4.34)",
-                      [condition for part in parts for condition in part.conditions] + [discrete],
-                      {part.conditions[0].key: part.quantities for part in parts}, notes=notes)
+        return Report(
+            f"{SOURCE}: " + " and ".join(part.conditions[0].name for part in parts) + " and (4.34)",
+            [condition for part in parts for condition in part.conditions] + [discrete],
+            {part.conditions[0].key: part.quantities for part in parts},
+            notes=notes,
+        )
 
 
 __all__ = ["AdaptiveManipulatorFamily"]

@@ -60,9 +60,9 @@ class KalmanFamily(Family):
 
     state_size: int
     disturbance_size: int
-    process_free: np.ndarray        # (noise_size,) bool: tuned entries of process_noise
-    state_free: np.ndarray          # (state_size,) bool: tuned entries of state_noise
-    disturbance_free: np.ndarray    # (disturbance_size,) bool: tuned entries of input_disturbance
+    process_free: np.ndarray  # (noise_size,) bool: tuned entries of process_noise
+    state_free: np.ndarray  # (state_size,) bool: tuned entries of state_noise
+    disturbance_free: np.ndarray  # (disturbance_size,) bool: tuned entries of input_disturbance
     channels: int
     #: P_0 follows Q and R (the file gives no initial_std): (F, H, G) of the model
     #: linearized at its zero state over one filter period, whence the filter's P_0.
@@ -91,9 +91,18 @@ class KalmanFamily(Family):
         steady = (transition, observation, noise) if np.all(np.isfinite(own)) and _same(given, own) else None
         what = "extended" if type(observer).__name__.startswith("Extended") else "unscented"
         keys = ("observer.process_noise", "observer.state_noise") + (("observer.input_disturbance",) if d else ()) + ("observer.measurement_noise",)
-        return cls(n, d, np.asarray(observer.process_noise, dtype=float) > 0, s[:n] > 0, s[n:] > 0, r.shape[0], steady,
-                   f"{what} Kalman filter (Jazwinski 1970, Section 8.4): Q >= 0 and R > 0 by construction, P_0 "
-                   + ("the steady state of Q, R" if steady is not None else "as given"), keys)
+        return cls(
+            n,
+            d,
+            np.asarray(observer.process_noise, dtype=float) > 0,
+            s[:n] > 0,
+            s[n:] > 0,
+            r.shape[0],
+            steady,
+            f"{what} Kalman filter (Jazwinski 1970, Section 8.4): Q >= 0 and R > 0 by construction, P_0 "
+            + ("the steady state of Q, R" if steady is not None else "as given"),
+            keys,
+        )
 
     # ------------------------------------------------------------------ theta <-> gains
     def _counts(self) -> tuple[int, ...]:
@@ -103,7 +112,7 @@ class KalmanFamily(Family):
         theta = jnp.asarray(theta)
         parts, start = [], 0
         for count in self._counts():
-            parts.append(theta[start:start + count])
+            parts.append(theta[start : start + count])
             start += count
         a, b, c, e = parts
         process = jnp.zeros(self.process_free.size).at[np.flatnonzero(self.process_free)].set(jnp.exp(a))
@@ -120,17 +129,20 @@ class KalmanFamily(Family):
         pieces = []
         if state.shape != (self.state_size + self.disturbance_size,):
             raise ValueError(f"observer.state_noise: expected {self.state_size + self.disturbance_size} entries; got shape {state.shape}")
-        for key, value, free in zip(("observer.process_noise", "observer.state_noise", "observer.input_disturbance"),
-                                    (process, state[:self.state_size], disturbance),
-                                    (self.process_free, self.state_free, self.disturbance_free)):
+        for key, value, free in zip(
+            ("observer.process_noise", "observer.state_noise", "observer.input_disturbance"),
+            (process, state[: self.state_size], disturbance),
+            (self.process_free, self.state_free, self.disturbance_free),
+        ):
             if value.shape != free.shape:
                 raise ValueError(f"{key}: expected {free.size} entries; got shape {value.shape}")
             if np.any(value[free] <= 0) or np.any(value[~free] != 0) or not np.all(np.isfinite(value)):
                 raise ValueError(f"{key}: the tuned entries must be finite and > 0 and the others 0 (as at the start); got {value.tolist()}")
             pieces.append(np.log(value[free]))
-        if np.any(state[self.state_size:] != 0):
-            raise ValueError("observer.state_noise: its input_disturbance entries are written as 0 (the random walk is input_disturbance's); "
-                             f"got {state.tolist()}")
+        if np.any(state[self.state_size :] != 0):
+            raise ValueError(
+                f"observer.state_noise: its input_disturbance entries are written as 0 (the random walk is input_disturbance's); got {state.tolist()}"
+            )
         if std.shape != (self.channels,) or not (np.all(np.isfinite(std)) and np.all(std > 0)):
             raise ValueError(f"observer.measurement_noise must be {self.channels} finite standard deviations > 0; got {std.tolist()}")
         return np.concatenate([*pieces, np.log(std)])
@@ -141,8 +153,9 @@ class KalmanFamily(Family):
         process, state, std = gains[0], gains[1], gains[-1]
         if self.disturbance_size:
             state = state + jnp.concatenate([jnp.zeros(self.state_size), gains[2]])
-        observer = eqx.tree_at(lambda o: (o.process_noise, o.state_noise, o.measurement_covariance), scenario.observer,
-                               (process, state, jnp.diag(std**2)))
+        observer = eqx.tree_at(
+            lambda o: (o.process_noise, o.state_noise, o.measurement_covariance), scenario.observer, (process, state, jnp.diag(std**2))
+        )
         if self.steady is not None:
             transition, observation, noise = self.steady
             dt = float(observer.filter_period)
@@ -213,8 +226,7 @@ def _riccati(transition: np.ndarray, observation: np.ndarray):
     @jax.custom_jvp
     def solve(q_d, r):
         shape = jax.ShapeDtypeStruct(q_d.shape, q_d.dtype)
-        return jax.pure_callback(lambda a, b: _solve_riccati(transition, observation, a, b).astype(a.dtype), shape, q_d, r,
-                                 vmap_method="sequential")
+        return jax.pure_callback(lambda a, b: _solve_riccati(transition, observation, a, b).astype(a.dtype), shape, q_d, r, vmap_method="sequential")
 
     @solve.defjvp
     def _(primals, tangents):
@@ -286,24 +298,47 @@ def check_kalman_filter(observer):
         return float("nan") if not np.all(np.isfinite(values)) else float(values.min(initial=np.inf))
 
     measurement = Condition(
-        "measurement_noise_positive", "R > 0", "measurement noise positive definite", f"{SOURCE}: v_k ~ N(0, R), R > 0",
-        [Inequality.check("variances", "min_i R_ii > 0", least(np.diag(r)), ">", 0.0, units="", source=SOURCE),
-         Inequality.check("correlation", "lambda_min(D^-1/2 R D^-1/2) > 0", _correlation_minimum(r), ">", 0.0, units="", source=SOURCE,
-                          tolerance=1e-12)],
+        "measurement_noise_positive",
+        "R > 0",
+        "measurement noise positive definite",
+        f"{SOURCE}: v_k ~ N(0, R), R > 0",
+        [
+            Inequality.check("variances", "min_i R_ii > 0", least(np.diag(r)), ">", 0.0, units="", source=SOURCE),
+            Inequality.check(
+                "correlation", "lambda_min(D^-1/2 R D^-1/2) > 0", _correlation_minimum(r), ">", 0.0, units="", source=SOURCE, tolerance=1e-12
+            ),
+        ],
         quantities={"measurement_std": np.sqrt(np.abs(np.diag(r))).tolist()},
     )
-    intensities = [Inequality.check("process_noise", "min_i q_i >= 0", least(q) if q.size else 0.0, ">=", 0.0, units="", source=SOURCE),
-                   Inequality.check("state_noise", "min_i S_ii >= 0", least(s) if s.size else 0.0, ">=", 0.0, units="", source=SOURCE)]
-    process = Condition("process_noise_nonnegative", "Q >= 0", "process noise intensities non-negative", f"{SOURCE}: white process noise, Q >= 0",
-                        intensities, quantities={"process_noise": q.tolist(), "state_noise": s.tolist()})
-    initial = Condition(
-        "initial_covariance_nonnegative", "P_0 >= 0", "initial covariance positive semi-definite", f"{SOURCE}: x_0 ~ N(x^_0, P_0)",
-        [Inequality.check("variances", "min_i P0_ii >= 0", least(np.diag(p0)), ">=", 0.0, units="", source=SOURCE),
-         Inequality.check("correlation", "lambda_min(D^-1/2 P_0 D^-1/2) >= 0", _correlation_minimum(p0), ">=", 0.0, units="", source=SOURCE,
-                          tolerance=1e-12)],
+    intensities = [
+        Inequality.check("process_noise", "min_i q_i >= 0", least(q) if q.size else 0.0, ">=", 0.0, units="", source=SOURCE),
+        Inequality.check("state_noise", "min_i S_ii >= 0", least(s) if s.size else 0.0, ">=", 0.0, units="", source=SOURCE),
+    ]
+    process = Condition(
+        "process_noise_nonnegative",
+        "Q >= 0",
+        "process noise intensities non-negative",
+        f"{SOURCE}: white process noise, Q >= 0",
+        intensities,
+        quantities={"process_noise": q.tolist(), "state_noise": s.tolist()},
     )
-    return Report(f"{type(observer).__name__}: the noise model's conditions", [measurement, process, initial],
-                  notes=["no lookout design command for the Kalman filters: their parameters are docs/kalman-filters.md's"])
+    initial = Condition(
+        "initial_covariance_nonnegative",
+        "P_0 >= 0",
+        "initial covariance positive semi-definite",
+        f"{SOURCE}: x_0 ~ N(x^_0, P_0)",
+        [
+            Inequality.check("variances", "min_i P0_ii >= 0", least(np.diag(p0)), ">=", 0.0, units="", source=SOURCE),
+            Inequality.check(
+                "correlation", "lambda_min(D^-1/2 P_0 D^-1/2) >= 0", _correlation_minimum(p0), ">=", 0.0, units="", source=SOURCE, tolerance=1e-12
+            ),
+        ],
+    )
+    return Report(
+        f"{type(observer).__name__}: the noise model's conditions",
+        [measurement, process, initial],
+        notes=["no lookout design command for the Kalman filters: their parameters are docs/kalman-filters.md's"],
+    )
 
 
 __all__ = ["KalmanFamily", "check_kalman_filter"]

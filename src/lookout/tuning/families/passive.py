@@ -41,12 +41,17 @@ class PassiveFamily(Family):
     and T are the sea's and the bias model's: not tuned.
     """
 
-    low: np.ndarray         # 10 / T per DOF (rad/s)
-    high: np.ndarray        # w_o per DOF (rad/s)
+    low: np.ndarray  # 10 / T per DOF (rad/s)
+    high: np.ndarray  # w_o per DOF (rad/s)
     wave_damping: np.ndarray
     name: str = "passive (Fossen & Strand 1999): Kappa, Lambda, w_c, zeta_n inside (48), SPR checked"
     design: str = "lookout design passive-observer"
-    keys: tuple[str, ...] = ("observer.velocity_injection_gain", "observer.bias_injection_gain", "observer.cutoff_frequency", "observer.notch_damping")
+    keys: tuple[str, ...] = (
+        "observer.velocity_injection_gain",
+        "observer.bias_injection_gain",
+        "observer.cutoff_frequency",
+        "observer.notch_damping",
+    )
 
     @classmethod
     def of(cls, scenario) -> PassiveFamily:
@@ -93,8 +98,14 @@ class PassiveFamily(Family):
                 f"the starting gains are outside the tuning rule (48): lambda/kappa = {np.round(corner, 6).tolist()} rad/s, "
                 f"and (48) needs {np.round(self.low, 6).tolist()} <= lambda/kappa < {np.round(self.high, 6).tolist()}"
             )
-        return np.concatenate([np.log(kappa), np.log(fraction / (1.0 - fraction)), _softplus_inverse(cutoff - self.high * (1.0 + INSIDE)),
-                               _softplus_inverse(notch - self.wave_damping * (1.0 + INSIDE))])
+        return np.concatenate(
+            [
+                np.log(kappa),
+                np.log(fraction / (1.0 - fraction)),
+                _softplus_inverse(cutoff - self.high * (1.0 + INSIDE)),
+                _softplus_inverse(notch - self.wave_damping * (1.0 + INSIDE)),
+            ]
+        )
 
     def candidates(self, scenario):
         """Gains inside (48) for a scenario whose own are outside it (Kim's printed H3/H4 =
@@ -119,7 +130,8 @@ class PassiveFamily(Family):
         k1, k2, k3 = notch_gains(jnp.asarray(self.high), jnp.asarray(self.wave_damping), notch, cutoff)
         passive = eqx.tree_at(
             lambda o: (o.velocity_injection_gain, o.bias_injection_gain, o.wave_injection_gain, o.position_injection_gain),
-            self.passive(scenario), (kappa, lam, jnp.concatenate([k1, k2]), k3),
+            self.passive(scenario),
+            (kappa, lam, jnp.concatenate([k1, k2]), k3),
         )
         return self.with_passive(scenario, passive)
 
@@ -128,8 +140,12 @@ class PassiveFamily(Family):
         observer = self.passive(scenario)
         k2 = np.asarray(observer.wave_injection_gain, dtype=float)[3:]
         notch = self.wave_damping + k2 / (2.0 * self.high)  # eq. (46) solved for zeta_n
-        return (np.asarray(observer.velocity_injection_gain, dtype=float), np.asarray(observer.bias_injection_gain, dtype=float),
-                np.asarray(observer.position_injection_gain, dtype=float), notch)
+        return (
+            np.asarray(observer.velocity_injection_gain, dtype=float),
+            np.asarray(observer.bias_injection_gain, dtype=float),
+            np.asarray(observer.position_injection_gain, dtype=float),
+            notch,
+        )
 
     def check(self, scenario):
         from lookout.analysis import check_passive_observer

@@ -56,7 +56,7 @@ class PidFamily(Family):
         loop_damping = jnp.exp(theta[3:6])
         bound = loop_damping * proportional / self.mass
         tuned = np.flatnonzero(self.integral)
-        integral = jnp.zeros(3).at[tuned].set(bound[tuned] * jax.nn.sigmoid(theta[6:6 + tuned.size]))
+        integral = jnp.zeros(3).at[tuned].set(bound[tuned] * jax.nn.sigmoid(theta[6 : 6 + tuned.size]))
         return proportional, loop_damping - self.damping, integral
 
     def theta(self, gains) -> np.ndarray:
@@ -73,8 +73,11 @@ class PidFamily(Family):
         return np.concatenate([np.log(proportional), np.log(loop_damping), np.log(tuned / (1.0 - tuned))])
 
     def apply(self, scenario, gains):
-        return eqx.tree_at(lambda s: (s.controller.proportional_gain, s.controller.derivative_gain, s.controller.integral_gain), scenario,
-                           tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains))
+        return eqx.tree_at(
+            lambda s: (s.controller.proportional_gain, s.controller.derivative_gain, s.controller.integral_gain),
+            scenario,
+            tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains),
+        )
 
     def current(self, scenario) -> tuple:
         controller = scenario.controller
@@ -90,20 +93,43 @@ class PidFamily(Family):
         for i, dof in enumerate(DOF):
             per_dof += [
                 Inequality.check(f"{dof}: Kp", "Kp > 0", kp[i], ">", 0.0, units="N/m" if i < 2 else "N m/rad", source=SOURCE, tolerance=0.0),
-                Inequality.check(f"{dof}: d + Kd", "d + Kd > 0", loop_damping[i], ">", 0.0, units="N s/m" if i < 2 else "N m s/rad", source=SOURCE,
-                                 tolerance=0.0),
-                Inequality.check(f"{dof}: Ki", "Ki < (d + Kd) Kp / m", ki[i], "<", loop_damping[i] * kp[i] / self.mass[i],
-                                 units="N/(m s)" if i < 2 else "N m/(rad s)", source=SOURCE),
+                Inequality.check(
+                    f"{dof}: d + Kd", "d + Kd > 0", loop_damping[i], ">", 0.0, units="N s/m" if i < 2 else "N m s/rad", source=SOURCE, tolerance=0.0
+                ),
+                Inequality.check(
+                    f"{dof}: Ki",
+                    "Ki < (d + Kd) Kp / m",
+                    ki[i],
+                    "<",
+                    loop_damping[i] * kp[i] / self.mass[i],
+                    units="N/(m s)" if i < 2 else "N m/(rad s)",
+                    source=SOURCE,
+                ),
             ]
         largest = float(np.max(controller.closed_loop_poles().real))
         radius = controller.sampled_spectral_radius(self.sample_period)
         conditions = [
-            Condition("routh_hurwitz", "Routh-Hurwitz per DOF", "each DOF's loop, linearized about a setpoint with the diagonal of M and D, is stable",
-                      SOURCE, per_dof),
-            Condition("coupled_loop", "coupled loop", "the loop linearized with M and D coupled (off-diagonal entries) has its poles in the left half-plane",
-                      SOURCE, [Inequality.check("max Re s", "max Re(s) < 0", largest, "<", 0.0, units="1/s", source=SOURCE, tolerance=0.0)]),
-            Condition("sampled_loop", "sampled loop", f"the loop sampled at {self.sample_period:g} s (zero-order hold) is stable", SOURCE,
-                      [Inequality.check("rho", "spectral radius < 1", radius, "<", 1.0, units="1", source=SOURCE, tolerance=0.0)]),
+            Condition(
+                "routh_hurwitz",
+                "Routh-Hurwitz per DOF",
+                "each DOF's loop, linearized about a setpoint with the diagonal of M and D, is stable",
+                SOURCE,
+                per_dof,
+            ),
+            Condition(
+                "coupled_loop",
+                "coupled loop",
+                "the loop linearized with M and D coupled (off-diagonal entries) has its poles in the left half-plane",
+                SOURCE,
+                [Inequality.check("max Re s", "max Re(s) < 0", largest, "<", 0.0, units="1/s", source=SOURCE, tolerance=0.0)],
+            ),
+            Condition(
+                "sampled_loop",
+                "sampled loop",
+                f"the loop sampled at {self.sample_period:g} s (zero-order hold) is stable",
+                SOURCE,
+                [Inequality.check("rho", "spectral radius < 1", radius, "<", 1.0, units="1", source=SOURCE, tolerance=0.0)],
+            ),
         ]
         poles = np.sort_complex(controller.closed_loop_poles())
         return Report(self.name, conditions, {"closed_loop_poles_real": poles.real.tolist(), "closed_loop_poles_imag": poles.imag.tolist()})

@@ -28,8 +28,8 @@ from lookout.tuning.families import Family
 class Gain:
     """One tuned field of a component."""
 
-    field: str           # the component's attribute and the scenario file's key
-    symbol: str          # the paper's symbol
+    field: str  # the component's attribute and the scenario file's key
+    symbol: str  # the paper's symbol
     units: str
     allow_zero: bool = False
 
@@ -48,8 +48,10 @@ class PositiveGains(Family):
     def __init__(self, scenario):
         component = getattr(scenario, self.role)
         self.shapes = tuple(np.shape(getattr(component, g.field)) for g in self.fields)
-        self.tuned = tuple(np.asarray(getattr(component, g.field), dtype=float).ravel() > 0 if g.allow_zero else
-                           np.ones(int(np.prod(shape, dtype=int)), dtype=bool) for g, shape in zip(self.fields, self.shapes))
+        self.tuned = tuple(
+            np.asarray(getattr(component, g.field), dtype=float).ravel() > 0 if g.allow_zero else np.ones(int(np.prod(shape, dtype=int)), dtype=bool)
+            for g, shape in zip(self.fields, self.shapes)
+        )
         self.keys = tuple(f"{self.role}.{g.field}" for g in self.fields)
 
     @classmethod
@@ -58,15 +60,16 @@ class PositiveGains(Family):
         for gain in cls.fields:
             value = np.asarray(getattr(component, gain.field), dtype=float)
             if np.any(value < 0) or (not gain.allow_zero and np.any(value <= 0)):
-                raise ValueError(f"{cls.condition_name}: {gain.field} ({gain.symbol}) must be {'>= 0' if gain.allow_zero else '> 0'}; "
-                                 f"got {value.tolist()}")
+                raise ValueError(
+                    f"{cls.condition_name}: {gain.field} ({gain.symbol}) must be {'>= 0' if gain.allow_zero else '> 0'}; got {value.tolist()}"
+                )
         return cls(scenario)
 
     def gains(self, theta):
         out, start = [], 0
         for shape, tuned in zip(self.shapes, self.tuned):
             count = int(tuned.sum())
-            full = jnp.zeros(tuned.size).at[np.flatnonzero(tuned)].set(jnp.exp(theta[start:start + count]))
+            full = jnp.zeros(tuned.size).at[np.flatnonzero(tuned)].set(jnp.exp(theta[start : start + count]))
             out.append(full.reshape(shape))
             start += count
         return tuple(out)
@@ -82,8 +85,11 @@ class PositiveGains(Family):
 
     def apply(self, scenario, gains):
         component = getattr(scenario, self.role)
-        component = eqx.tree_at(lambda c: tuple(getattr(c, g.field) for g in self.fields), component,
-                                tuple(jnp.asarray(v, dtype=float).reshape(shape) for v, shape in zip(gains, self.shapes)))
+        component = eqx.tree_at(
+            lambda c: tuple(getattr(c, g.field) for g in self.fields),
+            component,
+            tuple(jnp.asarray(v, dtype=float).reshape(shape) for v, shape in zip(gains, self.shapes)),
+        )
         return eqx.tree_at(lambda s: getattr(s, self.role), scenario, component)
 
     def current(self, scenario) -> tuple:
@@ -95,9 +101,16 @@ class PositiveGains(Family):
 
         component = getattr(scenario, self.role)
         inequalities = [
-            Inequality.check(gain.symbol, f"min {gain.symbol} {'>=' if gain.allow_zero else '>'} 0",
-                             float(np.min(np.asarray(getattr(component, gain.field), dtype=float))), ">=" if gain.allow_zero else ">", 0.0,
-                             units=gain.units, source=self.source, tolerance=0.0)
+            Inequality.check(
+                gain.symbol,
+                f"min {gain.symbol} {'>=' if gain.allow_zero else '>'} 0",
+                float(np.min(np.asarray(getattr(component, gain.field), dtype=float))),
+                ">=" if gain.allow_zero else ">",
+                0.0,
+                units=gain.units,
+                source=self.source,
+                tolerance=0.0,
+            )
             for gain in self.fields
         ]
         return Report(self.name, [Condition(self.condition_key, self.condition_name, self.condition_title, self.source, inequalities)])
@@ -108,8 +121,13 @@ class ObserverBacksteppingFamily(PositiveGains):
 
     name = "observer backstepping (Kim 2002): K_I, C1, C2, d, P1 positive, so V_con' <= 0 (30)"
     design = "the signs of (29)-(30)"
-    fields = (Gain("integral_gain", "K_I", "1/s", allow_zero=True), Gain("position_gain", "C1", "1/s"), Gain("velocity_gain", "C2", "1/s"),
-              Gain("damping_weights", "d", "s", allow_zero=True), Gain("coupling_gain", "P1", "1/s2"))
+    fields = (
+        Gain("integral_gain", "K_I", "1/s", allow_zero=True),
+        Gain("position_gain", "C1", "1/s"),
+        Gain("velocity_gain", "C2", "1/s"),
+        Gain("damping_weights", "d", "s", allow_zero=True),
+        Gain("coupling_gain", "P1", "1/s2"),
+    )
     condition_key = "lyapunov_30"
     condition_name = "(30)"
     condition_title = "V_con' <= 0 without estimation error: C1, C2, P1 > 0, K_I, d >= 0"

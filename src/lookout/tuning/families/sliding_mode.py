@@ -36,7 +36,7 @@ class SlidingModeFamily(PassiveFamily):
     :class:`PassiveFamily`, then ``Kbar = exp(e)`` on the axes where it is positive and
     ``eps = exp(f)``."""
 
-    switching: np.ndarray = None      # bool per axis: Kbar tuned there (it is positive)
+    switching: np.ndarray = None  # bool per axis: Kbar tuned there (it is positive)
     fixed_switching: np.ndarray = None  # Kbar where not tuned (zeros)
     name: str = "sliding-mode (Kim 2002): H4, H3, w_c, zeta_n inside (48), Kbar, eps; (14) and the error systems checked"
     design: str = "lookout design sliding-mode-observer"
@@ -61,7 +61,7 @@ class SlidingModeFamily(PassiveFamily):
 
     def gains(self, theta):
         count = int(self.switching.sum())
-        return (*super().gains(theta[:12]), self._switching(theta[12:12 + count]), jnp.exp(theta[12 + count:15 + count]))
+        return (*super().gains(theta[:12]), self._switching(theta[12 : 12 + count]), jnp.exp(theta[12 + count : 15 + count]))
 
     def theta(self, gains) -> np.ndarray:
         kbar, eps = (np.asarray(g, dtype=float) * np.ones(3) for g in gains[4:6])
@@ -69,13 +69,19 @@ class SlidingModeFamily(PassiveFamily):
 
     def apply(self, scenario, gains):
         scenario = super().apply(scenario, gains[:4])
-        return eqx.tree_at(lambda s: (s.observer.switching_gain, s.observer.boundary_layer), scenario,
-                           (jnp.asarray(gains[4], dtype=float), jnp.asarray(gains[5], dtype=float)))
+        return eqx.tree_at(
+            lambda s: (s.observer.switching_gain, s.observer.boundary_layer),
+            scenario,
+            (jnp.asarray(gains[4], dtype=float), jnp.asarray(gains[5], dtype=float)),
+        )
 
     def current(self, scenario) -> tuple:
         observer = scenario.observer
-        return (*super().current(scenario), np.asarray(observer.switching_gain, dtype=float) * np.ones(3),
-                np.asarray(observer.boundary_layer, dtype=float) * np.ones(3))
+        return (
+            *super().current(scenario),
+            np.asarray(observer.switching_gain, dtype=float) * np.ones(3),
+            np.asarray(observer.boundary_layer, dtype=float) * np.ones(3),
+        )
 
     def candidates(self, scenario):
         rest = self.current(scenario)[4:]
@@ -90,4 +96,3 @@ class SlidingModeFamily(PassiveFamily):
         passive = observer.passive
         vessel = DPVessel(np.asarray(passive.mass_matrix), np.asarray(passive.damping_matrix))
         return check_kim_2002(observer, vessel)
-

@@ -56,8 +56,11 @@ def _reference_data(scenario) -> dict:
         return state, reference_velocity(sample)
 
     _, (eta_ref, nu_ref, _) = jax.lax.scan(body, reference.init(), jnp.arange(count) * dt)
-    return {"reference_position0": np.asarray(eta_ref[0]), "reference_velocity0": np.asarray(nu_ref[0]),
-            "yaw_rate_max": float(np.abs(np.asarray(nu_ref[:, 2])).max())}
+    return {
+        "reference_position0": np.asarray(eta_ref[0]),
+        "reference_velocity0": np.asarray(nu_ref[0]),
+        "yaw_rate_max": float(np.abs(np.asarray(nu_ref[:, 2])).max()),
+    }
 
 
 def _start(scenario) -> dict:
@@ -67,8 +70,12 @@ def _start(scenario) -> dict:
     observer = scenario.observer
     y0 = jnp.asarray(eta0)
     out = observer.output(observer.init(y0, scenario.initial_estimate), y0)
-    return {"eta0": eta0, "nu0": np.asarray(state.nu, dtype=float), "eta_hat0": np.asarray(out["position"].tolist() + [float(out["heading"])]),
-            "velocity_hat0": np.append(np.asarray(out["position_rate"]), float(out["heading_rate"]))}
+    return {
+        "eta0": eta0,
+        "nu0": np.asarray(state.nu, dtype=float),
+        "eta_hat0": np.asarray(out["position"].tolist() + [float(out["heading"])]),
+        "velocity_hat0": np.append(np.asarray(out["position_rate"]), float(out["heading_rate"])),
+    }
 
 
 class _Wondergem(Family):
@@ -82,9 +89,13 @@ class _Wondergem(Family):
         from lookout.observers.earth_fixed import EarthFixedObserver
 
         if not isinstance(scenario.observer, EarthFixedObserver):
-            raise ValueError(f"{self.condition}: Wondergem et al.'s conditions need the Earth-fixed observer (6); got {type(scenario.observer).__name__}")
+            raise ValueError(
+                f"{self.condition}: Wondergem et al.'s conditions need the Earth-fixed observer (6); got {type(scenario.observer).__name__}"
+            )
         if not isinstance(scenario.controller, TrackingController):
-            raise ValueError(f"{self.condition}: Wondergem et al.'s conditions need the tracking controller (23); got {type(scenario.controller).__name__}")
+            raise ValueError(
+                f"{self.condition}: Wondergem et al.'s conditions need the tracking controller (23); got {type(scenario.controller).__name__}"
+            )
         self.velocity_bound = velocity_bound
         self.context = {**_start(scenario), **_reference_data(scenario)}
 
@@ -92,9 +103,14 @@ class _Wondergem(Family):
         from lookout.analysis.tracking import check_wondergem_2009
 
         observer, controller = scenario.observer, scenario.controller
-        return check_wondergem_2009(observer.ship, observer_gains=(np.asarray(observer.position_gain), np.asarray(observer.velocity_gain)),
-                                    natural_frequency=np.asarray(controller.natural_frequency), damping_ratio=np.asarray(controller.damping_ratio),
-                                    velocity_bound=self.velocity_bound, **self.context)
+        return check_wondergem_2009(
+            observer.ship,
+            observer_gains=(np.asarray(observer.position_gain), np.asarray(observer.velocity_gain)),
+            natural_frequency=np.asarray(controller.natural_frequency),
+            damping_ratio=np.asarray(controller.damping_ratio),
+            velocity_bound=self.velocity_bound,
+            **self.context,
+        )
 
     def check(self, scenario):
         from lookout.analysis.conditions import Report
@@ -122,11 +138,15 @@ class EarthFixedFamily(_Wondergem):
         if 1.5 * self.low1 >= self.stable:
             need = int(np.ceil(1.5 * self.low1 * scenario.sample_period / STABLE_STEP[observer.method]))
             if scenario.observer_mode == "continuous":
-                raise ValueError(f"Proposition 3.1 needs L1 > {self.low1:.4g} 1/s (its (13)), which {observer.method} at the plant step "
-                                 f"{scenario.plant_step:g} s integrates only below {self.stable:.4g} 1/s; shorten simulation.plant_step")
-            raise ValueError(f"Proposition 3.1 needs L1 > {self.low1:.4g} 1/s (its (13)), which {observer.method} at {observer.steps_per_sample} "
-                             f"step(s) per {scenario.sample_period:g} s sample integrates only below {self.stable:.4g} 1/s; set "
-                             f"observer.steps_per_sample to at least {need}")
+                raise ValueError(
+                    f"Proposition 3.1 needs L1 > {self.low1:.4g} 1/s (its (13)), which {observer.method} at the plant step "
+                    f"{scenario.plant_step:g} s integrates only below {self.stable:.4g} 1/s; shorten simulation.plant_step"
+                )
+            raise ValueError(
+                f"Proposition 3.1 needs L1 > {self.low1:.4g} 1/s (its (13)), which {observer.method} at {observer.steps_per_sample} "
+                f"step(s) per {scenario.sample_period:g} s sample integrates only below {self.stable:.4g} 1/s; set "
+                f"observer.steps_per_sample to at least {need}"
+            )
 
     def check(self, scenario):
         """Prop. 3.1 and the integration's stability: L1's fastest error pole, near -L1,
@@ -149,13 +169,18 @@ class EarthFixedFamily(_Wondergem):
         l1, l2 = (np.asarray(g, dtype=float) * np.ones(3) for g in gains)
         gap1, gap2 = l1 - self.low1 * (1.0 + INSIDE), l2 - self.low2 * (1.0 + INSIDE)
         if np.any(gap1 <= 0) or np.any(gap2 <= 0):
-            raise ValueError(f"Proposition 3.1: L1 = {l1.tolist()} must exceed {self.low1:.4g} ((10a), (13)) and L2 = {l2.tolist()} must exceed "
-                             f"{self.low2:.4g} ((10b), (11))")
+            raise ValueError(
+                f"Proposition 3.1: L1 = {l1.tolist()} must exceed {self.low1:.4g} ((10a), (13)) and L2 = {l2.tolist()} must exceed "
+                f"{self.low2:.4g} ((10b), (11))"
+            )
         return np.concatenate([np.log(gap1), np.log(gap2)])
 
     def apply(self, scenario, gains):
-        return eqx.tree_at(lambda s: (s.observer.position_gain, s.observer.velocity_gain), scenario,
-                           tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains))
+        return eqx.tree_at(
+            lambda s: (s.observer.position_gain, s.observer.velocity_gain),
+            scenario,
+            tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains),
+        )
 
     def current(self, scenario) -> tuple:
         return tuple(np.asarray(g, dtype=float) * np.ones(3) for g in (scenario.observer.position_gain, scenario.observer.velocity_gain))
@@ -189,9 +214,11 @@ class TrackingFamily(_Wondergem):
         return np.log(values)
 
     def apply(self, scenario, gains):
-        return eqx.tree_at(lambda s: (s.controller.natural_frequency, s.controller.damping_ratio), scenario,
-                           tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains))
+        return eqx.tree_at(
+            lambda s: (s.controller.natural_frequency, s.controller.damping_ratio),
+            scenario,
+            tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains),
+        )
 
     def current(self, scenario) -> tuple:
         return tuple(np.asarray(g, dtype=float) * np.ones(3) for g in (scenario.controller.natural_frequency, scenario.controller.damping_ratio))
-

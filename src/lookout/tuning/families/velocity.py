@@ -107,8 +107,17 @@ def unbounded_speed(key: str, name: str, title: str, source: str):
     """A failing condition for runs whose speed is not finite (no w_max bounds it)."""
     from lookout.analysis.conditions import Condition, Inequality
 
-    return Condition(key, name, title, source, [Inequality.check("w_max", "w_max < inf: the runs' largest |q'| is finite", math.inf, "<",
-                                                                 float(np.finfo(float).max), units="rad/s", source=source)])
+    return Condition(
+        key,
+        name,
+        title,
+        source,
+        [
+            Inequality.check(
+                "w_max", "w_max < inf: the runs' largest |q'| is finite", math.inf, "<", float(np.finfo(float).max), units="rad/s", source=source
+            )
+        ],
+    )
 
 
 def same_model(scenario, model) -> bool:
@@ -122,11 +131,11 @@ class VelocityFamily(Family):
     """The velocity observer's K (per joint), above Theorem 2.1's and (2.13)'s floor by
     construction (module docstring): ``K = floor (1 + INSIDE) + exp(t)``."""
 
-    bounds: object             # ConfigurationBounds of the observer's model
-    max_speed: float           # w_max measured at the start (rad/s)
-    initial_error: float       # |x1~(0)|
-    floor: float               # the gain every K_i must exceed (1/s)
-    closed_loop: bool          # the controller reads the estimate: w_max measured per check
+    bounds: object  # ConfigurationBounds of the observer's model
+    max_speed: float  # w_max measured at the start (rad/s)
+    initial_error: float  # |x1~(0)|
+    floor: float  # the gain every K_i must exceed (1/s)
+    closed_loop: bool  # the controller reads the estimate: w_max measured per check
     name: str = "velocity (Calugi 2002): K above Theorem 2.1's and (2.13)'s floor, checked with w_max measured"
     design: str = "lookout.analysis.velocity_observer_condition with w_max the runs' largest speed"
     keys: tuple[str, ...] = ("observer.gain",)
@@ -145,8 +154,10 @@ class VelocityFamily(Family):
             raise ValueError(f"Theorem 2.1: {error}") from None
         speed = peak_speed(scenario)
         if not math.isfinite(speed):
-            raise ValueError(f"Theorem 2.1: the joint speed of the scenario's runs (seeds {SPEED_SEEDS[0]}..{SPEED_SEEDS[-1]}) is not finite, "
-                             "so no w_max bounds it")
+            raise ValueError(
+                f"Theorem 2.1: the joint speed of the scenario's runs (seeds {SPEED_SEEDS[0]}..{SPEED_SEEDS[-1]}) is not finite, "
+                "so no w_max bounds it"
+            )
         error = initial_velocity_error(scenario, scenario.initial_estimate)
         return cls(bounds, speed, error, gain_floor(bounds, speed, error), reads_estimate(scenario))
 
@@ -157,8 +168,10 @@ class VelocityFamily(Family):
         gain = np.atleast_1d(np.asarray(gains[0], dtype=float))
         excess = gain - self.floor * (1.0 + INSIDE)
         if np.any(excess <= 0):
-            raise ValueError(f"Theorem 2.1: the velocity observer gain {np.round(gain, 6).tolist()} 1/s is not above its floor "
-                             f"{self.floor * (1.0 + INSIDE):.6g} 1/s (3 C_M w_max / M_m and (2.13) with w_max = {self.max_speed:.4g} rad/s)")
+            raise ValueError(
+                f"Theorem 2.1: the velocity observer gain {np.round(gain, 6).tolist()} 1/s is not above its floor "
+                f"{self.floor * (1.0 + INSIDE):.6g} 1/s (3 C_M w_max / M_m and (2.13) with w_max = {self.max_speed:.4g} rad/s)"
+            )
         return np.log(excess)
 
     def apply(self, scenario, gains):
@@ -185,11 +198,14 @@ class VelocityFamily(Family):
         observer = scenario.observer
         speed = peak_speed(scenario) if self.closed_loop else self.max_speed
         if not math.isfinite(speed):
-            return Report("Calugi (2002), Theorem 2.1: velocity observer", [unbounded_speed(
-                "theorem_2_1", "Theorem 2.1", "velocity observer: x1~ -> 0 exponentially", "Calugi (2002), Theorem 2.1, eq. (2.2)")],
-                notes=[speed_source(self.closed_loop)])
-        result = velocity_observer_condition(observer.model, np.asarray(observer.gain, dtype=float), speed, initial_error=self.initial_error,
-                                             bounds=self.bounds)
+            return Report(
+                "Calugi (2002), Theorem 2.1: velocity observer",
+                [unbounded_speed("theorem_2_1", "Theorem 2.1", "velocity observer: x1~ -> 0 exponentially", "Calugi (2002), Theorem 2.1, eq. (2.2)")],
+                notes=[speed_source(self.closed_loop)],
+            )
+        result = velocity_observer_condition(
+            observer.model, np.asarray(observer.gain, dtype=float), speed, initial_error=self.initial_error, bounds=self.bounds
+        )
         notes = [speed_source(self.closed_loop)]
         if not same_model(scenario, observer.model):
             notes.append("the observer's model differs from the plant's: Theorem 2.1 assumes they are the same")
