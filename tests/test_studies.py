@@ -9,7 +9,6 @@ import re
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -622,49 +621,17 @@ def test_two_local_workers_give_the_one_process_store_even_when_a_worker_is_kill
     """The default: lookout starts a 2-worker LocalCluster. A watcher connects to its
     scheduler, waits until a worker is running a chunk (after the calibration chunk
     is stored) and SIGKILLs that worker's process; the campaign still completes, and
-    its store equals the one computed in a single process."""
-    from dask.distributed import Client
-
+    its store equals the one computed in a single process. The cluster runs in a
+    process of its own (tests/_campaign_worker_kill.py), so its threads never share a
+    pytest worker with the tests that follow."""
     folder, spec = campaign_files
     store = tmp_path / "dask.zarr"
-    messages, killed, outcome = [], {}, {}
-    started, done = threading.Event(), threading.Event()
-
-    def say(text):
-        messages.append(text)
-        if text.startswith("dask scheduler: "):
-            outcome["address"] = text.split()[2].rstrip(";")
-            started.set()
-
-    def drive():
-        try:
-            outcome["result"] = run_campaign(load_campaign(spec), store, workers=2, say=say)
-        except BaseException as error:  # noqa: BLE001  (re-raised below)
-            outcome["error"] = error
-        finally:
-            started.set()
-            done.set()
-
-    thread = threading.Thread(target=drive, daemon=True)
-    thread.start()
-    assert started.wait(120)
-    records = store / "_lookout" / "chunks"
-    if "address" in outcome:
-        with Client(outcome["address"], timeout="30s") as watcher:
-            deadline = time.monotonic() + 300
-            while not done.is_set() and time.monotonic() < deadline and not killed:
-                processing = {address: tasks for address, tasks in watcher.processing().items() if tasks}
-                recorded = len(list(records.glob("chunk-*.json"))) if records.exists() else 0
-                if recorded >= 1 and processing:
-                    address = next(iter(processing))
-                    pid = watcher.run(os.getpid, workers=[address])[address]
-                    os.kill(pid, signal.SIGKILL)
-                    killed.update(address=address, tasks=processing[address], recorded=recorded)
-                time.sleep(0.01)
-    assert done.wait(300), "the campaign did not finish within 300 s of the kill"
-    thread.join()
-    if "error" in outcome:
-        raise outcome["error"]
+    script = Path(__file__).with_name("_campaign_worker_kill.py")
+    process = subprocess.run([sys.executable, str(script), str(spec), str(store)], capture_output=True, text=True, timeout=720, env={**os.environ})
+    assert process.returncode == 0, process.stderr[-4000:]
+    outcome = json.loads(process.stdout.strip().splitlines()[-1])
+    assert outcome.get("error") is None, (outcome.get("error"), process.stderr[-4000:])
+    killed, messages = outcome["killed"], outcome["messages"]
     assert killed, "no worker was caught mid-chunk"
     assert killed["recorded"] < 16
     assert outcome["result"]["done"] == 16
@@ -748,13 +715,17 @@ def test_a_scheduler_address_without_a_port_blames_the_option(campaign_files, tm
     assert not (tmp_path / "s.zarr").exists()
 
 
-def test_an_unreachable_scheduler_blames_the_option_and_leaves_no_store(campaign_files, tmp_path, capsys, monkeypatch):
-    from lookout.studies import execute
-
-    monkeypatch.setattr(execute, "SCHEDULER_TIMEOUT", "1s")
+def test_an_unreachable_scheduler_blames_the_option_and_leaves_no_store(campaign_files, tmp_path):
+    """In a process of its own: the client's event-loop thread stays out of the pytest worker."""
     folder, spec = campaign_files
-    code, _, err = _run_cli(["campaign", "run", str(spec), "--out", str(tmp_path / "s.zarr"), "--scheduler", "tcp://127.0.0.1:1"], capsys)
-    assert code == 2 and err.count("\n") == 1, err
+    code = (
+        "import sys; from lookout.studies import execute; execute.SCHEDULER_TIMEOUT = '1s'; "
+        "from lookout.cli import main; sys.exit(main(sys.argv[1:]))"
+    )
+    arguments = ["campaign", "run", str(spec), "--out", str(tmp_path / "s.zarr"), "--scheduler", "tcp://127.0.0.1:1"]
+    process = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=300, env={**os.environ})
+    err = process.stderr
+    assert process.returncode == 2 and err.count("\n") == 1, err
     assert err.startswith("error: --scheduler tcp://127.0.0.1:1: cannot reach the scheduler ("), err
     assert not (tmp_path / "s.zarr").exists()
 
