@@ -3,18 +3,18 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out/fossen-strand-1999
 
-.PHONY: demo test bench study observer-benchmark tuning-study thruster-study clean
+.PHONY: demo test check lint types lock bench study observer-benchmark tuning-study thruster-study clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 
-$(VENV)/.installed: pyproject.toml | $(BIN)/activate
-	$(BIN)/pip install --quiet -e .
+$(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/activate
+	$(BIN)/pip install --quiet -c constraints.txt -e .
 	touch $@
 
-$(VENV)/.installed-dev: pyproject.toml | $(BIN)/activate
-	$(BIN)/pip install --quiet -e '.[dev]'
+$(VENV)/.installed-dev: pyproject.toml constraints.txt | $(BIN)/activate
+	$(BIN)/pip install --quiet -c constraints.txt -e '.[dev]'
 	touch $@ $(VENV)/.installed
 
 demo: $(VENV)/.installed
@@ -23,6 +23,29 @@ demo: $(VENV)/.installed
 
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -n auto --dist loadgroup
+
+# The loop while one works: lint, types and the tests not marked slow (docs/testing.md).
+check: lint $(VENV)/.installed-dev
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup -m "not slow"
+
+lint: $(VENV)/.installed-dev
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+types: $(VENV)/.installed-dev
+	$(BIN)/mypy
+
+# constraints.txt: the versions the suite passed with, which `make demo` and `make test`
+# install. Refresh it in a new environment from the registries' newest releases, then
+# run `make test` on a fresh clone before committing it.
+lock:
+	rm -rf .lock-venv
+	$(PYTHON) -m venv .lock-venv
+	.lock-venv/bin/pip install --quiet --upgrade pip
+	.lock-venv/bin/pip install --quiet -e '.[dev,docs]'
+	( echo "# The versions make demo and make test install (pip's -c); refreshed with make lock." ; \
+	  .lock-venv/bin/pip freeze --exclude-editable | sort -f ) > constraints.txt
+	rm -rf .lock-venv
 
 # The README's example study: two campaigns, their reports, and the figures in docs/study/.
 STUDIES ?= out/studies

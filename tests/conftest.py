@@ -65,3 +65,29 @@ def _registry_as_it_was():
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+# The end-to-end tests that compile the largest programs (a gradient through a whole
+# closed loop, a paper's reproduction, every observer on every plant): `make test` runs
+# them, `make check` (the loop while one works) leaves them out. Whole files here, single
+# tests with @pytest.mark.slow in their own files.
+SLOW_FILES = {
+    "test_tuning.py",
+    "test_tuning_kalman.py",
+    "test_tuning_kim.py",
+    "test_tuning_wondergem.py",
+    "test_tuning_manipulator.py",
+    "test_tuning_adaptive_dp.py",
+    "test_benchmark.py",
+    "test_conformance.py",
+    "test_composition_matrix.py",
+    "test_thrusters.py",
+}
+SLOW_FOLDERS = {"papers"}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        path = item.path
+        if path.name in SLOW_FILES or path.parent.name in SLOW_FOLDERS:
+            item.add_marker(pytest.mark.slow)

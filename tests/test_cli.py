@@ -502,6 +502,7 @@ def _command_environment(cache_home, **variables):
     return env | {"XDG_CACHE_HOME": str(cache_home)} | variables
 
 
+@pytest.mark.slow
 def test_a_second_run_of_a_file_loads_the_programs_the_first_compiled_and_the_switch_turns_it_off(tmp_path):
     scenario = _scenario_of_seconds(tmp_path, 20.0)
     cache = tmp_path / "cache" / "lookout" / "jax"

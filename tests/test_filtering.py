@@ -258,6 +258,7 @@ def test_a_bad_call_raises_and_leaves_the_stepper_as_it_was(recorded, call, mess
     )
 
 
+@pytest.mark.slow
 def test_a_kalman_filter_on_a_log_gives_the_simulation_estimates():
     """The EKF steps a log whose time steps are known only when it runs (its propagation
     splits each step into the substeps of its filter period): the simulation's

@@ -130,6 +130,7 @@ def test_exp_iii_printed_bounds_make_m_hat_indefinite():
     assert ch6.ALPHA_MINIMUM == pytest.approx(0.00173, abs=1e-5) and experiment.initial[1] < ch6.ALPHA_MINIMUM
 
 
+@pytest.mark.slow
 def test_every_experiment_runs_to_its_end_or_reports_why_not(tmp_path):
     assert REPRODUCTIONS[ch6.NAME] is ch6.REPRODUCTION
     config = ch6.Config(duration=2.4)

@@ -295,6 +295,7 @@ def test_on_the_vessel_the_ekf_equals_filterpy_driven_with_the_same_model():
     assert np.all(np.diff(position_variance[20:30]) > 0)
 
 
+@pytest.mark.slow
 def test_the_ukf_follows_a_heading_through_plus_minus_pi_without_a_jump():
     scenario = _vessel(heading=math.pi - 0.05, yaw_rate=0.01)
     # a heading guess 0.3 rad off with that uncertainty: the sigma points straddle +-pi

@@ -339,6 +339,7 @@ def test_the_anti_windup_cuts_the_overshoot_of_a_move_at_the_thrust_limits():
     assert overshoot["free"] > 5.0 and overshoot["clamped"] < 0.25 * overshoot["free"], overshoot
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["ekf", "ukf"])
 def test_the_kalman_filters_hold_the_northern_clipper_in_waves(kind):
     """The example (Fossen & Strand's sea: waves of up to 10 m, a drifting bias, 1 Hz
@@ -451,6 +452,7 @@ def test_the_tuning_family_round_trips_stays_inside_routh_hurwitz_and_is_checked
     assert family.check(unstable).verdicts["routh_hurwitz"] == "fails" and family.check(unstable).verdicts["coupled_loop"] == "fails"
 
 
+@pytest.mark.slow
 def test_the_tuning_gradient_matches_central_differences():
     """Through 200 s of the loop with perfect estimates, a slow sinusoidal force and a move."""
     from tuning_checks import gradient_and_central_differences

@@ -314,6 +314,7 @@ def test_an_axis_may_replace_a_component_and_sweep_a_model_error(tmp_path):
     assert np.isfinite(ds.rms_tracking__position).all()
 
 
+@pytest.mark.slow
 def test_a_cases_axis_sets_several_keys_per_value(tmp_path):
     """A gain set (two keys) crossed with a model error one kind at a time: each case
     sets its own keys, the store names it by its label, and a point's metrics equal
@@ -617,6 +618,7 @@ def test_a_campaign_killed_mid_way_resumes_to_the_uninterrupted_store(reference_
         run_campaign(other, store, workers=0, say=lambda text: None)
 
 
+@pytest.mark.slow
 def test_two_local_workers_give_the_one_process_store_even_when_a_worker_is_killed_mid_chunk(reference_store, campaign_files, tmp_path):
     """The default: lookout starts a 2-worker LocalCluster. A watcher connects to its
     scheduler, waits until a worker is running a chunk (after the calibration chunk
