@@ -1,4 +1,4 @@
-"""Kinds declared in code (lookout.scenario.declare): what the registry reads, checked
+"""Kinds declared in code (lookout.declare): what the registry reads, checked
 against the builders' signatures and their docstrings, and what a declaration refuses."""
 
 from __future__ import annotations
@@ -10,8 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from lookout.scenario import declare, registry
-from lookout.scenario.declare import POSITIVE, Part, Range, Rule, Value
+from lookout import declare
+from lookout.declare import POSITIVE, Part, Range, Rule, Value
+from lookout.scenario import registry
 
 
 def _numpydoc(doc: str | None) -> dict[str, tuple[str, str]]:

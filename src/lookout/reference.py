@@ -19,7 +19,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import Layout, Reference, Signal
-from lookout.scenario.declare import POSITIVE, Context, Value, component
+from lookout.declare import POSITIVE, Context, Value, component
 
 #: A switch time counts as reached at sample time t when ``time <= t + SWITCH_TOLERANCE * max(1, |t|)``:
 #: a sample time that rounds a hair below a switch time does not postpone the switch by a sample.

@@ -13,7 +13,7 @@ from lookout._math import ssa
 from lookout.actuators.allocation import IDLE, Allocator
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.components import Actuator, Layout, Signal
-from lookout.scenario.declare import NON_NEGATIVE, Part, Range, Value, component
+from lookout.declare import NON_NEGATIVE, Part, Range, Value, component
 
 
 def _thruster_signal(name: str, units: str, long_name: str, labels, angle: bool = False) -> Signal:

@@ -60,7 +60,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import JOINT_SPACE, DivergenceBound, Layout, Plant, Signal
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 
 #: Standard gravity (m/s^2), the thesis's ``n``.
 STANDARD_GRAVITY = 9.81

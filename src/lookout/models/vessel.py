@@ -22,8 +22,8 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.components import BODY_FIXED, EARTH_FIXED, DivergenceBound, Layout, Plant, Signal
+from lookout.declare import NON_NEGATIVE, Part, Value, component, initial_values
 from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveModel
-from lookout.scenario.declare import NON_NEGATIVE, Part, Value, component, initial_values
 
 DOF = ("surge", "sway", "yaw")
 #: Labels of the horizontal axes: Earth-fixed (position, bias, waves) and body-fixed (velocity, thrust).

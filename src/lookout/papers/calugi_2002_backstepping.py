@@ -39,6 +39,7 @@ from pydantic import Field, field_validator
 from lookout import _validation as check
 from lookout.analysis.adaptive_manipulator import check_5_28
 from lookout.analysis.conditions import inequalities_in
+from lookout.declare import Value, component
 from lookout.models.manipulators import REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, TwoLinkArm
 from lookout.models.parameters import ModelParameters
 from lookout.papers import CATALOG
@@ -46,7 +47,6 @@ from lookout.papers._report import Table, save_figures, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
 from lookout.reference import ReferenceFilter
 from lookout.scenario.composition import compose
-from lookout.scenario.declare import Value, component
 from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
 from lookout.sim import Scenario, seed_keys, simulate
 

@@ -2,7 +2,7 @@
 actuator and environment part lookout can compose, by role and kind name.
 
 A kind is declared once, next to the class that builds it, with
-:func:`lookout.scenario.declare.component` (see that module): its role, name, summary,
+:func:`lookout.declare.component` (see that module): its role, name, summary,
 its parameters as typed declarations (values with their types, shapes, ranges and
 choices; parts and whether the plant may give them; context the composition fills),
 its gain-synthesis rules, tuning family and condition checks. This module collects
@@ -33,8 +33,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from lookout.scenario import declare
-from lookout.scenario.declare import ROLES, Declaration, Part, Range, Value
+from lookout import declare
+from lookout.declare import ROLES, Declaration, Part, Range, Value
 
 #: The modules whose declarations are lookout's own kinds, in the order each role's
 #: kinds are listed (the first kind of a role is its default).
@@ -607,11 +607,11 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
 
 def initial_parameters(method) -> tuple[Parameter, ...]:
     """The keys a plant's ``state`` or an observer's ``guess`` takes, as declared by
-    :func:`lookout.scenario.declare.initial_values` on it."""
+    :func:`lookout.declare.initial_values` on it."""
     function = getattr(method, "__func__", method)
     declared = getattr(function, "__lookout_initial__", None)
     if declared is None:
-        raise ValueError(f"{function.__qualname__} declares no initial values (lookout.scenario.declare.initial_values)")
+        raise ValueError(f"{function.__qualname__} declares no initial values (lookout.declare.initial_values)")
     return _parameters(function, declared, function.__qualname__)
 
 
