@@ -13,7 +13,7 @@ from lookout._math import ssa
 from lookout.actuators.allocation import IDLE, Allocator
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.components import Actuator, Layout, Signal
-from lookout.declare import NON_NEGATIVE, Part, Range, Value, component
+from lookout.declare import NON_NEGATIVE, Part, Range, Value, component, kind_of
 
 
 def _thruster_signal(name: str, units: str, long_name: str, labels, angle: bool = False) -> Signal:
@@ -195,8 +195,6 @@ class ThrusterSystem(Actuator):
         given = tuple((s.name, s.units, tuple(s.labels)) for s in plant_input.signals)
         if given == VESSEL_INPUT_SIGNALS:
             return None
-        from lookout.scenario.registry import kind_of
-
         return f"actuator {kind_of(self)} needs a 3-DOF vessel plant (force surge, sway; moment yaw); plant {plant_kind} takes {describe_input(plant_input)}"
 
     def init(self):

@@ -35,6 +35,7 @@ from typing import Any, Literal
 
 from lookout import declare
 from lookout.declare import ROLES, Declaration, Part, Range, Value
+from lookout.declare import kind_of as kind_of  # a component's kind, stamped on its class when declared
 
 #: The modules whose declarations are lookout's own kinds, in the order each role's
 #: kinds are listed (the first kind of a role is its default).
@@ -502,17 +503,6 @@ def kind(role: str, name: str) -> Kind:
     if name not in table:
         raise ValueError(f"no {role} kind {name!r} (one of {', '.join(table)})")
     return table[name]
-
-
-def kind_of(component) -> str:
-    """The registered kind name of a built component (its class's), else its class name."""
-    for each in kinds():
-        try:
-            if type(component) is each.component_class:
-                return each.name
-        except Exception:
-            continue
-    return type(component).__name__
 
 
 def _type_text(each, default, annotation_class) -> str:
