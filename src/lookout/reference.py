@@ -1,6 +1,7 @@
 """Reference generators: the desired trajectory a controller tracks.
 
-:class:`NoReference` gives nothing (an observer run open loop). :class:`ReferenceFilter`
+:class:`NoReference` gives nothing (an observer run open loop; defined in
+:mod:`lookout.null_components`, as the engine's default). :class:`ReferenceFilter`
 is the third-order reference model of Fossen (1994, 2002), which turns a
 piecewise-constant setpoint schedule into a smooth desired position, velocity and
 acceleration, as the output-feedback controllers of Kim (2002) assume ("eta_d,
@@ -20,33 +21,11 @@ from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import Layout, Reference, Signal
 from lookout.declare import POSITIVE, Context, Value, component
+from lookout.null_components import NoReference as NoReference  # defined beside the contract, the engine's default
 
 #: A switch time counts as reached at sample time t when ``time <= t + SWITCH_TOLERANCE * max(1, |t|)``:
 #: a sample time that rounds a hair below a switch time does not postpone the switch by a sample.
 SWITCH_TOLERANCE = 1e-9
-
-
-@component(
-    "reference",
-    "none",
-    summary="No reference: an observer run open loop, or a controller that needs none.",
-    parameters=(),
-)
-@final
-class NoReference(Reference):
-    """No reference: an observer run open loop, or a controller that needs none."""
-
-    reference_signals: tuple[Signal, ...] = eqx.field(static=True, default=(), kw_only=True)
-    noise_size: int = eqx.field(static=True, default=0, kw_only=True)
-
-    def init(self):
-        """No internal state."""
-        return ()
-
-    def step(self, state, t, dt, normals):
-        """``(state, {})``."""
-        del t, dt, normals
-        return state, {}
 
 
 def _rate_units(units: str, power: int) -> str:

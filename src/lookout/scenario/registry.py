@@ -67,6 +67,7 @@ BUILTIN_MODULES = (
     "lookout.controllers.adaptive_backstepping",
     "lookout.controllers.furuta",
     "lookout.controllers.pid",
+    "lookout.null_components",
     "lookout.reference",
     "lookout.actuators.limits",
     "lookout.actuators.thrusters",

@@ -52,10 +52,9 @@ from lookout._math import computed_once
 from lookout._random import MAX_COUNT, standard_normal
 from lookout._resources import format_bytes, refuse_unless_it_fits
 from lookout._validation import FitError, ParameterError, is_concrete, key
-from lookout.actuators import IdealActuator
 from lookout.components import Actuator, ContinuousObserver, Controller, Observer, Plant, Reference, Sensor, Signal
 from lookout.declare import kind_of
-from lookout.reference import NoReference
+from lookout.null_components import IdealActuator, NoReference
 from lookout.results import RecordSignals, Trajectory
 from lookout.sim.integrators import INTEGRATORS
 
