@@ -45,7 +45,6 @@ BUILTIN_MODULES = (
     "lookout.models.manipulators",
     "lookout.models.furuta",
     "lookout.models.scheduled_parameters",
-    "lookout.papers.calugi_2002_backstepping",
     "lookout.environment.bias",
     "lookout.environment.waves",
     "lookout.environment.jonswap",
