@@ -22,6 +22,7 @@ from lookout._math import ssa
 from lookout.components import Layout, Reference, Signal
 from lookout.declare import POSITIVE, Context, Value, component
 from lookout.null_components import NoReference as NoReference  # defined beside the contract, the engine's default
+from lookout.vessel_signals import VESSEL_SIGNALS
 
 #: A switch time counts as reached at sample time t when ``time <= t + SWITCH_TOLERANCE * max(1, |t|)``:
 #: a sample time that rounds a hair below a switch time does not postpone the switch by a sample.
@@ -198,7 +199,7 @@ class ReferenceFilter(Reference):
         """The DP vessel's reference: setpoint [north (m), east (m), heading (rad)].
 
         Uses the ``position`` and ``heading`` signals of
-        :data:`lookout.models.vessel.VESSEL_SIGNALS`, so the outputs are
+        :data:`lookout.vessel_signals.VESSEL_SIGNALS`, so the outputs are
         ``position_desired`` (m), ``heading_desired`` (rad), ``position_desired_rate``
         (m s-1), ``heading_desired_rate`` (rad s-1), ``position_desired_acceleration``
         (m s-2) and ``heading_desired_acceleration`` (rad s-2).
@@ -210,8 +211,6 @@ class ReferenceFilter(Reference):
         schedule_times, setpoints, initial
             As in :class:`ReferenceFilter`, setpoints of shape (m, 3).
         """
-        from lookout.models.vessel import VESSEL_SIGNALS  # here: the engine imports this module, models need not load with it
-
         by_name = {s.name: s for s in VESSEL_SIGNALS}
         return cls((by_name["position"], by_name["heading"]), bandwidth, schedule_times, setpoints, initial)
 
@@ -340,8 +339,6 @@ class EllipseReference(Reference):
     noise_size: int = eqx.field(static=True, default=0, kw_only=True)
 
     def __init__(self, semi_axes, lap_speeds, centre=(0.0, 0.0), start_angle=0.0, direction=1, substeps=1):
-        from lookout.models.vessel import VESSEL_SIGNALS
-
         self.semi_axes = jnp.asarray(check.vector("semi_axes", semi_axes, 2))
         speeds = np.asarray(lap_speeds, dtype=float) if check.is_concrete(lap_speeds) else lap_speeds
         if check.is_concrete(lap_speeds) and speeds.ndim != 1:
