@@ -52,7 +52,8 @@ def paper_observer():
 def _registry_as_it_was():
     """The kinds a test registers (a plugin it loads) are unregistered after it, with the
     modules that declared them: the other tests on this worker enumerate the kinds."""
-    from lookout.scenario import declare, registry
+    from lookout import declare
+    from lookout.scenario import registry
 
     registry.kinds()  # lookout's own kinds, once
     count = len(declare.DECLARED)

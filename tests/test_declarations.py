@@ -1,4 +1,4 @@
-"""Kinds declared in code (lookout.scenario.declare): what the registry reads, checked
+"""Kinds declared in code (lookout.declare): what the registry reads, checked
 against the builders' signatures and their docstrings, and what a declaration refuses."""
 
 from __future__ import annotations
@@ -10,8 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from lookout.scenario import declare, registry
-from lookout.scenario.declare import POSITIVE, Part, Range, Rule, Value
+from lookout import declare
+from lookout.declare import POSITIVE, Part, Range, Rule, Value
+from lookout.scenario import registry
 
 
 def _numpydoc(doc: str | None) -> dict[str, tuple[str, str]]:
@@ -121,6 +122,32 @@ def test_register_refuses_an_unknown_role_an_empty_kind_and_rules_with_parameter
         declare.register("observer", "x", _builder, summary="s", parameters=(), rules={"a": Rule(None)})
     with pytest.raises(ValueError, match="must be Value, Part or Context"):
         declare.register("observer", "x", _builder, summary="s", parameters=("position_gain",))
+
+
+class Stamped:
+    """A class declared as a kind by the test below."""
+
+
+def test_a_kind_is_stamped_on_its_class_when_it_is_registered():
+    """kind_of reads the declaration on the class: the first one still registered, a
+    function's from its return annotation (resolved when asked), none for a subclass."""
+    count = len(declare.DECLARED)
+    try:
+        first = declare.register("observer", "stamped", Stamped, summary="s", parameters=())
+        assert Stamped.__dict__[declare.STAMP] is first
+        declare.register("observer", "stamped-again", Stamped, summary="s", parameters=())
+        assert declare.kind_of(Stamped()) == registry.kind_of(Stamped()) == "stamped"
+        assert declare.kind_of(type("Derived", (Stamped,), {})()) == "Derived"
+        declare.DECLARED.remove(first)  # dropped, as a plugin that fails to import is
+        assert declare.kind_of(Stamped()) == "stamped-again"
+        module = {"__name__": "later"}
+        exec("def build() -> 'Later':\n    return Later()", module)  # Later is defined after build is declared
+        later = declare.register("observer", "later", module["build"], summary="s", parameters=())
+        assert later in declare._UNSTAMPED
+        exec("class Later:\n    pass", module)
+        assert declare.kind_of(module["Later"]()) == "later" and declare.kind_of(object()) == "object"
+    finally:
+        del declare.DECLARED[count:]
 
 
 def test_range_words_are_what_components_shows():

@@ -73,7 +73,7 @@ def test_a_plugin_that_redeclares_a_kind_a_file_that_fails_and_a_missing_file_ar
     twice.write_text(
         textwrap.dedent("""
         from lookout.observers.passive import PassiveObserver
-        from lookout.scenario.declare import register
+        from lookout.declare import register
         register("observer", "passive", PassiveObserver, summary="again", parameters=())
     """)
     )
@@ -244,8 +244,7 @@ def test_the_example_plugin_imports_only_lookouts_public_names():
     import ast
 
     import lookout.plugin as plugin
-    from lookout import _math, _validation
-    from lookout.scenario import declare
+    from lookout import _math, _validation, declare
 
     imported = []
     for node in ast.walk(ast.parse(PLUGIN.read_text())):

@@ -131,7 +131,7 @@ def _backend_started() -> bool:
 _PUBLIC = {
     "rotation": "._math",
     "ssa": "._math",
-    "IdealActuator": ".actuators",
+    "IdealActuator": ".null_components",
     "SaturatingActuator": ".actuators",
     "ThrusterLayout": ".actuators",
     "ThrusterSystem": ".actuators",
@@ -161,7 +161,7 @@ _PUBLIC = {
     "VelocityObserver": ".observers",
     "injection_gains_from_normalized": ".observers",
     "notch_filter_gains": ".observers",
-    "NoReference": ".reference",
+    "NoReference": ".null_components",
     "Trajectory": ".results",
     "write_netcdf": ".results",
     "JointEncoder": ".sensors",

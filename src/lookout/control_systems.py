@@ -105,7 +105,7 @@ def signal_names(signals, suffix: str = "") -> list[str]:
 def _kind(component) -> str:
     """The component's registered kind for messages, or its class name."""
     try:
-        from lookout.sim.engine import kind_of
+        from lookout.declare import kind_of
 
         return kind_of(component)
     except Exception:  # the kind is only for the message

@@ -11,7 +11,7 @@ Declaring a kind
     :func:`component` (a class decorator), :func:`register` (a statement),
     :class:`Rule`, :class:`Value`, :class:`Part`, :class:`Context`, :class:`Range`
     with :data:`POSITIVE` and :data:`NON_NEGATIVE`, and :func:`initial_values` for a
-    ``guess`` or a ``state`` (:mod:`lookout.scenario.declare` describes each).
+    ``guess`` or a ``state`` (:mod:`lookout.declare` describes each).
 Refusing a parameter
     :class:`ParameterError` (a ``ValueError`` carrying the key, so that a scenario file's
     error names the key and its line) and the checks under :class:`check`
@@ -41,9 +41,7 @@ from __future__ import annotations
 from lookout import _validation
 from lookout._math import matvec, rotate, rotate_transpose, rotation, ssa
 from lookout._validation import ParameterError
-from lookout.models.cybership import skew
-from lookout.observers.start import from_first_measurement
-from lookout.scenario.declare import (
+from lookout.declare import (
     NON_NEGATIVE,
     POSITIVE,
     Context,
@@ -55,6 +53,8 @@ from lookout.scenario.declare import (
     initial_values,
     register,
 )
+from lookout.models.cybership import skew
+from lookout.observers.start import from_first_measurement
 from lookout.sim.integrators import integrate_sample
 
 

@@ -1,6 +1,7 @@
 """Reference generators: the desired trajectory a controller tracks.
 
-:class:`NoReference` gives nothing (an observer run open loop). :class:`ReferenceFilter`
+:class:`NoReference` gives nothing (an observer run open loop; defined in
+:mod:`lookout.null_components`, as the engine's default). :class:`ReferenceFilter`
 is the third-order reference model of Fossen (1994, 2002), which turns a
 piecewise-constant setpoint schedule into a smooth desired position, velocity and
 acceleration, as the output-feedback controllers of Kim (2002) assume ("eta_d,
@@ -19,34 +20,13 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import Layout, Reference, Signal
-from lookout.scenario.declare import POSITIVE, Context, Value, component
+from lookout.declare import POSITIVE, Context, Value, component
+from lookout.null_components import NoReference as NoReference  # defined beside the contract, the engine's default
+from lookout.vessel_signals import VESSEL_SIGNALS
 
 #: A switch time counts as reached at sample time t when ``time <= t + SWITCH_TOLERANCE * max(1, |t|)``:
 #: a sample time that rounds a hair below a switch time does not postpone the switch by a sample.
 SWITCH_TOLERANCE = 1e-9
-
-
-@component(
-    "reference",
-    "none",
-    summary="No reference: an observer run open loop, or a controller that needs none.",
-    parameters=(),
-)
-@final
-class NoReference(Reference):
-    """No reference: an observer run open loop, or a controller that needs none."""
-
-    reference_signals: tuple[Signal, ...] = eqx.field(static=True, default=(), kw_only=True)
-    noise_size: int = eqx.field(static=True, default=0, kw_only=True)
-
-    def init(self):
-        """No internal state."""
-        return ()
-
-    def step(self, state, t, dt, normals):
-        """``(state, {})``."""
-        del t, dt, normals
-        return state, {}
 
 
 def _rate_units(units: str, power: int) -> str:
@@ -219,7 +199,7 @@ class ReferenceFilter(Reference):
         """The DP vessel's reference: setpoint [north (m), east (m), heading (rad)].
 
         Uses the ``position`` and ``heading`` signals of
-        :data:`lookout.models.vessel.VESSEL_SIGNALS`, so the outputs are
+        :data:`lookout.vessel_signals.VESSEL_SIGNALS`, so the outputs are
         ``position_desired`` (m), ``heading_desired`` (rad), ``position_desired_rate``
         (m s-1), ``heading_desired_rate`` (rad s-1), ``position_desired_acceleration``
         (m s-2) and ``heading_desired_acceleration`` (rad s-2).
@@ -231,8 +211,6 @@ class ReferenceFilter(Reference):
         schedule_times, setpoints, initial
             As in :class:`ReferenceFilter`, setpoints of shape (m, 3).
         """
-        from lookout.models.vessel import VESSEL_SIGNALS  # here: the engine imports this module, models need not load with it
-
         by_name = {s.name: s for s in VESSEL_SIGNALS}
         return cls((by_name["position"], by_name["heading"]), bandwidth, schedule_times, setpoints, initial)
 
@@ -361,8 +339,6 @@ class EllipseReference(Reference):
     noise_size: int = eqx.field(static=True, default=0, kw_only=True)
 
     def __init__(self, semi_axes, lap_speeds, centre=(0.0, 0.0), start_angle=0.0, direction=1, substeps=1):
-        from lookout.models.vessel import VESSEL_SIGNALS
-
         self.semi_axes = jnp.asarray(check.vector("semi_axes", semi_axes, 2))
         speeds = np.asarray(lap_speeds, dtype=float) if check.is_concrete(lap_speeds) else lap_speeds
         if check.is_concrete(lap_speeds) and speeds.ndim != 1:

@@ -19,8 +19,8 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import EARTH_FIXED, Layout, Outage, Sensor, Signal
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Range, Value, component
 from lookout.models.vessel import EARTH_AXES, VesselState
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Value, component
 
 #: The keys of a sensor's outage, the same for every sensor.
 OUTAGE_VALUES = (

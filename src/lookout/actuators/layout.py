@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from lookout import _validation as check
-from lookout.scenario.declare import Value, register
+from lookout.declare import Value, register
 
 #: The kinds of thruster.
 THRUSTER_KINDS = ("tunnel", "azimuth", "main")

@@ -1,4 +1,6 @@
-"""Actuators without a state: the command unchanged, or limited entry by entry."""
+"""Actuators without a state: the command limited entry by entry, or unchanged
+(:class:`IdealActuator`, defined beside the contract in :mod:`lookout.null_components`
+as the engine's default)."""
 
 from __future__ import annotations
 
@@ -10,22 +12,8 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import StatelessActuator
-from lookout.scenario.declare import Context, Value, component
-
-
-@component(
-    "actuator",
-    "ideal",
-    summary="The plant receives the commanded input unchanged (no limits).",
-    parameters=(),
-)
-@final
-class IdealActuator(StatelessActuator):
-    """The plant receives the commanded input unchanged (no limits)."""
-
-    def apply(self, u):
-        """``u``."""
-        return u
+from lookout.declare import Context, Value, component
+from lookout.null_components import IdealActuator as IdealActuator  # defined beside the contract, the engine's default
 
 
 def _limit_vector(limit, size: int | None):

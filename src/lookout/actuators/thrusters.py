@@ -13,7 +13,7 @@ from lookout._math import ssa
 from lookout.actuators.allocation import IDLE, Allocator
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.components import Actuator, Layout, Signal
-from lookout.scenario.declare import NON_NEGATIVE, Part, Range, Value, component
+from lookout.declare import NON_NEGATIVE, Part, Range, Value, component, kind_of
 
 
 def _thruster_signal(name: str, units: str, long_name: str, labels, angle: bool = False) -> Signal:
@@ -42,6 +42,38 @@ def describe_input(layout: Layout) -> str:
         parts.append(f"{signal.name} ({signal.units}{labels})")
     more = f" and {len(layout.signals) - 4} more" if len(layout.signals) > 4 else ""
     return ", ".join(parts) + more if parts else "no input"
+
+
+#: A delivered thrust within this fraction of a thruster's largest thrust of a limit
+#: is at it: thrust approaches its command through a first-order lag, so it reaches
+#: a limit it is commanded to only in the limit of time; 1 % of the largest thrust is
+#: within a line's width on the thrusters' figure.
+AT_LIMIT = 0.01
+
+
+def at_limit(thrust, largest, smallest, tolerance: float = AT_LIMIT):
+    """Whether each thruster's thrust (..., n) is at its ``largest`` or (when negative)
+    ``smallest`` thrust (n,), within ``tolerance`` of its largest (JAX, so a campaign's
+    metric takes it inside the simulation; NumPy arrays in, JAX arrays out).
+
+    ``time_at_limit:thrust`` is the fraction of the samples with some thruster at a
+    limit by this test, on the delivered thrust (the solid curves of ``thrusters.png``
+    at the top or bottom of a thruster's range)."""
+    thrust, largest, smallest = jnp.asarray(thrust), jnp.asarray(largest), jnp.asarray(smallest)
+    margin = tolerance * largest
+    return (thrust >= largest - margin) | ((thrust <= smallest + margin) & (smallest < 0))
+
+
+def relative_power(thrust, largest):
+    """The thrusters' power as a fraction of the installed power, ``thrust`` shaped (..., n).
+
+    A propeller's power at bollard pull grows as |T|^(3/2) (momentum theory,
+    P = |T|^(3/2) / sqrt(2 rho A)); with the disc area A of each thruster in
+    proportion to its ``largest`` thrust (equal disc loading), thruster i at T_i draws
+    (|T_i| / T_max,i)^(3/2) of its installed power, which is in proportion to T_max,i.
+    """
+    thrust, largest = jnp.asarray(thrust), jnp.asarray(largest)
+    return jnp.sum((jnp.abs(thrust) / largest) ** 1.5 * largest, axis=-1) / jnp.sum(largest)
 
 
 @component(
@@ -151,6 +183,12 @@ class ThrusterSystem(Actuator):
     layout: ThrusterLayout
     allocator: Allocator
 
+    #: The functions of the delivered thrust that a campaign's thruster metrics take
+    #: (``mean_power:thrust`` and ``time_at_limit:thrust``, :mod:`lookout.scenario.metrics`),
+    #: with the thrust limits of :attr:`layout`.
+    relative_power = staticmethod(relative_power)
+    at_limit = staticmethod(at_limit)
+
     def __init__(
         self,
         layout: ThrusterLayout,
@@ -195,8 +233,6 @@ class ThrusterSystem(Actuator):
         given = tuple((s.name, s.units, tuple(s.labels)) for s in plant_input.signals)
         if given == VESSEL_INPUT_SIGNALS:
             return None
-        from lookout.scenario.registry import kind_of
-
         return f"actuator {kind_of(self)} needs a 3-DOF vessel plant (force surge, sway; moment yaw); plant {plant_kind} takes {describe_input(plant_input)}"
 
     def init(self):
@@ -299,35 +335,3 @@ class ThrusterSystem(Actuator):
             "allocation_shortfall": info["shortfall"],
         }
         return (thrust, angle, allocated, info["working"], demand, turning), applied, outputs
-
-
-#: A delivered thrust within this fraction of a thruster's largest thrust of a limit
-#: is at it: thrust approaches its command through a first-order lag, so it reaches
-#: a limit it is commanded to only in the limit of time; 1 % of the largest thrust is
-#: within a line's width on the thrusters' figure.
-AT_LIMIT = 0.01
-
-
-def at_limit(thrust, largest, smallest, tolerance: float = AT_LIMIT):
-    """Whether each thruster's thrust (..., n) is at its ``largest`` or (when negative)
-    ``smallest`` thrust (n,), within ``tolerance`` of its largest (JAX, so a campaign's
-    metric takes it inside the simulation; NumPy arrays in, JAX arrays out).
-
-    ``time_at_limit:thrust`` is the fraction of the samples with some thruster at a
-    limit by this test, on the delivered thrust (the solid curves of ``thrusters.png``
-    at the top or bottom of a thruster's range)."""
-    thrust, largest, smallest = jnp.asarray(thrust), jnp.asarray(largest), jnp.asarray(smallest)
-    margin = tolerance * largest
-    return (thrust >= largest - margin) | ((thrust <= smallest + margin) & (smallest < 0))
-
-
-def relative_power(thrust, largest):
-    """The thrusters' power as a fraction of the installed power, ``thrust`` shaped (..., n).
-
-    A propeller's power at bollard pull grows as |T|^(3/2) (momentum theory,
-    P = |T|^(3/2) / sqrt(2 rho A)); with the disc area A of each thruster in
-    proportion to its ``largest`` thrust (equal disc loading), thruster i at T_i draws
-    (|T_i| / T_max,i)^(3/2) of its installed power, which is in proportion to T_max,i.
-    """
-    thrust, largest = jnp.asarray(thrust), jnp.asarray(largest)
-    return jnp.sum((jnp.abs(thrust) / largest) ** 1.5 * largest, axis=-1) / jnp.sum(largest)

@@ -33,10 +33,10 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec
 from lookout.components import Controller, Layout
+from lookout.declare import POSITIVE, Part, Value, component
 from lookout.models.manipulators import JOINT_POSITION, joint_layout
 from lookout.models.parameters import AffineParameters
 from lookout.observers.adaptive_manipulator import estimate_names, read_estimate
-from lookout.scenario.declare import POSITIVE, Part, Value, component
 
 
 @component(

@@ -73,9 +73,9 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import rotate, rotate_transpose, rotation, ssa
 from lookout.components import Controller
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Value, component
 from lookout.observers.adaptive_dp import AdaptiveObserver
 from lookout.observers.wave_filtering import WaveFilteringObserver
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component
 
 #: The estimate a DP controller reads: eta_hat and nu_hat.
 VESSEL_ESTIMATE = ("position", "heading", "velocity", "yaw_rate")

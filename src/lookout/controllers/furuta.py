@@ -39,9 +39,9 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec
 from lookout.components import Controller
+from lookout.declare import POSITIVE, Part, Value, component
 from lookout.models.parameters import AffineParameters
 from lookout.observers.adaptive_manipulator import estimate_names, read_estimate
-from lookout.scenario.declare import POSITIVE, Part, Value, component
 
 #: The reference signal the controller reads: ``<name>_desired`` (rad), ``_rate``, ``_acceleration``.
 PENDULUM_REFERENCE = "pendulum_angle"

@@ -10,7 +10,7 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import Controller
-from lookout.scenario.declare import Context, Value, component
+from lookout.declare import Context, Value, component
 
 
 @component(

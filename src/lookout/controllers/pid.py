@@ -83,8 +83,8 @@ from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.components import Controller
 from lookout.controllers.tracking import reference_velocity
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Rule, Value, component
 from lookout.models.vessel import DPVessel
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Rule, Value, component
 
 #: The estimate the law reads: eta_hat and nu_hat.
 VESSEL_ESTIMATE = ("position", "heading", "velocity", "yaw_rate")

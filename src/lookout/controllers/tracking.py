@@ -46,9 +46,9 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, rotate_transpose, ssa
 from lookout.components import Controller
+from lookout.declare import POSITIVE, Part, Rule, Value, component
 from lookout.models.cybership import Cybership, skew
 from lookout.observers.earth_fixed import WONDERGEM_RULE_VALUES
-from lookout.scenario.declare import POSITIVE, Part, Rule, Value, component
 
 
 def _vector(values: dict, first: str, second: str) -> Array:

@@ -23,7 +23,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout.scenario.declare import Value, component
+from lookout.declare import Value, component
 
 
 @component(

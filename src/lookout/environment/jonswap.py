@@ -129,7 +129,7 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout._math import sincos
-from lookout.scenario.declare import NON_NEGATIVE, Value, component
+from lookout.declare import NON_NEGATIVE, Value, component
 
 #: T1 / Tp (Fossen 2011, eq. 8.58): T1 is the mean period of the gamma = 3.3 spectrum; the
 #: period parameter puts the peak at wp = 2 pi 0.834 / T1 for every gamma.

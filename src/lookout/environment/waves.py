@@ -13,7 +13,7 @@ import numpy as np
 from jax import Array
 
 from lookout import _validation as check
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Value, component
+from lookout.declare import NON_NEGATIVE, POSITIVE, Value, component
 
 
 def stationary_std_per_intensity(peak_frequency, damping_ratio):

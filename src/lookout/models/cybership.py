@@ -47,8 +47,8 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, rotation, ssa
 from lookout.components import DivergenceBound, Layout, Plant, Signal
+from lookout.declare import Part, Value, component, initial_values, register
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
-from lookout.scenario.declare import Part, Value, component, initial_values, register
 
 #: Wondergem et al. (2009), eq. (39).
 CYBERSHIP_M = np.array([[25.8, 0.0, 0.0], [0.0, 33.8, 1.0115], [0.0, 1.0115, 2.76]])

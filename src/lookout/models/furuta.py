@@ -60,6 +60,7 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import DivergenceBound, Layout, Plant, Signal
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 from lookout.models.manipulators import (
     JOINT_INPUT,
     JOINT_POSITION,
@@ -69,7 +70,6 @@ from lookout.models.manipulators import (
     _scalar,
     joint_layout,
 )
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 
 #: The printed constants of Calugi (2002), Section 6.1 (from Åström's Furuta model):
 #: alpha, beta, gamma (kg m^2), delta (N m).

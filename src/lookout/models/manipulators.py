@@ -60,7 +60,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import JOINT_SPACE, DivergenceBound, Layout, Plant, Signal
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 
 #: Standard gravity (m/s^2), the thesis's ``n``.
 STANDARD_GRAVITY = 9.81
@@ -382,6 +382,72 @@ class TwoLinkArm(ManipulatorModel):
         elbow_height = l1 * jnp.sin(q[0])
         tip_height = elbow_height + l2 * jnp.sin(q[0] + q[1])
         return self.gravity_acceleration * (m1 * elbow_height + m2 * tip_height)
+
+
+@component(
+    "model",
+    "printed-inertia-arm",
+    summary="The two-link arm with M_22 = printed_mass l2^2, whatever the mass parameter m2 is.",
+    parameters=(
+        Value("masses", "array", "m1, m2 (kg) of M_11, M_12 and G, as in two-link-arm.", shape="(2,)"),
+        Value("lengths", "array", "l1, l2 (m).", shape="(2,)"),
+        Value("friction", "array", "c1, c2 (N m s/rad).", shape="(2,)"),
+        Value("gravity_acceleration", "float", "g (m/s^2)."),
+        Value("printed_mass", "float", "The mass of M_22 = printed_mass l2^2 (kg), whatever masses[1] is."),
+    ),
+)
+@final
+class PrintedInertiaArm(ManipulatorModel):
+    """The two-link arm with M_22 = printed_mass l2^2, whatever the mass parameter m2 is.
+
+    M_11, M_12, G and the Christoffel C (M_22 is constant either way) are those of
+    :class:`TwoLinkArm` with ``masses``; only M_22 keeps a mass of its own. As the model
+    of an observer that estimates m2, it is an inertia matrix printed with the true m2 in
+    M_22: Calugi (2002)'s (5.37), whose ``printed`` case
+    :mod:`lookout.papers.calugi_2002_backstepping` runs. Defaults are those of
+    :class:`TwoLinkArm`.
+
+    Parameters
+    ----------
+    masses : array_like, shape (2,)
+        m1, m2 (kg) of M_11, M_12 and G, as in two-link-arm.
+    lengths : array_like, shape (2,)
+        l1, l2 (m).
+    friction : array_like, shape (2,)
+        c1, c2 (N m s/rad).
+    gravity_acceleration : float
+        g (m/s^2).
+    printed_mass : float
+        The mass of M_22 = printed_mass l2^2 (kg), whatever ``masses[1]`` is.
+    """
+
+    masses: Array
+    lengths: Array
+    friction: Array
+    gravity_acceleration: Array
+    printed_mass: Array
+    joint_names: ClassVar[tuple[str, ...]] = TwoLinkArm.joint_names
+    joint_kinds: ClassVar[tuple[str, ...]] = (REVOLUTE, REVOLUTE)
+
+    def __init__(self, masses=(0.5, 0.7), lengths=(1.0, 1.5), friction=(0.5, 0.1), gravity_acceleration=STANDARD_GRAVITY, *, printed_mass):
+        self.masses = jnp.asarray(check.vector("two-link masses", masses, 2))
+        self.lengths = jnp.asarray(check.vector("two-link lengths", lengths, 2))
+        self.friction = jnp.asarray(check.vector("two-link friction", friction, 2))
+        self.gravity_acceleration = jnp.asarray(float(gravity_acceleration))
+        self.printed_mass = jnp.asarray(float(printed_mass))
+
+    def _arm(self) -> TwoLinkArm:
+        return TwoLinkArm(self.masses, self.lengths, self.friction, self.gravity_acceleration)
+
+    def mass_matrix(self, q: Array) -> Array:
+        """TwoLinkArm's M(q) with M_22 = printed_mass l2^2."""
+        return self._arm().mass_matrix(q).at[1, 1].set(self.printed_mass * self.lengths[1] ** 2)
+
+    def gravity(self, q: Array) -> Array:
+        return self._arm().gravity(q)
+
+    def potential_energy(self, q: Array) -> Array:
+        return self._arm().potential_energy(q)
 
 
 @component(

@@ -45,8 +45,8 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec
 from lookout.components import Signal
+from lookout.declare import Part, Value, component
 from lookout.models.manipulators import FreePendulum, ManipulatorModel
-from lookout.scenario.declare import Part, Value, component
 
 #: Relative residual above which a parameter set is not affine (random points, float64).
 AFFINE_TOLERANCE = 1e-9

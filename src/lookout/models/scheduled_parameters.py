@@ -26,9 +26,9 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import DivergenceBound, Layout, Plant, Signal
+from lookout.declare import NON_NEGATIVE, Part, Value, component, initial_values
 from lookout.models.manipulators import JOINT_INPUT, JOINT_POSITION, JOINT_VELOCITY, JointState, joint_layout
 from lookout.models.parameters import AffineParameters, parameter_signals
-from lookout.scenario.declare import NON_NEGATIVE, Part, Value, component, initial_values
 
 
 @component(

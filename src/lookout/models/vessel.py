@@ -21,38 +21,14 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
-from lookout.components import BODY_FIXED, EARTH_FIXED, DivergenceBound, Layout, Plant, Signal
+from lookout.components import DivergenceBound, Layout, Plant, Signal
+from lookout.declare import NON_NEGATIVE, Part, Value, component, initial_values
 from lookout.environment import BodyDisturbance, GaussMarkovBias, LinearWaveModel
-from lookout.scenario.declare import NON_NEGATIVE, Part, Value, component, initial_values
-
-DOF = ("surge", "sway", "yaw")
-#: Labels of the horizontal axes: Earth-fixed (position, bias, waves) and body-fixed (velocity, thrust).
-EARTH_AXES = ("north", "east")
-BODY_AXES = ("surge", "sway")
-
-
-def _earth(name: str, units: str, long_name: str) -> Signal:
-    return Signal(name, units, long_name, EARTH_FIXED, EARTH_AXES, "earth_axis")
-
-
-def _body(name: str, units: str, long_name: str) -> Signal:
-    return Signal(name, units, long_name, BODY_FIXED, BODY_AXES, "body_axis")
-
-
-#: The recorded quantities of a vessel state (and of an observer's estimate of it):
-#: eta, nu, b and eta_w of Fossen & Strand (1999), split so that each has one unit.
-VESSEL_SIGNALS = (
-    _earth("position", "m", "low-frequency position"),
-    Signal("heading", "rad", "low-frequency heading", EARTH_FIXED, angle=True),
-    _body("velocity", "m/s", "linear velocity"),
-    Signal("yaw_rate", "rad/s", "yaw rate", BODY_FIXED),
-    _earth("bias_force", "N", "bias force"),
-    Signal("bias_moment", "N m", "bias moment about the vertical axis", EARTH_FIXED),
-    _earth("wave_position", "m", "first-order wave-induced position"),
-    Signal("wave_heading", "rad", "first-order wave-induced heading", EARTH_FIXED, angle=True),
-)
-#: Control forces and moment tau (body-fixed).
-VESSEL_INPUT = Layout((_body("force", "N", "thrust force"), Signal("moment", "N m", "thrust moment about the vertical axis", BODY_FIXED)))
+from lookout.vessel_signals import BODY_AXES as BODY_AXES
+from lookout.vessel_signals import DOF as DOF
+from lookout.vessel_signals import EARTH_AXES as EARTH_AXES
+from lookout.vessel_signals import VESSEL_INPUT as VESSEL_INPUT
+from lookout.vessel_signals import VESSEL_SIGNALS as VESSEL_SIGNALS
 
 #: Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57) and Section 6.
 NORTHERN_CLIPPER_MASS = 4.591e6  # kg

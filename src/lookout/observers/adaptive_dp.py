@@ -111,9 +111,9 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, solve, ssa
 from lookout.components import ContinuousObserver, Layout, Signal
+from lookout.declare import Part, Value, component, initial_values
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
 from lookout.observers.start import from_first_measurement
-from lookout.scenario.declare import Part, Value, component, initial_values
 from lookout.sensors import POSITION_HEADING, POSITION_HEADING_VELOCITY
 from lookout.sim.integrators import integrate_sample
 

@@ -58,6 +58,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, solve
 from lookout.components import Layout, Observer, Signal
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 from lookout.models.manipulators import (
     JOINT_INPUT,
     JOINT_MEASUREMENT,
@@ -68,7 +69,6 @@ from lookout.models.manipulators import (
     joint_layout,
 )
 from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Value, component, initial_values
 
 
 def theta_signal_name(name: str) -> str:

@@ -57,10 +57,10 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import rotate_transpose, ssa
 from lookout.components import EARTH_FIXED, ContinuousObserver, Layout, Signal
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Range, Rule, Value, component, initial_values
 from lookout.models.cybership import CYBERSHIP_SIGNALS, Cybership
 from lookout.models.vessel import VESSEL_INPUT
 from lookout.observers.start import from_first_measurement
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Range, Rule, Value, component, initial_values
 from lookout.sensors import POSITION_HEADING
 from lookout.sim.integrators import integrate_sample
 

@@ -25,8 +25,8 @@ import jax.numpy as jnp
 from jax import Array
 
 from lookout.components import Plant, Sensor
+from lookout.declare import NON_NEGATIVE, POSITIVE, Context, Part, Value, component
 from lookout.observers.kalman import PARAMETERS, KalmanFilter, KalmanState, _symmetric, kalman_fields, masked, masked_noise
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Context, Part, Value, component
 
 
 @component(

@@ -74,7 +74,7 @@ from lookout import _validation as check
 from lookout._math import ssa, unmarked
 from lookout._resources import refuse_unless_it_fits
 from lookout.components import Layout, Observer, Plant, Sensor, Signal
-from lookout.scenario.declare import initial_values
+from lookout.declare import initial_values
 from lookout.sim.integrators import INTEGRATORS
 
 

@@ -73,9 +73,9 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
+from lookout.declare import POSITIVE, Part, Value, component, initial_values
 from lookout.models.manipulators import JOINT_INPUT, PRISMATIC, REVOLUTE, joint_layout
 from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
-from lookout.scenario.declare import POSITIVE, Part, Value, component, initial_values
 from lookout.sensors import joint_state_layout
 from lookout.sim.integrators import integrate_sample
 

@@ -42,10 +42,10 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
 from lookout.components import EARTH_FIXED, Layout, Signal
+from lookout.declare import POSITIVE, Part, Rule, Value, component, initial_values
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
 from lookout.observers.start import from_first_measurement
 from lookout.observers.wave_filtering import WaveFilterGains, WaveFilteringObserver
-from lookout.scenario.declare import POSITIVE, Part, Rule, Value, component, initial_values
 from lookout.sensors import POSITION_HEADING
 from lookout.sim.integrators import integrate_sample
 

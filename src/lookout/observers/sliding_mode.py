@@ -46,10 +46,10 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import EARTH_FIXED, Layout, Signal
+from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Rule, Value, component, initial_values
 from lookout.models.vessel import EARTH_AXES, VESSEL_INPUT, VESSEL_SIGNALS, DPVessel, VesselState
 from lookout.observers.passive import WAVE_FILTER_EXTRAS, PassiveObserver, predict_sample
 from lookout.observers.wave_filtering import WaveFilterGains, WaveFilteringObserver
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Part, Rule, Value, component, initial_values
 from lookout.sensors import POSITION_HEADING
 
 #: The switching term Kbar sat(y~ / eps) of eq. (6), an extra output.

@@ -36,8 +36,8 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import Plant, Sensor
+from lookout.declare import NON_NEGATIVE, POSITIVE, Context, Part, Range, Value, component
 from lookout.observers.kalman import PARAMETERS, KalmanFilter, KalmanState, _symmetric, kalman_fields, masked, masked_noise
-from lookout.scenario.declare import NON_NEGATIVE, POSITIVE, Context, Part, Range, Value, component
 
 
 def _wrapped(deviations: Array, angles: tuple[bool, ...]) -> Array:

@@ -43,8 +43,8 @@ from jax import Array
 
 from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
+from lookout.declare import POSITIVE, Part, Value, component, initial_values
 from lookout.models.manipulators import JOINT_INPUT, JOINT_MEASUREMENT, JOINT_VELOCITY, ManipulatorModel, joint_layout
-from lookout.scenario.declare import POSITIVE, Part, Value, component, initial_values
 from lookout.sim.integrators import integrate_sample
 
 

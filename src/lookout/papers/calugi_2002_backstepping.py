@@ -27,26 +27,22 @@ import copy
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import ClassVar, final
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
-from jax import Array
 from pydantic import Field, field_validator
 
-from lookout import _validation as check
 from lookout.analysis.adaptive_manipulator import check_5_28
 from lookout.analysis.conditions import inequalities_in
-from lookout.models.manipulators import REVOLUTE, STANDARD_GRAVITY, ManipulatorModel, TwoLinkArm
+from lookout.models.manipulators import PrintedInertiaArm
 from lookout.models.parameters import ModelParameters
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
 from lookout.papers._reproduction import Reproduction, simulate_each
 from lookout.reference import ReferenceFilter
 from lookout.scenario.composition import compose
-from lookout.scenario.declare import Value, component
 from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
 from lookout.sim import Scenario, seed_keys, simulate
 
@@ -56,69 +52,6 @@ MASSES, LENGTHS = (1.0, 1.5), (1.0, 1.0)
 SAMPLE_PERIOD = 0.01
 PLANT_STEP = 0.001
 VARIANTS = ("corrected", "printed")
-
-
-@component(
-    "model",
-    "printed-inertia-arm",
-    summary="The two-link arm with (5.37)'s M_22 as printed: m2_true l2^2, whatever the mass parameter.",
-    parameters=(
-        Value("masses", "array", "m1, m2 (kg) of M_11, M_12 and G; m2 is the unknown theta of the observer.", shape="(2,)"),
-        Value("lengths", "array", "l1, l2 (m).", shape="(2,)"),
-        Value("friction", "array", "c1, c2 (N m s/rad); none in Section 5.3.", shape="(2,)"),
-        Value("gravity_acceleration", "float", "g (m/s^2)."),
-        Value("printed_mass", "float", "The m2 of the printed M_22 = m2 l2^2 (kg): the true 1.5 kg, whatever masses[1] is."),
-    ),
-)
-@final
-class PrintedInertiaArm(ManipulatorModel):
-    """The two-link arm with (5.37)'s M_22 as printed: m2_true l2^2, whatever the mass parameter.
-
-    M_11, M_12, G and the Christoffel C (M_22 is constant either way) are those of
-    :class:`~lookout.models.manipulators.TwoLinkArm` with ``masses``; only M_22 keeps the
-    printed mass. Only for showing the erratum (the ``printed`` case).
-
-    Parameters
-    ----------
-    masses : array_like, shape (2,)
-        m1, m2 (kg) of M_11, M_12 and G; m2 is the unknown theta of the observer.
-    lengths : array_like, shape (2,)
-        l1, l2 (m).
-    friction : array_like, shape (2,)
-        c1, c2 (N m s/rad); none in Section 5.3.
-    gravity_acceleration : float
-        g (m/s^2).
-    printed_mass : float
-        The m2 of the printed M_22 = m2 l2^2 (kg): the true 1.5 kg, whatever ``masses[1]`` is.
-    """
-
-    masses: Array
-    lengths: Array
-    friction: Array
-    gravity_acceleration: Array
-    printed_mass: Array
-    joint_names: ClassVar[tuple[str, ...]] = TwoLinkArm.joint_names
-    joint_kinds: ClassVar[tuple[str, ...]] = (REVOLUTE, REVOLUTE)
-
-    def __init__(self, masses=MASSES, lengths=LENGTHS, friction=(0.0, 0.0), gravity_acceleration=STANDARD_GRAVITY, printed_mass=MASSES[1]):
-        self.masses = jnp.asarray(check.vector("two-link masses", masses, 2))
-        self.lengths = jnp.asarray(check.vector("two-link lengths", lengths, 2))
-        self.friction = jnp.asarray(check.vector("two-link friction", friction, 2))
-        self.gravity_acceleration = jnp.asarray(float(gravity_acceleration))
-        self.printed_mass = jnp.asarray(float(printed_mass))
-
-    def _arm(self) -> TwoLinkArm:
-        return TwoLinkArm(self.masses, self.lengths, self.friction, self.gravity_acceleration)
-
-    def mass_matrix(self, q: Array) -> Array:
-        """TwoLinkArm's M(q) with M_22 = m2 l2^2 at the true m2 (the printed (5.37))."""
-        return self._arm().mass_matrix(q).at[1, 1].set(self.printed_mass * self.lengths[1] ** 2)
-
-    def gravity(self, q: Array) -> Array:
-        return self._arm().gravity(q)
-
-    def potential_energy(self, q: Array) -> Array:
-        return self._arm().potential_energy(q)
 
 
 class Config(NoiseFreeConfig):
@@ -143,7 +76,7 @@ class Config(NoiseFreeConfig):
 CASES: tuple[str, ...] = VARIANTS
 #: The true arm of Section 5.3 (a ``model`` table): m1 = 1 kg, m2 = 1.5 kg, l1 = l2 = 1 m, no friction.
 ARM = {"kind": "two-link-arm", "masses": list(MASSES), "lengths": list(LENGTHS), "friction": [0.0, 0.0]}
-#: (5.37) as printed (a ``model`` table of :class:`PrintedInertiaArm`): M_22 at the true m2.
+#: (5.37) as printed (a ``model`` table of :class:`~lookout.models.manipulators.PrintedInertiaArm`): M_22 at the true m2.
 PRINTED_ARM = {"kind": "printed-inertia-arm", "masses": list(MASSES), "lengths": list(LENGTHS), "friction": [0.0, 0.0], "printed_mass": MASSES[1]}
 #: theta = m2 (a ``parameters`` table), of the plant's arm unless a ``base`` is added.
 UNKNOWN_MASS = {"kind": "model-fields", "fields": ["masses[1]"], "units": ["kg"]}

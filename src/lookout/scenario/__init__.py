@@ -1,6 +1,6 @@
-"""The scenario layer: the components lookout can compose, declared in code
-(:mod:`lookout.scenario.declare`), and what turns a scenario file into them.
+"""The scenario layer: the registry of the kinds lookout can compose (each declared next
+to its class with :mod:`lookout.declare`), and what turns a scenario file into them.
 
-This package's ``__init__`` imports nothing, so a component module can import
-:mod:`lookout.scenario.declare` without pulling in the rest of the layer.
+This package's ``__init__`` imports nothing, so importing one of its modules loads
+only what that module imports.
 """

@@ -26,11 +26,15 @@ kind               per run
                    same length of time before the outage
 ``mean_power``     mean over t >= after of the thrusters' power as a fraction of the
                    installed power (signal ``thrust``: a thruster actuator's delivered
-                   thrust; :func:`lookout.actuators.thrusters.relative_power`)
+                   thrust; the actuator's ``relative_power``)
 ``time_at_limit``  fraction of t >= after with some thruster within 1 % of its largest
-                   or smallest thrust (signal ``thrust``;
-                   :func:`lookout.actuators.thrusters.at_limit`)
+                   or smallest thrust (signal ``thrust``; the actuator's ``at_limit``)
 =================  ==============================================================
+
+The two thruster metrics take the scenario's actuator's thrust limits (its
+``layout.max_thrust`` and ``layout.min_thrust``) and its functions of the delivered thrust
+(:class:`lookout.actuators.ThrusterSystem`'s ``relative_power`` and ``at_limit``), so
+this module needs no actuator module.
 
 The two outage metrics need a sensor with an outage (its ``outage_signals``,
 ``outage_start`` and ``outage_duration``); without one, or with an outage of 0 s,
@@ -47,6 +51,7 @@ never held; :func:`reduce` computes the same per-record terms from a recorded ba
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -83,6 +88,10 @@ MEAN_KINDS = ("mean_power", "time_at_limit")
 #: it (:data:`lookout.actuators.thrusters.AT_LIMIT`: a lagging thrust reaches a limit
 #: only in the limit of time).
 AT_LIMIT_TOLERANCE = 0.01
+#: The thruster metrics' functions of the delivered thrust: the actuator's attribute of
+#: each (``relative_power(thrust, largest)``; ``at_limit(thrust, largest, smallest,
+#: tolerance)``, per thruster).
+THRUST_MEASURES = {"mean_power": "relative_power", "time_at_limit": "at_limit"}
 #: The kinds that keep the error's norm at every record (reduced when the run ends).
 SERIES_KINDS = ("settling_time", "recovery_time")
 #: recovery_time: back within this fraction above the error's level before the outage.
@@ -99,6 +108,9 @@ class Metric:
     description: str
     #: the thrusters' (largest, smallest) thrust, for the thruster metrics
     thrust_limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+    #: the actuator's function of the delivered thrust, for the thruster metrics
+    #: (:data:`THRUST_MEASURES`)
+    measure: Callable | None = None
 
     @property
     def name(self) -> str:
@@ -151,11 +163,11 @@ def resolve(names: list[str], scenario) -> list[Metric]:
                 raise ValueError(f"{name!r}: the plant has no input {signal!r} (its inputs: {', '.join(signals['input'])})")
         elif needs == "thrusters":
             layout = getattr(scenario.actuator, "layout", None)
-            if signal != "thrust" or layout is None:
+            measure = getattr(type(scenario.actuator), THRUST_MEASURES[kind], None)
+            if signal != "thrust" or layout is None or measure is None:
                 raise ValueError(f'{name!r}: write {kind}:thrust, with a thruster actuator ([actuator] kind = "thrusters")')
-            metrics.append(
-                Metric(kind, signal, "1", f"{description} (thrusters)", (tuple(map(float, layout.max_thrust)), tuple(map(float, layout.min_thrust))))
-            )
+            limits = (tuple(map(float, layout.max_thrust)), tuple(map(float, layout.min_thrust)))
+            metrics.append(Metric(kind, signal, "1", f"{description} (thrusters)", limits, measure))
             continue
         else:
             found = truth or signals["extra"].get(signal)
@@ -224,6 +236,8 @@ class _Plan:
     #: the divergence limit's errors checked: "estimation" and/or "tracking"
     limit_errors: tuple[str, ...] = ()
     limit_units: str = ""
+    #: the thruster metrics' functions of the thrust, the actuator's: (variable, function)
+    thrust_measures: tuple[tuple[str, Callable], ...] = ()
 
     @property
     def causes(self) -> tuple[str, ...]:
@@ -281,14 +295,13 @@ class MetricSummary(Summary):
                 final[variable] = jnp.sqrt(jnp.sum(jnp.asarray(value) ** 2))
                 continue
             if kind in MEAN_KINDS:
-                from lookout.actuators.thrusters import at_limit, relative_power
-
                 largest, smallest = self.plan.thrust_limits
                 thrust = actuation["thrust"]
+                measure = dict(self.plan.thrust_measures)[variable]
                 if kind == "mean_power":
-                    value = relative_power(thrust, largest)
+                    value = measure(thrust, largest)
                 else:
-                    value = jnp.any(at_limit(thrust, largest, smallest, AT_LIMIT_TOLERANCE)).astype(float)
+                    value = jnp.any(measure(thrust, largest, smallest, AT_LIMIT_TOLERANCE)).astype(float)
                 power[variable] = jnp.where(window, value, 0.0)
                 continue
             if kind in ("rms_error", "max_error", "settling_time", "outage_drift", "recovery_time"):
@@ -455,6 +468,7 @@ def summary(
         tuple(sorted(s.name for s in record.estimate)),
         limit_errors,
         shapes[divergence[0]].units if divergence is not None else "",
+        tuple((m.variable, m.measure) for m in metrics if m.measure is not None),
     )
     return MetricSummary(plan, record.input, int(np.argmax(window)), len(time), tuple(jnp.asarray(i) for i in windows))
 

@@ -2,7 +2,7 @@
 actuator and environment part lookout can compose, by role and kind name.
 
 A kind is declared once, next to the class that builds it, with
-:func:`lookout.scenario.declare.component` (see that module): its role, name, summary,
+:func:`lookout.declare.component` (see that module): its role, name, summary,
 its parameters as typed declarations (values with their types, shapes, ranges and
 choices; parts and whether the plant may give them; context the composition fills),
 its gain-synthesis rules, tuning family and condition checks. This module collects
@@ -33,8 +33,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from lookout.scenario import declare
-from lookout.scenario.declare import ROLES, Declaration, Part, Range, Value
+from lookout import declare
+from lookout.declare import ROLES, Declaration, Part, Range, Value
+from lookout.declare import kind_of as kind_of  # a component's kind, stamped on its class when declared
 
 #: The modules whose declarations are lookout's own kinds, in the order each role's
 #: kinds are listed (the first kind of a role is its default).
@@ -44,7 +45,6 @@ BUILTIN_MODULES = (
     "lookout.models.manipulators",
     "lookout.models.furuta",
     "lookout.models.scheduled_parameters",
-    "lookout.papers.calugi_2002_backstepping",
     "lookout.environment.bias",
     "lookout.environment.waves",
     "lookout.environment.jonswap",
@@ -66,6 +66,7 @@ BUILTIN_MODULES = (
     "lookout.controllers.adaptive_backstepping",
     "lookout.controllers.furuta",
     "lookout.controllers.pid",
+    "lookout.null_components",
     "lookout.reference",
     "lookout.actuators.limits",
     "lookout.actuators.thrusters",
@@ -504,17 +505,6 @@ def kind(role: str, name: str) -> Kind:
     return table[name]
 
 
-def kind_of(component) -> str:
-    """The registered kind name of a built component (its class's), else its class name."""
-    for each in kinds():
-        try:
-            if type(component) is each.component_class:
-                return each.name
-        except Exception:
-            continue
-    return type(component).__name__
-
-
 def _type_text(each, default, annotation_class) -> str:
     """What ``lookout components`` shows as a parameter's type, from its declaration."""
     if isinstance(each, Value):
@@ -607,11 +597,11 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
 
 def initial_parameters(method) -> tuple[Parameter, ...]:
     """The keys a plant's ``state`` or an observer's ``guess`` takes, as declared by
-    :func:`lookout.scenario.declare.initial_values` on it."""
+    :func:`lookout.declare.initial_values` on it."""
     function = getattr(method, "__func__", method)
     declared = getattr(function, "__lookout_initial__", None)
     if declared is None:
-        raise ValueError(f"{function.__qualname__} declares no initial values (lookout.scenario.declare.initial_values)")
+        raise ValueError(f"{function.__qualname__} declares no initial values (lookout.declare.initial_values)")
     return _parameters(function, declared, function.__qualname__)
 
 

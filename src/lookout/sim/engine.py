@@ -52,9 +52,9 @@ from lookout._math import computed_once
 from lookout._random import MAX_COUNT, standard_normal
 from lookout._resources import format_bytes, refuse_unless_it_fits
 from lookout._validation import FitError, ParameterError, is_concrete, key
-from lookout.actuators import IdealActuator
 from lookout.components import Actuator, ContinuousObserver, Controller, Observer, Plant, Reference, Sensor, Signal
-from lookout.reference import NoReference
+from lookout.declare import kind_of
+from lookout.null_components import IdealActuator, NoReference
 from lookout.results import RecordSignals, Trajectory
 from lookout.sim.integrators import INTEGRATORS
 
@@ -402,17 +402,9 @@ def check_sensor_fit(sensor, state) -> None:
         )
 
 
-def kind_of(component) -> str:
-    """The registered kind of a component (:mod:`lookout.scenario.registry`), for messages."""
-    from lookout.scenario.registry import kind_of as registered
-
-    return registered(component)
-
-
 def _check_needs(controller, what: str, needs, provided: set, provider: tuple) -> None:
     """Fail, naming the signal and both parts, unless every signal the controller needs is
-    provided; ``provider`` is (its role, the component, the verb of a refusal). The kinds
-    are looked up only for the message (it imports every kind's module)."""
+    provided; ``provider`` is (its role, the component, the verb of a refusal)."""
     for name in needs:
         if name not in provided:
             role, component, verb = provider

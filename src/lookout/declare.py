@@ -18,12 +18,16 @@ file needs to build the kind and everything ``lookout components`` shows of it:
   component never imports the design code that checks it.
 
 Defaults come from the callable's signature; parts' accepted classes from its
-annotations. This module imports nothing of lookout: any component module may import it.
+annotations. Registering a kind stamps its declaration on the class it builds (the
+declared class, or the class a declared function's return annotation names), so that
+:func:`kind_of` names a built component's kind without the registry. This module
+imports nothing of lookout: any component module may import it.
 """
 
 from __future__ import annotations
 
 import math
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -214,6 +218,11 @@ class Declaration:
 
 #: Every declaration made so far, in the order made.
 DECLARED: list[Declaration] = []
+#: The attribute of a class that holds the declaration of its kind (set by :func:`register`).
+STAMP = "__lookout_declaration__"
+#: Declarations of functions whose return annotation named no class yet when they were
+#: registered (a class defined further down the module): stamped when :func:`kind_of` asks.
+_UNSTAMPED: list[Declaration] = []
 
 
 def register(
@@ -257,7 +266,61 @@ def register(
                 raise ValueError(f"{role} {kind}: parameters must be Value, Part or Context; got {each!r}")
     declaration = Declaration(role, kind, target, pairs, " ".join(summary.split()), family, checks, getattr(target, "__module__", ""))
     DECLARED.append(declaration)
+    if not _stamp(declaration):
+        _UNSTAMPED.append(declaration)
     return declaration
+
+
+def built_class(target) -> type | None:
+    """The class a declared ``target`` builds: the class itself, or the class a function's
+    return annotation names (None: it names none). A NameError while the annotation's
+    class is not defined yet."""
+    if isinstance(target, type):
+        return target
+    returned = typing.get_type_hints(target).get("return")
+    return returned if isinstance(returned, type) else None
+
+
+def _registered(declaration: Declaration) -> bool:
+    """Whether ``declaration`` is still registered (a failed plugin's are dropped)."""
+    return any(each is declaration for each in DECLARED)
+
+
+def _stamp(declaration: Declaration) -> bool:
+    """Stamp ``declaration`` on the class it builds unless a registered declaration is
+    stamped there already (a class's kind is that of its first declaration); False when
+    the class cannot be known yet."""
+    try:
+        built = built_class(declaration.target)
+    except Exception:
+        return False
+    if built is not None:
+        stamped = built.__dict__.get(STAMP)
+        if stamped is None or not _registered(stamped):
+            setattr(built, STAMP, declaration)
+    return True
+
+
+def kind_of(component) -> str:
+    """The kind of a built component: that of the declaration stamped on its class (the
+    class's first registered declaration), else the class's name. A subclass of a
+    declared class is of no kind until it is declared itself."""
+    for waiting in list(_UNSTAMPED):
+        if not _registered(waiting) or _stamp(waiting):
+            _UNSTAMPED.remove(waiting)
+    built = type(component)
+    stamped = built.__dict__.get(STAMP)
+    if stamped is not None and not _registered(stamped):  # its declaration was dropped: the next one, if any
+        stamped = next((each for each in DECLARED if _builds(each, built)), None)
+        setattr(built, STAMP, stamped)
+    return stamped.kind if stamped is not None else built.__name__
+
+
+def _builds(declaration: Declaration, built: type) -> bool:
+    try:
+        return built_class(declaration.target) is built
+    except Exception:
+        return False
 
 
 def component(role: str, kind: str, **details) -> Callable:
