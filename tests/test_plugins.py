@@ -25,6 +25,14 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 PLUGIN = EXAMPLES / "plugins" / "luenberger.py"
 
 
+def _plugin_declaring(kind: str) -> str:
+    """The example plugin's text with its observer declared under another kind name."""
+    text = PLUGIN.read_text()
+    renamed = text.replace('@component(\n    "observer",\n    "luenberger",', f'@component(\n    "observer",\n    "{kind}",', 1)
+    assert renamed != text, "the example plugin's @component declaration is not where the tests expect it"
+    return renamed
+
+
 def test_the_example_plugin_runs_from_its_scenario_and_is_listed(tmp_path, capsys):
     spec = load(EXAMPLES / "luenberger-dp.toml", runs=1)
     assert registry.kind_of(spec.composition.scenario.observer) == "luenberger"
@@ -104,7 +112,7 @@ def test_a_plugin_that_redeclares_a_kind_a_file_that_fails_and_a_missing_file_ar
 
 def test_a_scenario_files_plugins_are_relative_to_it_and_a_bad_one_is_named_at_its_line(tmp_path, capsys):
     (tmp_path / "sub").mkdir()
-    (tmp_path / "sub" / "own.py").write_text(PLUGIN.read_text().replace('"observer", "luenberger"', '"observer", "own-luenberger"'))
+    (tmp_path / "sub" / "own.py").write_text(_plugin_declaring("own-luenberger"))
     good = tmp_path / "good.toml"
     good.write_text('plugins = ["sub/own.py"]\npreset = "fossen-strand-1999"\n[observer]\nkind = "own-luenberger"\n')
     assert registry.kind_of(load(good).composition.scenario.observer) == "own-luenberger"
@@ -118,7 +126,7 @@ def test_a_scenario_files_plugins_are_relative_to_it_and_a_bad_one_is_named_at_i
 
 def test_an_installed_packages_entry_point_registers_its_kinds(tmp_path, monkeypatch, fresh_registry):
     module = tmp_path / "vendor_observers.py"
-    module.write_text(PLUGIN.read_text().replace('"observer", "luenberger"', '"observer", "vendor-luenberger"'))
+    module.write_text(_plugin_declaring("vendor-luenberger"))
     monkeypatch.syspath_prepend(str(tmp_path))
     point = importlib.metadata.EntryPoint("vendor", "vendor_observers", registry.ENTRY_POINT_GROUP)
     monkeypatch.setattr(importlib.metadata, "entry_points", lambda group=None: [point] if group == registry.ENTRY_POINT_GROUP else [])
@@ -165,7 +173,7 @@ def test_a_broken_installed_package_fails_only_the_command_that_needs_its_kinds(
 
 
 def test_an_installed_packages_kind_is_found_when_a_file_names_it(tmp_path, monkeypatch, fresh_registry):
-    _installed(monkeypatch, tmp_path, "vendor_named", PLUGIN.read_text().replace('"observer", "luenberger"', '"observer", "named-luenberger"'))
+    _installed(monkeypatch, tmp_path, "vendor_named", _plugin_declaring("named-luenberger"))
     assert "named-luenberger" not in registry.names("observer")  # not imported until needed
     composition = compose({"preset": "fossen-strand-1999", "observer": {"kind": "named-luenberger"}})
     assert registry.kind_of(composition.scenario.observer) == "named-luenberger"
@@ -219,7 +227,7 @@ def test_a_folder_and_an_empty_entry_are_refused_as_such(tmp_path, capsys):
 
 
 def test_an_exception_in_a_plugins_method_is_the_plugins_not_a_misfit(tmp_path):
-    text = PLUGIN.read_text().replace('"observer", "luenberger"', '"observer", "failing-luenberger"')
+    text = _plugin_declaring("failing-luenberger")
     correction = '        """No discrete correction: the measurement enters the vector field."""\n        return estimate'
     assert correction in text
     text = text.replace(
