@@ -3,7 +3,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out/fossen-strand-1999
 
-.PHONY: demo test bench study observer-benchmark tuning-study thruster-study clean
+.PHONY: demo test docs bench study observer-benchmark tuning-study thruster-study clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -17,12 +17,23 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/activate
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $@ $(VENV)/.installed
 
+$(VENV)/.installed-docs: pyproject.toml | $(BIN)/activate
+	$(BIN)/pip install --quiet -e '.[docs]'
+	touch $@ $(VENV)/.installed
+
 demo: $(VENV)/.installed
 	mkdir -p $(dir $(OUT))
 	$(BIN)/lookout reproduce fossen-strand-1999 --out $(OUT)
 
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -n auto --dist loadgroup
+
+# The documentation site in site/ (mkdocs.yml): docs/ and an API reference from the
+# docstrings. --strict fails the build on a broken link or anchor, a missing image or a
+# cross-reference that finds nothing. NO_MKDOCS_2_WARNING quiets mkdocs-material's
+# banner about its own future, which is not a finding about these docs.
+docs: $(VENV)/.installed-docs
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 # The README's example study: two campaigns, their reports, and the figures in docs/study/.
 STUDIES ?= out/studies
@@ -54,4 +65,4 @@ bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py
 
 clean:
-	rm -rf $(VENV) out
+	rm -rf $(VENV) out site
