@@ -3,7 +3,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= out/fossen-strand-1999
 
-.PHONY: demo test check lint types lock bench study observer-benchmark tuning-study thruster-study clean
+.PHONY: demo test check lint types docs lock bench study observer-benchmark tuning-study thruster-study clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -17,6 +17,10 @@ $(VENV)/.installed-dev: pyproject.toml constraints.txt | $(BIN)/activate
 	$(BIN)/pip install --quiet -c constraints.txt -e '.[dev]'
 	touch $@ $(VENV)/.installed
 
+$(VENV)/.installed-docs: pyproject.toml constraints.txt | $(BIN)/activate
+	$(BIN)/pip install --quiet -c constraints.txt -e '.[docs]'
+	touch $@ $(VENV)/.installed
+
 demo: $(VENV)/.installed
 	mkdir -p $(dir $(OUT))
 	$(BIN)/lookout reproduce fossen-strand-1999 --out $(OUT)
@@ -24,7 +28,7 @@ demo: $(VENV)/.installed
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -n auto --dist loadgroup
 
-# The loop while one works: lint, types and the tests not marked slow (docs/testing.md).
+# The loop while one works: lint and the tests not marked slow (docs/testing.md).
 check: lint $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -n auto --dist loadgroup -m "not slow"
 
@@ -46,6 +50,13 @@ lock:
 	( echo "# The versions make demo and make test install (pip's -c); refreshed with make lock." ; \
 	  .lock-venv/bin/pip freeze --exclude-editable | sort -f ) > constraints.txt
 	rm -rf .lock-venv
+
+# The documentation site in site/ (mkdocs.yml): docs/ and an API reference from the
+# docstrings. --strict fails the build on a broken link or anchor, a missing image or a
+# cross-reference that finds nothing. NO_MKDOCS_2_WARNING quiets mkdocs-material's
+# banner about its own future, which is not a finding about these docs.
+docs: $(VENV)/.installed-docs
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 # The README's example study: two campaigns, their reports, and the figures in docs/study/.
 STUDIES ?= out/studies
@@ -77,4 +88,4 @@ bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/throughput.py
 
 clean:
-	rm -rf $(VENV) out
+	rm -rf $(VENV) out site

@@ -194,6 +194,8 @@ class InertiaParametrization(eqx.Module):
     lower, upper : array_like, shape (p,)
         Bounds of theta (the paper's (9)–(11)), in the SI units of :attr:`units`.
 
+    Notes
+    -----
     Checks (each a one-line ValueError naming the parameter): ``model`` is a
     DPVessel; every entry is valid and none repeats (a pair counts once); the bounds
     are finite with lower < upper; a diagonal mass entry has lower > 0; and M_hat is
