@@ -16,6 +16,7 @@ import contextlib
 import os
 import sys
 import tempfile
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -112,7 +113,7 @@ LONG_RUN_SECONDS = 30.0
 
 
 @contextlib.contextmanager
-def simulating():
+def simulating() -> Iterator[Callable[[float, float], None]]:
     """A progress bar on stderr while simulating; yields the engine's ``progress(done, total)``.
 
     After the second segment (the first one compiles), a run whose time left is

@@ -14,9 +14,10 @@ from decimal import Decimal, localcontext
 
 import jax.numpy as jnp
 from jax import Array
+from jax.typing import ArrayLike
 
 
-def ssa(angle: Array) -> Array:
+def ssa(angle: ArrayLike) -> Array:
     """Smallest signed angle: wrap ``angle`` (rad) to the interval [-pi, pi).
 
     Computed as ``angle - 2 pi floor((angle + pi) / (2 pi))``: on XLA:CPU ``floor``
@@ -68,8 +69,8 @@ _COS_COEFFICIENTS = tuple((-1.0) ** k / math.factorial(2 * k) for k in range(2, 
 
 
 def _polynomial(coefficients: tuple[float, ...], x: Array) -> Array:
-    result = coefficients[-1]
-    for c in reversed(coefficients[:-1]):
+    result = coefficients[-1] * x + coefficients[-2]  # the loop's first step, taken out so that ``result`` is an Array
+    for c in reversed(coefficients[:-2]):
         result = result * x + c
     return result
 

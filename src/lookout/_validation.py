@@ -45,12 +45,12 @@ def vector(name: str, value: Any, size: int = 3):
         if array.shape != (size,):
             raise ParameterError(key(name), f"{name} must be a scalar or have {size} entries; got shape {array.shape}")
         return array
-    array = np.asarray(value, dtype=float)
-    if array.ndim == 0:
-        array = np.full(size, float(array))
-    if array.shape != (size,):
-        raise ParameterError(key(name), f"{name} must be a scalar or have {size} entries; got shape {array.shape}")
-    return array
+    values = np.asarray(value, dtype=float)
+    if values.ndim == 0:
+        values = np.full(size, float(values))
+    if values.shape != (size,):
+        raise ParameterError(key(name), f"{name} must be a scalar or have {size} entries; got shape {values.shape}")
+    return values
 
 
 def finite(name: str, value: Any) -> None:

@@ -12,7 +12,7 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich import box
@@ -26,7 +26,7 @@ from lookout.cli_design import DESIGN_VERDICTS
 try:  # typer >= 0.29 vendors click
     from typer._click import exceptions as click_exceptions
 except ImportError:  # pragma: no cover - older typer depends on click
-    from click import exceptions as click_exceptions
+    from click import exceptions as click_exceptions  # type: ignore[no-redef]  # the same module, where older typer keeps it
 
 app = typer.Typer(
     add_completion=False,
@@ -346,6 +346,7 @@ def design_passive_observer(
         wave_frequency = 2.0 * math.pi / _positive_number("--wave-period", wave_period)
         source = f"--wave-period {wave_period:g}"
     else:
+        assert wave_frequency is not None  # exactly one of the two is given (checked above)
         _positive_number("--wave-frequency", wave_frequency)
         source = f"--wave-frequency {wave_frequency:g}"
     _positive_number("--wave-damping", wave_damping)
@@ -604,9 +605,9 @@ def design_adaptive_arm(
         from lookout.papers import calugi_2002_adaptive_observer as example
 
         parameters, n = example.parameters(), 1
-        defaults = {"K": [20.0], "G": 10.0, "x": [-1.0], "theta": 1.0 - 0.1, "d": None}
+        defaults: dict[str, Any] = {"K": [20.0], "G": 10.0, "x": [-1.0], "theta": 1.0 - 0.1, "d": None}
     else:
-        from lookout.papers import calugi_2002_backstepping as example
+        from lookout.papers import calugi_2002_backstepping as example  # type: ignore[no-redef]  # one name for either arm's paper module
 
         parameters, n = example.parameters(), 2
         defaults = {"K": [5.0, 5.0], "G": 0.1, "x": [-1.0, -1.0], "theta": 1.5 - 0.7, "d": [1.0] * 4}
@@ -740,7 +741,8 @@ def design_tracking_gains(
     }
     for option, key in (("--l1", "L1"), ("--l2", "L2"), ("--omega", "natural_frequency"), ("--lambda", "damping_ratio")):
         _within_range(option, gains[key])
-    config = wondergem_2009.Config(**{key: value for key, value in (("start_angle", start_angle), ("direction", direction)) if value is not None})
+    given: dict[str, Any] = {key: value for key, value in (("start_angle", start_angle), ("direction", direction)) if value is not None}
+    config = wondergem_2009.Config(**given)
     start_angle, direction = config.start_angle, config.direction
     inputs = {"start": start, "velocity_bound": velocity_bound, "start_angle": start_angle, "direction": direction, "propose": propose}
     if propose:
@@ -796,12 +798,12 @@ def main(argv: list[str] | None = None) -> int:
     lookout.configure_cpu()
     # a pipe or a file has no width: tables keep their own instead of rich's 80 columns
     # (COLUMNS, or a terminal, sets it as usual)
-    console.width = PIPE_WIDTH if not console.is_terminal and "COLUMNS" not in os.environ else None
+    console.width = PIPE_WIDTH if not console.is_terminal and "COLUMNS" not in os.environ else None  # type: ignore[assignment]  # rich reads None as "the terminal's", as Console(width=None) does
 
     command = typer.main.get_command(app)
     from lookout.cli_design import route
 
-    argv = route(list(sys.argv[1:] if argv is None else argv), set(command.commands["design"].commands))
+    argv = route(list(sys.argv[1:] if argv is None else argv), set(command.commands["design"].commands))  # type: ignore[attr-defined]  # typer's Command is a Group at run time, with .commands
     try:
         if not INFORMATION_OPTIONS & set(argv) and argv:  # --version and --help compile nothing
             use_compilation_cache()  # a second run of the same file loads what the first compiled

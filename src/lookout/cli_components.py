@@ -105,7 +105,10 @@ def _plant_part_default(role: str) -> str:
     with that kind's defaults, where the kind has a default for every value."""
     from lookout.scenario import registry
 
-    first = registry.kind(role, registry.default_kind(role))
+    name = registry.default_kind(role)
+    if name is None:
+        raise ValueError(f"no {role} kind is the default of its role: a plant's {role} part has no default to show")
+    first = registry.kind(role, name)
     missing = [p.name for p in first.parameters() if p.sort == "value" and p.required]
     if missing:
         return f"required: a {role} table ({first.name} needs {', '.join(missing)})"

@@ -34,16 +34,21 @@ At sample k, time t_k::
 # refuses them as strings (a stringified one would silently become an ordinary field)
 import abc
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, NamedTuple
+from typing import Any, ClassVar, NamedTuple, TypeVar
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
 #: Frames a signal can be expressed in (free text is allowed; these are the common ones).
 EARTH_FIXED = "Earth-fixed"
 BODY_FIXED = "body-fixed"
 JOINT_SPACE = "joint space"
+
+
+#: A flat vector split by a :class:`Layout`: a JAX array, or a NumPy one (results).
+_Vector = TypeVar("_Vector", Array, np.ndarray)
 
 
 @dataclass(frozen=True)
@@ -129,9 +134,10 @@ class Layout:
     def names(self) -> tuple[str, ...]:
         return tuple(s.name for s in self.signals)
 
-    def split(self, vector: Array) -> dict[str, Array]:
+    def split(self, vector: _Vector) -> dict[str, _Vector]:
         """The flat vector (last axis) as ``{name: part}``; scalars lose the axis."""
-        parts, start = {}, 0
+        parts: dict[str, _Vector] = {}
+        start = 0
         for s in self.signals:
             part = vector[..., start : start + s.size]
             parts[s.name] = part[..., 0] if not s.labels else part
@@ -378,8 +384,8 @@ class Actuator(eqx.Module):
 class StatelessActuator(Actuator):
     """An actuator that is a function of the command alone (saturation, identity)."""
 
-    @property
-    def output_signals(self) -> tuple[Signal, ...]:
+    @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
+    def output_signals(self) -> tuple[Signal, ...]:  # type: ignore[override]  # (read-only: a stateless actuator records nothing)
         return ()
 
     def init(self):

@@ -93,7 +93,7 @@ def signal_names(signals, suffix: str = "") -> list[str]:
     ['force[surge]', 'force[sway]', 'moment']
     """
     signals = signals.signals if isinstance(signals, Layout) else tuple(signals)
-    names = []
+    names: list[str] = []
     for signal in signals:
         if signal.labels:
             names.extend(f"{signal.name}{suffix}[{label}]" for label in signal.labels)
@@ -141,7 +141,7 @@ class StateLayout:
         Each leaf's place in the state (``eta``, ``wave_state``).
     """
 
-    treedef: object
+    treedef: jax.tree_util.PyTreeDef
     shapes: tuple[tuple[int, ...], ...]
     paths: tuple[str, ...]
 
@@ -285,7 +285,7 @@ def _probe_state(layout: StateLayout) -> jax.Array:
     return jnp.asarray(0.1 + 0.01 * np.arange(layout.size), dtype=float)
 
 
-class ComponentSystem(control.NonlinearIOSystem if control is not None else object):
+class ComponentSystem(control.NonlinearIOSystem if control is not None else object):  # type: ignore[misc]  # python-control is optional: the base is chosen at import
     """A ``control.NonlinearIOSystem`` whose update and output functions are a lookout
     component's (built by :func:`plant_system` or :func:`observer_system`).
 
@@ -349,7 +349,8 @@ class ComponentSystem(control.NonlinearIOSystem if control is not None else obje
         if measurement is not None and isinstance(self.component, Observer):
             structure = jax.tree_util.tree_structure(state)
             started = structure == self.state_layout.treedef and all(np.all(np.isfinite(np.asarray(leaf))) for leaf in leaves)
-            if not started and structure == jax.tree_util.tree_structure(self.component.guess()):  # a guess: start it
+            # a guess: start it
+            if not started and structure == jax.tree_util.tree_structure(self.component.guess()):  # type: ignore[operator]  # jaxlib's PyTreeDef stub does not resolve for mypy ("PyTreeDef?"); it compares with ==
                 state = self.component.init(jnp.asarray(measurement, dtype=float), state)
         if jax.tree_util.tree_structure(state) != self.state_layout.treedef:
             raise ValueError(f"state must be a state of {component} (parts {', '.join(self.state_layout.paths)}); got a {type(state).__name__}")
@@ -382,7 +383,7 @@ def _check_sensor_fit(plant: Plant, sensor: Sensor, template) -> None:
     except FitError as error:
         raised = error.__context__
         frame = plugin_frame(raised) if raised is not None else None
-        if frame is not None:  # the plugin's own code failed, not the fit
+        if frame is not None and raised is not None:  # the plugin's own code failed, not the fit (a frame comes from a raised error)
             raise ValueError(f"sensor {_kind(sensor)} on plant {_kind(plant)}: {frame.describe(raised)}") from None
         detail = str(error).split(": ", 1)[-1]
         raise ValueError(f"sensor {_kind(sensor)} and plant {_kind(plant)} do not fit: {detail}") from None
@@ -587,7 +588,7 @@ def linearize_exact(system: ComponentSystem, x0, u0=0.0, t: float = 0.0, *, name
     if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not np.isfinite(t):
         raise ValueError(f"t must be a finite real number; got {t!r}")
     t = float(t)
-    u = _operating_vector("u0", u0, system.ninputs, system, state=False)
+    u: np.ndarray | jax.Array = _operating_vector("u0", u0, system.ninputs, system, state=False)
     measurement = u[: system.component.measurement_layout.size] if isinstance(system.component, Observer) else None
     x = jnp.asarray(_operating_vector("x0", x0, system.nstates, system, state=True, measurement=measurement))
     u = jnp.asarray(u)

@@ -136,7 +136,9 @@ def _array_shape(value) -> tuple[int, ...] | None:
     inner = [_array_shape(item) for item in value]
     if any(each is None for each in inner) or len(set(inner)) > 1:
         return None
-    return (len(value),) + (inner[0] if inner else ())
+    first = inner[0] if inner else ()
+    assert first is not None  # a ragged item returned None above
+    return (len(value),) + first
 
 
 def shape_refusal(value, shape: str | None, broadcast: bool = True) -> str | None:
@@ -259,6 +261,7 @@ def register(
             raise ValueError(f"{role} {kind}: rules must map each rule's name to a Rule")
         pairs = tuple(rules.items())
     else:
+        assert parameters is not None  # either parameters or rules (checked above)
         pairs = (("", Rule(build, tuple(parameters))),)
     for _, rule in pairs:
         for each in rule.parameters:

@@ -14,10 +14,11 @@ analysis it calls.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from lookout.analysis.conditions import Report
+from lookout.analysis.conditions import Condition, Report
 from lookout.scenario import registry
 from lookout.scenario.composition import Composition
 
@@ -83,7 +84,7 @@ def combined_proposal(designs: list[ComponentDesign], source: str) -> Report | N
     a proposal keeps its file's report) as one report, or None when nothing was proposed."""
     if not any(each.proposed for each in designs):
         return None
-    report = _joined([(each, each.proposal if each.proposed else each.report) for each in designs], f" in {source} with the proposed gains")
+    report = _joined([(each, _proposal(each) if each.proposed else each.report) for each in designs], f" in {source} with the proposed gains")
     notes = [
         f"{each.role} {each.kind} proposed: " + "; ".join(f"{key} = {value}" for key, value in each.proposed.items())
         for each in designs
@@ -92,8 +93,16 @@ def combined_proposal(designs: list[ComponentDesign], source: str) -> Report | N
     return report.extended(notes=notes)
 
 
+def _proposal(design: ComponentDesign) -> Report:
+    assert design.proposal is not None  # a design with proposed gains has their report
+    return design.proposal
+
+
 def _joined(reports: list[tuple[ComponentDesign, Report]], where: str) -> Report:
-    conditions, quantities, summary, notes = [], {}, [], []
+    conditions: list[Condition] = []
+    quantities: dict[str, Any] = {}
+    summary: list[str] = []
+    notes: list[str] = []
     for each, report in reports:
         summary.append(f"{each.role} {each.kind}: {report.title}")
         conditions.extend(report.conditions)

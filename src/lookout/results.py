@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import datetime
 import os
+from collections.abc import Hashable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -139,6 +140,7 @@ class Trajectory(eqx.Module):
             values = runs(groups[group][signal.name])
             dims = ("run", "time") + ((signal.dim,) if signal.labels else ())
             if signal.labels:
+                assert signal.dim is not None  # a signal with labels names their dimension
                 known = label_coords.setdefault(signal.dim, signal.labels)
                 if known != signal.labels:
                     raise ValueError(f"dimension {signal.dim!r} has labels {known} and {signal.labels} (signal {signal.name!r})")
@@ -190,6 +192,8 @@ def limited_fraction(ds: xr.Dataset) -> dict[str, tuple[float, int]]:
     out: dict[str, tuple[float, int]] = {}
     runs = ds.sizes.get("run", 1)
     for name in ds.data_vars:
+        if not isinstance(name, str):  # a results Dataset names its variables with strings
+            continue
         base = name[: -len("_commanded")]
         if not name.endswith("_commanded") or f"{base}_applied" not in ds:
             continue
@@ -228,7 +232,7 @@ def write_netcdf(ds: xr.Dataset, path: str | Path, *, history: str = "written", 
     # every file lookout writes says what it follows and who wrote it
     ds.attrs.setdefault("Conventions", CONVENTIONS)
     ds.attrs.setdefault("lookout_version", _version())
-    encoding = {
+    encoding: dict[Hashable, dict[str, Any]] = {
         name: {"zlib": True, "complevel": 4, "shuffle": True}
         for name, variable in ds.variables.items()
         if np.issubdtype(variable.dtype, np.number) and variable.ndim > 0

@@ -43,7 +43,7 @@ import dataclasses
 import enum
 import math
 import operator
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -335,10 +335,11 @@ class Report:
     """
 
     title: str
-    conditions: tuple[Condition, ...]
+    # any sequence is taken; __post_init__ keeps a tuple
+    conditions: Sequence[Condition]
     quantities: Mapping = field(default_factory=dict)
-    summary: tuple[str, ...] = ()
-    notes: tuple[str, ...] = ()
+    summary: Sequence[str] = ()
+    notes: Sequence[str] = ()
 
     def __post_init__(self):
         object.__setattr__(self, "conditions", tuple(self.conditions))

@@ -465,7 +465,9 @@ def replay_command(
 
     if thrust is None:
         say("no --thrust: the observer predicts with zero input")
-    elif max(check.thrust.first - check.log.first, check.log.newest - check.thrust.newest) > session.gap_after:  # more than a silence
+    elif (
+        check.thrust is not None and max(check.thrust.first - check.log.first, check.log.newest - check.thrust.newest) > session.gap_after
+    ):  # more than a silence
         say(
             f"--thrust covers {max(check.thrust.first, check.log.first) - check.log.first:.1f} to "
             f"{min(check.thrust.newest, check.log.newest) - check.log.first:.1f} s of the log's {check.log.span:.1f} s: zero input before, the last thrust held after"
@@ -500,12 +502,14 @@ def replay_command(
         raise InputError(
             f"{log}: no step was taken: the log never had both a usable position and a heading ({_status_line(session, parser, outcome, True)})"
         )
+    assert outcome.first_time is not None and outcome.last_time is not None  # set with the first step
     span = outcome.last_time - outcome.first_time
     say(_status_line(session, parser, outcome, final=True))
     say(
         f"{span:.1f} s of log in {outcome.wall_seconds:.2f} s ({span / outcome.wall_seconds:.0f}x real time)" + (f"; written to {out}" if out else "")
     )
     if figure_path is not None:
+        assert out is not None  # --figure needs --out (checked above)
         try:
             _figure(out, truth, figure_path, log)
         except InputError:
@@ -703,14 +707,15 @@ def write_log_command(
     if not re.fullmatch(r"[A-Za-z0-9._-]+", name) or name in (".", ".."):
         raise InputError(f"--name must be a file stem of letters, digits, '.', '_' or '-'; got {name!r}")
     frame = _frame(origin)
-    window = None
+    window: tuple[float, float] | None = None
     given = outage is not None
     outage = DEFAULT_OUTAGE_TEXT if outage is None else outage
     if outage.lower() != "none":
         try:
-            window = tuple(float(part) for part in outage.split(","))
-            if len(window) != 2 or not all(math.isfinite(v) and v >= 0 for v in window):
+            parts = tuple(float(part) for part in outage.split(","))
+            if len(parts) != 2 or not all(math.isfinite(v) and v >= 0 for v in parts):
                 raise ValueError
+            window = (parts[0], parts[1])
         except ValueError:
             raise InputError(f"--outage must be START,LENGTH in seconds (finite, >= 0) or none; got {outage!r}") from None
         if window[1] == 0:
@@ -775,6 +780,7 @@ def play_command(
     try:
         host, port = parse_udp(to, "--to")
         address = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)[0][4]
+        assert isinstance(address[0], str)  # AF_INET: (host, port), the host a string
     except ValueError as error:
         raise InputError(str(error)) from None
     except OSError:

@@ -129,27 +129,27 @@ class GatedObserver(Observer):
             start += signal.size
         return tuple(spans[name] for name in self.channels)
 
-    @property
-    def measurement_layout(self) -> Layout:
+    @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
+    def measurement_layout(self) -> Layout:  # type: ignore[override]  # (read-only, as every observer's)
         arrivals = tuple(
             Signal(f"arrival_{name.removeprefix('measured_')}", "s", f"arrival of the new {name.removeprefix('measured_')} reading (NaN: none)")
             for name in self.channels
         )
         return Layout(self.inner.measurement_layout.signals + arrivals)
 
-    @property
-    def input_layout(self) -> Layout:
+    @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
+    def input_layout(self) -> Layout:  # type: ignore[override]  # (read-only, as every observer's)
         return self.inner.input_layout
 
-    @property
+    @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
     def sample_period(self):
         return self.inner.sample_period
 
-    @property
+    @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
     def estimate_signals(self):
         return self.inner.estimate_signals
 
-    @property
+    @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
     def extra_signals(self):
         flags = []
         for name in self.channels:
@@ -190,7 +190,7 @@ class GatedObserver(Observer):
         needed it (None otherwise)."""
         trial = None
         if "nis" in self.tests:
-            innovation, covariance = self.inner.innovation_statistics(state.inner, candidate)
+            innovation, covariance = self.inner.innovation_statistics(state.inner, candidate)  # type: ignore[attr-defined]  # not every Observer has it: __init__ refuses "nis" tests for one without
         if "innovation" in self.tests:
             trial = self.inner.update(state.inner, t, candidate)
             estimate = self.inner.output(trial, candidate)

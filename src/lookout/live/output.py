@@ -201,7 +201,7 @@ class SessionWriter:
                     if "time" not in variable.dims:
                         continue
                     index = tuple(slice(start, start + ds.sizes["time"]) if dim == "time" else slice(None) for dim in variable.dims)
-                    handle.variables[name][index] = variable.values
+                    handle.variables[str(name)][index] = variable.values  # a results Dataset names its variables with strings
                 handle.sync()
         self.written += self._kept
         self._blocks.clear()

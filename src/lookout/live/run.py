@@ -221,7 +221,7 @@ def first_fix(log: str | Path, session: Session) -> tuple[float, float] | None:
     return None
 
 
-def _thrust_line(line: bytes, time: float, counts: Counter | None = None) -> Reading | None:
+def _thrust_line(line: bytes, time: float, counts: dict[str, int] | None = None) -> Reading | None:
     """A live thrust line ``surge,sway,yaw`` (N, N, N m), or None if it is not one
     (counted in ``counts``: ``malformed``, or ``missing`` for an empty or NaN value,
     which leaves the previous thrust applied)."""

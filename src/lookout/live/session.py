@@ -374,7 +374,7 @@ class Session:
             self.thrust_seen = True
             return False
         kind = {"local_position": "position", "position": "position", "heading": "heading"}.get(reading.kind)
-        channel = self.channels.get(kind)
+        channel = self.channels.get(kind) if kind is not None else None
         if channel is None:
             self.not_read += 1  # rate of turn, the error ellipse, a channel the observer does not measure
             return False
@@ -385,13 +385,14 @@ class Session:
                 channel.counts[refusal] += 1
                 return False
             if not self._origin_checked:
+                assert self.frame is not None  # only a given origin is left to check
                 check_origin(self.frame, latitude, longitude)
                 self._origin_checked = True
             if self.frame is None:
                 self.frame = LocalFrame(latitude, longitude)
                 self._event("frame", reading.time, latitude=latitude, longitude=longitude)
             north, east, _ = self.frame.ned(latitude, longitude)
-            value = (float(north), float(east))
+            value: tuple[float, ...] = (float(north), float(east))
         elif reading.kind == "local_position":
             value = (float(reading.values[0]), float(reading.values[1]))
         else:
@@ -450,6 +451,7 @@ class Session:
     def _take_steps(self, more) -> list[Block]:
         """Steps from ``step_index`` on while ``more()``."""
         blocks = []
+        assert self.step_index is not None  # set by _start before any step is taken
         while more():
             self._row(self.step_index)
             self.step_index += 1
@@ -472,6 +474,7 @@ class Session:
         """Keep step n: each channel's new reading and its arrival (session s), NaN
         where none came."""
         i = self._kept
+        assert self.start_index is not None  # set by _start before any step is taken
         start = self.time_of(self.start_index)
         self._times[i] = self.time_of(n)
         self._session_times[i] = (n - self.start_index) * self.sample_period
@@ -499,6 +502,7 @@ class Session:
             else:
                 self.stepper.reset(raw[0], self.guess)
             self._started = True
+        assert self.stepper is not None  # made on the first run (or by warm_up)
         if n == 1:
             try:
                 estimates = {

@@ -27,12 +27,13 @@ class VesselSettings(Settings):
     """
 
     model: str = Field(
-        "northern-clipper", description="'northern-clipper' (Fossen & Strand 1999, eqs. 56-57) or 'custom' (give mass_matrix and damping_matrix)"
+        default="northern-clipper",
+        description="'northern-clipper' (Fossen & Strand 1999, eqs. 56-57) or 'custom' (give mass_matrix and damping_matrix)",
     )
-    mass_matrix: Matrix3 | None = Field(None, description="M (3x3, SI, symmetric positive definite), only with model = 'custom'")
-    damping_matrix: Matrix3 | None = Field(None, description="D (3x3, SI), only with model = 'custom'")
-    mass: PositiveFloat = Field(NORTHERN_CLIPPER_MASS, description="vessel mass m (kg) of the bis normalization")
-    length: PositiveFloat = Field(NORTHERN_CLIPPER_LENGTH, description="length L (m) of the bis normalization")
+    mass_matrix: Matrix3 | None = Field(default=None, description="M (3x3, SI, symmetric positive definite), only with model = 'custom'")
+    damping_matrix: Matrix3 | None = Field(default=None, description="D (3x3, SI), only with model = 'custom'")
+    mass: PositiveFloat = Field(default=NORTHERN_CLIPPER_MASS, description="vessel mass m (kg) of the bis normalization")
+    length: PositiveFloat = Field(default=NORTHERN_CLIPPER_LENGTH, description="length L (m) of the bis normalization")
 
     @field_validator("model")
     @classmethod

@@ -57,10 +57,10 @@ VARIANTS = ("corrected", "printed")
 class Config(NoiseFreeConfig):
     """Settings of the reproduction; every field has the thesis's value or a stated choice."""
 
-    duration: float = Field(40.0, description="simulated time (s); two periods of the square wave (chosen)")
-    amplitude: PositiveFloat = Field(1.0, description="square wave amplitude (rad), chosen")
-    period: PositiveFloat = Field(20.0, description="square wave period (s), chosen")
-    initial_theta: PositiveFloat = Field(0.7, description="theta_hat(0) (kg), printed")
+    duration: float = Field(default=40.0, description="simulated time (s); two periods of the square wave (chosen)")
+    amplitude: PositiveFloat = Field(default=1.0, description="square wave amplitude (rad), chosen")
+    period: PositiveFloat = Field(default=20.0, description="square wave period (s), chosen")
+    initial_theta: PositiveFloat = Field(default=0.7, description="theta_hat(0) (kg), printed")
 
     @field_validator("duration")
     @classmethod

@@ -132,9 +132,9 @@ SYSTEMS = {
 class Config(NoiseFreeConfig):
     """Settings of the reproduction; the systems themselves are :data:`SYSTEMS`."""
 
-    plant_step: PositiveFloat = Field(1e-3, description="RK4 step of plant and observer (s)")
-    sample_period: PositiveFloat = Field(1e-2, description="record and input period (s)")
-    duration: PositiveFloat = Field(10.0, description="simulated time per system (s)")
+    plant_step: PositiveFloat = Field(default=1e-3, description="RK4 step of plant and observer (s)")
+    sample_period: PositiveFloat = Field(default=1e-2, description="record and input period (s)")
+    duration: PositiveFloat = Field(default=10.0, description="simulated time per system (s)")
 
     @field_validator("duration")
     @classmethod

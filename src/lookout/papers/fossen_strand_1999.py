@@ -49,16 +49,16 @@ class Config(RunsConfig):
     shows them under the option's name (``--duration``).
     """
 
-    seed: int = Field(0, description="PRNG seed of run 0 (run i uses seed + i)")
-    plant_step: PositiveFloat = Field(0.1, description="RK4 step of the plant (s)")
-    sample_period: PositiveFloat = Field(0.1, description="observer period (s)")
-    measurement_period: PositiveFloat = Field(1.0, description="position and heading sample period (s), paper: 1 Hz")
-    duration: PositiveFloat = Field(3000.0, description="simulated time (s), a multiple of sample_period, at least 10 measurement periods")
-    wave_frequency: PositiveFloat = Field(0.8976, description="w_o (rad/s), eq. (59)")
-    wave_damping: PositiveFloat = Field(0.1, description="zeta, eq. (59)")
-    notch_damping: PositiveFloat = Field(1.0, description="zeta_n, eq. (59)")
-    cutoff_frequency: PositiveFloat = Field(1.1, description="w_c (rad/s), eq. (59)")
-    bias_time_constant: PositiveFloat = Field(1000.0, description="T (s), eq. (58)")
+    seed: int = Field(default=0, description="PRNG seed of run 0 (run i uses seed + i)")
+    plant_step: PositiveFloat = Field(default=0.1, description="RK4 step of the plant (s)")
+    sample_period: PositiveFloat = Field(default=0.1, description="observer period (s)")
+    measurement_period: PositiveFloat = Field(default=1.0, description="position and heading sample period (s), paper: 1 Hz")
+    duration: PositiveFloat = Field(default=3000.0, description="simulated time (s), a multiple of sample_period, at least 10 measurement periods")
+    wave_frequency: PositiveFloat = Field(default=0.8976, description="w_o (rad/s), eq. (59)")
+    wave_damping: PositiveFloat = Field(default=0.1, description="zeta, eq. (59)")
+    notch_damping: PositiveFloat = Field(default=1.0, description="zeta_n, eq. (59)")
+    cutoff_frequency: PositiveFloat = Field(default=1.1, description="w_c (rad/s), eq. (59)")
+    bias_time_constant: PositiveFloat = Field(default=1000.0, description="T (s), eq. (58)")
     velocity_gain_normalized: tuple[float, float, float] = (0.1, 0.1, 0.01)
     bias_gain_normalized: tuple[float, float, float] = (0.01, 0.01, 0.001)
     wave_amplitude: tuple[float, float, float] = (10.0, 10.0, float(np.radians(1.0)))
@@ -66,8 +66,10 @@ class Config(RunsConfig):
     bias_std: tuple[float, float, float] = (2e3, 2e3, 5e4)
     bias_initial: tuple[float, float, float] = (1e4, 5e3, 1e5)
     noise_std: tuple[float, float, float] = (0.5, 0.5, float(np.radians(0.1)))
-    dropout_probability: float = Field(0.0, description="probability that a position and heading fix is lost (the observer holds the last one)")
-    vessel: VesselSettings = Field(VesselSettings(), description="the vessel: Northern Clipper (the paper's) or your own M and D")
+    dropout_probability: float = Field(
+        default=0.0, description="probability that a position and heading fix is lost (the observer holds the last one)"
+    )
+    vessel: VesselSettings = Field(default=VesselSettings(), description="the vessel: Northern Clipper (the paper's) or your own M and D")
 
     @field_validator("dropout_probability")
     @classmethod

@@ -14,10 +14,12 @@ import math
 import operator
 import textwrap
 from dataclasses import dataclass
+from typing import Any, overload
 
 import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
+from matplotlib.artist import Artist
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
@@ -29,10 +31,10 @@ _DISPLAY_UNITS = {"rad": (math.degrees(1.0), "deg"), "rad/s": (math.degrees(1.0)
 
 #: Line styles: the estimate is drawn first, wide and coloured; the truth thin, black,
 #: on top, so that it stays visible where the estimate lies on it.
-_ESTIMATE_STYLE = {"color": "C1", "lw": 1.4, "zorder": 2}
-_TRUTH_STYLE = {"color": "k", "lw": 0.7, "zorder": 3}
-_MEASURED_STYLE = {"color": "0.45", "ls": "none", "marker": ".", "ms": 2.5, "alpha": 0.5, "zorder": 1}
-_WINDOW_STYLE = {"color": "C0", "alpha": 0.12, "lw": 0, "zorder": 0}
+_ESTIMATE_STYLE: dict[str, Any] = {"color": "C1", "lw": 1.4, "zorder": 2}
+_TRUTH_STYLE: dict[str, Any] = {"color": "k", "lw": 0.7, "zorder": 3}
+_MEASURED_STYLE: dict[str, Any] = {"color": "0.45", "ls": "none", "marker": ".", "ms": 2.5, "alpha": 0.5, "zorder": 1}
+_WINDOW_STYLE: dict[str, Any] = {"color": "C0", "alpha": 0.12, "lw": 0, "zorder": 0}
 
 
 def _wrap_to_pi(angle: np.ndarray) -> np.ndarray:
@@ -122,8 +124,8 @@ def _run_caption(ds: xr.Dataset, run: int) -> str | None:
 DENSE_CYCLES = 150.0
 #: Bins of the range drawn for a dense signal across the full run.
 ENVELOPE_BINS = 300
-_TARGET_STYLE = {"color": "C0", "lw": 0.9, "zorder": 2.5}
-_TRUTH_BAND_STYLE = {"color": "0.6", "alpha": 0.35, "lw": 0, "zorder": 1.5}
+_TARGET_STYLE: dict[str, Any] = {"color": "C0", "lw": 0.9, "zorder": 2.5}
+_TRUTH_BAND_STYLE: dict[str, Any] = {"color": "0.6", "alpha": 0.35, "lw": 0, "zorder": 1.5}
 
 
 def is_dense(time, values, cycles: float = DENSE_CYCLES) -> bool:
@@ -227,6 +229,12 @@ class _Panel:
     marked: np.ndarray | None = None
 
 
+@overload
+def _run_values(array: xr.DataArray, label: str | None, run: int) -> np.ndarray: ...
+@overload
+def _run_values(array: None, label: str | None, run: int) -> None: ...
+@overload
+def _run_values(array: xr.DataArray | None, label: str | None, run: int) -> np.ndarray | None: ...
 def _run_values(array: xr.DataArray | None, label: str | None, run: int) -> np.ndarray | None:
     """The series of one component of ``array`` in one run, as floats (None stays None)."""
     if array is None:
@@ -374,7 +382,7 @@ def _window_parts(time: np.ndarray, windows) -> list[slice]:
 
 
 #: Where an input was limited (applied differs from commanded).
-_MARKED_STYLE = {"color": "tab:red", "alpha": 0.15, "lw": 0, "zorder": 0.5}
+_MARKED_STYLE: dict[str, Any] = {"color": "tab:red", "alpha": 0.15, "lw": 0, "zorder": 0.5}
 
 
 #: Characters of a y label's line (the quantity and unit are wrapped at this width).
@@ -434,7 +442,9 @@ def _draw_panel(
     spike = _start_spike(time, [series for series in (truth, compared) if series is not None]) if clip_start and transient is None else None
     # a spike at the start is no fast motion: the rest of the run tells whether the signal is dense
     after = time >= time[0] + (spike or 0.0)
-    dense = is_dense(time[after], (truth if truth is not None else compared)[after])
+    shown = truth if truth is not None else compared
+    assert shown is not None, "a panel has a truth or a compared series"  # _Panel: either may be missing, not both
+    dense = is_dense(time[after], shown[after])
     if dense:
         drawn.add("dense")
         if truth is not None:
@@ -465,6 +475,7 @@ def _draw_panel(
         ax.ticklabel_format(axis="y", useOffset=False)  # "+4.247e6" above a panel reads as a value; a factor 1e6 does not
     if panel.measured is not None:
         drawn.add("measured")
+        assert panel.sampled is not None  # _make_panel sets it with measured
         for ax, part in zip(zoomed, parts):
             new = panel.sampled[part]
             ax.plot(time[part][new], panel.measured[part][new], **_MEASURED_STYLE, label="measured")
@@ -480,13 +491,13 @@ def _draw_panel(
         values = np.concatenate([series[kept] for series in present])
         values = values[np.isfinite(values)]
         if values.size:
-            low, high = float(values.min()), float(values.max())
-            pad = 0.08 * (high - low) if high > low else max(abs(high), 1.0) * 0.05
+            y_low, y_high = float(values.min()), float(values.max())
+            pad = 0.08 * (y_high - y_low) if y_high > y_low else max(abs(y_high), 1.0) * 0.05
             everything = np.concatenate([series for series in (truth, compared) if series is not None])
             everything = everything[np.isfinite(everything)]
-            if everything.size and (everything.min() < low - pad or everything.max() > high + pad):
+            if everything.size and (everything.min() < y_low - pad or everything.max() > y_high + pad):
                 if message is None:  # a spike found here: said in the panel's note, placed clear of the curves
-                    extreme = everything.min() if low - everything.min() > everything.max() - high else everything.max()
+                    extreme = everything.min() if y_low - everything.min() > everything.max() - y_high else everything.max()
                     notes.append(
                         _minus(f"clipped: the first {float(transient):.2g} s reach {extreme:.3g} {panel.quantity.rsplit('(', 1)[-1].rstrip(')')}")
                     )
@@ -502,7 +513,7 @@ def _draw_panel(
                         gid="transient_note",
                         bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none", "alpha": 0.8},
                     )
-            full.set_ylim(low - pad, high + pad)
+            full.set_ylim(y_low - pad, y_high + pad)
     if notes:
         # a legend of no entries: matplotlib puts it where it covers the fewest curves
         note = full.legend(handles=[], title="\n".join(notes), loc="best", title_fontsize=7.5, framealpha=0.85, borderpad=0.3)
@@ -525,7 +536,7 @@ def _panel_legend(
     fig, drawn: set[str], *, compared_style, compared_label="estimate", truth_label="true", target_labels=(), marked_label="marked"
 ) -> None:
     """One legend below the panels for what :func:`_draw_panel` drew."""
-    handles = []
+    handles: list[Artist] = []
     if "truth" in drawn:
         handles.append(Line2D([], [], **_without_zorder(_TRUTH_STYLE), label=truth_label))
     if "compared" in drawn:

@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
+from matplotlib.artist import Artist
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import NullLocator
@@ -13,19 +16,19 @@ from matplotlib.ticker import NullLocator
 from lookout.plotting._common import _minus, _runs
 
 #: The frequencies of the tuning rule (48): dataset variable, legend label, gid, style.
-_MARKERS = (
+_MARKERS: tuple[tuple[str, str, str, dict[str, Any]], ...] = (
     ("bias_filter_frequency", "1/T", "marker_1/T", {"color": "tab:purple", "ls": ":", "lw": 1.3}),
     ("bias_gain_ratio", "λ/κ", "marker_lambda/kappa", {"color": "tab:olive", "ls": "-.", "lw": 1.2}),
     ("wave_frequency", r"$\omega_o$", "marker_w_o", {"color": "tab:cyan", "ls": "--", "lw": 1.2}),
     ("cutoff_frequency", r"$\omega_c$", "marker_w_c", {"color": "tab:brown", "ls": (0, (6, 2, 1, 2, 1, 2)), "lw": 1.2}),
 )
-_CURVES = {
+_CURVES: dict[str, dict[str, Any]] = {
     "h0": {"color": "tab:blue", "lw": 1.3},
     "hB": {"color": "tab:green", "lw": 1.3, "ls": "--"},
     "h": {"color": "k", "lw": 1.1},
 }
-_SPR_STYLE = {"color": "tab:red", "ls": ":", "lw": 1.2}
-_VIOLATION_STYLE = {"color": "tab:red", "alpha": 0.18, "lw": 0, "zorder": 0.5}
+_SPR_STYLE: dict[str, Any] = {"color": "tab:red", "ls": ":", "lw": 1.2}
+_VIOLATION_STYLE: dict[str, Any] = {"color": "tab:red", "alpha": 0.18, "lw": 0, "zorder": 0.5}
 
 
 _REQUIRED = (
@@ -131,8 +134,8 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
     # every DOF's hB, h and kappa are there before anything is drawn
     split = {dof: {name: _per_dof(response, name, dof) for name in ("hB_magnitude", "h_magnitude", "velocity_injection_gain")} for dof in dofs}
     for column, dof in enumerate(dofs):
-        kappa, unit = split[dof]["velocity_injection_gain"]
-        kappa = float(kappa)
+        kappa_values, unit = split[dof]["velocity_injection_gain"]
+        kappa = float(kappa_values)
         curve = {"h0": response["h0_magnitude"].sel(dof=dof).values, "hB": split[dof]["hB_magnitude"][0], "h": split[dof]["h_magnitude"][0]}
         angle = {name: response[f"{name}_phase_deg"].sel(dof=dof).values for name in ("h0", "hB", "h")}
 
@@ -205,13 +208,13 @@ def plot_bode(response: xr.Dataset, *, title: str | None = None):
     magnitude[0].set_xlim(frequency[0], frequency[-1])
 
     # one legend for the whole figure, below the panels, so that none covers a curve
-    def style(name, **extra):
+    def legend_style(name: str, **extra: Any) -> dict[str, Any]:
         return {k: v for k, v in {**_CURVES[name], **extra}.items() if k != "zorder"}
 
-    handles = [
-        Line2D([], [], **style("h0"), label="$h_0$"),
-        Line2D([], [], **style("hB"), label=r"$h_B$ (magnitude: $h_B/\kappa$)"),
-        Line2D([], [], **style("h"), label=r"$h$ (magnitude: $h/\kappa$; margin $\angle h + 90°$)"),
+    handles: list[Artist] = [
+        Line2D([], [], **legend_style("h0"), label="$h_0$"),
+        Line2D([], [], **legend_style("hB"), label=r"$h_B$ (magnitude: $h_B/\kappa$)"),
+        Line2D([], [], **legend_style("h"), label=r"$h$ (magnitude: $h/\kappa$; margin $\angle h + 90°$)"),
         Line2D([], [], **_SPR_STYLE, label="−90° (SPR bound)"),
         Patch(facecolor="0.5", alpha=0.3, label=r"$\omega > 10\,\omega_c$ (margin not judged)"),
     ]

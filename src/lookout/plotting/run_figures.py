@@ -57,6 +57,11 @@ def _labels(array: xr.DataArray) -> list:
     return array[array.dims[2]].values.tolist() if array.ndim == 3 else [None]
 
 
+def _names(ds: xr.Dataset) -> list[str]:
+    """The names of the data variables of ``ds`` (a results Dataset names them with strings)."""
+    return [name for name in ds.data_vars if isinstance(name, str)]
+
+
 def _matching(ds: xr.Dataset, name: str, like: str) -> str | None:
     """``name`` if the dataset has it as a series with the dims of ``like``."""
     return name if name in ds.data_vars and _series_variable(ds, name) and ds[name].dims == ds[like].dims else None
@@ -69,8 +74,8 @@ def run_estimates(ds: xr.Dataset) -> list[tuple[str, str | None]]:
     a parameter estimate) or ``theta_<name>`` (a parameter estimate); its truth is
     ``<name>`` with the same dims, where the dataset records one.
     """
-    found = []
-    for name in ds.data_vars:
+    found: list[tuple[str, str | None]] = []
+    for name in _names(ds):
         if (name.endswith("_hat") or name.startswith("theta_")) and _series_variable(ds, name):
             truth = _matching(ds, name[: -len("_hat")], name) if name.endswith("_hat") else None
             found.append((name, truth))
@@ -85,15 +90,15 @@ def run_references(ds: xr.Dataset) -> list[tuple[str, str | None, object]]:
     ``pendulum`` component of ``joint_angle`` (its component is then given, for a
     scalar reference; otherwise it is None).
     """
-    found = []
-    for name in ds.data_vars:
+    found: list[tuple[str, str | None, object]] = []
+    for name in _names(ds):
         if not (name.endswith("_desired") and _series_variable(ds, name)):
             continue
         base = name[: -len("_desired")]
         truth, component = _matching(ds, base, name), None
         if truth is None and ds[name].ndim == 2:
             units = ds[name].attrs.get("units")
-            for other in ds.data_vars:
+            for other in _names(ds):
                 if _series_variable(ds, other) and ds[other].ndim == 3 and ds[other].attrs.get("units") == units:
                     suffix = other.rsplit("_", 1)[-1]
                     hits = [label for label in _labels(ds[other]) if f"{label}_{suffix}" == base]
@@ -107,8 +112,8 @@ def run_references(ds: xr.Dataset) -> list[tuple[str, str | None, object]]:
 def run_inputs(ds: xr.Dataset) -> list[tuple[str, str]]:
     """``(commanded, applied)`` of every input of a results Dataset that is not zero
     throughout (a plant run unforced has nothing to show)."""
-    found = []
-    for name in ds.data_vars:
+    found: list[tuple[str, str]] = []
+    for name in _names(ds):
         if name.endswith("_commanded") and _series_variable(ds, name):
             applied = _matching(ds, name[: -len("_commanded")] + "_applied", name)
             if applied is not None:
@@ -147,6 +152,7 @@ def _run_figure(
         windows = [(start, end, f"zoom: last finite {end - start:.3g} s (shaded)")]
     caption = _run_caption(ds, run)
     if ds.sizes["run"] > 1:
+        assert caption is not None  # _run_caption captions every dataset of several runs
         caption += f"; the figure shows this run only, of the {ds.sizes['run']} in the dataset"
     heading = heading if caption is None else f"{heading}\n{caption}"
     sizes = [len(group) for group in groups]
@@ -312,6 +318,7 @@ def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: 
             panel = _make_panel(ds[applied].attrs, _quantity(base, label), got, wanted, marked=limited)
             if limited.any():
                 any_limited = True
+                assert panel.truth is not None  # the applied input, given as the truth
                 peak = np.max(np.abs(panel.truth[finite]))
                 panel.note = (
                     f"limited {limited.sum() / finite.sum():.0%} of the time; applied at most {peak:.3g} {panel.quantity.rsplit('(', 1)[-1][:-1]}"

@@ -100,26 +100,26 @@ class DivergenceSettings(Settings):
 class SimulationSettings(RunsConfig):
     """The ``[simulation]`` table: the time grid, the integrator, runs and seeds."""
 
-    runs: int = Field(1, description="Monte Carlo runs (vmapped); run i uses seed + i")
-    seed: int = Field(0, description="PRNG seed of run 0 (run i uses seed + i)")
-    plant_step: float = Field(0.1, description="integration step of the plant (s)")
-    sample_period: float = Field(0.1, description="observer, reference and controller period (s), a multiple of plant_step")
-    duration: float = Field(600.0, description="simulated time (s), a multiple of sample_period * record_every")
-    record_every: int = Field(1, description="record one sample in this many")
-    integrator: Literal["rk4", "euler"] = Field("rk4", description="the plant's integrator: 'rk4' or 'euler'")
+    runs: int = Field(default=1, description="Monte Carlo runs (vmapped); run i uses seed + i")
+    seed: int = Field(default=0, description="PRNG seed of run 0 (run i uses seed + i)")
+    plant_step: float = Field(default=0.1, description="integration step of the plant (s)")
+    sample_period: float = Field(default=0.1, description="observer, reference and controller period (s), a multiple of plant_step")
+    duration: float = Field(default=600.0, description="simulated time (s), a multiple of sample_period * record_every")
+    record_every: int = Field(default=1, description="record one sample in this many")
+    integrator: Literal["rk4", "euler"] = Field(default="rk4", description="the plant's integrator: 'rk4' or 'euler'")
     observer_mode: Literal["sampled", "continuous"] = Field(
-        "sampled", description="'sampled', or 'continuous': the observer integrated jointly with the plant on the noise-free measurement"
+        default="sampled", description="'sampled', or 'continuous': the observer integrated jointly with the plant on the noise-free measurement"
     )
     batch: Literal["shared", "stacked"] = Field(
-        "shared", description="runs vmapped over one shared scenario, or over a copy per run ('stacked'; equal to rounding)"
+        default="shared", description="runs vmapped over one shared scenario, or over a copy per run ('stacked'; equal to rounding)"
     )
     conditions: Literal["warn", "require", "ignore"] = Field(
-        "warn",
+        default="warn",
         description="the design conditions of the observer and controller (lookout design FILE) at lookout run: "
         "'warn' when one fails, 'require' them (refuse the run), or 'ignore' them",
     )
     divergence: DivergenceSettings | None = Field(
-        None,
+        default=None,
         description="a run has failed (status 'diverged') when the estimation or tracking error of signal exceeds limit, "
         "or a truth or estimate is not finite (default: the plant kind's)",
     )
@@ -223,7 +223,7 @@ def parameter_model(kind: registry.Kind, design: str | None):
     key = (kind.role, kind.name, design)
     if key not in _MODELS:
         fields = {
-            p.name: (_annotation(p), Field(_default_value(p.default), description=p.description))
+            p.name: (_annotation(p), Field(default=_default_value(p.default), description=p.description))
             for p in kind.parameters(design)
             if p.sort == "value"
         }
@@ -241,7 +241,9 @@ def state_parameters(method) -> tuple[registry.Parameter, ...]:
 @functools.cache
 def _initial_model(function):
     """The pydantic model of the keys ``function`` (a ``state`` or ``guess``) declares (built once per method)."""
-    fields = {p.name: (_annotation(p), Field(_default_value(p.default), description=p.description)) for p in registry.initial_parameters(function)}
+    fields = {
+        p.name: (_annotation(p), Field(default=_default_value(p.default), description=p.description)) for p in registry.initial_parameters(function)
+    }
     return create_model(re.sub(r"\W", "_", f"initial_{function.__module__}_{function.__qualname__}"), __base__=Settings, **fields)
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Annotated
+from typing import Annotated, TypeVar
 
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
@@ -123,8 +123,8 @@ class RunsConfig(Settings):
     vmapped runs over seeds ``seed .. seed + runs - 1``, each a valid JAX key. Subclasses
     may redeclare ``runs`` or ``seed`` for their own description; the checks stay."""
 
-    runs: int = Field(1, description="Monte Carlo runs (vmapped); run i uses seed + i")
-    seed: int = Field(0, description="PRNG seed of run 0")
+    runs: int = Field(default=1, description="Monte Carlo runs (vmapped); run i uses seed + i")
+    seed: int = Field(default=0, description="PRNG seed of run 0")
 
     @field_validator("runs")
     @classmethod
@@ -169,8 +169,8 @@ class NoiseFreeConfig(RunsConfig):
     """A :class:`RunsConfig` for a noise-free reproduction: ``runs`` must be 1, since every
     run would be the same; the seed is recorded with the results and draws nothing."""
 
-    runs: int = Field(1, description="1: the runs are noise-free, every run would be the same")
-    seed: int = Field(0, description="recorded with the results; the runs draw no random numbers")
+    runs: int = Field(default=1, description="1: the runs are noise-free, every run would be the same")
+    seed: int = Field(default=0, description="recorded with the results; the runs draw no random numbers")
 
     @field_validator("runs")
     @classmethod
@@ -239,7 +239,10 @@ def explain(error: ValidationError) -> tuple[tuple, str]:
     return location, message
 
 
-def validate_strictly(model: type[BaseModel], values: dict) -> BaseModel:
+_Model = TypeVar("_Model", bound=BaseModel)
+
+
+def validate_strictly(model: type[_Model], values: dict) -> _Model:
     """``model`` validated from a file's ``values`` in pydantic's strict mode: a number
     must be a number (an integer is one), a boolean a boolean and a string a string
     (``duration = true`` and ``duration = "100"`` are refused, not read as 1 s and

@@ -50,10 +50,16 @@ import csv
 import html
 import json
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import xarray as xr
+    from matplotlib.figure import Figure
 
 #: Percentiles of the spread.
 LOW, HIGH = 10, 90
@@ -83,17 +89,17 @@ def lead_metrics(metrics) -> list[str]:
 
 
 def collect(
-    stores: dict[str, Path | list[Path]],
+    stores: Mapping[str, str | Path | Sequence[str | Path]],
     costs: dict[str, float],
     told: dict[str, str],
     *,
-    metrics: list[str] = (),
+    metrics: Sequence[str] = (),
     title: str = "",
     command: str = "",
     changes: dict[str, str] | None = None,
     conditions: list[str] | None = None,
     recommend_by: list[str] | None = None,
-    skipped: list[str] = (),
+    skipped: Sequence[str] = (),
 ):
     """The benchmark's results as one Dataset over ``(observer, condition, seed)``:
     every metric of any observer (NaN where an observer does not estimate the signal,
@@ -121,7 +127,7 @@ def collect(
     observers = list(stores)
     order = [name.replace(":", "__") for name in metrics]
     ranked = sorted(variables, key=lambda name: (name == "diverged", order.index(name) if name in order else len(order), name))
-    data = {}
+    data: dict[str, Any] = {}
     for name in ranked:
         attrs = variables[name]
         values = np.full((len(observers), len(conditions), len(seeds)), np.nan)
@@ -399,12 +405,12 @@ def cell_table(ds, name: str) -> tuple[list[str], list[list[str]]]:
     medians = np.full((ds.sizes["observer"], ds.sizes["condition"]), np.nan)
     cells = []
     for i in range(ds.sizes["observer"]):
-        row = []
+        statistics = []
         for j in range(ds.sizes["condition"]):
             median, _, _, bad, runs = _statistics(ds[name].values[i, j], ds["diverged"].values[i, j])
             medians[i, j] = median
-            row.append((median, bad, runs))
-        cells.append(row)
+            statistics.append((median, bad, runs))
+        cells.append(statistics)
     best = np.nanmin(np.where(np.isfinite(medians), medians, np.inf), axis=0)
     rows = []
     for i, observer in enumerate(ds.observer.values):
@@ -460,7 +466,7 @@ def _markdown(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
-def _names(ds) -> tuple[list[str], tuple[str, str] | None, str | None]:
+def _names(ds) -> tuple[list[str], tuple[str, str | None] | None, str | None]:
     """(per-condition metrics, (drift, recovery) names or None, convergence name or None)."""
     metrics = [n for n in ds.data_vars if "__" in n and _metric_parts(n)[0] in PER_CONDITION]
     drift = next((n for n in ds.data_vars if n.startswith("outage_drift__")), None)
@@ -547,7 +553,7 @@ def _colors(count: int):
     return [palette(i % 10) for i in range(count)]
 
 
-def metric_figure(ds, name: str):
+def metric_figure(ds: xr.Dataset, name: str) -> Figure:
     """Median per condition and observer (markers), 10-90 % whiskers, log scale."""
     import matplotlib.pyplot as plt
 
@@ -602,7 +608,7 @@ def _log_axis(axis) -> None:
     axis.set_minor_formatter(FuncFormatter(lambda value, _: ""))
 
 
-def cost_figure(ds):
+def cost_figure(ds: xr.Dataset) -> Figure:
     """Cost per sample of each observer alone (log scale)."""
     import matplotlib.pyplot as plt
 
@@ -622,7 +628,7 @@ def cost_figure(ds):
     return figure
 
 
-def outage_figure(ds, drift: str, recovery: str | None):
+def outage_figure(ds: xr.Dataset, drift: str, recovery: str | None) -> Figure:
     """The outage condition: drift of the estimate during it and recovery after it."""
     import matplotlib.pyplot as plt
 
@@ -648,7 +654,7 @@ def outage_figure(ds, drift: str, recovery: str | None):
     return figure
 
 
-def figures(ds) -> dict[str, object]:
+def figures(ds) -> dict[str, Figure]:
     """File name -> matplotlib figure, for every figure of the benchmark."""
     metrics, outage, _ = _names(ds)
     found = {f"{name}.png": metric_figure(ds, name) for name in metrics}

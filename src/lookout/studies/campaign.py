@@ -79,17 +79,19 @@ class Axis(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     field: str | tuple[str, ...] | None = Field(
-        None, description="key path(s) of the scenario's composition (plant.waves.peak_frequency, observer), set to the same value"
+        default=None, description="key path(s) of the scenario's composition (plant.waves.peak_frequency, observer), set to the same value"
     )
-    values: tuple[Any, ...] | None = Field(None, description="the values (grid)")
+    values: tuple[Any, ...] | None = Field(default=None, description="the values (grid)")
     cases: tuple[dict[str, Any], ...] | None = Field(
-        None, description="instead of field and values: per value, key path -> value of the keys it sets (grid)"
+        default=None, description="instead of field and values: per value, key path -> value of the keys it sets (grid)"
     )
-    labels: tuple[str | float, ...] | None = Field(None, description="the cases' names in the store and report (default: what each case sets)")
-    range: tuple[float, float] | None = Field(None, description="[low, high]: steps values (grid) or strata (latin-hypercube)")
-    steps: int | None = Field(None, description="number of evenly spaced values over range (grid)")
-    scale: bool = Field(False, description="multiply each field's base value by the axis value instead of setting it")
-    name: str | None = Field(None, description="the axis's name in the store and report (default: from field)")
+    labels: tuple[str | float, ...] | None = Field(
+        default=None, description="the cases' names in the store and report (default: what each case sets)"
+    )
+    range: tuple[float, float] | None = Field(default=None, description="[low, high]: steps values (grid) or strata (latin-hypercube)")
+    steps: int | None = Field(default=None, description="number of evenly spaced values over range (grid)")
+    scale: bool = Field(default=False, description="multiply each field's base value by the axis value instead of setting it")
+    name: str | None = Field(default=None, description="the axis's name in the store and report (default: from field)")
 
     @field_validator("values", "cases")
     @classmethod
@@ -125,10 +127,12 @@ class Axis(BaseModel):
         """Each case's name: its label, or what it sets (``base`` for an empty case)."""
         if self.labels is not None:
             return self.labels
+        assert self.cases is not None, "case labels are a cases axis's"
         return tuple(", ".join(f"{key}={json.dumps(value)}" for key, value in case.items()) or "base" for case in self.cases)
 
     def case_changes(self, label) -> dict[str, Any]:
         """Key path -> value of the case named ``label``."""
+        assert self.cases is not None, "case changes are a cases axis's"
         return dict(self.cases[self.case_labels.index(label)])
 
     @field_validator("range")
@@ -150,6 +154,7 @@ class Axis(BaseModel):
         """The key paths it sets (for cases: every key any case sets, in order)."""
         if self.cases is not None:
             return tuple(dict.fromkeys(key for case in self.cases for key in case))
+        assert self.field is not None  # an axis without cases has a field (checked on validation)
         return (self.field,) if isinstance(self.field, str) else tuple(self.field)
 
     def value_label(self, value):
@@ -180,8 +185,8 @@ class Sweep(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     kind: Literal["grid", "latin-hypercube"] = "grid"
-    points: int | None = Field(None, description="latin-hypercube: number of points")
-    seed: int = Field(0, description="latin-hypercube: seed of the draw")
+    points: int | None = Field(default=None, description="latin-hypercube: number of points")
+    seed: int = Field(default=0, description="latin-hypercube: seed of the draw")
     axes: tuple[Axis, ...] = ()
 
     @model_validator(mode="after")
@@ -230,7 +235,7 @@ class Trajectories(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     signals: tuple[str, ...]
-    every: int = Field(10, description="keep one record in this many")
+    every: int = Field(default=10, description="keep one record in this many")
 
     @field_validator("every")
     @classmethod
@@ -407,11 +412,18 @@ def _axis_changes(axis: Axis, base: dict, value) -> dict[str, Any]:
     return {path: (get_path(base, path) * value if axis.scale else value) for path in axis.fields}
 
 
+def _axis_range(axis: Axis) -> list[float]:
+    """``[low, high]`` of an axis that has a range (a latin-hypercube's, or a grid's without values)."""
+    assert axis.range is not None  # Sweep checks that every such axis has one
+    return list(axis.range)
+
+
 def _grid_values(axis: Axis) -> list:
     if axis.cases is not None:
         return list(axis.case_labels)
     if axis.values is not None:
         return list(axis.values)
+    assert axis.range is not None and axis.steps is not None  # Sweep: a grid axis has values, or range and steps
     return np.linspace(axis.range[0], axis.range[1], axis.steps).tolist()
 
 
@@ -421,7 +433,8 @@ def _latin_hypercube(axes: tuple[Axis, ...], points: int, seed: int) -> list[dic
     columns = []
     for axis in axes:
         unit = (rng.permutation(points) + rng.random(points)) / points
-        columns.append(axis.range[0] + unit * (axis.range[1] - axis.range[0]))
+        low, high = _axis_range(axis)
+        columns.append(low + unit * (high - low))
     return [{axis.label: float(column[i]) for axis, column in zip(axes, columns)} for i in range(points)]
 
 
@@ -442,10 +455,10 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
         raise FileError(describe(error, source, text)) from None
     scenario = settings.scenario
     if isinstance(scenario, str):
-        path = Path(scenario)
-        if not path.is_absolute() and folder is not None:
-            path = folder / path
-        base = read_spec(path)[0]
+        scenario_path = Path(scenario)
+        if not scenario_path.is_absolute() and folder is not None:
+            scenario_path = folder / scenario_path
+        base = read_spec(scenario_path)[0]
     else:
         base = from_document(scenario, f"{source} [scenario]", None)
     axes = settings.sweep.axes
@@ -461,6 +474,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
         grids = [_grid_values(axis) for axis in axes]
         points = tuple({axis.label: value for axis, value in zip(axes, combo)} for combo in itertools.product(*grids)) if axes else ({},)
     else:
+        assert settings.sweep.points is not None  # Sweep: a latin-hypercube has points
         points = tuple(_latin_hypercube(axes, settings.sweep.points, settings.sweep.seed))
     base_values = base.values()
     variants = [scenario_object]  # the base and every swept component: each metric must apply to each
@@ -480,7 +494,7 @@ def campaign_from_document(document: dict, source: str, text: str | None = None,
             except FileError as error:
                 raise located(source, text, location, str(error)) from None
         # every value of the axis must make a valid scenario (checked on the base)
-        for value in _grid_values(axis) if settings.sweep.kind == "grid" else list(axis.range):
+        for value in _grid_values(axis) if settings.sweep.kind == "grid" else _axis_range(axis):
             changes = _axis_changes(axis, base_values, value)
             where = ("sweep", "axes", index, "cases" if axis.cases is not None else "values" if axis.values is not None else "range")
             word = "case" if axis.cases is not None else "value"
@@ -545,6 +559,7 @@ DRIVER_BYTES_PER_POINT = 500
 def point_count(settings: CampaignSettings) -> int:
     """The number of sweep points, from the axes alone (without making them)."""
     if settings.sweep.kind == "latin-hypercube":
+        assert settings.sweep.points is not None  # Sweep: a latin-hypercube has points
         return int(settings.sweep.points)
     return math.prod(len(_grid_values(axis)) if axis.steps is None else int(axis.steps) for axis in settings.sweep.axes)
 
@@ -643,7 +658,11 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
     compiled = shape in _COMPUTED
     keys = keys_of_seeds(list(seeds))
     metrics = metric_module.resolve(list(campaign.metric_names), scenario)
-    options = {"after": campaign.settings.after, "divergence": campaign.divergence_at(point), "outage": metric_module.outage_of(scenario)}
+    options: dict[str, Any] = {
+        "after": campaign.settings.after,
+        "divergence": campaign.divergence_at(point),
+        "outage": metric_module.outage_of(scenario),
+    }
     kept = campaign.settings.trajectories
     if kept is None:  # the metrics accumulate as the runs go; no records are held
         out = metric_module.summarize(scenario, keys, metrics, **options)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich import box
@@ -13,6 +13,9 @@ from rich.table import Table
 
 from lookout._commandline import DIVERGED_EXIT_CODE, check_memory, console, created_folder, output_folder, progress_bar, simulating, writable_folder
 from lookout._json import json_safe
+
+if TYPE_CHECKING:
+    from rich.progress import TaskID
 from lookout._validation import InputError
 from lookout.scenario._toml import FileError
 
@@ -559,7 +562,7 @@ def benchmark_observers(
             for note in each.notes:
                 console_print(f"  {note}")
             with progress_bar(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn()) as bar:
-                tasks = {}
+                tasks: dict[str, TaskID] = {}
 
                 def progress(name, done, total, bar=bar, tasks=tasks):
                     if name not in tasks:

@@ -227,6 +227,7 @@ def run_campaign(
         from dask.distributed import Client
 
         if scheduler is None:
+            assert workers is not None  # set above when there is no scheduler
             cluster = local_cluster(workers)
             client = Client(cluster)
         else:
@@ -238,7 +239,7 @@ def run_campaign(
                     client.close()
                 raise SchedulerError(f"cannot reach the scheduler ({one_line(error) or type(error).__name__})") from None
             limits = [w.get("memory_limit") or None for w in info.values()]
-            per_worker = min(limits) if limits and all(limits) else None
+            per_worker = min(limit for limit in limits if limit is not None) if limits and all(limits) else None
             workers = max(1, len(info))
             try:
                 estimate = Estimate(check_memory(campaign, per_worker, workers), per_worker, len(chunks), len(pending), workers)

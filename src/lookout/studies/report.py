@@ -36,11 +36,15 @@ import html
 import io
 import json
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.typing import RcKeyType
 
 __all__ = ["report_figures", "write_report", "default_report_path"]
 
@@ -54,7 +58,7 @@ MAX_DIVERGED_ROWS = 200
 #: Percentiles of the spread bands and error bars.
 LOW, HIGH = 10, 90
 
-_RC = {
+_RC: dict[RcKeyType, Any] = {
     "font.size": 10,
     "axes.titlesize": 11,
     "axes.labelsize": 10,
@@ -416,7 +420,7 @@ def _build(ds, document: dict | None) -> list[_Figure]:
     axes = _axes(ds, document)
     metrics = [metric for metric in _metrics(ds, document) if np.isfinite(metric.data).any()]
     diverged = _diverged(ds)
-    figures = []
+    figures: list[_Figure] = []
     if np.isnan(diverged).all():  # nothing finished: a plot would be an empty frame
         return figures
     with matplotlib.rc_context(_RC):
@@ -491,7 +495,7 @@ def _table(header: list[str], rows: list[list[str]], attrs: str = "") -> str:
     return f"<table{attrs}>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
 
 
-def _definition_table(items: list[tuple[str, str | list[str]]], attrs: str = ' class="provenance"') -> str:
+def _definition_table(items: Sequence[tuple[str, str | list[str]]], attrs: str = ' class="provenance"') -> str:
     """A two-column table of names and values; a list value is one line per entry."""
 
     def cell(value):
@@ -558,11 +562,13 @@ def _axis_rows(document: dict, kind: str) -> list[list[str]]:
         if axis.values is not None:
             values = ", ".join(_spec_value(axis.value_label(v)) for v in axis.values) + suffix
         elif kind == "grid":
+            assert axis.range is not None and axis.steps is not None  # Sweep: a grid axis without values has range and steps
             grid = np.linspace(axis.range[0], axis.range[1], axis.steps).tolist()
             values = f"{axis.steps} steps over [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}: " + ", ".join(
                 _spec_value(v) for v in grid
             )
         else:
+            assert axis.range is not None  # Sweep: a latin-hypercube axis has range
             values = f"range [{_spec_value(axis.range[0])}, {_spec_value(axis.range[1])}]{suffix}"
         applied = "replaces the component" if tables else ("× base value" if axis.scale else "sets the value")
         rows.append([variable_name(axis.label), ", ".join(axis.fields), values, applied])
@@ -629,7 +635,8 @@ def _kind_default(scenario: dict, key: str):
     from lookout.scenario.composition import plain
 
     parts = key.split(".")
-    role, table = parts[0], scenario.get(parts[0])
+    role = parts[0]
+    table: Any = scenario.get(parts[0])  # None for a role the scenario leaves out: indexing it fails below, and no default is shown
     if role == "simulation":
         from lookout.scenario.composition import SimulationSettings
 
@@ -942,10 +949,10 @@ def _results_html(ds, axes: list[_Axis], metrics: list[_Metric], diverged: np.nd
         mine = [f for f in figures if f.section == "diverged"]
         if mine:
             parts.append(_figures_html(mine, images))
-        count = f"{n_diverged} of {known} computed run{'s' * (known != 1)} diverged"
+        sentence = f"{n_diverged} of {known} computed run{'s' * (known != 1)} diverged"
         if n_diverged > MAX_DIVERGED_ROWS:
-            count += f"; the first {MAX_DIVERGED_ROWS} are listed"
-        parts.append(f'<p id="diverged-count">{html.escape(count)}.</p>')
+            sentence += f"; the first {MAX_DIVERGED_ROWS} are listed"
+        parts.append(f'<p id="diverged-count">{html.escape(sentence)}.</p>')
         seeds = ds["seed"].values
         rows = [
             [str(int(point))] + [_fmt(axis.values[point]) for axis in axes] + [_fmt(seeds[seed])]

@@ -28,6 +28,7 @@ import json
 import os
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -125,10 +126,11 @@ class CampaignStore:
         scenario = campaign.base.build()
         metrics = metric_module.resolve(list(campaign.metric_names), scenario)
         n_points, n_seeds, size = len(campaign.points), len(campaign.seeds), campaign.chunk_runs
-        data, coords = (
-            {},
-            {"point": np.arange(n_points), "seed": ("seed", np.asarray(campaign.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"})},
-        )
+        data: dict[str, Any] = {}
+        coords: dict[str, Any] = {
+            "point": np.arange(n_points),
+            "seed": ("seed", np.asarray(campaign.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}),
+        }
 
         def empty(shape, chunks):
             return da.full(shape, np.nan, dtype=np.float64, chunks=chunks)
@@ -274,6 +276,7 @@ class CampaignStore:
                 if name in ("seconds", "compiled"):
                     continue
                 array = group[name]
+                assert isinstance(array, zarr.Array)  # every result is an array of the store
                 values = np.asarray(values, dtype=np.float64)
                 array[chunk.point, region, ...] = values
             self._write_record(chunk, result, worker, record_path)
@@ -297,6 +300,8 @@ def status(path: str | Path) -> dict:
     """What a store holds: chunks and runs done, time spent, diverged runs, provenance."""
     store = CampaignStore(path)
     document = store.campaign_document()
+    if document is None:
+        raise ValueError(f"{store.path} holds no campaign.json: not a lookout campaign store")
     ds = store.open()
     done = store.done()
     chunk_runs = int(ds.attrs["chunk_runs"])

@@ -27,15 +27,15 @@ REPORT_TIMES = (1.0, 10.0, 20.0, 50.0)
 class Config(NoiseFreeConfig):
     """Settings of the reproduction; every field has the thesis's value or a stated choice."""
 
-    duration: float = Field(300.0, description="simulated time (s); Fig. 4.3's long run")
-    gain: PositiveFloat = Field(20.0, description="K (1/s)")
-    adaptation_gain: PositiveFloat = Field(10.0, description="Gamma")
-    initial_mass: PositiveFloat = Field(0.1, description="theta_hat(0) (kg)")
-    input_amplitude: float = Field(1.0, description="tau = A sin(w t): A (N m), chosen")
-    input_frequency: PositiveFloat = Field(1.0, description="tau = A sin(w t): w (rad/s), chosen")
-    bounds: tuple[float, float] = Field((0.05, 5.0), description="resetting bounds [l, h] of m (kg), chosen")
-    margin: float = Field(0.01, description="resetting margin mu (kg), chosen")
-    sweep: bool = Field(True, description="the studies: the order against the continuous observer, and the run in which the resets fire")
+    duration: float = Field(default=300.0, description="simulated time (s); Fig. 4.3's long run")
+    gain: PositiveFloat = Field(default=20.0, description="K (1/s)")
+    adaptation_gain: PositiveFloat = Field(default=10.0, description="Gamma")
+    initial_mass: PositiveFloat = Field(default=0.1, description="theta_hat(0) (kg)")
+    input_amplitude: float = Field(default=1.0, description="tau = A sin(w t): A (N m), chosen")
+    input_frequency: PositiveFloat = Field(default=1.0, description="tau = A sin(w t): w (rad/s), chosen")
+    bounds: tuple[float, float] = Field(default=(0.05, 5.0), description="resetting bounds [l, h] of m (kg), chosen")
+    margin: float = Field(default=0.01, description="resetting margin mu (kg), chosen")
+    sweep: bool = Field(default=True, description="the studies: the order against the continuous observer, and the run in which the resets fire")
 
     @field_validator("duration")
     @classmethod

@@ -135,9 +135,9 @@ class Config(NoiseFreeConfig):
     """Settings of the reproduction; every field has the thesis's value or a stated choice.
     The runs are noise-free (quantization only), so ``runs`` must be 1."""
 
-    duration: float = Field(30.0, description="simulated time of I–III (s, figure axes); IV runs min(duration, 20 s)")
-    experiments: tuple[str, ...] = Field(tuple(EXPERIMENTS), description="which experiments to run")
-    plant_step: float = Field(PLANT_STEP, description="plant RK4 step (s), at most 0.25 ms, dividing 7.5 ms")
+    duration: float = Field(default=30.0, description="simulated time of I–III (s, figure axes); IV runs min(duration, 20 s)")
+    experiments: tuple[str, ...] = Field(default=tuple(EXPERIMENTS), description="which experiments to run")
+    plant_step: float = Field(default=PLANT_STEP, description="plant RK4 step (s), at most 0.25 ms, dividing 7.5 ms")
 
     @field_validator("duration")
     @classmethod

@@ -73,13 +73,13 @@ class Config(NoiseFreeConfig):
     # defaults are validated too: a changed plant_step must still divide the default sample_period
     model_config = ConfigDict(validate_default=True)  # merged with Settings: frozen, strict, no unknown keys
 
-    plant_step: PositiveFloat = Field(2e-4, description="RK4 step of plant and estimator (s); Sim 2 is stiff")
-    sample_period: PositiveFloat = Field(1e-2, description="input hold and record period (s)")
-    input_amplitude: float = Field(5.0, description="tau = amplitude sin(frequency t) (N m), chosen")
-    input_frequency: PositiveFloat = Field(1.0, description="rad/s, chosen")
-    filter_pole: PositiveFloat = Field(1.0, description="a of the filter 1/(s + a) (rad/s); the thesis's 1")
-    pe_window: PositiveFloat = Field(5.0, description="T of the persistence-of-excitation check (s)")
-    duration: PositiveFloat = Field(60.0, description="simulated time per run (s)")
+    plant_step: PositiveFloat = Field(default=2e-4, description="RK4 step of plant and estimator (s); Sim 2 is stiff")
+    sample_period: PositiveFloat = Field(default=1e-2, description="input hold and record period (s)")
+    input_amplitude: float = Field(default=5.0, description="tau = amplitude sin(frequency t) (N m), chosen")
+    input_frequency: PositiveFloat = Field(default=1.0, description="rad/s, chosen")
+    filter_pole: PositiveFloat = Field(default=1.0, description="a of the filter 1/(s + a) (rad/s); the thesis's 1")
+    pe_window: PositiveFloat = Field(default=5.0, description="T of the persistence-of-excitation check (s)")
+    duration: PositiveFloat = Field(default=60.0, description="simulated time per run (s)")
 
     @field_validator("input_amplitude")
     @classmethod

@@ -69,17 +69,17 @@ def m11() -> float:
 class Config(RunsConfig):
     """Settings of the reproduction; every field has the paper's value or a stated choice."""
 
-    runs: int = Field(1, description="Monte Carlo runs per gain set (vmapped); run i uses seed + i")
-    seed: int = Field(0, description="PRNG seed of run 0")
-    sample_interval: float = Field(0.1, description="Delta (s), observer and controller sample interval, (65)-(67)")
-    duration: float = Field(1200.0, description="simulated time (s)")
+    runs: int = Field(default=1, description="Monte Carlo runs per gain set (vmapped); run i uses seed + i")
+    seed: int = Field(default=0, description="PRNG seed of run 0")
+    sample_interval: float = Field(default=0.1, description="Delta (s), observer and controller sample interval, (65)-(67)")
+    duration: float = Field(default=1200.0, description="simulated time (s)")
     noise_std: tuple[float, float, float] = (1.0, 1.0, float(np.radians(0.1)))
-    initial_theta: PositiveFloat = Field(0.8, description="theta_hat(0) / m11")
+    initial_theta: PositiveFloat = Field(default=0.8, description="theta_hat(0) / m11")
     theta_bounds: tuple[float, float] = (0.5, 2.0)
-    adaptation_gain: PositiveFloat = Field(1e3, description="Gamma (printed 1e3)")
-    sweep: bool = Field(True, description="run the Delta sweep, the parameter-convergence study and the noise-drift study")
-    sweep_seeds: PositiveCount = Field(2, description="seeds per point of the sweeps")
-    sweep_duration: float = Field(600.0, description="simulated time of each sweep run (s)")
+    adaptation_gain: PositiveFloat = Field(default=1e3, description="Gamma (printed 1e3)")
+    sweep: bool = Field(default=True, description="run the Delta sweep, the parameter-convergence study and the noise-drift study")
+    sweep_seeds: PositiveCount = Field(default=2, description="seeds per point of the sweeps")
+    sweep_duration: float = Field(default=600.0, description="simulated time of each sweep run (s)")
 
     @field_validator("sample_interval")
     @classmethod

@@ -74,10 +74,10 @@ def gain_sets(mass: float = NORTHERN_CLIPPER_MASS, length: float = NORTHERN_CLIP
 class ModelError(Settings):
     """How the plant differs from the observer's and controller's model."""
 
-    mass: float = Field(0.2, description="relative error of M: M_true = (1 + mass) M")
-    damping: float = Field(0.5, description="relative error of D: D_true = (1 + damping) D")
-    force: float = Field(4000.0, description="unmodelled body-fixed force F (N): F [1, 1, 5 m] (1 + sin(2 pi t / period)) / 2")
-    force_period: PositiveFloat = Field(100.0, description="period of the unmodelled force (s)")
+    mass: float = Field(default=0.2, description="relative error of M: M_true = (1 + mass) M")
+    damping: float = Field(default=0.5, description="relative error of D: D_true = (1 + damping) D")
+    force: float = Field(default=4000.0, description="unmodelled body-fixed force F (N): F [1, 1, 5 m] (1 + sin(2 pi t / period)) / 2")
+    force_period: PositiveFloat = Field(default=100.0, description="period of the unmodelled force (s)")
 
     @field_validator("mass", "damping")
     @classmethod
@@ -101,32 +101,32 @@ class ModelError(Settings):
 class Config(RunsConfig):
     """Settings of the reproduction; every field has the paper's value or a stated choice."""
 
-    runs: int = Field(1, description="Monte Carlo runs per observer (vmapped); run i uses seed + i")
-    seed: int = Field(0, description="PRNG seed of run 0")
-    plant_step: PositiveFloat = Field(0.1, description="RK4 step of the plant (s), the paper's 0.1 s")
-    sample_period: PositiveFloat = Field(0.1, description="observer and controller period (s)")
-    measurement_period: PositiveFloat = Field(1.0, description="position and heading fixes (s), as the Fossen & Strand reproduction")
-    duration: PositiveFloat = Field(2600.0, description="simulated time (s)")
-    gains: str = Field("printed", description="observer H3, H4: 'printed' (A.4) or 'kyp' (Fossen & Strand (60) in SI, satisfies (14))")
+    runs: int = Field(default=1, description="Monte Carlo runs per observer (vmapped); run i uses seed + i")
+    seed: int = Field(default=0, description="PRNG seed of run 0")
+    plant_step: PositiveFloat = Field(default=0.1, description="RK4 step of the plant (s), the paper's 0.1 s")
+    sample_period: PositiveFloat = Field(default=0.1, description="observer and controller period (s)")
+    measurement_period: PositiveFloat = Field(default=1.0, description="position and heading fixes (s), as the Fossen & Strand reproduction")
+    duration: PositiveFloat = Field(default=2600.0, description="simulated time (s)")
+    gains: str = Field(default="printed", description="observer H3, H4: 'printed' (A.4) or 'kyp' (Fossen & Strand (60) in SI, satisfies (14))")
     vessel: VesselSettings = Field(
-        VesselSettings(),
+        default=VesselSettings(),
         description="the vessel: the paper's supply ship (Northern Clipper) or your own M and D (thrust limits stay the Northern Clipper's)",
     )
     boundary_layer: tuple[float, float, float] = (5.0, 5.0, float(np.radians(1.0)))
-    integral_gain: float = Field(0.01, description="K_I (1/s); printed 100")
-    position_gain: PositiveFloat = Field(0.1, description="C1 (1/s), (A.5)")
-    velocity_gain: PositiveFloat = Field(0.1, description="C2 (1/s), (A.5)")
-    coupling_gain: PositiveFloat = Field(0.01, description="P1 (1/s^2); 1 is Kim's law as printed")
+    integral_gain: float = Field(default=0.01, description="K_I (1/s); printed 100")
+    position_gain: PositiveFloat = Field(default=0.1, description="C1 (1/s), (A.5)")
+    velocity_gain: PositiveFloat = Field(default=0.1, description="C2 (1/s), (A.5)")
+    coupling_gain: PositiveFloat = Field(default=0.01, description="P1 (1/s^2); 1 is Kim's law as printed")
     damping_weights: tuple[float, float, float, float, float, float] = (1e-3, 1e-3, 1e-3, 1e-2, 1e-2, 1e-2)
-    reference_bandwidth: PositiveFloat = Field(0.03, description="reference filter bandwidth (rad/s)")
+    reference_bandwidth: PositiveFloat = Field(default=0.03, description="reference filter bandwidth (rad/s)")
     model_error: ModelError = ModelError()
     wave_amplitude: tuple[float, float, float] = (10.0, 10.0, float(np.radians(1.0)))
     bias_std: tuple[float, float, float] = (2e3, 2e3, 5e4)
     bias_initial: tuple[float, float, float] = (1e4, 5e3, 1e5)
     noise_std: tuple[float, float, float] = (0.5, 0.5, float(np.radians(0.1)))
-    sweep: bool = Field(True, description="run the model-error sweep of the Fig. 8 claim")
-    sweep_seeds: PositiveCount = Field(2, description="seeds per point of the sweep")
-    sweep_duration: PositiveFloat = Field(1400.0, description="simulated time of each sweep run (s)")
+    sweep: bool = Field(default=True, description="run the model-error sweep of the Fig. 8 claim")
+    sweep_seeds: PositiveCount = Field(default=2, description="seeds per point of the sweep")
+    sweep_duration: PositiveFloat = Field(default=1400.0, description="simulated time of each sweep run (s)")
 
     @field_validator("integral_gain")
     @classmethod

@@ -41,19 +41,19 @@ BASIN_MEASUREMENT_PERIOD = 0.1
 class Config(RunsConfig):
     """Settings of the reproduction; every field has the paper's value or a stated choice."""
 
-    conditions: tuple[str, ...] = Field(CONDITIONS, description="which of simulation, basin-calm, basin-waves to run")
-    runs: int = Field(1, description="runs per condition (vmapped); run i uses seed + i")
-    seed: int = Field(0, description="PRNG seed of run 0")
-    duration: float = Field(714.2, description="simulated time (s); Table 1's simulation horizon")
-    semi_axes: tuple[float, float] = Field((3.5, 1.823), description="ellipse semi-axes a (north), b (east) in m")
-    start_angle: float = Field(0.0, description="theta_0 (rad) of the start on the ellipse")
-    direction: int = Field(1, description="1: yaw rate positive, -1: negative")
-    initial_velocity: str = Field("estimate", description="the printed [0.5, 0.5, -0.5] is v_hat(0) ('estimate') or zeta(0) ('state')")
-    noise_std: tuple[float, float, float] = Field((0.002, 0.002, float(np.radians(0.1))), description="basin measurement noise (m, m, rad)")
-    wave_height: float = Field(0.01, description="significant wave height Hs (m), basin-waves")
-    wave_period: float = Field(0.75, description="JONSWAP mean period T1 (s), basin-waves")
+    conditions: tuple[str, ...] = Field(default=CONDITIONS, description="which of simulation, basin-calm, basin-waves to run")
+    runs: int = Field(default=1, description="runs per condition (vmapped); run i uses seed + i")
+    seed: int = Field(default=0, description="PRNG seed of run 0")
+    duration: float = Field(default=714.2, description="simulated time (s); Table 1's simulation horizon")
+    semi_axes: tuple[float, float] = Field(default=(3.5, 1.823), description="ellipse semi-axes a (north), b (east) in m")
+    start_angle: float = Field(default=0.0, description="theta_0 (rad) of the start on the ellipse")
+    direction: int = Field(default=1, description="1: yaw rate positive, -1: negative")
+    initial_velocity: str = Field(default="estimate", description="the printed [0.5, 0.5, -0.5] is v_hat(0) ('estimate') or zeta(0) ('state')")
+    noise_std: tuple[float, float, float] = Field(default=(0.002, 0.002, float(np.radians(0.1))), description="basin measurement noise (m, m, rad)")
+    wave_height: float = Field(default=0.01, description="significant wave height Hs (m), basin-waves")
+    wave_period: float = Field(default=0.75, description="JONSWAP mean period T1 (s), basin-waves")
     sweep: bool = Field(
-        True,
+        default=True,
         description="sweep the choices the paper leaves open (start, direction, initial velocity, saturation) and run the measurement-hold study",
     )
 

@@ -191,8 +191,10 @@ def scenario_benchmark(path: Path, document: dict, text: str | None) -> Benchmar
     tables = _observer_tables(base, shipped)
     first = _first_composing(tables, own, trial, fail)
     reference = first or own
-    same_model = shipped is not None and _model_parts(reference.document["plant"]) == _model_parts(shipped_plant)
+    assert reference is not None  # _first_composing refuses a file where none composes and it has no observer of its own
+    same_model = shipped is not None and shipped_plant is not None and _model_parts(reference.document["plant"]) == _model_parts(shipped_plant)
     if same_model:  # the shipped tables were chosen for this very model: take them whole
+        assert shipped is not None
         _take_shipped_tables(tables, shipped)
     observers, built, skipped = _observers(merged, own, tables, trial, fail, notes)
 

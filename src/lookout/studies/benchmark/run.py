@@ -54,7 +54,7 @@ def model_pins(document: dict) -> dict[str, dict]:
                 f"{here}: the observer takes its {here.rpartition('.')[2]} from plant {document['plant']['kind']}, which derives it; "
                 f"give a [{here}] table so that a model error does not reach it"
             )
-    return pins
+    return {here: table for here, table in pins.items() if table is not None}  # every one, after the check above
 
 
 def _models_taken(document: dict) -> dict[str, dict | None]:
@@ -70,6 +70,7 @@ def _models_taken(document: dict) -> dict[str, dict | None]:
         for parameter in kind.parameters(table.get("design")):
             if parameter.sort != "part":
                 continue
+            assert parameter.role is not None  # a part names its role
             here = f"{path}.{parameter.name}"
             if parameter.name in table:
                 if isinstance(table[parameter.name], dict):
@@ -542,7 +543,7 @@ def check_resources(prepared: list[Prepared], workers: int | None, scheduler: st
             if client is not None:
                 client.close()
         limits = [w.get("memory_limit") or None for w in info.values()]
-        per_worker, count = (min(limits) if limits and all(limits) else None), max(1, len(info))
+        per_worker, count = (min(limit for limit in limits if limit is not None) if limits and all(limits) else None), max(1, len(info))
     else:
         count = 1 if workers == 0 else workers or os.cpu_count() or 1
         available = _resources.available_memory()

@@ -88,8 +88,8 @@ class Size(BaseModel):
 
     duration: PositiveFloat = Field(description="simulated time of each run (s)")
     seeds: PositiveCount = Field(description="runs per observer and condition (seeds seed .. seed + seeds - 1)")
-    after: float | None = Field(None, description="the metrics over t >= after (s); default half the run")
-    outage_start: float | None = Field(None, description="when an outage condition's outage begins (s)")
+    after: float | None = Field(default=None, description="the metrics over t >= after (s); default half the run")
+    outage_start: float | None = Field(default=None, description="when an outage condition's outage begins (s)")
 
 
 class BenchmarkSpec(BaseModel):
@@ -98,15 +98,15 @@ class BenchmarkSpec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     title: str
-    plugins: tuple[str, ...] = Field((), description="Python files (relative to the spec) or modules that register kinds of their own")
+    plugins: tuple[str, ...] = Field(default=(), description="Python files (relative to the spec) or modules that register kinds of their own")
     scenario: str | dict = Field(description="a scenario file (relative to the spec) or an inline composition (may hold a preset)")
     seed: int = 0
     metrics: tuple[str, ...]
     recommend_by: tuple[str, ...] = Field(
-        (), description="the metrics that lead the recommendation, in order (default: benchmark_report.lead_metrics)"
+        default=(), description="the metrics that lead the recommendation, in order (default: benchmark_report.lead_metrics)"
     )
     divergence: Divergence | None = None
-    outage_signals: tuple[str, ...] = Field((), description="the measured signals an outage condition silences")
+    outage_signals: tuple[str, ...] = Field(default=(), description="the measured signals an outage condition silences")
     full: Size
     quick: Size
     observers: dict[str, dict] = Field(description="name -> an [observer] table")
@@ -249,7 +249,7 @@ def shipped_benchmark(plant: str) -> Benchmark:
 
 def _overridden_keys(scenario: dict) -> list[tuple[tuple, str]]:
     """(location, what sets it) of each key of a scenario that the benchmark replaces."""
-    found = []
+    found: list[tuple[tuple, str]] = []
     simulation = scenario.get("simulation")
     if isinstance(simulation, dict):
         found += [(("simulation", key), BENCHMARK_SIMULATION[key]) for key in simulation if key in BENCHMARK_SIMULATION]
