@@ -33,9 +33,8 @@ def stack_scenarios(scenarios: list[Scenario]) -> Scenario:
             raise ValueError(f"scenarios[{index}] must be a lookout Scenario; got {type(scenario).__name__}")
     first = jax.tree.structure(scenarios[0])
     for index, scenario in enumerate(scenarios[1:], start=1):
-        if jax.tree.structure(scenario) != first or [np.shape(a) for a in jax.tree.leaves(scenario)] != [
-            np.shape(a) for a in jax.tree.leaves(scenarios[0])
-        ]:
+        same_tree = jax.tree.structure(scenario) == first  # type: ignore[operator]  # jaxlib ships no stub for PyTreeDef, so mypy cannot resolve jax.tree.structure's return type
+        if not same_tree or [np.shape(a) for a in jax.tree.leaves(scenario)] != [np.shape(a) for a in jax.tree.leaves(scenarios[0])]:
             raise ValueError(
                 f"scenarios[{index}] differs from scenarios[0] in its structure (periods, durations, component types or sizes): "
                 "stacked scenarios may differ in their numbers only"
@@ -97,7 +96,7 @@ def summarize_batch(scenario: Scenario, keys: Array, summary: Summary, *, batche
         devices when there are several).
     """
     keys = checked_keys(keys)
-    checked_scenario(scenario, keys, batched_scenario)
+    checked_scenario(scenario, int(keys.shape[0]) if batched_scenario else None)
     scenario, keys, carry = _sharded_batch(scenario, keys, batched_scenario)
     return _segment_batch(scenario, keys, carry, jnp.asarray(0), scenario.n_records, batched_scenario, summary)[1]
 
@@ -124,7 +123,7 @@ def simulate_batch(scenario: Scenario, keys: Array, *, batched_scenario: bool = 
         With a leading run axis on every recorded array.
     """
     keys = checked_keys(keys)
-    checked_scenario(scenario, keys, batched_scenario)
+    checked_scenario(scenario, int(keys.shape[0]) if batched_scenario else None)
     check_batch_memory(scenario, int(keys.shape[0]))
     scenario, keys, carry = _sharded_batch(scenario, keys, batched_scenario)
 

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import equinox as eqx
 import jax
@@ -45,7 +45,7 @@ from jax.flatten_util import ravel_pytree
 
 from lookout._math import computed_once
 from lookout._random import standard_normal
-from lookout.components import Plant
+from lookout.components import ContinuousObserver, Plant
 from lookout.results import Trajectory
 from lookout.sim.integrators import INTEGRATORS
 from lookout.sim.memory import check_batch_memory
@@ -179,7 +179,7 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
             return integrate(field, (k * substeps + j) * h, pair, h), None
 
         (state, estimate_state), _ = _static_scan(substep, (state, estimate_state), jnp.arange(substeps), substeps)
-        estimate_state = observer.normalize(estimate_state)
+        estimate_state = cast(ContinuousObserver, observer).normalize(estimate_state)  # Scenario takes "continuous" with a ContinuousObserver only
     return (plant.normalize(state), estimate_state, y, reference_state, control_state, actuator_state), record
 
 

@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax import Array
 
 from lookout._random import MAX_COUNT
 from lookout._validation import FitError, ParameterError, is_concrete, key
@@ -283,9 +282,8 @@ def _check_fit(scenario: Scenario) -> None:
     truth = _evaluate(("plant", "initial_state"), plant.variables, x0)
     _compare("plant", "initial_state", "plant.variables(initial_state)", {k: _shape_of(v) for k, v in truth.items()}, plant.variable_signals)
     derivative = _evaluate(("plant", "initial_state"), lambda x: plant.vector_field(0.0, x, u0, w0), x0)
-    if jax.tree.structure(derivative) != jax.tree.structure(x0) or [_shape_of(a) for a in jax.tree.leaves(derivative)] != [
-        _shape_of(a) for a in jax.tree.leaves(x0)
-    ]:
+    same_tree = jax.tree.structure(derivative) == jax.tree.structure(x0)  # type: ignore[operator]  # jaxlib ships no stub for PyTreeDef, so mypy cannot resolve jax.tree.structure's return type
+    if not same_tree or [_shape_of(a) for a in jax.tree.leaves(derivative)] != [_shape_of(a) for a in jax.tree.leaves(x0)]:
         raise FitError(("plant", "initial_state"), "plant and initial_state disagree: plant.vector_field returns a state shaped unlike initial_state")
 
     check_sensor_fit(sensor, x0)
@@ -305,8 +303,8 @@ def _check_fit(scenario: Scenario) -> None:
 
     state = _evaluate(("observer", "initial_estimate"), observer.init, y, scenario.initial_estimate)
     estimate = _evaluate(("observer", "sensor"), lambda s: observer.output(observer.update(s, 0.0, y), y), state)
-    outputs = tuple(observer.estimate_signals) + tuple(observer.extra_signals)
-    _compare("observer", "its signals", "observer.output", {k: _shape_of(v) for k, v in estimate.items()}, outputs)
+    signals = tuple(observer.estimate_signals) + tuple(observer.extra_signals)
+    _compare("observer", "its signals", "observer.output", {k: _shape_of(v) for k, v in estimate.items()}, signals)
     plant_signals = {s.name: s for s in plant.variable_signals}
     for signal in observer.estimate_signals:
         truth_signal = plant_signals.get(signal.name)
@@ -329,8 +327,9 @@ def _check_fit(scenario: Scenario) -> None:
             )
     predicted = _evaluate(("observer", "plant"), lambda s: observer.predict(s, 0.0, y, u0, scenario.sample_period), state)
     if scenario.observer_mode == "continuous":
-        _evaluate(("observer", "observer_mode 'continuous'"), lambda s: observer.vector_field(0.0, s, y, u0), state)
-    if jax.tree.structure(predicted) != jax.tree.structure(state):
+        continuous = cast(ContinuousObserver, observer)  # Scenario takes "continuous" with a ContinuousObserver only
+        _evaluate(("observer", "observer_mode 'continuous'"), lambda s: continuous.vector_field(0.0, s, y, u0), state)
+    if jax.tree.structure(predicted) != jax.tree.structure(state):  # type: ignore[operator]  # jaxlib ships no stub for PyTreeDef, so mypy cannot resolve jax.tree.structure's return type
         raise FitError(("observer", "plant"), "observer and plant disagree: observer.predict returns a state shaped unlike observer.init's")
 
     reference = scenario.reference
@@ -344,8 +343,8 @@ def _check_fit(scenario: Scenario) -> None:
     _check_needs(controller, "estimate", controller.estimate_needs, set(estimate), ("observer", observer, "does not provide"))
     _check_needs(controller, "measurement", controller.measurement_needs, measured, ("sensor", sensor, "does not measure"))
     _check_needs(controller, "reference", controller.reference_needs, set(sample), ("reference", reference, "does not provide"))
-    outputs = {k: jnp.zeros(_shape_of(v)) for k, v in estimate.items()}
-    _, u = _evaluate(("controller", "plant"), lambda: controller.step(controller.init(), 0.0, y, outputs, sample, scenario.sample_period))
+    zero_estimate = {k: jnp.zeros(_shape_of(v)) for k, v in estimate.items()}
+    _, u = _evaluate(("controller", "plant"), lambda: controller.step(controller.init(), 0.0, y, zero_estimate, sample, scenario.sample_period))
     if _shape_of(u) != (layout.size,):
         raise FitError(
             ("controller", "plant"),
@@ -384,15 +383,16 @@ def _check_needs(controller, what: str, needs, provided: set, provider: tuple) -
             )
 
 
-def checked_scenario(scenario, keys: Array | None = None, batched_scenario: bool = False) -> None:
-    """Refuse, in one line, a scenario that is not one, a batched scenario whose run axis
-    is not the keys', and a scenario stacked per run given without ``batched_scenario``."""
+def checked_scenario(scenario, batched_runs: int | None = None) -> None:
+    """Refuse, in one line, a scenario that is not one, a scenario batched over
+    ``batched_runs`` runs (one per key; None: a scenario every run shares) whose arrays do
+    not all lead with that run axis, and a scenario stacked per run given as a shared one."""
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario must be a lookout Scenario (lookout.sim.Scenario, or a paper's build(config)); got {type(scenario).__name__}")
     arrays = [leaf for leaf in jax.tree.leaves(eqx.filter(scenario, eqx.is_array))]
     leading = {int(leaf.shape[0]) if leaf.ndim else None for leaf in arrays}
-    if batched_scenario:
-        runs = int(keys.shape[0])
+    if batched_runs is not None:
+        runs = batched_runs
         if leading != {runs}:
             shown = ", ".join("scalars" if size is None else str(size) for size in sorted(leading, key=lambda size: -1 if size is None else size))
             raise ValueError(
