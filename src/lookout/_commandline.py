@@ -193,7 +193,7 @@ def check_memory(
     that grows with the runs exists yet when this runs.
     """
     from lookout.sim import record_nbytes, working_nbytes
-    from lookout.sim.engine import RECORD_OVERHEAD_BYTES
+    from lookout.sim.memory import RECORD_OVERHEAD_BYTES
 
     def need_of(pair):
         scenario, count = pair

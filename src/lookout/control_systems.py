@@ -373,10 +373,10 @@ def _check_deterministic(plant: Plant) -> None:
 
 def _check_sensor_fit(plant: Plant, sensor: Sensor, template) -> None:
     """Refuse a sensor that does not measure the plant, naming both (the fit check of a
-    scenario, :func:`lookout.sim.engine.check_sensor_fit`)."""
+    scenario, :func:`lookout.sim.scenario.check_sensor_fit`)."""
     from lookout._validation import FitError
     from lookout.scenario.registry import plugin_frame
-    from lookout.sim.engine import check_sensor_fit
+    from lookout.sim.scenario import check_sensor_fit
 
     try:
         check_sensor_fit(sensor, template)

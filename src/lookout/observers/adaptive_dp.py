@@ -51,7 +51,7 @@ Choices (where the paper is silent)
   taken as exact. There is no bias estimate: the model (2) has none, so a plant
   bias J^T b acts as an unmodelled force. The stiffness term uses the heading
   through ``ssa`` (as :class:`~lookout.models.vessel.DPVessel` does).
-* Time indices in the engine (:mod:`lookout.sim.engine`): ``predict(S, t_{i-1},
+* Time indices in the engine (:mod:`lookout.sim.loop`): ``predict(S, t_{i-1},
   y_{i-1}, tau_{i-1}, Delta)`` computes every term of (65)–(67) that uses (i-1)
   values (eta_hat(i); (I - Delta K2) nu_hat + Delta xi; Gamma phi^T Delta nu_hat)
   and stores eta(i-1) (whose heading gives J(i-1)) and phi(i-1); ``update(S, t_i,

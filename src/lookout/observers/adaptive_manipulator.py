@@ -34,7 +34,7 @@ A reset never increases V = 1/2 (x1~^T M x1~ + theta~^T Gamma^-1 theta~): at the
 bound it changes V by -(2 (theta_i - l_i) + mu_i) mu_i / gamma_i <= 0 (the thesis's
 (4.48) prints -mu where the algebra gives +mu). The observer counts the resets.
 
-Engine time indices (:mod:`lookout.sim.engine`): ``predict(S, t_{i-1}, q(i-1), tau(i-1),
+Engine time indices (:mod:`lookout.sim.loop`): ``predict(S, t_{i-1}, q(i-1), tau(i-1),
 Delta)`` evaluates psi(i-1), phi(i-1) and stores the parts of (4.34)–(4.35) that do not
 need q(i); ``update(S, t_i, q(i))`` adds the measured increment and resets. At t_0 the
 stored increment is zero, so the estimate at t_0 is the guess (reset if outside).

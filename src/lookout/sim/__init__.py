@@ -13,21 +13,21 @@ optionally, over the scenario's arrays). :func:`filter` runs an observer over a
 recorded log in the same order, :class:`Stepper` one sample at a time.
 """
 
-from .engine import MAX_SEED as MAX_SEED
-from .engine import Scenario as Scenario
-from .engine import Summary as Summary
-from .engine import check_batch_memory as check_batch_memory
-from .engine import check_fit as check_fit
-from .engine import integer_ratio as integer_ratio
-from .engine import keys_of_seeds as keys_of_seeds
-from .engine import record_nbytes as record_nbytes
-from .engine import seed_keys as seed_keys
-from .engine import simulate as simulate
-from .engine import simulate_batch as simulate_batch
-from .engine import stack_scenarios as stack_scenarios
-from .engine import summarize_batch as summarize_batch
-from .engine import working_nbytes as working_nbytes
+from .batch import simulate_batch as simulate_batch
+from .batch import stack_scenarios as stack_scenarios
+from .batch import summarize_batch as summarize_batch
 from .filtering import Stepper as Stepper
 from .filtering import filter as filter  # noqa: A004
 from .integrators import euler_step as euler_step
 from .integrators import rk4_step as rk4_step
+from .loop import Summary as Summary
+from .loop import simulate as simulate
+from .memory import check_batch_memory as check_batch_memory
+from .memory import record_nbytes as record_nbytes
+from .memory import working_nbytes as working_nbytes
+from .scenario import Scenario as Scenario
+from .scenario import check_fit as check_fit
+from .scenario import integer_ratio as integer_ratio
+from .seeds import MAX_SEED as MAX_SEED
+from .seeds import keys_of_seeds as keys_of_seeds
+from .seeds import seed_keys as seed_keys

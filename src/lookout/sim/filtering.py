@@ -66,16 +66,17 @@ def checked_guess(observer: Observer, guess):
         return expected
     given_leaves, given_tree = jax.tree.flatten(guess)
     expected_leaves, expected_tree = jax.tree.flatten(expected)
-    if given_tree != expected_tree:
+    if given_tree != expected_tree:  # type: ignore[operator]  # jaxlib ships no stub for PyTreeDef, so mypy cannot resolve jax.tree.flatten's treedef type
         raise ValueError(f"guess must be shaped like observer.guess() ({_describe(expected)}); got {_describe(guess)}")
     for (path, given), wanted in zip(jax.tree_util.tree_flatten_with_path(guess)[0], expected_leaves):
         name = "guess" + jax.tree_util.keystr(path)
+        shape = np.shape(wanted)
         try:
-            shape = np.broadcast_shapes(np.shape(given), np.shape(wanted))
+            broadcast: tuple[int, ...] | None = np.broadcast_shapes(np.shape(given), shape)
         except ValueError:
-            shape = None
-        if shape != np.shape(wanted):
-            raise ValueError(f"{name} must have shape {np.shape(wanted)} (as in observer.guess()); got shape {np.shape(given)}")
+            broadcast = None
+        if broadcast != shape:
+            raise ValueError(f"{name} must have shape {shape} (as in observer.guess()); got shape {np.shape(given)}")
         values = np.broadcast_to(real_array(name, given), shape)
         left_to_measurement = np.isnan(np.broadcast_to(np.asarray(wanted, dtype=float), shape))
         if not np.all(np.isfinite(values) | (np.isnan(values) & left_to_measurement)):
@@ -398,6 +399,7 @@ class Stepper:
             healthy = jnp.all(jnp.isfinite(state)) & jnp.all(jnp.isfinite(jnp.concatenate(estimates) if estimates else flat_estimate))
             return state, jnp.concatenate([flat_estimate, healthy[None].astype(flat_estimate.dtype)])
 
+        self._advance_step = advance
         self._advance = jax.jit(advance)
         self._unravel_state = unravel_state
         self._flat_state = flat_state
@@ -571,7 +573,7 @@ class Stepper:
         valid = np.arange(size) < n
         packed = np.concatenate([packed, np.repeat(packed[-1:], size - n, axis=0)])
         if not hasattr(self, "_scan"):
-            advance = self._advance.__wrapped__
+            advance = self._advance_step
 
             def scan(flat, rows, valid):
                 def body(state, row_valid):

@@ -649,7 +649,7 @@ def compute_chunk(canonical: str, point: int, seeds: tuple[int, ...]) -> dict[st
 
     from lookout.scenario import metrics as metric_module
     from lookout.sim import keys_of_seeds, simulate_batch
-    from lookout.sim.engine import structure_key
+    from lookout.sim.scenario import structure_key
 
     start = time.perf_counter()
     campaign = _campaign(canonical)

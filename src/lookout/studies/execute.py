@@ -86,7 +86,7 @@ def chunk_memory(campaign: Campaign) -> float:
     """Bytes one chunk needs on its worker: what its runs hold per record while they
     are reduced, what the scan holds per record whatever the runs (times, indices,
     windows), and the runtime; for the longest run of the sweep."""
-    from lookout.sim.engine import RECORD_OVERHEAD_BYTES
+    from lookout.sim.memory import RECORD_OVERHEAD_BYTES
     from lookout.studies.campaign import _point_scenario
 
     scenario = _point_scenario(campaign.canonical(), 0)
@@ -102,7 +102,7 @@ def check_memory(campaign: Campaign, available: float | None, workers: int) -> f
     need = chunk_memory(campaign)
     if available is not None and need > available:
         from lookout.sim import working_nbytes
-        from lookout.sim.engine import RECORD_OVERHEAD_BYTES
+        from lookout.sim.memory import RECORD_OVERHEAD_BYTES
         from lookout.studies.campaign import _point_scenario
 
         scenario = _point_scenario(campaign.canonical(), 0)
