@@ -13,6 +13,7 @@ import struct
 from decimal import Decimal, localcontext
 
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
@@ -255,7 +256,7 @@ def rotation(psi: Array) -> Array:
     return jnp.stack([jnp.stack([c, -s, zero]), jnp.stack([s, c, zero]), jnp.stack([zero, zero, one])])
 
 
-def rotate(psi: Array, vector: Array) -> Array:
+def rotate(psi: Array, vector: Array | np.ndarray) -> Array:
     """J(psi) @ vector, written out with cos/sin (cheaper than a 3x3 product under vmap).
 
     Parameters
@@ -274,7 +275,7 @@ def rotate(psi: Array, vector: Array) -> Array:
     return jnp.stack([c * vector[0] - s * vector[1], s * vector[0] + c * vector[1], vector[2]])
 
 
-def rotate_transpose(psi: Array, vector: Array) -> Array:
+def rotate_transpose(psi: Array, vector: Array | np.ndarray) -> Array:
     """J(psi)^T @ vector: an Earth-fixed vector decomposed in body axes.
 
     Parameters

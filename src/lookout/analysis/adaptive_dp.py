@@ -71,6 +71,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -539,7 +540,7 @@ def noise_drift_rate(*, K1, K2, d, gamma: float, noise_std: float, interval: flo
 # -- the report ------------------------------------------------------------------------
 
 
-def _calugi_summary(bounds: ModelBounds, gains: dict, quantities: dict) -> list[str]:
+def _calugi_summary(bounds: ModelBounds, gains: dict, quantities: Mapping) -> list[str]:
     """The model's worst-case constants and the gains, as lines under the report's title."""
     if bounds.theta_bounds is None:
         theta = f"{', '.join(bounds.unknown)} known"

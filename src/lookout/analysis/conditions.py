@@ -227,7 +227,7 @@ class Inequality:
         return f"{self.name}: {self.relation}: {left} {self.comparison} {right}{units}: {self.verdict}, margin {number(self.margin, 3)}{ratio}"
 
 
-def _reason(verdict: Verdict, inequalities: tuple[Inequality, ...]) -> str:
+def _reason(verdict: Verdict, inequalities: Sequence[Inequality]) -> str:
     """The reason a condition gives when none is stated: which inequalities decide it."""
     if not inequalities:
         return "nothing was checked"
@@ -252,12 +252,12 @@ class Condition:
         What it asks, in a few words.
     source : str
         Paper and equation.
-    inequalities : tuple of Inequality
-        The inequalities that decide the verdict.
+    inequalities : sequence of Inequality
+        The inequalities that decide the verdict (stored as a tuple).
     reason : str
         One line: why the verdict is what it is; by default the inequalities that
         decide it.
-    informational : tuple of Inequality
+    informational : sequence of Inequality
         Inequalities reported alongside that do not enter the verdict (a tighter
         variant, a margin worth seeing).
     quantities : mapping
@@ -268,9 +268,9 @@ class Condition:
     name: str
     title: str
     source: str
-    inequalities: tuple[Inequality, ...]
+    inequalities: Sequence[Inequality]
     reason: str = ""
-    informational: tuple[Inequality, ...] = ()
+    informational: Sequence[Inequality] = ()
     quantities: Mapping = field(default_factory=dict)
 
     def __post_init__(self):

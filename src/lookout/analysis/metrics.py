@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import xarray as xr
 
@@ -50,7 +52,7 @@ def earth_frame_velocity(heading, velocity) -> np.ndarray:
 def rms_over(errors: xr.Dataset, start: float) -> xr.Dataset:
     """RMS of each error over time >= ``start`` (s)."""
     window = errors.sel(time=errors.time >= start)
-    return np.sqrt((window**2).mean("time"))
+    return cast(xr.Dataset, np.sqrt((window**2).mean("time")))  # numpy ufuncs return a Dataset for a Dataset; numpy's stubs say ndarray
 
 
 def settling_time(error, time, final_rms, *, tolerance: float = 0.10):

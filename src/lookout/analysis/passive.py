@@ -20,6 +20,7 @@ The observer is GES (Theorem 1) when each h is strictly positive real.
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -31,7 +32,7 @@ from lookout.models.vessel import DOF
 from lookout.observers.passive import PassiveObserver
 
 
-def _gains(observer: PassiveObserver) -> dict[str, np.ndarray]:
+def _gains(observer: PassiveObserver) -> dict[str, Any]:
     k = np.asarray(observer.wave_injection_gain)
     return {
         "w0": np.asarray(observer.wave_frequency),
@@ -125,10 +126,10 @@ def characteristic_frequencies(observer: PassiveObserver) -> dict[str, np.ndarra
 def default_frequencies(observer: PassiveObserver, points: int = 400, decades: float = 2.0) -> np.ndarray:
     """Log-spaced grid from ``decades`` below the slowest to above the fastest
     time scale of the error loops (their poles and the frequencies of eq. 48)."""
-    scales = list(characteristic_frequencies(observer).values())
+    parts = list(characteristic_frequencies(observer).values())
     for dof in range(3):
-        scales.append(np.abs(np.linalg.eigvals(error_loop(observer, dof)[0])))
-    scales = np.concatenate([np.ravel(value) for value in scales])
+        parts.append(np.abs(np.linalg.eigvals(error_loop(observer, dof)[0])))
+    scales = np.concatenate([np.ravel(value) for value in parts])
     scales = scales[np.isfinite(scales) & (scales > 0)]
     low, high = np.log10(scales.min()) - decades, np.log10(scales.max()) + decades
     return np.logspace(low, high, points)
@@ -172,7 +173,7 @@ def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Datase
     translation = [index for index, dof in enumerate(DOF) if dof not in ROTATION_DOF]
     (yaw,) = [index for index, dof in enumerate(DOF) if dof in ROTATION_DOF]
     kappa = np.asarray(observer.velocity_injection_gain, dtype=float)
-    data = {}
+    data: dict[str, tuple[tuple[str, ...], Any, dict[str, str]]] = {}
     for name, value in responses.items():
         magnitude = np.abs(value)
         long_name = f"|{name}(jw)|"
@@ -351,6 +352,8 @@ def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[Condition]
             reason = f"Re h(jw) = {real[j]:.3g} <= 0 at w = {w[j]:.4g} rad/s (phase {phase[j]:.2f} deg)"
         elif not limit_positive.holds:
             reason = f"lim w^2 Re h(jw) = -CAB = {limit:.3g} <= 0"
+        elif certificate is None:
+            raise AssertionError("the frequency-domain conditions hold, so a certificate was computed")
         elif certificate["verified"]:
             reason = "frequency-domain conditions hold and the KYP certificate is verified"
         else:

@@ -46,6 +46,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 import scipy.integrate
@@ -337,7 +338,7 @@ def kyp_14(observer, *, frequencies=None) -> Condition:
     per_dof = check_spr(passive, frequencies=frequencies)
     inequalities = [item for r in per_dof for item in r.inequalities]
     informational = [item for r in per_dof for item in r.informational]
-    quantities = {
+    quantities: dict[str, Any] = {
         "P": None,
         "Q": None,
         "residual_lyapunov": None,
@@ -411,7 +412,7 @@ def _loop_numbers(passive: PassiveObserver) -> tuple:
 
 
 #: :func:`_refusal` per set of gains (:func:`_loop_numbers`): a sweep builds the same observer many times.
-_REFUSALS: dict[tuple, str] = {}
+_REFUSALS: dict[tuple, tuple[str, str]] = {}
 
 
 def _refusal(passive: PassiveObserver) -> tuple[str, str]:
@@ -569,14 +570,14 @@ def peak_to_peak_gains(mass, damping, *, method: str = "quad", decay_lengths: fl
 
             cuts = [0.0]
             signs = np.sign(sampled)
-            for m in np.flatnonzero(signs[:-1] * signs[1:] < 0):
-                cuts.append(scipy.optimize.brentq(entry, grid[m], grid[m + 1], xtol=1e-14 * horizon))
+            for crossing in np.flatnonzero(signs[:-1] * signs[1:] < 0):
+                cuts.append(scipy.optimize.brentq(entry, grid[crossing], grid[crossing + 1], xtol=1e-14 * horizon))
             cuts.append(horizon)
-            total = 0.0
+            integral = 0.0
             for a, b in zip(cuts[:-1], cuts[1:]):
                 value, _ = scipy.integrate.quad(entry, a, b, limit=200, epsabs=0.0, epsrel=1e-11)
-                total += abs(value)
-            out[j, k] = total
+                integral += abs(value)
+            out[j, k] = integral
     return out
 
 

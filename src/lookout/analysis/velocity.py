@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -290,7 +291,7 @@ def velocity_observer_condition(
     threshold = 3.0 * c_max * w_max / low
     radius = math.inf if c_max == 0.0 else low * effective / c_max - 2.0 * w_max
     error = None if initial_error is None else float(initial_error)
-    numbers = {
+    numbers: dict[str, Any] = {
         "gain_bound": sigma,
         "friction_bound": phi,
         "effective_gain": effective,
