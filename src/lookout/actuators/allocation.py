@@ -85,7 +85,7 @@ the limits (force, rate, turning) kept the allocation from producing tau.
 from __future__ import annotations
 
 import math
-from typing import Literal, NamedTuple, final
+from typing import Literal, NamedTuple, cast, final
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -130,6 +130,18 @@ DEFAULT_STEERING_LOAD = 0.05
 #: a turn of 180 degrees at the turning rate (measured against 20 % on
 #: examples/thrusters-dp.toml: half the turning for a tenth more power; docs/thrusters.md).
 DEFAULT_STEERING_BIAS = 0.3
+
+
+class _QPTerms(NamedTuple):
+    """The arrays of allocation ``"qp"`` (see :class:`Allocator`), none of them None."""
+
+    slack_weights: Array | np.ndarray
+    P: Array | np.ndarray
+    target_matrix: Array | np.ndarray
+    steering_time_constant: Array | np.ndarray
+    steering_deadband: Array | np.ndarray
+    steering_load: Array | np.ndarray
+    bias: Array | np.ndarray
 
 
 class _Indices(NamedTuple):
@@ -262,19 +274,20 @@ class Allocator(eqx.Module):
     """
 
     layout: ThrusterLayout
-    B: Array  # scaled: tau / force_scale = B (u / scale)
-    scale: Array  # each variable's largest magnitude (N)
-    force_scale: Array
-    weights: Array
-    pseudo_inverse_matrix: Array
-    reach: Array  # (2, 3) scaled: the smallest and largest of each axis alone
-    slack_weights: Array | None
-    P: Array | None
-    target_matrix: Array | None  # the QP's target from the scaled tau (see the module docstring)
-    steering_time_constant: Array | None
-    steering_deadband: Array | None
-    steering_load: Array | None
-    bias: Array | None  # u_b, scaled
+    # NumPy arrays when built, JAX arrays once traced
+    B: Array | np.ndarray  # scaled: tau / force_scale = B (u / scale)
+    scale: Array | np.ndarray  # each variable's largest magnitude (N)
+    force_scale: Array | np.ndarray
+    weights: Array | np.ndarray
+    pseudo_inverse_matrix: Array | np.ndarray
+    reach: Array | np.ndarray  # (2, 3) scaled: the smallest and largest of each axis alone
+    slack_weights: Array | np.ndarray | None
+    P: Array | np.ndarray | None
+    target_matrix: Array | np.ndarray | None  # the QP's target from the scaled tau (see the module docstring)
+    steering_time_constant: Array | np.ndarray | None
+    steering_deadband: Array | np.ndarray | None
+    steering_load: Array | np.ndarray | None
+    bias: Array | np.ndarray | None  # u_b, scaled
     method: str = eqx.field(static=True)
     clip_to_reach: bool = eqx.field(static=True)
     solver: str | None = eqx.field(static=True)
@@ -375,6 +388,16 @@ class Allocator(eqx.Module):
         """The extended variables' indices by kind of thruster (static NumPy arrays)."""
         return _indices(self.layout)
 
+    def _qp_terms(self) -> _QPTerms:
+        """The arrays that allocation ``"qp"`` sets (``"pseudo-inverse"`` leaves them None)."""
+        slack, P, target_matrix, bias = self.slack_weights, self.P, self.target_matrix, self.bias
+        time_constant, deadband, load = self.steering_time_constant, self.steering_deadband, self.steering_load
+        if slack is None or P is None or target_matrix is None or bias is None or time_constant is None or deadband is None or load is None:
+            raise check.ParameterError(
+                "allocation", f"the QP's terms and the azimuth steering belong to allocation 'qp'; this allocation is {self.method!r}"
+            )
+        return _QPTerms(slack, P, target_matrix, time_constant, deadband, load, bias)
+
     @property
     def working_nbytes(self) -> int:
         """Bytes one run's allocation holds while stepping (:func:`working_nbytes`)."""
@@ -396,19 +419,19 @@ class Allocator(eqx.Module):
         The returned angle is each azimuth's angle at the end of the sample (within
         turn_rate dt of ``angle``); the other thrusters' entries are ``angle``'s. A
         non-finite tau leaves the demand as it was."""
-        layout, index = self.layout, self.indices
+        layout, index, qp = self.layout, self.indices, self._qp_terms()
         _, target = self.target(tau)
-        time_constant = self.steering_time_constant
+        time_constant = qp.steering_time_constant
         gain = jnp.where(time_constant > 0, -jnp.expm1(-dt / jnp.where(time_constant > 0, time_constant, 1.0)), 1.0)
         demand = jnp.where(jnp.all(jnp.isfinite(target)), demand + gain * (target - demand), demand)
         if index.azimuth.size == 0:
             return demand, angle, turning
-        wished = self.pseudo_inverse_matrix @ demand + self.bias  # scaled: an azimuth's force as a fraction of its largest
+        wished = self.pseudo_inverse_matrix @ demand + qp.bias  # scaled: an azimuth's force as a fraction of its largest
         fx, fy = wished[index.azimuth_x], wished[index.azimuth_y]
         current = angle[index.azimuth]
         error = ssa(direction_of(fx, fy, current) - current)
         reachable = jnp.asarray(layout.turn_rate[index.azimuth]) * dt
-        turn = (magnitude(fx, fy) > self.steering_load) & (turning[index.azimuth] | (jnp.abs(error) > self.steering_deadband))
+        turn = (magnitude(fx, fy) > qp.steering_load) & (turning[index.azimuth] | (jnp.abs(error) > qp.steering_deadband))
         steered = jnp.where(turn, ssa(current + jnp.clip(error, -reachable, reachable)), current)
         return demand, angle.at[index.azimuth].set(steered), turning.at[index.azimuth].set(turn & (jnp.abs(error) > reachable))
 
@@ -520,23 +543,25 @@ class Allocator(eqx.Module):
         constrained). A non-finite ``tau`` gives a NaN command.
         """
         wanted, target = self.target(tau)
-        unconstrained = self.pseudo_inverse_matrix @ target
-        if self.method == "qp":
-            unconstrained = unconstrained + self.bias
+        # an Array: a NumPy matrix defers to the Array's __rmatmul__ (numpy's stubs say ndarray)
+        unconstrained = cast(Array, self.pseudo_inverse_matrix @ target)
+        qp = self._qp_terms() if self.method == "qp" else None
+        if qp is not None:
+            unconstrained = unconstrained + qp.bias
         active = jnp.full(self.size, -1)
-        if self.method == "pseudo-inverse":
+        if qp is None:
             u = self._saturate(unconstrained, previous, dt)
             constrained = jnp.any(jnp.abs(u - unconstrained) > 1e-12)
             iterations, converged = jnp.asarray(0), jnp.asarray(True)
         else:
             G, h, start = self.constraints(previous, angle, dt)
             constrained = ~jnp.all(G @ unconstrained <= h + 1e-12)
-            q = -(self.B.T @ (self.slack_weights * (self.target_matrix @ target))) - self.weights * self.bias
+            q = -(self.B.T @ (qp.slack_weights * (qp.target_matrix @ target))) - self.weights * qp.bias
             if self.solver == "qpax":
-                solved, iterations, converged = _qpax(self.P, q, G, h, self.indices.azimuth.size)
+                solved, iterations, converged = _qpax(qp.P, q, G, h, self.indices.azimuth.size)
             else:
                 solved, found, iterations, converged = active_set(
-                    self.P, q, G, h, start, max_iterations=G.shape[0] + self.size, needed=constrained, warm=working
+                    qp.P, q, G, h, start, max_iterations=G.shape[0] + self.size, needed=constrained, warm=working
                 )
                 active = jnp.where(constrained, found, active)
             u = jnp.where(constrained, solved, unconstrained)

@@ -18,6 +18,7 @@ from lookout.null_components import IdealActuator as IdealActuator  # defined be
 
 def _limit_vector(limit, size: int | None):
     """``limit`` as a float vector (a scalar broadcast to ``size``), shape checked."""
+    array: Array | np.ndarray
     if check.is_concrete(limit):
         array = np.asarray(limit, dtype=float)
     else:

@@ -208,8 +208,8 @@ class ThrusterSystem(Actuator):
             layout, allocation, slack_weight, clip_to_reach, solver, steering_time_constant, steering_deadband, steering_load, steering_bias
         )
 
-    @property
-    def output_signals(self) -> tuple[Signal, ...]:
+    @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
+    def output_signals(self) -> tuple[Signal, ...]:  # type: ignore[override]  # (read-only: the signals follow from the layout)
         names = self.layout.names
         return (
             _thruster_signal("thrust", "N", "delivered thrust", names),
