@@ -74,7 +74,7 @@ from lookout import _validation as check
 from lookout._math import rotate, rotate_transpose, rotation, ssa
 from lookout.components import Controller
 from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Value, component
-from lookout.observers.adaptive_dp import AdaptiveObserver
+from lookout.observers.adaptive_dp import AdaptiveObserver, InertiaParametrization
 from lookout.observers.wave_filtering import WaveFilteringObserver
 
 #: The estimate a DP controller reads: eta_hat and nu_hat.
@@ -83,9 +83,9 @@ VESSEL_ESTIMATE = ("position", "heading", "velocity", "yaw_rate")
 VESSEL_REFERENCE = tuple(f"{name}_desired{suffix}" for suffix in ("", "_rate", "_acceleration") for name in ("position", "heading"))
 
 
-def _vector(estimate: dict, name: str) -> Array:
+def _vector(estimate: dict, names: tuple[str, str]) -> Array:
     """``position``/``heading``-style pairs joined into a 3-vector."""
-    first, second = name
+    first, second = names
     return jnp.concatenate([jnp.asarray(estimate[first]), jnp.asarray(estimate[second])[None]])
 
 
@@ -386,7 +386,7 @@ class VectorialBackstepping(Controller):
         P1 (1/s^2), 1 as printed.
     """
 
-    parametrization: eqx.Module
+    parametrization: InertiaParametrization
     observer_position_gain: Array
     observer_velocity_gain: Array
     position_gain: Array
