@@ -37,7 +37,7 @@ for the C* above; both give the same C*(psi, x) x (see :meth:`Cybership.christof
 
 from __future__ import annotations
 
-from typing import ClassVar, final
+from typing import ClassVar, Protocol, final
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -277,6 +277,16 @@ class CybershipState(eqx.Module):
         }
 
 
+class _Waves(Protocol):
+    """What :class:`CybershipPlant` asks of its waves (:class:`lookout.environment.JonswapWaves` has it)."""
+
+    def motion(self, t, position) -> Array: ...
+
+    def rate(self, t, position, velocity) -> Array: ...
+
+    def realize(self, key: Array) -> _Waves: ...
+
+
 @component(
     "plant",
     "cybership-ii",
@@ -316,7 +326,7 @@ class CybershipPlant(Plant):
     divergence: ClassVar[DivergenceBound] = DivergenceBound("position", 5.0)
 
     ship: Cybership
-    waves: eqx.Module | None
+    waves: _Waves | None
     wave_ramp: float = eqx.field(static=True)
     noise_size: int = eqx.field(static=True, default=0, kw_only=True)
     input_layout: Layout = eqx.field(static=True, default=VESSEL_INPUT, kw_only=True)

@@ -33,6 +33,7 @@ Two kinds of parameter set:
 # refuses them as strings (a stringified one would silently become an ordinary field)
 
 import abc
+import operator
 import re
 from typing import final
 
@@ -220,9 +221,9 @@ class ModelParameters(AffineParameters):
         for k, entry in enumerate(self.names):
             name, index = _parse_field(entry)
             if index is None:
-                model = eqx.tree_at(lambda m, name=name: getattr(m, name), model, theta[k])
+                model = eqx.tree_at(operator.attrgetter(name), model, theta[k])
             else:
-                model = eqx.tree_at(lambda m, name=name: getattr(m, name), model, getattr(model, name).at[index].set(theta[k]))
+                model = eqx.tree_at(operator.attrgetter(name), model, getattr(model, name).at[index].set(theta[k]))
         return model
 
 
@@ -244,7 +245,7 @@ class PendulumInertia(AffineParameters):
         The pendulum whose m l^2 and m l are the unknowns (in a composition, the plant's unless given).
     """
 
-    base: FreePendulum
+    base: FreePendulum  # type: ignore[misc]  # follows the inherited names and units, which have defaults here; __init__ is the class's own
     reference: Array
     names: tuple[str, ...] = eqx.field(static=True, default=("inertia", "moment"))
     units: tuple[str, ...] = eqx.field(static=True, default=("kg m2", "kg m"))
