@@ -57,15 +57,16 @@ _BOWRING_TOLERANCE = 1e-15
 _BOWRING_MAX_STEPS = 10
 
 
-def _checked(name: str, value, low: float | None = None, high: float | None = None, high_open: bool = False, unit: str = "") -> np.ndarray:
+def _checked(name: str, value, bounds: tuple[float, float] | None = None, high_open: bool = False, unit: str = "") -> np.ndarray:
     """``value`` as a float64 array, or a one-line ValueError naming ``name``.
 
-    Without bounds the entries must be finite; with them they must also lie in
-    ``[low, high]`` (``[low, high)`` with ``high_open``).
+    Without ``bounds`` the entries must be finite; with ``bounds = (low, high)`` they
+    must also lie in ``[low, high]`` (``[low, high)`` with ``high_open``).
     """
-    if low is None:
+    if bounds is None:
         condition = "finite"
     else:
+        low, high = bounds
         closing = ")" if high_open else "]"
         condition = f"finite and within [{low:g}, {high:g}{closing}{' ' + unit if unit else ''}"
     try:
@@ -76,7 +77,8 @@ def _checked(name: str, value, low: float | None = None, high: float | None = No
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a real number or array of them, {condition}; got {value!r}") from None
     bad = ~np.isfinite(array)
-    if low is not None:
+    if bounds is not None:
+        low, high = bounds
         with np.errstate(invalid="ignore"):
             bad |= (array < low) | ((array >= high) if high_open else (array > high))
     if np.any(bad):
@@ -91,11 +93,11 @@ def _checked(name: str, value, low: float | None = None, high: float | None = No
 
 
 def _latitude(name: str, value) -> np.ndarray:
-    return _checked(name, value, -90.0, 90.0, unit="degrees")
+    return _checked(name, value, (-90.0, 90.0), unit="degrees")
 
 
 def _longitude(name: str, value) -> np.ndarray:
-    return _checked(name, value, -180.0, 360.0, high_open=True, unit="degrees")
+    return _checked(name, value, (-180.0, 360.0), high_open=True, unit="degrees")
 
 
 def _wrap_degrees(angle):

@@ -191,9 +191,9 @@ def write_simulated_log(
         "thrust": folder / f"{name}-thrust.csv",
         "truth": folder / f"{name}-truth.nc",
     }
-    start = datetime.datetime.fromtimestamp(epoch, datetime.UTC).isoformat()
+    began = datetime.datetime.fromtimestamp(epoch, datetime.UTC).isoformat()
     header = (
-        f"# lookout simulated log: {ds.attrs.get('scenario', 'a simulated run')}; t = 0 at {start} (Unix {epoch:.1f} s)\n"
+        f"# lookout simulated log: {ds.attrs.get('scenario', 'a simulated run')}; t = 0 at {began} (Unix {epoch:.1f} s)\n"
         f"# origin of north/east: {frame.latitude} N, {frame.longitude} E; TIME is the Unix time each sentence arrived\n"
     )
     paths["nmea"].write_text(header + "".join(f"{arrival:.6f} {text}\n" for arrival, text in nmea))
