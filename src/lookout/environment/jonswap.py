@@ -252,8 +252,9 @@ def spectral_moment(n, significant_height, mean_period, peak_enhancement=3.3):
     return total + quad(integrand, edges[-1], np.inf, limit=200, epsabs=0.0, epsrel=1e-12)[0]
 
 
-def _scalar(name: str, value) -> Array:
-    """A float scalar, or a one-line ValueError naming ``name``."""
+def _scalar(name: str, value) -> Array | np.ndarray:
+    """A float scalar (a NumPy one when concrete), or a one-line ValueError naming ``name``."""
+    array: Array | np.ndarray
     if check.is_concrete(value):
         array = np.asarray(value, dtype=float)
         if array.ndim != 0:
