@@ -460,6 +460,7 @@ def kalman_fields(
         f"{substeps * size} noise inputs to linearize in)",
         "give a longer plant_step",
     )
+    q: Array | np.ndarray
     if process_noise is None:
         q = jnp.ones(size)
     elif not check.is_concrete(process_noise):  # traced (built under vmap or grad): checked where concrete
@@ -514,9 +515,9 @@ def kalman_fields(
         "input_layout": plant.input_layout,
         "sample_period": None,
     }
-    std = _state_vector(plant, initial_std, "initial_std", d)
-    if std is not None:
-        fields["initial_covariance"] = jnp.diag(jnp.asarray(std**2))
+    initial = _state_vector(plant, initial_std, "initial_std", d)
+    if initial is not None:
+        fields["initial_covariance"] = jnp.diag(jnp.asarray(initial**2))
     else:
         fields["initial_covariance"] = jnp.asarray(_steady_state(fields, sample_period))
     return fields
