@@ -121,7 +121,7 @@ class Scenario(eqx.Module):
     sample_period: float = eqx.field(static=True)
     duration: float = eqx.field(static=True)
     reference: Reference = NoReference()
-    actuator: Actuator = IdealActuator()
+    actuator: Actuator = IdealActuator()  # type: ignore[call-arg]  # output_signals is StatelessActuator's property, not a field; mypy keeps Actuator's AbstractVar as an __init__ argument
     record_every: int = eqx.field(static=True, default=1)
     integrator: Literal["rk4", "euler"] = eqx.field(static=True, default="rk4")
     observer_mode: Literal["sampled", "continuous"] = eqx.field(static=True, default="sampled")
