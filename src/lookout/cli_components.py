@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
@@ -16,8 +16,12 @@ from lookout._commandline import console
 from lookout._json import json_safe
 from lookout._validation import InputError, one_line
 
+if TYPE_CHECKING:
+    from lookout.scenario.composition import Composition
+    from lookout.scenario.registry import Kind
 
-def example(each):
+
+def example(each: Kind) -> Composition | None:
     """A built composition with a component of kind ``each`` in it: the first
     reproduction case that uses the kind, else the first case in which the kind, put in
     place of that case's component with its defaults, composes. None if there is none."""
@@ -51,7 +55,7 @@ def _find_table(document: dict, role: str):
     return None
 
 
-def signals_of(role: str, component) -> dict[str, list[str]]:
+def signals_of(role: str, component: Any) -> dict[str, list[str]]:
     """What a built component provides and needs, by signal name."""
     names = lambda signals: [s.name for s in signals]  # noqa: E731
     if role == "plant":

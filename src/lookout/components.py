@@ -34,12 +34,13 @@ At sample k, time t_k::
 # refuses them as strings (a stringified one would silently become an ordinary field)
 import abc
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, NamedTuple, TypeVar
+from typing import Any, ClassVar, NamedTuple, TypeVar, cast
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
+from jax.typing import ArrayLike
 
 #: Frames a signal can be expressed in (free text is allowed; these are the common ones).
 EARTH_FIXED = "Earth-fixed"
@@ -83,7 +84,7 @@ class Signal:
     dim: str | None = None
     angle: bool = False
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if not self.name.isidentifier():
             raise ValueError(f"Signal name must be an identifier; got {self.name!r}")
         if not self.units:
@@ -120,7 +121,7 @@ class Layout:
 
     signals: tuple[Signal, ...] = field(default_factory=tuple)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         names = [s.name for s in self.signals]
         if len(set(names)) != len(names):
             raise ValueError(f"Layout signal names must be distinct; got {names}")
@@ -180,23 +181,25 @@ class Plant(eqx.Module):
     variable_signals: eqx.AbstractVar[tuple[Signal, ...]]
 
     @abc.abstractmethod
-    def vector_field(self, t, x, u: Array, w: Array):
+    def vector_field(self, t: ArrayLike, x: Any, u: Array, w: Array) -> Any:
         """dx/dt, a PyTree shaped like ``x``."""
 
     @abc.abstractmethod
-    def normalize(self, x):
+    def normalize(self, x: Any) -> Any:
         """``x`` with angles wrapped where the model wants them wrapped (after each sample)."""
 
     @abc.abstractmethod
-    def variables(self, x) -> dict[str, Array]:
+    def variables(self, x: Any) -> dict[str, Array]:
         """The recorded quantities of state ``x``, named and shaped as :attr:`variable_signals`."""
 
     @abc.abstractmethod
     def realize(self, key: Array) -> "Plant":
         """This plant with its per-run random parts drawn from ``key`` (or itself)."""
 
+    # (*args, **parts) of Any: each plant names its own parts, and mypy takes this
+    # signature as compatible with any override
     @abc.abstractmethod
-    def state(self, **parts):
+    def state(self, *args: Any, **parts: Any) -> Any:
         """A state of this plant from named parts, zeros where not given (a
         composition's ``[plant.initial]``; the keyword arguments are documented)."""
 
@@ -226,10 +229,12 @@ class Outage(eqx.Module):
     duration: Array
     channels: tuple[bool, ...] = eqx.field(static=True)
 
-    def lost(self, t) -> Array:
+    def lost(self, t: ArrayLike) -> Array:
         """Per channel: whether it is silenced at ``t``."""
         inside = (t >= self.start) & (t < self.start + self.duration)
-        return inside & jnp.asarray(self.channels)
+        # an Array whatever ``t`` is: NumPy defers a comparison with an Array to JAX
+        # (its stubs give an ndarray)
+        return cast(Array, inside & jnp.asarray(self.channels))
 
 
 class Sensor(eqx.Module):
@@ -247,14 +252,14 @@ class Sensor(eqx.Module):
     outage: Outage | None = eqx.field(default=None, kw_only=True)
 
     @abc.abstractmethod
-    def measure(self, x, normals: Array) -> Array:
+    def measure(self, x: Any, normals: Array) -> Array:
         """One sample of every channel, from ``noise_size`` standard normals."""
 
     @abc.abstractmethod
-    def ideal(self, x) -> Array:
+    def ideal(self, x: Any) -> Array:
         """The noise-free, never-dropped measurement (continuous-time analysis)."""
 
-    def sample(self, t, x, normals: Array) -> Array:
+    def sample(self, t: ArrayLike, x: Any, normals: Array) -> Array:
         """:meth:`measure` at time ``t``, with the channels of an outage NaN."""
         y = self.measure(x, normals)
         return y if self.outage is None else jnp.where(self.outage.lost(t), jnp.nan, y)
@@ -281,25 +286,25 @@ class Observer(eqx.Module):
     sample_period: eqx.AbstractVar[float | None]
 
     @abc.abstractmethod
-    def guess(self):
+    def guess(self) -> Any:
         """A default initial guess, shaped as :meth:`init` takes it (zeros, or the
         observer's own starting values); the keyword arguments of each observer's
         ``guess`` set its parts."""
 
     @abc.abstractmethod
-    def init(self, y0: Array, guess):
+    def init(self, y0: Array, guess: Any) -> Any:
         """Internal state at t_0 from the first sample and the initial guess."""
 
     @abc.abstractmethod
-    def update(self, state, t, y: Array):
+    def update(self, state: Any, t: ArrayLike, y: Array) -> Any:
         """Correction when sample ``y`` arrives at ``t`` (identity for continuous observers)."""
 
     @abc.abstractmethod
-    def output(self, state, y: Array) -> dict[str, Array]:
+    def output(self, state: Any, y: Array) -> dict[str, Array]:
         """The estimate at the sample: :attr:`estimate_signals` and :attr:`extra_signals` by name."""
 
     @abc.abstractmethod
-    def predict(self, state, t, y: Array, u: Array, dt):
+    def predict(self, state: Any, t: ArrayLike, y: Array, u: Array, dt: ArrayLike) -> Any:
         """From t to t + dt with ``y`` and ``u`` held."""
 
 
@@ -308,11 +313,11 @@ class ContinuousObserver(Observer):
     with the plant on the noise-free measurement (``observer_mode="continuous"``)."""
 
     @abc.abstractmethod
-    def vector_field(self, t, state, y: Array, u: Array):
+    def vector_field(self, t: ArrayLike, state: Any, y: Array, u: Array) -> Any:
         """dS/dt with the measurement ``y`` and input ``u``."""
 
     @abc.abstractmethod
-    def normalize(self, state):
+    def normalize(self, state: Any) -> Any:
         """``state`` with its angles wrapped (after a joint integration with the plant)."""
 
 
@@ -323,11 +328,11 @@ class Reference(eqx.Module):
     noise_size: eqx.AbstractVar[int]
 
     @abc.abstractmethod
-    def init(self):
+    def init(self) -> Any:
         """Internal state at t_0."""
 
     @abc.abstractmethod
-    def step(self, state, t, dt, normals: Array):
+    def step(self, state: Any, t: ArrayLike, dt: ArrayLike, normals: Array) -> tuple[Any, dict[str, Array]]:
         """``(state, sample)``: the reference at ``t`` as ``{name: value}`` and the state at t + dt."""
 
 
@@ -345,14 +350,14 @@ class Controller(eqx.Module):
     reference_needs: eqx.AbstractVar[tuple[str, ...]]
 
     @abc.abstractmethod
-    def init(self):
+    def init(self) -> Any:
         """Internal state at t_0."""
 
     @abc.abstractmethod
-    def step(self, state, t, y: Array, estimate: dict, reference: dict, dt):
+    def step(self, state: Any, t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike) -> tuple[Any, Array]:
         """``(state, u)``: the commanded input at ``t``, laid out as the plant's input."""
 
-    def follow(self, observer) -> "Controller":
+    def follow(self, observer: Observer) -> "Controller":
         """This controller with the gains it copies from ``observer`` taken again
         (traceable): after the observer's gains change (tuning). A controller that
         copies none returns itself."""
@@ -372,11 +377,11 @@ class Actuator(eqx.Module):
     output_signals: eqx.AbstractVar[tuple[Signal, ...]]
 
     @abc.abstractmethod
-    def init(self):
+    def init(self) -> Any:
         """Internal state at t_0 (a PyTree; ``()`` for none)."""
 
     @abc.abstractmethod
-    def step(self, state, t, u: Array, dt):
+    def step(self, state: Any, t: ArrayLike, u: Array, dt: ArrayLike) -> tuple[Any, Array, dict[str, Array]]:
         """``(state, applied, outputs)``: the input applied over [t, t + dt] for the
         command ``u``, the state at t + dt, and ``{name: value}`` of :attr:`output_signals`."""
 
@@ -388,10 +393,10 @@ class StatelessActuator(Actuator):
     def output_signals(self) -> tuple[Signal, ...]:  # type: ignore[override]  # (read-only: a stateless actuator records nothing)
         return ()
 
-    def init(self):
+    def init(self) -> tuple[()]:
         return ()
 
-    def step(self, state, t, u: Array, dt):
+    def step(self, state: Any, t: ArrayLike, u: Array, dt: ArrayLike) -> tuple[Any, Array, dict[str, Array]]:
         return state, self.apply(u), {}
 
     @abc.abstractmethod

@@ -50,14 +50,17 @@ a zero measurement.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 
-from lookout.components import ContinuousObserver, Layout, Observer, Plant, Sensor
+from lookout.components import ContinuousObserver, Layout, Observer, Plant, Sensor, Signal
 
 try:  # python-control is optional: only this module needs it
     import control
@@ -70,7 +73,7 @@ def _require_control():
         raise ImportError("lookout.control_systems needs python-control: pip install control")
 
 
-def signal_names(signals, suffix: str = "") -> list[str]:
+def signal_names(signals: Layout | Iterable[Signal], suffix: str = "") -> list[str]:
     """Flat names of signals laid end to end: ``name[label]`` per component of a
     vector, ``name`` for a scalar, each name with ``suffix`` appended.
 
@@ -146,7 +149,7 @@ class StateLayout:
     paths: tuple[str, ...]
 
     @classmethod
-    def of(cls, template, role: str, component) -> StateLayout:
+    def of(cls, template: Any, role: str, component: Plant | Observer) -> StateLayout:
         """The layout of ``template`` (a state or its ``jax.eval_shape``) of ``component``
         (a ``role``); refused when a leaf is not floating point (a counter or a flag has no
         linearization)."""
@@ -163,12 +166,12 @@ class StateLayout:
         """Length of the flat vector."""
         return int(sum(int(np.prod(shape)) for shape in self.shapes))
 
-    def flatten(self, state) -> jax.Array:
+    def flatten(self, state: Any) -> jax.Array:
         """The state (a PyTree of this layout) as a flat vector."""
         leaves = jax.tree_util.tree_leaves(state)
         return jnp.concatenate([jnp.ravel(jnp.asarray(leaf, dtype=float)) for leaf in leaves]) if leaves else jnp.zeros(0)
 
-    def unflatten(self, vector) -> object:
+    def unflatten(self, vector: jax.Array | np.ndarray) -> object:
         """The flat vector as a state PyTree."""
         leaves, start = [], 0
         for shape in self.shapes:
@@ -308,7 +311,18 @@ class ComponentSystem(control.NonlinearIOSystem if control is not None else obje
     state_layout : StateLayout
     """
 
-    def __init__(self, component, layout: StateLayout, rates, outputs, *, inputs, output_names, states, name):
+    def __init__(
+        self,
+        component: Plant | ContinuousObserver,
+        layout: StateLayout,
+        rates: Callable[[Any, Any, Any], jax.Array],
+        outputs: Callable[[Any, Any, Any], jax.Array],
+        *,
+        inputs: list[str],
+        output_names: list[str],
+        states: list[str],
+        name: str,
+    ):
         _require_control()
         self.component = component
         self.state_layout = layout
@@ -324,7 +338,7 @@ class ComponentSystem(control.NonlinearIOSystem if control is not None else obje
             dt=0,
         )
 
-    def state_vector(self, state, measurement=None) -> np.ndarray:
+    def state_vector(self, state: Any, measurement: npt.ArrayLike | None = None) -> np.ndarray:
         """A state of the component (a PyTree, e.g. ``plant.state(eta=[0, 0, 0.5])``) as
         this system's flat state vector, in the order of ``state_labels``.
 
@@ -548,7 +562,7 @@ def _operating_vector(argument: str, value, size: int, system: ComponentSystem, 
     return vector
 
 
-def linearize_exact(system: ComponentSystem, x0, u0=0.0, t: float = 0.0, *, name: str | None = None):
+def linearize_exact(system: ComponentSystem, x0: Any, u0: npt.ArrayLike = 0.0, t: float = 0.0, *, name: str | None = None) -> control.StateSpace:
     """Linearize a component's system at an operating point with JAX's exact Jacobians.
 
     ``A = df/dx``, ``B = df/du``, ``C = dh/dx``, ``D = dh/du`` at ``(t, x0, u0)``, by

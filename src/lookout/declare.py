@@ -30,7 +30,7 @@ import math
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 #: The roles of a composition's tables and of the parts inside them, in the order
 #: ``lookout components`` lists them.
@@ -110,7 +110,7 @@ class Value:
 
     sort = "value"
 
-    def shape_refusal(self, value) -> str | None:
+    def shape_refusal(self, value: object) -> str | None:
         """Why ``value`` (as a file gives it: a number, or nested lists or tuples of
         numbers) does not have the declared shape, or None when it has it (or the shape
         is not one of numbers)."""
@@ -141,7 +141,7 @@ def _array_shape(value) -> tuple[int, ...] | None:
     return (len(value),) + first
 
 
-def shape_refusal(value, shape: str | None, broadcast: bool = True) -> str | None:
+def shape_refusal(value: object, shape: str | None, broadcast: bool = True) -> str | None:
     """Why ``value`` does not fit the declared ``shape`` (see :meth:`Value.shape_refusal`)."""
     if isinstance(value, dict) or isinstance(value, (str, bool)):
         return None
@@ -221,6 +221,9 @@ class Declaration:
 #: Every declaration made so far, in the order made.
 DECLARED: list[Declaration] = []
 #: The attribute of a class that holds the declaration of its kind (set by :func:`register`).
+#: What :func:`component` decorates and returns unchanged: a class or a function.
+_Target = TypeVar("_Target", bound=type | Callable[..., Any])
+
 STAMP = "__lookout_declaration__"
 #: Declarations of functions whose return annotation named no class yet when they were
 #: registered (a class defined further down the module): stamped when :func:`kind_of` asks.
@@ -274,7 +277,7 @@ def register(
     return declaration
 
 
-def built_class(target) -> type | None:
+def built_class(target: type | Callable[..., Any]) -> type | None:
     """The class a declared ``target`` builds: the class itself, or the class a function's
     return annotation names (None: it names none). A NameError while the annotation's
     class is not defined yet."""
@@ -304,7 +307,7 @@ def _stamp(declaration: Declaration) -> bool:
     return True
 
 
-def kind_of(component) -> str:
+def kind_of(component: object) -> str:
     """The kind of a built component: that of the declaration stamped on its class (the
     class's first registered declaration), else the class's name. A subclass of a
     declared class is of no kind until it is declared itself."""
@@ -326,11 +329,11 @@ def _builds(declaration: Declaration, built: type) -> bool:
         return False
 
 
-def component(role: str, kind: str, **details) -> Callable:
+def component(role: str, kind: str, **details: Any) -> Callable[[_Target], _Target]:
     """Class (or function) decorator: :func:`register` the decorated object as the kind
     ``kind`` of ``role``; it is returned unchanged."""
 
-    def decorate(target):
+    def decorate(target: _Target) -> _Target:
         register(role, kind, target, **details)
         return target
 

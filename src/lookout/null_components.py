@@ -8,9 +8,11 @@ module; :mod:`lookout.reference` and :mod:`lookout.actuators` re-export them.
 
 from __future__ import annotations
 
-from typing import final
+from typing import Any, final
 
 import equinox as eqx
+from jax import Array
+from jax.typing import ArrayLike
 
 from lookout.components import Reference, Signal, StatelessActuator
 from lookout.declare import component
@@ -29,11 +31,11 @@ class NoReference(Reference):
     reference_signals: tuple[Signal, ...] = eqx.field(static=True, default=(), kw_only=True)
     noise_size: int = eqx.field(static=True, default=0, kw_only=True)
 
-    def init(self):
+    def init(self) -> tuple[()]:
         """No internal state."""
         return ()
 
-    def step(self, state, t, dt, normals):
+    def step(self, state: Any, t: ArrayLike, dt: ArrayLike, normals: Array) -> tuple[Any, dict[str, Array]]:
         """``(state, {})``."""
         del t, dt, normals
         return state, {}
@@ -49,6 +51,6 @@ class NoReference(Reference):
 class IdealActuator(StatelessActuator):
     """The plant receives the commanded input unchanged (no limits)."""
 
-    def apply(self, u):
+    def apply(self, u: Array) -> Array:
         """``u``."""
         return u

@@ -10,12 +10,15 @@ eta_d', eta_d'' from a proper reference trajectory generator").
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import final
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import ssa
@@ -161,7 +164,14 @@ class ReferenceFilter(Reference):
     reference_signals: tuple[Signal, ...] = eqx.field(static=True)
     noise_size: int = eqx.field(static=True, default=0, kw_only=True)
 
-    def __init__(self, signals, bandwidth, schedule_times, setpoints, initial=None):
+    def __init__(
+        self,
+        signals: Iterable[Signal],
+        bandwidth: npt.ArrayLike,
+        schedule_times: npt.ArrayLike,
+        setpoints: npt.ArrayLike,
+        initial: npt.ArrayLike | None = None,
+    ):
         signals = tuple(signals)
         if not signals or not all(isinstance(s, Signal) for s in signals):
             raise check.ParameterError("signals", f"signals must be a non-empty sequence of lookout Signals; got {signals!r}")
@@ -195,7 +205,9 @@ class ReferenceFilter(Reference):
         check.finite("initial", self.initial)
 
     @classmethod
-    def vessel(cls, bandwidth, schedule_times, setpoints, initial=None) -> ReferenceFilter:
+    def vessel(
+        cls, bandwidth: npt.ArrayLike, schedule_times: npt.ArrayLike, setpoints: npt.ArrayLike, initial: npt.ArrayLike | None = None
+    ) -> ReferenceFilter:
         """The DP vessel's reference: setpoint [north (m), east (m), heading (rad)].
 
         Uses the ``position`` and ``heading`` signals of
@@ -224,14 +236,14 @@ class ReferenceFilter(Reference):
         """Per DOF, whether it is an angle (wrapped errors and output)."""
         return tuple(s.angle for s in self.setpoint_signals for _ in range(s.size))
 
-    def setpoint(self, t) -> Array:
+    def setpoint(self, t: ArrayLike) -> Array:
         """r(t), shape (n,): the setpoint of the last schedule time <= t (the first before it)."""
         t = jnp.asarray(t, dtype=self.schedule_times.dtype)
         reached = t + SWITCH_TOLERANCE * jnp.maximum(1.0, jnp.abs(t))
         index = jnp.searchsorted(self.schedule_times, reached, side="right") - 1
         return self.setpoints[jnp.clip(index, 0, self.setpoints.shape[0] - 1)]
 
-    def transition(self, dt) -> tuple[Array, Array]:
+    def transition(self, dt: ArrayLike) -> tuple[Array, Array]:
         """``(Phi, Gamma)``: the exact sampled filter over ``dt``, shapes (n, 3, 3) and (n, 3).
 
         state_{k+1} = Phi state_k + Gamma r_k per DOF, for r held over the sample.
@@ -257,7 +269,7 @@ class ReferenceFilter(Reference):
         x = self._wrap(jnp.asarray(self.initial, dtype=float))
         return jnp.stack([x, jnp.zeros_like(x), jnp.zeros_like(x)], axis=-1)
 
-    def step(self, state, t, dt, normals):
+    def step(self, state: Array, t: ArrayLike, dt: ArrayLike, normals: Array) -> tuple[Array, dict[str, Array]]:
         """``(state at t + dt, {name: value at t})`` with r(t) held over the sample."""
         del normals
         x = state[:, 0]
@@ -338,12 +350,23 @@ class EllipseReference(Reference):
     reference_signals: tuple[Signal, ...] = eqx.field(static=True, kw_only=True)
     noise_size: int = eqx.field(static=True, default=0, kw_only=True)
 
-    def __init__(self, semi_axes, lap_speeds, centre=(0.0, 0.0), start_angle=0.0, direction=1, substeps=1):
+    def __init__(
+        self,
+        semi_axes: npt.ArrayLike,
+        lap_speeds: npt.ArrayLike,
+        centre: npt.ArrayLike = (0.0, 0.0),
+        start_angle: ArrayLike = 0.0,
+        direction: ArrayLike = 1,
+        substeps: int = 1,
+    ):
         self.semi_axes = jnp.asarray(check.vector("semi_axes", semi_axes, 2))
-        speeds = np.asarray(lap_speeds, dtype=float) if check.is_concrete(lap_speeds) else lap_speeds
-        if check.is_concrete(lap_speeds) and speeds.ndim != 1:
-            raise check.ParameterError("lap_speeds", f"lap_speeds must be a sequence of speeds (m/s); got shape {speeds.shape}")
-        self.lap_speeds = jnp.asarray(speeds, dtype=float)
+        if check.is_concrete(lap_speeds):
+            speeds = np.asarray(lap_speeds, dtype=float)
+            if speeds.ndim != 1:
+                raise check.ParameterError("lap_speeds", f"lap_speeds must be a sequence of speeds (m/s); got shape {speeds.shape}")
+            self.lap_speeds = jnp.asarray(speeds, dtype=float)
+        else:
+            self.lap_speeds = jnp.asarray(lap_speeds, dtype=float)
         self.centre = jnp.asarray(check.vector("centre", centre, 2))
         check.finite("start_angle", start_angle)
         self.start_angle = jnp.asarray(start_angle, dtype=float)
@@ -360,7 +383,7 @@ class EllipseReference(Reference):
         check.positive("semi_axes", self.semi_axes)
         check.positive("lap_speeds", self.lap_speeds)
 
-    def speed(self, theta) -> Array:
+    def speed(self, theta: ArrayLike) -> Array:
         """U_k of the lap that theta is on."""
         lap = jnp.floor((theta - self.start_angle) / (2.0 * jnp.pi)).astype(int)
         return self.lap_speeds[jnp.clip(lap, 0, self.lap_speeds.shape[0] - 1)]
@@ -375,7 +398,7 @@ class EllipseReference(Reference):
         rho = np.asarray(self._rho(jnp.asarray(theta)))
         return float(np.sum(0.5 * (rho[1:] + rho[:-1]) * np.diff(theta)))
 
-    def sample(self, theta) -> dict[str, Array]:
+    def sample(self, theta: ArrayLike) -> dict[str, Array]:
         """The reference at path parameter theta."""
         a, b = self.semi_axes[0], self.semi_axes[1]
         s = self.direction
@@ -403,7 +426,7 @@ class EllipseReference(Reference):
         """theta(t_0) = theta_0."""
         return self.start_angle
 
-    def step(self, state, t, dt, normals):
+    def step(self, state: Array, t: ArrayLike, dt: ArrayLike, normals: Array) -> tuple[Array, dict[str, Array]]:
         """``(theta(t + dt), reference at theta(t))``."""
         del normals
         h = dt / self.substeps

@@ -7,6 +7,7 @@ gyro compass reports it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import final
 
 import equinox as eqx
@@ -14,11 +15,13 @@ import jax
 import jax.numpy as jnp
 import jax.scipy.special
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import ssa
-from lookout.components import EARTH_FIXED, Layout, Outage, Sensor, Signal
+from lookout.components import EARTH_FIXED, Layout, Outage, Plant, Sensor, Signal
 from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Range, Value, component
 from lookout.models.vessel import EARTH_AXES, VesselState
 
@@ -34,7 +37,7 @@ OUTAGE_VALUES = (
 )
 
 
-def outage_of(layout: Layout, signals, start, duration) -> Outage | None:
+def outage_of(layout: Layout, signals: str | Sequence[str] | None, start: ArrayLike, duration: ArrayLike) -> Outage | None:
     """The :class:`~lookout.components.Outage` of ``signals`` (names of ``layout``'s
     signals) over ``[start, start + duration)``; None without signals."""
     if signals is None or len(signals) == 0:
@@ -105,11 +108,19 @@ class PositionHeadingSensor(Sensor):
 
     noise_std: Array
     dropout_probability: Array
-    sample_period: tuple[float, float, float] = eqx.field(static=True)
+    sample_period: tuple[float, ...] = eqx.field(static=True)
     noise_size: int = eqx.field(static=True, default=6, kw_only=True)
     measurement_layout: Layout = eqx.field(static=True, default=POSITION_HEADING, kw_only=True)
 
-    def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0, outage_signals=None, outage_start=0.0, outage_duration=0.0):
+    def __init__(
+        self,
+        noise_std: npt.ArrayLike = 0.0,
+        sample_period: npt.ArrayLike = 1.0,
+        dropout_probability: float = 0.0,
+        outage_signals: str | Sequence[str] | None = None,
+        outage_start: ArrayLike = 0.0,
+        outage_duration: ArrayLike = 0.0,
+    ):
         self.noise_std = jnp.asarray(check.vector("sensor noise_std", noise_std))
         self.dropout_probability = jnp.asarray(float(dropout_probability))
         self.sample_period = tuple(float(p) for p in check.vector("sensor sample_period", sample_period))
@@ -213,15 +224,15 @@ class JointEncoder(Sensor):
 
     def __init__(
         self,
-        model,
+        model: ManipulatorModel | ManipulatorPlant,
         *,
-        sample_period,
-        noise_std=0.0,
-        quantization=0.0,
-        dropout_probability=0.0,
-        outage_signals=None,
-        outage_start=0.0,
-        outage_duration=0.0,
+        sample_period: npt.ArrayLike,
+        noise_std: npt.ArrayLike = 0.0,
+        quantization: npt.ArrayLike = 0.0,
+        dropout_probability: ArrayLike = 0.0,
+        outage_signals: str | Sequence[str] | None = None,
+        outage_start: ArrayLike = 0.0,
+        outage_duration: ArrayLike = 0.0,
     ):
         if isinstance(model, ManipulatorPlant):
             model = model.model
@@ -340,7 +351,15 @@ class PositionHeadingVelocitySensor(Sensor):
     noise_size: int = eqx.field(static=True, default=12, kw_only=True)
     measurement_layout: Layout = eqx.field(static=True, default=POSITION_HEADING_VELOCITY, kw_only=True)
 
-    def __init__(self, noise_std=0.0, sample_period=1.0, dropout_probability=0.0, outage_signals=None, outage_start=0.0, outage_duration=0.0):
+    def __init__(
+        self,
+        noise_std: npt.ArrayLike = 0.0,
+        sample_period: npt.ArrayLike = 1.0,
+        dropout_probability: float = 0.0,
+        outage_signals: str | Sequence[str] | None = None,
+        outage_start: ArrayLike = 0.0,
+        outage_duration: ArrayLike = 0.0,
+    ):
         self.noise_std = jnp.asarray(check.vector("oracle sensor noise_std", noise_std, 6))
         self.dropout_probability = jnp.asarray(float(dropout_probability))
         self.sample_period = tuple(float(p) for p in check.vector("oracle sensor sample_period", sample_period, 6))
@@ -445,7 +464,17 @@ class JointStateSensor(Sensor):
     noise_size: int = eqx.field(static=True)
     measurement_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, model, *, sample_period, noise_std=0.0, dropout_probability=0.0, outage_signals=None, outage_start=0.0, outage_duration=0.0):
+    def __init__(
+        self,
+        model: ManipulatorModel | Plant,
+        *,
+        sample_period: npt.ArrayLike,
+        noise_std: npt.ArrayLike = 0.0,
+        dropout_probability: ArrayLike = 0.0,
+        outage_signals: str | Sequence[str] | None = None,
+        outage_start: ArrayLike = 0.0,
+        outage_duration: ArrayLike = 0.0,
+    ):
         model = getattr(model, "model", model)
         if not isinstance(model, ManipulatorModel):
             raise ValueError(f"JointStateSensor needs a ManipulatorModel or a manipulator plant; got {type(model).__name__}")

@@ -571,6 +571,7 @@ def _figure(out: str, truth: str | None, path: Path, log: str) -> None:
             fig = plot_session(session.load(), truth_ds, title=f"lookout replay {Path(log).name}")
         except ValueError as error:
             raise InputError(f"--truth {truth}: {error}") from None
+    assert fig is not None  # a session records its observer's estimates, so there is a figure
     path.absolute().parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     print(f"figure: {path}", file=sys.stderr)

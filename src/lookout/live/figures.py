@@ -3,10 +3,15 @@ for a simulated log, against the truth beside it."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import xarray as xr
 
 from lookout.plotting import plot_estimates, plot_run_estimates
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: Panels of a vessel session compared with a truth.
 PANELS = (("position", "north"), ("position", "east"), ("heading", None), ("velocity", "surge"), ("velocity", "sway"))
@@ -35,7 +40,7 @@ def with_truth(session: xr.Dataset, truth: xr.Dataset) -> xr.Dataset:
     return merged
 
 
-def plot_session(session: xr.Dataset, truth: xr.Dataset | None = None, *, title: str | None = None):
+def plot_session(session: xr.Dataset, truth: xr.Dataset | None = None, *, title: str | None = None) -> Figure | None:
     """Estimates of a session: against the truth when one is given (the whole session
     and a zoom on its first position outage, or its end), else every estimate with its
     measurement."""

@@ -34,9 +34,14 @@ step that is not finite leaves the state as it was.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
+from typing import Any
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy.typing as npt
+from jax.typing import ArrayLike
 
 from lookout.components import Layout, Observer, Signal
 
@@ -53,7 +58,7 @@ class GatedState(eqx.Module):
     gated: jnp.ndarray  # 1 where the step's new reading was a wild point
 
     @property
-    def measurement(self):
+    def measurement(self) -> jax.Array:
         """The measurement the step used, NaN where missing."""
         return jnp.where(self.missing > 0, jnp.nan, self.used)
 
@@ -62,7 +67,7 @@ class GatedState(eqx.Module):
 GATE_TESTS = ("nis", "innovation", "none")
 
 
-def gate_tests(observer: Observer, channels) -> tuple[str, ...]:
+def gate_tests(observer: Observer, channels: Sequence[str]) -> tuple[str, ...]:
     """The test each of ``channels`` is gated by for ``observer``: ``"nis"`` when it
     gives ``innovation_statistics`` (the Kalman filters), else ``"innovation"`` when it
     declares an ``innovation_<channel>`` output, else ``"none"``."""
@@ -99,7 +104,15 @@ class GatedObserver(Observer):
     reopen_after: int = eqx.field(static=True)
     tests: tuple = eqx.field(static=True)
 
-    def __init__(self, inner: Observer, channels, gate, timeout, reopen_after: int, tests=None):
+    def __init__(
+        self,
+        inner: Observer,
+        channels: Iterable[str],
+        gate: npt.ArrayLike,
+        timeout: npt.ArrayLike,
+        reopen_after: int,
+        tests: Iterable[str] | None = None,
+    ):
         self.inner = inner
         self.channels = tuple(channels)
         self.gate = jnp.asarray(gate, dtype=float)
@@ -142,15 +155,15 @@ class GatedObserver(Observer):
         return self.inner.input_layout
 
     @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
-    def sample_period(self):
+    def sample_period(self) -> float | None:  # type: ignore[override]  # (read-only, as every observer's)
         return self.inner.sample_period
 
     @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
-    def estimate_signals(self):
+    def estimate_signals(self) -> tuple[Signal, ...]:  # type: ignore[override]  # (read-only, as every observer's)
         return self.inner.estimate_signals
 
     @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
-    def extra_signals(self):
+    def extra_signals(self) -> tuple[Signal, ...]:  # type: ignore[override]  # (read-only, as every observer's)
         flags = []
         for name in self.channels:
             short = name.removeprefix("measured_")
@@ -158,7 +171,7 @@ class GatedObserver(Observer):
             flags.append(Signal(f"outage_{short}", "1", f"{short} older than its timeout: dead reckoning"))
         return tuple(self.inner.extra_signals) + tuple(flags)
 
-    def guess(self):
+    def guess(self) -> Any:
         return self.inner.guess()
 
     # -- the rules
@@ -175,7 +188,7 @@ class GatedObserver(Observer):
             y = y.at[start:stop].set(jnp.where(fresh, new[start:stop], jnp.where(alive, state.held[start:stop], jnp.nan)))
         return y
 
-    def init(self, y0, guess):
+    def init(self, y0: jax.Array, guess: Any) -> GatedState:
         new, arrival = self._split(jnp.asarray(y0))
         n = len(self.channels)
         # every part of the state is finite (a Stepper refuses a step that is not):
@@ -206,7 +219,7 @@ class GatedObserver(Observer):
             sizes.append(statistics)
         return jnp.stack(sizes), trial
 
-    def update(self, state: GatedState, t, y):
+    def update(self, state: GatedState, t: ArrayLike, y: jax.Array) -> GatedState:
         new, arrival = self._split(y)
         candidate = self._candidate(state, t, new, arrival)
         sizes, trial = self._statistics(state, t, candidate)
@@ -226,7 +239,7 @@ class GatedObserver(Observer):
         missing = ~jnp.isfinite(used)
         return GatedState(inner, held, held_time, in_row, jnp.where(missing, 0.0, used), missing.astype(used.dtype), wild.astype(used.dtype))
 
-    def output(self, state: GatedState, y):
+    def output(self, state: GatedState, y: jax.Array) -> dict[str, jax.Array]:
         """The wrapped observer's outputs, the gate and outage flags, and under
         ``"measurement_used"`` the measurement the step used (held readings), which a
         session records as its measurement: 0 where it was NaN (an outage, a channel the
@@ -240,5 +253,5 @@ class GatedObserver(Observer):
             estimate[f"outage_{short}"] = jnp.any(state.missing[start:stop] > 0).astype(state.used.dtype)
         return estimate
 
-    def predict(self, state: GatedState, t, y, u, dt):
+    def predict(self, state: GatedState, t: ArrayLike, y: jax.Array, u: jax.Array, dt: ArrayLike) -> GatedState:
         return eqx.tree_at(lambda s: s.inner, state, self.inner.predict(state.inner, t, state.measurement, u, dt))

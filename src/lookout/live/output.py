@@ -18,7 +18,9 @@ import json
 import math
 import socket
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import netCDF4
 import numpy as np
@@ -27,8 +29,13 @@ import xarray as xr
 from lookout._json import json_safe
 from lookout.results import RecordSignals, Trajectory, write_netcdf
 
+if TYPE_CHECKING:
+    from lookout.components import Observer
+    from lookout.io.geodesy import LocalFrame
+    from lookout.live.session import Block
 
-def json_line(block, i: int, frame=None, gated=(), outage=()) -> str:
+
+def json_line(block: Block, i: int, frame: LocalFrame | None = None, gated: object = (), outage: object = ()) -> str:
     """Step ``i`` of a :class:`~lookout.live.session.Block` as a JSON object on one
     line: ``time`` (the stream's clock), ``session_time``, each estimate by name (NaN as
     null), ``latitude_hat`` and ``longitude_hat`` when positions are fixes."""
@@ -44,7 +51,7 @@ def json_line(block, i: int, frame=None, gated=(), outage=()) -> str:
 class Publisher:
     """Sends each step as a JSON line to stdout (``"-"``) or to ``udp://HOST:PORT``."""
 
-    def __init__(self, target: str, frame_of=None):
+    def __init__(self, target: str, frame_of: Callable[[], LocalFrame | None] | None = None):
         self.target = target
         self.frame_of = frame_of or (lambda: None)
         self._socket = None
@@ -58,7 +65,7 @@ class Publisher:
         self.sent = 0
         self.failed = 0
 
-    def __call__(self, block) -> None:
+    def __call__(self, block: Block) -> None:
         frame = self.frame_of()
         for i in range(len(block)):
             line = json_line(block, i, frame)
@@ -115,7 +122,7 @@ class SessionWriter:
         Steps between flushes.
     """
 
-    def __init__(self, path, observer, attrs: dict, flush_every: int = 100, attrs_of=None):
+    def __init__(self, path: str | Path, observer: Observer, attrs: dict, flush_every: int = 100, attrs_of: Callable[[], dict] | None = None):
         self.path = Path(path)
         self.signals = RecordSignals(
             truth=(),
@@ -133,7 +140,7 @@ class SessionWriter:
         self.written = 0
         self._created: list[Path] = []  # the file, then the folders made for it (innermost first)
 
-    def add(self, block) -> None:
+    def add(self, block: Block) -> None:
         """Keep ``block``; flush when ``flush_every`` steps are kept."""
         self._blocks.append(block)
         self._kept += len(block)

@@ -21,8 +21,11 @@ import socket
 import sys
 import time as _time
 from collections import Counter, deque
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
+from io import FileIO
 from pathlib import Path
+from typing import BinaryIO, cast
 
 import numpy as np
 
@@ -31,6 +34,10 @@ from lookout.io.nmea import LineSplitter, NmeaParser, Reading
 from lookout.live.options import MAX_GAP
 from lookout.live.session import Block, Session, check_origin, fix_refusal
 from lookout.sim.filtering import check_step_length
+
+#: A live source as :func:`open_source` gives it: ``(kind, handle, where)``, the kind
+#: ``"udp"`` (a bound socket) or ``"stream"`` (stdin, a device or a FIFO).
+_Source = tuple[str, socket.socket | BinaryIO | FileIO, str]
 
 #: The share of a log's lines that may be stamped before a line above them (reordered
 #: by the logger; each is dropped as late); more (and more than one line) is a log out
@@ -58,7 +65,7 @@ class Latencies:
         cut = self._count % self._values.size
         return np.concatenate([self._values[cut:], self._values[:cut]])
 
-    def percentiles(self, which=(50, 99, 100)) -> dict:
+    def percentiles(self, which: Iterable[float] = (50, 99, 100)) -> dict:
         """``{p: seconds}`` over the kept values (empty without any)."""
         kept = self._values[: min(self._count, self._values.size)]
         return {p: float(np.percentile(kept, p)) for p in which} if kept.size else {}
@@ -240,7 +247,7 @@ def _thrust_line(line: bytes, time: float, counts: dict[str, int] | None = None)
     return Reading(time, "thrust", "thrust", values, "CSV")
 
 
-def log_readings(path: str | Path, parser: NmeaParser):
+def log_readings(path: str | Path, parser: NmeaParser) -> tuple[Iterator[Reading], Counter]:
     """``(readings, counter)`` of a log of either format (:mod:`lookout.io.logs`)."""
     kind = log_format(path)
     if kind == "nmea":
@@ -257,13 +264,13 @@ def replay(
     *,
     thrust: str | Path | None = None,
     speed: float | None = None,
-    emit=None,
+    emit: Callable[[Block], object] | None = None,
     parser: NmeaParser | None = None,
-    status=None,
+    status: Callable[[Outcome], object] | None = None,
     status_every: float = 5.0,
     max_gap: float = MAX_GAP,
     check: ReplayCheck | None = None,
-    progress=None,
+    progress: Callable[[float, float], object] | None = None,
 ) -> Outcome:
     """Step ``session`` through a log; ``emit(record)`` for each step.
 
@@ -381,7 +388,7 @@ def _emit(blocks, emit, outcome: Outcome, arrivals: deque | None = None, clock=N
         outcome.processing.add(float(block.step_seconds[0]))
 
 
-def open_source(text: str, option: str = "--nmea"):
+def open_source(text: str, option: str = "--nmea") -> _Source:
     """A live source: ``udp://HOST:PORT`` (a bound socket; HOST default 127.0.0.1), ``-``
     (stdin) or a path (a serial device or a file), as ``(kind, handle, where)``."""
     from lookout.live.output import parse_udp
@@ -415,7 +422,7 @@ def open_source(text: str, option: str = "--nmea"):
     return "stream", handle, str(path)
 
 
-def unix_clock():
+def unix_clock() -> Callable[[], float]:
     """A clock of Unix time that never steps: Unix time when it is made, then the
     monotonic clock's seconds since (a live session's clock: a system clock set back
     by NTP or by hand would make the readings after it late, and one set forward a gap)."""
@@ -425,16 +432,16 @@ def unix_clock():
 
 def live(
     session: Session,
-    source,
+    source: _Source,
     *,
-    thrust=None,
-    emit=None,
+    thrust: _Source | None = None,
+    emit: Callable[[Block], object] | None = None,
     parser: NmeaParser | None = None,
     duration: float | None = None,
     idle: float | None = None,
-    status=None,
+    status: Callable[[Outcome], object] | None = None,
     status_every: float = 5.0,
-    clock=None,
+    clock: Callable[[], float] | None = None,
 ) -> Outcome:
     """Step ``session`` on a live source (from :func:`open_source`) until ``duration``
     seconds have passed, nothing arrived for ``idle`` seconds, the stream ends, or
@@ -458,6 +465,7 @@ def live(
     last_status = started
     arrivals: deque = deque(maxlen=64)  # (arrival time) of readings not yet in a step
     handles = [handle] + ([thrust[1]] if thrust is not None else [])
+    thrust_kind = thrust[0] if thrust is not None else None
     ended = False
     try:
         while not ended:
@@ -466,14 +474,15 @@ def live(
                 break
             if idle is not None and last_heard is not None and now - last_heard >= idle:
                 break
-            due = session.next_step_time if session.step_index is not None else now + 0.05
+            next_time = session.next_step_time  # None until the first step
+            due = next_time if next_time is not None else now + 0.05
             wait = max(0.0, min(due - now, 0.05))
             ready, _, _ = select.select(handles, [], [], wait)
             for ready_handle in ready:
                 is_thrust = thrust is not None and ready_handle is thrust[1]
-                if (thrust[0] if is_thrust else kind) == "udp":
-                    try:
-                        data, address = ready_handle.recvfrom(65536)
+                if (thrust_kind if is_thrust else kind) == "udp":
+                    try:  # a udp source's handle is its socket
+                        data, address = cast(socket.socket, ready_handle).recvfrom(65536)
                     except BlockingIOError:
                         continue
                     origin = address[0]  # by address: a sender may use a new port per datagram

@@ -37,7 +37,9 @@ from __future__ import annotations
 import math
 import time as _time
 import warnings
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -46,6 +48,9 @@ from lookout.io.nmea import Reading, receiver
 from lookout.live.gate import GatedObserver, gate_tests
 from lookout.live.options import MAX_ORIGIN_DISTANCE, Gates, _positive
 from lookout.sim.filtering import Stepper
+
+if TYPE_CHECKING:
+    from lookout.components import Observer
 
 #: The measurement signals a live observer's layout may name, and the reading kind
 #: that fills each.
@@ -106,7 +111,7 @@ def check_origin(frame: LocalFrame, latitude: float, longitude: float, where: st
         raise OriginError(frame, latitude, longitude, meters, where)
 
 
-def fix_refusal(values, gates: Gates) -> str | None:
+def fix_refusal(values: tuple[float, ...], gates: Gates) -> str | None:
     """Why a position reading's fix is not used (``quality``, ``hdop``), None if it passes."""
     _, _, quality, hdop = values
     # 6 estimated (the receiver's own dead reckoning), 7 manual, 8 simulator: never a fix
@@ -213,16 +218,16 @@ class Session:
 
     def __init__(
         self,
-        observer,
+        observer: Observer,
         sample_period: float,
         *,
-        guess=None,
+        guess: Any = None,
         frame: LocalFrame | None = None,
         gates: Gates | None = None,
-        on_event=None,
+        on_event: Callable[[dict], object] | None = None,
         batch: int = 1,
         step_on: str | None = "heading",
-        sources=None,
+        sources: Mapping[str, str] | None = None,
     ):
         _positive("sample_period", sample_period)
         if frame is not None and not isinstance(frame, LocalFrame):

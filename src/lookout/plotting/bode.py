@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -14,6 +14,9 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import NullLocator
 
 from lookout.plotting._common import _minus, _runs
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: The frequencies of the tuning rule (48): dataset variable, legend label, gid, style.
 _MARKERS: tuple[tuple[str, str, str, dict[str, Any]], ...] = (
@@ -71,7 +74,7 @@ def minimum_phase_of_h(response: xr.Dataset, dof: str) -> tuple[float, float]:
     )
 
 
-def plot_bode(response: xr.Dataset, *, title: str | None = None):
+def plot_bode(response: xr.Dataset, *, title: str | None = None) -> Figure:
     """Bode plot of the error loops h0, hB and h = hB h0 of all three DOFs.
 
     Fossen & Strand (1999), Fig. 6 (and the tuning behind Figs. 9–11): one column

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
@@ -37,6 +38,9 @@ from lookout.plotting._panels import (
     zoom_window,
 )
 from lookout.results import limited as limited_input
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: Rows of panels in one column of a figure of :func:`plot_run_estimates` (and the
 #: others of ``lookout run``) before another column is opened; at most this many columns.
@@ -204,7 +208,7 @@ def _heading(title: str | None, what: str) -> str:
     return what if title is None else f"{textwrap.fill(title, 110)}\n{what}"
 
 
-def plot_run_estimates(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+def plot_run_estimates(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None) -> Figure | None:
     """Every estimated variable of a run against its truth (``estimates.png`` of ``lookout run``).
 
     One panel per component (north, east, heading; surge, sway, yaw rate; each joint
@@ -258,7 +262,7 @@ def plot_run_estimates(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
     )
 
 
-def plot_run_reference(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+def plot_run_reference(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None) -> Figure | None:
     """The reference against the truth (``reference.png`` of ``lookout run``).
 
     One panel per component of every ``<name>_desired`` (:func:`run_references`):
@@ -292,7 +296,7 @@ def plot_run_reference(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
     )
 
 
-def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+def plot_run_input(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None) -> Figure | None:
     """The commanded and the applied input (``input.png`` of ``lookout run``).
 
     One panel per component of every input that is not zero throughout
@@ -362,7 +366,7 @@ def _continuous_degrees(angle: np.ndarray) -> np.ndarray:
     return degrees - 360.0 * np.round(np.median(degrees) / 360.0)
 
 
-def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None):
+def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None) -> Figure | None:
     """Each thruster's thrust and angle, commanded and delivered, and the allocation's
     shortfall (``thrusters.png`` of ``lookout run`` with a thruster actuator).
 

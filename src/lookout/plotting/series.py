@@ -4,6 +4,8 @@ true course of some signals (:func:`plot_trajectories`)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -28,18 +30,21 @@ from lookout.plotting._panels import (
     _windows,
 )
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 
 def plot_estimates(
     ds: xr.Dataset,
-    panels,
+    panels: Iterable[tuple[str, str | None]],
     *,
     run: int = 0,
     zoom: float = 200.0,
-    window=None,
+    window: Sequence[float] | Sequence[Sequence[float]] | None = None,
     title: str | None = None,
-    targets=None,
+    targets: Mapping[str, str] | None = None,
     transient: float | None = None,
-):
+) -> Figure:
     """True and estimated signals, one row per panel: the full run and zoomed windows.
 
     The comparison of Fossen & Strand (1999), Figs. 9–11 and Calugi (2002),
@@ -129,7 +134,7 @@ def plot_estimates(
     return fig
 
 
-def plot_trajectories(ds: xr.Dataset, panels, *, run: int = 0, title: str | None = None):
+def plot_trajectories(ds: xr.Dataset, panels: Iterable[tuple[str, str | None]], *, run: int = 0, title: str | None = None) -> Figure:
     """The true course of some signals, one row per panel (Calugi 2002, Figs. 2.3, 2.5, 2.7).
 
     Parameters

@@ -50,7 +50,7 @@ import csv
 import html
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -78,7 +78,7 @@ SIGN_LEVEL = 0.10
 COST_TIE = 0.10
 
 
-def lead_metrics(metrics) -> list[str]:
+def lead_metrics(metrics: Iterable[str]) -> list[str]:
     """The metrics that may lead the recommendation by default: every ``rms_tracking``
     metric (a closed loop's: what its user feels), then every ``rms_error`` metric, in
     the order of ``metrics`` (``KIND:SIGNAL``). At a condition, the one of them that
@@ -100,7 +100,7 @@ def collect(
     conditions: list[str] | None = None,
     recommend_by: list[str] | None = None,
     skipped: Sequence[str] = (),
-):
+) -> xr.Dataset:
     """The benchmark's results as one Dataset over ``(observer, condition, seed)``:
     every metric of any observer (NaN where an observer does not estimate the signal,
     or does not run at the condition), in the order of ``metrics`` (``KIND:SIGNAL``;
@@ -123,7 +123,7 @@ def collect(
     for grid in every:
         for name, array in grid.data_vars.items():
             if name not in variables and array.dims == ("condition", "seed"):
-                variables[name] = dict(array.attrs)
+                variables[str(name)] = dict(array.attrs)  # a store names its variables with strings
     observers = list(stores)
     order = [name.replace(":", "__") for name in metrics]
     ranked = sorted(variables, key=lambda name: (name == "diverged", order.index(name) if name in order else len(order), name))
@@ -271,12 +271,12 @@ def short_label(name: str) -> str:
     return _LABELS.get(kind, kind.replace("_", " ") + " of {}").format(signal.replace("_", " "))
 
 
-def recommend(ds) -> list[Recommendation]:
+def recommend(ds: xr.Dataset) -> list[Recommendation]:
     """The recommendation per condition of a benchmark's Dataset (:func:`collect`), by
     the rule of the module docstring."""
     lead = [name.replace(":", "__") for name in json.loads(ds.attrs.get("recommend_by") or "[]")]
     lead = [name for name in lead if name in ds] or [
-        n for n in (x.replace(":", "__") for x in lead_metrics([v.replace("__", ":") for v in ds.data_vars])) if n in ds
+        n for n in (x.replace(":", "__") for x in lead_metrics([v.replace("__", ":") for v in _variables(ds)])) if n in ds
     ]
     observers = [str(o) for o in ds.observer.values]
     cost = np.asarray(ds.cost.values, dtype=float)
@@ -365,6 +365,12 @@ def recommendation_rule() -> str:
     )
 
 
+def _variables(ds: xr.Dataset) -> list[str]:
+    """The names of the data variables of a benchmark's Dataset (strings, as :func:`collect`
+    and NetCDF give them)."""
+    return [str(name) for name in ds.data_vars]
+
+
 def _metric_parts(name: str) -> tuple[str, str]:
     kind, _, signal = name.partition("__")
     return kind, signal
@@ -391,13 +397,13 @@ def _number(value: float) -> str:
     return f"{value:.3g}"
 
 
-def metric_label(ds, name: str) -> str:
+def metric_label(ds: xr.Dataset, name: str) -> str:
     attrs = ds[name].attrs
     kind, signal = _metric_parts(name)
     return f"{kind.replace('_', ' ')} of {signal.replace('_', ' ')} ({attrs.get('units', '')})"
 
 
-def cell_table(ds, name: str) -> tuple[list[str], list[list[str]]]:
+def cell_table(ds: xr.Dataset, name: str) -> tuple[list[str], list[list[str]]]:
     """Rows observer, columns condition: the median of ``name`` (the best of each column,
     and those within :data:`TIE` of it, marked **bold** in Markdown), with the runs
     diverged where any did."""
@@ -426,7 +432,7 @@ def cell_table(ds, name: str) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
-def summary_table(ds, outage: tuple[str, str | None] | None, convergence: str | None) -> tuple[list[str], list[list[str]]]:
+def summary_table(ds: xr.Dataset, outage: tuple[str, str | None] | None, convergence: str | None) -> tuple[list[str], list[list[str]]]:
     """One row per observer: what it is given, its cost, runs diverged, and (where the
     metrics hold them) its convergence time at the baseline and its outage drift and
     recovery."""
@@ -466,16 +472,17 @@ def _markdown(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
-def _names(ds) -> tuple[list[str], tuple[str, str | None] | None, str | None]:
+def _names(ds: xr.Dataset) -> tuple[list[str], tuple[str, str | None] | None, str | None]:
     """(per-condition metrics, (drift, recovery) names or None, convergence name or None)."""
-    metrics = [n for n in ds.data_vars if "__" in n and _metric_parts(n)[0] in PER_CONDITION]
-    drift = next((n for n in ds.data_vars if n.startswith("outage_drift__")), None)
-    recovery = next((n for n in ds.data_vars if n.startswith("recovery_time__")), None)
-    convergence = next((n for n in ds.data_vars if n.startswith("settling_time__")), None)
+    names = _variables(ds)
+    metrics = [n for n in names if "__" in n and _metric_parts(n)[0] in PER_CONDITION]
+    drift = next((n for n in names if n.startswith("outage_drift__")), None)
+    recovery = next((n for n in names if n.startswith("recovery_time__")), None)
+    convergence = next((n for n in names if n.startswith("settling_time__")), None)
     return metrics, ((drift, recovery) if drift else None), convergence
 
 
-def markdown(ds) -> str:
+def markdown(ds: xr.Dataset) -> str:
     """The benchmark's tables in Markdown."""
     metrics, outage, convergence = _names(ds)
     parts = [f"### {ds.attrs.get('title', 'benchmark')}", ""]
@@ -501,7 +508,7 @@ def markdown(ds) -> str:
     return "\n".join(parts)
 
 
-def rule_text(ds) -> str:
+def rule_text(ds: xr.Dataset) -> str:
     """The recommendation's rule with this benchmark's lead metrics."""
     lead = [short_label(name.replace(":", "__")) for name in json.loads(ds.attrs.get("recommend_by") or "[]")]
     words = (
@@ -514,15 +521,15 @@ def rule_text(ds) -> str:
     return recommendation_rule().format(lead=words)
 
 
-def conditions_table(ds) -> tuple[list[str], list[list[str]]]:
+def conditions_table(ds: xr.Dataset) -> tuple[list[str], list[list[str]]]:
     """What each condition changes from the baseline."""
     return ["condition", "changes"], [[str(c), str(w) or "nothing (the baseline)"] for c, w in zip(ds.condition.values, ds.changes.values)]
 
 
-def rows_csv(ds) -> list[dict]:
+def rows_csv(ds: xr.Dataset) -> list[dict]:
     """One row per observer, condition and metric: median, percentiles, runs diverged."""
     rows = []
-    for name in [n for n in ds.data_vars if "__" in n]:
+    for name in [n for n in _variables(ds) if "__" in n]:
         for i, observer in enumerate(ds.observer.values):
             for j, condition in enumerate(ds.condition.values):
                 median, low, high, bad, runs = _statistics(ds[name].values[i, j], ds["diverged"].values[i, j])
@@ -654,7 +661,7 @@ def outage_figure(ds: xr.Dataset, drift: str, recovery: str | None) -> Figure:
     return figure
 
 
-def figures(ds) -> dict[str, Figure]:
+def figures(ds: xr.Dataset) -> dict[str, Figure]:
     """File name -> matplotlib figure, for every figure of the benchmark."""
     metrics, outage, _ = _names(ds)
     found = {f"{name}.png": metric_figure(ds, name) for name in metrics}
@@ -693,7 +700,7 @@ code { background: #f5f5f5; padding: 0 0.2em; }
 """
 
 
-def write_results(ds, folder: Path, reports: dict[str, Path] | None = None) -> dict[str, Path]:
+def write_results(ds: xr.Dataset, folder: Path, reports: dict[str, Path] | None = None) -> dict[str, Path]:
     """Write ``benchmark.nc``, ``table.md``, ``table.csv``, ``figures/*.png`` and
     ``report.html`` into ``folder``; return name -> path."""
     import base64

@@ -59,7 +59,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -68,6 +68,9 @@ from lookout.scenario._toml import FileError, read
 from lookout.scenario.composition import get_path
 from lookout.scenario.file import CompositionSpec, describe, from_document, located, read_spec
 from lookout.scenario.settings import positive_count, validate_strictly
+
+if TYPE_CHECKING:
+    from lookout.sim import Scenario
 
 #: The largest batch a chunk defaults to.
 DEFAULT_CHUNK_RUNS = 64
@@ -130,7 +133,7 @@ class Axis(BaseModel):
         assert self.cases is not None, "case labels are a cases axis's"
         return tuple(", ".join(f"{key}={json.dumps(value)}" for key, value in case.items()) or "base" for case in self.cases)
 
-    def case_changes(self, label) -> dict[str, Any]:
+    def case_changes(self, label: str | float) -> dict[str, Any]:
         """Key path -> value of the case named ``label``."""
         assert self.cases is not None, "case changes are a cases axis's"
         return dict(self.cases[self.case_labels.index(label)])
@@ -157,11 +160,12 @@ class Axis(BaseModel):
         assert self.field is not None  # an axis without cases has a field (checked on validation)
         return (self.field,) if isinstance(self.field, str) else tuple(self.field)
 
-    def value_label(self, value):
+    def value_label(self, value: Any) -> Any:
         """A value as the store and the report show it: a replaced component by its kind
         (numbered in the axis's order when two values share one); a case by its label."""
         if self.cases is not None or not isinstance(value, dict):
             return value
+        assert self.values is not None  # a component value (a table) is one of the axis's values
         kinds = [v.get("kind", "?") if isinstance(v, dict) else str(v) for v in self.values or ()]
         index = next(i for i, v in enumerate(self.values) if v == value)
         kind = kinds[index]
@@ -564,7 +568,7 @@ def point_count(settings: CampaignSettings) -> int:
     return math.prod(len(_grid_values(axis)) if axis.steps is None else int(axis.steps) for axis in settings.sweep.axes)
 
 
-def kept_values(settings: CampaignSettings, scenario) -> int:
+def kept_values(settings: CampaignSettings, scenario: Scenario) -> int:
     """Numbers a run keeps in the store: one per metric and the divergence flag, and
     its kept trajectories."""
     values = len(settings.metrics) + 1
@@ -586,7 +590,7 @@ def chunk_runs_of(settings: CampaignSettings) -> int:
     return max(d for d in range(1, DEFAULT_CHUNK_RUNS + 1) if seeds % d == 0)
 
 
-def driver_memory(settings: CampaignSettings, scenario) -> tuple[float, int, int]:
+def driver_memory(settings: CampaignSettings, scenario: Scenario) -> tuple[float, int, int]:
     """(bytes, points, chunks) the driver holds for the campaign: see
     :data:`DRIVER_BYTES_PER_RUN` and the two after it."""
     points = point_count(settings)
@@ -596,7 +600,7 @@ def driver_memory(settings: CampaignSettings, scenario) -> tuple[float, int, int
     return need, points, chunks
 
 
-def check_driver_memory(settings: CampaignSettings, scenario, available: float | None = None) -> None:
+def check_driver_memory(settings: CampaignSettings, scenario: Scenario, available: float | None = None) -> None:
     """Refuse (ValueError) a campaign whose points, seeds and chunks would not fit in
     this process's memory, before any of them is made."""
     from lookout._resources import refuse_unless_it_fits

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -15,7 +16,11 @@ from lookout._commandline import DIVERGED_EXIT_CODE, check_memory, console, crea
 from lookout._json import json_safe
 
 if TYPE_CHECKING:
+    import xarray as xr
     from rich.progress import TaskID
+
+    from lookout.components import DivergenceBound
+    from lookout.scenario.metrics import Failure
 from lookout._validation import InputError
 from lookout.scenario._toml import FileError
 
@@ -270,7 +275,7 @@ def _warn_late_schedule(spec, scenario_file: str) -> None:
         )
 
 
-def warn_limited(ds) -> None:
+def warn_limited(ds: xr.Dataset) -> None:
     """A warning line on standard error for each input an actuator limited for more than
     :data:`LIMITED_WARNING_FRACTION` of a run (the worst run), and for a thruster
     allocation short of its command as long (``allocation_saturated``)."""
@@ -288,7 +293,7 @@ def warn_limited(ds) -> None:
         )
 
 
-def with_status(ds, failed: list, bound):
+def with_status(ds: xr.Dataset, failed: list[Failure | None], bound: DivergenceBound | None) -> xr.Dataset:
     """``ds`` with ``status`` per run from ``failed`` (:func:`lookout.scenario.metrics.failures`)
     and ``failure``, why and where each failed run failed ("" for a finite run)."""
     import numpy as np
@@ -303,7 +308,7 @@ def with_status(ds, failed: list, bound):
     return ds
 
 
-def report_failures(failed: list, seeds, bound) -> None:
+def report_failures(failed: list[Failure | None], seeds: Sequence[int], bound: DivergenceBound | None) -> None:
     """One line per failed run on standard error: why and where it failed."""
     import sys
 

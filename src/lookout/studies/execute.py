@@ -24,12 +24,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from lookout import _resources
 from lookout._resources import PEAK_MEMORY_PER_RECORD_BYTE, format_bytes
 from lookout._validation import one_line
 from lookout.studies.campaign import Campaign, compute_chunk
 from lookout.studies.store import CampaignStore
+
+if TYPE_CHECKING:
+    from dask.distributed import LocalCluster
+
+    from lookout.sim import Scenario
 
 #: What a chunk needs besides its records (the JAX runtime and compiled programs).
 WORKER_BASE_BYTES = 600e6
@@ -66,7 +72,7 @@ class Estimate:
     compiled_seen: int = 0
 
 
-def record_bytes(campaign: Campaign, scenario) -> int:
+def record_bytes(campaign: Campaign, scenario: Scenario) -> int:
     """Bytes one run of a chunk holds per recorded sample: every recorded signal when
     trajectories are kept (the chunk is simulated with its records), else the series
     its metrics keep (one number per settling time; the metrics accumulate in the
@@ -132,7 +138,7 @@ def _local_env() -> dict:
     return {"XLA_FLAGS": " ".join((flags + " --xla_force_host_platform_device_count=1").split())}
 
 
-def local_cluster(workers: int):
+def local_cluster(workers: int) -> LocalCluster:
     """A ``LocalCluster`` of ``workers`` single-threaded worker processes bound to
     127.0.0.1, each with one XLA device (:func:`_local_env`)."""
     from dask.distributed import LocalCluster
@@ -169,7 +175,7 @@ def store_bytes(campaign: Campaign, chunks: int) -> float:
     return chunks * per_chunk + STORE_METADATA_BYTES
 
 
-def check_disk(campaign: Campaign, path, pending: int, free: float | None = None) -> float:
+def check_disk(campaign: Campaign, path: str | Path, pending: int, free: float | None = None) -> float:
     """Refuse (ValueError naming the store's file system) a campaign whose store will
     not fit on the disk, before the store exists."""
     need = store_bytes(campaign, pending)
@@ -186,7 +192,7 @@ def check_disk(campaign: Campaign, path, pending: int, free: float | None = None
 
 def run_campaign(
     campaign: Campaign,
-    path,
+    path: str | Path,
     *,
     workers: int | None = None,
     scheduler: str | None = None,

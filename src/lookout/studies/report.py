@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
+    import xarray as xr
     from matplotlib.typing import RcKeyType
 
 __all__ = ["report_figures", "write_report", "default_report_path"]
@@ -436,7 +437,7 @@ def _build(ds, document: dict | None) -> list[_Figure]:
     return figures
 
 
-def report_figures(ds, campaign_document: dict | None) -> dict:
+def report_figures(ds: xr.Dataset, campaign_document: dict | None) -> dict:
     """The report's figures, by PNG file name, as :class:`matplotlib.figure.Figure`\\ s.
 
     ``ds`` is the store's Dataset (:meth:`CampaignStore.open`), ``campaign_document`` its
@@ -797,7 +798,7 @@ def write_report(store_path: str | Path, out: str | Path | None = None, *, figur
         raise FileNotFoundError(f"no campaign store at {store.path}")
     document = store.campaign_document()
     full = store.open()
-    keep = [name for name, variable in full.data_vars.items() if not name.startswith("trajectory__")]
+    keep = [name for name, variable in full.data_vars.items() if not str(name).startswith("trajectory__")]  # names are strings
     ds = full[keep].load()
     attrs = ds.attrs
     done = store.done()

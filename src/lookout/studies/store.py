@@ -28,11 +28,14 @@ import json
 import os
 import re
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from lookout.studies.campaign import Campaign, Chunk, canonical_json, fingerprint_of
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 META = "_lookout"
 
@@ -53,7 +56,7 @@ def _short(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def differences(held, given, prefix: str = "") -> list[str]:
+def differences(held: Any, given: Any, prefix: str = "") -> list[str]:
     """``key: held -> given`` for every dotted key where two campaign documents differ
     (``scenario.settings.duration: 1500.0 -> 1000.0``), in key order."""
     if isinstance(held, dict) and isinstance(given, dict):
@@ -221,13 +224,13 @@ class CampaignStore:
             result[int(record["chunk"])] = record
         return result
 
-    def open(self):
+    def open(self) -> xr.Dataset:
         """The store as an :class:`xarray.Dataset`."""
         import xarray as xr
 
         return xr.open_zarr(self.path, consolidated=False)
 
-    def grid(self):
+    def grid(self) -> xr.Dataset:
         """A grid campaign's store with the sweep point unfolded into one dimension per
         axis (in the axes' order, each with its values in the order the spec gives
         them) and ``seed``: ``(axis_1, ..., axis_n, seed)``."""
@@ -320,7 +323,9 @@ def status(path: str | Path) -> dict:
         "chunk_runs": chunk_runs,
         "sweep_kind": ds.attrs.get("sweep_kind"),
         "axes": json.loads(ds.attrs.get("axes", "[]")),
-        "metrics": [str(ds[name].attrs.get("metric", name)) for name in ds.data_vars if name != "diverged" and not name.startswith("trajectory__")],
+        "metrics": [
+            str(ds[name].attrs.get("metric", name)) for name in ds.data_vars if name != "diverged" and not str(name).startswith("trajectory__")
+        ],
         "chunk_seconds": float(sum(record.get("seconds", 0.0) for record in done.values())),
         "diverged": int(np.nansum(diverged)),
         "lookout_version": ds.attrs.get("lookout_version"),

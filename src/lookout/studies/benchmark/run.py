@@ -14,10 +14,10 @@ import json
 import math
 import re
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,6 +26,9 @@ from lookout.scenario._toml import FileError
 from lookout.scenario.composition import MODEL_ROLES, CompositionError, compose, key_text, set_path
 from lookout.studies.benchmark.spec import Benchmark, Condition, base_document
 from lookout.studies.campaign import Campaign, campaign_from_document
+
+if TYPE_CHECKING:
+    from lookout.sim import Scenario
 
 #: Repeats of the timed observer-only pass; the best is reported.
 COST_REPEATS = 3
@@ -116,7 +119,7 @@ def describe_condition(condition: Condition) -> str:
     return "; ".join(told + error)
 
 
-def metric_fit(names, scenario) -> tuple[list[str], dict[str, str]]:
+def metric_fit(names: Iterable[str], scenario: Scenario) -> tuple[list[str], dict[str, str]]:
     """The metrics of ``names`` that apply to ``scenario`` (its observer estimates the
     signal, its reference tracks it, ...), and for each other one, why not."""
     from lookout.scenario import metrics as metric_module
@@ -446,7 +449,7 @@ def campaigns(benchmark: Benchmark, size_name: str, observers: list[str] | None 
 # ------------------------------------------------------------------ running
 
 
-def observer_cost(scenario, seed: int, repeats: int = COST_REPEATS) -> float:
+def observer_cost(scenario: Scenario, seed: int, repeats: int = COST_REPEATS) -> float:
     """Microseconds per sample of the observer of ``scenario`` alone, stepped over one
     run's recorded measurements and inputs (the run of ``seed``), compiled: the best of
     ``repeats`` passes."""
