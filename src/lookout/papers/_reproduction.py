@@ -15,6 +15,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
+
+_Built = TypeVar("_Built")
 
 
 @dataclass(frozen=True)
@@ -111,3 +114,11 @@ def simulate_each(cases, simulate_case: Callable, out, filename: str, history: C
         name = filename.format(case=case)
         write_netcdf(ds, out / name, history=history(case))
         yield case, scenario, ds, name
+
+
+def built_as(component: object, kind: type[_Built], what: str) -> _Built:
+    """``component``, a part of a scenario a reproduction's composition builds, as the
+    class the composition builds it as; a TypeError names ``what`` when it is another."""
+    if not isinstance(component, kind):
+        raise TypeError(f"{what} is a {type(component).__name__}, not a {kind.__name__}")
+    return component

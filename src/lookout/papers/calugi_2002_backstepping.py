@@ -38,9 +38,10 @@ from lookout.analysis.adaptive_manipulator import check_5_28
 from lookout.analysis.conditions import inequalities_in
 from lookout.models.manipulators import PrintedInertiaArm
 from lookout.models.parameters import ModelParameters
+from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
 from lookout.papers import CATALOG
 from lookout.papers._report import Table, save_figures, write_summary
-from lookout.papers._reproduction import Reproduction, simulate_each
+from lookout.papers._reproduction import Reproduction, built_as, simulate_each
 from lookout.reference import ReferenceFilter
 from lookout.scenario.composition import compose
 from lookout.scenario.settings import NoiseFreeConfig, PositiveFloat, finite_positive, whole_samples
@@ -151,12 +152,13 @@ def build(config: Config, variant: str = "corrected") -> Scenario:
 
 def parameters(variant: str = "corrected") -> ModelParameters:
     """theta = m2 of the arm: the observer's and the controller's model of ``variant``."""
-    return build(Config(), variant).observer.parameters
+    observer = built_as(build(Config(), variant).observer, AdaptiveManipulatorObserver, f"the observer of {variant!r}")
+    return built_as(observer.parameters, ModelParameters, f"the parameters of the observer of {variant!r}")
 
 
 def reference(config: Config) -> ReferenceFilter:
     """The reference filter of :func:`reference_table`."""
-    return build(config).reference
+    return built_as(build(config).reference, ReferenceFilter, "the reference")
 
 
 def simulate_case(config: Config, case: str, *, progress: Callable | None = None) -> tuple[Scenario, xr.Dataset]:

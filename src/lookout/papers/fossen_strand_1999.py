@@ -19,17 +19,18 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import xarray as xr
 from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.analysis import check_spr, check_tuning_rule, estimation_errors, frequency_response, settling_time
-from lookout.observers import injection_gains_from_normalized
+from lookout.observers import PassiveObserver, injection_gains_from_normalized
 from lookout.papers import CATALOG
 from lookout.papers._config import VesselSettings
 from lookout.papers._report import Table, mean_and_spread, significant, write_summary
-from lookout.papers._reproduction import Reproduction
+from lookout.papers._reproduction import Reproduction, built_as
 from lookout.results import write_netcdf
 from lookout.scenario.composition import compose
 from lookout.scenario.settings import PositiveFloat, RunsConfig, whole_samples
@@ -222,7 +223,8 @@ def summarize(ds: xr.Dataset) -> dict:
     for name in STATES:
         error = paper_vector(errors, name)
         truth = paper_vector(ds, name)
-        rms = np.sqrt((error.sel(time=ds.time >= half) ** 2).mean("time"))  # dims (run, dof)
+        # numpy's stubs give a ufunc's result as an ndarray; a DataArray's __array_ufunc__ gives a DataArray
+        rms = cast(xr.DataArray, np.sqrt((error.sel(time=ds.time >= half) ** 2).mean("time")))  # dims (run, dof)
         summary["units"][name] = truth.attrs["units"]
         summary["rms_second_half"][name] = dict(zip(DOF, rms.mean("run").values.tolist()))
         summary["rms_second_half_std"][name] = dict(zip(DOF, rms.std("run").values.tolist()))
@@ -266,7 +268,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     write_netcdf(ds, out / "fossen_strand_1999.nc", history=f"lookout reproduce {NAME} (seeds {config.seeds[0]}..{config.seeds[-1]})")
 
-    observer = scenario.observer
+    observer = built_as(scenario.observer, PassiveObserver, "the observer")
     response = frequency_response(observer)
     write_netcdf(response, out / "bode.nc", history=f"frequency response of the observer of {NAME}")
     figures = {"fig06_bode.png": plot_bode(response, title="Fossen & Strand (1999), Fig. 6: error-loop frequency response h0, hB, h")}

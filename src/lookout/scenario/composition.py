@@ -140,8 +140,8 @@ class SimulationSettings(RunsConfig):
 # ---------------------------------------------------------------- parameter schemas
 
 
-def _in_range(parameter: registry.Parameter):
-    low, high, low_in, high_in = parameter.range
+def _in_range(bounds: tuple[float, float, bool, bool]):
+    low, high, low_in, high_in = bounds
 
     def check(value):
         values = list(value.values()) if isinstance(value, dict) else [value]
@@ -149,7 +149,7 @@ def _in_range(parameter: registry.Parameter):
             if not ((number >= low if low_in else number > low) and (number <= high if high_in else number < high)) or (
                 np.isinf(number) and high == math.inf
             ):
-                words = {(0.0, math.inf, False, False): "positive", (0.0, math.inf, True, False): "non-negative"}.get(parameter.range)
+                words = {(0.0, math.inf, False, False): "positive", (0.0, math.inf, True, False): "non-negative"}.get(bounds)
                 if words and not np.isfinite(number):
                     words = f"finite and {words}"
                 interval = f"{'[' if low_in else '('}{low:g}, {high:g}{']' if high_in else ')'}"
@@ -191,7 +191,7 @@ def _annotation(parameter: registry.Parameter):
     if sort in ("array", "parts") and (parameter.shape is not None or not parameter.broadcast):
         annotation = Annotated[annotation, AfterValidator(_shaped(parameter))]
     if parameter.range is not None and sort in ("float", "int", "array", "parts"):
-        annotation = Annotated[annotation, AfterValidator(_in_range(parameter))]
+        annotation = Annotated[annotation, AfterValidator(_in_range(parameter.range))]
     if parameter.default is None:
         annotation = annotation | None
     return annotation
@@ -222,7 +222,7 @@ def parameter_model(kind: registry.Kind, design: str | None):
     """The pydantic model of a kind's value parameters (strict, every number finite)."""
     key = (kind.role, kind.name, design)
     if key not in _MODELS:
-        fields = {
+        fields: dict[str, Any] = {
             p.name: (_annotation(p), Field(default=_default_value(p.default), description=p.description))
             for p in kind.parameters(design)
             if p.sort == "value"
@@ -310,7 +310,7 @@ def _blamed(error: ValueError, table: dict, location: tuple, names, component: s
     return CompositionError(location, f"{component}: {reason}" if component and not reason.startswith(component) else reason)
 
 
-def _table(document: dict, role: str) -> dict:
+def _table(document: dict, role: str) -> dict | None:
     table = document.get(role)
     if table is None:
         return {"kind": registry.DEFAULT_KINDS[role]} if role in registry.DEFAULT_KINDS else None
@@ -319,7 +319,7 @@ def _table(document: dict, role: str) -> dict:
     return table
 
 
-def build_part(role: str, table: dict, location: tuple, context: _Context, *, defaults: bool = True) -> tuple[Any, dict]:
+def build_part(role: str, table: dict | None, location: tuple, context: _Context, *, defaults: bool = True) -> tuple[Any, dict]:
     """Build the component of ``table`` (its ``kind`` of ``role``): ``(component, the
     table with every parameter spelled out)``.
 
@@ -379,6 +379,8 @@ def build_part(role: str, table: dict, location: tuple, context: _Context, *, de
                 )
             arguments[p.name] = found
         elif p.sort == "part":
+            if p.role is None:  # the registry gives every part a role (its declaration's, else its name)
+                raise CompositionError(location + (p.name,), f"{role} {name}: part {p.name} has no role")
             if p.name in table:
                 arguments[p.name], normal[p.name] = build_part(p.role, table[p.name], location + (p.name,), context, defaults=defaults)
             elif p.from_plant and context.find(_part_classes(p)) is not None:
@@ -645,7 +647,7 @@ def compose(document: dict) -> Composition:
         if hull
         else None
     )
-    reason = hull(mass) if mass is not None else None
+    reason = hull(mass) if hull is not None and mass is not None else None  # a mass is found only for a hull check
     if reason is not None:
         layout = normal["actuator"].get("layout", {}).get("kind", "given")
         raise CompositionError(("actuator", "layout"), f"layout {layout} does not fit plant {kinds['plant']}: {reason}")
@@ -701,7 +703,8 @@ def _scenario_error(error: ValueError, kinds: dict) -> CompositionError:
     reason = one_line(error)
     raised = error.__context__ if isinstance(error, FitError) else None  # what the fit check traced
     frame = registry.plugin_frame(raised) if raised is not None else None
-    if frame is not None:  # a plugin's own code failed: the plugin's error, not a misfit of parts
+    # a plugin's own code failed: the plugin's error, not a misfit of parts (a frame is found only in a FitError's context)
+    if frame is not None and raised is not None and isinstance(error, FitError):
         role = next((role for role, name in kinds.items() if registry.kind(role, name).module == frame.module), error.parts[0])
         where = (role,) if role in kinds else ()
         owner = f"{role} {kinds[role]}" if role in kinds else f"the plugin {frame.module}"

@@ -89,7 +89,8 @@ def composition_comments(document: dict) -> dict[str, str]:
     """Every key of a full composition with its description (for the written file)."""
     comments = {"simulation": "the time grid, the integrator, runs and seeds"}
     for name, info in SimulationSettings.model_fields.items():
-        comments[f"simulation.{name}"] = info.description
+        if info.description is not None:
+            comments[f"simulation.{name}"] = info.description
     for role in registry.COMPONENT_ROLES:
         table = document.get(role)
         if isinstance(table, dict):
@@ -108,7 +109,7 @@ def _table_comments(role: str, table: dict, prefix: str, comments: dict) -> None
         comments[f"{prefix}.design"] = f"gain-synthesis rule: one of {', '.join(kind.designs)}"
     parameters = kind.parameters(table.get("design"))
     for p in parameters:
-        if p.sort == "part" and isinstance(table.get(p.name), dict):
+        if p.sort == "part" and p.role is not None and isinstance(table.get(p.name), dict):  # a part's role is always set
             _table_comments(p.role, table[p.name], f"{prefix}.{p.name}", comments)
         elif p.description:
             comments[f"{prefix}.{p.name}"] = p.description + ("" if p.sort != "part" or p.name in table else " (the plant's, unless given)")

@@ -456,7 +456,7 @@ def summary(
             )
             if present
         )
-    windows = (0, 0, 0)
+    windows: tuple[int, ...] = (0, 0, 0)
     if outage is not None:
         start, duration = outage
         windows = tuple(int(np.searchsorted(time, edge - 1e-9 * max(1.0, abs(edge)))) for edge in (start - duration, start, start + duration))
@@ -490,7 +490,7 @@ def _reduce_records(summary: MetricSummary, records, time, where: bool = False):
     origin = {n: records[0][n][:, 0] for n in summary._origins()}
     per_record = jax.vmap(summary.terms, in_axes=(0, 0, None))  # over time
     terms, series = jax.vmap(per_record, in_axes=(None, 0, 0))(jnp.arange(n_time), records, origin)  # over runs
-    accumulated = {
+    accumulated: dict[str, Any] = {
         "power": {v: a.sum(axis=1) for v, a in terms["power"].items()},
         "peak": {v: a.max(axis=1) for v, a in terms["peak"].items()},
         "final": {v: a[:, -1] for v, a in terms["final"].items()},

@@ -383,6 +383,8 @@ def load_plugin(path: str | Path, base: str | Path | None = None) -> str:
     name = _plugin_module_name(file)
     if name not in sys.modules:
         spec = importlib.util.spec_from_file_location(name, file)
+        if spec is None or spec.loader is None:
+            raise ValueError(f"plugin {text!r}: Python cannot load it as a module" + ("" if str(file) == text else f" ({file})"))
         module = importlib.util.module_from_spec(spec)
 
         def load():
@@ -535,7 +537,7 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
     does not take, or a required argument not declared, is an error in the declaration."""
     signature = inspect.signature(builder)
     try:
-        hints = typing.get_type_hints(builder.__init__ if isinstance(builder, type) else builder)
+        hints = typing.get_type_hints(builder.__init__ if isinstance(builder, type) else builder)  # type: ignore[misc]  # a class's __init__, read for its annotations
     except Exception:
         hints = {}
     taken = {name: p for name, p in signature.parameters.items() if name not in ("self", "cls") and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}

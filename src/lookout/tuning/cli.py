@@ -90,6 +90,8 @@ def tune_command(
         a, b = float(np.median(values["start"])), float(np.median(values["tuned"]))
         table.add_row(name, *((f"{float(np.median(values['given'])):.4g}",) if given else ()), f"{a:.4g}", f"{b:.4g}", f"{(b - a) / a:+.1%}")
     console.print(table)
+    if result.report_after is None:
+        raise ValueError("the tuning has no conditions of its tuned gains: its steps were not done")
     verdicts = ", ".join(f"{key} {verdict}" for key, verdict in result.report_after.verdicts.items())
     console_print(f"conditions of the tuned gains: {verdicts}")
     console_print(

@@ -25,6 +25,7 @@ import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax
@@ -32,6 +33,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from lookout.tuning.families import Family, build, family_of
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
 
 #: Metric kinds an objective may use: smooth in the gains (an RMS over the window).
 DIFFERENTIABLE = ("rms_error", "rms_tracking", "rms_input")
@@ -115,18 +119,18 @@ class Tuning:
     objective: Objective
     start_gains: tuple
     gains: tuple
+    report_before: Report  # the conditions of the start
     steps: list[Step] = field(default_factory=list)
     stopped: str = ""
     seconds: float = 0.0
-    report_before: object = None
-    report_after: object = None
+    report_after: Report | None = None  # the conditions of the tuned gains, once the steps are done
     held_out: dict = field(default_factory=dict)  # metric -> {"start": per run, "tuned": per run}
     units: dict = field(default_factory=dict)  # metric -> its units
     train_seeds: list = field(default_factory=list)
     test_seeds: list = field(default_factory=list)
     notes: list = field(default_factory=list)  # components left as they are, a start moved inside the conditions
     given_gains: tuple | None = None  # the scenario's own gains, when outside the conditions
-    report_given: object = None  # and their conditions
+    report_given: Report | None = None  # and their conditions
 
 
 def tune(
@@ -290,6 +294,8 @@ def write_results(result: Tuning, composition, folder, *, source: str, command: 
     from lookout.scenario.composition import compose, set_path
     from lookout.scenario.file import CompositionSpec, save
 
+    if result.report_after is None:
+        raise ValueError("the tuning has no conditions of its tuned gains: its steps were not done")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     document = copy.deepcopy(composition.document)

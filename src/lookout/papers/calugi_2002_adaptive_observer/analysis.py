@@ -11,7 +11,9 @@ import numpy as np
 import xarray as xr
 
 from lookout.analysis.conditions import inequalities_in
+from lookout.models.manipulators import ManipulatorPlant
 from lookout.papers._report import Table, significant
+from lookout.papers._reproduction import built_as
 
 from .composition import build, order_composition, simulate_document
 from .config import ORDER_DURATION, ORDER_PERIODS, REPORT_TIMES, SAMPLE_PERIODS, Config
@@ -22,7 +24,7 @@ def continuous_reference(config: Config, duration: float, step: float = 1e-4, re
     by RK4 at ``step`` with tau = A sin(w t) evaluated at each stage; recorded every
     ``record`` s (a multiple of every Delta of the order study)."""
     scenario = build(config, SAMPLE_PERIODS[0])
-    model, estimator = scenario.plant.model, scenario.observer
+    model, estimator = built_as(scenario.plant, ManipulatorPlant, "the plant").model, scenario.observer
 
     def field(t, x):
         q, qdot, velocity, theta = x[0:1], x[1:2], x[2:3], x[3:4]
@@ -58,7 +60,7 @@ def order_study(config: Config, duration: float = ORDER_DURATION) -> dict:
     coarse = ORDER_PERIODS[0]
     times = np.arange(int(round(duration / coarse))) * coarse  # the record ends one sample before the duration
     pick = np.rint(times / 0.0025).astype(int)
-    errors = {"theta": [], "velocity": []}
+    errors: dict[str, list[float]] = {"theta": [], "velocity": []}
     for period in ORDER_PERIODS:
         ds = simulate_document(order_composition(config, period, duration)).isel(run=0)
         index = np.rint(times / period).astype(int)

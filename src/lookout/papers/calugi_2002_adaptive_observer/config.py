@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from pydantic import Field, field_validator
 
@@ -20,7 +21,7 @@ ORDER_PERIODS = (0.02, 0.01, 0.005, 0.0025)
 #: The order study's horizon (s): within Fig. 4.2's window.
 ORDER_DURATION = 20.0
 #: The run in which the resets fire: Gamma, bounds l, h (kg) and mu (kg).
-STRESS = {"adaptation_gain": 1000.0, "bounds": (0.5, 1.5), "margin": 0.01}
+STRESS: dict[str, Any] = {"adaptation_gain": 1000.0, "bounds": (0.5, 1.5), "margin": 0.01}
 REPORT_TIMES = (1.0, 10.0, 20.0, 50.0)
 
 

@@ -11,8 +11,10 @@ import numpy as np
 import xarray as xr
 
 from lookout.controllers.furuta import PENDULUM_REFERENCE
+from lookout.models.furuta import FurutaConstants
 from lookout.observers.adaptive_manipulator import theta_signal_name
 from lookout.papers._report import Table
+from lookout.papers._reproduction import built_as
 
 from .composition import parameters
 from .config import EXPERIMENTS, SYMBOLS, TRUTH
@@ -51,7 +53,11 @@ def summarize(ds: xr.Dataset, name: str) -> dict:
     unknowns = parameters(experiment.unknowns)
     theta_hat = np.stack([hats[u][ok] for u in experiment.unknowns], axis=1)
     q_hat = ds.joint_angle_hat.values[ok]
-    det = np.asarray(jax.jit(jax.vmap(lambda q, th: unknowns.model(th).determinant(q)))(jnp.asarray(q_hat), jnp.asarray(theta_hat)))
+    det = np.asarray(
+        jax.jit(jax.vmap(lambda q, th: built_as(unknowns.model(th), FurutaConstants, "the model of theta_hat").determinant(q)))(
+            jnp.asarray(q_hat), jnp.asarray(theta_hat)
+        )
+    )
     dt = float(time[1] - time[0])
     status = str(ds.status.values)
     if status == "finite" and fell_at is not None:

@@ -104,7 +104,7 @@ def composition(config: Config, case: str) -> dict:
         "margin": experiment.margin,
         "initial": {"velocity": [0.0, 0.0], "theta": list(experiment.initial)},
     }
-    if experiment.lower is not None:
+    if experiment.lower is not None and experiment.upper is not None:  # the experiments give both bounds or neither
         observer.update(lower=list(experiment.lower), upper=list(experiment.upper))
     if case == "III":
         observer["check_bounds"] = False

@@ -3,6 +3,8 @@ V = 1/2 |theta~|^2, the runs without excitation, and the tables for the terminal
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import xarray as xr
 
@@ -112,7 +114,7 @@ def _sim2_summary(ds: xr.Dataset, estimator: ParameterEstimator, sim: Simulation
     time = ds.time.values
     estimates = estimator.estimates(ds)
     truth = np.asarray(sim.values[0])
-    parameters = {}
+    parameters: dict[str, dict[str, Any]] = {}
     for j, (name, unit) in enumerate(zip(estimator.parameters.names, estimator.parameters.units)):
         at = {f"{d:g}": (None if d > time[-1] else float(_at(time, estimates[:, j], d))) for d in REPORT_DELAYS}
         parameters[name] = {

@@ -7,6 +7,8 @@ from collections.abc import Callable
 
 import xarray as xr
 
+from lookout.models.scheduled_parameters import ScheduledParameterPlant
+from lookout.papers._reproduction import built_as
 from lookout.scenario.composition import compose
 from lookout.sim import Scenario, seed_keys, simulate
 
@@ -58,7 +60,7 @@ def simulate_run(config: Config, name: str, *, progress: Callable | None = None)
     (``mass``; ``inertia`` and ``moment``) next to the estimates (``<name>_hat``)."""
     scenario = build(config, name)
     ds = simulate(scenario, seed_keys(config.seed, 1)[0], progress=progress).to_xarray()
-    plant = scenario.plant
+    plant = built_as(scenario.plant, ScheduledParameterPlant, f"the plant of {name!r}")
     truth = plant.truth(ds.time.values)
     for signal in plant.parameter_layout.signals:
         ds[signal.name] = (

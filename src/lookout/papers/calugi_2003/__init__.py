@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -82,7 +83,7 @@ def run(config: Config, out: Path, *, progress: Callable | None = None) -> dict:
     bounds = [config.theta_bounds[0] * m11(), config.theta_bounds[1] * m11()]
     for name in GAIN_SETS:
         chosen = ds.gains.values == name
-        summary = {key: [float(v) for v in np.asarray(values)[chosen]] for key, values in metrics.items() if key != "diverged"}
+        summary: dict[str, Any] = {key: [float(v) for v in np.asarray(values)[chosen]] for key, values in metrics.items() if key != "diverged"}
         summary["diverged"] = int(np.asarray(metrics["diverged"])[chosen].sum())
         gain = gains(name)
         report = check_calugi_2003(vessel, K1=gain["K1"], K2=gain["K2"], d=gain["d"], theta_bounds=bounds)

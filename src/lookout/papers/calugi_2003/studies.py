@@ -99,7 +99,7 @@ def discretization_order(
     names = ("position_difference", "velocity_hat_difference", "theta_ratio_difference")
     units = ("m", "m s-1", "1")
     log_delta = np.log(np.asarray(intervals))
-    variables = {}
+    variables: dict[str, tuple] = {}
     for k, (name, unit) in enumerate(zip(names, units)):
         variables[name] = (("sample_interval", "gains"), data[:, k, :], {"units": unit})
         order = [

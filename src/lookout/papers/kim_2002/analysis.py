@@ -4,13 +4,15 @@ the bias estimate stands for under model error."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import xarray as xr
 
 from lookout.analysis import estimation_errors
-from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT
+from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT, VesselPlant
 from lookout.papers._report import significant
+from lookout.papers._reproduction import built_as
 from lookout.papers.kim_2002.composition import build
 from lookout.papers.kim_2002.config import DIVERGED_DISTANCE, Config, gain_sets
 
@@ -57,7 +59,7 @@ def closed_loop_metrics(ds: xr.Dataset) -> dict[str, np.ndarray]:
 
 
 def _aggregate(metrics: dict[str, np.ndarray], index) -> dict:
-    out = {}
+    out: dict[str, Any] = {}
     for name, values in metrics.items():
         chosen = np.asarray(values)[index]
         if name == "diverged":
@@ -94,7 +96,7 @@ def bias_with_model_error(ds: xr.Dataset, config: Config) -> xr.Dataset:
     """
     from scipy.signal import lfilter
 
-    plant = build(config).plant
+    plant = built_as(build(config).plant, VesselPlant, "the plant")
     model = config.vessel.dp_vessel()
     mass, damping = np.asarray(model.mass_matrix), np.asarray(model.damping_matrix)
     true_mass, true_damping = np.asarray(plant.vessel.mass_matrix), np.asarray(plant.vessel.damping_matrix)

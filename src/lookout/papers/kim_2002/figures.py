@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -29,7 +30,7 @@ def _track_figure(ds: xr.Dataset, config: Config, runs: dict[str, int]):
     high = max(desired_north.max(), desired_east.max()) + 40.0
     axis.plot(desired_east, desired_north, color="0.6", lw=3, label="reference", zorder=1)
     when = diverged_at(ds)
-    styles = {"sliding-mode": {"color": "tab:blue", "lw": 1.2}, "conventional": {"color": "tab:red", "lw": 1.0, "ls": ":"}}
+    styles: dict[str, dict[str, Any]] = {"sliding-mode": {"color": "tab:blue", "lw": 1.2}, "conventional": {"color": "tab:red", "lw": 1.0, "ls": ":"}}
     names = {"sliding-mode": "sliding-mode observer", "conventional": "conventional observer (Kbar = 0)"}
     notes = []
     for observer, run in runs.items():

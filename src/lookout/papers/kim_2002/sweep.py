@@ -101,7 +101,7 @@ def run_sweep(config: Config, out: Path, progress: Callable | None = None, point
 
 def sweep_summary(sweep: xr.Dataset) -> dict:
     """Per gain set, observer and model error: mean RMS tracking error and diverged runs."""
-    result = {}
+    result: dict[str, dict[str, dict]] = {}
     for gains in sweep.gains.values.tolist():
         result[gains] = {}
         for observer in sweep.observer.values.tolist():

@@ -39,7 +39,7 @@ def tables(summary: dict) -> list[Table]:
     conditions, measured = summary.get("gain_conditions"), summary.get("gain_conditions_measured_start")
     if conditions and measured:
         sides = {item["name"]: item for item in inequalities_in(measured)}
-        rows = tuple(
+        condition_rows = tuple(
             (
                 item["name"],
                 f"{item['left']:.4g}",
@@ -53,7 +53,7 @@ def tables(summary: dict) -> list[Table]:
             Table(
                 f"Gain conditions for the printed gains: (25), Proposition 3.1 (V_M = {VELOCITY_BOUND:g} m/s), Proposition 3.3",
                 ("", "left", "right", "verdict", "right, eta_hat0 = eta0", "verdict"),
-                rows,
+                condition_rows,
                 "sufficient conditions, at the printed start and with the estimate started at the measurement (v_hat0 = 0)",
             )
         )
@@ -110,12 +110,12 @@ def tables(summary: dict) -> list[Table]:
         )
     if summary.get("choice_sweep"):
         sweep = summary["choice_sweep"]
-        rows = [(saturation, significant(values["min"]), significant(values["max"])) for saturation, values in sweep["by_saturation"].items()]
+        sweep_rows = [(saturation, significant(values["min"]), significant(values["max"])) for saturation, values in sweep["by_saturation"].items()]
         result.append(
             Table(
                 f"EI over the choices the paper leaves open ({sweep['condition']}; {len(sweep['runs'])} runs)",
                 ("thrust limits", "min EI", "max EI"),
-                tuple(rows),
+                tuple(sweep_rows),
                 "start on the ellipse (4), direction (2), initial velocity as v_hat or zeta (2)",
             )
         )

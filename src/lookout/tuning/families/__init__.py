@@ -19,8 +19,12 @@ from __future__ import annotations
 
 import abc
 import importlib
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
 
 
 #: observer kind -> "module:class" of its family (the class's ``of(scenario)`` builds it).
@@ -58,7 +62,7 @@ class Family(abc.ABC):
         """The scenario's own gains, in the order of :attr:`keys`."""
 
     @abc.abstractmethod
-    def check(self, scenario):
+    def check(self, scenario) -> Report:
         """The conditions, as the ``lookout design`` command checks them: a
         :class:`~lookout.analysis.conditions.Report`."""
 
@@ -164,7 +168,7 @@ def integration_stable(step: float, fastest: float, method: str, gains: str, sou
         f"h {gains} < x_stable",
         "the sampled observer integrates the error poles stably",
         source,
-        [Inequality.check(f"h max {gains}", f"h max({gains}) < {bound} ({method})", step * fastest, "<", bound, units="1", source=source)],
+        (Inequality.check(f"h max {gains}", f"h max({gains}) < {bound} ({method})", step * fastest, "<", bound, units="1", source=source),),
     )
 
 

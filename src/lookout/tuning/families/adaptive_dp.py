@@ -100,7 +100,7 @@ class AdaptiveDPFamily(Family):
     damping_min: float  # D_min (kg/s)
     coupling: float  # k = (1 + K_max)^2 / 4
     diagonal_mass: bool  # every vertex M(theta) diagonal: sigma2 > 0 by construction
-    gamma_tuned: np.ndarray  # bool per diagonal entry of Gamma (diagonal Gamma), or None
+    gamma_tuned: np.ndarray | None  # bool per diagonal entry of Gamma (diagonal Gamma), or None
     gamma_matrix: np.ndarray  # Gamma of the scenario ((p, p))
     closed_loop: bool  # the controller is VectorialBackstepping: d, P1 in the family
     form: str  # "discrete" or "continuous"

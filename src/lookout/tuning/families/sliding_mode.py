@@ -30,14 +30,14 @@ import numpy as np
 from lookout.tuning.families.passive import PassiveFamily
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SlidingModeFamily(PassiveFamily):
     """Kim's (2002) observer: the passive part's Kappa (H4), Lambda (H3), w_c, zeta_n as
     :class:`PassiveFamily`, then ``Kbar = exp(e)`` on the axes where it is positive and
     ``eps = exp(f)``."""
 
-    switching: np.ndarray = None  # bool per axis: Kbar tuned there (it is positive)
-    fixed_switching: np.ndarray = None  # Kbar where not tuned (zeros)
+    switching: np.ndarray  # bool per axis: Kbar tuned there (it is positive)
+    fixed_switching: np.ndarray  # Kbar where not tuned (zeros)
     name: str = "sliding-mode (Kim 2002): H4, H3, w_c, zeta_n inside (48), Kbar, eps; (14) and the error systems checked"
     design: str = "lookout design sliding-mode-observer"
     keys: tuple[str, ...] = PassiveFamily.keys + ("observer.switching_gain", "observer.boundary_layer")

@@ -112,11 +112,11 @@ def unbounded_speed(key: str, name: str, title: str, source: str):
         name,
         title,
         source,
-        [
+        (
             Inequality.check(
                 "w_max", "w_max < inf: the runs' largest |q'| is finite", math.inf, "<", float(np.finfo(float).max), units="rad/s", source=source
-            )
-        ],
+            ),
+        ),
     )
 
 
@@ -158,8 +158,8 @@ class VelocityFamily(Family):
                 f"Theorem 2.1: the joint speed of the scenario's runs (seeds {SPEED_SEEDS[0]}..{SPEED_SEEDS[-1]}) is not finite, "
                 "so no w_max bounds it"
             )
-        error = initial_velocity_error(scenario, scenario.initial_estimate)
-        return cls(bounds, speed, error, gain_floor(bounds, speed, error), reads_estimate(scenario))
+        initial_error = initial_velocity_error(scenario, scenario.initial_estimate)
+        return cls(bounds, speed, initial_error, gain_floor(bounds, speed, initial_error), reads_estimate(scenario))
 
     def gains(self, theta):
         return (self.floor * (1.0 + INSIDE) + jnp.exp(theta),)
