@@ -28,8 +28,8 @@ demo: $(VENV)/.installed
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -n auto --dist loadgroup
 
-# The loop while one works: lint and the tests not marked slow (docs/testing.md).
-check: lint $(VENV)/.installed-dev
+# The loop while one works: lint, types and the tests not marked slow (docs/testing.md).
+check: lint types $(VENV)/.installed-dev
 	$(BIN)/python -m pytest -q -n auto --dist loadgroup -m "not slow"
 
 lint: $(VENV)/.installed-dev
