@@ -46,7 +46,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any, TypeGuard
+from typing import Any, TypeGuard
 
 import numpy as np
 import numpy.typing as npt
@@ -60,10 +60,6 @@ from lookout.analysis.passive import _normalized_min_eig, check_spr, check_tunin
 from lookout.models.vessel import DOF, DPVessel
 from lookout.observers.passive import PassiveObserver
 from lookout.observers.sliding_mode import DEFAULT_BOUNDARY_LAYER, SlidingModeObserver
-
-if TYPE_CHECKING:
-    from lookout.environment.jonswap import JonswapWaves
-    from lookout.environment.waves import LinearWaveModel
 
 #: Names of the 15 error states, in the order of :func:`error_system`.
 ERROR_STATES = (
@@ -793,7 +789,9 @@ def check_kim_2002(
 def kim_2002_observer(
     vessel: DPVessel,
     *,
-    waves: LinearWaveModel | JonswapWaves | None = None,
+    # a wave model (LinearWaveModel, JonswapWaves) or None; Any, since the registry takes a
+    # part annotated with component classes as the first of them
+    waves: Any = None,
     wave_frequency: npt.ArrayLike | None = None,
     wave_damping: npt.ArrayLike = 0.1,
     notch_damping: npt.ArrayLike = 1.0,
