@@ -71,10 +71,11 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import scipy.optimize
 
 from lookout import _validation as check
@@ -84,6 +85,9 @@ from lookout.models.vessel import DPVessel
 
 #: The unknown parameter of Section V: theta = m11.
 M11 = (("M", 0, 0),)
+
+#: Unknown entries of M, D, K: (matrix, row, column), 0-based.
+_Entries = Iterable[tuple[str, int, int]]
 
 #: The paper, as each check cites it.
 PAPER = "Calugi et al. (2003)"
@@ -282,7 +286,7 @@ def _extreme(vertices, function, pick) -> tuple[float, list[float]]:
     return float(values[k]), vertices[k][0].tolist()
 
 
-def model_bounds(vessel: DPVessel, theta_bounds=None, *, unknown=M11) -> ModelBounds:
+def model_bounds(vessel: DPVessel, theta_bounds: npt.ArrayLike | None = None, *, unknown: _Entries = M11) -> ModelBounds:
     """M_min, M_max, D_min, D_max, K_max of (9)–(11) for ``vessel``.
 
     Parameters
@@ -371,7 +375,15 @@ UNITS_57 = "1/s vs 1/s (g1/4) + 1/s (with the implicit 1 kg/s^2)"
 UNITS_58 = "kg/s vs 1/s x (implicit 1 kg: z'z added to nu~'M nu~)"
 
 
-def observer_condition_22(vessel: DPVessel, *, K1, K2, theta_bounds=None, unknown=M11, d_min=None) -> Condition:
+def observer_condition_22(
+    vessel: DPVessel,
+    *,
+    K1: npt.ArrayLike,
+    K2: npt.ArrayLike,
+    theta_bounds: npt.ArrayLike | None = None,
+    unknown: _Entries = M11,
+    d_min: float | None = None,
+) -> Condition:
     """Condition (22) of the adaptive observer, with both sides of each inequality.
 
     ``(22a) sigma1 > (1 + K_max)^2 / (4 (sigma2 + D_min))`` and ``(22b) sigma2 > 0``
@@ -424,7 +436,15 @@ def _g(d: np.ndarray, coupling_gain: np.ndarray) -> tuple[float, float]:
 
 
 def closed_loop_conditions_57_58(
-    vessel: DPVessel, *, K1, K2, d, theta_bounds=None, unknown=M11, d_min=None, coupling_gain=1.0
+    vessel: DPVessel,
+    *,
+    K1: npt.ArrayLike,
+    K2: npt.ArrayLike,
+    d: npt.ArrayLike,
+    theta_bounds: npt.ArrayLike | None = None,
+    unknown: _Entries = M11,
+    d_min: float | None = None,
+    coupling_gain: npt.ArrayLike = 1.0,
 ) -> tuple[Condition, Condition]:
     """Conditions (57) and (58) of the closed loop, with both sides.
 
@@ -499,7 +519,17 @@ def z_weight_bound(sigma1: float, sigma2: float, damping_min: float, stiffness_m
     return float(min([root] + caps))
 
 
-def noise_drift_rate(*, K1, K2, d, gamma: float, noise_std: float, interval: float, C1=0.1, C2=0.1) -> float:
+def noise_drift_rate(
+    *,
+    K1: npt.ArrayLike,
+    K2: npt.ArrayLike,
+    d: npt.ArrayLike,
+    gamma: float,
+    noise_std: float,
+    interval: float,
+    C1: npt.ArrayLike = 0.1,
+    C2: npt.ArrayLike = 0.1,
+) -> float:
     """Expected rate of theta_hat (kg/s) that white position noise alone causes in the
     discrete update (67) for theta = m11, with the controller (36) and the vessel at
     rest at heading 0 (derived here; not in the paper).
@@ -567,7 +597,17 @@ def _calugi_summary(bounds: ModelBounds, gains: dict, quantities: Mapping) -> li
     return lines
 
 
-def check_calugi_2003(vessel: DPVessel, *, K1, K2, d, theta_bounds=None, unknown=M11, d_min=None, coupling_gain=1.0) -> Report:
+def check_calugi_2003(
+    vessel: DPVessel,
+    *,
+    K1: npt.ArrayLike,
+    K2: npt.ArrayLike,
+    d: npt.ArrayLike,
+    theta_bounds: npt.ArrayLike | None = None,
+    unknown: _Entries = M11,
+    d_min: float | None = None,
+    coupling_gain: npt.ArrayLike = 1.0,
+) -> Report:
     """Check (22), (57) and (58) of Calugi et al. (2003) for a vessel and gain set.
 
     Parameters
@@ -632,7 +672,16 @@ def check_calugi_2003(vessel: DPVessel, *, K1, K2, d, theta_bounds=None, unknown
 # -- gains that satisfy (57)-(58) ------------------------------------------------------
 
 
-def loop_rates(K1, K2, d, *, C1=0.1, C2=0.1, coupling_gain=1.0, speed=0.5) -> dict[str, np.ndarray]:
+def loop_rates(
+    K1: npt.ArrayLike,
+    K2: npt.ArrayLike,
+    d: npt.ArrayLike,
+    *,
+    C1: npt.ArrayLike = 0.1,
+    C2: npt.ArrayLike = 0.1,
+    coupling_gain: npt.ArrayLike = 1.0,
+    speed: float = 0.5,
+) -> dict[str, np.ndarray]:
     """The controller's rates at a planar speed bound, per axis (1/s).
 
     D1 = diag(d_i |k_i|^2) (28), Omega1 = (C1 + D1) K1 (38) and the largest
@@ -783,14 +832,14 @@ K1_FACTORS = tuple(m * 10.0**e for e in range(5) for m in (1.0, 1.5, 2.0, 3.0, 4
 def satisfying_gains(
     vessel: DPVessel,
     *,
-    K1,
-    K2,
-    d,
-    C1,
-    C2,
-    theta_bounds=None,
-    unknown=M11,
-    coupling_gain=1.0,
+    K1: npt.ArrayLike,
+    K2: npt.ArrayLike,
+    d: npt.ArrayLike,
+    C1: npt.ArrayLike,
+    C2: npt.ArrayLike,
+    theta_bounds: npt.ArrayLike | None = None,
+    unknown: _Entries = M11,
+    coupling_gain: npt.ArrayLike = 1.0,
     step: float = 0.1,
     speed: float = 0.5,
     max_step_gain: float = 0.5,

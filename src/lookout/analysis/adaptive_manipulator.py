@@ -27,6 +27,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 
 from lookout import _validation as check
 from lookout.analysis.conditions import Condition, Inequality, Report
@@ -39,7 +40,7 @@ PAPER = "Calugi (2002)"
 INJECTION_UNITS = "1/s kg m2"
 
 
-def injection_bound(parameters: AffineParameters, gain, *, grid_points: int = 64) -> float:
+def injection_bound(parameters: AffineParameters, gain: npt.ArrayLike, *, grid_points: int = 64) -> float:
     """sigma = min over q of lambda_min(K M(q) + M(q) K) / 2 for the true model, on a grid of
     the angles M depends on (M is smooth in q; the grid has 64 points per angle)."""
     model = parameters.model(parameters.reference)
@@ -53,7 +54,15 @@ def injection_bound(parameters: AffineParameters, gain, *, grid_points: int = 64
     return float(jnp.min(jax.jit(jax.vmap(smallest))(q_grid)))
 
 
-def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_speed: float, *, margin: float = 0.0, initial_error=None) -> Report:
+def check_theorem_4_1(
+    parameters: AffineParameters,
+    gain: npt.ArrayLike,
+    adaptation_gain: npt.ArrayLike,
+    max_speed: float,
+    *,
+    margin: float = 0.0,
+    initial_error: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+) -> Report:
     """Theorem 4.1 for the arm and unknowns ``parameters`` (true values at its reference),
     K, Gamma (diagonals), w_max >= ||q'||, beta = ``margin`` >= 0 and, optionally, the
     initial errors (x1~(0), theta~(0)) to place in the region (4.b).
@@ -105,7 +114,9 @@ def check_theorem_4_1(parameters: AffineParameters, gain, adaptation_gain, max_s
     return Report(f"{PAPER}, Theorem 4.1: adaptive observer", (condition,), quantities, notes=notes)
 
 
-def check_5_28(parameters: AffineParameters, gain, damping_weights, max_speed: float, initial_error=0.0) -> Report:
+def check_5_28(
+    parameters: AffineParameters, gain: npt.ArrayLike, damping_weights: npt.ArrayLike, max_speed: float, initial_error: npt.ArrayLike = 0.0
+) -> Report:
     """(5.28) of Calugi (2002), ch. 5, for the closed loop of (5.9) with the adaptive observer:
     from (5.27), V' <= -z^T C_z z - (sigma - C_M w_max - C_M |x1~| - p/4) |x1~|^2 with
     sigma = inf_q lambda_min(K M + M K)/2 and p = sum_{i=1}^{2n} 1/d_i (the thesis's "6"

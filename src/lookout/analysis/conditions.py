@@ -47,6 +47,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from lookout import _validation as check
 from lookout._json import json_safe
@@ -91,7 +92,7 @@ def number(value: float, digits: int = 4) -> str:
     return f"{value:.{digits}g}"
 
 
-def numbers(values, digits: int = 3) -> str:
+def numbers(values: npt.ArrayLike, digits: int = 3) -> str:
     """The values of an array, each by :func:`number` right-aligned in 9 columns."""
     return " ".join(f"{number(v, digits):>9}" for v in np.ravel(np.asarray(values, dtype=float)))
 
@@ -379,7 +380,7 @@ class Report:
                 return condition
         raise KeyError(f"no condition {key!r}; the report has {', '.join(self.verdicts) or 'none'}")
 
-    def extended(self, *, summary=(), notes=(), quantities: Mapping | None = None) -> Report:
+    def extended(self, *, summary: Iterable[str] = (), notes: Iterable[str] = (), quantities: Mapping | None = None) -> Report:
         """This report with ``summary`` lines put first, ``notes`` added last and
         ``quantities`` added (a design command adds what it chose)."""
         return dataclasses.replace(

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import cast
 
 import numpy as np
+import numpy.typing as npt
 import xarray as xr
 
 from lookout import _validation as check
@@ -30,7 +31,7 @@ def estimation_errors(ds: xr.Dataset) -> xr.Dataset:
     return xr.Dataset(errors)
 
 
-def earth_frame_velocity(heading, velocity) -> np.ndarray:
+def earth_frame_velocity(heading: npt.ArrayLike, velocity: npt.ArrayLike) -> np.ndarray:
     """North and east components of a body-frame velocity: the first two rows of J(psi) nu.
 
     Parameters
@@ -55,7 +56,7 @@ def rms_over(errors: xr.Dataset, start: float) -> xr.Dataset:
     return cast(xr.Dataset, np.sqrt((window**2).mean("time")))  # numpy ufuncs return a Dataset for a Dataset; numpy's stubs say ndarray
 
 
-def settling_time(error, time, final_rms, *, tolerance: float = 0.10):
+def settling_time(error: npt.ArrayLike, time: npt.ArrayLike, final_rms: npt.ArrayLike, *, tolerance: float = 0.10) -> float | np.ndarray:
     """First time t from which the RMS of ``error`` over [t, end] is within (1 + tolerance) x ``final_rms``.
 
     A stochastic error never stays pointwise below its RMS, and a short moving RMS
@@ -84,7 +85,7 @@ def settling_time(error, time, final_rms, *, tolerance: float = 0.10):
     return float(settled) if settled.ndim == 0 else settled
 
 
-def fit_decay_rate(time, magnitude, *, upper: float = 1e-1, lower: float = 1e-9) -> dict:
+def fit_decay_rate(time: npt.ArrayLike, magnitude: npt.ArrayLike, *, upper: float = 1e-1, lower: float = 1e-9) -> dict[str, float]:
     """Fit ``magnitude ~ c exp(-rate t)`` by least squares on log(magnitude).
 
     Uses the samples between the first time the magnitude falls below ``upper``

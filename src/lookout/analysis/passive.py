@@ -23,6 +23,7 @@ import functools
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg
 import xarray as xr
 
@@ -77,7 +78,7 @@ def error_loop(observer: PassiveObserver, dof: int) -> tuple[np.ndarray, np.ndar
     return A, B, C
 
 
-def transfer_functions(observer: PassiveObserver, frequencies) -> dict[str, np.ndarray]:
+def transfer_functions(observer: PassiveObserver, frequencies: npt.ArrayLike) -> dict[str, np.ndarray]:
     """h0(jw), hB(jw) and h(jw) per DOF, each of shape (n_frequencies, 3)."""
     w = np.asarray(frequencies, dtype=float)
     g = _gains(observer)
@@ -135,7 +136,7 @@ def default_frequencies(observer: PassiveObserver, points: int = 400, decades: f
     return np.logspace(low, high, points)
 
 
-def frequency_response(observer: PassiveObserver, frequencies=None) -> xr.Dataset:
+def frequency_response(observer: PassiveObserver, frequencies: npt.ArrayLike | None = None) -> xr.Dataset:
     """Bode data of h0, hB and h (as in Fig. 6) as a CF-style xarray Dataset.
 
     Parameters
@@ -272,7 +273,7 @@ def check_tuning_rule(observer: PassiveObserver, *, much_less_factor: float = 10
     )
 
 
-def minimum_phase_in_band(frequencies, phase_deg, cutoff_frequency: float) -> tuple[float, float]:
+def minimum_phase_in_band(frequencies: npt.ArrayLike, phase_deg: npt.ArrayLike, cutoff_frequency: float) -> tuple[float, float]:
     """Smallest phase of h (deg) at frequencies up to 10 w_c, and where (rad/s).
 
     Above a decade past the cut-off, h tends to -90 deg from above (h0 ~ 1/s), and
@@ -298,7 +299,7 @@ def _certificate_inequalities(dof: str, certificate: dict) -> list[Inequality]:
     ]
 
 
-def check_spr(observer: PassiveObserver, *, frequencies=None) -> list[Condition]:
+def check_spr(observer: PassiveObserver, *, frequencies: npt.ArrayLike | None = None) -> list[Condition]:
     """Check that each decoupled loop h_i(s) = hB_i(s) h0_i(s) is strictly positive real.
 
     Conditions (Khalil 1996, Lemma 6.1, for strictly proper h = C (sI - A)^-1 B):
@@ -398,7 +399,7 @@ def _diagonal(values) -> str:
     return "diag(" + ", ".join(f"{v:.4g}" for v in np.ravel(values)) + ")"
 
 
-def check_passive_observer(observer: PassiveObserver, *, much_less_factor: float = 10.0, frequencies=None) -> Report:
+def check_passive_observer(observer: PassiveObserver, *, much_less_factor: float = 10.0, frequencies: npt.ArrayLike | None = None) -> Report:
     """The tuning rule (48) (:func:`check_tuning_rule`) and SPR of each loop
     (:func:`check_spr`, Theorem 1) for ``observer``, with its gains (45)-(47)."""
     k = np.asarray(observer.wave_injection_gain)

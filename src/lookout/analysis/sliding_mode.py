@@ -46,9 +46,10 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
+import numpy.typing as npt
 import scipy.integrate
 import scipy.linalg
 import scipy.optimize
@@ -79,7 +80,7 @@ SOURCE_14 = "Kim (2002), eq. (14)"
 SOURCE_17 = "Kim (2002), eqs. (15)-(17), corrected (derivations K2)"
 
 
-def _is_sliding_mode(observer) -> bool:
+def _is_sliding_mode(observer: object) -> TypeGuard[SlidingModeObserver]:
     """A sliding-mode observer (:class:`lookout.observers.SlidingModeObserver`)."""
     return isinstance(observer, SlidingModeObserver)
 
@@ -118,7 +119,9 @@ def _model(passive: PassiveObserver, vessel: DPVessel) -> tuple[np.ndarray, np.n
     return M, D
 
 
-def error_system(observer, vessel: DPVessel, *, heading: float = 0.0, inside_layer: bool = False) -> np.ndarray:
+def error_system(
+    observer: SlidingModeObserver | PassiveObserver, vessel: DPVessel, *, heading: float = 0.0, inside_layer: bool = False
+) -> np.ndarray:
     """The linear error dynamics d x~/dt = A_e x~ of the observer, J = R(heading) held.
 
     State ``x~ = [xi1~ (3), xi2~ (3), eta~ (3), b~ (3), nu~ (3)]`` (:data:`ERROR_STATES`),
@@ -159,7 +162,9 @@ def error_system(observer, vessel: DPVessel, *, heading: float = 0.0, inside_lay
     return np.vstack([top, bottom])
 
 
-def sigma2(observer, *, extra_position_gain=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def sigma2(
+    observer: SlidingModeObserver | PassiveObserver, *, extra_position_gain: npt.ArrayLike | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Sigma_2 of Kim (9)–(10), corrected: (A 12x12, B 12x3, C 3x12), x~ = [xi~, eta~, b~].
 
     ::
@@ -260,7 +265,7 @@ def _axis_scaling(matrix: np.ndarray) -> np.ndarray:
     return scale
 
 
-def eigenvalue_report(matrix, *, heading: float = 0.0, relative_tolerance: float = 1e-8) -> EigenvalueReport:
+def eigenvalue_report(matrix: npt.ArrayLike, *, heading: float = 0.0, relative_tolerance: float = 1e-8) -> EigenvalueReport:
     """Eigenvalues of an error-system matrix, its unstable modes and the stability inequality.
 
     The matrix is first scaled (bias errors in units of position) and, for the
@@ -316,7 +321,7 @@ def eigenvalue_report(matrix, *, heading: float = 0.0, relative_tolerance: float
 # -- KYP (14) ------------------------------------------------------------------------
 
 
-def kyp_14(observer, *, frequencies=None) -> Condition:
+def kyp_14(observer: SlidingModeObserver | PassiveObserver, *, frequencies: npt.ArrayLike | None = None) -> Condition:
     """Check Kim's (14), P A + A^T P = -Q, B^T P = C with P, Q > 0, for Sigma_2.
 
     The gains are diagonal, so Sigma_2 splits into three SISO loops and (14) holds
@@ -443,7 +448,7 @@ def _refusal(passive: PassiveObserver) -> tuple[str, str]:
     return parameter, f"{parameter} must be {advice}: the gains violate Kim (2002)'s (14) ({dof}: {numbers_of_dof['reason']}; {why})"
 
 
-def require_kyp_14(observer) -> None:
+def require_kyp_14(observer: SlidingModeObserver | PassiveObserver) -> None:
     """Refuse gains that violate Kim (2002)'s (14): a one-line ``ValueError`` naming the
     parameter of :meth:`~lookout.observers.SlidingModeObserver.design` to change.
 
@@ -505,7 +510,9 @@ def _impulse_response(mass: np.ndarray, damping: np.ndarray):
     return g, float(rates.min()), float(rates.max())
 
 
-def peak_to_peak_gains(mass, damping, *, method: str = "quad", decay_lengths: float = 60.0, steps_per_time_constant: float = 500.0) -> np.ndarray:
+def peak_to_peak_gains(
+    mass: npt.ArrayLike, damping: npt.ArrayLike, *, method: str = "quad", decay_lengths: float = 60.0, steps_per_time_constant: float = 500.0
+) -> np.ndarray:
     """||g_jk||_1 = int_0^inf |g_jk(t)| dt for the impulse response g of (M s + D)^-1.
 
     The peak-to-peak (L1) gain: a force bounded componentwise by |f_k(t)| <= F_k
@@ -587,7 +594,7 @@ def _required(gains: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndar
     return velocity, np.array([planar, planar, velocity[2]])
 
 
-def disturbance_coverage(vessel: DPVessel, switching_gain, *, gains=None) -> tuple[np.ndarray, list[str]]:
+def disturbance_coverage(vessel: DPVessel, switching_gain: npt.ArrayLike, *, gains: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
     """The largest force bound F_k (N, N, N m) that ``switching_gain`` covers in (17),
     per axis k with the other axes' forces zero, and which Kbar axis limits it.
 
@@ -607,7 +614,9 @@ def disturbance_coverage(vessel: DPVessel, switching_gain, *, gains=None) -> tup
     return coverage, limited
 
 
-def switching_gain_required(vessel: DPVessel, disturbance_bound, *, observer=None) -> Condition:
+def switching_gain_required(
+    vessel: DPVessel, disturbance_bound: npt.ArrayLike, *, observer: SlidingModeObserver | PassiveObserver | None = None
+) -> Condition:
     """The switching gain rho = diag(Kbar) that (17) requires for a bounded disturbance.
 
     Kim's (15)–(17), corrected (derivations K2): the velocity error splits as
@@ -697,7 +706,9 @@ def _stability(key: str, title: str, report: EigenvalueReport) -> Condition:
     return Condition(key, "(8)-(10)", title, SOURCE_ERROR_SYSTEM, (report.stability,), reason, quantities=report.to_dict())
 
 
-def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, heading: float = 0.0) -> Report:
+def check_kim_2002(
+    observer: SlidingModeObserver | PassiveObserver, vessel: DPVessel, *, disturbance_bound: npt.ArrayLike | None = None, heading: float = 0.0
+) -> Report:
     """Check the conditions of Kim (2002), Section 3.2, for ``observer``.
 
     The conditions, by key:
@@ -778,19 +789,21 @@ def check_kim_2002(observer, vessel: DPVessel, *, disturbance_bound=None, headin
 def kim_2002_observer(
     vessel: DPVessel,
     *,
-    waves=None,
-    wave_frequency=None,
-    wave_damping=0.1,
-    notch_damping=1.0,
-    cutoff_frequency=None,
-    velocity_injection_gain=None,
-    bias_injection_gain=None,
-    bias_time_constant=1000.0,
-    velocity_bandwidth=None,
-    switching_gain=0.0,
-    boundary_layer=DEFAULT_BOUNDARY_LAYER,
-    steps_per_sample=1,
-    hold="measurement",
+    # a wave model (LinearWaveModel, JonswapWaves) or None; Any, since the registry takes a
+    # part annotated with component classes as the first of them
+    waves: Any = None,
+    wave_frequency: npt.ArrayLike | None = None,
+    wave_damping: npt.ArrayLike = 0.1,
+    notch_damping: npt.ArrayLike = 1.0,
+    cutoff_frequency: npt.ArrayLike | None = None,
+    velocity_injection_gain: npt.ArrayLike | None = None,
+    bias_injection_gain: npt.ArrayLike | None = None,
+    bias_time_constant: npt.ArrayLike = 1000.0,
+    velocity_bandwidth: npt.ArrayLike | None = None,
+    switching_gain: npt.ArrayLike = 0.0,
+    boundary_layer: npt.ArrayLike = DEFAULT_BOUNDARY_LAYER,
+    steps_per_sample: int = 1,
+    hold: str = "measurement",
 ) -> SlidingModeObserver:
     """The sliding-mode observer for ``vessel`` by Kim (2002)'s procedure (the rule
     ``kim-2002`` of the kind ``sliding-mode``): H1, H2 from Fossen & Strand's

@@ -74,6 +74,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from lookout import _validation as check
 from lookout._json import json_safe
@@ -98,7 +99,7 @@ def _unit_sphere(count: int = 181) -> np.ndarray:
     return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
 
 
-def christoffel_bound(mass_matrix) -> float:
+def christoffel_bound(mass_matrix: npt.ArrayLike) -> float:
     """C_M of (4) for the Christoffel factorization of M*(psi): max ||C_Gamma(psi, x)||_2 over
     unit x (psi drops out). C_Gamma(0, a) = 1/2 [a_3 K + (K a) e3^T - e3 (K a)^T], K = E M - M E,
     E = S(1); evaluated on a 181 x 362 grid of the unit sphere (relative error below 1e-4)."""
@@ -112,7 +113,7 @@ def christoffel_bound(mass_matrix) -> float:
     return float(np.linalg.norm(C, ord=2, axis=(1, 2)).max())
 
 
-def controller_p_matrix(natural_frequency, damping_ratio) -> np.ndarray:
+def controller_p_matrix(natural_frequency: npt.ArrayLike, damping_ratio: npt.ArrayLike) -> np.ndarray:
     """P of (22)/(26) with the (2,2) sign corrected, ordered [z (3); z' (3)]."""
     w = np.asarray(natural_frequency, dtype=float) * np.ones(3)
     lam = np.asarray(damping_ratio, dtype=float) * np.ones(3)
@@ -238,17 +239,17 @@ def _observer(constants: dict, start: dict, L2_max, velocity_bound) -> dict:
 
 
 def check_wondergem_2009(
-    ship,
+    ship: Cybership,
     *,
-    observer_gains,
-    natural_frequency,
-    damping_ratio=1.0,
-    eta0,
-    nu0,
-    eta_hat0,
-    velocity_hat0,
-    reference_position0,
-    reference_velocity0,
+    observer_gains: tuple[npt.ArrayLike, npt.ArrayLike],
+    natural_frequency: npt.ArrayLike,
+    damping_ratio: npt.ArrayLike = 1.0,
+    eta0: npt.ArrayLike,
+    nu0: npt.ArrayLike,
+    eta_hat0: npt.ArrayLike,
+    velocity_hat0: npt.ArrayLike,
+    reference_position0: npt.ArrayLike,
+    reference_velocity0: npt.ArrayLike,
     yaw_rate_max: float,
     velocity_bound: float = 0.3,
     corrected: bool = False,
@@ -471,15 +472,15 @@ class GainProposal:
 
 
 def propose_wondergem_2009(
-    ship,
+    ship: Cybership,
     *,
     damping_ratio: float = 1.0,
-    eta0,
-    nu0,
-    eta_hat0,
-    velocity_hat0,
-    reference_position0,
-    reference_velocity0,
+    eta0: npt.ArrayLike,
+    nu0: npt.ArrayLike,
+    eta_hat0: npt.ArrayLike,
+    velocity_hat0: npt.ArrayLike,
+    reference_position0: npt.ArrayLike,
+    reference_velocity0: npt.ArrayLike,
     yaw_rate_max: float,
     reference_speed_max: float,
     reference_acceleration_max: float,
@@ -624,20 +625,20 @@ def _cached_proposal(ship_numbers: tuple, start: tuple, bounds: tuple, damping_r
 
 
 def wondergem_2009_gains(
-    ship,
+    ship: Cybership,
     *,
-    reference_position,
-    reference_velocity,
-    reference_yaw_rate_max,
-    reference_speed_max,
-    reference_acceleration_max,
-    start_position,
-    start_velocity=0.0,
-    estimate_position=None,
-    estimate_velocity=0.0,
-    damping_ratio=1.0,
-    velocity_bound=0.3,
-    margin=1.1,
+    reference_position: npt.ArrayLike,
+    reference_velocity: npt.ArrayLike,
+    reference_yaw_rate_max: float,
+    reference_speed_max: float,
+    reference_acceleration_max: float,
+    start_position: npt.ArrayLike,
+    start_velocity: npt.ArrayLike = 0.0,
+    estimate_position: npt.ArrayLike | None = None,
+    estimate_velocity: npt.ArrayLike = 0.0,
+    damping_ratio: float = 1.0,
+    velocity_bound: float = 0.3,
+    margin: float = 1.1,
 ) -> GainProposal:
     """The gains of Wondergem et al. (2009)'s tuning procedure (steps 1–7 after Prop. 3.3)
     for ``ship``, a start and a reference: the design rule ``wondergem-2009`` of the
@@ -699,21 +700,21 @@ def wondergem_2009_gains(
 def wondergem_2009_observer(
     ship: Cybership,
     *,
-    reference_position,
-    reference_velocity,
-    reference_yaw_rate_max,
-    reference_speed_max,
-    reference_acceleration_max,
-    start_position,
-    start_velocity=0.0,
-    estimate_position=None,
-    estimate_velocity=0.0,
-    damping_ratio=1.0,
-    velocity_bound=0.3,
-    margin=1.1,
-    steps_per_sample=1,
-    method="rk4",
-    initial_velocity="estimate",
+    reference_position: npt.ArrayLike,
+    reference_velocity: npt.ArrayLike,
+    reference_yaw_rate_max: float,
+    reference_speed_max: float,
+    reference_acceleration_max: float,
+    start_position: npt.ArrayLike,
+    start_velocity: npt.ArrayLike = 0.0,
+    estimate_position: npt.ArrayLike | None = None,
+    estimate_velocity: npt.ArrayLike = 0.0,
+    damping_ratio: float = 1.0,
+    velocity_bound: float = 0.3,
+    margin: float = 1.1,
+    steps_per_sample: int = 1,
+    method: str = "rk4",
+    initial_velocity: str = "estimate",
 ) -> EarthFixedObserver:
     """The Earth-fixed observer (6) for ``ship`` (the rule ``wondergem-2009`` of the kind
     ``earth-fixed``) with L1 = l1 I, L2 = l2 I from Wondergem et al.

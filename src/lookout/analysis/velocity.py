@@ -52,6 +52,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 import scipy.optimize
 
 from lookout import _validation as check
@@ -242,7 +243,7 @@ class VelocityObserverCondition:
 
 def velocity_observer_condition(
     model: ManipulatorModel,
-    gain,
+    gain: npt.ArrayLike,
     max_speed: float,
     *,
     initial_error: float | None = None,

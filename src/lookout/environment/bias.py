@@ -10,6 +10,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
 
 from lookout import _validation as check
@@ -43,7 +44,7 @@ class GaussMarkovBias(eqx.Module):
     time_constant: Array
     noise_gain: Array
 
-    def __init__(self, time_constant, noise_gain=0.0):
+    def __init__(self, time_constant: npt.ArrayLike, noise_gain: npt.ArrayLike = 0.0):
         self.time_constant = jnp.asarray(check.vector("bias time_constant", time_constant))
         self.noise_gain = jnp.asarray(check.vector("bias noise_gain", noise_gain))
 
@@ -52,7 +53,7 @@ class GaussMarkovBias(eqx.Module):
         check.positive("bias noise_gain", self.noise_gain, allow_zero=True)
 
     @classmethod
-    def from_stationary_std(cls, time_constant, std) -> GaussMarkovBias:
+    def from_stationary_std(cls, time_constant: npt.ArrayLike, std: npt.ArrayLike) -> GaussMarkovBias:
         """Build the process whose stationary standard deviation is ``std``.
 
         Parameters
@@ -62,11 +63,11 @@ class GaussMarkovBias(eqx.Module):
         std : array_like, shape (3,), non-negative
             Stationary standard deviation (N, N, N m).
         """
-        time_constant = check.vector("bias time_constant", time_constant)
-        std = check.vector("bias std", std)
-        check.positive("bias time_constant", time_constant)
-        check.positive("bias std", std, allow_zero=True)
-        return cls(time_constant, std * np.sqrt(2.0 / time_constant))
+        time_constants = check.vector("bias time_constant", time_constant)
+        stds = check.vector("bias std", std)
+        check.positive("bias time_constant", time_constants)
+        check.positive("bias std", stds, allow_zero=True)
+        return cls(time_constants, stds * np.sqrt(2.0 / time_constants))
 
     def stationary_std(self) -> Array:
         """Stationary standard deviation of each component (N, N, N m)."""

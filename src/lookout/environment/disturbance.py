@@ -20,7 +20,9 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.declare import Value, component
@@ -64,7 +66,7 @@ class BodyDisturbance(eqx.Module):
     white_std: Array
     white: bool = eqx.field(static=True)
 
-    def __init__(self, constant=0.0, amplitude=0.0, period=600.0, white_std=0.0):
+    def __init__(self, constant: npt.ArrayLike = 0.0, amplitude: npt.ArrayLike = 0.0, period: ArrayLike = 600.0, white_std: npt.ArrayLike = 0.0):
         self.constant = jnp.asarray(check.vector("disturbance constant", constant))
         self.amplitude = jnp.asarray(check.vector("disturbance amplitude", amplitude))
         self.period = jnp.asarray(period, dtype=float)
@@ -84,7 +86,7 @@ class BodyDisturbance(eqx.Module):
         """White-noise channels the disturbance draws (0 or 3)."""
         return 3 if self.white else 0
 
-    def force(self, t, noise: Array) -> Array:
+    def force(self, t: ArrayLike, noise: Array) -> Array:
         """f(t) for the unit white noise ``noise`` (shape (noise_size,))."""
         value = self.constant + self.amplitude * jnp.sin(2.0 * math.pi * t / self.period)
         if self.white:

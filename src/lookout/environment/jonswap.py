@@ -119,13 +119,15 @@ from __future__ import annotations
 
 import math
 import operator
-from typing import final
+from typing import final, overload
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import sincos
@@ -143,12 +145,20 @@ def _namespace(*values):
     return jnp if any(isinstance(v, jax.Array) for v in values) else np
 
 
-def peak_frequency(mean_period):
+@overload
+def peak_frequency(mean_period: float) -> float: ...
+@overload
+def peak_frequency(mean_period: Array) -> Array: ...
+@overload
+def peak_frequency(mean_period: np.ndarray) -> np.ndarray: ...
+def peak_frequency(mean_period: float | Array | np.ndarray) -> float | Array | np.ndarray:
     """Peak frequency wp = 2 pi / Tp = 2 pi 0.834 / T1 (rad/s) for mean period T1 (s)."""
     return 2.0 * math.pi * MEAN_TO_PEAK_PERIOD / mean_period
 
 
-def jonswap_spectrum(omega, significant_height, mean_period, peak_enhancement=3.3):
+def jonswap_spectrum(
+    omega: npt.ArrayLike, significant_height: ArrayLike, mean_period: ArrayLike, peak_enhancement: ArrayLike = 3.3
+) -> Array | np.ndarray:
     """JONSWAP wave spectrum S(w) in m^2 s, the ITTC shape (Fossen 2011, eqs. 8.56–8.58)
     normalized to m0 = Hs^2/16 for every gamma (module docstring).
 
@@ -220,7 +230,7 @@ def _jonswap(xp, omega, significant_height, mean_period, peak_enhancement):
     return normalization * _jonswap_shape(xp, omega, mean_period, peak_enhancement)
 
 
-def spectral_moment(n, significant_height, mean_period, peak_enhancement=3.3):
+def spectral_moment(n: float, significant_height: float, mean_period: float, peak_enhancement: float = 3.3) -> float:
     """m_n = integral over w > 0 of w^n S(w) dw, by adaptive quadrature (scipy ``quad``).
 
     Parameters
@@ -381,16 +391,16 @@ class JonswapWaves(eqx.Module):
 
     def __init__(
         self,
-        significant_height,
-        mean_period,
-        peak_enhancement=3.3,
-        direction=0.0,
-        components=64,
-        band=None,
+        significant_height: ArrayLike,
+        mean_period: ArrayLike,
+        peak_enhancement: ArrayLike = 3.3,
+        direction: ArrayLike = 0.0,
+        components: int = 64,
+        band: npt.ArrayLike | None = None,
         *,
-        hull_length,
-        yaw_gain=0.1,
-        gravity=9.81,
+        hull_length: ArrayLike,
+        yaw_gain: ArrayLike = 0.1,
+        gravity: ArrayLike = 9.81,
     ):
         hs = _scalar("jonswap significant_height", significant_height)
         t1 = _scalar("jonswap mean_period", mean_period)
@@ -494,7 +504,7 @@ class JonswapWaves(eqx.Module):
         theta = self.frequencies * t[..., None] - self.wavenumbers * jnp.asarray(along)[..., None] + self.phases
         return theta, e
 
-    def elevation(self, t, position) -> Array:
+    def elevation(self, t: ArrayLike, position: npt.ArrayLike) -> Array:
         """Surface elevation zeta (m) at Earth position (x, y) and time t.
 
         Parameters
@@ -508,7 +518,7 @@ class JonswapWaves(eqx.Module):
         _, cos = sincos(theta)
         return jnp.sum(self.amplitudes * cos, axis=-1)
 
-    def motion(self, t, position) -> Array:
+    def motion(self, t: ArrayLike, position: npt.ArrayLike) -> Array:
         """First-order wave motion eta_w = [x_w, y_w, psi_w] (m, m, rad) of a hull at ``position``.
 
         Parameters
@@ -529,7 +539,7 @@ class JonswapWaves(eqx.Module):
         slope = jnp.sum(averaged * self.wavenumbers * sin, axis=-1)
         return jnp.stack([displacement * e[0], displacement * e[1], self.yaw_gain * slope], axis=-1)
 
-    def rate(self, t, position, velocity) -> Array:
+    def rate(self, t: ArrayLike, position: npt.ArrayLike, velocity: npt.ArrayLike) -> Array:
         """d eta_w / dt along a ship at ``position`` moving with Earth-frame ``velocity``.
 
         The exact derivative of ``motion(t, position(t))``: each component at its

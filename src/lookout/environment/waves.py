@@ -10,13 +10,14 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
 
 from lookout import _validation as check
 from lookout.declare import NON_NEGATIVE, POSITIVE, Value, component
 
 
-def stationary_std_per_intensity(peak_frequency, damping_ratio):
+def stationary_std_per_intensity(peak_frequency: npt.ArrayLike, damping_ratio: npt.ArrayLike) -> np.ndarray | np.float64:
     """Stationary std of eta_w per unit sigma: 1 / sqrt(4 zeta w0).
 
     For ``xi1' = xi2, xi2' = -w0^2 xi1 - 2 zeta w0 xi2 + sigma w`` with unit white
@@ -56,7 +57,7 @@ class LinearWaveModel(eqx.Module):
     damping_ratio: Array
     intensity: Array
 
-    def __init__(self, peak_frequency, damping_ratio, intensity=0.0):
+    def __init__(self, peak_frequency: npt.ArrayLike, damping_ratio: npt.ArrayLike, intensity: npt.ArrayLike = 0.0):
         self.peak_frequency = jnp.asarray(check.vector("wave peak_frequency", peak_frequency))
         self.damping_ratio = jnp.asarray(check.vector("wave damping_ratio", damping_ratio))
         self.intensity = jnp.asarray(check.vector("wave intensity", intensity))
@@ -67,18 +68,20 @@ class LinearWaveModel(eqx.Module):
         check.positive("wave intensity", self.intensity, allow_zero=True)
 
     @classmethod
-    def from_std(cls, peak_frequency, damping_ratio, std) -> LinearWaveModel:
+    def from_std(cls, peak_frequency: npt.ArrayLike, damping_ratio: npt.ArrayLike, std: npt.ArrayLike) -> LinearWaveModel:
         """Model whose wave-induced motion has stationary standard deviation ``std``."""
         peak_frequency = check.vector("wave peak_frequency", peak_frequency)
         damping_ratio = check.vector("wave damping_ratio", damping_ratio)
-        std = check.vector("wave std", std)
+        stds = check.vector("wave std", std)
         check.positive("wave peak_frequency", peak_frequency)
         check.positive("wave damping_ratio", damping_ratio)
-        check.positive("wave std", std, allow_zero=True)
-        return cls(peak_frequency, damping_ratio, std / stationary_std_per_intensity(peak_frequency, damping_ratio))
+        check.positive("wave std", stds, allow_zero=True)
+        return cls(peak_frequency, damping_ratio, stds / stationary_std_per_intensity(peak_frequency, damping_ratio))
 
     @classmethod
-    def from_amplitude(cls, peak_frequency, damping_ratio, amplitude, *, sigmas: float = 3.0):
+    def from_amplitude(
+        cls, peak_frequency: npt.ArrayLike, damping_ratio: npt.ArrayLike, amplitude: npt.ArrayLike, *, sigmas: float = 3.0
+    ) -> LinearWaveModel:
         """Model whose wave motion stays within ``amplitude`` except rarely.
 
         The amplitude is taken as ``sigmas`` stationary standard deviations (3 by
@@ -99,14 +102,16 @@ class LinearWaveModel(eqx.Module):
         """
         if not sigmas > 0:
             raise check.ParameterError("sigmas", f"sigmas must be positive; got {sigmas}")
-        amplitude = check.vector("wave amplitude", amplitude)
-        return cls.from_std(peak_frequency, damping_ratio, amplitude / sigmas)
+        amplitudes = check.vector("wave amplitude", amplitude)
+        return cls.from_std(peak_frequency, damping_ratio, amplitudes / sigmas)
 
     @classmethod
-    def from_significant_wave_height(cls, peak_frequency, damping_ratio, significant_height):
+    def from_significant_wave_height(
+        cls, peak_frequency: npt.ArrayLike, damping_ratio: npt.ArrayLike, significant_height: npt.ArrayLike
+    ) -> LinearWaveModel:
         """Model with significant height ``Hs = 4 std`` of the wave-induced motion per DOF."""
-        significant_height = check.vector("significant_wave_height", significant_height)
-        return cls.from_std(peak_frequency, damping_ratio, significant_height / 4.0)
+        heights = check.vector("significant_wave_height", significant_height)
+        return cls.from_std(peak_frequency, damping_ratio, heights / 4.0)
 
     def stationary_std(self) -> Array:
         """Stationary standard deviation of eta_w (m, m, rad)."""

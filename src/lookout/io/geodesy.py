@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 __all__ = [
     "WGS84_FLATTENING",
@@ -144,7 +145,7 @@ def _prime_vertical_terms(sin_lat):
     return w, _A / w
 
 
-def geodetic_to_ecef(lat_deg, lon_deg, height_m=0.0):
+def geodetic_to_ecef(lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, height_m: npt.ArrayLike = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Earth-centred Earth-fixed coordinates of WGS-84 geodetic positions.
 
     Parameters
@@ -266,7 +267,7 @@ class LocalFrame:
         w0, n0 = (float(v) for v in _prime_vertical_terms(sin0))
         return sin0, cos0, w0, n0, (n0 + self.height) * cos0, (n0 * (1.0 - _E2) + self.height) * sin0
 
-    def ned(self, lat_deg, lon_deg, height_m=0.0):
+    def ned(self, lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, height_m: npt.ArrayLike = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """North, east and down coordinates of geodetic positions in this frame.
 
         Parameters
@@ -325,7 +326,7 @@ class LocalFrame:
         d_y = p * np.sin(d_lam)
         return -sin0 * d_x + cos0 * d_z, d_y, -cos0 * d_x - sin0 * d_z
 
-    def geodetic(self, north, east, down=0.0):
+    def geodetic(self, north: npt.ArrayLike, east: npt.ArrayLike, down: npt.ArrayLike = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Geodetic positions of north-east-down coordinates in this frame.
 
         The exact inverse of :meth:`ned`.

@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from io import BufferedReader
 from pathlib import Path
 
 from lookout.io.nmea import HEADING_SENTENCES, POSITION_SENTENCES, NmeaParser, Reading
@@ -51,7 +53,7 @@ def has_bom(path: str | Path) -> bool:
         return False
 
 
-def open_log(path: str | Path):
+def open_log(path: str | Path) -> BufferedReader:
     """The log opened for reading bytes, after a UTF-8 byte-order mark if it starts with
     one: every reader of a log (its format, its scan, its readings) sees its first line
     as written, not with the mark glued to its time or its header."""
@@ -111,7 +113,7 @@ def log_format(path: str | Path, option: str = "log") -> str:
     return "nmea"
 
 
-def nmea_log(path: str | Path, parser: NmeaParser):
+def nmea_log(path: str | Path, parser: NmeaParser) -> Iterator[Reading]:
     """The readings of an NMEA log, in file order; unreadable lines go to ``parser.counts``."""
     with open_log(path) as handle:
         for raw in handle:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import reduce
 
@@ -46,7 +47,7 @@ TALKER_FAMILIES = {
 _FAMILY_OF = {talker: family for family, talkers in TALKER_FAMILIES.items() for talker in talkers}
 
 
-def receiver(source: str, bindings=None) -> str:
+def receiver(source: str, bindings: Mapping[str, str] | None = None) -> str:
     """The device a reading's ``source`` (``TALKER`` or ``TALKER@WHERE``) comes from: the
     one place where a talker and its sender are bound to a source.
 
@@ -114,7 +115,7 @@ def checksum(body: bytes) -> int:
     return reduce(lambda a, b: a ^ b, body, 0)
 
 
-def sentence(talker: str, formatter: str, fields) -> str:
+def sentence(talker: str, formatter: str, fields: Iterable[object]) -> str:
     """A sentence with its checksum, ``$TTFFF,f1,f2*hh`` (no line ending)."""
     body = ",".join([talker + formatter, *map(str, fields)]).encode("ascii")
     return f"${body.decode()}*{checksum(body):02X}"

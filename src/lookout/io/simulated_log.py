@@ -23,11 +23,15 @@ from __future__ import annotations
 import datetime
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from lookout.io.geodesy import LocalFrame
 from lookout.io.nmea import sentence
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 #: 2026-12-01T00:00:00Z: the Unix time of the example log's step 0.
 EPOCH = 1796083200.0
@@ -80,8 +84,8 @@ def ths(heading_degrees: float) -> str:
 
 
 def write_simulated_log(
-    ds,
-    folder,
+    ds: xr.Dataset,
+    folder: str | Path,
     *,
     name: str = "dp-vessel",
     frame: LocalFrame | None = None,

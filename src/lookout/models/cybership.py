@@ -42,7 +42,9 @@ from typing import ClassVar, Protocol, final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, rotation, ssa
@@ -63,7 +65,7 @@ CYBERSHIP_THRUST_LIMIT = (2.0, 1.5, 1.5)
 CYBERSHIP_SIGNALS = tuple(s for s in VESSEL_SIGNALS if not s.name.startswith("bias"))
 
 
-def skew(r) -> Array:
+def skew(r: ArrayLike) -> Array:
     """S(r) = [[0, -r, 0], [r, 0, 0], [0, 0, 0]], so that d/dt J(psi) = J(psi) S(r)."""
     r = jnp.asarray(r)
     zero = jnp.zeros_like(r)
@@ -91,7 +93,12 @@ class Cybership(eqx.Module):
     quadratic_damping: Array
     mass_inverse: Array
 
-    def __init__(self, mass_matrix=CYBERSHIP_M, damping_matrix=CYBERSHIP_D, quadratic_damping=CYBERSHIP_QUADRATIC):
+    def __init__(
+        self,
+        mass_matrix: npt.ArrayLike = CYBERSHIP_M,
+        damping_matrix: npt.ArrayLike = CYBERSHIP_D,
+        quadratic_damping: npt.ArrayLike = CYBERSHIP_QUADRATIC,
+    ):
         check.symmetric_positive_definite("mass_matrix", mass_matrix, size=3)
         if check.is_concrete(mass_matrix):
             mass = np.asarray(mass_matrix, dtype=float)
@@ -160,27 +167,27 @@ class Cybership(eqx.Module):
 
     # -- Earth frame --------------------------------------------------------------
 
-    def earth_mass(self, psi) -> Array:
+    def earth_mass(self, psi: Array) -> Array:
         """M*(psi) = J M J^T."""
         J = rotation(psi)
         return J @ self.mass_matrix @ J.T
 
-    def earth_coriolis(self, psi, x: Array) -> Array:
+    def earth_coriolis(self, psi: Array, x: Array) -> Array:
         """C*(psi, x) = J [C(J^T x) - M S(x_3)] J^T, x an Earth-fixed velocity eta'."""
         J = rotation(psi)
         return J @ (self.coriolis(J.T @ x) - self.mass_matrix @ skew(x[2])) @ J.T
 
-    def earth_damping(self, psi, x: Array) -> Array:
+    def earth_damping(self, psi: Array, x: Array) -> Array:
         """d*(psi, x) = J [D J^T x + D_n(J^T x)]."""
         return rotate(psi, self.damping_force(rotate_transpose(psi, x)))
 
-    def earth_acceleration(self, psi, x: Array, tau: Array) -> Array:
+    def earth_acceleration(self, psi: Array, x: Array, tau: Array) -> Array:
         """eta'' for eta' = x and body input tau, without inverting M*:
         J [S(r) nu + M^-1 (tau - C(nu) nu - D(nu) nu)], nu = J^T x, r = x_3."""
         nu = rotate_transpose(psi, x)
         return rotate(psi, matvec(skew(nu[2]), nu) + self.acceleration(nu, tau))
 
-    def christoffel_coriolis(self, psi, x: Array) -> Array:
+    def christoffel_coriolis(self, psi: Array, x: Array) -> Array:
         """The Christoffel-symbol factorization of M*(psi) (derivations-wondergem-2009.md, 1):
         with K = [E, M], E = S(1), and a = J^T x,
         C_Gamma(psi, x) = 1/2 J [a_3 K + (K a) e3^T - e3 (K a)^T] J^T.
@@ -257,7 +264,7 @@ class CybershipState(eqx.Module):
     wave: Array
 
     @classmethod
-    def build(cls, eta=0.0, nu=0.0, wave=0.0) -> CybershipState:
+    def build(cls, eta: npt.ArrayLike = 0.0, nu: npt.ArrayLike = 0.0, wave: npt.ArrayLike = 0.0) -> CybershipState:
         """State from scalars or sequences, validated and broadcast."""
         return cls(jnp.asarray(check.vector("eta", eta)), jnp.asarray(check.vector("nu", nu)), jnp.asarray(check.vector("wave", wave)))
 
@@ -332,7 +339,7 @@ class CybershipPlant(Plant):
     input_layout: Layout = eqx.field(static=True, default=VESSEL_INPUT, kw_only=True)
     variable_signals: tuple[Signal, ...] = eqx.field(static=True, default=CYBERSHIP_SIGNALS, kw_only=True)
 
-    def __init__(self, ship: Cybership, waves=None, wave_ramp: float = 10.0):
+    def __init__(self, ship: Cybership, waves: _Waves | None = None, wave_ramp: float = 10.0):
         if not isinstance(ship, Cybership):
             raise check.ParameterError("ship", f"ship must be a Cybership; got {type(ship).__name__}")
         self.ship = ship
@@ -345,7 +352,7 @@ class CybershipPlant(Plant):
         phase = jnp.clip(t / self.wave_ramp, 0.0, 1.0)
         return 0.5 * (1.0 - jnp.cos(jnp.pi * phase)), jnp.where(phase < 1.0, 0.5 * jnp.pi / self.wave_ramp * jnp.sin(jnp.pi * phase), 0.0)
 
-    def vector_field(self, t, state: CybershipState, tau: Array, noise: Array) -> CybershipState:
+    def vector_field(self, t: ArrayLike, state: CybershipState, tau: Array, noise: Array) -> CybershipState:
         """eta' = J nu, nu' of (16), and eta_w' = d/dt [ramp(t) motion(t, position(t))]."""
         del noise
         eta_rate = rotate(state.eta[2], state.nu)
@@ -367,7 +374,7 @@ class CybershipPlant(Plant):
         Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s), body-fixed.", shape="(3,)"),
         Value("wave", "array", "Wave-induced motion eta_w (m, m, rad).", shape="(3,)"),
     )
-    def state(self, eta=None, nu=0.0, wave=0.0) -> CybershipState:
+    def state(self, eta: npt.ArrayLike | None = None, nu: npt.ArrayLike = 0.0, wave: npt.ArrayLike = 0.0) -> CybershipState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 
         Parameters

@@ -56,7 +56,9 @@ from typing import ClassVar, final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.components import DivergenceBound, Layout, Plant, Signal
@@ -132,12 +134,12 @@ class FurutaConstants(ManipulatorModel):
 
     def __init__(
         self,
-        alpha=PRINTED_CONSTANTS[0],
-        beta=PRINTED_CONSTANTS[1],
-        gamma=PRINTED_CONSTANTS[2],
-        delta=PRINTED_CONSTANTS[3],
-        coulomb_friction=(PRINTED_COULOMB_FRICTION, 0.0),
-        friction=(0.0, 0.0),
+        alpha: ArrayLike = PRINTED_CONSTANTS[0],
+        beta: ArrayLike = PRINTED_CONSTANTS[1],
+        gamma: ArrayLike = PRINTED_CONSTANTS[2],
+        delta: ArrayLike = PRINTED_CONSTANTS[3],
+        coulomb_friction: npt.ArrayLike = (PRINTED_COULOMB_FRICTION, 0.0),
+        friction: npt.ArrayLike = (0.0, 0.0),
     ):
         self.alpha = _scalar("alpha", alpha)
         self.beta = _scalar("beta", beta)
@@ -253,7 +255,7 @@ class FurutaPlant(Plant):
     position_layout: Layout = eqx.field(static=True)
     velocity_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, model: FurutaConstants, stick_band=0.02, stick_relaxation=1e-3):
+    def __init__(self, model: FurutaConstants, stick_band: ArrayLike = 0.02, stick_relaxation: ArrayLike = 1e-3):
         if not isinstance(model, FurutaConstants):
             raise check.ParameterError("model", f"model must be a FurutaConstants; got {type(model).__name__}")
         names, kinds = model.joint_names, model.joint_kinds
@@ -298,7 +300,7 @@ class FurutaPlant(Plant):
         slip = limit * jnp.where(slow, jnp.sign(at_rest), jnp.sign(qdot[0]))
         return jnp.where(sticking, stick, slip), sticking
 
-    def vector_field(self, t, x: FurutaState, u: Array, w: Array) -> FurutaState:
+    def vector_field(self, t: ArrayLike, x: FurutaState, u: Array, w: Array) -> FurutaState:
         """(q', q'', stuck') of (6.1)–(6.4) with the stick-slip friction."""
         del t, w
         model = self.model
@@ -319,7 +321,7 @@ class FurutaPlant(Plant):
         ),
         Value("qdot", "array", "Their rates (rad/s).", shape="(2,)"),
     )
-    def state(self, q=None, qdot=0.0) -> FurutaState:
+    def state(self, q: npt.ArrayLike | None = None, qdot: npt.ArrayLike = 0.0) -> FurutaState:
         """A state of this plant, not sticking (zeros where not given): a composition's ``[plant.initial]``.
 
         Parameters

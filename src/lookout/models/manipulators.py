@@ -55,7 +55,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec, solve
@@ -277,7 +279,9 @@ class FreePendulum(ManipulatorModel):
     joint_names: ClassVar[tuple[str, ...]] = ("pendulum",)
     joint_kinds: ClassVar[tuple[str, ...]] = (REVOLUTE,)
 
-    def __init__(self, mass=0.5, length=0.5, friction=0.1, gravity_acceleration=STANDARD_GRAVITY):
+    def __init__(
+        self, mass: ArrayLike = 0.5, length: ArrayLike = 0.5, friction: npt.ArrayLike = 0.1, gravity_acceleration: ArrayLike = STANDARD_GRAVITY
+    ):
         self.mass = _scalar("pendulum mass", mass)
         self.length = _scalar("pendulum length", length)
         self.friction = jnp.asarray(check.vector("pendulum friction", friction, 1))
@@ -345,7 +349,13 @@ class TwoLinkArm(ManipulatorModel):
     joint_names: ClassVar[tuple[str, ...]] = ("shoulder", "elbow")
     joint_kinds: ClassVar[tuple[str, ...]] = (REVOLUTE, REVOLUTE)
 
-    def __init__(self, masses=(0.5, 0.7), lengths=(1.0, 1.5), friction=(0.5, 0.1), gravity_acceleration=STANDARD_GRAVITY):
+    def __init__(
+        self,
+        masses: npt.ArrayLike = (0.5, 0.7),
+        lengths: npt.ArrayLike = (1.0, 1.5),
+        friction: npt.ArrayLike = (0.5, 0.1),
+        gravity_acceleration: ArrayLike = STANDARD_GRAVITY,
+    ):
         self.masses = jnp.asarray(check.vector("two-link masses", masses, 2))
         self.lengths = jnp.asarray(check.vector("two-link lengths", lengths, 2))
         self.friction = jnp.asarray(check.vector("two-link friction", friction, 2))
@@ -429,7 +439,15 @@ class PrintedInertiaArm(ManipulatorModel):
     joint_names: ClassVar[tuple[str, ...]] = TwoLinkArm.joint_names
     joint_kinds: ClassVar[tuple[str, ...]] = (REVOLUTE, REVOLUTE)
 
-    def __init__(self, masses=(0.5, 0.7), lengths=(1.0, 1.5), friction=(0.5, 0.1), gravity_acceleration=STANDARD_GRAVITY, *, printed_mass):
+    def __init__(
+        self,
+        masses: npt.ArrayLike = (0.5, 0.7),
+        lengths: npt.ArrayLike = (1.0, 1.5),
+        friction: npt.ArrayLike = (0.5, 0.1),
+        gravity_acceleration: float = STANDARD_GRAVITY,
+        *,
+        printed_mass: float,
+    ):
         self.masses = jnp.asarray(check.vector("two-link masses", masses, 2))
         self.lengths = jnp.asarray(check.vector("two-link lengths", lengths, 2))
         self.friction = jnp.asarray(check.vector("two-link friction", friction, 2))
@@ -501,7 +519,14 @@ class CartPendulum(ManipulatorModel):
     joint_names: ClassVar[tuple[str, ...]] = ("cart", "pendulum")
     joint_kinds: ClassVar[tuple[str, ...]] = (PRISMATIC, REVOLUTE)
 
-    def __init__(self, cart_mass=2.0, pendulum_mass=0.2, pendulum_length=0.5, friction=(0.4, 0.1), gravity_acceleration=STANDARD_GRAVITY):
+    def __init__(
+        self,
+        cart_mass: ArrayLike = 2.0,
+        pendulum_mass: ArrayLike = 0.2,
+        pendulum_length: ArrayLike = 0.5,
+        friction: npt.ArrayLike = (0.4, 0.1),
+        gravity_acceleration: ArrayLike = STANDARD_GRAVITY,
+    ):
         self.cart_mass = _scalar("cart_mass", cart_mass)
         self.pendulum_mass = _scalar("pendulum_mass", pendulum_mass)
         self.pendulum_length = _scalar("pendulum_length", pendulum_length)
@@ -600,14 +625,14 @@ class FurutaPendulum(ManipulatorModel):
 
     def __init__(
         self,
-        pillar_inertia=1.0,
-        arm_mass=0.4,
-        pendulum_mass=0.1,
-        tip_mass=0.5,
-        arm_length=0.7,
-        pendulum_length=0.5,
-        friction=(0.4, 0.2),
-        gravity_acceleration=STANDARD_GRAVITY,
+        pillar_inertia: ArrayLike = 1.0,
+        arm_mass: ArrayLike = 0.4,
+        pendulum_mass: ArrayLike = 0.1,
+        tip_mass: ArrayLike = 0.5,
+        arm_length: ArrayLike = 0.7,
+        pendulum_length: ArrayLike = 0.5,
+        friction: npt.ArrayLike = (0.4, 0.2),
+        gravity_acceleration: ArrayLike = STANDARD_GRAVITY,
     ):
         self.pillar_inertia = _scalar("pillar_inertia", pillar_inertia)
         self.arm_mass = _scalar("arm_mass", arm_mass)
@@ -725,7 +750,7 @@ class ManipulatorPlant(Plant):
     position_layout: Layout = eqx.field(static=True)
     velocity_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, model: ManipulatorModel, force_noise=0.0):
+    def __init__(self, model: ManipulatorModel, force_noise: npt.ArrayLike = 0.0):
         if not isinstance(model, ManipulatorModel):
             raise check.ParameterError("model", f"model must be a ManipulatorModel; got {type(model).__name__}")
         n = model.size
@@ -741,7 +766,7 @@ class ManipulatorPlant(Plant):
     def __check_init__(self):
         check.positive("force_noise", self.force_noise, allow_zero=True)
 
-    def vector_field(self, t, x: JointState, u: Array, w: Array) -> JointState:
+    def vector_field(self, t: ArrayLike, x: JointState, u: Array, w: Array) -> JointState:
         """(q', qdot') of eq. (2.1) with friction F and the force disturbance."""
         del t
         tau = u + self.force_noise * w
@@ -756,7 +781,7 @@ class ManipulatorPlant(Plant):
         ),
         Value("qdot", "array", "Their rates (rad/s, m/s).", shape="(n,)"),
     )
-    def state(self, q=None, qdot=0.0) -> JointState:
+    def state(self, q: npt.ArrayLike | None = None, qdot: npt.ArrayLike = 0.0) -> JointState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 
         Parameters

@@ -35,6 +35,7 @@ Two kinds of parameter set:
 import abc
 import operator
 import re
+from collections.abc import Iterable
 from typing import final
 
 import equinox as eqx
@@ -189,7 +190,7 @@ class ModelParameters(AffineParameters):
     names: tuple[str, ...] = eqx.field(static=True)
     units: tuple[str, ...] = eqx.field(static=True)
 
-    def __init__(self, base: ManipulatorModel, fields, units=None):
+    def __init__(self, base: ManipulatorModel, fields: str | Iterable[str], units: Iterable[str] | None = None):
         if not isinstance(base, ManipulatorModel):
             raise check.ParameterError("base", f"base must be a ManipulatorModel; got {type(base).__name__}")
         fields = (fields,) if isinstance(fields, str) else tuple(fields)

@@ -22,7 +22,9 @@ from typing import ClassVar, final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.components import DivergenceBound, Layout, Plant, Signal
@@ -87,7 +89,7 @@ class ScheduledParameterPlant(Plant):
     velocity_layout: Layout = eqx.field(static=True)
     parameter_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, parameters: AffineParameters, values, switch_times=(), force_noise=0.0):
+    def __init__(self, parameters: AffineParameters, values: npt.ArrayLike, switch_times: npt.ArrayLike = (), force_noise: npt.ArrayLike = 0.0):
         if not isinstance(parameters, AffineParameters):
             raise check.ParameterError("parameters", f"parameters must be AffineParameters; got {type(parameters).__name__}")
         p = parameters.size
@@ -125,7 +127,7 @@ class ScheduledParameterPlant(Plant):
             if np.any(np.diff(times) <= 0):
                 raise check.ParameterError("switch_times", f"switch_times must be strictly increasing; got {times.tolist()}")
 
-    def theta(self, t) -> Array:
+    def theta(self, t: ArrayLike) -> Array:
         """theta(t): the row of :attr:`values` whose interval holds t (right-continuous)."""
         return self.values[jnp.searchsorted(self.switch_times, t, side="right")]
 
@@ -138,7 +140,7 @@ class ScheduledParameterPlant(Plant):
         ),
         Value("qdot", "array", "Their rates (rad/s, m/s).", shape="(n,)"),
     )
-    def state(self, q=None, qdot=0.0) -> JointState:
+    def state(self, q: npt.ArrayLike | None = None, qdot: npt.ArrayLike = 0.0) -> JointState:
         """A :class:`JointState` from scalars or sequences, checked for size n (zeros where
         not given): a composition's ``[plant.initial]``.
 
@@ -152,7 +154,7 @@ class ScheduledParameterPlant(Plant):
         n = self.noise_size
         return JointState(jnp.asarray(check.vector("q", 0.0 if q is None else q, n)), jnp.asarray(check.vector("qdot", qdot, n)))
 
-    def vector_field(self, t, x: JointState, u: Array, w: Array) -> JointState:
+    def vector_field(self, t: ArrayLike, x: JointState, u: Array, w: Array) -> JointState:
         """(q', qdot') of eq. (2.1) with the model of theta(t)."""
         model = self.parameters.model(self.theta(t))
         return JointState(x.qdot, model.acceleration(x.q, x.qdot, u + self.force_noise * w))
@@ -170,7 +172,7 @@ class ScheduledParameterPlant(Plant):
         """
         return {**self.position_layout.split(x.q), **self.velocity_layout.split(x.qdot)}
 
-    def truth(self, time) -> dict[str, np.ndarray]:
+    def truth(self, time: npt.ArrayLike) -> dict[str, np.ndarray]:
         """The true parameters at the times ``time`` (s), by signal name (:attr:`parameter_layout`)."""
         index = np.searchsorted(np.asarray(self.switch_times), np.asarray(time, dtype=float), side="right")
         values = np.asarray(self.values)[index]

@@ -17,7 +17,9 @@ from typing import ClassVar, final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
@@ -84,7 +86,7 @@ class VesselState(eqx.Module):
         return cls(jnp.zeros(3), jnp.zeros(3), jnp.zeros(3), jnp.zeros(6))
 
     @classmethod
-    def build(cls, eta=0.0, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+    def build(cls, eta: npt.ArrayLike = 0.0, nu: npt.ArrayLike = 0.0, bias: npt.ArrayLike = 0.0, wave_state: npt.ArrayLike = 0.0) -> VesselState:
         """State from scalars or sequences, validated and broadcast."""
         return cls(
             jnp.asarray(check.vector("eta", eta)),
@@ -133,7 +135,7 @@ class DPVessel(eqx.Module):
     stiffness_matrix: Array
     mass_inverse: Array
 
-    def __init__(self, mass_matrix, damping_matrix, stiffness_matrix=None):
+    def __init__(self, mass_matrix: npt.ArrayLike, damping_matrix: npt.ArrayLike, stiffness_matrix: npt.ArrayLike | None = None):
         check.symmetric_positive_definite("mass_matrix", mass_matrix, size=3)
         check.square("damping_matrix", damping_matrix)
         check.dissipative("damping_matrix", damping_matrix)
@@ -145,7 +147,7 @@ class DPVessel(eqx.Module):
         self.stiffness_matrix = jnp.asarray(stiffness_matrix, dtype=float)
         self.mass_inverse = jnp.linalg.inv(self.mass_matrix)
 
-    def scaled(self, mass_scale=1.0, damping_scale=1.0) -> DPVessel:
+    def scaled(self, mass_scale: npt.ArrayLike = 1.0, damping_scale: npt.ArrayLike = 1.0) -> DPVessel:
         """This vessel with M and D multiplied entry by entry (a model error).
 
         ``mass_scale`` and ``damping_scale`` are scalars or 3x3 arrays of factors
@@ -178,7 +180,7 @@ class DPVessel(eqx.Module):
         Value("damping_scale", "float", "D multiplied entry by entry (1).", range=NON_NEGATIVE),
     ),
 )
-def northern_clipper(mass_scale=1.0, damping_scale=1.0) -> DPVessel:
+def northern_clipper(mass_scale: float = 1.0, damping_scale: float = 1.0) -> DPVessel:
     """The supply vessel Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57).
 
     Parameters
@@ -203,7 +205,13 @@ def northern_clipper(mass_scale=1.0, damping_scale=1.0) -> DPVessel:
         Value("damping_scale", "float", "D multiplied entry by entry (1).", range=NON_NEGATIVE),
     ),
 )
-def scaled_vessel(mass_matrix, damping_matrix, stiffness_matrix=None, mass_scale=1.0, damping_scale=1.0) -> DPVessel:
+def scaled_vessel(
+    mass_matrix: npt.ArrayLike,
+    damping_matrix: npt.ArrayLike,
+    stiffness_matrix: npt.ArrayLike | None = None,
+    mass_scale: float = 1.0,
+    damping_scale: float = 1.0,
+) -> DPVessel:
     """A DP vessel of M, D (and K), its M and D scaled entry by entry (a model error).
 
     Parameters
@@ -277,7 +285,7 @@ class VesselPlant(Plant):
         self.disturbance = disturbance
         self.noise_size = 6 + (disturbance.noise_size if disturbance is not None else 0)
 
-    def vector_field(self, t, state: VesselState, tau: Array, noise: Array) -> VesselState:
+    def vector_field(self, t: ArrayLike, state: VesselState, tau: Array, noise: Array) -> VesselState:
         """Time derivative of the plant state (eqs. 1, 3, 7, 11), with the unmodelled
         body-fixed force E_nu w_nu of Kim (2002), eq. (1), added to tau when given."""
         force = tau if self.disturbance is None else tau + self.disturbance.force(t, noise[6:])
@@ -299,7 +307,9 @@ class VesselPlant(Plant):
         Value("bias", "array", "Bias forces and moment (N, N, N m), Earth-fixed.", shape="(3,)"),
         Value("wave_state", "array", "Wave-model state [xi1, xi2] of eq. (11) (m s, m s, rad s, m, m, rad).", shape="(6,)"),
     )
-    def state(self, eta=None, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+    def state(
+        self, eta: npt.ArrayLike | None = None, nu: npt.ArrayLike = 0.0, bias: npt.ArrayLike = 0.0, wave_state: npt.ArrayLike = 0.0
+    ) -> VesselState:
         """A state of this plant (zeros where not given): a composition's ``[plant.initial]``.
 
         Parameters

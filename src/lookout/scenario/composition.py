@@ -48,8 +48,9 @@ import functools
 import math
 import operator
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field, ValidationError, create_model, field_validator
@@ -58,6 +59,10 @@ from pydantic.functional_validators import AfterValidator
 from lookout._validation import FitError, ParameterError, one_line, short
 from lookout.scenario import registry
 from lookout.scenario.settings import RunsConfig, Settings, explain, finite_positive, validate_strictly
+
+if TYPE_CHECKING:
+    from lookout.components import DivergenceBound
+    from lookout.results import Trajectory
 
 #: The top-level keys of a composition.
 TOP_KEYS = ("plugins", "preset", "simulation", *registry.COMPONENT_ROLES)
@@ -203,7 +208,7 @@ def _default_value(default):
     return plain(default)
 
 
-def plain(value):
+def plain(value: object) -> Any:
     """A default or a built value as file data: tuples of floats, Python scalars."""
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
@@ -218,7 +223,7 @@ def plain(value):
 _MODELS: dict = {}
 
 
-def parameter_model(kind: registry.Kind, design: str | None):
+def parameter_model(kind: registry.Kind, design: str | None) -> type[Settings]:
     """The pydantic model of a kind's value parameters (strict, every number finite)."""
     key = (kind.role, kind.name, design)
     if key not in _MODELS:
@@ -232,7 +237,7 @@ def parameter_model(kind: registry.Kind, design: str | None):
     return _MODELS[key]
 
 
-def state_parameters(method) -> tuple[registry.Parameter, ...]:
+def state_parameters(method: Callable[..., Any]) -> tuple[registry.Parameter, ...]:
     """The keys of a plant's ``state`` or an observer's ``guess`` method (bound, or as
     its class has it), as the method declares them."""
     return registry.initial_parameters(method)
@@ -492,7 +497,7 @@ def _own_signal(table: dict, location: tuple):
         raise CompositionError(location, one_line(error)) from None
 
 
-def keywords_of(method):
+def keywords_of(method: Callable[..., Any]) -> Callable[..., Any]:
     """The method whose keywords a bound ``method`` takes: itself, or, for one declared
     to take another's (``initial_values(same_as="model.state")``: a Kalman filter's
     ``guess`` takes its model plant's state keys), that method of the same object."""
@@ -531,7 +536,7 @@ class Composition:
         return self.simulation.seeds
 
     @property
-    def divergence(self):
+    def divergence(self) -> DivergenceBound | None:
         """When a run of this composition has failed: a
         :class:`~lookout.components.DivergenceBound` (``[simulation] divergence``, else the
         plant kind's), or None (a non-finite truth or estimate only)."""
@@ -549,7 +554,7 @@ class Composition:
         return compose(document)
 
 
-def simulate(composition: Composition, *, progress=None):
+def simulate(composition: Composition, *, progress: Callable[[int, int], object] | None = None) -> Trajectory:
     """The composition's runs (seeds ``seed .. seed + runs - 1``): one run alone, several
     vmapped over one shared scenario or, with ``simulation.batch = "stacked"``, over a
     copy per run. ``lookout run``, the campaigns' base and the reproductions simulate a
@@ -585,7 +590,7 @@ def merge(preset: dict, document: dict) -> dict:
     return merged
 
 
-def load_plugins(plugins, location: tuple = ("plugins",)) -> list[str]:
+def load_plugins(plugins: object, location: tuple = ("plugins",)) -> list[str]:
     """Import a document's ``plugins`` (Python files, absolute or relative to the working
     folder, or modules by dotted name), whose declarations register kinds of their own
     (:func:`lookout.scenario.registry.load_plugin`); a :class:`CompositionError` names the entry."""
@@ -724,7 +729,7 @@ def _scenario_error(error: ValueError, kinds: dict) -> CompositionError:
     return CompositionError((), reason)
 
 
-def preset_document(text) -> dict:
+def preset_document(text: object) -> dict:
     """The composition of a reproduction's case, named ``"NAME:CASE"`` (or ``"NAME"``: its
     first case)."""
     if not isinstance(text, str):

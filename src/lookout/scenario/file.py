@@ -27,9 +27,10 @@ file when it can be found, and the condition.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import ValidationError
@@ -38,6 +39,11 @@ from lookout.scenario import registry
 from lookout.scenario._toml import FileError, key_line, read, write
 from lookout.scenario.composition import TOP_KEYS, Composition, CompositionError, SimulationSettings, compose, key_text, state_parameters
 from lookout.scenario.settings import explain
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+    from lookout.results import Trajectory
 
 
 @dataclass(frozen=True)
@@ -48,7 +54,9 @@ class CompositionSpec:
     composition: Composition
     source: str = field(default="<scenario>")
 
-    def build(self):
+    # a Scenario, returned as Any: typed Scenario, lookout.studies.store indexes by a
+    # record signal's dim (str | None) without narrowing it, which mypy refuses
+    def build(self) -> Any:
         """The :class:`~lookout.sim.Scenario` (built when the file was read)."""
         return self.composition.scenario
 
@@ -200,7 +208,7 @@ def describe(error: ValidationError, source: str, text: str | None, prefix: tupl
     return str(located(source, text, prefix + location, message))
 
 
-def simulate_trajectory(spec: CompositionSpec, *, progress=None):
+def simulate_trajectory(spec: CompositionSpec, *, progress: Callable[[int, int], object] | None = None) -> Trajectory:
     """Simulate the scenario for its seeds: a :class:`~lookout.Trajectory`, batched as
     :func:`lookout.scenario.composition.simulate` batches it (run i uses ``jax.random.key(seed + i)``)."""
     from lookout.scenario.composition import simulate
@@ -208,7 +216,7 @@ def simulate_trajectory(spec: CompositionSpec, *, progress=None):
     return simulate(spec.composition, progress=progress)
 
 
-def to_dataset(spec: CompositionSpec, trajectory):
+def to_dataset(spec: CompositionSpec, trajectory: Trajectory) -> xr.Dataset:
     """The trajectory as an :class:`xarray.Dataset` with ``seed`` along ``run`` and the
     composition (JSON) in its attributes."""
     ds = trajectory.to_xarray().assign_coords(seed=("run", np.asarray(spec.seeds, dtype=np.int64), {"long_name": "PRNG seed of the run"}))
@@ -216,6 +224,6 @@ def to_dataset(spec: CompositionSpec, trajectory):
     return ds
 
 
-def simulate_spec(spec: CompositionSpec, *, progress=None):
+def simulate_spec(spec: CompositionSpec, *, progress: Callable[[int, int], object] | None = None) -> xr.Dataset:
     """:func:`simulate_trajectory` as :func:`to_dataset`."""
     return to_dataset(spec, simulate_trajectory(spec, progress=progress))

@@ -63,8 +63,8 @@ from jax import Array
 
 from lookout._math import ssa
 from lookout._validation import ParameterError
-from lookout.results import RecordSignals
-from lookout.sim import Summary, summarize_batch
+from lookout.results import RecordSignals, Trajectory
+from lookout.sim import Scenario, Summary, summarize_batch
 
 #: kind -> (what it needs, description)
 KINDS = {
@@ -133,7 +133,7 @@ def _signals(scenario) -> dict[str, dict]:
     }
 
 
-def resolve(names: list[str], scenario) -> list[Metric]:
+def resolve(names: list[str], scenario: Scenario) -> list[Metric]:
     """The metrics ``names`` for ``scenario``; a ValueError names the first that is unknown
     or does not apply (a kind, or a signal the scenario does not record)."""
     signals = _signals(scenario)
@@ -276,7 +276,7 @@ class MetricSummary(Summary):
         """Signals whose excursion is measured from their first record (no reference)."""
         return tuple(name for _, kind, name, _, _ in self.plan.metrics if kind == "max_excursion")
 
-    def terms(self, index, record, origin):
+    def terms(self, index: Array, record: Any, origin: dict[str, Array]) -> tuple[dict[str, Any], dict[str, Array]]:
         """One record's contribution (one run): see the class docstring."""
         truth, estimate, _, reference, _, applied, actuation = record
         inputs = self.layout.split(applied)
@@ -295,6 +295,7 @@ class MetricSummary(Summary):
                 final[variable] = jnp.sqrt(jnp.sum(jnp.asarray(value) ** 2))
                 continue
             if kind in MEAN_KINDS:
+                assert self.plan.thrust_limits is not None  # a thruster metric carries the thrusters' limits (resolve)
                 largest, smallest = self.plan.thrust_limits
                 thrust = actuation["thrust"]
                 measure = dict(self.plan.thrust_measures)[variable]
@@ -328,7 +329,7 @@ class MetricSummary(Summary):
                 peak[variable] = jnp.where(window, norm, -jnp.inf)
         return {"power": power, "peak": peak, "final": final, "failed": self.failures(truth, estimate, reference)}, series
 
-    def failures(self, truth, estimate, reference) -> Array:
+    def failures(self, truth: dict[str, Array], estimate: dict[str, Array], reference: dict[str, Array]) -> Array:
         """One record's causes of a failed run, a bool per :attr:`_Plan.causes`: each
         truth and estimate not finite, then each error of the divergence limit's signal
         beyond the limit."""
@@ -344,7 +345,7 @@ class MetricSummary(Summary):
         return jnp.asarray(flags, dtype=bool).reshape(len(plan.causes)) if flags else jnp.zeros((0,), dtype=bool)
 
     # the engine's Summary interface
-    def init(self, record):
+    def init(self, record: Any) -> dict[str, Any]:
         truth = record[0]
         zeros = lambda shape: jnp.zeros(shape.shape, shape.dtype)
         (terms, _) = jax.eval_shape(lambda r: self.terms(jnp.asarray(0), r, {n: r[0][n] for n in self._origins()}), record)
@@ -357,7 +358,7 @@ class MetricSummary(Summary):
             "origin": {n: zeros(truth[n]) for n in self._origins()},
         }
 
-    def update(self, accumulated, index, record):
+    def update(self, accumulated: Any, index: Array, record: Any) -> tuple[dict[str, Any], dict[str, Array]]:
         origin = {n: jnp.where(index == 0, record[0][n], accumulated["origin"][n]) for n in self._origins()}
         terms, series = self.terms(index, record, origin)
         first = (accumulated["failed_at"] < 0) & jnp.any(terms["failed"])
@@ -370,7 +371,7 @@ class MetricSummary(Summary):
             "origin": origin,
         }, series
 
-    def finish(self, accumulated, series, time, *, where: bool = False) -> dict:
+    def finish(self, accumulated: dict[str, Any], series: dict[str, Array], time: Array, *, where: bool = False) -> dict:
         """Each metric per run and ``diverged``, from a batch's accumulation and series
         (leading run axis); a diverged run's metrics are NaN. With ``where``, also
         ``diverged_at`` (the first failed record, -1 for none) and ``diverged_cause``
@@ -406,7 +407,7 @@ class MetricSummary(Summary):
         return self.plan.causes
 
 
-def outage_of(scenario) -> tuple[float, float] | None:
+def outage_of(scenario: Scenario) -> tuple[float, float] | None:
     """(start, duration) of the sensor's outage in ``scenario`` (s), or None."""
     outage = scenario.sensor.outage
     return None if outage is None else (float(outage.start), float(outage.duration))
@@ -506,8 +507,8 @@ def _reduce_records(summary: MetricSummary, records, time, where: bool = False):
 
 
 def summarize(
-    scenario,
-    keys,
+    scenario: Scenario,
+    keys: Array,
     metrics: list[Metric],
     *,
     after: float | None = None,
@@ -530,7 +531,7 @@ def summarize(
 
 
 def reduce(
-    trajectory,
+    trajectory: Trajectory,
     metrics: list[Metric],
     *,
     after: float | None = None,
@@ -577,7 +578,7 @@ class Failure:
         return f"at t = {self.time:g} s (record {self.record}): {self.cause}"
 
 
-def failures(trajectory, divergence: tuple[str, float] | None = None) -> list[Failure | None]:
+def failures(trajectory: Trajectory, divergence: tuple[str, float] | None = None) -> list[Failure | None]:
     """Per run of a batched :class:`~lookout.Trajectory`, its :class:`Failure` or None:
     the one rule of a failed run that ``lookout run``, campaigns and the benchmark share
     (a non-finite truth or estimate at any record, or with ``divergence = (signal,

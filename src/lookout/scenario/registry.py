@@ -29,6 +29,7 @@ import inspect
 import os
 import sys
 import typing
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -160,7 +161,7 @@ class Parameter:
     shape: str | None = None
     broadcast: bool = True
 
-    def shape_refusal(self, value) -> str | None:
+    def shape_refusal(self, value: object) -> str | None:
         """Why ``value`` does not have the declared shape (None: it has it, or none is declared)."""
         return declare.shape_refusal(value, self.shape, self.broadcast)
 
@@ -197,7 +198,7 @@ class Kind:
                 return rule
         raise KeyError(design)
 
-    def callable(self, design: str | None = None):
+    def callable(self, design: str | None = None) -> Callable[..., Any]:
         """The callable that builds the kind (with ``design``'s rule)."""
         return _builder(self.declaration.target, self._rule(design).build)
 
@@ -250,7 +251,7 @@ def _builder(target, build):
     return getattr(target, build)
 
 
-def resolve(path: str):
+def resolve(path: str) -> Any:
     """The object a ``"module:qualname"`` string names (imported when asked for)."""
     module, _, qualname = path.partition(":")
     value: Any = importlib.import_module(module)
@@ -471,7 +472,7 @@ def default_kind(role: str) -> str | None:
     return DEFAULT_PART_KINDS.get(role)
 
 
-def kinds(role: str | None = None, *, plugins=None) -> list[Kind]:
+def kinds(role: str | None = None, *, plugins: Iterable[str] | None = None) -> list[Kind]:
     """The registered kinds (of one role), role by role: lookout's, the plugins' loaded
     and installed packages' once imported (:func:`load_entry_points`); with ``plugins``
     (files or modules, as a scenario's ``plugins`` gives them), of the plugin files only
@@ -597,7 +598,7 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
     return tuple(parameters)
 
 
-def initial_parameters(method) -> tuple[Parameter, ...]:
+def initial_parameters(method: Callable[..., Any]) -> tuple[Parameter, ...]:
     """The keys a plant's ``state`` or an observer's ``guess`` takes, as declared by
     :func:`lookout.declare.initial_values` on it."""
     function = getattr(method, "__func__", method)
@@ -607,7 +608,7 @@ def initial_parameters(method) -> tuple[Parameter, ...]:
     return _parameters(function, declared, function.__qualname__)
 
 
-def initial_same_as(method) -> str | None:
+def initial_same_as(method: Callable[..., Any]) -> str | None:
     """The attribute path whose method's keys ``method`` takes (``"model.state"``), if declared."""
     return getattr(getattr(method, "__func__", method), "__lookout_initial_same_as__", None)
 

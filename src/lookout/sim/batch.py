@@ -6,6 +6,9 @@ that keep a :class:`~lookout.sim.loop.Summary` of each run instead of its record
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -81,7 +84,7 @@ def _sharded_batch(scenario: Scenario, keys: Array, batched_scenario: bool):
     return scenario, keys, _shard_runs(_initial_carry_batch(scenario, keys, batched_scenario), n_runs)
 
 
-def summarize_batch(scenario: Scenario, keys: Array, summary: Summary, *, batched_scenario: bool = False):
+def summarize_batch(scenario: Scenario, keys: Array, summary: Summary, *, batched_scenario: bool = False) -> tuple[Any, Any]:
     """Simulate a batch as :func:`simulate_batch` does, keeping ``summary``'s
     accumulation and series of each run instead of its records.
 
@@ -101,7 +104,9 @@ def summarize_batch(scenario: Scenario, keys: Array, summary: Summary, *, batche
     return _segment_batch(scenario, keys, carry, jnp.asarray(0), scenario.n_records, batched_scenario, summary)[1]
 
 
-def simulate_batch(scenario: Scenario, keys: Array, *, batched_scenario: bool = False, progress=None, chunks: int = 20) -> Trajectory:
+def simulate_batch(
+    scenario: Scenario, keys: Array, *, batched_scenario: bool = False, progress: Callable[[int, int], object] | None = None, chunks: int = 20
+) -> Trajectory:
     """Simulate a batch of runs with ``jax.vmap``: one run per key.
 
     Parameters

@@ -17,16 +17,22 @@ from __future__ import annotations
 import math
 import operator
 import warnings
+from typing import TYPE_CHECKING, Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
 from jax.flatten_util import ravel_pytree
+from jax.typing import ArrayLike
 
 from lookout.components import Layout, Observer
 from lookout.results import RecordSignals, Trajectory
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 #: A prediction step whose linearization multiplies a small state error by more than
 #: this (spectral radius) makes the estimates diverge at that step: the step is
@@ -43,7 +49,7 @@ def _describe(tree) -> str:
     return f"{type(tree).__name__} with {', '.join(parts)}" if parts else type(tree).__name__
 
 
-def real_array(name: str, value) -> np.ndarray:
+def real_array(name: str, value: object) -> np.ndarray:
     """``value`` as a float64 array, or a ValueError naming ``name`` (text, complex numbers
     and objects are not measurements)."""
     try:
@@ -56,7 +62,7 @@ def real_array(name: str, value) -> np.ndarray:
     return array.astype(float)
 
 
-def checked_guess(observer: Observer, guess):
+def checked_guess(observer: Observer, guess: Any) -> Any:
     """``guess``, or the observer's own ``guess()`` when it is None; refused (ValueError
     naming ``guess``) unless it has the structure of ``observer.guess()`` with leaves
     that broadcast to its shapes and finite entries (NaN only where ``observer.guess()``
@@ -94,7 +100,7 @@ def _columns(name: str, array: np.ndarray, rows: int, layout: Layout, owner: str
         )
 
 
-def step_amplification(observer: Observer, guess, y, u, dt) -> float:
+def step_amplification(observer: Observer, guess: Any, y: npt.ArrayLike, u: npt.ArrayLike, dt: ArrayLike) -> float:
     """The spectral radius of the Jacobian of one prediction step of ``dt`` (s), at the
     state after the first sample: how much one step multiplies a small state error.
 
@@ -125,7 +131,7 @@ def _prediction_jacobian(observer, unravel, flat, y, u, dt):
     return jax.jacfwd(lambda vector: ravel_pytree(observer.predict(unravel(vector), 0.0, y, u, dt))[0])(flat)
 
 
-def check_step_length(observer: Observer, guess, y, u, dt: float, where: str) -> float:
+def check_step_length(observer: Observer, guess: Any, y: npt.ArrayLike, u: npt.ArrayLike, dt: float, where: str) -> float:
     """Refuse a time step the observer cannot take in one prediction: the screening of
     :func:`step_amplification` against :data:`MAX_STEP_AMPLIFICATION`, the test that
     tells a log read in the wrong unit (milliseconds) from one in seconds. Used by
@@ -210,14 +216,14 @@ def _filter_scan(observer: Observer, guess, times: Array, measurements: Array, i
 
 def filter(  # noqa: A001 - lookout.filter, as the docs name it
     observer: Observer,
-    times,
-    measurements,
-    inputs=None,
+    times: npt.ArrayLike,
+    measurements: npt.ArrayLike,
+    inputs: npt.ArrayLike | None = None,
     *,
-    guess=None,
+    guess: Any = None,
     measurement_layout: Layout | None = None,
     input_layout: Layout | None = None,
-):
+) -> xr.Dataset:
     """Run ``observer`` over a log in one jitted scan; return the simulation's Dataset layout.
 
     Parameters
@@ -361,7 +367,7 @@ class Stepper:
     _FLOATS = (float, np.float64)  # times a call takes as they are (checked for finiteness)
     _FLOAT64 = np.dtype(np.float64)
 
-    def __init__(self, observer: Observer, guess=None, y0=None, input_size: int | None = None):
+    def __init__(self, observer: Observer, guess: Any = None, y0: npt.ArrayLike | None = None, input_size: int | None = None):
         if not isinstance(observer, Observer):
             raise ValueError(f"observer must be a lookout Observer; got {type(observer).__name__}")
         n_y, n_u = observer.measurement_layout.size, observer.input_layout.size
@@ -445,7 +451,7 @@ class Stepper:
         return y
 
     @property
-    def state(self):
+    def state(self) -> Any:
         """The observer's internal state (a PyTree), at the time the next call expects."""
         return self._unravel_state(self._flat_state)
 
@@ -532,7 +538,7 @@ class Stepper:
         """The estimate's names and shapes (arrays of NaN), without stepping."""
         return jax.tree.unflatten(self._estimate_tree, [np.full(shape, np.nan) for _, _, shape in self._pieces])
 
-    def run(self, times, ys, us, dt) -> tuple[dict, np.ndarray]:
+    def run(self, times: npt.ArrayLike, ys: npt.ArrayLike, us: npt.ArrayLike, dt: ArrayLike) -> tuple[dict, np.ndarray]:
         """Several calls in one compiled scan: step ``i`` is ``self(times[i], ys[i],
         us[i], dt)``. A step whose result is not finite is refused as a call would be
         (the state stays as it was before it; its row of estimates is NaN), and the
@@ -594,7 +600,7 @@ class Stepper:
         pieces = [flat[:, start:end].reshape((n, *shape)) for start, end, shape in self._pieces]
         return jax.tree.unflatten(self._estimate_tree, pieces), healthy
 
-    def reset(self, y0, guess=None) -> None:
+    def reset(self, y0: npt.ArrayLike, guess: Any = None) -> None:
         """Start over from the first measurement ``y0`` and ``guess`` (default the
         observer's), keeping what is compiled: a live session compiles on a stand-in
         measurement before data comes, then resets on the first real one."""

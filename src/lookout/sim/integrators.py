@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 
 def _axpy(a, x, y):
     return jax.tree.map(lambda xi, yi: yi + a * xi, x, y)
 
 
-def rk4_step(field: Callable, t, state, step):
+def rk4_step(field: Callable, t: ArrayLike, state: Any, step: ArrayLike) -> Any:
     """One classical fourth-order Runge–Kutta step of ``state' = field(t, state)``.
 
     Parameters
@@ -40,7 +42,7 @@ def rk4_step(field: Callable, t, state, step):
     return _axpy(step, increment, state)
 
 
-def euler_step(field: Callable, t, state, step):
+def euler_step(field: Callable, t: ArrayLike, state: Any, step: ArrayLike) -> Any:
     """One explicit Euler step of ``state' = field(t, state)`` (same signature as rk4_step)."""
     return _axpy(step, field(t, state), state)
 
@@ -57,16 +59,16 @@ UNROLL_LIMIT = 4
 
 def integrate_sample(
     field: Callable,
-    t,
-    state,
-    dt,
+    t: ArrayLike,
+    state: Any,
+    dt: ArrayLike,
     steps: int,
     *,
     method: str = "rk4",
     normalize: Callable | None = None,
     normalize_each_step: bool = False,
     unroll_limit: int | None = None,
-):
+) -> Any:
     """Integrate ``state' = field(t, state)`` over one sample [t, t + dt] in equal steps.
 
     The sampled ``predict`` of every continuous-time observer: ``field`` is its vector

@@ -42,6 +42,7 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 from jax.flatten_util import ravel_pytree
+from jax.typing import ArrayLike
 
 from lookout._math import computed_once
 from lookout._random import standard_normal
@@ -116,7 +117,9 @@ def _realized_plant(scenario: Scenario, key: Array) -> Plant:
     return scenario.plant.realize(jax.random.fold_in(key, REALIZATION_KEY))
 
 
-def sample_measurements(scenario: Scenario, plant: Plant, state, held: Array | None, t, k: Array, key: Array) -> tuple[Array, dict[str, Array]]:
+def sample_measurements(
+    scenario: Scenario, plant: Plant, state: Any, held: Array | None, t: ArrayLike, k: Array, key: Array
+) -> tuple[Array, dict[str, Array]]:
     """What sample k takes of the plant state ``state`` at time ``t``: the sensor
     readings ``y_k`` (what the observer and the controller read, and the record's
     measurement) and ``plant.variables(state)`` (the record's truth).
@@ -183,7 +186,7 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
     return (plant.normalize(state), estimate_state, y, reference_state, control_state, actuator_state), record
 
 
-def initial_carry(scenario: Scenario, key: Array):
+def initial_carry(scenario: Scenario, key: Array) -> tuple[Any, Any, Array, Any, Any, Any]:
     """Plant state, observer state, held sensor samples, reference, controller and actuator state.
 
     The observer starts from ``observer.init(y_0, initial_estimate)`` with y_0 the
@@ -217,14 +220,14 @@ class Summary(eqx.Module):
     configuration).
     """
 
-    def init(self, record) -> Any:
+    def init(self, record: Any) -> Any:
         raise NotImplementedError
 
-    def update(self, accumulated, index: Array, record) -> tuple[Any, Any]:
+    def update(self, accumulated: Any, index: Array, record: Any) -> tuple[Any, Any]:
         raise NotImplementedError
 
 
-def segment(scenario: Scenario, key: Array, carry, first_record: Array, n_records: int, summary: Summary | None = None):
+def segment(scenario: Scenario, key: Array, carry: Any, first_record: Array, n_records: int, summary: Summary | None = None) -> tuple[Any, Any]:
     """Run ``n_records`` recorded groups of ``record_every`` samples from ``first_record``.
 
     A scan runs over records and, inside, over the ``record_every`` samples of each
@@ -278,7 +281,7 @@ def _segments(n_records: int, chunks: int) -> list[int]:
     return lengths
 
 
-def run_segments(step: Callable, carry, n_records: int, progress, chunks: int, time_axis: int):
+def run_segments(step: Callable, carry: Any, n_records: int, progress: Callable[[int, int], object] | None, chunks: int, time_axis: int) -> Any:
     """Run all segments, report progress after each, and join the records in time."""
     outputs = []
     first = 0
@@ -295,7 +298,7 @@ def run_segments(step: Callable, carry, n_records: int, progress, chunks: int, t
     return jax.tree.map(lambda *parts: jnp.concatenate(parts, axis=time_axis), *outputs)
 
 
-def make_trajectory(scenario: Scenario, records, batched: bool) -> Trajectory:
+def make_trajectory(scenario: Scenario, records: Any, batched: bool) -> Trajectory:
     truth, estimate, measurement, reference, command, applied, actuation = records
     return Trajectory(
         scenario.record_times,
@@ -312,7 +315,7 @@ def make_trajectory(scenario: Scenario, records, batched: bool) -> Trajectory:
     )
 
 
-def simulate(scenario: Scenario, key: Array, *, progress=None, chunks: int = 20) -> Trajectory:
+def simulate(scenario: Scenario, key: Array, *, progress: Callable[[int, int], object] | None = None, chunks: int = 20) -> Trajectory:
     """Simulate one run.
 
     Parameters

@@ -241,7 +241,7 @@ def _evaluate(parts: tuple[str, str], function: Callable, *args):
 _FITTING: set = set()
 
 
-def structure_key(scenario: Scenario):
+def structure_key(scenario: Scenario) -> tuple[Any, tuple[tuple[type, tuple[int, ...], np.dtype], ...]] | None:
     """What a scenario is apart from its numbers: the tree's structure (component
     types and static fields) and each leaf's type, shape and dtype. It decides
     :func:`check_fit` (which traces shapes only) and, for array leaves, which
@@ -359,7 +359,7 @@ def _check_fit(scenario: Scenario) -> None:
         )
 
 
-def check_sensor_fit(sensor, state) -> None:
+def check_sensor_fit(sensor: Sensor, state: Any) -> None:
     """Check with ``jax.eval_shape`` that ``sensor`` measures a plant whose state is
     ``state`` (a state or its ``jax.eval_shape``): a :class:`FitError` of the sensor
     and the plant otherwise (the check :func:`check_fit` makes of a scenario's)."""
@@ -383,7 +383,7 @@ def _check_needs(controller, what: str, needs, provided: set, provider: tuple) -
             )
 
 
-def checked_scenario(scenario, batched_runs: int | None = None) -> None:
+def checked_scenario(scenario: object, batched_runs: int | None = None) -> None:
     """Refuse, in one line, a scenario that is not one, a scenario batched over
     ``batched_runs`` runs (one per key; None: a scenario every run shares) whose arrays do
     not all lead with that run axis, and a scenario stacked per run given as a shared one."""

@@ -3,6 +3,9 @@ check that a key (or a batch of keys) is one."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TypeGuard
+
 import jax
 import jax.numpy as jnp
 from jax import Array
@@ -16,7 +19,7 @@ MAX_SEED = 2**63 - 1
 KEY_BYTES = 16
 
 
-def keys_of_seeds(seeds) -> Array:
+def keys_of_seeds(seeds: Sequence[int]) -> Array:
     """PRNG keys of a batch whose run i uses ``jax.random.key(seeds[i])`` (as :func:`seed_keys`
     with seed = seeds[i], runs = 1), for batches that mix scenarios and seeds."""
     # each seed is a Python int while it is checked (36 B), then a key
@@ -64,15 +67,15 @@ def _describe_key(value) -> str:
     return type(value).__name__
 
 
-def _is_typed_key(value) -> bool:
+def _is_typed_key(value: object) -> TypeGuard[Array]:
     return isinstance(value, jax.Array) and jnp.issubdtype(value.dtype, jax.dtypes.prng_key)
 
 
-def _is_raw_key(value, batch: bool) -> bool:
+def _is_raw_key(value: object, batch: bool) -> TypeGuard[Array]:
     return isinstance(value, jax.Array) and value.dtype == jnp.uint32 and value.ndim == (2 if batch else 1) and value.shape[-1] == 2
 
 
-def checked_key(key) -> Array:
+def checked_key(key: object) -> Array:
     """``key`` if it is one PRNG key (typed, or a raw uint32 pair); else a ValueError."""
     if (_is_typed_key(key) and key.ndim == 0) or _is_raw_key(key, batch=False):
         return key
@@ -80,7 +83,7 @@ def checked_key(key) -> Array:
     raise ValueError(f"key must be one JAX PRNG key (jax.random.key(seed), or lookout.seed_keys(seed, 1)[0]); got {_describe_key(key)}{hint}")
 
 
-def checked_keys(keys) -> Array:
+def checked_keys(keys: object) -> Array:
     """``keys`` if it is a 1-D batch of PRNG keys; else a ValueError."""
     if (_is_typed_key(keys) and keys.ndim == 1 and keys.shape[0] >= 1) or (_is_raw_key(keys, batch=True) and keys.shape[0] >= 1):
         return keys
