@@ -103,6 +103,25 @@ def _builder(position_gain, bias_gain=1.0, steps_per_sample: int = 1):
     """A builder for the refusals below."""
 
 
+def _annotated_builder(ship: Cybership, spare: NotImportedAtRunTime = None, gain: NotImportedAtRunTime = 1.0):  # noqa: F821
+    """A builder whose part is annotated with a class this module imports, and two
+    parameters with a name imported nowhere (as under ``if TYPE_CHECKING``)."""
+
+
+def test_a_parts_class_comes_from_its_own_annotation_and_one_that_does_not_resolve_is_refused():
+    from lookout.models.cybership import Cybership
+
+    globals()["Cybership"] = Cybership  # as the builder's module would import it
+    try:
+        # a value's annotation is never read: the unresolvable one beside the part is harmless
+        (ship, gain) = registry._parameters(_annotated_builder, (Part("ship", "The model."), Value("gain", "float", "K.")), "observer test")
+        assert ship.context is Cybership and gain.context is None
+        with pytest.raises(ValueError, match=r"observer test: the annotation of spare \(NotImportedAtRunTime\) does not resolve"):
+            registry._parameters(_annotated_builder, (Part("ship", "The model."), Part("spare", "Another.")), "observer test")
+    finally:
+        del globals()["Cybership"]
+
+
 def test_a_declaration_the_builder_does_not_take_or_that_misses_a_required_argument_is_refused():
     with pytest.raises(ValueError, match="declares wave_gain, which its builder does not take"):
         registry._parameters(_builder, (Value("position_gain", "array", "L1."), Value("wave_gain", "array", "K.")), "observer test")

@@ -537,10 +537,6 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
     class a part or context accepts from its annotation). A declared name the builder
     does not take, or a required argument not declared, is an error in the declaration."""
     signature = inspect.signature(builder)
-    try:
-        hints = typing.get_type_hints(builder.__init__ if isinstance(builder, type) else builder)  # type: ignore[misc]  # a class's __init__, read for its annotations
-    except Exception:
-        hints = {}
     taken = {name: p for name, p in signature.parameters.items() if name not in ("self", "cls") and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
     names = [each.name for each in declared]
     unknown = [name for name in names if name not in taken]
@@ -553,7 +549,8 @@ def _parameters(builder, declared, owner: str) -> tuple[Parameter, ...]:
     for each in declared:
         default = taken[each.name].default
         default = REQUIRED if default is inspect.Parameter.empty else default
-        accepted = _component_type(hints.get(each.name))
+        needs_class = isinstance(each, Part) or (not isinstance(each, Value) and each.source is None)
+        accepted = _component_type(_annotation(builder, each.name, owner)) if needs_class else None
         if isinstance(each, Value):
             parameters.append(
                 Parameter(
@@ -611,6 +608,25 @@ def initial_parameters(method: Callable[..., Any]) -> tuple[Parameter, ...]:
 def initial_same_as(method: Callable[..., Any]) -> str | None:
     """The attribute path whose method's keys ``method`` takes (``"model.state"``), if declared."""
     return getattr(getattr(method, "__func__", method), "__lookout_initial_same_as__", None)
+
+
+def _annotation(builder: Callable, name: str, owner: str) -> Any:
+    """The annotation of ``builder``'s parameter ``name``, evaluated where the builder is
+    defined (None when it has none). Each parameter is resolved on its own: an annotation
+    that names something imported only for type checkers is an error in the declaration
+    of a part or a context (the registry could not know the class it accepts), and leaves
+    the other parameters alone."""
+    function = builder.__init__ if isinstance(builder, type) else builder  # type: ignore[misc]  # a class's __init__, read for its annotations
+    raw = inspect.get_annotations(function).get(name)
+    if not isinstance(raw, str):
+        return raw
+    try:
+        return eval(raw, getattr(function, "__globals__", {}))  # what typing.get_type_hints does with a string annotation
+    except Exception as error:
+        raise ValueError(
+            f"{owner}: the annotation of {name} ({raw}) does not resolve where the builder is defined ({error}); "
+            "a part's or a context's class must be imported at run time"
+        ) from None
 
 
 def _component_type(annotation) -> type | None:
