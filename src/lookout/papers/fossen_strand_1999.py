@@ -234,7 +234,7 @@ def summarize(ds: xr.Dataset) -> dict:
     return summary
 
 
-def simulate_runs(config: Config, *, progress: Callable | None = None, scenario: Scenario | None = None):
+def simulate_runs(config: Config, *, progress: Callable | None = None, scenario: Scenario | None = None) -> xr.Dataset:
     """Simulate the scenario for the seeds of ``config`` (one run, or a vmapped batch).
 
     ``scenario`` is ``build(config)`` when the caller has already built it.

@@ -23,9 +23,9 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import equinox as eqx
 import jax
@@ -35,7 +35,15 @@ import numpy as np
 from lookout.tuning.families import Family, build, family_of
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
+    from jax import Array
+    from jax.typing import ArrayLike
+
     from lookout.analysis.conditions import Report
+    from lookout.scenario.composition import Composition
+    from lookout.scenario.metrics import Metric
+    from lookout.sim import Scenario
 
 #: Metric kinds an objective may use: smooth in the gains (an RMS over the window).
 DIFFERENTIABLE = ("rms_error", "rms_tracking", "rms_input")
@@ -54,7 +62,7 @@ class Objective:
         return " + ".join(name if weight == 1.0 else f"{weight:g}*{name}" for weight, name in self.terms)
 
 
-def parse_objective(text: str, scenario) -> tuple[Objective, list]:
+def parse_objective(text: str, scenario: Scenario) -> tuple[Objective, list[Metric]]:
     """``"rms_error:position + 0.01*rms_error:velocity"`` for ``scenario``: the objective
     and its resolved metrics; a ValueError names a term that is not a differentiable
     metric of the scenario."""
@@ -134,7 +142,7 @@ class Tuning:
 
 
 def tune(
-    scenario,
+    scenario: Scenario,
     objective_text: str,
     *,
     train_seeds: list[int],
@@ -248,7 +256,9 @@ def tune(
     return result
 
 
-def value_and_gradient(value, family: Family):
+def value_and_gradient(
+    value: Callable[[Sequence[ArrayLike], Array], tuple[Array, dict[str, Array]]], family: Family
+) -> Callable[[Array, Array], tuple[tuple[Array, dict[str, Array]], Array]]:
     """``theta, keys -> ((objective, per-run metrics), gradient in theta)`` of an objective
     ``value`` (:func:`_objective_function`), under ``eqx.filter_jit``: the program
     :func:`tune` compiles. Built here once, so that a check of the gradient compiles the
@@ -256,7 +266,7 @@ def value_and_gradient(value, family: Family):
     return eqx.filter_jit(jax.value_and_grad(lambda theta, keys: value(family.gains(theta), keys), has_aux=True))
 
 
-def compile_within_memory(function, theta, keys, *, available: float | None = None):
+def compile_within_memory(function: Callable[..., Any], theta: Array, keys: Array, *, available: float | None = None) -> Callable[..., Any]:
     """``function`` (an ``eqx.filter_jit``) compiled for ``theta`` and ``keys``, refused
     (ValueError naming --train-seeds) when the program's working memory, as XLA's memory
     analysis of the compiled program states it, exceeds the memory available.
@@ -268,7 +278,7 @@ def compile_within_memory(function, theta, keys, *, available: float | None = No
     from lookout._resources import refuse_unless_it_fits
     from lookout.studies.execute import WORKER_BASE_BYTES
 
-    compiled = function.lower(theta, keys).compile()
+    compiled = function.lower(theta, keys).compile()  # type: ignore[attr-defined]  # eqx.filter_jit's wrapper has lower(); equinox declares it a plain Callable
     analysis = compiled.compiled.memory_analysis()
     if analysis is not None:
         need = analysis.temp_size_in_bytes + analysis.argument_size_in_bytes + analysis.output_size_in_bytes + WORKER_BASE_BYTES
@@ -278,7 +288,7 @@ def compile_within_memory(function, theta, keys, *, available: float | None = No
     return compiled
 
 
-def write_results(result: Tuning, composition, folder, *, source: str, command: str) -> dict:
+def write_results(result: Tuning, composition: Composition, folder: str | Path, *, source: str, command: str) -> dict[str, Path]:
     """Write into ``folder``: ``tuned.toml`` (the scenario with the tuned gains, ready for
     ``lookout run``), ``tuning.json`` (objective, seeds, steps, gains, every condition
     before and after, held-out values), ``training.png`` and ``held_out.png``."""

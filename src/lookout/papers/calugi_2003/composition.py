@@ -3,6 +3,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 
 from lookout.papers.calugi_2003.config import GAIN_SETS, PLANT_STEP, WAYPOINTS, Config, gains, m11, paper_vessel
@@ -18,7 +21,7 @@ def composition(
     duration: float | None = None,
     initial_theta: float | None = None,
     adaptation_gain: float | None = None,
-    waypoints=WAYPOINTS,
+    waypoints: Sequence[tuple[float, Sequence[float]]] = WAYPOINTS,
     form: str = "discrete",
     record_every: int = 1,
     plant_step: float = PLANT_STEP,
@@ -86,7 +89,7 @@ def composition(
     }
 
 
-def build(config: Config, gain_set: str = "printed", **changes) -> Scenario:
+def build(config: Config, gain_set: str = "printed", **changes: Any) -> Scenario:
     """The closed loop of Section V with a gain set; ``changes``: the keywords of :func:`composition`."""
     return compose(composition(config, gain_set, **changes)).scenario
 

@@ -4,6 +4,8 @@ that measurement noise causes."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import xarray as xr
 
@@ -14,7 +16,9 @@ from lookout.papers.calugi_2003.sweep import sweep_record_every
 from lookout.sim import integer_ratio, keys_of_seeds, simulate_batch, stack_scenarios
 
 
-def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gammas=(1e3, 1e8, 1e9)) -> xr.Dataset:
+def convergence_study(
+    config: Config, ratios: Sequence[float] = (0.55, 0.75, 1.25, 1.5, 1.9), gammas: Sequence[float] = (1e3, 1e8, 1e9)
+) -> xr.Dataset:
     """theta_hat / m11 from several initial theta_hat with the printed gains (discrete law,
     Delta of ``config``), for the printed Gamma and faster ones, with the exciting schedule
     and with a constant setpoint (no excitation), with the paper's measurement noise
@@ -57,7 +61,7 @@ def convergence_study(config: Config, ratios=(0.55, 0.75, 1.25, 1.5, 1.9), gamma
 
 
 def discretization_order(
-    config: Config, intervals=(0.04, 0.02, 0.01), gamma: float = 1e8, duration: float = 200.0, plant_step: float = 0.005
+    config: Config, intervals: Sequence[float] = (0.04, 0.02, 0.01), gamma: float = 1e8, duration: float = 200.0, plant_step: float = 0.005
 ) -> xr.Dataset:
     """The discrete loop (65)-(67) against the continuous form (13)-(15) at the same Delta:
     noise-free, both gain sets, theta_hat(0) = 0.8 m11 and ``gamma``. The continuous
@@ -119,7 +123,13 @@ def discretization_order(
 
 
 def noise_drift(
-    config: Config, levels=NOISE_LEVELS, intervals=(0.05, 0.1, 0.2), gamma: float = 1e8, seeds: int = 32, window: float = 5.0, gain_sets=GAIN_SETS
+    config: Config,
+    levels: Sequence[float] = NOISE_LEVELS,
+    intervals: Sequence[float] = (0.05, 0.1, 0.2),
+    gamma: float = 1e8,
+    seeds: int = 32,
+    window: float = 5.0,
+    gain_sets: Sequence[str] = GAIN_SETS,
 ) -> xr.Dataset:
     """The drift of theta_hat that measurement noise causes in the discrete law (67):
     measured over the first ``window`` seconds from theta_hat(0) = m11 (no excitation

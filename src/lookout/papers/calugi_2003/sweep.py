@@ -13,7 +13,7 @@ is not finite or when the vessel or its estimate is more than
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +37,7 @@ def sweep_record_every(interval: float, duration: float) -> int:
     return max(k for k in range(1, max(1, int(1.0 / interval + 1e-9)) + 1) if samples % k == 0)
 
 
-def interval_document(config: Config, intervals=INTERVALS) -> dict:
+def interval_document(config: Config, intervals: Sequence[float] = INTERVALS) -> dict:
     """The Delta sweep as a campaign document."""
     for interval in intervals:
         if integer_ratio(config.sweep_duration, interval) is None:
@@ -72,7 +72,7 @@ def interval_document(config: Config, intervals=INTERVALS) -> dict:
     )
 
 
-def interval_sweep(config: Config, out: Path, intervals=INTERVALS, progress: Callable | None = None) -> xr.Dataset:
+def interval_sweep(config: Config, out: Path, intervals: Sequence[float] = INTERVALS, progress: Callable | None = None) -> xr.Dataset:
     """The campaign of :func:`interval_document`, computed into ``out /`` :data:`STORE`;
     returns ``rms_tracking__position`` (m), ``final__theta_m11`` (kg),
     ``theta_relative_error`` (theta_hat(T) / m11 - 1) and ``diverged`` over

@@ -3,6 +3,8 @@ Fig. 8 (a case each), any gain set and model error."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from lookout.models.vessel import NORTHERN_CLIPPER_THRUST_LIMIT
@@ -101,7 +103,7 @@ def composition(
     }
 
 
-def build(config: Config, observer: str = "sliding-mode", **changes) -> Scenario:
+def build(config: Config, observer: str = "sliding-mode", **changes: Any) -> Scenario:
     """The closed loop of Section 5 with ``observer`` ("sliding-mode" or "conventional");
     ``changes``: the keywords of :func:`composition`."""
     return compose(composition(config, observer, **changes)).scenario

@@ -4,12 +4,14 @@ docstring lists them), the model error, and the reproduction's settings."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from pydantic import Field, ValidationInfo, field_validator
 
 from lookout.environment import BodyDisturbance
-from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS
+from lookout.models.vessel import NORTHERN_CLIPPER_LENGTH, NORTHERN_CLIPPER_MASS, DPVessel
 from lookout.observers import SlidingModeObserver, injection_gains_from_normalized
 from lookout.papers import CATALOG
 from lookout.papers._config import VesselSettings
@@ -44,7 +46,7 @@ FORCE_LEVER_ARM = 5.0
 DIVERGED_DISTANCE = 100.0
 
 
-def printed_observer(vessel, *, boundary_layer, **overrides) -> SlidingModeObserver:
+def printed_observer(vessel: DPVessel, *, boundary_layer: npt.ArrayLike, **overrides: Any) -> SlidingModeObserver:
     """The sliding-mode observer with the printed gains of (A.2)–(A.4) for ``vessel``;
     ``overrides`` replace any of them (keywords of :meth:`SlidingModeObserver.from_gains`).
     The boundary layer eps is not given in the paper: it must be chosen."""

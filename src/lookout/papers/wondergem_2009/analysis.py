@@ -4,10 +4,14 @@ Section 3 at the configured start."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+import numpy.typing as npt
 import xarray as xr
 
 from lookout.models.cybership import CYBERSHIP_THRUST_LIMIT, cybership2
+from lookout.papers._reproduction import built_as
 from lookout.papers.wondergem_2009.composition import scenario
 from lookout.papers.wondergem_2009.config import (
     DAMPING_RATIO,
@@ -21,6 +25,10 @@ from lookout.papers.wondergem_2009.config import (
     Config,
 )
 from lookout.reference import EllipseReference
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
+    from lookout.analysis.tracking import GainProposal
 
 #: Phases of the reference sampled over the four laps (for its bounds and thrust).
 REFERENCE_POINTS = 4000
@@ -41,10 +49,17 @@ def tracking_errors(ds: xr.Dataset) -> xr.Dataset:
     )
 
 
-def error_index(time, surge_error, sway_error, heading_error, start=0.0, end=None) -> np.ndarray:
+def error_index(
+    time: npt.ArrayLike,
+    surge_error: npt.ArrayLike,
+    sway_error: npt.ArrayLike,
+    heading_error: npt.ArrayLike,
+    start: float = 0.0,
+    end: float | None = None,
+) -> np.ndarray | np.float64:
     """Wondergem et al. (2009), eq. (43): EI = 1/(t2 - t1) int_t1^t2 (e_xb^2 + e_yb^2 + e_psi^2) dt,
-    by the trapezoidal rule over the samples in [t1, t2] (last axis time). Units are mixed
-    (m^2 + rad^2), as in the paper."""
+    by the trapezoidal rule over the samples in [t1, t2] (last axis time; a scalar for one
+    run's errors). Units are mixed (m^2 + rad^2), as in the paper."""
     time = np.asarray(time, dtype=float)
     end = time[-1] if end is None else end
     if not (np.isfinite(start) and np.isfinite(end) and end > start):
@@ -99,7 +114,7 @@ def _reference_samples(config: Config):
 
     from lookout.controllers.tracking import reference_velocity
 
-    reference = scenario(config, "simulation").reference
+    reference = built_as(scenario(config, "simulation").reference, EllipseReference, "the reference")
     laps = len(LAP_SPEEDS)
     theta = reference.init() + jnp.linspace(0.0, 2.0 * np.pi * laps, REFERENCE_POINTS, endpoint=False)
     eta_ref, nu_ref, nu_ref_rate = jax.vmap(lambda t: reference_velocity(reference.sample(t)))(theta)
@@ -113,7 +128,7 @@ def reference_bounds(config: Config) -> dict:
     from lookout.controllers.tracking import reference_velocity
 
     _, nu_ref, nu_ref_rate = _reference_samples(config)
-    reference = scenario(config, "simulation").reference
+    reference = built_as(scenario(config, "simulation").reference, EllipseReference, "the reference")
     eta_ref0, nu_ref0, _ = reference_velocity(reference.sample(reference.init()))
     return {
         "yaw_rate_max": float(np.abs(nu_ref[:, 2]).max()),
@@ -132,6 +147,8 @@ def reference_thrust(config: Config) -> dict:
     limit (feasible below 1)."""
     import jax
 
+    from lookout.controllers.tracking import TrackingController
+
     ship = cybership2()
     _, nu_ref, nu_ref_rate = _reference_samples(config)
     M = np.asarray(ship.mass_matrix)
@@ -139,7 +156,7 @@ def reference_thrust(config: Config) -> dict:
     damping = np.asarray(jax.vmap(ship.damping_force)(nu_ref))
     tau = nu_ref_rate @ M.T + coriolis + damping
     limit = np.asarray(CYBERSHIP_THRUST_LIMIT)
-    Kd = np.asarray(scenario(config, "simulation").controller.damping_gain)
+    Kd = np.asarray(built_as(scenario(config, "simulation").controller, TrackingController, "the controller").damping_gain)
     per_lap = len(nu_ref) // len(LAP_SPEEDS)
     steps = [np.abs(Kd @ (nu_ref[k * per_lap] - nu_ref[k * per_lap - 1])) for k in range(1, len(LAP_SPEEDS))]
     step_peak = np.max(steps, axis=0)
@@ -193,9 +210,9 @@ def gain_conditions(
     *,
     estimate: str = "printed",
     gains: dict | None = None,
-    epsilon3=None,
+    epsilon3: float | None = None,
     bounds: dict | None = None,
-):
+) -> Report:
     """Conditions (25), Prop. 3.1 and Prop. 3.3
     (:func:`lookout.analysis.tracking.check_wondergem_2009`) at the configured start, for
     the printed gains or ``gains`` (keys L1, L2, natural_frequency, damping_ratio)."""
@@ -227,7 +244,7 @@ def proposed_gains(
     estimate: str = "measured",
     damping_ratio: float = DAMPING_RATIO,
     bounds: dict | None = None,
-):
+) -> GainProposal:
     """:func:`lookout.analysis.tracking.propose_wondergem_2009` at the configured start."""
     from lookout.analysis.tracking import propose_wondergem_2009
 

@@ -4,6 +4,7 @@ compositions changed key by key for the studies."""
 from __future__ import annotations
 
 import copy
+from typing import TYPE_CHECKING
 
 from lookout.models.cybership import CYBERSHIP_LENGTH, CYBERSHIP_THRUST_LIMIT
 from lookout.papers.wondergem_2009.config import (
@@ -22,6 +23,9 @@ from lookout.papers.wondergem_2009.config import (
     Config,
 )
 from lookout.scenario.composition import compose, set_path
+
+if TYPE_CHECKING:
+    from lookout.sim import Scenario
 
 #: The scheme's model in the basin: Cybership II of (39) with linear damping only.
 LINEAR_SHIP = {"kind": "cybership-ii", "quadratic_damping": [0.0, 0.0, 0.0]}
@@ -114,6 +118,6 @@ def changed(document: dict, changes: dict) -> dict:
     return result
 
 
-def scenario(config: Config, case: str, changes: dict | None = None):
+def scenario(config: Config, case: str, changes: dict | None = None) -> Scenario:
     """The :class:`~lookout.sim.Scenario` of ``case``, with ``changes`` (:func:`changed`)."""
     return compose(changed(composition(config, case), changes or {})).scenario

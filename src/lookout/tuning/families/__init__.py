@@ -19,12 +19,16 @@ from __future__ import annotations
 
 import abc
 import importlib
-from typing import TYPE_CHECKING
+from collections.abc import Iterator, Sequence
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
 
 if TYPE_CHECKING:
-    from lookout.analysis.conditions import Report
+    from lookout.analysis.conditions import Condition, Report
+    from lookout.sim import Scenario
 
 
 #: observer kind -> "module:class" of its family (the class's ``of(scenario)`` builds it).
@@ -46,34 +50,46 @@ class Family(abc.ABC):
     design: str = "lookout design"
 
     @abc.abstractmethod
-    def gains(self, theta) -> tuple:
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, ...]:
         """The gains of ``theta`` (traceable), in the order of :attr:`keys`."""
 
     @abc.abstractmethod
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         """The parameters of ``gains`` (which must satisfy the conditions)."""
 
     @abc.abstractmethod
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         """``scenario`` with ``gains`` (traceable: ``eqx.tree_at``)."""
 
     @abc.abstractmethod
-    def current(self, scenario) -> tuple:
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
         """The scenario's own gains, in the order of :attr:`keys`."""
 
     @abc.abstractmethod
-    def check(self, scenario) -> Report:
+    def check(self, scenario: Scenario) -> Report:
         """The conditions, as the ``lookout design`` command checks them: a
         :class:`~lookout.analysis.conditions.Report`."""
 
-    def candidates(self, scenario):
+    def candidates(self, scenario: Scenario) -> Iterator[tuple[np.ndarray, ...]]:
         """Gain sets inside the conditions written as a parametrization, nearest the
         scenario's own first, for a start when the scenario's own gains are outside
         (:func:`start`); none by default."""
         return iter(())
 
 
-def build(family: Family, scenario, gains):
+_Component = TypeVar("_Component")
+
+
+def component_as(component: object, kind: type[_Component], role: str) -> _Component:
+    """``component``, a scenario's ``role`` (``"observer"``, ``"controller"``), as ``kind``,
+    the class whose declaration names the family (:func:`families`); a TypeError names
+    ``role`` when it is of another class."""
+    if not isinstance(component, kind):
+        raise TypeError(f"{role} is a {type(component).__name__}, not the {kind.__name__} its tuning family reads")
+    return component
+
+
+def build(family: Family, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
     """``scenario`` with ``gains``, and its controller following the observer's gains it
     copies (:meth:`lookout.components.Controller.follow`): traceable."""
     import equinox as eqx
@@ -82,7 +98,7 @@ def build(family: Family, scenario, gains):
     return eqx.tree_at(lambda s: s.controller, tuned, tuned.controller.follow(tuned.observer))
 
 
-def start(family: Family, scenario) -> tuple:
+def start(family: Family, scenario: Scenario) -> tuple[np.ndarray, ...]:
     """Where tuning starts: the scenario's own gains when every condition of ``family``
     holds for them; else the first of :meth:`Family.candidates` for which they hold; else
     a ValueError naming the conditions that fail and the command that says why."""
@@ -104,7 +120,7 @@ class Joint(Family):
     """Several families tuned together (an observer's and its controller's): theta laid
     end to end, the gains in the order of the parts, every part's conditions checked."""
 
-    def __init__(self, parts: list[Family], starts: list[tuple]):
+    def __init__(self, parts: list[Family], starts: list[tuple[np.ndarray, ...]]):
         self.parts = tuple(parts)
         self.sizes = tuple(int(np.size(part.theta(gains))) for part, gains in zip(parts, starts))
         self.name = "; ".join(part.name for part in parts)
@@ -118,22 +134,22 @@ class Joint(Family):
             start += count
         return out
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, ...]:
         return tuple(g for part, t in zip(self.parts, self._split(theta, self.sizes)) for g in part.gains(t))
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         groups = self._split(tuple(gains), [len(part.keys) for part in self.parts])
         return np.concatenate([part.theta(g) for part, g in zip(self.parts, groups)])
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         for part, group in zip(self.parts, self._split(tuple(gains), [len(part.keys) for part in self.parts])):
             scenario = part.apply(scenario, group)
         return scenario
 
-    def current(self, scenario) -> tuple:
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
         return tuple(g for part in self.parts for g in part.current(scenario))
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         from lookout.analysis.conditions import Report
 
         reports = [part.check(scenario) for part in self.parts]
@@ -156,7 +172,7 @@ def _load(path: str):
 STABLE_STEP = {"rk4": 2.785, "euler": 2.0}
 
 
-def integration_stable(step: float, fastest: float, method: str, gains: str, source: str):
+def integration_stable(step: float, fastest: float, method: str, gains: str, source: str) -> Condition:
     """The condition that a sampled observer integrates its fastest error pole, near
     -``fastest`` (1/s), stably: ``step * fastest < STABLE_STEP[method]``; ``gains`` names
     the gains in the relation (``"L1"``, ``"K1, K2"``)."""
@@ -176,7 +192,7 @@ def integration_stable(step: float, fastest: float, method: str, gains: str, sou
 COMPONENTS = ("observer", "controller")
 
 
-def family_of(scenario, components: tuple[str, ...] | None = None) -> tuple[Family, tuple, list[str]]:
+def family_of(scenario: Scenario, components: tuple[str, ...] | None = None) -> tuple[Family, tuple[np.ndarray, ...], list[str]]:
     """The tunable family of ``scenario``, where it starts (:func:`start`) and notes.
 
     ``components`` (default: each that has a family) chooses among the observer and the
@@ -222,4 +238,4 @@ def family_of(scenario, components: tuple[str, ...] | None = None) -> tuple[Fami
     return Joint(parts, starts), tuple(g for gains in starts for g in gains), notes
 
 
-__all__ = ["COMPONENTS", "Family", "Joint", "build", "families", "family_of", "start"]
+__all__ = ["COMPONENTS", "Family", "Joint", "build", "component_as", "families", "family_of", "start"]

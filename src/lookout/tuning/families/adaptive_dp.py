@@ -64,14 +64,26 @@ route is usable for the printed gains, and the scenario is refused.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from types import ModuleType
+from typing import TYPE_CHECKING, Self
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
 
-from lookout.tuning.families import Family, integration_stable
+from lookout.tuning.families import Family, component_as, integration_stable
 from lookout.tuning.families.positive import Gain, PositiveGains
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Condition, Report
+    from lookout.controllers.backstepping import VectorialBackstepping
+    from lookout.models.vessel import DPVessel
+    from lookout.observers.adaptive_dp import AdaptiveObserver
+    from lookout.sim import Scenario
 
 #: How far above its floor a parametrized gain stays (relative).
 INSIDE = 1e-3
@@ -82,10 +94,22 @@ PAPER = "Calugi et al. (2003)"
 _LETTERS = {"mass": "M", "damping": "D", "stiffness": "K"}
 
 
-def _closed_loop(scenario) -> bool:
+def _closed_loop(scenario: Scenario) -> bool:
     from lookout.controllers.backstepping import VectorialBackstepping
 
     return isinstance(scenario.controller, VectorialBackstepping)
+
+
+def _observer(scenario: Scenario) -> AdaptiveObserver:
+    from lookout.observers.adaptive_dp import AdaptiveObserver
+
+    return component_as(scenario.observer, AdaptiveObserver, "observer")
+
+
+def _controller(scenario: Scenario) -> VectorialBackstepping:
+    from lookout.controllers.backstepping import VectorialBackstepping
+
+    return component_as(scenario.controller, VectorialBackstepping, "controller")
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,7 +118,7 @@ class AdaptiveDPFamily(Family):
     backstepping controller, its d and P1: (22), (57), (58) by construction (module
     docstring), checked with :func:`~lookout.analysis.adaptive_dp.check_calugi_2003`."""
 
-    vessel: object  # the analysis' DPVessel: the observer's model at theta_ref
+    vessel: DPVessel  # the analysis' DPVessel: the observer's model at theta_ref
     theta_bounds: list  # [[lower, upper], ...] per unknown
     unknown: tuple  # (("M", 0, 0),) ...
     damping_min: float  # D_min (kg/s)
@@ -111,7 +135,7 @@ class AdaptiveDPFamily(Family):
     keys: tuple[str, ...] = ("observer.position_gain", "observer.velocity_gain", "observer.adaptation_gain")
 
     @classmethod
-    def of(cls, scenario) -> AdaptiveDPFamily:
+    def of(cls, scenario: Scenario) -> AdaptiveDPFamily:
         """The family of ``scenario``'s adaptive observer; a ValueError names (10) when
         D_min <= 0 (then no K1 satisfies (22) for every positive K2)."""
         from lookout.analysis.adaptive_dp import model_bounds
@@ -185,11 +209,14 @@ class AdaptiveDPFamily(Family):
         """b = 3 / (4 D_min): d_4..6 > b keeps g2/4 < D_min ((58) with sigma2 > 0)."""
         return 3.0 / (4.0 * self.damping_min)
 
-    def floor(self, d=None, p1=None, xp=np):
+    def floor(self, d: Array | np.ndarray | None = None, p1: Array | np.ndarray | None = None, xp: ModuleType = np) -> float | Array:
         """The floor of sigma1: g1/4 + k / (D_min - g2/4) ((57) at sigma2 = 0), or k / D_min
-        ((22a) at sigma2 = 0) without the backstepping controller."""
+        ((22a) at sigma2 = 0) without the backstepping controller (``d``, ``p1`` are the
+        controller's, needed with it; ``xp`` numpy or jax.numpy)."""
         if not self.closed_loop:
             return self.coupling / self.damping_min
+        if d is None or p1 is None:
+            raise TypeError("the floor of (57) needs the backstepping controller's d and P1")
         g2 = xp.sum(1.0 / d[3:])
         g1 = xp.sum(p1 / d[:3]) + g2
         return g1 / 4.0 + self.coupling / (self.damping_min - g2 / 4.0)
@@ -206,7 +233,7 @@ class AdaptiveDPFamily(Family):
         full = jnp.zeros(self.gamma_tuned.size).at[np.flatnonzero(self.gamma_tuned)].set(jnp.exp(c))
         return full
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, ...]:
         t, a = theta[:3], theta[3:6]
         count = self._gamma_count
         gamma = self._gamma(theta[6 : 6 + count])
@@ -220,7 +247,7 @@ class AdaptiveDPFamily(Family):
         k1 = self.floor(d, p1, jnp) * (1.0 + INSIDE) + jnp.exp(t)
         return k1, k2, gamma, d, p1
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         k1, k2 = (np.asarray(g, dtype=float) * np.ones(3) for g in gains[:2])
         gamma = np.asarray(gains[2], dtype=float)
         if self.closed_loop:
@@ -250,7 +277,7 @@ class AdaptiveDPFamily(Family):
             gamma_theta = [np.log(gamma[self.gamma_tuned])]
         return np.concatenate([np.log(excess), np.log(k2), *gamma_theta, *tail])
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         k1, k2, gamma = (jnp.asarray(g, dtype=float) for g in gains[:3])
         gamma = jnp.diag(jnp.broadcast_to(gamma, (self.gamma_matrix.shape[0],))) if gamma.ndim < 2 else gamma
         scenario = eqx.tree_at(
@@ -267,8 +294,8 @@ class AdaptiveDPFamily(Family):
             )
         return scenario
 
-    def current(self, scenario) -> tuple:
-        observer = scenario.observer
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
+        observer = _observer(scenario)
         gamma = np.asarray(observer.adaptation_gain, dtype=float)
         own = (
             np.asarray(observer.position_gain, dtype=float) * np.ones(3),
@@ -277,14 +304,14 @@ class AdaptiveDPFamily(Family):
         )
         if not self.closed_loop:
             return own
-        controller = scenario.controller
+        controller = _controller(scenario)
         return (
             *own,
             np.asarray(controller.damping_weights, dtype=float) * np.ones(6),
             np.asarray(controller.coupling_gain, dtype=float) * np.ones(3),
         )
 
-    def candidates(self, scenario):
+    def candidates(self, scenario: Scenario) -> Iterator[tuple[np.ndarray, ...]]:
         """Under the backstepping controller: the gains :func:`~lookout.analysis.adaptive_dp.satisfying_gains`
         proposes from the scenario's (K1 and d moved, K2, C1, C2, P1 kept), when its route
         is usable at the reproduction's DESIGN_SPEED (1 m/s) and the controller's sample period (the
@@ -300,7 +327,7 @@ class AdaptiveDPFamily(Family):
                 yield (np.maximum(k1, factor * float(self.floor())), k2, gamma)
             return
         d, p1 = own[3:]
-        controller = scenario.controller
+        controller = _controller(scenario)
         try:
             proposal = satisfying_gains(
                 self.vessel,
@@ -321,12 +348,12 @@ class AdaptiveDPFamily(Family):
         if chosen.usable:
             yield (np.diag(proposal.K1).copy(), k2, gamma, np.asarray(proposal.d, dtype=float), p1)
 
-    def integration(self, scenario):
+    def integration(self, scenario: Scenario) -> Condition:
         """The sampled observer's integration ((65)-(66), or RK4 of (13)-(14)): an upper
         bound on K1 and K2, checked."""
         from lookout.analysis.conditions import Condition, Inequality
 
-        observer = scenario.observer
+        observer = _observer(scenario)
         fastest = float(max(np.max(np.asarray(observer.position_gain)), np.max(np.asarray(observer.velocity_gain))))
         if self.form == "discrete":
             source = f"{PAPER}, eqs. (65)-(66) (|1 - Delta K| < 1)"
@@ -339,19 +366,19 @@ class AdaptiveDPFamily(Family):
             )
         return integration_stable(self.step, fastest, "rk4", "K1, K2", f"{PAPER}, eqs. (13)-(14), integrated by RK4 (lookout)")
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         """(22), (57), (58) as ``lookout design adaptive-observer`` checks them (only (22)
         without the backstepping controller) and the integration's bound."""
         from lookout.analysis.adaptive_dp import check_calugi_2003, observer_condition_22
         from lookout.analysis.conditions import Report
 
-        observer = scenario.observer
+        observer = _observer(scenario)
         k1, k2 = np.asarray(observer.position_gain, dtype=float), np.asarray(observer.velocity_gain, dtype=float)
         notes = list(self.model_notes)
         if not self.diagonal_mass:
             notes.append("M(theta) is not diagonal at every vertex of the box: sigma2 > 0 ((22b), (58)) is checked, not parametrized")
         if self.closed_loop:
-            controller = scenario.controller
+            controller = _controller(scenario)
             report = check_calugi_2003(
                 self.vessel,
                 K1=k1,
@@ -386,7 +413,7 @@ class VectorialBacksteppingFamily(PositiveGains):
     source = f"{PAPER}, eqs. (44), (56)"
 
     @classmethod
-    def of(cls, scenario):
+    def of(cls, scenario: Scenario) -> Self:
         """A ValueError when the scenario's own gains do not satisfy the observer family's
         conditions ((22), (57), (58), the integration): C1, C2 would then be tuned in a loop
         that the paper does not prove, and tuning them cannot change that."""

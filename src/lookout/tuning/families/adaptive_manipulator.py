@@ -52,13 +52,19 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
+from jax import Array
+from jax.typing import ArrayLike
 
-from lookout.tuning.families import Family
+from lookout.tuning.families import Family, component_as
 from lookout.tuning.families.velocity import INSIDE, SPEED_SEEDS, peak_speed, reads_estimate, same_model, speed_source, unbounded_speed
 
 #: beta of Theorem 4.1 (the design command's default).
@@ -66,6 +72,24 @@ MARGIN = 0.0
 #: Starts tried when the scenario's own K is below the floor: the floor's scale times these.
 CANDIDATE_FACTORS = (1.1, 1.5, 2.0, 4.0)
 SOURCE = "Calugi (2002)"
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
+    from lookout.controllers.adaptive_backstepping import AdaptiveObserverBackstepping
+    from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
+    from lookout.sim import Scenario
+
+
+def _observer(scenario: Scenario) -> AdaptiveManipulatorObserver:
+    from lookout.observers.adaptive_manipulator import AdaptiveManipulatorObserver
+
+    return component_as(scenario.observer, AdaptiveManipulatorObserver, "observer")
+
+
+def _controller(scenario: Scenario) -> AdaptiveObserverBackstepping:
+    from lookout.controllers.adaptive_backstepping import AdaptiveObserverBackstepping
+
+    return component_as(scenario.controller, AdaptiveObserverBackstepping, "controller")
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,7 +114,7 @@ class AdaptiveManipulatorFamily(Family):
     keys: tuple[str, ...] = ("observer.gain", "observer.adaptation_gain")
 
     @classmethod
-    def of(cls, scenario) -> AdaptiveManipulatorFamily:
+    def of(cls, scenario: Scenario) -> AdaptiveManipulatorFamily:
         """The family of ``scenario``'s adaptive observer; a ValueError names the condition
         when none of its gains can satisfy it: Gamma = 0 (Theorem 4.1 needs Gamma > 0), a
         direction of K with sigma <= 0, the controller's K differing from the observer's
@@ -99,7 +123,7 @@ class AdaptiveManipulatorFamily(Family):
         from lookout.analysis.velocity import configuration_bounds
         from lookout.controllers.adaptive_backstepping import AdaptiveObserverBackstepping
 
-        observer = scenario.observer
+        observer = _observer(scenario)
         parameters = observer.parameters
         gain = np.asarray(observer.gain, dtype=float)
         adaptation = np.asarray(observer.adaptation_gain, dtype=float)
@@ -122,10 +146,11 @@ class AdaptiveManipulatorFamily(Family):
         backstepping = isinstance(scenario.controller, AdaptiveObserverBackstepping)
         damping = None
         if backstepping:
-            copy = np.asarray(scenario.controller.observer_gain, dtype=float)
+            controller = _controller(scenario)
+            copy = np.asarray(controller.observer_gain, dtype=float)
             if not np.allclose(copy, gain, rtol=1e-12, atol=0.0):
                 raise ValueError(f"(5.11): the controller's observer_gain {copy.tolist()} is not the observer's gain K {gain.tolist()}")
-            damping = float(np.sum(1.0 / np.asarray(scenario.controller.damping_weights, dtype=float)))
+            damping = float(np.sum(1.0 / np.asarray(controller.damping_weights, dtype=float)))
         guess = scenario.initial_estimate
         velocity_error = np.asarray(scenario.initial_state.qdot, dtype=float) - np.asarray(guess.velocity, dtype=float)
         theta_error = np.asarray(parameters.reference, dtype=float) - np.asarray(guess.theta, dtype=float)
@@ -161,7 +186,7 @@ class AdaptiveManipulatorFamily(Family):
 
     # -- the floor -------------------------------------------------------------------
 
-    def floor(self, adaptation, xp=np):
+    def floor(self, adaptation: Array | np.ndarray, xp: ModuleType = np) -> float | Array:
         """The largest of the lower bounds on sigma(K) (module docstring) for Gamma =
         ``adaptation``: (4.b) (which implies (4.a)) and (5.28); ``xp`` numpy or jax.numpy."""
         c_m, w = self.coriolis, self.max_speed
@@ -169,11 +194,11 @@ class AdaptiveManipulatorFamily(Family):
         p_l = xp.minimum(self.min_inertia, 1.0 / xp.max(adaptation))
         p_u = xp.maximum(self.max_inertia, 1.0 / xp.min(adaptation))
         floor = MARGIN + c_m * (w + error * xp.sqrt(p_u / p_l)) if c_m > 0 else MARGIN + 0.0 * p_l
-        if self.backstepping:
+        if self.damping is not None:  # self.backstepping
             floor = xp.maximum(floor, c_m * w + c_m * float(np.linalg.norm(self.velocity_error)) + self.damping / 4.0)
         return floor
 
-    def best_adaptation(self, adaptation) -> np.ndarray:
+    def best_adaptation(self, adaptation: npt.ArrayLike) -> np.ndarray:
         """Gamma moved to the nearest values with 1/gamma_i in [M_m, M_M], where p_u/p_l,
         and with it the floor, is least."""
         return np.clip(np.asarray(adaptation, dtype=float), 1.0 / self.max_inertia, 1.0 / self.min_inertia)
@@ -198,13 +223,13 @@ class AdaptiveManipulatorFamily(Family):
 
     # -- the family --------------------------------------------------------------------
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, ...]:
         adaptation = jnp.exp(theta[1:])
         scale = self.floor(adaptation, jnp) * (1.0 + INSIDE) / self.sigma_unit + jnp.exp(theta[0])
         gain = jnp.asarray(self.direction) * scale
         return (gain, adaptation, gain) if self.backstepping else (gain, adaptation)
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         gain, adaptation = (np.atleast_1d(np.asarray(g, dtype=float)) for g in gains[:2])
         scale = gain.max()
         if not np.allclose(gain, self.direction * scale, rtol=1e-9, atol=0.0):
@@ -219,22 +244,23 @@ class AdaptiveManipulatorFamily(Family):
             )
         return np.concatenate([[math.log(excess)], np.log(adaptation)])
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         gain = jnp.asarray(gains[0], dtype=float)
         scenario = eqx.tree_at(
             lambda s: (s.observer.gain, s.observer.adaptation_gain),
             scenario,
-            (gain, jnp.broadcast_to(jnp.asarray(gains[1], dtype=float), scenario.observer.adaptation_gain.shape)),
+            (gain, jnp.broadcast_to(jnp.asarray(gains[1], dtype=float), _observer(scenario).adaptation_gain.shape)),
         )
         if self.backstepping:  # K of Omega (5.11) is the observer's
             scenario = eqx.tree_at(lambda s: s.controller.observer_gain, scenario, gain)
         return scenario
 
-    def current(self, scenario) -> tuple:
-        own = (np.asarray(scenario.observer.gain, dtype=float), np.asarray(scenario.observer.adaptation_gain, dtype=float))
-        return (*own, np.asarray(scenario.controller.observer_gain, dtype=float)) if self.backstepping else own
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
+        observer = _observer(scenario)
+        own = (np.asarray(observer.gain, dtype=float), np.asarray(observer.adaptation_gain, dtype=float))
+        return (*own, np.asarray(_controller(scenario).observer_gain, dtype=float)) if self.backstepping else own
 
-    def candidates(self, scenario):
+    def candidates(self, scenario: Scenario) -> Iterator[tuple[np.ndarray, ...]]:
         """The scenario's Gamma, then Gamma moved to where the floor is least
         (:meth:`best_adaptation`); with each, K's scale raised to
         :data:`CANDIDATE_FACTORS` times the floor's where it is below."""
@@ -251,14 +277,14 @@ class AdaptiveManipulatorFamily(Family):
                 out = (self.direction * scale, gamma)
                 yield (*out, out[0]) if self.backstepping else out
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         """Theorem 4.1 (and (5.28) under the backstepping controller) as ``lookout design
         adaptive-arm`` checks them, with w_max measured (again, in closed loop), and
         ``|1 - Delta K| < 1`` of (4.34)."""
         from lookout.analysis.adaptive_manipulator import check_5_28, check_theorem_4_1
         from lookout.analysis.conditions import Condition, Inequality, Report
 
-        observer = scenario.observer
+        observer = _observer(scenario)
         gain = np.asarray(observer.gain, dtype=float)
         speed = peak_speed(scenario) if self.closed_loop else self.max_speed
         if not math.isfinite(speed):
@@ -280,7 +306,11 @@ class AdaptiveManipulatorFamily(Family):
         if self.backstepping:
             parts.append(
                 check_5_28(
-                    observer.parameters, gain, np.asarray(scenario.controller.damping_weights, dtype=float), speed, initial_error=self.velocity_error
+                    observer.parameters,
+                    gain,
+                    np.asarray(_controller(scenario).damping_weights, dtype=float),
+                    speed,
+                    initial_error=self.velocity_error,
                 )
             )
         source = f"{SOURCE}, eq. (4.34) (derivations-thesis-ch3-6.md, ch. 4)"

@@ -27,18 +27,36 @@ derivative from the Riccati equation itself (:func:`_riccati_derivative`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
 
 from lookout.tuning.families import Family
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
+    from lookout.observers.kalman import KalmanFilter
+    from lookout.sim import Scenario
 
 #: Where the steady-state P_0 counts as the scenario's own: entries of P_0 - P_ss, each
 #: divided by the two standard deviations, at most this (the states' units span 1e14).
 SAME_STEADY_STATE = 1e-9
+
+
+def _observer(scenario: Scenario) -> KalmanFilter:
+    from lookout.observers.kalman import KalmanFilter
+
+    observer = scenario.observer
+    if not isinstance(observer, KalmanFilter):  # component_as, for an abstract class (mypy's type[T] takes concrete ones)
+        raise TypeError(f"observer is a {type(observer).__name__}, not the KalmanFilter its tuning family reads")
+    return observer
 
 
 @dataclass(frozen=True)
@@ -72,10 +90,10 @@ class KalmanFamily(Family):
     design: str = "docs/kalman-filters.md"
 
     @classmethod
-    def of(cls, scenario) -> KalmanFamily:
+    def of(cls, scenario: Scenario) -> KalmanFamily:
         """The family of ``scenario``'s filter; a ValueError names measurement_noise when
         its R is not diagonal (the file writes R as one standard deviation per channel)."""
-        observer = scenario.observer
+        observer = _observer(scenario)
         r = np.asarray(observer.measurement_covariance, dtype=float)
         if np.any(r != np.diag(np.diag(r))):
             raise ValueError(
@@ -108,7 +126,7 @@ class KalmanFamily(Family):
     def _counts(self) -> tuple[int, ...]:
         return int(self.process_free.sum()), int(self.state_free.sum()), int(self.disturbance_free.sum()), self.channels
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, ...]:
         theta = jnp.asarray(theta)
         parts, start = [], 0
         for count in self._counts():
@@ -122,10 +140,10 @@ class KalmanFamily(Family):
             out.append(jnp.zeros(self.disturbance_size).at[np.flatnonzero(self.disturbance_free)].set(jnp.exp(c)))
         return (*out, jnp.exp(e))
 
-    def theta(self, gains) -> np.ndarray:
-        gains = [np.asarray(g, dtype=float) for g in gains]
-        process, state, std = gains[0], gains[1], gains[-1]
-        disturbance = gains[2] if self.disturbance_size else np.zeros(0)
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
+        arrays = [np.asarray(g, dtype=float) for g in gains]
+        process, state, std = arrays[0], arrays[1], arrays[-1]
+        disturbance = arrays[2] if self.disturbance_size else np.zeros(0)
         pieces = []
         if state.shape != (self.state_size + self.disturbance_size,):
             raise ValueError(f"observer.state_noise: expected {self.state_size + self.disturbance_size} entries; got shape {state.shape}")
@@ -148,11 +166,11 @@ class KalmanFamily(Family):
         return np.concatenate([*pieces, np.log(std)])
 
     # ------------------------------------------------------------------ the filter
-    def apply(self, scenario, gains):
-        gains = [jnp.asarray(g) for g in gains]
-        process, state, std = gains[0], gains[1], gains[-1]
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
+        arrays = [jnp.asarray(g) for g in gains]
+        process, state, std = arrays[0], arrays[1], arrays[-1]
         if self.disturbance_size:
-            state = state + jnp.concatenate([jnp.zeros(self.state_size), gains[2]])
+            state = state + jnp.concatenate([jnp.zeros(self.state_size), arrays[2]])
         observer = eqx.tree_at(
             lambda o: (o.process_noise, o.state_noise, o.measurement_covariance), scenario.observer, (process, state, jnp.diag(std**2))
         )
@@ -164,9 +182,9 @@ class KalmanFamily(Family):
             observer = eqx.tree_at(lambda o: o.initial_covariance, observer, p0)
         return eqx.tree_at(lambda s: s.observer, scenario, observer)
 
-    def current(self, scenario) -> tuple:
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
         """The filter's own q, S (the disturbance's entries 0), q_d and standard deviations."""
-        observer = scenario.observer
+        observer = _observer(scenario)
         s = np.asarray(observer.state_noise, dtype=float)
         n = self.state_size
         state = np.concatenate([s[:n], np.zeros(self.disturbance_size)])
@@ -176,9 +194,9 @@ class KalmanFamily(Family):
             out.append(s[n:])
         return (*out, std)
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         """R > 0, Q >= 0 and P_0 >= 0 of the built filter (:func:`check_kalman_filter`)."""
-        return check_kalman_filter(scenario.observer)
+        return check_kalman_filter(_observer(scenario))
 
 
 def _same(given: np.ndarray, steady: np.ndarray) -> bool:
@@ -281,7 +299,7 @@ def _correlation_minimum(matrix: np.ndarray) -> float:
         return float(np.linalg.eigvalsh(correlation).min())
 
 
-def check_kalman_filter(observer):
+def check_kalman_filter(observer: KalmanFilter) -> Report:
     """The assumptions of a Kalman filter's model, on the built filter: a
     :class:`~lookout.analysis.conditions.Report` of R > 0 (the measurement noise, so S is
     invertible), Q >= 0 (the intensities q, S, q_d; then Q_d >= 0 too) and P_0 >= 0

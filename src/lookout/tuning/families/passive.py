@@ -6,14 +6,23 @@ SPR of each loop h = hB h0 (Theorem 1) checked with the KYP certificate of
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
 
-from lookout.tuning.families import Family
+from lookout.tuning.families import Family, component_as
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
+    from lookout.observers.passive import PassiveObserver
+    from lookout.sim import Scenario
 
 #: "<<" of the tuning rule (48), as the design command reads it (check_tuning_rule's default).
 MUCH_LESS = 10.0
@@ -54,13 +63,13 @@ class PassiveFamily(Family):
     )
 
     @classmethod
-    def of(cls, scenario) -> PassiveFamily:
+    def of(cls, scenario: Scenario) -> PassiveFamily:
         """The family of ``scenario``'s observer; a ValueError names (48) when no Kappa,
         Lambda can satisfy it (10/T not below w_o in some DOF)."""
         return cls(*cls.chain(cls.passive(scenario)))
 
     @staticmethod
-    def chain(observer) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def chain(observer: PassiveObserver) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """10/T, w_o and zeta per DOF of a passive observer; a ValueError names (48) when
         10/T is not below w_o in some DOF."""
         low = MUCH_LESS / np.asarray(observer.bias_time_constant, dtype=float) * np.ones(3)
@@ -74,22 +83,30 @@ class PassiveFamily(Family):
         return low, high, np.asarray(observer.wave_damping, dtype=float) * np.ones(3)
 
     @staticmethod
-    def passive(scenario):
+    def passive(scenario: Scenario) -> PassiveObserver:
         """The passive observer the gains belong to."""
-        return scenario.observer
+        from lookout.observers.passive import PassiveObserver
+
+        return component_as(scenario.observer, PassiveObserver, "observer")
 
     @staticmethod
-    def with_passive(scenario, passive):
+    def with_passive(scenario: Scenario, passive: PassiveObserver) -> Scenario:
         """``scenario`` with ``passive`` in place of :meth:`passive` (traceable)."""
         return eqx.tree_at(lambda s: s.observer, scenario, passive)
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, ...]:
         a, b, c, d = theta[:3], theta[3:6], theta[6:9], theta[9:12]
         kappa = jnp.exp(a)
         corner = self.low + (self.high - self.low) * (INSIDE + (1.0 - 2.0 * INSIDE) * jax.nn.sigmoid(b))
-        return kappa, kappa * corner, self.high * (1.0 + INSIDE) + jax.nn.softplus(c), self.wave_damping * (1.0 + INSIDE) + jax.nn.softplus(d)
+        # jnp.add: what ndarray + Array runs (Array.__radd__), typed as JAX's
+        return (
+            kappa,
+            kappa * corner,
+            jnp.add(self.high * (1.0 + INSIDE), jax.nn.softplus(c)),
+            jnp.add(self.wave_damping * (1.0 + INSIDE), jax.nn.softplus(d)),
+        )
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         kappa, lam, cutoff, notch = (np.asarray(g, dtype=float) for g in gains[:4])
         corner = lam / kappa
         fraction = ((corner - self.low) / (self.high - self.low) - INSIDE) / (1.0 - 2.0 * INSIDE)
@@ -107,7 +124,7 @@ class PassiveFamily(Family):
             ]
         )
 
-    def candidates(self, scenario):
+    def candidates(self, scenario: Scenario) -> Iterator[tuple[np.ndarray, ...]]:
         """Gains inside (48) for a scenario whose own are outside it (Kim's printed H3/H4 =
         10 rad/s > w_o): Kappa kept, lambda/kappa moved into its interval, from the nearest
         end across to the other (in the parameter b, over :data:`CANDIDATES` points: SPR
@@ -123,7 +140,7 @@ class PassiveFamily(Family):
             theta = np.concatenate([np.log(kappa), b * (1.0 - 2.0 * k / (CANDIDATES - 1)), c, d])
             yield tuple(np.asarray(g) for g in PassiveFamily.gains(self, jnp.asarray(theta)))
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         from lookout.observers.passive import notch_gains
 
         kappa, lam, cutoff, notch = (jnp.asarray(g) for g in gains[:4])
@@ -135,7 +152,7 @@ class PassiveFamily(Family):
         )
         return self.with_passive(scenario, passive)
 
-    def current(self, scenario) -> tuple:
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
         """The observer's own gains of :attr:`keys` (w_c is its K2, zeta_n from its K1's k2)."""
         observer = self.passive(scenario)
         k2 = np.asarray(observer.wave_injection_gain, dtype=float)[3:]
@@ -147,7 +164,7 @@ class PassiveFamily(Family):
             notch,
         )
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         from lookout.analysis import check_passive_observer
 
         return check_passive_observer(self.passive(scenario), much_less_factor=MUCH_LESS)

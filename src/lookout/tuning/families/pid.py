@@ -22,15 +22,31 @@ and the sampled loop at the scenario's sample period (the spectral radius of
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
 
-from lookout.tuning.families import Family
+from lookout.tuning.families import Family, component_as
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
+    from lookout.controllers.pid import PidController
+    from lookout.sim import Scenario
 
 SOURCE = "Routh-Hurwitz of the loop linearized about a setpoint (lookout.controllers.pid; Fossen 2011, Section 12.2)"
 DOF = ("surge", "sway", "yaw")
+
+
+def _controller(scenario: Scenario) -> PidController:
+    from lookout.controllers.pid import PidController
+
+    return component_as(scenario.controller, PidController, "controller")
 
 
 class PidFamily(Family):
@@ -40,18 +56,18 @@ class PidFamily(Family):
     keys = ("controller.proportional_gain", "controller.derivative_gain", "controller.integral_gain")
     design = "the loop's linearization (PidController.closed_loop_poles and sampled_spectral_radius)"
 
-    def __init__(self, scenario):
-        controller = scenario.controller
+    def __init__(self, scenario: Scenario):
+        controller = _controller(scenario)
         self.mass = np.diag(np.asarray(controller.vessel.mass_matrix, dtype=float))
         self.damping = np.diag(np.asarray(controller.vessel.damping_matrix, dtype=float))
         self.integral = np.asarray(controller.integral_gain, dtype=float) > 0
         self.sample_period = float(scenario.sample_period)
 
     @classmethod
-    def of(cls, scenario) -> PidFamily:
+    def of(cls, scenario: Scenario) -> PidFamily:
         return cls(scenario)
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, Array, Array]:
         proportional = jnp.exp(theta[:3])
         loop_damping = jnp.exp(theta[3:6])
         bound = loop_damping * proportional / self.mass
@@ -59,7 +75,7 @@ class PidFamily(Family):
         integral = jnp.zeros(3).at[tuned].set(bound[tuned] * jax.nn.sigmoid(theta[6 : 6 + tuned.size]))
         return proportional, loop_damping - self.damping, integral
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         proportional, derivative, integral = (np.asarray(g, dtype=float) * np.ones(3) for g in gains)
         loop_damping = self.damping + derivative
         if np.any(proportional <= 0):
@@ -72,21 +88,21 @@ class PidFamily(Family):
         tuned = ratio[self.integral]
         return np.concatenate([np.log(proportional), np.log(loop_damping), np.log(tuned / (1.0 - tuned))])
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         return eqx.tree_at(
             lambda s: (s.controller.proportional_gain, s.controller.derivative_gain, s.controller.integral_gain),
             scenario,
             tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains),
         )
 
-    def current(self, scenario) -> tuple:
-        controller = scenario.controller
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
+        controller = _controller(scenario)
         return tuple(np.asarray(g, dtype=float) for g in (controller.proportional_gain, controller.derivative_gain, controller.integral_gain))
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         from lookout.analysis.conditions import Condition, Inequality, Report
 
-        controller = scenario.controller
+        controller = _controller(scenario)
         kp, kd, ki = self.current(scenario)
         loop_damping = self.damping + kd
         per_dof = []

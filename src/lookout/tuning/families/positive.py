@@ -15,13 +15,21 @@ the built component, so it checks what runs, not the parametrization.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Self
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
 
 from lookout.tuning.families import Family
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
+    from lookout.sim import Scenario
 
 
 @dataclass(frozen=True)
@@ -45,7 +53,7 @@ class PositiveGains(Family):
     condition_title: str = ""
     source: str = ""
 
-    def __init__(self, scenario):
+    def __init__(self, scenario: Scenario):
         component = getattr(scenario, self.role)
         self.shapes = tuple(np.shape(getattr(component, g.field)) for g in self.fields)
         self.tuned = tuple(
@@ -55,7 +63,7 @@ class PositiveGains(Family):
         self.keys = tuple(f"{self.role}.{g.field}" for g in self.fields)
 
     @classmethod
-    def of(cls, scenario):
+    def of(cls, scenario: Scenario) -> Self:
         component = getattr(scenario, cls.role)
         for gain in cls.fields:
             value = np.asarray(getattr(component, gain.field), dtype=float)
@@ -65,7 +73,7 @@ class PositiveGains(Family):
                 )
         return cls(scenario)
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, ...]:
         out, start = [], 0
         for shape, tuned in zip(self.shapes, self.tuned):
             count = int(tuned.sum())
@@ -74,7 +82,7 @@ class PositiveGains(Family):
             start += count
         return tuple(out)
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         parts = []
         for gain, value, tuned in zip(self.fields, gains, self.tuned):
             value = np.asarray(value, dtype=float).ravel()
@@ -83,7 +91,7 @@ class PositiveGains(Family):
             parts.append(np.log(value[tuned]))
         return np.concatenate(parts)
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         component = getattr(scenario, self.role)
         component = eqx.tree_at(
             lambda c: tuple(getattr(c, g.field) for g in self.fields),
@@ -92,11 +100,11 @@ class PositiveGains(Family):
         )
         return eqx.tree_at(lambda s: getattr(s, self.role), scenario, component)
 
-    def current(self, scenario) -> tuple:
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
         component = getattr(scenario, self.role)
         return tuple(np.asarray(getattr(component, g.field), dtype=float) for g in self.fields)
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         from lookout.analysis.conditions import Condition, Inequality, Report
 
         component = getattr(scenario, self.role)

@@ -21,13 +21,30 @@ term.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
 
+from lookout.tuning.families import component_as
 from lookout.tuning.families.passive import PassiveFamily
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
+    from lookout.observers.passive import PassiveObserver
+    from lookout.observers.sliding_mode import SlidingModeObserver
+    from lookout.sim import Scenario
+
+
+def _observer(scenario: Scenario) -> SlidingModeObserver:
+    from lookout.observers.sliding_mode import SlidingModeObserver
+
+    return component_as(scenario.observer, SlidingModeObserver, "observer")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -43,31 +60,31 @@ class SlidingModeFamily(PassiveFamily):
     keys: tuple[str, ...] = PassiveFamily.keys + ("observer.switching_gain", "observer.boundary_layer")
 
     @classmethod
-    def of(cls, scenario) -> SlidingModeFamily:
-        kbar = np.asarray(scenario.observer.switching_gain, dtype=float) * np.ones(3)
+    def of(cls, scenario: Scenario) -> SlidingModeFamily:
+        kbar = np.asarray(_observer(scenario).switching_gain, dtype=float) * np.ones(3)
         return cls(*cls.chain(cls.passive(scenario)), switching=kbar > 0, fixed_switching=np.where(kbar > 0, 0.0, kbar))
 
     @staticmethod
-    def passive(scenario):
-        return scenario.observer.passive
+    def passive(scenario: Scenario) -> PassiveObserver:
+        return _observer(scenario).passive
 
     @staticmethod
-    def with_passive(scenario, passive):
+    def with_passive(scenario: Scenario, passive: PassiveObserver) -> Scenario:
         return eqx.tree_at(lambda s: s.observer.passive, scenario, passive)
 
     def _switching(self, e):
         full = jnp.zeros(3).at[np.flatnonzero(self.switching)].set(jnp.exp(e))
         return jnp.where(jnp.asarray(self.switching), full, jnp.asarray(self.fixed_switching))
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, ...]:
         count = int(self.switching.sum())
         return (*super().gains(theta[:12]), self._switching(theta[12 : 12 + count]), jnp.exp(theta[12 + count : 15 + count]))
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         kbar, eps = (np.asarray(g, dtype=float) * np.ones(3) for g in gains[4:6])
         return np.concatenate([super().theta(gains[:4]), np.log(kbar[self.switching]), np.log(eps)])
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         scenario = super().apply(scenario, gains[:4])
         return eqx.tree_at(
             lambda s: (s.observer.switching_gain, s.observer.boundary_layer),
@@ -75,24 +92,24 @@ class SlidingModeFamily(PassiveFamily):
             (jnp.asarray(gains[4], dtype=float), jnp.asarray(gains[5], dtype=float)),
         )
 
-    def current(self, scenario) -> tuple:
-        observer = scenario.observer
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
+        observer = _observer(scenario)
         return (
             *super().current(scenario),
             np.asarray(observer.switching_gain, dtype=float) * np.ones(3),
             np.asarray(observer.boundary_layer, dtype=float) * np.ones(3),
         )
 
-    def candidates(self, scenario):
+    def candidates(self, scenario: Scenario) -> Iterator[tuple[np.ndarray, ...]]:
         rest = self.current(scenario)[4:]
         for gains in super().candidates(scenario):
             yield (*gains, *rest)
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         from lookout.analysis.sliding_mode import check_kim_2002
         from lookout.models.vessel import DPVessel
 
-        observer = scenario.observer
+        observer = _observer(scenario)
         passive = observer.passive
         vessel = DPVessel(np.asarray(passive.mass_matrix), np.asarray(passive.damping_matrix))
         return check_kim_2002(observer, vessel)

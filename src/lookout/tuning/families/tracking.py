@@ -28,17 +28,40 @@ run (its yaw rate's largest magnitude, r_max of (25), and eta_ref, nu_ref at t_0
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
+from typing import TYPE_CHECKING
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
 
-from lookout.tuning.families import STABLE_STEP, Family, integration_stable
+from lookout.tuning.families import STABLE_STEP, Family, component_as, integration_stable
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Report
+    from lookout.controllers.tracking import TrackingController
+    from lookout.observers.earth_fixed import EarthFixedObserver
+    from lookout.sim import Scenario
 
 #: How far above a lower bound a parametrized gain stays (relative).
 INSIDE = 1e-3
 #: Prop. 3.1's velocity bound V_M (m/s) when the scenario gives none: the design rule's default.
 VELOCITY_BOUND = 0.3
+
+
+def _observer(scenario: Scenario) -> EarthFixedObserver:
+    from lookout.observers.earth_fixed import EarthFixedObserver
+
+    return component_as(scenario.observer, EarthFixedObserver, "observer")
+
+
+def _controller(scenario: Scenario) -> TrackingController:
+    from lookout.controllers.tracking import TrackingController
+
+    return component_as(scenario.controller, TrackingController, "controller")
 
 
 def _reference_data(scenario) -> dict:
@@ -84,7 +107,7 @@ class _Wondergem(Family):
     design = "lookout design tracking-gains"
     condition = ""
 
-    def __init__(self, scenario, velocity_bound: float = VELOCITY_BOUND):
+    def __init__(self, scenario: Scenario, velocity_bound: float = VELOCITY_BOUND):
         from lookout.controllers.tracking import TrackingController
         from lookout.observers.earth_fixed import EarthFixedObserver
 
@@ -99,10 +122,10 @@ class _Wondergem(Family):
         self.velocity_bound = velocity_bound
         self.context = {**_start(scenario), **_reference_data(scenario)}
 
-    def report(self, scenario):
+    def report(self, scenario: Scenario) -> Report:
         from lookout.analysis.tracking import check_wondergem_2009
 
-        observer, controller = scenario.observer, scenario.controller
+        observer, controller = _observer(scenario), _controller(scenario)
         return check_wondergem_2009(
             observer.ship,
             observer_gains=(np.asarray(observer.position_gain), np.asarray(observer.velocity_gain)),
@@ -112,7 +135,7 @@ class _Wondergem(Family):
             **self.context,
         )
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         from lookout.analysis.conditions import Report
 
         report = self.report(scenario)
@@ -126,12 +149,12 @@ class EarthFixedFamily(_Wondergem):
     keys = ("observer.position_gain", "observer.velocity_gain")
     condition = "observer_3_1"
 
-    def __init__(self, scenario, velocity_bound: float = VELOCITY_BOUND):
+    def __init__(self, scenario: Scenario, velocity_bound: float = VELOCITY_BOUND):
         super().__init__(scenario, velocity_bound)
         inequalities = {item.name: item for item in self.report(scenario)[self.condition].inequalities}
         self.low2 = max(1.0, float(inequalities["(11)"].right))
         self.low1 = max(1.0, float(inequalities["(13)"].right))
-        observer = scenario.observer
+        observer = _observer(scenario)
         # the observer's integration step: the plant's when integrated jointly with it
         self.step = scenario.plant_step if scenario.observer_mode == "continuous" else scenario.sample_period / observer.steps_per_sample
         self.stable = STABLE_STEP[observer.method] / self.step  # the largest L1 the integration keeps stable
@@ -148,24 +171,25 @@ class EarthFixedFamily(_Wondergem):
                 f"observer.steps_per_sample to at least {need}"
             )
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         """Prop. 3.1 and the integration's stability: L1's fastest error pole, near -L1,
         inside the method's stable step (a gain set that cannot be integrated is refused)."""
         from lookout.analysis.conditions import Report
 
         report = super().check(scenario)
-        fastest = float(np.max(np.asarray(scenario.observer.position_gain)))
-        integration = integration_stable(self.step, fastest, scenario.observer.method, "L1", "lookout")
+        observer = _observer(scenario)
+        fastest = float(np.max(np.asarray(observer.position_gain)))
+        integration = integration_stable(self.step, fastest, observer.method, "L1", "lookout")
         return Report(report.title, [*report.conditions, integration], report.quantities, report.summary, report.notes)
 
     @classmethod
-    def of(cls, scenario) -> EarthFixedFamily:
+    def of(cls, scenario: Scenario) -> EarthFixedFamily:
         return cls(scenario)
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, Array]:
         return self.low1 * (1.0 + INSIDE) + jnp.exp(theta[:3]), self.low2 * (1.0 + INSIDE) + jnp.exp(theta[3:6])
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         l1, l2 = (np.asarray(g, dtype=float) * np.ones(3) for g in gains)
         gap1, gap2 = l1 - self.low1 * (1.0 + INSIDE), l2 - self.low2 * (1.0 + INSIDE)
         if np.any(gap1 <= 0) or np.any(gap2 <= 0):
@@ -175,17 +199,18 @@ class EarthFixedFamily(_Wondergem):
             )
         return np.concatenate([np.log(gap1), np.log(gap2)])
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         return eqx.tree_at(
             lambda s: (s.observer.position_gain, s.observer.velocity_gain),
             scenario,
             tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains),
         )
 
-    def current(self, scenario) -> tuple:
-        return tuple(np.asarray(g, dtype=float) * np.ones(3) for g in (scenario.observer.position_gain, scenario.observer.velocity_gain))
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
+        observer = _observer(scenario)
+        return tuple(np.asarray(g, dtype=float) * np.ones(3) for g in (observer.position_gain, observer.velocity_gain))
 
-    def candidates(self, scenario):
+    def candidates(self, scenario: Scenario) -> Iterator[tuple[np.ndarray, ...]]:
         """Each gain raised to 1.5 times its bound where it is below (then 2.25, 3.375
         times, within what the integration keeps stable)."""
         l1, l2 = self.current(scenario)
@@ -201,24 +226,25 @@ class TrackingFamily(_Wondergem):
     condition = "controller_25"
 
     @classmethod
-    def of(cls, scenario) -> TrackingFamily:
+    def of(cls, scenario: Scenario) -> TrackingFamily:
         return cls(scenario)
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array, Array]:
         return jnp.exp(theta[:3]), jnp.exp(theta[3:6])
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         values = np.concatenate([np.asarray(g, dtype=float) * np.ones(3) for g in gains])
         if np.any(values <= 0):
             raise ValueError(f"(25): Omega and Lambda must be positive; got {values.tolist()}")
         return np.log(values)
 
-    def apply(self, scenario, gains):
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
         return eqx.tree_at(
             lambda s: (s.controller.natural_frequency, s.controller.damping_ratio),
             scenario,
             tuple(jnp.broadcast_to(jnp.asarray(g, dtype=float), (3,)) for g in gains),
         )
 
-    def current(self, scenario) -> tuple:
-        return tuple(np.asarray(g, dtype=float) * np.ones(3) for g in (scenario.controller.natural_frequency, scenario.controller.damping_ratio))
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
+        controller = _controller(scenario)
+        return tuple(np.asarray(g, dtype=float) * np.ones(3) for g in (controller.natural_frequency, controller.damping_ratio))

@@ -34,14 +34,26 @@ What the condition needs and where it comes from:
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
+from jax import Array
+from jax.typing import ArrayLike
 
 from lookout.sim import Summary
-from lookout.tuning.families import Family
+from lookout.tuning.families import Family, component_as
+
+if TYPE_CHECKING:
+    from lookout.analysis.conditions import Condition, Report
+    from lookout.analysis.velocity import ConfigurationBounds
+    from lookout.models.manipulators import ManipulatorModel
+    from lookout.observers.velocity import VelocityObserver
+    from lookout.sim import Scenario
 
 #: How far above its floor the gain stays: the strict inequalities of Theorem 2.1 and
 #: (2.13) as closed ones a rounding cannot leave.
@@ -54,23 +66,29 @@ CANDIDATE_FACTORS = (1.1, 1.5, 2.0, 4.0)
 VELOCITY_SIGNALS = ("joint_rate", "joint_speed")
 
 
+def _observer(scenario: Scenario) -> VelocityObserver:
+    from lookout.observers.velocity import VelocityObserver
+
+    return component_as(scenario.observer, VelocityObserver, "observer")
+
+
 class PeakSpeed(Summary):
     """The largest Euclidean norm of the joint velocities over a run's records (NaN once
     they are not finite): the measured w_max of (2.2)."""
 
     names: tuple[str, ...] = eqx.field(static=True)
 
-    def init(self, record):
+    def init(self, record: Any) -> Array:
         return jnp.zeros(())
 
-    def update(self, accumulated, index, record):
+    def update(self, accumulated: Array, index: Array, record: Any) -> tuple[Array, None]:
         truth = record[0]
         velocity = jnp.concatenate([jnp.ravel(truth[name]) for name in self.names])
         speed = jnp.sqrt(jnp.sum(velocity**2))
         return jnp.maximum(accumulated, speed), None  # NaN propagates
 
 
-def peak_speed(scenario, seeds=SPEED_SEEDS) -> float:
+def peak_speed(scenario: Scenario, seeds: Sequence[int] = SPEED_SEEDS) -> float:
     """The largest ``|q'|`` (joint-space 2-norm) at the records of ``scenario``'s runs with
     ``seeds`` (inf when a run is not finite); a ValueError when the plant has no joint
     velocities."""
@@ -84,13 +102,13 @@ def peak_speed(scenario, seeds=SPEED_SEEDS) -> float:
     return float(values.max()) if np.all(np.isfinite(values)) else math.inf
 
 
-def initial_velocity_error(scenario, guess) -> float:
+def initial_velocity_error(scenario: Scenario, guess: npt.ArrayLike) -> float:
     """|q'(0) - x1_hat(0)|: the plant's initial joint velocity against ``guess``."""
     qdot = np.asarray(scenario.initial_state.qdot, dtype=float)
     return float(np.linalg.norm(qdot - np.asarray(guess, dtype=float)))
 
 
-def reads_estimate(scenario) -> bool:
+def reads_estimate(scenario: Scenario) -> bool:
     """Whether the controller closes the loop on the observer (then the motion, and with
     it w_max, depends on the observer's gains)."""
     return bool(tuple(scenario.controller.estimate_needs))
@@ -103,7 +121,7 @@ def speed_source(closed_loop: bool) -> str:
     return f"w_max: the largest |q'| at the records of the scenario's runs ({seeds}), {how}"
 
 
-def unbounded_speed(key: str, name: str, title: str, source: str):
+def unbounded_speed(key: str, name: str, title: str, source: str) -> Condition:
     """A failing condition for runs whose speed is not finite (no w_max bounds it)."""
     from lookout.analysis.conditions import Condition, Inequality
 
@@ -120,7 +138,7 @@ def unbounded_speed(key: str, name: str, title: str, source: str):
     )
 
 
-def same_model(scenario, model) -> bool:
+def same_model(scenario: Scenario, model: ManipulatorModel) -> bool:
     """Whether ``model`` is the plant's own (Theorem 2.1 and 4.1 assume it)."""
     plant_model = getattr(scenario.plant, "model", None)
     return plant_model is not None and bool(eqx.tree_equal(plant_model, model))
@@ -131,7 +149,7 @@ class VelocityFamily(Family):
     """The velocity observer's K (per joint), above Theorem 2.1's and (2.13)'s floor by
     construction (module docstring): ``K = floor (1 + INSIDE) + exp(t)``."""
 
-    bounds: object  # ConfigurationBounds of the observer's model
+    bounds: ConfigurationBounds  # of the observer's model
     max_speed: float  # w_max measured at the start (rad/s)
     initial_error: float  # |x1~(0)|
     floor: float  # the gain every K_i must exceed (1/s)
@@ -141,13 +159,13 @@ class VelocityFamily(Family):
     keys: tuple[str, ...] = ("observer.gain",)
 
     @classmethod
-    def of(cls, scenario) -> VelocityFamily:
+    def of(cls, scenario: Scenario) -> VelocityFamily:
         """The family of ``scenario``'s velocity observer; a ValueError names Theorem 2.1
         when its bounds are not defined (M depends on a prismatic coordinate) or the
         runs' speed is not finite."""
         from lookout.analysis.velocity import configuration_bounds
 
-        observer = scenario.observer
+        observer = _observer(scenario)
         try:
             bounds = configuration_bounds(observer.model)
         except ValueError as error:
@@ -161,10 +179,10 @@ class VelocityFamily(Family):
         initial_error = initial_velocity_error(scenario, scenario.initial_estimate)
         return cls(bounds, speed, initial_error, gain_floor(bounds, speed, initial_error), reads_estimate(scenario))
 
-    def gains(self, theta):
+    def gains(self, theta: Array | np.ndarray) -> tuple[Array]:
         return (self.floor * (1.0 + INSIDE) + jnp.exp(theta),)
 
-    def theta(self, gains) -> np.ndarray:
+    def theta(self, gains: Sequence[ArrayLike]) -> np.ndarray:
         gain = np.atleast_1d(np.asarray(gains[0], dtype=float))
         excess = gain - self.floor * (1.0 + INSIDE)
         if np.any(excess <= 0):
@@ -174,28 +192,28 @@ class VelocityFamily(Family):
             )
         return np.log(excess)
 
-    def apply(self, scenario, gains):
-        gain = jnp.broadcast_to(jnp.asarray(gains[0], dtype=float), scenario.observer.gain.shape)
+    def apply(self, scenario: Scenario, gains: Sequence[ArrayLike]) -> Scenario:
+        gain = jnp.broadcast_to(jnp.asarray(gains[0], dtype=float), _observer(scenario).gain.shape)
         return eqx.tree_at(lambda s: s.observer.gain, scenario, gain)
 
-    def current(self, scenario) -> tuple:
-        return (np.asarray(scenario.observer.gain, dtype=float),)
+    def current(self, scenario: Scenario) -> tuple[np.ndarray, ...]:
+        return (np.asarray(_observer(scenario).gain, dtype=float),)
 
-    def candidates(self, scenario):
+    def candidates(self, scenario: Scenario) -> Iterator[tuple[np.ndarray, ...]]:
         """The scenario's gain raised, joint by joint, to :data:`CANDIDATE_FACTORS` times
         the floor where it is below (nearest first)."""
-        own = np.asarray(scenario.observer.gain, dtype=float)
+        own = np.asarray(_observer(scenario).gain, dtype=float)
         for factor in CANDIDATE_FACTORS:
             yield (np.maximum(own, self.floor * factor),)
 
-    def check(self, scenario):
+    def check(self, scenario: Scenario) -> Report:
         """Theorem 2.1 and region (2.13), as
         :func:`~lookout.analysis.velocity.velocity_observer_condition` checks them, with
         w_max measured (again, for a controller that reads the estimate)."""
         from lookout.analysis.conditions import Report
         from lookout.analysis.velocity import velocity_observer_condition
 
-        observer = scenario.observer
+        observer = _observer(scenario)
         speed = peak_speed(scenario) if self.closed_loop else self.max_speed
         if not math.isfinite(speed):
             return Report(
@@ -212,7 +230,7 @@ class VelocityFamily(Family):
         return result.report.extended(notes=notes)
 
 
-def gain_floor(bounds, max_speed: float, initial_error: float) -> float:
+def gain_floor(bounds: ConfigurationBounds, max_speed: float, initial_error: float) -> float:
     """The gain every K_i must exceed for Theorem 2.1 and (2.13) (module docstring), in
     the analysis's own arithmetic."""
     c_max, low, phi = bounds.coriolis_bound, bounds.min_inertia, bounds.friction_bound
