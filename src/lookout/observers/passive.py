@@ -68,6 +68,9 @@ GRAVITY = 9.81
 #: What :meth:`PassiveObserver.predict` holds over a sample period.
 HOLDS = ("measurement", "innovation")
 
+#: NumPy arrays (a design) or JAX arrays (a tuner's traced gains), the same for every argument.
+_Gains = TypeVar("_Gains", np.ndarray, Array)
+
 
 def notch_filter_gains(
     wave_frequency: npt.ArrayLike, wave_damping: npt.ArrayLike, notch_damping: npt.ArrayLike, cutoff_frequency: npt.ArrayLike
@@ -127,10 +130,6 @@ def notch_gains(wave_frequency: _Gains, wave_damping: _Gains, notch_damping: _Ga
     k2 = 2.0 * spread * wave_frequency  # eq. (46)
     k3 = cutoff_frequency  # eq. (47)
     return k1, k2, k3
-
-
-#: NumPy arrays (a design) or JAX arrays (a tuner's traced gains), the same for every argument.
-_Gains = TypeVar("_Gains", np.ndarray, Array)
 
 
 #: The paper's cut-off w_c (rad/s) and its ratio to the wave frequency, eq. (59).
