@@ -90,7 +90,9 @@ from typing import Literal, NamedTuple, cast, final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import ssa
@@ -296,13 +298,13 @@ class Allocator(eqx.Module):
         self,
         layout: ThrusterLayout,
         method: Literal["qp", "pseudo-inverse"] = "qp",
-        slack_weight=None,
+        slack_weight: npt.ArrayLike | None = None,
         clip_to_reach: bool = True,
         solver: Literal["active-set", "qpax"] | None = None,
-        steering_time_constant=None,
-        steering_deadband=None,
-        steering_load=None,
-        steering_bias=None,
+        steering_time_constant: float | None = None,
+        steering_deadband: float | None = None,
+        steering_load: float | None = None,
+        steering_bias: float | None = None,
     ):
         if not isinstance(layout, ThrusterLayout):
             raise check.ParameterError("layout", f"layout must be a ThrusterLayout; got {type(layout).__name__}")
@@ -411,7 +413,7 @@ class Allocator(eqx.Module):
 
     # -- azimuth steering ---------------------------------------------------------------------
 
-    def steer(self, demand: Array, angle: Array, turning: Array, tau: Array, dt) -> tuple[Array, Array, Array]:
+    def steer(self, demand: Array, angle: Array, turning: Array, tau: Array, dt: ArrayLike) -> tuple[Array, Array, Array]:
         """One sample of the azimuth steering (module docstring): ``(demand, angle,
         turning)`` after tau arrives, from the scaled filtered ``demand`` (3,), the
         thrusters' ``angle`` (n,) and whether each azimuth is ``turning`` (n,).
@@ -422,7 +424,7 @@ class Allocator(eqx.Module):
         layout, index, qp = self.layout, self.indices, self._qp_terms()
         _, target = self.target(tau)
         time_constant = qp.steering_time_constant
-        gain = jnp.where(time_constant > 0, -jnp.expm1(-dt / jnp.where(time_constant > 0, time_constant, 1.0)), 1.0)
+        gain = jnp.where(time_constant > 0, -jnp.expm1(-jnp.asarray(dt) / jnp.where(time_constant > 0, time_constant, 1.0)), 1.0)
         demand = jnp.where(jnp.all(jnp.isfinite(target)), demand + gain * (target - demand), demand)
         if index.azimuth.size == 0:
             return demand, angle, turning
@@ -437,7 +439,7 @@ class Allocator(eqx.Module):
 
     # -- the limits --------------------------------------------------------------------------
 
-    def constraints(self, previous: Array, angle: Array, dt) -> tuple[Array, Array, Array]:
+    def constraints(self, previous: Array, angle: Array, dt: ArrayLike) -> tuple[Array, Array, Array]:
         """``(G, h, start)``: the limits G u <= h on the scaled command after the scaled
         ``previous`` command, with the azimuths at their steered ``angle`` and the rudders
         at theirs, over a step ``dt``, and a scaled command that meets them all (see the
@@ -529,7 +531,7 @@ class Allocator(eqx.Module):
 
     # -- allocation --------------------------------------------------------------------------
 
-    def allocate(self, tau: Array, previous: Array, angle: Array, dt, working: Array | None = None) -> tuple[Array, dict]:
+    def allocate(self, tau: Array, previous: Array, angle: Array, dt: ArrayLike, working: Array | None = None) -> tuple[Array, dict]:
         """The scaled command for ``tau`` (N, N, N m) after the scaled ``previous``
         command, with the thrusters at ``angle`` (an azimuth's steered angle, a
         rudder's angle); ``working`` is the previous sample's active set

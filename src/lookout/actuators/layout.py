@@ -29,11 +29,15 @@ force is linear: a tunnel's T; an azimuth's force components (F_x, F_y) (Fossen
 from __future__ import annotations
 
 import math
-from typing import final
+from collections.abc import Sequence
+from typing import Any, final
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
+from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.declare import Value, register
@@ -67,13 +71,13 @@ def _listed(items: list[str], shown: int = 3) -> str:
     return ", ".join(items[:shown]) + (f" and {len(items) - shown} more" if len(items) > shown else "")
 
 
-def magnitude(x, y):
+def magnitude(x: Array | np.ndarray, y: Array | np.ndarray) -> Array:
     """sqrt(x^2 + y^2) with a finite derivative at the origin (0 there, not NaN)."""
     square = x**2 + y**2
     return jnp.where(square > 0, jnp.sqrt(jnp.where(square > 0, square, 1.0)), 0.0)
 
 
-def direction_of(x, y, fallback):
+def direction_of(x: Array | np.ndarray, y: Array | np.ndarray, fallback: Array | np.ndarray) -> Array:
     """atan2(y, x), and ``fallback`` where (x, y) is the origin (finite derivatives both ways)."""
     zero = (x == 0) & (y == 0)
     return jnp.where(zero, fallback, jnp.arctan2(jnp.where(zero, 0.0, y), jnp.where(zero, 1.0, x)))
@@ -153,19 +157,19 @@ class ThrusterLayout(eqx.Module):
 
     def __init__(
         self,
-        names,
-        kinds,
-        x,
-        y,
-        direction,
-        max_thrust,
-        min_thrust=0.0,
-        thrust_rate=None,
-        time_constant=0.0,
-        turn_rate=None,
-        max_rudder=0.6,
-        rudder_lift=0.0,
-        weight=1.0,
+        names: Sequence[str],
+        kinds: Sequence[str],
+        x: npt.ArrayLike,
+        y: npt.ArrayLike,
+        direction: npt.ArrayLike,
+        max_thrust: npt.ArrayLike,
+        min_thrust: npt.ArrayLike = 0.0,
+        thrust_rate: npt.ArrayLike | None = None,
+        time_constant: npt.ArrayLike = 0.0,
+        turn_rate: npt.ArrayLike | None = None,
+        max_rudder: npt.ArrayLike = 0.6,
+        rudder_lift: npt.ArrayLike = 0.0,
+        weight: npt.ArrayLike = 1.0,
     ):
         thrust_rate = math.inf if thrust_rate is None else thrust_rate
         turn_rate = math.inf if turn_rate is None else turn_rate
@@ -186,7 +190,8 @@ class ThrusterLayout(eqx.Module):
             seen[name] = seen.get(name, 0) + 1
             if seen[name] == 2:
                 raise check.ParameterError("names", f"names must be distinct; {_short(name)!r} is given more than once")
-        columns = dict(
+        # Any: a column is a number or one per thruster, which np.ndim tells apart below
+        columns: dict[str, Any] = dict(
             x=x,
             y=y,
             direction=direction,
@@ -335,7 +340,7 @@ class ThrusterLayout(eqx.Module):
 
     # -- the thrusters' forces --------------------------------------------------------------
 
-    def forces(self, thrust, angle):
+    def forces(self, thrust: ArrayLike, angle: ArrayLike) -> Array:
         """Generalized force (X, Y, N) of the thrusters at ``thrust`` (n,) and ``angle`` (n,).
 
         ``angle`` is an azimuth's angle and a main propeller's rudder angle (a tunnel's

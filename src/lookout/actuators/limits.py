@@ -8,7 +8,9 @@ from typing import final
 
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.components import StatelessActuator
@@ -69,7 +71,7 @@ class SaturatingActuator(StatelessActuator):
 
     limit: Array
 
-    def __init__(self, limit, *, size: int | None = None):
+    def __init__(self, limit: npt.ArrayLike, *, size: int | None = None):
         self.limit = _limit_vector(limit, size)
 
     def __check_init__(self):
@@ -83,13 +85,13 @@ class SaturatingActuator(StatelessActuator):
         if jnp.shape(u)[-1:] != self.limit.shape:
             raise ValueError(f"SaturatingActuator has {self.limit.shape[0]} limits; the commanded input has shape {jnp.shape(u)}")
 
-    def apply(self, u):
+    def apply(self, u: ArrayLike) -> Array:
         """``clip(u, -limit, limit)``; NaN entries stay NaN."""
         u = jnp.asarray(u)
         self._check_shape(u)
         return jnp.clip(u, -self.limit, self.limit)
 
-    def saturated(self, u) -> Array:
+    def saturated(self, u: ArrayLike) -> Array:
         """Boolean mask, shape of ``u``: True where ``|u| > limit`` (the applied entry differs).
 
         NaN entries are False (not saturated; check finiteness separately).

@@ -23,6 +23,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 from jax import Array
+from jax.typing import ArrayLike
 
 #: Working-set slot that holds no row.
 EMPTY = -1
@@ -38,7 +39,7 @@ def _system(P, G, working):
     return jnp.concatenate([top, bottom], axis=0), on
 
 
-def solve_on_working_set(P, q, G, h, working) -> tuple[Array, Array]:
+def solve_on_working_set(P: Array, q: Array, G: Array, h: Array, working: Array) -> tuple[Array, Array]:
     """The minimizer of 1/2 x^T P x + q^T x with the working set's rows held as
     equalities (G_W x = h_W), and their multipliers (0 in free slots)."""
     n = P.shape[0]
@@ -48,7 +49,18 @@ def solve_on_working_set(P, q, G, h, working) -> tuple[Array, Array]:
     return solution[:n], jnp.where(on, solution[n:], 0.0)
 
 
-def active_set(P, q, G, h, x0, *, max_iterations: int, tolerance: float = 1e-10, needed=True, warm=None):
+def active_set(
+    P: ArrayLike,
+    q: ArrayLike,
+    G: ArrayLike,
+    h: ArrayLike,
+    x0: ArrayLike,
+    *,
+    max_iterations: int,
+    tolerance: float = 1e-10,
+    needed: ArrayLike = True,
+    warm: ArrayLike | None = None,
+) -> tuple[Array, Array, Array, Array]:
     """Solve the QP from the feasible point ``x0`` (Nocedal & Wright, Algorithm 16.3).
 
     Parameters

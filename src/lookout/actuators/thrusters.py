@@ -6,7 +6,9 @@ import math
 from typing import Literal, final
 
 import jax.numpy as jnp
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import ssa
@@ -19,6 +21,11 @@ from lookout.declare import NON_NEGATIVE, Part, Range, Value, component, kind_of
 def _thruster_signal(name: str, units: str, long_name: str, labels, angle: bool = False) -> Signal:
     return Signal(name, units, long_name, "body-fixed", tuple(labels), "thruster", angle)
 
+
+#: A :class:`ThrusterSystem`'s state: each thruster's thrust and angle, the previous
+#: scaled command, the QP's active set, the steering's filtered demand and whether each
+#: azimuth is turning.
+ThrusterState = tuple[Array, Array, Array, Array, Array, Array]
 
 #: What the thrusters act on: a 3-DOF vessel's input, (name, units, labels) of each signal.
 VESSEL_INPUT_SIGNALS = (("force", "N", ("surge", "sway")), ("moment", "N m", ()))
@@ -51,7 +58,7 @@ def describe_input(layout: Layout) -> str:
 AT_LIMIT = 0.01
 
 
-def at_limit(thrust, largest, smallest, tolerance: float = AT_LIMIT):
+def at_limit(thrust: ArrayLike, largest: ArrayLike, smallest: ArrayLike, tolerance: float = AT_LIMIT) -> Array:
     """Whether each thruster's thrust (..., n) is at its ``largest`` or (when negative)
     ``smallest`` thrust (n,), within ``tolerance`` of its largest (JAX, so a campaign's
     metric takes it inside the simulation; NumPy arrays in, JAX arrays out).
@@ -64,7 +71,7 @@ def at_limit(thrust, largest, smallest, tolerance: float = AT_LIMIT):
     return (thrust >= largest - margin) | ((thrust <= smallest + margin) & (smallest < 0))
 
 
-def relative_power(thrust, largest):
+def relative_power(thrust: ArrayLike, largest: ArrayLike) -> Array:
     """The thrusters' power as a fraction of the installed power, ``thrust`` shaped (..., n).
 
     A propeller's power at bollard pull grows as |T|^(3/2) (momentum theory,
@@ -193,13 +200,13 @@ class ThrusterSystem(Actuator):
         self,
         layout: ThrusterLayout,
         allocation: Literal["qp", "pseudo-inverse"] = "qp",
-        slack_weight=None,
+        slack_weight: npt.ArrayLike | None = None,
         clip_to_reach: bool = True,
         solver: Literal["active-set", "qpax"] | None = None,
-        steering_time_constant=None,
-        steering_deadband=None,
-        steering_load=None,
-        steering_bias=None,
+        steering_time_constant: float | None = None,
+        steering_deadband: float | None = None,
+        steering_load: float | None = None,
+        steering_bias: float | None = None,
     ):
         if not isinstance(layout, ThrusterLayout):
             raise check.ParameterError("layout", f"layout must be a ThrusterLayout; got {type(layout).__name__}")
@@ -235,7 +242,7 @@ class ThrusterSystem(Actuator):
             return None
         return f"actuator {kind_of(self)} needs a 3-DOF vessel plant (force surge, sway; moment yaw); plant {plant_kind} takes {describe_input(plant_input)}"
 
-    def init(self):
+    def init(self) -> ThrusterState:
         """Every thruster idle: zero thrust, rudders amidships, azimuths pointing where
         their bias points (along their layout ``direction`` without one); no previous
         command, no active set (the QP's warm start), no demand and no azimuth turning
@@ -298,12 +305,12 @@ class ThrusterSystem(Actuator):
             target = target.at[i].set(jnp.clip(angle_wanted, -rudder, rudder))
         return thrust, target
 
-    def respond(self, thrust: Array, angle: Array, thrust_command: Array, angle_command: Array, dt) -> tuple[Array, Array]:
+    def respond(self, thrust: Array, angle: Array, thrust_command: Array, angle_command: Array, dt: ArrayLike) -> tuple[Array, Array]:
         """The thrusters' thrust and angle after ``dt`` from ``thrust`` and ``angle``
         toward the commands (first-order lag, rate and force limits, turning rate)."""
         layout = self.layout
         tau = jnp.asarray(layout.time_constant)
-        lag = jnp.where(tau > 0, -jnp.expm1(-dt / jnp.where(tau > 0, tau, 1.0)), 1.0)
+        lag = jnp.where(tau > 0, -jnp.expm1(-jnp.asarray(dt) / jnp.where(tau > 0, tau, 1.0)), 1.0)
         change = jnp.clip(lag * (thrust_command - thrust), -layout.thrust_rate * dt, layout.thrust_rate * dt)
         thrust = jnp.clip(thrust + change, layout.min_thrust, layout.max_thrust)
         turn = jnp.clip(ssa(angle_command - angle), -layout.turn_rate * dt, layout.turn_rate * dt)
@@ -312,7 +319,7 @@ class ThrusterSystem(Actuator):
         turned = jnp.where(main, jnp.clip(angle + turn, -layout.max_rudder, layout.max_rudder), ssa(angle + turn))
         return thrust, jnp.where(tunnel, jnp.asarray(layout.direction, dtype=float), turned)
 
-    def step(self, state, t, u: Array, dt):
+    def step(self, state: ThrusterState, t: ArrayLike, u: Array, dt: ArrayLike) -> tuple[ThrusterState, Array, dict[str, Array]]:
         """Allocate ``u`` = (X, Y, N), move the thrusters over ``dt``; see the class docstring."""
         if jnp.shape(u) != (3,):
             raise check.ParameterError(

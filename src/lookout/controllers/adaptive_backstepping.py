@@ -28,7 +28,9 @@ from typing import final
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec
@@ -88,7 +90,14 @@ class AdaptiveObserverBackstepping(Controller):
     damping_weights: Array
     position_layout: Layout = eqx.field(static=True)
 
-    def __init__(self, parameters: AffineParameters, observer_gain, position_gain, velocity_gain, damping_weights):
+    def __init__(
+        self,
+        parameters: AffineParameters,
+        observer_gain: npt.ArrayLike,
+        position_gain: npt.ArrayLike,
+        velocity_gain: npt.ArrayLike,
+        damping_weights: npt.ArrayLike,
+    ):
         if not isinstance(parameters, AffineParameters):
             raise check.ParameterError("parameters", f"parameters must be an AffineParameters; got {type(parameters).__name__}")
         model = parameters.model(parameters.reference)
@@ -145,11 +154,13 @@ class AdaptiveObserverBackstepping(Controller):
         model = self.parameters.model(theta)
         return -matvec(model.mass_matrix(q), v) + model.coriolis_force(q, velocity) + model.friction_force(velocity) + model.gravity(q)
 
-    def init(self):
+    def init(self) -> tuple[()]:
         """No internal state."""
         return ()
 
-    def step(self, state, t, y, estimate, reference, dt):
+    def step(
+        self, state: tuple[()], t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike
+    ) -> tuple[tuple[()], Array]:
         """``((), tau_k)`` from q_k, x1_hat_k and theta_hat_k of the estimate."""
         del t, y, dt
         q, velocity, theta = read_estimate(estimate, self.parameters)

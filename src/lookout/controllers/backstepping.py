@@ -68,11 +68,13 @@ from typing import final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import rotate, rotate_transpose, rotation, ssa
-from lookout.components import Controller
+from lookout.components import Controller, Observer
 from lookout.declare import NON_NEGATIVE, POSITIVE, Part, Value, component
 from lookout.observers.adaptive_dp import AdaptiveObserver, InertiaParametrization
 from lookout.observers.wave_filtering import WaveFilteringObserver
@@ -145,19 +147,19 @@ class ObserverBackstepping(Controller):
 
     def __init__(
         self,
-        mass_matrix,
-        damping_matrix,
+        mass_matrix: npt.ArrayLike,
+        damping_matrix: npt.ArrayLike,
         *,
-        integral_gain,
-        position_gain,
-        velocity_gain,
-        damping_weights,
-        position_injection_gain,
-        velocity_injection_gain,
-        switching_gain,
-        wave_frequency,
-        wave_damping,
-        coupling_gain=1.0,
+        integral_gain: npt.ArrayLike,
+        position_gain: npt.ArrayLike,
+        velocity_gain: npt.ArrayLike,
+        damping_weights: npt.ArrayLike,
+        position_injection_gain: npt.ArrayLike,
+        velocity_injection_gain: npt.ArrayLike,
+        switching_gain: npt.ArrayLike,
+        wave_frequency: npt.ArrayLike,
+        wave_damping: npt.ArrayLike,
+        coupling_gain: npt.ArrayLike = 1.0,
     ):
         check.symmetric_positive_definite("mass_matrix", mass_matrix, size=3)
         check.square("damping_matrix", damping_matrix)
@@ -187,7 +189,14 @@ class ObserverBackstepping(Controller):
 
     @classmethod
     def for_observer(
-        cls, observer: WaveFilteringObserver, *, integral_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0
+        cls,
+        observer: WaveFilteringObserver,
+        *,
+        integral_gain: npt.ArrayLike,
+        position_gain: npt.ArrayLike,
+        velocity_gain: npt.ArrayLike,
+        damping_weights: npt.ArrayLike,
+        coupling_gain: npt.ArrayLike = 1.0,
     ) -> ObserverBackstepping:
         """The controller for a wave-filtering observer (passive, sliding-mode): M, D,
         H2, H4, Kbar and the wave model are taken from ``observer``.
@@ -227,8 +236,11 @@ class ObserverBackstepping(Controller):
             wave_damping=gains.wave_damping,
         )
 
-    def follow(self, observer) -> ObserverBackstepping:
-        """H2, H4, Kbar and the wave model taken again from ``observer`` (traceable)."""
+    def follow(self, observer: Observer) -> ObserverBackstepping:
+        """H2, H4, Kbar and the wave model taken again from ``observer`` (traceable), a
+        wave-filtering observer (TypeError otherwise)."""
+        if not isinstance(observer, WaveFilteringObserver):
+            raise TypeError(f"observer backstepping follows a wave-filtering observer's gains; got {type(observer).__name__}")
         gains = observer.wave_filter_gains()
         return eqx.tree_at(
             lambda c: (c.position_injection_gain, c.velocity_injection_gain, c.switching_gain, c.wave_frequency, c.wave_damping),
@@ -251,7 +263,7 @@ class ObserverBackstepping(Controller):
     measurement_needs = property(lambda self: ("measured_heading",))
     reference_needs = property(lambda self: VESSEL_REFERENCE)
 
-    def init(self):
+    def init(self) -> Array:
         """The integral state e_I = 0 (m, m, rad s)."""
         return jnp.zeros(3)
 
@@ -288,7 +300,9 @@ class ObserverBackstepping(Controller):
             integral * self.integral_gain * self.position_gain * p1 * integral
         )
 
-    def step(self, integral, t, y, estimate, reference, dt):
+    def step(
+        self, integral: Array, t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike
+    ) -> tuple[Array, Array]:
         """``(e_I(k+1), tau_k)``: the control law (25) at t_k."""
         del t
         err = self.errors(integral, y, estimate, reference)
@@ -395,7 +409,15 @@ class VectorialBackstepping(Controller):
     coupling_gain: Array
 
     def __init__(
-        self, parametrization, *, observer_position_gain, observer_velocity_gain, position_gain, velocity_gain, damping_weights, coupling_gain=1.0
+        self,
+        parametrization: InertiaParametrization,
+        *,
+        observer_position_gain: npt.ArrayLike,
+        observer_velocity_gain: npt.ArrayLike,
+        position_gain: npt.ArrayLike,
+        velocity_gain: npt.ArrayLike,
+        damping_weights: npt.ArrayLike,
+        coupling_gain: npt.ArrayLike = 1.0,
     ):
         self.parametrization = parametrization
         self.observer_position_gain = jnp.asarray(check.vector("observer_position_gain (K1)", observer_position_gain))
@@ -414,7 +436,15 @@ class VectorialBackstepping(Controller):
         check.positive("coupling_gain (P1)", self.coupling_gain)
 
     @classmethod
-    def for_observer(cls, observer: AdaptiveObserver, *, position_gain, velocity_gain, damping_weights, coupling_gain=1.0) -> VectorialBackstepping:
+    def for_observer(
+        cls,
+        observer: AdaptiveObserver,
+        *,
+        position_gain: npt.ArrayLike,
+        velocity_gain: npt.ArrayLike,
+        damping_weights: npt.ArrayLike,
+        coupling_gain: npt.ArrayLike = 1.0,
+    ) -> VectorialBackstepping:
         """The controller for an :class:`~lookout.observers.AdaptiveObserver`: its
         parametrization and K1, K2 are taken from ``observer``.
 
@@ -443,8 +473,11 @@ class VectorialBackstepping(Controller):
             coupling_gain=coupling_gain,
         )
 
-    def follow(self, observer) -> VectorialBackstepping:
-        """K1, K2 taken again from ``observer`` (traceable)."""
+    def follow(self, observer: Observer) -> VectorialBackstepping:
+        """K1, K2 taken again from ``observer`` (traceable), an
+        :class:`~lookout.observers.AdaptiveObserver` (TypeError otherwise)."""
+        if not isinstance(observer, AdaptiveObserver):
+            raise TypeError(f"vectorial backstepping follows an adaptive observer's gains; got {type(observer).__name__}")
         return eqx.tree_at(
             lambda c: (c.observer_position_gain, c.observer_velocity_gain),
             self,
@@ -459,7 +492,7 @@ class VectorialBackstepping(Controller):
     measurement_needs = property(lambda self: ("measured_heading",))
     reference_needs = property(lambda self: VESSEL_REFERENCE)
 
-    def init(self):
+    def init(self) -> tuple[()]:
         """No internal state."""
         return ()
 
@@ -490,7 +523,9 @@ class VectorialBackstepping(Controller):
         err = self.errors(y, estimate, reference)
         return 0.5 * (jnp.sum(self.coupling_gain * err["z1"] ** 2) + jnp.sum(err["z2"] ** 2))
 
-    def step(self, state, t, y, estimate, reference, dt):
+    def step(
+        self, state: tuple[()], t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike
+    ) -> tuple[tuple[()], Array]:
         """``((), tau_k)``: the control law (36) at t_k with M_hat, D_hat, K_hat of theta_hat(k)."""
         del t, dt
         err = self.errors(y, estimate, reference)

@@ -35,6 +35,7 @@ from typing import final
 
 import jax.numpy as jnp
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec
@@ -99,7 +100,14 @@ class FurutaPendulumBackstepping(Controller):
     velocity_gain: Array
     velocity_damping: Array
 
-    def __init__(self, parameters: AffineParameters, position_gain, position_damping, velocity_gain, velocity_damping):
+    def __init__(
+        self,
+        parameters: AffineParameters,
+        position_gain: ArrayLike,
+        position_damping: ArrayLike,
+        velocity_gain: ArrayLike,
+        velocity_damping: ArrayLike,
+    ):
         if not isinstance(parameters, AffineParameters):
             raise check.ParameterError("parameters", f"parameters must be an AffineParameters; got {type(parameters).__name__}")
         model = parameters.model(parameters.reference)
@@ -149,11 +157,13 @@ class FurutaPendulumBackstepping(Controller):
         v = self.virtual_acceleration(q, velocity, reference)
         return (v + matvec(inverse, h)[1]) / inverse[1, 0]
 
-    def init(self):
+    def init(self) -> tuple[()]:
         """No internal state."""
         return ()
 
-    def step(self, state, t, y, estimate, reference, dt):
+    def step(
+        self, state: tuple[()], t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike
+    ) -> tuple[tuple[()], Array]:
         """``((), (tau_u, 0))`` from the estimate's q, x1_hat and theta_hat."""
         del t, y, dt
         q, velocity, theta = read_estimate(estimate, self.parameters)

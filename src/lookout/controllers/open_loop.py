@@ -6,7 +6,9 @@ from typing import final
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.components import Controller
@@ -52,7 +54,9 @@ class SinusoidalInput(Controller):
     phase: Array
     offset: Array
 
-    def __init__(self, amplitude, frequency, phase=0.0, offset=0.0, *, size: int | None = None):
+    def __init__(
+        self, amplitude: npt.ArrayLike, frequency: npt.ArrayLike, phase: npt.ArrayLike = 0.0, offset: npt.ArrayLike = 0.0, *, size: int | None = None
+    ):
         if size is None:
             size = max(int(jnp.size(jnp.asarray(value))) for value in (amplitude, frequency, phase, offset))
         self.amplitude = jnp.asarray(check.vector("input amplitude", amplitude, size))
@@ -67,7 +71,7 @@ class SinusoidalInput(Controller):
         check.finite("input offset", self.offset)
 
     @classmethod
-    def constant(cls, value) -> SinusoidalInput:
+    def constant(cls, value: npt.ArrayLike) -> SinusoidalInput:
         """The constant input ``value``."""
         value = jnp.atleast_1d(jnp.asarray(value, dtype=float))
         return cls(0.0, 0.0, offset=value, size=value.shape[0])
@@ -75,11 +79,13 @@ class SinusoidalInput(Controller):
     #: an open-loop input reads nothing
     estimate_needs = measurement_needs = reference_needs = property(lambda self: ())
 
-    def init(self):
+    def init(self) -> tuple[()]:
         """No internal state."""
         return ()
 
-    def step(self, control_state, t, y, estimate, reference, dt):
+    def step(
+        self, control_state: tuple[()], t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike
+    ) -> tuple[tuple[()], Array]:
         """``(control_state, u(t))``; measurement, estimate and reference unused."""
         del y, estimate, reference, dt
         return control_state, self.offset + self.amplitude * jnp.sin(self.frequency * t + self.phase)
@@ -105,11 +111,13 @@ class NoControl(Controller):
 
     estimate_needs = measurement_needs = reference_needs = property(lambda self: ())
 
-    def init(self):
+    def init(self) -> tuple[()]:
         """No internal state."""
         return ()
 
-    def step(self, control_state, t, y, estimate, reference, dt):
+    def step(
+        self, control_state: tuple[()], t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike
+    ) -> tuple[tuple[()], Array]:
         """``(control_state, zeros)``."""
         del t, y, estimate, reference, dt
         return control_state, jnp.zeros(self.size)

@@ -77,7 +77,9 @@ from typing import final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
@@ -227,7 +229,16 @@ class PidController(Controller):
     integral_limit: Array
     bias_feedforward: str = eqx.field(static=True)
 
-    def __init__(self, vessel: DPVessel, proportional_gain, derivative_gain, integral_gain, *, integral_limit=None, bias_feedforward="none"):
+    def __init__(
+        self,
+        vessel: DPVessel,
+        proportional_gain: npt.ArrayLike,
+        derivative_gain: npt.ArrayLike,
+        integral_gain: npt.ArrayLike,
+        *,
+        integral_limit: npt.ArrayLike | None = None,
+        bias_feedforward: str = "none",
+    ):
         if not isinstance(vessel, DPVessel):
             raise check.ParameterError("vessel", f"vessel must be a DPVessel (M, D); got {type(vessel).__name__}")
         if bias_feedforward not in FEEDFORWARD_ESTIMATE:
@@ -280,14 +291,14 @@ class PidController(Controller):
         cls,
         vessel: DPVessel,
         *,
-        natural_frequency=0.1,
-        damping_ratio=1.0,
-        integral_ratio=FOSSEN_INTEGRAL_RATIO,
-        proportional_gain=None,
-        derivative_gain=None,
-        integral_gain=None,
-        integral_limit=None,
-        bias_feedforward="none",
+        natural_frequency: npt.ArrayLike = 0.1,
+        damping_ratio: npt.ArrayLike = 1.0,
+        integral_ratio: npt.ArrayLike = FOSSEN_INTEGRAL_RATIO,
+        proportional_gain: npt.ArrayLike | None = None,
+        derivative_gain: npt.ArrayLike | None = None,
+        integral_gain: npt.ArrayLike | None = None,
+        integral_limit: npt.ArrayLike | None = None,
+        bias_feedforward: str = "none",
     ) -> PidController:
         """The PID with the gains of Fossen's (2011, Section 12.2) pole placement per DOF:
         kp = m w_n^2, kd = 2 zeta w_n m - d, ki = r w_n kp, from the diagonals of ``vessel``'s
@@ -350,11 +361,11 @@ class PidController(Controller):
     measurement_needs = property(lambda self: ())
     reference_needs = property(lambda self: SETPOINT)
 
-    def init(self):
+    def init(self) -> Array:
         """The integral state z = 0 (m s, m s, rad s), Earth-fixed."""
         return jnp.zeros(3)
 
-    def clamp(self, integral: Array, heading) -> Array:
+    def clamp(self, integral: Array, heading: Array) -> Array:
         """``integral`` with its body-frame force Ki R^T z within ``integral_limit`` entry
         by entry (R = J(heading)); unchanged without a limit or where Ki = 0."""
         # written with safe branches so that the derivative with respect to the gains is
@@ -390,7 +401,9 @@ class PidController(Controller):
             tau = tau - _pair(estimate, "disturbance_force", "disturbance_moment")
         return tau
 
-    def step(self, integral, t, y, estimate, reference, dt):
+    def step(
+        self, integral: Array, t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike
+    ) -> tuple[Array, Array]:
         """``(z(k+1), tau_k)``: the law at t_k (module docstring)."""
         del t, y
         err = self.errors(estimate, reference)

@@ -41,7 +41,9 @@ from typing import final
 
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate_transpose, ssa
@@ -129,7 +131,7 @@ class TrackingController(Controller):
     natural_frequency: Array
     damping_ratio: Array
 
-    def __init__(self, ship: Cybership, natural_frequency, damping_ratio=1.0):
+    def __init__(self, ship: Cybership, natural_frequency: npt.ArrayLike, damping_ratio: npt.ArrayLike = 1.0):
         if not isinstance(ship, Cybership):
             raise check.ParameterError("ship", f"ship must be a Cybership; got {type(ship).__name__}")
         self.ship = ship
@@ -145,18 +147,18 @@ class TrackingController(Controller):
         cls,
         ship: Cybership,
         *,
-        reference_position,
-        reference_velocity,
-        reference_yaw_rate_max,
-        reference_speed_max,
-        reference_acceleration_max,
-        start_position,
-        start_velocity=0.0,
-        estimate_position=None,
-        estimate_velocity=0.0,
-        damping_ratio=1.0,
-        velocity_bound=0.3,
-        margin=1.1,
+        reference_position: npt.ArrayLike,
+        reference_velocity: npt.ArrayLike,
+        reference_yaw_rate_max: float,
+        reference_speed_max: float,
+        reference_acceleration_max: float,
+        start_position: npt.ArrayLike,
+        start_velocity: npt.ArrayLike = 0.0,
+        estimate_position: npt.ArrayLike | None = None,
+        estimate_velocity: npt.ArrayLike = 0.0,
+        damping_ratio: float = 1.0,
+        velocity_bound: float = 0.3,
+        margin: float = 1.1,
     ) -> TrackingController:
         """The scheme (23) for ``ship`` with Omega = omega I and Lambda = ``damping_ratio`` I
         from Wondergem et al. (2009)'s gain tuning procedure (steps 1–7 after Prop. 3.3),
@@ -235,7 +237,7 @@ class TrackingController(Controller):
     measurement_needs = property(lambda self: ())
     reference_needs = property(lambda self: REFERENCE_NEEDS)
 
-    def init(self):
+    def init(self) -> tuple[()]:
         """No internal state."""
         return ()
 
@@ -256,7 +258,9 @@ class TrackingController(Controller):
             "R_nu_ref_rate": rotate_transpose(e_eta[2], nu_ref_rate),
         }
 
-    def step(self, state, t, y, estimate, reference, dt):
+    def step(
+        self, state: tuple[()], t: ArrayLike, y: Array, estimate: dict[str, Array], reference: dict[str, Array], dt: ArrayLike
+    ) -> tuple[tuple[()], Array]:
         """``((), tau_k)``: (23) at t_k."""
         del t, y, dt
         e = self.errors(estimate, reference)

@@ -101,12 +101,15 @@ from __future__ import annotations
 
 import itertools
 import re
-from typing import final
+from collections.abc import Sequence
+from typing import Any, final
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, solve, ssa
@@ -137,6 +140,9 @@ INNOVATION_SIGNALS = tuple(
     s.renamed(s.name.replace("measured_", "innovation_"), "position innovation eta - eta_hat (eq. 13), " + s.name.split("_", 1)[1])
     for s in POSITION_HEADING.signals
 )
+
+#: One unknown entry as given: a paper-style name ("m11", 1-based) or (kind, row, col), 0-based.
+_Unknown = str | tuple[str, int, int] | list[str | int]
 
 _NAME = re.compile(r"^([mdk])([123])([123])$")
 
@@ -211,14 +217,15 @@ class InertiaParametrization(eqx.Module):
     upper: Array
     unknowns: tuple[tuple[str, int, int], ...] = eqx.field(static=True)
 
-    def __init__(self, model: DPVessel, unknowns, lower, upper):
+    def __init__(self, model: DPVessel, unknowns: _Unknown | Sequence[_Unknown], lower: npt.ArrayLike, upper: npt.ArrayLike):
         if not isinstance(model, DPVessel):
             raise check.ParameterError("model", f"model must be a DPVessel; got {type(model).__name__}")
+        entries: Sequence[object] = unknowns  # the entries, each checked by _parse_unknown
         if isinstance(unknowns, (str, tuple)) and len(unknowns) == 3 and unknowns and unknowns[0] in KINDS:
-            unknowns = (unknowns,)  # one entry given bare
-        if isinstance(unknowns, str):
-            unknowns = (unknowns,)
-        parsed = tuple(_parse_unknown(entry) for entry in unknowns)
+            entries = (unknowns,)  # one entry given bare
+        if isinstance(entries, str):
+            entries = (entries,)
+        parsed = tuple(_parse_unknown(entry) for entry in entries)
         if not parsed:
             raise check.ParameterError("unknowns", "unknowns must name at least one entry of M, D or K")
         if len(set(parsed)) != len(parsed):
@@ -446,12 +453,12 @@ class AdaptiveObserver(ContinuousObserver):
     def __init__(
         self,
         parametrization: InertiaParametrization,
-        position_gain,
-        velocity_gain,
-        adaptation_gain,
+        position_gain: npt.ArrayLike,
+        velocity_gain: npt.ArrayLike,
+        adaptation_gain: npt.ArrayLike,
         *,
         form: str = "discrete",
-        initial_theta=None,
+        initial_theta: npt.ArrayLike | None = None,
         steps_per_sample: int = 1,
     ):
         if not isinstance(parametrization, InertiaParametrization):
@@ -508,7 +515,9 @@ class AdaptiveObserver(ContinuousObserver):
                 )
 
     @classmethod
-    def calugi_2003(cls, vessel: DPVessel, theta_bounds=None, initial_theta=None, **options) -> AdaptiveObserver:
+    def calugi_2003(
+        cls, vessel: DPVessel, theta_bounds: Sequence[float] | None = None, initial_theta: npt.ArrayLike | None = None, **options: Any
+    ) -> AdaptiveObserver:
         """The printed setting of Section V: theta = m11, K1 = K2 = 1e-3 I (1/s), Gamma = 1e3.
 
         The paper gives neither bounds nor a starting value for theta_hat. Chosen
@@ -535,7 +544,7 @@ class AdaptiveObserver(ContinuousObserver):
         Value("nu", "array", "Velocity surge, sway (m/s) and yaw rate (rad/s).", shape="(3,)"),
         Value("theta", "array", "theta_hat(0) (SI); default the observer's initial_theta.", shape="(p,)"),
     )
-    def guess(self, eta=None, nu=0.0, theta=None) -> AdaptiveEstimate:
+    def guess(self, eta: npt.ArrayLike | None = None, nu: npt.ArrayLike = 0.0, theta: npt.ArrayLike | None = None) -> AdaptiveEstimate:
         """An initial estimate (eta the first measurement unless given; nu zero unless
         given; theta :attr:`initial_theta` unless given), to pass to :meth:`init` through
         the Scenario.
@@ -596,7 +605,7 @@ class AdaptiveObserver(ContinuousObserver):
             regressor=jnp.zeros((3, p)),
         )
 
-    def update(self, state: AdaptiveObserverState, t, y: Array) -> AdaptiveObserverState:
+    def update(self, state: AdaptiveObserverState, t: ArrayLike, y: Array) -> AdaptiveObserverState:
         """Discrete form: the delta_eta terms of (66)–(67) and the projection of theta_hat.
 
         delta_eta = eta(i) - eta(i-1) (heading through ssa), with a missing channel
@@ -638,7 +647,7 @@ class AdaptiveObserver(ContinuousObserver):
             out[f"theta_{name}"] = state.theta[k]
         return out
 
-    def predict(self, state: AdaptiveObserverState, t, y: Array, u: Array, dt) -> AdaptiveObserverState:
+    def predict(self, state: AdaptiveObserverState, t: ArrayLike, y: Array, u: Array, dt: ArrayLike) -> AdaptiveObserverState:
         """From t_{i-1} to t_i with tau_{i-1} = ``u`` held; dt = Delta.
 
         Discrete form: the (i-1) terms of (65)–(67)::
@@ -676,7 +685,7 @@ class AdaptiveObserver(ContinuousObserver):
             regressor=phi,
         )
 
-    def vector_field(self, t, state: AdaptiveObserverState, y: Array, u: Array) -> AdaptiveObserverState:
+    def vector_field(self, t: ArrayLike, state: AdaptiveObserverState, y: Array, u: Array) -> AdaptiveObserverState:
         """Eqs. (13)–(15) with y = [eta, nu] from the oracle sensor and tau = ``u``.
 
         theta_hat' is projected: set to 0 componentwise where theta_hat is at (or

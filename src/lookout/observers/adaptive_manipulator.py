@@ -53,7 +53,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec, solve
@@ -140,7 +142,7 @@ def _box_vertices(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     return np.where(corners == 1, upper, lower)
 
 
-def mass_matrix_margin(parameters: AffineParameters, lower, upper, *, grid_points: int = 64) -> float:
+def mass_matrix_margin(parameters: AffineParameters, lower: npt.ArrayLike, upper: npt.ArrayLike, *, grid_points: int = 64) -> float:
     """min over q and theta in the box [lower, upper] of lambda_min(M(q; theta)): positive
     when M_hat stays positive definite. M is affine in theta, so the minimum over the box
     is at a vertex (lambda_min is concave); q runs over a grid of the angles M depends on."""
@@ -244,13 +246,13 @@ class AdaptiveManipulatorObserver(Observer):
     def __init__(
         self,
         parameters: AffineParameters,
-        gain,
-        adaptation_gain,
+        gain: npt.ArrayLike,
+        adaptation_gain: npt.ArrayLike,
         *,
         sample_period: float,
-        lower=None,
-        upper=None,
-        margin=0.0,
+        lower: npt.ArrayLike | None = None,
+        upper: npt.ArrayLike | None = None,
+        margin: npt.ArrayLike = 0.0,
         regressor: AffineParameters | None = None,
         check_bounds: bool = True,
     ):
@@ -312,7 +314,7 @@ class AdaptiveManipulatorObserver(Observer):
         Value("velocity", "array", "x1_hat(0), the joints' velocity estimate (rad/s, m/s).", shape="(n,)"),
         Value("theta", "array", "theta_hat(0), in the parameters' units; default their reference values.", shape="(p,)"),
     )
-    def guess(self, velocity=0.0, theta=None) -> AdaptiveGuess:
+    def guess(self, velocity: npt.ArrayLike = 0.0, theta: npt.ArrayLike | None = None) -> AdaptiveGuess:
         """Initial estimates; theta_hat(0) defaults to the parameters' reference (the truth).
 
         Parameters
@@ -358,7 +360,7 @@ class AdaptiveManipulatorObserver(Observer):
         velocity = jnp.broadcast_to(jnp.asarray(guess.velocity, dtype=float), (n,))
         return AdaptiveManipulatorState(velocity, jnp.asarray(guess.theta, dtype=float), position, position, jnp.zeros((n, p)), jnp.zeros(p))
 
-    def update(self, state: AdaptiveManipulatorState, t, y: Array) -> AdaptiveManipulatorState:
+    def update(self, state: AdaptiveManipulatorState, t: ArrayLike, y: Array) -> AdaptiveManipulatorState:
         """Complete (4.34)–(4.35) with q(i) (its prediction where y is NaN), then reset (4.45)."""
         del t
         q = jnp.where(jnp.isfinite(y), y, state.predicted)
@@ -377,7 +379,7 @@ class AdaptiveManipulatorObserver(Observer):
         out["resets"] = jnp.sum(state.resets)
         return out
 
-    def predict(self, state: AdaptiveManipulatorState, t, y: Array, u: Array, dt) -> AdaptiveManipulatorState:
+    def predict(self, state: AdaptiveManipulatorState, t: ArrayLike, y: Array, u: Array, dt: ArrayLike) -> AdaptiveManipulatorState:
         """The parts of (4.34)–(4.35) known at t_{i-1}: (I - Delta K) x1_hat + Delta psi(i-1)
         and theta_hat + Gamma phi^T(i-1) Delta x1_hat(i-1); phi(i-1) is kept for ``update``."""
         del t, y  # q(i-1) is the state's position

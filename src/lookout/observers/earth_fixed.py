@@ -52,7 +52,9 @@ from typing import final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import rotate_transpose, ssa
@@ -210,7 +212,16 @@ class EarthFixedObserver(ContinuousObserver):
     input_layout: Layout = eqx.field(static=True)
     sample_period: None = eqx.field(static=True)
 
-    def __init__(self, ship: Cybership, position_gain, velocity_gain, *, steps_per_sample=1, method="rk4", initial_velocity="estimate"):
+    def __init__(
+        self,
+        ship: Cybership,
+        position_gain: npt.ArrayLike,
+        velocity_gain: npt.ArrayLike,
+        *,
+        steps_per_sample: int = 1,
+        method: str = "rk4",
+        initial_velocity: str = "estimate",
+    ):
         if not isinstance(ship, Cybership):
             raise check.ParameterError("ship", f"ship must be a Cybership; got {type(ship).__name__}")
         self.ship = ship
@@ -239,7 +250,7 @@ class EarthFixedObserver(ContinuousObserver):
         Value("eta", "array", "eta_hat(0): position north, east (m) and heading (rad); default the first measurement.", shape="(3,)"),
         Value("velocity", "array", "The Earth-frame velocity (m/s, m/s, rad/s) of v_hat(0) or zeta(0) (initial_velocity).", shape="(3,)"),
     )
-    def guess(self, eta=None, velocity=0.0) -> EarthFixedGuess:
+    def guess(self, eta: npt.ArrayLike | None = None, velocity: npt.ArrayLike = 0.0) -> EarthFixedGuess:
         """An initial estimate: eta_hat(0) = ``eta`` (the first measurement unless given)
         and the Earth-frame ``velocity``.
 
@@ -272,7 +283,7 @@ class EarthFixedObserver(ContinuousObserver):
         zeta = jnp.where(self.velocity_is_state, guess.velocity, guess.velocity - self.position_gain * self.innovation(start, y0))
         return EarthFixedEstimate(eta, zeta)
 
-    def update(self, estimate: EarthFixedEstimate, t, measurement: Array) -> EarthFixedEstimate:
+    def update(self, estimate: EarthFixedEstimate, t: ArrayLike, measurement: Array) -> EarthFixedEstimate:
         """No discrete correction: the measurement enters through (6)."""
         del t, measurement
         return estimate
@@ -282,12 +293,12 @@ class EarthFixedObserver(ContinuousObserver):
         v_hat = estimate.zeta + self.position_gain * eta_tilde
         return EarthFixedEstimate(eta=v_hat, zeta=self.ship.earth_acceleration(heading, v_hat, tau) + self.velocity_gain * eta_tilde)
 
-    def vector_field(self, t, estimate: EarthFixedEstimate, measurement: Array, tau: Array) -> EarthFixedEstimate:
+    def vector_field(self, t: ArrayLike, estimate: EarthFixedEstimate, measurement: Array, tau: Array) -> EarthFixedEstimate:
         """Right-hand side of (6) with the measurement ``measurement``."""
         del t
         return self.rates(estimate, self.innovation(estimate, measurement), self.heading(estimate, measurement), tau)
 
-    def predict(self, estimate: EarthFixedEstimate, t, measurement: Array, tau: Array, dt) -> EarthFixedEstimate:
+    def predict(self, estimate: EarthFixedEstimate, t: ArrayLike, measurement: Array, tau: Array, dt: ArrayLike) -> EarthFixedEstimate:
         """Advance over one sample with the measurement and tau held: ``steps_per_sample``
         RK4 or forward-Euler steps of (6); the heading of the result wrapped."""
         heading = self.heading(estimate, measurement)

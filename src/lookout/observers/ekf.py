@@ -18,11 +18,13 @@ Stochastic Processes with Applications to Guidance, Section 9.5).
 
 from __future__ import annotations
 
-from typing import final
+from typing import Any, final
 
 import jax
 import jax.numpy as jnp
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout.components import Plant, Sensor
 from lookout.declare import NON_NEGATIVE, POSITIVE, Context, Part, Value, component
@@ -99,11 +101,11 @@ class ExtendedKalmanFilter(KalmanFilter):
         self,
         plant: Plant,
         sensor: Sensor,
-        process_noise=None,
-        state_noise=None,
-        measurement_noise=None,
-        initial_std=None,
-        input_disturbance=None,
+        process_noise: npt.ArrayLike | None = None,
+        state_noise: npt.ArrayLike | dict[str, Any] | None = None,
+        measurement_noise: npt.ArrayLike | None = None,
+        initial_std: npt.ArrayLike | dict[str, Any] | None = None,
+        input_disturbance: npt.ArrayLike | None = None,
         *,
         plant_step: float,
         filter_period: float,
@@ -124,7 +126,7 @@ class ExtendedKalmanFilter(KalmanFilter):
         for name, value in fields.items():
             setattr(self, name, value)
 
-    def propagate(self, state: KalmanState, t, u: Array, dt) -> KalmanState:
+    def propagate(self, state: KalmanState, t: ArrayLike, u: Array, dt: ArrayLike) -> KalmanState:
         mean, covariance = state.mean, state.covariance
         transition, noise, stepped = self.linearized(mean, t, u, dt)
         prior = self.normalized(stepped)
@@ -143,7 +145,7 @@ class ExtendedKalmanFilter(KalmanFilter):
         innovation, innovation_covariance, _, _ = self._innovation(state, y, jnp.ones(jnp.shape(y), dtype=bool))
         return innovation, innovation_covariance
 
-    def correct(self, state: KalmanState, t, y: Array) -> KalmanState:
+    def correct(self, state: KalmanState, t: ArrayLike, y: Array) -> KalmanState:
         mean, covariance = state.mean, state.covariance
         innovation, innovation_covariance, observation, noise = self._innovation(state, y, self.due(t))
         gain = jnp.linalg.solve(innovation_covariance, observation @ covariance).T

@@ -62,13 +62,16 @@ from __future__ import annotations
 import abc
 import inspect
 import math
+from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
 from jax.flatten_util import ravel_pytree
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import ssa, unmarked
@@ -254,13 +257,13 @@ class KalmanFilter(Observer):
     def _ravel(self, state) -> Array:
         return ravel_pytree(state)[0]
 
-    def augmented(self, state, disturbance: Array | None = None) -> Array:
+    def augmented(self, state: Any, disturbance: Array | None = None) -> Array:
         """The filter's vector of a plant state: raveled, with the input disturbance
         (zero unless given) appended when the filter estimates one."""
         disturbance = jnp.zeros(self.disturbance_size) if disturbance is None else disturbance
         return jnp.concatenate([self._ravel(state), disturbance])
 
-    def step(self, mean: Array, t, u: Array, dt, noise: Array | None = None) -> Array:
+    def step(self, mean: Array, t: ArrayLike, u: Array, dt: ArrayLike, noise: Array | None = None) -> Array:
         """Phi: the model over one sample from ``mean`` (raveled) with ``u`` held and
         ``noise`` (substeps x noise_size, zero when None) held over each substep."""
         substeps, h = self.substeps(dt), self.substep(dt)
@@ -290,25 +293,26 @@ class KalmanFilter(Observer):
         """Bytes one run holds while the filter takes a sample (:func:`working_nbytes`)."""
         return working_nbytes(self.state_size + self.disturbance_size, max(1, round(self.filter_period / self.plant_step)), self.model.noise_size)
 
-    def substeps(self, dt) -> int:
+    def substeps(self, dt: ArrayLike) -> int:
         """Integration steps per sample of ``dt`` s: ``dt / plant_step``; for a ``dt`` known
         only when the filter runs (a log's time steps, :func:`lookout.filter`), as many as
         in one ``filter_period``."""
         if not check.is_concrete(dt):
             return max(1, round(self.filter_period / self.plant_step))
-        count = round(float(dt) / self.plant_step)
-        if count < 1 or abs(count * self.plant_step - float(dt)) > 1e-9 * max(1.0, float(dt)):
+        seconds = float(np.asarray(dt))  # concrete here: a number, whichever array-like holds it
+        count = round(seconds / self.plant_step)
+        if count < 1 or abs(count * self.plant_step - seconds) > 1e-9 * max(1.0, seconds):
             raise check.ParameterError(
-                "plant_step", f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({float(dt):g} s)"
+                "plant_step", f"the filter's plant_step ({self.plant_step:g} s) must divide the observer's sample period ({seconds:g} s)"
             )
         return count
 
-    def substep(self, dt):
+    def substep(self, dt: ArrayLike) -> ArrayLike:
         """The integration step over a sample of ``dt`` s: ``plant_step``, or ``dt`` split
         evenly when ``dt`` is known only when the filter runs."""
         return self.plant_step if check.is_concrete(dt) else dt / self.substeps(dt)
 
-    def linearized(self, mean: Array, t, u: Array, dt) -> tuple[Array, Array, Array]:
+    def linearized(self, mean: Array, t: ArrayLike, u: Array, dt: ArrayLike) -> tuple[Array, Array, Array]:
         """(F, Q_d, Phi(mean)) of one sample at ``mean`` (module docstring): the Jacobians
         from one forward-mode pass of the step in the state and the noise together, which
         gives the step's value too."""
@@ -318,7 +322,7 @@ class KalmanFilter(Observer):
         value, columns = jax.vmap(lambda tangent: jax.jvp(step, (joint,), (tangent,)), out_axes=(None, 1))(jnp.eye(joint.size))
         return columns[:, :n], self._noise_covariance(columns[:, n:], dt), value
 
-    def process_covariance(self, mean: Array, t, u: Array, dt) -> Array:
+    def process_covariance(self, mean: Array, t: ArrayLike, u: Array, dt: ArrayLike) -> Array:
         """Q_d over one sample (module docstring), linearized at ``mean``."""
         substeps, size = self.substeps(dt), self.model.noise_size
         jacobian = jax.jacfwd(lambda w: self.step(mean, t, u, dt, w.reshape(substeps, size)))(jnp.zeros(substeps * size))
@@ -329,7 +333,7 @@ class KalmanFilter(Observer):
         weighted = noise_jacobian * jnp.tile(self.process_noise, self.substeps(dt))[None, :]
         return _symmetric(weighted @ noise_jacobian.T / self.substep(dt) + jnp.diag(self.state_noise) * dt)
 
-    def due(self, t) -> Array:
+    def due(self, t: ArrayLike) -> Array:
         """Per channel: whether a new sample of it arrives at ``t``."""
         periods = jnp.asarray(self.channel_periods)
         ratio = t / periods
@@ -345,11 +349,11 @@ class KalmanFilter(Observer):
 
     # ------------------------------------------------------------------ the filter
     @abc.abstractmethod
-    def propagate(self, state: KalmanState, t, u: Array, dt) -> KalmanState:
+    def propagate(self, state: KalmanState, t: ArrayLike, u: Array, dt: ArrayLike) -> KalmanState:
         """The prior at t + dt from the posterior at t."""
 
     @abc.abstractmethod
-    def correct(self, state: KalmanState, t, y: Array) -> KalmanState:
+    def correct(self, state: KalmanState, t: ArrayLike, y: Array) -> KalmanState:
         """The posterior at t from the prior and the sample ``y`` (channels masked)."""
 
     @abc.abstractmethod
@@ -366,7 +370,7 @@ class KalmanFilter(Observer):
 
     # ------------------------------------------------------------------ Observer
     @initial_values(same_as="model.state")
-    def guess(self, **parts):
+    def guess(self, **parts: Any) -> Any:
         """The model plant's state from its named parts (the keywords of the plant's
         ``state``; zeros where not given, except the parts a plant leaves to a
         measurement (a default of None: a vessel's eta, an arm's q), which are NaN: the
@@ -374,7 +378,7 @@ class KalmanFilter(Observer):
         unset = {name: math.nan for name in _measured_parts(self.model) if parts.get(name) is None}
         return self.model.state(**{**{name: value for name, value in parts.items() if value is not None}, **unset})
 
-    def init(self, y0: Array, guess) -> KalmanState:
+    def init(self, y0: Array, guess: Any) -> KalmanState:
         """x_0 from the guess, its NaN entries (the states left to the first measurement,
         :mod:`lookout.observers.start`) solved from y_0: the least change of them that
         makes h(x_0) = y_0 on the channels y_0 has, by Gauss-Newton steps from 0 (one is
@@ -391,7 +395,7 @@ class KalmanFilter(Observer):
             mean = mean + jnp.linalg.pinv(jacobian) @ residual
         return KalmanState(mean, self.initial_covariance)
 
-    def update(self, state: KalmanState, t, y: Array) -> KalmanState:
+    def update(self, state: KalmanState, t: ArrayLike, y: Array) -> KalmanState:
         # a branch, not a select: t (hence which channels are due) is the same for every
         # run of a batch, so under vmap the samples with no fix skip the correction
         corrected = jax.lax.cond(jnp.any(self.due(t)), lambda s: self.correct(s, t, y), lambda s: s, state)
@@ -405,7 +409,7 @@ class KalmanFilter(Observer):
             estimate.update({f"disturbance_{name}": value for name, value in disturbance.items()})
         return estimate
 
-    def predict(self, state: KalmanState, t, y: Array, u: Array, dt) -> KalmanState:
+    def predict(self, state: KalmanState, t: ArrayLike, y: Array, u: Array, dt: ArrayLike) -> KalmanState:
         return self.propagate(state, t, u, dt)
 
 
@@ -413,15 +417,15 @@ def kalman_fields(
     plant: Plant,
     sensor: Sensor,
     *,
-    process_noise,
-    state_noise,
-    measurement_noise,
-    initial_std,
-    plant_step,
-    sample_period,
-    integrator,
-    input_disturbance=None,
-) -> dict:
+    process_noise: npt.ArrayLike | None,
+    state_noise: npt.ArrayLike | dict[str, Any] | None,
+    measurement_noise: npt.ArrayLike | None,
+    initial_std: npt.ArrayLike | dict[str, Any] | None,
+    plant_step: float,
+    sample_period: float,
+    integrator: str,
+    input_disturbance: npt.ArrayLike | None = None,
+) -> dict[str, Any]:
     """The shared fields of a Kalman filter on ``plant`` and ``sensor``, validated, with
     the defaults of the module docstring (the steady state from the extended filter's
     linearization, for either filter)."""

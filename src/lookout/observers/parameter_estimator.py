@@ -63,13 +63,15 @@ Other choices (see docs/reproductions.md):
 
 from __future__ import annotations
 
-from typing import final
+from typing import TYPE_CHECKING, final
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
@@ -78,6 +80,9 @@ from lookout.models.manipulators import JOINT_INPUT, PRISMATIC, REVOLUTE, joint_
 from lookout.models.parameters import AffineParameters, parameter_signal_name, parameter_signals
 from lookout.sensors import joint_state_layout
 from lookout.sim.integrators import integrate_sample
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 #: Units of the generalized force per joint kind (the prediction error, tau_f).
 FORCE_UNITS = {REVOLUTE: "N m", PRISMATIC: "N"}
@@ -168,7 +173,7 @@ class ParameterEstimator(ContinuousObserver):
     input_layout: Layout = eqx.field(static=True)
     sample_period: None = eqx.field(static=True)
 
-    def __init__(self, parameters: AffineParameters, gain, filter_pole=1.0, steps_per_sample: int = 1):
+    def __init__(self, parameters: AffineParameters, gain: npt.ArrayLike, filter_pole: ArrayLike = 1.0, steps_per_sample: int = 1):
         if not isinstance(parameters, AffineParameters):
             raise check.ParameterError(
                 "parameters", f"parameters must be AffineParameters (lookout.models.parameters); got {type(parameters).__name__}"
@@ -268,7 +273,7 @@ class ParameterEstimator(ContinuousObserver):
     @initial_values(
         Value("theta", "array", "theta_hat(0), in the parameters' units; default their reference values.", shape="(p,)"),
     )
-    def guess(self, theta=None) -> Array:
+    def guess(self, theta: npt.ArrayLike | None = None) -> Array:
         """An initial parameter estimate theta_hat(0): ``theta``, by default the
         parameters' reference values (as :class:`AdaptiveManipulatorObserver` starts).
 
@@ -280,7 +285,7 @@ class ParameterEstimator(ContinuousObserver):
         theta = self.parameters.reference if theta is None else theta
         return jnp.asarray(check.vector("theta_hat(0)", theta, self.parameters.size))
 
-    def init(self, y0: Array, guess) -> ParameterEstimatorState:
+    def init(self, y0: Array, guess: npt.ArrayLike) -> ParameterEstimatorState:
         """Filters at zero, E(0) = A(q(0)) q'(0), theta_hat(0) = ``guess``.
 
         Parameters
@@ -302,7 +307,7 @@ class ParameterEstimator(ContinuousObserver):
         zeros = jnp.zeros((n, p + 1), held.dtype)
         return ParameterEstimatorState(theta, jnp.zeros(n, held.dtype), zeros, zeros, inertial_term, held)
 
-    def update(self, state: ParameterEstimatorState, t, y: Array) -> ParameterEstimatorState:
+    def update(self, state: ParameterEstimatorState, t: ArrayLike, y: Array) -> ParameterEstimatorState:
         """No correction; the valid channels of y become the held values."""
         del t
         return eqx.tree_at(lambda s: s.held, state, jnp.where(jnp.isfinite(y), y, state.held))
@@ -316,7 +321,7 @@ class ParameterEstimator(ContinuousObserver):
             outputs.update(layout.split(phi_f[:, j]))
         return outputs
 
-    def vector_field(self, t, state: ParameterEstimatorState, y: Array, u: Array) -> ParameterEstimatorState:
+    def vector_field(self, t: ArrayLike, state: ParameterEstimatorState, y: Array, u: Array) -> ParameterEstimatorState:
         """The filters of (3.14) and theta_hat' = h phi_f^T e of (3.9) (frozen while y has a NaN)."""
         del t
         a = self.filter_pole
@@ -340,7 +345,7 @@ class ParameterEstimator(ContinuousObserver):
         """The identity: nothing wraps."""
         return state
 
-    def predict(self, state: ParameterEstimatorState, t, y: Array, u: Array, dt) -> ParameterEstimatorState:
+    def predict(self, state: ParameterEstimatorState, t: ArrayLike, y: Array, u: Array, dt: ArrayLike) -> ParameterEstimatorState:
         """From t to t + dt with y and u held: ``steps_per_sample`` RK4 steps of :meth:`vector_field`."""
         state = self.update(state, t, y)
         field = lambda time, s: self.vector_field(time, s, y, u)
@@ -348,11 +353,11 @@ class ParameterEstimator(ContinuousObserver):
 
     # --- reading the results ---------------------------------------------------------
 
-    def estimates(self, ds, run: int = 0) -> np.ndarray:
+    def estimates(self, ds: xr.Dataset, run: int = 0) -> np.ndarray:
         """theta_hat over time from a results Dataset, shape (time, p)."""
         return np.stack([np.asarray(ds[s.name].isel(run=run).values, dtype=float) for s in self.parameter_layout.signals], axis=-1)
 
-    def regressor_series(self, ds, run: int = 0) -> np.ndarray:
+    def regressor_series(self, ds: xr.Dataset, run: int = 0) -> np.ndarray:
         """phi_f over time from a results Dataset, shape (time, n, p), joints in joint order."""
         columns = []
         for layout in self.regressor_layouts:
@@ -361,7 +366,7 @@ class ParameterEstimator(ContinuousObserver):
         return np.stack(columns, axis=-1)
 
 
-def windowed_excitation(time, regressor, window: float) -> tuple[np.ndarray, np.ndarray]:
+def windowed_excitation(time: npt.ArrayLike, regressor: npt.ArrayLike, window: float) -> tuple[np.ndarray, np.ndarray]:
     """Persistence of excitation: lambda_min of int_{t - T}^{t} phi_f^T phi_f ds at each t.
 
     The condition under which (3.9) converges exponentially is that this stays above

@@ -32,12 +32,15 @@ Choices made where the paper is silent or garbled (see docs/reproductions.md):
 
 from __future__ import annotations
 
-from typing import final
+from collections.abc import Callable
+from typing import Protocol, TypeVar, final
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import matvec, rotate, rotate_transpose, ssa
@@ -65,8 +68,13 @@ GRAVITY = 9.81
 #: What :meth:`PassiveObserver.predict` holds over a sample period.
 HOLDS = ("measurement", "innovation")
 
+#: NumPy arrays (a design) or JAX arrays (a tuner's traced gains), the same for every argument.
+_Gains = TypeVar("_Gains", np.ndarray, Array)
 
-def notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency):
+
+def notch_filter_gains(
+    wave_frequency: npt.ArrayLike, wave_damping: npt.ArrayLike, notch_damping: npt.ArrayLike, cutoff_frequency: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Wave-filter gains of Fossen & Strand (1999), eqs. (45)–(47).
 
     With these gains the position-error transfer function h0_i(s) of eq. (42)
@@ -95,26 +103,26 @@ def notch_filter_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequ
     tuple of ndarray
         ``(k1, k2, k3)``, each of shape (3,): K1 = [diag(k1); diag(k2)], K2 = diag(k3).
     """
-    wave_frequency = check.vector("wave_frequency", wave_frequency)
-    wave_damping = check.vector("wave_damping", wave_damping)
-    notch_damping = check.vector("notch_damping", notch_damping)
-    cutoff_frequency = check.vector("cutoff_frequency", cutoff_frequency)
-    check.positive("wave_frequency", wave_frequency)
-    check.positive("wave_damping", wave_damping)
-    check.positive("cutoff_frequency", cutoff_frequency)
-    if np.any(notch_damping <= wave_damping):
+    w_o = check.vector("wave_frequency", wave_frequency)
+    zeta = check.vector("wave_damping", wave_damping)
+    zeta_n = check.vector("notch_damping", notch_damping)
+    w_c = check.vector("cutoff_frequency", cutoff_frequency)
+    check.positive("wave_frequency", w_o)
+    check.positive("wave_damping", zeta)
+    check.positive("cutoff_frequency", w_c)
+    if np.any(zeta_n <= zeta):
         raise check.ParameterError(
-            "notch_damping", f"notch_damping must exceed wave_damping (zeta_n > zeta); got {notch_damping.tolist()} <= {wave_damping.tolist()}"
+            "notch_damping", f"notch_damping must exceed wave_damping (zeta_n > zeta); got {zeta_n.tolist()} <= {zeta.tolist()}"
         )
-    if np.any(cutoff_frequency <= wave_frequency):
+    if np.any(w_c <= w_o):
         raise check.ParameterError(
             "cutoff_frequency",
-            f"cutoff_frequency must exceed wave_frequency (w_c > w_o); got {cutoff_frequency.tolist()} <= {wave_frequency.tolist()} rad/s",
+            f"cutoff_frequency must exceed wave_frequency (w_c > w_o); got {w_c.tolist()} <= {w_o.tolist()} rad/s",
         )
-    return notch_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency)
+    return notch_gains(w_o, zeta, zeta_n, w_c)
 
 
-def notch_gains(wave_frequency, wave_damping, notch_damping, cutoff_frequency):
+def notch_gains(wave_frequency: _Gains, wave_damping: _Gains, notch_damping: _Gains, cutoff_frequency: _Gains) -> tuple[_Gains, _Gains, _Gains]:
     """Eqs. (45)–(47) without the checks of :func:`notch_filter_gains`: NumPy or JAX
     arrays (a tuner differentiates through it)."""
     spread = notch_damping - wave_damping
@@ -129,7 +137,7 @@ PAPER_CUTOFF_FREQUENCY = 1.1
 CUTOFF_RATIO = 1.1 / 0.8976
 
 
-def default_cutoff_frequency(wave_frequency):
+def default_cutoff_frequency(wave_frequency: npt.ArrayLike) -> np.ndarray | np.float64:
     """A cut-off w_c for any wave frequency: ``max(1.1 rad/s, CUTOFF_RATIO * w_o)``.
 
     Fossen & Strand (1999) use w_c = 1.1 rad/s for w_o = 0.8976 rad/s (eq. 59), and
@@ -150,7 +158,9 @@ def default_cutoff_frequency(wave_frequency):
 VELOCITY_BANDWIDTH_RATIO = 0.1
 
 
-def tuning_rule_gains(mass_matrix, wave_frequency, bias_time_constant, velocity_bandwidth=None):
+def tuning_rule_gains(
+    mass_matrix: npt.ArrayLike, wave_frequency: npt.ArrayLike, bias_time_constant: npt.ArrayLike, velocity_bandwidth: npt.ArrayLike | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Kappa and Lambda for a vessel of mass matrix M inside the tuning rule (48).
 
     Fossen & Strand (1999), eq. (48): ``1/T_i << Lambda_i / Kappa_i < w_o_i`` (their
@@ -185,7 +195,7 @@ def tuning_rule_gains(mass_matrix, wave_frequency, bias_time_constant, velocity_
     return kappa, kappa * np.sqrt(w_o / period)
 
 
-def wave_frequency_of(waves) -> np.ndarray:
+def wave_frequency_of(waves: object) -> np.ndarray:
     """The dominating frequency (rad/s, per DOF) of a plant's wave model: a linear
     model's w0, or a JONSWAP sea's spectral peak."""
     if hasattr(waves, "peak_frequency") and not callable(waves.peak_frequency):
@@ -199,7 +209,9 @@ def wave_frequency_of(waves) -> np.ndarray:
     )
 
 
-def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, gravity=GRAVITY):
+def injection_gains_from_normalized(
+    velocity_gain: npt.ArrayLike, bias_gain: npt.ArrayLike, *, mass: float, length: float, gravity: float = GRAVITY
+) -> tuple[np.ndarray, np.ndarray]:
     """Convert Kappa and Lambda from the normalized ("bis") system to SI.
 
     The bis system scales force by m g, moment by m g L, length by L and time by
@@ -231,9 +243,9 @@ def injection_gains_from_normalized(velocity_gain, bias_gain, *, mass, length, g
     force = mass * gravity
     scale = np.array([force / length, force / length, force * length])
     time_scale = np.sqrt(length / gravity)
-    velocity_gain = check.vector("velocity_injection_gain (normalized)", velocity_gain)
-    bias_gain = check.vector("bias_injection_gain (normalized)", bias_gain)
-    return velocity_gain * scale, bias_gain * scale / time_scale
+    velocity = check.vector("velocity_injection_gain (normalized)", velocity_gain)
+    bias = check.vector("bias_injection_gain (normalized)", bias_gain)
+    return velocity * scale, bias * scale / time_scale
 
 
 @component(
@@ -364,18 +376,18 @@ class PassiveObserver(WaveFilteringObserver):
 
     def __init__(
         self,
-        mass_matrix,
-        damping_matrix,
-        wave_frequency,
-        wave_damping,
-        wave_injection_gain,
-        position_injection_gain,
-        velocity_injection_gain,
-        bias_injection_gain,
-        bias_time_constant,
-        lyapunov_weight=1.0,
-        steps_per_sample=1,
-        hold="measurement",
+        mass_matrix: npt.ArrayLike,
+        damping_matrix: npt.ArrayLike,
+        wave_frequency: npt.ArrayLike,
+        wave_damping: npt.ArrayLike,
+        wave_injection_gain: npt.ArrayLike,
+        position_injection_gain: npt.ArrayLike,
+        velocity_injection_gain: npt.ArrayLike,
+        bias_injection_gain: npt.ArrayLike,
+        bias_time_constant: npt.ArrayLike,
+        lyapunov_weight: ArrayLike = 1.0,
+        steps_per_sample: int = 1,
+        hold: str = "measurement",
     ):
         check.symmetric_positive_definite("mass_matrix", mass_matrix, size=3)
         check.square("damping_matrix", damping_matrix)
@@ -415,18 +427,18 @@ class PassiveObserver(WaveFilteringObserver):
         cls,
         vessel: DPVessel,
         *,
-        waves=None,
-        wave_frequency=None,
-        wave_damping=0.1,
-        notch_damping=1.0,
-        cutoff_frequency=None,
-        velocity_injection_gain=None,
-        bias_injection_gain=None,
-        bias_time_constant=1000.0,
-        velocity_bandwidth=None,
-        lyapunov_weight=1.0,
-        steps_per_sample=1,
-        hold="measurement",
+        waves: object | None = None,
+        wave_frequency: npt.ArrayLike | None = None,
+        wave_damping: npt.ArrayLike = 0.1,
+        notch_damping: npt.ArrayLike = 1.0,
+        cutoff_frequency: npt.ArrayLike | None = None,
+        velocity_injection_gain: npt.ArrayLike | None = None,
+        bias_injection_gain: npt.ArrayLike | None = None,
+        bias_time_constant: npt.ArrayLike = 1000.0,
+        velocity_bandwidth: npt.ArrayLike | None = None,
+        lyapunov_weight: ArrayLike = 1.0,
+        steps_per_sample: int = 1,
+        hold: str = "measurement",
     ) -> PassiveObserver:
         """Observer for ``vessel`` with K1, K2 from eqs. (45)–(47) and, unless given,
         Kappa and Lambda inside the tuning rule (48) (:func:`tuning_rule_gains`).
@@ -514,7 +526,9 @@ class PassiveObserver(WaveFilteringObserver):
         Value("bias", "array", "Bias forces and moment (N, N, N m).", shape="(3,)"),
         Value("wave_state", "array", "Wave-filter state [xi1, xi2] (m s, m s, rad s, m, m, rad).", shape="(6,)"),
     )
-    def guess(self, eta=None, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+    def guess(
+        self, eta: npt.ArrayLike | None = None, nu: npt.ArrayLike = 0.0, bias: npt.ArrayLike = 0.0, wave_state: npt.ArrayLike = 0.0
+    ) -> VesselState:
         """An initial estimate (zeros unless given; eta the first measurement unless
         given), to pass to :meth:`init`.
 
@@ -539,7 +553,7 @@ class PassiveObserver(WaveFilteringObserver):
         measured = jnp.asarray(y0, dtype=float) - guess.wave
         return eqx.tree_at(lambda s: s.eta, guess, from_first_measurement(guess.eta, measured, angles=(2,)))
 
-    def update(self, estimate: VesselState, t, measurement: Array) -> VesselState:
+    def update(self, estimate: VesselState, t: ArrayLike, measurement: Array) -> VesselState:
         """No discrete correction: the measurement enters through (22)–(25)."""
         del t, measurement
         return estimate
@@ -560,7 +574,7 @@ class PassiveObserver(WaveFilteringObserver):
         ``psi_hat + psi_hat_w`` when the heading sample is missing."""
         return jnp.where(jnp.isfinite(measurement[2]), measurement[2], estimate.eta[2] + estimate.wave[2])
 
-    def vector_field(self, t, estimate: VesselState, measurement: Array, tau: Array, heading=None) -> VesselState:
+    def vector_field(self, t: ArrayLike, estimate: VesselState, measurement: Array, tau: Array, heading: Array | None = None) -> VesselState:
         """Right-hand side of eqs. (22)–(25) for a measurement held at ``measurement``.
 
         ``heading`` is the heading of J(y); by default :meth:`rotation_heading` of
@@ -590,7 +604,7 @@ class PassiveObserver(WaveFilteringObserver):
         )
         return VesselState(eta=eta_rate, nu=matvec(self.mass_inverse, force), bias=bias_rate, wave_state=wave_rate)
 
-    def predict(self, estimate: VesselState, t, measurement: Array, tau: Array, dt) -> VesselState:
+    def predict(self, estimate: VesselState, t: ArrayLike, measurement: Array, tau: Array, dt: ArrayLike) -> VesselState:
         """Advance the estimate over one sample period with tau held.
 
         Integrates (22)–(25) by ``steps_per_sample`` RK4 steps of ``dt /
@@ -625,7 +639,32 @@ def wave_heading_rate(estimate: VesselState, wave_frequency: Array, wave_damping
     return -(w3**2) * estimate.wave_state[2] - 2.0 * zeta3 * w3 * estimate.wave_state[5]
 
 
-def predict_sample(observer, rates, estimate: VesselState, t, measurement: Array, tau: Array, dt) -> VesselState:
+class _SampledObserver(Protocol):
+    """What :func:`predict_sample` reads of a wave-filtering vessel observer (the passive
+    and the sliding-mode observers)."""
+
+    @property
+    def hold(self) -> str: ...
+
+    @property
+    def steps_per_sample(self) -> int: ...
+
+    def innovation(self, estimate: VesselState, measurement: Array) -> Array: ...
+
+    def rotation_heading(self, estimate: VesselState, measurement: Array) -> Array: ...
+
+    def normalize(self, estimate: VesselState) -> VesselState: ...
+
+
+def predict_sample(
+    observer: _SampledObserver,
+    rates: Callable[[VesselState, Array, Array, Array], VesselState],
+    estimate: VesselState,
+    t: ArrayLike,
+    measurement: Array,
+    tau: Array,
+    dt: ArrayLike,
+) -> VesselState:
     """One sample of a wave-filtering vessel observer: ``observer.steps_per_sample`` RK4
     steps of ``rates(estimate, y_tilde, heading, tau)`` with what ``observer.hold``
     says held (see :meth:`PassiveObserver.predict`); the heading of the result wrapped.

@@ -42,7 +42,9 @@ from typing import final
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.components import EARTH_FIXED, Layout, Signal
@@ -63,7 +65,7 @@ SWITCHING_SIGNALS = (
 DEFAULT_BOUNDARY_LAYER = (1.0, 1.0, 0.02)
 
 
-def saturation(x, width=1.0):
+def saturation(x: ArrayLike, width: ArrayLike = 1.0) -> Array:
     """sat(x / width) of Kim (2002), eq. (7), componentwise: x / width clipped to [-1, 1].
 
     Continuous, odd, |sat| <= 1, and equal to sign(x) for |x| >= width.
@@ -206,7 +208,7 @@ class SlidingModeObserver(WaveFilteringObserver):
     input_layout: Layout = eqx.field(static=True)
     sample_period: None = eqx.field(static=True)
 
-    def __init__(self, passive: PassiveObserver, switching_gain, boundary_layer):
+    def __init__(self, passive: PassiveObserver, switching_gain: npt.ArrayLike, boundary_layer: npt.ArrayLike):
         if not isinstance(passive, PassiveObserver):
             raise check.ParameterError("passive", f"passive must be a PassiveObserver; got {type(passive).__name__}")
         self.passive = passive
@@ -226,18 +228,18 @@ class SlidingModeObserver(WaveFilteringObserver):
         cls,
         vessel: DPVessel,
         *,
-        velocity_injection_gain,
-        bias_injection_gain,
-        waves=None,
-        wave_frequency=None,
-        wave_damping=0.1,
-        notch_damping=1.0,
-        cutoff_frequency=None,
-        bias_time_constant=1000.0,
-        switching_gain=0.0,
-        boundary_layer=DEFAULT_BOUNDARY_LAYER,
-        steps_per_sample=1,
-        hold="measurement",
+        velocity_injection_gain: npt.ArrayLike,
+        bias_injection_gain: npt.ArrayLike,
+        waves: object | None = None,
+        wave_frequency: npt.ArrayLike | None = None,
+        wave_damping: npt.ArrayLike = 0.1,
+        notch_damping: npt.ArrayLike = 1.0,
+        cutoff_frequency: npt.ArrayLike | None = None,
+        bias_time_constant: npt.ArrayLike = 1000.0,
+        switching_gain: npt.ArrayLike = 0.0,
+        boundary_layer: npt.ArrayLike = DEFAULT_BOUNDARY_LAYER,
+        steps_per_sample: int = 1,
+        hold: str = "measurement",
     ) -> SlidingModeObserver:
         """Observer for ``vessel`` with the given H4 and H3 (SI) and H1, H2 from Fossen &
         Strand's (45)–(47), as (6)–(7) with gains that (14) is not asked of: Kim's
@@ -320,7 +322,9 @@ class SlidingModeObserver(WaveFilteringObserver):
         Value("bias", "array", "Bias forces and moment (N, N, N m).", shape="(3,)"),
         Value("wave_state", "array", "Wave-filter state [xi1, xi2] (m s, m s, rad s, m, m, rad).", shape="(6,)"),
     )
-    def guess(self, eta=None, nu=0.0, bias=0.0, wave_state=0.0) -> VesselState:
+    def guess(
+        self, eta: npt.ArrayLike | None = None, nu: npt.ArrayLike = 0.0, bias: npt.ArrayLike = 0.0, wave_state: npt.ArrayLike = 0.0
+    ) -> VesselState:
         """An initial estimate (zeros unless given; eta the first measurement unless
         given), to pass to :meth:`init`.
 
@@ -343,7 +347,7 @@ class SlidingModeObserver(WaveFilteringObserver):
         the guess gives it (as the passive observer's; Kim (2002) does not state it)."""
         return self.passive.init(y0, guess)
 
-    def update(self, estimate: VesselState, t, measurement: Array) -> VesselState:
+    def update(self, estimate: VesselState, t: ArrayLike, measurement: Array) -> VesselState:
         """No discrete correction: the measurement enters through (6)."""
         del t, measurement
         return estimate
@@ -365,14 +369,14 @@ class SlidingModeObserver(WaveFilteringObserver):
         rates = self.passive.rates(estimate, y_tilde, heading, tau)
         return eqx.tree_at(lambda s: s.eta, rates, rates.eta + self.switching_term(y_tilde))
 
-    def vector_field(self, t, estimate: VesselState, measurement: Array, tau: Array, heading=None) -> VesselState:
+    def vector_field(self, t: ArrayLike, estimate: VesselState, measurement: Array, tau: Array, heading: Array | None = None) -> VesselState:
         """Right-hand side of eq. (6) for the measurement ``measurement``."""
         del t
         y_tilde = self.innovation(estimate, measurement)
         heading = self.rotation_heading(estimate, measurement) if heading is None else heading
         return self.rates(estimate, y_tilde, heading, tau)
 
-    def predict(self, estimate: VesselState, t, measurement: Array, tau: Array, dt) -> VesselState:
+    def predict(self, estimate: VesselState, t: ArrayLike, measurement: Array, tau: Array, dt: ArrayLike) -> VesselState:
         """One sample of (6), held as the passive observer's ``hold`` says."""
         return predict_sample(self, self.rates, estimate, t, measurement, tau, dt)
 

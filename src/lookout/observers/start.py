@@ -13,13 +13,15 @@ dropout at t_0) starts at 0.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import jax.numpy as jnp
 from jax import Array
 
 from lookout._math import ssa
 
 
-def from_first_measurement(guessed: Array, measured: Array, angles=()) -> Array:
+def from_first_measurement(guessed: Array, measured: Array, angles: Iterable[int] = ()) -> Array:
     """``guessed`` with its NaN entries taken from ``measured`` (0 where that is NaN too),
     the ``angles`` entries (indices) wrapped to [-pi, pi).
 

@@ -26,12 +26,14 @@ innovation are zero (the masking of the extended filter).
 
 from __future__ import annotations
 
-from typing import final
+from typing import Any, final
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import ssa
@@ -150,11 +152,11 @@ class UnscentedKalmanFilter(KalmanFilter):
         self,
         plant: Plant,
         sensor: Sensor,
-        process_noise=None,
-        state_noise=None,
-        measurement_noise=None,
-        initial_std=None,
-        input_disturbance=None,
+        process_noise: npt.ArrayLike | None = None,
+        state_noise: npt.ArrayLike | dict[str, Any] | None = None,
+        measurement_noise: npt.ArrayLike | None = None,
+        initial_std: npt.ArrayLike | dict[str, Any] | None = None,
+        input_disturbance: npt.ArrayLike | None = None,
         alpha: float = 1.0,
         beta: float = 2.0,
         kappa: float = 0.0,
@@ -197,7 +199,7 @@ class UnscentedKalmanFilter(KalmanFilter):
         root = square_root(scale * covariance)
         return jnp.concatenate([mean[None, :], mean + root.T, mean - root.T])
 
-    def propagate(self, state: KalmanState, t, u: Array, dt) -> KalmanState:
+    def propagate(self, state: KalmanState, t: ArrayLike, u: Array, dt: ArrayLike) -> KalmanState:
         n = state.mean.size
         mean_weights, covariance_weights, scale = self._weights(n)
         points = jax.vmap(lambda x: self.step(x, t, u, dt))(self._points(state.mean, state.covariance, scale))
@@ -224,7 +226,7 @@ class UnscentedKalmanFilter(KalmanFilter):
         innovation, innovation_covariance, *_ = self._innovation(state, y, jnp.ones(jnp.shape(y), dtype=bool))
         return innovation, innovation_covariance
 
-    def correct(self, state: KalmanState, t, y: Array) -> KalmanState:
+    def correct(self, state: KalmanState, t: ArrayLike, y: Array) -> KalmanState:
         innovation, innovation_covariance, points, errors, covariance_weights = self._innovation(state, y, self.due(t))
         deviations = _wrapped(points - state.mean, self.state_angles)
         cross = (deviations * covariance_weights[:, None]).T @ errors

@@ -39,7 +39,9 @@ from typing import final
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy.typing as npt
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.components import ContinuousObserver, Layout, Signal
@@ -107,7 +109,7 @@ class VelocityObserver(ContinuousObserver):
     input_layout: Layout = eqx.field(static=True)
     sample_period: None = eqx.field(static=True)
 
-    def __init__(self, model: ManipulatorModel, gain, steps_per_sample: int = 1):
+    def __init__(self, model: ManipulatorModel, gain: npt.ArrayLike, steps_per_sample: int = 1):
         if not isinstance(model, ManipulatorModel):
             raise check.ParameterError("model", f"model must be a ManipulatorModel; got {type(model).__name__}")
         self.model = model
@@ -135,7 +137,7 @@ class VelocityObserver(ContinuousObserver):
     @initial_values(
         Value("velocity", "array", "x1_hat(0), the joints' velocity estimate (rad/s, m/s).", shape="(n,)"),
     )
-    def guess(self, velocity=0.0) -> Array:
+    def guess(self, velocity: npt.ArrayLike = 0.0) -> Array:
         """An initial velocity estimate x1_hat(0) (rad/s, m/s): ``velocity`` per joint (zero by default).
 
         Parameters
@@ -145,7 +147,7 @@ class VelocityObserver(ContinuousObserver):
         """
         return jnp.asarray(check.vector("velocity", velocity, self.model.size))
 
-    def init(self, y0: Array, guess) -> VelocityObserverState:
+    def init(self, y0: Array, guess: npt.ArrayLike) -> VelocityObserverState:
         """z_0 = x1_hat(0) - K y_0, so that the estimate at t_0 is ``guess``.
 
         Parameters
@@ -159,7 +161,7 @@ class VelocityObserver(ContinuousObserver):
         guess = jnp.broadcast_to(jnp.asarray(guess, dtype=position.dtype), position.shape)
         return VelocityObserverState(guess - self.gain * position, position)
 
-    def update(self, state: VelocityObserverState, t, y: Array) -> VelocityObserverState:
+    def update(self, state: VelocityObserverState, t: ArrayLike, y: Array) -> VelocityObserverState:
         """No discrete correction: the measurement enters through (2.6)–(2.7)."""
         del t, y
         return state
@@ -168,7 +170,7 @@ class VelocityObserver(ContinuousObserver):
         """The velocity estimate x1_hat as the plant's ``joint_rate`` / ``joint_speed``."""
         return Layout(self.estimate_signals).split(self.velocity(state, y))
 
-    def vector_field(self, t, state: VelocityObserverState, y: Array, u: Array) -> VelocityObserverState:
+    def vector_field(self, t: ArrayLike, state: VelocityObserverState, y: Array, u: Array) -> VelocityObserverState:
         """(z', q_hat') of eq. (2.6) with measurement ``y`` and input ``u`` (joint order)."""
         del t
         q = self._positions(state, y)
@@ -181,7 +183,7 @@ class VelocityObserver(ContinuousObserver):
         """The identity: joint angles are not wrapped."""
         return state
 
-    def predict(self, state: VelocityObserverState, t, y: Array, u: Array, dt) -> VelocityObserverState:
+    def predict(self, state: VelocityObserverState, t: ArrayLike, y: Array, u: Array, dt: ArrayLike) -> VelocityObserverState:
         """From t to t + dt with y and u held: ``steps_per_sample`` RK4 steps of (2.6).
 
         q_hat restarts from y on the valid channels, so over a dropout it
