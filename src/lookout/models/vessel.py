@@ -86,8 +86,11 @@ class VesselState(eqx.Module):
         return cls(jnp.zeros(3), jnp.zeros(3), jnp.zeros(3), jnp.zeros(6))
 
     @classmethod
-    def build(cls, eta: npt.ArrayLike = 0.0, nu: npt.ArrayLike = 0.0, bias: npt.ArrayLike = 0.0, wave_state: npt.ArrayLike = 0.0) -> VesselState:
-        """State from scalars or sequences, validated and broadcast."""
+    def build(
+        cls, eta: npt.ArrayLike | None = 0.0, nu: npt.ArrayLike = 0.0, bias: npt.ArrayLike = 0.0, wave_state: npt.ArrayLike = 0.0
+    ) -> VesselState:
+        """State from scalars or sequences, validated and broadcast (an ``eta`` of None is
+        unknown: NaN, which an observer's ``init`` fills from the first measurement)."""
         return cls(
             jnp.asarray(check.vector("eta", eta)),
             jnp.asarray(check.vector("nu", nu)),
