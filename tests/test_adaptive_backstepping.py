@@ -44,6 +44,7 @@ def test_5_28_fails_at_rest_for_the_printed_gains():
     assert report.quantities["C_M"] == pytest.approx(2.47, abs=0.01)
 
 
+@pytest.mark.slow
 def test_reproduce_calugi_2002_backstepping_corrected_tracks_and_printed_is_reported_diverged(tmp_path, capsys):
     out = tmp_path / "ch5"
     assert main(["reproduce", "calugi-2002-backstepping", "--out", str(out), "--duration", "20"]) == 0

@@ -293,6 +293,7 @@ def test_theta_hat_never_leaves_its_bounds(log_gamma, fraction):
         assert theta.min() >= LOWER and theta.max() <= UPPER, (form, theta.min() / M11, theta.max() / M11)
 
 
+@pytest.mark.slow
 def test_a_large_gain_drives_theta_hat_onto_a_bound():
     """The check above can fail: with Gamma = 1e14 theta_hat reaches a bound and stays in."""
     guess = AdaptiveEstimate(jnp.zeros(3), jnp.asarray([0.3, 0.0, 0.0]), jnp.asarray([M11]))

@@ -294,6 +294,7 @@ def test_tables_printed_to_a_pipe_keep_their_width(capsys, monkeypatch, tmp_path
     assert all(cell in row for cell in cells) and len(row) > 80, text
 
 
+@pytest.mark.slow
 def test_a_bare_reproduce_writes_under_out_by_name(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main([*REPRODUCE, "--duration", "20"]) == 0
@@ -301,6 +302,7 @@ def test_a_bare_reproduce_writes_under_out_by_name(tmp_path, capsys, monkeypatch
     assert "written to the folder out/fossen-strand-1999" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_short_reproduce_writes_all_outputs(tmp_path, capsys):
     out = tmp_path / "new" / "folders" / "fs99"  # missing parents are created
     assert main([*REPRODUCE, "--out", str(out), "--duration", "100", "--seed", "3"]) == 0
@@ -312,6 +314,7 @@ def test_short_reproduce_writes_all_outputs(tmp_path, capsys):
     assert "RMS estimation error over the second half (seed 3)" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_monte_carlo_run_0_is_the_single_run_to_the_last_bit_and_reports_spread(tmp_path, capsys, monkeypatch):
     """--seed 3 --runs 2 runs seeds 3 and 4; its run 0 is --seed 3 alone, bit for bit; the
     summary gives mean ± std within 80 columns."""
@@ -350,6 +353,7 @@ def test_mean_and_spread_share_one_decimal_place(mean, spread, text):
     assert mean_and_spread(mean, spread) == text
 
 
+@pytest.mark.slow
 def test_reproduce_calugi_2002_writes_every_system_and_reports_theorem_2_1(tmp_path, capsys):
     out = tmp_path / "calugi"
     assert main(["reproduce", "calugi-2002-velocity-observer", "--out", str(out), "--duration", "2"]) == 0

@@ -165,6 +165,7 @@ def test_a_dp_vessel_as_a_ship_model_differs_from_it_by_c_nu_alone():
         Cybership.from_dp_vessel(DPVessel(np.array([[5e6, 1e5, 0.0], [1e5, 8e6, 0.0], [0.0, 0.0, 4e9]]), vessel.damping_matrix))
 
 
+@pytest.mark.slow
 def test_matched_scheme_converges_and_tracks_to_the_sampling_error():
     """Matched model, no noise: the observer error decays exponentially to rounding, and
     the tracking error after the transient is the controller's zero-order hold alone:

@@ -24,6 +24,7 @@ def test_there_are_examples_of_each_kind():
     assert len(campaigns) >= 3 and len(EXAMPLES) - len(campaigns) >= 6, [path.name for path in EXAMPLES]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda path: path.name)
 def test_each_example_runs_as_its_header_says(path):
     document, _ = read(path)  # as lookout reads it: plugin files relative to the example

@@ -79,6 +79,7 @@ def test_the_files_divergence_limit_overrides_the_plant_kinds_and_a_bad_signal_i
         compose(document)
 
 
+@pytest.mark.slow
 def test_the_first_failure_accumulated_in_the_scan_equals_the_one_reduced_from_the_records(tmp_path):
     """summarize (in the engine's scan, what campaigns use) and reduce (on records, what
     lookout run uses) give the same first failed record and cause."""
@@ -133,6 +134,7 @@ def test_a_replay_whose_estimates_go_non_finite_exits_3_naming_the_step(tmp_path
     assert bad.any() and f"(step {first}):" in err and "_hat is not finite; exit code 3" in err
 
 
+@pytest.mark.slow
 def test_lookout_run_warns_of_failing_conditions_a_limited_actuator_and_a_setpoint_after_the_end(tmp_path, capsys):
     """The PID at 40 rad/s: its sampled loop fails (spectral radius above 1) and it asks the
     thrusters for far more than they give; the file's second setpoint (600 s) is after a

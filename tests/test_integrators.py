@@ -256,6 +256,7 @@ def _run(case, steps, samples=None):
     return [np.asarray(leaf) for leaf in jax.tree.leaves(jax.jit(run)())]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(OBSERVER_CASES))
 def test_every_continuous_observer_predicts_through_the_loop_as_with_every_step_written_out(name, monkeypatch):
     """Past the unroll limit the steps run as a scan: the same numbers as written out
@@ -269,6 +270,7 @@ def test_every_continuous_observer_predicts_through_the_loop_as_with_every_step_
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13 * max(1.0, float(np.max(np.abs(b), initial=0.0))))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(OBSERVER_CASES))
 def test_every_continuous_observer_converges_with_its_method_order_as_steps_per_sample_grows(name):
     """One sample with the measurement valid, from the first: the state after it against

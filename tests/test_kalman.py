@@ -241,6 +241,7 @@ def _vessel_samples(scenario, samples, seed=3):
     return np.array(trajectory.measurement)[:samples], np.array(trajectory.applied)[:samples]
 
 
+@pytest.mark.slow
 def test_on_the_vessel_the_ekf_equals_filterpy_driven_with_the_same_model():
     import filterpy.kalman as filterpy  # a test extra (pyproject: dev): the test fails, not skips, without it
 

@@ -141,6 +141,7 @@ def test_a_60_s_position_outage(simulated, tmp_path):
     assert session.event_counts == {"outage": 1, "recovered": 1, "gated": 0, "source": 2, "refused": 0, "gap": 0}
 
 
+@pytest.mark.slow
 def test_live_over_udp(tmp_path):
     """A bounded sender on 127.0.0.1, the estimates back over UDP, latency measured, and
     the session stops by itself when the sender stops."""
@@ -194,6 +195,7 @@ def test_live_over_udp(tmp_path):
     assert 0 < latency[50] <= latency[99] < 0.5  # measured; at most one sample period of waiting plus the step
 
 
+@pytest.mark.slow
 def test_a_day_of_10_hz_data_in_flat_memory():
     """24 h of position (1 Hz) and heading (10 Hz) readings: the session's memory does
     not grow with the readings (resident set measured after 2 h and after 24 h)."""
@@ -704,6 +706,7 @@ def _wild_fix_arrivals() -> list[float]:
     return wild
 
 
+@pytest.mark.slow
 def test_a_kalman_filter_gates_the_example_logs_wild_fixes_on_nis():
     """Replaying the example log with the scenario's observer an EKF: the gate tests each
     reading's normalized innovation squared against the chi-square bound; the two wild
@@ -731,6 +734,7 @@ def _kalman(kind: str):
     return compose(document).scenario
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["ekf", "ukf"])
 def test_a_kalman_filters_innovation_statistics(kind):
     """innovation_statistics at the prior: nu = y - h(x) (heading wrapped) and S = H P H^T + R

@@ -383,6 +383,7 @@ def test_kind_pid_alone_composes_on_both_vessel_plants():
         assert np.max(pid.closed_loop_poles().real) < 0 and pid.sampled_spectral_radius(composed.scenario.sample_period) < 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("plant", ["dp-vessel", "cybership-ii"])
 def test_every_observer_of_the_shipped_benchmarks_drives_it(plant):
     """The closed-loop condition of each shipped benchmark composes with each of its

@@ -112,6 +112,7 @@ def lines(ax):
 # ---------------------------------------------------------------------------------- the command
 
 
+@pytest.mark.slow
 def test_the_figures_are_written_listed_and_sane_pngs(ran):
     summary = json.loads((ran / "summary.json").read_text())
     # Kim: estimates, a reference and a limited thrust; no thrusters (thrusters.png: tests/test_thrusters.py)
@@ -135,6 +136,7 @@ def test_a_folder_in_the_way_of_a_figure_is_refused_before_simulating(scenario, 
     assert [p.name for p in (tmp_path / "out").iterdir()] == ["estimates.png"]  # nothing simulated, nothing written
 
 
+@pytest.mark.slow
 def test_a_figure_that_does_not_apply_is_not_written_and_an_old_one_is_removed(ds, tmp_path):
     (tmp_path / "reference.png").write_bytes(b"from an earlier run")
     unforced = ds.drop_vars([name for name in ds.data_vars if name.endswith(("_desired", "_desired_rate", "_desired_acceleration"))])

@@ -87,6 +87,7 @@ def test_a_context_value_in_the_file_is_refused_at_its_line(tmp_path, table, key
     assert spec.composition.scenario.observer.plant_step == 0.1 and spec.composition.scenario.plant_step == 0.05
 
 
+@pytest.mark.slow
 def test_an_observer_built_for_another_sample_period_is_refused_with_both_periods():
     """The Python API: a Scenario whose observer was built for 0.5 s in a 0.1 s loop."""
     from lookout.observers.ekf import ExtendedKalmanFilter

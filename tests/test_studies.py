@@ -48,6 +48,7 @@ def test_toml_writer_round_trips_every_value_to_the_bit(tmp_path):
     assert "# a matrix" in text and text.startswith("# head")
 
 
+@pytest.mark.slow
 def test_a_scenario_file_written_by_the_reproduction_gives_its_numbers_exactly(tmp_path, capsys):
     scenario = tmp_path / "fs.toml"
     code, out, err = _run_cli(
@@ -475,6 +476,7 @@ def test_a_bad_campaign_spec_is_one_line_with_exit_code_2(changes, expected, tmp
         ),
     ],
 )
+@pytest.mark.slow
 def test_a_refused_array_of_any_size_is_one_short_line(table, expected, tmp_path, capsys):
     path = tmp_path / "big.toml"
     path.write_text(
@@ -530,6 +532,7 @@ def _assert_same_store(a: Path, b: Path) -> None:
     assert len(CampaignStore(a).done()) == len(CampaignStore(b).done())
 
 
+@pytest.mark.slow
 def test_the_store_holds_every_metric_of_every_run(reference_store, campaign_files):
     ds = CampaignStore(reference_store).open().load()
     assert dict(ds.sizes) == {"point": 8, "seed": 6, "kept_time": 30, "earth_axis": 2}
@@ -571,6 +574,7 @@ def test_without_trajectories_the_metrics_accumulate_in_the_scan_and_equal_the_r
         np.testing.assert_allclose(got[name].values, reference[name].values, rtol=1e-12, atol=0, err_msg=name)
 
 
+@pytest.mark.slow
 def test_a_campaign_killed_mid_way_resumes_to_the_uninterrupted_store(reference_store, campaign_files, tmp_path):
     folder, spec = campaign_files
     store = tmp_path / "killed.zarr"
@@ -717,6 +721,7 @@ def test_a_scheduler_address_without_a_port_blames_the_option(campaign_files, tm
     assert not (tmp_path / "s.zarr").exists()
 
 
+@pytest.mark.slow
 def test_an_unreachable_scheduler_blames_the_option_and_leaves_no_store(campaign_files, tmp_path):
     """In a process of its own: the client's event-loop thread stays out of the pytest worker."""
     folder, spec = campaign_files

@@ -69,6 +69,7 @@ def _expected(trajectory, limit):
     return {k: np.where(diverged, np.nan, v) for k, v in out.items()}, diverged
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", ["summarize", "reduce"])
 def test_metrics_equal_numpy_on_the_recorded_runs(kim, path):
     scenario, keys, trajectory = kim
@@ -99,6 +100,7 @@ def test_a_window_past_the_end_is_refused(kim):
         metric_module.reduce(trajectory, metric_module.resolve(NAMES[:1], scenario), after=200.0)
 
 
+@pytest.mark.slow
 def test_an_outage_silences_its_channels_and_its_metrics_equal_numpy():
     """A 60 s position outage (the sensor's outage_*): the position fixes are NaN from its
     start until its end, the heading is not; outage_drift and recovery_time equal NumPy's
