@@ -221,6 +221,7 @@ def test_continuous_projection_stops_outward_rates_at_a_bound():
 # The discrete form tends to the continuous one --------------------------------------------
 
 
+@pytest.mark.slow
 def test_discrete_form_converges_to_the_continuous_form_at_first_order():
     """theta known (theta_hat = m11, Gamma = 0), no noise, the same imperfect start.
 

@@ -55,6 +55,7 @@ def _lyapunov_along(scenario, trajectory):
     return np.asarray(jax.vmap(controller.lyapunov)(integral, y, estimate, reference))
 
 
+@pytest.mark.slow
 def test_noise_free_closed_loop_tracks_the_setpoint_and_v_does_not_increase():
     scenario = _noise_free_loop(_observer())
     trajectory = simulate(scenario, jax.random.key(0))

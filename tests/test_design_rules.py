@@ -61,6 +61,7 @@ def _procedure(ship, **start):
     )
 
 
+@pytest.mark.slow
 def test_the_wondergem_rule_gives_the_procedures_gains_for_the_plants_ship_and_runs():
     composition = compose(_wondergem_document())
     observer, controller = composition.scenario.observer, composition.scenario.controller

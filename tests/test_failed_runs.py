@@ -41,6 +41,7 @@ def _first_failure(ds: xr.Dataset, limit: float) -> int:
     return int(np.argmax(bad)) if bad.any() else -1
 
 
+@pytest.mark.slow
 def test_a_diverging_observer_makes_lookout_run_exit_3_naming_the_first_record_and_why(tmp_path, capsys):
     path = _diverging_file(tmp_path)
     code = main(["run", str(path), "--out", str(tmp_path / "out")])
@@ -59,6 +60,7 @@ def test_a_diverging_observer_makes_lookout_run_exit_3_naming_the_first_record_a
     assert f"exit code {DIVERGED_EXIT_CODE}" in out.err and "0/1 runs finite" in out.out
 
 
+@pytest.mark.slow
 def test_the_files_divergence_limit_overrides_the_plant_kinds_and_a_bad_signal_is_refused_at_its_key(tmp_path):
     path = _diverging_file(tmp_path, 'divergence = { signal = "position", limit = 1.0e6 }')
     spec = load(path)
@@ -93,6 +95,7 @@ def test_the_first_failure_accumulated_in_the_scan_equals_the_one_reduced_from_t
     np.testing.assert_array_equal(scanned["diverged_cause"], reduced["diverged_cause"])
 
 
+@pytest.mark.slow
 def test_a_run_that_holds_has_no_failure_and_a_limit_below_its_error_fails_it_at_the_first_record():
     spec = load(EXAMPLES / "luenberger-dp.toml")
     document = dict(spec.composition.document)

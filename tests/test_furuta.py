@@ -47,6 +47,7 @@ def test_the_derived_christoffel_c_is_the_printed_c_and_the_stick_condition_is_t
     assert float(MODEL.determinant(jnp.array([0.0, math.pi]))) == pytest.approx(a * b - g**2)
 
 
+@pytest.mark.slow
 def test_the_arm_sticks_below_tau_c_and_slips_above():
     hanging = PLANT.state([0.0, math.pi])
     for tau in (0.0, 0.02, -0.027):

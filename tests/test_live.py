@@ -62,6 +62,7 @@ def simulated(tmp_path_factory):
     return composition, ds, paths
 
 
+@pytest.mark.slow
 @pytest.mark.xdist_group("live replay")
 def test_replay_of_a_full_precision_log_equals_the_simulation(simulated):
     composition, ds, paths = simulated

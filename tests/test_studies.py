@@ -281,6 +281,7 @@ def test_campaign_points_are_the_grid_and_scale_multiplies_the_base(tmp_path, ca
         assert sorted(strata) == list(range(10))
 
 
+@pytest.mark.slow
 def test_an_axis_may_replace_a_component_and_sweep_a_model_error(tmp_path):
     """Kim's two observers of Fig. 8 in one campaign: an axis whose values are observer
     tables (the conventional one is the sliding-mode observer without its switching
