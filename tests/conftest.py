@@ -7,7 +7,9 @@ import sys
 # - the classic elemental emitters instead of the MLIR fusion emitters: 20 % less CPU
 #   (Kim's and Calugi's (2003) reproductions, 66 s against 81 s; docs/testing.md).
 # The CLI and benchmarks keep XLA's defaults. A value already in XLA_FLAGS wins.
-for _flag, _value in (("xla_backend_optimization_level", "0"), ("xla_cpu_use_fusion_emitters", "false")):
+import xla_emitters  # noqa: E402  (the emitter option, shared with the tests that run without it)
+
+for _flag, _value in (("xla_backend_optimization_level", "0"), (xla_emitters.FLAG, "false")):
     if _flag not in os.environ.get("XLA_FLAGS", ""):
         os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + f" --{_flag}={_value}").strip()
 

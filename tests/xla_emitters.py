@@ -15,7 +15,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-CLASSIC = "--xla_cpu_use_fusion_emitters=false"
+#: The XLA:CPU option, and its value with which the suite compiles (set in tests/conftest.py).
+FLAG = "xla_cpu_use_fusion_emitters"
+CLASSIC = f"--{FLAG}=false"
 
 
 def ran_with_fusion_emitters(nodeid: str) -> bool:
@@ -26,7 +28,7 @@ def ran_with_fusion_emitters(nodeid: str) -> bool:
     if CLASSIC not in flags:
         return False
     environment = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}
-    environment["XLA_FLAGS"] = flags.replace(CLASSIC, "--xla_cpu_use_fusion_emitters=true")
+    environment["XLA_FLAGS"] = flags.replace(CLASSIC, f"--{FLAG}=true")
     child = subprocess.run(
         [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:xdist", nodeid],
         cwd=Path(__file__).parent.parent,
