@@ -116,7 +116,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     # the parts that know no plant model
     ("parts", ("environment", "reference", "actuators", "io")),
     ("models", ("models",)),
-    ("sensors", ("sensors",)),
+    ("sensors", ("sensors", "sensing")),
     ("observers", ("observers",)),
     # the design and analysis code that checks observers (and the figures, which use it)
     ("analysis", ("analysis", "plotting")),

@@ -85,8 +85,8 @@ class Signal:
     angle: bool = False
 
     def __post_init__(self) -> None:
-        if not self.name.isidentifier():
-            raise ValueError(f"Signal name must be an identifier; got {self.name!r}")
+        if not all(part.isidentifier() for part in self.name.split(".")):
+            raise ValueError(f"Signal name must be an identifier, or identifiers joined by dots (a suite's sensor.signal); got {self.name!r}")
         if not self.units:
             raise ValueError(f"Signal {self.name!r} needs a unit ('1' if dimensionless)")
         if bool(self.labels) != (self.dim is not None):
@@ -263,6 +263,55 @@ class Sensor(eqx.Module):
         """:meth:`measure` at time ``t``, with the channels of an outage NaN."""
         y = self.measure(x, normals)
         return y if self.outage is None else jnp.where(self.outage.lost(t), jnp.nan, y)
+
+
+class KinematicSensor(Sensor):
+    """A sensor that measures the plant through its kinematics at the applied input,
+    and keeps a memory from sample to sample: a suite of position references, gyros,
+    an IMU and speed sensors, with their correlated errors and their failures.
+
+    The engine calls :meth:`read` at every sample with the plant's kinematics
+    (:func:`kinematics_of`: position, heading, velocities and accelerations, named) at
+    the input applied over the interval that ends at the sample, which channels are
+    due and the samples held so far; the sensor returns its memory and the whole
+    measurement (channels not due hold their value, or what a failure makes of it).
+    Its noise comes in one stream per member (:attr:`noise_streams`), so that adding
+    a member never changes another's draws.
+    """
+
+    #: ``(stream, count)`` per member: the engine draws ``count`` standard normals of
+    #: each stream and passes them end to end (their sum is :attr:`noise_size`).
+    noise_streams: eqx.AbstractVar[tuple[tuple[int, int], ...]]
+
+    @abc.abstractmethod
+    def initial_memory(self, kinematics: dict[str, Array]) -> Any:
+        """The memory before the first sample (a PyTree of arrays)."""
+
+    @abc.abstractmethod
+    def read(self, memory: Any, t: ArrayLike, kinematics: dict[str, Array], normals: Array, due: Array, held: Array) -> tuple[Any, Array]:
+        """``(memory, y)``: the measurement at ``t``; ``due`` per channel, ``held`` the
+        last measurement (the first sample passes every channel due)."""
+
+    @abc.abstractmethod
+    def expected(self, kinematics: dict[str, Array]) -> Array:
+        """The noise-free, fault-free measurement of every channel (a Kalman filter's h)."""
+
+    def measure(self, x: Any, normals: Array) -> Array:
+        raise TypeError("a kinematic sensor measures through the plant's kinematics (lookout.components.kinematics_of), not from the state alone")
+
+    def ideal(self, x: Any) -> Array:
+        raise TypeError("a kinematic sensor measures through the plant's kinematics (lookout.components.kinematics_of), not from the state alone")
+
+
+def kinematics_of(plant: "Plant", t: ArrayLike, x: Any, u: Array) -> dict[str, Array]:
+    """What a sensor can measure of ``plant`` at ``t`` in state ``x`` under the applied
+    input ``u``: ``plant.kinematics(t, x, u)``, a dict of named quantities (a vessel's ``position``,
+    ``heading``, ``velocity``, ``yaw_rate``, ``acceleration``, ``yaw_acceleration``, ...).
+    A ValueError names the plant when it has none."""
+    kinematics = getattr(plant, "kinematics", None)
+    if kinematics is None:
+        raise ValueError(f"plant {type(plant).__name__} gives no kinematics (position, heading, rates) for a sensor suite to measure")
+    return kinematics(t, x, u)
 
 
 class Observer(eqx.Module):

@@ -45,6 +45,8 @@ ROLES = (
     "parameters",
     "parametrization",
     "sensor",
+    "instrument",
+    "references",
     "observer",
     "controller",
     "reference",

@@ -9,6 +9,10 @@ contract, and neither needs the other. :mod:`lookout.models.vessel` re-exports t
 
 from __future__ import annotations
 
+from typing import Any
+
+import jax.numpy as jnp
+
 from lookout.components import BODY_FIXED, EARTH_FIXED, Layout, Signal
 
 #: The degrees of freedom, in the order of eta, nu and tau.
@@ -40,3 +44,41 @@ VESSEL_SIGNALS = (
 )
 #: Control forces and moment tau (body-fixed).
 VESSEL_INPUT = Layout((_body("force", "N", "thrust force"), Signal("moment", "N m", "thrust moment about the vertical axis", BODY_FIXED)))
+
+
+#: What a vessel's sensors can measure (:meth:`kinematics` of the vessel plants), by
+#: name: a GNSS receiver, a gyrocompass, a speed sensor and an IMU read these.
+VESSEL_KINEMATICS = (
+    "position",
+    "heading",
+    "velocity",
+    "yaw_rate",
+    "acceleration",
+    "yaw_acceleration",
+)
+
+
+def vessel_kinematics(eta: Any, wave: Any, nu: Any, nu_rate: Any) -> dict[str, Any]:
+    """The kinematics of a 3-DOF vessel at its reference point, from eta (m, m, rad),
+    the wave-induced motion eta_w, the body-fixed velocity nu = [u, v, r] and its time
+    derivative.
+
+    ``position`` (north, east) and ``heading`` are the total motion eta + eta_w (what a
+    GNSS antenna and a gyrocompass see; heading wrapped by the sensor), ``velocity``
+    (surge, sway) and ``yaw_rate`` the low-frequency nu; ``acceleration`` is the
+    inertial acceleration of the reference point in body axes,
+    ``[u' - r v, v' + r u]`` (the derivative of R(psi) [u, v] rotated back to the
+    body: what an accelerometer's horizontal axes feel), and ``yaw_acceleration`` r'.
+    The wave-frequency motion is a position-level model here, so the rates and
+    accelerations are those of the low-frequency motion.
+    """
+    total = eta + wave
+    r = nu[..., 2]
+    return {
+        "position": total[..., :2],
+        "heading": total[..., 2],
+        "velocity": nu[..., :2],
+        "yaw_rate": r,
+        "acceleration": nu_rate[..., :2] + r[..., None] * jnp.stack([-nu[..., 1], nu[..., 0]], axis=-1),
+        "yaw_acceleration": nu_rate[..., 2],
+    }

@@ -51,6 +51,7 @@ from lookout._math import matvec, rotate, rotate_transpose, rotation, ssa
 from lookout.components import DivergenceBound, Layout, Plant, Signal
 from lookout.declare import Part, Value, component, initial_values, register
 from lookout.models.vessel import VESSEL_INPUT, VESSEL_SIGNALS, DPVessel
+from lookout.vessel_signals import vessel_kinematics
 
 #: Wondergem et al. (2009), eq. (39).
 CYBERSHIP_M = np.array([[25.8, 0.0, 0.0], [0.0, 33.8, 1.0115], [0.0, 1.0115, 2.76]])
@@ -387,6 +388,11 @@ class CybershipPlant(Plant):
             Wave-induced motion eta_w (m, m, rad).
         """
         return CybershipState.build(0.0 if eta is None else eta, nu, wave)
+
+    def kinematics(self, t: ArrayLike, state: CybershipState, tau: Array) -> dict[str, Array]:
+        """What the ship's sensors measure at ``t`` under the applied ``tau``
+        (:func:`lookout.vessel_signals.vessel_kinematics`)."""
+        return vessel_kinematics(state.eta, state.wave, state.nu, self.ship.acceleration(state.nu, tau))
 
     def normalize(self, state: CybershipState) -> CybershipState:
         """Heading wrapped to [-pi, pi), as a compass reports it."""

@@ -31,6 +31,7 @@ from lookout.vessel_signals import DOF as DOF
 from lookout.vessel_signals import EARTH_AXES as EARTH_AXES
 from lookout.vessel_signals import VESSEL_INPUT as VESSEL_INPUT
 from lookout.vessel_signals import VESSEL_SIGNALS as VESSEL_SIGNALS
+from lookout.vessel_signals import vessel_kinematics
 
 #: Northern Clipper, Fossen & Strand (1999), eqs. (56)–(57) and Section 6.
 NORTHERN_CLIPPER_MASS = 4.591e6  # kg
@@ -327,6 +328,13 @@ class VesselPlant(Plant):
             Wave-model state [xi1, xi2] of eq. (11) (m s, m s, rad s, m, m, rad).
         """
         return VesselState.build(0.0 if eta is None else eta, nu, bias, wave_state)
+
+    def kinematics(self, t: ArrayLike, state: VesselState, tau: Array) -> dict[str, Array]:
+        """What the vessel's sensors measure at ``t`` under the applied ``tau``
+        (:func:`lookout.vessel_signals.vessel_kinematics`): the accelerations are those
+        of :meth:`vector_field` without its white noise."""
+        rates = self.vector_field(t, state, tau, jnp.zeros(self.noise_size))
+        return vessel_kinematics(state.eta, state.wave, state.nu, rates.nu)
 
     def normalize(self, state: VesselState) -> VesselState:
         """Heading wrapped to [-pi, pi), as a gyro compass reports it."""

@@ -65,7 +65,7 @@ if TYPE_CHECKING:
     from lookout.results import Trajectory
 
 #: The top-level keys of a composition.
-TOP_KEYS = ("plugins", "preset", "simulation", *registry.COMPONENT_ROLES)
+TOP_KEYS = ("plugins", "preset", "simulation", *registry.COMPONENT_ROLES, "sensors", "references")
 #: Components of which another component may hold a model of its own (a Kalman filter's
 #: ``[observer.plant]``): by default the composition's, else built from the table given.
 MODEL_ROLES = ("plant", "sensor")
@@ -622,7 +622,13 @@ def compose(document: dict) -> Composition:
     if not isinstance(simulation_table, dict):
         raise CompositionError(("simulation",), "must be a table")
     simulation = _validate(SimulationSettings, simulation_table, ("simulation",))
+    if "sensors" in document and "sensor" in document:
+        raise CompositionError(("sensors",), "give one [sensor] table or named [sensors.NAME] tables, not both")
+    if "references" in document and "sensors" not in document:
+        raise CompositionError(("references",), "combines the references of [sensors.NAME] tables, and the composition has none")
     for role in ("plant", "sensor", "observer"):
+        if role == "sensor" and "sensors" in document:
+            continue
         if role not in document:
             raise CompositionError(
                 (role,), f"missing table (a composition needs a plant, a sensor and an observer; `lookout components {role}` lists the kinds)"
@@ -633,6 +639,11 @@ def compose(document: dict) -> Composition:
     if plugins:
         normal["plugins"] = list(plugins)
     for role in registry.COMPONENT_ROLES:
+        if role == "sensor" and "sensors" in document:
+            built[role], normal["sensors"], normal["references"] = _suite(document, context, simulation.duration)
+            kinds[role] = context.kinds[role] = "suite"
+            context.add(built[role])
+            continue
         table = _table(document, role)
         built[role], normal[role] = build_part(role, table, (role,), context, defaults=role == "plant")
         kinds[role] = context.kinds[role] = normal[role]["kind"]
@@ -681,6 +692,55 @@ def compose(document: dict) -> Composition:
     else:
         normal["simulation"]["divergence"] = {"signal": bound.signal, "limit": bound.limit}
     return Composition(normal, simulation, scenario, kinds)
+
+
+def _suite(document: dict, context: _Context, duration: float) -> tuple[Any, dict, dict]:
+    """The :class:`~lookout.sensing.suite.SensorSuite` of the ``[sensors.NAME]`` tables
+    (each an instrument kind, with its ``[[sensors.NAME.failures]]``) and the
+    ``[references]`` combining stage: ``(suite, sensors spelled out, references spelled out)``."""
+    from lookout.sensing.failures import failure_from_table
+    from lookout.sensing.suite import SensorSuite
+
+    tables = document["sensors"]
+    if not isinstance(tables, dict) or not tables:
+        raise CompositionError(("sensors",), "must hold one table per sensor, [sensors.NAME] with its kind")
+    instruments, failures, normal = {}, {}, {}
+    for name, table in tables.items():
+        location: tuple = ("sensors", name)
+        if not name.isidentifier():
+            raise CompositionError(location, "a sensor's name must be an identifier (letters, digits and _, not starting with a digit)")
+        if not isinstance(table, dict):
+            raise CompositionError(location, f"must be a table with a kind; got {type(table).__name__}")
+        own = {key: value for key, value in table.items() if key != "failures"}
+        if "kind" not in own:
+            raise CompositionError(
+                location + ("kind",), f"missing key (one of {', '.join(registry.names('instrument'))}; `lookout components instrument` lists them)"
+            )
+        instruments[name], normal[name] = build_part("instrument", own, location, context)
+        listed = table.get("failures", [])
+        if not isinstance(listed, list):
+            raise CompositionError(location + ("failures",), "must be an array of tables, [[sensors.NAME.failures]] with a mode and a start")
+        built = []
+        for index, each in enumerate(listed):
+            try:
+                built.append(
+                    failure_from_table(
+                        each, instruments[name].signals, instruments[name].sample_period, location + ("failures", index), run_duration=duration
+                    )
+                )
+            except ParameterError as error:
+                raise CompositionError(error.location, one_line(error)) from None
+        failures[name] = built
+        if listed:
+            normal[name]["failures"] = copy.deepcopy(listed)
+    references, normal_references = build_part(
+        "references", document.get("references", {"kind": registry.default_kind("references")}), ("references",), context
+    )
+    try:
+        suite = SensorSuite(instruments, failures, references)
+    except ParameterError as error:
+        raise CompositionError(("sensors", *error.location[1:]), one_line(error)) from None
+    return suite, normal, normal_references
 
 
 def _divergence(simulation: SimulationSettings, plant, kind: str):

@@ -52,6 +52,10 @@ BUILTIN_MODULES = (
     "lookout.environment.disturbance",
     "lookout.models.parameters",
     "lookout.sensors",
+    "lookout.sensing.position",
+    "lookout.sensing.heading",
+    "lookout.sensing.motion",
+    "lookout.sensing.combining",
     "lookout.observers.passive",
     "lookout.observers.sliding_mode",
     "lookout.observers.earth_fixed",
@@ -94,6 +98,7 @@ DEFAULT_PART_KINDS = {
     "parameters": "model-fields",
     "parametrization": "inertia-entries",
     "layout": "supply-vessel",
+    "references": "weighted-mean",
 }
 #: Context parameters that are not components: filled by the composition by name.
 CONTEXT_NAMES = {

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, cast
+from typing import Any, NamedTuple, cast
 
 import equinox as eqx
 import jax
@@ -46,7 +46,7 @@ from jax.typing import ArrayLike
 
 from lookout._math import computed_once
 from lookout._random import standard_normal
-from lookout.components import ContinuousObserver, Plant
+from lookout.components import ContinuousObserver, KinematicSensor, Plant, kinematics_of
 from lookout.results import Trajectory
 from lookout.sim.integrators import INTEGRATORS
 from lookout.sim.memory import check_batch_memory
@@ -100,12 +100,20 @@ def _sensor_noise(scenario: Scenario, key: Array, k: Array, due: Array) -> Array
     run of a batch, so under ``vmap`` this stays a branch: with 1 Hz fixes and a
     10 Hz observer the sensor's numbers are hashed on one sample in ten.
     """
-    size = scenario.sensor.noise_size
-    return jax.lax.cond(
-        jnp.any(due),
-        lambda: standard_normal(key, k, size, stream=SENSOR_STREAM),
-        lambda: jnp.zeros(size),
-    )
+    sensor = scenario.sensor
+    size = sensor.noise_size
+    if isinstance(sensor, KinematicSensor):  # one stream per member: adding one never changes another's draws
+
+        def draw():
+            parts = [standard_normal(key, k, count, stream=stream) for stream, count in sensor.noise_streams]
+            return jnp.concatenate(parts) if parts else jnp.zeros(0)
+
+    else:
+
+        def draw():
+            return standard_normal(key, k, size, stream=SENSOR_STREAM)
+
+    return jax.lax.cond(jnp.any(due), draw, lambda: jnp.zeros(size))
 
 
 def _sample_time(scenario: Scenario, k):
@@ -119,10 +127,12 @@ def _realized_plant(scenario: Scenario, key: Array) -> Plant:
 
 def sample_measurements(
     scenario: Scenario, plant: Plant, state: Any, held: Array | None, t: ArrayLike, k: Array, key: Array
-) -> tuple[Array, dict[str, Array]]:
+) -> tuple[Any, dict[str, Array]]:
     """What sample k takes of the plant state ``state`` at time ``t``: the sensor
-    readings ``y_k`` (what the observer and the controller read, and the record's
-    measurement) and ``plant.variables(state)`` (the record's truth).
+    readings ``y_k`` (the record's measurement; the observer and the controller read
+    their channels of it) and ``plant.variables(state)`` (the record's truth). For a
+    :class:`~lookout.components.KinematicSensor` the readings come in a
+    :class:`SuiteCarry` with the sensor's memory.
 
     With ``observer_mode="sampled"`` each channel due at sample k (its period, in
     samples, divides k) takes a sample with the sensor's noise of sample k, and the
@@ -130,6 +140,8 @@ def sample_measurements(
     the initial sample is); with ``"continuous"``, the noise-free ``sensor.ideal(state)``.
     """
     sensor = scenario.sensor
+    if isinstance(sensor, KinematicSensor):
+        return _read_kinematic(scenario, plant, state, held, t, k, key), plant.variables(state)
     if scenario.observer_mode == "sampled":
         if held is None:
             y = sensor.sample(t, state, _sensor_noise(scenario, key, k, jnp.asarray(True)))
@@ -142,6 +154,39 @@ def sample_measurements(
     return y, plant.variables(state)
 
 
+class SuiteCarry(NamedTuple):
+    """What the engine carries for a :class:`~lookout.components.KinematicSensor`: its
+    last measurement, its memory, and the input applied over the interval that ends at
+    the next sample (the input under which its kinematics are taken)."""
+
+    measurement: Array
+    memory: Any
+    applied: Array
+
+
+def _read_kinematic(scenario: Scenario, plant: Plant, state: Any, held: Any, t: ArrayLike, k: Array, key: Array) -> SuiteCarry:
+    """Sample k of a kinematic sensor (every channel due at the first sample, ``held``
+    None): its kinematics under the input applied since the sample before."""
+    sensor = cast(KinematicSensor, scenario.sensor)
+    if held is None:
+        applied = jnp.zeros(plant.input_layout.size)
+        kinematics = kinematics_of(plant, t, state, applied)
+        held = SuiteCarry(jnp.full(sensor.measurement_layout.size, jnp.nan), sensor.initial_memory(kinematics), applied)
+        due = jnp.ones(sensor.measurement_layout.size, dtype=bool)
+    else:
+        kinematics = kinematics_of(plant, t, state, held.applied)
+        due = (k % jnp.asarray(scenario.sensor_steps)) == 0
+    memory, y = sensor.read(held.memory, t, kinematics, _sensor_noise(scenario, key, k, due), due, held.measurement)
+    return SuiteCarry(y, memory, held.applied)
+
+
+def _observed(scenario: Scenario, y: Any) -> Array:
+    """The channels of the measurement the observer (and the controller) read, by name."""
+    measurement = y.measurement if isinstance(y, SuiteCarry) else y
+    channels = scenario.observer_channels
+    return measurement if channels is None else measurement[jnp.asarray(channels)]
+
+
 def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
     """One sample period in the order of the module docstring; returns (carry, record)."""
     sensor, observer, reference, controller = scenario.sensor, scenario.observer, scenario.reference, scenario.controller
@@ -151,7 +196,8 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
     t = _sample_time(scenario, k)
     noise = _process_noise(scenario, key, k)
 
-    y, truth = sample_measurements(scenario, plant, state, held, t, k, key)
+    held, truth = sample_measurements(scenario, plant, state, held, t, k, key)
+    y = _observed(scenario, held)
     estimate_state = observer.update(estimate_state, t, y)
     estimate = observer.output(estimate_state, y)
     reference_noise = standard_normal(key, k, reference.noise_size, stream=REFERENCE_STREAM)
@@ -162,7 +208,10 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
     # in every kernel that reads it)
     actuator_state, applied, actuation = scenario.actuator.step(actuator_state, t, command, dt)
     applied = computed_once(applied)
-    record = (truth, estimate, y, reference_sample, command, applied, actuation)
+    if isinstance(held, SuiteCarry):
+        held = held._replace(applied=applied)
+    measured = held.measurement if isinstance(held, SuiteCarry) else held
+    record = (truth, estimate, measured, reference_sample, command, applied, actuation)
 
     if scenario.observer_mode == "sampled":
         estimate_state = observer.predict(estimate_state, t, y, applied, dt)
@@ -183,7 +232,7 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
 
         (state, estimate_state), _ = _static_scan(substep, (state, estimate_state), jnp.arange(substeps), substeps)
         estimate_state = cast(ContinuousObserver, observer).normalize(estimate_state)  # Scenario takes "continuous" with a ContinuousObserver only
-    return (plant.normalize(state), estimate_state, y, reference_state, control_state, actuator_state), record
+    return (plant.normalize(state), estimate_state, held, reference_state, control_state, actuator_state), record
 
 
 def initial_carry(scenario: Scenario, key: Array) -> tuple[Any, Any, Array, Any, Any, Any]:
@@ -196,11 +245,11 @@ def initial_carry(scenario: Scenario, key: Array) -> tuple[Any, Any, Array, Any,
     ``jit`` compile the segment a second time.
     """
     x0 = scenario.initial_state
-    y0, _ = sample_measurements(scenario, scenario.plant, x0, None, 0.0, jnp.asarray(0), key)
+    held, _ = sample_measurements(scenario, scenario.plant, x0, None, 0.0, jnp.asarray(0), key)
     carry = (
         x0,
-        scenario.observer.init(y0, scenario.initial_estimate),
-        y0,
+        scenario.observer.init(_observed(scenario, held), scenario.initial_estimate),
+        held,
         scenario.reference.init(),
         scenario.controller.init(),
         scenario.actuator.init(),

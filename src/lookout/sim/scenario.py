@@ -21,7 +21,19 @@ import numpy as np
 
 from lookout._random import MAX_COUNT
 from lookout._validation import FitError, ParameterError, is_concrete, key
-from lookout.components import Actuator, ContinuousObserver, Controller, Observer, Plant, Reference, Sensor, Signal
+from lookout.components import (
+    Actuator,
+    ContinuousObserver,
+    Controller,
+    KinematicSensor,
+    Layout,
+    Observer,
+    Plant,
+    Reference,
+    Sensor,
+    Signal,
+    kinematics_of,
+)
 from lookout.declare import kind_of
 from lookout.null_components import IdealActuator, NoReference
 from lookout.results import RecordSignals
@@ -154,6 +166,11 @@ class Scenario(eqx.Module):
             raise ParameterError(
                 "observer_mode", f"observer_mode 'continuous' needs a ContinuousObserver; observer {kind_of(self.observer)} is not one"
             )
+        if self.observer_mode == "continuous" and isinstance(self.sensor, KinematicSensor):
+            raise ParameterError(
+                "observer_mode",
+                f"observer_mode 'continuous' needs a sensor of the state alone; sensor {kind_of(self.sensor)} is a suite with a memory",
+            )
         substeps = _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
         if substeps * self.plant.noise_size > MAX_COUNT:  # the process noise of a sample is one draw
             most = MAX_COUNT // max(1, self.plant.noise_size)
@@ -199,6 +216,13 @@ class Scenario(eqx.Module):
         return tuple(_ratio("sensor", p, "sample_period", self.sample_period) for p in self.sensor.sample_period)
 
     @property
+    def observer_channels(self) -> tuple[int, ...] | None:
+        """The sensor's channels that the observer and the controller read, in the
+        order of the observer's measurement layout (its signals found by name); None
+        when the observer reads the sensor's measurement as it is."""
+        return observer_channels(self.sensor.measurement_layout, self.observer.measurement_layout)
+
+    @property
     def record_times(self) -> np.ndarray:
         """Times of the recorded samples (s), from their integer indices."""
         return np.arange(self.n_records) * self.record_every * self.sample_period
@@ -215,6 +239,19 @@ class Scenario(eqx.Module):
             input=self.plant.input_layout,
             actuation=tuple(self.actuator.output_signals),
         )
+
+
+def observer_channels(measured: Layout, needed: Layout) -> tuple[int, ...] | None:
+    """The channels of ``measured`` that make up ``needed``, signal by signal by name
+    (None when they are the same layout); a signal ``needed`` names that ``measured``
+    lacks is left out (the fit check refuses it first)."""
+    if measured.names == needed.names:
+        return None
+    starts, offset = {}, 0
+    for signal in measured.signals:
+        starts[signal.name] = offset
+        offset += signal.size
+    return tuple(starts[signal.name] + i for signal in needed.signals if signal.name in starts for i in range(signal.size))
 
 
 def _compare(part: str, other: str, what: str, got: dict, signals: tuple[Signal, ...]) -> None:
@@ -286,20 +323,18 @@ def _check_fit(scenario: Scenario) -> None:
     if not same_tree or [_shape_of(a) for a in jax.tree.leaves(derivative)] != [_shape_of(a) for a in jax.tree.leaves(x0)]:
         raise FitError(("plant", "initial_state"), "plant and initial_state disagree: plant.vector_field returns a state shaped unlike initial_state")
 
-    check_sensor_fit(sensor, x0)
-    y = jnp.zeros(sensor.measurement_layout.size)
-    measured = set(sensor.measurement_layout.names)
-    for name in observer.measurement_layout.names:
-        if name not in measured:
-            raise ParameterError(
-                "observer",
-                f"observer {kind_of(observer)} needs measurement {name}, which sensor {kind_of(sensor)} does not measure (it measures {', '.join(sensor.measurement_layout.names)})",
-            )
-    if observer.measurement_layout.names != sensor.measurement_layout.names:  # observers read y by position
-        raise ValueError(
-            f"observer {kind_of(observer)} reads the measurement ({', '.join(observer.measurement_layout.names)}), "
-            f"and sensor {kind_of(sensor)} gives ({', '.join(sensor.measurement_layout.names)}): a sensor of exactly these channels is needed"
+    check_sensor_fit(sensor, x0, plant)
+    # the observer reads the signals it declares, found by name in the sensor's measurement
+    measured_signals = {signal.name: signal for signal in sensor.measurement_layout.signals}
+    missing = [name for name in observer.measurement_layout.names if name not in measured_signals]
+    if missing:
+        raise ParameterError(
+            "observer",
+            f"observer {kind_of(observer)} needs measurement {', '.join(missing)}, which sensor {kind_of(sensor)} does not measure "
+            f"(it measures {', '.join(sensor.measurement_layout.names)})",
         )
+    y = jnp.zeros(observer.measurement_layout.size)
+    measured = set(observer.measurement_layout.names)
 
     state = _evaluate(("observer", "initial_estimate"), observer.init, y, scenario.initial_estimate)
     estimate = _evaluate(("observer", "sensor"), lambda s: observer.output(observer.update(s, 0.0, y), y), state)
@@ -317,6 +352,14 @@ def _check_fit(scenario: Scenario) -> None:
                 ("observer", "plant"),
                 f"observer and plant disagree: the estimate {signal.name!r} is {signal.shape} in {signal.units} over {signal.labels}, "
                 f"the plant's is {truth_signal.shape} in {truth_signal.units} over {truth_signal.labels}",
+            )
+    for signal in observer.measurement_layout.signals:
+        given = measured_signals[signal.name]
+        if (given.shape, given.units) != (signal.shape, signal.units):
+            raise FitError(
+                ("observer", "sensor"),
+                f"observer and sensor disagree: the observer reads {signal.name!r} as {signal.shape} in {signal.units}, "
+                f"the sensor measures it as {given.shape} in {given.units}",
             )
     inputs = set(layout.names)
     for name in observer.input_layout.names:
@@ -359,11 +402,24 @@ def _check_fit(scenario: Scenario) -> None:
         )
 
 
-def check_sensor_fit(sensor: Sensor, state: Any) -> None:
+def check_sensor_fit(sensor: Sensor, state: Any, plant: Plant | None = None) -> None:
     """Check with ``jax.eval_shape`` that ``sensor`` measures a plant whose state is
     ``state`` (a state or its ``jax.eval_shape``): a :class:`FitError` of the sensor
-    and the plant otherwise (the check :func:`check_fit` makes of a scenario's)."""
-    y = _evaluate(("sensor", "plant"), lambda x: sensor.measure(x, jnp.zeros(sensor.noise_size)), state)
+    and the plant otherwise (the check :func:`check_fit` makes of a scenario's). A
+    :class:`~lookout.components.KinematicSensor` measures ``plant``'s kinematics."""
+    if isinstance(sensor, KinematicSensor):
+        if plant is None or getattr(plant, "kinematics", None) is None:
+            raise FitError(("sensor", "plant"), f"sensor {kind_of(sensor)} measures a plant's kinematics, and plant {kind_of(plant)} gives none")
+        size = sensor.measurement_layout.size
+
+        def read(x):
+            kinematics = kinematics_of(plant, 0.0, x, jnp.zeros(plant.input_layout.size))
+            memory = sensor.initial_memory(kinematics)
+            return sensor.read(memory, 0.0, kinematics, jnp.zeros(sensor.noise_size), jnp.ones(size, dtype=bool), jnp.zeros(size))[1]
+
+        y = _evaluate(("sensor", "plant"), read, state)
+    else:
+        y = _evaluate(("sensor", "plant"), lambda x: sensor.measure(x, jnp.zeros(sensor.noise_size)), state)
     if _shape_of(y) != (sensor.measurement_layout.size,):
         raise FitError(
             ("sensor", "plant"),

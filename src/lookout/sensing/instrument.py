@@ -1,0 +1,130 @@
+"""What every member of a sensor suite provides: named channels sampled at one rate
+from the plant's kinematics, with white noise the suite's failures can act on.
+
+An instrument is one device: a GNSS receiver, a gyrocompass, an IMU. It measures the
+kinematics of a vessel (:func:`lookout.vessel_signals.vessel_kinematics`: position,
+heading, velocity, yaw rate, acceleration) at its lever arm, and may carry a memory
+of its own (a Gauss–Markov error). A :class:`~lookout.sensing.suite.SensorSuite`
+names its instruments, prefixes their channels with the name (``dgnss1.measured_position``),
+holds their samples between their sampling instants and applies their failures.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from typing import Any, ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+import numpy.typing as npt
+from jax import Array
+
+from lookout import _validation as check
+from lookout._math import rotation
+from lookout.components import Signal
+
+#: What a position reference contributes to a combining stage, what a heading
+#: reference does, and what an instrument that is neither does.
+POSITION, HEADING, OTHER = "position", "heading", "other"
+
+
+class Instrument(eqx.Module):
+    """One device of a sensor suite (abstract).
+
+    Attributes
+    ----------
+    signals : tuple of Signal
+        Its channels, unprefixed (``measured_position``), in order.
+    sample_period : float
+        Seconds between its samples (static: fixes the loop's structure).
+    noise_count : int
+        Standard normals it draws per sample (static).
+    provides : str
+        :data:`POSITION`, :data:`HEADING` or :data:`OTHER`: what a combining stage takes of it.
+    """
+
+    signals: eqx.AbstractVar[tuple[Signal, ...]]
+    sample_period: eqx.AbstractVar[float]
+    noise_count: eqx.AbstractVar[int]
+    provides: ClassVar[str] = OTHER
+
+    @property
+    def size(self) -> int:
+        """Number of channels."""
+        return sum(signal.size for signal in self.signals)
+
+    @abc.abstractmethod
+    def initial_memory(self, kinematics: dict[str, Array]) -> Any:
+        """The instrument's own memory before its first sample (``()`` for none)."""
+
+    @abc.abstractmethod
+    def emit(self, memory: Any, kinematics: dict[str, Array], normals: Array) -> tuple[Any, Array, Array]:
+        """``(memory, value, white)``: one sample is ``value + white``, ``white`` the
+        white measurement noise (a ``noise`` failure scales it), ``value`` everything
+        else (the kinematics at the lever arm and any slowly varying error)."""
+
+    @abc.abstractmethod
+    def expected(self, kinematics: dict[str, Array]) -> Array:
+        """The noise-free, error-free sample (a Kalman filter's h)."""
+
+    @abc.abstractmethod
+    def noise_std(self) -> Array:
+        """The standard deviation of each channel's white noise, in its units (a
+        Kalman filter's R, the weights of a combining stage)."""
+
+    def angles(self) -> tuple[bool, ...]:
+        """Per channel: whether it is an angle (wrapped to [-pi, pi))."""
+        return tuple(signal.angle for signal in self.signals for _ in range(signal.size))
+
+
+def lever_arm_vector(name: str, value: npt.ArrayLike) -> np.ndarray:
+    """A lever arm ``[x, y]`` (m, body-fixed: forward, starboard) from a vessel's
+    reference point, checked (finite, two entries)."""
+    arm = np.asarray(value, dtype=float)
+    if arm.shape != (2,) or not np.all(np.isfinite(arm)):
+        raise check.ParameterError(name, f"{name} must be two finite numbers [x, y] (m, body-fixed, forward and starboard); got {check.short(value)}")
+    return arm
+
+
+def at_lever_arm(position: Array, heading: Array, arm: Array) -> Array:
+    """Where a point at the body-fixed ``arm`` is, Earth-fixed: p + R(psi) r."""
+    return position + rotation(heading)[:2, :2] @ arm
+
+
+def period_value(name: str, value: float) -> float:
+    """A sample period (s): finite and > 0."""
+    number = float(value)
+    if not (math.isfinite(number) and number > 0):
+        raise check.ParameterError(name, f"{name} must be a finite number of seconds > 0; got {value}")
+    return number
+
+
+def std_value(name: str, value: npt.ArrayLike, size: int) -> Array:
+    """A standard deviation per channel (one number for all, or ``size``), >= 0."""
+    std = np.broadcast_to(np.asarray(value, dtype=float), (size,)) if np.ndim(value) == 0 else np.asarray(value, dtype=float)
+    if std.shape != (size,) or not (np.all(np.isfinite(std)) and np.all(std >= 0)):
+        raise check.ParameterError(name, f"{name} must be {size} finite numbers >= 0 (or one for all); got {check.short(value)}")
+    return jnp.asarray(std)
+
+
+class GaussMarkovError(eqx.Module):
+    """A first-order Gauss–Markov error e' = -e / T + w, sampled exactly at the
+    instrument's rate: ``e_{k+1} = a e_k + sigma sqrt(1 - a^2) n_k``, ``a = exp(-h/T)``,
+    with stationary standard deviation ``sigma`` (a GNSS receiver's multipath and
+    atmospheric error, a gyrocompass's slow error). It starts at zero (a receiver
+    just locked on) and reaches its stationary spread within a few time constants."""
+
+    std: Array
+    time_constant: Array
+    step: float = eqx.field(static=True)
+
+    def advance(self, error: Array, normals: Array) -> Array:
+        a = jnp.exp(-self.step / self.time_constant)
+        return a * error + self.std * jnp.sqrt(1.0 - a * a) * normals
+
+
+def gauss_markov(name: str, std: npt.ArrayLike, time_constant: float, step: float, size: int) -> GaussMarkovError:
+    """A checked :class:`GaussMarkovError` of ``size`` channels (``name`` prefixes the keys)."""
+    return GaussMarkovError(std_value(f"{name}_std", std, size), jnp.asarray(period_value(f"{name}_time_constant", time_constant)), float(step))

@@ -1,0 +1,233 @@
+"""Motion sensors: an IMU (or an MRU's horizontal channels), GNSS speed and course over
+ground, and a speed log.
+
+The accelerometers of an IMU at a body-fixed lever arm ``r`` feel the inertial
+acceleration of that point in body axes, ``a + r' x r + r x (r x r)`` of the reference
+point's acceleration ``a`` (:func:`lookout.vessel_signals.vessel_kinematics`), which in
+the horizontal plane with yaw rate ``w`` is ``a + w' [-r_y, r_x] - w^2 [r_x, r_y]``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, final
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy.typing as npt
+from jax import Array
+from jax.typing import ArrayLike
+
+from lookout import _validation as check
+from lookout._math import rotation
+from lookout.components import BODY_FIXED, EARTH_FIXED, Signal
+from lookout.declare import NON_NEGATIVE, POSITIVE, Value, component
+from lookout.sensing.instrument import Instrument, lever_arm_vector, period_value, std_value
+from lookout.vessel_signals import BODY_AXES
+
+SPECIFIC_FORCE = Signal("measured_specific_force", "m/s2", "measured specific force (accelerometers)", BODY_FIXED, BODY_AXES, "body_axis")
+ANGULAR_RATE = Signal("measured_yaw_rate", "rad/s", "measured yaw rate (rate gyro)", BODY_FIXED)
+SPEED_OVER_GROUND = Signal("measured_speed_over_ground", "m/s", "measured speed over ground")
+COURSE_OVER_GROUND = Signal("measured_course_over_ground", "rad", "measured course over ground", EARTH_FIXED, angle=True)
+WATER_VELOCITY = Signal("measured_water_velocity", "m/s", "measured velocity through the water (speed log)", BODY_FIXED, BODY_AXES, "body_axis")
+
+LEVER_ARM = Value(
+    "lever_arm", "array", "Body-fixed position [x, y] of the sensor from the vessel's reference point (m).", shape="(2,)", broadcast=False
+)
+
+
+def _velocity_at(kinematics: dict[str, Array], arm: Array) -> Array:
+    """The body-fixed velocity of the point at ``arm``: v + w x r."""
+    r = kinematics["yaw_rate"]
+    return kinematics["velocity"] + r * jnp.stack([-arm[1], arm[0]])
+
+
+@component(
+    "instrument",
+    "imu",
+    summary="An IMU (or an MRU's horizontal channels): specific force and yaw rate in body axes, with constant biases and white noise.",
+    parameters=(
+        LEVER_ARM,
+        Value("accelerometer_std", "float", "Standard deviation of each accelerometer's white noise (m/s2).", range=NON_NEGATIVE),
+        Value("gyro_std", "float", "Standard deviation of the rate gyro's white noise (rad/s).", range=NON_NEGATIVE),
+        Value("accelerometer_bias", "array", "Constant bias of the accelerometers [surge, sway] (m/s2).", shape="(2,)"),
+        Value("gyro_bias", "float", "Constant bias of the rate gyro (rad/s)."),
+        Value("sample_period", "float", "Seconds between samples (s).", range=POSITIVE),
+    ),
+)
+@final
+class InertialUnit(Instrument):
+    """An IMU: the specific force (surge, sway) and the yaw rate in body axes at its lever
+    arm, plus constant biases and white noise. In the horizontal plane gravity does not
+    enter, so the specific force is the inertial acceleration of the point.
+
+    Parameters
+    ----------
+    lever_arm : array_like, shape (2,)
+        Body-fixed position [x, y] of the sensor from the vessel's reference point (m).
+    accelerometer_std : float, non-negative
+        Standard deviation of each accelerometer's white noise (m/s2).
+    gyro_std : float, non-negative
+        Standard deviation of the rate gyro's white noise (rad/s).
+    accelerometer_bias : array_like, shape (2,)
+        Constant bias of the accelerometers [surge, sway] (m/s2).
+    gyro_bias : float
+        Constant bias of the rate gyro (rad/s).
+    sample_period : float, positive
+        Seconds between samples (s).
+    """
+
+    lever_arm: Array
+    accelerometer_std: Array
+    gyro_std: Array
+    bias: Array
+    sample_period: float = eqx.field(static=True)
+    signals: tuple[Signal, ...] = eqx.field(static=True, default=(SPECIFIC_FORCE, ANGULAR_RATE), kw_only=True)
+    noise_count: int = eqx.field(static=True, default=3, kw_only=True)
+
+    def __init__(
+        self,
+        lever_arm: npt.ArrayLike = (0.0, 0.0),
+        accelerometer_std: float = 0.01,
+        gyro_std: float = 0.001,
+        accelerometer_bias: npt.ArrayLike = (0.0, 0.0),
+        gyro_bias: float = 0.0,
+        sample_period: float = 0.1,
+    ):
+        self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
+        check.positive("accelerometer_std", accelerometer_std, allow_zero=True)
+        check.positive("gyro_std", gyro_std, allow_zero=True)
+        self.accelerometer_std = jnp.asarray(float(accelerometer_std))
+        self.gyro_std = jnp.asarray(float(gyro_std))
+        bias = lever_arm_vector("accelerometer_bias", accelerometer_bias)
+        check.finite("gyro_bias", gyro_bias)
+        self.bias = jnp.asarray([bias[0], bias[1], float(gyro_bias)])
+        self.sample_period = period_value("sample_period", sample_period)
+
+    def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()]:
+        return ()
+
+    def emit(self, memory: Any, kinematics: dict[str, Array], normals: Array) -> tuple[Any, Array, Array]:
+        return memory, self.expected(kinematics) + self.bias, self.noise_std() * normals[:3]
+
+    def expected(self, kinematics: dict[str, Array]) -> Array:
+        w, w_rate, (x, y) = kinematics["yaw_rate"], kinematics["yaw_acceleration"], self.lever_arm
+        acceleration = kinematics["acceleration"] + w_rate * jnp.stack([-y, x]) - w**2 * self.lever_arm
+        return jnp.concatenate([acceleration, jnp.reshape(w, (1,))])
+
+    def noise_std(self) -> Array:
+        return jnp.stack([self.accelerometer_std, self.accelerometer_std, self.gyro_std])
+
+
+@component(
+    "instrument",
+    "gnss-velocity",
+    summary="GNSS speed and course over ground of the antenna at a lever arm.",
+    parameters=(
+        LEVER_ARM,
+        Value("speed_std", "float", "Standard deviation of the speed's white noise (m/s).", range=NON_NEGATIVE),
+        Value("course_std", "float", "Standard deviation of the course's white noise (rad).", range=NON_NEGATIVE),
+        Value("sample_period", "float", "Seconds between samples (s).", range=POSITIVE),
+    ),
+)
+@final
+class GnssVelocity(Instrument):
+    """GNSS speed over ground |v_t| and course over ground atan2(v_east, v_north) of the
+    antenna at its lever arm (v_t = R(psi) (v + w x r)), each with white noise; the
+    course is wrapped to [-pi, pi) and is meaningless at rest, as a receiver's is.
+
+    Parameters
+    ----------
+    lever_arm : array_like, shape (2,)
+        Body-fixed position [x, y] of the sensor from the vessel's reference point (m).
+    speed_std : float, non-negative
+        Standard deviation of the speed's white noise (m/s).
+    course_std : float, non-negative
+        Standard deviation of the course's white noise (rad).
+    sample_period : float, positive
+        Seconds between samples (s).
+    """
+
+    lever_arm: Array
+    speed_std: Array
+    course_std: Array
+    sample_period: float = eqx.field(static=True)
+    signals: tuple[Signal, ...] = eqx.field(static=True, default=(SPEED_OVER_GROUND, COURSE_OVER_GROUND), kw_only=True)
+    noise_count: int = eqx.field(static=True, default=2, kw_only=True)
+
+    def __init__(self, lever_arm: npt.ArrayLike = (0.0, 0.0), speed_std: float = 0.05, course_std: float = 0.02, sample_period: float = 1.0):
+        self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
+        check.positive("speed_std", speed_std, allow_zero=True)
+        check.positive("course_std", course_std, allow_zero=True)
+        self.speed_std = jnp.asarray(float(speed_std))
+        self.course_std = jnp.asarray(float(course_std))
+        self.sample_period = period_value("sample_period", sample_period)
+
+    def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()]:
+        return ()
+
+    def emit(self, memory: Any, kinematics: dict[str, Array], normals: Array) -> tuple[Any, Array, Array]:
+        return memory, self.expected(kinematics), self.noise_std() * normals[:2]
+
+    def expected(self, kinematics: dict[str, Array]) -> Array:
+        earth = rotation(kinematics["heading"])[:2, :2] @ _velocity_at(kinematics, self.lever_arm)
+        # the gradient of a norm at 0 is NaN: the speed through the squared norm kept off 0
+        squared = jnp.sum(earth**2)
+        speed = jnp.where(squared > 0, jnp.sqrt(jnp.where(squared > 0, squared, 1.0)), 0.0)
+        return jnp.stack([speed, jnp.arctan2(earth[1], earth[0])])
+
+    def noise_std(self) -> Array:
+        return jnp.stack([self.speed_std, self.course_std])
+
+
+@component(
+    "instrument",
+    "speed-log",
+    summary="A speed log (Doppler or electromagnetic): the velocity through the water in body axes at a lever arm.",
+    parameters=(
+        LEVER_ARM,
+        Value("noise_std", "array", "Standard deviation of the white noise [surge, sway] (m/s).", shape="(2,)", range=NON_NEGATIVE),
+        Value("sample_period", "float", "Seconds between samples (s).", range=POSITIVE),
+    ),
+)
+@final
+class SpeedLog(Instrument):
+    """A speed log: the velocity of its point through the water in body axes,
+    ``v + w x r`` plus white noise. The plant models have no current (the environment
+    enters as the bias force), so the velocity through the water is the low-frequency
+    velocity over ground.
+
+    Parameters
+    ----------
+    lever_arm : array_like, shape (2,)
+        Body-fixed position [x, y] of the sensor from the vessel's reference point (m).
+    noise_std : array_like, shape (2,)
+        Standard deviation of the white noise [surge, sway] (m/s).
+    sample_period : float, positive
+        Seconds between samples (s).
+    """
+
+    lever_arm: Array
+    noise: Array
+    sample_period: float = eqx.field(static=True)
+    signals: tuple[Signal, ...] = eqx.field(static=True, default=(WATER_VELOCITY,), kw_only=True)
+    noise_count: int = eqx.field(static=True, default=2, kw_only=True)
+
+    def __init__(self, lever_arm: npt.ArrayLike = (0.0, 0.0), noise_std: ArrayLike = 0.05, sample_period: float = 1.0):
+        self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
+        self.noise = std_value("noise_std", noise_std, 2)
+        self.sample_period = period_value("sample_period", sample_period)
+
+    def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()]:
+        return ()
+
+    def emit(self, memory: Any, kinematics: dict[str, Array], normals: Array) -> tuple[Any, Array, Array]:
+        return memory, self.expected(kinematics), self.noise * normals[:2]
+
+    def expected(self, kinematics: dict[str, Array]) -> Array:
+        return _velocity_at(kinematics, self.lever_arm)
+
+    def noise_std(self) -> Array:
+        return self.noise
+
+
+__all__ = ["GnssVelocity", "InertialUnit", "SpeedLog"]
