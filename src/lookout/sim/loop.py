@@ -226,7 +226,7 @@ def _sample(scenario: Scenario, plant: Plant, carry, k: Array, key: Array):
         def substep(pair, j):
             def field(s, z):
                 x, xhat = z
-                return plant.vector_field(s, x, applied, noise[j]), observer.vector_field(s, xhat, sensor.ideal(x), applied)
+                return plant.vector_field(s, x, applied, noise[j]), observer.vector_field(s, xhat, _observed(scenario, sensor.ideal(x)), applied)
 
             return integrate(field, (k * substeps + j) * h, pair, h), None
 
