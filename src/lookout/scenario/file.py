@@ -103,6 +103,18 @@ def composition_comments(document: dict) -> dict[str, str]:
         table = document.get(role)
         if isinstance(table, dict):
             _table_comments(role, table, role, comments)
+    sensors = document.get("sensors")
+    if isinstance(sensors, dict):
+        comments["sensors"] = "the sensor suite: one table per sensor, [sensors.NAME], its channels recorded as NAME.signal"
+        for name, table in sensors.items():
+            if isinstance(table, dict):
+                _table_comments("instrument", table, f"sensors.{name}", comments)
+                comments[f"sensors.{name}"] = f"sensor {name}: {comments.get(f'sensors.{name}', 'an instrument').partition(': ')[2]}"
+                if "failures" in table:
+                    comments[f"sensors.{name}.failures"] = "its failures: mode, start, duration and the mode's keys (docs/sensors.md)"
+    if isinstance(document.get("references"), dict):
+        _table_comments("references", document["references"], "references", comments)
+        comments["references"] = "the stage that combines the references into the measured_position and measured_heading the observer reads"
     return comments
 
 
