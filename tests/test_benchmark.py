@@ -633,7 +633,7 @@ def _replace(old: str, new: str):
             [],
             "",
             _replace('"sensor.outage_duration" = 20.0', '"sensor.outage_duration" = 20.0, "simulation.seed" = 3'),
-            "conditions[1].changes: 'simulation.seed': the benchmark sets it (the spec's seed); a condition cannot change it",
+            "conditions[1].changes (line 39): 'simulation.seed': the benchmark sets it (the spec's seed); a condition cannot change it",
         ),
         (
             [],

@@ -119,11 +119,13 @@ def key_line(text: str, location: tuple) -> int | None:
     """The line (1-based) where the key at ``location`` (a path like
     ``("settings", "noise_std", 0)``) is set in ``text``, if it can be found.
 
-    The table headers (``[settings.vessel]``) narrow the search to the right table;
-    dotted keys and inline tables are not followed (then None, and the message
-    names the key alone).
+    The table headers (``[settings.vessel]``) narrow the search to the right table,
+    and an index followed by a key names an element of an array of tables
+    (``("sensors", "dgnss2", "failures", 1, "start")``: under the second
+    ``[[sensors.dgnss2.failures]]``); dotted keys and inline tables are not followed
+    (then the nearest enclosing key or table that is, or None).
     """
-    names = [part for part in location if isinstance(part, str)]
+    names = [part for index, part in enumerate(location) if isinstance(part, str) or any(isinstance(p, str) for p in location[index + 1 :])]
     while names:  # the key itself, else the nearest enclosing key that is set on a line
         line = _key_line(text, names)
         if line is not None:
@@ -132,18 +134,29 @@ def key_line(text: str, location: tuple) -> int | None:
     return None
 
 
-def _key_line(text: str, names: list[str]) -> int | None:
+def _key_line(text: str, names: list) -> int | None:
     *tables, key = names
-    current: list[str] = []
-    pattern = re.compile(rf"^\s*(\"?){re.escape(key)}\1\s*=")
+    current: list = []
+    elements: dict[tuple, int] = {}  # array of tables -> elements seen so far
+    pattern = re.compile(rf"^\s*(\"?){re.escape(key)}\1\s*=") if isinstance(key, str) else None
     for number, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
-        header = re.match(r"^\[\s*([^\[\]]+?)\s*\]$", stripped)
+        array = re.match(r"^\[\[\s*([^\[\]]+?)\s*\]\]$", stripped)
+        header = array or re.match(r"^\[\s*([^\[\]]+?)\s*\]$", stripped)
         if header:
-            current = [part.strip().strip('"') for part in header.group(1).split(".")]
+            parts = [part.strip().strip('"') for part in header.group(1).split(".")]
+            if array:
+                elements[tuple(parts)] = elements.get(tuple(parts), 0) + 1
+            # the element of each array of tables the header is in (or is), by its index
+            current = []
+            for depth in range(len(parts)):
+                current.append(parts[depth])
+                seen = elements.get(tuple(parts[: depth + 1]))
+                if seen is not None and (array or depth < len(parts) - 1):
+                    current.append(seen - 1)
             if current == names:  # the key is a table: its header
                 return number
             continue
-        if current == tables and pattern.match(line):
+        if pattern is not None and current == tables and pattern.match(line):
             return number
     return None

@@ -640,7 +640,7 @@ def compose(document: dict) -> Composition:
         normal["plugins"] = list(plugins)
     for role in registry.COMPONENT_ROLES:
         if role == "sensor" and "sensors" in document:
-            built[role], normal["sensors"], normal["references"] = _suite(document, context, simulation.duration)
+            built[role], normal["sensors"], normal["references"] = _suite(document, context, simulation.duration, simulation.sample_period)
             kinds[role] = context.kinds[role] = "suite"
             context.add(built[role])
             continue
@@ -694,12 +694,13 @@ def compose(document: dict) -> Composition:
     return Composition(normal, simulation, scenario, kinds)
 
 
-def _suite(document: dict, context: _Context, duration: float) -> tuple[Any, dict, dict]:
+def _suite(document: dict, context: _Context, duration: float, sample_period: float) -> tuple[Any, dict, dict]:
     """The :class:`~lookout.sensing.suite.SensorSuite` of the ``[sensors.NAME]`` tables
     (each an instrument kind, with its ``[[sensors.NAME.failures]]``) and the
     ``[references]`` combining stage: ``(suite, sensors spelled out, references spelled out)``."""
     from lookout.sensing.failures import failure_from_table
     from lookout.sensing.suite import SensorSuite
+    from lookout.sim import integer_ratio
 
     tables = document["sensors"]
     if not isinstance(tables, dict) or not tables:
@@ -717,6 +718,12 @@ def _suite(document: dict, context: _Context, duration: float) -> tuple[Any, dic
                 location + ("kind",), f"missing key (one of {', '.join(registry.names('instrument'))}; `lookout components instrument` lists them)"
             )
         instruments[name], normal[name] = build_part("instrument", own, location, context)
+        period = instruments[name].sample_period
+        if integer_ratio(period, sample_period) is None:  # blamed here, at the sensor's key
+            raise CompositionError(
+                location + ("sample_period",),
+                f"sample_period ({period:g} s) must be an integer multiple of the simulation's sample_period ({sample_period:g} s)",
+            )
         listed = table.get("failures", [])
         if not isinstance(listed, list):
             raise CompositionError(location + ("failures",), "must be an array of tables, [[sensors.NAME.failures]] with a mode and a start")

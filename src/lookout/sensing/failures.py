@@ -132,7 +132,8 @@ def _number(location: tuple, value: Any, *, positive: bool = False, allow_inf: b
     number = float(value)
     if math.isnan(number) or (math.isinf(number) and not allow_inf) or number < 0 or (positive and number == 0):
         bound = "> 0" if positive else ">= 0"
-        raise check.ParameterError(location, f"{name} must be a finite number {bound}; got {value}")
+        what = f"a number {bound} (inf: to the run's end)" if allow_inf else f"a finite number {bound}"
+        raise check.ParameterError(location, f"{name} must be {what}; got {value}")
     return number
 
 

@@ -11,7 +11,8 @@ name; a Kalman filter may read every instrument's channels.
 At a sample where an instrument is due, the suite takes ``value + white`` of it
 (:meth:`~lookout.sensing.instrument.Instrument.emit`), applies its failures in
 order, wraps its angles, and holds the result until its next sample; the combined
-channels are taken when any instrument they combine is due.
+channels are taken when any instrument they combine is due, from the instruments in
+the order of their names (so that the order of the record changes none of their bits).
 
 Noise. Instrument ``NAME`` draws its normals (its own and its failures') from a
 stream of its own, numbered from the name (:func:`noise_stream`): adding, removing
@@ -182,7 +183,10 @@ class SensorSuite(KinematicSensor):
             combining = self.combining
             assert combining is not None  # combined_signals is empty without a stage
             before = held[channel : channel + combined_size]
-            combined = combining.combine(self.instruments, samples, before[-1])
+            # by name: the file's order of the tables (which a campaign's spec, sorted, does
+            # not keep) changes no bit of the combined channels
+            order = sorted(range(len(self.names)), key=self.names.__getitem__)
+            combined = combining.combine([self.instruments[i] for i in order], [samples[i] for i in order], before[-1])
             now = due[channel]
             pieces.append(jnp.where(now, combined, before))
         return tuple(memories), jnp.concatenate(pieces)
