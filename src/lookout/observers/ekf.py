@@ -132,22 +132,23 @@ class ExtendedKalmanFilter(KalmanFilter):
         prior = self.normalized(stepped)
         return KalmanState(prior, _symmetric(transition @ covariance @ transition.T + noise))
 
-    def _innovation(self, state: KalmanState, y: Array, due: Array):
-        """(nu, S, H, R) on the channels that are ``due`` and finite, the others masked."""
-        predicted = self.measurement(state.mean)
+    def _innovation(self, state: KalmanState, t: ArrayLike, y: Array, due: Array):
+        """(nu, S, H, R) at ``t`` on the channels that are ``due`` and finite, the others masked."""
+        h = lambda x: self.measurement(x, state.applied, t)  # noqa: E731  (the state's input: a suite's IMU)
+        predicted = h(state.mean)
         innovation, mask = masked(y, predicted, due, self.channel_angles)
-        observation = jax.jacfwd(self.measurement)(state.mean) * mask[:, None]
+        observation = jax.jacfwd(h)(state.mean) * mask[:, None]
         noise = masked_noise(self.measurement_covariance, mask)
         return innovation, _symmetric(observation @ state.covariance @ observation.T + noise), observation, noise
 
     def innovation_statistics(self, state: KalmanState, y: Array) -> tuple[Array, Array]:
         """nu = y - h(x-) and S = H P- H^T + R at the prior (:meth:`KalmanFilter.innovation_statistics`)."""
-        innovation, innovation_covariance, _, _ = self._innovation(state, y, jnp.ones(jnp.shape(y), dtype=bool))
+        innovation, innovation_covariance, _, _ = self._innovation(state, self._time(state), y, jnp.ones(jnp.shape(y), dtype=bool))
         return innovation, innovation_covariance
 
     def correct(self, state: KalmanState, t: ArrayLike, y: Array) -> KalmanState:
         mean, covariance = state.mean, state.covariance
-        innovation, innovation_covariance, observation, noise = self._innovation(state, y, self.due(t))
+        innovation, innovation_covariance, observation, noise = self._innovation(state, t, y, self.due(t))
         gain = jnp.linalg.solve(innovation_covariance, observation @ covariance).T
         posterior = self.normalized(mean + gain @ innovation)
         factor = jnp.eye(mean.size) - gain @ observation

@@ -45,11 +45,32 @@ out, as for ``state_noise``). Its estimate is recorded as ``disturbance_<input>`
 (for the DP vessel ``disturbance_force`` and ``disturbance_moment``, in the input's
 body-fixed frame).
 
+**A sensor suite** (:class:`~lookout.sensing.suite.SensorSuite`, a
+:class:`~lookout.components.KinematicSensor`) is taken directly: every instrument's
+channel is a measurement of its own (its ``instrument_layout``: ``dgnss1.measured_position``,
+``gyro.measured_heading``, ...; not the failure flags nor the combining stage's
+``measured_position``), with
+
+    h(x, u, t) = suite.expected(model.kinematics(t, x, u + d))
+
+the instruments' noise-free channels of the filter's own model plant, each at its
+lever arm (a GNSS antenna at r reads p + R(psi) r, so two references with different
+lever arms observe the heading too), d the input disturbance where the filter
+estimates one. An IMU's specific force depends on the applied input, which
+:meth:`~KalmanFilter.update` is not given: the filter state carries the input of the
+last :meth:`~KalmanFilter.predict` (:attr:`KalmanState.applied`), the input applied
+over [t_{k-1}, t_k], which is exactly the input under which the suite sampled at t_k
+(the engine reads a kinematic sensor under the input applied since the sample
+before; zero at the first sample). A channel is due at its instrument's
+``sample_period`` and missing when NaN (a ``dropout`` failure), as any sensor's.
+
 Defaults derived from the scenario (each can be given instead):
 
 * R from the sensor's own noise: J J^T, J the Jacobian of ``sensor.measure`` with
   respect to its standard normals at zero (exact for additive Gaussian noise); it must
-  be positive definite (a noiseless channel needs ``measurement_noise``).
+  be positive definite (a noiseless channel needs ``measurement_noise``). For a suite,
+  diag(``suite.noise_std()``^2): each instrument's white noise (its slow Gauss-Markov
+  error, where it has one, is not in R: give ``measurement_noise`` to allow for it).
 * P_0 from the steady state: the solution of the discrete algebraic Riccati equation
   of the model linearized at the initial guess (u = 0, t = 0) over one observer
   sample, the covariance of a filter that has run for ever (scipy's
@@ -76,8 +97,9 @@ from jax.typing import ArrayLike
 from lookout import _validation as check
 from lookout._math import ssa, unmarked
 from lookout._resources import refuse_unless_it_fits
-from lookout.components import Layout, Observer, Plant, Sensor, Signal
+from lookout.components import KinematicSensor, Layout, Observer, Plant, Sensor, Signal, kinematics_of
 from lookout.declare import initial_values
+from lookout.sensing.suite import SensorSuite
 from lookout.sim.integrators import INTEGRATORS
 
 
@@ -92,10 +114,19 @@ class KalmanState(eqx.Module):
         filter estimates one.
     covariance : Array, shape (n, n)
         Its error covariance P.
+    applied : Array or None, shape (inputs,)
+        On a kinematic sensor (a suite) only: the input applied over the interval that
+        ends at the state's time (set by :meth:`KalmanFilter.predict`, zero at the
+        start), under which the sensor sampled (an IMU's specific force); None otherwise.
+    time : Array or None, shape ()
+        On a kinematic sensor only: the time of the state (s), at which h is taken by
+        :meth:`KalmanFilter.innovation_statistics`; None otherwise.
     """
 
     mean: Array
     covariance: Array
+    applied: Array | None = None
+    time: Array | None = None
 
 
 def _angle_entries(model: Plant) -> tuple[bool, ...]:
@@ -189,6 +220,14 @@ def _state_vector(model: Plant, value, name: str, disturbance_size: int = 0, def
     if not (np.all(np.isfinite(vector)) and np.all(vector >= 0)):
         raise check.ParameterError(check.key(name), f"{name} must be finite and >= 0; got {vector.tolist()}")
     return vector
+
+
+def filter_layout(sensor: Sensor) -> Layout:
+    """The channels a Kalman filter on ``sensor`` reads: a suite's instruments'
+    (:attr:`~lookout.sensing.suite.SensorSuite.instrument_layout`, what its ``expected``
+    gives: not the failure flags, which are the truth of a failure, nor the combining
+    stage's channels, which repeat the instruments'), else the whole measurement."""
+    return sensor.instrument_layout if isinstance(sensor, SensorSuite) else sensor.measurement_layout
 
 
 def _sensor_covariance(sensor: Sensor, x) -> np.ndarray:
@@ -339,9 +378,24 @@ class KalmanFilter(Observer):
         ratio = t / periods
         return jnp.abs(ratio - jnp.round(ratio)) <= 1e-6
 
-    def measurement(self, mean: Array) -> Array:
-        """h(x): the sensor's noise-free measurement of the raveled state."""
-        return self.sensor.ideal(self._unravel(mean))
+    @property
+    def kinematic(self) -> bool:
+        """Whether the sensor measures the plant's kinematics under the applied input (a
+        suite), so that h reads the input and the time the state carries."""
+        return isinstance(self.sensor, KinematicSensor)
+
+    def measurement(self, mean: Array, applied: Array | None = None, t: ArrayLike = 0.0) -> Array:
+        """h(x): the sensor's noise-free measurement of the raveled state. On a kinematic
+        sensor (a suite), its ``expected`` channels of the model's kinematics at ``t``
+        under the input ``applied`` (zero when None) plus the input disturbance's
+        estimate (module docstring); ``applied`` and ``t`` are unused otherwise."""
+        state = self._unravel(mean)
+        if not isinstance(self.sensor, KinematicSensor):
+            return self.sensor.ideal(state)
+        u = jnp.zeros(self.input_layout.size) if applied is None else applied
+        if self.disturbance_size:  # the model is driven by u + d, and an IMU feels the acceleration it gives
+            u = u + mean[self.state_size :]
+        return self.sensor.expected(kinematics_of(self.model, t, state, u))
 
     def normalized(self, mean: Array) -> Array:
         """The filter's state with its angles wrapped."""
@@ -383,22 +437,34 @@ class KalmanFilter(Observer):
         :mod:`lookout.observers.start`) solved from y_0: the least change of them that
         makes h(x_0) = y_0 on the channels y_0 has, by Gauss-Newton steps from 0 (one is
         exact for a measurement linear in them, as a vessel's eta + eta_w is in eta); P_0
-        as given. The correction at t_0 (:meth:`update`) then takes the first sample."""
+        as given. On a suite the least squares are weighted by R^-1 (the channels'
+        units differ: metres of two references with different lever arms, radians of a
+        gyrocompass, an IMU's m/s2), and h is taken at t = 0 under a zero input, as the
+        engine's first sample is. The correction at t_0 (:meth:`update`) then takes the
+        first sample."""
         mean = self.augmented(guess)
         unknown = jnp.isnan(mean)
         mean = jnp.where(unknown, 0.0, mean)
         y0 = jnp.asarray(y0, dtype=float)
         present = jnp.isfinite(y0)
+        # 1 / std per channel on a suite; none on any other sensor, whose solve is left as it was
+        weight = 1.0 / jnp.sqrt(jnp.diagonal(self.measurement_covariance)) if self.kinematic else None
         for _ in range(INITIAL_SOLVE_STEPS):
             residual, _ = masked(y0, self.measurement(mean), present, self.channel_angles)
             jacobian = jax.jacfwd(self.measurement)(mean) * unknown[None, :] * present[:, None]
+            if weight is not None:
+                residual, jacobian = weight * residual, weight[:, None] * jacobian
             mean = mean + jnp.linalg.pinv(jacobian) @ residual
-        return KalmanState(mean, self.initial_covariance)
+        if not self.kinematic:
+            return KalmanState(mean, self.initial_covariance)
+        return KalmanState(mean, self.initial_covariance, jnp.zeros(self.input_layout.size), jnp.zeros(()))
 
     def update(self, state: KalmanState, t: ArrayLike, y: Array) -> KalmanState:
+        if self.kinematic:  # the state is now at t (the input it carries is the one applied up to t)
+            state = KalmanState(state.mean, state.covariance, state.applied, jnp.asarray(t, dtype=float))
         # a branch, not a select: t (hence which channels are due) is the same for every
         # run of a batch, so under vmap the samples with no fix skip the correction
-        corrected = jax.lax.cond(jnp.any(self.due(t)), lambda s: self.correct(s, t, y), lambda s: s, state)
+        corrected = jax.lax.cond(jnp.any(self.due(t)), lambda s: _carried(self.correct(s, t, y), s), lambda s: s, state)
         finite = jnp.all(jnp.isfinite(corrected.mean)) & jnp.all(jnp.isfinite(corrected.covariance))
         return jax.tree.map(lambda new, old: jnp.where(finite, new, old), corrected, state)
 
@@ -410,7 +476,21 @@ class KalmanFilter(Observer):
         return estimate
 
     def predict(self, state: KalmanState, t: ArrayLike, y: Array, u: Array, dt: ArrayLike) -> KalmanState:
-        return self.propagate(state, t, u, dt)
+        prior = self.propagate(state, t, u, dt)
+        if not self.kinematic:
+            return prior
+        # the input applied over [t, t + dt]: what the suite's IMU feels at the sample at t + dt
+        applied = jnp.asarray(u, dtype=float)
+        return KalmanState(prior.mean, prior.covariance, applied, jnp.asarray(t + dt, dtype=float))
+
+    def _time(self, state: KalmanState) -> ArrayLike:
+        """The time of ``state``, where it carries one (a kinematic sensor's), else 0."""
+        return 0.0 if state.time is None else state.time
+
+
+def _carried(new: KalmanState, old: KalmanState) -> KalmanState:
+    """``new``'s mean and covariance with ``old``'s input and time (a correction moves neither)."""
+    return KalmanState(new.mean, new.covariance, old.applied, old.time)
 
 
 def kalman_fields(
@@ -438,7 +518,8 @@ def kalman_fields(
     if integrator not in INTEGRATORS:
         raise check.ParameterError("integrator", f"integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
     zero, _ = ravel_pytree(plant.state())
-    n, m, size = zero.size, sensor.measurement_layout.size, plant.noise_size
+    layout = filter_layout(sensor)
+    n, m, size = zero.size, layout.size, plant.noise_size
     inputs = plant.input_layout.size
     if input_disturbance is None:
         disturbance = np.zeros(0)
@@ -482,11 +563,22 @@ def kalman_fields(
     s = _state_vector(plant, state_noise, "state_noise", d, default_disturbance=0.0)
     s = np.zeros(n + d) if s is None else s
     s = np.concatenate([s[:n], s[n:] + disturbance])  # the disturbance's random walk
+    if isinstance(sensor, KinematicSensor) and getattr(plant, "kinematics", None) is None:
+        raise check.ParameterError(
+            "plant", f"plant {type(plant).__name__} gives no kinematics (position, heading, rates) for the filter's sensor suite to measure"
+        )
     if measurement_noise is None:
-        r = _sensor_covariance(sensor, plant.state())
+        if isinstance(sensor, SensorSuite):  # each instrument's white noise, channel by channel
+            r = np.diag(np.asarray(sensor.noise_std(), dtype=float) ** 2)
+        elif isinstance(sensor, KinematicSensor):
+            raise check.ParameterError(
+                "measurement_noise", f"measurement_noise: sensor {type(sensor).__name__} states no noise of its own; give measurement_noise"
+            )
+        else:
+            r = _sensor_covariance(sensor, plant.state())
         eigenvalues = np.linalg.eigvalsh(r)
         if eigenvalues.min() <= 1e-300:
-            silent = [signal for signal, value in zip(_channel_names(sensor.measurement_layout), np.diag(r)) if value <= 0]
+            silent = [signal for signal, value in zip(_channel_names(layout), np.diag(r)) if value <= 0]
             raise check.ParameterError(
                 "measurement_noise",
                 f"measurement_noise: the sensor's own noise is zero on {', '.join(silent) or 'a combination of channels'}; "
@@ -511,11 +603,12 @@ def kalman_fields(
         "state_size": n,
         "disturbance_size": d,
         "state_angles": _angle_entries(plant) + (False,) * d,
-        "channel_angles": tuple(bool(signal.angle) for signal in sensor.measurement_layout.signals for _ in range(signal.size)),
-        "channel_periods": tuple(float(p) for p in sensor.sample_period),
+        "channel_angles": tuple(bool(signal.angle) for signal in layout.signals for _ in range(signal.size)),
+        # a suite's instrument channels come first in its measurement, each with its instrument's period
+        "channel_periods": tuple(float(p) for p in sensor.sample_period[:m]),
         "estimate_signals": tuple(plant.variable_signals),
         "extra_signals": tuple(plant.input_layout.renamed(prefix="disturbance_", long_prefix="estimated input disturbance: ").signals) if d else (),
-        "measurement_layout": sensor.measurement_layout,
+        "measurement_layout": layout,
         "input_layout": plant.input_layout,
         "sample_period": None,
     }
@@ -583,7 +676,8 @@ PARAMETERS = """
         The filter's model of the plant (default: the composition's plant; give a
         ``[observer.plant]`` table for a model that differs from the truth).
     sensor : Sensor
-        The filter's model of the sensor (default: the composition's sensor).
+        The filter's model of the sensor (default: the composition's sensor). On a
+        sensor suite every instrument channel is a measurement of its own.
     process_noise : array_like, shape (noise_size,), non-negative, optional
         Intensity of each of the model's unit white noise inputs (1: the model's own;
         default all 1). One number is every input's.
@@ -593,7 +687,7 @@ PARAMETERS = """
         ``[plant.initial]`` takes them (default 0).
     measurement_noise : array_like, shape (m,), positive, optional
         Standard deviation of each measured channel, R = diag(std^2) (default: the
-        sensor's own noise).
+        sensor's own noise). A suite's own is each instrument's white noise.
     initial_std : array_like or table, non-negative, optional
         Standard deviation of the initial guess per state entry, or a table of the
         plant's state parts and ``input_disturbance`` (default: the steady-state

@@ -208,12 +208,12 @@ class UnscentedKalmanFilter(KalmanFilter):
         covariance = (deviations * covariance_weights[:, None]).T @ deviations + self.process_covariance(state.mean, t, u, dt)
         return KalmanState(self.normalized(prior), _symmetric(covariance))
 
-    def _innovation(self, state: KalmanState, y: Array, due: Array):
-        """(nu, S, sigma points, their measurement deviations, covariance weights) on the
-        channels that are ``due`` and finite, the others masked."""
+    def _innovation(self, state: KalmanState, t: ArrayLike, y: Array, due: Array):
+        """(nu, S, sigma points, their measurement deviations, covariance weights) at ``t``
+        on the channels that are ``due`` and finite, the others masked."""
         mean_weights, covariance_weights, scale = self._weights(state.mean.size)
         points = self._points(state.mean, state.covariance, scale)
-        measured = jax.vmap(self.measurement)(points)
+        measured = jax.vmap(lambda x: self.measurement(x, state.applied, t))(points)
         predicted = _mean(measured, mean_weights, self.channel_angles)
         innovation, mask = masked(y, predicted, due, self.channel_angles)
         errors = _wrapped(measured - predicted, self.channel_angles) * mask[None, :]
@@ -223,11 +223,11 @@ class UnscentedKalmanFilter(KalmanFilter):
 
     def innovation_statistics(self, state: KalmanState, y: Array) -> tuple[Array, Array]:
         """nu = y - y_hat and S = sum W_c e_i e_i^T + R at the prior (:meth:`KalmanFilter.innovation_statistics`)."""
-        innovation, innovation_covariance, *_ = self._innovation(state, y, jnp.ones(jnp.shape(y), dtype=bool))
+        innovation, innovation_covariance, *_ = self._innovation(state, self._time(state), y, jnp.ones(jnp.shape(y), dtype=bool))
         return innovation, innovation_covariance
 
     def correct(self, state: KalmanState, t: ArrayLike, y: Array) -> KalmanState:
-        innovation, innovation_covariance, points, errors, covariance_weights = self._innovation(state, y, self.due(t))
+        innovation, innovation_covariance, points, errors, covariance_weights = self._innovation(state, t, y, self.due(t))
         deviations = _wrapped(points - state.mean, self.state_angles)
         cross = (deviations * covariance_weights[:, None]).T @ errors
         gain = jnp.linalg.solve(innovation_covariance, cross.T).T
