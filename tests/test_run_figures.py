@@ -3,6 +3,7 @@
 One short closed-loop run (Kim 2002: an observer, a reference, a controller and thrust
 limits, two runs) is simulated once for the module; the figure functions are checked
 on its Dataset and on variants of it (a truth dropped, a limit that cuts, no input).
+A short run on a sensor suite with failures (:data:`SUITE`) checks ``references.png``.
 """
 
 from __future__ import annotations
@@ -25,10 +26,12 @@ from lookout.plotting import (
     plot_run_estimates,
     plot_run_input,
     plot_run_reference,
+    plot_run_sensor_references,
     run_estimates,
     run_inputs,
     run_references,
 )
+from lookout.plotting.suite_references import _moving_median, sensor_reference_errors, suite_sensors
 from lookout.studies.cli import RUN_FIGURE_DPI, RUN_FIGURES, RUN_FILES, _write_figures
 
 #: meant for one worker (make test runs pytest --dist loadgroup); the run below is shared
@@ -115,8 +118,8 @@ def lines(ax):
 @pytest.mark.slow
 def test_the_figures_are_written_listed_and_sane_pngs(ran):
     summary = json.loads((ran / "summary.json").read_text())
-    # Kim: estimates, a reference and a limited thrust; no thrusters (thrusters.png: tests/test_thrusters.py)
-    drawn = [name for name in RUN_FIGURES if name != "thrusters.png"]
+    # Kim: estimates, a reference and a limited thrust; no thrusters (thrusters.png: tests/test_thrusters.py), no sensor suite
+    drawn = [name for name in RUN_FIGURES if name not in ("thrusters.png", "references.png")]
     assert summary["files"] == list(RUN_FILES) + drawn
     assert sorted(path.name for path in ran.iterdir()) == sorted(summary["files"])
     for name in drawn:
@@ -283,3 +286,185 @@ def test_a_run_that_diverged_is_zoomed_at_the_end_of_its_finite_part(ds):
     full, zoom = panels(plot_run_estimates(diverged[["position", "position_hat", "measured_position", "status"]]))["Earth-fixed\nposition north (m)"]
     assert zoom.get_xlim()[1] < cut and zoom.get_xlim()[1] >= ds.time.values[ds.sizes["time"] // 2 - 1]
     assert "last finite" in zoom.get_title()
+
+
+# ---------------------------------------------------------------------------------- a sensor suite
+
+#: A minute on a sensor suite: two DGNSS receivers at lever arms (the second drifts from
+#: 20 s), a hydroacoustic reference with a dropout, two gyrocompasses (the second jumps
+#: 2 deg from 30 s to 45 s) and an IMU, the passive observer on the combined channels.
+SUITE = """
+[simulation]
+duration = 60.0
+
+[plant]
+kind = "dp-vessel"
+[plant.bias]
+time_constant = 1000.0
+std = [2000.0, 2000.0, 50000.0]
+[plant.waves]
+kind = "linear"
+peak_frequency = 0.8976
+damping_ratio = 0.1
+amplitude = [3.0, 3.0, 0.01]
+[plant.initial]
+nu = [0.3, 0.1, 0.005]
+
+[sensors.dgnss1]
+kind = "gnss"
+lever_arm = [30.0, 5.0]
+noise_std = 0.5
+
+[sensors.dgnss2]
+kind = "gnss"
+lever_arm = [-25.0, -4.0]
+noise_std = 0.7
+[[sensors.dgnss2.failures]]
+mode = "drift"
+start = 20.0
+rate = [0.2, 0.1]
+
+[sensors.hpr]
+kind = "hydroacoustic"
+lever_arm = [5.0, 0.0]
+[[sensors.hpr.failures]]
+mode = "dropout"
+start = 10.0
+duration = 10.0
+
+[sensors.gyro1]
+kind = "gyrocompass"
+
+[sensors.gyro2]
+kind = "gyrocompass"
+[[sensors.gyro2.failures]]
+mode = "jump"
+start = 30.0
+duration = 15.0
+size = 0.03490658503988659
+
+[sensors.imu]
+kind = "imu"
+
+[observer]
+kind = "passive"
+"""
+
+
+@pytest.fixture(scope="module")
+def suite_ran(shared):
+    """:data:`SUITE` run by ``lookout run``: simulated once per pytest run."""
+    out = shared / "suite-out"
+    with _locked(out):
+        if not (out / "summary.json").exists():
+            path = shared / "suite.toml"
+            path.write_text(SUITE)
+            assert main(["run", str(path), "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def suite_ds(suite_ran):
+    with xr.open_dataset(suite_ran / "run.nc") as opened:
+        return opened.load()
+
+
+def test_a_sensor_suite_adds_references_png_and_a_plain_sensor_does_not(suite_ran, ds, tmp_path):
+    summary = json.loads((suite_ran / "summary.json").read_text())
+    assert summary["files"] == list(RUN_FILES) + ["estimates.png", "references.png"]
+    width, height = png_size(suite_ran / "references.png")
+    assert 8 * RUN_FIGURE_DPI <= width <= 32 * RUN_FIGURE_DPI and 4 * RUN_FIGURE_DPI <= height <= 20 * RUN_FIGURE_DPI, (width, height)
+    assert matplotlib.image.imread(suite_ran / "references.png")[..., :3].std() > 0.05
+    # Kim's run reads one position-heading sensor: no figure, and one left from an earlier run goes
+    assert suite_sensors(ds) is None and plot_run_sensor_references(ds) is None
+    (tmp_path / "references.png").write_bytes(b"from an earlier run")
+    assert "references.png" not in _write_figures(ds, tmp_path, "a title")
+    assert not (tmp_path / "references.png").exists()
+
+
+def _rotated(heading, arm):
+    c, s = np.cos(heading), np.sin(heading)
+    return np.stack([c * arm[0] - s * arm[1], s * arm[0] + c * arm[1]], axis=-1)
+
+
+def test_each_reference_is_its_fixes_taken_back_with_the_true_heading_less_the_true_position(suite_ds):
+    positions, headings = sensor_reference_errors(suite_ds)
+    assert [each.name for each in positions] == ["dgnss1", "dgnss2", "hpr", "combined"]
+    assert [each.name for each in headings] == ["gyro1", "gyro2", "combined"]  # the IMU is no position or heading reference
+    run = suite_ds.isel(run=0)
+    time = run.time.values
+    truth = (run.position + run.wave_position).values
+    heading = (run.heading + run.wave_heading).values
+    dgnss2 = positions[1]
+    at = np.isin(time, dgnss2.time)
+    # one error per fix (1 s), not per record (0.1 s): a held fix against the moving truth would show the waves
+    assert at.sum() == 60 and np.allclose(np.diff(dgnss2.time), 1.0)
+    expected = run["dgnss2.measured_position"].values - _rotated(heading, np.array([-25.0, -4.0])) - truth
+    np.testing.assert_allclose(dgnss2.error, expected[at])
+    # the drift from 20 s is what the errors show: 0.2 and 0.1 m/s, under the noise
+    late = dgnss2.time >= 20.0
+    slope = np.polyfit(dgnss2.time[late], dgnss2.error[late], 1)[0]
+    np.testing.assert_allclose(slope, [0.2, 0.1], atol=0.06)
+    # the hydroacoustic reference every 2 s, its dropout as gaps
+    hpr = positions[2]
+    assert np.allclose(np.diff(hpr.time), 2.0)
+    assert np.isnan(hpr.error[(hpr.time >= 10.0) & (hpr.time < 20.0)]).all() and np.isfinite(hpr.error[hpr.time < 10.0]).all()
+    # a gyro's error in degrees, wrapped; the jump is 2 deg, and the combined (the median of two: their mean) moves 1 deg
+    gyro2, combined = headings[1], headings[2]
+    jumped = (gyro2.time >= 30.5) & (gyro2.time < 45.0)
+    np.testing.assert_allclose(np.median(gyro2.error[jumped]), 2.0, atol=0.1)
+    np.testing.assert_allclose(np.median(combined.error[(combined.time >= 30.5) & (combined.time < 45.0)]), 1.0, atol=0.1)
+    np.testing.assert_allclose(np.median(gyro2.error[gyro2.time < 30.0]), 0.0, atol=0.1)
+    # each failure's window from its recorded flag
+    assert dgnss2.failures == [("dgnss2.drift_failure", [(20.0, pytest.approx(60.0))])]
+    assert [(flag, [tuple(np.round(w, 6)) for w in windows]) for flag, windows in gyro2.failures] == [("gyro2.jump_failure", [(30.0, 45.0)])]
+
+
+def test_the_references_figure_draws_every_reference_shades_the_failures_and_zooms_on_the_first(suite_ds):
+    fig = plot_run_sensor_references(suite_ds, title="a suite")
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert labels == ["Earth-fixed\nnorth error (m)", "north error (m)", "Earth-fixed\neast error (m)", "east error (m)"] + [
+        "Earth-fixed\nheading error (deg)",
+        "heading error (deg)",
+    ]
+    north_full, north_zoom, _, _, heading_full, heading_zoom = fig.axes
+    # the truth: the zero line, thin and black, on top of the errors
+    zero = [line for line in north_full.get_lines() if np.array_equal(line.get_ydata(), [0, 0])]
+    assert zero and zero[0].get_color() == "k"
+    # the zoom: 150 fixes of the fastest instrument, at most a fifth of the run, from a quarter before the first failure
+    fifth = 59.9 / 5
+    assert north_zoom.get_xlim() == pytest.approx((10.0 - fifth / 4, 10.0 + 3 * fifth / 4))  # the dropout at 10 s
+    assert heading_zoom.get_xlim() == pytest.approx((30.0 - fifth / 4, 30.0 + 3 * fifth / 4))  # not 15 s of 0.1 s fixes: a fifth
+    assert plot_run_sensor_references(suite_ds, fixes=40).axes[-1].get_xlim() == pytest.approx((29.0, 33.0))  # 4 s of 0.1 s fixes
+    # failures shaded: the drift and the dropout on the position rows, the jump on the heading row
+    spans = {ax: [patch.get_x() for patch in ax.patches] for ax in (north_full, heading_full)}
+    assert sorted(round(x, 6) for x in spans[north_full]) == [10.0, 20.0]
+    assert [round(x, 6) for x in spans[heading_full]] == [30.0]
+    texts = {text.get_text() for ax in fig.axes for text in ax.texts}
+    assert {"dgnss2 drift", "hpr dropout", "gyro2 jump"} <= texts
+    legend = {text.get_text() for text in fig.legends[0].get_texts()}
+    assert "true (error 0)" in legend and "dgnss1 (gnss at [30, 5] m, 1 s)" in legend and "gyro2.jump_failure (shaded)" in legend
+    assert fig.get_suptitle().startswith("a suite\nsensor suite:")
+    # several runs: run 0 shown, and said
+    two = xr.concat([suite_ds, suite_ds.assign_coords(seed=("run", [1]))], dim="run").assign_coords(run=[0, 1])
+    assert "run 0 of 2 (seed 0); the figure shows this run only" in plot_run_sensor_references(two).get_suptitle()
+    with pytest.raises(ValueError, match="fixes must be"):
+        plot_run_sensor_references(suite_ds, fixes=1)
+
+
+def test_the_moving_median_keeps_a_step_and_passes_over_a_wild_point():
+    time = np.arange(0.0, 100.0, 1.0)
+    values = np.where(time >= 50.0, 2.0, 0.0)
+    values[20] = 100.0  # a wild point
+    values[70] = np.nan  # a dropout
+    smooth = _moving_median(time, values, 20.0, np.array([50.0]))
+    np.testing.assert_array_equal(smooth, np.where(time >= 50.0, 2.0, 0.0))
+    # across the step without its edge, the median crosses it within half a window
+    across = _moving_median(time, values, 20.0, np.array([]))
+    assert across[39] == 0.0 and across[61] == 2.0
+    # an edge a rounding above a sample's time (19.999999999999996 against 20.0) still parts there
+    nearly = np.arange(0.0, 40.0, 2.0) + np.where(np.arange(20) == 10, -4e-15, 0.0)
+    dropped = np.where((nearly >= 10.0) & (nearly < 19.0), np.nan, 1.0)
+    dropped[10] = 5.0
+    smooth = _moving_median(nearly, dropped, 100.0, np.array([10.0, 20.0]))
+    assert np.isnan(smooth[5:10]).all() and smooth[10] == 1.0

@@ -13,11 +13,15 @@ names (``<name>_hat``, ``theta_<name>``, ``measured_<name>``, ``<name>_desired``
 
 * :func:`plot_run_estimates` -- every estimate against its truth;
 * :func:`plot_run_reference` -- the reference against the truth;
-* :func:`plot_run_input` -- the commanded and the applied input.
+* :func:`plot_run_input` -- the commanded and the applied input;
+* :func:`plot_run_sensor_references` -- a sensor suite's position and heading
+  references against the truth, failures shaded.
 
 The modules: :mod:`~lookout.plotting.series` (:func:`plot_estimates`,
 :func:`plot_trajectories`), :mod:`~lookout.plotting.run_figures` (the figures of
-``lookout run``, and :func:`plot_run_thrusters`), :mod:`~lookout.plotting.bode`
+``lookout run``, and :func:`plot_run_thrusters`),
+:mod:`~lookout.plotting.suite_references` (:func:`plot_run_sensor_references`),
+:mod:`~lookout.plotting.bode`
 (:func:`plot_bode`), and ``_panels``: the panel of a full run and its zooms that the
 time-series figures share.
 """
@@ -51,6 +55,7 @@ from lookout.plotting.run_figures import (  # noqa: E402
 )
 from lookout.plotting.run_figures import _continuous_degrees as _continuous_degrees  # noqa: E402
 from lookout.plotting.series import plot_estimates, plot_trajectories  # noqa: E402
+from lookout.plotting.suite_references import plot_run_sensor_references  # noqa: E402
 
 __all__ = [
     "DENSE_CYCLES",
@@ -66,6 +71,7 @@ __all__ = [
     "plot_run_estimates",
     "plot_run_input",
     "plot_run_reference",
+    "plot_run_sensor_references",
     "plot_run_thrusters",
     "plot_trajectories",
     "run_estimates",

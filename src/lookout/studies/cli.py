@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -17,6 +17,7 @@ from lookout._json import json_safe
 
 if TYPE_CHECKING:
     import xarray as xr
+    from matplotlib.figure import Figure
     from rich.progress import TaskID
 
     from lookout.components import DivergenceBound
@@ -27,9 +28,11 @@ from lookout.scenario._toml import FileError
 #: What ``lookout run`` writes into its folder, always.
 RUN_FILES = ("run.nc", "scenario.toml", "summary.json")
 #: And its figures of run 0, each where the run has something to show: every estimate
-#: against its truth, the reference against the truth, the commanded and applied input
-#: (:func:`lookout.plotting.plot_run_estimates`, ``plot_run_reference``, ``plot_run_input``).
-RUN_FIGURES = ("estimates.png", "reference.png", "input.png", "thrusters.png")
+#: against its truth, the reference against the truth, the commanded and applied input,
+#: the thrusters, a sensor suite's position and heading references against the truth
+#: (:func:`lookout.plotting.plot_run_estimates`, ``plot_run_reference``, ``plot_run_input``,
+#: ``plot_run_thrusters``, ``plot_run_sensor_references``).
+RUN_FIGURES = ("estimates.png", "reference.png", "input.png", "thrusters.png", "references.png")
 #: Resolution of those figures (that of the reproductions' figures).
 RUN_FIGURE_DPI = 110
 
@@ -141,9 +144,12 @@ def run(
     truth, with its measurement; an estimate without a truth alone), reference.png
     (the reference against the truth) where there is a reference, input.png (the
     commanded and applied input, shaded where the actuator limited it) where the
-    input is not zero throughout, and thrusters.png (each thruster's thrust and angle,
-    and the allocation's shortfall) with a thruster actuator. A figure that does not apply is not written (one
-    left from an earlier run into the folder is removed).
+    input is not zero throughout, thrusters.png (each thruster's thrust and angle,
+    and the allocation's shortfall) with a thruster actuator, and references.png (each
+    position reference and gyrocompass of a sensor suite against the truth, and the
+    combined position and heading, failures shaded) with [sensors.NAME] tables. A
+    figure that does not apply is not written (one left from an earlier run into the
+    folder is removed).
     """
     from lookout.results import write_netcdf
     from lookout.scenario import metrics as metric_module
@@ -327,10 +333,17 @@ def _write_figures(ds, folder: Path, title: str) -> list[str]:
     remove those that do not (left by an earlier run); return the names written."""
     import matplotlib.pyplot as plt
 
-    from lookout.plotting import plot_run_estimates, plot_run_input, plot_run_reference, plot_run_thrusters
+    from lookout.plotting import plot_run_estimates, plot_run_input, plot_run_reference, plot_run_sensor_references, plot_run_thrusters
 
     written = []
-    for name, draw in zip(RUN_FIGURES, (plot_run_estimates, plot_run_reference, plot_run_input, plot_run_thrusters)):
+    draws: tuple[Callable[..., Figure | None], ...] = (
+        plot_run_estimates,
+        plot_run_reference,
+        plot_run_input,
+        plot_run_thrusters,
+        plot_run_sensor_references,
+    )
+    for name, draw in zip(RUN_FIGURES, draws, strict=True):
         figure = draw(ds, run=0, title=title)
         path = folder / name
         if figure is None:
