@@ -286,6 +286,21 @@ def test_a_bad_source_is_refused_at_its_key():
         _session(sources={"GP": "dgps"})
 
 
+def test_an_observer_of_an_instruments_channel_is_refused():
+    """Live data feeds the combined channels alone: an observer that reads a sensor's own is refused, not fed zeros."""
+    from lookout.components import Layout
+
+    scenario = compose(_document()).scenario
+    suite = scenario.sensor
+    signals = {signal.name: signal for signal in suite.measurement_layout.signals}
+    observer = copy.copy(scenario.observer)  # the passive observer, reading a receiver's own channel
+    object.__setattr__(observer, "measurement_layout", Layout((signals["dgnss1.measured_position"], signals["measured_heading"])))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        with pytest.raises(ValueError, match=r"reads dgnss1\.measured_position; live data feeds it the combining stage's"):
+            Session(observer, scenario.sample_period, suite=suite)
+
+
 def test_the_source_key_leaves_the_simulation_as_it_was():
     document = _document()
     document["simulation"]["duration"] = 3.0

@@ -331,6 +331,12 @@ class Session:
         if suite is not None:
             from lookout.live.sensors import CombiningObserver, live_sensors, record_layout
 
+            unfed = [name for name in layout.names if name not in CHANNELS]
+            if unfed:
+                raise ValueError(
+                    f"observer {type(observer).__name__} reads {', '.join(unfed)}; live data feeds it the combining stage's "
+                    "measured_position and measured_heading only"
+                )
             self.sensors, silent = live_sensors(suite, gates)
             gated = self.gated_observer
             assert isinstance(gated, GatedObserver)  # made just above
