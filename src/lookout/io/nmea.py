@@ -17,6 +17,7 @@ one cause. Nothing a line contains makes it raise.
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -75,6 +76,61 @@ def receiver(source: str, bindings: Mapping[str, str] | None = None) -> str:
             return bindings[talker]
     family = _FAMILY_OF.get(talker)
     return source if family is None else family + at + where
+
+
+#: How a scenario names the source of a sensor (``[sensors.NAME]``'s ``source``): a
+#: talker ID, a sender (``@`` and the tag block's ``s:`` source or a UDP sender's
+#: address), or both.
+SOURCE_SPELLING = "TALKER, @SENDER or TALKER@SENDER (GP, @10.0.0.5, GP@10.0.0.5)"
+_TALKER = re.compile(r"P|[A-Z][A-Z0-9]")
+_SENDER = re.compile(r"[^\s@,*\\$!]+")
+
+
+def source_spec(text: object) -> tuple[str, str | None]:
+    """``(talker, sender)`` of a sensor's source as a scenario spells it
+    (:data:`SOURCE_SPELLING`): the talker ``""`` for any talker, the sender None for any
+    sender.
+
+    Raises
+    ------
+    ValueError
+        ``must be ...; got ...`` (one line) for any other text: a talker of other than
+        two capital letters or digits, an empty or spaced sender, an empty text.
+    """
+    if not isinstance(text, str):
+        raise ValueError(f"must be a string, {SOURCE_SPELLING}; got {text!r}")
+    talker, at, sender = text.partition("@")
+    if not (talker or at) or (talker and not _TALKER.fullmatch(talker)) or (at and not _SENDER.fullmatch(sender)):
+        raise ValueError(
+            f"must be {SOURCE_SPELLING}: a talker ID of two capital letters or digits, a sender without spaces, '@' or ','; got {text!r}"
+        )
+    return talker, (sender if at else None)
+
+
+def source_rank(source: str, talker: str, sender: str | None) -> tuple[int, int] | None:
+    """How closely a reading's ``source`` (``TALKER@WHERE``) matches a sensor's
+    :func:`source_spec`, None when it does not: ``(sender given, talker)``, the talker
+    2 for the same talker ID, 1 for another of its family (:data:`TALKER_FAMILIES`: a
+    multi-constellation receiver's GP and GN), 0 for a sensor of any talker. Of several
+    sensors a reading matches, the highest rank takes it (a named sender before a talker
+    alone, as :func:`receiver` takes a source before a talker)."""
+    got_talker, _, got_sender = source.partition("@")
+    if sender is not None and got_sender != sender:
+        return None
+    if not talker:
+        closeness = 0
+    elif talker == got_talker:
+        closeness = 2
+    elif _FAMILY_OF.get(talker) is not None and _FAMILY_OF.get(talker) == _FAMILY_OF.get(got_talker):
+        closeness = 1
+    else:
+        return None
+    return (int(sender is not None), closeness)
+
+
+def talker_family(talker: str) -> str | None:
+    """The family (:data:`TALKER_FAMILIES`) of a talker ID, None for a talker of none."""
+    return _FAMILY_OF.get(talker)
 
 
 class _OutOfRange(ValueError):

@@ -70,7 +70,10 @@ def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say,
 
     gate_values = _gate_values(gates)
     frame = _frame(origin)
+    from lookout.sensing.suite import SensorSuite
+
     spec, scenario = _scenario(scenario_file, None, None)
+    suite = scenario.sensor if isinstance(scenario.sensor, SensorSuite) else None
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UserWarning)
@@ -82,6 +85,7 @@ def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say,
                 gates=gate_values,
                 on_event=on_event,
                 batch=batch,
+                suite=suite,
             )
     except ValueError as error:
         raise InputError(f"{scenario_file}: {error}") from None
@@ -159,6 +163,7 @@ def _outputs(session, out: str | None, publish: str | None, scenario_file: str, 
             session.observer,
             {"scenario": scenario_file, "source_of_data": source},
             flush_every=flush_every,
+            measurement=session.record_layout,
             attrs_of=lambda: (
                 {} if session.frame is None else {"origin_latitude": session.frame.latitude, "origin_longitude": session.frame.longitude}
             ),
@@ -196,8 +201,11 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
 
     span = (outcome.last_time - outcome.first_time) if outcome.first_time is not None else 0.0
     rates = []
-    for kind, channel in session.channels.items():
-        rates.append(f"{kind} {channel.counts['accepted'] / span:.2f}/s" if span > 0 else f"{kind} -")
+    counted = {name: sensor.counts for name, sensor in session.sensors.items()} or {
+        kind: channel.counts for kind, channel in session.channels.items()
+    }
+    for name, counts in counted.items():
+        rates.append(f"{name} {counts['accepted'] / span:.2f}/s" if span > 0 else f"{name} -")
     unused = outcome.unused(session)
     if outcome.latency.percentiles():
         which, lat = "latency", " ".join(f"p{p} {v * 1e3:.2f} ms" for p, v in outcome.latency.percentiles().items())

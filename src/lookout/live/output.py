@@ -30,7 +30,7 @@ from lookout._json import json_safe
 from lookout.results import RecordSignals, Trajectory, write_netcdf
 
 if TYPE_CHECKING:
-    from lookout.components import Observer
+    from lookout.components import Layout, Observer
     from lookout.io.geodesy import LocalFrame
     from lookout.live.session import Block
 
@@ -120,15 +120,28 @@ class SessionWriter:
         Global attributes (scenario, source, frame).
     flush_every : int
         Steps between flushes.
+    attrs_of : callable, optional
+        Global attributes known only once data came (the frame's origin), asked at the first flush.
+    measurement : Layout, optional
+        The layout of the blocks' measurement (:attr:`lookout.live.Session.record_layout`);
+        default the observer's.
     """
 
-    def __init__(self, path: str | Path, observer: Observer, attrs: dict, flush_every: int = 100, attrs_of: Callable[[], dict] | None = None):
+    def __init__(
+        self,
+        path: str | Path,
+        observer: Observer,
+        attrs: dict,
+        flush_every: int = 100,
+        attrs_of: Callable[[], dict] | None = None,
+        measurement: Layout | None = None,
+    ):
         self.path = Path(path)
         self.signals = RecordSignals(
             truth=(),
             estimate=tuple(observer.estimate_signals),
             extra=tuple(observer.extra_signals),
-            measurement=observer.measurement_layout,
+            measurement=observer.measurement_layout if measurement is None else measurement,
             reference=(),
             input=observer.input_layout,
         )

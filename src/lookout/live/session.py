@@ -26,6 +26,13 @@ period) with :meth:`Session.advance`: each step on the readings that had arrived
 - a silence of every channel longer than the longest timeout is a ``gap`` event
   (where it starts and how long it was), reported when the next reading comes.
 
+With a scenario's named sensors (``suite``, a
+:class:`~lookout.sensing.suite.SensorSuite`), each reading goes to the sensor whose
+``source`` it comes from instead, each sensor holds its own, and the suite's combining
+stage gives the observer its position and heading at each step, as in simulation
+(:mod:`lookout.live.sensors`); the session records every sensor's channel
+(:attr:`Session.record_layout`).
+
 A step's results come out as a :class:`Block` (one step live; many in a fast replay,
 which runs ``batch`` steps in one compiled scan). Events (outage, recovered, gated,
 source, frame, gap, refused) go to ``on_event``. Every reading the session does not
@@ -50,7 +57,9 @@ from lookout.live.options import MAX_ORIGIN_DISTANCE, Gates, _positive
 from lookout.sim.filtering import Stepper
 
 if TYPE_CHECKING:
-    from lookout.components import Observer
+    from lookout.components import Layout, Observer
+    from lookout.live.sensors import LiveSensor
+    from lookout.sensing.suite import SensorSuite
 
 #: The measurement signals a live observer's layout may name, and the reading kind
 #: that fills each.
@@ -145,7 +154,8 @@ class Block:
         The observer's outputs, one row per step (with ``gated_<channel>`` and
         ``outage_<channel>`` flags).
     measurement : ndarray (n, n_y)
-        What each step used (held readings; NaN in an outage).
+        What each step used (held readings; NaN in an outage), laid out as the
+        session's :attr:`~Session.record_layout`.
     input : ndarray (n, n_u)
     step_seconds : ndarray (n,)
         Wall-clock seconds per step (a scan's time shared out).
@@ -214,6 +224,23 @@ class Session:
         Sources bound to names by the user (:func:`lookout.io.nmea.receiver`): e.g.
         ``{"GP": "dgps", "GN": "rtk"}`` keeps two receivers' GP and GN fixes apart,
         which are otherwise one GNSS receiver's.
+    suite : SensorSuite, optional
+        The scenario's named sensors (its ``[sensors.NAME]``): each reading goes to the
+        sensor whose ``source`` it comes from, and the suite's combining stage gives
+        the observer's ``measured_position`` and ``measured_heading``
+        (:mod:`lookout.live.sensors`). Not with ``sources``.
+
+    Raises
+    ------
+    ValueError
+        For an observer, a period, gates or sources the session cannot use; with
+        ``suite``, for a sensor's ``source`` it cannot use (``sensors.NAME.source: ...``).
+
+    Warns
+    -----
+    UserWarning
+        For a channel no test gates, and for a sensor a stream could feed that names
+        no source.
     """
 
     def __init__(
@@ -228,6 +255,7 @@ class Session:
         batch: int = 1,
         step_on: str | None = "heading",
         sources: Mapping[str, str] | None = None,
+        suite: SensorSuite | None = None,
     ):
         _positive("sample_period", sample_period)
         if frame is not None and not isinstance(frame, LocalFrame):
@@ -255,6 +283,8 @@ class Session:
         ):
             raise ValueError(f"sources must map sources or talkers (str) to names (str); got {sources!r}")
         self.sources = dict(sources or {})
+        if suite is not None and sources:
+            raise ValueError("sources binds talkers of one position and one heading channel; a scenario's named sensors each name their own source")
         self._origin_checked = frame is None  # a given origin is checked against the first fix
         self.observer = observer
         self.step_on = step_on if step_on in {CHANNELS[name] for name in names if name in CHANNELS} else None
@@ -292,9 +322,35 @@ class Session:
                 UserWarning,
                 stacklevel=2,
             )
-        self.gated_observer = GatedObserver(
+        self.gated_observer: Observer = GatedObserver(
             observer, names, np.array(bounds), np.array([c.timeout for c in self.channels.values()]), gates.reopen_after, tests
         )
+        self.suite = suite
+        #: The named sensors a stream feeds, by name (empty without a suite).
+        self.sensors: dict[str, LiveSensor] = {}
+        if suite is not None:
+            from lookout.live.sensors import CombiningObserver, live_sensors, record_layout
+
+            unfed = [name for name in layout.names if name not in CHANNELS]
+            if unfed:
+                raise ValueError(
+                    f"observer {type(observer).__name__} reads {', '.join(unfed)}; live data feeds it the combining stage's "
+                    "measured_position and measured_heading only"
+                )
+            self.sensors, silent = live_sensors(suite, gates)
+            gated = self.gated_observer
+            assert isinstance(gated, GatedObserver)  # made just above
+            self.gated_observer = CombiningObserver(gated, suite)
+            self._record_layout = record_layout(suite)
+            if silent:
+                warnings.warn(
+                    f"lookout live: sensor{'s' if len(silent) > 1 else ''} {', '.join(silent)} name{'' if len(silent) > 1 else 's'} no source: "
+                    "no reading feeds them",
+                    UserWarning,
+                    stacklevel=2,
+                )
+        else:
+            self._record_layout = layout
         #: A silence of every channel longer than this (s) is a gap: the longest timeout.
         self.gap_after = max(c.timeout for c in self.channels.values())
         self.gaps = 0
@@ -312,7 +368,7 @@ class Session:
         self.events: list[dict] = []
         self.event_counts = {"outage": 0, "recovered": 0, "gated": 0, "source": 0, "refused": 0, "gap": 0}
         # the steps kept for the next compiled call: times, session times, raw measurements, inputs
-        n_raw = self._size + len(self.channels)
+        n_raw = self.gated_observer.measurement_layout.size
         self._times = np.empty(self.batch)
         self._session_times = np.empty(self.batch)
         self._raw = np.empty((self.batch, n_raw))
@@ -339,6 +395,13 @@ class Session:
         if len(set(words.values())) == 1 and "innovation" not in next(iter(words.values())):
             return next(iter(words.values()))
         return ", ".join(f"{kind} {rule}" for kind, rule in words.items())
+
+    @property
+    def record_layout(self) -> Layout:
+        """The layout of a :class:`Block`'s measurement: the observer's measurement; with
+        named sensors each sensor's channels, then the combining stage's
+        (:func:`lookout.live.sensors.record_layout`)."""
+        return self._record_layout
 
     @property
     def unused(self) -> dict:
@@ -383,6 +446,15 @@ class Session:
         if channel is None:
             self.not_read += 1  # rate of turn, the error ellipse, a channel the observer does not measure
             return False
+        sensor = None
+        if self.sensors:
+            from lookout.live.sensors import route
+
+            assert kind is not None  # a channel was found for it
+            sensor = route(self.sensors, reading.source, kind)
+            if sensor is None:  # no sensor's source, or two sensors' equally
+                channel.counts["other_source"] += 1
+                return False
         if reading.kind == "position":
             latitude, longitude = reading.values[:2]
             refusal = fix_refusal(reading.values, self.gates)
@@ -404,6 +476,8 @@ class Session:
             # wrapped to [-pi, pi) as a simulated heading sensor's (lookout.sensors)
             angle = math.radians(reading.values[0])
             value = (angle - 2 * math.pi * math.floor((angle + math.pi) / (2 * math.pi)),)
+        if sensor is not None:
+            return self._sensor_take(sensor, channel, reading, value)
         source = receiver(reading.source, self.sources)
         if channel.source is not None and source != channel.source and reading.time - channel.source_time <= channel.timeout:
             channel.counts["other_source"] += 1
@@ -416,6 +490,19 @@ class Session:
             channel.counts["superseded"] += 1  # the step takes the newest reading of its channel
         channel.new, channel.new_time = value, reading.time
         channel.counts["accepted"] += 1
+        return True
+
+    def _sensor_take(self, sensor: LiveSensor, channel: _Channel, reading: Reading, value: tuple) -> bool:
+        """Keep a named sensor's reading: its own held sample, and its channel's mark that a reading came."""
+        if sensor.value is None:
+            self._event("source", reading.time, channel=channel.name, sensor=sensor.name, source=reading.source)
+        if sensor.fresh:
+            sensor.counts["superseded"] += 1
+            channel.counts["superseded"] += 1  # the step takes the newest reading of its sensor
+        sensor.value, sensor.time, sensor.fresh = value, reading.time, True
+        sensor.counts["accepted"] += 1
+        channel.counts["accepted"] += 1
+        channel.new, channel.new_time = value, reading.time  # the first step and step_on wait for it
         return True
 
     # ----------------------------------------------------------------- stepping
@@ -467,7 +554,7 @@ class Session:
     def warm_up(self) -> None:
         """Compile the step before data comes (on a stand-in measurement), so that the
         first steps of a live session are not late by a compilation."""
-        raw = np.zeros(self._size + len(self.channels))
+        raw = np.zeros(self._raw.shape[1])
         self.stepper = Stepper(self.gated_observer, self.guess, raw)
         self.stepper(0.0, raw, np.zeros_like(self._input), self.sample_period)  # the first real step resets it
 
@@ -485,6 +572,13 @@ class Session:
         self._session_times[i] = (n - self.start_index) * self.sample_period
         raw = self._raw[i]
         raw[:] = math.nan
+        if self.sensors:
+            self._sensor_row(raw, self._times[i], start)
+            for channel in self.channels.values():
+                channel.new = None
+            self._inputs[i] = self._input
+            self._kept += 1
+            return
         for index, channel in enumerate(self.channels.values()):
             if channel.new is not None:
                 raw[channel.columns] = channel.new
@@ -492,6 +586,18 @@ class Session:
                 channel.new = None
         self._inputs[i] = self._input
         self._kept += 1
+
+    def _sensor_row(self, raw: np.ndarray, t: float, start: float) -> None:
+        """The named sensors' part of a step's row: each one's held sample (NaN when none
+        is held or it is older than its timeout), then each new one's arrival (session s)."""
+        total = self._raw.shape[1] - len(self.suite.names) if self.suite is not None else 0
+        for sensor in self.sensors.values():
+            held = sensor.held(t)
+            if held is not None:
+                raw[sensor.columns] = held
+            if sensor.fresh:
+                raw[total + sensor.index] = sensor.time - start
+                sensor.fresh = False
 
     def _run(self) -> Block:
         n = self._kept
@@ -528,6 +634,8 @@ class Session:
             filled[channel.columns] = True
             measurement[np.asarray(estimates[f"outage_{channel.kind}"]) > 0, channel.columns] = np.nan
         measurement[:, ~filled] = np.nan
+        if self.sensors:
+            measurement = self._recorded(raw, measurement)
         refused = ~healthy
         if refused.any():
             self.refused += int(refused.sum())
@@ -537,6 +645,23 @@ class Session:
         self._events(times[healthy], {name: np.asarray(value)[healthy] for name, value in estimates.items()})
         self.steps += n
         return Block(times, session_times, estimates, measurement, inputs, np.full(n, seconds))
+
+    def _recorded(self, raw: np.ndarray, used: np.ndarray) -> np.ndarray:
+        """A block's measurement in :attr:`record_layout`: the sensors' held samples of
+        its rows, then the combined channels the steps used (NaN where the observer does
+        not read one)."""
+        layout = self._record_layout
+        recorded = np.full((raw.shape[0], layout.size), np.nan)
+        total = layout.size - sum(signal.size for signal in self.suite.combined_signals) if self.suite is not None else 0
+        recorded[:, :total] = raw[:, :total]
+        start = 0
+        spans = {}
+        for signal in layout.signals:
+            spans[signal.name] = slice(start, start + signal.size)
+            start += signal.size
+        for channel in self.channels.values():
+            recorded[:, spans[channel.name]] = used[:, channel.columns]
+        return recorded
 
     def _events(self, times: np.ndarray, estimates: dict) -> None:
         """Count gated points and report outages from the steps' flags."""

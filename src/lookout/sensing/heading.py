@@ -11,7 +11,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout.components import EARTH_FIXED, Signal
 from lookout.declare import NON_NEGATIVE, POSITIVE, Value, component
-from lookout.sensing.instrument import HEADING, GaussMarkovError, Instrument, gauss_markov, period_value
+from lookout.sensing.instrument import HEADING, SOURCE, GaussMarkovError, Instrument, gauss_markov, period_value, source_value
 
 MEASURED_HEADING = Signal("measured_heading", "rad", "measured heading", EARTH_FIXED, angle=True)
 
@@ -25,6 +25,7 @@ MEASURED_HEADING = Signal("measured_heading", "rad", "measured heading", EARTH_F
         Value("sample_period", "float", "Seconds between samples (s).", range=POSITIVE),
         Value("error_std", "float", "Stationary standard deviation of the slow error (rad); 0 for none.", range=NON_NEGATIVE),
         Value("error_time_constant", "float", "Time constant of the slow error (s).", range=POSITIVE),
+        SOURCE,
     ),
 )
 @final
@@ -42,6 +43,9 @@ class Gyrocompass(Instrument):
         Stationary standard deviation of the slow error (rad); 0 for none.
     error_time_constant : float, positive
         Time constant of the slow error (s).
+    source : str, optional
+        Where lookout live and lookout replay take its readings from: a talker ID, a sender or both
+        (GP, @10.0.0.5, GP@10.0.0.5); simulation ignores it.
     """
 
     provides: ClassVar[str] = HEADING
@@ -50,12 +54,21 @@ class Gyrocompass(Instrument):
     sample_period: float = eqx.field(static=True)
     signals: tuple[Signal, ...] = eqx.field(static=True, default=(MEASURED_HEADING,), kw_only=True)
     noise_count: int = eqx.field(static=True, default=2, kw_only=True)
+    source: str | None = eqx.field(static=True, default=None, kw_only=True)
 
-    def __init__(self, noise_std: float = 0.002, sample_period: float = 0.1, error_std: float = 0.0, error_time_constant: float = 600.0):
+    def __init__(
+        self,
+        noise_std: float = 0.002,
+        sample_period: float = 0.1,
+        error_std: float = 0.0,
+        error_time_constant: float = 600.0,
+        source: str | None = None,
+    ):
         check.positive("noise_std", noise_std, allow_zero=True)
         self.noise = jnp.asarray(float(noise_std))
         self.sample_period = period_value("sample_period", sample_period)
         self.error = gauss_markov("error", error_std, error_time_constant, self.sample_period, 1)
+        self.source = source_value("source", source)
 
     def initial_memory(self, kinematics: dict[str, Array]) -> Array:
         return jnp.zeros(1)

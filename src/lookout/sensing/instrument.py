@@ -24,6 +24,7 @@ from jax import Array
 from lookout import _validation as check
 from lookout._math import rotation
 from lookout.components import Signal
+from lookout.declare import Value
 
 #: What a position reference contributes to a combining stage, what a heading
 #: reference does, and what an instrument that is neither does.
@@ -77,6 +78,28 @@ class Instrument(eqx.Module):
     def angles(self) -> tuple[bool, ...]:
         """Per channel: whether it is an angle (wrapped to [-pi, pi))."""
         return tuple(signal.angle for signal in self.signals for _ in range(signal.size))
+
+
+#: The key that binds an instrument to the readings of a live stream (docs/live.md,
+#: "Named sensors"): :func:`lookout.io.nmea.source_spec` spells it.
+SOURCE = Value(
+    "source",
+    "str",
+    "Where lookout live and lookout replay take its readings from: a talker ID, a sender or both (GP, @10.0.0.5, GP@10.0.0.5); simulation ignores it.",
+)
+
+
+def source_value(name: str, value: str | None) -> str | None:
+    """A live source (:data:`SOURCE`), checked for its spelling; None for none."""
+    if value is None:
+        return None
+    from lookout.io.nmea import source_spec  # here: a simulation never reads a stream
+
+    try:
+        source_spec(value)
+    except ValueError as error:
+        raise check.ParameterError(name, f"{name} {error}") from None
+    return value
 
 
 def lever_arm_vector(name: str, value: npt.ArrayLike) -> np.ndarray:

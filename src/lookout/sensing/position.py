@@ -22,7 +22,17 @@ from jax import Array
 from lookout import _validation as check
 from lookout.components import EARTH_FIXED, Signal
 from lookout.declare import NON_NEGATIVE, POSITIVE, Value, component
-from lookout.sensing.instrument import POSITION, GaussMarkovError, Instrument, at_lever_arm, gauss_markov, lever_arm_vector, period_value
+from lookout.sensing.instrument import (
+    POSITION,
+    SOURCE,
+    GaussMarkovError,
+    Instrument,
+    at_lever_arm,
+    gauss_markov,
+    lever_arm_vector,
+    period_value,
+    source_value,
+)
 from lookout.vessel_signals import EARTH_AXES
 
 MEASURED_POSITION = Signal("measured_position", "m", "measured position of the antenna or transducer", EARTH_FIXED, EARTH_AXES, "earth_axis")
@@ -75,6 +85,7 @@ class PositionReference(Instrument):
             range=NON_NEGATIVE,
         ),
         Value("error_time_constant", "float", "Time constant of the Gauss-Markov error (s).", range=POSITIVE),
+        SOURCE,
     ),
 )
 @final
@@ -94,6 +105,9 @@ class GnssReceiver(PositionReference):
         Stationary standard deviation of the Gauss-Markov error per axis (multipath, atmosphere; m); 0 for none.
     error_time_constant : float, positive
         Time constant of the Gauss-Markov error (s).
+    source : str, optional
+        Where lookout live and lookout replay take its readings from: a talker ID, a sender or both
+        (GP, @10.0.0.5, GP@10.0.0.5); simulation ignores it.
     """
 
     lever_arm: Array
@@ -102,6 +116,7 @@ class GnssReceiver(PositionReference):
     sample_period: float = eqx.field(static=True)
     signals: tuple[Signal, ...] = eqx.field(static=True, default=(MEASURED_POSITION,), kw_only=True)
     noise_count: int = eqx.field(static=True, default=4, kw_only=True)
+    source: str | None = eqx.field(static=True, default=None, kw_only=True)
 
     def __init__(
         self,
@@ -110,12 +125,14 @@ class GnssReceiver(PositionReference):
         sample_period: float = 1.0,
         error_std: float = 0.0,
         error_time_constant: float = 300.0,
+        source: str | None = None,
     ):
         self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
         check.positive("noise_std", noise_std, allow_zero=True)
         self.noise = jnp.asarray(float(noise_std))
         self.sample_period = period_value("sample_period", sample_period)
         self.error = gauss_markov("error", error_std, error_time_constant, self.sample_period, 2)
+        self.source = source_value("source", source)
 
     def initial_memory(self, kinematics: dict[str, Array]) -> Array:
         return jnp.zeros(2)
@@ -148,6 +165,7 @@ class GnssReceiver(PositionReference):
         Value("noise_std", "float", "Standard deviation of the white noise per axis at zero slant range (m).", range=NON_NEGATIVE),
         Value("range_fraction", "float", "Further standard deviation per metre of slant range (1; 0.005 is 0.5 % of the range).", range=NON_NEGATIVE),
         Value("sample_period", "float", "Seconds between fixes (s).", range=POSITIVE),
+        SOURCE,
     ),
 )
 @final
@@ -171,6 +189,9 @@ class HydroacousticReference(PositionReference):
         Further standard deviation per metre of slant range (1; 0.005 is 0.5 % of the range).
     sample_period : float, positive
         Seconds between fixes (s).
+    source : str, optional
+        Where lookout live and lookout replay take its readings from: a talker ID, a sender or both
+        (GP, @10.0.0.5, GP@10.0.0.5); simulation ignores it.
     """
 
     lever_arm: Array
@@ -181,6 +202,7 @@ class HydroacousticReference(PositionReference):
     sample_period: float = eqx.field(static=True)
     signals: tuple[Signal, ...] = eqx.field(static=True, default=(MEASURED_POSITION,), kw_only=True)
     noise_count: int = eqx.field(static=True, default=2, kw_only=True)
+    source: str | None = eqx.field(static=True, default=None, kw_only=True)
 
     def __init__(
         self,
@@ -190,6 +212,7 @@ class HydroacousticReference(PositionReference):
         noise_std: float = 0.5,
         range_fraction: float = 0.005,
         sample_period: float = 2.0,
+        source: str | None = None,
     ):
         self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
         self.transponder = jnp.asarray(lever_arm_vector("transponder", transponder))
@@ -199,6 +222,7 @@ class HydroacousticReference(PositionReference):
         self.noise = jnp.asarray(float(noise_std))
         self.range_fraction = jnp.asarray(float(range_fraction))
         self.sample_period = period_value("sample_period", sample_period)
+        self.source = source_value("source", source)
 
     def _std(self, point: Array) -> Array:
         slant = jnp.sqrt(self.depth**2 + jnp.sum((point - self.transponder) ** 2))
