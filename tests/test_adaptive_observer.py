@@ -166,7 +166,10 @@ def test_bad_inputs_fail_with_one_line_naming_the_parameter(build, message):
 
 def test_the_continuous_form_needs_the_oracle_velocity():
     observer = _observer("continuous")
-    with pytest.raises(ValueError, match=r"observer adaptive-dp needs measurement measured_velocity, measured_yaw_rate, which sensor position-heading does not measure \(it measures measured_position, measured_heading\)"):
+    with pytest.raises(
+        ValueError,
+        match=r"observer adaptive-dp needs measurement measured_velocity, measured_yaw_rate, which sensor position-heading does not measure \(it measures measured_position, measured_heading\)",
+    ):
         Scenario(
             _plant(),
             PositionHeadingSensor(0.0, SAMPLE),
