@@ -21,6 +21,7 @@ from lookout.scenario import metrics as metric_module
 from lookout.scenario.composition import CompositionError, compose
 from lookout.scenario.file import from_document
 from lookout.sensing.combining import WeightedMean
+from lookout.sensing.failures import failure_from_table
 from lookout.sensing.heading import Gyrocompass
 from lookout.sensing.position import GnssReceiver, HydroacousticReference
 from lookout.sensing.suite import SensorSuite
@@ -669,3 +670,92 @@ def test_two_sensors_of_one_name_are_a_toml_error_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith(f"error: {path}: ") and "not valid TOML" in err and err.count("\n") == 1, err
     assert not out.exists()
+
+
+# ----------------------------------------------------------------------------------
+# one sample of a suite, read directly: what is taken when
+
+
+def _kinematics(heading: float = 0.3, position=(10.0, -4.0)) -> dict:
+    return {
+        "position": jnp.asarray(position),
+        "heading": jnp.asarray(heading),
+        "velocity": jnp.zeros(2),
+        "yaw_rate": jnp.asarray(0.0),
+        "acceleration": jnp.zeros(2),
+        "yaw_acceleration": jnp.asarray(0.0),
+    }
+
+
+def test_the_combined_position_is_taken_when_a_reference_has_a_new_fix_not_at_the_gyros_rate():
+    """A fix every second and a gyro every 0.1 s: at a gyro-only sample the combined
+    heading is new and the combined position is the held one, bit for bit; at a fix the
+    position is new. The combined position's period is the references' (1 s)."""
+    suite = SensorSuite(
+        {"dgnss": GnssReceiver(lever_arm=LEVER, noise_std=0.5), "gyro": Gyrocompass(noise_std=0.0, sample_period=DT)}, combining=WeightedMean()
+    )
+    layout = suite.measurement_layout
+    assert layout.names == ("dgnss.measured_position", "gyro.measured_heading", "measured_position", "measured_heading")
+    assert suite.sample_period == (1.0, 1.0, DT, 1.0, 1.0, DT)
+    k = _kinematics()
+    memory = suite.initial_memory(k)
+    normals = jnp.asarray(np.random.default_rng(1).normal(size=suite.noise_size))
+    held = jnp.asarray([1.0, 2.0, 0.1, 7.0, 8.0, 0.2])
+    gyro_only = jnp.asarray([False, False, True, False, False, True])
+    _, y = suite.read(memory, 0.0, k, normals, gyro_only, held)
+    np.testing.assert_array_equal(np.asarray(y[:2]), [1.0, 2.0])
+    np.testing.assert_array_equal(np.asarray(y[3:5]), [7.0, 8.0])  # the held combined position
+    assert float(y[5]) == pytest.approx(0.3, abs=1e-15) and float(y[2]) == pytest.approx(0.3, abs=1e-15)
+    _, y = suite.read(memory, 0.0, k, normals, jnp.ones(6, dtype=bool), held)
+    fix = np.asarray(y[:2])
+    np.testing.assert_allclose(np.asarray(y[3:5]), fix - _rotate(np.asarray(0.3), LEVER), rtol=0, atol=1e-12)
+
+
+def test_a_freeze_from_the_start_holds_the_first_sample():
+    """A freeze with no sample before it holds the first one it sees, bit for bit, and
+    lets go at its window's end."""
+    signals = GnssReceiver().signals
+    freeze = failure_from_table({"mode": "freeze", "start": 0.0, "duration": 2.0}, signals, 1.0)
+    memory = freeze.initial_memory(2)
+    held = jnp.full(2, jnp.nan)
+    out = []
+    for t, value in ((0.0, [1.0, 2.0]), (1.0, [3.0, 4.0]), (2.0, [5.0, 6.0])):
+        memory, y, flag = freeze.apply(memory, t, jnp.asarray(value), jnp.zeros(2), held, jnp.zeros(0), jnp.asarray(True))
+        out.append((np.asarray(y), float(flag)))
+        held = y
+    assert [flag for _, flag in out] == [1.0, 1.0, 0.0]
+    np.testing.assert_array_equal(np.stack([y for y, _ in out]), [[1.0, 2.0], [1.0, 2.0], [5.0, 6.0]])
+
+
+def test_a_gnss_latency_gives_the_fix_of_its_age_and_the_resting_position_before():
+    """``latency = 2`` s at 1 s fixes: the fix given at sample n is of sample n - 2; the
+    first two are of the initial position (the vessel rested there before the run)."""
+    receiver = GnssReceiver(noise_std=0.0, latency=2.0)
+    track = [_kinematics(position=(float(n), 2.0 * n)) for n in range(5)]
+    memory = receiver.initial_memory(track[0])
+    given = []
+    for k in track:
+        memory, value, _ = receiver.emit(memory, k, jnp.zeros(receiver.noise_count))
+        given.append(np.asarray(value))
+    np.testing.assert_array_equal(np.stack(given), [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 2.0], [2.0, 4.0]])
+    with pytest.raises(ValueError, match=r"latency must be a whole number of the sample period \(1 s\), >= 0; got 1.5"):
+        GnssReceiver(latency=1.5)
+    with pytest.raises(ValueError, match=r"latency must be a whole number"):
+        GnssReceiver(latency=-1.0)
+
+
+def test_a_files_sensors_replace_a_presets_sensor():
+    """``preset`` with ``[sensors.NAME]``: the suite replaces the reproduction's sensor."""
+    document = tomllib.loads(SUITE)
+    document["preset"] = "fossen-strand-1999"
+    composition = compose(document)
+    assert composition.scenario.sensor.names == ("dgnss1", "dgnss2", "gyro1", "imu")
+
+
+def test_an_observer_the_suite_does_not_fit_is_refused_naming_the_suite():
+    document = tomllib.loads(SUITE)
+    document["sensors"] = {name: table for name, table in document["sensors"].items() if name != "gyro1"}
+    with pytest.raises(
+        CompositionError, match=r"which the sensor suite \(dgnss1, dgnss2, imu\) does not measure \(it measures dgnss1.measured_position"
+    ):
+        compose(document)

@@ -34,8 +34,9 @@ ranges and defaults from the component's own signature and docstring); a key lef
 out takes its default, and a part an observer or a controller needs from the plant
 (the vessel model of a model-based observer) is the plant's unless the table gives
 its own (a model error). ``preset = "NAME:CASE"`` starts from a reproduction's case;
-the file's tables then override its keys, and a table with another ``kind`` replaces
-the preset's component.
+the file's tables then override its keys, a table with another ``kind`` replaces
+the preset's component, and a file's ``[sensors.NAME]`` tables replace the preset's
+``[sensor]`` (its ``[sensor]``, the preset's suite).
 
 :func:`compose` validates a document and builds its :class:`~lookout.sim.Scenario`;
 every error is a :class:`CompositionError` with the key's location.
@@ -617,7 +618,13 @@ def compose(document: dict) -> Composition:
             raise CompositionError((key,), f"unknown key (a composition has {', '.join(TOP_KEYS)})")
     plugins = load_plugins(document.get("plugins"))
     if "preset" in document:
-        document = merge(preset_document(document["preset"]), document)
+        preset = preset_document(document["preset"])
+        # a file's [sensors.NAME] tables replace a preset's [sensor], and its [sensor] a preset's suite
+        for given, replaced in (("sensors", ("sensor",)), ("sensor", ("sensors", "references"))):
+            if given in document:
+                for key in replaced:
+                    preset.pop(key, None)
+        document = merge(preset, document)
     simulation_table = document.get("simulation", {})
     if not isinstance(simulation_table, dict):
         raise CompositionError(("simulation",), "must be a table")

@@ -13,12 +13,14 @@ Modes, applied in the order given to a sample ``y = value + white`` of the instr
 
 ========  ==================================================================
 dropout   NaN: the sample is missing (the observer rides through it)
-freeze    the channel holds its last sample, bit for bit
+freeze    the channel holds its last sample, bit for bit (its first, when the
+          failure starts before the instrument has one)
 jump      ``y + size`` (a step; one number, or one per channel)
 drift     ``y + rate (t - start)`` (a ramp; m/s, rad/s, ... per channel)
 noise     ``y + (factor - 1) white``: the white noise's std times ``factor``
 wild      with ``probability`` per sample, ``y + size n`` (n standard normal)
-latency   the sample taken ``delay`` seconds earlier (a multiple of the period)
+latency   the sample taken ``delay`` seconds earlier (a multiple of the period;
+          NaN while the instrument has none that old, from the run's start)
 ========  ==================================================================
 """
 
@@ -90,9 +92,12 @@ class Failure(eqx.Module):
         return jnp.asarray((t >= self.start) & (t < self.start + self.duration))
 
     def initial_memory(self, size: int) -> Any:
-        """A latency's buffer of its last ``delay_samples`` samples (NaN: none yet)."""
+        """A latency's buffer of its last ``delay_samples`` samples, a freeze's frozen
+        sample (NaN: none yet)."""
         if self.mode == "latency":
             return jnp.full((self.delay_samples, size), jnp.nan)
+        if self.mode == "freeze":
+            return jnp.full(size, jnp.nan)
         return ()
 
     def apply(self, memory: Any, t: ArrayLike, y: Array, white: Array, held: Array, normals: Array, due: Array) -> tuple[Any, Array, Array]:
@@ -105,7 +110,10 @@ class Failure(eqx.Module):
         if self.mode == "dropout":
             y = jnp.where(hit, jnp.nan, y)
         elif self.mode == "freeze":
-            y = jnp.where(hit, held, y)
+            # the value it froze on: the last sample, or this one when there is none yet
+            frozen = jnp.where(jnp.isnan(memory), jnp.where(jnp.isfinite(held), held, y), memory)
+            memory = jnp.where(on, jnp.where(due, frozen, memory), jnp.nan)
+            y = jnp.where(hit, frozen, y)
         elif self.mode == "jump":
             y = jnp.where(hit, y + self.size, y)
         elif self.mode == "drift":

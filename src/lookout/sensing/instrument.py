@@ -124,6 +124,15 @@ def period_value(name: str, value: float) -> float:
     return number
 
 
+def whole_periods(name: str, value: float, period: float) -> int:
+    """A delay (s), finite, >= 0 and a whole number of ``period``, as a number of periods."""
+    number = float(value)
+    ratio = number / period if math.isfinite(number) and number >= 0 else math.nan
+    if not (math.isfinite(ratio) and abs(ratio - round(ratio)) <= 1e-9 * max(1.0, ratio)):
+        raise check.ParameterError(name, f"{name} must be a whole number of the sample period ({period:g} s), >= 0; got {value}")
+    return int(round(ratio))
+
+
 def std_value(name: str, value: npt.ArrayLike, size: int) -> Array:
     """A standard deviation per channel (one number for all, or ``size``), >= 0."""
     std = np.broadcast_to(np.asarray(value, dtype=float), (size,)) if np.ndim(value) == 0 else np.asarray(value, dtype=float)

@@ -32,6 +32,7 @@ from lookout.sensing.instrument import (
     lever_arm_vector,
     period_value,
     source_value,
+    whole_periods,
 )
 from lookout.vessel_signals import EARTH_AXES
 
@@ -85,13 +86,22 @@ class PositionReference(Instrument):
             range=NON_NEGATIVE,
         ),
         Value("error_time_constant", "float", "Time constant of the Gauss-Markov error (s).", range=POSITIVE),
+        Value(
+            "latency",
+            "float",
+            "Age of each fix when it is given (s): a whole number of sample periods; 0 for none.",
+            range=NON_NEGATIVE,
+        ),
         SOURCE,
     ),
 )
 @final
 class GnssReceiver(PositionReference):
     """A GNSS (DGNSS) position reference: the antenna's position plus a first-order
-    Gauss–Markov error (multipath and atmosphere, time constant of minutes) and white noise.
+    Gauss–Markov error (multipath and atmosphere, time constant of minutes) and white noise,
+    given ``latency`` seconds after the instant it is of (the receiver's computation and
+    the link; before the run the vessel is taken to have rested at its initial position).
+    A Kalman filter's h takes the fix as current: a latency is a model error it does not know.
 
     Parameters
     ----------
@@ -105,6 +115,8 @@ class GnssReceiver(PositionReference):
         Stationary standard deviation of the Gauss-Markov error per axis (multipath, atmosphere; m); 0 for none.
     error_time_constant : float, positive
         Time constant of the Gauss-Markov error (s).
+    latency : float, non-negative
+        Age of each fix when it is given (s): a whole number of sample periods; 0 for none.
     source : str, optional
         Where lookout live and lookout replay take its readings from: a talker ID, a sender or both
         (GP, @10.0.0.5, GP@10.0.0.5); simulation ignores it.
@@ -114,6 +126,7 @@ class GnssReceiver(PositionReference):
     noise: Array
     error: GaussMarkovError
     sample_period: float = eqx.field(static=True)
+    latency_samples: int = eqx.field(static=True, default=0, kw_only=True)
     signals: tuple[Signal, ...] = eqx.field(static=True, default=(MEASURED_POSITION,), kw_only=True)
     noise_count: int = eqx.field(static=True, default=4, kw_only=True)
     source: str | None = eqx.field(static=True, default=None, kw_only=True)
@@ -125,6 +138,7 @@ class GnssReceiver(PositionReference):
         sample_period: float = 1.0,
         error_std: float = 0.0,
         error_time_constant: float = 300.0,
+        latency: float = 0.0,
         source: str | None = None,
     ):
         self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
@@ -132,14 +146,19 @@ class GnssReceiver(PositionReference):
         self.noise = jnp.asarray(float(noise_std))
         self.sample_period = period_value("sample_period", sample_period)
         self.error = gauss_markov("error", error_std, error_time_constant, self.sample_period, 2)
+        self.latency_samples = whole_periods("latency", latency, self.sample_period)
         self.source = source_value("source", source)
 
-    def initial_memory(self, kinematics: dict[str, Array]) -> Array:
-        return jnp.zeros(2)
+    def initial_memory(self, kinematics: dict[str, Array]) -> tuple[Array, Array]:
+        # the Gauss-Markov error, and the fixes computed but not yet given (oldest first)
+        return jnp.zeros(2), jnp.tile(self.expected(kinematics), (self.latency_samples, 1))
 
     def emit(self, memory: Any, kinematics: dict[str, Array], normals: Array) -> tuple[Any, Array, Array]:
-        value = self.expected(kinematics) + memory
-        return self.error.advance(memory, normals[2:4]), value, self.noise * normals[:2]
+        error, waiting = memory
+        value = self.expected(kinematics) + error
+        if self.latency_samples:
+            waiting, value = jnp.concatenate([waiting[1:], value[None]], axis=0), waiting[0]
+        return (self.error.advance(error, normals[2:4]), waiting), value, self.noise * normals[:2]
 
     def expected(self, kinematics: dict[str, Array]) -> Array:
         return at_lever_arm(kinematics["position"], kinematics["heading"], self.lever_arm)

@@ -10,9 +10,11 @@ name; a Kalman filter may read every instrument's channels.
 
 At a sample where an instrument is due, the suite takes ``value + white`` of it
 (:meth:`~lookout.sensing.instrument.Instrument.emit`), applies its failures in
-order, wraps its angles, and holds the result until its next sample; the combined
-channels are taken when any instrument they combine is due, from the instruments in
-the order of their names (so that the order of the record changes none of their bits).
+order, wraps its angles, and holds the result until its next sample. The combined
+position is taken when a position reference has a new sample, the combined heading when
+a gyrocompass has one (so a held fix is not taken again at the gyros' rate), from the
+instruments in the order of their names (so that the order of the record changes none
+of their bits).
 
 Noise. Instrument ``NAME`` draws its normals (its own and its failures') from a
 stream of its own, numbered from the name (:func:`noise_stream`): adding, removing
@@ -34,7 +36,7 @@ from jax.typing import ArrayLike
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import KinematicSensor, Layout, Signal
-from lookout.sensing.combining import WeightedMean
+from lookout.sensing.combining import COMBINED_HEADING, WeightedMean
 from lookout.sensing.failures import Failure, flag_signal
 from lookout.sensing.instrument import HEADING, POSITION, Instrument
 
@@ -113,15 +115,23 @@ class SensorSuite(KinematicSensor):
             signals += [flag_signal(name, failure.mode, index, modes) for index, failure in enumerate(listed)]
             periods += [each.sample_period] * len(listed)
         combined = combining.signals(self.instruments) if combining is not None else ()
-        contributing = [each.sample_period for each in self.instruments if each.provides in (POSITION, HEADING)]
         for signal in combined:
             signals.append(signal)
-            periods += [min(contributing)] * signal.size
+            periods += [self._combined_period(signal)] * signal.size
         self.measurement_layout = Layout(tuple(signals))
         self.sample_period = tuple(periods)
         counts = [each.noise_count + sum(f.noise_count for f in listed) for each, listed in zip(self.instruments, self.failures)]
         self.noise_streams = tuple((noise_stream(name), count) for name, count in zip(self.names, counts))
         self.noise_size = sum(counts)
+
+    def _contributors(self, signal: Signal) -> list[int]:
+        """The instruments a combined channel is taken from: the position references
+        for the position, the gyrocompasses for the heading."""
+        provides = HEADING if signal.name == COMBINED_HEADING.name else POSITION
+        return [i for i, each in enumerate(self.instruments) if each.provides == provides]
+
+    def _combined_period(self, signal: Signal) -> float:
+        return min(self.instruments[i].sample_period for i in self._contributors(signal))
 
     @property
     def combined_signals(self) -> tuple[Signal, ...]:
@@ -187,7 +197,11 @@ class SensorSuite(KinematicSensor):
             # not keep) changes no bit of the combined channels
             order = sorted(range(len(self.names)), key=self.names.__getitem__)
             combined = combining.combine([self.instruments[i] for i in order], [samples[i] for i in order], before[-1])
-            now = due[channel]
+            # a combined channel is new when one of the instruments it is taken from is
+            first = [sum(each.size for each in self.instruments[:i]) for i in range(len(self.instruments))]
+            now = jnp.concatenate(
+                [jnp.full(signal.size, jnp.any(jnp.stack([due[first[i]] for i in self._contributors(signal)]))) for signal in self.combined_signals]
+            )
             pieces.append(jnp.where(now, combined, before))
         return tuple(memories), jnp.concatenate(pieces)
 

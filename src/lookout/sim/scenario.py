@@ -169,7 +169,7 @@ class Scenario(eqx.Module):
         if self.observer_mode == "continuous" and isinstance(self.sensor, KinematicSensor):
             raise ParameterError(
                 "observer_mode",
-                f"observer_mode 'continuous' needs a sensor of the state alone; sensor {kind_of(self.sensor)} is a suite with a memory",
+                f"observer_mode 'continuous' needs a sensor of the state alone; {sensor_words(self.sensor)} has a memory",
             )
         substeps = _ratio("sample_period", self.sample_period, "plant_step", self.plant_step)
         if substeps * self.plant.noise_size > MAX_COUNT:  # the process noise of a sample is one draw
@@ -309,6 +309,15 @@ def check_fit(scenario: Scenario) -> None:
         _FITTING.add(key)
 
 
+def sensor_words(sensor: object) -> str:
+    """How a refusal names a sensor: ``sensor KIND``, or ``the sensor suite (NAME, ...)``
+    for a suite of named instruments."""
+    names = getattr(sensor, "names", None)
+    if isinstance(names, tuple) and names and all(isinstance(name, str) for name in names):
+        return f"the sensor suite ({', '.join(names)})"
+    return f"sensor {kind_of(sensor)}"
+
+
 def _check_fit(scenario: Scenario) -> None:
     plant, sensor, observer = scenario.plant, scenario.sensor, scenario.observer
     x0 = scenario.initial_state
@@ -330,7 +339,7 @@ def _check_fit(scenario: Scenario) -> None:
     if missing:
         raise ParameterError(
             "observer",
-            f"observer {kind_of(observer)} needs measurement {', '.join(missing)}, which sensor {kind_of(sensor)} does not measure "
+            f"observer {kind_of(observer)} needs measurement {', '.join(missing)}, which {sensor_words(sensor)} does not measure "
             f"(it measures {', '.join(sensor.measurement_layout.names)})",
         )
     y = jnp.zeros(observer.measurement_layout.size)
@@ -409,7 +418,7 @@ def check_sensor_fit(sensor: Sensor, state: Any, plant: Plant | None = None) -> 
     :class:`~lookout.components.KinematicSensor` measures ``plant``'s kinematics."""
     if isinstance(sensor, KinematicSensor):
         if plant is None or getattr(plant, "kinematics", None) is None:
-            raise FitError(("sensor", "plant"), f"sensor {kind_of(sensor)} measures a plant's kinematics, and plant {kind_of(plant)} gives none")
+            raise FitError(("sensor", "plant"), f"{sensor_words(sensor)} measures a plant's kinematics, and plant {kind_of(plant)} gives none")
         size = sensor.measurement_layout.size
 
         def read(x):
@@ -434,9 +443,8 @@ def _check_needs(controller, what: str, needs, provided: set, provider: tuple) -
         if name not in provided:
             role, component, verb = provider
             given = ", ".join(sorted(provided)) or "nothing"
-            raise ParameterError(
-                "controller", f"controller {kind_of(controller)} needs {what} {name}, which {role} {kind_of(component)} {verb} (it gives {given})"
-            )
+            which = sensor_words(component) if role == "sensor" else f"{role} {kind_of(component)}"
+            raise ParameterError("controller", f"controller {kind_of(controller)} needs {what} {name}, which {which} {verb} (it gives {given})")
 
 
 def checked_scenario(scenario: object, batched_runs: int | None = None) -> None:
