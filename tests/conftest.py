@@ -19,7 +19,9 @@ for _flag, _value in (("xla_backend_optimization_level", "0"), (xla_emitters.FLA
 import tempfile  # noqa: E402
 
 _run = os.getppid() if "PYTEST_XDIST_WORKER" in os.environ else os.getpid()
-os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.path.join(tempfile.gettempdir(), f"lookout-test-jax-cache-{_run}"))
+_OWN_CACHE = None if "JAX_COMPILATION_CACHE_DIR" in os.environ else os.path.join(tempfile.gettempdir(), f"lookout-test-jax-cache-{_run}")
+if _OWN_CACHE is not None:
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = _OWN_CACHE
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
 
 import lookout  # noqa: E402  (enables float64 before any test builds arrays)
@@ -66,6 +68,15 @@ def _registry_as_it_was():
     for each in declare.DECLARED[count:]:
         sys.modules.pop(each.module, None)
     del declare.DECLARED[count:]
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """The run's own compilation cache is removed at its end, by the process that named
+    it (the controller, or a run without workers); one a user set stays."""
+    if _OWN_CACHE is not None and "PYTEST_XDIST_WORKER" not in os.environ:
+        import shutil
+
+        shutil.rmtree(_OWN_CACHE, ignore_errors=True)
 
 
 @pytest.fixture
