@@ -330,3 +330,23 @@ def test_a_scenario_file_of_named_sensors_builds_the_filter_on_their_channels(tm
     assert np.all(np.isfinite(covariance)) and np.all(np.diag(covariance) >= 0)
     assert main(["design", str(path)]) == 0
     assert "R > 0" in capsys.readouterr().out
+
+
+def test_the_default_r_adds_each_slow_errors_stationary_variance_to_the_white_noise():
+    """R on a suite: sqrt(noise_std^2 + error_std^2) for a GNSS receiver and a
+    gyrocompass with a Gauss-Markov error, the white noise alone where there is none,
+    and the hydroacoustic reference's spread at the transponder's horizontal position."""
+    from lookout.observers.kalman import suite_measurement_std
+    from lookout.sensing.heading import Gyrocompass
+    from lookout.sensing.position import GnssReceiver, HydroacousticReference
+    from lookout.sensing.suite import SensorSuite
+
+    suite = SensorSuite(
+        {
+            "dgnss1": GnssReceiver(noise_std=0.7, error_std=0.5),
+            "dgnss2": GnssReceiver(noise_std=0.7),
+            "hpr": HydroacousticReference(depth=100.0, noise_std=0.5, range_fraction=0.005),
+            "gyro1": Gyrocompass(noise_std=0.002, error_std=0.001),
+        }
+    )
+    np.testing.assert_allclose(suite_measurement_std(suite), [np.hypot(0.7, 0.5)] * 2 + [0.7] * 2 + [1.0] * 2 + [np.hypot(0.002, 0.001)], rtol=1e-15)

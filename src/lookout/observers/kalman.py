@@ -69,8 +69,20 @@ Defaults derived from the scenario (each can be given instead):
 * R from the sensor's own noise: J J^T, J the Jacobian of ``sensor.measure`` with
   respect to its standard normals at zero (exact for additive Gaussian noise); it must
   be positive definite (a noiseless channel needs ``measurement_noise``). For a suite,
-  diag(``suite.noise_std()``^2): each instrument's white noise (its slow Gauss-Markov
-  error, where it has one, is not in R: give ``measurement_noise`` to allow for it).
+  diag(sigma^2) with sigma each instrument's
+  :meth:`~lookout.sensing.instrument.Instrument.measurement_std`: its white noise, and
+  where it has a slow Gauss-Markov error (a GNSS receiver's multipath, a gyrocompass's
+  settling error), that error's stationary variance added, sigma^2 = noise_std^2 +
+  error_std^2. The filter does not estimate the slow error as a state: it takes it as
+  white of its stationary variance, its correlation in time neglected (Bryson &
+  Henrikson 1968, "Estimation using sampled data containing sequentially correlated
+  noise", Journal of Spacecraft and Rockets 5(6), 662-665, give the exact treatments:
+  the error as a state, or differenced measurements), so that a receiver with a 0.5 m
+  multipath error is not trusted as if it had its white noise alone. The spread is the
+  one the combining stage weights the references by
+  (:meth:`~lookout.sensing.position.PositionReference.weight_std`). A hydroacoustic
+  reference's is its spread at the transponder's horizontal position; an IMU's constant
+  biases are not in R.
 * P_0 from the steady state: the solution of the discrete algebraic Riccati equation
   of the model linearized at the initial guess (u = 0, t = 0) over one observer
   sample, the covariance of a filter that has run for ever (scipy's
@@ -228,6 +240,14 @@ def filter_layout(sensor: Sensor) -> Layout:
     gives: not the failure flags, which are the truth of a failure, nor the combining
     stage's channels, which repeat the instruments'), else the whole measurement."""
     return sensor.instrument_layout if isinstance(sensor, SensorSuite) else sensor.measurement_layout
+
+
+def suite_measurement_std(suite: SensorSuite) -> np.ndarray:
+    """The default R's standard deviations on a suite, per channel of its
+    :attr:`~lookout.sensing.suite.SensorSuite.instrument_layout`: each instrument's
+    :meth:`~lookout.sensing.instrument.Instrument.measurement_std` (its white noise, and
+    a slow Gauss-Markov error's stationary variance where it has one; module docstring)."""
+    return np.concatenate([np.asarray(each.measurement_std(), dtype=float).reshape(-1) for each in suite.instruments])
 
 
 def _sensor_covariance(sensor: Sensor, x) -> np.ndarray:
@@ -568,8 +588,8 @@ def kalman_fields(
             "plant", f"plant {type(plant).__name__} gives no kinematics (position, heading, rates) for the filter's sensor suite to measure"
         )
     if measurement_noise is None:
-        if isinstance(sensor, SensorSuite):  # each instrument's white noise, channel by channel
-            r = np.diag(np.asarray(sensor.noise_std(), dtype=float) ** 2)
+        if isinstance(sensor, SensorSuite):  # each instrument's white noise and slow error, channel by channel
+            r = np.diag(suite_measurement_std(sensor) ** 2)
         elif isinstance(sensor, KinematicSensor):
             raise check.ParameterError(
                 "measurement_noise", f"measurement_noise: sensor {type(sensor).__name__} states no noise of its own; give measurement_noise"
@@ -687,7 +707,8 @@ PARAMETERS = """
         ``[plant.initial]`` takes them (default 0).
     measurement_noise : array_like, shape (m,), positive, optional
         Standard deviation of each measured channel, R = diag(std^2) (default: the
-        sensor's own noise). A suite's own is each instrument's white noise.
+        sensor's own noise). A suite's own is each instrument's white noise and slow
+        Gauss-Markov error, sqrt(noise_std^2 + error_std^2).
     initial_std : array_like or table, non-negative, optional
         Standard deviation of the initial guess per state entry, or a table of the
         plant's state parts and ``input_disturbance`` (default: the steady-state

@@ -82,6 +82,11 @@ class Gyrocompass(Instrument):
     def noise_std(self) -> Array:
         return jnp.reshape(self.noise, (1,))
 
+    def measurement_std(self) -> Array:
+        """The white noise widened by the slow error's stationary variance
+        (:meth:`Instrument.measurement_std`)."""
+        return self.error.widened(self.noise_std())
+
     def heading_of(self, y: Array) -> Array:
         """The heading a sample says (rad)."""
         return y[0]

@@ -72,8 +72,29 @@ class Instrument(eqx.Module):
 
     @abc.abstractmethod
     def noise_std(self) -> Array:
-        """The standard deviation of each channel's white noise, in its units (a
-        Kalman filter's R, the weights of a combining stage)."""
+        """The standard deviation of each channel's white noise, in its units (what
+        a ``noise`` failure scales; :meth:`measurement_std` adds a slow error's)."""
+
+    def measurement_std(self) -> Array:
+        """The standard deviation of each channel's error about :meth:`expected`, in its
+        units, for a filter that models none of the instrument's memory (a Kalman
+        filter's default R on a suite): the white noise (:meth:`noise_std`), and where the
+        instrument has a slow Gauss–Markov error, its stationary variance added,
+        ``sqrt(noise_std^2 + error_std^2)``.
+
+        The time-correlated error is then taken as white of its stationary variance,
+        its correlation in time neglected: the simplest treatment of a sequentially
+        correlated measurement error, where the exact ones estimate it as a state or
+        difference successive measurements (Bryson & Henrikson 1968, "Estimation using
+        sampled data containing sequentially correlated noise", Journal of Spacecraft
+        and Rockets 5(6), 662–665). Each sample's variance is then the error's, but the
+        filter still averages successive fixes as if their errors were independent,
+        which a slow error's are not: a variance inflation factor derived from the
+        correlation widens R further (Kermarrec, Jain & Schön 2022, "Kalman filter and
+        correlated measurement noise: the variance inflation factor", IEEE Transactions
+        on Aerospace and Electronic Systems 58(2), 766–780). A constant bias (an IMU's)
+        is left out: it is not a spread about zero."""
+        return self.noise_std()
 
     def angles(self) -> tuple[bool, ...]:
         """Per channel: whether it is an angle (wrapped to [-pi, pi))."""
@@ -151,6 +172,12 @@ class GaussMarkovError(eqx.Module):
     std: Array
     time_constant: Array
     step: float = eqx.field(static=True)
+
+    def widened(self, noise_std: Array) -> Array:
+        """``sqrt(noise_std^2 + std^2)`` per channel: a white noise of ``noise_std``
+        widened by this error's stationary variance
+        (:meth:`Instrument.measurement_std`); exactly ``noise_std`` where ``std`` is 0."""
+        return jnp.hypot(noise_std, self.std)
 
     def advance(self, error: Array, normals: Array) -> Array:
         a = jnp.exp(-self.step / self.time_constant)

@@ -67,8 +67,10 @@ class PositionReference(Instrument):
         """The Earth-fixed position (north, east) a sample ``y`` says the point at the lever arm is at."""
 
     def weight_std(self) -> Array:
-        """The standard deviation (m) a combining stage weights this reference by."""
-        return jnp.sqrt(jnp.mean(self.noise_std() ** 2))
+        """The standard deviation (m) a combining stage weights this reference by: the
+        root mean square over its axes of :meth:`measurement_std` (its white noise, and
+        a GNSS receiver's slow error), the spread a Kalman filter's default R states."""
+        return jnp.sqrt(jnp.mean(self.measurement_std() ** 2))
 
 
 @component(
@@ -166,10 +168,16 @@ class GnssReceiver(PositionReference):
     def noise_std(self) -> Array:
         return jnp.full(2, 1.0) * self.noise
 
+    def measurement_std(self) -> Array:
+        """The white noise widened by the Gauss–Markov error's stationary variance,
+        per axis (:meth:`Instrument.measurement_std`)."""
+        return self.error.widened(self.noise_std())
+
     def position_of(self, y: Array) -> Array:
         return y
 
     def weight_std(self) -> Array:
+        # the base class's, without measurement_std's square root taken and squared again
         return jnp.sqrt(self.noise**2 + jnp.mean(self.error.std**2))
 
 
