@@ -3,7 +3,8 @@ and latency, each over a window of time.
 
 A failure acts on one instrument of a suite (``[[sensors.NAME.failures]]``), on all
 its channels or on those of one of its signals, from ``start`` for ``duration``
-seconds (to the end of the run when not given). ``start``, ``duration`` and each
+seconds (to the end of the run when not given); ``start = inf`` is a failure that never
+happens, which a campaign's axis can switch on without compiling again. ``start``, ``duration`` and each
 size are arrays, so a campaign sweeps them without compiling again; the mode, the
 signal and a latency's delay are the structure. While a failure is active the suite
 records a flag of 1 beside the measurements (``NAME.MODE_failure``; for ``wild``, 1
@@ -133,14 +134,14 @@ class Failure(eqx.Module):
         return memory, y, flag
 
 
-def _number(location: tuple, value: Any, *, positive: bool = False, allow_inf: bool = False) -> float:
+def _number(location: tuple, value: Any, *, positive: bool = False, allow_inf: bool = False, inf_means: str = "to the run's end") -> float:
     name = location[-1]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise check.ParameterError(location, f"{name} must be a number; got {check.short(value)}")
     number = float(value)
     if math.isnan(number) or (math.isinf(number) and not allow_inf) or number < 0 or (positive and number == 0):
         bound = "> 0" if positive else ">= 0"
-        what = f"a number {bound} (inf: to the run's end)" if allow_inf else f"a finite number {bound}"
+        what = f"a number {bound} (inf: {inf_means})" if allow_inf else f"a finite number {bound}"
         raise check.ParameterError(location, f"{name} must be {what}; got {value}")
     return number
 
@@ -175,8 +176,9 @@ def failure_from_table(table: Any, signals: Sequence[Signal], period: float, loc
     for key in ("start",) + MODES[mode]:
         if key not in table:
             raise check.ParameterError(location + (key,), f"missing key (a {mode} failure needs {', '.join(('start',) + MODES[mode])})")
-    start = _number(location + ("start",), table["start"])
-    if run_duration is not None and start >= run_duration:
+    # inf: never (a failure that a campaign's axis switches on, lookout failures)
+    start = _number(location + ("start",), table["start"], allow_inf=True, inf_means="never")
+    if run_duration is not None and math.isfinite(start) and start >= run_duration:
         raise check.ParameterError(
             location + ("start",), f"start ({start:g} s) must be before the run's end (duration {run_duration:g} s) for the failure to happen"
         )

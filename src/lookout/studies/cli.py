@@ -609,8 +609,108 @@ def benchmark_observers(
             cluster.close()
 
 
+def failures(
+    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario with a sensor suite ([sensors.NAME] tables).")],
+    out: Annotated[
+        str, typer.Option(metavar="STORE", help="The campaign's Zarr store; an existing store of the same analysis is resumed.")
+    ] = "out/failures.zarr",
+    start: Annotated[float | None, typer.Option(metavar="SECONDS", help="When each failure starts.", show_default="half the run")] = None,
+    seeds: Annotated[int, typer.Option(metavar="N", help="Runs per case (seeds from the file's own seed).")] = 4,
+    table: Annotated[str | None, typer.Option(metavar="FILE.csv", help="Also write the table as CSV.")] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(metavar="N", help="Local dask workers, one process and core each; 0 computes in this process.", show_default="one per core"),
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(metavar="ADDRESS", help="Use this dask scheduler (tcp://host:port) instead of a local cluster.")
+    ] = None,
+) -> None:
+    """The worst single failure: the intact suite and each instrument failed in each of
+    its modes (dropout, freeze, jump, drift, noise) at --start, as one campaign over
+    seeds; a table per failure of the largest position and heading error from the
+    setpoint after it (or the largest excursion, without a setpoint) and the position
+    estimate's error, worst first. The store is a campaign's: `lookout campaign report
+    STORE` draws its HTML report."""
+    import csv
+    import math
+
+    from lookout.scenario._toml import read
+    from lookout.scenario.composition import compose
+    from lookout.studies.campaign import campaign_from_document
+    from lookout.studies.execute import SchedulerError, run_campaign
+    from lookout.studies.single_failures import INTACT, campaign_document, worst_table
+    from lookout.studies.store import CampaignStore
+
+    _check_cluster_options(workers, scheduler)
+    if seeds < 1:
+        raise InputError(f"--seeds must be a whole number >= 1; got {seeds}")
+    if start is not None and not (math.isfinite(start) and start >= 0):
+        raise InputError(f"--start must be a finite number of seconds >= 0; got {start}")
+    if table is not None:
+        if Path(table).is_dir():
+            raise InputError(f"--table: {table} is a folder; give a file name")
+        writable_folder("--table", Path(table).absolute().parent, f"--table {table}")
+    try:
+        document, _ = read(scenario_file)
+    except FileError as error:
+        raise InputError(str(error)) from None
+    if not isinstance(document.get("sensors"), dict):
+        raise InputError(f"{scenario_file}: lookout failures needs a scenario with a sensor suite ([sensors.NAME] tables; docs/sensors.md)")
+    try:
+        duration = compose(document).simulation.duration
+        when = duration / 2 if start is None else start
+        spec, metrics = campaign_document(document, start=when, seeds=seeds, seed=compose(document).simulation.seed)
+        campaign = campaign_from_document(spec, f"{scenario_file} (failures)", None, Path(scenario_file).parent)
+    except ValueError as error:
+        raise InputError(f"{scenario_file}: {error}") from None
+    store = _store_path("--out", out, must_exist=False)
+    say = console_print
+    own = [name for name, each in document["sensors"].items() if isinstance(each, dict) and each.get("failures")]
+    if own:
+        say(f"the failures the file gives ({', '.join(own)}) are left out: each case fails one instrument of the intact suite")
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeRemainingColumn
+
+    with progress_bar(TextColumn("cases"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn()) as bar:
+        task = bar.add_task("cases", total=len(campaign.chunks()), completed=0)
+        try:
+            run_campaign(
+                campaign, store, workers=workers, scheduler=scheduler, say=say, progress=lambda done, total: bar.update(task, completed=done)
+            )
+        except SchedulerError as error:
+            raise InputError(f"--scheduler {scheduler}: {error}") from None
+    rows = worst_table(CampaignStore(store).open().load(), metrics)
+    heading = [m for m in metrics if m.endswith(":heading")]
+    shown = Table(box=box.SIMPLE, title=f"single failures at {when:g} s, {seeds} run(s) each: worst first")
+    for column in ("failure", "diverged", f"{metrics[0]} max (m)", f"{heading[0]} max (deg)", "rms_error:position mean (m)"):
+        shown.add_column(column, justify="left" if column == "failure" else "right")
+    for row in rows:
+        shown.add_row(
+            row["failure"],
+            f"{row['diverged']}/{row['runs']}",
+            f"{row[f'{metrics[0]} max']:.2f}",
+            f"{math.degrees(row[f'{heading[0]} max']):.2f}",
+            f"{row['rms_error:position mean']:.2f}",
+        )
+    console.print(shown)
+    worst = next((row for row in rows if row["failure"] != INTACT), None)
+    if worst is not None:
+        say(
+            f"worst single failure: {worst['failure']} ({metrics[0]} {worst[f'{metrics[0]} max']:.2f} m, intact {rows[0][f'{metrics[0]} max']:.2f} m)"
+        )
+    if table is not None:
+        path = Path(table)
+        path.absolute().parent.mkdir(parents=True, exist_ok=True)
+        with path.open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        say(f"table: {path}")
+    say(f"next: lookout campaign report {store}")
+
+
 def register(app: typer.Typer) -> None:
     """Add ``run``, ``campaign`` and ``benchmark`` to the ``lookout`` command."""
     app.command("run")(run)
+    app.command("failures")(failures)
     app.add_typer(campaign_app, name="campaign")
     app.add_typer(benchmark_app, name="benchmark")
