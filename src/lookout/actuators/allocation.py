@@ -413,14 +413,27 @@ class Allocator(eqx.Module):
 
     # -- azimuth steering ---------------------------------------------------------------------
 
-    def steer(self, demand: Array, angle: Array, turning: Array, tau: Array, dt: ArrayLike) -> tuple[Array, Array, Array]:
+    def steer(
+        self,
+        demand: Array,
+        angle: Array,
+        turning: Array,
+        tau: Array,
+        dt: ArrayLike,
+        fraction: Array | None = None,
+        frozen: Array | None = None,
+        held: Array | None = None,
+    ) -> tuple[Array, Array, Array]:
         """One sample of the azimuth steering (module docstring): ``(demand, angle,
         turning)`` after tau arrives, from the scaled filtered ``demand`` (3,), the
         thrusters' ``angle`` (n,) and whether each azimuth is ``turning`` (n,).
 
         The returned angle is each azimuth's angle at the end of the sample (within
         turn_rate dt of ``angle``); the other thrusters' entries are ``angle``'s. A
-        non-finite tau leaves the demand as it was."""
+        non-finite tau leaves the demand as it was. With failed thrusters (``fraction``,
+        ``frozen`` and the stuck ones' ``held`` scaled force, as :meth:`allocate` takes
+        them) the wanted directions are those of the thrusters that remain, for the
+        demand less the stuck ones' force, and a failed azimuth does not turn."""
         layout, index, qp = self.layout, self.indices, self._qp_terms()
         _, target = self.target(tau)
         time_constant = qp.steering_time_constant
@@ -429,25 +442,55 @@ class Allocator(eqx.Module):
         if index.azimuth.size == 0:
             return demand, angle, turning
         wished = self.pseudo_inverse_matrix @ demand + qp.bias  # scaled: an azimuth's force as a fraction of its largest
+        failed = jnp.zeros(index.azimuth.size, dtype=bool)
+        if fraction is not None and frozen is not None:
+            owner = np.asarray([i for i, _ in layout.variables], dtype=int)
+            available, pseudo_inverse, remaining = self._available(fraction, frozen)
+            pinned = jnp.where(frozen[owner] & (fraction[owner] > 0.0), jnp.zeros(self.size) if held is None else held, 0.0)
+            wished = jnp.where(jnp.any(~available), pseudo_inverse @ (demand - jnp.asarray(self.B) @ pinned) + remaining, wished)
+            failed = (fraction == 0.0)[index.azimuth] | frozen[index.azimuth]
         fx, fy = wished[index.azimuth_x], wished[index.azimuth_y]
         current = angle[index.azimuth]
         error = ssa(direction_of(fx, fy, current) - current)
         reachable = jnp.asarray(layout.turn_rate[index.azimuth]) * dt
-        turn = (magnitude(fx, fy) > qp.steering_load) & (turning[index.azimuth] | (jnp.abs(error) > qp.steering_deadband))
+        turn = (magnitude(fx, fy) > qp.steering_load) & (turning[index.azimuth] | (jnp.abs(error) > qp.steering_deadband)) & ~failed
         steered = jnp.where(turn, ssa(current + jnp.clip(error, -reachable, reachable)), current)
         return demand, angle.at[index.azimuth].set(steered), turning.at[index.azimuth].set(turn & (jnp.abs(error) > reachable))
 
     # -- the limits --------------------------------------------------------------------------
 
-    def constraints(self, previous: Array, angle: Array, dt: ArrayLike) -> tuple[Array, Array, Array]:
+    def constraints(
+        self, previous: Array, angle: Array, dt: ArrayLike, fraction: Array | None = None, frozen: Array | None = None
+    ) -> tuple[Array, Array, Array]:
         """``(G, h, start)``: the limits G u <= h on the scaled command after the scaled
         ``previous`` command, with the azimuths at their steered ``angle`` and the rudders
         at theirs, over a step ``dt``, and a scaled command that meets them all (see the
         module docstring). Rows: each tunnel's and main propeller's thrust (upper, then
         lower), each main propeller's lift (upper, lower), each azimuth's thrust
-        (upper, lower) and its force across its angle (<= 0, >= 0)."""
+        (upper, lower) and its force across its angle (<= 0, >= 0).
+
+        Failed thrusters (:mod:`lookout.actuators.failures`): ``fraction`` (n_thrusters,)
+        scales each thruster's force limits (0: stopped, its variables held at 0; 1:
+        intact) and its previous command into them; a ``frozen`` (stuck) thruster
+        neither changes its thrust nor turns, so its variables are held at ``previous``
+        (its held force, which the caller gives there). Both None: every thruster intact."""
         layout, index, n = self.layout, self.indices, self.size
         previous = jnp.asarray(previous, dtype=float)
+        failed = fraction is not None or frozen is not None
+        fraction = jnp.ones(layout.size) if fraction is None else jnp.asarray(fraction, dtype=float)
+        frozen = jnp.zeros(layout.size, dtype=bool) if frozen is None else jnp.asarray(frozen)
+        if failed and (index.tunnel.size or index.main.size):
+            # a reduced or stopped thruster's previous thrust into its new limits (as a where,
+            # so an intact one's is its own bits)
+            thrusters = np.concatenate([index.tunnel, index.main])
+            variables = np.concatenate([index.tunnel_thrust, index.main_thrust])
+            share = fraction[thrusters]
+            clipped = jnp.clip(
+                previous[variables],
+                share * layout.min_thrust[thrusters] / self.scale[variables],
+                share * layout.max_thrust[thrusters] / self.scale[variables],
+            )
+            previous = previous.at[variables].set(jnp.where(share < 1.0, clipped, previous[variables]))
         start = previous
         rows, columns, entries, bounds = [], [], [], []
         count = 0
@@ -468,16 +511,22 @@ class Allocator(eqx.Module):
         variables = np.concatenate([index.tunnel_thrust, index.main_thrust])
         if thrusters.size:
             step = jnp.asarray(layout.thrust_rate[thrusters]) * dt / self.scale[variables]
-            low = jnp.maximum(layout.min_thrust[thrusters] / self.scale[variables], previous[variables] - step)
+            smallest, largest = layout.min_thrust[thrusters] / self.scale[variables], layout.max_thrust[thrusters] / self.scale[variables]
+            if failed:
+                step = jnp.where(frozen[thrusters], 0.0, step)
+                smallest, largest = fraction[thrusters] * smallest, fraction[thrusters] * largest
+            low = jnp.maximum(smallest, previous[variables] - step)
             main = np.asarray(layout.is_kind("main"))[thrusters]
             low = jnp.where(main & (previous[variables] > 0), jnp.maximum(low, 0.0), low)
-            high = jnp.minimum(layout.max_thrust[thrusters] / self.scale[variables], previous[variables] + step)
+            high = jnp.minimum(largest, previous[variables] + step)
             add([(variables, 1.0)], high)
             add([(variables, -1.0)], -low)
         # a rudder's lift L / (k d_max T_max) between (delta -+ turn) / d_max times T / T_max; astern L = 0
         if index.main.size:
             jt, jl, i = index.main_thrust, index.main_lift, index.main
             reachable = jnp.asarray(layout.turn_rate[i]) * dt
+            if failed:
+                reachable = jnp.where(frozen[i], 0.0, reachable)
             ahead = previous[jt] > 0
             largest = jnp.asarray(layout.max_rudder[i])
             high = jnp.where(ahead, jnp.minimum(angle[i] + reachable, largest) / largest, 0.0)
@@ -491,7 +540,12 @@ class Allocator(eqx.Module):
             c, s = jnp.cos(angle[i]), jnp.sin(angle[i])
             along0 = jnp.minimum(magnitude(previous[jx], previous[jy]), 1.0)
             step = jnp.asarray(layout.thrust_rate[i]) * dt / self.scale[jx]
-            add([(jx, c), (jy, s)], jnp.minimum(along0 + step, 1.0))
+            circle = jnp.ones(i.size)
+            if failed:
+                circle = fraction[i]
+                along0 = jnp.where(circle < 1.0, jnp.minimum(along0, circle), along0)
+                step = jnp.where(frozen[i], 0.0, step)
+            add([(jx, c), (jy, s)], jnp.minimum(along0 + step, circle))
             add([(jx, -c), (jy, -s)], -jnp.maximum(along0 - step, 0.0))
             add([(jx, -s), (jy, c)], jnp.zeros(i.size))
             add([(jx, s), (jy, -c)], jnp.zeros(i.size))
@@ -531,34 +585,67 @@ class Allocator(eqx.Module):
 
     # -- allocation --------------------------------------------------------------------------
 
-    def allocate(self, tau: Array, previous: Array, angle: Array, dt: ArrayLike, working: Array | None = None) -> tuple[Array, dict]:
+    def allocate(
+        self,
+        tau: Array,
+        previous: Array,
+        angle: Array,
+        dt: ArrayLike,
+        working: Array | None = None,
+        fraction: Array | None = None,
+        frozen: Array | None = None,
+    ) -> tuple[Array, dict]:
         """The scaled command for ``tau`` (N, N, N m) after the scaled ``previous``
         command, with the thrusters at ``angle`` (an azimuth's steered angle, a
         rudder's angle); ``working`` is the previous sample's active set
         (``info["working"]``), tried first.
 
+        Failed thrusters (:mod:`lookout.actuators.failures`; both None: none):
+        ``fraction`` (n_thrusters,) scales each thruster's force limits (0: stopped, 1:
+        intact) and ``frozen`` marks the stuck ones, whose variables ``previous`` holds
+        at their held force. The rest re-solve (Johansen & Fossen, "Control allocation -
+        a survey", Automatica 49(5), 2013: reconfiguration by the allocation's
+        constraints): with ``"qp"`` the failed thrusters' variables are pinned by their
+        limits (:meth:`constraints`), so a stuck thruster's force is subtracted from what
+        the others produce; with ``"pseudo-inverse"`` the weighted least-squares
+        solution is taken over the available thrusters' columns of B only, for tau less
+        the stuck thrusters' force. A stopped thruster's command is 0, exactly.
+
         Returns ``(u, info)``; ``info`` has ``unconstrained`` (the scaled weighted
         least-squares solution, biased with ``"qp"``), ``constrained`` (it broke a limit, so the QP was
         solved), ``shortfall`` (largest |tau - B u| over the axes, as a fraction of each
-        axis's reach), ``saturated`` (shortfall above :data:`SATURATED`), and the QP's
-        ``iterations``, ``converged`` and ``working`` (its active set; empty when not
-        constrained). A non-finite ``tau`` gives a NaN command.
+        axis's reach), ``residual`` (tau - B u in N, N, N m: the demanded force the
+        thrusters were not commanded to produce), ``saturated`` (shortfall above
+        :data:`SATURATED`), and the QP's ``iterations``, ``converged`` and ``working``
+        (its active set; empty when not constrained). A non-finite ``tau`` gives a NaN
+        command.
         """
         wanted, target = self.target(tau)
+        failed = fraction is not None or frozen is not None
+        owner = np.asarray([i for i, _ in self.layout.variables], dtype=int)
+        if failed:
+            fraction = jnp.ones(self.layout.size) if fraction is None else jnp.asarray(fraction, dtype=float)
+            frozen = jnp.zeros(self.layout.size, dtype=bool) if frozen is None else jnp.asarray(frozen)
         # an Array: a NumPy matrix defers to the Array's __rmatmul__ (numpy's stubs say ndarray)
         unconstrained = cast(Array, self.pseudo_inverse_matrix @ target)
         qp = self._qp_terms() if self.method == "qp" else None
         if qp is not None:
             unconstrained = unconstrained + qp.bias
+        elif fraction is not None and frozen is not None:
+            unconstrained = self._without_failed(unconstrained, target, previous, fraction, frozen, owner)
         active = jnp.full(self.size, -1)
         if qp is None:
-            u = self._saturate(unconstrained, previous, dt)
+            u = self._saturate(unconstrained, previous, dt, fraction, frozen)
             constrained = jnp.any(jnp.abs(u - unconstrained) > 1e-12)
             iterations, converged = jnp.asarray(0), jnp.asarray(True)
         else:
-            G, h, start = self.constraints(previous, angle, dt)
+            G, h, start = self.constraints(previous, angle, dt, fraction, frozen)
             constrained = ~jnp.all(G @ unconstrained <= h + 1e-12)
-            q = -(self.B.T @ (qp.slack_weights * (qp.target_matrix @ target))) - self.weights * qp.bias
+            bias = qp.bias
+            if fraction is not None and frozen is not None:
+                available, _, remaining = self._available(fraction, frozen)
+                bias = jnp.where(jnp.any(~available), remaining, bias)
+            q = -(self.B.T @ (qp.slack_weights * (qp.target_matrix @ target))) - self.weights * bias
             if self.solver == "qpax":
                 solved, iterations, converged = _qpax(qp.P, q, G, h, self.indices.azimuth.size)
             else:
@@ -568,38 +655,80 @@ class Allocator(eqx.Module):
                 active = jnp.where(constrained, found, active)
             u = jnp.where(constrained, solved, unconstrained)
             converged = converged | ~constrained
+        if fraction is not None:
+            u = jnp.where(fraction[owner] == 0.0, 0.0, u)  # never a stopped thruster, not even the solver's rounding
         u = jnp.where(jnp.all(jnp.isfinite(target)), u, jnp.nan)
-        shortfall = jnp.max(jnp.abs(wanted - self.B @ u) / self.axis_reach)
+        residual = wanted - self.B @ u
+        shortfall = jnp.max(jnp.abs(residual) / self.axis_reach)
         return u, {
             "unconstrained": unconstrained,
             "constrained": constrained,
             "saturated": shortfall > SATURATED,
             "shortfall": shortfall,
+            "residual": residual * self.force_scale,
             "iterations": iterations,
             "converged": converged,
             "working": active,
         }
 
-    def _saturate(self, u: Array, previous: Array, dt) -> Array:
+    def _available(self, fraction: Array, frozen: Array) -> tuple[Array, Array, Array]:
+        """``(available, pseudo_inverse, bias)`` over the thrusters that remain: whether
+        each variable's thruster is neither stopped nor stuck, the weighted pseudo-inverse
+        with the others' columns of B out (a pseudo-inverse of the gram, which is
+        singular when the thrusters left span fewer than three axes), and the bias's
+        part that produces no force with them (0 without a bias)."""
+        owner = np.asarray([i for i, _ in self.layout.variables], dtype=int)
+        available = ~((fraction[owner] == 0.0) | frozen[owner])
+        B = jnp.asarray(self.B)
+        inverse_weighted = jnp.where(available[:, None], B.T / jnp.asarray(self.weights)[:, None], 0.0)
+        pseudo_inverse = inverse_weighted @ jnp.linalg.pinv(B @ inverse_weighted)
+        bias = jnp.zeros(self.size) if self.bias is None else jnp.where(available, jnp.asarray(self.bias), 0.0)
+        return available, pseudo_inverse, bias - pseudo_inverse @ (B @ bias)
+
+    def _without_failed(self, intact: Array, target: Array, held: Array, fraction: Array, frozen: Array, owner: np.ndarray) -> Array:
+        """The weighted least-squares solution over the available thrusters only (the
+        stopped and stuck ones' columns of B out) for ``target`` less the stuck ones'
+        ``held`` force, the stuck ones at it and the stopped ones at 0; ``intact`` while
+        no thruster is failed (the same bits as without failures)."""
+        available, pseudo_inverse, _ = self._available(fraction, frozen)
+        pinned = jnp.where(frozen[owner] & (fraction[owner] > 0.0), held, 0.0)  # a stopped thruster holds nothing
+        solution = pseudo_inverse @ (target - jnp.asarray(self.B) @ pinned) + pinned
+        return jnp.where(jnp.any(~available), solution, intact)
+
+    def _saturate(self, u: Array, previous: Array, dt, fraction: Array | None = None, frozen: Array | None = None) -> Array:
         """Each thruster limited on its own: a thrust into its force and rate limits, an
         azimuth's force scaled into its circle with its magnitude rate-limited, a
-        rudder's lift into its angle limits."""
+        rudder's lift into its angle limits (failed thrusters: see :meth:`allocate`)."""
         layout, index = self.layout, self.indices
+        failed = fraction is not None and frozen is not None
+        share = jnp.ones(layout.size) if fraction is None else fraction
+        still = jnp.zeros(layout.size, dtype=bool) if frozen is None else frozen
         out = u
         if index.azimuth.size:
             jx, jy, i = index.azimuth_x, index.azimuth_y, index.azimuth
             step = jnp.asarray(layout.thrust_rate[i]) * dt / self.scale[jx]
             norm = magnitude(u[jx], u[jy])
             old = magnitude(previous[jx], previous[jy])
-            wanted = jnp.clip(jnp.minimum(norm, 1.0), old - step, old + step)
+            largest = jnp.ones(i.size)
+            if failed:
+                step = jnp.where(still[i], 0.0, step)
+                largest = share[i]
+                old = jnp.where(largest < 1.0, jnp.minimum(old, largest), old)
+            wanted = jnp.clip(jnp.minimum(norm, largest), old - step, old + step)
             factor = jnp.where(norm > 0, wanted / jnp.where(norm > 0, norm, 1.0), 0.0)
             out = out.at[jx].set(u[jx] * factor).at[jy].set(u[jy] * factor)
         thrusters = np.concatenate([index.tunnel, index.main])
         if thrusters.size:
             j = np.concatenate([index.tunnel_thrust, index.main_thrust])
             step = jnp.asarray(layout.thrust_rate[thrusters]) * dt / self.scale[j]
-            low = jnp.maximum(layout.min_thrust[thrusters] / self.scale[j], previous[j] - step)
-            high = jnp.minimum(layout.max_thrust[thrusters] / self.scale[j], previous[j] + step)
+            smallest, largest_thrust = layout.min_thrust[thrusters] / self.scale[j], layout.max_thrust[thrusters] / self.scale[j]
+            before = previous[j]
+            if failed:
+                step = jnp.where(still[thrusters], 0.0, step)
+                smallest, largest_thrust = share[thrusters] * smallest, share[thrusters] * largest_thrust
+                before = jnp.where(share[thrusters] < 1.0, jnp.clip(before, smallest, largest_thrust), before)
+            low = jnp.maximum(smallest, before - step)
+            high = jnp.minimum(largest_thrust, before + step)
             out = out.at[j].set(jnp.clip(u[j], low, high))
         if index.main.size:
             thrust = out[index.main_thrust]

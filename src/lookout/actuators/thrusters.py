@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Literal, final
 
+import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 import numpy.typing as npt
 from jax import Array
 from jax.typing import ArrayLike
@@ -13,8 +16,9 @@ from jax.typing import ArrayLike
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.actuators.allocation import IDLE, Allocator
+from lookout.actuators.failures import ThrusterFailure, flag_signal
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
-from lookout.components import Actuator, Layout, Signal
+from lookout.components import BODY_FIXED, Actuator, Layout, Signal
 from lookout.declare import NON_NEGATIVE, Part, Range, Value, component, kind_of
 
 
@@ -150,10 +154,20 @@ class ThrusterSystem(Actuator):
     (rad: an azimuth's angle, a rudder's angle, a tunnel's fixed direction); and per
     sample ``allocation_shortfall`` (the largest part of tau the allocation left
     unproduced, |tau - B u| on an axis as a fraction of that axis's reach; 0 when tau
-    is produced) and ``allocation_saturated`` (1 when the shortfall is above
+    is produced), ``allocation_saturated`` (1 when the shortfall is above
     :data:`~lookout.actuators.allocation.SATURATED`, 1 % of the reach: the limits kept
-    the allocation from producing tau). An infeasible tau is a shortfall, never a NaN;
-    a NaN command (a failed controller) gives NaN thrust, so the run is seen to fail.
+    the allocation from producing tau), and the residual tau - B u itself,
+    ``force_shortfall`` (N; surge, sway) and ``moment_shortfall`` (N m). An infeasible
+    tau is a shortfall, never a NaN; a NaN command (a failed controller) gives NaN
+    thrust, so the run is seen to fail.
+
+    Thruster failures (``failures``, :mod:`lookout.actuators.failures`): while one is
+    active, a stopped thruster delivers no thrust and is commanded 0, a stuck one holds
+    the thrust and angle it had when the failure began, a reduced one's force limits are
+    scaled by its ``fraction``; the allocation re-solves with the thrusters that remain
+    (:meth:`~lookout.actuators.allocation.Allocator.allocate`), and the steering turns
+    no failed azimuth. Each failure's flag is recorded (``THRUSTER.MODE_failure``, 1
+    while it is active).
 
     Parameters
     ----------
@@ -185,10 +199,17 @@ class ThrusterSystem(Actuator):
         layout ``direction``, of which the part that produces no force is kept as a
         bias: azimuths pointing against each other then answer a small force of either
         sign with thrust, not a turn (default 0.2; 0 for none).
+
+    Other Parameters
+    ----------------
+    failures : sequence of ThrusterFailure
+        The thrusters' failures (a scenario file's ``[[actuator.failures]]`` tables,
+        :func:`lookout.actuators.failures.failure_from_table`); none by default.
     """
 
     layout: ThrusterLayout
     allocator: Allocator
+    failures: tuple[ThrusterFailure, ...]
 
     #: The functions of the delivered thrust that a campaign's thruster metrics take
     #: (``mean_power:thrust`` and ``time_at_limit:thrust``, :mod:`lookout.scenario.metrics`),
@@ -207,6 +228,7 @@ class ThrusterSystem(Actuator):
         steering_deadband: float | None = None,
         steering_load: float | None = None,
         steering_bias: float | None = None,
+        failures: Sequence[ThrusterFailure] = (),
     ):
         if not isinstance(layout, ThrusterLayout):
             raise check.ParameterError("layout", f"layout must be a ThrusterLayout; got {type(layout).__name__}")
@@ -214,6 +236,29 @@ class ThrusterSystem(Actuator):
         self.allocator = Allocator(
             layout, allocation, slack_weight, clip_to_reach, solver, steering_time_constant, steering_deadband, steering_load, steering_bias
         )
+        for index, failure in enumerate(failures):
+            if not isinstance(failure, ThrusterFailure):
+                raise check.ParameterError("failures", f"failures[{index}] must be a ThrusterFailure; got {type(failure).__name__}")
+            if not 0 <= failure.thruster < layout.size:
+                raise check.ParameterError("failures", f"failures[{index}] names thruster {failure.thruster}; the layout has {layout.size}")
+        self.failures = tuple(failures)
+
+    def with_failures(self, failures: Sequence[ThrusterFailure]) -> ThrusterSystem:
+        """These thrusters with ``failures`` in place of their own (:class:`ThrusterFailure`)."""
+        for index, failure in enumerate(failures):
+            if not isinstance(failure, ThrusterFailure) or not 0 <= failure.thruster < self.layout.size:
+                raise check.ParameterError("failures", f"failures[{index}] is not a ThrusterFailure of this layout's {self.layout.size} thrusters")
+        return eqx.tree_at(lambda system: system.failures, self, tuple(failures))
+
+    def _flag_signals(self) -> tuple[Signal, ...]:
+        names = self.layout.names
+        modes = {i: [f.mode for f in self.failures if f.thruster == i] for i in range(self.layout.size)}
+        signals, seen = [], {i: 0 for i in range(self.layout.size)}
+        for failure in self.failures:
+            i = failure.thruster
+            signals.append(flag_signal(names[i], failure.mode, seen[i], modes[i]))
+            seen[i] += 1
+        return tuple(signals)
 
     @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
     def output_signals(self) -> tuple[Signal, ...]:  # type: ignore[override]  # (read-only: the signals follow from the layout)
@@ -225,7 +270,16 @@ class ThrusterSystem(Actuator):
             _thruster_signal("thruster_angle_commanded", "rad", "commanded thruster angle (azimuth or rudder)", names, angle=True),
             Signal("allocation_saturated", "1", "allocation short of the commanded force by more than 1 % of the reach (1) or not (0)"),
             Signal("allocation_shortfall", "1", "largest unproduced part of the commanded force, as a fraction of the thrusters' reach on its axis"),
-        )
+            Signal(
+                "force_shortfall",
+                "N",
+                "commanded force less the force allocated to the available thrusters",
+                BODY_FIXED,
+                ("surge", "sway"),
+                "body_axis",
+            ),
+            Signal("moment_shortfall", "N m", "commanded moment less the moment allocated to the available thrusters", BODY_FIXED),
+        ) + self._flag_signals()
 
     @property
     def working_nbytes(self) -> int:
@@ -326,13 +380,26 @@ class ThrusterSystem(Actuator):
                 "thrusters", f"thrusters take a 3-DOF vessel's force (surge, sway) and moment (yaw), 3 entries; got an input of shape {jnp.shape(u)}"
             )
         thrust, angle, previous, working, demand, turning = state
+        held_thrust, held_angle = thrust, angle
+        fraction, frozen, flags = self.availability(t)
+        if fraction is not None and frozen is not None:
+            owner = np.asarray([i for i, _ in self.layout.variables], dtype=int)
+            # a stuck thruster's previous command is the force it holds: its limits pin it there
+            previous = jnp.where(frozen[owner], self.extended(thrust, angle), previous)
         steered = angle
         if self.allocator.method == "qp":
-            demand, steered, turning = self.allocator.steer(demand, angle, turning, u, dt)
-        allocated, info = self.allocator.allocate(u, previous, steered, dt, working)
+            demand, steered, turning = self.allocator.steer(demand, angle, turning, u, dt, fraction, frozen, previous)
+        allocated, info = self.allocator.allocate(u, previous, steered, dt, working, fraction, frozen)
         thrust_command, angle_command = self.commands(allocated, steered, info["unconstrained"])
         thrust, angle = self.respond(thrust, angle, thrust_command, angle_command, dt)
+        if fraction is not None and frozen is not None:
+            share = fraction
+            thrust = jnp.clip(thrust, share * self.layout.min_thrust, share * self.layout.max_thrust)
+            thrust = jnp.where(frozen & (share > 0.0), held_thrust, thrust)
+            angle = jnp.where(frozen, held_angle, angle)
+            thrust_command = jnp.where(share == 0.0, 0.0, thrust_command)
         applied = self.layout.forces(thrust, angle)
+        residual = info["residual"]
         outputs = {
             "thrust": thrust,
             "thrust_commanded": thrust_command,
@@ -340,5 +407,47 @@ class ThrusterSystem(Actuator):
             "thruster_angle_commanded": angle_command,
             "allocation_saturated": info["saturated"].astype(float),
             "allocation_shortfall": info["shortfall"],
+            "force_shortfall": residual[:2],
+            "moment_shortfall": residual[2],
         }
+        outputs.update({signal.name: flag for signal, flag in zip(self._flag_signals(), flags)})
         return (thrust, angle, allocated, info["working"], demand, turning), applied, outputs
+
+    def availability(self, t: ArrayLike) -> tuple[Array | None, Array | None, list[Array]]:
+        """``(fraction, frozen, flags)`` at ``t``: each thruster's share of its force
+        limits (0 stopped, 1 intact; a reduced one's ``fraction``), whether it is stuck,
+        and each failure's flag (1.0 while active); ``(None, None, [])`` without failures
+        (the allocation then is the intact one's program)."""
+        if not self.failures:
+            return None, None, []
+        fraction = jnp.ones(self.layout.size)
+        frozen = jnp.zeros(self.layout.size, dtype=bool)
+        flags = []
+        for failure in self.failures:
+            on = failure.active(t)
+            i = failure.thruster
+            if failure.mode == "stop":
+                fraction = fraction.at[i].set(jnp.where(on, 0.0, fraction[i]))
+            elif failure.mode == "reduced":
+                fraction = fraction.at[i].set(jnp.where(on, jnp.minimum(fraction[i], failure.fraction), fraction[i]))
+            else:
+                frozen = frozen.at[i].set(frozen[i] | on)
+            flags.append(on.astype(float))
+        return fraction, frozen, flags
+
+    def extended(self, thrust: Array, angle: Array) -> Array:
+        """The scaled extended variables (:attr:`Allocator.B`'s) of the thrusters at
+        ``thrust`` and ``angle``: a tunnel's thrust, an azimuth's force components, a main
+        propeller's thrust and rudder lift."""
+        layout, allocator, index = self.layout, self.allocator, self.allocator.indices
+        u = jnp.zeros(allocator.size)
+        if index.tunnel.size:
+            u = u.at[index.tunnel_thrust].set(thrust[index.tunnel])
+        if index.azimuth.size:
+            i = index.azimuth
+            u = u.at[index.azimuth_x].set(thrust[i] * jnp.cos(angle[i])).at[index.azimuth_y].set(thrust[i] * jnp.sin(angle[i]))
+        if index.main.size:
+            i = index.main
+            lift = jnp.asarray(layout.rudder_lift[i]) * angle[i] * jnp.maximum(thrust[i], 0.0)
+            u = u.at[index.main_thrust].set(thrust[i]).at[index.main_lift].set(lift)
+        return u / allocator.scale

@@ -652,7 +652,15 @@ def compose(document: dict) -> Composition:
             context.add(built[role])
             continue
         table = _table(document, role)
+        listed = None
+        if role == "actuator" and isinstance(table, dict) and "failures" in table:  # the thrusters' failures: data beside the kind's keys
+            listed = table["failures"]
+            table = {key: value for key, value in table.items() if key != "failures"}
         built[role], normal[role] = build_part(role, table, (role,), context, defaults=role == "plant")
+        if listed is not None:
+            built[role] = _thruster_failures(built[role], listed, normal[role]["kind"], simulation.duration)
+            if listed:
+                normal[role]["failures"] = copy.deepcopy(listed)
         kinds[role] = context.kinds[role] = normal[role]["kind"]
         if role == "plant":
             context.plant = built[role]
@@ -699,6 +707,26 @@ def compose(document: dict) -> Composition:
     else:
         normal["simulation"]["divergence"] = {"signal": bound.signal, "limit": bound.limit}
     return Composition(normal, simulation, scenario, kinds)
+
+
+def _thruster_failures(actuator: Any, listed: Any, kind: str, duration: float) -> Any:
+    """``actuator`` (thrusters) with the failures of its ``[[actuator.failures]]`` tables
+    (:mod:`lookout.actuators.failures`); a :class:`CompositionError` names the key."""
+    from lookout.actuators.failures import failure_from_table
+
+    location: tuple = ("actuator", "failures")
+    layout = getattr(actuator, "layout", None)
+    if not hasattr(actuator, "with_failures") or layout is None:
+        raise CompositionError(location, f'only thrusters fail: actuator {kind} has none (give [actuator] kind = "thrusters" with a layout)')
+    if not isinstance(listed, list):
+        raise CompositionError(location, "must be an array of tables, [[actuator.failures]] with a thruster, a mode and a start")
+    failures = []
+    for index, each in enumerate(listed):
+        try:
+            failures.append(failure_from_table(each, layout.names, location + (index,), run_duration=duration))
+        except ParameterError as error:
+            raise CompositionError(error.location, one_line(error)) from None
+    return actuator.with_failures(failures)
 
 
 def _suite(document: dict, context: _Context, duration: float, sample_period: float) -> tuple[Any, dict, dict]:
