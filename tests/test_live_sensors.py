@@ -19,7 +19,7 @@ import xarray as xr
 from lookout.cli import main
 from lookout.io.geodesy import LocalFrame
 from lookout.io.nmea import Reading, checksum, sentence, source_rank, source_spec
-from lookout.io.simulated_log import gga
+from lookout.io.simulated_log import EPOCH, gga
 from lookout.live.run import replay
 from lookout.live.sensors import route
 from lookout.live.session import Session
@@ -351,3 +351,107 @@ def test_a_bad_source_is_one_line_and_nothing_written(tmp_path, capsys, monkeypa
     assert re.search(r"bridge\.toml: sensors\.gyro2\.source \(line \d+\): source must be TALKER, @SENDER or TALKER@SENDER", err), err
     assert "\n" not in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------- write-log of a suite
+#: The fixture's position references and gyros, each with its channel.
+CHANNELS = {name: f"{name}.measured_position" for name in ("dgnss1", "dgnss2", "hpr")} | {
+    name: f"{name}.measured_heading" for name in ("gyro1", "gyro2")
+}
+
+
+def _write_log(tmp_path, capsys, monkeypatch, text: str, *options):
+    scenario = tmp_path / "bridge.toml"
+    scenario.write_text(text)
+    return _cli(["write-log", scenario, "--out", tmp_path / "log", *options], capsys, monkeypatch, tmp_path)
+
+
+def _quantum(frame: LocalFrame) -> np.ndarray:
+    """The largest error (m, north and east) of a fix that made a GGA and was read back:
+    half a step of its 7 decimals of minutes, and half of the 1e-10 degrees that
+    pynmeagps rounds its degrees to."""
+    step = 0.5 * (1e-7 / 60.0 + 1e-10)  # degrees
+    north = frame.ned(frame.latitude + 1e-3, frame.longitude)[0] / 1e-3
+    east = frame.ned(frame.latitude, frame.longitude + 1e-3)[1] / 1e-3
+    return step * np.array([north, east])
+
+
+def test_write_log_of_a_suite_replays_into_each_sensor(tmp_path, capsys, monkeypatch):
+    """lookout write-log of a suite writes each position reference's GGA and each gyro's
+    THS with its own stamps (hpr names no source: @hpr is assumed, the IMU is not
+    written); a replay with the scenario it writes gives every sentence to its sensor and
+    records each sensor's simulated samples to the sentences' precision."""
+    text = SCENARIO.replace('lever_arm = [0.0, 0.0]\nsource = "@hipap"', "lever_arm = [0.0, 0.0]")
+    text = text.replace("[observer]", '[sensors.imu]\nkind = "imu"\n\n[observer]')
+    code, err = _write_log(tmp_path, capsys, monkeypatch, text, "--outage", "20,10")
+    assert code == 0, err
+    lines = err.splitlines()
+    assert "sensor imu (imu) not written: a log carries position fixes (gnss, hydroacoustic) and headings (gyrocompass)" in lines
+    assert "sensor hpr: GGA as GP, tag block s:hpr, every 2 s (it names no source: source '@hpr' assumed)" in lines
+    assert "sensor gyro2: THS as HC, every 0.1 s" in lines
+    folder = tmp_path / "log"
+    written = tomllib.loads((folder / "dp-vessel-scenario.toml").read_text())
+    assert {name: table.get("source") for name, table in written["sensors"].items()} == {
+        "dgnss1": "GP@dgps1",
+        "dgnss2": "GP@dgps2",
+        "hpr": "@hpr",
+        "gyro1": "HE",
+        "gyro2": "HC",
+        "imu": None,
+    }
+    log = (folder / "dp-vessel.nmea").read_text()
+    assert set(re.findall(r"\\s:(\w+)\*", log)) == {"dgps1", "dgps2", "hpr"} and "sensor imu" not in log
+    header = (folder / "dp-vessel.csv").read_text().splitlines()[0]
+    assert header == "time,dgnss1.north,dgnss1.east,dgnss2.north,dgnss2.east,hpr.north,hpr.east,gyro1.heading,gyro2.heading"
+
+    session, scenario = _session(written)
+    blocks = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        outcome = replay(session, folder / "dp-vessel.nmea", thrust=folder / "dp-vessel-thrust.csv", emit=blocks.append)
+    h = scenario.sample_period
+    k = np.rint((np.concatenate([b.time for b in blocks]) - EPOCH) / h).astype(int)  # the simulation's step of each replayed step
+    measurement = np.concatenate([b.measurement for b in blocks])
+    columns = _columns(session)
+    with xr.open_dataset(folder / "dp-vessel-truth.nc") as truth:
+        simulated = {name: truth[channel].values[0] for name, channel in CHANNELS.items()}
+    # every sentence went to its sensor: the samples written (outside the outage for a fix, finite), and 2 wild fixes each
+    outage = (np.arange(600) * h >= 20.0) & (np.arange(600) * h < 30.0)
+    expected = {}
+    for name, sample in simulated.items():
+        every = round(scenario.sensor.instruments[scenario.sensor.names.index(name)].sample_period / h)
+        due = (np.arange(600) % every == 0) & np.isfinite(sample.reshape(600, -1)).all(axis=1)
+        expected[name] = int((due & ~outage).sum()) + 2 if sample.ndim == 2 else int(due.sum())
+    assert {name: sensor.counts["accepted"] for name, sensor in session.sensors.items()} == expected
+    assert "other_source" not in session.unused and outcome.rejected == {"checksum": 30, "malformed": 1}  # 6 corrupted of each sensor
+    # each sensor's record where its sample arrived: the simulated sample, to the sentence's precision
+    bound = _quantum(ORIGIN) * (1 + 1e-6)
+    for name in ("dgnss1", "dgnss2", "hpr"):
+        every = round(scenario.sensor.instruments[scenario.sensor.names.index(name)].sample_period / h)
+        fresh = (k % every == 0) & ~outage[k]
+        error = np.abs(measurement[fresh][:, columns[f"{name}.measured_position"]] - simulated[name][k[fresh]])
+        assert fresh.sum() >= 40 // (every // 10) and (error.max(axis=0) <= bound).all(), (name, error.max(axis=0), bound)
+    # THS has 5 decimals of degrees; the replay steps at gyro1's heading (each instant's first), so gyro2's lands a step later
+    for name, late in (("gyro1", 0), ("gyro2", 1)):
+        recorded = measurement[1:, columns[f"{name}.measured_heading"]][:, 0]
+        error = np.abs(np.angle(np.exp(1j * (recorded - simulated[name][k[1:] - late]))))
+        assert error.max() <= math.radians(0.5e-5) * (1 + 1e-6), (name, error.max())
+    assert np.asarray(np.concatenate([b.estimate["outage_position"] for b in blocks]))[(k * h > 23.0) & (k * h < 30.0)].all()
+
+
+def test_write_log_refuses_a_suite_it_cannot_log(tmp_path, capsys, monkeypatch):
+    """Two sensors a replay could not tell apart, and a suite without a gyro: one line, exit 2, nothing written."""
+    code, err = _write_log(tmp_path, capsys, monkeypatch, SCENARIO.replace('source = "@hipap"', 'source = "@dgps1"'))
+    assert code == 2 and "\n" not in err, err
+    assert re.search(
+        r"^error: \S*bridge\.toml: sensors\.hpr\.source: '@dgps1': its sentences, written GGA as GP with tag block s:dgps1, would go to sensor dgnss1",
+        err,
+    )
+    assert not (tmp_path / "log").exists()
+    from lookout.live.suite_log import suite_log
+    from lookout.sensing.motion import InertialUnit
+    from lookout.sensing.position import GnssReceiver
+    from lookout.sensing.suite import SensorSuite
+
+    with pytest.raises(ValueError, match=r"it has no gyrocompass \(sensors: dgnss1 gnss, imu imu\)$"):
+        suite_log(SensorSuite({"dgnss1": GnssReceiver(), "imu": InertialUnit()}))

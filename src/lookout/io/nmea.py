@@ -177,6 +177,22 @@ def sentence(talker: str, formatter: str, fields: Iterable[object]) -> str:
     return f"${body.decode()}*{checksum(body):02X}"
 
 
+def tag_block(source: str) -> str:
+    """An IEC 61162-450 tag block naming a sentence's source, ``\\s:SOURCE*hh\\``, to
+    put in front of it (its checksum that of the characters between ``\\`` and ``*``).
+
+    Raises
+    ------
+    ValueError
+        For a source that a tag block cannot carry: empty, not printable ASCII, or with
+        a space, ``,``, ``*``, ``\\``, ``$`` or ``!`` in it.
+    """
+    if not (source and source.isascii() and source.isprintable()) or any(c in source for c in " ,*\\$!"):
+        raise ValueError(f"a tag block's source must be printable ASCII without spaces, ',', '*', '\\', '$' or '!'; got {source!r}")
+    body = f"s:{source}"
+    return f"\\{body}*{checksum(body.encode('ascii')):02X}\\"
+
+
 def _verified(text: bytes) -> bytes | None:
     """The part between the start character and ``*`` if the checksum after it holds."""
     star = text.rfind(b"*")

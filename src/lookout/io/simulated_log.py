@@ -6,8 +6,8 @@ stamped with the time it arrived. The arrival jitters within the sample period
 before the observer's step that first uses the sample (a simulated sensor samples at
 the step; the log says when its sentence came in): the fix and the thrust 40-90 ms
 before, the heading, which a live session steps on (:class:`~lookout.live.Session`),
-5-35 ms before. Replaying the log steps the observer on the run's own samples. On top of the samples the log carries what a real
-one does:
+5-35 ms before. Replaying the log steps the observer on the run's own samples. On top
+of the samples the log carries what a real one does:
 
 - an outage: no fix for a while (the receiver lost its correction or its antenna);
 - corrupted copies of a few sentences (a character flipped on the wire: the
@@ -16,19 +16,30 @@ one does:
 
 The same samples go to a CSV log (``time,north,east,heading``) at full precision, the
 applied thrust to ``time,surge,sway,yaw``, and the run to NetCDF.
+
+A run of a sensor suite is logged as its bridge logs it (``sensors``, a
+:class:`LoggedSensor` each): every position reference its own GGA at its own sample
+instants, every gyrocompass its own THS, each sentence stamped with the talker and
+the tag block (``\\s:SOURCE*hh\\``) that name its source. The outage silences every
+position reference; the corruptions and the wild points are drawn per sensor; the
+headings of one instant arrive in the order of ``sensors``. The CSV then has a column
+per sensor channel (``dgnss1.north``, ``gyro1.heading``), a row per sample.
 """
 
 from __future__ import annotations
 
 import datetime
 import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from lookout.io.geodesy import LocalFrame
-from lookout.io.nmea import sentence
+from lookout.io.nmea import sentence, tag_block
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -37,6 +48,9 @@ if TYPE_CHECKING:
 EPOCH = 1796083200.0
 #: The outage a log has unless told otherwise: (start, length) in seconds of run time.
 DEFAULT_OUTAGE = (300.0, 30.0)
+#: Before the step that uses it, the part of a sample period within which a sample's
+#: sentence arrives, by what it measures (uniform).
+ARRIVAL = {"position": (0.4, 0.9), "heading": (0.05, 0.35)}
 
 
 def _minutes(value: float, degree_digits: int, hemispheres: str) -> tuple[str, str]:
@@ -50,14 +64,14 @@ def _minutes(value: float, degree_digits: int, hemispheres: str) -> tuple[str, s
     return f"{degrees:0{degree_digits}d}{minutes:010.7f}", hemisphere
 
 
-def gga(time_of_day: float, latitude: float, longitude: float, quality: int = 2, satellites: int = 12, hdop: float = 0.8) -> str:
-    """A GGA sentence (talker GP) with seven decimals of minutes."""
+def gga(time_of_day: float, latitude: float, longitude: float, quality: int = 2, satellites: int = 12, hdop: float = 0.8, talker: str = "GP") -> str:
+    """A GGA sentence (talker GP unless told) with seven decimals of minutes."""
     hours, rest = divmod(time_of_day % 86400.0, 3600.0)
     minutes, seconds = divmod(rest, 60.0)
     lat, ns = _minutes(latitude, 2, "NS")
     lon, ew = _minutes(longitude, 3, "EW")
     return sentence(
-        "GP",
+        talker,
         "GGA",
         [
             f"{int(hours):02d}{int(minutes):02d}{seconds:05.2f}",
@@ -78,9 +92,64 @@ def gga(time_of_day: float, latitude: float, longitude: float, quality: int = 2,
     )
 
 
-def ths(heading_degrees: float) -> str:
-    """A THS sentence (talker HE, mode A) with five decimals of degrees."""
-    return sentence("HE", "THS", [f"{heading_degrees % 360.0:.5f}", "A"])
+def ths(heading_degrees: float, talker: str = "HE") -> str:
+    """A THS sentence (talker HE unless told, mode A) with five decimals of degrees."""
+    return sentence(talker, "THS", [f"{heading_degrees % 360.0:.5f}", "A"])
+
+
+@dataclass(frozen=True)
+class LoggedSensor:
+    """One instrument of a run written to its log: where its samples are, the sentence
+    they become, and the stamps that name its source.
+
+    Attributes
+    ----------
+    name : str
+        The sensor's name: its columns' prefix in the CSV (``dgnss1.north``).
+    kind : {"position", "heading"}
+        GGA fixes of ``channel`` (north, east; m) or THS headings (rad).
+    channel : str
+        Its samples in the run's dataset, held between them (``dgnss1.measured_position``).
+    sample_period : float
+        Seconds between its samples: a whole number of the run's sample periods.
+    talker : str
+        The sentences' talker ID (``GP``, ``HE``).
+    sender : str or None
+        The source in the tag block in front of each sentence (``\\s:SENDER*hh\\``,
+        :func:`lookout.io.nmea.tag_block`); None for none.
+    """
+
+    name: str
+    kind: str
+    channel: str
+    sample_period: float
+    talker: str
+    sender: str | None = None
+
+    def __post_init__(self):
+        if self.kind not in ARRIVAL:
+            raise ValueError(f"LoggedSensor {self.name}: kind must be 'position' or 'heading'; got {self.kind!r}")
+        if not re.fullmatch(r"[A-Z][A-Z0-9]", self.talker):
+            raise ValueError(f"LoggedSensor {self.name}: talker must be two capital letters or digits; got {self.talker!r}")
+        if not (math.isfinite(self.sample_period) and self.sample_period > 0):
+            raise ValueError(f"LoggedSensor {self.name}: sample_period must be a positive number of seconds; got {self.sample_period!r}")
+        if self.sender is not None:
+            tag_block(self.sender)  # raises for a source a tag block cannot carry
+
+    @property
+    def stamp(self) -> str:
+        """What goes in front of its sentences: the tag block, or nothing."""
+        return tag_block(self.sender) if self.sender is not None else ""
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """Its columns in the CSV of a suite's log."""
+        return (f"{self.name}.north", f"{self.name}.east") if self.kind == "position" else (f"{self.name}.heading",)
+
+    def describe(self) -> str:
+        """How its sentences are written, in words: ``GGA as GP, tag block s:dgps1, every 1 s``."""
+        tag = f", tag block s:{self.sender}" if self.sender is not None else ""
+        return f"{'GGA' if self.kind == 'position' else 'THS'} as {self.talker}{tag}, every {self.sample_period:g} s"
 
 
 def write_simulated_log(
@@ -94,6 +163,7 @@ def write_simulated_log(
     corrupted: int = 6,
     wild_points: int = 2,
     seed: int = 0,
+    sensors: Sequence[LoggedSensor] | None = None,
 ) -> dict:
     """Write the NMEA log, the CSV logs and the truth of one simulated run.
 
@@ -101,8 +171,9 @@ def write_simulated_log(
     ----------
     ds : xarray.Dataset
         One run of a vessel scenario (``lookout run``): ``measured_position``,
-        ``measured_heading``, ``force_applied``, ``moment_applied``, and the attributes
-        ``sample_period_s`` and ``sensor_sample_period_s``.
+        ``measured_heading`` (or the channels ``sensors`` name), ``force_applied``,
+        ``moment_applied``, and the attributes ``sample_period_s`` and
+        ``sensor_sample_period_s``.
     folder : path
         Where ``<name>.nmea``, ``<name>.csv``, ``<name>-thrust.csv`` and
         ``<name>-truth.nc`` go (created).
@@ -111,13 +182,21 @@ def write_simulated_log(
     epoch : float
         Unix time of the run's t = 0.
     outage : (start, length), optional
-        Seconds of run time without fixes: finite, ``length`` positive, and within the
-        run (``start + length`` at most its duration); default :data:`DEFAULT_OUTAGE`,
-        None for no outage.
+        Seconds of run time without fixes (of every position reference): finite,
+        ``length`` positive, and within the run (``start + length`` at most its
+        duration); default :data:`DEFAULT_OUTAGE`, None for no outage.
     corrupted, wild_points : int
-        Corrupted copies of sentences, and fixes 60 m off, added to the log.
+        Corrupted copies of sentences, and fixes 60 m off, added to the log (with
+        ``sensors``: to each sensor's sentences, the wild points to each position
+        reference's).
     seed : int
         Of the arrival jitter and the corruptions.
+    sensors : sequence of LoggedSensor, optional
+        The instruments of a sensor suite, each written with its own stamps (module
+        docstring); the CSV then has a column per sensor channel. Default: one receiver
+        (``measured_position``, GGA as GP) and one gyro (``measured_heading``, THS as
+        HE), at the first and third periods of ``sensor_sample_period_s``, and the CSV
+        ``time,north,east,heading``.
 
     Returns
     -------
@@ -127,8 +206,9 @@ def write_simulated_log(
     Raises
     ------
     ValueError
-        Naming ``outage`` when it is not a window within the run, before anything is
-        written.
+        Naming ``outage`` when it is not a window within the run, or ``sensors`` when
+        it is empty, names a channel the run has not, or a period not a whole number of
+        the run's; before anything is written.
     """
     from lookout.results import write_netcdf
 
@@ -151,43 +231,93 @@ def write_simulated_log(
                 f"its duration is {end:g} s" + ("; give an outage within the run, or None" if default else "")
             )
         outage = (start, length)
+    suite = sensors is not None
+    streams: tuple[LoggedSensor, ...]
+    if sensors is None:
+        periods = [float(p) for p in str(ds.attrs["sensor_sample_period_s"]).strip("[]").split(",")]
+        streams = (
+            LoggedSensor("position", "position", "measured_position", periods[0], "GP"),
+            LoggedSensor("heading", "heading", "measured_heading", periods[2], "HE"),
+        )
+    else:
+        streams = tuple(sensors)
+        if not streams:
+            raise ValueError("sensors must name at least one sensor to log; got none")
+        for each in streams:
+            if not isinstance(each, LoggedSensor):
+                raise ValueError(f"sensors must be LoggedSensor objects; got {type(each).__name__}")
+            if each.channel not in ds:
+                raise ValueError(f"sensors: the run has no {each.channel} (sensor {each.name})")
+    every = []
+    for each in streams:
+        ratio = each.sample_period / step
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            raise ValueError(f"sensors: {each.name}'s sample period, {each.sample_period:g} s, is not a whole number of the run's {step:g} s")
+        every.append(round(ratio))
     folder.mkdir(parents=True, exist_ok=True)
-    periods = [float(p) for p in str(ds.attrs["sensor_sample_period_s"]).strip("[]").split(",")]
-    every_position, every_heading = round(periods[0] / step), round(periods[2] / step)
     times = np.asarray(ds["time"].values, dtype=float)
-    position = np.asarray(ds["measured_position"].values, dtype=float)
-    heading = np.asarray(ds["measured_heading"].values, dtype=float)
+    samples = [np.asarray(ds[each.channel].values, dtype=float).reshape(times.size, -1) for each in streams]
     thrust = np.column_stack([ds["force_applied"].values, ds["moment_applied"].values])
+    heading_streams = [i for i, each in enumerate(streams) if each.kind == "heading"]
     rng = np.random.default_rng(seed)
-    nmea, csv, thrust_rows = [], [], []
+    # (arrival, text, the stream it is a sample of (-1: none), the record it was sampled at)
+    nmea: list[tuple[float, str, int, int]] = []
+    csv: list[tuple[float, str]] = []
+    thrust_rows = []
+    columns = [column for each in streams for column in each.columns]
     for k, t in enumerate(times):
-        fix = k % every_position == 0 and np.all(np.isfinite(position[k])) and not (outage and outage[0] <= t < outage[0] + outage[1])
-        sample = k % every_heading == 0 and np.isfinite(heading[k])
-        arrival_fix = epoch + t - step * rng.uniform(0.4, 0.9)
-        arrival_heading = epoch + t - step * rng.uniform(0.05, 0.35)
-        if fix:
-            latitude, longitude, _ = frame.geodetic(position[k, 0], position[k, 1], 0.0)
-            nmea.append((arrival_fix, gga(epoch + t, float(latitude), float(longitude))))
-        if sample:
-            nmea.append((arrival_heading, ths(math.degrees(heading[k]))))
-        if fix:  # each reading on its own row, at its own arrival
-            csv.append(f"{float(arrival_fix)!r},{float(position[k, 0])!r},{float(position[k, 1])!r},")
-        if sample:
-            csv.append(f"{float(arrival_heading)!r},,,{math.degrees(float(heading[k]))!r}")
+        index = round(t / step)  # the sample's number: time from integer indices
+        offsets = [step * rng.uniform(*ARRIVAL[each.kind]) for each in streams]
+        # the headings of one instant arrive in the order of the sensors (a replay steps on the first)
+        for i, offset in zip(heading_streams, sorted((offsets[i] for i in heading_streams), reverse=True)):
+            offsets[i] = offset
+        rows: list[tuple[float, int, tuple[str, ...]]] = []
+        for i, (each, values) in enumerate(zip(streams, samples)):
+            value = values[k]
+            due = index % every[i] == 0 and bool(np.all(np.isfinite(value)))
+            if each.kind == "position" and outage and outage[0] <= t < outage[0] + outage[1]:
+                due = False
+            if not due:
+                continue
+            arrival = epoch + t - offsets[i]
+            cells: tuple[str, ...]
+            if each.kind == "position":
+                latitude, longitude, _ = frame.geodetic(value[0], value[1], 0.0)
+                nmea.append((arrival, each.stamp + gga(epoch + t, float(latitude), float(longitude), talker=each.talker), i, k))
+                cells = (repr(float(value[0])), repr(float(value[1])))
+            else:
+                nmea.append((arrival, each.stamp + ths(math.degrees(value[0]), talker=each.talker), i, k))
+                cells = (repr(math.degrees(float(value[0]))),)
+            rows.append((float(arrival), i, cells))
+        for arrival, i, cells in rows:  # each reading on its own row, at its own arrival
+            if suite:
+                row = [""] * len(columns)
+                first = columns.index(streams[i].columns[0])
+                row[first : first + len(cells)] = cells
+                csv.append((arrival, ",".join([repr(arrival), *row])))
+            else:
+                csv.append((arrival, f"{arrival!r}," + (f"{cells[0]},{cells[1]}," if len(cells) == 2 else f",,{cells[0]}")))
         surge, sway, yaw = (repr(float(value)) for value in thrust[k])
         thrust_rows.append(f"{float(epoch + t - step * rng.uniform(0.4, 0.95))!r},{surge},{sway},{yaw}")
-    fixes = [i for i, (_, text) in enumerate(nmea) if "GGA" in text]
-    for i in rng.choice(len(nmea), size=min(corrupted, len(nmea)), replace=False):
-        arrival, text = nmea[i]
-        where = int(rng.integers(7, len(text) - 4))
-        flipped = text[:where] + ("7" if text[where] != "7" else "3") + text[where + 1 :]
-        nmea.append((arrival + 1e-4, flipped))
-    nmea.append((nmea[len(nmea) // 3][0] + 2e-4, "GPGGA,not a sentence"))
-    for i in rng.choice(fixes[5:], size=min(wild_points, max(len(fixes) - 5, 0)), replace=False):
-        k = int(round((nmea[i][0] - epoch) / step + 0.5))  # the step that used the fix
-        t = times[min(k, len(times) - 1)]
-        latitude, longitude, _ = frame.geodetic(position[k, 0] + 60.0, position[k, 1] - 20.0, 0.0)
-        nmea.append((epoch + t + 0.5 * periods[0] - step * 0.5, gga(epoch + t, float(latitude), float(longitude))))
+    groups = [range(len(streams))] if not suite else [(i,) for i in range(len(streams))]
+    fixes = {i: [j for j, row in enumerate(nmea) if row[2] == i] for i, each in enumerate(streams) if each.kind == "position"}
+    for group in groups:  # one log's, or each sensor's, sentences
+        members = [j for j, row in enumerate(nmea) if row[2] in group]
+        for j in rng.choice(len(members), size=min(corrupted, len(members)), replace=False):
+            arrival, text, i, _ = nmea[members[j]]
+            tag = len(streams[i].stamp)  # the flip lands in the sentence, after its address
+            where = int(rng.integers(tag + 7, len(text) - 4))
+            flipped = text[:where] + ("7" if text[where] != "7" else "3") + text[where + 1 :]
+            nmea.append((arrival + 1e-4, flipped, -1, -1))
+    nmea.append((nmea[len(nmea) // 3][0] + 2e-4, "GPGGA,not a sentence", -1, -1))
+    for i, own in fixes.items():
+        each = streams[i]
+        for j in rng.choice(own[5:], size=min(wild_points, max(len(own) - 5, 0)), replace=False):
+            k = nmea[j][3]  # the record that used the fix
+            t = times[k]
+            latitude, longitude, _ = frame.geodetic(samples[i][k, 0] + 60.0, samples[i][k, 1] - 20.0, 0.0)
+            text = each.stamp + gga(epoch + t, float(latitude), float(longitude), talker=each.talker)
+            nmea.append((epoch + t + 0.5 * each.sample_period - step * 0.5, text, -1, -1))
     nmea.sort(key=lambda row: row[0])
     paths = {
         "nmea": folder / f"{name}.nmea",
@@ -200,8 +330,14 @@ def write_simulated_log(
         f"# lookout simulated log: {ds.attrs.get('scenario', 'a simulated run')}; t = 0 at {began} (Unix {epoch:.1f} s)\n"
         f"# origin of north/east: {frame.latitude} N, {frame.longitude} E; TIME is the Unix time each sentence arrived\n"
     )
-    paths["nmea"].write_text(header + "".join(f"{arrival:.6f} {text}\n" for arrival, text in nmea))
-    paths["csv"].write_text("time,north,east,heading\n" + "\n".join(csv) + "\n")
+    if suite:
+        header += "".join(f"# sensor {each.name}: {each.describe()}\n" for each in streams)
+    paths["nmea"].write_text(header + "".join(f"{arrival:.6f} {text}\n" for arrival, text, _, _ in nmea))
+    if suite:
+        csv.sort(key=lambda row: row[0])
+    paths["csv"].write_text(
+        ",".join(["time", *columns] if suite else ["time", "north", "east", "heading"]) + "\n" + "\n".join(row for _, row in csv) + "\n"
+    )
     paths["thrust"].write_text("time,surge,sway,yaw\n" + "\n".join(thrust_rows) + "\n")
     truth = ds.expand_dims("run") if "run" not in ds.dims else ds
     truth.attrs.update({"log_epoch_unix_s": epoch, "origin_latitude": frame.latitude, "origin_longitude": frame.longitude})

@@ -692,8 +692,13 @@ def live_command(
 
 
 def write_log_command(
-    scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A vessel scenario (position-heading sensor) to simulate, one run.")],
-    out: Annotated[str, typer.Option(metavar="FOLDER", help="Where NAME.nmea, NAME.csv, NAME-thrust.csv and NAME-truth.nc go.")] = "out/log",
+    scenario_file: Annotated[
+        str, typer.Argument(metavar="SCENARIO.toml", help="A vessel scenario (a position-heading sensor or a sensor suite) to simulate, one run.")
+    ],
+    out: Annotated[
+        str,
+        typer.Option(metavar="FOLDER", help="Where NAME.nmea, NAME.csv, NAME-thrust.csv, NAME-truth.nc (and for a suite NAME-scenario.toml) go."),
+    ] = "out/log",
     name: Annotated[str, typer.Option(metavar="NAME", help="The files' stem.")] = "dp-vessel",
     origin: Annotated[str, typer.Option(metavar="LAT,LON", help="Where north = east = 0 lies (degrees).")] = "63.44,10.40",
     outage: Annotated[
@@ -706,7 +711,9 @@ def write_log_command(
 ) -> None:
     """Simulate a scenario once and write what a bridge computer would have logged: GGA
     and THS with arrival times, an outage, corrupted and wild sentences; the same
-    samples as CSV, the thrust, and the run's truth."""
+    samples as CSV, the thrust, and the run's truth. A sensor suite's log has each
+    position reference's GGA and each gyrocompass's THS, stamped with its source, and
+    NAME-scenario.toml, the scenario with every such sensor's source, to replay it."""
     import re
 
     from lookout._commandline import output_folder, simulating
@@ -733,8 +740,17 @@ def write_log_command(
         raise InputError(f"--seed must be a non-negative integer; got {seed}")
     folder = output_folder("--out", out)
     spec, scenario = _scenario(scenario_file, 1, None)
-    wanted = {"measured_position", "measured_heading"}
-    if not wanted <= set(scenario.sensor.measurement_layout.names):
+    from lookout.sensing.suite import SensorSuite
+
+    plan = None
+    if isinstance(scenario.sensor, SensorSuite):
+        from lookout.live.suite_log import suite_log
+
+        try:
+            plan = suite_log(scenario.sensor)
+        except ValueError as error:
+            raise InputError(f"{scenario_file}: {error}") from None
+    elif not {"measured_position", "measured_heading"} <= set(scenario.sensor.measurement_layout.names):
         raise InputError(
             f"{scenario_file}: the sensor must measure position and heading (kind position-heading); it measures "
             f"{', '.join(scenario.sensor.measurement_layout.names)}"
@@ -758,10 +774,43 @@ def write_log_command(
     ds = trajectory.to_xarray()
     ds.attrs["scenario"] = scenario_file
     try:
-        paths = write_simulated_log(ds, folder, name=name, frame=frame, outage=window, seed=seed)
+        paths = write_simulated_log(ds, folder, name=name, frame=frame, outage=window, seed=seed, sensors=plan.sensors if plan else None)
     except ValueError as error:
         raise InputError(str(error)) from None
+    if plan is not None:
+        paths["scenario"] = _scenario_with_sources(spec, plan, folder / f"{name}-scenario.toml", scenario_file, origin)
+        for sensor, kind in plan.skipped:
+            print(
+                f"sensor {sensor} ({kind}) not written: a log carries position fixes (gnss, hydroacoustic) and headings (gyrocompass)",
+                file=sys.stderr,
+            )
+        for each in plan.sensors:
+            assumed = f" (it names no source: source {plan.sources[each.name]!r} assumed)" if each.name in plan.assumed else ""
+            print(f"sensor {each.name}: {each.describe()}{assumed}", file=sys.stderr)
     print("written: " + ", ".join(str(path) for path in paths.values()))
+    if plan is not None:
+        print(
+            f"replay it with: lookout replay {paths['nmea']} --scenario {paths['scenario']} --origin {origin} "
+            f"--thrust {paths['thrust']} --truth {paths['truth']}",
+            file=sys.stderr,
+        )
+
+
+def _scenario_with_sources(spec, plan, path: Path, scenario_file: str, origin: str) -> Path:
+    """Write the scenario as simulated (every key spelled out, as ``lookout run``
+    writes it) with each logged sensor's source: the one its sentences carry."""
+    from lookout.scenario._toml import write as write_toml
+    from lookout.scenario.file import composition_comments
+
+    document = spec.document()
+    for sensor, source in plan.sources.items():
+        document["sensors"][sensor]["source"] = source
+    assumed = f"\nSources assumed (the file names none): {', '.join(plan.assumed)}." if plan.assumed else ""
+    header = (
+        f"lookout scenario, as simulated by lookout write-log from {scenario_file}, with the source of every sensor its log carries.{assumed}\n"
+        f"Replay the log with: lookout replay {path.stem.removesuffix('-scenario')}.nmea --scenario {path.name} --origin {origin}"
+    )
+    return write_toml(path, document, composition_comments(document), header)
 
 
 def play_command(
