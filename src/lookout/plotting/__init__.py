@@ -21,6 +21,7 @@ The modules: :mod:`~lookout.plotting.series` (:func:`plot_estimates`,
 :func:`plot_trajectories`), :mod:`~lookout.plotting.run_figures` (the figures of
 ``lookout run``, and :func:`plot_run_thrusters`),
 :mod:`~lookout.plotting.suite_references` (:func:`plot_run_sensor_references`),
+:mod:`~lookout.plotting.capability` (:func:`plot_capability`, the DP capability polar),
 :mod:`~lookout.plotting.bode`
 (:func:`plot_bode`), and ``_panels``: the panel of a full run and its zooms that the
 time-series figures share.
@@ -42,6 +43,7 @@ from lookout.plotting._panels import (  # noqa: E402
 )
 from lookout.plotting._panels import _panel_layout as _panel_layout  # noqa: E402
 from lookout.plotting.bode import minimum_phase_of_h, plot_bode  # noqa: E402
+from lookout.plotting.capability import plot_capability  # noqa: E402
 from lookout.plotting.run_figures import (  # noqa: E402
     RUN_FIGURE_COLUMNS,
     RUN_FIGURE_ROWS,
@@ -71,6 +73,7 @@ __all__ = [
     "plot_run_estimates",
     "plot_run_input",
     "plot_run_reference",
+    "plot_capability",
     "plot_run_sensor_references",
     "plot_run_thrusters",
     "plot_trajectories",

@@ -708,9 +708,77 @@ def failures(
     say(f"next: lookout campaign report {store}")
 
 
+def capability(
+    scenario_file: Annotated[
+        str, typer.Argument(metavar="SCENARIO.toml", help='A scenario whose actuator is thrusters ([actuator] kind = "thrusters").')
+    ],
+    out: Annotated[
+        str, typer.Option(metavar="FOLDER", help="Where capability.png and capability.csv go; created with its missing parents.")
+    ] = "out/capability",
+    moment_arm: Annotated[float, typer.Option(metavar="METRES", help="The environment's yaw moment per newton of its force (m).")] = 0.0,
+    step: Annotated[float, typer.Option(metavar="DEG", help="Degrees between the directions, dividing 360.")] = 10.0,
+) -> None:
+    """DP capability: the largest environmental force the thrusters can balance from each
+    direction (0 from ahead, 90 from starboard), with a yaw moment of --moment-arm times
+    the force, intact and with each thruster out of service; a polar figure, a CSV and
+    the smallest of each case."""
+    import csv
+    import math
+
+    import numpy as np
+
+    from lookout.actuators.capability import single_failure_capability
+    from lookout.plotting.capability import plot_capability
+    from lookout.scenario.file import read_spec
+
+    if not (math.isfinite(moment_arm)):
+        raise InputError(f"--moment-arm must be a finite number of metres; got {moment_arm}")
+    count = 360.0 / step if math.isfinite(step) and step > 0 else math.nan
+    if not (math.isfinite(count) and abs(count - round(count)) < 1e-9 and count >= 4):
+        raise InputError(f"--step must divide 360 degrees into at least 4 directions (10, 15, 30 ...); got {step:g}")
+    try:
+        spec = read_spec(scenario_file)[0]
+    except FileError as error:
+        raise InputError(str(error)) from None
+    layout = getattr(spec.build().actuator, "layout", None)
+    if layout is None or not hasattr(layout, "B"):
+        raise InputError(f'{scenario_file}: lookout capability needs thrusters ([actuator] kind = "thrusters" with a layout); its actuator has none')
+    folder = output_folder("--out", out)
+    directions = np.radians(np.arange(round(count)) * step)
+    found = single_failure_capability(layout, directions, moment_arm=moment_arm)
+    shown = Table(box=box.SIMPLE, title=f"largest force held (kN), moment arm {moment_arm:g} m")
+    for column in ("case", "smallest", "from (deg)", "ahead", "starboard", "astern", "port"):
+        shown.add_column(column, justify="left" if column == "case" else "right")
+    quarter = {b: int(np.argmin(np.abs(((np.degrees(directions) - b) + 180.0) % 360.0 - 180.0))) for b in (0, 90, 180, 270)}
+    for name, values in found.items():
+        least = int(np.argmin(values))
+        shown.add_row(
+            name if name == "intact" else f"{name} out",
+            f"{values[least] / 1e3:.1f}",
+            f"{math.degrees(directions[least]):g}",
+            *(f"{values[quarter[b]] / 1e3:.1f}" for b in (0, 90, 180, 270)),
+        )
+    console.print(shown)
+    target = created_folder("--out", out)
+    figure = plot_capability(directions, found, title=f"DP capability of {Path(scenario_file).name}")
+    figure.savefig(target / "capability.png", dpi=110)
+    with (target / "capability.csv").open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["direction_deg", *[name if name == "intact" else f"{name}_out" for name in found]])
+        for row, beta in enumerate(directions):
+            writer.writerow([f"{math.degrees(beta):g}", *[f"{values[row]:.6g}" for values in found.values()]])
+    worst = min((name for name in found if name != "intact"), key=lambda name: float(np.min(found[name])), default=None)
+    if worst is not None:
+        console_print(
+            f"worst single thruster failure: {worst} ({np.min(found[worst]) / 1e3:.1f} kN at its weakest, intact {np.min(found['intact']) / 1e3:.1f} kN)"
+        )
+    console_print(f"written to {folder}: capability.png, capability.csv")
+
+
 def register(app: typer.Typer) -> None:
     """Add ``run``, ``campaign`` and ``benchmark`` to the ``lookout`` command."""
     app.command("run")(run)
     app.command("failures")(failures)
+    app.command("capability")(capability)
     app.add_typer(campaign_app, name="campaign")
     app.add_typer(benchmark_app, name="benchmark")
