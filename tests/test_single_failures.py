@@ -133,3 +133,43 @@ def test_a_failure_that_never_starts_is_inf_and_a_finite_one_after_the_end_is_re
     late["sensors"]["dgnss1"]["failures"] = [{"mode": "dropout", "start": DURATION}]
     with pytest.raises(ValueError, match=r"start \(60 s\) must be before the run's end"):
         compose(late)
+
+
+def _block(text: str, header: str) -> str:
+    """The lines of ``text`` from ``header`` to the next table that is not its own."""
+    lines, inside = [], False
+    for line in text.splitlines():
+        if line.startswith("["):
+            inside = line.strip() == header or (inside and line.strip().startswith(header[:-1] + "."))
+        if inside:
+            lines.append(line)
+    return "\n".join(lines) + "\n"
+
+
+def test_with_thrusters_each_one_stops_and_sticks_in_a_case_of_its_own(tmp_path):
+    """The suite's vessel on the supply vessel's thrusters: a case per thruster and mode
+    after the instruments', and the port azimuth's stop gives what the scenario with
+    that one failure written into its [[actuator.failures]] gives, run by hand."""
+    import tomllib
+
+    thrusters = (Path(__file__).resolve().parents[1] / "examples" / "thrusters-dp.toml").read_text()
+    text = _text().replace(_block(_text(), "[actuator]"), _block(thrusters, "[actuator]"))
+    assert 'kind = "thrusters"' in text
+    scenario = tmp_path / "suite-thrusters.toml"
+    scenario.write_text(text)
+    table = tmp_path / "table.csv"
+    argv = ["failures", str(scenario), "--out", str(tmp_path / "store.zarr"), "--start", str(START), "--seeds", "1", "--workers", "0"]
+    assert main([*argv, "--table", str(table)]) == 0
+    with table.open() as handle:
+        rows = {row["failure"]: row for row in csv.DictReader(handle)}
+    names = ("bow-tunnel-1", "bow-tunnel-2", "port-azimuth", "starboard-azimuth")
+    assert {f"{name} {mode}" for name in names for mode in ("stop", "stuck")} <= set(rows) and len(rows) == 1 + 15 + 8
+    document = tomllib.loads(text)
+    document["actuator"]["failures"] = [{"thruster": "port-azimuth", "mode": "stop", "start": START}]
+    composition = compose(document)
+    metrics = metric_module.resolve(["max_tracking:position"], composition.scenario)
+    seed = composition.simulation.seed
+    expected = metric_module.reduce(simulate_batch(composition.scenario, keys_of_seeds([seed])), metrics, after=START)
+    found = float(rows["port-azimuth stop"]["max_tracking:position max"])
+    np.testing.assert_allclose(found, float(expected["max_tracking__position"][0]), rtol=1e-9)
+    assert found != float(rows[INTACT]["max_tracking:position max"])

@@ -8,6 +8,7 @@ concrete object was built).
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -192,3 +193,18 @@ class InputError(Exception):
     """Bad user input at the command line, reported as one line with exit code 2
     (defined here, not in :mod:`lookout.cli`, so that ``python -m lookout.cli`` and the
     command modules it loads share one class)."""
+
+
+def table_number(location: tuple, value: Any, *, positive: bool = False, allow_inf: bool = False, inf_means: str = "to the run's end") -> float:
+    """A number of a table's key (a failure's start, duration, size): ``>= 0`` (``> 0``
+    with ``positive``), finite unless ``allow_inf`` (inf then means ``inf_means``); a
+    :class:`ParameterError` at ``location`` otherwise."""
+    name = location[-1]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ParameterError(location, f"{name} must be a number; got {short(value)}")
+    number = float(value)
+    if math.isnan(number) or (math.isinf(number) and not allow_inf) or number < 0 or (positive and number == 0):
+        bound = "> 0" if positive else ">= 0"
+        what = f"a number {bound} (inf: {inf_means})" if allow_inf else f"a finite number {bound}"
+        raise ParameterError(location, f"{name} must be {what}; got {value}")
+    return number

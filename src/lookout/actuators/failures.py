@@ -2,7 +2,8 @@
 
 A failure acts on one thruster of a :class:`~lookout.actuators.layout.ThrusterLayout`
 (``[[actuator.failures]]``, the thruster by name or index), from ``start`` for
-``duration`` seconds (to the end of the run when not given). ``start``, ``duration``
+``duration`` seconds (to the end of the run when not given; ``start = inf``: never, a
+failure a campaign's axis switches on). ``start``, ``duration``
 and ``fraction`` are arrays, so a campaign sweeps them (a worst-single-failure
 analysis: which thruster, and when) without compiling again; the mode and the thruster
 are the structure. While a failure is active the thrusters record a flag of 1
@@ -78,16 +79,7 @@ class ThrusterFailure(eqx.Module):
         return jnp.asarray((t >= self.start) & (t < self.start + self.duration))
 
 
-def _number(location: tuple, value: Any, *, positive: bool = False, allow_inf: bool = False) -> float:
-    name = location[-1]
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise check.ParameterError(location, f"{name} must be a number; got {check.short(value)}")
-    number = float(value)
-    if math.isnan(number) or (math.isinf(number) and not allow_inf) or number < 0 or (positive and number == 0):
-        bound = "> 0" if positive else ">= 0"
-        what = f"a number {bound} (inf: to the run's end)" if allow_inf else f"a finite number {bound}"
-        raise check.ParameterError(location, f"{name} must be {what}; got {value}")
-    return number
+_number = check.table_number
 
 
 def _thruster(location: tuple, value: Any, names: Sequence[str]) -> int:
@@ -139,8 +131,9 @@ def failure_from_table(table: Any, names: Sequence[str], location: tuple = (), *
         if key not in table:
             raise check.ParameterError(location + (key,), f"missing key (a {mode} failure needs {', '.join(needed)})")
     thruster = _thruster(location + ("thruster",), table["thruster"], names)
-    start = _number(location + ("start",), table["start"])
-    if run_duration is not None and start >= run_duration:
+    # inf: never (a failure that a campaign's axis switches on, lookout failures)
+    start = _number(location + ("start",), table["start"], allow_inf=True, inf_means="never")
+    if run_duration is not None and math.isfinite(start) and start >= run_duration:
         raise check.ParameterError(
             location + ("start",), f"start ({start:g} s) must be before the run's end (duration {run_duration:g} s) for the failure to happen"
         )

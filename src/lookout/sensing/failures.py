@@ -134,16 +134,7 @@ class Failure(eqx.Module):
         return memory, y, flag
 
 
-def _number(location: tuple, value: Any, *, positive: bool = False, allow_inf: bool = False, inf_means: str = "to the run's end") -> float:
-    name = location[-1]
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise check.ParameterError(location, f"{name} must be a number; got {check.short(value)}")
-    number = float(value)
-    if math.isnan(number) or (math.isinf(number) and not allow_inf) or number < 0 or (positive and number == 0):
-        bound = "> 0" if positive else ">= 0"
-        what = f"a number {bound} (inf: {inf_means})" if allow_inf else f"a finite number {bound}"
-        raise check.ParameterError(location, f"{name} must be {what}; got {value}")
-    return number
+_number = check.table_number
 
 
 def _per_channel(location: tuple, value: Any, size: int) -> np.ndarray:

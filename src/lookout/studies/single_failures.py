@@ -1,5 +1,6 @@
-"""The worst single failure of a sensor suite: the intact case and every single failure
-of every instrument, as one campaign over seeds (``lookout failures``).
+"""The worst single failure of a sensor suite and its thrusters: the intact case and
+every single failure of every instrument and thruster, as one campaign over seeds
+(``lookout failures``).
 
 A DP vessel's redundancy is judged by what one failure does to its position (IMO
 MSC/Circ.645 and MSC.1/Circ.1580, equipment classes 2 and 3: no single failure may
@@ -18,6 +19,7 @@ the instrument's one channel):
 position reference  dropout; freeze; jump of 10 m; drift of 0.05 m/s; noise x 5
 gyrocompass         dropout; freeze; jump of 2 deg; drift of 0.01 deg/s; noise x 5
 other instruments   dropout; freeze
+thruster            stop; stuck (with ``[actuator] kind = "thrusters"``)
 ==================  ==========================================================
 
 The 0.05 m/s drift is the slow drift the DP guidance warns about (a reference that walks
@@ -56,6 +58,9 @@ _OTHER: tuple[tuple[str, dict[str, Any]], ...] = (("dropout", {}), ("freeze", {}
 #: (:data:`lookout.sensing.instrument.POSITION`, ``HEADING``, ``OTHER``).
 CANDIDATES: dict[str, tuple[tuple[str, dict[str, Any]], ...]] = {"position": _POSITION, "heading": _HEADING, "other": _OTHER}
 
+#: How each thruster of a thruster actuator fails (:mod:`lookout.actuators.failures`).
+THRUSTER_MODES = ("stop", "stuck")
+
 #: The metrics of each case: how far the vessel strays, and the estimate's error.
 TRACKING_METRICS = ("max_tracking:position", "max_tracking:heading", "rms_error:position", "max_error:position")
 EXCURSION_METRICS = ("max_excursion:position", "max_excursion:heading", "rms_error:position", "max_error:position")
@@ -90,6 +95,15 @@ def failure_cases(document: dict, start: float) -> tuple[dict, list[dict[str, fl
             listed.append({"mode": mode, "start": math.inf, **sized})
             cases.append({f"sensors.{name}.failures[{len(listed) - 1}].start": float(start)})
             labels.append(f"{name} {mode}")
+    actuator = composition.scenario.actuator
+    table = failed.get("actuator")
+    if isinstance(table, dict) and hasattr(actuator, "with_failures") and getattr(actuator, "layout", None) is not None:
+        listed = table["failures"] = []  # the thrusters' own failures are left out too
+        for name in actuator.layout.names:
+            for mode in THRUSTER_MODES:
+                listed.append({"thruster": name, "mode": mode, "start": math.inf})
+                cases.append({f"actuator.failures[{len(listed) - 1}].start": float(start)})
+                labels.append(f"{name} {mode}")
     return failed, cases, labels
 
 
