@@ -1047,7 +1047,11 @@ BAD_FAILURES = {
         "actuator.failures[0].mode",
         "mode must be one of stop, stuck, reduced",
     ),
-    "negative start": ({"thruster": 2, "mode": "stop", "start": -1.0}, "actuator.failures[0].start", "start must be a number >= 0 (inf: never); got -1.0"),
+    "negative start": (
+        {"thruster": 2, "mode": "stop", "start": -1.0},
+        "actuator.failures[0].start",
+        "start must be a number >= 0 (inf: never); got -1.0",
+    ),
     "start after the end": ({"thruster": 2, "mode": "stop", "start": 1e4}, "actuator.failures[0].start", "must be before the run's end"),
     "fraction 0": ({"thruster": 2, "mode": "reduced", "start": 1.0, "fraction": 0.0}, "actuator.failures[0].fraction", "fraction must be in (0, 1)"),
     "fraction 1.5": (

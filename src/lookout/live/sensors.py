@@ -14,7 +14,8 @@ Each sensor holds its last reading, as a simulated instrument holds its sample, 
 it is older than its channel's timeout (``position_timeout``, ``heading_timeout``);
 then it is NaN, a dropout. At each step :class:`CombiningObserver` hands the held
 samples to the suite's combining stage, the very
-:meth:`~lookout.sensing.combining.WeightedMean.combine` a simulation runs, and the
+:meth:`~lookout.sensing.combining.CombiningStage.step` a simulation runs (its memory
+carried from step to step, a sensor's reading new at the step it came), and the
 observer reads its output (``measured_position``, ``measured_heading``) through the
 hold, timeout and gate of :class:`~lookout.live.gate.GatedObserver`, as it reads a
 single receiver's. The combined position is a new reading at a step where a position
@@ -39,7 +40,7 @@ from lookout.components import Layout, Observer, Signal
 from lookout.io.nmea import source_rank, source_spec, talker_family
 from lookout.live.gate import GatedObserver, GatedState
 from lookout.live.options import Gates
-from lookout.sensing.combining import WeightedMean
+from lookout.sensing.combining import CombiningStage
 from lookout.sensing.heading import Gyrocompass
 from lookout.sensing.instrument import HEADING, POSITION
 from lookout.sensing.position import GnssReceiver, HydroacousticReference
@@ -155,11 +156,13 @@ def route(sensors: Mapping[str, LiveSensor], source: str, kind: str) -> LiveSens
 
 
 class CombiningState(eqx.Module):
-    """The gated observer's state and the combined heading of the step before."""
+    """The gated observer's state, the combined heading of the step before and the
+    combining stage's memory."""
 
     inner: GatedState
     heading: Array  # 0 where it was NaN
     no_heading: Array  # 1 where it was NaN
+    stage: Any = ()
 
 
 class CombiningObserver(Observer):
@@ -168,7 +171,8 @@ class CombiningObserver(Observer):
     Its measurement is each instrument's held sample (the suite's instrument layout,
     NaN where none is held) and each instrument's arrival (session s; NaN when no new
     reading came since the step before). Each step combines the samples with the
-    suite's :meth:`~lookout.sensing.combining.WeightedMean.combine` and hands the
+    suite's :meth:`~lookout.sensing.combining.CombiningStage.step` (the instruments in
+    the order of their names, as a simulation's suite hands them) and hands the
     combined channels to the gated observer as new readings (module docstring).
 
     Parameters
@@ -181,7 +185,7 @@ class CombiningObserver(Observer):
 
     gated: GatedObserver
     instruments: tuple
-    combining: WeightedMean
+    combining: CombiningStage
     names: tuple[str, ...] = eqx.field(static=True)
     sizes: tuple[int, ...] = eqx.field(static=True)
     provides: tuple[str, ...] = eqx.field(static=True)
@@ -190,6 +194,7 @@ class CombiningObserver(Observer):
     # measurement, its columns in the combined vector, and what makes it new
     targets: tuple[tuple[tuple[int, int], tuple[int, int], str], ...] = eqx.field(static=True)
     heading_column: int = eqx.field(static=True)
+    order: tuple[int, ...] = eqx.field(static=True)
 
     def __init__(self, gated: GatedObserver, suite: SensorSuite):
         if suite.combining is None:
@@ -201,6 +206,7 @@ class CombiningObserver(Observer):
         self.sizes = tuple(each.size for each in suite.instruments)
         self.provides = tuple(each.provides for each in suite.instruments)
         self.instrument_signals = suite.instrument_layout.signals
+        self.order = tuple(sorted(range(len(suite.names)), key=suite.names.__getitem__))
         combined, start = {}, 0
         for signal in suite.combined_signals:
             combined[signal.name] = (start, start + signal.size)
@@ -243,8 +249,9 @@ class CombiningObserver(Observer):
         return self.gated.guess()
 
     # -- the combining stage
-    def _combined(self, heading: Array, no_heading: Array, y: Array) -> tuple[Array, Array]:
-        """``(the gated observer's measurement, the combined heading)`` of a step's ``y``."""
+    def _combined(self, heading: Array, no_heading: Array, stage: Any, y: Array, t: ArrayLike) -> tuple[Array, Array, Any]:
+        """``(the gated observer's measurement, the combined heading, the stage's memory)``
+        of a step's ``y`` at ``t``."""
         total = sum(self.sizes)
         flat, arrivals = y[:total], y[total:]
         samples, start = [], 0
@@ -252,7 +259,8 @@ class CombiningObserver(Observer):
             samples.append(flat[start : start + size])
             start += size
         held = jnp.where(no_heading > 0, jnp.nan, heading)
-        combined = self.combining.combine(self.instruments, samples, held)
+        fresh = jnp.stack([jnp.isfinite(arrivals[i]) for i in self.order])
+        stage, combined = self.combining.step(stage, [self.instruments[i] for i in self.order], [samples[i] for i in self.order], fresh, held, t)
         inner = jnp.full(self.gated.inner.measurement_layout.size, jnp.nan)
         arrived = []
         for (inner_start, inner_stop), (start, stop), kind in self.targets:
@@ -262,20 +270,25 @@ class CombiningObserver(Observer):
             new = jnp.isfinite(latest) & jnp.all(jnp.isfinite(value))
             inner = inner.at[inner_start:inner_stop].set(value)
             arrived.append(jnp.where(new, latest, jnp.nan))
-        return jnp.concatenate([inner, jnp.stack(arrived)]), combined[self.heading_column]
+        return jnp.concatenate([inner, jnp.stack(arrived)]), combined[self.heading_column], stage
 
-    def _state(self, inner: GatedState, heading: Array) -> CombiningState:
+    def _state(self, inner: GatedState, heading: Array, stage: Any) -> CombiningState:
         missing = ~jnp.isfinite(heading)
-        return CombiningState(inner, jnp.where(missing, 0.0, heading), missing.astype(heading.dtype))
+        return CombiningState(inner, jnp.where(missing, 0.0, heading), missing.astype(heading.dtype), stage)
 
     def init(self, y0: Array, guess: Any) -> CombiningState:
         y0 = jnp.asarray(y0)
-        measurement, heading = self._combined(jnp.zeros(()), jnp.ones(()), y0)
-        return self._state(self.gated.init(measurement, guess), heading)
+        # the first step's time: its latest arrival (session s), 0 when none came
+        arrivals = y0[sum(self.sizes) :]
+        latest = jnp.max(jnp.where(jnp.isfinite(arrivals), arrivals, -jnp.inf))
+        t0 = jnp.where(jnp.isfinite(latest), latest, 0.0)
+        stage = self.combining.initial_memory([self.instruments[i] for i in self.order])
+        measurement, heading, stage = self._combined(jnp.zeros(()), jnp.ones(()), stage, y0, t0)
+        return self._state(self.gated.init(measurement, guess), heading, stage)
 
     def update(self, state: CombiningState, t: ArrayLike, y: Array) -> CombiningState:
-        measurement, heading = self._combined(state.heading, state.no_heading, y)
-        return self._state(self.gated.update(state.inner, t, measurement), heading)
+        measurement, heading, stage = self._combined(state.heading, state.no_heading, state.stage, y, t)
+        return self._state(self.gated.update(state.inner, t, measurement), heading, stage)
 
     def output(self, state: CombiningState, y: Array) -> dict[str, Array]:
         return self.gated.output(state.inner, state.inner.measurement)

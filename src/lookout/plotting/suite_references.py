@@ -187,12 +187,14 @@ def sensor_reference_errors(ds: xr.Dataset, *, run: int = 0) -> tuple[list[Refer
             error = _wrap_degrees(y - heading)[:, None]
             headings.append(ReferenceErrors(name, f"{name} ({kind}, {period:g} s)", next(colours), time[at], error[at], period, failures))
     combined_position, combined_heading = _values(ds, "measured_position", run), _values(ds, "measured_heading", run)
+    # a stage that tests the references (dp-class) records each one's state beside them
+    of = " of the accepted" if "references.heading_alarm" in ds else ""
     if positions and combined_position is not None and combined_position.shape == position.shape:
         at = _instants(time, fastest["position"])
         positions.append(
             ReferenceErrors(
                 "combined",
-                "combined: measured_position (weighted mean)",
+                f"combined: measured_position (weighted mean{of})",
                 _COMBINED_COLOUR,
                 time[at],
                 (combined_position - position)[at],
@@ -202,7 +204,9 @@ def sensor_reference_errors(ds: xr.Dataset, *, run: int = 0) -> tuple[list[Refer
     if headings and combined_heading is not None and combined_heading.shape == heading.shape:
         at = _instants(time, fastest["heading"])
         error = _wrap_degrees(combined_heading - heading)[:, None]
-        headings.append(ReferenceErrors("combined", "combined: measured_heading (median)", _COMBINED_COLOUR, time[at], error[at], fastest["heading"]))
+        headings.append(
+            ReferenceErrors("combined", f"combined: measured_heading (median{of})", _COMBINED_COLOUR, time[at], error[at], fastest["heading"])
+        )
     if not positions and not headings:
         return None
     return positions, headings

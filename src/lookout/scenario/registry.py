@@ -56,6 +56,7 @@ BUILTIN_MODULES = (
     "lookout.sensing.heading",
     "lookout.sensing.motion",
     "lookout.sensing.combining",
+    "lookout.sensing.handling",
     "lookout.observers.passive",
     "lookout.observers.sliding_mode",
     "lookout.observers.earth_fixed",

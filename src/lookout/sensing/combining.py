@@ -14,16 +14,26 @@ The lever arms are taken back with the measured heading, not an observer's estim
 the stage then needs nothing of the observer, and it is what a DP system does with
 its gyros; the difference is the gyro's error times the lever arm (2 mrad at 30 m is
 6 cm).
+
+A stage is a :class:`CombiningStage`: it names the channels it gives
+(:meth:`CombiningStage.signals`, each taken from the position references or from the
+gyrocompasses: :meth:`CombiningStage.sources`) and steps a memory of its own
+(:meth:`CombiningStage.initial_memory`, :meth:`CombiningStage.step`), which the suite
+carries from sample to sample. ``weighted-mean`` keeps none; ``dp-class``
+(:class:`lookout.sensing.handling.ReferenceHandler`) keeps its tests' windows, its
+tracker and each reference's state.
 """
 
 from __future__ import annotations
 
+import abc
 from collections.abc import Sequence
-from typing import final
+from typing import Any, final
 
 import equinox as eqx
 import jax.numpy as jnp
 from jax import Array
+from jax.typing import ArrayLike
 
 from lookout._math import ssa
 from lookout.components import EARTH_FIXED, Signal
@@ -54,6 +64,39 @@ def circular_median(angles: Array) -> Array:
     return jnp.where(jnp.any(finite), ssa(first + jnp.nanmedian(offsets)), jnp.nan)
 
 
+class CombiningStage(eqx.Module):
+    """A suite's combining stage (abstract): from the instruments' held samples to the
+    combined channels, ``measured_position`` and ``measured_heading`` first, then any
+    of its own (recorded, read by no observer).
+
+    The suite hands it the instruments in the order of their names, so that the
+    order of a file's tables changes no bit of its output.
+    """
+
+    @abc.abstractmethod
+    def signals(self, instruments: Sequence[Instrument], names: Sequence[str] = ()) -> tuple[Signal, ...]:
+        """The channels it gives for a suite of ``instruments`` named ``names``, in order."""
+
+    @abc.abstractmethod
+    def sources(self, instruments: Sequence[Instrument], names: Sequence[str] = ()) -> tuple[str, ...]:
+        """Per channel of :meth:`signals`: what it is taken from, :data:`POSITION` (the
+        position references) or :data:`HEADING` (the gyrocompasses). The suite takes a
+        channel anew when one of those has a new sample, and holds it otherwise."""
+
+    @abc.abstractmethod
+    def initial_memory(self, instruments: Sequence[Instrument]) -> Any:
+        """The stage's memory before the first sample (a PyTree of arrays; ``()`` for none)."""
+
+    @abc.abstractmethod
+    def step(
+        self, memory: Any, instruments: Sequence[Instrument], samples: Sequence[Array], fresh: Array, held_heading: Array, t: ArrayLike
+    ) -> tuple[Any, Array]:
+        """``(memory, combined channels)`` at ``t``: ``samples`` each instrument's held
+        sample (NaN: missing), ``fresh`` per instrument whether it was taken now, and
+        ``held_heading`` the last combined heading (it takes the lever arms back when
+        no gyrocompass has a sample)."""
+
+
 @component(
     "references",
     "weighted-mean",
@@ -61,17 +104,30 @@ def circular_median(angles: Array) -> Array:
     parameters=(),
 )
 @final
-class WeightedMean(eqx.Module):
+class WeightedMean(CombiningStage):
     """The plain combining stage (see the module docstring).
 
     It provides ``measured_position`` when the suite has a position reference and
     ``measured_heading`` when it has a gyrocompass.
     """
 
-    def signals(self, instruments: Sequence[Instrument]) -> tuple[Signal, ...]:
-        """What it gives for a suite of ``instruments``."""
+    def signals(self, instruments: Sequence[Instrument], names: Sequence[str] = ()) -> tuple[Signal, ...]:
+        """What it gives for a suite of ``instruments`` (their names do not enter)."""
         provides = {each.provides for each in instruments}
         return ((COMBINED_POSITION,) if POSITION in provides and HEADING in provides else ()) + ((COMBINED_HEADING,) if HEADING in provides else ())
+
+    def sources(self, instruments: Sequence[Instrument], names: Sequence[str] = ()) -> tuple[str, ...]:
+        return tuple(HEADING if signal is COMBINED_HEADING else POSITION for signal in self.signals(instruments))
+
+    def initial_memory(self, instruments: Sequence[Instrument]) -> tuple[()]:
+        return ()
+
+    def step(
+        self, memory: Any, instruments: Sequence[Instrument], samples: Sequence[Array], fresh: Array, held_heading: Array, t: ArrayLike
+    ) -> tuple[Any, Array]:
+        """:meth:`combine` of the held samples; no memory, and whether a sample is new
+        does not enter."""
+        return memory, self.combine(instruments, samples, held_heading)
 
     def combine(self, instruments: Sequence[Instrument], samples: Sequence[Array], held_heading: Array) -> Array:
         """The combined channels (in the order of :meth:`signals`) from each
@@ -96,4 +152,4 @@ class WeightedMean(eqx.Module):
         return jnp.concatenate(out)
 
 
-__all__ = ["COMBINED_HEADING", "COMBINED_POSITION", "WeightedMean", "circular_median"]
+__all__ = ["COMBINED_HEADING", "COMBINED_POSITION", "CombiningStage", "WeightedMean", "circular_median"]

@@ -14,7 +14,10 @@ order, wraps its angles, and holds the result until its next sample. The combine
 position is taken when a position reference has a new sample, the combined heading when
 a gyrocompass has one (so a held fix is not taken again at the gyros' rate), from the
 instruments in the order of their names (so that the order of the record changes none
-of their bits).
+of their bits). A stage with tests (``dp-class``) steps its memory at each sample,
+with each instrument's sample and whether it is new, and adds its own channels after
+the combined position and heading (each reference's state, weight and test
+statistics), taken and held as the combined channel of the references they concern.
 
 Noise. Instrument ``NAME`` draws its normals (its own and its failures') from a
 stream of its own, numbered from the name (:func:`noise_stream`): adding, removing
@@ -36,9 +39,9 @@ from jax.typing import ArrayLike
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout.components import KinematicSensor, Layout, Signal
-from lookout.sensing.combining import COMBINED_HEADING, WeightedMean
+from lookout.sensing.combining import COMBINED_HEADING, CombiningStage
 from lookout.sensing.failures import Failure, flag_signal
-from lookout.sensing.instrument import HEADING, POSITION, Instrument
+from lookout.sensing.instrument import Instrument
 
 #: Streams below this are the engine's own (process, sensor and reference noise).
 FIRST_STREAM = 16
@@ -60,15 +63,17 @@ class SensorSuite(KinematicSensor):
         The instruments by name (an identifier: ``dgnss1``), in the order of the record.
     failures : dict of str to sequence of Failure, optional
         Each instrument's failures, in the order they act.
-    combining : WeightedMean or None
-        The stage that gives ``measured_position`` and ``measured_heading``; None gives
-        the instruments' channels only.
+    combining : CombiningStage or None
+        The stage that gives ``measured_position`` and ``measured_heading`` (a
+        :class:`~lookout.sensing.combining.WeightedMean`, a
+        :class:`~lookout.sensing.handling.ReferenceHandler`); None gives the
+        instruments' channels only.
     """
 
     names: tuple[str, ...] = eqx.field(static=True)
     instruments: tuple[Instrument, ...]
     failures: tuple[tuple[Failure, ...], ...]
-    combining: WeightedMean | None
+    combining: CombiningStage | None
     measurement_layout: Layout = eqx.field(static=True)
     sample_period: tuple[float, ...] = eqx.field(static=True)
     noise_size: int = eqx.field(static=True)
@@ -78,7 +83,7 @@ class SensorSuite(KinematicSensor):
         self,
         instruments: dict[str, Instrument],
         failures: Mapping[str, Sequence[Failure]] | None = None,
-        combining: WeightedMean | None = None,
+        combining: CombiningStage | None = None,
     ):
         if not isinstance(instruments, dict) or not instruments:
             raise check.ParameterError("instruments", "instruments must be a non-empty dict of name -> Instrument")
@@ -114,29 +119,43 @@ class SensorSuite(KinematicSensor):
             modes = [failure.mode for failure in listed]
             signals += [flag_signal(name, failure.mode, index, modes) for index, failure in enumerate(listed)]
             periods += [each.sample_period] * len(listed)
-        combined = combining.signals(self.instruments) if combining is not None else ()
-        for signal in combined:
+        for signal, source in zip(self.combined_signals, self._combined_sources()):
             signals.append(signal)
-            periods += [self._combined_period(signal)] * signal.size
+            periods += [self._combined_period(source)] * signal.size
         self.measurement_layout = Layout(tuple(signals))
         self.sample_period = tuple(periods)
         counts = [each.noise_count + sum(f.noise_count for f in listed) for each, listed in zip(self.instruments, self.failures)]
         self.noise_streams = tuple((noise_stream(name), count) for name, count in zip(self.names, counts))
         self.noise_size = sum(counts)
 
-    def _contributors(self, signal: Signal) -> list[int]:
-        """The instruments a combined channel is taken from: the position references
-        for the position, the gyrocompasses for the heading."""
-        provides = HEADING if signal.name == COMBINED_HEADING.name else POSITION
-        return [i for i, each in enumerate(self.instruments) if each.provides == provides]
+    @property
+    def _order(self) -> list[int]:
+        """The instruments in the order of their names: the order the stage sees them in
+        (the file's order of the tables, which a campaign's spec, sorted, does not keep,
+        then changes no bit of the combined channels)."""
+        return sorted(range(len(self.names)), key=self.names.__getitem__)
 
-    def _combined_period(self, signal: Signal) -> float:
-        return min(self.instruments[i].sample_period for i in self._contributors(signal))
+    def _contributors(self, source: str) -> list[int]:
+        """The instruments a combined channel of ``source`` is taken from: the position
+        references (``"position"``) or the gyrocompasses (``"heading"``)."""
+        return [i for i, each in enumerate(self.instruments) if each.provides == source]
+
+    def _combined_period(self, source: str) -> float:
+        return min(self.instruments[i].sample_period for i in self._contributors(source))
+
+    def _combined_sources(self) -> tuple[str, ...]:
+        if self.combining is None:
+            return ()
+        order = self._order
+        return self.combining.sources([self.instruments[i] for i in order], [self.names[i] for i in order])
 
     @property
     def combined_signals(self) -> tuple[Signal, ...]:
         """The combining stage's channels (the last of the measurement)."""
-        return self.combining.signals(self.instruments) if self.combining is not None else ()
+        if self.combining is None:
+            return ()
+        order = self._order
+        return self.combining.signals([self.instruments[i] for i in order], [self.names[i] for i in order])
 
     @property
     def instrument_layout(self) -> Layout:
@@ -151,15 +170,19 @@ class SensorSuite(KinematicSensor):
         return Layout(tuple(signals))
 
     def initial_memory(self, kinematics: dict[str, Array]) -> Any:
-        return tuple(
+        """``(each instrument's memory and its failures', the combining stage's)``."""
+        instruments = tuple(
             (each.initial_memory(kinematics), tuple(failure.initial_memory(each.size) for failure in listed))
             for each, listed in zip(self.instruments, self.failures)
         )
+        stage = self.combining.initial_memory([self.instruments[i] for i in self._order]) if self.combining is not None else ()
+        return instruments, stage
 
     def read(self, memory: Any, t: ArrayLike, kinematics: dict[str, Array], normals: Array, due: Array, held: Array) -> tuple[Any, Array]:
+        instrument_memory, stage_memory = memory
         channel, noise, memories = 0, 0, []
         samples, flags, flags_due = [], [], []
-        for each, listed, (own, failure_memories) in zip(self.instruments, self.failures, memory):
+        for each, listed, (own, failure_memories) in zip(self.instruments, self.failures, instrument_memory):
             n = each.size
             now = due[channel]  # an instrument's channels share its period
             drawn = normals[noise : noise + each.noise_count]
@@ -188,22 +211,29 @@ class SensorSuite(KinematicSensor):
         )
         channel += flag_count
         pieces = samples + [flag_values]
-        combined_size = sum(s.size for s in self.combined_signals)
+        combined_signals = self.combined_signals
+        combined_size = sum(s.size for s in combined_signals)
         if combined_size:
             combining = self.combining
             assert combining is not None  # combined_signals is empty without a stage
             before = held[channel : channel + combined_size]
-            # by name: the file's order of the tables (which a campaign's spec, sorted, does
-            # not keep) changes no bit of the combined channels
-            order = sorted(range(len(self.names)), key=self.names.__getitem__)
-            combined = combining.combine([self.instruments[i] for i in order], [samples[i] for i in order], before[-1])
-            # a combined channel is new when one of the instruments it is taken from is
+            heading_at = _offset(combined_signals, COMBINED_HEADING.name)
+            held_heading = before[heading_at] if heading_at is not None else jnp.asarray(jnp.nan)
+            order = self._order
             first = [sum(each.size for each in self.instruments[:i]) for i in range(len(self.instruments))]
+            fresh = jnp.stack([due[first[i]] for i in order])  # an instrument's channels share its period
+            stage_memory, combined = combining.step(
+                stage_memory, [self.instruments[i] for i in order], [samples[i] for i in order], fresh, held_heading, t
+            )
+            # a combined channel is new when one of the instruments it is taken from is
             now = jnp.concatenate(
-                [jnp.full(signal.size, jnp.any(jnp.stack([due[first[i]] for i in self._contributors(signal)]))) for signal in self.combined_signals]
+                [
+                    jnp.full(signal.size, jnp.any(jnp.stack([due[first[i]] for i in self._contributors(source)])))
+                    for signal, source in zip(combined_signals, self._combined_sources())
+                ]
             )
             pieces.append(jnp.where(now, combined, before))
-        return tuple(memories), jnp.concatenate(pieces)
+        return (tuple(memories), stage_memory), jnp.concatenate(pieces)
 
     def expected(self, kinematics: dict[str, Array]) -> Array:
         """The instruments' noise-free, fault-free channels (:attr:`instrument_layout`)."""
@@ -215,6 +245,16 @@ class SensorSuite(KinematicSensor):
     def noise_std(self) -> Array:
         """The instruments' white noise per channel (:attr:`instrument_layout`)."""
         return jnp.concatenate([each.noise_std() for each in self.instruments])
+
+
+def _offset(signals: Sequence[Signal], name: str) -> int | None:
+    """Where the signal ``name`` starts in ``signals`` laid end to end (None: absent)."""
+    start = 0
+    for signal in signals:
+        if signal.name == name:
+            return start
+        start += signal.size
+    return None
 
 
 __all__ = ["SensorSuite", "noise_stream"]
