@@ -445,3 +445,38 @@ def test_a_bad_threshold_given_in_python_is_one_line_naming_it():
         ReferenceHandler(prediction_gate=-1.0)
     with pytest.raises(ValueError, match=r"^variance_samples must be a whole number >= 1; got 0.5"):
         ReferenceHandler(variance_samples=0.5)
+
+
+# ----------------------------------------------------------------------------------
+# campaign metrics of the stage: rejected_after and rejected_time
+
+
+def test_the_rejection_metrics_in_the_scan_and_from_the_records_equal_numpy(handled):
+    """``rejected_after:dgnss1`` (time from ``after`` to its first rejection) and
+    ``rejected_time:dgnss1`` (fraction of the window rejected) on the jump of dgnss1 at
+    100 s, accumulated in the scan and reduced from the records, equal the same numbers
+    taken with NumPy from the recorded ``dgnss1.accepted``; a sensor never rejected
+    gives NaN and 0."""
+    from lookout.scenario import metrics as metric_module
+
+    scenario = _keeping(compose(_document({"kind": "dp-class"})).scenario, SCENARIOS["jump"])
+    names = ["rejected_after:dgnss1", "rejected_time:dgnss1", "rejected_after:gyro1", "rejected_time:gyro1"]
+    metrics = metric_module.resolve(names, scenario)
+    keys = keys_of_seeds(SEEDS)
+    after = 90.0
+    in_scan = metric_module.summarize(scenario, keys, metrics, after=after)
+    recorded = metric_module.reduce(simulate_batch(scenario, keys), metrics, after=after)
+    ds = handled["jump"]
+    time = ds.time.values
+    window = time >= after
+    rejected = (ds["dgnss1.accepted"].values < 0.5) & window
+    first = np.argmax(rejected, axis=1)
+    expected_after = np.where(rejected.any(axis=1), time[first] - time[np.argmax(window)], np.nan)
+    expected_time = rejected.sum(axis=1) / window.sum()
+    for found in (in_scan, recorded):
+        np.testing.assert_allclose(found["rejected_after__dgnss1"], expected_after, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(found["rejected_time__dgnss1"], expected_time, rtol=1e-12)
+        assert np.all(np.isnan(found["rejected_after__gyro1"])) and np.all(found["rejected_time__gyro1"] == 0.0)
+    assert np.all(np.abs(expected_after - 10.0) < 1.0)  # the jump at 100 s, rejected at its first fix
+    with pytest.raises(ValueError, match="the sensor records no 'dgnss1.accepted'"):
+        metric_module.resolve(["rejected_after:dgnss1"], compose(_document({"kind": "weighted-mean"})).scenario)

@@ -173,3 +173,26 @@ def test_with_thrusters_each_one_stops_and_sticks_in_a_case_of_its_own(tmp_path)
     found = float(rows["port-azimuth stop"]["max_tracking:position max"])
     np.testing.assert_allclose(found, float(expected["max_tracking__position"][0]), rtol=1e-9)
     assert found != float(rows[INTACT]["max_tracking:position max"])
+
+
+def test_with_reference_handling_the_table_says_when_each_failure_was_detected(tmp_path):
+    """The shortened example with ``[references] kind = "dp-class"``: a receiver's dropout
+    is rejected at once and its freeze at the fix that makes ``freeze_samples`` repeats,
+    in every run, and the intact suite rejects nothing. The detection is the campaign's
+    ``rejected_after`` metric, whose numbers tests/test_reference_handling.py checks
+    against the records."""
+    from lookout.sensing.handling import ReferenceHandler
+
+    assert _text().count('[references]\nkind = "weighted-mean"') == 1
+    scenario = tmp_path / "suite-handled.toml"
+    scenario.write_text(_text().replace('[references]\nkind = "weighted-mean"', '[references]\nkind = "dp-class"'))
+    table = tmp_path / "table.csv"
+    argv = ["failures", str(scenario), "--out", str(tmp_path / "store.zarr"), "--start", str(START), "--seeds", "2", "--workers", "0"]
+    assert main([*argv, "--table", str(table)]) == 0
+    with table.open() as handle:
+        rows = {row["failure"]: row for row in csv.DictReader(handle)}
+    assert rows[INTACT]["runs rejecting another sensor"] == "0" and rows[INTACT]["detected after (s)"] == ""
+    repeats = int(ReferenceHandler().freeze_samples)
+    for name in ("dgnss1", "dgnss2"):  # 1 s fixes
+        assert float(rows[f"{name} dropout"]["detected after (s)"]) == 0.0
+        assert float(rows[f"{name} freeze"]["detected after (s)"]) == pytest.approx(repeats - 1.0, abs=1e-9)

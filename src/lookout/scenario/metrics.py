@@ -29,6 +29,11 @@ kind               per run
                    thrust; the actuator's ``relative_power``)
 ``time_at_limit``  fraction of t >= after with some thruster within 1 % of its largest
                    or smallest thrust (signal ``thrust``; the actuator's ``at_limit``)
+``rejected_after``  time from ``after`` to the first record at which the reference
+                   handling has rejected the sensor named by SIGNAL (its recorded
+                   ``SIGNAL.accepted`` is 0; ``[references] kind = "dp-class"``); NaN
+                   when it is never rejected
+``rejected_time``  fraction of t >= after with that sensor rejected
 =================  ==============================================================
 
 The two thruster metrics take the scenario's actuator's thrust limits (its
@@ -81,7 +86,11 @@ KINDS = {
     "recovery_time": ("estimate", "recovery time after the sensor outage"),
     "mean_power": ("thrusters", "mean power as a fraction of the installed power"),
     "time_at_limit": ("thrusters", "fraction of the time with a thruster at a thrust limit"),
+    "rejected_after": ("stage", "time to the first rejection"),
+    "rejected_time": ("stage", "fraction of the time rejected"),
 }
+#: The reference handling's metrics: of a sensor's recorded ``NAME.accepted`` channel.
+STAGE_KINDS = ("rejected_after", "rejected_time")
 #: The kinds that average a per-record value over the window (no square root).
 MEAN_KINDS = ("mean_power", "time_at_limit")
 #: time_at_limit: a thrust within this fraction of the largest thrust of a limit is at
@@ -111,6 +120,8 @@ class Metric:
     #: the actuator's function of the delivered thrust, for the thruster metrics
     #: (:data:`THRUST_MEASURES`)
     measure: Callable | None = None
+    #: the measurement channel of the reference handling's metrics (``NAME.accepted``)
+    channel: str | None = None
 
     @property
     def name(self) -> str:
@@ -161,6 +172,15 @@ def resolve(names: list[str], scenario: Scenario) -> list[Metric]:
             found = signals["input"].get(signal)
             if found is None:
                 raise ValueError(f"{name!r}: the plant has no input {signal!r} (its inputs: {', '.join(signals['input'])})")
+        elif needs == "stage":
+            channel = f"{signal}.accepted"
+            if channel not in scenario.sensor.measurement_layout.names:
+                raise ValueError(
+                    f'{name!r}: the sensor records no {channel!r} (a [references] kind = "dp-class" stage records it for each reference and gyrocompass)'
+                )
+            units = "s" if kind == "rejected_after" else "1"
+            metrics.append(Metric(kind, signal, units, f"{description} of sensor {signal} by the reference handling", channel=channel))
+            continue
         elif needs == "thrusters":
             layout = getattr(scenario.actuator, "layout", None)
             measure = getattr(type(scenario.actuator), THRUST_MEASURES[kind], None)
@@ -238,6 +258,8 @@ class _Plan:
     limit_units: str = ""
     #: the thruster metrics' functions of the thrust, the actuator's: (variable, function)
     thrust_measures: tuple[tuple[str, Callable], ...] = ()
+    #: the reference handling's metrics: (variable, offset of the channel in the measurement)
+    channels: tuple[tuple[str, int], ...] = ()
 
     @property
     def causes(self) -> tuple[str, ...]:
@@ -278,7 +300,7 @@ class MetricSummary(Summary):
 
     def terms(self, index: Array, record: Any, origin: dict[str, Array]) -> tuple[dict[str, Any], dict[str, Array]]:
         """One record's contribution (one run): see the class docstring."""
-        truth, estimate, _, reference, _, applied, actuation = record
+        truth, estimate, measurement, reference, _, applied, actuation = record
         inputs = self.layout.split(applied)
         window = index >= self.first
 
@@ -289,7 +311,15 @@ class MetricSummary(Summary):
             return _norm(_difference(truth[name], reference[f"{name}_desired"], angle), vector)
 
         power, peak, final, series = {}, {}, {}, {}
+        offsets = dict(self.plan.channels)
         for variable, kind, name, vector, angle in self.plan.metrics:
+            if kind in STAGE_KINDS:
+                rejected = window & (jnp.asarray(measurement)[offsets[variable]] < 0.5)
+                if kind == "rejected_time":
+                    power[variable] = rejected.astype(float)
+                else:  # the latest of -index: minus the first rejected record
+                    peak[variable] = jnp.where(rejected, -jnp.asarray(index, dtype=float), -jnp.inf)
+                continue
             if kind == "final":
                 value = truth[name] if name in truth else estimate[name]
                 final[variable] = jnp.sqrt(jnp.sum(jnp.asarray(value) ** 2))
@@ -381,6 +411,12 @@ class MetricSummary(Summary):
         for variable, kind, _, _, _ in self.plan.metrics:
             if kind == "final":
                 out[variable] = accumulated["final"][variable]
+            elif kind == "rejected_after":
+                first = -accumulated["peak"][variable]
+                found = jnp.isfinite(first)
+                out[variable] = jnp.where(found, time[jnp.where(found, first, 0).astype(int)] - time[self.first], jnp.nan)
+            elif kind == "rejected_time":
+                out[variable] = accumulated["power"][variable] / count
             elif kind == "recovery_time":
                 out[variable] = _recovery_time(series[variable], time, *self.outage)
             elif kind in MEAN_KINDS:
@@ -437,7 +473,14 @@ def summary(
         | {s.name: s for s in record.extra}
         | {s.name: s for s in record.actuation}
     )
-    rows = tuple((m.variable, m.kind, m.signal, bool(shapes[m.signal].labels), bool(shapes[m.signal].angle)) for m in metrics)
+    rows = tuple(
+        (m.variable, m.kind, m.signal, False, False)
+        if m.channel is not None
+        else (m.variable, m.kind, m.signal, bool(shapes[m.signal].labels), bool(shapes[m.signal].angle))
+        for m in metrics
+    )
+    offsets = dict(zip(record.measurement.names, np.cumsum([0] + [signal.size for signal in record.measurement.signals])))
+    channels = tuple((m.variable, int(offsets[m.channel])) for m in metrics if m.channel is not None)
     thrust_limits = next((m.thrust_limits for m in metrics if m.thrust_limits is not None), None)
     limit = None
     limit_errors: tuple[str, ...] = ()
@@ -470,6 +513,7 @@ def summary(
         limit_errors,
         shapes[divergence[0]].units if divergence is not None else "",
         tuple((m.variable, m.measure) for m in metrics if m.measure is not None),
+        channels,
     )
     return MetricSummary(plan, record.input, int(np.argmax(window)), len(time), tuple(jnp.asarray(i) for i in windows))
 

@@ -681,16 +681,24 @@ def failures(
     rows = worst_table(CampaignStore(store).open().load(), metrics)
     heading = [m for m in metrics if m.endswith(":heading")]
     shown = Table(box=box.SIMPLE, title=f"single failures at {when:g} s, {seeds} run(s) each: worst first")
-    for column in ("failure", "diverged", f"{metrics[0]} max (m)", f"{heading[0]} max (deg)", "rms_error:position mean (m)"):
+    handled = "detected after (s)" in rows[0]
+    columns = ["failure", "diverged", f"{metrics[0]} max (m)", f"{heading[0]} max (deg)", "rms_error:position mean (m)"]
+    columns += ["detected after (s)", "runs rejecting another"] if handled else []
+    for column in columns:
         shown.add_column(column, justify="left" if column == "failure" else "right")
     for row in rows:
-        shown.add_row(
+        cells = [
             row["failure"],
             f"{row['diverged']}/{row['runs']}",
             f"{row[f'{metrics[0]} max']:.2f}",
             f"{math.degrees(row[f'{heading[0]} max']):.2f}",
             f"{row['rms_error:position mean']:.2f}",
-        )
+        ]
+        if handled:
+            detected = row["detected after (s)"]
+            cells += ["" if detected is None else ("not in every run" if math.isnan(detected) else f"{detected:.1f}")]
+            cells += [f"{row['runs rejecting another sensor']}/{row['runs']}"]
+        shown.add_row(*cells)
     console.print(shown)
     worst = next((row for row in rows if row["failure"] != INTACT), None)
     if worst is not None:

@@ -130,6 +130,9 @@ def campaign_document(document: dict, *, start: float, seeds: int, seed: int = 0
         metrics = list(TRACKING_METRICS)
     except ValueError:
         metrics = list(EXCURSION_METRICS)
+    # with reference handling (dp-class): when each sensor was rejected, and for how long
+    handled = [name for name in scenario.sensor.names if f"{name}.accepted" in scenario.sensor.measurement_layout.names]
+    metrics += [f"rejected_after:{name}" for name in handled] + [f"rejected_time:{name}" for name in handled]
     campaign = {
         "scenario": failed,
         "seeds_per_point": seeds,
@@ -143,8 +146,11 @@ def campaign_document(document: dict, *, start: float, seeds: int, seed: int = 0
 
 def worst_table(ds: Any, metrics: list[str]) -> list[dict[str, Any]]:
     """Per case of a finished failures campaign (``ds``, the store's dataset): each
-    metric's mean and largest over the seeds, and the diverged runs; sorted by the
-    largest of the first metric, worst first, the intact case kept first."""
+    metric's mean and largest over the seeds, and the diverged runs; with reference
+    handling, the failed sensor's detection (the slowest run's ``rejected_after``, NaN
+    when some run never rejects it) and the runs in which another sensor was rejected
+    (in the intact case: the false rejections); sorted by the largest of the first
+    metric, worst first, the intact case kept first."""
     rows = []
     for point, label in enumerate(str(each) for each in ds["failure"].values):
         diverged = np.asarray(ds["diverged"].values, dtype=float)[point]
@@ -154,6 +160,18 @@ def worst_table(ds: Any, metrics: list[str]) -> list[dict[str, Any]]:
             finite = values[np.isfinite(values)]
             row[f"{metric} mean"] = float(finite.mean()) if finite.size else math.nan
             row[f"{metric} max"] = float(finite.max()) if finite.size else math.nan
+        handled = [metric.partition(":")[2] for metric in metrics if metric.startswith("rejected_time:")]
+        if handled:
+            # the failed sensor's detection: the slowest run's, NaN when a run never rejects it
+            failed = label.split()[0]
+            if failed in handled:
+                after = np.asarray(ds[f"rejected_after__{failed}"].values, dtype=float)[point]
+                row["detected after (s)"] = float(after.max()) if np.all(np.isfinite(after)) else math.nan
+            else:  # a thruster, or a sensor the stage does not test
+                row["detected after (s)"] = None
+            rest = [name for name in handled if name != failed]
+            rejected = np.stack([np.asarray(ds[f"rejected_time__{name}"].values, dtype=float)[point] for name in rest]) if rest else np.zeros((1, 0))
+            row["runs rejecting another sensor"] = int(np.sum(np.any(rejected > 0, axis=0)))
         rows.append(row)
     key = f"{metrics[0]} max"
     intact = [row for row in rows if row["failure"] == INTACT]
