@@ -14,7 +14,7 @@ Prints simulated seconds per wall second (all runs), each against (a) (the
 target: (c) >= 0.5 x (a)), and the share of samples at which the allocation was saturated. Compilation is
 excluded (each is run once to warm up); the figure is the median of --repeats.
 
-Usage: python benchmarks/allocation.py [--batch 64] [--duration 200] [--repeats 3]
+Usage: python benchmarks/allocation.py [--batch 64] [--duration 200] [--repeats 3] [--only a,c]
 """
 
 from __future__ import annotations
@@ -63,13 +63,17 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=64)
     parser.add_argument("--duration", type=float, default=200.0)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--only", default="", help="the actuators to run, by letter (e.g. 'a,c'); default: all")
     args = parser.parse_args()
+    only = {letter.strip() for letter in args.only.split(",") if letter.strip()}
     with open(ROOT / "examples" / "thrusters-dp.toml", "rb") as handle:
         base = tomllib.load(handle)
     base["simulation"]["duration"] = args.duration
     keys = seed_keys(0, args.batch)
     rates, iterations = {}, {}
     for name, actuator in actuators().items():
+        if only and name[1] not in only:
+            continue
         document = copy.deepcopy(base)
         document["actuator"] = actuator
         scenario = composition.compose(document).scenario

@@ -749,7 +749,7 @@ def test_the_reach_is_the_linear_program_of_each_axis_alone():
 
 
 def test_an_allocation_too_big_for_the_memory_is_refused_before_it_is_allocated(monkeypatch):
-    """The allocation's working memory (its matrices and a sample's QP: limits, KKT
+    """The allocation's working memory (its matrices, P and its inverse among them, and a sample's QP: limits, KKT
     systems) is estimated from the layout's size and compared with the memory available
     before anything of that size is allocated: one line with both numbers."""
     import lookout._resources as resources
@@ -761,7 +761,7 @@ def test_an_allocation_too_big_for_the_memory_is_refused_before_it_is_allocated(
     text = str(refusal.value)
     assert text.startswith("the allocation of 20000 thrusters (40000 variables, 80000 limits) would need about ") and "8 GB are available" in text
     assert len(text) < 300
-    assert working_nbytes(layout, "qp") == pytest.approx(8 * (40_000**2 + 80_000 * 40_000 + 6 * 80_000**2), rel=1e-3)
+    assert working_nbytes(layout, "qp") == pytest.approx(8 * (2 * 40_000**2 + 80_000 * 40_000 + 6 * 80_000**2), rel=1e-3)
     ThrusterSystem(ThrusterLayout(**_huge_layout(400)))  # 0.2 GB: fits
 
 

@@ -201,11 +201,12 @@ def limit_rows(layout: ThrusterLayout) -> int:
 
 def working_nbytes(layout: ThrusterLayout, method: str = "qp") -> int:
     """Bytes one allocation holds, float64, with n variables and m limit rows: its
-    matrices (B and the pseudo-inverse, 3 x n each; the QP's P, n x n) and one sample's
-    work: the limits G (m x n) and the QP's KKT systems, (2n x 2n) each, with their LU
-    factors, for the warm start's solve, the iterations' and the final one (six such
-    matrices at most live at once; :mod:`lookout.actuators.qp`), and vectors of n and
-    m. The pseudo-inverse holds the 3 x n matrices and vectors only. The reach is in
+    matrices (B and the pseudo-inverse, 3 x n each; the QP's P and its inverse, n x n) and one sample's
+    work: the limits G (m x n) and the QP's solves, bounded by KKT systems of (2n x 2n)
+    each with their LU factors, for the warm start's solve, the iterations' and the
+    final one (six such matrices at most live at once; the range-space solves the
+    active-set method takes with P's inverse hold n x n ones; :mod:`lookout.actuators.qp`),
+    and vectors of n and m. The pseudo-inverse holds the 3 x n matrices and vectors only. The reach is in
     closed form (:meth:`Allocator._reach`, O(n)): there is no linear program to hold.
 
     Computed from the layout's size alone, before anything of that size is allocated
@@ -227,7 +228,7 @@ def working_nbytes(layout: ThrusterLayout, method: str = "qp") -> int:
     n, m = len(layout.variables), limit_rows(layout)
     floats = 8 * n + 16 * (n + m) + 64
     if method == "qp":
-        floats += n * n + m * n + 6 * (2 * n) ** 2
+        floats += 2 * n * n + m * n + 6 * (2 * n) ** 2
     return 8 * floats
 
 
@@ -285,6 +286,7 @@ class Allocator(eqx.Module):
     reach: Array | np.ndarray  # (2, 3) scaled: the smallest and largest of each axis alone
     slack_weights: Array | np.ndarray | None
     P: Array | np.ndarray | None
+    P_inverse: Array | np.ndarray | None  # for the active-set method's range-space solves
     target_matrix: Array | np.ndarray | None  # the QP's target from the scaled tau (see the module docstring)
     steering_time_constant: Array | np.ndarray | None
     steering_deadband: Array | np.ndarray | None
@@ -342,7 +344,7 @@ class Allocator(eqx.Module):
         self.reach = self._reach()
         if method != "qp":
             self.solver = None
-            self.slack_weights = self.P = self.target_matrix = None
+            self.slack_weights = self.P = self.P_inverse = self.target_matrix = None
             self.steering_time_constant = self.steering_deadband = self.steering_load = self.bias = None
             return
         solver = "active-set" if solver is None else solver
@@ -366,6 +368,7 @@ class Allocator(eqx.Module):
         self.slack_weights = slack
         # (u - u_b)^T W (u - u_b) + (B u - t')^T Q (B u - t') = u^T P u - 2 (W u_b + B^T Q t')^T u + const
         self.P = np.diag(self.weights) + self.B.T @ np.diag(slack) @ self.B
+        self.P_inverse = np.linalg.inv(self.P)
         # stationarity W (u - u_b) + B^T Q (B u - t') = 0 holds at u = u_b + W^-1 B^T lam,
         # lam = (B W^-1 B^T)^-1 t (B u_b = 0, so B u = t), for t' = t + Q^-1 lam: the penalty
         # QP's unconstrained optimum is the biased least-squares one
@@ -650,7 +653,15 @@ class Allocator(eqx.Module):
                 solved, iterations, converged = _qpax(qp.P, q, G, h, self.indices.azimuth.size)
             else:
                 solved, found, iterations, converged = active_set(
-                    qp.P, q, G, h, start, max_iterations=G.shape[0] + self.size, needed=constrained, warm=working
+                    qp.P,
+                    q,
+                    G,
+                    h,
+                    start,
+                    max_iterations=G.shape[0] + self.size,
+                    needed=constrained,
+                    warm=working,
+                    P_inverse=self.P_inverse,
                 )
                 active = jnp.where(constrained, found, active)
             u = jnp.where(constrained, solved, unconstrained)
