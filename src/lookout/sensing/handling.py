@@ -453,19 +453,29 @@ class ReferenceHandler(CombiningStage):
             raw = jnp.stack([samples[i] for i in reference_at])
             points = jnp.stack([each.reference_point(samples[i], lever_heading) for i, each in references])
             reference_fresh = jnp.stack([fresh[i] for i in reference_at])
-            new_positions, new_tracker, position, position_channels, position_alarm = self._positions(
-                memory.positions,
-                memory.tracker,
-                _stated_variance([each for _, each in references]),
-                jnp.asarray([each.sample_period for _, each in references]),
-                raw,
-                points,
-                reference_fresh,
-                t,
-            )
-            active = jnp.any(reference_fresh)
-            positions = _where(active, new_positions, memory.positions)
-            tracker = _where(active, new_tracker, memory.tracker)
+
+            def tested(_):
+                return self._positions(
+                    memory.positions,
+                    memory.tracker,
+                    _stated_variance([each for _, each in references]),
+                    jnp.asarray([each.sample_period for _, each in references]),
+                    raw,
+                    points,
+                    reference_fresh,
+                    t,
+                )
+
+            def held(_):
+                # no reference has a new fix: the memory stays and the channels are not
+                # taken (the suite holds them); NaN of their shapes
+                _, _, *shapes = jax.eval_shape(tested, None)
+                return (memory.positions, memory.tracker, *jax.tree.map(lambda a: jnp.full(a.shape, jnp.nan, a.dtype), shapes))
+
+            # a branch, not a where: where the fixes' times are the same for a whole batch
+            # (its runs share their sample periods), vmap keeps it a branch and the tests
+            # run only at the steps with a new fix
+            positions, tracker, position, position_channels, position_alarm = jax.lax.cond(jnp.any(reference_fresh), tested, held, None)
             out.append(position)
             channels.update({i: position_channels[k] for k, i in enumerate(reference_at)})
         out.append(jnp.reshape(heading, (1,)))
