@@ -299,6 +299,18 @@ def test_thrusters_are_recorded_with_units_and_a_thruster_dimension(tmp_path):
     assert zoomed[0] == time[time >= time[-1] - (time[-1] - time[0]) / 5][0] == pytest.approx(8.0) and zoomed[-1] == time[-1]
     assert plot_run_thrusters(ds.drop_vars(["thrust"])) is None
 
+    # a recorded failure (its flag, as a thruster failure records it) is hatched over its time
+    # on both thrust panels and named with its mode; an intact run has no hatching
+    def hatched(figure):
+        return [(p.get_x(), p.get_x() + p.get_width()) for axis in figure.axes[:2] for p in axis.patches if p.get_hatch()]
+
+    assert hatched(figure) == []
+    flag = xr.zeros_like(ds["allocation_shortfall"]).where(ds.time < 5.0, 1.0)
+    failed = plot_run_thrusters(ds.assign({"port_azimuth.stop_failure": flag}))
+    spans = hatched(failed)
+    assert len(spans) == 2 and spans[0] == pytest.approx((5.0, time[-1])) and spans[1] == pytest.approx((zoomed[0], time[-1]))
+    assert [t.get_text() for t in failed.axes[0].texts] == ["port-azimuth stop"]
+
 
 @pytest.mark.parametrize(
     ("arguments", "message"),

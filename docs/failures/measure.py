@@ -115,6 +115,32 @@ def intact(wave_amplitude: float) -> None:
     print(f"  {'gyro divergence':20s} largest {largest:.3g} (threshold {float(handler.heading_divergence_limit):g})")
 
 
+def false_alarms(wave_amplitude: float, seeds: int = 64, duration: float = 3600.0, chunk: int = 8) -> None:
+    """The intact suite's false rejections and alarms over ``seeds`` runs of ``duration``:
+    each a rejection (accepted to rejected) or a rising alarm, counted per sensor, with
+    the rate's one-sided 95 % upper bound (Poisson: 3.0 / hours when none is seen)."""
+    scenario = compose(document({"kind": "dp-class"}, duration, wave_amplitude, failures=False)).scenario
+    counts = dict.fromkeys(REFERENCES + GYROS + ("position_alarm", "heading_alarm"), 0)
+    for first in range(0, seeds, chunk):
+        ds = simulate_batch(scenario, keys_of_seeds(list(range(first, first + chunk)))).to_xarray()
+        for name in REFERENCES + GYROS:
+            counts[name] += int((np.diff(ds[f"{name}.accepted"].values, axis=1) < 0).sum())
+        for alarm in ("position_alarm", "heading_alarm"):
+            raised = ds[f"references.{alarm}"].values > 0
+            counts[alarm] += int(raised[:, 0].sum() + (np.diff(raised.astype(int), axis=1) > 0).sum())
+    hours = seeds * duration / 3600.0
+    total = sum(counts[name] for name in REFERENCES + GYROS)
+    # the 95 % upper bound of a Poisson rate from k events: chi2(0.95, 2k + 2) / 2 / hours
+    from scipy.stats import chi2
+
+    bound = chi2.ppf(0.95, 2 * total + 2) / 2.0 / hours
+    print(f"intact suite, waves of {wave_amplitude:g} m (3 sigma), seeds 0-{seeds - 1}, {duration:g} s each ({hours:g} h):")
+    print(
+        f"  false rejections {total} ({', '.join(f'{name} {counts[name]}' for name in REFERENCES + GYROS)}): {total / hours:.3g} per hour, 95 % upper bound {bound:.3g} per hour"
+    )
+    print(f"  alarms raised: position {counts['position_alarm']}, heading {counts['heading_alarm']}")
+
+
 def failures() -> None:
     keys = keys_of_seeds([0, 1, 2, 3])
     handled = compose(document({"kind": "dp-class"}, 300.0))
@@ -152,5 +178,7 @@ def example() -> None:
 if __name__ == "__main__":
     intact(1.0)
     intact(10.0)
+    false_alarms(1.0)
+    false_alarms(10.0)
     failures()
     example()

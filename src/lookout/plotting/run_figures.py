@@ -366,6 +366,22 @@ def _continuous_degrees(angle: np.ndarray) -> np.ndarray:
     return degrees - 360.0 * np.round(np.median(degrees) / 360.0)
 
 
+def _thruster_failures(ds: xr.Dataset, names: list[str], run: int) -> list[tuple[int, str, np.ndarray]]:
+    """``(thruster index, mode, active)`` of each recorded thruster failure
+    (``NAME.MODE_failure``, :func:`lookout.actuators.failures.flag_signal`) that is
+    active at some sample of ``run``."""
+    identifiers = {"".join(c if c.isalnum() or c == "_" else "_" for c in name): i for i, name in enumerate(names)}
+    found = []
+    for variable in ds.data_vars:
+        prefix, _, suffix = str(variable).partition(".")
+        if prefix in identifiers and suffix.endswith("_failure"):
+            active = ds[variable].isel(run=run).values > 0.5
+            if active.any():
+                mode = suffix.removesuffix("_failure").rstrip("0123456789")
+                found.append((identifiers[prefix], mode, active))
+    return found
+
+
 def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, title: str | None = None) -> Figure | None:
     """Each thruster's thrust and angle, commanded and delivered, and the allocation's
     shortfall (``thrusters.png`` of ``lookout run`` with a thruster actuator).
@@ -373,7 +389,8 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
     Left the whole run, right a zoom on its last ``zoom`` seconds (on a run shorter than
     five times that, its last fifth: :func:`zoom_window`). Top: thrust per
     thruster, the delivered thrust solid over the commanded one dotted, in the same
-    colour. Middle: the angle of each azimuth and rudder (deg), delivered solid,
+    colour, a failed thruster's time hatched in its colour and named with the failure's
+    mode. Middle: the angle of each azimuth and rudder (deg), delivered solid,
     commanded dotted (tunnels have none). Bottom: the largest part of the commanded
     force the thrusters left unproduced, as a fraction of their reach, with the time
     the allocation was saturated shaded.
@@ -400,6 +417,7 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
     start = zoom_window(time, zoom)[0]  # the estimates' rule: on a short run the last fifth, never the whole run again
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     saturated = ds["allocation_saturated"].isel(run=run).values > 0.5
+    failed = _thruster_failures(ds, names, run)
     for column, (low, high) in enumerate(((time[0], time[-1]), (start, time[-1]))):
         window = (time >= low) & (time <= high)
         thrust_axis, angle_axis, short_axis = axes[:, column]
@@ -423,6 +441,22 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
                     lw=1.1,
                     label=name,
                 )
+        for k, (i, mode, active) in enumerate(failed):
+            # a failed thruster's time hatched in its colour, on the thrust panel
+            colour = colours[i % len(colours)]
+            for first, last in _runs(time[window], active[window]):
+                thrust_axis.axvspan(first, last, facecolor="none", edgecolor=colour, hatch="//", alpha=0.5, lw=0)
+                thrust_axis.annotate(
+                    f"{names[i]} {mode}",
+                    (first, 1.0),
+                    xycoords=("data", "axes fraction"),
+                    xytext=(2, -2 - 10 * k),  # one line per failure: two in one window do not overlap
+                    textcoords="offset points",
+                    ha="left",
+                    va="top",
+                    fontsize=8,
+                    color=colour,
+                )
         short_axis.plot(time[window], ds["allocation_shortfall"].isel(run=run).values[window], color="k", lw=1.0, label="shortfall")
         for first, last in _runs(time[window], saturated[window]):
             short_axis.axvspan(first, last, color="tab:red", alpha=0.15, lw=0)
@@ -444,6 +478,9 @@ def plot_run_thrusters(ds: xr.Dataset, *, run: int = 0, zoom: float = 200.0, tit
         plt.matplotlib.patches.Patch(color="tab:red", alpha=0.15),
     ]
     labels += ["delivered", "commanded", "allocation saturated"]
+    if failed:
+        handles.append(plt.matplotlib.patches.Patch(facecolor="none", edgecolor="grey", hatch="//"))
+        labels.append("thruster failed")
     figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 7), frameon=False)
     figure.suptitle(_heading(title, f"thrusters: thrust, angle and allocation shortfall\nrun {run} of {ds.sizes['run']}"))
     return figure
