@@ -7,7 +7,8 @@ mean.
 
     .venv/bin/python docs/failures/measure.py
 
-About three minutes on two cores (five programs compiled).
+About four minutes on two cores (six programs compiled; the false-alarm rate, 2 x 64
+runs of an hour, takes about one of them).
 """
 
 from __future__ import annotations
