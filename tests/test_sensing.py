@@ -759,3 +759,17 @@ def test_an_observer_the_suite_does_not_fit_is_refused_naming_the_suite():
         CompositionError, match=r"which the sensor suite \(dgnss1, dgnss2, imu\) does not measure \(it measures dgnss1.measured_position"
     ):
         compose(document)
+
+
+def test_a_hydroacoustic_reference_states_each_fix_at_its_own_slant_range():
+    """Its noise grows with the slant range (sigma = sigma_0 + f rho), so the spread it
+    states for a fix is at that fix's range from the transponder, which a combining stage
+    tests and weights it by; a GNSS receiver states the same for every fix; a missing fix
+    gets the spread at the transponder (weight_std)."""
+    hpr = HydroacousticReference(transponder=[40.0, 10.0], depth=100.0, noise_std=0.5, range_fraction=0.005)
+    fix = jnp.asarray([40.0 + 120.0, 10.0 - 160.0])  # 200 m off horizontally
+    assert float(hpr.std_at(fix)) == pytest.approx(0.5 + 0.005 * np.hypot(100.0, 200.0), rel=1e-14)
+    assert float(hpr.std_at(jnp.asarray([40.0, 10.0]))) == pytest.approx(float(hpr.weight_std()), rel=1e-14) == 1.0
+    assert float(hpr.std_at(jnp.asarray([np.nan, np.nan]))) == float(hpr.weight_std())
+    gnss = GnssReceiver(noise_std=0.7)
+    assert float(gnss.std_at(fix)) == float(gnss.weight_std()) == pytest.approx(0.7)

@@ -32,8 +32,9 @@ back to the vessel's reference point with the combined heading (as
 * **variance**: the mean square of its innovations over an exponential window of
   ``variance_samples`` fixes, less the tracker's predicted variance and less the
   excess that every reference shows (the median over the accepted ones: the tracker's
-  own error, in a sea heavier than its model), against the variance it states
-  (:meth:`~lookout.sensing.position.PositionReference.weight_std`): it fails when the
+  own error, in a sea heavier than its model), against the variance it states for the
+  fix (:meth:`~lookout.sensing.position.PositionReference.std_at`: a hydroacoustic
+  reference's at the fix's slant range, the others' the same for every fix): it fails when the
   estimated standard deviation exceeds ``noise_factor`` times the stated one.
 * **prediction**: the innovation's Mahalanobis distance ``|nu| / sqrt(P + e + R)``
   (P the tracker's predicted variance, e the common excess, R the stated variance),
@@ -458,7 +459,7 @@ class ReferenceHandler(CombiningStage):
                 return self._positions(
                     memory.positions,
                     memory.tracker,
-                    _stated_variance([each for _, each in references]),
+                    _stated_variance([each for _, each in references], raw),
                     jnp.asarray([each.sample_period for _, each in references]),
                     raw,
                     points,
@@ -763,11 +764,15 @@ def _heading_signals(name: str) -> tuple[Signal, ...]:
     )
 
 
-def _stated_variance(references: Sequence[PositionReference]) -> Array:
-    """Each reference's stated variance per axis (m^2): its weight_std squared."""
+def _stated_variance(references: Sequence[PositionReference], raw: Array | None = None) -> Array:
+    """Each reference's stated variance per axis (m^2): its weight_std squared, or, given
+    its samples ``raw`` (one row each), its std_at them squared (a hydroacoustic
+    reference's at each fix's slant range)."""
     if not references:
         return jnp.zeros(0)
-    return jnp.stack([jnp.asarray(each.weight_std(), dtype=float) ** 2 for each in references])
+    if raw is None:
+        return jnp.stack([jnp.asarray(each.weight_std(), dtype=float) ** 2 for each in references])
+    return jnp.stack([jnp.asarray(each.std_at(raw[k]), dtype=float) ** 2 for k, each in enumerate(references)])
 
 
 def _estimated_variance(spread: Array, prediction_variance: Array, stated: Array, listened: Array) -> tuple[Array, Array]:

@@ -72,6 +72,13 @@ class PositionReference(Instrument):
         a GNSS receiver's slow error), the spread a Kalman filter's default R states."""
         return jnp.sqrt(jnp.mean(self.measurement_std() ** 2))
 
+    def std_at(self, y: Array) -> Array:
+        """The standard deviation (m) of a fix ``y`` as the reference states it at that
+        fix: :meth:`weight_std`, the same for every fix, unless the reference's noise
+        depends on where it is (a hydroacoustic reference's slant range); a non-finite
+        ``y`` gives :meth:`weight_std`."""
+        return self.weight_std()
+
 
 @component(
     "instrument",
@@ -271,6 +278,12 @@ class HydroacousticReference(PositionReference):
 
     def position_of(self, y: Array) -> Array:
         return y
+
+    def std_at(self, y: Array) -> Array:
+        # at the fix's own slant range (a USBL's accuracy is stated as a part of it); at the
+        # transponder's horizontal position for a missing fix
+        finite = jnp.all(jnp.isfinite(y))
+        return jnp.where(finite, self._std(jnp.where(finite, y, self.transponder)), self.weight_std())
 
 
 @component(
