@@ -148,11 +148,18 @@ def failure_from_table(table: Any, names: Sequence[str], location: tuple = (), *
     return ThrusterFailure(mode, thruster, start, length, fraction)
 
 
+def flag_prefix(thruster: str) -> str:
+    """A thruster's name made an identifier, the part of its failure flags' names before
+    the dot (``port-azimuth`` -> ``port_azimuth``)."""
+    name = re.sub(r"\W", "_", thruster)  # a signal's name is an identifier
+    return name if name.isidentifier() else f"thruster_{name}"
+
+
 def flag_signal(thruster: str, mode: str, index: int, modes: Sequence[str]) -> Signal:
     """The recorded flag of failure ``index`` of a thruster (``modes``: that thruster's
     failures in order): ``THRUSTER.MODE_failure``, the thruster's name made an identifier
     (``port_azimuth.stop_failure``), with the index when it has two of a mode."""
     suffix = f"{mode}_failure" if list(modes).count(mode) == 1 else f"{mode}{index + 1}_failure"
-    name = re.sub(r"\W", "_", thruster)  # a signal's name is an identifier: port-azimuth -> port_azimuth
-    name = name if name.isidentifier() else f"thruster_{name}"
-    return Signal(f"{name}.{suffix}", "1", f"thruster {thruster}: {mode} failure active (1) or not (0), the truth of the injected failure")
+    return Signal(
+        f"{flag_prefix(thruster)}.{suffix}", "1", f"thruster {thruster}: {mode} failure active (1) or not (0), the truth of the injected failure"
+    )

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import xarray as xr
 
+from lookout.actuators.failures import flag_prefix
 from lookout.plotting._common import _runs
 from lookout.plotting._panels import (
     _ESTIMATE_STYLE,
@@ -370,7 +371,7 @@ def _thruster_failures(ds: xr.Dataset, names: list[str], run: int) -> list[tuple
     """``(thruster index, mode, active)`` of each recorded thruster failure
     (``NAME.MODE_failure``, :func:`lookout.actuators.failures.flag_signal`) that is
     active at some sample of ``run``."""
-    identifiers = {"".join(c if c.isalnum() or c == "_" else "_" for c in name): i for i, name in enumerate(names)}
+    identifiers = {flag_prefix(name): i for i, name in enumerate(names)}
     found = []
     for variable in ds.data_vars:
         prefix, _, suffix = str(variable).partition(".")
