@@ -6,15 +6,20 @@ as a batch of runs, five ways, each the same loop with another actuator:
 
 (a) per-axis saturation at the thrusters' reach (the baseline: ``thrust-limits``);
 (b) the supply vessel's thrusters, weighted pseudo-inverse then per-thruster limits;
-(c) the thrusters with the QP, lookout's active-set solver;
+(c) the thrusters with the QP, lookout's active-set solver (its bounds-only form for
+    this layout of tunnels and azimuths);
 (d) the thrusters with the QP, qpax's interior-point solver (if qpax is installed);
-(e) the ideal actuator, for scale.
+(e) the ideal actuator, for scale;
+(f) the thrusters with the QP, the active-set solver's general form.
+
+With --failure MODE, every thruster actuator has the port azimuth fail in that mode
+(stop, stuck, reduced to half) from the middle of the run: a failure campaign's run.
 
 Prints simulated seconds per wall second (all runs), each against (a) (the
 target: (c) >= 0.5 x (a)), and the share of samples at which the allocation was saturated. Compilation is
 excluded (each is run once to warm up); the figure is the median of --repeats.
 
-Usage: python benchmarks/allocation.py [--batch 64] [--duration 200] [--repeats 3] [--only a,c]
+Usage: python benchmarks/allocation.py [--batch 64] [--duration 200] [--repeats 3] [--only a,c] [--failure stop]
 """
 
 from __future__ import annotations
@@ -47,6 +52,12 @@ def actuators() -> dict[str, dict]:
         "(a) per-axis saturation": {"kind": "thrust-limits", "limit": reach},
         "(b) thrusters, pseudo-inverse": {"kind": "thrusters", "allocation": "pseudo-inverse", "layout": {"kind": "supply-vessel"}},
         "(c) thrusters, QP (active set)": {"kind": "thrusters", "allocation": "qp", "layout": {"kind": "supply-vessel"}},
+        "(f) thrusters, QP (active set, general form)": {
+            "kind": "thrusters",
+            "allocation": "qp",
+            "solver": "active-set-general",
+            "layout": {"kind": "supply-vessel"},
+        },
     }
     try:
         import qpax  # noqa: F401
@@ -64,6 +75,7 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=200.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--only", default="", help="the actuators to run, by letter (e.g. 'a,c'); default: all")
+    parser.add_argument("--failure", choices=("stop", "stuck", "reduced"), help="fail the port azimuth from the middle of the run")
     args = parser.parse_args()
     only = {letter.strip() for letter in args.only.split(",") if letter.strip()}
     with open(ROOT / "examples" / "thrusters-dp.toml", "rb") as handle:
@@ -75,7 +87,12 @@ def main() -> None:
         if only and name[1] not in only:
             continue
         document = copy.deepcopy(base)
-        document["actuator"] = actuator
+        document["actuator"] = copy.deepcopy(actuator)
+        if args.failure and actuator["kind"] == "thrusters":
+            failure = {"thruster": "port-azimuth", "mode": args.failure, "start": args.duration / 2}
+            if args.failure == "reduced":
+                failure["fraction"] = 0.5
+            document["actuator"]["failures"] = [failure]
         scenario = composition.compose(document).scenario
         jax.block_until_ready(simulate_batch(scenario, keys).applied)  # compile
         times = []
@@ -89,7 +106,8 @@ def main() -> None:
             iterations[name] = float(np.mean(np.asarray(trajectory.actuation["allocation_saturated"])))
         print(f"{name}: {rates[name]:.4g} simulated s per s (median of {args.repeats}: {np.median(times):.3f} s)", flush=True)
     baseline = rates["(a) per-axis saturation"]
-    print(f"\nbatch of {args.batch} runs of {args.duration:g} s, sample period 0.1 s; against (a):")
+    failure = f", the port azimuth failing ({args.failure}) at {args.duration / 2:g} s" if args.failure else ""
+    print(f"\nbatch of {args.batch} runs of {args.duration:g} s{failure}, sample period 0.1 s; against (a):")
     for name, rate in rates.items():
         note = f"; allocation saturated at {100 * iterations[name]:.0f} % of the samples" if name in iterations else ""
         print(f"  {name}: {rate / baseline:.3f} x{note}")

@@ -97,11 +97,12 @@ from jax.typing import ArrayLike
 from lookout import _validation as check
 from lookout._math import ssa
 from lookout._resources import refuse_unless_it_fits
+from lookout.actuators.box_qp import FREE, MOST_VARIABLES, box_qp
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.actuators.qp import active_set
 
 ALLOCATION_METHODS = ("qp", "pseudo-inverse")
-QP_SOLVERS = ("active-set", "qpax")
+QP_SOLVERS = ("active-set", "active-set-general", "qpax")
 #: A scaled force below this is no direction (an idle thruster's rounding).
 IDLE = 1e-3
 #: A sample is saturated when the allocation leaves more than this fraction of an
@@ -253,12 +254,16 @@ class Allocator(eqx.Module):
         (:attr:`reach`) before allocating, as a per-axis saturation would: a command
         far beyond the thrusters' reach on one axis then does not take the thrust
         another axis needs. False allocates tau as it comes.
-    solver : {"active-set", "qpax"}, optional
-        ``"qp"`` only. The QP's solver: lookout's active-set method
-        (:mod:`lookout.actuators.qp`; exact, and cheap when few limits change from
-        sample to sample; the default), or qpax's primal-dual interior-point method
-        (Tracy & Manchester, 2024; the ``qpax`` package, installed with lookout's
-        ``dev`` extra), for comparison.
+    solver : {"active-set", "active-set-general", "qpax"}, optional
+        ``"qp"`` only. The QP's solver: lookout's active-set method (exact, and cheap
+        when few limits change from sample to sample; the default), in its bounds-only
+        form (:mod:`lookout.actuators.box_qp`, each azimuth's force one variable along
+        its steered angle) for a layout of tunnels and azimuths
+        (:attr:`bounds_only`), in its general form (:mod:`lookout.actuators.qp`) for
+        one with main propellers; ``"active-set-general"``, the general form whatever
+        the layout (the same allocation, slower: for comparison); or qpax's primal-dual
+        interior-point method (Tracy & Manchester, 2024; the ``qpax`` package,
+        installed with lookout's ``dev`` extra), for comparison.
     steering_time_constant : float, optional
         ``"qp"`` only. Time constant of the low-pass filter on tau whose allocation
         the azimuths turn toward (s); non-negative, 0 for none (default
@@ -302,7 +307,7 @@ class Allocator(eqx.Module):
         method: Literal["qp", "pseudo-inverse"] = "qp",
         slack_weight: npt.ArrayLike | None = None,
         clip_to_reach: bool = True,
-        solver: Literal["active-set", "qpax"] | None = None,
+        solver: Literal["active-set", "active-set-general", "qpax"] | None = None,
         steering_time_constant: float | None = None,
         steering_deadband: float | None = None,
         steering_load: float | None = None,
@@ -642,28 +647,34 @@ class Allocator(eqx.Module):
             constrained = jnp.any(jnp.abs(u - unconstrained) > 1e-12)
             iterations, converged = jnp.asarray(0), jnp.asarray(True)
         else:
-            G, h, start = self.constraints(previous, angle, dt, fraction, frozen)
-            constrained = ~jnp.all(G @ unconstrained <= h + 1e-12)
             bias = qp.bias
             if fraction is not None and frozen is not None:
                 available, _, remaining = self._available(fraction, frozen)
                 bias = jnp.where(jnp.any(~available), remaining, bias)
             q = -(self.B.T @ (qp.slack_weights * (qp.target_matrix @ target))) - self.weights * bias
-            if self.solver == "qpax":
-                solved, iterations, converged = _qpax(qp.P, q, G, h, self.indices.azimuth.size)
-            else:
-                solved, found, iterations, converged = active_set(
-                    qp.P,
-                    q,
-                    G,
-                    h,
-                    start,
-                    max_iterations=G.shape[0] + self.size,
-                    needed=constrained,
-                    warm=working,
-                    P_inverse=self.P_inverse,
+            if self.bounds_only:
+                solved, active, iterations, converged, constrained = self._box(
+                    jnp.asarray(q), unconstrained, previous, angle, dt, working, fraction, frozen
                 )
-                active = jnp.where(constrained, found, active)
+                active = jnp.where(constrained, active, FREE)
+            else:
+                G, h, start = self.constraints(previous, angle, dt, fraction, frozen)
+                constrained = ~jnp.all(G @ unconstrained <= h + 1e-12)
+                if self.solver == "qpax":
+                    solved, iterations, converged = _qpax(qp.P, q, G, h, self.indices.azimuth.size)
+                else:
+                    solved, found, iterations, converged = active_set(
+                        qp.P,
+                        q,
+                        G,
+                        h,
+                        start,
+                        max_iterations=G.shape[0] + self.size,
+                        needed=constrained,
+                        warm=working,
+                        P_inverse=self.P_inverse,
+                    )
+                    active = jnp.where(constrained, found, active)
             u = jnp.where(constrained, solved, unconstrained)
             converged = converged | ~constrained
         if fraction is not None:
@@ -681,6 +692,84 @@ class Allocator(eqx.Module):
             "converged": converged,
             "working": active,
         }
+
+    @property
+    def bounds_only(self) -> bool:
+        """Whether the QP, with each azimuth's force one variable along its steered angle,
+        has bounds only (a layout of tunnels and azimuths, no main propeller's rudder),
+        so that lookout's active-set solver takes its bounds-only form
+        (:mod:`lookout.actuators.box_qp`), whose arithmetic is unrolled over the
+        variables: up to :data:`~lookout.actuators.box_qp.MOST_VARIABLES` of them."""
+        index = self.indices
+        reduced = index.tunnel.size + index.azimuth.size
+        return self.method == "qp" and self.solver == "active-set" and index.main.size == 0 and reduced <= MOST_VARIABLES
+
+    def _box(
+        self,
+        q: Array,
+        unconstrained: Array,
+        previous: Array,
+        angle: Array,
+        dt: ArrayLike,
+        working: Array | None,
+        fraction: Array | None,
+        frozen: Array | None,
+    ) -> tuple[Array, Array, Array, Array, Array]:
+        """The QP of :meth:`constraints` in its reduced variables, solved by
+        :func:`lookout.actuators.box_qp.box_qp`: a tunnel's thrust, and an azimuth's
+        force along its steered angle (the rows that hold its force across the angle at
+        0 make the other component 0), each between the bounds those limits give it.
+        The objective u^T P u / 2 + q^T u with u = T x is x^T (T^T P T) x / 2 + (T^T q)^T x.
+        Returns ``(u, working, iterations, converged, constrained)``: the scaled command,
+        the reduced variables' working set (tunnels first, then azimuths; padded to
+        :attr:`size` with free entries), and whether the ``unconstrained`` solution
+        breaks a limit (as :meth:`allocate` asks of :meth:`constraints`' rows)."""
+        layout, index, n = self.layout, self.indices, self.size
+        qp = self._qp_terms()
+        failed = fraction is not None and frozen is not None
+        step_of = jnp.asarray(layout.thrust_rate) * dt
+        columns: list[list[tuple[int, Array | float]]] = []
+        lower: list[Array] = []
+        upper: list[Array] = []
+        broken = jnp.zeros((), dtype=bool)
+        for i, j in zip(index.tunnel.tolist(), index.tunnel_thrust.tolist(), strict=True):
+            scale = self.scale[j]
+            step = step_of[i] / scale
+            smallest, largest, before = layout.min_thrust[i] / scale, layout.max_thrust[i] / scale, previous[j]
+            if failed:
+                assert fraction is not None and frozen is not None
+                step = jnp.where(frozen[i], 0.0, step)
+                smallest, largest = fraction[i] * smallest, fraction[i] * largest
+                before = jnp.where(fraction[i] < 1.0, jnp.clip(before, smallest, largest), before)
+            lower.append(jnp.maximum(smallest, before - step))
+            upper.append(jnp.minimum(largest, before + step))
+            columns.append([(j, 1.0)])
+            broken = broken | (unconstrained[j] > upper[-1] + 1e-12) | (unconstrained[j] < lower[-1] - 1e-12)
+        for i, jx, jy in zip(index.azimuth.tolist(), index.azimuth_x.tolist(), index.azimuth_y.tolist(), strict=True):
+            c, s = jnp.cos(angle[i]), jnp.sin(angle[i])
+            along = jnp.minimum(magnitude(previous[jx], previous[jy]), 1.0)
+            step, circle = step_of[i] / self.scale[jx], jnp.asarray(1.0)
+            if failed:
+                assert fraction is not None and frozen is not None
+                circle = fraction[i]
+                along = jnp.where(circle < 1.0, jnp.minimum(along, circle), along)
+                step = jnp.where(frozen[i], 0.0, step)
+            lower.append(jnp.maximum(along - step, 0.0))
+            upper.append(jnp.minimum(along + step, circle))
+            columns.append([(jx, c), (jy, s)])
+            wished, across = c * unconstrained[jx] + s * unconstrained[jy], c * unconstrained[jy] - s * unconstrained[jx]
+            broken = broken | (wished > upper[-1] + 1e-12) | (wished < lower[-1] - 1e-12) | (jnp.abs(across) > 1e-12)
+        P = jnp.asarray(qp.P)
+        H = [[sum((a * P[ja, jb] * b for ja, a in first for jb, b in second), jnp.zeros(())) for second in columns] for first in columns]
+        f = [sum((a * q[ja] for ja, a in column), jnp.zeros(())) for column in columns]
+        r = len(columns)
+        warm = None if working is None else working[:r]
+        x, state, iterations, converged = box_qp(jnp.stack([jnp.stack(row) for row in H]), jnp.stack(f), jnp.stack(lower), jnp.stack(upper), warm)
+        u = [jnp.zeros(())] * n
+        for k, column in enumerate(columns):
+            for j, a in column:
+                u[j] = a * x[k]
+        return jnp.stack(u), jnp.concatenate([state, jnp.full(n - r, FREE)]), iterations, converged, broken
 
     def _available(self, fraction: Array, frozen: Array) -> tuple[Array, Array, Array]:
         """``(available, pseudo_inverse, bias)`` over the thrusters that remain: whether

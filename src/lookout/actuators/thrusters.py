@@ -15,7 +15,7 @@ from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout._math import ssa
-from lookout.actuators.allocation import IDLE, Allocator
+from lookout.actuators.allocation import IDLE, QP_SOLVERS, Allocator
 from lookout.actuators.failures import ThrusterFailure, flag_signal
 from lookout.actuators.layout import ThrusterLayout, direction_of, magnitude
 from lookout.components import BODY_FIXED, Actuator, Layout, Signal
@@ -106,7 +106,7 @@ def relative_power(thrust: ArrayLike, largest: ArrayLike) -> Array:
             "solver",
             "str",
             '"qp" only: the QP\'s solver (default "active-set"; lookout.actuators.allocation.Allocator).',
-            choices=("active-set", "qpax"),
+            choices=QP_SOLVERS,
         ),
         Value(
             "steering_time_constant",
@@ -181,7 +181,7 @@ class ThrusterSystem(Actuator):
     clip_to_reach : bool
         Clip each axis of the command to what the thrusters reach on it alone before
         allocating (:class:`~lookout.actuators.allocation.Allocator`).
-    solver : {"active-set", "qpax"}, optional
+    solver : {"active-set", "active-set-general", "qpax"}, optional
         ``"qp"`` only: the QP's solver (default "active-set";
         :class:`~lookout.actuators.allocation.Allocator`).
     steering_time_constant : float, non-negative, optional
@@ -223,7 +223,7 @@ class ThrusterSystem(Actuator):
         allocation: Literal["qp", "pseudo-inverse"] = "qp",
         slack_weight: npt.ArrayLike | None = None,
         clip_to_reach: bool = True,
-        solver: Literal["active-set", "qpax"] | None = None,
+        solver: Literal["active-set", "active-set-general", "qpax"] | None = None,
         steering_time_constant: float | None = None,
         steering_deadband: float | None = None,
         steering_load: float | None = None,

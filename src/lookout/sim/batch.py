@@ -58,7 +58,30 @@ def _initial_carry_batch(scenario, keys, batched_scenario: bool):
 def _segment_batch(scenario, keys, carry, first_record, n_records: int, batched_scenario: bool, summary: Summary | None = None):
     axes = eqx.if_array(0) if batched_scenario else None
     run = eqx.filter_vmap(lambda s, k, c, f: segment(s, k, c, f, n_records, summary), in_axes=(axes, 0, 0, None))
-    return run(scenario, keys, carry, first_record)
+    mesh = _run_mesh(int(keys.shape[0]))
+    if mesh is None:
+        return run(scenario, keys, carry, first_record)
+    # Each device steps its own share of the runs as a batch of its own (shard_map): a
+    # loop whose length depends on the runs (a QP's iterations under vmap: until the
+    # slowest run is done) then asks only its device's runs, where under the batch's
+    # sharding alone every iteration would gather a flag from every device.
+    arrays, static = eqx.partition(scenario, eqx.is_array)
+    runs, whole = jax.sharding.PartitionSpec("run"), jax.sharding.PartitionSpec()
+
+    def share(arrays, keys, carry, first_record):
+        return run(eqx.combine(arrays, static), keys, carry, first_record)
+
+    sharded = jax.shard_map(share, mesh=mesh, in_specs=(runs if batched_scenario else whole, runs, runs, whole), out_specs=runs, check_vma=False)
+    return sharded(arrays, keys, carry, first_record)
+
+
+def _run_mesh(n_runs: int) -> jax.sharding.Mesh | None:
+    """The devices' mesh over the run axis, or None with one device or a batch that
+    does not divide evenly among them."""
+    devices = jax.devices()
+    if len(devices) < 2 or n_runs % len(devices):
+        return None
+    return jax.make_mesh((len(devices),), ("run",), axis_types=(jax.sharding.AxisType.Auto,))
 
 
 def _shard_runs(tree, n_runs: int):
@@ -68,10 +91,9 @@ def _shard_runs(tree, n_runs: int):
     :func:`lookout.configure_cpu`, or each GPU) simulates its share of the runs.
     Results do not depend on the placement.
     """
-    devices = jax.devices()
-    if len(devices) < 2 or n_runs % len(devices):
+    mesh = _run_mesh(n_runs)
+    if mesh is None:
         return tree
-    mesh = jax.make_mesh((len(devices),), ("run",), axis_types=(jax.sharding.AxisType.Auto,))
     return jax.device_put(tree, jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("run")))
 
 
