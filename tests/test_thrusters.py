@@ -1142,3 +1142,23 @@ def test_failures_of_an_actuator_without_thrusters_and_a_bad_table_at_the_comman
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and key in error and message in error, error
     assert not (tmp_path / "out").exists()
+
+
+def test_the_subset_tables_are_the_pseudo_inverse_over_the_thrusters_left():
+    """For every subset of the supply vessel's thrusters left (stopped or stuck ones out),
+    the tabled pseudo-inverse and bias equal the ones computed at the sample (JAX's
+    pseudo-inverse of the gram) to 1e-9 (entries up to about 100), the singular subsets
+    (only tunnels: no surge) included."""
+    for method in ("qp", "pseudo-inverse"):
+        allocator = Allocator(ThrusterLayout.supply_vessel(), method)
+        assert allocator.subset_pseudo_inverse is not None and allocator.subset_pseudo_inverse.shape == (16, allocator.size, 3)
+        computed = eqx.tree_at(lambda a: (a.subset_pseudo_inverse, a.subset_bias), allocator, (None, None), is_leaf=lambda x: x is None)
+        for subset in range(16):
+            left = np.array([(subset >> i) & 1 for i in range(4)], dtype=bool)
+            fraction, frozen = jnp.where(left | (np.arange(4) % 2 == 0), 1.0, 0.0), jnp.asarray(~left & (np.arange(4) % 2 == 0))
+            tabled = allocator._available(fraction, frozen)
+            direct = computed._available(fraction, frozen)
+            np.testing.assert_array_equal(np.asarray(tabled[0]), np.asarray(direct[0]))
+            np.testing.assert_allclose(np.asarray(tabled[1]), np.asarray(direct[1]), atol=1e-9, err_msg=f"{method} {subset}")
+            np.testing.assert_allclose(np.asarray(tabled[2]), np.asarray(direct[2]), atol=1e-9, err_msg=f"{method} {subset}")
+    assert Allocator(ThrusterLayout(**_huge_layout(40))).subset_pseudo_inverse is None

@@ -133,6 +133,10 @@ DEFAULT_STEERING_LOAD = 0.05
 #: a turn of 180 degrees at the turning rate (measured against 20 % on
 #: examples/thrusters-dp.toml: half the turning for a tenth more power; docs/thrusters.md).
 DEFAULT_STEERING_BIAS = 0.3
+#: A layout of at most this many thrusters keeps the weighted pseudo-inverse over every
+#: subset of them (2^8 = 256 of n x 3 at most), so that a failed thruster costs a look-up,
+#: not a singular value decomposition, at each sample.
+SUBSET_TABLE_THRUSTERS = 8
 
 
 class _QPTerms(NamedTuple):
@@ -202,7 +206,8 @@ def limit_rows(layout: ThrusterLayout) -> int:
 
 def working_nbytes(layout: ThrusterLayout, method: str = "qp") -> int:
     """Bytes one allocation holds, float64, with n variables and m limit rows: its
-    matrices (B and the pseudo-inverse, 3 x n each; the QP's P and its inverse, n x n) and one sample's
+    matrices (B and the pseudo-inverse, 3 x n each; the QP's P and its inverse, n x n; with at most
+    :data:`SUBSET_TABLE_THRUSTERS` thrusters T, the 2^T pseudo-inverses and biases over subsets of them) and one sample's
     work: the limits G (m x n) and the QP's solves, bounded by KKT systems of (2n x 2n)
     each with their LU factors, for the warm start's solve, the iterations' and the
     final one (six such matrices at most live at once; the range-space solves the
@@ -228,6 +233,8 @@ def working_nbytes(layout: ThrusterLayout, method: str = "qp") -> int:
     """
     n, m = len(layout.variables), limit_rows(layout)
     floats = 8 * n + 16 * (n + m) + 64
+    if layout.size <= SUBSET_TABLE_THRUSTERS:
+        floats += 2**layout.size * 4 * n  # the tables of the pseudo-inverse and bias over subsets of thrusters
     if method == "qp":
         floats += 2 * n * n + m * n + 6 * (2 * n) ** 2
     return 8 * floats
@@ -297,6 +304,10 @@ class Allocator(eqx.Module):
     steering_deadband: Array | np.ndarray | None
     steering_load: Array | np.ndarray | None
     bias: Array | np.ndarray | None  # u_b, scaled
+    # with at most SUBSET_TABLE_THRUSTERS thrusters: per subset of them left (a bit per thruster),
+    # the weighted pseudo-inverse over it and the bias's part that produces no force with it
+    subset_pseudo_inverse: Array | np.ndarray | None
+    subset_bias: Array | np.ndarray | None
     method: str = eqx.field(static=True)
     clip_to_reach: bool = eqx.field(static=True)
     solver: str | None = eqx.field(static=True)
@@ -351,6 +362,7 @@ class Allocator(eqx.Module):
             self.solver = None
             self.slack_weights = self.P = self.P_inverse = self.target_matrix = None
             self.steering_time_constant = self.steering_deadband = self.steering_load = self.bias = None
+            self.subset_pseudo_inverse, self.subset_bias = self._subset_tables()
             return
         solver = "active-set" if solver is None else solver
         if solver not in QP_SOLVERS:
@@ -387,6 +399,7 @@ class Allocator(eqx.Module):
         wanted[index.azimuth_x] = bias * np.cos(layout.direction[index.azimuth])
         wanted[index.azimuth_y] = bias * np.sin(layout.direction[index.azimuth])
         self.bias = wanted - self.pseudo_inverse_matrix @ (self.B @ wanted)  # its part in the null space of B
+        self.subset_pseudo_inverse, self.subset_bias = self._subset_tables()
 
     @property
     def size(self) -> int:
@@ -771,14 +784,40 @@ class Allocator(eqx.Module):
                 u[j] = a * x[k]
         return jnp.stack(u), jnp.concatenate([state, jnp.full(n - r, FREE)]), iterations, converged, broken
 
+    def _subset_tables(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """:meth:`_available`'s pseudo-inverse and bias for every subset of the thrusters
+        (index: a bit per thruster left), computed once here for a layout of at most
+        :data:`SUBSET_TABLE_THRUSTERS` thrusters, ``(None, None)`` for a larger one. The
+        pseudo-inverse's cutoff is JAX's (singular values below 10 max(m, n) eps of the
+        largest count as zero)."""
+        count = self.layout.size
+        if count > SUBSET_TABLE_THRUSTERS:
+            return None, None
+        owner = np.asarray([i for i, _ in self.layout.variables], dtype=int)
+        bias = np.zeros(self.size) if self.bias is None else np.asarray(self.bias)
+        inverses, biases = [], []
+        for subset in range(2**count):
+            left = ((subset >> owner) & 1).astype(bool)
+            inverse_weighted = np.where(left[:, None], self.B.T / self.weights[:, None], 0.0)
+            pseudo_inverse = inverse_weighted @ np.linalg.pinv(self.B @ inverse_weighted, rcond=30 * np.finfo(float).eps)
+            kept = np.where(left, bias, 0.0)
+            inverses.append(pseudo_inverse)
+            biases.append(kept - pseudo_inverse @ (self.B @ kept))
+        return np.stack(inverses), np.stack(biases)
+
     def _available(self, fraction: Array, frozen: Array) -> tuple[Array, Array, Array]:
         """``(available, pseudo_inverse, bias)`` over the thrusters that remain: whether
         each variable's thruster is neither stopped nor stuck, the weighted pseudo-inverse
         with the others' columns of B out (a pseudo-inverse of the gram, which is
         singular when the thrusters left span fewer than three axes), and the bias's
-        part that produces no force with them (0 without a bias)."""
+        part that produces no force with them (0 without a bias). From the tables of
+        :meth:`_subset_tables` where the layout has them (no factorization per sample)."""
         owner = np.asarray([i for i, _ in self.layout.variables], dtype=int)
-        available = ~((fraction[owner] == 0.0) | frozen[owner])
+        left = ~((fraction == 0.0) | frozen)
+        available = left[owner]
+        if self.subset_pseudo_inverse is not None and self.subset_bias is not None:
+            subset = jnp.sum(jnp.where(left, 2 ** np.arange(self.layout.size), 0))
+            return available, jnp.asarray(self.subset_pseudo_inverse)[subset], jnp.asarray(self.subset_bias)[subset]
         B = jnp.asarray(self.B)
         inverse_weighted = jnp.where(available[:, None], B.T / jnp.asarray(self.weights)[:, None], 0.0)
         pseudo_inverse = inverse_weighted @ jnp.linalg.pinv(B @ inverse_weighted)
