@@ -443,15 +443,20 @@ def failing_batch(failing):
 
 @pytest.mark.slow
 def test_vmapped_runs_equal_single_runs_with_failures(failing, failing_batch):
-    """The measurements and flags (wild points included) of a vmapped batch are those of
-    the runs one by one, bit for bit; the estimates to rounding (as every observer's,
-    tests/test_conformance.py)."""
+    """The failure flags (wild points included) of a vmapped batch are those of the runs
+    one by one, bit for bit; the measurements and the estimates to rounding (as every
+    observer's, tests/test_conformance.py): each device steps its runs as a batch of its
+    own, which XLA compiles apart from the single run, so the truth the measurements
+    sample can differ in the last bit (docs/reproductions.md)."""
     composition, failed, _ = failing
     batch = failing_batch.to_xarray()
     second = _dataset(simulate(composition.scenario, keys_of_seeds(SEEDS)[1]))
     for run, single in enumerate((failed, second)):
         for name in composition.scenario.sensor.measurement_layout.names:
-            np.testing.assert_array_equal(batch[name].values[run], _values(single, name), err_msg=f"run {run}: {name}")
+            if name.endswith("_failure"):
+                np.testing.assert_array_equal(batch[name].values[run], _values(single, name), err_msg=f"run {run}: {name}")
+            else:
+                np.testing.assert_allclose(batch[name].values[run], _values(single, name), rtol=1e-13, atol=1e-12, err_msg=f"run {run}: {name}")
         for name in ("position_hat", "heading_hat", "velocity_hat"):
             np.testing.assert_allclose(batch[name].values[run], _values(single, name), rtol=0, atol=1e-11, err_msg=f"run {run}: {name}")
     assert not np.array_equal(batch["a_wild.wild_failure"].values[0], batch["a_wild.wild_failure"].values[1])
