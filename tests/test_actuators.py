@@ -121,6 +121,7 @@ def test_a_scenario_rejects_limits_that_do_not_fit_the_plant():
         _fossen_strand(SaturatingActuator([1.0, 1.0]))
 
 
+@pytest.mark.slow
 def test_saturation_bounds_the_applied_input_of_a_run():
     """The paper's tau (amplitude 1000 N, N, N m) through limits of 500: commanded
     exceeds them, the recorded applied input does not."""

@@ -17,6 +17,7 @@ ARM = ModelParameters(TwoLinkArm((1.0, 1.5), (1.0, 1.0), (0.0, 0.0)), ("masses[1
 ARM_OBSERVER = AdaptiveManipulatorObserver(ARM, 5.0, 0.1, sample_period=0.01, lower=0.5, upper=3.0, margin=0.2)
 
 
+@pytest.mark.slow
 def test_discrete_tends_to_continuous_at_first_order():
     study = ch4.order_study(ch4.Config(), duration=5.0)
     for key in ("theta", "velocity"):

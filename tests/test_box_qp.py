@@ -41,6 +41,7 @@ def _kkt_error(H, f, lower, upper, x) -> float:
     return float(max(errors))
 
 
+@pytest.mark.slow
 def test_random_problems_meet_the_kkt_conditions_and_agree_with_scipy_and_the_general_method():
     """200 problems of 1 to 8 variables, one in five with a fixed variable, from random warm
     starts: the KKT conditions hold to 1e-9, the primal method alone (after one

@@ -104,6 +104,7 @@ def _reference_derivative(reference, theta, name, of):
 
 
 @pytest.mark.parametrize("direction", [1, -1])
+@pytest.mark.slow
 def test_ellipse_reference_derivatives_speed_and_heading(direction):
     reference = EllipseReference((3.5, 1.823), (0.05, 0.1, 0.15, 0.2), centre=(0.5, -0.2), start_angle=0.3, direction=direction)
     for theta in (0.4, 2.0, 3.5, 5.9, 7.0, 13.0, 20.0):

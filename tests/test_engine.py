@@ -56,6 +56,7 @@ def quiet_scenario(**overrides) -> Scenario:
 
 
 @pytest.mark.parametrize("integrator", ["rk4", "euler"])
+@pytest.mark.slow
 def test_one_sample_of_a_linear_plant_equals_zero_order_hold_discretization(integrator):
     mass, damping = np.diag([5.0e6, 8.0e6, 3.7e9]), np.diag([5.0e4, 2.7e5, 4.2e8])
     plant = VesselPlant(DPVessel(mass, damping), GaussMarkovBias(1000.0), LinearWaveModel(0.9, 0.1))
@@ -111,6 +112,7 @@ class EchoController(Controller):
 
 
 @pytest.mark.parametrize("source", ["y", "estimate"])
+@pytest.mark.slow
 def test_the_controller_acts_on_the_measurement_and_estimate_of_the_same_sample(source):
     """DESIGN.md sample order: measure -> update -> output -> controller, so u_k is a
     function of y_k and of the estimate at t_k, not of the previous sample's."""
@@ -347,6 +349,7 @@ def test_a_manipulator_scenario_refuses_an_observer_or_sensor_of_another_arm():
     assert "\n" not in str(raised.value)
 
 
+@pytest.mark.slow
 def test_keys_of_seeds_and_stacked_scenarios_give_the_single_runs():
     from lookout.papers import fossen_strand_1999 as fs
     from lookout.sim import keys_of_seeds, seed_keys, simulate, simulate_batch, stack_scenarios

@@ -115,6 +115,7 @@ def test_every_plant_kind_states_a_divergence_limit_on_one_of_its_variables():
         assert cls.divergence is not None and cls.divergence.limit > 0, name
 
 
+@pytest.mark.slow
 def test_a_replay_whose_estimates_go_non_finite_exits_3_naming_the_step(tmp_path, capsys):
     """A replay has no truth: its run fails where an estimate is not finite. 29 rad/s poles
     pass the replay's step check (one step amplifies an error by less than 2) and still

@@ -24,6 +24,7 @@ def recorded():
     return scenario, trajectory, trajectory.to_xarray()
 
 
+@pytest.mark.slow
 def test_filtering_a_simulation_log_gives_the_simulation_estimates(recorded):
     scenario, trajectory, ds = recorded
     log = lookout.filter(
@@ -42,6 +43,7 @@ def test_filtering_a_simulation_log_gives_the_simulation_estimates(recorded):
         np.testing.assert_allclose(log[name].values, ds[name].values, rtol=1e-9, atol=1e-9 * float(np.abs(ds[name]).max()))
 
 
+@pytest.mark.slow
 def test_filter_rides_through_missing_channels_and_irregular_times(recorded):
     scenario, trajectory, _ = recorded
     rng = np.random.default_rng(0)

@@ -94,6 +94,7 @@ def _scaled(values, covariances):
     return values / (scale if values.ndim == 2 else np.outer(scale, scale))
 
 
+@pytest.mark.slow
 def test_the_ekf_on_one_gnss_and_a_gyrocompass_is_the_ekf_on_the_position_heading_sensor():
     """A suite of a GNSS at the reference point (lever arm 0) and a gyrocompass measures
     what the position-heading sensor does, with the same noise: the two filters given the
@@ -111,6 +112,7 @@ def test_the_ekf_on_one_gnss_and_a_gyrocompass_is_the_ekf_on_the_position_headin
     np.testing.assert_allclose(_scaled(covariances, expected_covariances), _scaled(expected_covariances, expected_covariances), rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_missing_reference_is_masked_exactly():
     """Two GNSS receivers of which the second never has a fix: the filter is the one on
     the first receiver alone, to rounding (its gain columns are exactly zero)."""
@@ -138,6 +140,7 @@ def test_the_filter_reads_the_instrument_channels_with_their_noise_and_periods()
     assert observer.channel_angles == (False,) * 5 + (True,)
 
 
+@pytest.mark.slow
 def test_an_imu_is_read_under_the_input_applied_before_the_sample():
     """The specific force an IMU measures at t_k depends on the input applied over
     [t_(k-1), t_k]: predict keeps it in the state, and the correction at t_k reads h there."""
@@ -319,6 +322,7 @@ kind = "ekf"
 """
 
 
+@pytest.mark.slow
 def test_a_scenario_file_of_named_sensors_builds_the_filter_on_their_channels(tmp_path, capsys):
     """``[observer] kind = "ekf"`` with ``[sensors.NAME]`` tables: the filter on the suite's
     instrument channels, with the steady-state P_0 of its own R, and ``lookout design``

@@ -162,6 +162,7 @@ def test_a_source_is_a_talker_a_sender_or_both():
     assert source_rank("GP@10.0.0.6", "", "10.0.0.6") == (1, 0) and source_rank("GP", "HE", None) is None
 
 
+@pytest.mark.slow
 def test_a_reading_goes_to_the_sensor_whose_source_it_comes_from(replayed):
     session = replayed[0]
     sensors = session.sensors
@@ -206,6 +207,7 @@ def test_replay_gives_each_sensor_its_channel(replayed):
     assert np.isnan(measurement[:, columns["hpr.measured_position"]]).all()  # never spoke
 
 
+@pytest.mark.slow
 def test_the_combined_position_is_the_simulations_combining_stage(replayed):
     """At each step a receiver's fix came, the combined channels the observer read are
     the suite's own combine of the held samples (the stage a simulation runs), and its
@@ -301,6 +303,7 @@ def test_an_observer_of_an_instruments_channel_is_refused():
             Session(observer, scenario.sample_period, suite=suite)
 
 
+@pytest.mark.slow
 def test_the_source_key_leaves_the_simulation_as_it_was():
     document = _document()
     document["simulation"]["duration"] = 3.0
@@ -376,6 +379,7 @@ def _quantum(frame: LocalFrame) -> np.ndarray:
     return step * np.array([north, east])
 
 
+@pytest.mark.slow
 def test_write_log_of_a_suite_replays_into_each_sensor(tmp_path, capsys, monkeypatch):
     """lookout write-log of a suite writes each position reference's GGA and each gyro's
     THS with its own stamps (hpr names no source: @hpr is assumed, the IMU is not

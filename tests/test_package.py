@@ -52,6 +52,7 @@ def test_configure_cpu_after_the_backend_started_says_it_is_too_late():
     assert result.returncode != 0 and "RuntimeWarning: lookout.configure_cpu: JAX's backend has already started" in result.stderr, result.stderr
 
 
+@pytest.mark.slow
 def test_every_reproduction_is_named_in_the_catalog_without_importing_it():
     result = _run(
         "import sys; from lookout.papers import CATALOG, REPRODUCTIONS; "

@@ -182,6 +182,7 @@ def _lyapunov_rate(theta_hat, _, inertial, remainder, transient, y, gain, theta)
     return -error @ rate, gain * jnp.sum((phi_f @ error) ** 2)
 
 
+@pytest.mark.slow
 def test_missing_measurements_hold_the_estimate_and_keep_it_finite():
     """Sampled operation with 30 % dropouts on every channel (q and q'): theta_hat is
     finite throughout and does not change over a sample whose measurement has a NaN."""

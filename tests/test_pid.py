@@ -319,6 +319,7 @@ def test_the_anti_windup_bounds_the_integral_force():
     assert np.all(np.abs(free[-1]) > 3 * limit)
 
 
+@pytest.mark.slow
 def test_the_anti_windup_cuts_the_overshoot_of_a_move_at_the_thrust_limits():
     """A 60 m move through thrust limits of 20 kN: the unclamped integral winds up during
     the saturated transit and overshoots; clamped at the limits, the overshoot is a

@@ -204,6 +204,7 @@ def assert_truth_above_estimate(ax):
 
 
 @pytest.mark.parametrize("dof", DOFS)
+@pytest.mark.slow
 def test_estimates_png_has_the_figure_size_and_is_not_blank(ds, dof, tmp_path):
     fig = plot_estimates(ds, SHIP_PANELS[dof])
     assert_png(fig, tmp_path / f"{dof}.png", fig.get_size_inches())
