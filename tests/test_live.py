@@ -352,6 +352,17 @@ def test_replay_cli_writes_the_session(tmp_path, capsys):
             "is a thrust log (time,surge,sway,yaw): give it with --thrust",
         ),
         (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/velocity-two-link-arm.toml"], "live data fills measured_position"),
+        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "nmea"], "--format must be auto, raw, timed or csv"),
+        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "csv"], "a CSV log's first line must be"),
+        (
+            ["replay", "examples/logs/dp-vessel-raw.nmea", "--scenario", "examples/live-dp.toml", "--variation", "200"],
+            "--variation must be degrees within -180 to 180",
+        ),
+        (
+            ["replay", "examples/logs/dp-vessel-raw.nmea", "--scenario", "examples/live-dp.toml", "--format", "timed"],
+            "no line has a time",
+        ),
+        (["write-log", "examples/dp-suite.toml", "--raw"], "--raw writes the log of one receiver and one gyro"),
         (["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:99999"], "--nmea must be udp://HOST:PORT with a port in 0..65535"),
         (
             ["live", "examples/live-dp.toml", "--nmea", "/no/such/device"],

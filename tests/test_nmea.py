@@ -25,6 +25,45 @@ HDT = sentence("HE", "HDT", ["274.07", "T"])
 THS = sentence("IN", "THS", ["77.52", "A"])
 ROT = sentence("TI", "ROT", ["-0.3", "A"])
 GST = sentence("GP", "GST", ["172814.0", "0.006", "0.023", "0.020", "273.6", "0.023", "0.020", "0.031"])
+GNS = sentence("GN", "GNS", ["123519.00", "4807.038", "N", "01131.000", "E", "DRN", "14", "0.8", "545.4", "46.9", "", "", "S"])
+HDG = sentence("HC", "HDG", ["98.3", "1.5", "W", "12.6", "E"])
+HDM = sentence("HC", "HDM", ["98.3", "M"])
+VTG = sentence("GP", "VTG", ["054.7", "T", "034.4", "M", "005.5", "N", "010.2", "K", "A"])
+VHW = sentence("VW", "VHW", ["245.1", "T", "", "M", "10.1", "N", "18.7", "K"])
+ZDA = sentence("GP", "ZDA", ["201530.00", "04", "07", "2002", "00", "00"])
+AIS = "!AIVDM,1,1,,B,177KQJ5000G?tO`K>RA1wUbN0TKH,0*5C"
+PROPRIETARY = sentence("P", "GRME", ["15.0", "M", "45.0", "M", "25.0", "M"])
+
+
+def test_the_bridge_sentences():
+    """GNS, HDG, HDM, VTG, VHW, ZDA and RMC's speed: each field in its unit, magnetic
+    heading turned to true (true = magnetic + deviation + variation, east positive)."""
+    parser = NmeaParser()
+    (fix,) = parser.line(GNS, 0.0)
+    assert fix.values[:2] == pytest.approx((48 + 7.038 / 60, 11 + 31 / 60))
+    assert fix.values[2:] == (4.0, 0.8)  # "DRN": differential, RTK fixed, no fix: the best, RTK (GGA's 4)
+    (heading,) = parser.line(HDG, 0.0)
+    assert heading.kind == "heading" and heading.sentence == "HDG"
+    assert heading.values[0] == pytest.approx(98.3 - 1.5 + 12.6)
+    assert parser.line(HDM, 0.0) == [] and parser.counts["no_variation"] == 1  # no variation known yet
+    position, velocity = parser.line(RMC, 0.0)  # variation 3.1 W
+    assert velocity.kind == "ground_velocity" and velocity.values == pytest.approx((22.4 * 1852 / 3600, 84.4))
+    (heading,) = parser.line(HDM, 0.0)
+    assert heading.values[0] == pytest.approx(98.3 - 3.1)
+    assert NmeaParser(variation=-7.5).line(HDM, 0.0)[0].values[0] == pytest.approx(90.8)
+    (over_ground,) = parser.line(VTG, 0.0)
+    assert over_ground.values == pytest.approx((5.5 * 1852 / 3600, 54.7))
+    (water,) = parser.line(VHW, 0.0)
+    assert water.kind == "water_speed" and water.values == pytest.approx((10.1 * 1852 / 3600,))
+    assert parser.line(ZDA, 0.0) == [] and parser.counts["time_only"] == 1
+    assert parser.line(AIS, 0.0) == [] and parser.counts["ais"] == 1
+    assert parser.line(PROPRIETARY, 0.0) == [] and parser.counts["proprietary"] == 1
+    assert parser.sentences[("HDM", "no_variation")] == 1 and parser.sentences[("HDM", "accepted")] == 1
+    wrapped = sentence("HC", "HDG", ["359.0", "", "", "2.0", "E"])  # an empty deviation is 0; 361 wraps to 1
+    assert NmeaParser().line(wrapped, 0.0)[0].values[0] == pytest.approx(1.0)
+    for bad in (float("nan"), 181.0, "3", True):
+        with pytest.raises(ValueError, match="variation must be degrees"):
+            NmeaParser(variation=bad)
 
 
 def test_checksum_of_a_published_sentence():
@@ -65,6 +104,11 @@ def test_the_seven_sentences():
         (sentence("HE", "HDT", ["abc", "T"]), "malformed"),
         (sentence("HE", "THS", ["400.0", "A"]), "out_of_range"),
         (sentence("II", "XDR", ["A", "1.0", "D", "PITCH"]), "unsupported"),
+        (sentence("GN", "GNS", ["123519.00", "", "", "", "", "NN", "00", "", "", "", "", "", "V"]), "no_fix"),
+        (sentence("GP", "VTG", ["", "T", "", "M", "", "N", "", "K", "N"]), "no_fix"),
+        (sentence("HC", "HDG", ["98.3", "1.5", "W", "212.6", "E"]), "out_of_range"),
+        (sentence("HC", "HDG", ["98.3", "1.5", "W", "12.6", "Q"]), "out_of_range"),
+        (sentence("GP", "VTG", ["054.7", "T", "", "M", "-5.5", "N", "", "K", "A"]), "malformed"),
         ("garbage", "malformed"),
         ("", "empty"),
         ("$" + "A" * (MAX_LINE + 5), "too_long"),
@@ -121,7 +165,7 @@ def test_line_splitter_keeps_lines_across_chunks_and_drops_huge_ones():
 
 
 # ---------------------------------------------------------------- fuzzing
-_good = st.sampled_from([GGA, RMC, GLL, HDT, THS, ROT, GST])
+_good = st.sampled_from([GGA, RMC, GLL, HDT, THS, ROT, GST, GNS, HDG, HDM, VTG, VHW, ZDA, AIS, PROPRIETARY])
 
 
 @st.composite
@@ -153,8 +197,8 @@ def test_fuzzed_lines_never_raise_and_each_is_counted_once(lines):
     readings = 0
     for line in lines:
         got = parser.line(line, 1.0)
-        assert len(got) <= 1
-        readings += len(got)
+        assert len(got) <= (2 if len(got) == 2 and got[0].sentence == "RMC" else 1)  # an RMC: a position and a velocity
+        readings += bool(got)
         for reading in got:
             assert all(isinstance(v, float) for v in reading.values) and all(not math.isinf(v) for v in reading.values)
     assert parser.lines == len(lines)
@@ -172,7 +216,7 @@ def test_framing_alone_agrees_with_the_full_parse(line):
     full.line(line, 1.0)
     (counted,) = [name for name, n in full.counts.items() if n]
     if cause == "accepted":
-        assert counted in ("accepted", "no_fix", "malformed", "out_of_range") and formatter
+        assert counted in ("accepted", "time_only", "no_fix", "no_variation", "malformed", "out_of_range") and formatter
     else:
         assert counted == cause and formatter == ""
 
@@ -262,7 +306,7 @@ def test_a_binary_file_is_not_a_text_log_and_its_bytes_are_not_printed(tmp_path,
     with pytest.raises(ValueError) as raised:
         log_format(path, "--thrust")
     message = str(raised.value)
-    assert message == f"--thrust {path} is not a text log: it holds binary data (a log is text: TIME SENTENCE lines of NMEA, or CSV)"
+    assert message == f"--thrust {path} is not a text log: it holds binary data (a log is text: NMEA sentences, TIME SENTENCE lines, or CSV)"
 
 
 def test_an_empty_log_and_text_with_a_few_non_ascii_characters(tmp_path):

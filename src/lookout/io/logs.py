@@ -1,12 +1,19 @@
-"""Recorded logs: NMEA sentences with arrival times, and CSV for users without NMEA.
+"""Recorded logs: raw NMEA, NMEA sentences with arrival times, and CSV for users without NMEA.
 
-Two formats, told apart by the first line:
+Three formats (:data:`FORMATS`), told apart by the first line that is not blank or a
+``#`` comment (:func:`log_format`), or named by the caller:
 
-- **NMEA log** (any name; ``.nmea`` by convention): one sentence a line after the time
-  it arrived, ``TIME SENTENCE``, TIME in seconds (Unix time or any other origin); lines
-  starting with ``#`` are comments. Tag blocks and 61162-450 headers may stay on the
-  sentence.
-- **CSV**: a header naming its columns, then one row per sample.
+- **raw NMEA** (``raw``; what chart plotters, VDRs, OpenCPN, kplex and gpsd captures
+  save): one sentence a line as it came, ``$``, ``!`` or a tag block ``\\`` first, no
+  time column. Each line's time is read from the sentences
+  (:mod:`lookout.io.sentence_time`: UTC times of day, RMC's and ZDA's dates, midnight
+  rollover; a line between two timed sentences is at the time of the one above it).
+  CR, LF and CR LF line ends alike.
+- **timed NMEA** (``timed``; ``.nmea`` by convention): one sentence a line after the
+  time it arrived, ``TIME SENTENCE``, TIME in seconds (Unix time or any other origin);
+  lines starting with ``#`` are comments. Tag blocks and 61162-450 headers may stay on
+  the sentence.
+- **CSV** (``csv``): a header naming its columns, then one row per sample.
   ``time,north,east,heading`` gives local position (m, about any origin) and heading
   (degrees, true); an empty cell is a missing value. ``time,surge,sway,yaw`` gives
   thrust feedback (N, N, N m), the input the observer predicts with.
@@ -27,6 +34,12 @@ from io import BufferedReader
 from pathlib import Path
 
 from lookout.io.nmea import HEADING_SENTENCES, POSITION_SENTENCES, NmeaParser, Reading
+from lookout.io.sentence_time import SpreadClock, anchor_day
+
+#: The formats a caller can name (``--format``), and what :func:`log_format` calls them.
+FORMATS = {"raw": "nmea-raw", "timed": "nmea", "csv": "csv"}
+#: Lines read for a log's first line that is not blank or a comment before giving up.
+HEAD_LINES = 10_000
 
 #: CSV headers and the reading kinds their rows give.
 CSV_HEADERS = {
@@ -77,35 +90,53 @@ def _is_binary(head: bytes) -> bool:
     return control > 0.01 * len(head)
 
 
-def log_format(path: str | Path, option: str = "log") -> str:
-    """``"nmea"``, ``"csv-position"`` or ``"csv-thrust"``, from the file's first line.
+def log_format(path: str | Path, option: str = "log", forced: str | None = None) -> str:
+    """``"nmea-raw"``, ``"nmea"`` (timed), ``"csv-position"`` or ``"csv-thrust"``, from
+    the file's first line that is not blank or a ``#`` comment (a CSV's header is its
+    first line), or as ``forced`` says (a key of :data:`FORMATS`).
 
     Parameters
     ----------
     path : path
     option : str
         How messages name the file (``LOG``, ``--thrust``).
+    forced : {"raw", "timed", "csv"}, optional
+        The format, not detected (a CSV's header still tells position from thrust).
 
     Raises
     ------
     ValueError
         Naming ``option`` and the file when it cannot be read, is empty, holds binary
-        data, or its first line is a CSV header of neither kind.
+        data, its first line is a CSV header of neither kind, or ``forced`` is not a
+        format.
     """
+    if forced is not None and forced not in FORMATS:
+        raise ValueError(f"format must be one of {', '.join(FORMATS)}; got {forced!r}")
     path = Path(path)
     try:
         with open_log(path) as handle:
             head = handle.read(HEAD_BYTES)
+            handle.seek(len(UTF8_BOM) if has_bom(path) else 0)
+            first_line = next(
+                (line.strip() for _, line in zip(range(HEAD_LINES), _lines(handle)) if line.strip() and not line.lstrip().startswith(b"#")), b""
+            )
     except OSError as error:
         raise ValueError(f"{option} {path}: cannot be read ({error.strerror or error})") from None
     if not head.strip():
         raise ValueError(f"{option} {path} is empty" + (" (only blank lines)" if head else ""))
     if _is_binary(head):
-        raise ValueError(f"{option} {path} is not a text log: it holds binary data (a log is text: TIME SENTENCE lines of NMEA, or CSV)")
-    first = head.split(b"\n", 1)[0]
+        raise ValueError(f"{option} {path} is not a text log: it holds binary data (a log is text: NMEA sentences, TIME SENTENCE lines, or CSV)")
+    first = head.replace(b"\r", b"\n").split(b"\n", 1)[0]
     header = tuple(cell.strip() for cell in first.decode("ascii", "replace").strip().lower().split(","))
-    if header in CSV_HEADERS:
+    if header in CSV_HEADERS and forced in (None, "csv"):
         return f"csv-{CSV_HEADERS[header]}"
+    if forced == "csv":
+        wanted = " or ".join(",".join(h) for h in CSV_HEADERS)
+        raise ValueError(f"{option} {path}: a CSV log's first line must be {wanted}; got {first.strip()[:60].decode('ascii', 'replace')!r}")
+    if forced is not None:
+        return FORMATS[forced]
+    if first_line.startswith((b"$", b"!", b"\\")):
+        return "nmea-raw"
     if b"," in first and not first.lstrip().startswith((b"#", b"$", b"!", b"\\")) and b" " not in first.strip()[:40]:
         wanted = " or ".join(",".join(h) for h in CSV_HEADERS)
         shown = first.strip()[:60].decode("ascii", "replace")
@@ -113,10 +144,70 @@ def log_format(path: str | Path, option: str = "log") -> str:
     return "nmea"
 
 
-def nmea_log(path: str | Path, parser: NmeaParser) -> Iterator[Reading]:
-    """The readings of an NMEA log, in file order; unreadable lines go to ``parser.counts``."""
+def _framed_sentences(path: str | Path, parser: NmeaParser) -> Iterator[tuple[str, bytes]]:
+    """``(formatter, body)`` of a raw log's well-framed sentences, in file order."""
     with open_log(path) as handle:
-        for raw in handle:
+        for raw in _lines(handle):
+            cause, formatter, body = parser.framed(raw)
+            if cause == "accepted":
+                yield formatter, body
+
+
+def _lines(handle: BufferedReader) -> Iterator[bytes]:
+    """A file's lines, ended by LF, CR LF or CR alone (a CR-only file is one line to
+    ``for line in handle``)."""
+    for raw in handle:
+        if b"\r" in raw.rstrip(b"\r\n"):
+            yield from raw.replace(b"\r\n", b"\n").replace(b"\r", b"\n").splitlines()
+        else:
+            yield raw
+
+
+def raw_clock(path: str | Path, require_checksum: bool = True) -> SpreadClock:
+    """A fresh :class:`~lookout.io.sentence_time.SpreadClock` for a raw log, anchored
+    at its first date (the log is read up to it)."""
+    return SpreadClock(anchor_day(_framed_sentences(path, NmeaParser(require_checksum=require_checksum))))
+
+
+def _kind_key(line: bytes, body: bytes) -> bytes:
+    """What a raw log's lines of one kind share: the tag block in front and the address."""
+    prefix = line[: line.find(b"$")] if line.startswith(b"\\") else b""
+    return prefix + body.split(b",", 1)[0]
+
+
+def raw_log_times(path: str | Path, parser: NmeaParser, clock: SpreadClock | None = None) -> Iterator[tuple[int, bytes, str, str, float]]:
+    """``(number, line, cause, formatter, time)`` of each line of a raw log that is not
+    blank or a comment, in file order: its number in the file (from 1), its framing
+    (:meth:`~lookout.io.nmea.NmeaParser.framed`: nothing counted) and its time from the
+    sentences (``clock``, :func:`raw_clock`'s unless given; NaN before the first time)."""
+    clock = clock if clock is not None else raw_clock(path, parser.require_checksum)
+    with open_log(path) as handle:
+        for number, raw in enumerate(_lines(handle), start=1):
+            line = raw.strip()
+            if not line or line.startswith(b"#"):
+                continue
+            cause, formatter, body = parser.framed(line)
+            for item, time in clock.feed((number, line, cause, formatter), formatter, body, _kind_key(line, body)):
+                yield (*item, time)  # type: ignore[misc]  # the item fed in above
+    for item, time in clock.flush():
+        yield (*item, time)  # type: ignore[misc]
+
+
+def nmea_log(path: str | Path, parser: NmeaParser, fmt: str = "nmea") -> Iterator[Reading]:
+    """The readings of an NMEA log, in file order; unreadable lines go to ``parser.counts``.
+
+    ``fmt`` is ``"nmea"`` (timed, ``TIME SENTENCE``) or ``"nmea-raw"``: each line's
+    time is then read from the sentences (:func:`raw_log_times`), and a sentence before
+    the first time is counted ``untimed``."""
+    if fmt == "nmea-raw":
+        for _, line, cause, _, time in raw_log_times(path, parser):
+            if math.isnan(time) and cause == "accepted":
+                parser.counts["untimed"] += 1
+            else:  # a line refused by its framing is counted under its cause, whatever its time
+                yield from parser.line(line, time)
+        return
+    with open_log(path) as handle:
+        for raw in _lines(handle):
             yield from nmea_log_line(raw, parser)
 
 
@@ -149,10 +240,10 @@ class CsvLog:
         format says, and the row is accepted.
     """
 
-    def __init__(self, path: str | Path, source: str = "csv", option: str = "log"):
+    def __init__(self, path: str | Path, source: str = "csv", option: str = "log", fmt: str | None = None):
         self.path = Path(path)
         self.source = source
-        kind = log_format(self.path, option)
+        kind = log_format(self.path, option, fmt if fmt == "csv" else None)
         if not kind.startswith("csv-"):
             raise ValueError(f"{option} {self.path}: not a CSV log (first line {' or '.join(','.join(h) for h in CSV_HEADERS)})")
         self.kind = kind[4:]
@@ -160,8 +251,9 @@ class CsvLog:
 
     def __iter__(self):
         with open_log(self.path) as handle:
-            handle.readline()
-            for raw in handle:
+            lines = _lines(handle)
+            next(lines, None)
+            for raw in lines:
                 yield from self.row(raw)
 
     def row(self, raw: bytes) -> list[Reading]:
@@ -239,6 +331,9 @@ class LogScan:
         time it starts from.
     bom : bool
         Whether the file starts with a UTF-8 byte-order mark (skipped by every reader).
+    ignored_dates : int
+        A raw log's dates that disagreed with the day counted from its times of day
+        (:class:`~lookout.io.sentence_time.SentenceClock`).
     usable : collections.Counter
         Lines by what they can give: ``position``, ``heading``, ``thrust``, ``other``
         (a supported sentence of neither), or the cause they cannot (the NMEA parser's
@@ -262,6 +357,7 @@ class LogScan:
     gap_line: int = 0
     gap_start: float = math.nan
     bom: bool = False
+    ignored_dates: int = 0
     usable: Counter = field(default_factory=Counter)
     _steps: list = field(default_factory=lambda: [0] * (_BINS_PER_DECADE * _DECADES), repr=False)
 
@@ -315,22 +411,39 @@ class LogScan:
         self.newest, self.newest_line = time, number
 
 
-def scan_log(path: str | Path, option: str = "log") -> LogScan:
+def scan_log(path: str | Path, option: str = "log", fmt: str | None = None) -> LogScan:
     """One cheap pass over a log: each line's time and, for NMEA, its framing and
-    checksum (no field is parsed), in constant memory.
+    checksum (no field is parsed but a raw log's times), in constant memory.
+
+    Parameters
+    ----------
+    fmt : {"raw", "timed", "csv"}, optional
+        The format (:data:`FORMATS`), detected when not given.
 
     Raises
     ------
     ValueError
         As :func:`log_format` (naming ``option``).
     """
-    kind = log_format(path, option)
+    kind = log_format(path, option, fmt)
     scan = LogScan(Path(path), option, kind)
     parser = NmeaParser()
-    csv = CsvLog(path, option=option) if kind.startswith("csv-") else None
+    csv = CsvLog(path, option=option, fmt=fmt) if kind.startswith("csv-") else None
     scan.bom = has_bom(path)
+    if kind == "nmea-raw":
+        clock = raw_clock(path)
+        for number, _, cause, formatter, time in raw_log_times(path, parser, clock):
+            scan.lines += 1
+            if math.isnan(time) and cause == "accepted":
+                scan.usable["untimed"] += 1
+                continue
+            scan.usable[_usable(cause, formatter)] += 1
+            if cause == "accepted":
+                scan._time(number, time)
+        scan.ignored_dates = clock.ignored_dates
+        return scan
     with open_log(path) as handle:
-        for number, raw in enumerate(handle, start=1):
+        for number, raw in enumerate(_lines(handle), start=1):
             line = raw.strip()
             if not line or line.startswith(b"#") or (csv is not None and number == 1):
                 continue
@@ -351,8 +464,13 @@ def scan_log(path: str | Path, option: str = "log") -> LogScan:
                 scan.usable["malformed"] += 1
                 continue
             cause, formatter = parser.frame(sentence.strip())
-            if cause == "accepted":
-                cause = "position" if formatter in POSITION_SENTENCES else "heading" if formatter in HEADING_SENTENCES else "other"
-            scan.usable[cause] += 1
+            scan.usable[_usable(cause, formatter)] += 1
             scan._time(number, time)
     return scan
+
+
+def _usable(cause: str, formatter: str) -> str:
+    """What a line can give (:attr:`LogScan.usable`), from its framing."""
+    if cause != "accepted":
+        return cause
+    return "position" if formatter in POSITION_SENTENCES else "heading" if formatter in HEADING_SENTENCES else "other"

@@ -1,17 +1,21 @@
-"""NMEA 0183 position and heading sentences: framing, checksums, parsing.
+"""NMEA 0183 sentences of position, heading and speed: framing, checksums, parsing.
 
-A DP vessel's position references and gyros speak NMEA 0183 (IEC 61162-1): GGA, GLL
-and RMC for position, GST for the position's error ellipse, HDT and THS for true
-heading (THS, IEC 61162-1 ed. 4, carries a mode indicator and replaces HDT), ROT for
-rate of turn. Over Ethernet, IEC 61162-450 puts a ``UdPbC\\0`` header in front of a
+A DP vessel's position references and gyros speak NMEA 0183 (IEC 61162-1): GGA, GNS,
+GLL and RMC for position, GST for the position's error ellipse, HDT and THS for true
+heading (THS, IEC 61162-1 ed. 4, carries a mode indicator and replaces HDT), HDG and
+HDM for magnetic heading (turned to true with the sentence's deviation and variation,
+:class:`NmeaParser`), ROT for rate of turn, RMC and VTG for speed and course over
+ground, VHW for speed through the water, ZDA for the date. Over Ethernet, IEC 61162-450 puts a ``UdPbC\\0`` header in front of a
 datagram and a tag block ``\\s:GP0001,c:1577836800*hh\\`` in front of a sentence; a
 datagram may carry several sentences.
 
-The sentences' fields are parsed by pynmeagps (a maintained parser that knows all seven
-sentences, THS included); this module frames lines, verifies checksums (the sentence's
-and the tag block's), tells sources apart and turns each line into at most one
-:class:`Reading`, counting every line exactly once in :attr:`NmeaParser.counts` under
-one cause. Nothing a line contains makes it raise.
+The sentences' fields are parsed by pynmeagps (a maintained parser that knows them all,
+THS included); this module frames lines, verifies checksums (the sentence's and the tag
+block's), tells sources apart and turns each line into its :class:`Reading` objects (an
+RMC gives a position and a velocity over ground; the others at most one), counting
+every line exactly once in :attr:`NmeaParser.counts` under one cause. AIS (``!``) and
+proprietary (``$P``) lines are counted apart and skipped. Nothing a line contains makes
+it raise.
 """
 
 from __future__ import annotations
@@ -27,14 +31,34 @@ from pynmeagps import NMEAReader
 from pynmeagps.nmeatypes_core import VALNONE
 
 #: The sentences turned into readings, by what they measure.
-POSITION_SENTENCES = ("GGA", "GLL", "RMC")
-HEADING_SENTENCES = ("HDT", "THS")
-SUPPORTED = POSITION_SENTENCES + HEADING_SENTENCES + ("ROT", "GST")
+POSITION_SENTENCES = ("GGA", "GNS", "GLL", "RMC")
+HEADING_SENTENCES = ("HDT", "THS", "HDG", "HDM")
+#: Magnetic heading sentences, turned to true heading with a variation.
+MAGNETIC_SENTENCES = ("HDG", "HDM")
+#: Speed and course over ground (RMC's and VTG's), speed through the water (VHW's).
+VELOCITY_SENTENCES = ("RMC", "VTG")
+SUPPORTED = POSITION_SENTENCES + HEADING_SENTENCES + ("ROT", "GST", "VTG", "VHW", "ZDA")
+#: Metres per second in a knot (1852 m per hour).
+KNOT = 1852.0 / 3600.0
 #: The longest line kept (IEC 61162-1 allows 82 characters a sentence; a tag block
 #: and a 61162-450 header make it longer). Longer lines are dropped as ``too_long``.
 MAX_LINE = 1024
 #: The causes under which :class:`NmeaParser` counts a line (each line exactly one).
-CAUSES = ("accepted", "no_fix", "checksum", "malformed", "out_of_range", "unsupported", "too_long", "empty")
+CAUSES = (
+    "accepted",
+    "time_only",
+    "untimed",
+    "no_fix",
+    "no_variation",
+    "checksum",
+    "malformed",
+    "out_of_range",
+    "unsupported",
+    "ais",
+    "proprietary",
+    "too_long",
+    "empty",
+)
 _HEADER = b"UdPbC\x00"
 
 #: Talker IDs that one device speaks under, by the device they name: a
@@ -149,12 +173,16 @@ class Reading:
     source : str
         The sender: the talker ID, then the tag block's ``s:`` source or the stream's
         origin (``GP@192.168.1.5:10110``), so two receivers of one kind stay apart.
-    kind : {"position", "heading", "rate_of_turn", "position_error"}
+    kind : {"position", "heading", "rate_of_turn", "position_error", "ground_velocity", "water_speed"}
     values : tuple of float
-        ``position``: latitude, longitude (degrees), fix quality (GGA; 1 for GLL and RMC),
-        HDOP (GGA; NaN otherwise). ``heading``: true heading (degrees).
-        ``rate_of_turn``: degrees per minute, positive to starboard. ``position_error``:
-        standard deviations of latitude and longitude (m).
+        ``position``: latitude, longitude (degrees), fix quality (GGA's; GNS's mode
+        indicator as GGA's quality: :data:`GNS_QUALITY`; 1 for GLL and RMC), HDOP (GGA,
+        GNS; NaN otherwise). ``heading``: true heading (degrees; from HDG and HDM, the
+        magnetic heading turned to true). ``rate_of_turn``: degrees per minute, positive
+        to starboard. ``position_error``: standard deviations of latitude and longitude
+        (m). ``ground_velocity``: speed over ground (m/s) and course over ground (degrees
+        true, NaN where the sentence leaves it empty). ``water_speed``: speed through the
+        water (m/s).
     sentence : str
         The sentence's formatter (``GGA``).
     """
@@ -234,29 +262,52 @@ def _float(value) -> float:
 class NmeaParser:
     """Lines of NMEA 0183 to :class:`Reading` objects, every line counted once.
 
+    Magnetic heading (HDG, HDM) is turned to true heading: true = magnetic + deviation
+    + variation, east positive (HDG's heading is the magnetic sensor's, before its
+    deviation; an empty deviation is 0). The variation is the sentence's own (HDG), else
+    the latest RMC's, else ``variation``; a magnetic heading with none of the three is
+    counted ``no_variation``.
+
     Parameters
     ----------
     require_checksum : bool
         Refuse a sentence without a ``*hh`` checksum (IEC 61162-1 makes it mandatory
         for these sentences); default True.
+    variation : float, optional
+        Magnetic variation (degrees, east positive, within +-180) for magnetic headings
+        whose sentence carries none, when no RMC has given one.
 
     Attributes
     ----------
     counts : collections.Counter
-        Lines by cause (:data:`CAUSES`): ``accepted`` (a reading), ``no_fix`` (valid, but
-        says it has no fix: GGA quality 0, status V, empty fields), ``checksum``,
-        ``malformed``, ``out_of_range`` (a latitude, longitude or heading outside its
-        range), ``unsupported`` (a sentence this module does not use),
-        ``too_long``, ``empty``.
+        Lines by cause (:data:`CAUSES`): ``accepted`` (one reading or more),
+        ``time_only`` (a ZDA: a date and time, no measurement), ``untimed`` (a raw
+        log's line before its first time, counted by its reader,
+        :func:`lookout.io.logs.nmea_log`), ``no_fix`` (valid, but
+        says it has no fix: GGA quality 0, status V, empty fields), ``no_variation`` (a
+        magnetic heading without a variation), ``checksum``, ``malformed``,
+        ``out_of_range`` (a latitude, longitude, heading or variation outside its
+        range), ``unsupported`` (a sentence this module does not use), ``ais`` (a ``!``
+        line), ``proprietary`` (a ``$P`` line), ``too_long``, ``empty``.
+    sentences : collections.Counter
+        Lines by ``(formatter, cause)`` for the supported sentences: what each kind of
+        sentence gave.
     sources : collections.Counter
         Readings by ``(source, kind)``.
     """
 
-    def __init__(self, require_checksum: bool = True):
+    def __init__(self, require_checksum: bool = True, variation: float | None = None):
         if not isinstance(require_checksum, bool):
             raise ValueError(f"require_checksum must be True or False; got {require_checksum!r}")
+        if variation is not None and (
+            isinstance(variation, bool) or not isinstance(variation, (int, float)) or not (math.isfinite(variation) and -180.0 <= variation <= 180.0)
+        ):
+            raise ValueError(f"variation must be degrees within -180 to 180 (east positive); got {variation!r}")
         self.require_checksum = require_checksum
+        self.variation = None if variation is None else float(variation)
+        self.rmc_variation: float | None = None  # the latest RMC's (degrees, east positive)
         self.counts: Counter = Counter({cause: 0 for cause in CAUSES})
+        self.sentences: Counter = Counter()
         self.sources: Counter = Counter()
 
     @property
@@ -277,13 +328,14 @@ class NmeaParser:
         return [reading for line in data.splitlines() if line.strip() for reading in self.line(line, time, origin)]
 
     def line(self, line: bytes | str, time: float, origin: str = "") -> list[Reading]:
-        """The reading of one line (a list of none or one), the line counted once."""
-        cause, reading = self._parse(line, time, origin)
+        """The readings of one line (none, one, or an RMC's two), the line counted once."""
+        cause, formatter, readings = self._parse(line, time, origin)
         self.counts[cause] += 1
-        if reading is None:
-            return []
-        self.sources[(reading.source, reading.kind)] += 1
-        return [reading]
+        if formatter:
+            self.sentences[(formatter, cause)] += 1
+        for reading in readings:
+            self.sources[(reading.source, reading.kind)] += 1
+        return readings
 
     def frame(self, line: bytes | str) -> tuple[str, str]:
         """``(cause, formatter)`` of a line's framing alone: its length, tag block,
@@ -291,8 +343,17 @@ class NmeaParser:
         pre-scan of a log, :func:`lookout.io.logs.scan_log`). ``cause`` is one of
         :data:`CAUSES`, ``"accepted"`` when the line is a supported sentence whose
         fields remain to be read; nothing is counted."""
+        cause, formatter, _ = self.framed(line)
+        return cause, formatter
+
+    def framed(self, line: bytes | str) -> tuple[str, str, bytes]:
+        """``(cause, formatter, body)``: :meth:`frame`, and the checksum-verified
+        sentence from its address to before ``*`` (``b""`` when refused)."""
         cause, framed = self._frame(line)
-        return cause, (framed[2] if framed else "")
+        if framed is None:
+            return cause, "", b""
+        text = framed[0]
+        return cause, framed[2], text[1 : text.rfind(b"*")]
 
     def _frame(self, line):
         """``(cause, (line, talker, formatter, tags))``: the framing checks of :meth:`line`."""
@@ -306,7 +367,11 @@ class NmeaParser:
         tags, line = _tag_block(line)
         if tags == "bad":
             return "checksum", None
-        if line[:1] not in (b"$", b"!") or len(line) < 7:
+        if line[:1] == b"!":
+            return "ais", None
+        if line[:2] == b"$P":
+            return "proprietary", None
+        if line[:1] != b"$" or len(line) < 7:
             return "malformed", None
         if b"*" in line:
             if _verified(line) is None:
@@ -321,74 +386,157 @@ class NmeaParser:
             return "malformed", None
         if not (5 <= len(address) <= 6 and address.isalnum()):
             return "malformed", None
-        talker, formatter = (address[:2], address[2:]) if not address.startswith("P") else (address[:1], address[1:])
+        talker, formatter = address[:2], address[2:]
         if formatter not in SUPPORTED:
             return "unsupported", None
         return "accepted", (line, talker, formatter, tags)
 
-    def _parse(self, line, time: float, origin: str):
+    def _parse(self, line, time: float, origin: str) -> tuple[str, str, list[Reading]]:
+        """``(cause, formatter, readings)`` of one line."""
         cause, framed = self._frame(line)
         if framed is None:
-            return cause, None
+            return cause, "", []
         line, talker, formatter, tags = framed
         try:
             message = NMEAReader.parse(line, validate=VALNONE)
-            kind, values = _values(formatter, message)
+            if formatter == "RMC" and message.status == "A":
+                self._remember_variation(message)
+            values = _values(formatter, message)
+            if formatter in MAGNETIC_SENTENCES and values:
+                values = [self._true_heading(formatter, message, values[0][1][0])]
         except _OutOfRange:
-            return "out_of_range", None
+            return "out_of_range", formatter, []
+        except _NoVariation:
+            return "no_variation", formatter, []
         except Exception:  # noqa: BLE001 - a line never raises: pynmeagps raises several types on bad fields
-            return "malformed", None
-        if kind is None:
-            return "no_fix", None
+            return "malformed", formatter, []
+        if formatter == "ZDA":
+            return "time_only", formatter, []
+        if not values:
+            return "no_fix", formatter, []
         where = (tags or {}).get("s") or origin
         source = f"{talker}@{where}" if where else talker
-        return "accepted", Reading(float(time), source, kind, values, formatter)
+        return "accepted", formatter, [Reading(float(time), source, kind, value, formatter) for kind, value in values]
+
+    def _remember_variation(self, message) -> None:
+        """Keep an RMC's magnetic variation for the magnetic headings that carry none."""
+        variation = _signed(message.mv, message.mvEW)
+        if variation is not None:
+            self.rmc_variation = variation
+
+    def _true_heading(self, formatter: str, message, magnetic: float) -> tuple[str, tuple[float, ...]]:
+        """A magnetic heading turned to true (the class docstring's rule)."""
+        variation = _signed(message.variation, message.variationEW) if formatter == "HDG" else None
+        if variation is None:
+            variation = self.rmc_variation if self.rmc_variation is not None else self.variation
+        if variation is None:
+            raise _NoVariation
+        deviation = (_signed(message.deviation, message.deviationEW) or 0.0) if formatter == "HDG" else 0.0
+        if abs(deviation) > 180.0:
+            raise _OutOfRange("deviation out of range")
+        return "heading", ((magnetic + deviation + variation) % 360.0,)
 
 
-def _values(formatter: str, message):
-    """``(kind, values)`` of a parsed sentence, ``(None, ())`` when it reports no fix.
-    Raises on a missing or unreadable field."""
-    if formatter in POSITION_SENTENCES:
-        if formatter == "GGA":
-            quality = int(message.quality)
-            if quality == 0 or message.lat == "" or message.lon == "":
-                return None, ()
-            hdop = _float(message.HDOP)
-        else:
-            if message.status != "A" or message.lat == "" or message.lon == "":
-                return None, ()
-            quality, hdop = 1, math.nan
-        lat, lon = float(message.lat), float(message.lon)
-        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-            raise _OutOfRange("position out of range")
-        return "position", (lat, lon, float(quality), hdop)
-    if formatter in HEADING_SENTENCES:
-        if formatter == "THS":
-            # mode indicator: A autonomous, E estimated (dead reckoning), M manual, S simulator, V not valid
-            if message.mi not in ("A", "E") or message.headt == "":
-                return None, ()
-            heading = float(message.headt)
-        else:
-            if message.headingT == "":
-                return None, ()
-            heading = float(message.headingT)
-        if not (math.isfinite(heading) and 0.0 <= heading <= 360.0):
-            raise _OutOfRange("heading out of range")
-        return "heading", (heading,)
+class _NoVariation(ValueError):
+    """A magnetic heading with no variation to turn it to true."""
+
+
+def _signed(value, hemisphere) -> float | None:
+    """An angle with its E/W letter, east positive (None when the field is empty)."""
+    if value in ("", None):
+        return None
+    angle = float(value)
+    if not (math.isfinite(angle) and 0.0 <= angle <= 180.0) or hemisphere not in ("E", "W"):
+        raise _OutOfRange("variation or deviation out of range")
+    return angle if hemisphere == "E" else -angle
+
+
+#: A GNS mode indicator's letters as GGA's fix quality: autonomous 1, differential 2,
+#: precise 3, RTK fixed 4, RTK float 5, estimated 6, manual 7, simulator 8. A GNS with
+#: several constellations' letters takes the best (the order of this table), and one
+#: of only N (no fix) gives none.
+GNS_QUALITY = {"R": 4, "F": 5, "P": 3, "D": 2, "A": 1, "E": 6, "M": 7, "S": 8}
+
+
+def _gns_quality(mode: str) -> int:
+    """GGA's fix quality of a GNS mode indicator (0: no fix)."""
+    for letter, quality in GNS_QUALITY.items():
+        if letter in mode:
+            return quality
+    return 0
+
+
+def _position(lat, lon) -> tuple[float, float]:
+    latitude, longitude = float(lat), float(lon)
+    if not (-90.0 <= latitude <= 90.0 and -180.0 <= longitude <= 180.0):
+        raise _OutOfRange("position out of range")
+    return latitude, longitude
+
+
+def _angle(value) -> float:
+    """A heading or course field (degrees in [0, 360])."""
+    angle = float(value)
+    if not (math.isfinite(angle) and 0.0 <= angle <= 360.0):
+        raise _OutOfRange("heading out of range")
+    return angle
+
+
+def _speed(knots) -> float:
+    """A speed field in knots, as m/s (a negative or non-finite speed is malformed)."""
+    speed = float(knots)
+    if not (math.isfinite(speed) and speed >= 0.0):
+        raise ValueError("speed not finite and non-negative")
+    return speed * KNOT
+
+
+def _values(formatter: str, message) -> list[tuple[str, tuple[float, ...]]]:
+    """``[(kind, values), ...]`` of a parsed sentence, empty when it reports no fix (a
+    ZDA's too: it measures nothing). Raises on a missing or unreadable field."""
+    if formatter in ("GGA", "GNS"):
+        quality = int(message.quality) if formatter == "GGA" else _gns_quality(str(message.posMode))
+        if quality == 0 or message.lat == "" or message.lon == "":
+            return []
+        return [("position", (*_position(message.lat, message.lon), float(quality), _float(message.HDOP)))]
+    if formatter in ("GLL", "RMC"):
+        if message.status != "A" or message.lat == "" or message.lon == "":
+            return []
+        readings: list[tuple[str, tuple[float, ...]]] = [("position", (*_position(message.lat, message.lon), 1.0, math.nan))]
+        if formatter == "RMC" and message.spd not in ("", None):
+            course = math.nan if message.cog in ("", None) else _angle(message.cog)
+            readings.append(("ground_velocity", (_speed(message.spd), course)))
+        return readings
+    if formatter == "THS":
+        # mode indicator: A autonomous, E estimated (dead reckoning), M manual, S simulator, V not valid
+        if message.mi not in ("A", "E") or message.headt == "":
+            return []
+        return [("heading", (_angle(message.headt),))]
+    if formatter == "HDT":
+        return [] if message.headingT == "" else [("heading", (_angle(message.headingT),))]
+    if formatter in MAGNETIC_SENTENCES:  # magnetic: the parser turns it to true
+        return [] if message.headingM == "" else [("heading", (_angle(message.headingM),))]
     if formatter == "ROT":
         if message.valid != "A" or message.rot == "":
-            return None, ()
+            return []
         rate = float(message.rot)
         if not math.isfinite(rate):
             raise ValueError("rate of turn not finite")
-        return "rate_of_turn", (rate,)
+        return [("rate_of_turn", (rate,))]
+    if formatter == "VTG":
+        if str(message.posMode) == "N" or message.sogn in ("", None):
+            return []
+        course = math.nan if message.cogt in ("", None) else _angle(message.cogt)
+        return [("ground_velocity", (_speed(message.sogn), course))]
+    if formatter == "VHW":
+        return [] if message.spdN in ("", None) else [("water_speed", (_speed(message.spdN),))]
+    if formatter == "ZDA":
+        return []
     # GST: the error ellipse's standard deviations in latitude and longitude (m)
     if message.stdLat == "" or message.stdLong == "":
-        return None, ()
+        return []
     std = (float(message.stdLat), float(message.stdLong))
     if not all(math.isfinite(s) and s >= 0 for s in std):
         raise ValueError("GST standard deviation not finite")
-    return "position_error", std
+    return [("position_error", std)]
 
 
 class LineSplitter:

@@ -343,3 +343,128 @@ def write_simulated_log(
     truth.attrs.update({"log_epoch_unix_s": epoch, "origin_latitude": frame.latitude, "origin_longitude": frame.longitude})
     write_netcdf(truth, paths["truth"], history=f"truth of the simulated log {paths['nmea'].name}")
     return paths
+
+
+#: The magnetic variation (degrees, east positive) and the compass's deviation a raw
+#: log's HDG sentences carry unless told: 3.5 W and 1.2 E, of the size a compass in
+#: northern Europe shows.
+RAW_VARIATION, RAW_DEVIATION = -3.5, 1.2
+
+
+def _hemisphere(angle: float) -> tuple[str, str]:
+    """An angle east positive as (degrees, E or W), two decimals."""
+    return f"{abs(angle):.2f}", ("E" if angle >= 0 else "W")
+
+
+def _utc_fields(unix: float) -> tuple[str, str]:
+    """(hhmmss.ss, ddmmyy) of a Unix time."""
+    moment = datetime.datetime.fromtimestamp(round(unix, 2), datetime.UTC)
+    return f"{moment:%H%M%S}.{moment.microsecond // 10000:02d}", f"{moment:%d%m%y}"
+
+
+def write_raw_log(
+    ds: xr.Dataset,
+    path: str | Path,
+    *,
+    frame: LocalFrame | None = None,
+    epoch: float = EPOCH,
+    variation: float = RAW_VARIATION,
+    deviation: float = RAW_DEVIATION,
+    twin: str | Path | None = None,
+) -> Path:
+    """Write one simulated run as a chart plotter or a VDR logs it: raw NMEA 0183, one
+    sentence a line, no time column (:mod:`lookout.io.sentence_time`).
+
+    At each position sample (``measured_position``, the first period of
+    ``sensor_sample_period_s``) a GGA, an RMC (with the date, the speed and course over
+    ground of the run's true velocity, and ``variation``) and a VTG, stamped with the
+    sample's UTC time; at each heading sample an HDG: the magnetic sensor's heading,
+    ``true - variation - deviation``, with its deviation and variation, two decimals.
+    After a ``#`` header a ZDA gives the date; every 100th fix an AIS line and a
+    proprietary ``$P`` line are mixed in (a replay counts and skips them).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        One run of a vessel scenario with a position-heading sensor.
+    path : path
+        The raw log to write.
+    frame, epoch
+        As :func:`write_simulated_log`.
+    variation, deviation : float
+        Degrees, east positive, within +-90.
+    twin : path, optional
+        Also write the same samples as ``TIME SENTENCE`` lines: each line at the time a
+        raw log's reader gives it (a fix's sentences at their UTC, the headings spread
+        evenly from one fix to the next, :mod:`lookout.io.sentence_time`), the heading
+        as THS (true, five decimals): the raw log's readings, timed by the writer rather
+        than by the reader.
+
+    Raises
+    ------
+    ValueError
+        Naming ``variation`` or ``deviation`` outside +-90, before anything is written.
+    """
+    for label, value in (("variation", variation), ("deviation", deviation)):
+        if not (math.isfinite(value) and abs(value) <= 90.0):
+            raise ValueError(f"{label} must be degrees within -90 to 90 (east positive); got {value!r}")
+    frame = frame or LocalFrame(63.44, 10.40)
+    ds = ds.isel(run=0) if "run" in ds.dims else ds
+    step = float(ds.attrs["sample_period_s"])
+    periods = [float(p) for p in str(ds.attrs["sensor_sample_period_s"]).strip("[]").split(",")]
+    every_fix, every_heading = (max(round(periods[i] / step), 1) for i in (0, 2))
+    times = np.asarray(ds["time"].values, dtype=float)
+    fixes = np.asarray(ds["measured_position"].values, dtype=float).reshape(times.size, -1)
+    headings = np.asarray(ds["measured_heading"].values, dtype=float).reshape(times.size)
+    psi = np.asarray(ds["heading"].values, dtype=float).reshape(times.size)
+    body = np.asarray(ds["velocity"].values, dtype=float).reshape(times.size, -1)
+    north = np.cos(psi) * body[:, 0] - np.sin(psi) * body[:, 1]
+    east = np.sin(psi) * body[:, 0] + np.cos(psi) * body[:, 1]
+    variation_fields = _hemisphere(variation)
+    raw = [f"# lookout raw NMEA log: {ds.attrs.get('scenario', 'a simulated run')}; no time column: the time is in the sentences\n"]
+    timed: list[str] = []
+    _, date = _utc_fields(epoch)
+    day = datetime.datetime.fromtimestamp(epoch, datetime.UTC)
+    raw.append(sentence("GP", "ZDA", [_utc_fields(epoch)[0], f"{day:%d}", f"{day:%m}", f"{day:%Y}", "00", "00"]) + "\n")
+    # segments: the sentences of one fix, then the headings up to the next fix
+    segments: list[tuple[float, list[str], list[tuple[str, float]]]] = []
+    fix_count = 0
+    for k, t in enumerate(times):
+        index = round(t / step)
+        unix = epoch + index * step
+        if index % every_fix == 0 and np.all(np.isfinite(fixes[k])):
+            latitude, longitude, _ = frame.geodetic(fixes[k, 0], fixes[k, 1], 0.0)
+            clock, date = _utc_fields(unix)
+            lat, ns = _minutes(float(latitude), 2, "NS")
+            lon, ew = _minutes(float(longitude), 3, "EW")
+            knots = math.hypot(north[k], east[k]) / (1852.0 / 3600.0)
+            course = math.degrees(math.atan2(east[k], north[k])) % 360.0
+            lines = [
+                gga(unix, float(latitude), float(longitude)),
+                sentence("GP", "RMC", [clock, "A", lat, ns, lon, ew, f"{knots:.3f}", f"{course:.2f}", date, *variation_fields, "D"]),
+                sentence(
+                    "GP",
+                    "VTG",
+                    [f"{course:.2f}", "T", f"{(course - variation) % 360.0:.2f}", "M", f"{knots:.3f}", "N", f"{knots * 1.852:.3f}", "K", "D"],
+                ),
+            ]
+            fix_count += 1
+            if fix_count % 100 == 0:
+                lines += ["!AIVDM,1,1,,B,177KQJ5000G?tO`K>RA1wUbN0TKH,0*5C", sentence("P", "GRME", ["15.0", "M", "45.0", "M", "25.0", "M"])]
+            segments.append((unix, lines, []))
+        if index % every_heading == 0 and math.isfinite(headings[k]) and segments:
+            true = math.degrees(headings[k]) % 360.0
+            sensor = (true - variation - deviation) % 360.0
+            segments[-1][2].append((sentence("HC", "HDG", [f"{sensor:.2f}", *_hemisphere(deviation), *variation_fields]), true))
+    for j, (start, lines, headed) in enumerate(segments):
+        raw += [line + "\n" for line in lines + [text for text, _ in headed]]
+        # the twin: the fix's sentences at its time; the VTG alone of its kind, at the
+        # fix's; the headings spread evenly to the next fix (at the fix's after the last)
+        end = segments[j + 1][0] if j + 1 < len(segments) else start
+        timed += [f"{start:.6f} {line}\n" for line in lines]
+        timed += [f"{start + i * (end - start) / len(headed):.6f} {ths(true)}\n" for i, (_, true) in enumerate(headed)]
+    path = Path(path)
+    path.write_text("".join(raw))
+    if twin is not None:
+        Path(twin).write_text("# the raw log's twin: each line at the time its reader gives it, headings as THS\n" + "".join(timed))
+    return path

@@ -233,6 +233,19 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
     )
 
 
+def _sentence_line(parser) -> str:
+    """Each sentence kind of the log by what it gave: ``GGA 600, HDG 5990 (no_variation 10)``."""
+    kinds: dict[str, dict[str, int]] = {}
+    for (formatter, cause), n in parser.sentences.items():
+        kinds.setdefault(formatter, {})[cause] = n
+    parts = []
+    for formatter in sorted(kinds):
+        causes = kinds[formatter]
+        others = ", ".join(f"{cause} {n}" for cause, n in sorted(causes.items()) if cause != "accepted")
+        parts.append(f"{formatter} {causes.get('accepted', 0)}" + (f" ({others})" if others else ""))
+    return "sentences: " + ", ".join(parts) + " (read; in parentheses, lines that gave no reading, by cause)"
+
+
 def _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout, gate_probability) -> dict:
     return {
         "min_quality": min_quality,
@@ -255,12 +268,12 @@ def _existing_file(option: str, path: str | None) -> None:
         raise InputError(f"{option} must be an existing file; got {path}" + (" (a folder)" if Path(path).is_dir() else ""))
 
 
-def _format(option: str, path: str) -> str:
+def _format(option: str, path: str, forced: str | None = None) -> str:
     """The log's format (:func:`lookout.io.logs.log_format`), a bad file refused naming ``option``."""
     from lookout.io.logs import log_format
 
     try:
-        return log_format(path, option)
+        return log_format(path, option, forced)
     except ValueError as error:
         raise InputError(str(error)) from None
 
@@ -368,7 +381,12 @@ MaxGap = Annotated[
 
 
 def replay_command(
-    log: Annotated[str, typer.Argument(metavar="LOG", help="An NMEA log (TIME SENTENCE lines) or a CSV log (time,north,east,heading).")],
+    log: Annotated[
+        str,
+        typer.Argument(
+            metavar="LOG", help="A raw NMEA log (sentences as they came), an NMEA log of TIME SENTENCE lines, or a CSV log (time,north,east,heading)."
+        ),
+    ],
     scenario_file: Annotated[
         str, typer.Option("--scenario", metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")
     ],
@@ -392,6 +410,22 @@ def replay_command(
     truth: Annotated[str | None, typer.Option(metavar="TRUTH.nc", help="The run behind a simulated log (lookout write-log), for --figure.")] = None,
     figure: Annotated[str | None, typer.Option(metavar="FILE.png", help="Draw the estimates (against --truth if given) from --out.")] = None,
     quiet: Quiet = False,
+    log_format: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            metavar="FORMAT",
+            help="The log's format: raw (NMEA sentences, times inside them), timed (TIME SENTENCE lines), csv, or auto (from its first line).",
+        ),
+    ] = "auto",
+    variation: Annotated[
+        float | None,
+        typer.Option(
+            metavar="DEGREES",
+            help="Magnetic variation, east positive, for magnetic headings (HDG, HDM) that carry none when no RMC has given one.",
+            show_default="the sentences' own",
+        ),
+    ] = None,
 ) -> None:
     """Run a scenario's observer over a recorded log, as it would have run live."""
     from lookout._commandline import progress_bar
@@ -408,6 +442,11 @@ def replay_command(
     if flush_every < 1:
         raise InputError(f"--flush-every must be a positive number of steps; got {flush_every}")
     _positive_seconds("--max-gap", max_gap)
+    if log_format not in ("auto", "raw", "timed", "csv"):
+        raise InputError(f"--format must be auto, raw, timed or csv; got {log_format!r}")
+    forced = None if log_format == "auto" else log_format
+    if variation is not None and not (math.isfinite(variation) and -180.0 <= variation <= 180.0):
+        raise InputError(f"--variation must be degrees within -180 to 180 (east positive); got {variation:g}")
     if figure is not None and out is None:
         raise InputError("--figure needs --out: the figure is drawn from the session's file")
     if truth is not None and figure is None:
@@ -426,7 +465,7 @@ def replay_command(
             raise InputError(f"--figure and --out must be two files; both are {out}")
     for option, path in (("LOG", log), ("--thrust", thrust), ("--truth", truth)):
         _existing_file(option, path)
-    if _format("LOG", log) == "csv-thrust":
+    if _format("LOG", log, forced) == "csv-thrust":
         raise InputError(f"LOG {log} is a thrust log (time,surge,sway,yaw): give it with --thrust, and a position log as LOG")
     if thrust is not None and _format("--thrust", thrust) != "csv-thrust":
         raise InputError(f"--thrust {thrust} must be a CSV log whose first line is time,surge,sway,yaw")
@@ -448,7 +487,7 @@ def replay_command(
     if truth is not None:
         _check_truth_period(truth, session.sample_period)
     try:  # the logs' times, order and lines, before any step
-        check = check_replay(session, log, thrust, max_gap)
+        check = check_replay(session, log, thrust, max_gap, forced)
     except OriginError as error:
         raise InputError(error.message("--origin")) from None
     except ValueError as error:
@@ -468,7 +507,7 @@ def replay_command(
                 say_now(text)
         write(block)
 
-    parser = NmeaParser()
+    parser = NmeaParser(variation=variation)
     import warnings
 
     if thrust is None:
@@ -513,6 +552,10 @@ def replay_command(
     assert outcome.first_time is not None and outcome.last_time is not None  # set with the first step
     span = outcome.last_time - outcome.first_time
     say(_status_line(session, parser, outcome, final=True))
+    if parser.sentences:
+        say(_sentence_line(parser))
+    if check.log.ignored_dates:
+        say(f"LOG {log}: {check.log.ignored_dates} dates disagreed with the day counted from the sentences' times of day and were ignored")
     say(
         f"{span:.1f} s of log in {outcome.wall_seconds:.2f} s ({span / outcome.wall_seconds:.0f}x real time)" + (f"; written to {out}" if out else "")
     )
@@ -708,10 +751,18 @@ def write_log_command(
         ),
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the arrival jitter and the corruptions (the run's own is the file's).")] = 0,
+    raw: Annotated[
+        bool,
+        typer.Option(
+            "--raw",
+            help="Also write NAME-raw.nmea, raw NMEA as a chart plotter logs it: GGA, RMC, VTG and HDG (3.5 W variation, 1.2 E deviation), no time column.",
+        ),
+    ] = False,
 ) -> None:
     """Simulate a scenario once and write what a bridge computer would have logged: GGA
     and THS with arrival times, an outage, corrupted and wild sentences; the same
-    samples as CSV, the thrust, and the run's truth. A sensor suite's log has each
+    samples as CSV, the thrust, and the run's truth. With --raw, also the raw log a
+    chart plotter would have saved (the time inside the sentences). A sensor suite's log has each
     position reference's GGA and each gyrocompass's THS, stamped with its source, and
     NAME-scenario.toml, the scenario with every such sensor's source, to replay it."""
     import re
@@ -750,6 +801,8 @@ def write_log_command(
             plan = suite_log(scenario.sensor)
         except ValueError as error:
             raise InputError(f"{scenario_file}: {error}") from None
+        if raw:
+            raise InputError(f"--raw writes the log of one receiver and one gyro (a position-heading sensor); {scenario_file} has a sensor suite")
     elif not {"measured_position", "measured_heading"} <= set(scenario.sensor.measurement_layout.names):
         raise InputError(
             f"{scenario_file}: the sensor must measure position and heading (kind position-heading); it measures "
@@ -777,6 +830,10 @@ def write_log_command(
         paths = write_simulated_log(ds, folder, name=name, frame=frame, outage=window, seed=seed, sensors=plan.sensors if plan else None)
     except ValueError as error:
         raise InputError(str(error)) from None
+    if raw:
+        from lookout.io.simulated_log import write_raw_log
+
+        paths["raw"] = write_raw_log(ds, folder / f"{name}-raw.nmea", frame=frame)
     if plan is not None:
         paths["scenario"] = _scenario_with_sources(spec, plan, folder / f"{name}-scenario.toml", scenario_file, origin)
         for sensor, kind in plan.skipped:

@@ -129,6 +129,10 @@ def check_log_order(scan: LogScan, tolerance: float) -> None:
     above it, or more than :data:`MAX_LATE_SHARE` of its lines stamped before one above."""
     where = f"{scan.option} {scan.path}"
     if scan.timed == 0:
+        if scan.format == "nmea-raw":
+            raise ValueError(
+                f"{where}: no sentence gives a time ({_described(scan)}); a raw NMEA log is timed by its GGA, GNS, GLL, RMC or ZDA sentences' UTC times"
+            )
         raise ValueError(f"{where}: no line has a time ({_described(scan)}); a log's lines are TIME SENTENCE, TIME in seconds")
     if scan.back > tolerance:
         raise ValueError(
@@ -143,7 +147,9 @@ def check_log_order(scan: LogScan, tolerance: float) -> None:
         )
 
 
-def check_replay(session: Session, log: str | Path, thrust: str | Path | None = None, max_gap: float = MAX_GAP) -> ReplayCheck:
+def check_replay(
+    session: Session, log: str | Path, thrust: str | Path | None = None, max_gap: float = MAX_GAP, fmt: str | None = None
+) -> ReplayCheck:
     """Refuse, before any step, a log that ``session`` cannot replay faithfully.
 
     One pass over each log (:func:`lookout.io.logs.scan_log`: times and framing, no
@@ -174,11 +180,13 @@ def check_replay(session: Session, log: str | Path, thrust: str | Path | None = 
     ----------
     max_gap : float
         The longest silence accepted (s); default :data:`MAX_GAP`.
+    fmt : {"raw", "timed", "csv"}, optional
+        The log's format (:data:`lookout.io.logs.FORMATS`), detected when not given.
     """
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating, np.integer)) or not (math.isfinite(max_gap) and max_gap > 0):
         raise ValueError(f"max_gap must be a finite positive number of seconds; got {max_gap!r}")
     tolerance = session.gap_after
-    scan = scan_log(log, "LOG")
+    scan = scan_log(log, "LOG", fmt)
     if scan.format == "csv-thrust":
         raise ValueError(f"LOG {log} is a thrust log (time,surge,sway,yaw): give it as the thrust, and a position log as LOG")
     check_log_order(scan, tolerance)
@@ -198,8 +206,8 @@ def check_replay(session: Session, log: str | Path, thrust: str | Path | None = 
             f"LOG {log}: no line for {scan.longest_gap:.6g} s before line {scan.gap_line} ({scan.gap_start - scan.first:.6g} s into the log), "
             f"longer than max_gap {max_gap:g} s{hint}; a replay would dead-reckon through it with nothing to correct it: give a longer max_gap to replay it anyway, or split the log there"
         )
-    if session.frame is not None and scan.format == "nmea":
-        fix = first_fix(log, session)
+    if session.frame is not None and scan.format in ("nmea", "nmea-raw"):
+        fix = first_fix(log, session, scan.format)
         if fix is not None:
             check_origin(session.frame, *fix, where="the log's first fix")
     check = ReplayCheck(scan)
@@ -219,10 +227,11 @@ def check_replay(session: Session, log: str | Path, thrust: str | Path | None = 
     return check
 
 
-def first_fix(log: str | Path, session: Session) -> tuple[float, float] | None:
-    """(latitude, longitude) of the first fix of an NMEA log that ``session``'s gates
-    pass (None without one); the log is read up to it."""
-    for reading in nmea_log(log, NmeaParser()):
+def first_fix(log: str | Path, session: Session, fmt: str = "nmea") -> tuple[float, float] | None:
+    """(latitude, longitude) of the first fix of an NMEA log (``fmt`` ``"nmea"`` or
+    ``"nmea-raw"``) that ``session``'s gates pass (None without one); the log is read up
+    to it."""
+    for reading in nmea_log(log, NmeaParser(), fmt):
         if reading.kind == "position" and fix_refusal(reading.values, session.gates) is None:
             return reading.values[0], reading.values[1]
     return None
@@ -247,11 +256,12 @@ def _thrust_line(line: bytes, time: float, counts: dict[str, int] | None = None)
     return Reading(time, "thrust", "thrust", values, "CSV")
 
 
-def log_readings(path: str | Path, parser: NmeaParser) -> tuple[Iterator[Reading], Counter]:
-    """``(readings, counter)`` of a log of either format (:mod:`lookout.io.logs`)."""
-    kind = log_format(path)
-    if kind == "nmea":
-        return nmea_log(path, parser), parser.counts
+def log_readings(path: str | Path, parser: NmeaParser, kind: str | None = None) -> tuple[Iterator[Reading], Counter]:
+    """``(readings, counter)`` of a log of any format (:mod:`lookout.io.logs`; ``kind``
+    as :func:`~lookout.io.logs.log_format` names it, detected when not given)."""
+    kind = kind if kind is not None else log_format(path)
+    if kind in ("nmea", "nmea-raw"):
+        return nmea_log(path, parser, kind), parser.counts
     log = CsvLog(path)
     if log.kind != "position":
         raise ValueError(f"log {path}: a thrust log (time,surge,sway,yaw) is given with --thrust, not as the log")
@@ -271,6 +281,7 @@ def replay(
     max_gap: float = MAX_GAP,
     check: ReplayCheck | None = None,
     progress: Callable[[float, float], object] | None = None,
+    fmt: str | None = None,
 ) -> Outcome:
     """Step ``session`` through a log; ``emit(record)`` for each step.
 
@@ -293,15 +304,17 @@ def replay(
         Called with ``(done, total)``, the log's seconds replayed and its span, about
         every :data:`PROGRESS_EVERY` wall seconds and once at the end (``done ==
         total``).
+    fmt : {"raw", "timed", "csv"}, optional
+        The log's format (:data:`lookout.io.logs.FORMATS`), detected when not given.
 
     Raises
     ------
     ValueError
         As :func:`check_replay`, before any step.
     """
-    check = check if check is not None else check_replay(session, log, thrust, max_gap)
+    check = check if check is not None else check_replay(session, log, thrust, max_gap, fmt)
     parser = parser or NmeaParser()
-    readings, counts = log_readings(log, parser)
+    readings, counts = log_readings(log, parser, check.log.format)
     thrust_log = None
     if thrust is not None:
         thrust_log = CsvLog(thrust, source="thrust", option="--thrust")
