@@ -380,6 +380,36 @@ def _kalman(kind, gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=
     )
 
 
+def _model_free(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0) -> Scenario:
+    """The observer without a hull model on the Fossen & Strand vessel; ``gain`` scales its
+    model's white acceleration (the filter's Q)."""
+    from lookout import PositionHeadingSensor
+    from lookout.models.kinematic_vessel import KinematicState
+    from lookout.observers.model_free import ModelFreeFilter
+    from lookout.papers import fossen_strand_1999 as fs
+
+    quiet = {} if noise else {"noise_std": (0, 0, 0), "bias_std": (0, 0, 0), "wave_amplitude": (0, 0, 0)}
+    config = fs.Config(duration=duration, measurement_period=0.1 if perfect else 1.0, **quiet)
+    base = fs.build(config)
+    sensor = PositionHeadingSensor(config.noise_std, config.measurement_period, dropout_probability=dropout)
+    model_sensor = PositionHeadingSensor((0.5, 0.5, 0.0017), config.measurement_period)  # its R: the filter's, also noise-free
+    observer = ModelFreeFilter(model_sensor, plant_step=config.plant_step, filter_period=config.sample_period)
+    observer = eqx.tree_at(lambda o: o.model.acceleration_std, observer, gain * observer.model.acceleration_std)
+    truth = base.initial_state
+    guess = KinematicState(truth.eta, truth.nu, jnp.zeros(0)) if perfect else observer.guess()
+    return Scenario(
+        base.plant,
+        sensor,
+        observer,
+        base.controller,
+        base.initial_state,
+        guess,
+        plant_step=config.plant_step,
+        sample_period=config.sample_period,
+        duration=config.duration,
+    )
+
+
 def _kalman_pid(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0) -> Scenario:
     """The extended Kalman filter closing a DP loop with the nonlinear PID on the Fossen &
     Strand vessel, a reference filter and thrust limits; ``gain`` scales the filter's
@@ -488,6 +518,9 @@ CASES = [
     # which differs from the propagated mean at second order in the rotation (4.8e-5 m
     # over 60 s from the suite's initial_std): the unscented transformation, not a fault
     Case("unscented Kalman filter", functools.partial(_kalman, "ukf"), exact=(), error_variable="velocity", gradient="forward"),
+    # not exact: its model's velocity is a random walk, so it predicts the vessel at constant
+    # velocity while the vessel accelerates under the input (no hull model: by design)
+    Case("observer without a hull model", _model_free, exact=(), error_variable="velocity", gradient="forward"),
     # the same filter closing the loop: the PID moves the plant, and the filter's model, given
     # the applied input, still follows it to the bit
     Case("extended Kalman filter and nonlinear PID", _kalman_pid, exact=(("sampled", {}),), error_variable="velocity", gradient="forward"),

@@ -216,3 +216,26 @@ def test_write_raw_log_refuses_a_variation_outside_90_degrees(tmp_path):
         with pytest.raises(ValueError, match="variation must be degrees within -90 to 90"):
             write_raw_log(truth, tmp_path / "x.nmea", variation=bad)
     assert not (tmp_path / "x.nmea").exists()
+
+
+def test_replay_without_a_scenario_runs_the_model_free_observer_on_the_logs_sensors(tmp_path, capsys):
+    """lookout replay LOG with no --scenario: one line says which observer and what it
+    measured of the log (rates; noise around the 30 s moving mean), and the session is
+    written; a log without positions is refused in one line."""
+    from lookout.cli import main
+
+    truth = xr.open_dataset(LOGS / "dp-vessel-truth.nc").isel(time=slice(0, 600))
+    raw = tmp_path / "raw.nmea"
+    write_raw_log(truth, raw)
+    out = tmp_path / "session.nc"
+    assert main(["replay", str(raw), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "no --scenario: the model-free observer (no hull model, settling 20 s) on the log's sensors: position at 1 Hz" in err
+    assert "heading at 10 Hz" in err and "no --thrust" not in err
+    with xr.open_dataset(out) as session:
+        assert session["velocity_hat"].shape[-2] > 580 and bool(np.all(np.isfinite(session["position_hat"].values)))
+    headings = tmp_path / "headings.nmea"
+    headings.write_text("".join(line + "\n" for line in [sentence("GP", "ZDA", ["000000.00", "01", "12", "2026", "00", "00"]), _hdt(1.0), _hdt(2.0)]))
+    assert main(["replay", str(headings)]) == 2
+    message = capsys.readouterr().err.strip()
+    assert "without --scenario the log's own sensors are used" in message and "\n" not in message

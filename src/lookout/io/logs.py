@@ -331,6 +331,10 @@ class LogScan:
         time it starts from.
     bom : bool
         Whether the file starts with a UTF-8 byte-order mark (skipped by every reader).
+    instants : collections.Counter
+        Distinct times of the position and of the heading lines (``position``,
+        ``heading``): consecutive lines of one kind and one time (a GGA and an RMC of
+        one fix) count once; the rate of each channel is its count over :attr:`span`.
     ignored_dates : int
         A raw log's dates that disagreed with the day counted from its times of day
         (:class:`~lookout.io.sentence_time.SentenceClock`).
@@ -358,6 +362,8 @@ class LogScan:
     gap_start: float = math.nan
     bom: bool = False
     ignored_dates: int = 0
+    instants: Counter = field(default_factory=Counter)
+    _last_of: dict = field(default_factory=dict, repr=False)
     usable: Counter = field(default_factory=Counter)
     _steps: list = field(default_factory=lambda: [0] * (_BINS_PER_DECADE * _DECADES), repr=False)
 
@@ -390,6 +396,11 @@ class LogScan:
     def _bin(step: float) -> int:
         index = math.floor((math.log10(step) - _SMALLEST_STEP_DECADE) * _BINS_PER_DECADE) if step > 0 else 0
         return min(max(index, 0), _BINS_PER_DECADE * _DECADES - 1)
+
+    def _instant(self, kind: str, time: float) -> None:
+        if kind in ("position", "heading") and self._last_of.get(kind) != time:
+            self.instants[kind] += 1
+            self._last_of[kind] = time
 
     def _time(self, number: int, time: float) -> None:
         if not math.isfinite(time):
@@ -440,6 +451,7 @@ def scan_log(path: str | Path, option: str = "log", fmt: str | None = None) -> L
             scan.usable[_usable(cause, formatter)] += 1
             if cause == "accepted":
                 scan._time(number, time)
+                scan._instant(_usable(cause, formatter), time)
         scan.ignored_dates = clock.ignored_dates
         return scan
     with open_log(path) as handle:
@@ -454,6 +466,7 @@ def scan_log(path: str | Path, option: str = "log", fmt: str | None = None) -> L
                 cause = next((name for name, n in csv.counts.items() if n != before.get(name, 0)), "malformed")
                 for reading in readings:
                     scan.usable[{"local_position": "position"}.get(reading.kind, reading.kind)] += 1
+                    scan._instant({"local_position": "position"}.get(reading.kind, reading.kind), reading.time)
                 if not readings:  # malformed, a thrust row with a missing value, or a position row without values
                     scan.usable["no_value" if cause == "accepted" else cause] += 1
                 scan._time(number, math.nan if cause == "malformed" else _number(line.split(b",", 1)[0]))
@@ -466,6 +479,7 @@ def scan_log(path: str | Path, option: str = "log", fmt: str | None = None) -> L
             cause, formatter = parser.frame(sentence.strip())
             scan.usable[_usable(cause, formatter)] += 1
             scan._time(number, time)
+            scan._instant(_usable(cause, formatter), time)
     return scan
 
 

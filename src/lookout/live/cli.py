@@ -95,6 +95,100 @@ def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say,
     return session
 
 
+#: The least noise the model-free observer takes a log's sensors to have (m, degrees):
+#: a quantized or smoothed log can show less spread than its sensor's noise.
+LEAST_POSITION_STD, LEAST_HEADING_STD = 0.05, 0.05
+
+
+#: The window (s) of the moving mean a log's low-frequency motion is taken to be, for
+#: the spread of its sensors around it: longer than wave periods (5-20 s), shorter than
+#: a manoeuvre.
+NOISE_WINDOW = 30.0
+
+
+def _measured_noise(log: str, fmt: str) -> tuple[float, float]:
+    """The standard deviations of a log's position (m, per axis) and heading (degrees)
+    around their moving mean over :data:`NOISE_WINDOW` seconds: the sensor's noise and
+    the wave-frequency motion together, which an observer without a wave model takes as
+    noise. One sample per distinct time; at least :data:`LEAST_POSITION_STD` and
+    :data:`LEAST_HEADING_STD`."""
+    import numpy as np
+
+    from lookout.io.geodesy import LocalFrame
+    from lookout.io.nmea import NmeaParser
+    from lookout.live.run import log_readings
+
+    readings, _ = log_readings(log, NmeaParser(), fmt)
+    frame, positions, headings = None, [], []
+    times: dict[str, list[float]] = {"position": [], "heading": []}
+    last: dict[str, float] = {}
+    for reading in readings:
+        if reading.kind not in ("position", "local_position", "heading") or last.get(reading.kind) == reading.time:
+            continue
+        last[reading.kind] = reading.time
+        times["heading" if reading.kind == "heading" else "position"].append(reading.time)
+        if reading.kind == "heading":
+            headings.append(reading.values[0])
+        elif reading.kind == "local_position":
+            positions.append(reading.values[:2])
+        else:
+            frame = frame or LocalFrame(reading.values[0], reading.values[1])
+            north, east, _ = frame.ned(reading.values[0], reading.values[1])
+            positions.append((float(north), float(east)))
+
+    def spread(values: np.ndarray, at: list[float]) -> float:
+        if len(at) < 3:
+            return math.nan
+        per_sample = max(int(round(NOISE_WINDOW / max(np.median(np.diff(at)), 1e-9))), 1)
+        kernel = np.ones(per_sample) / per_sample
+        columns = values.reshape(len(at), -1)
+        if columns.shape[0] <= per_sample:
+            return float(np.std(columns, axis=0).mean())
+        residual = [
+            column[per_sample // 2 : per_sample // 2 + column.size - per_sample + 1] - np.convolve(column, kernel, "valid") for column in columns.T
+        ]
+        return float(np.sqrt(np.mean(np.square(residual))))
+
+    position = spread(np.asarray(positions, dtype=float), times["position"])
+    heading = spread(np.degrees(np.unwrap(np.radians(np.asarray(headings, dtype=float)))), times["heading"])
+    return max(position, LEAST_POSITION_STD), max(heading, LEAST_HEADING_STD)
+
+
+def _model_free_session(log: str, forced: str | None, origin: str | None, gates: dict, on_event, say, batch: int):
+    """A session of the model-free observer (:class:`~lookout.observers.model_free.ModelFreeFilter`)
+    on the log's own sensors: a position and a heading channel at the rates measured from
+    the log, their noise measured from it (:func:`_measured_noise`), stepped at the
+    faster channel's period; said in one line."""
+    from lookout.io.logs import scan_log
+    from lookout.live.session import Session
+    from lookout.observers.model_free import SETTLING_TIME, ModelFreeFilter
+    from lookout.sensors import PositionHeadingSensor
+
+    try:
+        scan = scan_log(log, "LOG", forced)
+    except ValueError as error:
+        raise InputError(str(error)) from None
+    span = scan.span
+    # instants less one over the span: the steps between them (one of a kind gives none)
+    rates = {kind: max(scan.instants[kind] - 1, 0) / span if span > 0 else 0.0 for kind in ("position", "heading")}
+    if not all(rates.values()):
+        missing = " and ".join(f"no {kind}" for kind, rate in rates.items() if not rate)
+        raise InputError(f"LOG {log}: without --scenario the log's own sensors are used, and it has {missing} over a span of time; give --scenario")
+    periods = {kind: float(f"{1.0 / rate:.2g}") for kind, rate in rates.items()}  # 1 Hz, 10 Hz: two digits
+    step = min(periods.values())
+    position_std, heading_std = _measured_noise(log, scan.format)
+    sensor = PositionHeadingSensor((position_std, position_std, math.radians(heading_std)), (step, step, step))
+    observer = ModelFreeFilter(
+        sensor, plant_step=step, filter_period=step, tuning_periods=(periods["position"], periods["position"], periods["heading"])
+    )
+    say(
+        f"no --scenario: the model-free observer (no hull model, settling {SETTLING_TIME:g} s) on the log's sensors: position at "
+        f"{1 / periods['position']:.3g} Hz (noise {position_std:.2g} m), heading at {1 / periods['heading']:.3g} Hz (noise {heading_std:.2g} deg), "
+        f"stepped every {step:g} s; give --scenario to choose the observer"
+    )
+    return Session(observer, step, frame=_frame(origin), gates=_gate_values(gates), on_event=on_event, batch=batch)
+
+
 def _check_gate_options(session, gates: dict, scenario_file: str) -> None:
     """Refuse a gate option given for an observer whose gate does not use it (a chi-square
     probability for an observer without an innovation covariance, a gate in metres or
@@ -388,8 +482,14 @@ def replay_command(
         ),
     ],
     scenario_file: Annotated[
-        str, typer.Option("--scenario", metavar="SCENARIO.toml", help="The scenario whose observer (kind, gains, vessel model, sample period) runs.")
-    ],
+        str | None,
+        typer.Option(
+            "--scenario",
+            metavar="SCENARIO.toml",
+            help="The scenario whose observer (kind, gains, vessel model, sample period) runs.",
+            show_default="the model-free observer on the log's own sensors",
+        ),
+    ] = None,
     out: Annotated[str | None, typer.Option(metavar="FILE.nc", help="The session's estimates as NetCDF (a simulation's layout).")] = None,
     thrust: Annotated[
         str | None, typer.Option(metavar="THRUST.csv", help="Thrust feedback, time,surge,sway,yaw (N, N, N m).", show_default="zero, with a warning")
@@ -483,7 +583,12 @@ def replay_command(
             held.append(text)
 
     # paced: one step per compiled call, as live; fast: a scan over blocks of steps
-    session = _session(scenario_file, origin, gates, _on_event(say), say, batch=1 if speed is not None else REPLAY_BATCH)
+    batch = 1 if speed is not None else REPLAY_BATCH
+    if scenario_file is None:
+        session = _model_free_session(log, forced, origin, gates, _on_event(say), say, batch)
+        scenario_file = "no scenario: the model-free observer"
+    else:
+        session = _session(scenario_file, origin, gates, _on_event(say), say, batch=batch)
     if truth is not None:
         _check_truth_period(truth, session.sample_period)
     try:  # the logs' times, order and lines, before any step
@@ -510,7 +615,7 @@ def replay_command(
     parser = NmeaParser(variation=variation)
     import warnings
 
-    if thrust is None:
+    if thrust is None and not scenario_file.startswith("no scenario"):
         say("no --thrust: the observer predicts with zero input")
     elif (
         check.thrust is not None and max(check.thrust.first - check.log.first, check.log.newest - check.thrust.newest) > session.gap_after

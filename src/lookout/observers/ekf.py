@@ -18,7 +18,7 @@ Stochastic Processes with Applications to Guidance, Section 9.5).
 
 from __future__ import annotations
 
-from typing import Any, final
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -85,7 +85,6 @@ from lookout.observers.kalman import PARAMETERS, KalmanFilter, KalmanState, _sym
         Context("integrator", "rk4 or euler; default the composition's simulation.integrator.", own=True),
     ),
 )
-@final
 class ExtendedKalmanFilter(KalmanFilter):
     __doc__ = (
         """Continuous-discrete extended Kalman filter on the plant's own model

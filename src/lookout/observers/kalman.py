@@ -250,6 +250,25 @@ def suite_measurement_std(suite: SensorSuite) -> np.ndarray:
     return np.concatenate([np.asarray(each.measurement_std(), dtype=float).reshape(-1) for each in suite.instruments])
 
 
+def default_measurement_covariance(sensor: Sensor, plant: Plant) -> np.ndarray:
+    """The default R of a Kalman filter on ``sensor`` over the model ``plant`` (module
+    docstring): a suite's instruments' white noise and slow errors, channel by channel,
+    else J J^T of the sensor's own noise at the model's zero state.
+
+    Raises
+    ------
+    ValueError
+        Naming ``measurement_noise`` for a kinematic sensor that states no noise of its own.
+    """
+    if isinstance(sensor, SensorSuite):  # each instrument's white noise and slow error, channel by channel
+        return np.diag(suite_measurement_std(sensor) ** 2)
+    if isinstance(sensor, KinematicSensor):
+        raise check.ParameterError(
+            "measurement_noise", f"measurement_noise: sensor {type(sensor).__name__} states no noise of its own; give measurement_noise"
+        )
+    return _sensor_covariance(sensor, plant.state())
+
+
 def _sensor_covariance(sensor: Sensor, x) -> np.ndarray:
     """R = J J^T, J the Jacobian of the sensor's measurement with respect to its
     standard normals at zero (NaN entries, channels dropped at zero, count as zero)."""
@@ -588,14 +607,7 @@ def kalman_fields(
             "plant", f"plant {type(plant).__name__} gives no kinematics (position, heading, rates) for the filter's sensor suite to measure"
         )
     if measurement_noise is None:
-        if isinstance(sensor, SensorSuite):  # each instrument's white noise and slow error, channel by channel
-            r = np.diag(suite_measurement_std(sensor) ** 2)
-        elif isinstance(sensor, KinematicSensor):
-            raise check.ParameterError(
-                "measurement_noise", f"measurement_noise: sensor {type(sensor).__name__} states no noise of its own; give measurement_noise"
-            )
-        else:
-            r = _sensor_covariance(sensor, plant.state())
+        r = default_measurement_covariance(sensor, plant)
         eigenvalues = np.linalg.eigvalsh(r)
         if eigenvalues.min() <= 1e-300:
             silent = [signal for signal, value in zip(_channel_names(layout), np.diag(r)) if value <= 0]

@@ -66,6 +66,7 @@ BUILTIN_MODULES = (
     "lookout.observers.parameter_estimator",
     "lookout.observers.ekf",
     "lookout.observers.ukf",
+    "lookout.observers.model_free",
     "lookout.controllers.open_loop",
     "lookout.controllers.backstepping",
     "lookout.controllers.tracking",
