@@ -352,7 +352,10 @@ def test_replay_cli_writes_the_session(tmp_path, capsys):
             "is a thrust log (time,surge,sway,yaw): give it with --thrust",
         ),
         (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/velocity-two-link-arm.toml"], "live data fills measured_position"),
-        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "nmea"], "--format must be auto, raw, timed or csv"),
+        (
+            ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "nmea"],
+            "--format must be auto, raw, timed or csv",
+        ),
         (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "csv"], "a CSV log's first line must be"),
         (
             ["replay", "examples/logs/dp-vessel-raw.nmea", "--scenario", "examples/live-dp.toml", "--variation", "200"],
