@@ -366,6 +366,10 @@ def test_replay_cli_writes_the_session(tmp_path, capsys):
             "no line has a time",
         ),
         (["write-log", "examples/dp-suite.toml", "--raw"], "--raw writes the log of one receiver and one gyro"),
+        (
+            ["replay", "examples/logs/dp-vessel-raw.nmea", "--scenario", "examples/live-dp.toml", "--waves"],
+            "--waves is for a replay without --scenario",
+        ),
         (["live", "examples/live-dp.toml", "--nmea", "udp://127.0.0.1:99999"], "--nmea must be udp://HOST:PORT with a port in 0..65535"),
         (
             ["live", "examples/live-dp.toml", "--nmea", "/no/such/device"],

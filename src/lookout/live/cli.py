@@ -95,71 +95,13 @@ def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say,
     return session
 
 
-#: The least noise the model-free observer takes a log's sensors to have (m, degrees):
-#: a quantized or smoothed log can show less spread than its sensor's noise.
-LEAST_POSITION_STD, LEAST_HEADING_STD = 0.05, 0.05
-
-
-#: The window (s) of the moving mean a log's low-frequency motion is taken to be, for
-#: the spread of its sensors around it: longer than wave periods (5-20 s), shorter than
-#: a manoeuvre.
-NOISE_WINDOW = 30.0
-
-
-def _measured_noise(log: str, fmt: str) -> tuple[float, float]:
-    """The standard deviations of a log's position (m, per axis) and heading (degrees)
-    around their moving mean over :data:`NOISE_WINDOW` seconds: the sensor's noise and
-    the wave-frequency motion together, which an observer without a wave model takes as
-    noise. One sample per distinct time; at least :data:`LEAST_POSITION_STD` and
-    :data:`LEAST_HEADING_STD`."""
-    import numpy as np
-
-    from lookout.io.geodesy import LocalFrame
-    from lookout.io.nmea import NmeaParser
-    from lookout.live.run import log_readings
-
-    readings, _ = log_readings(log, NmeaParser(), fmt)
-    frame, positions, headings = None, [], []
-    times: dict[str, list[float]] = {"position": [], "heading": []}
-    last: dict[str, float] = {}
-    for reading in readings:
-        if reading.kind not in ("position", "local_position", "heading") or last.get(reading.kind) == reading.time:
-            continue
-        last[reading.kind] = reading.time
-        times["heading" if reading.kind == "heading" else "position"].append(reading.time)
-        if reading.kind == "heading":
-            headings.append(reading.values[0])
-        elif reading.kind == "local_position":
-            positions.append(reading.values[:2])
-        else:
-            frame = frame or LocalFrame(reading.values[0], reading.values[1])
-            north, east, _ = frame.ned(reading.values[0], reading.values[1])
-            positions.append((float(north), float(east)))
-
-    def spread(values: np.ndarray, at: list[float]) -> float:
-        if len(at) < 3:
-            return math.nan
-        per_sample = max(int(round(NOISE_WINDOW / max(np.median(np.diff(at)), 1e-9))), 1)
-        kernel = np.ones(per_sample) / per_sample
-        columns = values.reshape(len(at), -1)
-        if columns.shape[0] <= per_sample:
-            return float(np.std(columns, axis=0).mean())
-        residual = [
-            column[per_sample // 2 : per_sample // 2 + column.size - per_sample + 1] - np.convolve(column, kernel, "valid") for column in columns.T
-        ]
-        return float(np.sqrt(np.mean(np.square(residual))))
-
-    position = spread(np.asarray(positions, dtype=float), times["position"])
-    heading = spread(np.degrees(np.unwrap(np.radians(np.asarray(headings, dtype=float)))), times["heading"])
-    return max(position, LEAST_POSITION_STD), max(heading, LEAST_HEADING_STD)
-
-
-def _model_free_session(log: str, forced: str | None, origin: str | None, gates: dict, on_event, say, batch: int):
+def _model_free_session(log: str, forced: str | None, waves: bool, origin: str | None, gates: dict, on_event, say, batch: int):
     """A session of the model-free observer (:class:`~lookout.observers.model_free.ModelFreeFilter`)
-    on the log's own sensors: a position and a heading channel at the rates measured from
-    the log, their noise measured from it (:func:`_measured_noise`), stepped at the
-    faster channel's period; said in one line."""
+    on the log's own sensors (:func:`lookout.live.log_sensors.log_sensors`: rates, noise
+    and, with ``waves``, the waves measured from the log), stepped at the faster
+    channel's period; said in one line."""
     from lookout.io.logs import scan_log
+    from lookout.live.log_sensors import log_sensors
     from lookout.live.session import Session
     from lookout.observers.model_free import SETTLING_TIME, ModelFreeFilter
     from lookout.sensors import PositionHeadingSensor
@@ -176,14 +118,25 @@ def _model_free_session(log: str, forced: str | None, origin: str | None, gates:
         raise InputError(f"LOG {log}: without --scenario the log's own sensors are used, and it has {missing} over a span of time; give --scenario")
     periods = {kind: float(f"{1.0 / rate:.2g}") for kind, rate in rates.items()}  # 1 Hz, 10 Hz: two digits
     step = min(periods.values())
-    position_std, heading_std = _measured_noise(log, scan.format)
-    sensor = PositionHeadingSensor((position_std, position_std, math.radians(heading_std)), (step, step, step))
+    # each channel due at its own period, a whole number of steps (a held fix is not new)
+    periods = {kind: step * max(round(period / step), 1) for kind, period in periods.items()}
+    measured = log_sensors(log, scan.format, periods["position"], periods["heading"], waves=waves)
+    if waves and measured.wave_period is None:
+        raise InputError(f"--waves: LOG {log} shows no wave motion with a peak period between 3 and 25 s; leave --waves out")
+    heading_std = math.radians(measured.heading_std)
+    sensor = PositionHeadingSensor(
+        (measured.position_std, measured.position_std, heading_std), (periods["position"], periods["position"], periods["heading"])
+    )
+    wave_std = None if measured.wave_std is None else (measured.wave_std[0], measured.wave_std[1], math.radians(measured.wave_std[2]))
     observer = ModelFreeFilter(
-        sensor, plant_step=step, filter_period=step, tuning_periods=(periods["position"], periods["position"], periods["heading"])
+        sensor,
+        wave_period=measured.wave_period if waves else None,
+        wave_std=wave_std if waves else None,
+        plant_step=step,
+        filter_period=step,
     )
     say(
-        f"no --scenario: the model-free observer (no hull model, settling {SETTLING_TIME:g} s) on the log's sensors: position at "
-        f"{1 / periods['position']:.3g} Hz (noise {position_std:.2g} m), heading at {1 / periods['heading']:.3g} Hz (noise {heading_std:.2g} deg), "
+        f"no --scenario: the model-free observer (no hull model, settling {SETTLING_TIME:g} s) on the log's sensors: {measured.describe()}, "
         f"stepped every {step:g} s; give --scenario to choose the observer"
     )
     return Session(observer, step, frame=_frame(origin), gates=_gate_values(gates), on_event=on_event, batch=batch)
@@ -526,8 +479,16 @@ def replay_command(
             show_default="the sentences' own",
         ),
     ] = None,
+    waves: Annotated[
+        bool,
+        typer.Option(
+            "--waves",
+            help="Without --scenario: the vessel is in waves; their peak period and size are measured from the log and the model-free observer filters them out.",
+        ),
+    ] = False,
 ) -> None:
-    """Run a scenario's observer over a recorded log, as it would have run live."""
+    """Run a scenario's observer over a recorded log, as it would have run live (without
+    --scenario: an observer without a hull model on the log's own sensors)."""
     from lookout._commandline import progress_bar
     from lookout.io.logs import BOM_NOTE
     from lookout.io.nmea import NmeaParser
@@ -545,6 +506,8 @@ def replay_command(
     if log_format not in ("auto", "raw", "timed", "csv"):
         raise InputError(f"--format must be auto, raw, timed or csv; got {log_format!r}")
     forced = None if log_format == "auto" else log_format
+    if waves and scenario_file is not None:
+        raise InputError("--waves is for a replay without --scenario: a scenario's observer has its own wave model")
     if variation is not None and not (math.isfinite(variation) and -180.0 <= variation <= 180.0):
         raise InputError(f"--variation must be degrees within -180 to 180 (east positive); got {variation:g}")
     if figure is not None and out is None:
@@ -585,7 +548,7 @@ def replay_command(
     # paced: one step per compiled call, as live; fast: a scan over blocks of steps
     batch = 1 if speed is not None else REPLAY_BATCH
     if scenario_file is None:
-        session = _model_free_session(log, forced, origin, gates, _on_event(say), say, batch)
+        session = _model_free_session(log, forced, waves, origin, gates, _on_event(say), say, batch)
         scenario_file = "no scenario: the model-free observer"
     else:
         session = _session(scenario_file, origin, gates, _on_event(say), say, batch=batch)

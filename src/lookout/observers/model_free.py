@@ -133,13 +133,6 @@ class ModelFreeFilter(ExtendedKalmanFilter):
         Naming the parameter: a settling time not finite and positive, one of
         ``wave_period`` and ``wave_std`` without the other, or a sensor without a
         position and a heading channel.
-
-    Notes
-    -----
-    ``tuning_periods`` (Python only; array of the channels' size): the seconds between
-    each channel's samples for the tuning, default the sensor's sample periods. A live
-    session's sensor has every channel at the step, a missing reading NaN, while its
-    fixes come at their own rate.
     """
 
     def __init__(
@@ -153,7 +146,6 @@ class ModelFreeFilter(ExtendedKalmanFilter):
         plant_step: float,
         filter_period: float,
         integrator: str = "rk4",
-        tuning_periods: npt.ArrayLike | None = None,
     ):
         if isinstance(settling_time, bool) or not isinstance(settling_time, (int, float)) or not (math.isfinite(settling_time) and settling_time > 0):
             raise check.ParameterError("settling_time", f"settling_time must be a finite positive number of seconds; got {settling_time!r}")
@@ -178,11 +170,7 @@ class ModelFreeFilter(ExtendedKalmanFilter):
                     f"measurement_noise must be {filter_layout(sensor).size} finite standard deviations > 0 (one per measured channel); got {std.tolist()}",
                 )
             covariance = np.diag(std**2)
-        periods = np.asarray(sensor.sample_period if tuning_periods is None else tuning_periods, dtype=float)
-        if periods.shape != (filter_layout(sensor).size,) or not (np.all(np.isfinite(periods)) and np.all(periods > 0)):
-            raise check.ParameterError(
-                "tuning_periods", f"tuning_periods must be {filter_layout(sensor).size} finite positive periods; got {periods.tolist()}"
-            )
+        periods = np.asarray(sensor.sample_period, dtype=float)[: filter_layout(sensor).size]
         position, heading = (_axis_noise(sensor, covariance, periods, suffix) for suffix in ("position", "heading"))
         if not (math.isfinite(position) and math.isfinite(heading)):
             raise check.ParameterError("sensor", "sensor: the model-free observer needs a position and a heading channel with noise of their own")
