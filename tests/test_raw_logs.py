@@ -277,3 +277,32 @@ def test_replay_without_a_scenario_in_waves_estimates_the_velocity_as_a_scenario
             errors[waves] = float(np.sqrt(np.mean(np.sum(error[t >= 60.0] ** 2, axis=1))))
     capsys.readouterr()
     assert errors[True] < 0.1 < 0.3 < errors[False], errors
+
+
+def test_replay_smooth_writes_the_smoothed_estimates_beside_the_filtered_ones(tmp_path, capsys):
+    """--smooth: the RTS smoother over the session (its forward pass the session's own
+    filter, to rounding), written beside the filtered estimates; refused in one line
+    without --out or for an observer that is not Kalman-type."""
+    import re
+
+    from lookout.cli import main
+
+    truth = xr.open_dataset(LOGS / "dp-vessel-truth.nc").isel(time=slice(0, 600))
+    raw = tmp_path / "raw.nmea"
+    write_raw_log(truth, raw)
+    out = tmp_path / "session.nc"
+    assert main(["replay", str(raw), "--smooth", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    gap = float(re.search(r"its forward pass within (\S+) of the session's filter", err).group(1))
+    assert gap < 1e-9
+    with xr.open_dataset(out) as session:
+        assert session["velocity_smoothed"].shape == session["velocity_hat"].shape
+        assert not np.allclose(session["velocity_smoothed"].values, session["velocity_hat"].values)
+    for arguments, message in (
+        (["--smooth"], "--smooth needs --out"),
+        (["--smooth", "--out", str(tmp_path / "p.nc"), "--scenario", str(EXAMPLE / "live-dp.toml")], "--smooth needs a Kalman-type observer"),
+    ):
+        assert main(["replay", str(raw), *arguments]) == 2
+        text = capsys.readouterr().err.strip()
+        assert message in text and "\n" not in text
+    assert not (tmp_path / "p.nc").exists()

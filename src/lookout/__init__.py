@@ -161,6 +161,7 @@ _PUBLIC = {
     "VelocityObserver": ".observers",
     "injection_gains_from_normalized": ".observers",
     "notch_filter_gains": ".observers",
+    "smooth": ".observers",
     "NoReference": ".null_components",
     "Trajectory": ".results",
     "write_netcdf": ".results",

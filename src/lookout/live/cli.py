@@ -479,6 +479,13 @@ def replay_command(
             show_default="the sentences' own",
         ),
     ] = None,
+    smooth: Annotated[
+        bool,
+        typer.Option(
+            "--smooth",
+            help="After the replay, run the Rauch-Tung-Striebel smoother over the session (a Kalman-type observer: ekf, ukf, model-free) and write its estimates beside the filtered ones in --out.",
+        ),
+    ] = False,
     waves: Annotated[
         bool,
         typer.Option(
@@ -506,6 +513,8 @@ def replay_command(
     if log_format not in ("auto", "raw", "timed", "csv"):
         raise InputError(f"--format must be auto, raw, timed or csv; got {log_format!r}")
     forced = None if log_format == "auto" else log_format
+    if smooth and out is None:
+        raise InputError("--smooth needs --out: the smoothed estimates are written beside the filtered ones in the session's file")
     if waves and scenario_file is not None:
         raise InputError("--waves is for a replay without --scenario: a scenario's observer has its own wave model")
     if variation is not None and not (math.isfinite(variation) and -180.0 <= variation <= 180.0):
@@ -554,6 +563,12 @@ def replay_command(
         session = _session(scenario_file, origin, gates, _on_event(say), say, batch=batch)
     if truth is not None:
         _check_truth_period(truth, session.sample_period)
+    smoothed_filter = _kalman_of(session) if smooth else None
+    if smooth and smoothed_filter is None:
+        kind = "on a sensor suite" if hasattr(session.observer, "gated") else f"of kind {type(_inner_of(session)).__name__}"
+        raise InputError(
+            f"--smooth needs a Kalman-type observer (ekf, ukf, model-free) on a position-heading sensor; {scenario_file}'s is {kind}: leave --smooth out"
+        )
     try:  # the logs' times, order and lines, before any step
         check = check_replay(session, log, thrust, max_gap, forced)
     except OriginError as error:
@@ -627,6 +642,9 @@ def replay_command(
     say(
         f"{span:.1f} s of log in {outcome.wall_seconds:.2f} s ({span / outcome.wall_seconds:.0f}x real time)" + (f"; written to {out}" if out else "")
     )
+    if smoothed_filter is not None:
+        assert out is not None  # --smooth needs --out (checked above)
+        say(_smooth_session(Path(out), smoothed_filter))
     if figure_path is not None:
         assert out is not None  # --figure needs --out (checked above)
         try:
@@ -635,6 +653,56 @@ def replay_command(
             remove()  # a refused command leaves nothing: the session's file goes with it
             raise
     _exit_if_failed(outcome)
+
+
+def _inner_of(session):
+    """The scenario's observer inside a session's gate (and combining stage)."""
+    observer = session.observer
+    observer = getattr(observer, "gated", observer)
+    return getattr(observer, "inner", observer)
+
+
+def _kalman_of(session):
+    """The session's Kalman-type filter, None when its observer is of another kind."""
+    from lookout.observers.kalman import KalmanFilter
+
+    inner = _inner_of(session)
+    return inner if isinstance(inner, KalmanFilter) and not hasattr(session.observer, "gated") else None
+
+
+def _smooth_session(path: Path, observer) -> str:
+    """Smooth a replayed session's file in place (:func:`lookout.observers.smoothing.smooth`
+    over the measurement its filter used, NaN where the session had none): ``v_smoothed``
+    beside each ``v_hat``; one line on what was done and how closely the smoother's own
+    forward pass reproduced the session's filter."""
+    import numpy as np
+    import xarray as xr
+
+    from lookout.observers.smoothing import smooth
+    from lookout.results import write_netcdf
+
+    with xr.open_dataset(path) as opened:
+        ds = opened.load()
+    columns = []
+    for signal in observer.measurement_layout.signals:
+        values = ds[signal.name].values[0].reshape(ds.sizes["time"], -1).copy()
+        flag = f"outage_{signal.name.removeprefix('measured_')}"
+        if flag in ds:
+            values[ds[flag].values[0] > 0] = np.nan
+        columns.append(values)
+    inputs = np.concatenate(
+        [ds[f"{signal.name}_applied"].values[0].reshape(ds.sizes["time"], -1) for signal in observer.input_layout.signals], axis=1
+    )
+    smoothed = smooth(observer, ds["time"].values, np.concatenate(columns, axis=1), inputs)
+    gap = 0.0
+    for name in observer.output(observer.init(np.zeros(observer.measurement_layout.size), observer.guess()), None):
+        if f"{name}_hat" in ds:
+            gap = max(gap, float(np.nanmax(np.abs(smoothed[f"{name}_hat"].values - ds[f"{name}_hat"].values))))
+            ds[f"{name}_smoothed"] = smoothed[f"{name}_smoothed"]
+    partial = path.with_name(path.name + ".partial")
+    write_netcdf(ds, partial, history="smoothed (Rauch-Tung-Striebel) after the replay")
+    partial.replace(path)
+    return f"smoothed: the Rauch-Tung-Striebel smoother's estimates written beside the filtered ones as *_smoothed in {path} (its forward pass within {gap:.2g} of the session's filter)"
 
 
 def _exit_if_failed(outcome) -> None:

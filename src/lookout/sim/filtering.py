@@ -260,6 +260,28 @@ def filter(  # noqa: A001 - lookout.filter, as the docs name it
         measurement, infinite measurements, non-finite inputs, or a guess that is not
         shaped as ``observer.guess()``.
     """
+    rows, values, applied, guess, measurement_layout, input_layout = checked_log(
+        observer, times, measurements, inputs, guess, measurement_layout, input_layout
+    )
+    estimates = _filter_scan(observer, guess, jnp.asarray(rows), jnp.asarray(values), jnp.asarray(applied))
+    finite = np.all([np.isfinite(np.asarray(leaf)).reshape(rows.size, -1).all(axis=1) for leaf in jax.tree.leaves(estimates)], axis=0)
+    if not finite.all():
+        row = int(np.argmin(finite))
+        cause = max(row - 1, 0)  # the prediction from the row before made them so
+        warnings.warn(
+            f"lookout.filter: the estimates are not finite from row {row} (t = {rows[row]:g} s) on, after row {cause}'s measurement "
+            f"{np.array2string(values[cause], precision=4)} and input {np.array2string(applied[cause], precision=4)}; the Dataset's status says 'diverged'",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return filtered_dataset(observer, rows, estimates, values, applied, measurement_layout, input_layout)
+
+
+def checked_log(
+    observer: Observer, times, measurements, inputs, guess, measurement_layout: Layout | None, input_layout: Layout | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any, Layout, Layout]:
+    """``(times, measurements, inputs, guess, measurement_layout, input_layout)`` of a log
+    checked as :func:`filter` checks it (its Raises), the defaults filled in."""
     if not isinstance(observer, Observer):
         raise ValueError(f"observer must be a lookout Observer (a scenario's is scenario.observer); got {type(observer).__name__}")
     times = real_array("times", times)
@@ -296,17 +318,11 @@ def filter(  # noqa: A001 - lookout.filter, as the docs name it
     guess = checked_guess(observer, guess)
     _check_log_fits(observer, guess, measurements.shape[1], inputs.shape[1])
     _check_steps(observer, guess, times, measurements, inputs)
-    estimates = _filter_scan(observer, guess, jnp.asarray(times), jnp.asarray(measurements), jnp.asarray(inputs))
-    finite = np.all([np.isfinite(np.asarray(leaf)).reshape(times.size, -1).all(axis=1) for leaf in jax.tree.leaves(estimates)], axis=0)
-    if not finite.all():
-        row = int(np.argmin(finite))
-        cause = max(row - 1, 0)  # the prediction from the row before made them so
-        warnings.warn(
-            f"lookout.filter: the estimates are not finite from row {row} (t = {times[row]:g} s) on, after row {cause}'s measurement "
-            f"{np.array2string(measurements[cause], precision=4)} and input {np.array2string(inputs[cause], precision=4)}; the Dataset's status says 'diverged'",
-            RuntimeWarning,
-            stacklevel=2,
-        )
+    return times, measurements, inputs, guess, measurement_layout, input_layout
+
+
+def filtered_dataset(observer: Observer, times, estimates, measurements, inputs, measurement_layout: Layout, input_layout: Layout) -> xr.Dataset:
+    """The Dataset of :func:`filter` from a run's estimates."""
     signals = RecordSignals(
         truth=(),
         estimate=tuple(observer.estimate_signals),
