@@ -776,6 +776,10 @@ from lookout.live.cli import register as _register_live  # noqa: E402
 
 _register_live(app)
 
+from lookout.live.identify_cli import register as _register_identify  # noqa: E402
+
+_register_identify(app)
+
 from lookout.cli_design import register as _register_design  # noqa: E402
 
 _register_design(design_app)

@@ -670,19 +670,15 @@ def _kalman_of(session):
     return inner if isinstance(inner, KalmanFilter) and not hasattr(session.observer, "gated") else None
 
 
-def _smooth_session(path: Path, observer) -> str:
-    """Smooth a replayed session's file in place (:func:`lookout.observers.smoothing.smooth`
-    over the measurement its filter used, NaN where the session had none): ``v_smoothed``
-    beside each ``v_hat``; one line on what was done and how closely the smoother's own
-    forward pass reproduced the session's filter."""
+def smoothed_session(ds, observer):
+    """``(ds, gap)``: a session's Dataset with ``v_smoothed`` beside each ``v_hat``
+    (:func:`lookout.observers.smoothing.smooth` over the measurement its filter used, NaN
+    where the session had none), and how closely the smoother's own forward pass
+    reproduced the session's filter (the largest difference of their estimates)."""
     import numpy as np
-    import xarray as xr
 
     from lookout.observers.smoothing import smooth
-    from lookout.results import write_netcdf
 
-    with xr.open_dataset(path) as opened:
-        ds = opened.load()
     columns = []
     for signal in observer.measurement_layout.signals:
         values = ds[signal.name].values[0].reshape(ds.sizes["time"], -1).copy()
@@ -695,10 +691,24 @@ def _smooth_session(path: Path, observer) -> str:
     )
     smoothed = smooth(observer, ds["time"].values, np.concatenate(columns, axis=1), inputs)
     gap = 0.0
-    for name in observer.output(observer.init(np.zeros(observer.measurement_layout.size), observer.guess()), None):
+    ds = ds.copy()
+    for signal in observer.estimate_signals:
+        name = signal.name
         if f"{name}_hat" in ds:
             gap = max(gap, float(np.nanmax(np.abs(smoothed[f"{name}_hat"].values - ds[f"{name}_hat"].values))))
             ds[f"{name}_smoothed"] = smoothed[f"{name}_smoothed"]
+    return ds, gap
+
+
+def _smooth_session(path: Path, observer) -> str:
+    """Smooth a replayed session's file in place (:func:`smoothed_session`); one line on
+    what was done and how closely the smoother's forward pass reproduced the session."""
+    import xarray as xr
+
+    from lookout.results import write_netcdf
+
+    with xr.open_dataset(path) as opened:
+        ds, gap = smoothed_session(opened.load(), observer)
     partial = path.with_name(path.name + ".partial")
     write_netcdf(ds, partial, history="smoothed (Rauch-Tung-Striebel) after the replay")
     partial.replace(path)
