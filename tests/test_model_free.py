@@ -68,6 +68,7 @@ def test_the_kinematic_model_moves_with_its_velocity_and_measures_eta_plus_waves
         KinematicVessel((0.01, -0.01, 0.001))
 
 
+@pytest.mark.slow
 def test_speed_and_course_over_ground_without_a_hull_model():
     """The Northern Clipper in the paper's sea (Fossen & Strand 1999's preset), observed
     with no M, D or bias: after 60 s, on seeds 0-3, the speed over ground's RMS error is

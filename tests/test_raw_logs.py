@@ -188,6 +188,7 @@ def _replayed(log: Path, duration: float, **options):
     return parser, outcome, np.concatenate([b.session_time for b in blocks]), estimates
 
 
+@pytest.mark.slow
 @pytest.mark.xdist_group("live replay")
 def test_a_raw_log_replays_to_its_timed_twins_estimates_across_midnight(tmp_path):
     """A raw log of 60 s of the example run that starts 30 s before midnight UTC (GGA,
@@ -218,6 +219,7 @@ def test_write_raw_log_refuses_a_variation_outside_90_degrees(tmp_path):
     assert not (tmp_path / "x.nmea").exists()
 
 
+@pytest.mark.slow
 def test_replay_without_a_scenario_runs_the_model_free_observer_on_the_logs_sensors(tmp_path, capsys):
     """lookout replay LOG with no --scenario: one line says which observer and what it
     measured of the log (rates; noise around the 30 s moving mean), and the session is
@@ -279,6 +281,7 @@ def test_replay_without_a_scenario_in_waves_estimates_the_velocity_as_a_scenario
     assert errors[True] < 0.1 < 0.3 < errors[False], errors
 
 
+@pytest.mark.slow
 def test_replay_smooth_writes_the_smoothed_estimates_beside_the_filtered_ones(tmp_path, capsys):
     """--smooth: the RTS smoother over the session (its forward pass the session's own
     filter, to rounding), written beside the filtered estimates; refused in one line

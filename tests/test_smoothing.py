@@ -60,6 +60,7 @@ def test_on_a_linear_plant_the_smoother_is_the_exact_rts_smoother(kind):
     assert np.all(std <= np.sqrt(np.diagonal(np.diag([4.0, 1.0]))) + 1e-12)
 
 
+@pytest.mark.slow
 def test_smoothing_a_simulated_log_beats_the_filter():
     """The model-free filter over 300 s of the Northern Clipper in the paper's sea
     (tests/test_model_free.py's scenario, seed 0): the smoothed velocity's RMS error
