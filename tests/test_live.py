@@ -378,6 +378,7 @@ def test_replay_cli_writes_the_session(tmp_path, capsys):
         (["live", "examples/live-dp.toml", "--publish", "tcp://x:1"], "--publish must be udp://HOST:PORT"),
         (["live", "examples/live-dp.toml", "--nmea", "examples/logs/dp-vessel.nmea"], "is a regular file: its lines have no arrival times live"),
         (["live", "examples/live-dp.toml", "--idle", "-2"], "--idle must be a finite positive number of seconds"),
+        (["live", "examples/live-dp.toml", "--variation", "nan"], "--variation must be degrees within -180 to 180"),
         (["write-log", "examples/live-dp.toml", "--outage", "1"], "--outage must be START,LENGTH in seconds"),
         (["write-log", "examples/velocity-two-link-arm.toml"], "the sensor must measure position and heading"),
     ],

@@ -407,6 +407,21 @@ def _on_event(say):
 Quiet = Annotated[bool, typer.Option("--quiet", help="No status lines or events on stderr.")]
 Origin = Annotated[str | None, typer.Option(metavar="LAT,LON", help="Origin of the local north/east frame (degrees).", show_default="the first fix")]
 Publish = Annotated[str | None, typer.Option(metavar="udp://HOST:PORT | -", help="Send each estimate as a JSON line (- for stdout).")]
+Variation = Annotated[
+    float | None,
+    typer.Option(
+        metavar="DEGREES",
+        help="Magnetic variation, east positive, for magnetic headings (HDG, HDM) that carry none when no RMC has given one.",
+        show_default="the sentences' own",
+    ),
+]
+
+
+def _check_variation(variation: float | None) -> None:
+    if variation is not None and not (math.isfinite(variation) and -180.0 <= variation <= 180.0):
+        raise InputError(f"--variation must be degrees within -180 to 180 (east positive); got {variation:g}")
+
+
 MinQuality = Annotated[int, typer.Option("--min-quality", help=_GATES["min_quality"][1])]
 MaxHdop = Annotated[float, typer.Option("--max-hdop", help=_GATES["max_hdop"][1])]
 PositionGate = Annotated[float | None, typer.Option("--position-gate", help=_GATES["position_gate"][1], show_default=f"{Gates.position_gate:g}")]
@@ -471,14 +486,7 @@ def replay_command(
             help="The log's format: raw (NMEA sentences, times inside them), timed (TIME SENTENCE lines), csv, or auto (from its first line).",
         ),
     ] = "auto",
-    variation: Annotated[
-        float | None,
-        typer.Option(
-            metavar="DEGREES",
-            help="Magnetic variation, east positive, for magnetic headings (HDG, HDM) that carry none when no RMC has given one.",
-            show_default="the sentences' own",
-        ),
-    ] = None,
+    variation: Variation = None,
     smooth: Annotated[
         bool,
         typer.Option(
@@ -517,8 +525,7 @@ def replay_command(
         raise InputError("--smooth needs --out: the smoothed estimates are written beside the filtered ones in the session's file")
     if waves and scenario_file is not None:
         raise InputError("--waves is for a replay without --scenario: a scenario's observer has its own wave model")
-    if variation is not None and not (math.isfinite(variation) and -180.0 <= variation <= 180.0):
-        raise InputError(f"--variation must be degrees within -180 to 180 (east positive); got {variation:g}")
+    _check_variation(variation)
     if figure is not None and out is None:
         raise InputError("--figure needs --out: the figure is drawn from the session's file")
     if truth is not None and figure is None:
@@ -805,6 +812,7 @@ def live_command(
     gate_probability: GateProbability = None,
     flush_every: FlushEvery = 100,
     quiet: Quiet = False,
+    variation: Variation = None,
 ) -> None:
     """Run a scenario's observer live on NMEA 0183 position and heading; stop with Ctrl-C."""
     import jax
@@ -827,6 +835,7 @@ def live_command(
     _frame(origin)
     _check_out(out)
     _check_publish(publish)
+    _check_variation(variation)
     if thrust is not None and thrust == nmea:
         raise InputError(f"--thrust and --nmea must be two sources; both are {nmea}")
     for option, text in (("--nmea", nmea), ("--thrust", thrust)):
@@ -851,7 +860,7 @@ def live_command(
     emit, close, remove = _outputs(session, out, publish, scenario_file, f"live from {nmea}", flush_every)
     if thrust_source is None:
         say("no --thrust: the observer predicts with zero input")
-    parser = NmeaParser()
+    parser = NmeaParser(variation=variation)
     session.warm_up()
     say(f"listening on {source[2]} (Ctrl-C stops)")
     import warnings
