@@ -27,8 +27,10 @@ def _scaled_error(found: np.ndarray, true: np.ndarray) -> np.ndarray:
 
 @pytest.mark.slow
 def test_m_and_d_of_the_northern_clipper_from_its_raw_log(tmp_path, capsys):
-    """examples/identify-vessel.toml: 1800 s of the Northern Clipper under sinusoidal
-    thrust, DGNSS of 0.5 m at 1 Hz, a gyro of 0.1 deg at 10 Hz, a light sea, its raw log.
+    """examples/logs/identify-vessel-raw.nmea and -thrust.csv, what `lookout write-log
+    examples/identify-vessel.toml --outage none --raw` writes: 1800 s of the Northern
+    Clipper under sinusoidal thrust, DGNSS of 0.5 m at 1 Hz, a gyro of 0.1 deg at 10 Hz,
+    a light sea.
     Identified with 300 s windows, the last held out: every entry of M within 1 % of the
     size its diagonal gives it; of D within 15 % (measured 9.6 % for the surge-yaw
     coupling D_13 and 6.8 % for D_12, both 0 in the truth: the surge row, whose damping
@@ -36,10 +38,9 @@ def test_m_and_d_of_the_northern_clipper_from_its_raw_log(tmp_path, capsys):
     other entries); the diagonals of M within 1 %, of D within 5 % (measured 3.6 % for
     surge, 0.04 % and 0.02 % for sway and yaw); the held-out log predicted within 3 m and
     0.5 degree RMS."""
-    folder = tmp_path / "log"
-    assert main(["write-log", str(EXAMPLE / "identify-vessel.toml"), "--out", str(folder), "--name", "vessel", "--outage", "none", "--raw"]) == 0
+    logs = EXAMPLE / "logs"
     out = tmp_path / "identified"
-    assert main(["identify", str(folder / "vessel-raw.nmea"), "--thrust", str(folder / "vessel-thrust.csv"), "--out", str(out)]) == 0
+    assert main(["identify", str(logs / "identify-vessel-raw.nmea"), "--thrust", str(logs / "identify-vessel-thrust.csv"), "--out", str(out)]) == 0
     capsys.readouterr()
     numbers = json.loads((out / "identification.json").read_text())
     mass, damping = np.asarray(numbers["mass_matrix"]), np.asarray(numbers["damping_matrix"])
