@@ -33,11 +33,16 @@ from dataclasses import dataclass, field
 from io import BufferedReader
 from pathlib import Path
 
+import numpy as np
+
 from lookout.io.nmea import HEADING_SENTENCES, POSITION_SENTENCES, NmeaParser, Reading
 from lookout.io.sentence_time import SpreadClock, anchor_day
 
 #: The formats a caller can name (``--format``), and what :func:`log_format` calls them.
 FORMATS = {"raw": "nmea-raw", "timed": "nmea", "csv": "csv"}
+#: Steps between a channel's distinct times kept for its median (a sensor's rate
+#: shows in its first ones; memory stays bounded).
+INSTANT_STEPS = 10_000
 #: Lines read for a log's first line that is not blank or a comment before giving up.
 HEAD_LINES = 10_000
 
@@ -301,6 +306,19 @@ _BINS_PER_DECADE = 100
 _SMALLEST_STEP_DECADE, _DECADES = -6, 13
 
 
+def _median_step(histogram: list) -> float:
+    """The median of a histogram of steps (:data:`_BINS_PER_DECADE` bins a decade), NaN when empty."""
+    total = sum(histogram)
+    if not total:
+        return math.nan
+    count = 0
+    for index, n in enumerate(histogram):
+        count += n
+        if 2 * count >= total:
+            return 10.0 ** ((index + 0.5) / _BINS_PER_DECADE + _SMALLEST_STEP_DECADE)
+    return math.nan  # unreachable
+
+
 @dataclass
 class LogScan:
     """What :func:`scan_log` found in a log: its times, their order and gaps, and how
@@ -334,7 +352,7 @@ class LogScan:
     instants : collections.Counter
         Distinct times of the position and of the heading lines (``position``,
         ``heading``): consecutive lines of one kind and one time (a GGA and an RMC of
-        one fix) count once; the rate of each channel is its count over :attr:`span`.
+        one fix) count once. :meth:`instant_step` is the median step between them.
     ignored_dates : int
         A raw log's dates that disagreed with the day counted from its times of day
         (:class:`~lookout.io.sentence_time.SentenceClock`).
@@ -364,6 +382,7 @@ class LogScan:
     ignored_dates: int = 0
     instants: Counter = field(default_factory=Counter)
     _last_of: dict = field(default_factory=dict, repr=False)
+    _instant_steps: dict = field(default_factory=dict, repr=False)
     usable: Counter = field(default_factory=Counter)
     _steps: list = field(default_factory=lambda: [0] * (_BINS_PER_DECADE * _DECADES), repr=False)
 
@@ -382,15 +401,7 @@ class LogScan:
     def typical_step(self) -> float:
         """The median step forward between consecutive timed lines (s, to 1.2 %; NaN
         when no line follows another later in time)."""
-        total = sum(self._steps)
-        if not total:
-            return math.nan
-        count = 0
-        for index, n in enumerate(self._steps):
-            count += n
-            if 2 * count >= total:
-                return 10.0 ** ((index + 0.5) / _BINS_PER_DECADE + _SMALLEST_STEP_DECADE)
-        return math.nan  # unreachable
+        return _median_step(self._steps)
 
     @staticmethod
     def _bin(step: float) -> int:
@@ -400,7 +411,18 @@ class LogScan:
     def _instant(self, kind: str, time: float) -> None:
         if kind in ("position", "heading") and self._last_of.get(kind) != time:
             self.instants[kind] += 1
+            last = self._last_of.get(kind)
+            steps = self._instant_steps.setdefault(kind, [])
+            if last is not None and time > last and len(steps) < INSTANT_STEPS:
+                steps.append(time - last)
             self._last_of[kind] = time
+
+    def instant_step(self, kind: str) -> float:
+        """The median step forward between consecutive distinct times of a kind's lines
+        (``position`` or ``heading``; s; over the first :data:`INSTANT_STEPS`; NaN with
+        fewer than two)."""
+        steps = self._instant_steps.get(kind)
+        return float(np.median(steps)) if steps else math.nan
 
     def _time(self, number: int, time: float) -> None:
         if not math.isfinite(time):

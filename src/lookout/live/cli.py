@@ -97,7 +97,8 @@ def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say,
 
 def _model_free_session(log: str, forced: str | None, waves: bool, origin: str | None, gates: dict, on_event, say, batch: int):
     """A session of the model-free observer (:class:`~lookout.observers.model_free.ModelFreeFilter`)
-    on the log's own sensors (:func:`lookout.live.log_sensors.log_sensors`: rates, noise
+    on the log's own sensors (:func:`lookout.live.log_sensors.log_sensors`: periods (the
+    median step between a channel's distinct times, two digits), noise
     and, with ``waves``, the waves measured from the log), stepped at the faster
     channel's period; said in one line."""
     from lookout.io.logs import scan_log
@@ -110,13 +111,12 @@ def _model_free_session(log: str, forced: str | None, waves: bool, origin: str |
         scan = scan_log(log, "LOG", forced)
     except ValueError as error:
         raise InputError(str(error)) from None
-    span = scan.span
-    # instants less one over the span: the steps between them (one of a kind gives none)
-    rates = {kind: max(scan.instants[kind] - 1, 0) / span if span > 0 else 0.0 for kind in ("position", "heading")}
-    if not all(rates.values()):
-        missing = " and ".join(f"no {kind}" for kind, rate in rates.items() if not rate)
+    # each channel's median step between its distinct times (an outage does not slow it)
+    steps = {kind: scan.instant_step(kind) for kind in ("position", "heading")}
+    if not all(math.isfinite(step) for step in steps.values()):
+        missing = " and ".join(f"no {kind}" for kind, step in steps.items() if not math.isfinite(step))
         raise InputError(f"LOG {log}: without --scenario the log's own sensors are used, and it has {missing} over a span of time; give --scenario")
-    periods = {kind: float(f"{1.0 / rate:.2g}") for kind, rate in rates.items()}  # 1 Hz, 10 Hz: two digits
+    periods = {kind: float(f"{step:.2g}") for kind, step in steps.items()}  # 1 Hz, 10 Hz: two digits
     step = min(periods.values())
     # each channel due at its own period, a whole number of steps (a held fix is not new)
     periods = {kind: step * max(round(period / step), 1) for kind, period in periods.items()}
