@@ -2,8 +2,9 @@
 waves, the waves. The model-free observer of ``lookout replay LOG`` without a scenario
 is designed from these alone (:class:`~lookout.observers.model_free.ModelFreeFilter`).
 
-- **Rates**: the distinct times of the position and of the heading lines over the
-  log's span (:attr:`lookout.io.logs.LogScan.instants`), to two significant digits.
+- **Rates**: the median step between the distinct times of the position lines and of
+  the heading lines (:meth:`lookout.io.logs.LogScan.instant_step`), to two significant
+  digits.
 - **Spread**: each channel's standard deviation around its moving mean over
   :data:`WINDOW` seconds, the low-frequency motion: the sensor's noise and the
   wave-frequency motion together.
