@@ -26,6 +26,7 @@ from collections import Counter
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import reduce
+from operator import xor
 
 from pynmeagps import NMEAReader
 from pynmeagps.nmeatypes_core import VALNONE
@@ -196,7 +197,7 @@ class Reading:
 
 def checksum(body: bytes) -> int:
     """The NMEA checksum of ``body`` (the characters between ``$`` and ``*``): their XOR."""
-    return reduce(lambda a, b: a ^ b, body, 0)
+    return reduce(xor, body, 0)
 
 
 def sentence(talker: str, formatter: str, fields: Iterable[object]) -> str:
