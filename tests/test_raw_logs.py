@@ -240,7 +240,7 @@ def test_replay_without_a_scenario_runs_the_model_free_observer_on_the_logs_sens
     headings.write_text("".join(line + "\n" for line in [sentence("GP", "ZDA", ["000000.00", "01", "12", "2026", "00", "00"]), _hdt(1.0), _hdt(2.0)]))
     assert main(["replay", str(headings)]) == 2
     message = capsys.readouterr().err.strip()
-    assert "without --scenario the log's own sensors are used" in message and "\n" not in message
+    assert "without --scenario the observer without a hull model reads the log's positions and headings" in message and "\n" not in message
 
 
 def test_the_logs_own_sensors_and_waves_measured_from_the_example_raw_log():
@@ -309,3 +309,38 @@ def test_replay_smooth_writes_the_smoothed_estimates_beside_the_filtered_ones(tm
         text = capsys.readouterr().err.strip()
         assert message in text and "\n" not in text
     assert not (tmp_path / "p.nc").exists()
+
+
+def _hdm_log(path: Path, seconds: float = 60.0) -> Path:
+    """The example raw log's first ``seconds`` with its headings as HDM and no variation
+    anywhere: the magnetic heading (the HDG's sensor heading plus its deviation), and
+    the RMCs' variation fields empty."""
+    truth = xr.open_dataset(LOGS / "dp-vessel-truth.nc").isel(time=slice(0, round(seconds * 10)))
+    raw = write_raw_log(truth, path.with_suffix(".hdg"))
+    lines = []
+    for line in raw.read_text().splitlines():
+        if line.startswith("$HCHDG"):
+            fields = line.split("*")[0].split(",")
+            lines.append(sentence("HC", "HDM", [f"{float(fields[1]) + float(fields[2]):.2f}", "M"]))
+        elif line.startswith("$GPRMC"):
+            fields = line.split("*")[0].split(",")
+            lines.append(sentence("GP", "RMC", fields[1:10] + ["", "", "D"]))
+        else:
+            lines.append(line)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_magnetic_headings_without_a_variation_are_named_and_taken_with_one(tmp_path, capsys):
+    """A log whose headings are HDM and that carries no variation: without --scenario the
+    refusal names --variation; with it, the log's own sensors are measured (10 Hz of
+    headings, 0.1 degree of noise and the run's turning left in the spread)."""
+    from lookout.cli import main
+    from lookout.live.log_sensors import log_sensors
+
+    log = _hdm_log(tmp_path / "hdm.nmea")
+    assert main(["replay", str(log)]) == 2
+    message = capsys.readouterr().err.strip()
+    assert "600 magnetic headings (HDG, HDM) carry no variation: give --variation" in message and "\n" not in message
+    measured = log_sensors(log, "nmea-raw", 1.0, 0.1, variation=-3.5)
+    assert 0.05 <= measured.heading_std < 0.5

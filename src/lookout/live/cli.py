@@ -95,7 +95,9 @@ def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say,
     return session
 
 
-def _model_free_session(log: str, forced: str | None, waves: bool, origin: str | None, gates: dict, on_event, say, batch: int):
+def _model_free_session(
+    log: str, forced: str | None, waves: bool, origin: str | None, gates: dict, on_event, say, batch: int, variation: float | None = None
+):
     """A session of the model-free observer (:class:`~lookout.observers.model_free.ModelFreeFilter`)
     on the log's own sensors (:func:`lookout.live.log_sensors.log_sensors`: periods (the
     median step between a channel's distinct times, two digits), noise
@@ -103,24 +105,31 @@ def _model_free_session(log: str, forced: str | None, waves: bool, origin: str |
     channel's period; said in one line."""
     from lookout.io.logs import scan_log
     from lookout.live.log_sensors import log_sensors
+    from lookout.live.run import check_log_order
     from lookout.live.session import Session
     from lookout.observers.model_free import SETTLING_TIME, ModelFreeFilter
     from lookout.sensors import PositionHeadingSensor
 
     try:
         scan = scan_log(log, "LOG", forced)
+        check_log_order(scan, math.inf)  # a log without a time, or reversed, refused as a replay refuses it
     except ValueError as error:
         raise InputError(str(error)) from None
     # each channel's median step between its distinct times (an outage does not slow it)
     steps = {kind: scan.instant_step(kind) for kind in ("position", "heading")}
     if not all(math.isfinite(step) for step in steps.values()):
         missing = " and ".join(f"no {kind}" for kind, step in steps.items() if not math.isfinite(step))
-        raise InputError(f"LOG {log}: without --scenario the log's own sensors are used, and it has {missing} over a span of time; give --scenario")
+        raise InputError(
+            f"LOG {log}: without --scenario the observer without a hull model reads the log's positions and headings, and it has {missing} over a span of time"
+        )
     periods = {kind: float(f"{step:.2g}") for kind, step in steps.items()}  # 1 Hz, 10 Hz: two digits
     step = min(periods.values())
     # each channel due at its own period, a whole number of steps (a held fix is not new)
     periods = {kind: step * max(round(period / step), 1) for kind, period in periods.items()}
-    measured = log_sensors(log, scan.format, periods["position"], periods["heading"], waves=waves)
+    try:
+        measured = log_sensors(log, scan.format, periods["position"], periods["heading"], waves=waves, variation=variation)
+    except ValueError as error:
+        raise InputError(str(error)) from None
     if waves and measured.wave_period is None:
         raise InputError(f"--waves: LOG {log} shows no wave motion with a peak period between 3 and 25 s; leave --waves out")
     heading_std = math.radians(measured.heading_std)
@@ -564,7 +573,7 @@ def replay_command(
     # paced: one step per compiled call, as live; fast: a scan over blocks of steps
     batch = 1 if speed is not None else REPLAY_BATCH
     if scenario_file is None:
-        session = _model_free_session(log, forced, waves, origin, gates, _on_event(say), say, batch)
+        session = _model_free_session(log, forced, waves, origin, gates, _on_event(say), say, batch, variation)
         scenario_file = "no scenario: the model-free observer"
     else:
         session = _session(scenario_file, origin, gates, _on_event(say), say, batch=batch)
@@ -638,6 +647,7 @@ def replay_command(
         remove()
         raise InputError(
             f"{log}: no step was taken: the log never had both a usable position and a heading ({_status_line(session, parser, outcome, True)})"
+            + ("; its magnetic headings (HDG, HDM) carry no variation: give --variation" if parser.counts["no_variation"] else "")
         )
     assert outcome.first_time is not None and outcome.last_time is not None  # set with the first step
     span = outcome.last_time - outcome.first_time

@@ -21,8 +21,12 @@ import typer
 
 from lookout._validation import InputError
 
+#: The share of a log's span its thrust must cover (the rest: the edges of two logs
+#: started a little apart).
+MOST_UNCOVERED = 0.98
 
-def _session_dataset(log: str, thrust: str, waves: bool, folder: Path, say):
+
+def _session_dataset(log: str, thrust: str, waves: bool, variation: float | None, folder: Path, say):
     """Replay ``log`` with the model-free observer on its own sensors into
     ``folder/session.nc``, smoothed: ``(Dataset, filter, sensors measured)``."""
     import xarray as xr
@@ -33,11 +37,18 @@ def _session_dataset(log: str, thrust: str, waves: bool, folder: Path, say):
     from lookout.results import write_netcdf
 
     gates = _gates(Gates.min_quality, Gates.max_hdop, None, None, Gates.position_timeout, Gates.heading_timeout, None)
-    session = _model_free_session(log, None, waves, None, gates, _on_event(say), say, REPLAY_BATCH)
+    session = _model_free_session(log, None, waves, None, gates, _on_event(say), say, REPLAY_BATCH, variation)
     try:
         check = check_replay(session, log, thrust, MAX_GAP)
     except ValueError as error:
         raise InputError(str(error)) from None
+    assert check.thrust is not None  # a thrust log was given
+    covered = min(check.thrust.newest, check.log.newest) - max(check.thrust.first, check.log.first)
+    if covered < MOST_UNCOVERED * check.log.span:
+        raise InputError(
+            f"--thrust {thrust} covers {max(covered, 0.0):.1f} s of the log's {check.log.span:.1f} s: M and D fitted where the thrust is unknown would be wrong; "
+            "give the thrust of the whole log, or cut the log to the thrust's span"
+        )
     path = folder / "session.nc"
     write, close, _ = _outputs(session, str(path), None, "no scenario: the model-free observer", f"identification from {log}", 1000)
     with warnings.catch_warnings():
@@ -167,6 +178,13 @@ def identify_command(
     window: Annotated[
         float, typer.Option(metavar="SECONDS", help="Seconds per window of the fit (the environment's force one constant in each).")
     ] = 300.0,
+    variation: Annotated[
+        float | None,
+        typer.Option(
+            metavar="DEGREES",
+            help="Magnetic variation, east positive, for magnetic headings (HDG, HDM) that carry none (lookout replay --variation).",
+        ),
+    ] = None,
 ) -> None:
     """Identify a vessel's M and D from a log with thrust, and write the vessel in a scenario file."""
     import numpy as np
@@ -186,6 +204,17 @@ def identify_command(
         raise InputError(f"--thrust {thrust} must be a CSV log whose first line is time,surge,sway,yaw")
     if not (math.isfinite(window) and window > 0):
         raise InputError(f"--window must be a finite positive number of seconds; got {window:g}")
+    from lookout.live.cli import _check_variation
+
+    _check_variation(variation)
+    from lookout.io.logs import scan_log
+
+    try:
+        span = scan_log(log, "LOG").span
+    except ValueError as error:
+        raise InputError(str(error)) from None
+    if window > 0.5 * span:
+        raise InputError(f"--window {window:g} s is longer than half the log ({span:.1f} s): give a shorter window or a longer log")
     if scenario_file is not None:
         from lookout.studies.cli import _scenario
 
@@ -195,11 +224,12 @@ def identify_command(
     def say(text: str) -> None:
         typer.echo(text, err=True)
 
-    ds, observer = _session_dataset(log, thrust, waves, folder, say)
+    ds, observer = _session_dataset(log, thrust, waves, variation, folder, say)
     step, measured, applied, states, sigma = _arrays(ds, observer)
-    if window > 0.5 * step * len(measured):
-        raise InputError(f"--window {window:g} s is longer than half the log ({step * len(measured):g} s): give a shorter window or a longer log")
     result = identify(step, measured, applied, states, sigma, window=window)
+    if not (np.all(np.isfinite(result.validation_rms)) and np.all(np.isfinite(result.mass_matrix)) and np.all(np.isfinite(result.damping_matrix))):
+        (folder / "session.nc").unlink(missing_ok=True)
+        raise InputError(f"{log}: the fit diverged (its prediction is not finite): is the thrust the one applied to this vessel over this log?")
     document = _scenario_document(result, scenario_file, ds, observer)
     from lookout.scenario._toml import write as write_toml
     from lookout.scenario.file import composition_comments

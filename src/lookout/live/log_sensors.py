@@ -109,7 +109,9 @@ def _waves(residual: np.ndarray, period: float) -> tuple[float, float, float]:
     return 1.0 / peak, max(total - noise, 0.0), min(noise, total)
 
 
-def log_sensors(log: str | Path, fmt: str, position_period: float, heading_period: float, waves: bool = False) -> LogSensors:
+def log_sensors(
+    log: str | Path, fmt: str, position_period: float, heading_period: float, waves: bool = False, variation: float | None = None
+) -> LogSensors:
     """The log's sensors (module docstring) at the given periods.
 
     Parameters
@@ -121,12 +123,22 @@ def log_sensors(log: str | Path, fmt: str, position_period: float, heading_perio
         Seconds between fixes and between headings (from the log's scan).
     waves : bool
         Whether the vessel is in waves: the spread is split into waves and noise.
+    variation : float, optional
+        For magnetic headings without a variation of their own or an RMC's
+        (:class:`~lookout.io.nmea.NmeaParser`).
+
+    Raises
+    ------
+    ValueError
+        Naming the log, when it gives fewer than three positions or headings (its
+        magnetic headings without a variation: saying so).
     """
     from lookout.io.geodesy import LocalFrame
     from lookout.io.nmea import NmeaParser
     from lookout.live.run import log_readings
 
-    readings, _ = log_readings(log, NmeaParser(), fmt)
+    parser = NmeaParser(variation=variation)
+    readings, _ = log_readings(log, parser, fmt)
     frame = None
     positions: list[tuple[float, float]] = []
     headings: list[float] = []
@@ -143,6 +155,14 @@ def log_sensors(log: str | Path, fmt: str, position_period: float, heading_perio
             frame = frame or LocalFrame(reading.values[0], reading.values[1])
             north, east, _ = frame.ned(reading.values[0], reading.values[1])
             positions.append((float(north), float(east)))
+    for what, values in (("position", positions), ("heading", headings)):
+        if len(values) < 3:
+            hint = (
+                f"; its {parser.counts['no_variation']} magnetic headings (HDG, HDM) carry no variation: give --variation"
+                if what == "heading" and parser.counts["no_variation"]
+                else ""
+            )
+            raise ValueError(f"LOG {log}: {len(values)} {what} readings, too few to measure its sensors from{hint}")
     position = _moving_residual(np.asarray(positions, dtype=float).reshape(-1, 2), position_period)
     heading = _moving_residual(np.degrees(np.unwrap(np.radians(np.asarray(headings, dtype=float)))).reshape(-1, 1), heading_period)
     if not waves:

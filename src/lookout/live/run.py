@@ -220,8 +220,8 @@ def check_replay(
             raise ValueError(f"--thrust {thrust}: no row gives a thrust ({_described(thrust_scan)})")
         if thrust_scan.newest < scan.first or thrust_scan.first > scan.newest:
             raise ValueError(
-                f"--thrust {thrust}: its times ({thrust_scan.first:.6g} to {thrust_scan.newest:.6g} s) do not overlap the log's "
-                f"({scan.first:.6g} to {scan.newest:.6g} s); are both in seconds, on the same clock?"
+                f"--thrust {thrust}: its times ({thrust_scan.first:.3f} to {thrust_scan.newest:.3f} s) do not overlap the log's "
+                f"({scan.first:.3f} to {scan.newest:.3f} s); are both in seconds, on the same clock?"
             )
         check.thrust = thrust_scan
     return check

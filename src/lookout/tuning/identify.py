@@ -197,7 +197,9 @@ def identify(
     sigma : array_like, shape (3,)
         The measurement noise (m, m, rad) that weights the residuals.
     window : float
-        Seconds per window; held_out: the share of windows held out (0 < . < 1).
+        Seconds per window (the log is cut into the whole number of windows nearest its
+        span over ``window``, of equal length); held_out: the share of windows held out
+        (0 < . < 1).
 
     Raises
     ------
@@ -214,10 +216,12 @@ def identify(
         raise ValueError("thrust and states must be finite at every row")
     if not 0.0 < held_out < 1.0:
         raise ValueError(f"held_out must be a share between 0 and 1; got {held_out!r}")
-    per = int(round(window / step))
-    count = n // per
-    if count < 2:
+    # windows of equal length covering the log: as many as the window fits, each a
+    # little longer or shorter than asked (the last rows, fewer than the windows, dropped)
+    count = int(round(n * step / window))
+    if count < 2 or window <= 0:
         raise ValueError(f"window must be at most half the log ({n * step:g} s); got {window:g} s")
+    per = n // count
     validation = max(int(round(held_out * count)), 1)
     fitted = count - validation
     if fitted < 1:
