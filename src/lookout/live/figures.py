@@ -42,8 +42,8 @@ def with_truth(session: xr.Dataset, truth: xr.Dataset) -> xr.Dataset:
 
 def plot_session(session: xr.Dataset, truth: xr.Dataset | None = None, *, title: str | None = None) -> Figure | None:
     """Estimates of a session: against the truth when one is given (the whole session
-    and a zoom on its first position outage, or its end), else every estimate with its
-    measurement."""
+    and a zoom on its first position outage, or its end; a smoothed session's smoothed
+    estimates in blue beside them), else every estimate with its measurement."""
     if truth is None:
         return plot_run_estimates(session, title=title)
     merged = with_truth(session, truth)
@@ -55,4 +55,8 @@ def plot_session(session: xr.Dataset, truth: xr.Dataset | None = None, *, title:
         window = (max(time[0], first[0] - 20.0), min(time[-1], first[-1] + 30.0))
         note = f"; no position fix used from {first[0]:g} to {first[-1]:g} s (dead reckoning)"
     heading = (title or "replayed log") + ": estimates against the simulation's truth" + note
-    return plot_estimates(merged, PANELS, window=window, title=heading)
+    # a smoothed session (lookout replay --smooth): its smoothed estimates beside the filtered ones
+    smoothed = {name: f"{name}_smoothed" for name, _ in PANELS if f"{name}_smoothed" in session}
+    for name in smoothed:
+        merged[f"{name}_smoothed"] = session[f"{name}_smoothed"].assign_attrs(long_name="smoothed (Rauch-Tung-Striebel)")
+    return plot_estimates(merged, PANELS, window=window, title=heading, targets=smoothed or None)
