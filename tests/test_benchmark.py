@@ -472,7 +472,7 @@ def test_a_scenario_file_is_benchmarked_with_every_observer_that_composes_on_it(
     benchmark = bench.load_benchmark(EXAMPLES / "sliding-mode-own-vessel.toml")
     spec = benchmark.spec
     file = tomllib.loads((EXAMPLES / "sliding-mode-own-vessel.toml").read_text())
-    assert list(spec.observers) == ["sliding-mode-as-given", "passive", "sliding-mode", "earth-fixed", "adaptive-dp", "ekf", "ukf"]
+    assert list(spec.observers) == ["sliding-mode-as-given", "passive", "sliding-mode", "earth-fixed", "adaptive-dp", "ekf", "ukf", "model-free"]
     assert spec.observers["sliding-mode-as-given"] == file["observer"]
     # another vessel than the shipped one: the shipped tables' gains are not taken, the design rules make them
     assert spec.observers["passive"] == {"kind": "passive", "design": "fossen-strand-1999"}

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+from collections.abc import Iterable
 
 #: The sentences that carry a UTC time of day, and the field (after the address) that holds it.
 TIMED_SENTENCES = {"GGA": 1, "GNS": 1, "RMC": 1, "ZDA": 1, "GLL": 5}
@@ -162,7 +163,7 @@ class SentenceClock:
         self.now = (self.origin_day + day) * DAY + seconds
 
 
-def anchor_day(lines) -> int:
+def anchor_day(lines: Iterable[tuple[str, bytes]]) -> int:
     """The origin day of a :class:`SentenceClock` for a log's sentences: the first
     date's day number less the days counted up to it (0 when no sentence carries a
     date). ``lines`` yields ``(formatter, body)`` of the well-framed sentences in file

@@ -6,12 +6,17 @@ import contextlib
 import math
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from lookout._validation import InputError
 from lookout.live.options import MAX_GAP, Gates  # the defaults of --max-gap and of the gate options
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+    from lookout.observers.kalman import KalmanFilter
 
 #: Steps per compiled scan in a fast replay.
 REPLAY_BATCH = 4096
@@ -687,7 +692,7 @@ def _kalman_of(session):
     return inner if isinstance(inner, KalmanFilter) and not hasattr(session.observer, "gated") else None
 
 
-def smoothed_session(ds, observer):
+def smoothed_session(ds: xr.Dataset, observer: KalmanFilter) -> tuple[xr.Dataset, float]:
     """``(ds, gap)``: a session's Dataset with ``v_smoothed`` beside each ``v_hat``
     (:func:`lookout.observers.smoothing.smooth` over the measurement its filter used, NaN
     where the session had none), and how closely the smoother's own forward pass

@@ -278,7 +278,13 @@ def filter(  # noqa: A001 - lookout.filter, as the docs name it
 
 
 def checked_log(
-    observer: Observer, times, measurements, inputs, guess, measurement_layout: Layout | None, input_layout: Layout | None
+    observer: Observer,
+    times: npt.ArrayLike,
+    measurements: npt.ArrayLike,
+    inputs: npt.ArrayLike | None,
+    guess: Any,
+    measurement_layout: Layout | None,
+    input_layout: Layout | None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any, Layout, Layout]:
     """``(times, measurements, inputs, guess, measurement_layout, input_layout)`` of a log
     checked as :func:`filter` checks it (its Raises), the defaults filled in."""
@@ -321,7 +327,15 @@ def checked_log(
     return times, measurements, inputs, guess, measurement_layout, input_layout
 
 
-def filtered_dataset(observer: Observer, times, estimates, measurements, inputs, measurement_layout: Layout, input_layout: Layout) -> xr.Dataset:
+def filtered_dataset(
+    observer: Observer,
+    times: np.ndarray,
+    estimates: dict[str, Any],
+    measurements: np.ndarray,
+    inputs: np.ndarray,
+    measurement_layout: Layout,
+    input_layout: Layout,
+) -> xr.Dataset:
     """The Dataset of :func:`filter` from a run's estimates."""
     signals = RecordSignals(
         truth=(),
