@@ -388,7 +388,7 @@ def test_kind_pid_alone_composes_on_both_vessel_plants():
 @pytest.mark.parametrize("plant", ["dp-vessel", "cybership-ii"])
 def test_every_observer_of_the_shipped_benchmarks_drives_it(plant):
     """The closed-loop condition of each shipped benchmark composes with each of its
-    observers (passive, sliding-mode, adaptive-dp, earth-fixed, ekf, ukf on the DP vessel):
+    observers (passive, sliding-mode, adaptive-dp, earth-fixed, ekf, ukf, model-free on the DP vessel):
     each gives the estimate the PID reads, checked by the scenario's fit check."""
     from lookout.scenario.composition import compose
     from lookout.studies import benchmark as bench
@@ -400,7 +400,7 @@ def test_every_observer_of_the_shipped_benchmarks_drives_it(plant):
         document.update(copy.deepcopy(closed.changes))
         scenario = compose(document).scenario
         assert isinstance(scenario.controller, PidController), name
-    assert plant != "dp-vessel" or set(loaded.spec.observers) == {"passive", "sliding-mode", "adaptive-dp", "earth-fixed", "ekf", "ukf"}
+    assert plant != "dp-vessel" or set(loaded.spec.observers) == {"passive", "sliding-mode", "adaptive-dp", "earth-fixed", "ekf", "ukf", "model-free"}
 
 
 def test_tuned_gains_written_to_a_pole_placement_table_are_the_gains_built():
