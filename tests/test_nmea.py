@@ -221,6 +221,75 @@ def test_framing_alone_agrees_with_the_full_parse(line):
         assert counted == cause and formatter == ""
 
 
+def _pynmeagps_fields(line: bytes, formatter: str):
+    """What pynmeagps's own parse gives, as (attribute, value) pairs, or its exception's type."""
+    from pynmeagps import NMEAReader
+    from pynmeagps.nmeatypes_core import VALNONE
+    from pynmeagps.nmeatypes_get import NMEA_PAYLOADS_GET
+
+    try:
+        message = NMEAReader.parse(line, validate=VALNONE)
+    except Exception:  # noqa: BLE001 - compared by kind: both readers refuse the line
+        return "raises"
+    if message is None:
+        return None
+    return {name: getattr(message, name) for name in NMEA_PAYLOADS_GET[formatter] if hasattr(message, name)}
+
+
+def _fast_fields(line: bytes, formatter: str):
+    from lookout.io.nmea import _message
+
+    try:
+        message = _message(line, formatter)
+    except Exception:  # noqa: BLE001
+        return "raises"
+    return None if message is None else dict(vars(message))
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return type(a) is type(b) and a == b
+
+
+@settings(max_examples=400)
+@given(st.one_of(_good, _damaged()))
+def test_the_field_reader_gives_what_pynmeagps_gives(line):
+    """The sentences' fields are read in one pass over pynmeagps's own definitions and
+    conversions: the same attributes and values as its parse (or both refuse the line),
+    on every sentence kind, damaged or not."""
+    cause, formatter, _ = NmeaParser().framed(line)
+    if cause != "accepted":
+        return
+    framed = NmeaParser()._frame(line)[1][0]
+    assert _same(_fast_fields(framed, formatter), _pynmeagps_fields(framed, formatter))
+
+
+def test_the_field_reader_on_the_example_logs_and_hemispheres():
+    lines = [
+        sentence("GP", "GGA", ["120000.00", "6326.4000", "S", "01024.0000", "W", "2", "9", "0.8", "12.0", "M", "40.0", "M", "", ""]),
+        sentence("GP", "GLL", ["6326.4000", "N", "01024.0000", "W", "120000.00", "A", "D"]),
+        sentence("GP", "RMC", ["120000.00", "A", "6326.4000", "N", "01024.0000", "E", "0.5", "90.0", "071226", "3.5", "W", "A"]),
+        sentence("HC", "HDG", ["101.5", "1.2", "E", "3.5", "W"]),
+        sentence("HC", "HDG", ["101.5", "1.2"]),  # fewer fields than the definition
+        sentence("HE", "HDT", ["101.5", "T", "extra"]),
+        sentence("GP", "ZDA", ["120000.00", "07", "12", "2026", "", ""]),
+    ]
+    root = Path(__file__).parents[1] / "examples" / "logs"
+    for name in ("dp-vessel-raw.nmea", "identify-vessel-raw.nmea"):
+        lines += (root / name).read_text().splitlines()[:3000]
+    compared = 0
+    for line in lines:
+        cause, formatter, _ = NmeaParser().framed(line)
+        if cause == "accepted":
+            framed = NmeaParser()._frame(line)[1][0]
+            assert _same(_fast_fields(framed, formatter), _pynmeagps_fields(framed, formatter)), line
+            compared += 1
+    assert compared > 5000
+
+
 @settings(max_examples=150)
 @given(st.lists(st.one_of(_good, _damaged()), max_size=20), st.randoms(use_true_random=False))
 def test_fuzzed_datagrams_and_reordered_streams(lines, random):

@@ -28,8 +28,11 @@ from dataclasses import dataclass
 from functools import reduce
 from operator import xor
 
-from pynmeagps import NMEAReader
-from pynmeagps.nmeatypes_core import VALNONE
+from pynmeagps import NMEAMessage, NMEAReader
+from pynmeagps.exceptions import NMEAMessageError
+from pynmeagps.nmeahelpers import get_parts
+from pynmeagps.nmeatypes_core import LAD, LND, VALNONE
+from pynmeagps.nmeatypes_get import NMEA_PAYLOADS_GET
 
 #: The sentences turned into readings, by what they measure.
 POSITION_SENTENCES = ("GGA", "GNS", "GLL", "RMC")
@@ -399,7 +402,7 @@ class NmeaParser:
             return cause, "", []
         line, talker, formatter, tags = framed
         try:
-            message = NMEAReader.parse(line, validate=VALNONE)
+            message = _message(line, formatter)
             if formatter == "RMC" and message.status == "A":
                 self._remember_variation(message)
             values = _values(formatter, message)
@@ -436,6 +439,41 @@ class NmeaParser:
         if abs(deviation) > 180.0:
             raise _OutOfRange("deviation out of range")
         return "heading", ((magnetic + deviation + variation) % 360.0,)
+
+
+class _Fields:
+    """A sentence's fields by pynmeagps's attribute names (what :func:`_values` reads)."""
+
+    def __init__(self, values: dict):
+        self.__dict__.update(values)
+
+
+#: pynmeagps's definition of each supported sentence whose fields are all scalars, in order.
+_FLAT = {f: tuple(NMEA_PAYLOADS_GET[f].items()) for f in SUPPORTED if all(isinstance(t, str) for t in NMEA_PAYLOADS_GET[f].values())}
+
+
+def _message(line: bytes, formatter: str):
+    """The fields of a framed sentence as ``NMEAReader.parse(line, validate=VALNONE)``
+    gives them (None where it gives None), in a third of its time: pynmeagps's own field
+    definitions and conversions (``NMEAMessage.str2val``) read in one pass, without its
+    message object (docs/benchmarks.md). A sentence whose definition has groups goes to
+    pynmeagps."""
+    definition = _FLAT.get(formatter)
+    if definition is None:
+        return NMEAReader.parse(line, validate=VALNONE)
+    try:
+        _, _, _, payload, _ = get_parts(line)
+    except NMEAMessageError:
+        return None
+    values: dict = {}
+    for (name, kind), text in zip(definition, payload, strict=False):  # fewer fields: the rest unset, as pynmeagps leaves them
+        value = values[name] = NMEAMessage.str2val(text, kind)
+        # pynmeagps's rule: a hemisphere letter signs the latitude or longitude read before it
+        if kind == LND and isinstance(values.get("lon"), (int, float)):
+            values["lon"] = -abs(values["lon"]) if value == "W" else abs(values["lon"])
+        elif kind == LAD and isinstance(values.get("lat"), (int, float)):
+            values["lat"] = -abs(values["lat"]) if value == "S" else abs(values["lat"])
+    return _Fields(values)
 
 
 class _NoVariation(ValueError):
