@@ -356,7 +356,10 @@ def test_replay_cli_writes_the_session(tmp_path, capsys):
             ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "nmea"],
             "--format must be auto, raw, timed or csv",
         ),
-        (["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "csv"], "a CSV log's first line must be"),
+        (
+            ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "csv"],
+            "a CSV log's first line must be time,north,east,heading or time,surge,sway,yaw; this is a TIME SENTENCE NMEA log: leave the format out (auto), or give timed",
+        ),
         (
             ["replay", "examples/logs/dp-vessel-raw.nmea", "--scenario", "examples/live-dp.toml", "--variation", "200"],
             "--variation must be degrees within -180 to 180",
@@ -436,7 +439,7 @@ BAD_LOGS = {
         r"no line gives a position reading \(6579 lines: checksum 657\d, malformed \d\); the observer needs position and heading",
     ),
     "headings only": (lambda rows: [(t, s) for t, s in rows if "THS" in s], r"no line gives a position reading \(\d+ lines: heading 6000"),
-    "comments only": (lambda rows: [], r"no line has a time \(no line but comments\)"),
+    "comments only": (lambda rows: [], r"no line but comments and blank lines: nothing to replay"),
 }
 
 

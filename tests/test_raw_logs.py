@@ -6,6 +6,7 @@ line, and a raw log written from a simulated run replayed to its timed twin's es
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 import warnings
 from pathlib import Path
@@ -119,8 +120,12 @@ def test_the_format_is_told_from_the_first_line_or_named(tmp_path):
     assert log_format(timed, forced="raw") == "nmea-raw" and log_format(raw, forced="timed") == "nmea"
     with pytest.raises(ValueError, match="format must be one of raw, timed, csv; got 'nmea'"):
         log_format(raw, forced="nmea")
-    with pytest.raises(ValueError, match="a CSV log's first line must be"):
+    with pytest.raises(ValueError, match=r"a CSV log's first line must be .*; this is a raw NMEA log: leave the format out \(auto\), or give raw$"):
         log_format(raw, "LOG", forced="csv")
+    other = tmp_path / "other.txt"
+    other.write_text("# comment\nnot, a, header\n")
+    with pytest.raises(ValueError, match="a CSV log's first line must be .*; its first line is a comment \\(a CSV log starts with its header\\)"):
+        log_format(other, "LOG", forced="csv")
 
 
 # ---------------------------------------------------------------- fuzzing
@@ -234,6 +239,8 @@ def test_replay_without_a_scenario_runs_the_model_free_observer_on_the_logs_sens
     err = capsys.readouterr().err
     assert "no --scenario: the model-free observer (no hull model, settling 20 s) on the log's sensors: position at 1 Hz" in err
     assert "heading at 10 Hz" in err and "no --thrust" not in err
+    # a GGA and an RMC of one epoch are one fix: the rate counts the readings a step used
+    assert re.search(r"done: .*; position 1\.0\d/s, heading 10\.0\d/s; .*superseded \d+.*compute - \(one block, which compiled\)", err)
     with xr.open_dataset(out) as session:
         assert session["velocity_hat"].shape[-2] > 580 and bool(np.all(np.isfinite(session["position_hat"].values)))
     headings = tmp_path / "headings.nmea"
@@ -286,7 +293,6 @@ def test_replay_smooth_writes_the_smoothed_estimates_beside_the_filtered_ones(tm
     """--smooth: the RTS smoother over the session (its forward pass the session's own
     filter, to rounding), written beside the filtered estimates; refused in one line
     without --out or for an observer that is not Kalman-type."""
-    import re
 
     from lookout.cli import main
 

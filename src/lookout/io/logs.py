@@ -137,6 +137,15 @@ def log_format(path: str | Path, option: str = "log", forced: str | None = None)
         return f"csv-{CSV_HEADERS[header]}"
     if forced == "csv":
         wanted = " or ".join(",".join(h) for h in CSV_HEADERS)
+        if first_line.startswith((b"$", b"!", b"\\")) or (first_line[:1].isdigit() and b" $" in first_line[:40]):
+            kind = "raw NMEA" if first_line.startswith((b"$", b"!", b"\\")) else "TIME SENTENCE NMEA"
+            raise ValueError(
+                f"{option} {path}: a CSV log's first line must be {wanted}; this is a {kind} log: leave the format out (auto), or give {'raw' if kind == 'raw NMEA' else 'timed'}"
+            )
+        if first.lstrip().startswith(b"#"):
+            raise ValueError(
+                f"{option} {path}: a CSV log's first line must be {wanted}; its first line is a comment (a CSV log starts with its header)"
+            )
         raise ValueError(f"{option} {path}: a CSV log's first line must be {wanted}; got {first.strip()[:60].decode('ascii', 'replace')!r}")
     if forced is not None:
         return FORMATS[forced]

@@ -266,13 +266,23 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
         kind: channel.counts for kind, channel in session.channels.items()
     }
     for name, counts in counted.items():
-        rates.append(f"{name} {counts['accepted'] / span:.2f}/s" if span > 0 else f"{name} -")
+        # the readings that reached a step: a fix told twice in one epoch (GGA and RMC)
+        # counts once, the second superseding the first
+        used = counts["accepted"] - counts["superseded"]
+        rates.append(f"{name} {used / span:.2f}/s" if span > 0 else f"{name} -")
     unused = outcome.unused(session)
     if outcome.latency.percentiles():
         which, lat = "latency", " ".join(f"p{p} {v * 1e3:.2f} ms" for p, v in outcome.latency.percentiles().items())
     elif session.batch > 1:  # a fast replay: blocks of steps in one scan; the first compiles
         kept = outcome.processing.values()[1:]
-        which, lat = "compute", (f"{np.mean(kept) * 1e6:.1f} us per step after the first block (which compiles)" if kept.size else "")
+        which, lat = (
+            "compute",
+            (
+                f"{np.mean(kept) * 1e6:.1f} us per step after the first block (which compiles)"
+                if kept.size
+                else ("- (one block, which compiled)" if final else "- (the first block compiles)")
+            ),
+        )
     else:
         which, lat = "step", " ".join(f"p{p} {v * 1e3:.2f} ms" for p, v in outcome.processing.percentiles().items())
     outages = session.event_counts["outage"]

@@ -129,6 +129,8 @@ def check_log_order(scan: LogScan, tolerance: float) -> None:
     above it, or more than :data:`MAX_LATE_SHARE` of its lines stamped before one above."""
     where = f"{scan.option} {scan.path}"
     if scan.timed == 0:
+        if not scan.usable:
+            raise ValueError(f"{where}: no line but comments and blank lines: nothing to replay")
         if scan.format == "nmea-raw":
             raise ValueError(
                 f"{where}: no sentence gives a time ({_described(scan)}); a raw NMEA log is timed by its GGA, GNS, GLL, RMC or ZDA sentences' UTC times"
