@@ -102,6 +102,7 @@ def test_a_fixed_variable_stays_at_its_value_and_the_batch_equals_each_problem()
     assert np.all(np.asarray(batch[3]))
 
 
+@pytest.mark.slow
 def test_the_solution_is_differentiable_with_its_working_set_held():
     """d x / d f against central differences (a step that changes no active bound)."""
     rng = np.random.default_rng(3)

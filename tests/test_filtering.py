@@ -242,6 +242,7 @@ BAD_CALLS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("call, message", BAD_CALLS, ids=[f"call-{i}" for i in range(len(BAD_CALLS))])
 def test_a_bad_call_raises_and_leaves_the_stepper_as_it_was(recorded, call, message):
     scenario, _, _ = recorded

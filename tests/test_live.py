@@ -77,6 +77,7 @@ def test_replay_of_a_full_precision_log_equals_the_simulation(simulated):
         np.testing.assert_allclose(estimates[name], ds[f"{name}_hat"].values[0], rtol=0, atol=1e-9 * scale, err_msg=name)
 
 
+@pytest.mark.slow
 @pytest.mark.xdist_group("live replay")
 def test_one_step_per_call_equals_the_scan(simulated):
     composition, _, paths = simulated

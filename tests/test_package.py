@@ -82,6 +82,7 @@ def test_the_studies_commands_do_not_import_the_main_command():
         "import lookout; lookout.simulate; import jax.numpy as jnp",
     ],
 )
+@pytest.mark.slow
 def test_jax_computes_in_float64_whichever_of_lookout_and_jax_is_imported_first(imports):
     """Importing lookout does not import JAX; float64 is on as soon as JAX is imported,
     by whoever imports it, and JAX's package loads as it would (its resources found)."""

@@ -18,6 +18,7 @@ CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, make", CASES, ids=[case[0] for case in CASES])
 def test_the_split_reproduces_the_model_at_random_arguments(name, make):
     parameters = make()

@@ -126,6 +126,7 @@ def _block_means(ds, name: str, block: int = 20) -> np.ndarray:
 # the layout
 
 
+@pytest.mark.slow
 def test_the_stage_adds_each_references_state_and_statistics_after_the_combined_channels(handled):
     composition = compose(_document({"kind": "dp-class"}))
     suite = composition.scenario.sensor
@@ -168,6 +169,7 @@ def test_the_intact_suite_is_never_rejected_nor_alarmed(handled):
 # one reference out of three fails
 
 
+@pytest.mark.slow
 def test_a_slow_drift_is_rejected_and_kept_out_of_the_combined_position(handled, weighted_drift):
     """dgnss2 drifts 0.05 m/s north from 50 s. The statistic: the combined position's
     error against the true reference point (waves included), at each second, averaged
@@ -451,6 +453,7 @@ def test_a_bad_threshold_given_in_python_is_one_line_naming_it():
 # campaign metrics of the stage: rejected_after and rejected_time
 
 
+@pytest.mark.slow
 def test_the_rejection_metrics_in_the_scan_and_from_the_records_equal_numpy(handled):
     """``rejected_after:dgnss1`` (time from ``after`` to its first rejection) and
     ``rejected_time:dgnss1`` (fraction of the window rejected) on the jump of dgnss1 at

@@ -369,6 +369,7 @@ def suite_ds(suite_ran):
         return opened.load()
 
 
+@pytest.mark.slow
 def test_a_sensor_suite_adds_references_png_and_a_plain_sensor_does_not(suite_ran, ds, tmp_path):
     summary = json.loads((suite_ran / "summary.json").read_text())
     assert summary["files"] == list(RUN_FILES) + ["estimates.png", "references.png"]
@@ -420,6 +421,7 @@ def test_each_reference_is_its_fixes_taken_back_with_the_true_heading_less_the_t
     assert [(flag, [tuple(np.round(w, 6)) for w in windows]) for flag, windows in gyro2.failures] == [("gyro2.jump_failure", [(30.0, 45.0)])]
 
 
+@pytest.mark.slow
 def test_the_references_figure_draws_every_reference_shades_the_failures_and_zooms_on_the_first(suite_ds):
     fig = plot_run_sensor_references(suite_ds, title="a suite")
     labels = [ax.get_ylabel() for ax in fig.axes]

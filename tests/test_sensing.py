@@ -283,6 +283,7 @@ def _channels(ds, sensor: str) -> np.ndarray:
     return np.column_stack([_values(ds, f"{sensor}.{name}").reshape(ds.sizes["time"], -1) for name in names])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sensor", sorted(FAILED))
 def test_a_failure_acts_over_its_window_only_and_its_flag_says_when(failing, sensor):
     """The flag is 1 exactly over the window (at the instrument's samples, held between;
@@ -389,6 +390,7 @@ def test_adding_or_reordering_sensors_never_changes_another_ones_draws(failing):
     assert np.isfinite(_values(fewer, "extra.measured_position")).all()
 
 
+@pytest.mark.slow
 def test_the_combined_channels_do_not_depend_on_the_order_of_the_sensors():
     """Three references and two gyros in two orders, read at 256 random kinematics with
     the same noise per instrument: the combined position and heading agree bit for bit

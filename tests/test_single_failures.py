@@ -72,6 +72,7 @@ def read_document() -> dict:
     return tomllib.loads(_text())
 
 
+@pytest.mark.slow
 def test_the_table_has_each_case_worst_first_and_its_numbers_are_the_failure_written_by_hand(analysis):
     """The jump of dgnss1 (10 m north at 30 s): the campaign's largest tracking error
     equals that of the scenario with that one failure written into its table by hand,
@@ -146,6 +147,7 @@ def _block(text: str, header: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+@pytest.mark.slow
 def test_with_thrusters_each_one_stops_and_sticks_in_a_case_of_its_own(tmp_path):
     """The suite's vessel on the supply vessel's thrusters: a case per thruster and mode
     after the instruments', and the port azimuth's stop gives what the scenario with
@@ -175,6 +177,7 @@ def test_with_thrusters_each_one_stops_and_sticks_in_a_case_of_its_own(tmp_path)
     assert found != float(rows[INTACT]["max_tracking:position max"])
 
 
+@pytest.mark.slow
 def test_with_reference_handling_the_table_says_when_each_failure_was_detected(tmp_path):
     """The shortened example with ``[references] kind = "dp-class"``: a receiver's dropout
     is rejected at once and its freeze at the fix that makes ``freeze_samples`` repeats,

@@ -42,6 +42,7 @@ def _exact_rts(ys, us, x0, P0):
     return np.asarray([x for x, _ in posterior]), np.asarray([x for x, _ in smoothed]), np.asarray([np.sqrt(np.diag(P)) for _, P in smoothed])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", [ExtendedKalmanFilter, UnscentedKalmanFilter])
 def test_on_a_linear_plant_the_smoother_is_the_exact_rts_smoother(kind):
     """On a linear plant both filters are the exact Kalman filter (tests/test_kalman.py),

@@ -85,6 +85,7 @@ def _bounds(name):
     return configuration_bounds(SYSTEMS[name][0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(SYSTEMS))
 def test_velocity_error_decays_exponentially_with_the_printed_gains(name):
     """Noise-free, continuous-time observer: ||x1 - x1_hat|| decays log-linearly to 1e-9 of its start.
