@@ -95,6 +95,10 @@ def _is_binary(head: bytes) -> bool:
     return control > 0.01 * len(head)
 
 
+#: What a raw NMEA line starts with: a sentence, an AIS message or a tag block.
+NMEA_STARTS = (b"$", b"!", b"\\")
+
+
 def log_format(path: str | Path, option: str = "log", forced: str | None = None) -> str:
     """``"nmea-raw"``, ``"nmea"`` (timed), ``"csv-position"`` or ``"csv-thrust"``, from
     the file's first line that is not blank or a ``#`` comment (a CSV's header is its
@@ -133,14 +137,15 @@ def log_format(path: str | Path, option: str = "log", forced: str | None = None)
         raise ValueError(f"{option} {path} is not a text log: it holds binary data (a log is text: NMEA sentences, TIME SENTENCE lines, or CSV)")
     first = head.replace(b"\r", b"\n").split(b"\n", 1)[0]
     header = tuple(cell.strip() for cell in first.decode("ascii", "replace").strip().lower().split(","))
+    raw = first_line.startswith(NMEA_STARTS)
+    wanted = " or ".join(",".join(h) for h in CSV_HEADERS)  # a CSV header, for the messages
     if header in CSV_HEADERS and forced in (None, "csv"):
         return f"csv-{CSV_HEADERS[header]}"
     if forced == "csv":
-        wanted = " or ".join(",".join(h) for h in CSV_HEADERS)
-        if first_line.startswith((b"$", b"!", b"\\")) or (first_line[:1].isdigit() and b" $" in first_line[:40]):
-            kind = "raw NMEA" if first_line.startswith((b"$", b"!", b"\\")) else "TIME SENTENCE NMEA"
+        if raw or (first_line[:1].isdigit() and b" $" in first_line[:40]):
+            kind, name = ("raw NMEA", "raw") if raw else ("TIME SENTENCE NMEA", "timed")
             raise ValueError(
-                f"{option} {path}: a CSV log's first line must be {wanted}; this is a {kind} log: leave the format out (auto), or give {'raw' if kind == 'raw NMEA' else 'timed'}"
+                f"{option} {path}: a CSV log's first line must be {wanted}; this is a {kind} log: leave the format out (auto), or give {name}"
             )
         if first.lstrip().startswith(b"#"):
             raise ValueError(
@@ -149,10 +154,9 @@ def log_format(path: str | Path, option: str = "log", forced: str | None = None)
         raise ValueError(f"{option} {path}: a CSV log's first line must be {wanted}; got {first.strip()[:60].decode('ascii', 'replace')!r}")
     if forced is not None:
         return FORMATS[forced]
-    if first_line.startswith((b"$", b"!", b"\\")):
+    if raw:
         return "nmea-raw"
-    if b"," in first and not first.lstrip().startswith((b"#", b"$", b"!", b"\\")) and b" " not in first.strip()[:40]:
-        wanted = " or ".join(",".join(h) for h in CSV_HEADERS)
+    if b"," in first and not first.lstrip().startswith((b"#", *NMEA_STARTS)) and b" " not in first.strip()[:40]:
         shown = first.strip()[:60].decode("ascii", "replace")
         raise ValueError(f"{option} {path}: a CSV log's first line must be {wanted}; got {shown!r}")
     return "nmea"

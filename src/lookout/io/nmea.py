@@ -27,6 +27,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import reduce
 from operator import xor
+from types import SimpleNamespace
 
 from pynmeagps import NMEAMessage, NMEAReader
 from pynmeagps.exceptions import NMEAMessageError
@@ -441,13 +442,6 @@ class NmeaParser:
         return "heading", ((magnetic + deviation + variation) % 360.0,)
 
 
-class _Fields:
-    """A sentence's fields by pynmeagps's attribute names (what :func:`_values` reads)."""
-
-    def __init__(self, values: dict):
-        self.__dict__.update(values)
-
-
 #: pynmeagps's definition of each supported sentence whose fields are all scalars, in order.
 _FLAT = {f: tuple(NMEA_PAYLOADS_GET[f].items()) for f in SUPPORTED if all(isinstance(t, str) for t in NMEA_PAYLOADS_GET[f].values())}
 
@@ -473,7 +467,7 @@ def _message(line: bytes, formatter: str):
             values["lon"] = -abs(values["lon"]) if value == "W" else abs(values["lon"])
         elif kind == LAD and isinstance(values.get("lat"), (int, float)):
             values["lat"] = -abs(values["lat"]) if value == "S" else abs(values["lat"])
-    return _Fields(values)
+    return SimpleNamespace(**values)  # by pynmeagps's attribute names, as _values reads them
 
 
 class _NoVariation(ValueError):

@@ -275,14 +275,11 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
         which, lat = "latency", " ".join(f"p{p} {v * 1e3:.2f} ms" for p, v in outcome.latency.percentiles().items())
     elif session.batch > 1:  # a fast replay: blocks of steps in one scan; the first compiles
         kept = outcome.processing.values()[1:]
-        which, lat = (
-            "compute",
-            (
-                f"{np.mean(kept) * 1e6:.1f} us per step after the first block (which compiles)"
-                if kept.size
-                else ("- (one block, which compiled)" if final else "- (the first block compiles)")
-            ),
-        )
+        which = "compute"
+        if kept.size:
+            lat = f"{np.mean(kept) * 1e6:.1f} us per step after the first block (which compiles)"
+        else:
+            lat = "- (one block, which compiled)" if final else "- (the first block compiles)"
     else:
         which, lat = "step", " ".join(f"p{p} {v * 1e3:.2f} ms" for p, v in outcome.processing.percentiles().items())
     outages = session.event_counts["outage"]
