@@ -13,6 +13,7 @@ from typing import Any, final
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 import numpy.typing as npt
 from jax import Array
 from jax.typing import ArrayLike
@@ -21,7 +22,8 @@ from lookout import _validation as check
 from lookout._math import rotation
 from lookout.components import BODY_FIXED, EARTH_FIXED, Signal
 from lookout.declare import NON_NEGATIVE, POSITIVE, Value, component
-from lookout.sensing.instrument import Instrument, lever_arm_vector, period_value, std_value
+from lookout.sensing.imu_grades import GRADE_NAMES, imu_grade
+from lookout.sensing.instrument import GaussMarkovError, Instrument, lever_arm_vector, period_value, std_value
 from lookout.vessel_signals import BODY_AXES
 
 SPECIFIC_FORCE = Signal("measured_specific_force", "m/s2", "measured specific force (accelerometers)", BODY_FIXED, BODY_AXES, "body_axis")
@@ -44,42 +46,111 @@ def _velocity_at(kinematics: dict[str, Array], arm: Array) -> Array:
 @component(
     "instrument",
     "imu",
-    summary="An IMU (or an MRU's horizontal channels): specific force and yaw rate in body axes, with constant biases and white noise.",
+    summary="An IMU (or an MRU's horizontal channels): specific force and yaw rate in body axes, with constant and drifting biases and white noise.",
     parameters=(
         LEVER_ARM,
-        Value("accelerometer_std", "float", "Standard deviation of each accelerometer's white noise (m/s2).", range=NON_NEGATIVE),
-        Value("gyro_std", "float", "Standard deviation of the rate gyro's white noise (rad/s).", range=NON_NEGATIVE),
+        Value(
+            "accelerometer_std",
+            "float",
+            "Standard deviation of each accelerometer's white noise (m/s2; default: the grade's, else 0.01).",
+            range=NON_NEGATIVE,
+        ),
+        Value(
+            "gyro_std", "float", "Standard deviation of the rate gyro's white noise (rad/s; default: the grade's, else 0.001).", range=NON_NEGATIVE
+        ),
         Value("accelerometer_bias", "array", "Constant bias of the accelerometers [surge, sway] (m/s2).", shape="(2,)"),
         Value("gyro_bias", "float", "Constant bias of the rate gyro (rad/s)."),
         Value("sample_period", "float", "Seconds between samples (s).", range=POSITIVE),
+        Value(
+            "accelerometer_bias_std",
+            "array",
+            "Stationary standard deviation of the accelerometers' drifting bias [surge, sway] (m/s2; default: the grade's, else 0 for none).",
+            shape="(2,)",
+            range=NON_NEGATIVE,
+        ),
+        Value(
+            "gyro_bias_std",
+            "float",
+            "Stationary standard deviation of the rate gyro's drifting bias (rad/s; default: the grade's, else 0 for none).",
+            range=NON_NEGATIVE,
+        ),
+        Value(
+            "bias_time_constant",
+            "float",
+            "Time constant of the drifting biases' Gauss-Markov process (s; default: the grade's, else 3600).",
+            range=POSITIVE,
+        ),
+        Value(
+            "grade",
+            "str",
+            "The IMU's grade, whose figures give the white noise and the drifting biases that are not given (lookout.sensing.imu_grades).",
+            choices=GRADE_NAMES,
+        ),
     ),
 )
 @final
 class InertialUnit(Instrument):
     """An IMU: the specific force (surge, sway) and the yaw rate in body axes at its lever
-    arm, plus constant biases and white noise. In the horizontal plane gravity does not
-    enter, so the specific force is the inertial acceleration of the point.
+    arm, plus biases and white noise. In the horizontal plane gravity does not enter, so
+    the specific force is the inertial acceleration of the point.
+
+    Each channel's bias is a constant (``accelerometer_bias``, ``gyro_bias``) plus a
+    first-order Gauss-Markov drift (:attr:`bias_drift`, the bias instability: stationary
+    standard deviations ``accelerometer_bias_std`` and ``gyro_bias_std``, time constant
+    ``bias_time_constant``), stepped at the sample period. The drift starts from its
+    stationary distribution, drawn at the first sample: runs over seeds see the spread of
+    biases an IMU has after switch-on. With both drift spreads 0 (the default without a
+    grade) it has none: three normals a sample and no memory.
+
+    A ``grade`` (:data:`lookout.sensing.imu_grades.GRADES`: consumer, industrial, tactical,
+    navigation) sets the white noise per sample from its noise densities,
+    ``density / sqrt(sample_period)`` (a sample averaging over its period), and the drift
+    from its bias instabilities and correlation time; a value given here wins over the
+    grade's.
 
     Parameters
     ----------
     lever_arm : array_like, shape (2,)
         Body-fixed position [x, y] of the sensor from the vessel's reference point (m).
-    accelerometer_std : float, non-negative
-        Standard deviation of each accelerometer's white noise (m/s2).
-    gyro_std : float, non-negative
-        Standard deviation of the rate gyro's white noise (rad/s).
+    accelerometer_std : float, non-negative, optional
+        Standard deviation of each accelerometer's white noise (m/s2; default: the
+        grade's, else 0.01).
+    gyro_std : float, non-negative, optional
+        Standard deviation of the rate gyro's white noise (rad/s; default: the grade's,
+        else 0.001).
     accelerometer_bias : array_like, shape (2,)
         Constant bias of the accelerometers [surge, sway] (m/s2).
     gyro_bias : float
         Constant bias of the rate gyro (rad/s).
     sample_period : float, positive
         Seconds between samples (s).
+    accelerometer_bias_std : array_like, shape (2,), non-negative, optional
+        Stationary standard deviation of the accelerometers' drifting bias [surge, sway]
+        (m/s2; default: the grade's, else 0 for none). One number stands for both.
+    gyro_bias_std : float, non-negative, optional
+        Stationary standard deviation of the rate gyro's drifting bias (rad/s; default:
+        the grade's, else 0 for none).
+    bias_time_constant : float, positive, optional
+        Time constant of the drifting biases' Gauss-Markov process (s; default: the
+        grade's, else 3600).
+    grade : {"consumer", "industrial", "tactical", "navigation"}, optional
+        The IMU's grade, whose figures give the white noise and the drifting biases that
+        are not given (lookout.sensing.imu_grades).
+
+    Attributes
+    ----------
+    bias : Array, shape (3,)
+        The constant biases [surge accel, sway accel, gyro].
+    bias_drift : GaussMarkovError
+        The drifting biases: ``std`` of shape (3,) [surge accel, sway accel, gyro] and
+        one ``time_constant``, stepped at the sample period (zero ``std``: none).
     """
 
     lever_arm: Array
     accelerometer_std: Array
     gyro_std: Array
     bias: Array
+    bias_drift: GaussMarkovError
     sample_period: float = eqx.field(static=True)
     signals: tuple[Signal, ...] = eqx.field(static=True, default=(SPECIFIC_FORCE, ANGULAR_RATE), kw_only=True)
     noise_count: int = eqx.field(static=True, default=3, kw_only=True)
@@ -87,13 +158,23 @@ class InertialUnit(Instrument):
     def __init__(
         self,
         lever_arm: npt.ArrayLike = (0.0, 0.0),
-        accelerometer_std: float = 0.01,
-        gyro_std: float = 0.001,
+        accelerometer_std: float | None = None,
+        gyro_std: float | None = None,
         accelerometer_bias: npt.ArrayLike = (0.0, 0.0),
         gyro_bias: float = 0.0,
         sample_period: float = 0.1,
+        accelerometer_bias_std: npt.ArrayLike | None = None,
+        gyro_bias_std: float | None = None,
+        bias_time_constant: float | None = None,
+        grade: str | None = None,
     ):
         self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
+        self.sample_period = period_value("sample_period", sample_period)
+        chosen = None if grade is None else imu_grade(grade)
+        if accelerometer_std is None:
+            accelerometer_std = 0.01 if chosen is None else chosen.accelerometer_std(self.sample_period)
+        if gyro_std is None:
+            gyro_std = 0.001 if chosen is None else chosen.gyro_std(self.sample_period)
         check.positive("accelerometer_std", accelerometer_std, allow_zero=True)
         check.positive("gyro_std", gyro_std, allow_zero=True)
         self.accelerometer_std = jnp.asarray(float(accelerometer_std))
@@ -101,13 +182,38 @@ class InertialUnit(Instrument):
         bias = lever_arm_vector("accelerometer_bias", accelerometer_bias)
         check.finite("gyro_bias", gyro_bias)
         self.bias = jnp.asarray([bias[0], bias[1], float(gyro_bias)])
-        self.sample_period = period_value("sample_period", sample_period)
+        if accelerometer_bias_std is None:
+            accelerometer_bias_std = 0.0 if chosen is None else chosen.accelerometer_bias_instability
+        if gyro_bias_std is None:
+            gyro_bias_std = 0.0 if chosen is None else chosen.gyro_bias_instability
+        if bias_time_constant is None:
+            bias_time_constant = 3600.0 if chosen is None else chosen.bias_time_constant
+        check.positive("gyro_bias_std", gyro_bias_std, allow_zero=True)
+        drift_std = jnp.concatenate([std_value("accelerometer_bias_std", accelerometer_bias_std, 2), jnp.asarray([float(gyro_bias_std)])])
+        time_constant = period_value("bias_time_constant", bias_time_constant)
+        self.bias_drift = GaussMarkovError(drift_std, jnp.asarray(time_constant), self.sample_period)
+        # the drift's normals and memory only where it has a spread: without, the draws
+        # and the memory are those of an IMU of constant biases
+        self.noise_count = 6 if bool(np.any(np.asarray(drift_std) > 0)) else 3
 
-    def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()]:
-        return ()
+    @property
+    def drifting(self) -> bool:
+        """Whether its biases drift (a drift spread > 0): three more normals a sample,
+        and the drift in its memory."""
+        return self.noise_count == 6
+
+    def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()] | tuple[Array, Array]:
+        # the drift, and whether it has been drawn (at the first sample, from its
+        # stationary distribution)
+        return (jnp.zeros(3), jnp.asarray(False)) if self.drifting else ()
 
     def emit(self, memory: Any, kinematics: dict[str, Array], normals: Array) -> tuple[Any, Array, Array]:
-        return memory, self.expected(kinematics) + self.bias, self.noise_std() * normals[:3]
+        value, white = self.expected(kinematics) + self.bias, self.noise_std() * normals[:3]
+        if not self.drifting:
+            return memory, value, white
+        drift, drawn = memory
+        drift = jnp.where(drawn, self.bias_drift.advance(drift, normals[3:6]), self.bias_drift.std * normals[3:6])
+        return (drift, jnp.asarray(True)), value + drift, white
 
     def expected(self, kinematics: dict[str, Array]) -> Array:
         w, w_rate, (x, y) = kinematics["yaw_rate"], kinematics["yaw_acceleration"], self.lever_arm
@@ -116,6 +222,13 @@ class InertialUnit(Instrument):
 
     def noise_std(self) -> Array:
         return jnp.stack([self.accelerometer_std, self.accelerometer_std, self.gyro_std])
+
+    def measurement_std(self) -> Array:
+        """The white noise alone (:meth:`noise_std`): a Kalman filter's R for an IMU. Its
+        biases, the constant ones and the drift of :attr:`bias_drift` alike, are biases a
+        filter estimates as states (or neglects), not noise drawn anew at each sample:
+        their spread is not added (:meth:`Instrument.measurement_std`)."""
+        return self.noise_std()
 
 
 @component(
