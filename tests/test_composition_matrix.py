@@ -2,7 +2,7 @@
 registered plant.
 
 Each plant is taken in the first reproduction case that has it (its sea, its sensor,
-its time grid), or in the observer's own first case when that case has this plant, and
+its time grid), or in the observer's own first case (a reproduction case, else an example file) when that case has this plant, and
 run open loop (no controller, no reference); each observer kind is put in with the
 values it requires and the parts that are not models (its unknown parameters) taken
 from its first case, its model from the plant, the rest from its defaults and design
@@ -30,6 +30,7 @@ from lookout.sim import simulate
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 EXAMPLE_PLUGIN = Path(__file__).resolve().parents[1] / "examples" / "plugins" / "luenberger.py"
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 BEGIN, END = "<!-- composition matrix: begin -->", "<!-- composition matrix: end -->"
 DURATION = 20.0
 
@@ -46,15 +47,38 @@ def _first_table(role: str, kind: str) -> dict | None:
     return None
 
 
+#: Observers that read a sensor suite's IMU, which no reproduction case has: their first
+#: case is their example file.
+SUITE_ONLY = {"ins"}
+
+
+def _home(kind: str) -> dict | None:
+    """The observer's first case: the first reproduction case that uses it, else the first
+    example file that does (an observer no paper uses, such as the IMU-aided one, whose
+    sensor suite no reproduction case has)."""
+    import tomllib
+
+    found = _first_table("observer", kind)
+    if found is not None or kind not in SUITE_ONLY:
+        return found
+    for path in sorted(EXAMPLES.glob("*.toml")):
+        document = tomllib.loads(path.read_text())
+        if "plugins" not in document and "preset" not in document and document.get("observer", {}).get("kind") == kind:
+            return document
+    return None
+
+
 #: Roles of the models a plant offers (plant.models()): an observer takes them from the plant.
 MODEL_ROLES = {"vessel", "ship", "model"}
 
 
 def open_loop(document: dict) -> dict:
-    """``document`` without controller and reference, one run of about 20 s (a whole
-    number of its samples)."""
+    """``document`` without controller and reference (and a suite's failures), one run of
+    about 20 s (a whole number of its samples)."""
     base = copy.deepcopy(document)
     base["controller"], base["reference"], base["actuator"] = {"kind": "none"}, {"kind": "none"}, {"kind": "ideal"}
+    for table in base.get("sensors", {}).values():  # an example's failures come later than 20 s
+        table.pop("failures", None)
     period = base["simulation"]["sample_period"]
     base["simulation"] = {**base["simulation"], "duration": round(np.ceil(DURATION / period - 1e-9)) * period, "runs": 1, "record_every": 1}
     return base
@@ -78,7 +102,7 @@ def observer_table(kind: str) -> dict:
     """The kind with the values it requires and its parts that are not models, as its
     first case gives them."""
     table = {"kind": kind}
-    home = _first_table("observer", kind)
+    home = _home(kind)
     if home is None:
         return table
     given = home["observer"]
@@ -93,7 +117,7 @@ def observer_table(kind: str) -> dict:
 
 def base_for(plant: str, observer: str, bases: dict) -> dict:
     """The observer's own first case when it has this plant, else the plant's first case."""
-    home = _first_table("observer", observer)
+    home = _home(observer)
     if home is not None and home["plant"]["kind"] == plant:
         return open_loop(home)
     return bases[plant]
@@ -118,6 +142,10 @@ def off_the_first_measurement(scenario, trajectory) -> str:
     """Where the estimate at t_0 of a measured variable (``measured_X`` of the sensor, ``X``
     of the estimate) differs from the first measurement, for a guess that leaves it to the
     measurement (every observer's default): "" when none does."""
+    if hasattr(scenario.sensor, "instrument_layout"):
+        # a filter on a suite starts at the weighted fit of its instruments, each at its lever
+        # arm, not at the combining stage's measured_position
+        return ""
     measured = scenario.sensor.measurement_layout.split(np.asarray(trajectory.measurement)[0])
     estimate = trajectory.estimate
     for name, value in measured.items():

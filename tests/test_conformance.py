@@ -410,6 +410,56 @@ def _model_free(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30
     )
 
 
+def _ins(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0) -> Scenario:
+    """The IMU-aided observer on the Northern Clipper with a suite of a GNSS receiver at a
+    lever arm, a gyrocompass and an IMU at 10 Hz, built from a scenario document; ``gain``
+    scales its model's noise densities and bias drift (the filter's Q). Dropouts: every
+    instrument, the IMU included, silent over ``dropout`` of the run from 5 s."""
+    from lookout.scenario.composition import compose
+
+    quiet = 1.0 if noise else 0.0
+    lost = [{"mode": "dropout", "start": 5.0, "duration": dropout * duration}] if dropout else []
+    document = {
+        "simulation": {"plant_step": 0.1, "sample_period": 0.1, "duration": duration, "runs": 1},
+        "plant": {
+            "kind": "dp-vessel",
+            "vessel": {"kind": "northern-clipper"},
+            "bias": {"kind": "gauss-markov", "time_constant": 1000.0, "std": [2000.0 * quiet, 2000.0 * quiet, 5e4 * quiet]},
+            "waves": {"kind": "linear", "peak_frequency": 0.8976, "damping_ratio": 0.1, "amplitude": [2.0 * quiet, 2.0 * quiet, 0.0035 * quiet]},
+        },
+        "sensors": {
+            "gnss": {"kind": "gnss", "lever_arm": [30.0, 5.0], "noise_std": 0.5 * quiet, "sample_period": 1.0, "failures": lost},
+            "gyro": {"kind": "gyrocompass", "noise_std": 0.0017 * quiet, "sample_period": 0.1, "failures": lost},
+            "imu": {"kind": "imu", "lever_arm": [2.0, 1.0], "accelerometer_std": 0.01 * quiet, "gyro_std": 0.001 * quiet, "failures": lost},
+        },
+        "observer": {
+            "kind": "ins",
+            # the filter's own noise: its R and Q stay positive when the truth is noise-free
+            "measurement_noise": [0.5, 0.5, 0.0017, 1.0, 1.0, 1.0],
+            "accelerometer_noise": 0.003,
+            "gyro_noise": 3e-4,
+            "bias_std": [1e-3, 1e-3, 1e-5],
+            "bias_time_constant": 3600.0,
+            "wave_period": 7.0,
+            "wave_std": [0.7, 0.7, 0.0012],
+        },
+        "controller": {"kind": "sinusoidal", "amplitude": [1e5, 5e4, 1e6], "frequency": 0.05, "offset": [0.0, 0.0, 0.0]},
+    }
+    scenario = compose(document).scenario
+    observer = scenario.observer
+    model = observer.model
+    scaled = eqx.tree_at(
+        lambda o: (o.model.accelerometer_noise, o.model.gyro_noise, o.model.bias_std),
+        observer,
+        (gain * model.accelerometer_noise, gain * model.gyro_noise, gain * model.bias_std),
+    )
+    if perfect:
+        truth = scenario.initial_state
+        guess = model.state(truth.eta, rotate(truth.eta[2], truth.nu)[:2])
+        scenario = eqx.tree_at(lambda s: s.initial_estimate, scenario, guess)
+    return eqx.tree_at(lambda s: s.observer, scenario, scaled)
+
+
 def _kalman_pid(gain=1.0, *, noise=True, perfect=False, dropout=0.0, duration=30.0) -> Scenario:
     """The extended Kalman filter closing a DP loop with the nonlinear PID on the Fossen &
     Strand vessel, a reference filter and thrust limits; ``gain`` scales the filter's
@@ -521,6 +571,9 @@ CASES = [
     # not exact: its model's velocity is a random walk, so it predicts the vessel at constant
     # velocity while the vessel accelerates under the input (no hull model: by design)
     Case("observer without a hull model", _model_free, exact=(), error_variable="velocity", gradient="forward"),
+    # not exact: the IMU's reading is held over each sample (first order in the sample
+    # period), as a strapdown system holds its increments, while the vessel accelerates
+    Case("IMU-aided observer", _ins, exact=(), error_variable="velocity", gradient="forward"),
     # the same filter closing the loop: the PID moves the plant, and the filter's model, given
     # the applied input, still follows it to the bit
     Case("extended Kalman filter and nonlinear PID", _kalman_pid, exact=(("sampled", {}),), error_variable="velocity", gradient="forward"),
@@ -628,8 +681,15 @@ def test_the_observer_declares_what_its_scenario_feeds_it(case):
     sample period is the scenario's."""
     scenario = case.build(duration=10.0)
     observer = scenario.observer
-    assert observer.measurement_layout == scenario.sensor.measurement_layout
-    assert observer.input_layout == scenario.plant.input_layout
+    # what it reads is among what the sensor measures, and what it takes among the plant's
+    # input (the engine hands it its channels by name; an IMU-aided observer takes none)
+    measured = {signal.name: signal for signal in scenario.sensor.measurement_layout.signals}
+    assert all(measured.get(signal.name) == signal for signal in observer.measurement_layout.signals)
+    inputs = {signal.name: signal for signal in scenario.plant.input_layout.signals}
+    assert all(inputs.get(signal.name) == signal for signal in observer.input_layout.signals)
+    if not hasattr(scenario.sensor, "instrument_layout"):  # a sensor suite's own channels are more than a filter reads
+        assert observer.measurement_layout == scenario.sensor.measurement_layout
+        assert observer.input_layout == scenario.plant.input_layout
     assert jax.tree.structure(observer.guess()) == jax.tree.structure(scenario.initial_estimate)
     assert observer.sample_period in (None, scenario.sample_period)
     # a scenario rebuilt by tree_map (as stacking does) flattens as the original: equinox

@@ -67,6 +67,7 @@ BUILTIN_MODULES = (
     "lookout.observers.ekf",
     "lookout.observers.ukf",
     "lookout.observers.model_free",
+    "lookout.observers.ins",
     "lookout.controllers.open_loop",
     "lookout.controllers.backstepping",
     "lookout.controllers.tracking",
