@@ -75,6 +75,8 @@ observer-benchmark: $(VENV)/.installed
 	for plant in dp-vessel cybership-ii manipulator; do \
 		mkdir -p docs/benchmark/$$plant && cp $(BENCHMARK)/$$plant/table.md $(BENCHMARK)/$$plant/figures/*.png docs/benchmark/$$plant/; \
 	done
+	$(BIN)/lookout benchmark dead-reckoning --out $(BENCHMARK)/dead-reckoning
+	mkdir -p docs/benchmark/dead-reckoning && cp $(BENCHMARK)/dead-reckoning/table.md $(BENCHMARK)/dead-reckoning/drift.png docs/benchmark/dead-reckoning/
 
 # docs/tuning/: lookout tune on six cases and the table of docs/tuning.md's study (about 12 minutes on 2 cores)
 tuning-study: $(VENV)/.installed

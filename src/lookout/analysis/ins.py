@@ -43,7 +43,7 @@ def observability_margin(observer: InertialNavigationFilter, aiding: tuple[bool,
     initial guess (module docstring), from the channels ``aiding`` marks (default: all
     but the IMU's)."""
     transition, observation = (np.asarray(a, dtype=float) for a in _linearization(observer, float(observer.filter_period)))
-    keep = ~np.asarray(observer.imu_channels) if aiding is None else np.asarray(aiding, dtype=bool)
+    keep = ~np.asarray(observer.ignored_channels) if aiding is None else np.asarray(aiding, dtype=bool)
     noise = np.sqrt(np.diag(np.asarray(observer.measurement_covariance)))
     scale = np.sqrt(np.diag(np.asarray(observer.initial_covariance)))
     h = observation[keep] / noise[keep, None] * scale[None, :]

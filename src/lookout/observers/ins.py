@@ -56,7 +56,7 @@ from lookout.declare import NON_NEGATIVE, POSITIVE, Context, Part, Value, compon
 from lookout.environment import LinearWaveModel
 from lookout.models.strapdown import StrapdownVessel
 from lookout.observers.ekf import ExtendedKalmanFilter
-from lookout.observers.kalman import KalmanState, filter_layout
+from lookout.observers.kalman import KalmanState, filter_layout, kalman_fields
 from lookout.sensing.motion import InertialUnit
 from lookout.sensing.suite import SensorSuite
 
@@ -210,7 +210,6 @@ class InertialNavigationFilter(ExtendedKalmanFilter):
         ``wave_std`` without the other, a noise or spread not finite and >= 0.
     """
 
-    imu_channels: tuple[bool, ...] = eqx.field(static=True)
     imu_start: int = eqx.field(static=True)
 
     def __init__(
@@ -268,16 +267,21 @@ class InertialNavigationFilter(ExtendedKalmanFilter):
         initial = {"eta": [position_std, position_std, heading_std], "velocity": INITIAL_VELOCITY_STD, "bias": prior.tolist()}
         if wave_prior is not None:
             initial["wave_state"] = wave_prior.tolist()
-        super().__init__(
+        imu_channels = tuple(first <= channel < first + unit.size for channel in range(layout.size))
+        fields = kalman_fields(
             model,
             sensor,
+            process_noise=None,
+            state_noise=None,
             measurement_noise=measurement_noise,
             initial_std=initial,
             plant_step=plant_step,
-            filter_period=filter_period,
+            sample_period=filter_period,
             integrator=integrator,
+            ignored_channels=imu_channels,
         )
-        self.imu_channels = tuple(first <= channel < first + unit.size for channel in range(layout.size))
+        for key, value in fields.items():
+            setattr(self, key, value)
         self.imu_start = first
         # what the engine gives predict: the IMU's reading is in the measurement, thrust is not needed
         self.input_layout = Layout()
@@ -290,10 +294,6 @@ class InertialNavigationFilter(ExtendedKalmanFilter):
         fresh = jnp.asarray(y, dtype=float)[self.imu_start : self.imu_start + 3]
         held = jnp.zeros(3) if state.applied is None else state.applied
         return jnp.where(jnp.isfinite(fresh), fresh, held)
-
-    def due(self, t: ArrayLike) -> Array:
-        """The aiding channels due at ``t``; the IMU's never (it is the model's input)."""
-        return super().due(t) & ~jnp.asarray(self.imu_channels)
 
     def measurement(self, mean: Array, applied: Array | None = None, t: ArrayLike = 0.0) -> Array:
         """h(x) under the IMU's reading ``applied`` (zero when None)."""

@@ -82,7 +82,7 @@ Defaults derived from the scenario (each can be given instead):
   one the combining stage weights the references by
   (:meth:`~lookout.sensing.position.PositionReference.weight_std`). A hydroacoustic
   reference's is its spread at the transponder's horizontal position; an IMU's constant
-  biases are not in R.
+  biases are not in R, its drifting bias is, as a slow error (its stationary spread).
 * P_0 from the steady state: the solution of the discrete algebraic Riccati equation
   of the model linearized at the initial guess (u = 0, t = 0) over one observer
   sample, the covariance of a filter that has run for ever (scipy's
@@ -326,6 +326,9 @@ class KalmanFilter(Observer):
     measurement_layout: Layout = eqx.field(static=True)
     input_layout: Layout = eqx.field(static=True)
     sample_period: None = eqx.field(static=True)
+    #: per channel: read by the filter's user in another way (an IMU that is the model's
+    #: input, or that the model has nothing to compare with), never a measurement
+    ignored_channels: tuple[bool, ...] = eqx.field(static=True)
 
     # ------------------------------------------------------------------ the model
     def _unravel(self, vector: Array):
@@ -415,7 +418,7 @@ class KalmanFilter(Observer):
         """Per channel: whether a new sample of it arrives at ``t``."""
         periods = jnp.asarray(self.channel_periods)
         ratio = t / periods
-        return jnp.abs(ratio - jnp.round(ratio)) <= 1e-6
+        return (jnp.abs(ratio - jnp.round(ratio)) <= 1e-6) & ~jnp.asarray(self.ignored_channels, dtype=bool)
 
     @property
     def kinematic(self) -> bool:
@@ -485,7 +488,7 @@ class KalmanFilter(Observer):
         unknown = jnp.isnan(mean)
         mean = jnp.where(unknown, 0.0, mean)
         y0 = jnp.asarray(y0, dtype=float)
-        present = jnp.isfinite(y0)
+        present = jnp.isfinite(y0) & ~jnp.asarray(self.ignored_channels, dtype=bool)
         # 1 / std per channel on a suite; none on any other sensor, whose solve is left as it was
         weight = 1.0 / jnp.sqrt(jnp.diagonal(self.measurement_covariance)) if self.kinematic else None
         for _ in range(INITIAL_SOLVE_STEPS):
@@ -544,10 +547,13 @@ def kalman_fields(
     sample_period: float,
     integrator: str,
     input_disturbance: npt.ArrayLike | None = None,
+    ignored_channels: tuple[bool, ...] | None = None,
 ) -> dict[str, Any]:
     """The shared fields of a Kalman filter on ``plant`` and ``sensor``, validated, with
     the defaults of the module docstring (the steady state from the extended filter's
-    linearization, for either filter)."""
+    linearization, for either filter). ``ignored_channels`` marks channels the filter
+    never takes as a measurement (never due, left out of the first solve and of the
+    steady state's H)."""
     if not isinstance(plant, Plant):
         raise check.ParameterError("plant", f"plant must be a Plant; got {type(plant).__name__}")
     if not isinstance(sensor, Sensor):
@@ -643,6 +649,7 @@ def kalman_fields(
         "measurement_layout": layout,
         "input_layout": plant.input_layout,
         "sample_period": None,
+        "ignored_channels": tuple(bool(each) for each in (ignored_channels or (False,) * m)),
     }
     initial = _state_vector(plant, initial_std, "initial_std", d)
     if initial is not None:
@@ -686,7 +693,8 @@ def _linearized(probe: KalmanFilter, dt: float):
     """(F, Q_d, H) of the model at its zero state, u = 0, t = 0, over ``dt``."""
     zero = probe.augmented(probe.model.state())
     transition, noise, _ = probe.linearized(zero, 0.0, jnp.zeros(probe.input_layout.size), dt)
-    return transition, noise, jax.jacfwd(probe.measurement)(zero)
+    used = 1.0 - jnp.asarray(probe.ignored_channels, dtype=float)
+    return transition, noise, jax.jacfwd(probe.measurement)(zero) * used[:, None]
 
 
 class _Linearization(KalmanFilter):

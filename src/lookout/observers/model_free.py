@@ -24,6 +24,9 @@ per axis: surge and sway from the position channels (the most precise reference,
 smallest sigma^2 T), yaw from the heading channels. A shorter settling time follows a
 manoeuvre sooner and passes more noise to the velocity estimate.
 
+On a sensor suite it reads the position references and gyros; an IMU's channels are left
+out (the model has no acceleration to compare them with: its velocity's mean is constant).
+
 In waves (``wave_period``, ``wave_std``), the model carries the first-order wave motion
 of Fossen & Strand (1999), eqs. (10)-(11), with relative damping 0.1 at the given peak
 period, and the filter separates it from the low-frequency motion as the model-based
@@ -44,7 +47,9 @@ from lookout.declare import NON_NEGATIVE, POSITIVE, Context, Part, Value, compon
 from lookout.environment import LinearWaveModel
 from lookout.models.kinematic_vessel import KinematicVessel
 from lookout.observers.ekf import ExtendedKalmanFilter
-from lookout.observers.kalman import default_measurement_covariance, filter_layout
+from lookout.observers.kalman import default_measurement_covariance, filter_layout, kalman_fields
+from lookout.sensing.motion import InertialUnit
+from lookout.sensing.suite import SensorSuite
 
 #: The settling time of the velocity estimate unless told (s): a DP vessel's or a
 #: yacht's manoeuvre changes its speed over tens of seconds.
@@ -175,14 +180,29 @@ class ModelFreeFilter(ExtendedKalmanFilter):
         if not (math.isfinite(position) and math.isfinite(heading)):
             raise check.ParameterError("sensor", "sensor: the model-free observer needs a position and a heading channel with noise of their own")
         q = np.array([acceleration_intensity(position, settling_time)] * 2 + [acceleration_intensity(heading, settling_time)])
-        super().__init__(
+        # an IMU in a suite measures an acceleration this model does not have (its mean is zero)
+        layout_size = filter_layout(sensor).size
+        imu = [False] * layout_size
+        if isinstance(sensor, SensorSuite):
+            start = 0
+            for each in sensor.instruments:
+                if isinstance(each, InertialUnit):
+                    imu[start : start + each.size] = [True] * each.size
+                start += each.size
+        fields = kalman_fields(
             KinematicVessel(np.sqrt(q), waves),
             sensor,
+            process_noise=None,
+            state_noise=None,
             measurement_noise=measurement_noise,
+            initial_std=None,
             plant_step=plant_step,
-            filter_period=filter_period,
+            sample_period=filter_period,
             integrator=integrator,
+            ignored_channels=tuple(imu),
         )
+        for name, value in fields.items():
+            setattr(self, name, value)
 
 
 __all__ = ["SETTLING_TIME", "ModelFreeFilter", "acceleration_intensity"]

@@ -224,11 +224,14 @@ class InertialUnit(Instrument):
         return jnp.stack([self.accelerometer_std, self.accelerometer_std, self.gyro_std])
 
     def measurement_std(self) -> Array:
-        """The white noise alone (:meth:`noise_std`): a Kalman filter's R for an IMU. Its
-        biases, the constant ones and the drift of :attr:`bias_drift` alike, are biases a
-        filter estimates as states (or neglects), not noise drawn anew at each sample:
-        their spread is not added (:meth:`Instrument.measurement_std`)."""
-        return self.noise_std()
+        """A Kalman filter's R for an IMU that models none of its biases (the extended
+        filter reading a suite's IMU as a measurement of its model's acceleration): the
+        white noise, widened by the drift's stationary spread where the IMU has one
+        (:attr:`bias_drift`), as a GNSS receiver's slow error widens its R
+        (:meth:`Instrument.measurement_std`); exactly the white noise without a drift. The
+        constant biases are left out. An observer that estimates the biases as states (the
+        IMU-aided observer) reads the noise and the drift from the instrument instead."""
+        return self.bias_drift.widened(self.noise_std())
 
 
 @component(

@@ -609,6 +609,24 @@ def benchmark_observers(
             cluster.close()
 
 
+@benchmark_app.command("dead-reckoning")
+def benchmark_dead_reckoning(
+    out: Annotated[str, typer.Option(metavar="FOLDER", help="Output folder: table.md, table.csv and drift.png.")] = "out/benchmark/dead-reckoning",
+    quick: Annotated[bool, typer.Option("--quick", help="2 seeds instead of 8.")] = False,
+) -> None:
+    """How far each observer's position drifts when every position reference is lost for
+    600 s on the DP vessel in Fossen & Strand's sea (docs/choosing-an-observer.md): the
+    passive observer, the extended Kalman filter with and without the IMU, the observer
+    without a hull model, and the IMU-aided observer on each IMU grade; per observer the
+    drift after 60, 300 and 600 s (median and 95th percentile over seeds) and the recovery
+    after the references return."""
+    from lookout.studies import dead_reckoning
+
+    folder = output_folder("--out", out)
+    written = dead_reckoning.run(folder, "quick" if quick else "full", say=console_print)
+    console_print(f"dead reckoning: {written['table']}, {written['csv']}, {written['figure']}")
+
+
 def failures(
     scenario_file: Annotated[str, typer.Argument(metavar="SCENARIO.toml", help="A scenario with a sensor suite ([sensors.NAME] tables).")],
     out: Annotated[
