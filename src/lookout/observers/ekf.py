@@ -31,6 +31,18 @@ from lookout.declare import NON_NEGATIVE, POSITIVE, Context, Part, Value, compon
 from lookout.observers.kalman import PARAMETERS, KalmanFilter, KalmanState, _symmetric, kalman_fields, masked, masked_noise
 
 
+def _with_imu_biases(plant: Plant, sensor: Sensor, imu_bias: npt.ArrayLike) -> Plant:
+    """``plant`` with the IMU's biases as states, for a suite with an IMU."""
+    from lookout import _validation as check
+    from lookout.models.imu_biases import ImuBiases
+    from lookout.sensing.motion import InertialUnit
+    from lookout.sensing.suite import SensorSuite
+
+    if not (isinstance(sensor, SensorSuite) and any(isinstance(each, InertialUnit) for each in sensor.instruments)):
+        raise check.ParameterError("imu_bias", "imu_bias: the filter's sensor has no IMU (a suite with an imu instrument) whose biases to estimate")
+    return ImuBiases(plant, imu_bias)
+
+
 @component(
     "observer",
     "ekf",
@@ -76,6 +88,13 @@ from lookout.observers.kalman import PARAMETERS, KalmanFilter, KalmanState, _sym
             "Estimate an unknown disturbance added to the plant's input, a random walk of this intensity per input entry (units^2/s; 0: a constant, and with an initial std of 0 none on that entry): the usual DP bias state, for a model without one (default none).",
             range=NON_NEGATIVE,
         ),
+        Value(
+            "imu_bias",
+            "array",
+            "Estimate the suite's IMU's biases as states, random walks of these intensities' square roots [accelerometers (m/s2/sqrt(s)) x2, gyro (rad/s/sqrt(s))], so that its specific force is a measurement of the model's acceleration with its bias (acceleration feedback, lookout.models.imu_biases); default none.",
+            shape="(3,)",
+            range=NON_NEGATIVE,
+        ),
         Context(
             "plant_step",
             "Step of the propagation (s); default the composition's simulation.plant_step, which makes the propagation the simulated plant's own discretization.",
@@ -94,6 +113,12 @@ class ExtendedKalmanFilter(KalmanFilter):
     Parameters
     ----------"""
         + PARAMETERS
+        + """
+    imu_bias : array_like, shape (3,), non-negative, optional
+        Estimate the suite's IMU's biases as states, random walks of these intensities'
+        square roots [accelerometers (m/s2/sqrt(s)) x2, gyro (rad/s/sqrt(s))], so that its
+        specific force is a measurement of the model's acceleration with its bias
+        (acceleration feedback, :mod:`lookout.models.imu_biases`); default none."""
     )
 
     def __init__(
@@ -105,11 +130,14 @@ class ExtendedKalmanFilter(KalmanFilter):
         measurement_noise: npt.ArrayLike | None = None,
         initial_std: npt.ArrayLike | dict[str, Any] | None = None,
         input_disturbance: npt.ArrayLike | None = None,
+        imu_bias: npt.ArrayLike | None = None,
         *,
         plant_step: float,
         filter_period: float,
         integrator: str = "rk4",
     ):
+        if imu_bias is not None:
+            plant = _with_imu_biases(plant, sensor, imu_bias)
         fields = kalman_fields(
             plant,
             sensor,

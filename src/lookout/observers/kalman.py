@@ -179,7 +179,15 @@ def _measured_parts(model: Plant) -> tuple[str, ...]:
     """The keywords of the plant's ``state`` whose default is None: the parts a sensor
     measures directly (a vessel's eta, an arm's q), which an observer's guess leaves to
     the first measurement."""
-    return tuple(name for name, parameter in inspect.signature(model.state).parameters.items() if parameter.default is None)
+    return tuple(name for name, parameter in state_parameters(model).items() if parameter.default is None)
+
+
+def state_parameters(model: Plant) -> dict[str, inspect.Parameter]:
+    """The keywords of the model's ``state``: its signature's, or, for a model that wraps
+    another (:class:`~lookout.models.imu_biases.ImuBiases`), what its ``state_parameters``
+    gives."""
+    own = getattr(model, "state_parameters", None)
+    return dict(own()) if own is not None else dict(inspect.signature(model.state).parameters)
 
 
 #: The key of the input disturbance's entries in a table of state parts.
@@ -209,7 +217,7 @@ def _state_vector(model: Plant, value, name: str, disturbance_size: int = 0, def
                 check.key(name), f"{name}: {DISTURBANCE} must have one entry per input entry ({disturbance_size}); got shape {extra.shape}"
             )
         extra = np.broadcast_to(extra, (disturbance_size,)) if disturbance_size else np.zeros(0)
-        known = [key for key in inspect.signature(model.state).parameters]
+        known = list(state_parameters(model))
         unknown = [key for key in parts if key not in known]
         if unknown:
             raise check.ParameterError(

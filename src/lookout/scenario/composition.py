@@ -502,8 +502,12 @@ def keywords_of(method: Callable[..., Any]) -> Callable[..., Any]:
     """The method whose keywords a bound ``method`` takes: itself, or, for one declared
     to take another's (``initial_values(same_as="model.state")``: a Kalman filter's
     ``guess`` takes its model plant's state keys), that method of the same object."""
-    path = registry.initial_same_as(method)
-    return method if path is None or not hasattr(method, "__self__") else operator.attrgetter(path)(method.__self__)
+    for _ in range(8):  # a model that wraps another takes its keys in turn (lookout.models.imu_biases)
+        path = registry.initial_same_as(method)
+        if path is None or not hasattr(method, "__self__"):
+            return method
+        method = operator.attrgetter(path)(method.__self__)
+    return method
 
 
 def _initial(method, table, location: tuple):

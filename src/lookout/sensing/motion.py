@@ -218,7 +218,9 @@ class InertialUnit(Instrument):
     def expected(self, kinematics: dict[str, Array]) -> Array:
         w, w_rate, (x, y) = kinematics["yaw_rate"], kinematics["yaw_acceleration"], self.lever_arm
         acceleration = kinematics["acceleration"] + w_rate * jnp.stack([-y, x]) - w**2 * self.lever_arm
-        return jnp.concatenate([acceleration, jnp.reshape(w, (1,))])
+        # a filter's model with the IMU's biases as states (lookout.models.imu_biases) carries them
+        acceleration = acceleration + kinematics.get("accelerometer_bias", 0.0)
+        return jnp.concatenate([acceleration, jnp.reshape(w + kinematics.get("gyro_bias", 0.0), (1,))])
 
     def noise_std(self) -> Array:
         return jnp.stack([self.accelerometer_std, self.accelerometer_std, self.gyro_std])

@@ -18,7 +18,7 @@ when it is not back by the run's end). The observers: the passive observer on th
 combining stage's position and heading (its hull model and bias estimate carry it),
 the extended Kalman filter on the instruments with and without the IMU (with it, the
 IMU's specific force is a measurement of the hull model's acceleration: acceleration
-feedback), the observer without a hull model, and the IMU-aided observer on an IMU of
+feedback; once with the IMU's biases as states, :mod:`lookout.models.imu_biases`), the observer without a hull model, and the IMU-aided observer on an IMU of
 each grade (:mod:`lookout.sensing.imu_grades`). Every observer but the IMU-aided ones
 reads a tactical-grade IMU where it reads one.
 """
@@ -83,9 +83,21 @@ class Entry:
     imu: bool = True
 
 
+def _tactical_bias_walk() -> list[float]:
+    """The tactical grade's bias drift as the random walk of its intensity (the IMU-aided
+    observer's default model of it, :func:`lookout.observers.ins.random_walk_std`)."""
+    from lookout.observers.ins import random_walk_std
+    from lookout.sensing.imu_grades import GRADES
+
+    grade = GRADES["tactical"]
+    spread = np.array([grade.accelerometer_bias_instability] * 2 + [grade.gyro_bias_instability])
+    return [float(each) for each in random_walk_std(spread, grade.bias_time_constant)]
+
+
 ENTRIES = (
     Entry("passive", {"kind": "passive", "design": "fossen-strand-1999"}),
     Entry("ekf", {"kind": "ekf"}),
+    Entry("ekf, IMU biases as states", {"kind": "ekf", "imu_bias": _tactical_bias_walk()}),
     Entry("ekf, no IMU", {"kind": "ekf"}, imu=False),
     Entry("model-free", {"kind": "model-free", "wave_period": WAVE_PERIOD, "wave_std": WAVE_STD}, imu=False),
     *(
