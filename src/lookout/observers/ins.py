@@ -53,15 +53,13 @@ from jax.typing import ArrayLike
 from lookout import _validation as check
 from lookout.components import Layout, Sensor
 from lookout.declare import NON_NEGATIVE, POSITIVE, Context, Part, Value, component
-from lookout.environment import LinearWaveModel
 from lookout.models.strapdown import StrapdownVessel
 from lookout.observers.ekf import ExtendedKalmanFilter
 from lookout.observers.kalman import KalmanState, filter_layout, kalman_fields
+from lookout.observers.model_free import WAVE_PERIOD, WAVE_STD, sea_model
 from lookout.sensing.motion import InertialUnit
 from lookout.sensing.suite import SensorSuite
 
-#: The wave model's relative damping (Fossen & Strand (1999), Section 6.1, use 0.1).
-WAVE_DAMPING = 0.1
 #: The prior spread of the biases [accelerometers (m/s2), gyro (rad/s)] unless told: a
 #: consumer MEMS unit's switch-on bias (a few mg, a few tenths of a degree a second) is
 #: within it, so that the filter starts open to any grade's.
@@ -148,14 +146,8 @@ def _number(name: str, value: Any, *, allow_zero: bool = True, allow_inf: bool =
             shape="(3,)",
             range=POSITIVE,
         ),
-        Value("wave_period", "float", "Peak period of the waves the vessel moves in (s); none: calm water (default none).", range=POSITIVE),
-        Value(
-            "wave_std",
-            "array",
-            "Standard deviation of the wave-frequency motion (m, m, rad), with wave_period (default none).",
-            shape="(3,)",
-            range=NON_NEGATIVE,
-        ),
+        WAVE_PERIOD,
+        WAVE_STD,
         Value(
             "measurement_noise",
             "array",
@@ -253,13 +245,9 @@ class InertialNavigationFilter(ExtendedKalmanFilter):
         prior = np.broadcast_to(np.asarray(check.vector("initial_bias_std", initial_bias_std), dtype=float), (3,))
         if not (np.all(np.isfinite(prior)) and np.all(prior > 0)):
             raise check.ParameterError("initial_bias_std", f"initial_bias_std must be 3 finite numbers > 0; got {prior.tolist()}")
-        if (wave_period is None) != (wave_std is None):
-            raise check.ParameterError("wave_period", "wave_period and wave_std go together: give both for a vessel in waves, or neither")
-        waves, wave_prior = None, None
-        if wave_period is not None and wave_std is not None:
-            check.positive("wave_period", wave_period)
+        waves, wave_prior = sea_model(wave_period, wave_std), None
+        if waves is not None and wave_period is not None:  # given together (sea_model)
             frequency = 2 * math.pi / float(wave_period)
-            waves = LinearWaveModel.from_std(np.full(3, frequency), np.full(3, WAVE_DAMPING), wave_std)
             spread = np.broadcast_to(np.asarray(wave_std, dtype=float), (3,))
             wave_prior = np.concatenate([np.maximum(spread / frequency, 1e-6), np.maximum(spread, 1e-6)])
         model = StrapdownVessel(density_a, density_g, drift_std, drift_time, np.asarray(unit.lever_arm), waves)

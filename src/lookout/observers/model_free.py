@@ -58,6 +58,35 @@ SETTLING_TIME = 20.0
 WAVE_DAMPING = 0.1
 
 
+#: The two parameters that put a kinematic observer in waves (this one and the IMU-aided one).
+WAVE_PERIOD = Value("wave_period", "float", "Peak period of the waves the vessel moves in (s); none: calm water (default none).", range=POSITIVE)
+WAVE_STD = Value(
+    "wave_std",
+    "array",
+    "Standard deviation of the wave-frequency motion (m, m, rad), with wave_period (default none).",
+    shape="(3,)",
+    range=NON_NEGATIVE,
+)
+
+
+def sea_model(wave_period: float | None, wave_std: npt.ArrayLike | None) -> LinearWaveModel | None:
+    """The first-order wave model of Fossen & Strand (1999), eqs. (10)-(11), at the peak
+    period ``wave_period`` with relative damping :data:`WAVE_DAMPING` and the motion's
+    standard deviation ``wave_std``; None for calm water (neither given).
+
+    Raises
+    ------
+    ValueError
+        Naming ``wave_period``: one given without the other, or a period not positive.
+    """
+    if (wave_period is None) != (wave_std is None):
+        raise check.ParameterError("wave_period", "wave_period and wave_std go together: give both for a vessel in waves, or neither")
+    if wave_period is None or wave_std is None:
+        return None
+    check.positive("wave_period", wave_period)
+    return LinearWaveModel.from_std(np.full(3, 2 * math.pi / float(wave_period)), np.full(3, WAVE_DAMPING), wave_std)
+
+
 def acceleration_intensity(noise_density: float, settling_time: float) -> float:
     """q = r (4 sqrt(2) / settling_time)^4, r = sigma^2 T: the white acceleration's
     intensity whose steady-state filter settles in ``settling_time`` (module docstring)."""
@@ -89,14 +118,8 @@ def _axis_noise(sensor: Sensor, covariance: np.ndarray, periods: np.ndarray, suf
             "2 % settling time of the velocity estimate after a change of velocity (s); sets the white acceleration's intensity from the measurement noise (20).",
             range=POSITIVE,
         ),
-        Value("wave_period", "float", "Peak period of the waves the vessel moves in (s); none: calm water (default none).", range=POSITIVE),
-        Value(
-            "wave_std",
-            "array",
-            "Standard deviation of the wave-frequency motion (m, m, rad), with wave_period (default none).",
-            shape="(3,)",
-            range=NON_NEGATIVE,
-        ),
+        WAVE_PERIOD,
+        WAVE_STD,
         Value(
             "measurement_noise",
             "array",
@@ -154,12 +177,7 @@ class ModelFreeFilter(ExtendedKalmanFilter):
     ):
         if isinstance(settling_time, bool) or not isinstance(settling_time, (int, float)) or not (math.isfinite(settling_time) and settling_time > 0):
             raise check.ParameterError("settling_time", f"settling_time must be a finite positive number of seconds; got {settling_time!r}")
-        if (wave_period is None) != (wave_std is None):
-            raise check.ParameterError("wave_period", "wave_period and wave_std go together: give both for a vessel in waves, or neither")
-        waves = None
-        if wave_period is not None and wave_std is not None:
-            check.positive("wave_period", wave_period)
-            waves = LinearWaveModel.from_std(np.full(3, 2 * math.pi / float(wave_period)), np.full(3, WAVE_DAMPING), wave_std)
+        waves = sea_model(wave_period, wave_std)
         names = [signal.name for signal in filter_layout(sensor).signals]
         if not (any(name.endswith("position") for name in names) and any(name.endswith("heading") for name in names)):
             raise check.ParameterError(
@@ -205,4 +223,4 @@ class ModelFreeFilter(ExtendedKalmanFilter):
             setattr(self, name, value)
 
 
-__all__ = ["SETTLING_TIME", "ModelFreeFilter", "acceleration_intensity"]
+__all__ = ["SETTLING_TIME", "WAVE_PERIOD", "WAVE_STD", "ModelFreeFilter", "acceleration_intensity", "sea_model"]
