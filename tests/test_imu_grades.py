@@ -1,7 +1,8 @@
-"""IMU grades (lookout.sensing.imu_grades) and the IMU's drifting bias: the grades' SI
-figures against their datasheet units converted here, a grade's white noise per sample
-and the values that win over it, the drift's stationary spread and autocorrelation over
-many seeds against a first-order Gauss-Markov process, the IMU without a drift as it
+"""IMU grades (lookout.sensing.imu_grades) and the IMU's turn-on and drifting biases: the
+grades' SI figures against their datasheet units converted here, a grade's white noise
+per sample and the values that win over it, the drift's stationary spread and
+autocorrelation over many seeds against a first-order Gauss-Markov process, the turn-on
+bias's spread over seeds and its constancy through a run, the IMU without either as it
 was, the refusals, and a scenario file that names a grade."""
 
 from __future__ import annotations
@@ -41,32 +42,42 @@ def _kinematics(acceleration=(0.0, 0.0), yaw_rate: float = 0.0, yaw_acceleration
 
 
 #: grade -> (accelerometer noise density m/s2/sqrt(Hz), gyro noise density rad/s/sqrt(Hz),
-#: accelerometer bias m/s2, gyro bias rad/s), each from its datasheet units
+#: accelerometer turn-on bias m/s2, gyro turn-on bias rad/s, accelerometer in-run bias
+#: instability m/s2, gyro in-run bias instability rad/s), each from its datasheet units;
+#: the figure a source does not give is a tenth (in-run) or ten times (turn-on) the one
+#: it gives (Groves 2013, Section 4.4.1)
 DATASHEET = {
-    # 400 micro-g/sqrt(Hz); 3 deg/sqrt(h); 1000 micro-g; 0.1 deg/s
-    "consumer": (400e-6 * G0, 3.0 * DEG / 60.0, 1000e-6 * G0, 0.1 * DEG),
-    # 120 micro-g/sqrt(Hz); 0.007 deg/s/sqrt(Hz); 0.03 mg; 10 deg/h
-    "industrial": (120e-6 * G0, 0.007 * DEG, 0.03e-3 * G0, 10.0 * DEG / 3600.0),
-    # 0.065 ft/s/sqrt(h); 0.125 deg/sqrt(h); 1 mg; 1 deg/h
-    "tactical": (0.065 * 0.3048 / 60.0, 0.125 * DEG / 60.0, 1e-3 * G0, 1.0 * DEG / 3600.0),
-    # 0.02 ft/s/sqrt(h) (a class figure); 0.002 deg/sqrt(h); 25 micro-g; 0.0035 deg/h
-    "navigation": (0.02 * 0.3048 / 60.0, 0.002 * DEG / 60.0, 25e-6 * G0, 0.0035 * DEG / 3600.0),
+    # 400 micro-g/sqrt(Hz); 3 deg/sqrt(h); 1000 micro-g; 0.1 deg/s (turn-on)
+    "consumer": (400e-6 * G0, 3.0 * DEG / 60.0, 1000e-6 * G0, 0.1 * DEG, 100e-6 * G0, 0.01 * DEG),
+    # 120 micro-g/sqrt(Hz); 0.007 deg/s/sqrt(Hz); 0.03 mg; 10 deg/h (in-run)
+    "industrial": (120e-6 * G0, 0.007 * DEG, 0.3e-3 * G0, 100.0 * DEG / 3600.0, 0.03e-3 * G0, 10.0 * DEG / 3600.0),
+    # 0.065 ft/s/sqrt(h); 0.125 deg/sqrt(h); 1 mg; 1 deg/h (turn-on)
+    "tactical": (0.065 * 0.3048 / 60.0, 0.125 * DEG / 60.0, 1e-3 * G0, 1.0 * DEG / 3600.0, 0.1e-3 * G0, 0.1 * DEG / 3600.0),
+    # 0.02 ft/s/sqrt(h) (a class figure); 0.002 deg/sqrt(h); 25 micro-g; 0.0035 deg/h (turn-on)
+    "navigation": (0.02 * 0.3048 / 60.0, 0.002 * DEG / 60.0, 25e-6 * G0, 0.0035 * DEG / 3600.0, 2.5e-6 * G0, 0.00035 * DEG / 3600.0),
 }
 
 
 @pytest.mark.parametrize("name", list(DATASHEET))
 def test_each_grade_holds_its_datasheet_figures_in_si_units(name):
     grade = GRADES[name]
-    got = (grade.accelerometer_noise_density, grade.gyro_noise_density, grade.accelerometer_bias_instability, grade.gyro_bias_instability)
+    got = (
+        grade.accelerometer_noise_density,
+        grade.gyro_noise_density,
+        grade.accelerometer_turn_on_bias,
+        grade.gyro_turn_on_bias,
+        grade.accelerometer_bias_instability,
+        grade.gyro_bias_instability,
+    )
     np.testing.assert_allclose(got, DATASHEET[name], rtol=1e-12, atol=0)
     assert grade.name == name and grade.bias_time_constant == 3600.0 and grade.source
 
 
 def test_the_grades_are_the_four_named_and_each_better_than_the_one_before_in_its_gyro():
     assert GRADE_NAMES == ("consumer", "industrial", "tactical", "navigation") and imu_grade("tactical") is GRADES["tactical"]
-    gyro_bias = [GRADES[name].gyro_bias_instability for name in GRADE_NAMES]
-    arw = [GRADES[name].gyro_noise_density for name in GRADE_NAMES]
-    assert gyro_bias == sorted(gyro_bias, reverse=True) and arw == sorted(arw, reverse=True)
+    for figure in ("gyro_bias_instability", "gyro_turn_on_bias", "gyro_noise_density"):
+        values = [getattr(GRADES[name], figure) for name in GRADE_NAMES]
+        assert values == sorted(values, reverse=True), figure
 
 
 # ----------------------------------------------------------------------------------
@@ -74,22 +85,23 @@ def test_the_grades_are_the_four_named_and_each_better_than_the_one_before_in_it
 
 
 @pytest.mark.parametrize("period", [0.1, 0.25])
-def test_a_grade_gives_density_over_root_period_per_sample_and_its_drift(period):
+def test_a_grade_gives_density_over_root_period_per_sample_its_turn_on_bias_and_its_drift(period):
     unit = InertialUnit(grade="tactical", sample_period=period)
-    vrw, arw, accelerometer_bias, gyro_bias = DATASHEET["tactical"]
+    vrw, arw, accelerometer_turn_on, gyro_turn_on, accelerometer_bias, gyro_bias = DATASHEET["tactical"]
     np.testing.assert_allclose(float(unit.accelerometer_std), vrw / math.sqrt(period), rtol=1e-12)
     np.testing.assert_allclose(float(unit.gyro_std), arw / math.sqrt(period), rtol=1e-12)
     np.testing.assert_allclose(np.asarray(unit.bias_drift.std), [accelerometer_bias, accelerometer_bias, gyro_bias], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(unit.turn_on_std), [accelerometer_turn_on, accelerometer_turn_on, gyro_turn_on], rtol=1e-12)
     assert float(unit.bias_drift.time_constant) == 3600.0 and unit.bias_drift.step == period
-    assert unit.noise_count == 6
-    # R of a filter that models no bias: the white noise widened by the drift's stationary spread
-    np.testing.assert_allclose(
-        np.asarray(unit.measurement_std()), np.hypot(np.asarray(unit.noise_std()), [accelerometer_bias, accelerometer_bias, gyro_bias]), rtol=1e-12
-    )
+    assert unit.noise_count == 9 and unit.drifting and unit.turned_on
+    # R of a filter that models no bias: the white noise widened by the turn-on spread and
+    # the drift's stationary spread
+    random_bias = np.hypot([accelerometer_bias, accelerometer_bias, gyro_bias], [accelerometer_turn_on, accelerometer_turn_on, gyro_turn_on])
+    np.testing.assert_allclose(np.asarray(unit.measurement_std()), np.hypot(np.asarray(unit.noise_std()), random_bias), rtol=1e-12)
 
 
 def test_values_given_win_over_the_grades():
-    vrw, arw, accelerometer_bias, _ = DATASHEET["industrial"]
+    vrw, arw, _, _, accelerometer_bias, _ = DATASHEET["industrial"]
     unit = InertialUnit(grade="industrial", accelerometer_std=0.05, gyro_bias_std=0.0, bias_time_constant=100.0)
     assert float(unit.accelerometer_std) == 0.05 and float(unit.bias_drift.time_constant) == 100.0
     np.testing.assert_allclose(float(unit.gyro_std), arw / math.sqrt(0.1), rtol=1e-12)
@@ -97,8 +109,11 @@ def test_values_given_win_over_the_grades():
     other = InertialUnit(grade="navigation", gyro_std=0.002, accelerometer_bias_std=[0.001, 0.003])
     np.testing.assert_allclose(float(other.accelerometer_std), DATASHEET["navigation"][0] / math.sqrt(0.1), rtol=1e-12)
     assert float(other.gyro_std) == 0.002
-    np.testing.assert_allclose(np.asarray(other.bias_drift.std), [0.001, 0.003, DATASHEET["navigation"][3]], rtol=1e-12)
-    quiet = InertialUnit(grade="consumer", accelerometer_bias_std=0.0, gyro_bias_std=0.0)
+    np.testing.assert_allclose(np.asarray(other.bias_drift.std), [0.001, 0.003, DATASHEET["navigation"][5]], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(other.turn_on_std), [DATASHEET["navigation"][2]] * 2 + [DATASHEET["navigation"][3]], rtol=1e-12)
+    steady = InertialUnit(grade="tactical", accelerometer_turn_on_std=[0.0, 0.02], gyro_turn_on_std=0.0)
+    np.testing.assert_allclose(np.asarray(steady.turn_on_std), [0.0, 0.02, 0.0], rtol=1e-12)
+    quiet = InertialUnit(grade="consumer", accelerometer_bias_std=0.0, gyro_bias_std=0.0, accelerometer_turn_on_std=0.0, gyro_turn_on_std=0.0)
     assert quiet.noise_count == 3 and quiet.initial_memory(_kinematics()) == ()
 
 
@@ -106,6 +121,7 @@ def test_without_a_grade_the_defaults_are_as_documented():
     unit = InertialUnit()
     assert float(unit.accelerometer_std) == 0.01 and float(unit.gyro_std) == 0.001
     np.testing.assert_array_equal(np.asarray(unit.bias_drift.std), np.zeros(3))
+    np.testing.assert_array_equal(np.asarray(unit.turn_on_std), np.zeros(3))
     assert float(unit.bias_drift.time_constant) == 3600.0
     drifting = InertialUnit(accelerometer_bias_std=0.002)  # one number for both accelerometers
     np.testing.assert_array_equal(np.asarray(drifting.bias_drift.std), [0.002, 0.002, 0.0])
@@ -123,19 +139,9 @@ DRIFT_STD = np.array([0.02, 0.05, 0.003])
 Z = 4.0
 
 
-@pytest.fixture(scope="module")
-def drift() -> np.ndarray:
+def _random_biases(unit: InertialUnit, seed: int) -> np.ndarray:
     """The IMU's value less its expected sample, (SEEDS, SAMPLES, 3), at rest and without
-    white noise or constant bias: the drift alone, from emit vmapped over seeds."""
-    unit = InertialUnit(
-        accelerometer_std=0.0,
-        gyro_std=0.0,
-        sample_period=PERIOD,
-        accelerometer_bias_std=DRIFT_STD[:2],
-        gyro_bias_std=float(DRIFT_STD[2]),
-        bias_time_constant=TAU,
-    )
-    assert unit.noise_count == 6
+    white noise or constant bias: its random biases alone, from emit vmapped over seeds."""
     kinematics = _kinematics()
 
     def run(key):
@@ -148,9 +154,24 @@ def drift() -> np.ndarray:
         _, (values, white) = jax.lax.scan(step, unit.initial_memory(kinematics), normals)
         return values, white
 
-    values, white = jax.jit(jax.vmap(run))(jax.random.split(jax.random.key(20), SEEDS))
+    values, white = jax.jit(jax.vmap(run))(jax.random.split(jax.random.key(seed), SEEDS))
     np.testing.assert_array_equal(np.asarray(white), 0.0)
     return np.asarray(values)
+
+
+@pytest.fixture(scope="module")
+def drift() -> np.ndarray:
+    """The drift alone: an IMU without a turn-on bias."""
+    unit = InertialUnit(
+        accelerometer_std=0.0,
+        gyro_std=0.0,
+        sample_period=PERIOD,
+        accelerometer_bias_std=DRIFT_STD[:2],
+        gyro_bias_std=float(DRIFT_STD[2]),
+        bias_time_constant=TAU,
+    )
+    assert unit.noise_count == 6
+    return _random_biases(unit, 20)
 
 
 @pytest.mark.parametrize("sample", [0, 1, 10, SAMPLES - 1])
@@ -173,7 +194,53 @@ def test_the_drifts_autocorrelation_is_exp_of_minus_lag_over_its_time_constant(d
 
 
 # ----------------------------------------------------------------------------------
-# (d) without a drift: the IMU as it was
+# (d) the turn-on bias: drawn once, constant through the run
+
+TURN_ON_STD = np.array([0.04, 0.01, 0.002])
+
+
+def test_the_turn_on_bias_is_constant_through_a_run_with_its_spread_over_seeds():
+    """Turn-on bias alone: each seed's bias the same at every sample, bit for bit; over
+    seeds, mean 0 and variance TURN_ON_STD^2 (Z standard errors), the channels
+    uncorrelated."""
+    unit = InertialUnit(
+        accelerometer_std=0.0, gyro_std=0.0, sample_period=PERIOD, accelerometer_turn_on_std=TURN_ON_STD[:2], gyro_turn_on_std=float(TURN_ON_STD[2])
+    )
+    assert unit.noise_count == 6 and unit.turned_on and not unit.drifting
+    biases = _random_biases(unit, 21)
+    np.testing.assert_array_equal(biases, np.broadcast_to(biases[:, :1, :], biases.shape))
+    x = biases[:, 0, :]
+    assert np.all(np.abs(np.mean(x**2, axis=0) / TURN_ON_STD**2 - 1.0) < Z * math.sqrt(2.0 / SEEDS))
+    assert np.all(np.abs(x.mean(axis=0)) < Z * TURN_ON_STD / math.sqrt(SEEDS))
+    correlation = np.corrcoef(x.T)[np.triu_indices(3, 1)]
+    assert np.all(np.abs(correlation) < Z / math.sqrt(SEEDS)), correlation
+
+
+def test_with_both_the_bias_spreads_by_both_and_changes_by_the_drift_alone():
+    """Turn-on bias and drift: the variance at a sample is the sum of theirs; the change
+    between two samples k apart has the drift's variance 2 sigma_d^2 (1 - exp(-k h / T))."""
+    unit = InertialUnit(
+        accelerometer_std=0.0,
+        gyro_std=0.0,
+        sample_period=PERIOD,
+        accelerometer_bias_std=DRIFT_STD[:2],
+        gyro_bias_std=float(DRIFT_STD[2]),
+        bias_time_constant=TAU,
+        accelerometer_turn_on_std=TURN_ON_STD[:2],
+        gyro_turn_on_std=float(TURN_ON_STD[2]),
+    )
+    assert unit.noise_count == 9
+    biases = _random_biases(unit, 22)
+    for sample in (0, SAMPLES - 1):
+        variance = np.mean(biases[:, sample, :] ** 2, axis=0) / (DRIFT_STD**2 + TURN_ON_STD**2)
+        assert np.all(np.abs(variance - 1.0) < Z * math.sqrt(2.0 / SEEDS)), variance
+    change = biases[:, 30, :] - biases[:, 0, :]
+    expected = 2.0 * DRIFT_STD**2 * (1.0 - math.exp(-30 * PERIOD / TAU))
+    assert np.all(np.abs(np.mean(change**2, axis=0) / expected - 1.0) < Z * math.sqrt(2.0 / SEEDS))
+
+
+# ----------------------------------------------------------------------------------
+# (e) without random biases: the IMU as it was
 
 
 def test_an_imu_without_a_drift_draws_three_normals_keeps_no_memory_and_emits_as_before():
@@ -200,7 +267,7 @@ def test_an_imu_without_a_drift_draws_three_normals_keeps_no_memory_and_emits_as
 
 
 # ----------------------------------------------------------------------------------
-# (e) refusals
+# (f) refusals
 
 
 def test_an_unknown_grade_is_refused_at_grade():
@@ -219,6 +286,9 @@ def test_an_unknown_grade_is_refused_at_grade():
         ({"gyro_bias_std": -0.001}, "gyro_bias_std"),
         ({"gyro_bias_std": -0.001, "grade": "tactical"}, "gyro_bias_std"),
         ({"bias_time_constant": 0.0}, "bias_time_constant"),
+        ({"accelerometer_turn_on_std": -0.01}, "accelerometer_turn_on_std"),
+        ({"accelerometer_turn_on_std": [0.01, 0.01, 0.01]}, "accelerometer_turn_on_std"),
+        ({"gyro_turn_on_std": -0.001, "grade": "navigation"}, "gyro_turn_on_std"),
     ],
 )
 def test_a_bad_drift_is_refused_naming_its_parameter(keywords, name):
@@ -228,7 +298,7 @@ def test_a_bad_drift_is_refused_naming_its_parameter(keywords, name):
 
 
 # ----------------------------------------------------------------------------------
-# (f) a scenario file that names a grade
+# (g) a scenario file that names a grade
 
 SCENARIO = """\
 [simulation]
@@ -274,16 +344,18 @@ kind = "passive"
 
 
 def test_a_scenario_file_with_a_grade_loads_and_its_imu_drifts_from_a_stationary_draw():
-    """``grade = "tactical"``: the suite's IMU has the grade's drift, the values given
-    win, and the file's spelled-out sensors keep the grade. Run: the tactical IMU less
-    the one without a drift (both without white noise, at one point) is the drift,
-    nonzero from the first sample, within Z sigma, and hardly moving over 2 s of a one
-    hour time constant (each step within Z sigma sqrt(2 (1 - a^k)))."""
+    """``grade = "tactical"``: the suite's IMU has the grade's turn-on bias and drift, the
+    values given win, and the file's spelled-out sensors keep the grade. Run: the
+    tactical IMU less the one without random biases (both without white noise, at one
+    point) is the turn-on bias plus the drift, nonzero from the first sample, within Z
+    of their spread, and hardly moving over 2 s of a one hour time constant (each step
+    within Z sigma_d sqrt(2 (1 - a^k)))."""
     composition = from_document(tomllib.loads(SCENARIO)).composition
     suite = composition.scenario.sensor
     imu = suite.instruments[suite.names.index("imu")]
-    assert isinstance(imu, InertialUnit) and imu.noise_count == 6 and float(imu.accelerometer_std) == 0.0
-    np.testing.assert_allclose(np.asarray(imu.bias_drift.std), [1e-3 * G0, 1e-3 * G0, DEG / 3600.0], rtol=1e-12)
+    assert isinstance(imu, InertialUnit) and imu.noise_count == 9 and float(imu.accelerometer_std) == 0.0
+    np.testing.assert_allclose(np.asarray(imu.bias_drift.std), [1e-4 * G0, 1e-4 * G0, 0.1 * DEG / 3600.0], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(imu.turn_on_std), [1e-3 * G0, 1e-3 * G0, DEG / 3600.0], rtol=1e-12)
     assert composition.document["sensors"]["imu"]["grade"] == "tactical"
     ds = simulate(composition.scenario, keys_of_seeds([5])[0]).to_xarray()
     ds = ds.isel(run=0) if "run" in ds.dims else ds
@@ -295,7 +367,7 @@ def test_a_scenario_file_with_a_grade_loads_and_its_imu_drifts_from_a_stationary
     )
     drift = drift[np.all(np.isfinite(drift), axis=1)]
     std = np.asarray(imu.bias_drift.std)
-    assert len(drift) >= 19 and np.all(drift[0] != 0.0) and np.all(np.abs(drift[0]) < Z * std)
+    assert len(drift) >= 19 and np.all(drift[0] != 0.0) and np.all(np.abs(drift[0]) < Z * np.hypot(std, np.asarray(imu.turn_on_std)))
     k = np.arange(len(drift))[:, None]
     bound = Z * std * np.sqrt(2.0 * (1.0 - np.exp(-k * 0.1 / 3600.0)))
     assert np.all(np.abs(drift - drift[0]) <= bound + 1e-15)

@@ -81,9 +81,22 @@ def _velocity_at(kinematics: dict[str, Array], arm: Array) -> Array:
             range=POSITIVE,
         ),
         Value(
+            "accelerometer_turn_on_std",
+            "array",
+            "Standard deviation of the accelerometers' turn-on bias [surge, sway], drawn once and constant through the run (m/s2; default: the grade's, else 0 for none).",
+            shape="(2,)",
+            range=NON_NEGATIVE,
+        ),
+        Value(
+            "gyro_turn_on_std",
+            "float",
+            "Standard deviation of the rate gyro's turn-on bias, constant through the run (rad/s; default: the grade's, else 0 for none).",
+            range=NON_NEGATIVE,
+        ),
+        Value(
             "grade",
             "str",
-            "The IMU's grade, whose figures give the white noise and the drifting biases that are not given (lookout.sensing.imu_grades).",
+            "The IMU's grade, whose figures give the white noise and the turn-on and drifting biases that are not given (lookout.sensing.imu_grades).",
             choices=GRADE_NAMES,
         ),
     ),
@@ -94,19 +107,21 @@ class InertialUnit(Instrument):
     arm, plus biases and white noise. In the horizontal plane gravity does not enter, so
     the specific force is the inertial acceleration of the point.
 
-    Each channel's bias is a constant (``accelerometer_bias``, ``gyro_bias``) plus a
+    Each channel's bias is the sum of a given constant (``accelerometer_bias``,
+    ``gyro_bias``), a turn-on bias (:attr:`turn_on_std`: a normal drawn at the first sample
+    and constant through the run, the bias repeatability of a datasheet) and an in-run
     first-order Gauss-Markov drift (:attr:`bias_drift`, the bias instability: stationary
     standard deviations ``accelerometer_bias_std`` and ``gyro_bias_std``, time constant
-    ``bias_time_constant``), stepped at the sample period. The drift starts from its
-    stationary distribution, drawn at the first sample: runs over seeds see the spread of
-    biases an IMU has after switch-on. With both drift spreads 0 (the default without a
-    grade) it has none: three normals a sample and no memory.
+    ``bias_time_constant``), stepped at the sample period and started from its stationary
+    distribution at the first sample. Runs over seeds see the spread of biases an IMU has
+    after switch-on. Without turn-on and drift spreads (the default without a grade) it
+    has neither: three normals a sample and no memory; each adds three normals a sample.
 
     A ``grade`` (:data:`lookout.sensing.imu_grades.GRADES`: consumer, industrial, tactical,
     navigation) sets the white noise per sample from its noise densities,
-    ``density / sqrt(sample_period)`` (a sample averaging over its period), and the drift
-    from its bias instabilities and correlation time; a value given here wins over the
-    grade's.
+    ``density / sqrt(sample_period)`` (a sample averaging over its period), the turn-on
+    spread from its turn-on biases and the drift from its bias instabilities and
+    correlation time; a value given here wins over the grade's.
 
     Parameters
     ----------
@@ -133,14 +148,23 @@ class InertialUnit(Instrument):
     bias_time_constant : float, positive, optional
         Time constant of the drifting biases' Gauss-Markov process (s; default: the
         grade's, else 3600).
+    accelerometer_turn_on_std : array_like, shape (2,), non-negative, optional
+        Standard deviation of the accelerometers' turn-on bias [surge, sway], drawn once
+        and constant through the run (m/s2; default: the grade's, else 0 for none). One
+        number stands for both.
+    gyro_turn_on_std : float, non-negative, optional
+        Standard deviation of the rate gyro's turn-on bias, constant through the run
+        (rad/s; default: the grade's, else 0 for none).
     grade : {"consumer", "industrial", "tactical", "navigation"}, optional
-        The IMU's grade, whose figures give the white noise and the drifting biases that
-        are not given (lookout.sensing.imu_grades).
+        The IMU's grade, whose figures give the white noise and the turn-on and drifting
+        biases that are not given (lookout.sensing.imu_grades).
 
     Attributes
     ----------
     bias : Array, shape (3,)
         The constant biases [surge accel, sway accel, gyro].
+    turn_on_std : Array, shape (3,)
+        The turn-on biases' spreads [surge accel, sway accel, gyro].
     bias_drift : GaussMarkovError
         The drifting biases: ``std`` of shape (3,) [surge accel, sway accel, gyro] and
         one ``time_constant``, stepped at the sample period (zero ``std``: none).
@@ -150,10 +174,13 @@ class InertialUnit(Instrument):
     accelerometer_std: Array
     gyro_std: Array
     bias: Array
+    turn_on_std: Array
     bias_drift: GaussMarkovError
     sample_period: float = eqx.field(static=True)
     signals: tuple[Signal, ...] = eqx.field(static=True, default=(SPECIFIC_FORCE, ANGULAR_RATE), kw_only=True)
     noise_count: int = eqx.field(static=True, default=3, kw_only=True)
+    # whether it has a drift and a turn-on bias (a spread > 0), fixed when built
+    random_biases: tuple[bool, bool] = eqx.field(static=True, default=(False, False), kw_only=True)
 
     def __init__(
         self,
@@ -166,6 +193,8 @@ class InertialUnit(Instrument):
         accelerometer_bias_std: npt.ArrayLike | None = None,
         gyro_bias_std: float | None = None,
         bias_time_constant: float | None = None,
+        accelerometer_turn_on_std: npt.ArrayLike | None = None,
+        gyro_turn_on_std: float | None = None,
         grade: str | None = None,
     ):
         self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
@@ -192,28 +221,47 @@ class InertialUnit(Instrument):
         drift_std = jnp.concatenate([std_value("accelerometer_bias_std", accelerometer_bias_std, 2), jnp.asarray([float(gyro_bias_std)])])
         time_constant = period_value("bias_time_constant", bias_time_constant)
         self.bias_drift = GaussMarkovError(drift_std, jnp.asarray(time_constant), self.sample_period)
-        # the drift's normals and memory only where it has a spread: without, the draws
-        # and the memory are those of an IMU of constant biases
-        self.noise_count = 6 if bool(np.any(np.asarray(drift_std) > 0)) else 3
+        if accelerometer_turn_on_std is None:
+            accelerometer_turn_on_std = 0.0 if chosen is None else chosen.accelerometer_turn_on_bias
+        if gyro_turn_on_std is None:
+            gyro_turn_on_std = 0.0 if chosen is None else chosen.gyro_turn_on_bias
+        check.positive("gyro_turn_on_std", gyro_turn_on_std, allow_zero=True)
+        self.turn_on_std = jnp.concatenate(
+            [std_value("accelerometer_turn_on_std", accelerometer_turn_on_std, 2), jnp.asarray([float(gyro_turn_on_std)])]
+        )
+        # the drift's and the turn-on bias's normals and memory only where they have a
+        # spread: without, the draws and the memory are those of an IMU of constant biases
+        self.random_biases = (bool(np.any(np.asarray(drift_std) > 0)), bool(np.any(np.asarray(self.turn_on_std) > 0)))
+        self.noise_count = 3 + 3 * self.drifting + 3 * self.turned_on
 
     @property
     def drifting(self) -> bool:
         """Whether its biases drift (a drift spread > 0): three more normals a sample,
         and the drift in its memory."""
-        return self.noise_count == 6
+        return self.random_biases[0]
 
-    def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()] | tuple[Array, Array]:
-        # the drift, and whether it has been drawn (at the first sample, from its
-        # stationary distribution)
-        return (jnp.zeros(3), jnp.asarray(False)) if self.drifting else ()
+    @property
+    def turned_on(self) -> bool:
+        """Whether it draws a turn-on bias (a turn-on spread > 0): three more normals a
+        sample (used at the first), and the bias in its memory."""
+        return self.random_biases[1]
+
+    def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()] | tuple[Array, Array, Array]:
+        # the drift, the turn-on bias, and whether they have been drawn (at the first
+        # sample: the drift from its stationary distribution)
+        return (jnp.zeros(3), jnp.zeros(3), jnp.asarray(False)) if self.drifting or self.turned_on else ()
 
     def emit(self, memory: Any, kinematics: dict[str, Array], normals: Array) -> tuple[Any, Array, Array]:
         value, white = self.expected(kinematics) + self.bias, self.noise_std() * normals[:3]
-        if not self.drifting:
+        if not (self.drifting or self.turned_on):
             return memory, value, white
-        drift, drawn = memory
-        drift = jnp.where(drawn, self.bias_drift.advance(drift, normals[3:6]), self.bias_drift.std * normals[3:6])
-        return (drift, jnp.asarray(True)), value + drift, white
+        drift, turn_on, drawn = memory
+        if self.drifting:
+            drift = jnp.where(drawn, self.bias_drift.advance(drift, normals[3:6]), self.bias_drift.std * normals[3:6])
+        if self.turned_on:
+            start = 6 if self.drifting else 3
+            turn_on = jnp.where(drawn, turn_on, self.turn_on_std * normals[start : start + 3])
+        return (drift, turn_on, jnp.asarray(True)), value + drift + turn_on, white
 
     def expected(self, kinematics: dict[str, Array]) -> Array:
         w, w_rate, (x, y) = kinematics["yaw_rate"], kinematics["yaw_acceleration"], self.lever_arm
@@ -228,12 +276,13 @@ class InertialUnit(Instrument):
     def measurement_std(self) -> Array:
         """A Kalman filter's R for an IMU that models none of its biases (the extended
         filter reading a suite's IMU as a measurement of its model's acceleration): the
-        white noise, widened by the drift's stationary spread where the IMU has one
-        (:attr:`bias_drift`), as a GNSS receiver's slow error widens its R
-        (:meth:`Instrument.measurement_std`); exactly the white noise without a drift. The
-        constant biases are left out. An observer that estimates the biases as states (the
-        IMU-aided observer) reads the noise and the drift from the instrument instead."""
-        return self.bias_drift.widened(self.noise_std())
+        white noise, widened by the turn-on bias's spread and the drift's stationary
+        spread where the IMU has them (:attr:`turn_on_std`, :attr:`bias_drift`), as a
+        GNSS receiver's slow error widens its R (:meth:`Instrument.measurement_std`);
+        exactly the white noise without them. The given constant biases are left out. An
+        observer that estimates the biases as states (the IMU-aided observer) reads the
+        noise and the drift from the instrument instead."""
+        return jnp.hypot(self.bias_drift.widened(self.noise_std()), self.turn_on_std)
 
 
 @component(

@@ -80,6 +80,8 @@ def _models_taken(document: dict) -> dict[str, dict | None]:
                     walk(parameter.role, table[parameter.name], here)
                 continue
             if parameter.role in MODEL_ROLES:
+                if parameter.role not in document:  # a sensor suite ([sensors]): no one table to pin
+                    continue
                 pins[here] = strip(document[parameter.role])
             elif parameter.role in registry.COMPONENT_ROLES or not parameter.from_plant:
                 continue
