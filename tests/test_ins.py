@@ -194,6 +194,23 @@ def test_acceleration_feedback_estimates_the_imus_biases():
     assert np.abs(gyro).max() < 1e-4
 
 
+def test_the_imu_biases_initial_guess_is_a_key_of_observer_initial():
+    """[observer.initial] takes imu_bias beside the plant's keys (the wrapped plant's
+    state and the biases); a wrong size is refused at its key."""
+    document = _document(noise=True)
+    document["observer"] = {
+        "kind": "ekf",
+        "imu_bias": [1e-4, 1e-4, 1e-6],
+        "initial_std": EKF_INITIAL_STD,
+        "initial": {"imu_bias": [0.02, -0.015, 0.002]},
+    }
+    composition = compose(document)
+    np.testing.assert_array_equal(np.asarray(composition.scenario.initial_estimate.bias), [0.02, -0.015, 0.002])
+    assert composition.document["observer"]["initial"]["imu_bias"] == (0.02, -0.015, 0.002)
+    document["observer"]["initial"] = {"imu_bias": [0.02, -0.015]}
+    assert str(_refused(document)).startswith("observer.initial.imu_bias: must be one number or have 3 entries")
+
+
 def test_imu_biases_need_an_imu():
     document = _document()
     document["sensors"].pop("imu")

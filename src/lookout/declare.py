@@ -342,15 +342,17 @@ def component(role: str, kind: str, **details: Any) -> Callable[[_Target], _Targ
     return decorate
 
 
-def initial_values(*values: Value, same_as: str | None = None) -> Callable:
+def initial_values(*values: Value, same_as: str | None = None, extra: tuple[Value, ...] = ()) -> Callable:
     """Method decorator for a plant's ``state`` or an observer's ``guess``: the keys of
     the file's ``[... .initial]`` table it takes (``values``), or, with ``same_as``
     (``"model.state"``), those of the method of that attribute path of the same object
-    (a Kalman filter's guess takes its model plant's state keys)."""
+    (a Kalman filter's guess takes its model plant's state keys), plus ``extra`` keys of
+    its own (a model that wraps a plant and adds states to it)."""
 
     def decorate(function):
         function.__lookout_initial__ = tuple(values)
         function.__lookout_initial_same_as__ = same_as
+        function.__lookout_initial_extra__ = tuple(extra)
         return function
 
     return decorate

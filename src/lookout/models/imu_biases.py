@@ -30,7 +30,7 @@ from jax.typing import ArrayLike
 
 from lookout import _validation as check
 from lookout.components import BODY_FIXED, DivergenceBound, Layout, Plant, Signal
-from lookout.declare import initial_values
+from lookout.declare import Value, initial_values
 from lookout.vessel_signals import BODY_AXES
 
 #: The estimated biases, recorded beside the plant's variables.
@@ -91,7 +91,10 @@ class ImuBiases(Plant):
         parameters[BIAS_PART] = inspect.Parameter(BIAS_PART, inspect.Parameter.KEYWORD_ONLY, default=0.0)
         return parameters
 
-    @initial_values(same_as="plant.state")
+    @initial_values(
+        same_as="plant.state",
+        extra=(Value(BIAS_PART, "array", "The IMU's biases [accelerometers (m/s2) x2, gyro (rad/s)] (default 0).", shape="(3,)"),),
+    )
     def state(self, *args: Any, imu_bias: npt.ArrayLike = 0.0, **parts: Any) -> BiasedState:
         """The wrapped plant's state from ``parts`` and the biases ``imu_bias`` (zero
         unless given; a scenario file's ``[observer.initial]`` table takes the wrapped

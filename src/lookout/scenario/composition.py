@@ -245,12 +245,20 @@ def state_parameters(method: Callable[..., Any]) -> tuple[registry.Parameter, ..
 
 
 @functools.cache
-def _initial_model(function):
-    """The pydantic model of the keys ``function`` (a ``state`` or ``guess``) declares (built once per method)."""
-    fields = {
-        p.name: (_annotation(p), Field(default=_default_value(p.default), description=p.description)) for p in registry.initial_parameters(function)
+def _initial_model(functions: tuple):
+    """The pydantic model of the keys a chain of ``state`` or ``guess`` methods takes
+    (:func:`initial_keys`; built once per chain)."""
+    fields: dict[str, Any] = {
+        p.name: (_annotation(p), Field(default=_default_value(p.default), description=p.description)) for p in _chain_parameters(functions)
     }
-    return create_model(re.sub(r"\W", "_", f"initial_{function.__module__}_{function.__qualname__}"), __base__=Settings, **fields)
+    last = functions[-1]
+    return create_model(re.sub(r"\W", "_", f"initial_{last.__module__}_{last.__qualname__}_{len(functions)}"), __base__=Settings, **fields)
+
+
+def _chain_parameters(functions: tuple) -> tuple[registry.Parameter, ...]:
+    """The last method's declared keys, then each method's ``extra`` keys before it."""
+    extra = tuple(p for function in functions[:-1] for p in registry.initial_extra(function))
+    return registry.initial_parameters(functions[-1]) + extra
 
 
 # ------------------------------------------------------------------------ building
@@ -498,26 +506,42 @@ def _own_signal(table: dict, location: tuple):
         raise CompositionError(location, one_line(error)) from None
 
 
+def _keyword_chain(method: Callable[..., Any]) -> list[Callable[..., Any]]:
+    """``method`` and each method whose keywords it declares to take in turn
+    (``initial_values(same_as="model.state")``: a Kalman filter's ``guess`` takes its model
+    plant's state keys; a model that wraps another takes that one's)."""
+    chain = [method]
+    for _ in range(8):
+        path = registry.initial_same_as(chain[-1])
+        if path is None or not hasattr(chain[-1], "__self__"):
+            break
+        chain.append(operator.attrgetter(path)(chain[-1].__self__))
+    return chain
+
+
 def keywords_of(method: Callable[..., Any]) -> Callable[..., Any]:
     """The method whose keywords a bound ``method`` takes: itself, or, for one declared
     to take another's (``initial_values(same_as="model.state")``: a Kalman filter's
     ``guess`` takes its model plant's state keys), that method of the same object."""
-    for _ in range(8):  # a model that wraps another takes its keys in turn (lookout.models.imu_biases)
-        path = registry.initial_same_as(method)
-        if path is None or not hasattr(method, "__self__"):
-            return method
-        method = operator.attrgetter(path)(method.__self__)
-    return method
+    return _keyword_chain(method)[-1]
+
+
+def initial_keys(method: Callable[..., Any]) -> tuple[registry.Parameter, ...]:
+    """The keys a bound ``state`` or ``guess`` takes: those of :func:`keywords_of`'s
+    method, and the ``extra`` keys of each method on the way (an extended Kalman filter
+    with the IMU's biases as states takes ``imu_bias`` beside its plant's keys)."""
+    return _chain_parameters(tuple(getattr(each, "__func__", each) for each in _keyword_chain(method)))
 
 
 def _initial(method, table, location: tuple):
     """``method(**table)`` (a plant's ``state`` or an observer's ``guess``), validated."""
-    parameters = state_parameters(keywords_of(method))
+    functions = tuple(getattr(each, "__func__", each) for each in _keyword_chain(method))
+    parameters = _chain_parameters(functions)
     if table is None:
         table = {}
     if not isinstance(table, dict):
         raise CompositionError(location, "must be a table")
-    validated = _validate(_initial_model(getattr(keywords_of(method), "__func__", keywords_of(method))), table, location)
+    validated = _validate(_initial_model(functions), table, location)
     arguments = {p.name: getattr(validated, p.name) for p in parameters if p.sort == "value"}
     try:
         value = method(**arguments)

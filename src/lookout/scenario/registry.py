@@ -613,6 +613,14 @@ def initial_parameters(method: Callable[..., Any]) -> tuple[Parameter, ...]:
     return _parameters(function, declared, function.__qualname__)
 
 
+def initial_extra(method: Callable[..., Any]) -> tuple[Parameter, ...]:
+    """The keys ``method`` takes beyond those of the method it declares the keys of
+    (:func:`lookout.declare.initial_values`'s ``extra``)."""
+    function = getattr(method, "__func__", method)
+    declared = getattr(function, "__lookout_initial_extra__", ())
+    return _parameters(function, declared, function.__qualname__) if declared else ()
+
+
 def initial_same_as(method: Callable[..., Any]) -> str | None:
     """The attribute path whose method's keys ``method`` takes (``"model.state"``), if declared."""
     return getattr(getattr(method, "__func__", method), "__lookout_initial_same_as__", None)
