@@ -266,19 +266,6 @@ def test_the_logs_own_sensors_and_waves_measured_from_the_example_raw_log():
     assert calm.position_std > 3.0 and calm.wave_period is None  # the waves counted as noise
 
 
-def test_a_manoeuvring_vessels_noise_is_not_its_manoeuvre():
-    """examples/logs/identify-vessel-raw.nmea: the Northern Clipper turning and surging
-    under a thruster excitation, fixes of 0.5 m and a gyro of 0.1 deg, small waves (0.1 m
-    and 0.033 deg of motion): without --waves the spread is the noise and the waves
-    together, sqrt(0.5^2 + 0.1^2) = 0.51 m and 0.105 deg, within 10 % (measured 0.486 m
-    and 0.106 deg; around a 30 s moving mean the heading's was 0.93 deg, the turns)."""
-    from lookout.live.log_sensors import log_sensors
-
-    measured = log_sensors(LOGS / "identify-vessel-raw.nmea", "nmea-raw", 1.0, 0.1)
-    assert measured.position_std == pytest.approx(math.hypot(0.5, 0.1), rel=0.1)
-    assert measured.heading_std == pytest.approx(math.hypot(0.1, 0.1 / 3.0), rel=0.1)
-
-
 @pytest.mark.slow
 def test_replay_without_a_scenario_in_waves_estimates_the_velocity_as_a_scenario_with_the_sea_does(tmp_path, capsys):
     """The example raw log replayed without --scenario: with --waves the RMS velocity

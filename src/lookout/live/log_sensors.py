@@ -5,16 +5,11 @@ is designed from these alone (:class:`~lookout.observers.model_free.ModelFreeFil
 - **Rates**: the median step between the distinct times of the position lines and of
   the heading lines (:meth:`lookout.io.logs.LogScan.instant_step`), to two significant
   digits.
-- **Spread**: each channel's standard deviation around its low-frequency motion, a
-  quadratic fitted over a sliding :data:`WINDOW` seconds (a Savitzky-Golay filter of
-  order 2, :func:`scipy.signal.savgol_filter`): the sensor's noise and the
-  wave-frequency motion together. The quadratic follows a manoeuvre's start and end,
-  which a moving mean leaves in the spread (on the identification log, a vessel turning
-  under a thruster excitation, the moving mean's spread of the 0.1 deg gyro was 0.93 deg;
-  the quadratic's is 0.106 deg).
-- **Waves** (when the user says the vessel is in waves): the power spectral density of
-  each channel less its moving mean over :data:`WINDOW` seconds (whose pass band keeps
-  the longest wave periods, up to 25 s, in the residual) (Welch's method, :func:`scipy.signal.welch`); its peak between
+- **Spread**: each channel's standard deviation around its moving mean over
+  :data:`WINDOW` seconds, the low-frequency motion: the sensor's noise and the
+  wave-frequency motion together.
+- **Waves** (when the user says the vessel is in waves): the spread's power spectral
+  density (Welch's method, :func:`scipy.signal.welch`); its peak between
   :data:`WAVE_PERIODS` is the waves' peak period; over the top fifth of the
   frequencies, the density less the tail of the wave model's own spectrum (Fossen &
   Strand (1999), eq. (11), relative damping 0.1, scaled to the peak), times half the
@@ -32,8 +27,8 @@ import numpy as np
 
 from lookout.observers.model_free import WAVE_DAMPING
 
-#: The window (s) of the quadratic (and of the moving mean) taken as the low-frequency
-#: motion: longer than wave periods, shorter than a manoeuvre.
+#: The window (s) of the moving mean taken as the low-frequency motion: longer than
+#: wave periods, shorter than a manoeuvre.
 WINDOW = 30.0
 #: The periods (s) where a peak of the spread's spectrum is taken for waves.
 WAVE_PERIODS = (3.0, 25.0)
@@ -86,19 +81,6 @@ def _moving_residual(values: np.ndarray, period: float) -> np.ndarray:
     kernel = np.ones(width) / width
     start = width // 2
     return np.stack([column[start : start + column.size - width + 1] - np.convolve(column, kernel, "valid") for column in values.T], axis=1)
-
-
-def _quadratic_residual(values: np.ndarray, period: float) -> np.ndarray:
-    """``values`` (samples by columns) less a quadratic fitted over a sliding
-    :data:`WINDOW` s (Savitzky-Golay, order 2; the samples at either end that the window
-    does not cover are left out)."""
-    from scipy.signal import savgol_filter
-
-    width = max(int(round(WINDOW / period)), 5) | 1  # odd, and more points than the quadratic's three
-    if values.shape[0] <= width:
-        return values - values.mean(axis=0)
-    start = width // 2
-    return (values - savgol_filter(values, width, 2, axis=0))[start : values.shape[0] - start]
 
 
 def _waves(residual: np.ndarray, period: float) -> tuple[float, float, float]:
@@ -181,19 +163,15 @@ def log_sensors(
                 else ""
             )
             raise ValueError(f"LOG {log}: {len(values)} {what} readings, too few to measure its sensors from{hint}")
-    positions_array = np.asarray(positions, dtype=float).reshape(-1, 2)
-    headings_array = np.degrees(np.unwrap(np.radians(np.asarray(headings, dtype=float)))).reshape(-1, 1)
+    position = _moving_residual(np.asarray(positions, dtype=float).reshape(-1, 2), position_period)
+    heading = _moving_residual(np.degrees(np.unwrap(np.radians(np.asarray(headings, dtype=float)))).reshape(-1, 1), heading_period)
     if not waves:
-        position = _quadratic_residual(positions_array, position_period)
-        heading = _quadratic_residual(headings_array, heading_period)
         return LogSensors(
             position_period,
             heading_period,
             max(float(np.sqrt(np.mean(position**2))), LEAST_POSITION_STD),
             max(float(np.sqrt(np.mean(heading**2))), LEAST_HEADING_STD),
         )
-    position = _moving_residual(positions_array, position_period)
-    heading = _moving_residual(headings_array, heading_period)
     peak, wave_position, noise_position = _waves(position, position_period)
     _, wave_heading, noise_heading = _waves(heading, heading_period)
     return LogSensors(
