@@ -134,6 +134,7 @@ def test_without_a_grade_the_defaults_are_as_documented():
 
 SEEDS, SAMPLES, PERIOD, TAU = 20000, 41, 0.1, 2.0
 DRIFT_STD = np.array([0.02, 0.05, 0.003])
+TURN_ON_STD = np.array([0.04, 0.01, 0.002])
 #: standard errors allowed: the tolerances are this many standard errors of each
 #: estimate over SEEDS independent runs (a false failure has odds of about 6e-5 each)
 Z = 4.0
@@ -159,17 +160,18 @@ def _random_biases(unit: InertialUnit, seed: int) -> np.ndarray:
     return np.asarray(values)
 
 
+def _noiseless(drift: bool, turn_on: bool) -> InertialUnit:
+    """An IMU without white noise at PERIOD: with the drift of DRIFT_STD and TAU, and the
+    turn-on bias of TURN_ON_STD, where asked."""
+    drifts = {"accelerometer_bias_std": DRIFT_STD[:2], "gyro_bias_std": float(DRIFT_STD[2]), "bias_time_constant": TAU} if drift else {}
+    turns_on = {"accelerometer_turn_on_std": TURN_ON_STD[:2], "gyro_turn_on_std": float(TURN_ON_STD[2])} if turn_on else {}
+    return InertialUnit(accelerometer_std=0.0, gyro_std=0.0, sample_period=PERIOD, **drifts, **turns_on)
+
+
 @pytest.fixture(scope="module")
 def drift() -> np.ndarray:
     """The drift alone: an IMU without a turn-on bias."""
-    unit = InertialUnit(
-        accelerometer_std=0.0,
-        gyro_std=0.0,
-        sample_period=PERIOD,
-        accelerometer_bias_std=DRIFT_STD[:2],
-        gyro_bias_std=float(DRIFT_STD[2]),
-        bias_time_constant=TAU,
-    )
+    unit = _noiseless(drift=True, turn_on=False)
     assert unit.noise_count == 6
     return _random_biases(unit, 20)
 
@@ -196,16 +198,12 @@ def test_the_drifts_autocorrelation_is_exp_of_minus_lag_over_its_time_constant(d
 # ----------------------------------------------------------------------------------
 # (d) the turn-on bias: drawn once, constant through the run
 
-TURN_ON_STD = np.array([0.04, 0.01, 0.002])
-
 
 def test_the_turn_on_bias_is_constant_through_a_run_with_its_spread_over_seeds():
     """Turn-on bias alone: each seed's bias the same at every sample, bit for bit; over
     seeds, mean 0 and variance TURN_ON_STD^2 (Z standard errors), the channels
     uncorrelated."""
-    unit = InertialUnit(
-        accelerometer_std=0.0, gyro_std=0.0, sample_period=PERIOD, accelerometer_turn_on_std=TURN_ON_STD[:2], gyro_turn_on_std=float(TURN_ON_STD[2])
-    )
+    unit = _noiseless(drift=False, turn_on=True)
     assert unit.noise_count == 6 and unit.turned_on and not unit.drifting
     biases = _random_biases(unit, 21)
     np.testing.assert_array_equal(biases, np.broadcast_to(biases[:, :1, :], biases.shape))
@@ -219,16 +217,7 @@ def test_the_turn_on_bias_is_constant_through_a_run_with_its_spread_over_seeds()
 def test_with_both_the_bias_spreads_by_both_and_changes_by_the_drift_alone():
     """Turn-on bias and drift: the variance at a sample is the sum of theirs; the change
     between two samples k apart has the drift's variance 2 sigma_d^2 (1 - exp(-k h / T))."""
-    unit = InertialUnit(
-        accelerometer_std=0.0,
-        gyro_std=0.0,
-        sample_period=PERIOD,
-        accelerometer_bias_std=DRIFT_STD[:2],
-        gyro_bias_std=float(DRIFT_STD[2]),
-        bias_time_constant=TAU,
-        accelerometer_turn_on_std=TURN_ON_STD[:2],
-        gyro_turn_on_std=float(TURN_ON_STD[2]),
-    )
+    unit = _noiseless(drift=True, turn_on=True)
     assert unit.noise_count == 9
     biases = _random_biases(unit, 22)
     for sample in (0, SAMPLES - 1):

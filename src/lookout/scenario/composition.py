@@ -247,7 +247,7 @@ def state_parameters(method: Callable[..., Any]) -> tuple[registry.Parameter, ..
 @functools.cache
 def _initial_model(functions: tuple):
     """The pydantic model of the keys a chain of ``state`` or ``guess`` methods takes
-    (:func:`initial_keys`; built once per chain)."""
+    (:func:`_chain_functions`; built once per chain)."""
     fields: dict[str, Any] = {
         p.name: (_annotation(p), Field(default=_default_value(p.default), description=p.description)) for p in _chain_parameters(functions)
     }
@@ -526,16 +526,16 @@ def keywords_of(method: Callable[..., Any]) -> Callable[..., Any]:
     return _keyword_chain(method)[-1]
 
 
-def initial_keys(method: Callable[..., Any]) -> tuple[registry.Parameter, ...]:
-    """The keys a bound ``state`` or ``guess`` takes: those of :func:`keywords_of`'s
-    method, and the ``extra`` keys of each method on the way (an extended Kalman filter
+def _chain_functions(method: Callable[..., Any]) -> tuple:
+    """The functions of :func:`_keyword_chain`: a bound ``state`` or ``guess`` takes the
+    keys of the last and the ``extra`` keys of each on the way (an extended Kalman filter
     with the IMU's biases as states takes ``imu_bias`` beside its plant's keys)."""
-    return _chain_parameters(tuple(getattr(each, "__func__", each) for each in _keyword_chain(method)))
+    return tuple(getattr(each, "__func__", each) for each in _keyword_chain(method))
 
 
 def _initial(method, table, location: tuple):
     """``method(**table)`` (a plant's ``state`` or an observer's ``guess``), validated."""
-    functions = tuple(getattr(each, "__func__", each) for each in _keyword_chain(method))
+    functions = _chain_functions(method)
     parameters = _chain_parameters(functions)
     if table is None:
         table = {}
