@@ -359,7 +359,7 @@ def test_replay_cli_writes_the_session(tmp_path, capsys):
         ),
         (
             ["replay", "examples/logs/dp-vessel.nmea", "--scenario", "examples/live-dp.toml", "--format", "csv"],
-            "a CSV log's first line must be time,north,east,heading or time,surge,sway,yaw; this is a TIME SENTENCE NMEA log: leave the format out (auto), or give timed",
+            "a CSV log's first line must be time,north,east,heading, time,surge,sway,yaw or time,fx,fy,r; this is a TIME SENTENCE NMEA log: leave the format out (auto), or give timed",
         ),
         (
             ["replay", "examples/logs/dp-vessel-raw.nmea", "--scenario", "examples/live-dp.toml", "--variation", "200"],

@@ -354,7 +354,7 @@ def test_logs_of_both_formats(tmp_path):
 def test_log_format_errors_name_the_file(tmp_path):
     bad = tmp_path / "b.csv"
     bad.write_text("t,x,y\n1,2,3\n")
-    with pytest.raises(ValueError, match=r"LOG .*b.csv: a CSV log's first line must be time,north,east,heading or time,surge,sway,yaw"):
+    with pytest.raises(ValueError, match=r"LOG .*b.csv: a CSV log's first line must be time,north,east,heading, time,surge,sway,yaw or time,fx,fy,r"):
         log_format(bad, "LOG")
     with pytest.raises(ValueError, match="cannot be read"):
         log_format(tmp_path / "missing.nmea")

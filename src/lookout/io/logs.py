@@ -17,6 +17,9 @@ Three formats (:data:`FORMATS`), told apart by the first line that is not blank 
   ``time,north,east,heading`` gives local position (m, about any origin) and heading
   (degrees, true); an empty cell is a missing value. ``time,surge,sway,yaw`` gives
   thrust feedback (N, N, N m), the input the observer predicts with.
+  ``time,fx,fy,r`` gives an IMU's readings: the specific force along its forward and
+  starboard axes (m/s2) and its yaw rate (degrees a second, clockwise seen from above,
+  as the heading's degrees); NMEA 0183 has no standard sentence for them.
 
 Both are read line by line, in constant memory, as :class:`~lookout.io.nmea.Reading`
 objects; a line that cannot be read is counted (``counts``), never raised.
@@ -50,7 +53,16 @@ HEAD_LINES = 10_000
 CSV_HEADERS = {
     ("time", "north", "east", "heading"): "position",
     ("time", "surge", "sway", "yaw"): "thrust",
+    ("time", "fx", "fy", "r"): "imu",
 }
+#: The CSV kinds whose row is one reading of three values, given whole or not at all.
+WHOLE_ROWS = ("thrust", "imu")
+
+
+def csv_headers() -> str:
+    """The CSV headers in words: ``time,north,east,heading, time,surge,sway,yaw or ...``."""
+    headers = [",".join(header) for header in CSV_HEADERS]
+    return ", ".join(headers[:-1]) + " or " + headers[-1]
 
 
 #: Bytes read to tell a log's format, and to tell text from binary data.
@@ -100,7 +112,7 @@ NMEA_STARTS = (b"$", b"!", b"\\")
 
 
 def log_format(path: str | Path, option: str = "log", forced: str | None = None) -> str:
-    """``"nmea-raw"``, ``"nmea"`` (timed), ``"csv-position"`` or ``"csv-thrust"``, from
+    """``"nmea-raw"``, ``"nmea"`` (timed), ``"csv-position"``, ``"csv-thrust"`` or ``"csv-imu"``, from
     the file's first line that is not blank or a ``#`` comment (a CSV's header is its
     first line), or as ``forced`` says (a key of :data:`FORMATS`).
 
@@ -116,7 +128,7 @@ def log_format(path: str | Path, option: str = "log", forced: str | None = None)
     ------
     ValueError
         Naming ``option`` and the file when it cannot be read, is empty, holds binary
-        data, its first line is a CSV header of neither kind, or ``forced`` is not a
+        data, its first line is a CSV header of no kind it reads, or ``forced`` is not a
         format.
     """
     if forced is not None and forced not in FORMATS:
@@ -138,7 +150,7 @@ def log_format(path: str | Path, option: str = "log", forced: str | None = None)
     first = head.replace(b"\r", b"\n").split(b"\n", 1)[0]
     header = tuple(cell.strip() for cell in first.decode("ascii", "replace").strip().lower().split(","))
     raw = first_line.startswith(NMEA_STARTS)
-    wanted = " or ".join(",".join(h) for h in CSV_HEADERS)  # a CSV header, for the messages
+    wanted = csv_headers()  # a CSV header, for the messages
     if header in CSV_HEADERS and forced in (None, "csv"):
         return f"csv-{CSV_HEADERS[header]}"
     if forced == "csv":
@@ -246,14 +258,15 @@ def nmea_log_line(raw: bytes, parser: NmeaParser) -> list[Reading]:
 
 
 class CsvLog:
-    """Readings from a CSV log (position-and-heading or thrust), row by row.
+    """Readings from a CSV log (position-and-heading, thrust or IMU), row by row.
 
     Attributes
     ----------
     counts : collections.Counter
         Rows by cause: ``accepted``, ``malformed`` (not numbers, wrong number of cells,
-        or a time that is not finite) and, in a thrust log, ``missing`` (an empty or NaN
-        cell: the row gives no thrust, and the previous thrust stays applied). In a
+        or a time that is not finite) and, in a thrust or IMU log, ``missing`` (an empty
+        or NaN cell: the row gives no reading; the previous thrust stays applied, an IMU
+        sample is missed). In a
         position log an empty cell is a channel without a value on that row, as its
         format says, and the row is accepted.
     """
@@ -263,9 +276,9 @@ class CsvLog:
         self.source = source
         kind = log_format(self.path, option, fmt if fmt == "csv" else None)
         if not kind.startswith("csv-"):
-            raise ValueError(f"{option} {self.path}: not a CSV log (first line {' or '.join(','.join(h) for h in CSV_HEADERS)})")
+            raise ValueError(f"{option} {self.path}: not a CSV log (first line {csv_headers()})")
         self.kind = kind[4:]
-        self.counts: Counter = Counter({"accepted": 0, "malformed": 0, **({"missing": 0} if self.kind == "thrust" else {})})
+        self.counts: Counter = Counter({"accepted": 0, "malformed": 0, **({"missing": 0} if self.kind in WHOLE_ROWS else {})})
 
     def __iter__(self):
         with open_log(self.path) as handle:
@@ -290,12 +303,12 @@ class CsvLog:
         if not math.isfinite(time) or any(math.isinf(v) for v in (a, b, c)):
             self.counts["malformed"] += 1
             return []
-        if self.kind == "thrust":
+        if self.kind in WHOLE_ROWS:
             if not all(math.isfinite(v) for v in (a, b, c)):
-                self.counts["missing"] += 1  # the thrust applied stays the previous row's
+                self.counts["missing"] += 1  # the thrust applied stays the previous row's; an IMU sample is missed
                 return []
             self.counts["accepted"] += 1
-            return [Reading(time, self.source, "thrust", (a, b, c), "CSV")]
+            return [Reading(time, self.source, self.kind, (a, b, c), "CSV")]
         self.counts["accepted"] += 1
         readings = []
         if math.isfinite(a) and math.isfinite(b):
@@ -343,7 +356,7 @@ class LogScan:
     option : str
         How messages name the log (``LOG``, ``--thrust``).
     format : str
-        ``nmea``, ``csv-position`` or ``csv-thrust``.
+        ``nmea``, ``csv-position``, ``csv-thrust`` or ``csv-imu``.
     lines : int
         Lines other than blank lines, comments and a CSV header.
     timed : int
@@ -370,7 +383,7 @@ class LogScan:
         A raw log's dates that disagreed with the day counted from its times of day
         (:class:`~lookout.io.sentence_time.SentenceClock`).
     usable : collections.Counter
-        Lines by what they can give: ``position``, ``heading``, ``thrust``, ``other``
+        Lines by what they can give: ``position``, ``heading``, ``thrust``, ``imu``, ``other``
         (a supported sentence of neither), or the cause they cannot (the NMEA parser's
         framing causes, or a CSV row's ``malformed`` or ``missing``).
     """
@@ -502,7 +515,7 @@ def scan_log(path: str | Path, option: str = "log", fmt: str | None = None) -> L
                 for reading in readings:
                     scan.usable[{"local_position": "position"}.get(reading.kind, reading.kind)] += 1
                     scan._instant({"local_position": "position"}.get(reading.kind, reading.kind), reading.time)
-                if not readings:  # malformed, a thrust row with a missing value, or a position row without values
+                if not readings:  # malformed, a thrust or IMU row with a missing value, or a position row without values
                     scan.usable["no_value" if cause == "accepted" else cause] += 1
                 scan._time(number, math.nan if cause == "malformed" else _number(line.split(b",", 1)[0]))
                 continue

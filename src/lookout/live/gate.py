@@ -1,13 +1,16 @@
 """The live-data rules as an observer: hold, timeout and the wild-point gate.
 
 :class:`GatedObserver` wraps any observer whose measurement holds the channels a
-stream fills (``measured_position``, ``measured_heading``). Its own measurement is
+stream fills (``measured_position``, ``measured_heading``, or a suite's instruments'
+``dgnss1.measured_position``, ...). Its own measurement is
 what a stream gives at one step: each channel's *new* reading (NaN when none came
 since the last step) and the time it arrived (session seconds). Inside it:
 
 - a channel holds its last accepted reading, as a simulated sensor holds its sample
   (:mod:`lookout.sensors`), until the reading is older than the channel's timeout;
   then the channel is NaN, a dropout the observer predicts through (dead reckoning);
+  an entry of no channel (a sensor the stream does not feed) is taken as it came, NaN
+  when nothing came;
 - a new reading that fails the channel's test is a wild point: the step uses the held
   reading instead and the wild one is dropped; after ``reopen_after`` wild points in
   a row the next one passes, so an estimate that drifted during an outage takes the
@@ -61,6 +64,12 @@ class GatedState(eqx.Module):
     def measurement(self) -> jax.Array:
         """The measurement the step used, NaN where missing."""
         return jnp.where(self.missing > 0, jnp.nan, self.used)
+
+
+def flag_name(channel: str) -> str:
+    """What a channel's flags are named after: ``position`` for ``measured_position``,
+    ``dgnss1_position`` for a named sensor's ``dgnss1.measured_position``."""
+    return channel.replace(".measured_", "_").removeprefix("measured_")
 
 
 #: The tests a channel's new reading can be gated by (module docstring).
@@ -145,8 +154,7 @@ class GatedObserver(Observer):
     @property  # type: ignore[misc]  # equinox takes a property for an AbstractVar
     def measurement_layout(self) -> Layout:  # type: ignore[override]  # (read-only, as every observer's)
         arrivals = tuple(
-            Signal(f"arrival_{name.removeprefix('measured_')}", "s", f"arrival of the new {name.removeprefix('measured_')} reading (NaN: none)")
-            for name in self.channels
+            Signal(f"arrival_{flag_name(name)}", "s", f"arrival of the new {flag_name(name)} reading (NaN: none)") for name in self.channels
         )
         return Layout(self.inner.measurement_layout.signals + arrivals)
 
@@ -166,7 +174,7 @@ class GatedObserver(Observer):
     def extra_signals(self) -> tuple[Signal, ...]:  # type: ignore[override]  # (read-only, as every observer's)
         flags = []
         for name in self.channels:
-            short = name.removeprefix("measured_")
+            short = flag_name(name)
             flags.append(Signal(f"gated_{short}", "1", f"new {short} reading rejected as a wild point"))
             flags.append(Signal(f"outage_{short}", "1", f"{short} older than its timeout: dead reckoning"))
         return tuple(self.inner.extra_signals) + tuple(flags)
@@ -180,8 +188,9 @@ class GatedObserver(Observer):
         return y[:size], y[size:]
 
     def _candidate(self, state: GatedState, t, new, arrival):
-        """The measurement with each channel's new reading, else its held one (NaN when too old)."""
-        y = state.held
+        """The measurement with each channel's new reading, else its held one (NaN when
+        too old); the entries of no channel as they came (NaN: none)."""
+        y = jnp.asarray(new)
         for index, (start, stop) in enumerate(self._columns):
             fresh = jnp.isfinite(arrival[index])
             alive = t - state.held_time[index] <= self.timeout[index]
@@ -248,7 +257,7 @@ class GatedObserver(Observer):
         estimate = dict(self.inner.output(state.inner, state.measurement))
         estimate["measurement_used"] = state.used
         for index, ((start, stop), name) in enumerate(zip(self._columns, self.channels)):
-            short = name.removeprefix("measured_")
+            short = flag_name(name)
             estimate[f"gated_{short}"] = state.gated[index]
             estimate[f"outage_{short}"] = jnp.any(state.missing[start:stop] > 0).astype(state.used.dtype)
         return estimate
