@@ -382,15 +382,15 @@ def _quantum(frame: LocalFrame) -> np.ndarray:
 @pytest.mark.slow
 def test_write_log_of_a_suite_replays_into_each_sensor(tmp_path, capsys, monkeypatch):
     """lookout write-log of a suite writes each position reference's GGA and each gyro's
-    THS with its own stamps (hpr names no source: @hpr is assumed, the IMU is not
-    written); a replay with the scenario it writes gives every sentence to its sensor and
+    THS with its own stamps (hpr names no source: @hpr is assumed), and the IMU's
+    samples to a CSV log beside it; a replay with the scenario it writes gives every sentence to its sensor and
     records each sensor's simulated samples to the sentences' precision."""
     text = SCENARIO.replace('lever_arm = [0.0, 0.0]\nsource = "@hipap"', "lever_arm = [0.0, 0.0]")
     text = text.replace("[observer]", '[sensors.imu]\nkind = "imu"\n\n[observer]')
     code, err = _write_log(tmp_path, capsys, monkeypatch, text, "--outage", "20,10")
     assert code == 0, err
     lines = err.splitlines()
-    assert "sensor imu (imu) not written: a log carries position fixes (gnss, hydroacoustic) and headings (gyrocompass)" in lines
+    assert "sensor imu: time,fx,fy,r to dp-vessel-imu.csv, every 0.1 s" in lines and not any("not written" in line for line in lines)
     assert "sensor hpr: GGA as GP, tag block s:hpr, every 2 s (it names no source: source '@hpr' assumed)" in lines
     assert "sensor gyro2: THS as HC, every 0.1 s" in lines
     folder = tmp_path / "log"
@@ -419,6 +419,11 @@ def test_write_log_of_a_suite_replays_into_each_sensor(tmp_path, capsys, monkeyp
     columns = _columns(session)
     with xr.open_dataset(folder / "dp-vessel-truth.nc") as truth:
         simulated = {name: truth[channel].values[0] for name, channel in CHANNELS.items()}
+        imu = np.column_stack([truth["imu.measured_specific_force"].values[0], np.degrees(truth["imu.measured_yaw_rate"].values[0])])
+    # the IMU's samples, one row each, within the step before the record that holds it, bit for bit
+    rows = np.loadtxt(folder / "dp-vessel-imu.csv", delimiter=",", skiprows=1)
+    assert rows.shape == (600, 4) and np.array_equal(rows[:, 1:], imu)
+    assert np.all((rows[:, 0] - EPOCH <= np.arange(600) * h) & (rows[:, 0] - EPOCH > (np.arange(600) - 1) * h))
     # every sentence went to its sensor: the samples written (outside the outage for a fix, finite), and 2 wild fixes each
     outage = (np.arange(600) * h >= 20.0) & (np.arange(600) * h < 30.0)
     expected = {}

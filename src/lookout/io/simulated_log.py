@@ -164,6 +164,7 @@ def write_simulated_log(
     wild_points: int = 2,
     seed: int = 0,
     sensors: Sequence[LoggedSensor] | None = None,
+    imu: tuple[str, float] | None = None,
 ) -> dict:
     """Write the NMEA log, the CSV logs and the truth of one simulated run.
 
@@ -197,11 +198,18 @@ def write_simulated_log(
         (``measured_position``, GGA as GP) and one gyro (``measured_heading``, THS as
         HE), at the first and third periods of ``sensor_sample_period_s``, and the CSV
         ``time,north,east,heading``.
+    imu : (str, float), optional
+        ``(name, sample_period)`` of a suite's IMU: its samples (``NAME.measured_specific_force``,
+        ``NAME.measured_yaw_rate``) go to ``<name>-imu.csv`` as ``time,fx,fy,r``
+        (m/s2, m/s2, deg/s; :mod:`lookout.io.logs`), each arriving within the step
+        before the record that holds it, as the thrust; a missing sample (a dropout)
+        gives no row.
 
     Returns
     -------
     dict
-        The written paths by role (``nmea``, ``csv``, ``thrust``, ``truth``).
+        The written paths by role (``nmea``, ``csv``, ``thrust``, ``truth``, and with
+        ``imu`` ``imu``).
 
     Raises
     ------
@@ -254,6 +262,7 @@ def write_simulated_log(
         if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
             raise ValueError(f"sensors: {each.name}'s sample period, {each.sample_period:g} s, is not a whole number of the run's {step:g} s")
         every.append(round(ratio))
+    imu_rows = _imu_rows(ds, imu, step, epoch, seed) if imu is not None else None
     folder.mkdir(parents=True, exist_ok=True)
     times = np.asarray(ds["time"].values, dtype=float)
     samples = [np.asarray(ds[each.channel].values, dtype=float).reshape(times.size, -1) for each in streams]
@@ -339,10 +348,37 @@ def write_simulated_log(
         ",".join(["time", *columns] if suite else ["time", "north", "east", "heading"]) + "\n" + "\n".join(row for _, row in csv) + "\n"
     )
     paths["thrust"].write_text("time,surge,sway,yaw\n" + "\n".join(thrust_rows) + "\n")
+    if imu_rows is not None:
+        paths["imu"] = folder / f"{name}-imu.csv"
+        paths["imu"].write_text("time,fx,fy,r\n" + "\n".join(imu_rows) + "\n")
     truth = ds.expand_dims("run") if "run" not in ds.dims else ds
     truth.attrs.update({"log_epoch_unix_s": epoch, "origin_latitude": frame.latitude, "origin_longitude": frame.longitude})
     write_netcdf(truth, paths["truth"], history=f"truth of the simulated log {paths['nmea'].name}")
     return paths
+
+
+def _imu_rows(ds: xr.Dataset, imu: tuple[str, float], step: float, epoch: float, seed: int) -> list[str]:
+    """The rows ``time,fx,fy,r`` of a suite's IMU (:func:`write_simulated_log`)."""
+    name, period = imu
+    channels = (f"{name}.measured_specific_force", f"{name}.measured_yaw_rate")
+    for channel in channels:
+        if channel not in ds:
+            raise ValueError(f"imu: the run has no {channel} (sensor {name})")
+    ratio = period / step
+    if not (math.isfinite(ratio) and abs(ratio - round(ratio)) <= 1e-9 * ratio and round(ratio) >= 1):
+        raise ValueError(f"imu: {name}'s sample period, {period:g} s, is not a whole number of the run's {step:g} s")
+    every = round(ratio)
+    times = np.asarray(ds["time"].values, dtype=float)
+    force = np.asarray(ds[channels[0]].values, dtype=float).reshape(times.size, 2)
+    rate = np.asarray(ds[channels[1]].values, dtype=float).reshape(times.size)
+    rng = np.random.default_rng([seed, 1])  # apart from the log's draws, which stay as without an IMU
+    rows = []
+    for k, t in enumerate(times):
+        arrival = epoch + t - step * rng.uniform(0.05, 0.95)
+        if round(t / step) % every or not (np.all(np.isfinite(force[k])) and math.isfinite(rate[k])):
+            continue
+        rows.append(f"{float(arrival)!r},{float(force[k, 0])!r},{float(force[k, 1])!r},{math.degrees(float(rate[k]))!r}")
+    return rows
 
 
 #: The magnetic variation (degrees, east positive) and the compass's deviation a raw

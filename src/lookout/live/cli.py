@@ -162,7 +162,7 @@ def _check_gate_options(session, gates: dict, scenario_file: str) -> None:
     degrees for a Kalman filter)."""
     from lookout.scenario.registry import kind_of, kinds
 
-    used = {(kind, test) for kind, test in session.gate_tests.items()}
+    used = session.gate_uses
     observer = kind_of(session.observer)
     for name, (channel, test) in _GATE_TESTS.items():
         if gates.get(name) is None or any(test == t and channel in (None, kind) for kind, t in used):
@@ -483,6 +483,13 @@ def replay_command(
     thrust: Annotated[
         str | None, typer.Option(metavar="THRUST.csv", help="Thrust feedback, time,surge,sway,yaw (N, N, N m).", show_default="zero, with a warning")
     ] = None,
+    imu: Annotated[
+        str | None,
+        typer.Option(
+            metavar="IMU.csv",
+            help="The IMU's readings, time,fx,fy,r (m/s2, m/s2, deg/s), for an observer on a suite with an IMU (the IMU-aided observer needs them).",
+        ),
+    ] = None,
     speed: Annotated[float | None, typer.Option(metavar="FACTOR", help="Log seconds per wall-clock second.", show_default="--fast")] = None,
     fast: Annotated[bool, typer.Option("--fast", help="As fast as it goes (the default).")] = False,
     publish: Publish = None,
@@ -563,12 +570,18 @@ def replay_command(
         figure_path = image_file("--figure", figure)
         if out is not None and figure_path.absolute() == Path(out).absolute():
             raise InputError(f"--figure and --out must be two files; both are {out}")
-    for option, path in (("LOG", log), ("--thrust", thrust), ("--truth", truth)):
+    for option, path in (("LOG", log), ("--thrust", thrust), ("--imu", imu), ("--truth", truth)):
         _existing_file(option, path)
     if _format("LOG", log, forced) == "csv-thrust":
         raise InputError(f"LOG {log} is a thrust log (time,surge,sway,yaw): give it with --thrust, and a position log as LOG")
+    if _format("LOG", log, forced) == "csv-imu":
+        raise InputError(f"LOG {log} is an IMU log (time,fx,fy,r): give it with --imu, and a position log as LOG")
     if thrust is not None and _format("--thrust", thrust) != "csv-thrust":
         raise InputError(f"--thrust {thrust} must be a CSV log whose first line is time,surge,sway,yaw")
+    if imu is not None and _format("--imu", imu) != "csv-imu":
+        raise InputError(f"--imu {imu} must be a CSV log whose first line is time,fx,fy,r")
+    if imu is not None and thrust is not None and Path(imu).absolute() == Path(thrust).absolute():
+        raise InputError(f"--imu and --thrust must be two files; both are {imu}")
     if truth is not None:
         _check_truth(truth)
     # what the replay says is held until its first step: a replay refused after reading
@@ -598,14 +611,14 @@ def replay_command(
             f"--smooth needs a Kalman-type observer (ekf, ukf, model-free) on a position-heading sensor; {scenario_file}'s is {kind}: leave --smooth out"
         )
     try:  # the logs' times, order and lines, before any step
-        check = check_replay(session, log, thrust, max_gap, forced)
+        check = check_replay(session, log, thrust, max_gap, forced, imu)
     except OriginError as error:
         raise InputError(error.message("--origin")) from None
     except ValueError as error:
         raise InputError(str(error).replace("max_gap", "--max-gap")) from None
     if truth is not None:
         _check_truth_range(truth, log, check.log, session.sample_period)
-    for option, path, scanned in (("LOG", log, check.log), ("--thrust", thrust, check.thrust)):
+    for option, path, scanned in (("LOG", log, check.log), ("--thrust", thrust, check.thrust), ("--imu", imu, check.imu)):
         if scanned is not None and scanned.bom:
             say(f"{option} {path}: {BOM_NOTE}")
     write, close, remove = _outputs(session, out, publish, scenario_file, f"replay of {log}", flush_every)
@@ -638,6 +651,7 @@ def replay_command(
                 session,
                 log,
                 thrust=thrust,
+                imu=imu,
                 speed=speed,
                 emit=emit,
                 parser=parser,
@@ -917,7 +931,10 @@ def write_log_command(
     ],
     out: Annotated[
         str,
-        typer.Option(metavar="FOLDER", help="Where NAME.nmea, NAME.csv, NAME-thrust.csv, NAME-truth.nc (and for a suite NAME-scenario.toml) go."),
+        typer.Option(
+            metavar="FOLDER",
+            help="Where NAME.nmea, NAME.csv, NAME-thrust.csv, NAME-truth.nc (and for a suite NAME-scenario.toml, with an IMU NAME-imu.csv) go.",
+        ),
     ] = "out/log",
     name: Annotated[str, typer.Option(metavar="NAME", help="The files' stem.")] = "dp-vessel",
     origin: Annotated[str, typer.Option(metavar="LAT,LON", help="Where north = east = 0 lies (degrees).")] = "63.44,10.40",
@@ -1004,7 +1021,9 @@ def write_log_command(
     ds = trajectory.to_xarray()
     ds.attrs["scenario"] = scenario_file
     try:
-        paths = write_simulated_log(ds, folder, name=name, frame=frame, outage=window, seed=seed, sensors=plan.sensors if plan else None)
+        paths = write_simulated_log(
+            ds, folder, name=name, frame=frame, outage=window, seed=seed, sensors=plan.sensors if plan else None, imu=plan.imu if plan else None
+        )
     except ValueError as error:
         raise InputError(str(error)) from None
     if raw:
@@ -1021,11 +1040,13 @@ def write_log_command(
         for each in plan.sensors:
             assumed = f" (it names no source: source {plan.sources[each.name]!r} assumed)" if each.name in plan.assumed else ""
             print(f"sensor {each.name}: {each.describe()}{assumed}", file=sys.stderr)
+        if plan.imu is not None:
+            print(f"sensor {plan.imu[0]}: time,fx,fy,r to {paths['imu'].name}, every {plan.imu[1]:g} s", file=sys.stderr)
     print("written: " + ", ".join(str(path) for path in paths.values()))
     if plan is not None:
         print(
             f"replay it with: lookout replay {paths['nmea']} --scenario {paths['scenario']} --origin {origin} "
-            f"--thrust {paths['thrust']} --truth {paths['truth']}",
+            f"--thrust {paths['thrust']}" + (f" --imu {paths['imu']}" if "imu" in paths else "") + f" --truth {paths['truth']}",
             file=sys.stderr,
         )
 
@@ -1043,6 +1064,7 @@ def _scenario_with_sources(spec, plan, path: Path, scenario_file: str, origin: s
     header = (
         f"lookout scenario, as simulated by lookout write-log from {scenario_file}, with the source of every sensor its log carries.{assumed}\n"
         f"Replay the log with: lookout replay {path.stem.removesuffix('-scenario')}.nmea --scenario {path.name} --origin {origin}"
+        + (f" --imu {path.stem.removesuffix('-scenario')}-imu.csv" if plan.imu is not None else "")
     )
     return write_toml(path, document, composition_comments(document), header)
 

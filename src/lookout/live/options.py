@@ -21,6 +21,14 @@ MAX_GAP = 60.0
 #: 0.75 deg / cos(latitude)); docs/live.md, "Why 100 km for an origin".
 MAX_ORIGIN_DISTANCE = 100e3
 
+#: The largest IMU reading a live session takes: horizontal specific force (m/s2, per
+#: axis) and yaw rate (rad/s). A ship's horizontal acceleration stays far below 1 g and
+#: its yaw rate below a few degrees a second (a DP vessel's below 0.1 g and 1 deg/s);
+#: 2 g and 30 deg/s are beyond any hull's motion, so that a reading past them is a
+#: corrupted sample (a bit error, a units mistake), counted as ``range`` and not used:
+#: an IMU drives the observer that integrates it, and one such sample would move its state.
+IMU_LIMITS = (2 * 9.80665, math.radians(30.0))
+
 
 def _positive(name: str, value) -> None:
     import numpy as np  # here, not at the top: `lookout --help` needs no NumPy

@@ -14,6 +14,7 @@ in seconds, a silence longer than ``max_gap``, a thrust log on another clock.
 
 from __future__ import annotations
 
+import heapq
 import math
 import os
 import select
@@ -84,6 +85,7 @@ class Outcome:
     latency: Latencies = field(default_factory=Latencies)
     counts: dict = field(default_factory=dict)  # lines by cause (the parser's, or a CSV log's rows)
     thrust_counts: dict = field(default_factory=dict)  # thrust rows or lines by cause (empty without thrust)
+    imu_counts: dict = field(default_factory=dict)  # IMU rows or lines by cause (empty without an IMU stream)
     check: ReplayCheck | None = None  # a replay's: what check_replay found
     #: why and where the session failed (its first non-finite estimate), or None: a
     #: replay or live session has no truth, so the rule of a failed run there is the
@@ -109,13 +111,20 @@ class Outcome:
         ``malformed``."""
         return {cause: n for cause, n in self.thrust_counts.items() if cause != "accepted" and n}
 
+    @property
+    def imu_rejected(self) -> dict:
+        """The IMU rows or lines that gave no reading, by cause (zeros left out):
+        ``missing`` (an empty or NaN value: a missed sample) and ``malformed``."""
+        return {cause: n for cause, n in self.imu_counts.items() if cause != "accepted" and n}
+
 
 @dataclass
 class ReplayCheck:
-    """What :func:`check_replay` found: the scans of the log and of the thrust log."""
+    """What :func:`check_replay` found: the scans of the log, the thrust log and the IMU log."""
 
     log: LogScan
     thrust: LogScan | None = None
+    imu: LogScan | None = None
 
 
 def _described(scan: LogScan) -> str:
@@ -150,7 +159,12 @@ def check_log_order(scan: LogScan, tolerance: float) -> None:
 
 
 def check_replay(
-    session: Session, log: str | Path, thrust: str | Path | None = None, max_gap: float = MAX_GAP, fmt: str | None = None
+    session: Session,
+    log: str | Path,
+    thrust: str | Path | None = None,
+    max_gap: float = MAX_GAP,
+    fmt: str | None = None,
+    imu: str | Path | None = None,
 ) -> ReplayCheck:
     """Refuse, before any step, a log that ``session`` cannot replay faithfully.
 
@@ -172,7 +186,8 @@ def check_replay(
     - a silence longer than ``max_gap`` seconds: the session would dead-reckon
       through it, step by step, with nothing to correct it;
     - the thrust log is out of order, has no row with a thrust, or does not overlap
-      the log's time span (another clock, or milliseconds);
+      the log's time span (another clock, or milliseconds); the same of the IMU log
+      (``time,fx,fy,r``), which an observer that reads an IMU needs and another cannot use;
     - the session's frame was given and its origin lies farther than
       :data:`~lookout.live.options.MAX_ORIGIN_DISTANCE` from the log's first fix (an
       NMEA log; :class:`~lookout.live.session.OriginError`, which the session would
@@ -191,10 +206,19 @@ def check_replay(
     scan = scan_log(log, "LOG", fmt)
     if scan.format == "csv-thrust":
         raise ValueError(f"LOG {log} is a thrust log (time,surge,sway,yaw): give it as the thrust, and a position log as LOG")
+    if scan.format == "csv-imu":
+        raise ValueError(f"LOG {log} is an IMU log (time,fx,fy,r): give it as the IMU's, and a position log as LOG")
+    imu_sensor = next((channel.name for channel in session.channels.values() if channel.kind == "imu"), None)
+    if imu_sensor is not None and imu is None:
+        raise ValueError(f"the observer integrates sensor {imu_sensor}'s IMU readings: give them as a CSV log (time,fx,fy,r) beside LOG")
+    if imu is not None and imu_sensor is None:
+        raise ValueError(
+            f"the observer reads no IMU (a Kalman filter or the IMU-aided observer on a suite with an IMU does): leave the IMU log {imu} out"
+        )
     check_log_order(scan, tolerance)
-    for kind in session.channels:
+    for kind in session.kinds:
         if not scan.usable[kind]:
-            raise ValueError(f"LOG {log}: no line gives a {kind} reading ({_described(scan)}); the observer needs {' and '.join(session.channels)}")
+            raise ValueError(f"LOG {log}: no line gives a {kind} reading ({_described(scan)}); the observer needs {' and '.join(session.kinds)}")
     typical = scan.typical_step
     if typical > tolerance and session.observer.sample_period is None:
         observer = session.observer
@@ -214,19 +238,27 @@ def check_replay(
             check_origin(session.frame, *fix, where="the log's first fix")
     check = ReplayCheck(scan)
     if thrust is not None:
-        thrust_scan = scan_log(thrust, "--thrust")
-        if thrust_scan.format != "csv-thrust":
-            raise ValueError(f"--thrust {thrust} must be a CSV log whose first line is time,surge,sway,yaw")
-        check_log_order(thrust_scan, tolerance)
-        if not thrust_scan.usable["thrust"]:
-            raise ValueError(f"--thrust {thrust}: no row gives a thrust ({_described(thrust_scan)})")
-        if thrust_scan.newest < scan.first or thrust_scan.first > scan.newest:
-            raise ValueError(
-                f"--thrust {thrust}: its times ({thrust_scan.first:.3f} to {thrust_scan.newest:.3f} s) do not overlap the log's "
-                f"({scan.first:.3f} to {scan.newest:.3f} s); are both in seconds, on the same clock?"
-            )
-        check.thrust = thrust_scan
+        check.thrust = _side_scan(thrust, "--thrust", "thrust", "time,surge,sway,yaw", scan, tolerance)
+    if imu is not None:
+        check.imu = _side_scan(imu, "--imu", "imu", "time,fx,fy,r", scan, tolerance)
     return check
+
+
+def _side_scan(path: str | Path, option: str, kind: str, header: str, scan: LogScan, tolerance: float) -> LogScan:
+    """The scan of a CSV log beside ``scan``'s (thrust, IMU), refused when it is of
+    another kind, out of order, without a row of ``kind``, or off the log's clock."""
+    side = scan_log(path, option)
+    if side.format != f"csv-{kind}":
+        raise ValueError(f"{option} {path} must be a CSV log whose first line is {header}")
+    check_log_order(side, tolerance)
+    if not side.usable[kind]:
+        raise ValueError(f"{option} {path}: no row gives {'a thrust' if kind == 'thrust' else 'an IMU reading'} ({_described(side)})")
+    if side.newest < scan.first or side.first > scan.newest:
+        raise ValueError(
+            f"{option} {path}: its times ({side.first:.3f} to {side.newest:.3f} s) do not overlap the log's "
+            f"({scan.first:.3f} to {scan.newest:.3f} s); are both in seconds, on the same clock?"
+        )
+    return side
 
 
 def first_fix(log: str | Path, session: Session, fmt: str = "nmea") -> tuple[float, float] | None:
@@ -275,6 +307,7 @@ def replay(
     log: str | Path,
     *,
     thrust: str | Path | None = None,
+    imu: str | Path | None = None,
     speed: float | None = None,
     emit: Callable[[Block], object] | None = None,
     parser: NmeaParser | None = None,
@@ -287,8 +320,8 @@ def replay(
 ) -> Outcome:
     """Step ``session`` through a log; ``emit(record)`` for each step.
 
-    The logs are checked first (:func:`check_replay`); thrust rows after the log's
-    last line are not used (the session ends with the log).
+    The logs are checked first (:func:`check_replay`); thrust and IMU rows after the
+    log's last line are not used (the session ends with the log).
 
     Parameters
     ----------
@@ -314,17 +347,21 @@ def replay(
     ValueError
         As :func:`check_replay`, before any step.
     """
-    check = check if check is not None else check_replay(session, log, thrust, max_gap, fmt)
+    check = check if check is not None else check_replay(session, log, thrust, max_gap, fmt, imu)
     parser = parser or NmeaParser()
     readings, counts = log_readings(log, parser, check.log.format)
-    thrust_log = None
-    if thrust is not None:
-        thrust_log = CsvLog(thrust, source="thrust", option="--thrust")
-    outcome = Outcome(counts=counts, thrust_counts=thrust_log.counts if thrust_log is not None else {}, check=check)
+    thrust_log = CsvLog(thrust, source="thrust", option="--thrust") if thrust is not None else None
+    imu_log = CsvLog(imu, source="imu", option="--imu") if imu is not None else None
+    outcome = Outcome(
+        counts=counts,
+        thrust_counts=thrust_log.counts if thrust_log is not None else {},
+        imu_counts=imu_log.counts if imu_log is not None else {},
+        check=check,
+    )
     started = _time.perf_counter()
     last_status = last_progress = started
     span = check.log.span
-    for reading in _merged(readings, iter(thrust_log) if thrust_log is not None else None):
+    for reading in _merged(readings, *(iter(side) for side in (thrust_log, imu_log) if side is not None)):
         if outcome.first_time is None:
             outcome.first_time = reading.time
         if speed is not None:
@@ -352,17 +389,19 @@ def replay(
     return outcome
 
 
-def _merged(readings, thrust):
-    """The log's readings with the thrust readings stamped before each (a thrust and a
-    reading of one time: the reading first); none after the log's last reading."""
-    if thrust is None:
+def _merged(readings, *sides):
+    """The log's readings with the readings of the logs beside it (thrust, IMU) stamped
+    before each (a side reading and a reading of one time: the reading first; of two
+    sides' of one time, the first side's); none after the log's last reading."""
+    if not sides:
         yield from readings
         return
-    pending = next(thrust, None)
+    side = heapq.merge(*sides, key=lambda reading: reading.time)
+    pending = next(side, None)
     for reading in readings:
         while pending is not None and pending.time < reading.time:
             yield pending
-            pending = next(thrust, None)
+            pending = next(side, None)
         yield reading
 
 

@@ -43,6 +43,7 @@ from lookout.live.options import Gates
 from lookout.sensing.combining import CombiningStage
 from lookout.sensing.heading import Gyrocompass
 from lookout.sensing.instrument import HEADING, POSITION
+from lookout.sensing.motion import InertialUnit
 from lookout.sensing.position import GnssReceiver, HydroacousticReference
 
 if TYPE_CHECKING:
@@ -67,7 +68,7 @@ class LiveSensor:
     name : str
     index : int
         Its place among the suite's instruments.
-    kind : {"position", "heading"}
+    kind : {"position", "heading", "imu"}
         The readings it takes.
     source : str
         Its ``source`` key; ``talker`` and ``sender`` as :func:`~lookout.io.nmea.source_spec` reads it.
@@ -95,10 +96,12 @@ class LiveSensor:
         return self.value if self.value is not None and t - self.time <= self.timeout else None
 
 
-def live_sensors(suite: SensorSuite, gates: Gates) -> tuple[dict[str, LiveSensor], tuple[str, ...]]:
+def live_sensors(suite: SensorSuite, gates: Gates, imu: bool = False) -> tuple[dict[str, LiveSensor], tuple[str, ...]]:
     """``(sensors, silent)``: the suite's sensors that a stream feeds, by name (those of
     a kind in :data:`FED` with a ``source``), and the names of those of such a kind that
-    name no source (never fed: a warning).
+    name no source (never fed: a warning). With ``imu``, also the suite's IMU (kind
+    ``imu``, fed by the IMU stream: a CSV log or a UDP source of ``time,fx,fy,r``),
+    whose readings time out after ``heading_timeout``.
 
     Raises
     ------
@@ -110,9 +113,15 @@ def live_sensors(suite: SensorSuite, gates: Gates) -> tuple[dict[str, LiveSensor
     sensors: dict[str, LiveSensor] = {}
     silent = []
     start = 0
+    units = [name for name, each in zip(suite.names, suite.instruments) if isinstance(each, InertialUnit)]
+    if imu and len(units) > 1:
+        raise ValueError(f"sensors.{units[1]}: one IMU stream feeds one IMU; the suite has {len(units)} ({', '.join(units)})")
     for index, (name, each) in enumerate(zip(suite.names, suite.instruments)):
         columns = slice(start, start + each.size)
         start += each.size
+        if imu and isinstance(each, InertialUnit):
+            sensors[name] = LiveSensor(name, index, "imu", "imu", "", None, columns, gates.heading_timeout)
+            continue
         kind = FED.get(type(each))
         if kind is None:
             continue
@@ -129,7 +138,7 @@ def live_sensors(suite: SensorSuite, gates: Gates) -> tuple[dict[str, LiveSensor
                 raise ValueError(f"sensors.{name}.source: {source!r} is sensor {other.name}'s source too; two sensors of a kind need two sources")
         timeout = gates.position_timeout if kind == "position" else gates.heading_timeout
         sensors[name] = LiveSensor(name, index, kind, source, talker, sender, columns, timeout)
-    if not sensors:
+    if not any(sensor.kind != "imu" for sensor in sensors.values()):
         raise ValueError(
             "no sensor names a source: live data feeds a [sensors.NAME] of kind gnss, hydroacoustic or gyrocompass "
             'that gives one (source = "GP", "@10.0.0.5" or "GP@10.0.0.5")'
@@ -140,7 +149,10 @@ def live_sensors(suite: SensorSuite, gates: Gates) -> tuple[dict[str, LiveSensor
 def route(sensors: Mapping[str, LiveSensor], source: str, kind: str) -> LiveSensor | None:
     """The sensor that takes a reading of ``kind`` from ``source``: the one of that kind
     whose source matches it most closely (:func:`~lookout.io.nmea.source_rank`); None
-    when none matches, or two match equally."""
+    when none matches, or two match equally. A reading of an IMU goes to the IMU
+    (:func:`live_sensors` takes one)."""
+    if kind == "imu":
+        return next((sensor for sensor in sensors.values() if sensor.kind == "imu"), None)
     best, ranks = None, []
     for sensor in sensors.values():
         if sensor.kind != kind:

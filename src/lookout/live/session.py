@@ -52,8 +52,8 @@ import numpy as np
 
 from lookout.io.geodesy import LocalFrame
 from lookout.io.nmea import Reading, receiver
-from lookout.live.gate import GatedObserver, gate_tests
-from lookout.live.options import MAX_ORIGIN_DISTANCE, Gates, _positive
+from lookout.live.gate import GatedObserver, flag_name, gate_tests
+from lookout.live.options import IMU_LIMITS, MAX_ORIGIN_DISTANCE, Gates, _positive
 from lookout.sim.filtering import Stepper
 
 if TYPE_CHECKING:
@@ -68,10 +68,11 @@ CHANNELS = {"measured_position": "position", "measured_heading": "heading"}
 #: The reasons a session does not use a reading, in the order a status line lists them:
 #: ``late`` (stamped before the reading before it), ``not_read`` (a kind the observer
 #: does not read: rate of turn, the error ellipse, a channel it does not measure),
-#: ``quality`` and ``hdop`` (a fix below ``min_quality`` or above ``max_hdop``),
+#: ``quality`` and ``hdop`` (a fix below ``min_quality`` or above ``max_hdop``), ``range``
+#: (an IMU reading beyond :data:`~lookout.live.options.IMU_LIMITS`),
 #: ``other_source`` (a second source while the one in use speaks), ``superseded`` (a
 #: newer reading of its channel came before the step) and ``gated`` (a wild point).
-UNUSED_REASONS = ("late", "not_read", "quality", "hdop", "other_source", "superseded", "gated")
+UNUSED_REASONS = ("late", "not_read", "quality", "hdop", "range", "other_source", "superseded", "gated")
 #: Mean radius of the Earth (m, IUGG), for the distance of a fix from an origin.
 EARTH_RADIUS = 6_371_008.8
 
@@ -174,12 +175,14 @@ class Block:
 
 @dataclass
 class _Channel:
-    """What a session knows of one measured signal."""
+    """What a session knows of one measured signal (a named sensor, read directly)."""
 
     name: str
     kind: str
     columns: slice
     timeout: float
+    flag: str = ""  # what the step's gated_ and outage_ flags are named after (default: kind)
+    arrivals: tuple[int, ...] = ()  # its gated channels' arrival entries (default: its index)
     source: str | None = None
     source_time: float = -math.inf  # the last reading of the source in use
     new: tuple | None = None  # the newest reading since the last step
@@ -188,7 +191,8 @@ class _Channel:
     outage_since: float = math.nan
 
     def __post_init__(self):
-        self.counts = {"accepted": 0, "gated": 0, "quality": 0, "hdop": 0, "other_source": 0, "superseded": 0}
+        self.flag = self.flag or self.kind
+        self.counts = {"accepted": 0, "gated": 0, "quality": 0, "hdop": 0, "other_source": 0, "superseded": 0, "range": 0}
 
 
 class Session:
@@ -267,7 +271,10 @@ class Session:
             raise ValueError(f"batch must be a positive integer; got {batch!r}")
         layout = observer.measurement_layout
         names = layout.names
-        if not set(names) & set(CHANNELS):
+        #: Whether the observer reads the suite's instruments themselves (a Kalman filter
+        #: on a suite: :func:`~lookout.observers.kalman.filter_layout`), each fed directly.
+        self.direct = suite is not None and names == suite.instrument_layout.names
+        if not self.direct and not set(names) & set(CHANNELS):
             raise ValueError(
                 f"observer {type(observer).__name__} measures {', '.join(names)}; live data fills measured_position (north, east) and measured_heading"
             )
@@ -287,7 +294,6 @@ class Session:
             raise ValueError("sources binds talkers of one position and one heading channel; a scenario's named sensors each name their own source")
         self._origin_checked = frame is None  # a given origin is checked against the first fix
         self.observer = observer
-        self.step_on = step_on if step_on in {CHANNELS[name] for name in names if name in CHANNELS} else None
         self.sample_period = float(sample_period)
         self.guess = guess
         self.frame = frame
@@ -295,24 +301,50 @@ class Session:
         self.on_event = on_event
         self.batch = int(batch)
         self.channels: dict[str, _Channel] = {}
-        start = 0
-        for signal in layout.signals:
-            if signal.name in CHANNELS:
-                kind = CHANNELS[signal.name]
-                timeout = gates.position_timeout if kind == "position" else gates.heading_timeout
-                self.channels[kind] = _Channel(signal.name, kind, slice(start, start + signal.size), timeout)
-            start += signal.size
+        #: The named sensors a stream feeds, by name (empty without a suite).
+        self.sensors: dict[str, LiveSensor] = {}
+        # the gated observer's channels: (name, size, kind, the session's channel), in its measurement's order
+        gated_channels: list[tuple[str, int, str, str]] = []
+        silent: tuple[str, ...] = ()  # the named sensors no source feeds
+        if self.direct:
+            assert suite is not None  # direct needs one
+            from lookout.live.sensors import live_sensors
+
+            self.sensors, silent = live_sensors(suite, gates, imu=True)
+            spans, start = [], 0
+            for signal in layout.signals:
+                spans.append((signal, start))
+                start += signal.size
+            for sensor in self.sensors.values():
+                mine = [(signal, at) for signal, at in spans if sensor.columns.start <= at < sensor.columns.stop]
+                arrivals = tuple(range(len(gated_channels), len(gated_channels) + len(mine)))
+                gated_channels += [(signal.name, signal.size, sensor.kind, sensor.name) for signal, _ in mine]
+                self.channels[sensor.name] = _Channel(sensor.name, sensor.kind, sensor.columns, sensor.timeout, flag_name(mine[0][0].name), arrivals)
+        else:
+            start = 0
+            for signal in layout.signals:
+                if signal.name in CHANNELS:
+                    kind = CHANNELS[signal.name]
+                    timeout = gates.position_timeout if kind == "position" else gates.heading_timeout
+                    arrivals = (len(gated_channels),)
+                    self.channels[kind] = _Channel(signal.name, kind, slice(start, start + signal.size), timeout, arrivals=arrivals)
+                    gated_channels.append((signal.name, signal.size, kind, kind))
+                start += signal.size
+        self.step_on = step_on if step_on in {channel.kind for channel in self.channels.values()} else None
         from scipy.stats import chi2  # here: scipy.stats takes a while to import, and the command imports this module
 
-        names = tuple(c.name for c in self.channels.values())
-        tests = gate_tests(observer, names)
+        names = tuple(name for name, *_ in gated_channels)
+        # an IMU is an input to the observer that integrates it: its readings are
+        # range-checked as they come (IMU_LIMITS), not gated on an innovation
+        tests = tuple("none" if kind == "imu" else test for (_, _, kind, _), test in zip(gated_channels, gate_tests(observer, names)))
         bounds = []
-        for channel, test in zip(self.channels.values(), tests):
+        for (_, size, kind, _), test in zip(gated_channels, tests):
             if test == "nis":  # the chi-square quantile, the channel's size its degrees of freedom
-                bounds.append(float(chi2.ppf(gates.gate_probability, channel.columns.stop - channel.columns.start)))
+                bounds.append(float(chi2.ppf(gates.gate_probability, size)))
             else:
-                bounds.append(gates.position_gate if channel.kind == "position" else math.radians(gates.heading_gate))
-        self.gate_tests = dict(zip(self.channels, tests))
+                bounds.append(gates.position_gate if kind == "position" else math.radians(gates.heading_gate))
+        #: The test of each channel's readings: ``nis``, ``innovation``, ``none``, or for an IMU ``range``.
+        self.gate_tests = {key: "range" if channel.kind == "imu" else tests[channel.arrivals[0]] for key, channel in self.channels.items()}
         #: The channels no test gates (the observer gives neither innovation statistics nor an innovation output).
         self.ungated = tuple(kind for kind, test in self.gate_tests.items() if test == "none")
         if self.ungated:
@@ -322,13 +354,12 @@ class Session:
                 UserWarning,
                 stacklevel=2,
             )
-        self.gated_observer: Observer = GatedObserver(
-            observer, names, np.array(bounds), np.array([c.timeout for c in self.channels.values()]), gates.reopen_after, tests
-        )
+        timeouts = np.array([self.channels[key].timeout for *_, key in gated_channels])
+        self.gated_observer: Observer = GatedObserver(observer, names, np.array(bounds), timeouts, gates.reopen_after, tests)
         self.suite = suite
-        #: The named sensors a stream feeds, by name (empty without a suite).
-        self.sensors: dict[str, LiveSensor] = {}
-        if suite is not None:
+        if self.direct:
+            self._record_layout = layout
+        elif suite is not None:
             from lookout.live.sensors import CombiningObserver, live_sensors, record_layout
 
             unfed = [name for name in layout.names if name not in CHANNELS]
@@ -342,15 +373,15 @@ class Session:
             assert isinstance(gated, GatedObserver)  # made just above
             self.gated_observer = CombiningObserver(gated, suite)
             self._record_layout = record_layout(suite)
-            if silent:
-                warnings.warn(
-                    f"lookout live: sensor{'s' if len(silent) > 1 else ''} {', '.join(silent)} name{'' if len(silent) > 1 else 's'} no source: "
-                    "no reading feeds them",
-                    UserWarning,
-                    stacklevel=2,
-                )
         else:
             self._record_layout = layout
+        if silent:
+            warnings.warn(
+                f"lookout live: sensor{'s' if len(silent) > 1 else ''} {', '.join(silent)} name{'' if len(silent) > 1 else 's'} no source: "
+                "no reading feeds them",
+                UserWarning,
+                stacklevel=2,
+            )
         #: A silence of every channel longer than this (s) is a gap: the longest timeout.
         self.gap_after = max(c.timeout for c in self.channels.values())
         self.gaps = 0
@@ -383,18 +414,33 @@ class Session:
         probability to every digit given),
         ``position innovation > 30 m, heading innovation > 15 deg``, or ``off``."""
         words = {}
-        for kind, test in self.gate_tests.items():
+        for key, test in self.gate_tests.items():
+            kind = self.channels[key].kind
             if test == "nis":
-                words[kind] = f"NIS > chi-square {percent(self.gates.gate_probability)} %"
+                words[key] = f"NIS > chi-square {percent(self.gates.gate_probability)} %"
             elif test == "innovation":
-                words[kind] = (
-                    f"innovation > {self.gates.position_gate:g} m" if kind == "position" else f"innovation > {self.gates.heading_gate:g} deg"
-                )
+                words[key] = f"innovation > {self.gates.position_gate:g} m" if kind == "position" else f"innovation > {self.gates.heading_gate:g} deg"
+            elif test == "range":
+                words[key] = f"beyond {IMU_LIMITS[0]:g} m/s2 or {math.degrees(IMU_LIMITS[1]):g} deg/s"
             else:
-                words[kind] = "off"
-        if len(set(words.values())) == 1 and "innovation" not in next(iter(words.values())):
-            return next(iter(words.values()))
-        return ", ".join(f"{kind} {rule}" for kind, rule in words.items())
+                words[key] = "off"
+        tested = {key: rule for key, rule in words.items() if self.gate_tests[key] != "range"}
+        rules = set(tested.values())
+        if len(rules) == 1 and "innovation" not in next(iter(rules)):
+            parts = [next(iter(rules))]
+        else:
+            parts = [f"{key} {rule}" for key, rule in tested.items()]
+        return ", ".join(parts + [f"{key} {rule}" for key, rule in words.items() if key not in tested])
+
+    @property
+    def gate_uses(self) -> set[tuple[str, str]]:
+        """The (kind, test) pairs of the channels: which gate options apply."""
+        return {(self.channels[key].kind, test) for key, test in self.gate_tests.items()}
+
+    @property
+    def kinds(self) -> tuple[str, ...]:
+        """The kinds of reading the observer needs from a log (position, heading), in order."""
+        return tuple(dict.fromkeys(channel.kind for channel in self.channels.values() if channel.kind != "imu"))
 
     @property
     def record_layout(self) -> Layout:
@@ -438,10 +484,13 @@ class Session:
     def _take(self, reading: Reading) -> bool:
         """Keep the reading for the next step; whether it was kept as a measurement."""
         if reading.kind == "thrust":
-            self._input = np.asarray(reading.values, dtype=float)
+            if self._input.size:  # an observer without input (the IMU-aided one) predicts without thrust
+                self._input = np.asarray(reading.values, dtype=float)
             self.thrust_seen = True
             return False
-        kind = {"local_position": "position", "position": "position", "heading": "heading"}.get(reading.kind)
+        kind = {"local_position": "position", "position": "position", "heading": "heading", "imu": "imu"}.get(reading.kind)
+        if self.direct:
+            return kind is not None and self._direct_take(reading, kind)
         channel = self.channels.get(kind) if kind is not None else None
         if channel is None:
             self.not_read += 1  # rate of turn, the error ellipse, a channel the observer does not measure
@@ -455,27 +504,9 @@ class Session:
             if sensor is None:  # no sensor's source, or two sensors' equally
                 channel.counts["other_source"] += 1
                 return False
-        if reading.kind == "position":
-            latitude, longitude = reading.values[:2]
-            refusal = fix_refusal(reading.values, self.gates)
-            if refusal is not None:
-                channel.counts[refusal] += 1
-                return False
-            if not self._origin_checked:
-                assert self.frame is not None  # only a given origin is left to check
-                check_origin(self.frame, latitude, longitude)
-                self._origin_checked = True
-            if self.frame is None:
-                self.frame = LocalFrame(latitude, longitude)
-                self._event("frame", reading.time, latitude=latitude, longitude=longitude)
-            north, east, _ = self.frame.ned(latitude, longitude)
-            value: tuple[float, ...] = (float(north), float(east))
-        elif reading.kind == "local_position":
-            value = (float(reading.values[0]), float(reading.values[1]))
-        else:
-            # wrapped to [-pi, pi) as a simulated heading sensor's (lookout.sensors)
-            angle = math.radians(reading.values[0])
-            value = (angle - 2 * math.pi * math.floor((angle + math.pi) / (2 * math.pi)),)
+        value = self._value(reading, channel)
+        if value is None:
+            return False
         if sensor is not None:
             return self._sensor_take(sensor, channel, reading, value)
         source = receiver(reading.source, self.sources)
@@ -486,11 +517,70 @@ class Session:
             self._event("source", reading.time, channel=channel.name, source=source, previous=channel.source)
             channel.source = source
         channel.source_time = reading.time
+        self._new(channel, reading, value)
+        return True
+
+    @staticmethod
+    def _new(channel: _Channel, reading: Reading, value: tuple) -> None:
+        """Keep ``value`` as the channel's new reading."""
         if channel.new is not None:
             channel.counts["superseded"] += 1  # the step takes the newest reading of its channel
         channel.new, channel.new_time = value, reading.time
         channel.counts["accepted"] += 1
+
+    def _direct_take(self, reading: Reading, kind: str) -> bool:
+        """Keep a reading for the named sensor it comes from (an observer reading the
+        suite's instruments): the sensor's channel's new reading."""
+        from lookout.live.sensors import route
+
+        sensor = route(self.sensors, reading.source, kind)
+        if sensor is None:
+            if any(each.kind == kind for each in self.sensors.values()):
+                next(each for each in self.channels.values() if each.kind == kind).counts["other_source"] += 1
+            else:
+                self.not_read += 1  # rate of turn, the error ellipse, a kind no sensor of the suite takes
+            return False
+        channel = self.channels[sensor.name]
+        value = self._value(reading, channel)
+        if value is None:
+            return False
+        if channel.source is None:
+            self._event("source", reading.time, channel=channel.name, sensor=sensor.name, source=reading.source)
+            channel.source = reading.source
+        channel.source_time = reading.time
+        self._new(channel, reading, value)
         return True
+
+    def _value(self, reading: Reading, channel: _Channel) -> tuple[float, ...] | None:
+        """A reading's value in the observer's units (local north/east m, heading rad in
+        [-pi, pi), an IMU's m/s2 and rad/s), None when it is not used (counted)."""
+        if reading.kind == "imu":
+            fx, fy, rate = reading.values
+            value = (float(fx), float(fy), math.radians(rate))
+            if not (abs(value[0]) <= IMU_LIMITS[0] and abs(value[1]) <= IMU_LIMITS[0] and abs(value[2]) <= IMU_LIMITS[1]):
+                channel.counts["range"] += 1
+                return None
+            return value
+        if reading.kind == "position":
+            latitude, longitude = reading.values[:2]
+            refusal = fix_refusal(reading.values, self.gates)
+            if refusal is not None:
+                channel.counts[refusal] += 1
+                return None
+            if not self._origin_checked:
+                assert self.frame is not None  # only a given origin is left to check
+                check_origin(self.frame, latitude, longitude)
+                self._origin_checked = True
+            if self.frame is None:
+                self.frame = LocalFrame(latitude, longitude)
+                self._event("frame", reading.time, latitude=latitude, longitude=longitude)
+            north, east, _ = self.frame.ned(latitude, longitude)
+            return (float(north), float(east))
+        if reading.kind == "local_position":
+            return (float(reading.values[0]), float(reading.values[1]))
+        # wrapped to [-pi, pi) as a simulated heading sensor's (lookout.sensors)
+        angle = math.radians(reading.values[0])
+        return (angle - 2 * math.pi * math.floor((angle + math.pi) / (2 * math.pi)),)
 
     def _sensor_take(self, sensor: LiveSensor, channel: _Channel, reading: Reading, value: tuple) -> bool:
         """Keep a named sensor's reading: its own held sample, and its channel's mark that a reading came."""
@@ -528,9 +618,14 @@ class Session:
 
     def _start(self) -> None:
         """Set the first step: the one that has a reading of every channel."""
-        if self.step_index is None and all(channel.new is not None for channel in self.channels.values()):
-            first = max(channel.new_time for channel in self.channels.values())
+        if self.step_index is None and self._every_kind_read():
+            first = max(channel.new_time for channel in self.channels.values() if channel.new is not None)
             self.step_index = self.start_index = math.ceil(first / self.sample_period - 1e-9)
+
+    def _every_kind_read(self) -> bool:
+        """Whether a reading of every kind the channels take (position, heading, IMU) came."""
+        kinds = {channel.kind for channel in self.channels.values()}
+        return kinds == {channel.kind for channel in self.channels.values() if channel.new is not None}
 
     def advance(self, until: float) -> list[Block]:
         """Take every step with ``t_n < until`` (a reading stamped ``until`` is not in
@@ -572,17 +667,17 @@ class Session:
         self._session_times[i] = (n - self.start_index) * self.sample_period
         raw = self._raw[i]
         raw[:] = math.nan
-        if self.sensors:
+        if self.sensors and not self.direct:
             self._sensor_row(raw, self._times[i], start)
             for channel in self.channels.values():
                 channel.new = None
             self._inputs[i] = self._input
             self._kept += 1
             return
-        for index, channel in enumerate(self.channels.values()):
+        for channel in self.channels.values():
             if channel.new is not None:
                 raw[channel.columns] = channel.new
-                raw[self._size + index] = channel.new_time - start
+                raw[[self._size + index for index in channel.arrivals]] = channel.new_time - start
                 channel.new = None
         self._inputs[i] = self._input
         self._kept += 1
@@ -632,9 +727,9 @@ class Session:
         filled = np.zeros(self._size, dtype=bool)
         for channel in self.channels.values():
             filled[channel.columns] = True
-            measurement[np.asarray(estimates[f"outage_{channel.kind}"]) > 0, channel.columns] = np.nan
+            measurement[np.asarray(estimates[f"outage_{channel.flag}"]) > 0, channel.columns] = np.nan
         measurement[:, ~filled] = np.nan
-        if self.sensors:
+        if self.sensors and not self.direct:
             measurement = self._recorded(raw, measurement)
         refused = ~healthy
         if refused.any():
@@ -668,7 +763,7 @@ class Session:
         if len(times) == 0:  # every step refused
             return
         for channel in self.channels.values():
-            short = channel.kind
+            short = channel.flag
             if len(times) == 1:  # a live step: the same on Python numbers (a tenth of the time)
                 if estimates[f"gated_{short}"][0] > 0:
                     channel.counts["gated"] += 1

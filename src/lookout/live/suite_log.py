@@ -2,9 +2,10 @@
 stamped so that a replay gives its sentences back to it (``lookout write-log``).
 
 A position reference that a fix measures (``gnss``, ``hydroacoustic``) is written as
-GGA, a ``gyrocompass`` as THS (:data:`lookout.live.sensors.FED`); the other kinds
-(an IMU, a speed log, a taut wire, GNSS velocity) have no sentence that lookout reads,
-and are left out. Each written sensor's sentences carry its ``source``
+GGA, a ``gyrocompass`` as THS (:data:`lookout.live.sensors.FED`); an IMU (the suite's
+only one) is written beside the log as a CSV log ``time,fx,fy,r``
+(:mod:`lookout.io.logs`); the other kinds (a speed log, a taut wire, GNSS velocity, a
+second IMU) have no sentence that lookout reads, and are left out. Each written sensor's sentences carry its ``source``
 (:func:`lookout.io.nmea.source_spec`): its talker (GP for a receiver, HE for a gyro
 when the source names none) and, when it names a sender, a tag block ``s:SENDER``. A
 sensor without a source is given ``@NAME``: a tag block with its own name. Each stamp
@@ -21,6 +22,7 @@ from typing import TYPE_CHECKING
 from lookout.io.nmea import source_rank, source_spec, tag_block, talker_family
 from lookout.io.simulated_log import LoggedSensor
 from lookout.live.sensors import FAMILIES, FED, READS, LiveSensor, route
+from lookout.sensing.motion import InertialUnit
 
 if TYPE_CHECKING:
     from lookout.sensing.suite import SensorSuite
@@ -46,12 +48,16 @@ class SuiteLog:
         The written sensors that name no source, given ``@NAME``.
     skipped : tuple of (str, str)
         ``(name, kind)`` of each instrument left out (no sentence carries it).
+    imu : (str, float) or None
+        ``(name, sample_period)`` of the IMU written as a CSV log beside the log (the
+        suite's only IMU), None when it has none or several.
     """
 
     sensors: tuple[LoggedSensor, ...]
     sources: dict[str, str]
     assumed: tuple[str, ...]
     skipped: tuple[tuple[str, str], ...]
+    imu: tuple[str, float] | None = None
 
 
 def _written(talker: str, sender: str | None) -> str:
@@ -78,8 +84,12 @@ def suite_log(suite: SensorSuite) -> SuiteLog:
     sources: dict[str, str] = {}
     assumed: list[str] = []
     skipped: list[tuple[str, str]] = []
+    units = [(name, float(each.sample_period)) for name, each in zip(suite.names, suite.instruments) if isinstance(each, InertialUnit)]
+    imu = units[0] if len(units) == 1 else None
     for index, (name, each) in enumerate(zip(suite.names, suite.instruments)):
         kind = FED.get(type(each))
+        if imu is not None and name == imu[0]:
+            continue
         if kind is None:
             skipped.append((name, kind_of(each)))
             continue
@@ -135,7 +145,7 @@ def suite_log(suite: SensorSuite) -> SuiteLog:
                 ]
                 whom = f"would match sensor {', '.join(tied)}'s source as closely: two sensors of a kind need sources a replay tells apart"
             raise ValueError(f"sensors.{sensor.name}.source: {sources[sensor.name]!r}: its sentences, written {how}, {whom} in a replay")
-    return SuiteLog(tuple(logged), sources, tuple(assumed), tuple(skipped))
+    return SuiteLog(tuple(logged), sources, tuple(assumed), tuple(skipped), imu)
 
 
 __all__ = ["DEFAULT_TALKERS", "SuiteLog", "suite_log"]
