@@ -51,6 +51,9 @@ DEFAULT_OUTAGE = (300.0, 30.0)
 #: Before the step that uses it, the part of a sample period within which a sample's
 #: sentence arrives, by what it measures (uniform).
 ARRIVAL = {"position": (0.4, 0.9), "heading": (0.05, 0.35)}
+#: The same for an IMU's samples (its CSV log): before the headings, on which a replay
+#: steps, so that each step integrates the sample of its own instant, as a simulation does.
+IMU_ARRIVAL = (0.4, 0.95)
 
 
 def _minutes(value: float, degree_digits: int, hemispheres: str) -> tuple[str, str]:
@@ -202,8 +205,8 @@ def write_simulated_log(
         ``(name, sample_period)`` of a suite's IMU: its samples (``NAME.measured_specific_force``,
         ``NAME.measured_yaw_rate``) go to ``<name>-imu.csv`` as ``time,fx,fy,r``
         (m/s2, m/s2, deg/s; :mod:`lookout.io.logs`), each arriving within the step
-        before the record that holds it, as the thrust; a missing sample (a dropout)
-        gives no row.
+        before the record that holds it (:data:`IMU_ARRIVAL`); a missing sample (a
+        dropout) gives no row.
 
     Returns
     -------
@@ -374,7 +377,7 @@ def _imu_rows(ds: xr.Dataset, imu: tuple[str, float], step: float, epoch: float,
     rng = np.random.default_rng([seed, 1])  # apart from the log's draws, which stay as without an IMU
     rows = []
     for k, t in enumerate(times):
-        arrival = epoch + t - step * rng.uniform(0.05, 0.95)
+        arrival = epoch + t - step * rng.uniform(*IMU_ARRIVAL)
         if round(t / step) % every or not (np.all(np.isfinite(force[k])) and math.isfinite(rate[k])):
             continue
         rows.append(f"{float(arrival)!r},{float(force[k, 0])!r},{float(force[k, 1])!r},{math.degrees(float(rate[k]))!r}")

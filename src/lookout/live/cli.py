@@ -262,8 +262,8 @@ def _status_line(session, parser, outcome, final: bool = False) -> str:
 
     span = (outcome.last_time - outcome.first_time) if outcome.first_time is not None else 0.0
     rates = []
-    counted = {name: sensor.counts for name, sensor in session.sensors.items()} or {
-        kind: channel.counts for kind, channel in session.channels.items()
+    counted = {name: sensor.counts for name, sensor in session.sensors.items() if not session.direct} or {
+        name: channel.counts for name, channel in session.channels.items()
     }
     for name, counts in counted.items():
         # the readings that reached a step: a fix told twice in one epoch (GGA and RMC)
@@ -615,7 +615,9 @@ def replay_command(
     except OriginError as error:
         raise InputError(error.message("--origin")) from None
     except ValueError as error:
-        raise InputError(str(error).replace("max_gap", "--max-gap")) from None
+        raise InputError(
+            str(error).replace("max_gap", "--max-gap").replace("give imu,", "give --imu IMU.csv,").replace("leave imu", "leave --imu")
+        ) from None
     if truth is not None:
         _check_truth_range(truth, log, check.log, session.sample_period)
     for option, path, scanned in (("LOG", log, check.log), ("--thrust", thrust, check.thrust), ("--imu", imu, check.imu)):

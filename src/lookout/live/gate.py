@@ -59,6 +59,7 @@ class GatedState(eqx.Module):
     used: jnp.ndarray  # the measurement the step used, 0 where missing (the state stays finite)
     missing: jnp.ndarray  # 1 where that measurement was NaN
     gated: jnp.ndarray  # 1 where the step's new reading was a wild point
+    stale: jnp.ndarray  # per channel, 1 where no reading is newer than its timeout (an outage)
 
     @property
     def measurement(self) -> jax.Array:
@@ -104,6 +105,13 @@ class GatedObserver(Observer):
         Wild points in a row after which the next reading passes.
     tests : tuple of str, optional
         The test of each channel (:data:`GATE_TESTS`); default :func:`gate_tests`.
+    hold : bool
+        Whether a channel holds its last reading until the timeout (True: as a
+        simulated sensor holds its sample, for an observer that reads its measurement at
+        every step), or gives each reading once, at the step it came, and NaN between
+        (False: for a Kalman filter, which takes each reading as a new measurement;
+        with :meth:`~lookout.observers.kalman.KalmanFilter.due_every` every channel is
+        due at every step). Either way a channel older than its timeout is an outage.
     """
 
     inner: Observer
@@ -112,6 +120,7 @@ class GatedObserver(Observer):
     channels: tuple = eqx.field(static=True)
     reopen_after: int = eqx.field(static=True)
     tests: tuple = eqx.field(static=True)
+    hold: bool = eqx.field(static=True)
 
     def __init__(
         self,
@@ -121,6 +130,7 @@ class GatedObserver(Observer):
         timeout: npt.ArrayLike,
         reopen_after: int,
         tests: Iterable[str] | None = None,
+        hold: bool = True,
     ):
         self.inner = inner
         self.channels = tuple(channels)
@@ -128,6 +138,7 @@ class GatedObserver(Observer):
         self.timeout = jnp.asarray(timeout, dtype=float)
         self.reopen_after = reopen_after
         self.tests = gate_tests(inner, self.channels) if tests is None else tuple(tests)
+        self.hold = bool(hold)
 
     def __check_init__(self):
         names = self.inner.measurement_layout.names
@@ -193,7 +204,7 @@ class GatedObserver(Observer):
         y = jnp.asarray(new)
         for index, (start, stop) in enumerate(self._columns):
             fresh = jnp.isfinite(arrival[index])
-            alive = t - state.held_time[index] <= self.timeout[index]
+            alive = (t - state.held_time[index] <= self.timeout[index]) & self.hold
             y = y.at[start:stop].set(jnp.where(fresh, new[start:stop], jnp.where(alive, state.held[start:stop], jnp.nan)))
         return y
 
@@ -204,7 +215,16 @@ class GatedObserver(Observer):
         # a missing reading is held as 0 with an arrival long ago
         held = jnp.where(jnp.isfinite(new), new, 0.0)
         held_time = jnp.where(jnp.isfinite(arrival), arrival, -1e300)
-        return GatedState(self.inner.init(new, guess), held, held_time, jnp.zeros(n), held, (~jnp.isfinite(new)).astype(held.dtype), jnp.zeros(n))
+        missing = (~jnp.isfinite(new)).astype(held.dtype)
+        stale = self._stale(missing, ~jnp.isfinite(arrival))
+        return GatedState(self.inner.init(new, guess), held, held_time, jnp.zeros(n), held, missing, jnp.zeros(n), stale)
+
+    def _stale(self, missing: jax.Array, old: jax.Array) -> jax.Array:
+        """Per channel, 1 in an outage: a held channel's measurement missing (its reading
+        older than the timeout), else ``old`` (no reading within the timeout)."""
+        if self.hold:
+            return jnp.stack([jnp.any(missing[start:stop] > 0) for start, stop in self._columns]).astype(missing.dtype)
+        return old.astype(missing.dtype)
 
     def _statistics(self, state: GatedState, t, candidate):
         """Per channel, what its test compares with its gate (0 for ``"none"``), and the
@@ -246,7 +266,8 @@ class GatedObserver(Observer):
         held_time = jnp.where(accepted, arrival, held_time)
         in_row = jnp.where(jnp.isfinite(arrival), jnp.where(wild, state.wild_in_row + 1, 0.0), state.wild_in_row)
         missing = ~jnp.isfinite(used)
-        return GatedState(inner, held, held_time, in_row, jnp.where(missing, 0.0, used), missing.astype(used.dtype), wild.astype(used.dtype))
+        stale = self._stale(missing.astype(used.dtype), jnp.asarray(t - held_time > self.timeout))
+        return GatedState(inner, held, held_time, in_row, jnp.where(missing, 0.0, used), missing.astype(used.dtype), wild.astype(used.dtype), stale)
 
     def output(self, state: GatedState, y: jax.Array) -> dict[str, jax.Array]:
         """The wrapped observer's outputs, the gate and outage flags, and under
@@ -256,10 +277,10 @@ class GatedObserver(Observer):
         outputs are not finite; the outage flags say where."""
         estimate = dict(self.inner.output(state.inner, state.measurement))
         estimate["measurement_used"] = state.used
-        for index, ((start, stop), name) in enumerate(zip(self._columns, self.channels)):
+        for index, name in enumerate(self.channels):
             short = flag_name(name)
             estimate[f"gated_{short}"] = state.gated[index]
-            estimate[f"outage_{short}"] = jnp.any(state.missing[start:stop] > 0).astype(state.used.dtype)
+            estimate[f"outage_{short}"] = state.stale[index]
         return estimate
 
     def predict(self, state: GatedState, t: ArrayLike, y: jax.Array, u: jax.Array, dt: ArrayLike) -> GatedState:

@@ -210,11 +210,9 @@ def check_replay(
         raise ValueError(f"LOG {log} is an IMU log (time,fx,fy,r): give it as the IMU's, and a position log as LOG")
     imu_sensor = next((channel.name for channel in session.channels.values() if channel.kind == "imu"), None)
     if imu_sensor is not None and imu is None:
-        raise ValueError(f"the observer integrates sensor {imu_sensor}'s IMU readings: give them as a CSV log (time,fx,fy,r) beside LOG")
+        raise ValueError(f"the observer reads sensor {imu_sensor}, an IMU: give imu, the CSV log of its readings (time,fx,fy,r)")
     if imu is not None and imu_sensor is None:
-        raise ValueError(
-            f"the observer reads no IMU (a Kalman filter or the IMU-aided observer on a suite with an IMU does): leave the IMU log {imu} out"
-        )
+        raise ValueError(f"the observer reads no IMU (a Kalman filter or the IMU-aided observer on a suite with an IMU does): leave imu ({imu}) out")
     check_log_order(scan, tolerance)
     for kind in session.kinds:
         if not scan.usable[kind]:

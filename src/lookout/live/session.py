@@ -355,7 +355,13 @@ class Session:
                 stacklevel=2,
             )
         timeouts = np.array([self.channels[key].timeout for *_, key in gated_channels])
-        self.gated_observer: Observer = GatedObserver(observer, names, np.array(bounds), timeouts, gates.reopen_after, tests)
+        stepped = observer
+        if self.direct:  # each reading taken once, when it comes, every channel due at every step
+            due_every = getattr(observer, "due_every", None)
+            if due_every is None:
+                raise ValueError(f"observer {type(observer).__name__} reads a suite's instruments; live, only a Kalman filter's can")
+            stepped = due_every(self.sample_period)
+        self.gated_observer: Observer = GatedObserver(stepped, names, np.array(bounds), timeouts, gates.reopen_after, tests, hold=not self.direct)
         self.suite = suite
         if self.direct:
             self._record_layout = layout
@@ -728,6 +734,9 @@ class Session:
         for channel in self.channels.values():
             filled[channel.columns] = True
             measurement[np.asarray(estimates[f"outage_{channel.flag}"]) > 0, channel.columns] = np.nan
+            if self.direct:  # a reading is used at the step it came, unless it was a wild point
+                unused = ~np.isfinite(raw[:, self._size + channel.arrivals[0]]) | (np.asarray(estimates[f"gated_{channel.flag}"]) > 0)
+                measurement[unused, channel.columns] = np.nan
         measurement[:, ~filled] = np.nan
         if self.sensors and not self.direct:
             measurement = self._recorded(raw, measurement)

@@ -93,6 +93,7 @@ Defaults derived from the scenario (each can be given instead):
 from __future__ import annotations
 
 import abc
+import copy
 import inspect
 import math
 from typing import Any
@@ -421,6 +422,15 @@ class KalmanFilter(Observer):
         """Q_d from G = [G_1 ... G_n], the step's Jacobian in the noise of its substeps."""
         weighted = noise_jacobian * jnp.tile(self.process_noise, self.substeps(dt))[None, :]
         return _symmetric(weighted @ noise_jacobian.T / self.substep(dt) + jnp.diag(self.state_noise) * dt)
+
+    def due_every(self, period: float) -> KalmanFilter:
+        """This filter with every channel due at every multiple of ``period`` (s): for a
+        stream whose readings are new when they arrive (a live session's), not on their
+        instruments' schedule; a channel without a new reading is NaN, a missing one."""
+        check.positive("period", period)
+        twin = copy.copy(self)
+        object.__setattr__(twin, "channel_periods", (float(period),) * len(self.channel_periods))  # a static field: no tree_at
+        return twin
 
     def due(self, t: ArrayLike) -> Array:
         """Per channel: whether a new sample of it arrives at ``t``."""
