@@ -187,3 +187,51 @@ def test_replay_refuses_an_imu_log_for_an_observer_without_imu(written, capsys, 
     assert "the observer reads no IMU" in err and f"leave --imu ({written / 'dp-vessel-imu.csv'}) out" in err and "\n" not in err, err
     assert main(["replay", str(written / "dp-vessel-imu.csv"), "--scenario", str(scenario)]) == 2
     assert "is an IMU log (time,fx,fy,r): give it with --imu, and a position log as LOG" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- live
+@pytest.mark.slow
+def test_the_imu_aided_observer_live_over_udp():
+    """NMEA (each sensor's sentences with its tag block) on one UDP port and the IMU's
+    fx,fy,r lines on another: every reading reaches its sensor, the IMU's included, and
+    each step's estimate is finite."""
+    import socket
+    import threading
+    import time
+
+    from lookout.io.nmea import tag_block
+    from lookout.io.simulated_log import gga, ths
+    from lookout.live.run import live, open_source
+
+    session = _imu_session()
+    session.warm_up()
+    nmea, imu = open_source("udp://127.0.0.1:0"), open_source("udp://127.0.0.1:0", "--imu")
+    ports = nmea[1].getsockname()[1], imu[1].getsockname()[1]
+    rng = np.random.default_rng(2)
+
+    def send():
+        sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        for k in range(40):  # 4 s at 10 Hz: each gyro's THS and the IMU every step, each receiver's GGA every tenth
+            sender.sendto(f"{rng.normal(0.0, 0.01)!r},{rng.normal(0.0, 0.01)!r},{rng.normal(0.0, 0.05)!r}\n".encode(), ("127.0.0.1", ports[1]))
+            lines = [tag_block(name) + ths(float(rng.normal(0.0, 0.1)), talker="HE") for name in ("gyro1", "gyro2")]
+            if k % 10 == 0:
+                for name, (north, east) in (("dgnss1", (5.0, 30.0)), ("dgnss2", (-4.0, -25.0))):  # the antennas at their lever arms
+                    latitude, longitude, _ = ORIGIN.geodetic(north + rng.normal(0.0, 0.7), east + rng.normal(0.0, 0.7), 0.0)
+                    lines.append(tag_block(name) + gga(k * 0.1, float(latitude), float(longitude), talker="GP"))
+            sender.sendto(("\r\n".join(lines) + "\r\n").encode(), ("127.0.0.1", ports[0]))
+            time.sleep(0.1)
+        sender.close()
+
+    thread = threading.Thread(target=send)
+    thread.start()
+    steps = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        outcome = live(session, nmea, imu=imu, emit=steps.append, idle=1.5)
+    thread.join()
+    nmea[1].close()
+    imu[1].close()
+    accepted = {name: channel.counts["accepted"] for name, channel in session.channels.items()}
+    assert accepted == {"dgnss1": 4, "dgnss2": 4, "gyro1": 40, "gyro2": 40, "imu": 40} and outcome.imu_counts == {"accepted": 40}
+    assert 30 <= outcome.steps <= 60
+    assert all(np.isfinite(block.estimate["position"]).all() and np.isfinite(block.estimate["velocity"]).all() for block in steps)

@@ -836,6 +836,13 @@ def live_command(
             show_default="zero, with a warning",
         ),
     ] = None,
+    imu: Annotated[
+        str | None,
+        typer.Option(
+            metavar="SOURCE",
+            help="An IMU's lines fx,fy,r (m/s2, m/s2, deg/s), for an observer on a suite with an IMU: udp://HOST:PORT, - (stdin) or a device or FIFO.",
+        ),
+    ] = None,
     duration: Annotated[float | None, typer.Option(metavar="SECONDS", help="Stop after this long.")] = None,
     idle: Annotated[
         float | None, typer.Option(metavar="SECONDS", help="Stop when nothing arrived for this long (counted from the first data).")
@@ -874,9 +881,12 @@ def live_command(
     _check_out(out)
     _check_publish(publish)
     _check_variation(variation)
-    if thrust is not None and thrust == nmea:
-        raise InputError(f"--thrust and --nmea must be two sources; both are {nmea}")
-    for option, text in (("--nmea", nmea), ("--thrust", thrust)):
+    given = [(option, text) for option, text in (("--nmea", nmea), ("--thrust", thrust), ("--imu", imu)) if text is not None]
+    for i, (option, text) in enumerate(given):
+        for other, other_text in given[:i]:
+            if text == other_text:
+                raise InputError(f"{option} and {other} must be two sources; both are {text}")
+    for option, text in given:
         try:
             if text is not None and text.startswith("udp://"):
                 parse_udp(text, option, any_port=True)
@@ -884,17 +894,25 @@ def live_command(
             raise InputError(str(error)) from None
     say = _say(quiet)
     session = _session(scenario_file, origin, gates, _on_event(say), say)
+    reads_imu = next((channel.name for channel in session.channels.values() if channel.kind == "imu"), None)
+    if reads_imu is not None and imu is None:
+        raise InputError(f"{scenario_file}: the observer reads sensor {reads_imu}, an IMU: give --imu SOURCE, the stream of its fx,fy,r lines")
+    if imu is not None and reads_imu is None:
+        raise InputError(
+            f"{scenario_file}: the observer reads no IMU (a Kalman filter or the IMU-aided observer on a suite with an IMU does): leave --imu out"
+        )
     # the sources are opened (bound) before anything is created; a refusal leaves nothing
+    opened: list = []
     try:
-        source = open_source(nmea, "--nmea")
+        for option, text in given:
+            opened.append(open_source(text, option))
     except ValueError as error:
+        for each in opened:
+            if each[1] is not sys.stdin.buffer:
+                each[1].close()
         raise InputError(str(error)) from None
-    try:
-        thrust_source = open_source(thrust, "--thrust") if thrust is not None else None
-    except ValueError as error:
-        if source[1] is not sys.stdin.buffer:
-            source[1].close()
-        raise InputError(str(error)) from None
+    sources = dict(zip((option for option, _ in given), opened))
+    source, thrust_source, imu_source = sources["--nmea"], sources.get("--thrust"), sources.get("--imu")
     emit, close, remove = _outputs(session, out, publish, scenario_file, f"live from {nmea}", flush_every)
     if thrust_source is None:
         say("no --thrust: the observer predicts with zero input")
@@ -912,6 +930,7 @@ def live_command(
                 session,
                 source,
                 thrust=thrust_source,
+                imu=imu_source,
                 emit=emit,
                 parser=parser,
                 duration=duration,

@@ -269,10 +269,11 @@ def first_fix(log: str | Path, session: Session, fmt: str = "nmea") -> tuple[flo
     return None
 
 
-def _thrust_line(line: bytes, time: float, counts: dict[str, int] | None = None) -> Reading | None:
-    """A live thrust line ``surge,sway,yaw`` (N, N, N m), or None if it is not one
-    (counted in ``counts``: ``malformed``, or ``missing`` for an empty or NaN value,
-    which leaves the previous thrust applied)."""
+def _side_line(line: bytes, time: float, counts: dict[str, int] | None = None, kind: str = "thrust") -> Reading | None:
+    """A live line of a stream beside the NMEA one, a thrust ``surge,sway,yaw`` (N, N,
+    N m) or an IMU's ``fx,fy,r`` (m/s2, m/s2, deg/s) as ``kind`` says, or None if it is
+    not one (counted in ``counts``: ``malformed``, or ``missing`` for an empty or NaN
+    value, which leaves the previous thrust applied, or misses an IMU sample)."""
     counts = Counter() if counts is None else counts
     try:
         values = tuple(float(cell) if cell.strip() else math.nan for cell in line.decode("ascii").strip().split(","))
@@ -285,7 +286,7 @@ def _thrust_line(line: bytes, time: float, counts: dict[str, int] | None = None)
         counts["missing"] += 1
         return None
     counts["accepted"] += 1
-    return Reading(time, "thrust", "thrust", values, "CSV")
+    return Reading(time, kind, kind, values, "CSV")
 
 
 def log_readings(path: str | Path, parser: NmeaParser, kind: str | None = None) -> tuple[Iterator[Reading], Counter]:
@@ -487,6 +488,7 @@ def live(
     source: _Source,
     *,
     thrust: _Source | None = None,
+    imu: _Source | None = None,
     emit: Callable[[Block], object] | None = None,
     parser: NmeaParser | None = None,
     duration: float | None = None,
@@ -497,7 +499,8 @@ def live(
 ) -> Outcome:
     """Step ``session`` on a live source (from :func:`open_source`) until ``duration``
     seconds have passed, nothing arrived for ``idle`` seconds, the stream ends, or
-    Ctrl-C. ``thrust`` is a second source of ``surge,sway,yaw`` lines. ``clock``
+    Ctrl-C. ``thrust`` is a second source of ``surge,sway,yaw`` lines, ``imu`` one of
+    an IMU's ``fx,fy,r`` lines (m/s2, m/s2, deg/s). ``clock``
     (seconds) stamps each reading's arrival; default :func:`unix_clock`.
 
     Raises
@@ -510,14 +513,18 @@ def live(
     parser = parser or NmeaParser()
     kind, handle, where = source
     splitter = LineSplitter()
-    thrust_splitter = LineSplitter()
-    outcome = Outcome(counts=parser.counts, thrust_counts=Counter() if thrust is not None else {})
+    outcome = Outcome(counts=parser.counts, thrust_counts=Counter() if thrust is not None else {}, imu_counts=Counter() if imu is not None else {})
+    # the streams beside the NMEA one, by handle: (their kind, source kind, line splitter, counts)
+    sides = {
+        side[1]: (name, side[0], LineSplitter(), counts)
+        for name, side, counts in (("thrust", thrust, outcome.thrust_counts), ("imu", imu, outcome.imu_counts))
+        if side is not None
+    }
     started = clock()
     last_heard = None  # --idle counts from the first data
     last_status = started
     arrivals: deque = deque(maxlen=64)  # (arrival time) of readings not yet in a step
-    handles = [handle] + ([thrust[1]] if thrust is not None else [])
-    thrust_kind = thrust[0] if thrust is not None else None
+    handles = [handle, *sides]
     ended = False
     try:
         while not ended:
@@ -531,8 +538,8 @@ def live(
             wait = max(0.0, min(due - now, 0.05))
             ready, _, _ = select.select(handles, [], [], wait)
             for ready_handle in ready:
-                is_thrust = thrust is not None and ready_handle is thrust[1]
-                if (thrust_kind if is_thrust else kind) == "udp":
+                side = sides.get(ready_handle)
+                if (side[1] if side is not None else kind) == "udp":
                     try:  # a udp source's handle is its socket
                         data, address = cast(socket.socket, ready_handle).recvfrom(65536)
                     except BlockingIOError:
@@ -544,7 +551,7 @@ def live(
                     data = os.read(ready_handle.fileno(), 65536)
                     if not data:
                         handles.remove(ready_handle)
-                        if not is_thrust:
+                        if side is None:
                             ended = True
                             lines = splitter.flush()
                             arrival = clock()
@@ -553,11 +560,11 @@ def live(
                                 _emit(session.feed(reading), emit, outcome, arrivals, clock)
                         continue
                     origin = ""
-                    lines = (thrust_splitter if is_thrust else splitter).feed(data)
+                    lines = (side[2] if side is not None else splitter).feed(data)
                 arrival = clock()
                 last_heard = arrival
-                if is_thrust:
-                    readings = [r for r in (_thrust_line(line, arrival, outcome.thrust_counts) for line in lines) if r is not None]
+                if side is not None:
+                    readings = [r for r in (_side_line(line, arrival, side[3], side[0]) for line in lines) if r is not None]
                 elif kind == "udp":
                     readings = parser.datagram(data, arrival, origin)
                 else:
