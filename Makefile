@@ -26,7 +26,7 @@ demo: $(VENV)/.installed
 	$(BIN)/lookout reproduce fossen-strand-1999 --out $(OUT)
 
 test: $(VENV)/.installed-dev
-	$(BIN)/python -m pytest -q -n auto --dist loadgroup
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup --durations=25
 
 # The loop while one works: lint, types and the tests not marked slow (docs/testing.md).
 check: lint types $(VENV)/.installed-dev

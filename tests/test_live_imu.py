@@ -235,3 +235,39 @@ def test_the_imu_aided_observer_live_over_udp():
     assert accepted == {"dgnss1": 4, "dgnss2": 4, "gyro1": 40, "gyro2": 40, "imu": 40} and outcome.imu_counts == {"accepted": 40}
     assert 30 <= outcome.steps <= 60
     assert all(np.isfinite(block.estimate["position"]).all() and np.isfinite(block.estimate["velocity"]).all() for block in steps)
+
+
+def test_speeds_over_ground_and_through_the_water_reach_their_sensors():
+    """With the observer reading each instrument, an RMC's or VTG's speed and course
+    over ground go to the suite's gnss-velocity whose source they come from (m/s, the
+    course in radians wrapped as a simulated one's), a VHW's speed through the water to
+    the speed log's surge (its sway not measured); another source's is other_source. The
+    first step waits for the position, heading and IMU only."""
+    text = _scenario_text().replace(
+        "[references]",
+        '[sensors.vel]\nkind = "gnss-velocity"\nlever_arm = [30.0, 5.0]\nsource = "GP@vel"\n\n'
+        '[sensors.log]\nkind = "speed-log"\nsource = "VW"\n\n[references]',
+    )
+    session = _imu_session(text)
+    assert {name: channel.kind for name, channel in session.channels.items() if name in ("vel", "log")} == {
+        "vel": "ground_velocity",
+        "log": "water_speed",
+    }
+    assert session.kinds == ("position", "heading")
+    readings = [
+        Reading(0.0, "GP@vel", "ground_velocity", (1.5, 270.0), "VTG"),
+        Reading(0.0, "GN@other", "ground_velocity", (9.0, 10.0), "VTG"),
+        Reading(0.0, "VW", "water_speed", (0.5,), "VHW"),
+        Reading(0.01, "GP@dgnss1", "local_position", (1.0, 2.0), "CSV"),
+        Reading(0.01, "HE@gyro1", "heading", (10.0,), "THS"),
+    ]
+    for reading in readings:
+        session.feed(reading)
+    assert session.channels["vel"].new == pytest.approx((1.5, -math.pi / 2))
+    assert session.channels["log"].new[0] == 0.5 and math.isnan(session.channels["log"].new[1])
+    assert session.unused == {"other_source": 1}
+    session._start()
+    assert session.step_index is None  # no IMU reading yet
+    session.feed(Reading(0.02, "imu", "imu", (0.0, 0.0, 0.0), "CSV"))
+    session._start()
+    assert session.step_index == 1  # the step of the last of the three kinds (0.02 s), at 0.1 s

@@ -780,3 +780,22 @@ def test_a_hydroacoustic_reference_states_each_fix_at_its_own_slant_range():
     assert float(hpr.std_at(jnp.asarray([np.nan, np.nan]))) == float(hpr.weight_std())
     gnss = GnssReceiver(noise_std=0.7)
     assert float(gnss.std_at(fix)) == float(gnss.weight_std()) == pytest.approx(0.7)
+
+
+def test_gnss_velocity_at_rest_has_a_finite_gradient():
+    """At rest the speed over ground is 0 and the course 0, each with a finite (zero)
+    gradient: a Kalman filter linearizes the instrument there at a DP vessel's start
+    (atan2's gradient at the origin is NaN, and gave every estimate NaN from t = 0)."""
+    from lookout.sensing.motion import GnssVelocity
+
+    velocity = GnssVelocity(lever_arm=[30.0, 5.0])
+
+    def expected(v):
+        return velocity.expected({**_kinematics(), "velocity": v})
+
+    jacobian = jax.jacfwd(expected)(jnp.zeros(2))
+    np.testing.assert_array_equal(expected(jnp.zeros(2)), [0.0, 0.0])
+    assert np.isfinite(np.asarray(jacobian)).all()
+    # away from rest the course is the velocity's direction over ground, as before
+    moving = expected(jnp.array([1.0, 0.0]))
+    np.testing.assert_allclose(moving, [1.0, 0.3], rtol=1e-12)

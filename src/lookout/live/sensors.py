@@ -43,7 +43,7 @@ from lookout.live.options import Gates
 from lookout.sensing.combining import CombiningStage
 from lookout.sensing.heading import Gyrocompass
 from lookout.sensing.instrument import HEADING, POSITION
-from lookout.sensing.motion import InertialUnit
+from lookout.sensing.motion import GnssVelocity, InertialUnit, SpeedLog
 from lookout.sensing.position import GnssReceiver, HydroacousticReference
 
 if TYPE_CHECKING:
@@ -51,10 +51,19 @@ if TYPE_CHECKING:
 
 #: The instrument kinds a stream feeds, and the reading kind each takes.
 FED = {GnssReceiver: "position", HydroacousticReference: "position", Gyrocompass: "heading"}
+#: Those a stream feeds too when the observer reads each instrument itself (a Kalman
+#: filter on the suite): what the combining stage does not combine.
+DIRECT_FED = {GnssVelocity: "ground_velocity", SpeedLog: "water_speed"}
 #: What each reading kind is read from, in words.
-READS = {"position": "position fixes (GGA, GLL, RMC)", "heading": "headings (HDT, THS)"}
-#: The talker family (:data:`lookout.io.nmea.TALKER_FAMILIES`) of each reading kind.
-FAMILIES = {"position": "GNSS", "heading": "heading"}
+READS = {
+    "position": "position fixes (GGA, GLL, RMC)",
+    "heading": "headings (HDT, THS)",
+    "ground_velocity": "speed and course over ground (RMC, VTG)",
+    "water_speed": "speed through the water (VHW)",
+}
+#: The talker family (:data:`lookout.io.nmea.TALKER_FAMILIES`) of each reading kind
+#: that has one.
+FAMILIES = {"position": "GNSS", "heading": "heading", "ground_velocity": "GNSS"}
 #: The combined channel a sensor's readings make new, by what the instrument provides.
 COMBINED = {POSITION: "measured_position", HEADING: "measured_heading"}
 
@@ -96,12 +105,13 @@ class LiveSensor:
         return self.value if self.value is not None and t - self.time <= self.timeout else None
 
 
-def live_sensors(suite: SensorSuite, gates: Gates, imu: bool = False) -> tuple[dict[str, LiveSensor], tuple[str, ...]]:
+def live_sensors(suite: SensorSuite, gates: Gates, direct: bool = False) -> tuple[dict[str, LiveSensor], tuple[str, ...]]:
     """``(sensors, silent)``: the suite's sensors that a stream feeds, by name (those of
     a kind in :data:`FED` with a ``source``), and the names of those of such a kind that
-    name no source (never fed: a warning). With ``imu``, also the suite's IMU (kind
-    ``imu``, fed by the IMU stream: a CSV log or a UDP source of ``time,fx,fy,r``),
-    whose readings time out after ``heading_timeout``.
+    name no source (never fed: a warning). With ``direct`` (an observer that reads each
+    instrument), also those of :data:`DIRECT_FED` (their readings timing out after
+    ``position_timeout``) and the suite's IMU (kind ``imu``, fed by the IMU stream: a
+    CSV log or a UDP source of ``time,fx,fy,r``; after ``heading_timeout``).
 
     Raises
     ------
@@ -114,15 +124,15 @@ def live_sensors(suite: SensorSuite, gates: Gates, imu: bool = False) -> tuple[d
     silent = []
     start = 0
     units = [name for name, each in zip(suite.names, suite.instruments) if isinstance(each, InertialUnit)]
-    if imu and len(units) > 1:
+    if direct and len(units) > 1:
         raise ValueError(f"sensors.{units[1]}: one IMU stream feeds one IMU; the suite has {len(units)} ({', '.join(units)})")
     for index, (name, each) in enumerate(zip(suite.names, suite.instruments)):
         columns = slice(start, start + each.size)
         start += each.size
-        if imu and isinstance(each, InertialUnit):
+        if direct and isinstance(each, InertialUnit):
             sensors[name] = LiveSensor(name, index, "imu", "imu", "", None, columns, gates.heading_timeout)
             continue
-        kind = FED.get(type(each))
+        kind = FED.get(type(each)) or (DIRECT_FED.get(type(each)) if direct else None)
         if kind is None:
             continue
         source = getattr(each, "source", None)
@@ -131,12 +141,12 @@ def live_sensors(suite: SensorSuite, gates: Gates, imu: bool = False) -> tuple[d
             continue
         talker, sender = source_spec(source)
         family = talker_family(talker)
-        if family is not None and family != FAMILIES[kind]:
+        if family is not None and family != FAMILIES.get(kind, family):
             raise ValueError(f"sensors.{name}.source: {source!r} is a {family} talker; sensor {name} takes {READS[kind]}")
         for other in sensors.values():
             if other.kind == kind and (other.talker, other.sender) == (talker, sender):
                 raise ValueError(f"sensors.{name}.source: {source!r} is sensor {other.name}'s source too; two sensors of a kind need two sources")
-        timeout = gates.position_timeout if kind == "position" else gates.heading_timeout
+        timeout = gates.heading_timeout if kind == "heading" else gates.position_timeout
         sensors[name] = LiveSensor(name, index, kind, source, talker, sender, columns, timeout)
     if not any(sensor.kind != "imu" for sensor in sensors.values()):
         raise ValueError(

@@ -85,6 +85,11 @@ def distance(latitude_a: float, longitude_a: float, latitude_b: float, longitude
     return 2 * EARTH_RADIUS * math.asin(min(1.0, math.sqrt(half)))
 
 
+def _wrapped(angle: float) -> float:
+    """An angle (rad) wrapped to [-pi, pi), as a simulated heading sensor's (:mod:`lookout.sensors`)."""
+    return angle - 2 * math.pi * math.floor((angle + math.pi) / (2 * math.pi))
+
+
 class OriginError(ValueError):
     """A fix too far from the frame's origin for a flat local frame.
 
@@ -310,7 +315,7 @@ class Session:
             assert suite is not None  # direct needs one
             from lookout.live.sensors import live_sensors
 
-            self.sensors, silent = live_sensors(suite, gates, imu=True)
+            self.sensors, silent = live_sensors(suite, gates, direct=True)
             spans, start = [], 0
             for signal in layout.signals:
                 spans.append((signal, start))
@@ -446,7 +451,7 @@ class Session:
     @property
     def kinds(self) -> tuple[str, ...]:
         """The kinds of reading the observer needs from a log (position, heading), in order."""
-        return tuple(dict.fromkeys(channel.kind for channel in self.channels.values() if channel.kind != "imu"))
+        return tuple(dict.fromkeys(channel.kind for channel in self.channels.values() if channel.kind in ("position", "heading")))
 
     @property
     def record_layout(self) -> Layout:
@@ -494,9 +499,9 @@ class Session:
                 self._input = np.asarray(reading.values, dtype=float)
             self.thrust_seen = True
             return False
-        kind = {"local_position": "position", "position": "position", "heading": "heading", "imu": "imu"}.get(reading.kind)
         if self.direct:
-            return kind is not None and self._direct_take(reading, kind)
+            return self._direct_take(reading, {"local_position": "position"}.get(reading.kind, reading.kind))
+        kind = {"local_position": "position", "position": "position", "heading": "heading"}.get(reading.kind)
         channel = self.channels.get(kind) if kind is not None else None
         if channel is None:
             self.not_read += 1  # rate of turn, the error ellipse, a channel the observer does not measure
@@ -560,6 +565,11 @@ class Session:
     def _value(self, reading: Reading, channel: _Channel) -> tuple[float, ...] | None:
         """A reading's value in the observer's units (local north/east m, heading rad in
         [-pi, pi), an IMU's m/s2 and rad/s), None when it is not used (counted)."""
+        if reading.kind == "ground_velocity":  # m/s, and the course wrapped as a simulated one's (NaN: none)
+            speed, course = reading.values
+            return (float(speed), _wrapped(math.radians(course)))
+        if reading.kind == "water_speed":  # VHW's speed along the keel: the speed log's surge (its sway not measured)
+            return (float(reading.values[0]), math.nan)
         if reading.kind == "imu":
             fx, fy, rate = reading.values
             value = (float(fx), float(fy), math.radians(rate))
@@ -584,9 +594,7 @@ class Session:
             return (float(north), float(east))
         if reading.kind == "local_position":
             return (float(reading.values[0]), float(reading.values[1]))
-        # wrapped to [-pi, pi) as a simulated heading sensor's (lookout.sensors)
-        angle = math.radians(reading.values[0])
-        return (angle - 2 * math.pi * math.floor((angle + math.pi) / (2 * math.pi)),)
+        return (_wrapped(math.radians(reading.values[0])),)
 
     def _sensor_take(self, sensor: LiveSensor, channel: _Channel, reading: Reading, value: tuple) -> bool:
         """Keep a named sensor's reading: its own held sample, and its channel's mark that a reading came."""
@@ -629,9 +637,10 @@ class Session:
             self.step_index = self.start_index = math.ceil(first / self.sample_period - 1e-9)
 
     def _every_kind_read(self) -> bool:
-        """Whether a reading of every kind the channels take (position, heading, IMU) came."""
-        kinds = {channel.kind for channel in self.channels.values()}
-        return kinds == {channel.kind for channel in self.channels.values() if channel.new is not None}
+        """Whether a reading of every kind the steps need (position, heading, IMU) came;
+        a speed over ground or through the water is not waited for."""
+        needed = {channel.kind for channel in self.channels.values() if channel.kind in ("position", "heading", "imu")}
+        return needed <= {channel.kind for channel in self.channels.values() if channel.new is not None}
 
     def advance(self, until: float) -> list[Block]:
         """Take every step with ``t_n < until`` (a reading stamped ``until`` is not in

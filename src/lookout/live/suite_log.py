@@ -4,8 +4,10 @@ stamped so that a replay gives its sentences back to it (``lookout write-log``).
 A position reference that a fix measures (``gnss``, ``hydroacoustic``) is written as
 GGA, a ``gyrocompass`` as THS (:data:`lookout.live.sensors.FED`); an IMU (the suite's
 only one) is written beside the log as a CSV log ``time,fx,fy,r``
-(:mod:`lookout.io.logs`); the other kinds (a speed log, a taut wire, GNSS velocity, a
-second IMU) have no sentence that lookout reads, and are left out. Each written sensor's sentences carry its ``source``
+(:mod:`lookout.io.logs`); the other kinds are left out: a taut wire and a second IMU
+have no sentence that lookout reads, and a speed log's VHW and a GNSS velocity's VTG
+carry a speed without a sign, which a simulated speed of noise about zero (a vessel at
+rest) does not fit. Each written sensor's sentences carry its ``source``
 (:func:`lookout.io.nmea.source_spec`): its talker (GP for a receiver, HE for a gyro
 when the source names none) and, when it names a sender, a tag block ``s:SENDER``. A
 sensor without a source is given ``@NAME``: a tag block with its own name. Each stamp

@@ -23,7 +23,7 @@ from lookout._math import rotation
 from lookout.components import BODY_FIXED, EARTH_FIXED, Signal
 from lookout.declare import NON_NEGATIVE, POSITIVE, Value, component
 from lookout.sensing.imu_grades import GRADE_NAMES, imu_grade
-from lookout.sensing.instrument import GaussMarkovError, Instrument, lever_arm_vector, period_value, std_value
+from lookout.sensing.instrument import SOURCE, GaussMarkovError, Instrument, lever_arm_vector, period_value, source_value, std_value
 from lookout.vessel_signals import BODY_AXES
 
 SPECIFIC_FORCE = Signal("measured_specific_force", "m/s2", "measured specific force (accelerometers)", BODY_FIXED, BODY_AXES, "body_axis")
@@ -294,6 +294,7 @@ class InertialUnit(Instrument):
         Value("speed_std", "float", "Standard deviation of the speed's white noise (m/s).", range=NON_NEGATIVE),
         Value("course_std", "float", "Standard deviation of the course's white noise (rad).", range=NON_NEGATIVE),
         Value("sample_period", "float", "Seconds between samples (s).", range=POSITIVE),
+        SOURCE,
     ),
 )
 @final
@@ -312,6 +313,9 @@ class GnssVelocity(Instrument):
         Standard deviation of the course's white noise (rad).
     sample_period : float, positive
         Seconds between samples (s).
+    source : str, optional
+        Where lookout live and lookout replay take its readings (RMC's and VTG's speed
+        and course over ground) from: a talker ID, a sender or both; simulation ignores it.
     """
 
     lever_arm: Array
@@ -320,14 +324,23 @@ class GnssVelocity(Instrument):
     sample_period: float = eqx.field(static=True)
     signals: tuple[Signal, ...] = eqx.field(static=True, default=(SPEED_OVER_GROUND, COURSE_OVER_GROUND), kw_only=True)
     noise_count: int = eqx.field(static=True, default=2, kw_only=True)
+    source: str | None = eqx.field(static=True, default=None, kw_only=True)
 
-    def __init__(self, lever_arm: npt.ArrayLike = (0.0, 0.0), speed_std: float = 0.05, course_std: float = 0.02, sample_period: float = 1.0):
+    def __init__(
+        self,
+        lever_arm: npt.ArrayLike = (0.0, 0.0),
+        speed_std: float = 0.05,
+        course_std: float = 0.02,
+        sample_period: float = 1.0,
+        source: str | None = None,
+    ):
         self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
         check.positive("speed_std", speed_std, allow_zero=True)
         check.positive("course_std", course_std, allow_zero=True)
         self.speed_std = jnp.asarray(float(speed_std))
         self.course_std = jnp.asarray(float(course_std))
         self.sample_period = period_value("sample_period", sample_period)
+        self.source = source_value("source", source)
 
     def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()]:
         return ()
@@ -339,8 +352,11 @@ class GnssVelocity(Instrument):
         earth = rotation(kinematics["heading"])[:2, :2] @ _velocity_at(kinematics, self.lever_arm)
         # the gradient of a norm at 0 is NaN: the speed through the squared norm kept off 0
         squared = jnp.sum(earth**2)
-        speed = jnp.where(squared > 0, jnp.sqrt(jnp.where(squared > 0, squared, 1.0)), 0.0)
-        return jnp.stack([speed, jnp.arctan2(earth[1], earth[0])])
+        moving = squared > 0
+        speed = jnp.where(moving, jnp.sqrt(jnp.where(moving, squared, 1.0)), 0.0)
+        # and atan2's at 0: the course at rest is 0 with a zero gradient, not NaN
+        course = jnp.arctan2(jnp.where(moving, earth[1], 0.0), jnp.where(moving, earth[0], 1.0))
+        return jnp.stack([speed, course])
 
     def noise_std(self) -> Array:
         return jnp.stack([self.speed_std, self.course_std])
@@ -354,6 +370,7 @@ class GnssVelocity(Instrument):
         LEVER_ARM,
         Value("noise_std", "array", "Standard deviation of the white noise [surge, sway] (m/s).", shape="(2,)", range=NON_NEGATIVE),
         Value("sample_period", "float", "Seconds between samples (s).", range=POSITIVE),
+        SOURCE,
     ),
 )
 @final
@@ -371,6 +388,9 @@ class SpeedLog(Instrument):
         Standard deviation of the white noise [surge, sway] (m/s).
     sample_period : float, positive
         Seconds between samples (s).
+    source : str, optional
+        Where lookout live and lookout replay take its readings (VHW's speed through the
+        water, its surge) from: a talker ID, a sender or both; simulation ignores it.
     """
 
     lever_arm: Array
@@ -378,11 +398,13 @@ class SpeedLog(Instrument):
     sample_period: float = eqx.field(static=True)
     signals: tuple[Signal, ...] = eqx.field(static=True, default=(WATER_VELOCITY,), kw_only=True)
     noise_count: int = eqx.field(static=True, default=2, kw_only=True)
+    source: str | None = eqx.field(static=True, default=None, kw_only=True)
 
-    def __init__(self, lever_arm: npt.ArrayLike = (0.0, 0.0), noise_std: ArrayLike = 0.05, sample_period: float = 1.0):
+    def __init__(self, lever_arm: npt.ArrayLike = (0.0, 0.0), noise_std: ArrayLike = 0.05, sample_period: float = 1.0, source: str | None = None):
         self.lever_arm = jnp.asarray(lever_arm_vector("lever_arm", lever_arm))
         self.noise = std_value("noise_std", noise_std, 2)
         self.sample_period = period_value("sample_period", sample_period)
+        self.source = source_value("source", source)
 
     def initial_memory(self, kinematics: dict[str, Array]) -> tuple[()]:
         return ()
