@@ -101,13 +101,23 @@ def _session(scenario_file: str, origin: str | None, gates: dict, on_event, say,
 
 
 def _model_free_session(
-    log: str, forced: str | None, waves: bool, origin: str | None, gates: dict, on_event, say, batch: int, variation: float | None = None
+    log: str,
+    forced: str | None,
+    waves: bool,
+    origin: str | None,
+    gates: dict,
+    on_event,
+    say,
+    batch: int,
+    variation: float | None = None,
+    imu: str | None = None,
 ):
     """A session of the model-free observer (:class:`~lookout.observers.model_free.ModelFreeFilter`)
     on the log's own sensors (:func:`lookout.live.log_sensors.log_sensors`: periods (the
     median step between a channel's distinct times, two digits), noise
     and, with ``waves``, the waves measured from the log), stepped at the faster
-    channel's period; said in one line."""
+    channel's period; said in one line. With ``imu`` (an IMU's CSV log), the IMU-aided
+    observer instead (:func:`_imu_aided_session`)."""
     from lookout.io.logs import scan_log
     from lookout.live.log_sensors import log_sensors
     from lookout.live.run import check_log_order
@@ -127,16 +137,18 @@ def _model_free_session(
         raise InputError(
             f"LOG {log}: without --scenario the observer without a hull model reads the log's positions and headings, and it has {missing} over a span of time"
         )
-    periods = {kind: float(f"{step:.2g}") for kind, step in steps.items()}  # 1 Hz, 10 Hz: two digits
+    try:  # of several sources of a kind, the one most readings came from: its rate and noise
+        measured = log_sensors(log, scan.format, waves=waves, variation=variation)
+    except ValueError as error:
+        raise InputError(str(error)) from None
+    periods = {"position": measured.position_period, "heading": measured.heading_period}  # 1 Hz, 10 Hz: two digits
     step = min(periods.values())
     # each channel due at its own period, a whole number of steps (a held fix is not new)
     periods = {kind: step * max(round(period / step), 1) for kind, period in periods.items()}
-    try:
-        measured = log_sensors(log, scan.format, periods["position"], periods["heading"], waves=waves, variation=variation)
-    except ValueError as error:
-        raise InputError(str(error)) from None
     if waves and measured.wave_period is None:
         raise InputError(f"--waves: LOG {log} shows no wave motion with a peak period between 3 and 25 s; leave --waves out")
+    if imu is not None:
+        return _imu_aided_session(log, scan.format, imu, measured, periods, waves, origin, gates, on_event, say, batch)
     heading_std = math.radians(measured.heading_std)
     sensor = PositionHeadingSensor(
         (measured.position_std, measured.position_std, heading_std), (periods["position"], periods["position"], periods["heading"])
@@ -154,6 +166,70 @@ def _model_free_session(
         f"stepped every {step:g} s; give --scenario to choose the observer"
     )
     return Session(observer, step, frame=_frame(origin), gates=_gate_values(gates), on_event=on_event, batch=batch)
+
+
+def _imu_aided_session(
+    log: str, fmt: str, imu: str, measured, periods: dict, waves: bool, origin: str | None, gates: dict, on_event, say, batch: int
+):
+    """A session of the IMU-aided observer (:class:`~lookout.observers.ins.InertialNavigationFilter`,
+    no hull model) on a suite of the log's own sensors, each fed by the source most of its
+    readings came from, and the IMU measured from its log
+    (:func:`lookout.live.log_sensors.imu_log`), stepped at the IMU's period; said in one line."""
+    import warnings
+
+    from lookout.io.nmea import source_spec
+    from lookout.live.log_sensors import imu_log
+    from lookout.live.session import Session
+    from lookout.observers.ins import InertialNavigationFilter
+    from lookout.sensing.combining import WeightedMean
+    from lookout.sensing.heading import Gyrocompass
+    from lookout.sensing.motion import InertialUnit
+    from lookout.sensing.position import GnssReceiver
+    from lookout.sensing.suite import SensorSuite
+
+    if fmt.startswith("csv"):
+        raise InputError(f"LOG {log}: a CSV log names no source for its readings; the IMU-aided observer without --scenario reads an NMEA log")
+    try:
+        unit = imu_log(imu)
+    except ValueError as error:
+        raise InputError(str(error)) from None
+    step = unit.sample_period
+    sources = {"position": measured.position_source, "heading": measured.heading_source}
+    for kind, source in sources.items():
+        try:
+            source_spec(source)
+        except ValueError:
+            raise InputError(f"LOG {log}: its {kind} readings come from {source!r}, not a source a sensor can name; give --scenario") from None
+    suite = SensorSuite(
+        {
+            "gnss": GnssReceiver(
+                noise_std=measured.position_std, sample_period=step * max(round(periods["position"] / step), 1), source=sources["position"]
+            ),
+            "gyro": Gyrocompass(
+                noise_std=math.radians(measured.heading_std),
+                sample_period=step * max(round(periods["heading"] / step), 1),
+                source=sources["heading"],
+            ),
+            "imu": InertialUnit(accelerometer_std=unit.accelerometer_std, gyro_std=unit.gyro_std, sample_period=step),
+        },
+        combining=WeightedMean(),
+    )
+    wave_std = None if measured.wave_std is None else (measured.wave_std[0], measured.wave_std[1], math.radians(measured.wave_std[2]))
+    observer = InertialNavigationFilter(
+        suite,
+        wave_period=measured.wave_period if waves else None,
+        wave_std=wave_std if waves else None,
+        plant_step=step,
+        filter_period=step,
+    )
+    say(
+        f"no --scenario: the IMU-aided observer (no hull model; its IMU's biases constants it estimates) on the log's sensors: "
+        f"{measured.describe()}, positions from {sources['position']}, headings from {sources['heading']}; {unit.describe()}, "
+        f"stepped every {step:g} s; give --scenario to choose the observer"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return Session(observer, step, frame=_frame(origin), gates=_gate_values(gates), on_event=on_event, batch=batch, suite=suite)
 
 
 def _check_gate_options(session, gates: dict, scenario_file: str) -> None:
@@ -598,7 +674,7 @@ def replay_command(
     # paced: one step per compiled call, as live; fast: a scan over blocks of steps
     batch = 1 if speed is not None else REPLAY_BATCH
     if scenario_file is None:
-        session = _model_free_session(log, forced, waves, origin, gates, _on_event(say), say, batch, variation)
+        session = _model_free_session(log, forced, waves, origin, gates, _on_event(say), say, batch, variation, imu)
         scenario_file = "no scenario: the model-free observer"
     else:
         session = _session(scenario_file, origin, gates, _on_event(say), say, batch=batch)

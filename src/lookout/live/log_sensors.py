@@ -52,6 +52,9 @@ class LogSensors:
         The waves' peak period (s), with ``waves``; None without.
     wave_std : tuple of float or None
         The wave motion's standard deviation (m, m, degrees), with ``waves``.
+    position_source, heading_source : str or None
+        The source most of the positions and of the headings came from
+        (:class:`~lookout.io.nmea.Reading`'s ``source``).
     """
 
     position_period: float
@@ -60,6 +63,8 @@ class LogSensors:
     heading_std: float
     wave_period: float | None = None
     wave_std: tuple[float, float, float] | None = None
+    position_source: str | None = None
+    heading_source: str | None = None
 
     def describe(self) -> str:
         """One line: rates, noise and waves."""
@@ -70,6 +75,11 @@ class LogSensors:
             f"position at {1 / self.position_period:.3g} Hz (noise {self.position_std:.2g} m), "
             f"heading at {1 / self.heading_period:.3g} Hz (noise {self.heading_std:.2g} deg){waves}"
         )
+
+
+def _period(times: list[float]) -> float:
+    """The median step between distinct times, to two significant digits (1 Hz, 10 Hz)."""
+    return float(f"{np.median(np.diff(times)):.2g}")
 
 
 def _moving_residual(values: np.ndarray, period: float) -> np.ndarray:
@@ -110,17 +120,25 @@ def _waves(residual: np.ndarray, period: float) -> tuple[float, float, float]:
 
 
 def log_sensors(
-    log: str | Path, fmt: str, position_period: float, heading_period: float, waves: bool = False, variation: float | None = None
+    log: str | Path,
+    fmt: str,
+    position_period: float | None = None,
+    heading_period: float | None = None,
+    waves: bool = False,
+    variation: float | None = None,
 ) -> LogSensors:
-    """The log's sensors (module docstring) at the given periods.
+    """The log's sensors (module docstring) at the given periods. Of several sources of
+    a kind (two receivers at their antennas, two gyros), the one most of its readings
+    came from is measured: its rate, and its noise about its own motion.
 
     Parameters
     ----------
     log : path
     fmt : str
         As :func:`lookout.io.logs.log_format` names it.
-    position_period, heading_period : float
-        Seconds between fixes and between headings (from the log's scan).
+    position_period, heading_period : float, optional
+        Seconds between fixes and between headings; default the median step between
+        the distinct times of the measured source's, to two significant digits.
     waves : bool
         Whether the vessel is in waves: the spread is split into waves and noise.
     variation : float, optional
@@ -140,21 +158,27 @@ def log_sensors(
     parser = NmeaParser(variation=variation)
     readings, _ = log_readings(log, parser, fmt)
     frame = None
-    positions: list[tuple[float, float]] = []
-    headings: list[float] = []
-    last: dict[str, float] = {}
+    # per kind and source: its distinct times and its values
+    series: dict[str, dict[str, tuple[list[float], list]]] = {"position": {}, "heading": {}}
     for reading in readings:
-        if reading.kind not in ("position", "local_position", "heading") or last.get(reading.kind) == reading.time:
+        if reading.kind not in ("position", "local_position", "heading"):
             continue
-        last[reading.kind] = reading.time
+        kind = "heading" if reading.kind == "heading" else "position"
+        times, values = series[kind].setdefault(reading.source, ([], []))
+        if times and times[-1] == reading.time:
+            continue  # a fix told twice in one epoch (GGA and RMC)
+        times.append(reading.time)
         if reading.kind == "heading":
-            headings.append(reading.values[0])
+            values.append(reading.values[0])
         elif reading.kind == "local_position":
-            positions.append((float(reading.values[0]), float(reading.values[1])))
+            values.append((float(reading.values[0]), float(reading.values[1])))
         else:
             frame = frame or LocalFrame(reading.values[0], reading.values[1])
             north, east, _ = frame.ned(reading.values[0], reading.values[1])
-            positions.append((float(north), float(east)))
+            values.append((float(north), float(east)))
+    most = {kind: max(by_source, key=lambda source: len(by_source[source][0])) if by_source else None for kind, by_source in series.items()}
+    positions = series["position"][most["position"]][1] if most["position"] is not None else []
+    headings = series["heading"][most["heading"]][1] if most["heading"] is not None else []
     for what, values in (("position", positions), ("heading", headings)):
         if len(values) < 3:
             hint = (
@@ -163,6 +187,11 @@ def log_sensors(
                 else ""
             )
             raise ValueError(f"LOG {log}: {len(values)} {what} readings, too few to measure its sensors from{hint}")
+    main = {kind: source for kind, source in most.items() if source is not None}  # each kind's: checked above
+    if position_period is None:
+        position_period = _period(series["position"][main["position"]][0])
+    if heading_period is None:
+        heading_period = _period(series["heading"][main["heading"]][0])
     position = _moving_residual(np.asarray(positions, dtype=float).reshape(-1, 2), position_period)
     heading = _moving_residual(np.degrees(np.unwrap(np.radians(np.asarray(headings, dtype=float)))).reshape(-1, 1), heading_period)
     if not waves:
@@ -171,6 +200,8 @@ def log_sensors(
             heading_period,
             max(float(np.sqrt(np.mean(position**2))), LEAST_POSITION_STD),
             max(float(np.sqrt(np.mean(heading**2))), LEAST_HEADING_STD),
+            position_source=most["position"],
+            heading_source=most["heading"],
         )
     peak, wave_position, noise_position = _waves(position, position_period)
     _, wave_heading, noise_heading = _waves(heading, heading_period)
@@ -181,7 +212,62 @@ def log_sensors(
         max(math.sqrt(noise_heading), LEAST_HEADING_STD),
         None if math.isnan(peak) else peak,
         (math.sqrt(wave_position), math.sqrt(wave_position), math.sqrt(wave_heading)),
+        most["position"],
+        most["heading"],
     )
 
 
-__all__ = ["LEAST_HEADING_STD", "LEAST_POSITION_STD", "WAVE_PERIODS", "WINDOW", "LogSensors", "log_sensors"]
+#: The least white noise taken for an IMU measured from its log: accelerometers (m/s2)
+#: and gyro (rad/s) per sample, a navigation-grade unit's order (docs/sensors.md).
+LEAST_ACCELEROMETER_STD, LEAST_GYRO_STD = 1e-5, 1e-6
+
+
+@dataclass(frozen=True)
+class ImuLog:
+    """An IMU as measured from its CSV log (``time,fx,fy,r``).
+
+    Attributes
+    ----------
+    sample_period : float
+        The median step between its rows (s), to two significant digits.
+    accelerometer_std, gyro_std : float
+        Its white noise per sample (m/s2 per axis, rad/s): each channel's second
+        differences' standard deviation over sqrt(6) (white noise of variance s^2 gives
+        second differences of 6 s^2; a motion smooth over three samples is left out),
+        the accelerometers' two averaged in variance.
+    """
+
+    sample_period: float
+    accelerometer_std: float
+    gyro_std: float
+
+    def describe(self) -> str:
+        return f"IMU at {1 / self.sample_period:.3g} Hz (noise {self.accelerometer_std:.2g} m/s2, {math.degrees(self.gyro_std):.2g} deg/s)"
+
+
+def imu_log(path: str | Path) -> ImuLog:
+    """The IMU of a CSV log ``time,fx,fy,r`` (:class:`ImuLog`).
+
+    Raises
+    ------
+    ValueError
+        Naming ``--imu`` and the file: fewer than four readings, or no step between them.
+    """
+    from lookout.io.logs import CsvLog
+
+    rows = np.asarray([(r.time, *r.values) for r in CsvLog(path, source="imu", option="--imu")], dtype=float).reshape(-1, 4)
+    if rows.shape[0] < 4:
+        raise ValueError(f"--imu {path}: {rows.shape[0]} readings, too few to measure the IMU from")
+    steps = np.diff(rows[:, 0])
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        raise ValueError(f"--imu {path}: every reading at one time; no rate to measure")
+    period = float(f"{np.median(steps):.2g}")
+    curvature = np.diff(rows[:, 1:], n=2, axis=0)
+    std = np.sqrt(np.mean(curvature**2, axis=0) / 6.0)
+    accelerometer = max(float(np.sqrt(np.mean(std[:2] ** 2))), LEAST_ACCELEROMETER_STD)
+    gyro = max(math.radians(float(std[2])), LEAST_GYRO_STD)  # the log's rate in deg/s
+    return ImuLog(period, accelerometer, gyro)
+
+
+__all__ = ["LEAST_HEADING_STD", "LEAST_POSITION_STD", "WAVE_PERIODS", "WINDOW", "ImuLog", "LogSensors", "imu_log", "log_sensors"]
