@@ -232,6 +232,16 @@ def _imu_aided_session(
         return Session(observer, step, frame=_frame(origin), gates=_gate_values(gates), on_event=on_event, batch=batch, suite=suite)
 
 
+def _say_thrust(session, given: bool, say) -> None:
+    """What the thrust does for the session's observer, where it is not what one expects:
+    none given for an observer that predicts with it, or given to one without input."""
+    if not session.observer.input_layout.size:
+        if given:
+            say("--thrust: the observer has no input (the IMU-aided one integrates its IMU): the thrust is not used")
+    elif not given:
+        say("no --thrust: the observer predicts with zero input")
+
+
 def _check_gate_options(session, gates: dict, scenario_file: str) -> None:
     """Refuse a gate option given for an observer whose gate does not use it (a chi-square
     probability for an observer without an innovation covariance, a gate in metres or
@@ -387,7 +397,11 @@ def _sentence_line(parser) -> str:
         causes = kinds[formatter]
         others = ", ".join(f"{cause} {n}" for cause, n in sorted(causes.items()) if cause != "accepted")
         parts.append(f"{formatter} {causes.get('accepted', 0)}" + (f" ({others})" if others else ""))
-    return "sentences: " + ", ".join(parts) + " (read; in parentheses, lines that gave no reading, by cause)"
+    return (
+        "sentences: "
+        + ", ".join(parts)
+        + (" (read; in parentheses, lines that gave no reading, by cause)" if any("(" in part for part in parts) else " (read)")
+    )
 
 
 def _gates(min_quality, max_hdop, position_gate, heading_gate, position_timeout, heading_timeout, gate_probability) -> dict:
@@ -489,7 +503,7 @@ def _say(quiet: bool):
 
 def _on_event(say):
     def on_event(event):
-        when = f"{event['session_time']:.1f} s into the session" if "session_time" in event else f"clock {event['time']:.2f} s"
+        when = f"{round(event['session_time'], 1) + 0.0:.1f} s into the session" if "session_time" in event else f"clock {event['time']:.2f} s"
         if event["event"] == "gap":
             say(f"gap at {when}: no reading for {event['length']:.1f} s (every channel dead-reckoned)")
         elif event["event"] in ("outage", "recovered", "source", "reopened"):
@@ -712,8 +726,8 @@ def replay_command(
     parser = NmeaParser(variation=variation)
     import warnings
 
-    if thrust is None and not scenario_file.startswith("no scenario"):
-        say("no --thrust: the observer predicts with zero input")
+    if not scenario_file.startswith("no scenario") and (thrust is None or not session.observer.input_layout.size):
+        _say_thrust(session, thrust is not None, say)
     elif (
         check.thrust is not None and max(check.thrust.first - check.log.first, check.log.newest - check.thrust.newest) > session.gap_after
     ):  # more than a silence
@@ -960,7 +974,7 @@ def live_command(
     given = [(option, text) for option, text in (("--nmea", nmea), ("--thrust", thrust), ("--imu", imu)) if text is not None]
     for i, (option, text) in enumerate(given):
         for other, other_text in given[:i]:
-            if text == other_text:
+            if text == other_text and not (text.startswith("udp://") and text.endswith(":0")):  # port 0: two ports the system picks
                 raise InputError(f"{option} and {other} must be two sources; both are {text}")
     for option, text in given:
         try:
@@ -987,14 +1001,22 @@ def live_command(
             if each[1] is not sys.stdin.buffer:
                 each[1].close()
         raise InputError(str(error)) from None
+    bound = [(option, each[2]) for option, each in zip((option for option, _ in given), opened) if each[0] == "udp"]
+    for i, (option, where) in enumerate(bound):  # two spellings of one address (udp://:10110, udp://localhost:10110)
+        for other, other_where in bound[:i]:
+            if where == other_where:
+                for each in opened:
+                    if each[1] is not sys.stdin.buffer:
+                        each[1].close()
+                raise InputError(f"{option} and {other} must be two sources; both are {where}")
     sources = dict(zip((option for option, _ in given), opened))
     source, thrust_source, imu_source = sources["--nmea"], sources.get("--thrust"), sources.get("--imu")
     emit, close, remove = _outputs(session, out, publish, scenario_file, f"live from {nmea}", flush_every)
-    if thrust_source is None:
-        say("no --thrust: the observer predicts with zero input")
+    _say_thrust(session, thrust_source is not None, say)
     parser = NmeaParser(variation=variation)
     session.warm_up()
-    say(f"listening on {source[2]} (Ctrl-C stops)")
+    others = "".join(f", {what} on {each[2]}" for what, each in (("thrust", thrust_source), ("IMU", imu_source)) if each is not None)
+    say(f"listening on {source[2]}{others} (Ctrl-C stops)")
     import warnings
 
     from lookout.live.session import OriginError

@@ -214,9 +214,11 @@ class GatedObserver(Observer):
         # every part of the state is finite (a Stepper refuses a step that is not):
         # a missing reading is held as 0 with an arrival long ago
         held = jnp.where(jnp.isfinite(new), new, 0.0)
-        held_time = jnp.where(jnp.isfinite(arrival), arrival, -1e300)
+        # without a hold, a channel not yet heard is given its timeout from the first step
+        # (a second gyro whose first reading comes a moment later is no outage)
+        held_time = jnp.where(jnp.isfinite(arrival), arrival, -1e300 if self.hold else 0.0)
         missing = (~jnp.isfinite(new)).astype(held.dtype)
-        stale = self._stale(missing, ~jnp.isfinite(arrival))
+        stale = self._stale(missing, jnp.zeros(n, dtype=bool) if not self.hold else ~jnp.isfinite(arrival))
         return GatedState(self.inner.init(new, guess), held, held_time, jnp.zeros(n), held, missing, jnp.zeros(n), stale)
 
     def _stale(self, missing: jax.Array, old: jax.Array) -> jax.Array:

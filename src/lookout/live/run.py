@@ -30,7 +30,7 @@ from typing import BinaryIO, cast
 
 import numpy as np
 
-from lookout.io.logs import CsvLog, LogScan, log_format, nmea_log, scan_log
+from lookout.io.logs import CSV_HEADERS, CsvLog, LogScan, log_format, nmea_log, scan_log
 from lookout.io.nmea import LineSplitter, NmeaParser, Reading
 from lookout.live.options import MAX_GAP
 from lookout.live.session import Block, Session, check_origin, fix_refusal
@@ -143,6 +143,11 @@ def check_log_order(scan: LogScan, tolerance: float) -> None:
         if scan.format == "nmea-raw":
             raise ValueError(
                 f"{where}: no sentence gives a time ({_described(scan)}); a raw NMEA log is timed by its GGA, GNS, GLL, RMC or ZDA sentences' UTC times"
+            )
+        if scan.format.startswith("csv-"):
+            header = next(",".join(columns) for columns, kind in CSV_HEADERS.items() if f"csv-{kind}" == scan.format)
+            raise ValueError(
+                f"{where}: no row can be read ({_described(scan)}); a row is numbers under the header {header}, the time in seconds first"
             )
         raise ValueError(f"{where}: no line has a time ({_described(scan)}); a log's lines are TIME SENTENCE, TIME in seconds")
     if scan.back > tolerance:

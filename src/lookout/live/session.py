@@ -716,7 +716,7 @@ class Session:
         raw, inputs = self._raw[:n].copy(), self._inputs[:n].copy()
         started = _time.perf_counter()
         if not self._started:
-            if not self.thrust_seen:
+            if not self.thrust_seen and self._input.size:
                 warnings.warn("lookout live: no thrust feedback; the observer predicts with zero input", RuntimeWarning, stacklevel=4)
             if self.stepper is None:
                 self.stepper = Stepper(self.gated_observer, self.guess, raw[0])
