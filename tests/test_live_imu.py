@@ -293,3 +293,12 @@ def test_replay_without_a_scenario_runs_the_imu_aided_observer_on_the_logs_own_s
     before = (t > 30.0) & (t < LOSS[0])
     assert np.sqrt(np.mean(error[before] ** 2)) < 1.5
     assert error[np.searchsorted(t, LOSS[0] + LOSS[1] - 1.0)] < 10.0 and error[np.searchsorted(t, LOSS[0] + LOSS[1] + 20.0)] < 2.0
+    # its figure zooms on the loss, told by the receiver's own flag (outage_gnss_position)
+    import matplotlib.pyplot as plt
+
+    from lookout.live.figures import plot_session
+
+    with xr.open_dataset(out) as replayed, xr.open_dataset(written / "dp-vessel-truth.nc") as truth:
+        figure = plot_session(replayed.load(), truth.load())
+    assert figure is not None and "no position fix used from 121.5 to 179.9 s" in figure.get_suptitle()
+    plt.close(figure)

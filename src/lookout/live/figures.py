@@ -42,15 +42,19 @@ def with_truth(session: xr.Dataset, truth: xr.Dataset) -> xr.Dataset:
 
 def plot_session(session: xr.Dataset, truth: xr.Dataset | None = None, *, title: str | None = None) -> Figure | None:
     """Estimates of a session: against the truth when one is given (the whole session
-    and a zoom on its first position outage, or its end; a smoothed session's smoothed
+    and a zoom on its first position outage, every position reference silent, or its end; a smoothed session's smoothed
     estimates in blue beside them), else every estimate with its measurement."""
     if truth is None:
         return plot_run_estimates(session, title=title)
     merged = with_truth(session, truth)
     time = session["time"].values
     window, note = None, ""
-    if "outage_position" in session and int(session["outage_position"].sum()):
-        lost = time[np.asarray(session["outage_position"].values[0]) > 0]
+    # the combined position's outage, or every position reference's at once (a Kalman
+    # filter reading each: outage_dgnss1_position, outage_dgnss2_position)
+    flags = [name for name in session.data_vars if name == "outage_position" or (name.startswith("outage_") and name.endswith("_position"))]
+    silent = np.all([np.asarray(session[name].values[0]) > 0 for name in flags], axis=0) if flags else np.zeros(time.size, dtype=bool)
+    if silent.any():
+        lost = time[silent]
         first = lost[lost < lost[0] + 120.0]
         window = (max(time[0], first[0] - 20.0), min(time[-1], first[-1] + 30.0))
         note = f"; no position fix used from {first[0]:g} to {first[-1]:g} s (dead reckoning)"
