@@ -14,6 +14,7 @@ import dataclasses
 import functools
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -138,6 +139,23 @@ def test_the_filter_reads_the_instrument_channels_with_their_noise_and_periods()
     np.testing.assert_allclose(np.diag(np.asarray(observer.measurement_covariance)), [1.0, 1.0, 1e-4, 1e-4, 1e-6, 4e-6], rtol=1e-14)
     assert observer.channel_periods == (1.0, 1.0, 0.5, 0.5, 0.5, 1.0)
     assert observer.channel_angles == (False,) * 5 + (True,)
+
+
+def test_due_every_makes_every_channel_due_at_every_step_and_changes_nothing_else():
+    """A live session's filter (each reading taken when it comes): every channel due at
+    each multiple of the step, an ignored channel still never; the original untouched."""
+    imu = {"kind": "imu", "sample_period": 0.5, "accelerometer_std": 0.01, "gyro_std": 0.001}
+    observer = compose(_document({"gnss": A, "imu": imu}, runs=1)).scenario.observer
+    object.__setattr__(observer, "ignored_channels", (False, False, True, True, True, False))  # as the IMU-aided observer marks its IMU
+    live = observer.due_every(0.1)
+    assert live.channel_periods == (0.1,) * 6 and observer.channel_periods == (1.0, 1.0, 0.5, 0.5, 0.5, 1.0)
+    for t in (0.1, 0.3, 0.7, 1.0):
+        np.testing.assert_array_equal(live.due(t), [True, True, False, False, False, True])
+    np.testing.assert_array_equal(observer.due(0.3), [False] * 6)
+    leaves = [jax.tree_util.tree_leaves(eqx.filter(each, eqx.is_array)) for each in (live, observer)]
+    assert len(leaves[0]) == len(leaves[1]) > 0 and all(a is b for a, b in zip(*leaves))  # the same arrays: a copy, the periods apart
+    with pytest.raises(ValueError, match="period"):
+        observer.due_every(0.0)
 
 
 @pytest.mark.slow
