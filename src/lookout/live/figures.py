@@ -51,7 +51,7 @@ def plot_session(session: xr.Dataset, truth: xr.Dataset | None = None, *, title:
     window, note = None, ""
     # the combined position's outage, or every position reference's at once (a Kalman
     # filter reading each: outage_dgnss1_position, outage_dgnss2_position)
-    flags = [name for name in session.data_vars if name == "outage_position" or (name.startswith("outage_") and name.endswith("_position"))]
+    flags = [name for name in map(str, session.data_vars) if name == "outage_position" or (name.startswith("outage_") and name.endswith("_position"))]
     silent = np.all([np.asarray(session[name].values[0]) > 0 for name in flags], axis=0) if flags else np.zeros(time.size, dtype=bool)
     if silent.any():
         lost = time[silent]
