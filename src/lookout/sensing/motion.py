@@ -314,8 +314,8 @@ class GnssVelocity(Instrument):
     sample_period : float, positive
         Seconds between samples (s).
     source : str, optional
-        Where lookout live and lookout replay take its readings (RMC's and VTG's speed
-        and course over ground) from: a talker ID, a sender or both; simulation ignores it.
+        Where lookout live and lookout replay take its readings from: a talker ID, a sender or both
+        (GP, @10.0.0.5, GP@10.0.0.5); simulation ignores it.
     """
 
     lever_arm: Array
@@ -389,8 +389,8 @@ class SpeedLog(Instrument):
     sample_period : float, positive
         Seconds between samples (s).
     source : str, optional
-        Where lookout live and lookout replay take its readings (VHW's speed through the
-        water, its surge) from: a talker ID, a sender or both; simulation ignores it.
+        Where lookout live and lookout replay take its readings from: a talker ID, a sender or both
+        (GP, @10.0.0.5, GP@10.0.0.5); simulation ignores it.
     """
 
     lever_arm: Array
