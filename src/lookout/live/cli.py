@@ -153,19 +153,21 @@ def _model_free_session(
     sensor = PositionHeadingSensor(
         (measured.position_std, measured.position_std, heading_std), (periods["position"], periods["position"], periods["heading"])
     )
-    wave_std = None if measured.wave_std is None else (measured.wave_std[0], measured.wave_std[1], math.radians(measured.wave_std[2]))
-    observer = ModelFreeFilter(
-        sensor,
-        wave_period=measured.wave_period if waves else None,
-        wave_std=wave_std if waves else None,
-        plant_step=step,
-        filter_period=step,
-    )
+    observer = ModelFreeFilter(sensor, **_wave_model(measured, waves), plant_step=step, filter_period=step)
     say(
         f"no --scenario: the model-free observer (no hull model, settling {SETTLING_TIME:g} s) on the log's sensors: {measured.describe()}, "
         f"stepped every {step:g} s; give --scenario to choose the observer"
     )
     return Session(observer, step, frame=_frame(origin), gates=_gate_values(gates), on_event=on_event, batch=batch)
+
+
+def _wave_model(measured, waves: bool) -> dict:
+    """The ``wave_period`` and ``wave_std`` (m, m, rad) of an observer without a hull model
+    on a log's sensors: the waves measured from the log with ``waves``, none without."""
+    if not waves or measured.wave_std is None:
+        return {"wave_period": None, "wave_std": None}
+    north, east, heading = measured.wave_std
+    return {"wave_period": measured.wave_period, "wave_std": (north, east, math.radians(heading))}
 
 
 def _imu_aided_session(
@@ -214,14 +216,7 @@ def _imu_aided_session(
         },
         combining=WeightedMean(),
     )
-    wave_std = None if measured.wave_std is None else (measured.wave_std[0], measured.wave_std[1], math.radians(measured.wave_std[2]))
-    observer = InertialNavigationFilter(
-        suite,
-        wave_period=measured.wave_period if waves else None,
-        wave_std=wave_std if waves else None,
-        plant_step=step,
-        filter_period=step,
-    )
+    observer = InertialNavigationFilter(suite, **_wave_model(measured, waves), plant_step=step, filter_period=step)
     say(
         f"no --scenario: the IMU-aided observer (no hull model; its IMU's biases constants it estimates) on the log's sensors: "
         f"{measured.describe()}, positions from {sources['position']}, headings from {sources['heading']}; {unit.describe()}, "
