@@ -108,3 +108,17 @@ def pytest_collection_modifyitems(config, items):
         path = item.path
         if path.name in SLOW_FILES or path.parent.name in SLOW_FOLDERS:
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _compiled_programs_freed():
+    """A worker's compiled programs are dropped after each test file: JAX's caches keep
+    every executable a process built, and a worker running half the suite grew to 12 GB
+    without this (a file's own tests still share their programs)."""
+    yield
+    import gc
+
+    import jax
+
+    jax.clear_caches()
+    gc.collect()
