@@ -26,11 +26,11 @@ demo: $(VENV)/.installed
 	$(BIN)/lookout reproduce fossen-strand-1999 --out $(OUT)
 
 test: $(VENV)/.installed-dev
-	$(BIN)/python -m pytest -q -n auto --dist loadgroup --durations=25
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup --max-worker-restart=0 --durations=25
 
 # The loop while one works: lint, types and the tests not marked slow (docs/testing.md).
 check: lint types $(VENV)/.installed-dev
-	$(BIN)/python -m pytest -q -n auto --dist loadgroup -m "not slow"
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup --max-worker-restart=0 -m "not slow"
 
 lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check .
