@@ -19,11 +19,12 @@ applied thrust to ``time,surge,sway,yaw``, and the run to NetCDF.
 
 A run of a sensor suite is logged as its bridge logs it (``sensors``, a
 :class:`LoggedSensor` each): every position reference its own GGA at its own sample
-instants, every gyrocompass its own THS, each sentence stamped with the talker and
+instants, every gyrocompass its own THS, a rate gyro its ROT, each sentence stamped with the talker and
 the tag block (``\\s:SOURCE*hh\\``) that name its source. The outage silences every
 position reference; the corruptions and the wild points are drawn per sensor; the
 headings of one instant arrive in the order of ``sensors``. The CSV then has a column
-per sensor channel (``dgnss1.north``, ``gyro1.heading``), a row per sample.
+per sensor channel (``dgnss1.north``, ``gyro1.heading``, ``rot.rate_of_turn`` in degrees
+per minute as ROT gives it), a row per sample.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ EPOCH = 1796083200.0
 DEFAULT_OUTAGE = (300.0, 30.0)
 #: Before the step that uses it, the part of a sample period within which a sample's
 #: sentence arrives, by what it measures (uniform).
-ARRIVAL = {"position": (0.4, 0.9), "heading": (0.05, 0.35)}
+ARRIVAL = {"position": (0.4, 0.9), "heading": (0.05, 0.35), "rate_of_turn": (0.4, 0.9)}
 #: The same for an IMU's samples (its CSV log): before the headings, on which a replay
 #: steps, so that each step integrates the sample of its own instant, as a simulation does.
 IMU_ARRIVAL = (0.4, 0.95)
@@ -100,6 +101,12 @@ def ths(heading_degrees: float, talker: str = "HE") -> str:
     return sentence(talker, "THS", [f"{heading_degrees % 360.0:.5f}", "A"])
 
 
+def rot(degrees_per_minute: float, talker: str = "TI") -> str:
+    """A ROT sentence (talker TI unless told, status A): the rate of turn in degrees per
+    minute, negative when the bow turns to port, with three decimals."""
+    return sentence(talker, "ROT", [f"{degrees_per_minute:.3f}", "A"])
+
+
 @dataclass(frozen=True)
 class LoggedSensor:
     """One instrument of a run written to its log: where its samples are, the sentence
@@ -109,8 +116,9 @@ class LoggedSensor:
     ----------
     name : str
         The sensor's name: its columns' prefix in the CSV (``dgnss1.north``).
-    kind : {"position", "heading"}
-        GGA fixes of ``channel`` (north, east; m) or THS headings (rad).
+    kind : {"position", "heading", "rate_of_turn"}
+        GGA fixes of ``channel`` (north, east; m), THS headings (rad) or ROT rates of
+        turn (rad/s).
     channel : str
         Its samples in the run's dataset, held between them (``dgnss1.measured_position``).
     sample_period : float
@@ -131,7 +139,7 @@ class LoggedSensor:
 
     def __post_init__(self):
         if self.kind not in ARRIVAL:
-            raise ValueError(f"LoggedSensor {self.name}: kind must be 'position' or 'heading'; got {self.kind!r}")
+            raise ValueError(f"LoggedSensor {self.name}: kind must be 'position', 'heading' or 'rate_of_turn'; got {self.kind!r}")
         if not re.fullmatch(r"[A-Z][A-Z0-9]", self.talker):
             raise ValueError(f"LoggedSensor {self.name}: talker must be two capital letters or digits; got {self.talker!r}")
         if not (math.isfinite(self.sample_period) and self.sample_period > 0):
@@ -147,12 +155,13 @@ class LoggedSensor:
     @property
     def columns(self) -> tuple[str, ...]:
         """Its columns in the CSV of a suite's log."""
-        return (f"{self.name}.north", f"{self.name}.east") if self.kind == "position" else (f"{self.name}.heading",)
+        return (f"{self.name}.north", f"{self.name}.east") if self.kind == "position" else (f"{self.name}.{self.kind}",)
 
     def describe(self) -> str:
         """How its sentences are written, in words: ``GGA as GP, tag block s:dgps1, every 1 s``."""
         tag = f", tag block s:{self.sender}" if self.sender is not None else ""
-        return f"{'GGA' if self.kind == 'position' else 'THS'} as {self.talker}{tag}, every {self.sample_period:g} s"
+        written = {"position": "GGA", "heading": "THS", "rate_of_turn": "ROT"}[self.kind]
+        return f"{written} as {self.talker}{tag}, every {self.sample_period:g} s"
 
 
 def write_simulated_log(
@@ -297,6 +306,10 @@ def write_simulated_log(
                 latitude, longitude, _ = frame.geodetic(value[0], value[1], 0.0)
                 nmea.append((arrival, each.stamp + gga(epoch + t, float(latitude), float(longitude), talker=each.talker), i, k))
                 cells = (repr(float(value[0])), repr(float(value[1])))
+            elif each.kind == "rate_of_turn":
+                per_minute = 60.0 * math.degrees(float(value[0]))
+                nmea.append((arrival, each.stamp + rot(per_minute, talker=each.talker), i, k))
+                cells = (repr(per_minute),)
             else:
                 nmea.append((arrival, each.stamp + ths(math.degrees(value[0]), talker=each.talker), i, k))
                 cells = (repr(math.degrees(float(value[0]))),)

@@ -1148,7 +1148,7 @@ def write_log_command(
         paths["scenario"] = _scenario_with_sources(spec, plan, folder / f"{name}-scenario.toml", scenario_file, origin)
         for sensor, kind in plan.skipped:
             print(
-                f"sensor {sensor} ({kind}) not written: a log carries position fixes (gnss, hydroacoustic) and headings (gyrocompass)",
+                f"sensor {sensor} ({kind}) not written: a log carries position fixes (gnss, hydroacoustic), headings (gyrocompass) and rates of turn (rate-gyro)",
                 file=sys.stderr,
             )
         for each in plan.sensors:
@@ -1160,7 +1160,9 @@ def write_log_command(
     if plan is not None:
         print(
             f"replay it with: lookout replay {paths['nmea']} --scenario {paths['scenario']} --origin {origin} "
-            f"--thrust {paths['thrust']}" + (f" --imu {paths['imu']}" if "imu" in paths else "") + f" --truth {paths['truth']}",
+            f"--thrust {paths['thrust']}"
+            + (f" --imu {paths['imu']}" if "imu" in paths else "")
+            + f" --figure {paths['nmea'].with_name('replay.png')} --truth {paths['truth']}",
             file=sys.stderr,
         )
 

@@ -27,6 +27,7 @@ MAX_ORIGIN_DISTANCE = 100e3
 #: 2 g and 30 deg/s are beyond any hull's motion, so that a reading past them is a
 #: corrupted sample (a bit error, a units mistake), counted as ``range`` and not used:
 #: an IMU drives the observer that integrates it, and one such sample would move its state.
+#: A rate of turn (ROT) is checked against the same yaw-rate limit.
 IMU_LIMITS = (2 * 9.80665, math.radians(30.0))
 
 

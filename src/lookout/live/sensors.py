@@ -45,6 +45,7 @@ from lookout.sensing.heading import Gyrocompass
 from lookout.sensing.instrument import HEADING, POSITION
 from lookout.sensing.motion import GnssVelocity, InertialUnit, SpeedLog
 from lookout.sensing.position import GnssReceiver, HydroacousticReference
+from lookout.sensing.rate_gyro import RateGyro
 
 if TYPE_CHECKING:
     from lookout.sensing.suite import SensorSuite
@@ -53,17 +54,18 @@ if TYPE_CHECKING:
 FED = {GnssReceiver: "position", HydroacousticReference: "position", Gyrocompass: "heading"}
 #: Those a stream feeds too when the observer reads each instrument itself (a Kalman
 #: filter on the suite): what the combining stage does not combine.
-DIRECT_FED = {GnssVelocity: "ground_velocity", SpeedLog: "water_speed"}
+DIRECT_FED = {GnssVelocity: "ground_velocity", SpeedLog: "water_speed", RateGyro: "rate_of_turn"}
 #: What each reading kind is read from, in words.
 READS = {
     "position": "position fixes (GGA, GLL, RMC)",
     "heading": "headings (HDT, THS)",
     "ground_velocity": "speed and course over ground (RMC, VTG)",
     "water_speed": "speed through the water (VHW)",
+    "rate_of_turn": "rates of turn (ROT)",
 }
 #: The talker family (:data:`lookout.io.nmea.TALKER_FAMILIES`) of each reading kind
 #: that has one.
-FAMILIES = {"position": "GNSS", "heading": "heading", "ground_velocity": "GNSS"}
+FAMILIES = {"position": "GNSS", "heading": "heading", "ground_velocity": "GNSS", "rate_of_turn": "heading"}
 #: The combined channel a sensor's readings make new, by what the instrument provides.
 COMBINED = {POSITION: "measured_position", HEADING: "measured_heading"}
 
@@ -110,7 +112,7 @@ def live_sensors(suite: SensorSuite, gates: Gates, direct: bool = False) -> tupl
     a kind in :data:`FED` with a ``source``), and the names of those of such a kind that
     name no source (never fed: a warning). With ``direct`` (an observer that reads each
     instrument), also those of :data:`DIRECT_FED` (their readings timing out after
-    ``position_timeout``) and the suite's IMU (kind ``imu``, fed by the IMU stream: a
+    ``position_timeout``, a rate of turn's after ``heading_timeout``) and the suite's IMU (kind ``imu``, fed by the IMU stream: a
     CSV log or a UDP source of ``time,fx,fy,r``; after ``heading_timeout``).
 
     Raises
@@ -146,7 +148,7 @@ def live_sensors(suite: SensorSuite, gates: Gates, direct: bool = False) -> tupl
         for other in sensors.values():
             if other.kind == kind and (other.talker, other.sender) == (talker, sender):
                 raise ValueError(f"sensors.{name}.source: {source!r} is sensor {other.name}'s source too; two sensors of a kind need two sources")
-        timeout = gates.heading_timeout if kind == "heading" else gates.position_timeout
+        timeout = gates.heading_timeout if kind in ("heading", "rate_of_turn") else gates.position_timeout
         sensors[name] = LiveSensor(name, index, kind, source, talker, sender, columns, timeout)
     if not any(sensor.kind != "imu" for sensor in sensors.values()):
         raise ValueError(

@@ -564,12 +564,18 @@ class Session:
 
     def _value(self, reading: Reading, channel: _Channel) -> tuple[float, ...] | None:
         """A reading's value in the observer's units (local north/east m, heading rad in
-        [-pi, pi), an IMU's m/s2 and rad/s), None when it is not used (counted)."""
+        [-pi, pi), an IMU's m/s2 and rad/s, a rate of turn's rad/s), None when it is not used (counted)."""
         if reading.kind == "ground_velocity":  # m/s, and the course wrapped as a simulated one's (NaN: none)
             speed, course = reading.values
             return (float(speed), _wrapped(math.radians(course)))
         if reading.kind == "water_speed":  # VHW's speed along the keel: the speed log's surge (its sway not measured)
             return (float(reading.values[0]), math.nan)
+        if reading.kind == "rate_of_turn":  # ROT's degrees per minute, range-checked as an IMU's yaw rate
+            rate = math.radians(float(reading.values[0]) / 60.0)
+            if not abs(rate) <= IMU_LIMITS[1]:
+                channel.counts["range"] += 1
+                return None
+            return (rate,)
         if reading.kind == "imu":
             fx, fy, rate = reading.values
             value = (float(fx), float(fy), math.radians(rate))

@@ -2,7 +2,8 @@
 stamped so that a replay gives its sentences back to it (``lookout write-log``).
 
 A position reference that a fix measures (``gnss``, ``hydroacoustic``) is written as
-GGA, a ``gyrocompass`` as THS (:data:`lookout.live.sensors.FED`); an IMU (the suite's
+GGA, a ``gyrocompass`` as THS (:data:`lookout.live.sensors.FED`), a ``rate-gyro`` as
+ROT (in degrees per minute, three decimals); an IMU (the suite's
 only one) is written beside the log as a CSV log ``time,fx,fy,r``
 (:mod:`lookout.io.logs`); the other kinds are left out: a taut wire and a second IMU
 have no sentence that lookout reads, and a speed log's VHW and a GNSS velocity's VTG
@@ -25,14 +26,17 @@ from lookout.io.nmea import source_rank, source_spec, tag_block, talker_family
 from lookout.io.simulated_log import LoggedSensor
 from lookout.live.sensors import FAMILIES, FED, READS, LiveSensor, route
 from lookout.sensing.motion import InertialUnit
+from lookout.sensing.rate_gyro import RateGyro
 
 if TYPE_CHECKING:
     from lookout.sensing.suite import SensorSuite
 
 #: The talker of a sensor's sentences when its source names none, by what it measures.
-DEFAULT_TALKERS = {"position": "GP", "heading": "HE"}
+DEFAULT_TALKERS = {"position": "GP", "heading": "HE", "rate_of_turn": "TI"}
 #: The sentence each reading kind is written as.
-SENTENCES = {"position": "GGA", "heading": "THS"}
+SENTENCES = {"position": "GGA", "heading": "THS", "rate_of_turn": "ROT"}
+#: The instrument kinds a log carries and the reading kind each becomes.
+LOGGED = {**FED, RateGyro: "rate_of_turn"}
 
 
 @dataclass(frozen=True)
@@ -89,7 +93,7 @@ def suite_log(suite: SensorSuite) -> SuiteLog:
     units = [(name, float(each.sample_period)) for name, each in zip(suite.names, suite.instruments) if isinstance(each, InertialUnit)]
     imu = units[0] if len(units) == 1 else None
     for index, (name, each) in enumerate(zip(suite.names, suite.instruments)):
-        kind = FED.get(type(each))
+        kind = LOGGED.get(type(each))
         if imu is not None and name == imu[0]:
             continue
         if kind is None:
@@ -119,12 +123,12 @@ def suite_log(suite: SensorSuite) -> SuiteLog:
                 tag_block(sender)
             except ValueError as error:
                 raise ValueError(f"sensors.{name}.source: {source!r}: {error}") from None
-        signal = each.signals[0].name  # a position reference's measured_position, a gyro's measured_heading
+        signal = each.signals[0].name  # a position reference's measured_position, a gyro's measured_heading, a rate gyro's measured_yaw_rate
         logged.append(LoggedSensor(name, kind, f"{name}.{signal}", float(each.sample_period), talker or DEFAULT_TALKERS[kind], sender))
         live[name] = LiveSensor(name, index, kind, source, talker, sender, slice(0, 0), math.inf)
         sources[name] = source
     kinds = {each.kind for each in logged}
-    if kinds != {"position", "heading"}:
+    if not {"position", "heading"} <= kinds:
         listed = ", ".join(f"{name} {kind_of(each)}" for name, each in zip(suite.names, suite.instruments))
         missing = " and no ".join(what for what, kind in (("position reference", "position"), ("gyrocompass", "heading")) if kind not in kinds)
         raise ValueError(

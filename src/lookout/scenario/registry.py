@@ -55,6 +55,7 @@ BUILTIN_MODULES = (
     "lookout.sensing.position",
     "lookout.sensing.heading",
     "lookout.sensing.motion",
+    "lookout.sensing.rate_gyro",
     "lookout.sensing.combining",
     "lookout.sensing.handling",
     "lookout.observers.passive",
