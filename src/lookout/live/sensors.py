@@ -79,8 +79,9 @@ class LiveSensor:
     name : str
     index : int
         Its place among the suite's instruments.
-    kind : {"position", "heading", "imu"}
-        The readings it takes.
+    kind : {"position", "heading", "imu", "ground_velocity", "water_speed", "rate_of_turn"}
+        The readings it takes (the last four only for an observer that reads each
+        instrument itself).
     source : str
         Its ``source`` key; ``talker`` and ``sender`` as :func:`~lookout.io.nmea.source_spec` reads it.
     columns : slice
