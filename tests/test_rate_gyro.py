@@ -1,6 +1,6 @@
-"""A rate gyro (lookout.sensing.rate_gyro) in a suite: its samples in simulation, its
-ROT sentences read into it live, and a Kalman filter on the suite replaying a log
-lookout write-log wrote with them as it ran in simulation."""
+"""A rate gyro (lookout.sensing.rate_gyro) in a suite: a sample, its ROT sentences read
+into it live, and a Kalman filter on the suite replaying a log lookout write-log wrote
+with them as it ran in simulation (and the simulated samples' noise)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import re
 import tomllib
 import warnings
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -112,18 +111,6 @@ def test_a_bad_value_is_refused_naming_it(options, message):
         RateGyro(**options)
 
 
-def test_the_suites_rate_gyro_measures_the_simulated_yaw_rate():
-    """As the vessel starts a turn to 0.3 rad, the rate gyro's samples less the true yaw rate have the
-    stated white noise's spread (0.0005 rad/s) and no mean."""
-    from lookout.sim.loop import simulate
-
-    scenario = compose(tomllib.loads(SCENARIO)).scenario
-    ds = simulate(scenario, jax.random.key(3)).to_xarray().isel(run=0)
-    error = ds["rot.measured_yaw_rate"].values - ds["yaw_rate"].values
-    assert abs(np.std(error) - 0.0005) < 0.0001 and abs(np.mean(error)) < 0.0002
-    assert np.ptp(ds["yaw_rate"].values) > 0.001  # it turns (0.002 rad/s by 60 s, the turn to 0.3 rad begun)
-
-
 # ---------------------------------------------------------------- live
 def _session() -> Session:
     scenario = compose(tomllib.loads(SCENARIO)).scenario
@@ -154,7 +141,8 @@ def test_a_rot_sentence_reaches_the_rate_gyro_in_radians_per_second():
 def test_the_ekf_replays_a_log_with_rot_as_it_ran_in_simulation(tmp_path, capsys):
     """lookout write-log writes the rate gyro as ROT (three decimals of degrees per
     minute); replayed through the same filter, the estimates follow the simulation's to
-    within 1 mm (measured 6e-5 m: the GGA's and the ROT's rounding), every ROT taken."""
+    within 1 mm (measured 6e-5 m: the GGA's and the ROT's rounding), every ROT taken; the
+    simulated rate gyro has its stated noise about the yaw rate."""
     scenario = tmp_path / "rot.toml"
     scenario.write_text(SCENARIO)
     assert main(["write-log", str(scenario), "--out", str(tmp_path / "log"), "--outage", "none"]) == 0
@@ -189,5 +177,9 @@ def test_the_ekf_replays_a_log_with_rot_as_it_ran_in_simulation(tmp_path, capsys
         assert k.size >= 590 and difference.max() < 1e-3, difference.max()
         taken = np.isfinite(replayed["rot.measured_yaw_rate"].values).sum()
         assert taken >= rows - 20  # the sentences the log corrupted aside (checksum)
+        # the simulated samples: the yaw rate with the stated white noise (0.0005 rad/s), no mean
+        error = simulated["rot.measured_yaw_rate"].values - simulated["yaw_rate"].values
+        assert abs(np.std(error) - 0.0005) < 0.0001 and abs(np.mean(error)) < 0.0002
+        assert np.ptp(simulated["yaw_rate"].values) > 0.001  # it turns (0.002 rad/s by 60 s, the turn to 0.3 rad begun)
         rate = replayed["rot.measured_yaw_rate"].values
         np.testing.assert_allclose(rate[np.isfinite(rate)], simulated["rot.measured_yaw_rate"].values[k][np.isfinite(rate)], atol=3e-7)
