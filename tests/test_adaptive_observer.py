@@ -283,6 +283,7 @@ def test_discrete_form_converges_to_the_continuous_form_at_first_order():
 
 @settings(max_examples=6)
 @given(log_gamma=st.floats(0.0, 16.0), fraction=st.floats(0.0, 1.0))
+@pytest.mark.slow
 def test_theta_hat_never_leaves_its_bounds(log_gamma, fraction):
     """Gamma from 1 to 1e16, theta_hat(0) anywhere in [0.5 m11, 2 m11], an imperfect
     velocity estimate and an exciting input: both forms keep theta_hat in the box

@@ -409,6 +409,7 @@ DESIGNS = {
 
 
 @pytest.mark.parametrize("design", list(DESIGNS))
+@pytest.mark.slow
 def test_every_design_command_prints_and_dumps_one_layout(design, capsys):
     """The same JSON keys (the design, its inputs, then the report's one layout), a block
     per condition with its inequalities, exit code 0 exactly when the report holds; the

@@ -48,6 +48,7 @@ def test_a_run_that_does_not_recover_is_said_so_in_the_table():
     assert "1 of 2 recover" in table and "| x | hull model 25 % off |" in table
 
 
+@pytest.mark.slow
 def test_every_entry_composes_and_loses_both_receivers_over_the_stated_window():
     from lookout.scenario.composition import compose
 
@@ -74,6 +75,7 @@ def test_the_hull_model_error_reaches_the_vessel_and_not_the_observers_models():
     assert float(composed.observer.mass_matrix[0, 0]) * 1.25 == pytest.approx(mass, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_the_changing_environment_reaches_the_vessel_and_not_the_observers_models():
     from lookout.scenario.composition import compose
 
@@ -90,6 +92,7 @@ def test_the_command_refuses_an_output_that_is_no_folder(out, capsys):
     assert "--out" in captured.err + captured.out and "Traceback" not in captured.err
 
 
+@pytest.mark.slow
 def test_the_model_free_observer_leaves_a_suites_imu_out():
     """The model without a hull has no acceleration: the same suite with and without an IMU
     gives it the same estimates, to rounding (the IMU's masked rows change the sizes of the

@@ -66,6 +66,7 @@ def test_a_log_without_thrust_is_refused_with_a_pointer_to_the_observer_without_
     assert "must be a CSV log whose first line is time,surge,sway,yaw" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_thrust_log_that_does_not_cover_the_log_and_a_window_too_long_are_refused_before_the_fit(tmp_path, capsys):
     logs = EXAMPLE / "logs"
     out = tmp_path / "id"

@@ -332,6 +332,7 @@ kind = "passive"
 """
 
 
+@pytest.mark.slow
 def test_a_scenario_file_with_a_grade_loads_and_its_imu_drifts_from_a_stationary_draw():
     """``grade = "tactical"``: the suite's IMU has the grade's turn-on bias and drift, the
     values given win, and the file's spelled-out sensors keep the grade. Run: the

@@ -71,6 +71,7 @@ def _dead_reckoned(period: float) -> tuple[float, float]:
     return position, abs(float(mean[2] - np.asarray(trajectory.truth["heading"])[-1]))
 
 
+@pytest.mark.slow
 def test_the_strapdown_propagation_follows_the_plant_to_first_order():
     """Noise-free IMU at the reference point, exact start: the strapdown propagation of the
     IMU's readings follows the simulated vessel, its error first order in the sample
@@ -89,6 +90,7 @@ def _biased_runs():
     return simulate(compose(document))
 
 
+@pytest.mark.slow
 def test_a_constant_bias_is_estimated():
     """An IMU with 0.02 and -0.015 m/s2 of accelerometer bias and 0.002 rad/s (413 deg/h)
     of gyro bias, white noise 0.01 m/s2 and 0.001 rad/s, aided by a 1 Hz GNSS of 0.5 m
@@ -143,6 +145,7 @@ def test_a_sensor_that_is_not_a_suite_is_refused():
     assert "sensor suite with an IMU" in str(error)
 
 
+@pytest.mark.slow
 def test_the_design_conditions_hold_on_the_example_and_fail_where_they_should():
     """examples/imu-dp.toml satisfies the observer's conditions; an IMU at 5 Hz under a
     10 Hz filter fails the rate condition; without the gyrocompass's row the model is not
@@ -178,6 +181,7 @@ EKF_INITIAL_STD = {
 }
 
 
+@pytest.mark.slow
 def test_acceleration_feedback_estimates_the_imus_biases():
     """The second way to use the IMU: the extended Kalman filter on the vessel's own model
     reads the IMU's specific force as a measurement of the model's acceleration, with the

@@ -388,6 +388,7 @@ def _rotated(heading, arm):
     return np.stack([c * arm[0] - s * arm[1], s * arm[0] + c * arm[1]], axis=-1)
 
 
+@pytest.mark.slow
 def test_each_reference_is_its_fixes_taken_back_with_the_true_heading_less_the_true_position(suite_ds):
     positions, headings = sensor_reference_errors(suite_ds)
     assert [each.name for each in positions] == ["dgnss1", "dgnss2", "hpr", "combined"]

@@ -101,6 +101,7 @@ def turning():
     return noiseless, _dataset(simulate(noiseless.scenario, KEY)), _dataset(simulate(noisy.scenario, KEY))
 
 
+@pytest.mark.slow
 def test_the_run_turns_through_more_than_90_degrees(turning):
     _, ds, _ = turning
     heading = _values(ds, "heading")

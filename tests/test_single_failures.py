@@ -93,6 +93,7 @@ def test_the_table_has_each_case_worst_first_and_its_numbers_are_the_failure_wri
     np.testing.assert_allclose(float(jump["max_tracking:position mean"]), np.mean(expected["max_tracking__position"]), rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_second_run_resumes_the_store_and_computes_nothing(analysis, capsys):
     _, _, rows, argv = analysis
     capsys.readouterr()

@@ -77,6 +77,7 @@ def test_a_scenario_file_written_by_the_reproduction_gives_its_numbers_exactly(t
 
 
 @pytest.mark.parametrize("name", list(REPRODUCTIONS))
+@pytest.mark.slow
 def test_every_reproduction_writes_a_scenario_file_that_loads_and_builds(name, tmp_path):
     reproduction = REPRODUCTIONS[name]
     for case in reproduction.cases:
@@ -561,6 +562,7 @@ def test_the_store_holds_every_metric_of_every_run(reference_store, campaign_fil
     assert code == 0
 
 
+@pytest.mark.slow
 def test_without_trajectories_the_metrics_accumulate_in_the_scan_and_equal_the_reduced_ones(reference_store, campaign_files, tmp_path):
     """No kept trajectories: each chunk runs summarize_batch (no records held); its
     metrics equal those reduced from the records of the reference store's runs."""
